@@ -1,0 +1,51 @@
+// Kinematics: FK of all links, and FK plus the Jacobians of every link, per configuration.
+#include <random>
+
+#include "bench_common.hpp"
+#include "pickplan/robot.hpp"
+
+namespace pickplan::bench {
+namespace {
+
+std::vector<Eigen::VectorXd> random_configurations(const Robot& robot, int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::vector<Eigen::VectorXd> qs;
+  for (int i = 0; i < n; ++i) {
+    Eigen::VectorXd q(robot.dof());
+    for (int j = 0; j < robot.dof(); ++j) {
+      double lo = std::isfinite(robot.lower_limits()[j]) ? robot.lower_limits()[j] : -M_PI;
+      double hi = std::isfinite(robot.upper_limits()[j]) ? robot.upper_limits()[j] : M_PI;
+      q[j] = std::uniform_real_distribution<double>(lo, hi)(rng);
+    }
+    qs.push_back(q);
+  }
+  return qs;
+}
+
+void bench_kinematics(const Options& opt) {
+  Robot robot = Robot::from_urdf_file(opt.urdf);
+  auto qs = random_configurations(robot, opt.samples * 5, 0);
+  RobotWorkspace ws(robot);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, robot.dof());
+  double sink = 0;
+  const int n = static_cast<int>(qs.size());
+  auto fk = time_samples(n, 200, [&](int i) {
+    robot.forward_kinematics(qs[i].data(), ws);
+    sink += ws.link_pose.back().p.x();
+  });
+  report(("FK, all " + std::to_string(robot.num_links()) + " links (per configuration)").c_str(), summarize(fk));
+  auto fkj = time_samples(n, 200, [&](int i) {
+    robot.forward_kinematics(qs[i].data(), ws);
+    for (int l = 0; l < robot.num_links(); ++l) {
+      robot.point_jacobian(ws, l, Eigen::Vector3d::Zero(), J);
+      sink += J(0, 0);
+    }
+  });
+  report("FK + 6xdof Jacobians of all links (per config)", summarize(fkj), "[target <= 1 us]");
+  if (sink == 42.0) std::printf(" ");
+}
+
+Register reg("kinematics", bench_kinematics);
+
+}  // namespace
+}  // namespace pickplan::bench

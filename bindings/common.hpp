@@ -1,0 +1,85 @@
+#pragma once
+// Shared helpers for the pickplan._core bindings: numpy views with shape checks.
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "pickplan/errors.hpp"
+#include "pickplan/robot.hpp"
+
+namespace py = pybind11;
+
+namespace pickplan::bind {
+
+using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using IntArray = py::array_t<int, py::array::c_style | py::array::forcecast>;
+
+inline std::string shape_str(const py::array& a) {
+  std::ostringstream s;
+  s << "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s << (i ? ", " : "") << a.shape(i);
+  s << (a.ndim() == 1 ? ",)" : ")");
+  return s.str();
+}
+
+// Checks a's shape against `shape` (-1 = any size); throws ValueError "what: expected shape (N, 3), got (...)".
+inline void require_shape(const char* what, const py::array& a, std::vector<py::ssize_t> shape,
+                          const char* expected_desc) {
+  bool ok = a.ndim() == static_cast<py::ssize_t>(shape.size());
+  for (size_t i = 0; ok && i < shape.size(); ++i) ok = shape[i] < 0 || a.shape(i) == shape[i];
+  if (!ok) throw std::invalid_argument(std::string(what) + ": expected shape " + expected_desc + ", got " + shape_str(a));
+}
+
+inline void require_finite_array(const char* what, const Array& a) {
+  pickplan::require_finite(what, a.data(), static_cast<long>(a.size()));
+}
+
+// A configuration vector of the robot's size, finite.
+inline Array configuration(const Robot& robot, const Array& q, const char* what = "configuration") {
+  if (q.ndim() != 1) throw std::invalid_argument(std::string(what) + ": expected a 1-D array of " +
+                                                 std::to_string(robot.dof()) + " joint values, got shape " + shape_str(q));
+  robot.check_configuration(q.data(), static_cast<long>(q.shape(0)));
+  return q;
+}
+
+// A (B, dof) batch of finite configurations.
+inline Array configurations(const Robot& robot, const Array& Q, const char* what = "configurations") {
+  std::string desc = "(B, " + std::to_string(robot.dof()) + ")";
+  require_shape(what, Q, {-1, robot.dof()}, desc.c_str());
+  require_finite_array(what, Q);
+  return Q;
+}
+
+inline Eigen::Matrix4d matrix4(const Array& a, const char* what) {
+  require_shape(what, a, {4, 4}, "(4, 4)");
+  Eigen::Matrix4d M;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) M(r, c) = a.at(r, c);
+  pickplan::require_rigid(what, M);
+  return M;
+}
+
+inline void write_matrix4(const Transform& T, double* out) {
+  Eigen::Map<Eigen::Matrix<double, 4, 4, Eigen::RowMajor>> M(out);
+  M = T.matrix();
+}
+
+// A link given by index or by name.
+inline int link_arg(const Robot& robot, const py::object& link) {
+  if (py::isinstance<py::str>(link)) return robot.link_index(link.cast<std::string>());
+  if (py::isinstance<py::int_>(link)) {
+    int i = link.cast<int>();
+    if (i < 0 || i >= robot.num_links())
+      throw std::invalid_argument("link index " + std::to_string(i) + " out of range [0, " +
+                                  std::to_string(robot.num_links()) + ")");
+    return i;
+  }
+  throw std::invalid_argument("link: expected a link name (str) or index (int)");
+}
+
+}  // namespace pickplan::bind

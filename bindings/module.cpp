@@ -1,0 +1,18 @@
+// The single extension module pickplan._core; one init function per area.
+#include "common.hpp"
+
+namespace pickplan::bind {
+void init_robot(py::module_& m);
+}
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "pickplan native core (private: use the pickplan Python modules)";
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const pickplan::FileNotFound& e) {
+      PyErr_SetString(PyExc_FileNotFoundError, e.what());
+    }
+  });
+  pickplan::bind::init_robot(m);
+}
