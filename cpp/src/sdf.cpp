@@ -1,0 +1,132 @@
+// Queries of SdfGrid and SceneSdf: the hot path of CHOMP (no allocation, const, reentrant).
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "pickplan/sdf.hpp"
+
+namespace pickplan {
+
+double SdfGrid::distance(const Eigen::Vector3d& p, Eigen::Vector3d* gradient) const {
+  const Eigen::Vector3d lo = origin_, hi = upper();
+  const Eigen::Vector3d pc = p.cwiseMax(lo).cwiseMin(hi);
+  const Eigen::Vector3d f = (pc - origin_) / resolution_;
+  int i = static_cast<int>(f.x()), j = static_cast<int>(f.y()), k = static_cast<int>(f.z());
+  i = std::min(std::max(i, 0), dims_.x() - 2);
+  j = std::min(std::max(j, 0), dims_.y() - 2);
+  k = std::min(std::max(k, 0), dims_.z() - 2);
+  const double tx = f.x() - i, ty = f.y() - j, tz = f.z() - k;
+  const long sx = 1, sy = dims_.x(), sz = static_cast<long>(dims_.x()) * dims_.y();
+  const float* c = values_.data() + (k * sz + j * sy + i);
+  const double c000 = c[0], c100 = c[sx], c010 = c[sy], c110 = c[sx + sy];
+  const double c001 = c[sz], c101 = c[sx + sz], c011 = c[sy + sz], c111 = c[sx + sy + sz];
+  const double c00 = c000 + tx * (c100 - c000), c10 = c010 + tx * (c110 - c010);
+  const double c01 = c001 + tx * (c101 - c001), c11 = c011 + tx * (c111 - c011);
+  const double c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
+  double d = c0 + tz * (c1 - c0);
+  const Eigen::Vector3d out = p - pc;
+  const double out_n2 = out.squaredNorm();
+  if (gradient) {
+    const double dx = (1 - tz) * ((1 - ty) * (c100 - c000) + ty * (c110 - c010)) +
+                      tz * ((1 - ty) * (c101 - c001) + ty * (c111 - c011));
+    const double dy = (1 - tz) * (c10 - c00) + tz * (c11 - c01);
+    const double dz = c1 - c0;
+    *gradient = Eigen::Vector3d(dx, dy, dz) / resolution_;
+  }
+  if (out_n2 > 0) {
+    // Exact derivative of value(clamp(p)) + |p - clamp(p)|: clamped axes follow the outward term.
+    const double out_n = std::sqrt(out_n2);
+    if (gradient) {
+      for (int a = 0; a < 3; ++a)
+        if (out[a] != 0) (*gradient)[a] = 0;
+      *gradient += out / out_n;
+    }
+    d += out_n;
+  }
+  return d;
+}
+
+double box_signed_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& h, Eigen::Vector3d* gradient) {
+  const Eigen::Vector3d q = p.cwiseAbs() - h;
+  const Eigen::Vector3d qpos = q.cwiseMax(0.0);
+  const double outside = qpos.norm();
+  if (outside > 0) {
+    if (gradient) {
+      *gradient = qpos / outside;
+      for (int a = 0; a < 3; ++a)
+        if (p[a] < 0) (*gradient)[a] = -(*gradient)[a];
+    }
+    return outside;
+  }
+  int axis = 0;
+  q.maxCoeff(&axis);
+  if (gradient) {
+    gradient->setZero();
+    (*gradient)[axis] = p[axis] < 0 ? -1.0 : 1.0;
+  }
+  return q[axis];
+}
+
+int SceneSdf::add_object(std::shared_ptr<const SdfGrid> grid, const Transform& pose) {
+  if (!grid) throw std::invalid_argument("SceneSdf: null grid");
+  if (bodies_.size() >= 63) throw std::invalid_argument("SceneSdf: at most 63 objects (exclusion masks are 64-bit)");
+  Body b;
+  b.grid = std::move(grid);
+  b.pose = pose;
+  b.inverse = pose.inverse();
+  b.lo = b.grid->surface_lo();
+  b.hi = b.grid->surface_hi();
+  bodies_.push_back(std::move(b));
+  return static_cast<int>(bodies_.size()) - 1;
+}
+
+void SceneSdf::set_table(const Eigen::Vector3d& size, const Transform& pose) {
+  if ((size.array() <= 0).any() || !size.allFinite()) throw std::invalid_argument("SceneSdf: table size must be positive");
+  has_table_ = true;
+  table_half_ = size / 2;
+  table_pose_ = pose;
+  table_inverse_ = pose.inverse();
+}
+
+double SceneSdf::distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
+                          std::uint64_t exclude_mask) const {
+  double best = cutoff;
+  Eigen::Vector3d best_grad = Eigen::Vector3d::Zero();
+  Eigen::Vector3d g;
+  const int n = static_cast<int>(bodies_.size());
+  for (int i = 0; i < n; ++i) {
+    if (exclude_mask >> i & 1) continue;
+    const Body& b = bodies_[i];
+    const Eigen::Vector3d xl = b.inverse.apply(x);
+    // The surface box holds the mesh: a point farther from it than the current best (or the
+    // cutoff) cannot be closer to this object.
+    const double box_gap2 = (xl - xl.cwiseMax(b.lo).cwiseMin(b.hi)).squaredNorm();
+    if (box_gap2 > 0 && (best <= 0 || box_gap2 >= best * best)) continue;
+    const double d = b.grid->distance(xl, gradient ? &g : nullptr);
+    if (d < best) {
+      best = d;
+      if (gradient) best_grad.noalias() = b.pose.R * g;
+    }
+  }
+  if (has_table_ && !(exclude_mask & kTableBit)) {
+    const double d = box_signed_distance(table_inverse_.apply(x), table_half_, gradient ? &g : nullptr);
+    if (d < best) {
+      best = d;
+      if (gradient) best_grad.noalias() = table_pose_.R * g;
+    }
+  }
+  if (gradient) *gradient = best_grad;
+  return best;
+}
+
+void SceneSdf::distances(const double* points, long n, double* dist, double* grad, double cutoff,
+                         std::uint64_t exclude_mask) const {
+  Eigen::Vector3d g;
+  for (long i = 0; i < n; ++i) {
+    const Eigen::Map<const Eigen::Vector3d> x(points + 3 * i);
+    dist[i] = distance(x, grad ? &g : nullptr, cutoff, exclude_mask);
+    if (grad) Eigen::Map<Eigen::Vector3d>(grad + 3 * i) = g;
+  }
+}
+
+}  // namespace pickplan
