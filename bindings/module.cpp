@@ -4,6 +4,7 @@
 namespace pickplan::bind {
 void init_robot(py::module_& m);
 void init_sdf(py::module_& m);
+void init_chomp(py::module_& m);
 }
 
 PYBIND11_MODULE(_core, m) {
@@ -17,4 +18,5 @@ PYBIND11_MODULE(_core, m) {
   });
   pickplan::bind::init_robot(m);
   pickplan::bind::init_sdf(m);
+  pickplan::bind::init_chomp(m);
 }

@@ -134,7 +134,7 @@ py::list collision_geometries(const Robot& robot, const py::object& link) {
 }  // namespace
 
 void init_robot(py::module_& m) {
-  py::class_<Robot>(m, "Robot", "Immutable kinematic tree loaded from URDF.")
+  py::class_<Robot, std::shared_ptr<Robot>>(m, "Robot", "Immutable kinematic tree loaded from URDF.")
       .def_static("from_urdf_file", &Robot::from_urdf_file, py::arg("path"), py::arg("package_dirs") = std::vector<std::string>{},
                   py::call_guard<py::gil_scoped_release>())
       .def_static("from_urdf_string", &Robot::from_urdf_string, py::arg("xml"), py::arg("base_dir"),

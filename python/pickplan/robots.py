@@ -123,6 +123,18 @@ class Robot:
         """World positions (T, N, 3) of body points along a trajectory Q (T, dof)."""
         return self._native.transform_points(Q, body.links, body.points)
 
+    def moving_links(self) -> list:
+        """Indices of links moved by at least one joint (the fixed base chain is excluded)."""
+        parents, q_index = self._native.link_parents, self._native.link_q_index
+        moving = []
+        for i in range(len(parents)):
+            k = i
+            while k >= 0 and q_index[k] < 0:
+                k = parents[k]
+            if k >= 0:
+                moving.append(i)
+        return moving
+
     def clip_to_limits(self, q) -> np.ndarray:
         return np.clip(np.asarray(q, dtype=float), self.lower_limits, self.upper_limits)
 
@@ -149,14 +161,15 @@ class Robot:
                            links: Optional[Sequence[LinkRef]] = None) -> BodyPoints:
         """Sample ``per_link`` points and normals on each link's collision surface (seeded).
 
-        Links without collision geometry contribute no points.
+        By default every link that moves (``moving_links``); links without collision geometry
+        contribute no points.
         """
         if per_link < 1:
             raise ValueError(f"per_link must be >= 1, got {per_link}")
         import trimesh
 
         rng = np.random.default_rng(seed)
-        chosen = range(len(self.link_names)) if links is None else [self.link_index(l) for l in links]
+        chosen = self.moving_links() if links is None else [self.link_index(l) for l in links]
         all_links, all_pts, all_nrm = [], [], []
         for li in chosen:
             mesh = self.collision_meshes(li)

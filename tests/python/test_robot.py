@@ -198,8 +198,9 @@ def test_body_points_lie_on_link_meshes_and_are_seeded(panda):
     c = panda.sample_body_points(per_link=20, seed=12)
     np.testing.assert_array_equal(a.points, b.points)
     assert not np.array_equal(a.points, c.points)
-    # panda_link8 and panda_grasptarget have no collision geometry; the 11 others get 20 points each.
-    assert len(a) == 11 * 20
+    # The fixed base (panda_link0) is excluded; link8 and grasptarget have no collision geometry.
+    assert panda.link_names[0] not in [panda.link_names[i] for i in panda.moving_links()]
+    assert len(a) == 10 * 20 and 0 not in set(a.links.tolist())
     np.testing.assert_allclose(np.linalg.norm(a.normals, axis=1), 1.0, atol=1e-9)
     hand = panda.link_index("panda_hand")
     mesh = panda.collision_meshes(hand)

@@ -1,0 +1,264 @@
+#include "pickplan/chomp.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/Cholesky>
+
+#include "pickplan/errors.hpp"
+
+namespace pickplan {
+
+namespace {
+constexpr int kMaxPrecomputedTail = 16;
+}
+
+ChompWorkspace::ChompWorkspace(const ChompProblem& p)
+    : fk(p.settings().n + 1, RobotWorkspace(p.robot())),
+      x((p.settings().n + 1) * p.body().size(), 3),
+      grad_d((p.settings().n + 1) * p.body().size(), 3),
+      d((p.settings().n + 1) * p.body().size()),
+      term(static_cast<size_t>(p.settings().n) * p.body().size()),
+      grad(p.settings().n, p.robot().dof()),
+      u(p.settings().n, p.robot().dof()),
+      J(3, p.robot().dof()) {
+  order.reserve(term.size());
+}
+
+ChompProblem::ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<const SceneSdf> scene, BodyPoints body,
+                           ChompSettings settings)
+    : robot_(std::move(robot)), scene_(std::move(scene)), body_(std::move(body)), settings_(std::move(settings)) {
+  if (!robot_ || !scene_) throw std::invalid_argument("CHOMP: robot and scene must not be null");
+  const auto& s = settings_;
+  if (s.n < 2) throw std::invalid_argument("CHOMP settings: n must be >= 2, got " + std::to_string(s.n));
+  if (!(s.duration > 0) || !(s.step_size > 0) || !(s.epsilon > 0) || !(s.lambda >= 0))
+    throw std::invalid_argument("CHOMP settings: duration, step_size and epsilon must be > 0 and lambda >= 0");
+  if (s.top_k < 0 || s.obstacle_tail < 0 || s.obstacle_tail > s.n)
+    throw std::invalid_argument("CHOMP settings: top_k >= 0 and 0 <= obstacle_tail <= n required");
+  if (!s.active.empty()) require_size("CHOMP settings: active joint mask", robot_->dof(), static_cast<long>(s.active.size()), "entries");
+  require_size("body points: links", body_.points.rows(), static_cast<long>(body_.link.size()), "entries");
+  for (int l : body_.link)
+    if (l < 0 || l >= robot_->num_links()) throw std::invalid_argument("body points: link index " + std::to_string(l) + " out of range");
+  require_finite("body points", body_.points.data(), body_.points.size());
+  dt_ = s.duration / s.n;
+  // A = K^T K with K the first-difference matrix scaled by 1/dt: tridiagonal, last diagonal a.
+  const double a = 1.0 / (dt_ * dt_);
+  chol_diag_.resize(s.n);
+  chol_sub_.resize(s.n);
+  for (int i = 0; i < s.n; ++i) {
+    const double diag = (i == s.n - 1) ? a : 2 * a;
+    chol_sub_[i] = i == 0 ? 0.0 : -a / chol_diag_[i - 1];
+    chol_diag_[i] = std::sqrt(diag - chol_sub_[i] * chol_sub_[i]);
+  }
+  const int max_m = std::min(s.n, kMaxPrecomputedTail);
+  for (int m = 1; m <= max_m; ++m) {
+    Trajectory E = Trajectory::Zero(s.n, m), X(s.n, m);
+    for (int j = 0; j < m; ++j) E(s.n - m + j, j) = 1.0;
+    solve_A(E, X);
+    const Eigen::MatrixXd S = X.bottomRows(m);
+    projectors_.push_back(X * S.inverse());
+  }
+}
+
+void ChompProblem::solve_A(const Trajectory& v, Trajectory& out) const {
+  const int n = settings_.n;
+  out.resize(v.rows(), v.cols());
+  out.row(0) = v.row(0) / chol_diag_[0];
+  for (int i = 1; i < n; ++i) out.row(i) = (v.row(i) - chol_sub_[i] * out.row(i - 1)) / chol_diag_[i];
+  out.row(n - 1) /= chol_diag_[n - 1];
+  for (int i = n - 2; i >= 0; --i) out.row(i) = (out.row(i) - chol_sub_[i + 1] * out.row(i + 1)) / chol_diag_[i];
+}
+
+Eigen::MatrixXd ChompProblem::A_matrix() const {
+  const int n = settings_.n;
+  const double a = 1.0 / (dt_ * dt_);
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+  for (int i = 0; i < n; ++i) {
+    A(i, i) = i == n - 1 ? a : 2 * a;
+    if (i > 0) A(i, i - 1) = A(i - 1, i) = -a;
+  }
+  return A;
+}
+
+const Eigen::MatrixXd& ChompProblem::projector(int m) const {
+  if (m < 1 || m > static_cast<int>(projectors_.size()))
+    throw std::invalid_argument("CHOMP goal: expected 1 to " + std::to_string(projectors_.size()) + " goal rows, got " +
+                                std::to_string(m));
+  return projectors_[m - 1];
+}
+
+void ChompProblem::check_trajectory(const Trajectory& xi, const Eigen::VectorXd& q0) const {
+  if (xi.rows() != settings_.n || xi.cols() != robot_->dof()) {
+    std::ostringstream msg;
+    msg << "trajectory: expected shape (" << settings_.n << ", " << robot_->dof() << "), got (" << xi.rows() << ", "
+        << xi.cols() << ")";
+    throw std::invalid_argument(msg.str());
+  }
+  require_finite("trajectory", xi.data(), xi.size());
+  robot_->check_configuration(q0.data(), q0.size());
+}
+
+void ChompProblem::mask_inactive(Trajectory& g) const {
+  if (settings_.active.empty()) return;
+  for (int j = 0; j < robot_->dof(); ++j)
+    if (!settings_.active[j]) g.col(j).setZero();
+}
+
+double ChompProblem::prior(const Trajectory& xi, const Eigen::VectorXd& q0, Trajectory* grad) const {
+  const int n = settings_.n;
+  const double inv_dt2 = 1.0 / (dt_ * dt_);
+  double f = 0;
+  if (grad) grad->setZero(n, robot_->dof());
+  for (int t = 0; t < n; ++t) {
+    const Eigen::RowVectorXd diff = t == 0 ? Eigen::RowVectorXd(xi.row(0) - q0.transpose()) : Eigen::RowVectorXd(xi.row(t) - xi.row(t - 1));
+    f += 0.5 * diff.squaredNorm() * inv_dt2;
+    if (grad) {
+      grad->row(t) += diff * inv_dt2;
+      if (t > 0) grad->row(t - 1) -= diff * inv_dt2;
+    }
+  }
+  return f;
+}
+
+ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorXd& q0, Trajectory* grad,
+                                      ChompWorkspace& ws) const {
+  const int n = settings_.n, N = body_.size();
+  const double eps = settings_.epsilon;
+  ObjectiveTerms out;
+  for (int t = 0; t <= n; ++t) {
+    robot_->forward_kinematics(t == 0 ? q0.data() : xi.row(t - 1).data(), ws.fk[t]);
+    for (int u = 0; u < N; ++u)
+      ws.x.row(t * N + u) = ws.fk[t].link_pose[body_.link[u]].apply(body_.points.row(u).transpose()).transpose();
+  }
+  scene_->distances(ws.x.data(), (n + 1) * N, ws.d.data(), ws.grad_d.data(), eps, settings_.exclude_mask);
+  ws.order.clear();
+  const int last_t = n - settings_.obstacle_tail;
+  const double inv_dt = 1.0 / dt_;
+  for (int t = 1; t <= n; ++t)
+    for (int u = 0; u < N; ++u) {
+      const int i = (t - 1) * N + u;
+      ws.term[i] = 0;
+      if (t > last_t) continue;
+      const double d = ws.d[t * N + u];
+      if (d >= eps) continue;
+      if (d < 0) ++out.colliding_points;
+      const double c = chomp_cost(d, eps, nullptr);
+      ws.term[i] = c * (ws.x.row(t * N + u) - ws.x.row((t - 1) * N + u)).norm() * inv_dt;
+      if (ws.term[i] > 0) ws.order.push_back(i);
+    }
+  const int k = settings_.top_k;
+  if (k > 0 && static_cast<int>(ws.order.size()) > k) {
+    std::nth_element(ws.order.begin(), ws.order.begin() + k, ws.order.end(), [&](int a, int b) {
+      return ws.term[a] != ws.term[b] ? ws.term[a] > ws.term[b] : a < b;
+    });
+    ws.order.resize(k);
+  }
+  for (int i : ws.order) out.obstacle += ws.term[i];
+  if (!grad) return out;
+  Trajectory& g = ws.u;  // reuse as the obstacle-gradient accumulator
+  g.setZero(n, robot_->dof());
+  for (int i : ws.order) {
+    const int t = i / N + 1, u = i % N, link = body_.link[u];
+    const double d = ws.d[t * N + u];
+    double dc;
+    const double c = chomp_cost(d, eps, &dc);
+    const Eigen::Vector3d xt = ws.x.row(t * N + u).transpose(), xp = ws.x.row((t - 1) * N + u).transpose();
+    const Eigen::Vector3d delta = xt - xp;
+    const double len = delta.norm();
+    if (len < 1e-12) continue;
+    const Eigen::Vector3d dir = delta / len;
+    const Eigen::Vector3d gt = (dc * len * ws.grad_d.row(t * N + u).transpose() + c * dir) * inv_dt;
+    robot_->position_jacobian_world(ws.fk[t], link, xt, ws.J);
+    g.row(t - 1).noalias() += (ws.J.transpose() * gt).transpose();
+    if (t >= 2) {
+      robot_->position_jacobian_world(ws.fk[t - 1], link, xp, ws.J);
+      g.row(t - 2).noalias() -= (ws.J.transpose() * (c * inv_dt * dir)).transpose();
+    }
+  }
+  if (settings_.clip_gradient > 0) g = g.cwiseMax(-settings_.clip_gradient).cwiseMin(settings_.clip_gradient);
+  *grad += g;
+  return out;
+}
+
+ObjectiveTerms ChompProblem::objective(const Trajectory& xi, const Eigen::VectorXd& q0, int iteration, Trajectory* grad,
+                                       ChompWorkspace& ws) const {
+  const double lambda = settings_.lambda * std::pow(settings_.lambda_growth, iteration);
+  ObjectiveTerms out;
+  out.prior = prior(xi, q0, grad);
+  if (grad) *grad *= lambda;
+  const ObjectiveTerms obs = obstacle(xi, q0, grad, ws);
+  out.obstacle = obs.obstacle;
+  out.colliding_points = obs.colliding_points;
+  out.total = out.obstacle + lambda * out.prior;
+  return out;
+}
+
+void ChompProblem::project_limits(Trajectory& xi, int m, ChompWorkspace& ws, StepInfo& info) const {
+  const Eigen::VectorXd& lo = robot_->lower_limits();
+  const Eigen::VectorXd& hi = robot_->upper_limits();
+  const Eigen::MatrixXd& M = projector(m);
+  Trajectory& v = ws.grad;
+  for (int it = 0; it < settings_.joint_limit_steps; ++it) {
+    for (int r = 0; r < xi.rows(); ++r)
+      for (int c = 0; c < xi.cols(); ++c)
+        v(r, c) = xi(r, c) < lo[c] ? lo[c] - xi(r, c) : (xi(r, c) > hi[c] ? hi[c] - xi(r, c) : 0.0);
+    v.bottomRows(m).setZero();  // the pinned tail is the goal's business
+    mask_inactive(v);
+    Eigen::Index r, c;
+    const double worst = v.cwiseAbs().maxCoeff(&r, &c);
+    if (worst < 1e-9) return;
+    // Smooth correction through A^-1, keeping the tail where it is.
+    solve_A(v, ws.u);
+    ws.u.noalias() -= M * ws.u.bottomRows(m);
+    const double scale = std::abs(ws.u(r, c)) > 1e-12 ? worst / std::abs(ws.u(r, c)) : 0.0;
+    xi.noalias() += scale * ws.u;
+    ++info.limit_projections;
+  }
+}
+
+StepInfo ChompProblem::step(Trajectory& xi, const Eigen::VectorXd& q0, const Trajectory* goal, int iteration,
+                            ChompWorkspace& ws) const {
+  check_trajectory(xi, q0);
+  StepInfo info;
+  Trajectory& grad = ws.grad;
+  info.before = objective(xi, q0, iteration, &grad, ws);
+  mask_inactive(grad);
+  solve_A(grad, ws.u);
+  const int m = goal ? static_cast<int>(goal->rows()) : 1;
+  const Eigen::MatrixXd& M = projector(m);
+  const double s = settings_.step_size;
+  // eq. 7: unconstrained step, its component that would move the tail removed, then the offset
+  // that puts the tail exactly on the goal.
+  Trajectory delta = -s * ws.u;
+  delta.noalias() += s * (M * ws.u.bottomRows(m));
+  if (goal) {
+    if (goal->cols() != robot_->dof()) throw std::invalid_argument("CHOMP goal: expected " + std::to_string(robot_->dof()) + " columns");
+    require_finite("CHOMP goal", goal->data(), goal->size());
+    delta.noalias() -= M * (xi.bottomRows(m) - *goal);
+  }
+  xi += delta;
+  project_limits(xi, m, ws, info);
+  info.goal_error = goal ? (xi.bottomRows(m) - *goal).cwiseAbs().maxCoeff() : 0.0;
+  return info;
+}
+
+ChompResult ChompProblem::optimize(Trajectory xi, const Eigen::VectorXd& q0, const Trajectory& goal, int iterations) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  ChompWorkspace ws(*this);
+  ChompResult res;
+  for (int i = 0; i < iterations; ++i) {
+    StepInfo info = step(xi, q0, &goal, i, ws);
+    res.objective.push_back(info.before.total);
+  }
+  res.final_terms = objective(xi, q0, iterations, nullptr, ws);
+  res.xi = std::move(xi);
+  res.iterations = iterations;
+  res.status = "ok";
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace pickplan

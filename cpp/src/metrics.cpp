@@ -1,0 +1,55 @@
+#include "pickplan/metrics.hpp"
+
+#include <limits>
+#include <stdexcept>
+
+namespace pickplan {
+
+Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int steps) {
+  if (steps < 2) throw std::invalid_argument("interpolate: steps must be >= 2");
+  const int n = static_cast<int>(xi.rows());
+  Trajectory out(steps, xi.cols());
+  for (int s = 0; s < steps; ++s) {
+    const double pos = static_cast<double>(s) * n / (steps - 1);
+    const int i = std::min(static_cast<int>(pos), n - 1);
+    const double f = pos - i;
+    const Eigen::RowVectorXd a = i == 0 ? Eigen::RowVectorXd(q0.transpose()) : Eigen::RowVectorXd(xi.row(i - 1));
+    out.row(s) = (1 - f) * a + f * xi.row(i);
+  }
+  return out;
+}
+
+TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
+                                      const MetricSettings& s) {
+  problem.check_trajectory(xi, q0);
+  TrajectoryMetrics m;
+  m.smoothness = problem.prior(xi, q0, nullptr);
+  const Trajectory dense = interpolate(q0, xi, s.steps);
+  const Robot& robot = problem.robot();
+  const BodyPoints& body = problem.body();
+  const SceneSdf& scene = problem.scene();
+  std::uint64_t all_objects = 0;
+  for (int i = 0; i < scene.num_objects(); ++i) all_objects |= std::uint64_t{1} << i;
+  RobotWorkspace ws(robot);
+  const double inf = std::numeric_limits<double>::infinity();
+  m.min_clearance = inf;
+  m.min_table_clearance = inf;
+  Eigen::Vector3d g;
+  for (int t = 0; t < dense.rows(); ++t) {
+    robot.forward_kinematics(dense.row(t).data(), ws);
+    for (int u = 0; u < body.size(); ++u) {
+      const Eigen::Vector3d x = ws.link_pose[body.link[u]].apply(body.points.row(u).transpose());
+      const double d_obj = scene.distance(x, nullptr, inf, s.exclude_mask | SceneSdf::kTableBit);
+      const double d_table = scene.has_table() ? scene.distance(x, nullptr, inf, all_objects) : inf;
+      m.min_clearance = std::min(m.min_clearance, d_obj);
+      m.min_table_clearance = std::min(m.min_table_clearance, d_table);
+      const double d = std::min(d_obj, d_table);
+      if (d < s.collision_padding) m.collision += chomp_cost(d, s.epsilon, nullptr);
+    }
+  }
+  m.collision_free = m.min_clearance >= s.clearance && m.min_table_clearance >= s.table_clearance;
+  m.success = m.collision_free && m.smoothness < s.smoothness_threshold;
+  return m;
+}
+
+}  // namespace pickplan
