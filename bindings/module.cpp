@@ -3,6 +3,7 @@
 
 namespace pickplan::bind {
 void init_robot(py::module_& m);
+void init_collision(py::module_& m);
 }
 
 PYBIND11_MODULE(_core, m) {
@@ -15,4 +16,5 @@ PYBIND11_MODULE(_core, m) {
     }
   });
   pickplan::bind::init_robot(m);
+  pickplan::bind::init_collision(m);
 }
