@@ -299,8 +299,11 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
   double d = dres.min_distance;
   Eigen::Vector3d pl = dres.nearest_points[0], po = dres.nearest_points[1];
   if (d <= 1e-12) {
-    // Touching or intersecting: the depth estimate comes from the contacts.
-    fcl::CollisionRequestd creq(64, true);
+    // Touching or intersecting. FCL's contacts carry a usable depth only against the solid
+    // table box (per triangle, by MPR); for two triangle surfaces the per-triangle-pair
+    // "depths" say nothing about the bodies, so the value stays 0 (touching or intersecting).
+    const bool table = p.kind == OtherKind::Table;
+    fcl::CollisionRequestd creq(table ? 64 : 1, true);
     fcl::CollisionResultd cres;
     fcl::collide(lg.bvh.get(), tf_link, other, tf_other, creq, cres);
     if (cres.isCollision()) {
@@ -312,7 +315,7 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
           pl = po = c.pos;
         }
       }
-      d = -depth;
+      d = table ? -depth : 0.0;
     } else {
       d = std::max(d, 0.0);
     }

@@ -11,8 +11,9 @@ False
 
 Link meshes are the robot's collision meshes in the link frames (``robot.collision_meshes``),
 object meshes are triangle surfaces, the table is a solid box. Distances are exact when apart
-and <= 0 in collision (minus FCL's contact penetration estimate). See ``cpp/include/pickplan/
-collision.hpp`` for the precise semantics.
+and <= 0 in collision: minus a lower bound of the penetration (the deepest triangle's depth
+against the table, 0 for intersecting meshes, minus the surface gap for a mesh contained in
+another). See ``cpp/include/pickplan/collision.hpp`` for the precise semantics.
 """
 from __future__ import annotations
 
@@ -79,7 +80,7 @@ class Contact:
     link: str
     other: str
     kind: str                 # "object", "table" or "link"
-    distance: float           # signed: < 0 penetrating (estimate), > 0 separation (exact)
+    distance: float           # > 0 separation (exact); <= 0 in collision (see the module docstring)
     point_link: np.ndarray    # world coordinates
     point_other: np.ndarray
 

@@ -130,6 +130,10 @@ TEST(Collision, BoxToBoxDistancesMatchClosedForm) {
     EXPECT_NEAR(near[0].point_link.x(), 0.1, 1e-9);
     EXPECT_NEAR(near[0].point_other.x(), 0.1 + g, 1e-9);
   }
+  // Overlap of two meshes: in collision, distance 0 (FCL has no mesh-mesh penetration depth).
+  CollisionChecker over(r, root_box_only(r), {{"cube", TriangleMesh::box({0.1, 0.1, 0.1}), translation(0.14, 0.02, 0.0)}});
+  EXPECT_TRUE(over.in_collision(Eigen::VectorXd::Zero(r.dof())));
+  EXPECT_EQ(over.min_distance(Eigen::VectorXd::Zero(r.dof())), 0.0);
   // A cube rotated 45 degrees about z: its edge reaches half-size * sqrt(2) towards the root box.
   const double h = 0.05, g = 0.03;
   CollisionChecker rot(r, root_box_only(r),
@@ -176,7 +180,8 @@ TEST(Collision, TableBoxDistanceAndPenetration) {
   EXPECT_EQ(cs[0].link, "l0");
   EXPECT_EQ(cs[0].other, "table");
   EXPECT_EQ(cs[0].kind, OtherKind::Table);
-  EXPECT_LT(cs[0].distance, 0.0);
+  EXPECT_NEAR(cs[0].distance, -0.01, 1e-6);  // FCL's triangle-vs-box depth is exact here
+  EXPECT_NEAR(cs[0].point_link.z(), cs[0].point_other.z(), 1e-12);
 }
 
 TEST(Collision, ContainmentCountsAsCollision) {

@@ -10,8 +10,10 @@
 // solid box. Two surfaces collide when triangles intersect; with `detect_containment` a mesh
 // lying entirely inside a closed mesh (no triangle crossing) also counts, found by a
 // generalized-winding-number test. Distances are exact separations between the surfaces
-// when apart; when in collision they are <= 0: minus FCL's largest contact penetration depth
-// (a per-triangle estimate, 0 when touching), or minus the surface distance for containment.
+// when apart. In collision they are <= 0 but not a full penetration depth (which would be
+// more negative): against the table, minus the largest per-triangle penetration depth (FCL,
+// MPR); for two intersecting meshes 0 (FCL has no penetration depth for mesh pairs); for a
+// mesh contained in another, minus the gap between the two surfaces.
 // in_collision(q) is true when any checked pair collides or is closer than `margin`.
 #include <memory>
 #include <string>
@@ -62,7 +64,7 @@ struct ContactInfo {
   std::string link;    // robot link
   std::string other;   // object name, "table" or link name
   OtherKind kind = OtherKind::Object;
-  double distance = 0;  // signed (see the header comment)
+  double distance = 0;  // signed: > 0 apart (exact), <= 0 in collision (see the header comment)
   Eigen::Vector3d point_link = Eigen::Vector3d::Zero();   // world; a contact point when colliding
   Eigen::Vector3d point_other = Eigen::Vector3d::Zero();  // world; nearest point otherwise
 };
