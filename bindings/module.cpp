@@ -5,6 +5,7 @@ namespace pickplan::bind {
 void init_robot(py::module_& m);
 void init_sdf(py::module_& m);
 void init_chomp(py::module_& m);
+void init_collision(py::module_& m);
 }
 
 PYBIND11_MODULE(_core, m) {
@@ -19,4 +20,5 @@ PYBIND11_MODULE(_core, m) {
   pickplan::bind::init_robot(m);
   pickplan::bind::init_sdf(m);
   pickplan::bind::init_chomp(m);
+  pickplan::bind::init_collision(m);
 }
