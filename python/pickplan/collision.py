@@ -100,11 +100,13 @@ class CollisionChecker:
     """
 
     def __init__(self, robot: Robot, objects: Sequence[SceneMesh] = (), table: Optional[Table] = None,
-                 settings: CollisionSettings = CollisionSettings(), convex_links: bool = False):
+                 settings: CollisionSettings = CollisionSettings(), convex_links: bool = False,
+                 links: Optional[Sequence[str]] = None):
+        """``links``: check only these links (default: every link with collision geometry)."""
         self.robot = robot
         self.settings = settings
         link_meshes = []
-        for name in robot.link_names:
+        for name in (robot.link_names if links is None else links):
             mesh = robot.collision_meshes(name)
             if mesh is None:
                 continue

@@ -1,0 +1,103 @@
+#include "pickplan/goal_set.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+
+namespace pickplan {
+
+GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
+                       const std::vector<Transform>& hand_poses,
+                       const Eigen::VectorXd& start, const GoalSetSettings& s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (s.standoff_steps < 0 || s.standoff < 0 || s.max_goals < 1 || s.diversity < 0)
+    throw std::invalid_argument("goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1 required");
+  const Robot& robot = ik.robot();
+  robot.check_configuration(start.data(), start.size());
+  const int d = robot.dof(), m = s.standoff_steps + 1;
+  GoalSet out;
+  out.reasons.assign(hand_poses.size(), "");
+  std::vector<Trajectory> tails;
+  std::vector<int> index;
+  std::unique_ptr<CollisionWorkspace> cws = checker ? std::make_unique<CollisionWorkspace>(*checker) : nullptr;
+  auto collides = [&](const Eigen::VectorXd& q) { return checker && checker->in_collision(q.data(), *cws); };
+  // The hand checker holds only the links the grasp pose places rigidly (hand, fingers): when
+  // they collide, every arm configuration reaching this grasp collides too.
+  std::unique_ptr<CollisionWorkspace> hws = hand_checker ? std::make_unique<CollisionWorkspace>(*hand_checker) : nullptr;
+  auto hand_collides = [&](const Eigen::VectorXd& q) { return hand_checker && hand_checker->in_collision(q.data(), *hws); };
+  for (size_t g = 0; g < hand_poses.size(); ++g) {
+    // Seeds in order (start first): the first solution that is collision-free and has a
+    // feasible approach chain wins. Lazy, so reachable grasps cost one or two descents.
+    std::string reason = "unreachable";
+    std::vector<Eigen::VectorXd> tried;
+    for (int k = 0; k < ik.settings().num_seeds; ++k) {
+      const IkSolution sol = ik.solve(hand_poses[g], ik.seed_configuration(k, start));
+      if (!sol.converged) continue;
+      bool seen = false;
+      for (const auto& q : tried) seen = seen || (q - sol.q).cwiseAbs().maxCoeff() < ik.settings().duplicate_tolerance;
+      if (seen) continue;
+      tried.push_back(sol.q);
+      if (static_cast<int>(tried.size()) > s.max_solutions) break;
+      if (collides(sol.q)) {
+        reason = "in_collision";
+        if (hand_collides(sol.q)) break;
+        continue;
+      }
+      Trajectory tail(m, d);
+      tail.row(m - 1) = sol.q.transpose();
+      bool ok = true;
+      for (int k2 = m - 2; k2 >= 0 && ok; --k2) {
+        Transform pre = hand_poses[g];
+        const double back = s.standoff * static_cast<double>(m - 1 - k2) / std::max(1, m - 1);
+        pre.p -= back * pre.R.col(2);  // back off along the approach axis
+        const IkSolution step = ik.solve(pre, tail.row(k2 + 1).transpose());
+        if (!step.converged || (step.q.transpose() - tail.row(k2 + 1)).cwiseAbs().maxCoeff() > s.max_joint_jump) {
+          ok = false;
+          reason = "standoff_unreachable";
+        } else if (collides(step.q)) {
+          ok = false;
+          reason = "standoff_in_collision";
+        } else {
+          tail.row(k2) = step.q.transpose();
+        }
+      }
+      if (ok) {
+        reason = "ok";
+        tails.push_back(std::move(tail));
+        index.push_back(static_cast<int>(g));
+        break;
+      }
+    }
+    out.reasons[g] = reason;
+  }
+  // Diversity: drop goals too close to one already kept (in input order, deterministic).
+  std::vector<int> kept;
+  for (size_t i = 0; i < tails.size(); ++i) {
+    bool dup = false;
+    for (int k : kept)
+      if ((tails[i].row(m - 1) - tails[k].row(m - 1)).cwiseAbs().maxCoeff() < s.diversity) dup = true;
+    if (dup) out.reasons[index[i]] = "duplicate";
+    else kept.push_back(static_cast<int>(i));
+  }
+  if (static_cast<int>(kept.size()) > s.max_goals) {
+    std::mt19937 rng(s.seed);
+    std::vector<int> shuffled = kept;
+    std::shuffle(shuffled.begin(), shuffled.end(), rng);
+    for (size_t i = s.max_goals; i < shuffled.size(); ++i) out.reasons[index[shuffled[i]]] = "over_cap";
+    shuffled.resize(s.max_goals);
+    std::sort(shuffled.begin(), shuffled.end());
+    kept = shuffled;
+  }
+  out.goals.resize(kept.size(), d);
+  for (size_t i = 0; i < kept.size(); ++i) {
+    out.goals.row(i) = tails[kept[i]].row(m - 1);
+    out.tails.push_back(tails[kept[i]]);
+    out.grasp_index.push_back(index[kept[i]]);
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace pickplan

@@ -1,0 +1,83 @@
+"""One scene, prepared for planning: the robot at its base, object models, the scene SDF,
+body points and FCL collision checkers. Built once per scene; immutable afterwards."""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from . import collision, objects, robots, sdf
+from .scenes import Scene
+
+
+@dataclass(frozen=True)
+class WorldSettings:
+    sdf: sdf.SdfSettings = field(default_factory=sdf.SdfSettings)
+    body_points_per_link: int = 20   # the paper samples 20 points per body part
+    body_seed: int = 0
+
+
+class World:
+    """Planning view of a ``Scene``: ``robot``, ``models``, ``sdf`` (SceneSdf), ``body`` points,
+    ``checker(kind)`` (FCL; "goal" lets the fingers touch the target, "strict" does not)."""
+
+    def __init__(self, scene: Scene, settings: WorldSettings = WorldSettings(),
+                 library: Optional[objects.ObjectLibrary] = None):
+        self.scene = scene
+        self.settings = settings
+        self.robot = robots.panda(np.asarray(scene.robot_base, dtype=float))
+        self.models = {}
+        for o in scene.objects:
+            self.models[o.name] = library.get(o.name) if library is not None and o.name in library \
+                else objects.model_from_source(o.name, o.source)
+        grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf), o.pose) for o in scene.objects]
+        self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
+        self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
+        scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
+
+    @property
+    def target(self) -> str:
+        return self.scene.target
+
+    @property
+    def target_pose(self) -> np.ndarray:
+        return np.asarray(self.scene.object(self.target).pose, dtype=float)
+
+    @property
+    def target_model(self) -> objects.ObjectModel:
+        return self.models[self.target]
+
+    @property
+    def start(self) -> np.ndarray:
+        q = self.scene.robot_configuration
+        return np.asarray(q, dtype=float) if len(q) else self.robot.ready_configuration
+
+    def scene_meshes(self):
+        return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
+
+    @functools.lru_cache(maxsize=4)
+    def checker(self, kind: str = "goal") -> collision.CollisionChecker:
+        """FCL checker against objects and table. "goal": the fingers may touch the target
+        (grasp configurations close around it); "hand": the same for the hand and fingers alone;
+        "strict": nothing may touch anything;
+        "obstacles": the target is ignored entirely (trajectory validation)."""
+        fingers = self.robot.finger_links
+        # The base is mounted on the table: links that never move always touch it.
+        moving = set(self.robot.moving_links())
+        mounted = tuple((name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving)
+        links = None
+        if kind in ("goal", "hand"):
+            settings = collision.CollisionSettings(allowed_pairs=mounted + tuple((f, self.target) for f in fingers))
+            if kind == "hand":  # only what the grasp pose places: hand and fingers
+                links = (self.robot.hand_link,) + tuple(fingers)
+        elif kind == "strict":
+            settings = collision.CollisionSettings(allowed_pairs=mounted)
+        elif kind == "obstacles":
+            settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
+        else:
+            raise ValueError(f"unknown checker kind {kind!r}; use 'goal', 'hand', 'strict' or 'obstacles'")
+        table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
+                                pose=np.asarray(self.scene.table.pose, dtype=float))
+        return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links)
