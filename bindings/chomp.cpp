@@ -163,6 +163,26 @@ void init_chomp(py::module_& m) {
         d["seconds"] = r.seconds;
         return d;
       }, py::arg("xi"), py::arg("q0"), py::arg("goal"), py::arg("iterations"))
+      .def("goal_costs", [](const ChompProblem& p, const Array& xi, const Array& q0, int iteration, int horizon,
+                            const Array& goals, int time_stride, int point_stride, ChompWorkspace* ws) {
+        Trajectory X = traj_arg(p, xi, "trajectory");
+        Eigen::VectorXd q = q_arg(p, q0);
+        const std::string desc = "(G, " + std::to_string(p.robot().dof()) + ")";
+        require_shape("goals", goals, {-1, p.robot().dof()}, desc.c_str());
+        require_finite_array("goals", goals);
+        Trajectory G = Eigen::Map<const Trajectory>(goals.data(), goals.shape(0), goals.shape(1));
+        py::array_t<double> out(G.rows());
+        double* o = out.mutable_data();
+        {
+          py::gil_scoped_release release;
+          std::unique_ptr<ChompWorkspace> own;
+          if (!ws) ws = (own = std::make_unique<ChompWorkspace>(p)).get();
+          p.goal_costs(X, q, iteration, horizon, G, time_stride, point_stride, o, *ws);
+        }
+        return out;
+      }, py::arg("xi"), py::arg("q0"), py::arg("iteration"), py::arg("horizon"), py::arg("goals"),
+         py::arg("time_stride") = 1, py::arg("point_stride") = 1, py::arg("workspace") = nullptr,
+         "OMG goal-cost estimates (unnormalized) of a constant-velocity tail from xi(t_i) to each goal.")
       .def("metrics", [](const ChompProblem& p, const Array& xi, const Array& q0, const MetricSettings& s) {
         Trajectory X = traj_arg(p, xi, "trajectory");
         Eigen::VectorXd q = q_arg(p, q0);

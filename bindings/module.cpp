@@ -7,6 +7,7 @@ void init_sdf(py::module_& m);
 void init_chomp(py::module_& m);
 void init_collision(py::module_& m);
 void init_ik(py::module_& m);
+void init_isf(py::module_& m);
 }
 
 PYBIND11_MODULE(_core, m) {
@@ -23,4 +24,5 @@ PYBIND11_MODULE(_core, m) {
   pickplan::bind::init_chomp(m);
   pickplan::bind::init_collision(m);
   pickplan::bind::init_ik(m);
+  pickplan::bind::init_isf(m);
 }

@@ -14,6 +14,7 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from . import _core
+from .paths import assets_dir  # noqa: F401  (re-exported: robots.assets_dir)
 
 LinkRef = Union[int, str]
 
@@ -224,12 +225,3 @@ def panda(base_pose: Optional[np.ndarray] = None) -> Panda:
     path = panda_urdf_path()
     robot = Panda(_core.Robot.from_urdf_file(path, []), urdf_path=path)
     return robot if base_pose is None else robot.with_base(base_pose)
-
-
-def assets_dir() -> str:
-    """Folder of the files pickplan authors (installed inside the package, or the source tree)."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    for cand in (os.path.join(here, "assets"), os.path.join(here, "..", "..", "assets")):
-        if os.path.isdir(cand):
-            return os.path.abspath(cand)
-    raise FileNotFoundError(f"pickplan assets folder not found next to {here}")

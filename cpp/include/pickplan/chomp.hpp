@@ -107,6 +107,13 @@ class ChompProblem {
 
   void check_trajectory(const Trajectory& xi, const Eigen::VectorXd& q0) const;
 
+  // Goal-cost estimates of OMG Sec. III-D: for each goal g (row), the tail from xi(t_i),
+  // t_i = iteration / horizon, to g at constant velocity, and its f = f_obstacle + lambda_i
+  // f_prior (obstacle terms on every time_stride-th waypoint and point_stride-th body point,
+  // rescaled, so estimates can be subsampled). Unnormalized; out has goals.rows() entries.
+  void goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, int iteration, int horizon, const Trajectory& goals,
+                  int time_stride, int point_stride, double* out, ChompWorkspace& ws) const;
+
  private:
   const Eigen::MatrixXd& projector(int m) const;  // M = A^-1 C^T (C A^-1 C^T)^-1 for a tail of m rows
   void project_limits(Trajectory& xi, int m, ChompWorkspace& ws, StepInfo& info) const;

@@ -1,0 +1,22 @@
+"""Pick-up on the move (Thakar et al., Sec. IV): moving-gripper grasp simulation, SVM active
+learning of the grasping success boundary and the success-probability meta-model
+rho_sigma(S_g, S_c) used by the trajectory NLP.
+
+Pure Python (numpy, pybullet, scikit-learn, scipy); never imports pickplan._core.
+matplotlib is needed only for compare.plot_comparison.
+"""
+from .active import ActiveConfig, BoundaryResult, PoseDomain, learn_boundary, learn_random
+from .metamodel import (DEFAULT_LEVELS, BoundaryModel, BuildConfig, MetaModel, SigmaLevel,
+                        build_metamodel, success_probability)
+from .parallel import SimRunner, run_batch
+from .parts import PARTS, GraspStrategy, Part, get_part
+from .sim import GraspOutcome, SimConfig, simulate_grasp
+from .surface import RhoSurface, fit_rho_surface
+
+__all__ = [
+    "ActiveConfig", "BoundaryResult", "PoseDomain", "learn_boundary", "learn_random",
+    "DEFAULT_LEVELS", "BoundaryModel", "BuildConfig", "MetaModel", "SigmaLevel",
+    "build_metamodel", "success_probability", "SimRunner", "run_batch", "PARTS",
+    "GraspStrategy", "Part", "get_part", "GraspOutcome", "SimConfig", "simulate_grasp",
+    "RhoSurface", "fit_rho_surface",
+]

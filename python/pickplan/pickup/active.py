@@ -1,0 +1,369 @@
+"""SVM active learning of the grasping success boundary (GSB) for one (S_g, S_c) pair
+(Sec. IV-A of Thakar et al.).
+
+The learner works in the normalized pose space [-1, 1]^3 (see PoseDomain) and only needs a
+labelling function, so it runs the same on the physics simulation and on cheap synthetic
+oracles. Loop: a few initial samples and a uniform held-out set; then rounds that mix
+exploration (random candidates, keeping those farthest from every existing sample) and
+exploitation (midpoints of nearest pairs of support vectors with opposite labels, which lie
+near the boundary by the maximal-margin property). The share of exploitation rises when the
+accuracy improves and falls when it drops. Stop when the held-out accuracy reaches the target
+(balanced, so a tiny success region counts) and successive classifiers agree, for `patience`
+rounds, or when the simulation budget is spent.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+from scipy.spatial import cKDTree
+from sklearn.svm import SVC
+
+
+@dataclass(frozen=True)
+class PoseDomain:
+    """Pose offsets (x, y [m], phi [rad]) mapped to [-1, 1]^3 by dividing by the bounds.
+    Offsets beyond the bounds are outside the model; queries there count as failures."""
+
+    r_max: float = 0.05
+    phi_max: float = math.pi / 3
+
+    @property
+    def scale(self) -> np.ndarray:
+        return np.array([self.r_max, self.r_max, self.phi_max])
+
+    def to_offsets(self, u) -> np.ndarray:
+        return np.asarray(u, dtype=float) * self.scale
+
+    def to_normalized(self, offsets) -> np.ndarray:
+        return np.asarray(offsets, dtype=float) / self.scale
+
+
+@dataclass(frozen=True)
+class ActiveConfig:
+    n_init: int = 30
+    n_holdout: int = 40
+    batch_size: int = 20
+    budget: int = 300  # simulations per boundary, held-out set included
+    accuracy_target: float = 0.95
+    stability_target: float = 0.99  # agreement of successive classifiers on probe points
+    patience: int = 2
+    min_rounds: int = 3
+    exploit_weight: float = 0.5  # start with equal exploration and exploitation
+    weight_step: float = 0.1
+    weight_bounds: tuple = (0.2, 0.9)
+    svm_c: float = 100.0  # initial hyperparameters; re-selected by cross-validation
+    svm_gamma: float = 2.0
+    c_grid: tuple = (10.0, 100.0, 1000.0)
+    gamma_grid: tuple = (1.0, 3.0, 10.0, 30.0)
+    select_every: int = 3  # rounds between hyperparameter selections
+    n_candidates: int = 2000
+    n_probe: int = 2000
+    known_margin: float = 1.0  # decision value beyond which a lower-S_c success is trusted
+    # Where the meta-model is queried: poses ~ N(0, focus_scale^2) in normalized units
+    # (0.25 ~ the highest modelled uncertainty). The held-out set, the probe points and part
+    # of the initial and exploration samples come from it, so accuracy is measured where it
+    # matters rather than in far corners of the domain that are plain failures.
+    focus_scale: float = 0.25
+    focus_fraction: float = 0.5
+
+
+class _Constant:
+    """Stand-in classifier while only one label has been seen."""
+
+    def __init__(self, label: bool):
+        self.label = bool(label)
+        self.support_ = np.zeros(0, dtype=int)
+
+    def decision_function(self, X):
+        return np.full(len(X), 1.0 if self.label else -1.0)
+
+
+def fit_svm(X, y, c: float, gamma: float):
+    """RBF SVC on success labels (decision > 0 means success); deterministic."""
+    y = np.asarray(y, dtype=bool)
+    if y.all() or (~y).all():
+        return _Constant(y[0] if len(y) else False)
+    clf = SVC(kernel="rbf", C=c, gamma=gamma, class_weight="balanced")
+    clf.fit(np.asarray(X, dtype=float), y.astype(int))
+    return clf
+
+
+def select_svm_params(X, y, c_grid, gamma_grid, seed: int = 0, folds: int = 5):
+    """(C, gamma) with the best k-fold accuracy; ties go to the smoother (smaller gamma,
+    then smaller C) model. The GSB's scale varies a lot with the speeds (a thin slab at high
+    S_g, a wide region at low S_g), so one fixed kernel width does not fit every pair."""
+    from sklearn.model_selection import StratifiedKFold, cross_val_score
+
+    y = np.asarray(y, dtype=bool)
+    n_min = int(min(y.sum(), (~y).sum()))
+    if n_min < 2:
+        return None
+    cv = StratifiedKFold(n_splits=min(folds, n_min), shuffle=True, random_state=seed)
+    best, best_acc = None, -1.0
+    for gamma in sorted(gamma_grid):
+        for c in sorted(c_grid):
+            clf = SVC(kernel="rbf", C=c, gamma=gamma, class_weight="balanced")
+            acc = float(np.mean(cross_val_score(clf, X, y.astype(int), cv=cv)))
+            if acc > best_acc + 1e-9:
+                best, best_acc = (float(c), float(gamma)), acc
+    return best
+
+
+def balanced_accuracy(pred, y) -> float:
+    """Mean recall over the classes present: a tiny success region cannot be 'learned' by
+    predicting failure everywhere."""
+    pred, y = np.asarray(pred, bool), np.asarray(y, bool)
+    recalls = [float(np.mean(pred[y == c] == c)) for c in (True, False) if np.any(y == c)]
+    return float(np.mean(recalls)) if recalls else 1.0
+
+
+def predict(model, X) -> np.ndarray:
+    return model.decision_function(np.asarray(X, dtype=float)) > 0
+
+
+@dataclass
+class BoundaryResult:
+    """Samples and classifier of one GSB. `simulated` marks samples that cost a simulation
+    (the others were labelled free from S_c monotonicity)."""
+
+    X: np.ndarray
+    y: np.ndarray
+    simulated: np.ndarray
+    model: object
+    n_simulations: int
+    converged: bool
+    history: list = field(default_factory=list)
+    svm_c: float = 100.0
+    svm_gamma: float = 2.0
+
+    @property
+    def n_free(self) -> int:
+        return int((~self.simulated).sum())
+
+
+def _nearest_dist(P, X) -> np.ndarray:
+    if len(X) == 0:
+        return np.full(len(P), np.inf)
+    d2 = ((P[:, None, :] - X[None, :, :]) ** 2).sum(-1)
+    return np.sqrt(d2.min(axis=1))
+
+
+def _greedy_farthest(cands, existing, k) -> np.ndarray:
+    """Pick k candidates one by one, each farthest from existing + already picked points."""
+    if k <= 0 or len(cands) == 0:
+        return np.zeros((0, 3))
+    d = _nearest_dist(cands, existing)
+    picked = []
+    for _ in range(min(k, len(cands))):
+        i = int(np.argmax(d))
+        picked.append(cands[i])
+        d = np.minimum(d, np.sqrt(((cands - cands[i]) ** 2).sum(-1)))
+    return np.asarray(picked)
+
+
+def sample_focus(rng, n, focus_scale, focus_fraction) -> np.ndarray:
+    """Mixture of N(0, focus_scale^2) (clipped to the domain) and uniform points."""
+    n_f = int(round(focus_fraction * n))
+    g = np.clip(rng.normal(0.0, focus_scale, size=(n_f, 3)), -1.0, 1.0)
+    u = rng.uniform(-1.0, 1.0, size=(n - n_f, 3))
+    return np.vstack([g, u])
+
+
+def explore(rng, X, k, n_candidates, focus_scale=0.25, focus_fraction=0.0) -> np.ndarray:
+    """Random samples biased toward regions with few samples (farthest-point selection
+    among random candidates drawn from the focus mixture)."""
+    cands = sample_focus(rng, max(n_candidates, k), focus_scale, focus_fraction)
+    return _greedy_farthest(cands, X, k)
+
+
+def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02) -> np.ndarray:
+    """Midpoints of pairs of support vectors with opposite labels (each SV with its nearest
+    opposite SV). Shortest pairs first, since they straddle the boundary most tightly;
+    midpoints closer than min_spacing to a sample are skipped; jittered midpoints (spread
+    ~ a quarter of the pair length) fill up when there are too few."""
+    if k <= 0:
+        return np.zeros((0, 3))
+    sv = np.asarray(getattr(model, "support_", []), dtype=int)
+    pos, neg = sv[y[sv]], sv[~y[sv]]
+    if len(pos) == 0 or len(neg) == 0:
+        return explore(rng, X, k, n_candidates, 0.25, 0.5)
+    P, N = X[pos], X[neg]
+    d2 = ((P[:, None, :] - N[None, :, :]) ** 2).sum(-1)
+    pairs = {(i, int(np.argmin(d2[i]))) for i in range(len(P))}
+    pairs |= {(int(np.argmin(d2[:, j])), j) for j in range(len(N))}
+    pairs = sorted(pairs, key=lambda ij: (d2[ij], ij))
+    mids = np.array([(P[i] + N[j]) / 2 for i, j in pairs])
+    lens = np.sqrt(np.array([d2[ij] for ij in pairs]))
+    picked = []
+    existing = X
+    for m in mids:
+        if _nearest_dist(m[None], existing)[0] >= min_spacing:
+            picked.append(m)
+            existing = np.vstack([existing, m])
+            if len(picked) == k:
+                return np.asarray(picked)
+    need = k - len(picked)
+    src = rng.integers(0, len(mids), size=need)
+    jit = mids[src] + rng.normal(size=(need, 3)) * (0.25 * lens[src] + 0.01)[:, None]
+    return np.vstack([np.asarray(picked).reshape(-1, 3), np.clip(jit, -1.0, 1.0)])
+
+
+def boundary_cloud(model, resolution: int = 33) -> np.ndarray:
+    """Points on the decision surface f = 0 inside [-1, 1]^3: linear interpolation of the
+    zero crossings along every grid edge."""
+    g = np.linspace(-1.0, 1.0, resolution)
+    G = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
+    F = model.decision_function(G.reshape(-1, 3)).reshape(G.shape[:3])
+    pts = []
+    for ax in range(3):
+        a = [slice(None)] * 3
+        b = [slice(None)] * 3
+        a[ax], b[ax] = slice(0, -1), slice(1, None)
+        fa, fb = F[tuple(a)], F[tuple(b)]
+        cross = (fa > 0) != (fb > 0)
+        if not cross.any():
+            continue
+        t = fa[cross] / (fa[cross] - fb[cross])
+        pa, pb = G[tuple(a)][cross], G[tuple(b)][cross]
+        pts.append(pa + t[:, None] * (pb - pa))
+    return np.vstack(pts) if pts else np.zeros((0, 3))
+
+
+def success_depth(model, U, tree) -> np.ndarray:
+    U = np.asarray(U, float).reshape(-1, 3)
+    inside = model.decision_function(U) > 0
+    if tree is False or tree is None:
+        return np.where(inside, np.inf, -np.inf)
+    d, _ = tree.query(U)
+    return np.where(inside, d, -d)
+
+
+KnownFn = Callable[[np.ndarray], tuple]
+
+
+def known_from_lower_sc(model, margin: float) -> KnownFn:
+    """Monotonicity in S_c (Sec. IV): a grasp that succeeds at some S_c also succeeds at a
+    higher S_c. Points deep inside the lower-S_c success region (decision >= margin) are
+    labelled success without a simulation."""
+
+    def known(X):
+        mask = model.decision_function(np.asarray(X, dtype=float)) >= margin
+        return mask, np.ones(len(X), dtype=bool)
+
+    return known
+
+
+def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveConfig = ActiveConfig(),
+                   seed: int = 0, known_fn: Optional[KnownFn] = None) -> BoundaryResult:
+    """Actively learn a GSB. label_fn maps normalized poses (n, 3) to bool successes."""
+    if config.budget < config.n_init + config.n_holdout + 1:
+        raise ValueError(f"budget {config.budget} must exceed n_init + n_holdout "
+                         f"({config.n_init + config.n_holdout})")
+    rng = np.random.default_rng(seed)
+    n_sims = 0
+
+    def query(P):
+        nonlocal n_sims
+        labels = np.zeros(len(P), dtype=bool)
+        known = np.zeros(len(P), dtype=bool)
+        if known_fn is not None and len(P):
+            known, kl = known_fn(P)
+            labels[known] = kl[known]
+        todo = ~known
+        if todo.any():
+            labels[todo] = np.asarray(label_fn(P[todo]), dtype=bool)
+            n_sims += int(todo.sum())
+        return labels, todo
+
+    fs, ff = config.focus_scale, config.focus_fraction
+    # Initial samples: the nominal pose, a stratified (Latin hypercube) design over the
+    # domain and points from the focus Gaussian.
+    n_g = int(round(ff * (config.n_init - 1)))
+    n = config.n_init - 1 - n_g
+    lhs = (np.stack([rng.permutation(n) for _ in range(3)], 1) + rng.uniform(size=(n, 3))) / n
+    X = np.vstack([np.zeros((1, 3)), 2 * lhs - 1, sample_focus(rng, n_g, fs, 1.0)])
+    y, sim = query(X)
+    H = sample_focus(rng, config.n_holdout, fs, ff)
+    yh, simh = query(H)
+    probe = sample_focus(rng, config.n_probe, fs, ff)
+    params = (config.svm_c, config.svm_gamma)
+
+    def refit(rnd):
+        nonlocal params
+        if rnd % config.select_every == 0:
+            params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed) or params
+        return fit_svm(X, y, *params)
+
+    model = refit(0)
+    prev_probe = predict(model, probe)
+    w = config.exploit_weight
+    prev_acc = balanced_accuracy(predict(model, H), yh)
+    both_classes = bool(yh.any() and (~yh).any())
+    history, streak, converged = [], 0, False
+    max_rounds = 4 * config.budget // config.batch_size  # free labels do not spend budget
+    for rnd in range(max_rounds):
+        k = min(config.batch_size, config.budget - n_sims)
+        if k <= 0:
+            break
+        n_exploit = int(round(w * k))
+        Pe = exploit(rng, model, X, y, n_exploit, config.n_candidates)
+        Pr = explore(rng, np.vstack([X, Pe]) if len(Pe) else X, k - len(Pe),
+                     config.n_candidates, fs, ff)
+        P = np.vstack([Pe, Pr])
+        before = predict(model, P)
+        yp, simp = query(P)
+        # Out-of-sample overreach: how deep inside the current success region the newly
+        # simulated failures lie (evidence for D_FT, see metamodel.estimate_dft).
+        over = before & ~yp & simp
+        overreach = []
+        if over.any():
+            pts = boundary_cloud(model)
+            tree = cKDTree(pts) if len(pts) else False
+            sd = success_depth(model, P[over], tree)
+            overreach = [float(d) for d in sd if np.isfinite(d) and d > 0]
+        X, y, sim = np.vstack([X, P]), np.concatenate([y, yp]), np.concatenate([sim, simp])
+        model = refit(rnd + 1)
+        acc_hold = balanced_accuracy(predict(model, H), yh)
+        acc_batch = float(np.mean(before == yp))
+        now_probe = predict(model, probe)
+        agreement = float(np.mean(now_probe == prev_probe))
+        prev_probe = now_probe
+        acc = 0.5 * (acc_hold + acc_batch)
+        if acc > prev_acc:
+            w = min(w + config.weight_step, config.weight_bounds[1])
+        elif acc < prev_acc:
+            w = max(w - config.weight_step, config.weight_bounds[0])
+        prev_acc = acc
+        history.append({"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
+                        "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch,
+                        "agreement": agreement, "exploit_weight": w,
+                        "overreach": overreach})
+        ok = (both_classes and rnd + 1 >= config.min_rounds
+              and acc_hold >= config.accuracy_target and agreement >= config.stability_target)
+        streak = streak + 1 if ok else 0
+        if streak >= config.patience:
+            converged = True
+            break
+    # The final GSB uses every labelled sample, held-out ones included.
+    X, y, sim = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
+    model = refit(0)
+    return BoundaryResult(X=X, y=y, simulated=sim, model=model, n_simulations=n_sims,
+                          converged=converged, history=history, svm_c=params[0],
+                          svm_gamma=params[1])
+
+
+def learn_random(label_fn, n_samples: int, config: ActiveConfig = ActiveConfig(),
+                 seed: int = 0) -> BoundaryResult:
+    """Baseline: uniform random samples, same classifier, same budget."""
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(-1.0, 1.0, size=(n_samples, 3))
+    y = np.asarray(label_fn(X), dtype=bool)
+    params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed)
+    params = params or (config.svm_c, config.svm_gamma)
+    model = fit_svm(X, y, *params)
+    return BoundaryResult(X=X, y=y, simulated=np.ones(n_samples, dtype=bool), model=model,
+                          n_simulations=n_samples, converged=False, svm_c=params[0],
+                          svm_gamma=params[1])

@@ -1,0 +1,334 @@
+"""Success-probability meta-model rho_sigma(S_g, S_c) (Sec. IV-B of Thakar et al.).
+
+For each (S_g, S_c) on a grid, a GSB is learned actively (active.py) from simulations
+(sim.py). The success depth SD of a pose is its distance, in the normalized pose space, from
+the GSB into the success region; the failure threshold distance D_FT is estimated from the
+data: how deep simulated failures reached inside the classifier's success region. The
+probability of success for a pose uncertainty sigma = (sigma_r, sigma_phi) is the fraction
+of Monte-Carlo poses from N(0, sigma) with SD >= D_FT. The grid of probabilities is turned
+into a conservative analytic surface (surface.py), saved to JSON with all samples.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .active import (ActiveConfig, PoseDomain, boundary_cloud, fit_svm, known_from_lower_sc,
+                     learn_boundary, success_depth)
+from .parallel import SimRunner, sample_seeds
+from .parts import get_part
+from .sim import SimConfig
+from .surface import RhoSurface, fit_rho_surface
+
+FORMAT = "pickplan.pickup.metamodel"
+VERSION = 1
+
+
+@dataclass(frozen=True)
+class SigmaLevel:
+    name: str
+    sigma_r: float  # m, standard deviation in x and y
+    sigma_phi: float  # rad
+
+
+DEFAULT_LEVELS = (
+    SigmaLevel("low", 0.002, math.radians(5)),
+    SigmaLevel("medium", 0.007, math.radians(10)),
+    SigmaLevel("high", 0.012, math.radians(15)),
+)
+
+
+def check_sigma(sigma_r: float, sigma_phi: float) -> None:
+    for name, s in (("sigma_r", sigma_r), ("sigma_phi", sigma_phi)):
+        if not (isinstance(s, (int, float, np.floating)) and math.isfinite(s) and s > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {s!r}")
+
+
+class BoundaryModel:
+    """One GSB: the labelled samples, the SVM refitted from them, the boundary as a point
+    cloud (zero crossings of the decision function on a grid) and D_FT."""
+
+    def __init__(self, s_g, s_c, X, y, simulated, svm_c, svm_gamma, d_ft=None,
+                 history=None, converged=False, resolution=33, dft_floor=0.02,
+                 dft_quantile=0.5):
+        self.s_g, self.s_c = float(s_g), float(s_c)
+        self.X = np.asarray(X, float).reshape(-1, 3)
+        self.y = np.asarray(y, bool)
+        self.simulated = np.asarray(simulated, bool)
+        self.svm_c, self.svm_gamma = float(svm_c), float(svm_gamma)
+        self.history = list(history or [])
+        self.converged = bool(converged)
+        self.resolution = int(resolution)
+        self.model = fit_svm(self.X, self.y, self.svm_c, self.svm_gamma)
+        self._tree = None
+        self.d_ft = float(d_ft) if d_ft is not None else estimate_dft(self, dft_floor,
+                                                                        dft_quantile)
+
+    @property
+    def n_simulations(self) -> int:
+        return int(self.simulated.sum())
+
+    def decision(self, U) -> np.ndarray:
+        return self.model.decision_function(np.asarray(U, float))
+
+    def boundary_points(self) -> np.ndarray:
+        return boundary_cloud(self.model, self.resolution)
+
+    def success_depth(self, U) -> np.ndarray:
+        """Signed distance to the GSB in normalized pose space: > 0 inside the success
+        region, < 0 in the failure region (+-inf when the GSB is empty)."""
+        return success_depth(self.model, U, self._kdtree())
+
+    def _kdtree(self):
+        if self._tree is None:
+            pts = self.boundary_points()
+            self._tree = cKDTree(pts) if len(pts) else False
+        return self._tree
+
+    def to_dict(self) -> dict:
+        return {"s_g": self.s_g, "s_c": self.s_c, "X": self.X.tolist(),
+                "y": self.y.astype(int).tolist(), "simulated": self.simulated.astype(int).tolist(),
+                "svm_c": self.svm_c, "svm_gamma": self.svm_gamma, "d_ft": self.d_ft,
+                "converged": self.converged, "history": self.history,
+                "resolution": self.resolution}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "BoundaryModel":
+        return cls(d["s_g"], d["s_c"], d["X"], d["y"], d["simulated"], d["svm_c"],
+                   d["svm_gamma"], d_ft=d["d_ft"], history=d.get("history"),
+                   converged=d.get("converged", False), resolution=d.get("resolution", 33))
+
+
+def estimate_dft(bm: "BoundaryModel", floor: float = 0.02, quantile: float = 0.5,
+                 last_rounds: int = 3) -> float:
+    """D_FT from the data, the larger of two depths (normalized units), at least `floor`
+    (0.02 = 1 mm / 1.2 deg):
+      * out of sample: in the last `last_rounds` rounds of active learning, the deepest
+        that a newly simulated failure lay inside the success region of the classifier of
+        the time (how far the classifier still overreaches);
+      * in sample: the `quantile` of the success depths of simulated failures that the
+        final classifier puts inside (physics noise at the boundary).
+    (A k-fold estimate was tried: refitting without the boundary samples moves the GSB so
+    much that D_FT became 5-15 mm and rho far too pessimistic.)"""
+    y, sim = bm.y, bm.simulated
+    if y.all() or (~y).all():
+        return float(floor)
+    depth = float(floor)
+    recent = [d for h in bm.history[-last_rounds:] for d in h.get("overreach", [])]
+    if recent:
+        depth = max(depth, float(np.max(recent)))
+    sd = bm.success_depth(bm.X[sim & ~y])
+    sd = sd[np.isfinite(sd) & (sd > 0)]
+    if len(sd):
+        depth = max(depth, float(np.quantile(sd, quantile)))
+    return depth
+
+
+def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
+                        domain: PoseDomain = PoseDomain(), n_queries: int = 20000,
+                        seed: int = 0) -> float:
+    """Fraction of poses from N(0, diag(sigma_r, sigma_r, sigma_phi)) with SD >= D_FT.
+    Poses outside the modelled domain count as failures (conservative)."""
+    check_sigma(sigma_r, sigma_phi)
+    if n_queries < 1:
+        raise ValueError(f"n_queries must be >= 1, got {n_queries}")
+    z = np.random.default_rng(seed).standard_normal((n_queries, 3))
+    U = domain.to_normalized(z * np.array([sigma_r, sigma_r, sigma_phi]))
+    ok = np.all(np.abs(U) <= 1.0, axis=1)
+    sd = np.full(n_queries, -np.inf)
+    if ok.any():
+        sd[ok] = bm.success_depth(U[ok])
+    return float(np.mean(sd >= bm.d_ft))
+
+
+@dataclass
+class BuildConfig:
+    sg_grid: tuple = (0.1, 0.2, 0.3, 0.4, 0.5)
+    sc_grid: tuple = (0.05, 0.1, 0.15)
+    levels: tuple = DEFAULT_LEVELS
+    active: ActiveConfig = field(default_factory=ActiveConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+    domain: PoseDomain = field(default_factory=PoseDomain)
+    n_queries: int = 20000
+    use_sc_monotonicity: bool = True
+    dft_floor: float = 0.02
+    dft_quantile: float = 0.5
+    surface_degree: tuple = (3, 2)
+
+    @classmethod
+    def quick(cls) -> "BuildConfig":
+        """A few minutes of CPU at most: 2 x 2 grid, small budgets."""
+        return cls(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.15),
+                   active=ActiveConfig(n_init=16, n_holdout=16, batch_size=12, budget=80),
+                   n_queries=4000)
+
+
+class MetaModel:
+    """The meta-model of one part and grasping strategy: GSBs on the speed grid, the
+    probability grids and surfaces for the built sigma levels. Query with rho()."""
+
+    def __init__(self, part_name, sg_grid, sc_grid, boundaries, levels, rho_grids, surfaces,
+                 domain=PoseDomain(), n_queries=20000, surface_degree=(3, 2), info=None):
+        self.part_name = part_name
+        self.sg_grid = tuple(float(s) for s in sg_grid)
+        self.sc_grid = tuple(float(s) for s in sc_grid)
+        self.boundaries = boundaries  # {(i, j): BoundaryModel}
+        self.levels = list(levels)
+        self.rho_grids = dict(rho_grids)  # level name -> (n_g, n_c)
+        self.surfaces = dict(surfaces)  # level name -> RhoSurface
+        self.domain = domain
+        self.n_queries = int(n_queries)
+        self.surface_degree = tuple(surface_degree)
+        self.info = dict(info or {})
+
+    def level(self, sigma_r: float, sigma_phi: float):
+        for lv in self.levels:
+            if math.isclose(lv.sigma_r, sigma_r, rel_tol=1e-9) and \
+                    math.isclose(lv.sigma_phi, sigma_phi, rel_tol=1e-9):
+                return lv
+        return None
+
+    def surface(self, sigma_r: float, sigma_phi: float) -> RhoSurface:
+        """The surface for this sigma; built (and cached) from the GSBs if new."""
+        check_sigma(sigma_r, sigma_phi)
+        lv = self.level(sigma_r, sigma_phi)
+        if lv is None:
+            lv = SigmaLevel(f"sigma_{sigma_r:g}_{sigma_phi:g}", float(sigma_r), float(sigma_phi))
+            self.rho_grids[lv.name] = self.probability_grid(sigma_r, sigma_phi)
+            self.surfaces[lv.name] = fit_rho_surface(self.sg_grid, self.sc_grid,
+                                                     self.rho_grids[lv.name], self.surface_degree)
+            self.levels.append(lv)
+        return self.surfaces[lv.name]
+
+    def probability_grid(self, sigma_r: float, sigma_phi: float) -> np.ndarray:
+        """Monte-Carlo success probabilities on the speed grid (common random numbers)."""
+        out = np.zeros((len(self.sg_grid), len(self.sc_grid)))
+        for (i, j), bm in self.boundaries.items():
+            out[i, j] = success_probability(bm, sigma_r, sigma_phi, self.domain, self.n_queries)
+        return out
+
+    def rho(self, s_g, s_c, sigma_r: float, sigma_phi: float):
+        return self.surface(sigma_r, sigma_phi)(s_g, s_c)
+
+    def rho_gradient(self, s_g, s_c, sigma_r: float, sigma_phi: float):
+        return self.surface(sigma_r, sigma_phi).gradient(s_g, s_c)
+
+    def to_dict(self) -> dict:
+        return {
+            "format": FORMAT, "version": VERSION, "part": self.part_name,
+            "sg_grid": list(self.sg_grid), "sc_grid": list(self.sc_grid),
+            "domain": asdict(self.domain), "n_queries": self.n_queries,
+            "surface_degree": list(self.surface_degree), "info": self.info,
+            "levels": [{**asdict(lv), "rho_grid": np.asarray(self.rho_grids[lv.name]).tolist(),
+                        "surface": self.surfaces[lv.name].to_dict()} for lv in self.levels],
+            "boundaries": [{"i": i, "j": j, **bm.to_dict()}
+                           for (i, j), bm in sorted(self.boundaries.items())],
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "MetaModel":
+        if d.get("format") != FORMAT:
+            raise ValueError(f"not a pickplan meta-model (format={d.get('format')!r})")
+        if d.get("version") != VERSION:
+            raise ValueError(f"unsupported meta-model version {d.get('version')!r}")
+        levels, grids, surfaces = [], {}, {}
+        for lv in d["levels"]:
+            s = SigmaLevel(lv["name"], lv["sigma_r"], lv["sigma_phi"])
+            levels.append(s)
+            grids[s.name] = np.asarray(lv["rho_grid"], float)
+            surfaces[s.name] = RhoSurface.from_dict(lv["surface"])
+        bounds = {(b["i"], b["j"]): BoundaryModel.from_dict(b) for b in d["boundaries"]}
+        return cls(d["part"], d["sg_grid"], d["sc_grid"], bounds, levels, grids, surfaces,
+                   PoseDomain(**d["domain"]), d["n_queries"], tuple(d["surface_degree"]),
+                   d.get("info"))
+
+    def save(self, path) -> None:
+        """Write JSON atomically (temp file in the same directory, then os.replace)."""
+        write_text_atomic(path, json.dumps(self.to_dict()))
+
+    @classmethod
+    def load(cls, path) -> "MetaModel":
+        path = os.fspath(path)
+        if not os.path.exists(path):
+            raise FileNotFoundError(f"meta-model file not found: {path}")
+        with open(path, "r", encoding="utf-8") as f:
+            return cls.from_dict(json.load(f))
+
+
+def write_text_atomic(path, text: str) -> None:
+    path = os.fspath(path)
+    d = os.path.dirname(os.path.abspath(path))
+    os.makedirs(d, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=os.path.basename(path))
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, workers: int = 1,
+                    use_ray: bool = False, progress: bool = False, label_fn_factory=None) -> MetaModel:
+    """Learn a GSB for every (S_g, S_c) on the grid and the surfaces for config.levels.
+
+    S_c is processed in ascending order for each S_g so that, with use_sc_monotonicity, poses
+    deep in the previous (lower S_c) success region are labelled success for free.
+    label_fn_factory(s_g, s_c, seed) -> label_fn replaces the simulation (tests)."""
+    part = get_part(part)
+    sg_grid = sorted(float(s) for s in config.sg_grid)
+    sc_grid = sorted(float(s) for s in config.sc_grid)
+    boundaries = {}
+    with SimRunner(part, config.sim, workers, use_ray, progress=False) as runner:
+        for i, s_g in enumerate(sg_grid):
+            prev = None
+            for j, s_c in enumerate(sc_grid):
+                pair_seed = int(np.random.SeedSequence([seed, i, j]).generate_state(1)[0])
+                if label_fn_factory is not None:
+                    label_fn = label_fn_factory(s_g, s_c, pair_seed)
+                else:
+                    label_fn = _sim_label_fn(runner, config.domain, s_g, s_c, pair_seed)
+                known = None
+                if config.use_sc_monotonicity and prev is not None:
+                    known = known_from_lower_sc(prev.model, config.active.known_margin)
+                res = learn_boundary(label_fn, config.active, seed=pair_seed, known_fn=known)
+                bm = BoundaryModel(s_g, s_c, res.X, res.y, res.simulated, res.svm_c,
+                                   res.svm_gamma, history=res.history,
+                                   converged=res.converged, dft_floor=config.dft_floor,
+                                   dft_quantile=config.dft_quantile)
+                boundaries[(i, j)] = bm
+                prev = bm
+                if progress:
+                    import sys
+                    sys.stderr.write(f"{part.name}: S_g={s_g:.2f} S_c={s_c:.2f} "
+                                     f"{bm.n_simulations} sims, {res.n_free} free, "
+                                     f"D_FT={bm.d_ft:.3f}, converged={res.converged}\n")
+    mm = MetaModel(part.name, sg_grid, sc_grid, boundaries, [], {}, {}, config.domain,
+                   config.n_queries, config.surface_degree,
+                   info={"seed": seed, "sim": asdict(config.sim), "active": asdict(config.active),
+                         "use_sc_monotonicity": config.use_sc_monotonicity})
+    for lv in config.levels:
+        mm.rho_grids[lv.name] = mm.probability_grid(lv.sigma_r, lv.sigma_phi)
+        mm.surfaces[lv.name] = fit_rho_surface(sg_grid, sc_grid, mm.rho_grids[lv.name],
+                                               config.surface_degree)
+        mm.levels.append(lv)
+    return mm
+
+
+def _sim_label_fn(runner: SimRunner, domain: PoseDomain, s_g: float, s_c: float, seed: int):
+    count = [0]
+
+    def label(U):
+        seeds = sample_seeds(seed, count[0], len(U))
+        count[0] += len(U)
+        return runner.run(domain.to_offsets(U), s_g, s_c, seeds)
+
+    return label

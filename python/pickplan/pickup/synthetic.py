@@ -1,0 +1,42 @@
+"""A cheap synthetic stand-in for the simulation, with a known success region.
+
+Shaped like the simulated GSBs: an ellipsoid in the normalized pose space, long along the
+approach axis x and thin in y and phi, that shrinks as S_g grows and widens as S_c grows.
+Used to test and benchmark the active learner and the meta-model against exact truth.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .active import PoseDomain
+
+
+@dataclass(frozen=True)
+class EllipsoidOracle:
+    s_g: float
+    s_c: float
+
+    @property
+    def half_axes(self) -> np.ndarray:
+        # Tolerance ~ S_c / S_g, as for contact timing: early contact at offset d happens
+        # d / S_c before t', when the part is still S_g * d / S_c ahead.
+        k = np.clip(0.6 * (self.s_c / 0.1) / (self.s_g / 0.3) ** 0.7, 0.4, 2.0)
+        return np.array([0.6, 0.2, 0.25]) * k
+
+    def __call__(self, U) -> np.ndarray:
+        U = np.asarray(U, dtype=float).reshape(-1, 3)
+        return (((U / self.half_axes) ** 2).sum(axis=1)) < 1.0
+
+    def probability(self, sigma_r: float, sigma_phi: float, domain: PoseDomain = PoseDomain(),
+                    n: int = 200000, seed: int = 12345) -> float:
+        """Monte-Carlo truth of P(success) for poses ~ N(0, sigma) (independent samples)."""
+        z = np.random.default_rng(seed).standard_normal((n, 3))
+        U = domain.to_normalized(z * np.array([sigma_r, sigma_r, sigma_phi]))
+        return float(np.mean(self(U)))
+
+
+def oracle_factory(s_g: float, s_c: float, seed: int):
+    """label_fn_factory for build_metamodel: the oracle itself (seed unused: no noise)."""
+    return EllipsoidOracle(s_g, s_c)

@@ -1,0 +1,201 @@
+"""Goal selection policies (OMG Sec. III-D): Fixed, Proj, FTC, FTL, EXP and Mirror Descent.
+
+Each policy sees, at every iteration, the normalized cost vector c_{i+1} of the goal set and
+returns the distribution p_{i+1}; the planner moves to the mode of p. Policies record their
+history so ``regret()`` gives eq. 9. The goal set may grow (C-Space ISF adds refined goals):
+``add_goal`` extends the distribution.
+"""
+from __future__ import annotations
+
+import abc
+import math
+from dataclasses import dataclass, field
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+
+class SelectionPolicy(abc.ABC):
+    """Base: keeps p, the cost history and the regret bookkeeping."""
+
+    name = "base"
+    cost_kind = "objective"  # "objective": goal-cost estimates; "distance": |xi(1) - g| (Proj)
+
+    def __init__(self):
+        self.p: Optional[np.ndarray] = None
+        self.costs: List[np.ndarray] = []
+        self.played: List[np.ndarray] = []
+        self.horizon = 1
+
+    def reset(self, num_goals: int, horizon: int, initial_costs: Optional[np.ndarray] = None) -> np.ndarray:
+        if num_goals < 1:
+            raise ValueError("a selection policy needs at least one goal")
+        self.horizon = max(1, int(horizon))
+        self.p = np.full(num_goals, 1.0 / num_goals)
+        self.costs, self.played = [], []
+        if initial_costs is not None:
+            self._start(np.asarray(initial_costs, dtype=float))
+        return self.p
+
+    def _start(self, costs: np.ndarray) -> None:
+        """Hook: initial estimates before the first iteration."""
+
+    def add_goal(self) -> None:
+        """A new goal joins the set: give it the mass of the current mode's share (then renormalize)."""
+        extra = np.array([self.p.max()])
+        self.p = np.concatenate([self.p, extra]) / (1.0 + extra[0])
+        self.costs = [np.append(c, c.min()) for c in self.costs]
+        self.played = [np.append(q, 0.0) for q in self.played]
+        self._grow()
+
+    def _grow(self) -> None:
+        """Hook for policies with extra per-goal state."""
+
+    def update(self, costs: np.ndarray) -> np.ndarray:
+        c = np.asarray(costs, dtype=float)
+        if c.shape != self.p.shape:
+            raise ValueError(f"costs: expected shape {self.p.shape}, got {c.shape}")
+        if not np.all(np.isfinite(c)):
+            raise ValueError("costs must be finite")
+        self.played.append(self.p.copy())
+        self.costs.append(c)
+        self.p = self._next(c)
+        return self.p
+
+    @abc.abstractmethod
+    def _next(self, c: np.ndarray) -> np.ndarray:
+        """The rule: p_{i+1} from the new cost vector c_{i+1}."""
+
+    def select(self) -> int:
+        """The mode of p (more stable than a sample, as the paper notes); ties: lowest index."""
+        return int(np.argmax(self.p))
+
+    def regret(self) -> float:
+        """R_N = sum_i <c_i, p_i> - min_g sum_i c_i(g) (eq. 9)."""
+        if not self.costs:
+            return 0.0
+        C = np.array(self.costs)
+        P = np.array(self.played)
+        return float(np.sum(C * P) - C.sum(axis=0).min())
+
+
+def _one_hot(n: int, i: int) -> np.ndarray:
+    p = np.zeros(n)
+    p[i] = 1.0
+    return p
+
+
+class Fixed(SelectionPolicy):
+    """The best goal by the initial estimate, kept for the whole optimization."""
+
+    name = "Fixed"
+
+    def _start(self, costs):
+        self.p = _one_hot(len(costs), int(np.argmin(costs)))
+
+    def _next(self, c):
+        return self.p
+
+    def _grow(self):
+        self.p = _one_hot(len(self.p), int(np.argmax(self.p[:-1])))
+
+
+class FTC(SelectionPolicy):
+    """Follow the cheapest: all mass on the goal with the lowest current cost."""
+
+    name = "FTC"
+
+    def _next(self, c):
+        return _one_hot(len(c), int(np.argmin(c)))
+
+
+class Proj(FTC):
+    """Goal-set CHOMP (Dragan et al. [11]): FTC on the distance from the free end point to each goal."""
+
+    name = "Proj"
+    cost_kind = "distance"
+
+
+class FTL(SelectionPolicy):
+    """Follow the leader: all mass on the goal with the lowest cumulative cost."""
+
+    name = "FTL"
+
+    def _next(self, c):
+        return _one_hot(len(c), int(np.argmin(np.sum(self.costs, axis=0))))
+
+
+def _multiplicative(p: np.ndarray, c: np.ndarray, eta: float) -> np.ndarray:
+    # p_{i+1} ∝ p_i exp(-eta c), in log space so long horizons cannot underflow.
+    logits = np.log(np.maximum(p, 1e-300)) - eta * c
+    logits -= logits.max()
+    w = np.exp(logits)
+    return w / w.sum()
+
+
+class EXP(SelectionPolicy):
+    """Exponential weighting with eta = sqrt(log|G| / N)."""
+
+    name = "EXP"
+
+    def __init__(self, eta: Optional[float] = None):
+        super().__init__()
+        self.fixed_eta = eta
+
+    def eta(self) -> float:
+        if self.fixed_eta is not None:
+            return self.fixed_eta
+        return math.sqrt(max(math.log(len(self.p)), 1e-12) / self.horizon)
+
+    def _next(self, c):
+        return _multiplicative(self.p, c, self.eta())
+
+
+class MirrorDescent(SelectionPolicy):
+    """Mirror descent with the KL regularizer over an ensemble of learning rates.
+
+    Each expert k solves p = argmin_p eta_k <c, p> + KL(p || p_k), whose Lagrangian closed form is
+    p ∝ p_k exp(-eta_k c), with eta_k = 2^k log N, k in {-2, -1, 0, 2, 4} (paper Sec. IV-B). The
+    experts are combined by exponential weights on their own losses <c, p_k> (rate
+    sqrt(log K / N)); p is the weighted mixture.
+    """
+
+    name = "MD"
+
+    def __init__(self, exponents: Sequence[int] = (-2, -1, 0, 2, 4)):
+        super().__init__()
+        self.exponents = tuple(exponents)
+        self.experts: List[np.ndarray] = []
+        self.weights = np.ones(len(self.exponents)) / len(self.exponents)
+
+    def etas(self) -> np.ndarray:
+        return np.array([2.0**k * math.log(max(self.horizon, 2)) for k in self.exponents])
+
+    def reset(self, num_goals, horizon, initial_costs=None):
+        p = super().reset(num_goals, horizon, None)
+        self.experts = [p.copy() for _ in self.exponents]
+        self.weights = np.ones(len(self.exponents)) / len(self.exponents)
+        if initial_costs is not None:
+            self._start(np.asarray(initial_costs, dtype=float))
+        return self.p
+
+    def _grow(self):
+        self.experts = [np.concatenate([e, [e.max()]]) / (1 + e.max()) for e in self.experts]
+
+    def _next(self, c):
+        losses = np.array([float(e @ c) for e in self.experts])
+        meta_eta = math.sqrt(math.log(len(self.experts)) / self.horizon) if len(self.experts) > 1 else 0.0
+        self.weights = _multiplicative(self.weights, losses, meta_eta)
+        self.experts = [_multiplicative(e, c, eta) for e, eta in zip(self.experts, self.etas())]
+        p = np.sum(self.weights[:, None] * np.array(self.experts), axis=0)
+        return p / p.sum()
+
+
+POLICIES = {"Fixed": Fixed, "Proj": Proj, "FTC": FTC, "FTL": FTL, "EXP": EXP, "MD": MirrorDescent}
+
+
+def make_policy(name: str) -> SelectionPolicy:
+    try:
+        return POLICIES[name]()
+    except KeyError:
+        raise ValueError(f"unknown selection policy {name!r}; choose from {', '.join(POLICIES)}") from None
