@@ -48,6 +48,8 @@ class MetricSettings:
     epsilon: float = 0.2
     clearance: float = 0.05
     table_clearance: float = 0.0
+    tail_waypoints: int = 0        # last waypoints (standoff approach) held to tail_clearance only
+    tail_clearance: float = 0.01
     smoothness_threshold: float = 30.0
 
     def to_native(self, exclude_mask: int = 0) -> "_core.MetricSettings":

@@ -1,71 +1,82 @@
-"""The ``pickplan`` command line: ``pickplan demo``, and more as the library grows."""
+"""The ``pickplan`` command line.
+
+  pickplan demo                          the main job: plan + execute a grasp in clutter
+  pickplan plan --scene SCENE.json       plan (and optionally execute) one scene
+  pickplan scenes --n 100 --out DIR      generate a benchmark set of scenes
+  pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
+"""
 from __future__ import annotations
 
 import argparse
 import os
 import sys
-import time
+from dataclasses import replace
 from typing import Optional, Sequence
 
-import numpy as np
+
+def _cmd_demo(args) -> int:
+    from .demo import DemoSettings, run_demo
+
+    return run_demo(args.out, DemoSettings(seed=args.seed))
 
 
-def _kinematics_demo(out: str, seed: int) -> int:
-    """Poses the Panda in PyBullet at seeded configurations and checks native FK against it."""
-    import pybullet as pb
+def _cmd_plan(args) -> int:
+    from . import execution
+    from .demo import metrics_table
+    from .io import write_json, write_text
+    from .omg import OMGPlanner, OMGSettings
+    from .scenes import Scene
 
-    from . import robots, viz
-    from .io import write_text
+    scene = Scene.load(args.scene)
+    settings = OMGSettings(selection=args.selection, refine=not args.no_refine, iterations=args.iterations,
+                           grasp_kind=args.grasps, seed=args.seed)
+    result = OMGPlanner(None, scene, settings).plan()
+    executed = execution.execute_plan(scene, result.trajectory) if args.execute and result.status != "no_goals" else None
+    table = metrics_table(result, executed)
+    print(table)
+    if args.out:
+        os.makedirs(args.out, exist_ok=True)
+        write_text(os.path.join(args.out, "metrics.md"), table)
+        write_json(os.path.join(args.out, "plan.json"), {
+            "status": result.status, "trajectory": result.trajectory.tolist(), "metrics": result.metrics,
+            "grasp_cost": result.grasp_cost, "timings": result.timings,
+            "execution": executed.to_dict() if executed else None})
+    return 0 if result.success else 1
 
-    robot = robots.panda()
-    cid = pb.connect(pb.DIRECT)
-    try:
-        import pybullet_data
 
-        pb.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=cid)
-        pb.loadURDF("plane.urdf", physicsClientId=cid)
-        body = pb.loadURDF(robot.urdf_path, useFixedBase=True, physicsClientId=cid)
-        index = {pb.getJointInfo(body, j, physicsClientId=cid)[12].decode(): j
-                 for j in range(pb.getNumJoints(body, physicsClientId=cid))}
-        Q = np.vstack([robot.ready_configuration, robot.random_configurations(3, seed=seed)])
-        t0 = time.perf_counter()
-        poses = robot.fk_batch(Q)
-        t_fk = (time.perf_counter() - t0) / len(Q)
-        images, rows = [], []
-        hand = robot.link_index(robot.hand_link)
-        for b, q in enumerate(Q):
-            for k, name in enumerate(robot.joint_names):
-                pb.resetJointState(body, index[robot.link_names[robot.native.link_q_index.index(k)]], q[k],
-                                   physicsClientId=cid)
-            state = pb.getLinkState(body, index[robot.hand_link], computeForwardKinematics=True, physicsClientId=cid)
-            err = float(np.abs(poses[b, hand, :3, 3] - np.array(state[4])).max())
-            rows.append((b, *np.round(poses[b, hand, :3, 3], 4), err))
-            images.append(viz.render(cid, 400, 300))
-        os.makedirs(out, exist_ok=True)
-        viz.write_png(os.path.join(out, "demo.png"), viz.tile(images, 2))
-        lines = ["| config | hand x | hand y | hand z | |FK - PyBullet| (m) |", "|---|---|---|---|---|"]
-        lines += [f"| {b} | {x} | {y} | {z} | {e:.1e} |" for b, x, y, z, e in rows]
-        lines.append(f"\nnative FK: {t_fk * 1e6:.1f} us per configuration (Python call included)")
-        table = "\n".join(lines) + "\n"
-        write_text(os.path.join(out, "metrics.md"), table)
-        print(table)
-        print(f"wrote {os.path.join(out, 'demo.png')} and {os.path.join(out, 'metrics.md')}")
-        return 0
-    finally:
-        pb.disconnect(cid)
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="pickplan", description="Joint motion and grasp planning.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    demo = sub.add_parser("demo", help="plan and execute a grasp in a generated cluttered scene")
+    demo.add_argument("--out", default="out/demo", help="folder for the picture and the metrics table")
+    demo.add_argument("--seed", type=int, default=1, help="scene seed")
+    demo.set_defaults(handler=_cmd_demo)
+    plan = sub.add_parser("plan", help="plan one scene (JSON from `pickplan scenes`)")
+    plan.add_argument("--scene", required=True)
+    plan.add_argument("--selection", default="MD", choices=["Fixed", "Proj", "FTC", "FTL", "EXP", "MD"])
+    plan.add_argument("--grasps", default="simulated", choices=["simulated", "graspit", "approach", "antipodal"])
+    plan.add_argument("--iterations", type=int, default=50)
+    plan.add_argument("--no-refine", action="store_true", help="turn C-Space ISF off")
+    plan.add_argument("--execute", action="store_true", help="also execute the plan in PyBullet")
+    plan.add_argument("--seed", type=int, default=0)
+    plan.add_argument("--out", default=None, help="folder for metrics.md and plan.json")
+    plan.set_defaults(handler=_cmd_plan)
+    from .scenes_cli import add_scene_commands
+    from .pickup.cli import add_metamodel_commands
+
+    add_scene_commands(sub)
+    add_metamodel_commands(sub)
+    return parser
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog="pickplan", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="the main job: plan and execute a grasp in a generated scene")
-    demo.add_argument("--out", default="out/demo", help="folder for the picture and the metrics table")
-    demo.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
-    if args.command == "demo":
-        return _kinematics_demo(args.out, args.seed)
-    parser.error(f"unknown command {args.command}")
-    return 2
+    args = build_parser().parse_args(argv)
+    handler = getattr(args, "handler", None) or getattr(args, "func")
+    try:
+        return int(handler(args) or 0)
+    except (FileNotFoundError, ValueError, KeyError) as exc:
+        print(f"pickplan {args.command}: error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -36,8 +36,8 @@ class OMGSettings:
     iterations: int = 50           # N, the optimization horizon
     refine: bool = True            # C-Space ISF on the selected goal every iteration
     isf_steps: int = 1             # ISF steps per planner iteration
-    cost_time_stride: int = 1      # goal-cost estimates on every k-th tail waypoint ...
-    cost_point_stride: int = 1     # ... and every k-th body point (rescaled)
+    cost_time_stride: int = 2      # goal-cost estimates on every k-th tail waypoint ...
+    cost_point_stride: int = 2     # ... and every k-th body point (rescaled)
     pre_terminate: bool = True     # stop once the plan succeeds (checked every check_every iterations)
     min_iterations: int = 10
     check_every: int = 5
@@ -59,7 +59,8 @@ class PlanResult:
     goal_set_size: int
     iterations: int
     history: dict                  # objective, goal, p (per iteration), switches
-    timings: dict                  # seconds per stage: goal_set, chomp, costs, selection, isf, metrics, total
+    timings: dict                  # seconds: prepare (world, grasps; not planning), goal_set, chomp, costs,
+                                   # selection, isf, metrics, total (goal set + planning)
     goal_reasons: dict = field(default_factory=dict)
 
     @property
@@ -92,7 +93,7 @@ class OMGPlanner:
     def plan(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
              grasps: Optional[Union[np.ndarray, str]] = None) -> PlanResult:
         s = self.settings
-        t_total = time.perf_counter()
+        t = time.perf_counter()
         world = self.world(target)
         q0 = world.start if start is None else np.asarray(start, dtype=float)
         world.robot.native.fk(q0)  # validates the start: shape, NaN
@@ -100,7 +101,10 @@ class OMGPlanner:
             grasps = self.default_grasps(world)
         elif isinstance(grasps, str):
             grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed).poses
+        # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
+        timings["prepare"] = time.perf_counter() - t
+        t_total = time.perf_counter()
 
         t = time.perf_counter()
         gs = build_goal_set(world, grasps, q0, s.goals, s.ik)
@@ -113,6 +117,7 @@ class OMGPlanner:
 
         m = gs.tails.shape[1]
         chomp = Chomp(world.robot, world.sdf, world.body, replace(s.chomp, obstacle_tail=m), exclude=(world.target,))
+        metric_settings = replace(s.metrics, tail_waypoints=m)
         ws = chomp.workspace()
         goals = [g for g in gs.goals]
         tails = [t_ for t_ in gs.tails]
@@ -184,7 +189,7 @@ class OMGPlanner:
                 g = g_next
             if s.pre_terminate and iterations >= s.min_iterations and iterations % s.check_every == 0:
                 t = time.perf_counter()
-                metrics = chomp.metrics(xi, q0, s.metrics)
+                metrics = chomp.metrics(xi, q0, metric_settings)
                 timings["metrics"] += time.perf_counter() - t
                 if metrics["success"]:
                     break
@@ -193,7 +198,7 @@ class OMGPlanner:
         xi, _ = chomp.step(xi, q0, tails[g], iterations, ws) if not np.allclose(xi[-m:], tails[g]) else (xi, None)
         t = time.perf_counter()
         if metrics is None:
-            metrics = chomp.metrics(xi, q0, s.metrics)
+            metrics = chomp.metrics(xi, q0, metric_settings)
         grasp_cost = float(refiner.cost(xi[-1])[0]["total"]) if refiner is not None else float("nan")
         timings["metrics"] += time.perf_counter() - t
         timings["total"] = time.perf_counter() - t_total

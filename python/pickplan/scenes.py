@@ -22,6 +22,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from . import objects as objects_mod
+from . import objects_builtin
 from .io import atomic_open
 
 SCENE_FORMAT = "pickplan.scene"
@@ -450,7 +451,10 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
         else:
             raise RuntimeError(f"seed {seed}: fewer than {settings.min_objects} objects came to rest in "
                                f"{settings.max_attempts} attempts")
-        candidates = [p for p in kept if p.name not in settings.non_targets] or kept
+        # Built-in shapes the Panda cannot hold (no handle on the built-in pitcher) are never targets.
+        never = set(settings.non_targets) | {p.name for p in kept if p.model.source.startswith(
+            objects_mod.BUILTIN_PREFIX) and p.name in objects_builtin.UNGRASPABLE}
+        candidates = [p for p in kept if p.name not in never] or kept
         target = candidates[int(rng.integers(len(candidates)))].name
         objs = [SceneObject(p.name, p.model.source, object_pose(client, p.body, p.model)) for p in kept]
     finally:
