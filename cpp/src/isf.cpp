@@ -138,11 +138,11 @@ GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) c
 Eigen::VectorXd GraspRefiner::step(const Eigen::VectorXd& q, GraspTerms* terms) const {
   Eigen::VectorXd grad;
   const GraspTerms t0 = cost(q, &grad);
-  double eta = settings_.step_size;
-  for (int h = 0; h <= settings_.max_halvings; ++h, eta *= 0.5) {
-    Eigen::VectorXd dq = -eta * grad;
-    const double m = dq.cwiseAbs().maxCoeff();
-    if (m > settings_.max_joint_step) dq *= settings_.max_joint_step / m;
+  // eta_grasp step, capped at max_joint_step, then halved until f_grasp decreases.
+  Eigen::VectorXd dq = -settings_.step_size * grad;
+  const double m = dq.cwiseAbs().maxCoeff();
+  if (m > settings_.max_joint_step) dq *= settings_.max_joint_step / m;
+  for (int h = 0; h <= settings_.max_halvings; ++h, dq *= 0.5) {
     const Eigen::VectorXd q1 = (q + dq).cwiseMax(robot_->lower_limits()).cwiseMin(robot_->upper_limits());
     const GraspTerms t1 = cost(q1, nullptr);
     if (t1.total < t0.total) {

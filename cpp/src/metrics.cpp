@@ -35,19 +35,27 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
   m.min_clearance = inf;
   m.min_table_clearance = inf;
   Eigen::Vector3d g;
+  const int n = static_cast<int>(xi.rows());
+  // Dense steps at or after this one lie on the approach tail (waypoints n - tail .. n).
+  const double tail_start = s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints) / n * (s.steps - 1) : s.steps;
+  bool transit_free = true;
   for (int t = 0; t < dense.rows(); ++t) {
     robot.forward_kinematics(dense.row(t).data(), ws);
+    const double need = t >= tail_start ? s.tail_clearance : s.clearance;
+    double step_min = inf;
     for (int u = 0; u < body.size(); ++u) {
       const Eigen::Vector3d x = ws.link_pose[body.link[u]].apply(body.points.row(u).transpose());
       const double d_obj = scene.distance(x, nullptr, inf, s.exclude_mask | SceneSdf::kTableBit);
       const double d_table = scene.has_table() ? scene.distance(x, nullptr, inf, all_objects) : inf;
       m.min_clearance = std::min(m.min_clearance, d_obj);
+      step_min = std::min(step_min, d_obj);
       m.min_table_clearance = std::min(m.min_table_clearance, d_table);
       const double d = std::min(d_obj, d_table);
       if (d < s.collision_padding) m.collision += chomp_cost(d, s.epsilon, nullptr);
     }
+    transit_free = transit_free && step_min >= need;
   }
-  m.collision_free = m.min_clearance >= s.clearance && m.min_table_clearance >= s.table_clearance;
+  m.collision_free = transit_free && m.min_table_clearance >= s.table_clearance;
   m.success = m.collision_free && m.smoothness < s.smoothness_threshold;
   return m;
 }

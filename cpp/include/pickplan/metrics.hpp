@@ -12,6 +12,8 @@ struct MetricSettings {
   double epsilon = 0.2;                // padding of the cost c(d) summed by "collision"
   double clearance = 0.05;             // collision-free: every point at least this far from objects
   double table_clearance = 0.0;        // ... and this far from the table (grasps sit close to it)
+  int tail_waypoints = 0;              // the last waypoints (the standoff approach into the clutter,
+  double tail_clearance = 0.01;        //   FCL-checked with the goal set) need only this clearance
   double smoothness_threshold = 30.0;  // planning success needs smoothness below this
   std::uint64_t exclude_mask = 0;      // objects not counted (the target)
 };
