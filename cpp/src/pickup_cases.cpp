@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace pickplan {
@@ -67,6 +68,61 @@ PickupProblem paper_case(const Robot& robot, int case_id, const RhoPoly& rho, co
   pb.body_spheres.push_back({robot.link_index("wrist_2_link"), Eigen::Vector3d(0.0, 0.0, 0.0), 0.06});
   pb.body_spheres.push_back({robot.link_index("flange"), Eigen::Vector3d(0.0, 0.0, 0.0), 0.05});
   return pb;
+}
+
+}  // namespace pickplan
+
+namespace pickplan {
+
+PickupMetrics evaluate_pickup(const Robot& robot, const PickupProblem& pb, const PickupResult& res, int n) {
+  if (n < 3) throw std::invalid_argument("evaluate_pickup: need at least 3 samples");
+  if (res.x.size() != res.traj.num_coeffs() + 5) throw std::invalid_argument("evaluate_pickup: result has no solution vector");
+  PickupMetrics m;
+  const int d = robot.dof();
+  RobotWorkspace ws(robot);
+  Eigen::VectorXd q(d), qd(d);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, d);
+  res.traj.eval(res.x.data(), res.T2, q.data(), nullptr, nullptr);
+  robot.forward_kinematics(q.data(), ws);
+  const Transform tool = ws.link_pose[pb.tool_link];
+  m.pose_error_position = (tool.p - pb.grasp_pose.p).norm();
+  m.pose_error_orientation = Eigen::AngleAxisd(pb.grasp_pose.R.transpose() * tool.R).angle();
+  m.min_clearance = std::numeric_limits<double>::infinity();
+  const double dt = res.T / (n - 1);
+  int ng = 0;
+  for (int k = 0; k < n; ++k) {
+    const double t = k * dt;
+    res.traj.eval(res.x.data(), t, q.data(), qd.data(), nullptr);
+    const double nh = std::abs(qd[0] * std::sin(q[2]) - qd[1] * std::cos(q[2]));
+    m.nonholonomic_mean += nh / n;
+    m.nonholonomic_drift += nh * dt * ((k == 0 || k == n - 1) ? 0.5 : 1.0);
+    m.nonholonomic_max = std::max(m.nonholonomic_max, nh);
+    m.base_speed_max = std::max(m.base_speed_max, std::hypot(qd[0], qd[1]));
+    for (int j = 3; j < d; ++j) {
+      m.joint_limit_violation = std::max({m.joint_limit_violation, robot.lower_limits()[j] - q[j], q[j] - robot.upper_limits()[j]});
+      m.joint_rate_max = std::max(m.joint_rate_max, std::abs(qd[j]));
+    }
+    robot.forward_kinematics(q.data(), ws);
+    for (const auto& b : pb.body_spheres)
+      for (const auto& o : pb.obstacles)
+        m.min_clearance = std::min(m.min_clearance, (ws.link_pose[b.link].apply(b.center) - o.center).norm() - b.radius - o.radius);
+    if (t >= res.T1 && t <= res.T2) {
+      robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
+      const Eigen::Vector3d v = J.topRows<3>() * qd;
+      m.velocity_error_max = std::max(m.velocity_error_max, (v - res.S_g * pb.approach_dir).norm());
+      m.gripper_speed_grasp_mean += v.norm();
+      m.base_speed_grasp_mean += std::hypot(qd[0], qd[1]);
+      ++ng;
+    }
+  }
+  if (ng) {
+    m.gripper_speed_grasp_mean /= ng;
+    m.base_speed_grasp_mean /= ng;
+  }
+  res.traj.eval(res.x.data(), res.T, q.data(), nullptr, nullptr);
+  m.goal_position_error = std::hypot(q[0] - pb.goal[0], q[1] - pb.goal[1]);
+  m.success_probability = pb.rho.value(res.S_g, res.S_c);
+  return m;
 }
 
 }  // namespace pickplan

@@ -1,7 +1,11 @@
 // The constraint system of the pick-up NLP (Sec. V-A) with exact first derivatives.
-// Each sampled row is a function c(q(t), q'(t), S_g, S_c) at t = w . (T1, T2, T); the chain rule
-//   dc/da_ik = c_q[i] B_k(t) + c_q'[i] B'_k(t),   dc/dt = c_q . q' + c_q' . q''
-// turns its partials in (q, q') into the Jacobian in (coefficients, T1, T2, T).
+// The DOFs are polynomials P(s) in normalised time s = t / T, so q(t) = P(t / T), q'(t) = P_s / T;
+// T1 = s1 T and T2 = s2 T. Each sampled row is a function c(q, q', S_g, S_c) at s = w0 s1 + w1 s2 + c0;
+// the chain rule
+//   dc/da_ik = c_q[i] B_k(s) + c_q'[i] B'_k(s) / T,  dc/ds = c_q . P_s + c_q' . P_ss / T,
+//   dc/dT = -c_q' . q' / T
+// turns its partials in (q, q') into the Jacobian in (coefficients, s1, s2, T). Time scaling is then
+// one variable (T) instead of a coherent change of every coefficient, which Ipopt handles far better.
 #include "pickplan/pickup_nlp.hpp"
 
 #include <algorithm>
@@ -78,7 +82,7 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   std::vector<int> deg = settings.degrees.empty() ? default_degrees(dof_) : settings.degrees;
   if (static_cast<int>(deg.size()) != dof_)
     throw std::invalid_argument("degrees: expected " + std::to_string(dof_) + " values, got " + std::to_string(deg.size()));
-  traj_ = PolyTraj(deg, settings.time_scale);
+  traj_ = PolyTraj(deg, 1.0);
   nc_ = traj_.num_coeffs();
   n_ = nc_ + 5;
   const int level = stage == 0 ? 5 : stage;
@@ -86,14 +90,16 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   const unsigned all = (dof_ == 32) ? ~0u : ((1u << dof_) - 1u), base = 7u;
   for (int j = 0; j < m; ++j) samples_.push_back({{double(j) / m, 0.0, 0.0}});
   for (int j = 0; j < m; ++j) {
-    double s = double(j) / (m - 1);
-    samples_.push_back({{1.0 - s, s, 0.0}});
+    double u = double(j) / (m - 1);
+    samples_.push_back({{1.0 - u, u, 0.0}});
   }
   for (int j = 1; j <= m; ++j) {
-    double s = double(j) / m;
-    samples_.push_back({{0.0, 1.0 - s, s}});
+    double u = double(j) / m;
+    samples_.push_back({{0.0, 1.0 - u, u}});
   }
   const double vt = settings.velocity_tol, wt = settings.angular_velocity_tol;
+  const double nh_bound = settings.nonholonomic_tol * ((problem.part_xy - problem.start.head<2>()).norm() +
+                                                       (problem.goal.head<2>() - problem.part_xy).norm());
   for (int s = 0; s < static_cast<int>(samples_.size()); ++s) {
     sample_row_begin_.push_back(static_cast<int>(rows_.size()));
     const int interval = s / m;
@@ -103,7 +109,7 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
         add_row(K_START, s, i, 1u << i, false, false, v, v);
       }
     }
-    add_row(K_NH, s, 0, base, false, false, -settings.nonholonomic_tol, settings.nonholonomic_tol);
+    add_row(K_NH, s, 0, base, false, false, -nh_bound, nh_bound);
     add_row(K_BSPEED, s, 0, base, false, false, -kInf, problem.base_speed_limit * problem.base_speed_limit);
     add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
     for (int j = 0; j < na; ++j) {
@@ -157,14 +163,16 @@ void PickupConstraints::add_row(int kind, int sample, int aux, unsigned mask, bo
     for (int i = 0; i < dof_; ++i)
       if (mask & (1u << i))
         for (int k = 0; k <= traj_.degree(i); ++k) push(traj_.offset(i) + k);
-    for (int v = 0; v < 3; ++v)
+    for (int v = 0; v < 2; ++v)
       if (samples_[sample].w[v] != 0.0) push(nc_ + v);
-  } else if (kind == K_TIMING) {
-    push(idx_T1());
-    push(idx_T2());
-  } else if (kind == K_ORDER) {
-    push(idx_T2());
     push(idx_T());
+  } else if (kind == K_TIMING) {
+    push(idx_s1());
+    push(idx_s2());
+    push(idx_T());
+  } else if (kind == K_ORDER) {
+    push(idx_s1());
+    push(idx_s2());
   }
   if (sg) push(idx_Sg());
   if (sc) push(idx_Sc());
@@ -174,11 +182,11 @@ void PickupConstraints::add_row(int kind, int sample, int aux, unsigned mask, bo
 void PickupConstraints::bounds(Eigen::VectorXd& xl, Eigen::VectorXd& xu, Eigen::VectorXd& gl, Eigen::VectorXd& gu) const {
   xl = Eigen::VectorXd::Constant(n_, -kInf);
   xu = Eigen::VectorXd::Constant(n_, kInf);
-  xl[idx_T1()] = 0.0;
-  xu[idx_T1()] = st_.t_max;
-  xl[idx_T2()] = 0.0;
-  xu[idx_T2()] = st_.t_max;
-  xl[idx_T()] = 1e-3;
+  xl[idx_s1()] = 0.0;
+  xu[idx_s1()] = 1.0;
+  xl[idx_s2()] = 0.0;
+  xu[idx_s2()] = 1.0;
+  xl[idx_T()] = st_.t_min;
   xu[idx_T()] = st_.t_max;
   xl[idx_Sg()] = pb_.rho.sg_lo;
   xu[idx_Sg()] = pb_.rho.sg_hi;
@@ -211,16 +219,16 @@ void PickupConstraints::eval_jac(const double* x, double* values) const {
 }
 
 void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, double* g, double* jac) const {
-  const double T1 = x[idx_T1()], T2 = x[idx_T2()], T = x[idx_T()], Sg = x[idx_Sg()], Sc = x[idx_Sc()];
+  const double s1 = x[idx_s1()], s2 = x[idx_s2()], T = x[idx_T()], Sg = x[idx_Sg()], Sc = x[idx_Sc()];
   if (s < 0) {  // rows of the time variables and speeds only
     for (int r = r0; r < r1; ++r) {
       const Row& R = rows_[r];
       double* J = jac ? jac + R.jac_begin : nullptr;
-      if (R.kind == K_TIMING) {
-        if (g) g[r] = (T2 - T1) * Sc;
-        if (J) { J[0] = -Sc; J[1] = Sc; J[2] = T2 - T1; }
+      if (R.kind == K_TIMING) {  // (T2 - T1) S_c = stroke
+        if (g) g[r] = (s2 - s1) * T * Sc;
+        if (J) { J[0] = -T * Sc; J[1] = T * Sc; J[2] = (s2 - s1) * Sc; J[3] = (s2 - s1) * T; }
       } else if (R.kind == K_ORDER) {
-        if (g) g[r] = T - T2;
+        if (g) g[r] = s2 - s1;
         if (J) { J[0] = -1.0; J[1] = 1.0; }
       } else if (R.kind == K_RHO) {
         if (g) g[r] = pb_.rho.value(Sg, Sc);
@@ -230,10 +238,11 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
     return;
   }
   const Sample& S = samples_[s];
-  const double t = S.w[0] * T1 + S.w[1] * T2 + S.w[2] * T;
+  const double t = S.w[0] * s1 + S.w[1] * s2 + S.w[2];  // normalised time
   const int n = dof_;
-  Eigen::VectorXd q(n), qd(n), qdd(n);
-  traj_.eval(x, t, q.data(), qd.data(), qdd.data());
+  Eigen::VectorXd q(n), Ps(n), Pss(n);
+  traj_.eval(x, t, q.data(), Ps.data(), Pss.data());
+  const Eigen::VectorXd qd = Ps / T;
   bool need_kin = false, need_vel = false;
   for (int r = r0; r < r1; ++r) {
     const int k = rows_[r].kind;
@@ -248,6 +257,16 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
     if (need_vel) velocity_derivatives(robot_, ws, pb_.tool_link, qd, Jt, dv, dw);
     else robot_.point_jacobian(ws, pb_.tool_link, Eigen::Vector3d::Zero(), Jt);
   }
+  double B0[13], B1[13];  // basis values and time derivatives, shared by all DOFs
+  if (jac) {
+    double p = 1.0;
+    B1[0] = 0.0;
+    for (int k = 0; k < 13; ++k) {
+      B0[k] = p;
+      if (k + 1 < 13) B1[k + 1] = (k + 1) * p / T;  // d q' / d a_ik = B'_k(s) / T
+      p *= t;
+    }
+  }
   const double ph = q[2], c = std::cos(ph), sn = std::sin(ph);
   Eigen::VectorXd cq(n), cqd(n);
   for (int r = r0; r < r1; ++r) {
@@ -255,13 +274,18 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
     cq.setZero();
     cqd.setZero();
     double val = 0.0, dsg = 0.0;
+    bool nh_row = false;
     const int a = R.aux;
     switch (R.kind) {
       case K_START: val = q[a]; cq[a] = 1.0; break;
-      case K_NH:
-        val = qd[0] * sn - qd[1] * c;
-        cq[2] = qd[0] * c + qd[1] * sn; cqd[0] = sn; cqd[1] = -c;
+      case K_NH: {  // |x_s sin phi - y_s cos phi| <= eps L (normalised time: time-scale invariant)
+        val = Ps[0] * sn - Ps[1] * c;
+        cq[2] = Ps[0] * c + Ps[1] * sn;
+        cqd[0] = T * sn;  // c depends on q' only through P_s = T q'
+        cqd[1] = -T * c;
+        nh_row = true;
         break;
+      }
       case K_BSPEED: val = qd[0] * qd[0] + qd[1] * qd[1]; cqd[0] = 2 * qd[0]; cqd[1] = 2 * qd[1]; break;
       case K_YAWRATE: val = qd[2]; cqd[2] = 1.0; break;
       case K_JPOS: val = q[3 + a]; cq[3 + a] = 1.0; break;
@@ -327,12 +351,12 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
     int e = 0;
     for (int i = 0; i < n; ++i) {
       if (!(R.dof_mask & (1u << i))) continue;
-      for (int k = 0; k <= traj_.degree(i); ++k)
-        J[e++] = cq[i] * traj_.basis(t, k, 0) + cqd[i] * traj_.basis(t, k, 1);
+      for (int k = 0; k <= traj_.degree(i); ++k) J[e++] = cq[i] * B0[k] + cqd[i] * B1[k];
     }
-    const double dcdt = cq.dot(qd) + cqd.dot(qdd);
-    for (int v = 0; v < 3; ++v)
-      if (S.w[v] != 0.0) J[e++] = dcdt * S.w[v];
+    const double dcds = cq.dot(Ps) + cqd.dot(Pss) / T;
+    for (int v = 0; v < 2; ++v)
+      if (S.w[v] != 0.0) J[e++] = dcds * S.w[v];
+    J[e++] = nh_row ? 0.0 : -cqd.dot(qd) / T;
     if (R.sg) J[e++] = dsg;
     if (R.sc) J[e++] = 0.0;
   }

@@ -83,8 +83,11 @@ void PickupProblem::validate(const Robot& robot) const {
 }
 
 std::vector<int> default_degrees(int dof) {
+  // Base x, y, phi quintic (the paper uses cubics; a cubic base cannot keep the non-holonomic
+  // error below ~3 % of the path length on the Sec. VI geometry, a quintic reaches ~0.05 %),
+  // arm base/shoulder/elbow quintic, wrists cubic.
   std::vector<int> d(dof, 3);
-  for (int i = 3; i < std::min(dof, 6); ++i) d[i] = 5;  // arm base, shoulder and elbow joints: quintic
+  for (int i = 0; i < std::min(dof, 6); ++i) d[i] = 5;
   return d;
 }
 
@@ -92,48 +95,86 @@ std::vector<int> default_degrees(int dof) {
 namespace {
 int num_vars(const Robot& robot, const PickupSettings& st) {
   std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
-  return PolyTraj(deg, st.time_scale).num_coeffs() + 5;
+  return PolyTraj(deg, 1.0).num_coeffs() + 5;
 }
 }  // namespace
 
 Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
   pb.validate(robot);
   std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
-  PolyTraj tr(deg, st.time_scale);
+  PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs();
   Eigen::VectorXd x = Eigen::VectorXd::Zero(nc + 5);
   const Eigen::Vector2d s0 = pb.start.head<2>(), g0 = pb.goal.head<2>();
-  Eigen::Vector2d u = 0.5 * (s0 + g0) - pb.part_xy;
-  if (u.norm() < 1e-9) u = Eigen::Vector2d::UnitX();
-  const Eigen::Vector2d bp = pb.part_xy + 0.5 * (pb.grasp_area_rmin + pb.grasp_area_rmax) * u.normalized();
-  const double l1 = (bp - s0).norm(), l2 = (g0 - bp).norm();
-  const double T = std::max(1.0, (l1 + l2) / st.seed_speed);
+  Eigen::Vector2d u0 = 0.5 * (s0 + g0) - pb.part_xy;
+  if (u0.norm() < 1e-9) u0 = Eigen::Vector2d::UnitX();
+  u0.normalize();
+  // Base: a cubic in s = t / T leaving the start along its heading, through a grasping-area point
+  // bp at s_m, to the goal. A small deterministic search over (bp direction, start speed, s_m)
+  // picks the curve whose end heading is within the goal tolerance and whose peak/mean speed
+  // ratio is smallest; T then puts the peak speed at 90 % of the limit.
+  const double rmid = 0.5 * (pb.grasp_area_rmin + pb.grasp_area_rmax);
+  double best = 1e300, sm = 0.5, tsc = 1.0;
+  Eigen::Vector4d cx, cy;
+  for (int ia = -9; ia <= 9; ++ia)
+    for (double f : {0.5, 0.75, 1.0, 1.5})
+      for (double smc : {0.3, 0.4, 0.5, 0.6}) {
+        const double ang = ia * M_PI / 18;
+        const Eigen::Vector2d b = pb.part_xy + rmid * Eigen::Vector2d(std::cos(ang) * u0.x() - std::sin(ang) * u0.y(),
+                                                                      std::sin(ang) * u0.x() + std::cos(ang) * u0.y());
+        Eigen::Matrix<double, 4, 4> A;
+        A << 1, 0, 0, 0, 0, 1, 0, 0, 1, smc, smc * smc, smc * smc * smc, 1, 1, 1, 1;
+        const double v0 = f * ((b - s0).norm() + (g0 - b).norm());
+        const Eigen::Vector4d ax = A.lu().solve(Eigen::Vector4d(s0.x(), v0 * std::cos(pb.start[2]), b.x(), g0.x()));
+        const Eigen::Vector4d ay = A.lu().solve(Eigen::Vector4d(s0.y(), v0 * std::sin(pb.start[2]), b.y(), g0.y()));
+        double vmax = 0.0, vsum = 0.0;
+        for (int k = 0; k <= 50; ++k) {
+          const double s = k / 50.0;
+          const double dx = ax[1] + s * (2 * ax[2] + 3 * s * ax[3]), dy = ay[1] + s * (2 * ay[2] + 3 * s * ay[3]);
+          vmax = std::max(vmax, std::hypot(dx, dy));
+          vsum += std::hypot(dx, dy) / 51;
+        }
+        const double he = std::atan2(ay[1] + 2 * ay[2] + 3 * ay[3], ax[1] + 2 * ax[2] + 3 * ax[3]);
+        const double dh = std::remainder(he - pb.goal[2], 2 * M_PI);
+        const double score = 100.0 * std::max(0.0, std::abs(dh) - 0.9 * pb.goal_tol_yaw) + vmax / std::max(vsum, 1e-9);
+        if (score < best) {
+          best = score;
+          sm = smc;
+          cx = ax;
+          cy = ay;
+          tsc = vmax;
+        }
+      }
+  const double T = std::max(1.0, tsc / (0.9 * pb.base_speed_limit));
   const double sc = pb.vary_sc ? pb.rho.sc_hi : pb.sc_fixed, dtg = pb.stroke / sc;
-  const double tm = T * l1 / std::max(l1 + l2, 1e-9);
+  const double tm = sm * T;
   const double T1 = std::max(0.0, tm - 0.5 * dtg), T2 = T1 + dtg;
-  const int K = 40;
-  Eigen::VectorXd ts(K), xs(K), ys(K), ps(K);
-  const double h1 = std::atan2(bp.y() - s0.y(), bp.x() - s0.x()), h2 = std::atan2(g0.y() - bp.y(), g0.x() - bp.x());
-  auto unwrap = [](double a, double ref) { while (a - ref > M_PI) a -= 2 * M_PI; while (a - ref < -M_PI) a += 2 * M_PI; return a; };
-  const double hh1 = unwrap(h1, pb.start[2]), hh2 = unwrap(h2, hh1);
+  const int K = 60;
+  Eigen::VectorXd ts(K), xs(K), ys(K), ps(K), ws = Eigen::VectorXd::Ones(K);
+  double prev = pb.start[2];
   for (int k = 0; k < K; ++k) {
-    double t = T * k / (K - 1);
-    ts[k] = t;
-    Eigen::Vector2d p = t <= tm ? Eigen::Vector2d(s0 + (bp - s0) * (t / std::max(tm, 1e-9)))
-                                : Eigen::Vector2d(bp + (g0 - bp) * ((t - tm) / std::max(T - tm, 1e-9)));
-    xs[k] = p.x();
-    ys[k] = p.y();
-    ps[k] = t <= tm ? hh1 : hh2;
+    const double s = double(k) / (K - 1);
+    ts[k] = s;
+    xs[k] = cx[0] + s * (cx[1] + s * (cx[2] + s * cx[3]));
+    ys[k] = cy[0] + s * (cy[1] + s * (cy[2] + s * cy[3]));
+    const double dx = cx[1] + s * (2 * cx[2] + 3 * s * cx[3]), dy = cy[1] + s * (2 * cy[2] + 3 * s * cy[3]);
+    double h = std::atan2(dy, dx);
+    while (h - prev > M_PI) h -= 2 * M_PI;
+    while (h - prev < -M_PI) h += 2 * M_PI;
+    ps[k] = prev = h;
   }
-  ps[0] = pb.start[2];
-  tr.fit_dof(0, ts, xs, x.data());
-  tr.fit_dof(1, ts, ys, x.data());
-  tr.fit_dof(2, ts, ps, x.data());
+  ws[0] = 100.0;
+  tr.fit_dof(0, ts, xs, x.data(), ws);
+  tr.fit_dof(1, ts, ys, x.data(), ws);
+  tr.fit_dof(2, ts, ps, x.data(), ws);
   std::mt19937 rng(st.seed);
   std::normal_distribution<double> noise(0.0, st.arm_seed_noise);
-  for (int i = 3; i < robot.dof(); ++i) x[tr.offset(i)] = pb.arm_start[i - 3] + noise(rng);
-  x[nc] = T1;
-  x[nc + 1] = T2;
+  for (int i = 3; i < robot.dof(); ++i) {
+    x[tr.offset(i)] = pb.arm_start[i - 3];
+    if (tr.degree(i) >= 1) x[tr.offset(i) + 1] = noise(rng);  // small random drift, start held exactly
+  }
+  x[nc] = T1 / T;
+  x[nc + 1] = T2 / T;
   x[nc + 2] = T;
   x[nc + 3] = 0.5 * (pb.rho.sg_lo + pb.rho.sg_hi);
   x[nc + 4] = sc;
@@ -143,7 +184,7 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, cons
 Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
   pb.validate(robot);
   std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
-  PolyTraj tr(deg, st.time_scale);
+  PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs();
   std::mt19937 rng(st.seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0), ut(0.0, 1.0);
@@ -154,8 +195,8 @@ Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const P
   double a = ut(rng), b = ut(rng);
   if (a > b) std::swap(a, b);
   if (b - a < 0.01) b = std::min(1.0, a + 0.01);
-  x[nc] = a * T;
-  x[nc + 1] = b * T;
+  x[nc] = a;
+  x[nc + 1] = b;
   x[nc + 2] = T;
   x[nc + 3] = pb.rho.sg_lo + ut(rng) * (pb.rho.sg_hi - pb.rho.sg_lo);
   x[nc + 4] = pb.vary_sc ? pb.rho.sc_lo + ut(rng) * (pb.rho.sc_hi - pb.rho.sc_lo) : pb.sc_fixed;
@@ -288,8 +329,8 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
   if (x0.size() != cons.num_vars())
     throw std::invalid_argument("seed: expected " + std::to_string(cons.num_vars()) + " variables, got " + std::to_string(x0.size()));
   if (!x0.allFinite()) throw std::invalid_argument("seed: values must be finite");
-  const double T1 = x0[cons.idx_T1()], T2 = x0[cons.idx_T2()], T = x0[cons.idx_T()];
-  if (!(0.0 <= T1 && T1 <= T2 && T2 <= T))
+  const double T = x0[cons.idx_T()], T1 = x0[cons.idx_s1()] * T, T2 = x0[cons.idx_s2()] * T;
+  if (!(T > 0 && x0[cons.idx_s1()] >= 0.0 && x0[cons.idx_s1()] <= x0[cons.idx_s2()] && x0[cons.idx_s2()] <= 1.0))
     throw std::invalid_argument("seed: inconsistent time ordering, expected 0 <= T1 <= T2 <= T, got T1=" +
                                 std::to_string(T1) + " T2=" + std::to_string(T2) + " T=" + std::to_string(T));
   StageResult res;
@@ -300,7 +341,8 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
   app->Options()->SetIntegerValue("print_level", st.print_level);
   app->Options()->SetStringValue("sb", "yes");
   app->Options()->SetStringValue("hessian_approximation", "limited-memory");
-  app->Options()->SetStringValue("mu_strategy", "adaptive");
+  app->Options()->SetStringValue("mu_strategy", st.mu_strategy);
+  app->Options()->SetNumericValue("mu_init", st.mu_init);
   app->Options()->SetNumericValue("tol", st.tol);
   app->Options()->SetNumericValue("constr_viol_tol", st.constr_viol_tol);
   app->Options()->SetNumericValue("acceptable_constr_viol_tol", std::max(1e-5, st.constr_viol_tol));
@@ -312,6 +354,8 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
     app->Options()->SetNumericValue("derivative_test_perturbation", 1e-7);
   }
   Ipopt::ApplicationReturnStatus status = app->Initialize();
+  if (!st.output_file.empty() && !app->OpenOutputFile(st.output_file, Ipopt::J_ITERSUMMARY))
+    throw std::invalid_argument("cannot open Ipopt output file " + st.output_file);
   if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(Ipopt::GetRawPtr(nlp));
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   res.ipopt_status = app_status_text(status);
@@ -331,11 +375,11 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
 namespace {
 void fill_result(PickupResult& out, const Robot& robot, const PickupSettings& st) {
   std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
-  out.traj = PolyTraj(deg, st.time_scale);
-  const int nc = out.traj.num_coeffs();
-  out.T1 = out.x[nc];
-  out.T2 = out.x[nc + 1];
+  const int nc = PolyTraj(deg, 1.0).num_coeffs();
   out.T = out.x[nc + 2];
+  out.T1 = out.x[nc] * out.T;
+  out.T2 = out.x[nc + 1] * out.T;
+  out.traj = PolyTraj(deg, out.T);
   out.S_g = out.x[nc + 3];
   out.S_c = out.x[nc + 4];
   for (const auto& s : out.stages) out.total_seconds += s.seconds;

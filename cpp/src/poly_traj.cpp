@@ -64,12 +64,19 @@ void PolyTraj::eval_many(const Eigen::VectorXd& coeffs, const Eigen::VectorXd& t
   }
 }
 
-void PolyTraj::fit_dof(int i, const Eigen::VectorXd& times, const Eigen::VectorXd& values, double* coeffs) const {
+void PolyTraj::fit_dof(int i, const Eigen::VectorXd& times, const Eigen::VectorXd& values, double* coeffs,
+                       const Eigen::VectorXd& weights) const {
   const int d = degrees_.at(i);
+  if (values.size() != times.size() || (weights.size() && weights.size() != times.size()))
+    throw std::invalid_argument("PolyTraj::fit_dof: times, values and weights must have the same length");
   Eigen::MatrixXd A(times.size(), d + 1);
-  for (long r = 0; r < times.size(); ++r)
-    for (int k = 0; k <= d; ++k) A(r, k) = basis(times[r], k, 0);
-  Eigen::VectorXd x = A.colPivHouseholderQr().solve(values);
+  Eigen::VectorXd b = values;
+  for (long r = 0; r < times.size(); ++r) {
+    const double w = weights.size() ? weights[r] : 1.0;
+    for (int k = 0; k <= d; ++k) A(r, k) = w * basis(times[r], k, 0);
+    b[r] *= w;
+  }
+  Eigen::VectorXd x = A.colPivHouseholderQr().solve(b);
   for (int k = 0; k <= d; ++k) coeffs[offset_[i] + k] = x[k];
 }
 

@@ -7,7 +7,9 @@
 // THREAD SAFETY: Ipopt 3.11 with MUMPS is NOT thread-safe. Never run two solves at once in one
 // process; run independent solves in separate processes (the Python layer does).
 //
-// Decision variables x = [polynomial coefficients | T1, T2, T | S_g, S_c].
+// Decision variables x = [polynomial coefficients | s1, s2, T | S_g, S_c]: each DOF is a polynomial
+// P_i(s) in normalised time s = t / T (q_i(t) = P_i(t / T), the paper's polynomial in t with its
+// coefficients scaled by T^k), and T1 = s1 T, T2 = s2 T with 0 <= s1 <= s2 <= 1.
 #include <string>
 #include <vector>
 
@@ -65,18 +67,22 @@ struct PickupProblem {
 
 struct PickupSettings {
   int samples_per_interval = 8;         // m instants in each of [0,T1], [T1,T2], [T2,T]
-  std::vector<int> degrees;             // per DOF; empty: 3 base, 5 for arm joints 1-3, 3 wrists
-  double time_scale = 10.0;             // tau of the polynomials (s)
-  double nonholonomic_tol = 0.01;       // |x' sin phi - y' cos phi| <= tol (m/s)
+  std::vector<int> degrees;             // per DOF; empty: default_degrees() (5 base, 5 arm joints 1-3, 3 wrists)
+  // Non-holonomic base, in normalised time: |x_s sin phi - y_s cos phi| <= tol * L with L the
+  // start-part-goal distance, i.e. lateral speed <= tol L / T (heading error ~ tol rad at mean speed).
+  double nonholonomic_tol = 0.002;
+  std::string mu_strategy = "monotone";  // Ipopt barrier update ("monotone" | "adaptive")
+  double mu_init = 1e-2;
   double velocity_tol = 0.005;          // |J q' - S_g n_g| per component (m/s) during grasping
   double angular_velocity_tol = 0.01;   // |omega| per component (rad/s) during grasping
   double collision_margin = 0.02;       // m
-  double t_max = 100.0;                 // upper bound on T (s)
+  double t_min = 0.5, t_max = 100.0;    // bounds on T (s)
   double tol = 1e-6, constr_viol_tol = 1e-6;
   int max_iter = 400;
   double max_cpu_time = 20.0;           // per stage (s)
   int print_level = 0;
   bool derivative_test = false;         // runs Ipopt's first-order derivative checker
+  std::string output_file;              // non-empty: Ipopt's log (print level 5) goes to this file
   double seed_speed = 1.0;              // heuristic seed: T = path length / seed_speed
   unsigned seed = 0;                    // random seeds (arm perturbation, single-shot baseline)
   double arm_seed_noise = 0.05;         // rad, heuristic seed arm perturbation
@@ -91,8 +97,8 @@ class PickupConstraints {
   int num_nonzeros() const { return static_cast<int>(jac_col_.size()); }
   int stage() const { return stage_; }
   const PolyTraj& traj() const { return traj_; }
-  int idx_T1() const { return nc_; }
-  int idx_T2() const { return nc_ + 1; }
+  int idx_s1() const { return nc_; }      // T1 / T
+  int idx_s2() const { return nc_ + 1; }  // T2 / T
   int idx_T() const { return nc_ + 2; }
   int idx_Sg() const { return nc_ + 3; }
   int idx_Sc() const { return nc_ + 4; }
@@ -106,7 +112,7 @@ class PickupConstraints {
   std::vector<std::string> row_names() const;  // "kind@sample" for diagnostics
 
  private:
-  struct Sample { double w[3]; };  // t = w0 T1 + w1 T2 + w2 T
+  struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
   struct Row { int kind, sample, aux; unsigned dof_mask; bool sg, sc; double lo, hi; int jac_begin; };
   void add_row(int kind, int sample, int aux, unsigned dof_mask, bool sg, bool sc, double lo, double hi);
   void sample_rows(const double* x, int sample, int r0, int r1, double* g, double* jac) const;
@@ -143,7 +149,7 @@ struct PickupResult {
   Eigen::VectorXd x;           // last good solution
   double total_seconds = 0.0;
   double T = 0, T1 = 0, T2 = 0, S_g = 0, S_c = 0;
-  PolyTraj traj;
+  PolyTraj traj;               // in absolute time: time_scale = T, coefficients x[0 : num_coeffs]
 };
 
 // The heuristic seed of stage 1: base through a grasping-area point, arm at arm_start (+ noise).

@@ -30,7 +30,9 @@ class PolyTraj {
                  Eigen::MatrixXd* qd, Eigen::MatrixXd* qdd) const;
   // d q_i(t) / d a_ik = basis(t, k, 0); d q_i'(t) / d a_ik = basis(t, k, 1) (the map is linear).
   // Fits DOF i's coefficients by least squares to values at times (weighted rows): used for seeds.
-  void fit_dof(int i, const Eigen::VectorXd& times, const Eigen::VectorXd& values, double* coeffs) const;
+  // weights (optional, same length) scale the residuals.
+  void fit_dof(int i, const Eigen::VectorXd& times, const Eigen::VectorXd& values, double* coeffs,
+               const Eigen::VectorXd& weights = Eigen::VectorXd()) const;
 
  private:
   std::vector<int> degrees_;
