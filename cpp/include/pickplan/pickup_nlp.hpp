@@ -154,6 +154,10 @@ struct PickupResult {
 
 // The heuristic seed of stage 1: base through a grasping-area point, arm at arm_start (+ noise).
 Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
+// Stage-2 warm start: the arm polynomials re-fitted to blend from arm_start to a (multi-start,
+// damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
+Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                              const Eigen::VectorXd& x);
 // A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others
 // random, 0 <= T1 < T2 <= T (seeded by settings.seed).
 Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
