@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
 
 #include <coin/IpIpoptApplication.hpp>
@@ -217,6 +218,33 @@ const char* short_status(Ipopt::ApplicationReturnStatus s) {
 
 }  // namespace
 
+namespace {
+// Sound reachability test of the grasp position: the tool is at most R (sum of the fixed link
+// offsets from the first arm joint to the tool, triangle inequality) from the first arm joint, whose
+// position is fixed on the base; if even the nearest base pose in the grasping area leaves the grasp
+// point farther than R, no trajectory can satisfy the grasp-pose constraint.
+bool grasp_unreachable(const Robot& robot, const PickupProblem& pb, std::string& why) {
+  const int first = robot.link_of_q(3);
+  double reach = 0.0;
+  for (int k = pb.tool_link; k >= 0 && k != first; k = robot.link(k).parent) {
+    if (robot.link(k).joint_type == JointType::Prismatic) return false;  // no bound for prismatic arms
+    reach += robot.link(k).joint_origin.p.norm();
+  }
+  RobotWorkspace ws(robot);
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(robot.dof());
+  robot.forward_kinematics(q.data(), ws);
+  const Eigen::Vector3d j0 = ws.link_pose[first].p - robot.base().p;
+  const double mount = j0.head<2>().norm();
+  const double dz = pb.grasp_pose.p.z() - (robot.base().p.z() + j0.z());
+  const double dxy_part = (pb.grasp_pose.p.head<2>() - pb.part_xy).norm();
+  const double h = std::max(0.0, pb.grasp_area_rmin - mount - dxy_part);
+  const double dmin = std::hypot(dz, h);
+  if (dmin <= reach) return false;
+  why = "grasp point at least " + std::to_string(dmin) + " m from the first arm joint, reach " + std::to_string(reach) + " m";
+  return true;
+}
+}  // namespace
+
 StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
                         const Eigen::VectorXd& x0) {
   PickupConstraints cons(robot, pb, st, stage);  // validates (throws std::invalid_argument)
@@ -229,6 +257,15 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
                                 std::to_string(T1) + " T2=" + std::to_string(T2) + " T=" + std::to_string(T));
   StageResult res;
   res.stage = stage;
+  std::string why;
+  if ((stage == 0 || stage >= 2) && grasp_unreachable(robot, pb, why)) {
+    res.status = "infeasible";
+    res.ipopt_status = "Not_Solved (reachability pre-check: " + why + ")";
+    res.x = x0;
+    res.objective = x0[cons.idx_T()];
+    res.max_violation = cons.max_violation(x0);
+    return res;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   Ipopt::SmartPtr<PickupTNLP> nlp = new PickupTNLP(cons, x0);
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
@@ -246,6 +283,19 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
     app->Options()->SetStringValue("derivative_test", "first-order");
     app->Options()->SetNumericValue("derivative_test_tol", 1e-4);
     app->Options()->SetNumericValue("derivative_test_perturbation", 1e-7);
+  }
+  for (const auto& [name, value] : st.ipopt_options) {
+    char* end = nullptr;
+    const long iv = std::strtol(value.c_str(), &end, 10);
+    bool ok;
+    if (!value.empty() && *end == '\0') {
+      ok = app->Options()->SetIntegerValue(name, static_cast<int>(iv));
+    } else {
+      const double dv = std::strtod(value.c_str(), &end);
+      ok = (!value.empty() && *end == '\0') ? app->Options()->SetNumericValue(name, dv)
+                                             : app->Options()->SetStringValue(name, value);
+    }
+    if (!ok) throw std::invalid_argument("invalid Ipopt option " + name + " = " + value);
   }
   Ipopt::ApplicationReturnStatus status = app->Initialize();
   if (!st.output_file.empty() && !app->OpenOutputFile(st.output_file, Ipopt::J_ITERSUMMARY))

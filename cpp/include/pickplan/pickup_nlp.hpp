@@ -11,6 +11,7 @@
 // P_i(s) in normalised time s = t / T (q_i(t) = P_i(t / T), the paper's polynomial in t with its
 // coefficients scaled by T^k), and T1 = s1 T, T2 = s2 T with 0 <= s1 <= s2 <= 1.
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -82,6 +83,7 @@ struct PickupSettings {
   double max_cpu_time = 20.0;           // per stage (s)
   int print_level = 0;
   bool derivative_test = false;         // runs Ipopt's first-order derivative checker
+  std::vector<std::pair<std::string, std::string>> ipopt_options;  // extra Ipopt options (name, value)
   std::string output_file;              // non-empty: Ipopt's log (print level 5) goes to this file
   double seed_speed = 1.0;              // heuristic seed: T = path length / seed_speed
   unsigned seed = 0;                    // random seeds (arm perturbation, single-shot baseline)
