@@ -6,6 +6,7 @@ void init_robot(py::module_& m);
 void init_sdf(py::module_& m);
 void init_chomp(py::module_& m);
 void init_collision(py::module_& m);
+void init_pickup_nlp(py::module_& m);
 }
 
 PYBIND11_MODULE(_core, m) {
@@ -21,4 +22,5 @@ PYBIND11_MODULE(_core, m) {
   pickplan::bind::init_sdf(m);
   pickplan::bind::init_chomp(m);
   pickplan::bind::init_collision(m);
+  pickplan::bind::init_pickup_nlp(m);
 }

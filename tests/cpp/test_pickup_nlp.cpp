@@ -11,6 +11,7 @@
 #include "pickplan/pickup_nlp.hpp"
 #include "pickplan/poly_traj.hpp"
 #include "pickplan/robot.hpp"
+#include "pickplan/stomp.hpp"
 
 using namespace pickplan;
 
@@ -223,4 +224,33 @@ TEST(PickupNlp, BadInputThrowsClearErrors) {
   EXPECT_THROW(solve_stage(r, pb, st, 7, heuristic_seed(r, pb, st)), std::invalid_argument);
   pb.arm_start.resize(5);
   EXPECT_THROW(heuristic_seed(r, pb, st), std::invalid_argument);
+}
+
+TEST(Stomp, RefinesArmKeepsEndsAndLimits) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 1, example_rho());
+  const int N = 30;
+  const double dt = 0.1;
+  Eigen::MatrixXd Q(N, 9);
+  std::mt19937 rng(2);
+  std::normal_distribution<double> nz(0.0, 0.15);
+  for (int i = 0; i < N; ++i) {
+    const double s = double(i) / (N - 1);
+    Q.row(i).head<3>() << 2.4 + 0.3 * s, 3.3, 0.0;  // base parked next to the pedestal
+    Q.row(i).tail<6>() = pb.arm_start.transpose() * (1 - s) + Eigen::RowVectorXd::Constant(6, 0.3) * s;
+    if (i >= 2 && i < N - 2) Q.row(i).tail<6>() += Eigen::RowVectorXd::NullaryExpr(6, [&]() { return nz(rng); });
+  }
+  StompSettings st;
+  st.iterations = 30;
+  StompResult res = stomp_refine(r, Q, dt, Eigen::VectorXd::Constant(6, M_PI), pb.body_spheres, pb.obstacles, st);
+  EXPECT_EQ(res.iterations, 30);
+  EXPECT_LT((res.q.topRows(2) - Q.topRows(2)).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_LT((res.q.bottomRows(2) - Q.bottomRows(2)).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_LT((res.q.leftCols(3) - Q.leftCols(3)).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_LE(res.final_cost, res.initial_cost);
+  EXPECT_LT(res.final_smoothness, 0.5 * res.initial_smoothness);  // the noisy path gets smoother
+  EXPECT_TRUE(res.limits_ok);
+  EXPECT_LE(res.max_rate, M_PI + 1e-9);
+  EXPECT_THROW(stomp_refine(r, Q.topRows(4), dt, Eigen::VectorXd::Constant(6, M_PI), pb.body_spheres, pb.obstacles, st),
+               std::invalid_argument);
 }
