@@ -102,6 +102,7 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("velocity_tol", &PickupSettings::velocity_tol)
       .def_readwrite("angular_velocity_tol", &PickupSettings::angular_velocity_tol)
       .def_readwrite("collision_margin", &PickupSettings::collision_margin)
+      .def_readwrite("joint_limit_margin", &PickupSettings::joint_limit_margin)
       .def_readwrite("t_min", &PickupSettings::t_min)
       .def_readwrite("t_max", &PickupSettings::t_max)
       .def_readwrite("tol", &PickupSettings::tol)

@@ -115,7 +115,8 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     for (int j = 0; j < na; ++j) {
       double lo = robot.lower_limits()[3 + j], hi = robot.upper_limits()[3 + j];
       if (std::isfinite(lo) || std::isfinite(hi))
-        add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo : -kInf, std::isfinite(hi) ? hi : kInf);
+        add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo + settings.joint_limit_margin : -kInf,
+                std::isfinite(hi) ? hi - settings.joint_limit_margin : kInf);
       add_row(K_JRATE, s, j, 1u << (3 + j), false, false, -problem.arm_rate_limits[j], problem.arm_rate_limits[j]);
     }
     if (interval == 1) {

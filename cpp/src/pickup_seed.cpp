@@ -119,7 +119,7 @@ Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const P
 namespace {
 
 // Damped least-squares IK of the arm joints for the tool pose, base fixed; returns the residual.
-double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, int iters) {
+double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, int iters, double margin) {
   const int n = robot.dof(), na = n - 3;
   RobotWorkspace ws(robot);
   Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
@@ -141,7 +141,7 @@ double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, i
     Eigen::VectorXd dq = Ja.transpose() * A.ldlt().solve(e);
     if (dq.norm() > 0.3) dq *= 0.3 / dq.norm();
     for (int j = 0; j < na; ++j)
-      q[3 + j] = std::clamp(q[3 + j] + dq[j], robot.lower_limits()[3 + j], robot.upper_limits()[3 + j]);
+      q[3 + j] = std::clamp(q[3 + j] + dq[j], robot.lower_limits()[3 + j] + margin, robot.upper_limits()[3 + j] - margin);
   }
   return err;
 }
@@ -167,7 +167,7 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
       q.tail(n - 3) = pb.arm_start;
       q[3] += pan;
       q[n - 1] += w3;
-      const double err = arm_ik(robot, pb, q, 150);
+      const double err = arm_ik(robot, pb, q, 150, st.joint_limit_margin);
       const double score = (err > 1e-6 ? 1e3 * err : 0.0) + (q.tail(n - 3) - pb.arm_start).norm();
       if (score < best_score) {
         best_score = score;

@@ -77,6 +77,7 @@ struct PickupSettings {
   double velocity_tol = 0.005;          // |J q' - S_g n_g| per component (m/s) during grasping
   double angular_velocity_tol = 0.01;   // |omega| per component (rad/s) during grasping
   double collision_margin = 0.02;       // m
+  double joint_limit_margin = 0.05;     // rad, sampled position limits tightened (limits hold between samples)
   double t_min = 0.5, t_max = 100.0;    // bounds on T (s)
   double tol = 1e-6, constr_viol_tol = 1e-6;
   int max_iter = 400;

@@ -44,6 +44,7 @@ class PlannerSettings:
     velocity_tol: float = 0.005
     angular_velocity_tol: float = 0.01
     collision_margin: float = 0.02
+    joint_limit_margin: float = 0.05
     t_min: float = 0.5
     t_max: float = 100.0
     tol: float = 1e-6
