@@ -124,7 +124,9 @@ StompResult stomp_refine(const Robot& robot, const Eigen::MatrixXd& Q0, double d
         Eigen::VectorXd acc(N - 2);
         for (int r = 0; r < N - 2; ++r) acc[r] = th[r] - 2 * th[r + 1] + th[r + 2];
         ctrl = A.transpose() * acc;  // gradient of 0.5 |acc|^2 w.r.t. the free waypoints
-        theta.block(2, 3 + j, F, 1) += M * (delta.block(2, 3 + j, F, 1) - st.control_weight * 0.1 * Rinv * ctrl);
+        // Exploration update smoothed by M; smoothness by a damped Newton step on 0.5 |A theta|^2
+        // (R^-1 A^T acc moves the free waypoints towards the minimum-acceleration path).
+        theta.block(2, 3 + j, F, 1) += M * delta.block(2, 3 + j, F, 1) - std::min(1.0, 0.2 * st.control_weight) * (Rinv * ctrl);
       }
       Costs c = evaluate(robot, theta, dt, rate, spheres, obstacles, st, ws);
       res.iterations = it + 1;

@@ -249,6 +249,7 @@ TEST(Stomp, RefinesArmKeepsEndsAndLimits) {
   EXPECT_LT((res.q.leftCols(3) - Q.leftCols(3)).cwiseAbs().maxCoeff(), 1e-15);
   EXPECT_LE(res.final_cost, res.initial_cost);
   EXPECT_LT(res.final_smoothness, 0.5 * res.initial_smoothness);  // the noisy path gets smoother
+  EXPECT_GE(res.min_clearance, -1e-9);
   EXPECT_TRUE(res.limits_ok);
   EXPECT_LE(res.max_rate, M_PI + 1e-9);
   EXPECT_THROW(stomp_refine(r, Q.topRows(4), dt, Eigen::VectorXd::Constant(6, M_PI), pb.body_spheres, pb.obstacles, st),
