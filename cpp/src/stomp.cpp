@@ -128,6 +128,9 @@ StompResult stomp_refine(const Robot& robot, const Eigen::MatrixXd& Q0, double d
         // (R^-1 A^T acc moves the free waypoints towards the minimum-acceleration path).
         theta.block(2, 3 + j, F, 1) += M * delta.block(2, 3 + j, F, 1) - std::min(1.0, 0.2 * st.control_weight) * (Rinv * ctrl);
       }
+      for (int i = 2; i < N - 2; ++i)  // project the free waypoints into the joint limits
+        for (int j = 0; j < na; ++j)
+          theta(i, 3 + j) = std::clamp(theta(i, 3 + j), robot.lower_limits()[3 + j], robot.upper_limits()[3 + j]);
       Costs c = evaluate(robot, theta, dt, rate, spheres, obstacles, st, ws);
       res.iterations = it + 1;
       const bool better = (c.limits_ok && !best_ok) || (c.limits_ok == best_ok && c.total < best.total);

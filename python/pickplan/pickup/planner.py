@@ -208,6 +208,12 @@ def _solve_job(job):
     p = plan(robot, problem, st, method)
     out = p.to_dict()
     out["metrics"] = evaluate(robot, problem, p) if p.stages_completed > 0 else None
+    out["stomp"] = {}
+    if p.success:  # STOMP on the arm tails [0, T1] and [T2, T] (Sec. V-B, last paragraph)
+        for name, (t, Q, info) in refine_tails(robot, problem, p, seed=seed).items():
+            out["stomp"][name] = {"t": t.tolist(), "q": Q.tolist(), "initial_smoothness": info.initial_smoothness,
+                                  "final_smoothness": info.final_smoothness, "limits_ok": info.limits_ok,
+                                  "min_clearance": info.min_clearance, "seconds": info.seconds}
     out.update(case=case_id, method=method, seed=seed)
     return out
 
