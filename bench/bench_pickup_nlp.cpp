@@ -38,6 +38,8 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("max_iter")) st.max_iter = std::atoi(opt.extra.at("max_iter").c_str());
   if (opt.extra.count("mu")) st.mu_strategy = opt.extra.at("mu");
   if (opt.extra.count("mu_init")) st.mu_init = std::atof(opt.extra.at("mu_init").c_str());
+  for (const auto& [k, v] : opt.extra)
+    if (k.rfind("ipopt.", 0) == 0) st.ipopt_options.push_back({k.substr(6), v});
   const int shots = opt.extra.count("shots") ? std::atoi(opt.extra.at("shots").c_str()) : 1;
   std::vector<int> cases = {1, 2, 3, 4, 5, 6};
   if (opt.extra.count("cases")) {
