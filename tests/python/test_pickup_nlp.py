@@ -6,7 +6,6 @@ import math
 import numpy as np
 import pytest
 
-from pickplan import _core
 from pickplan.pickup import cases, planner
 
 FAST = planner.PlannerSettings(samples_per_interval=6)
