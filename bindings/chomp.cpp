@@ -69,6 +69,8 @@ void init_chomp(py::module_& m) {
       .def_readwrite("epsilon", &MetricSettings::epsilon)
       .def_readwrite("clearance", &MetricSettings::clearance)
       .def_readwrite("table_clearance", &MetricSettings::table_clearance)
+      .def_readwrite("tail_waypoints", &MetricSettings::tail_waypoints)
+      .def_readwrite("tail_clearance", &MetricSettings::tail_clearance)
       .def_readwrite("smoothness_threshold", &MetricSettings::smoothness_threshold)
       .def_readwrite("exclude_mask", &MetricSettings::exclude_mask);
 

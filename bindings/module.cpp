@@ -8,6 +8,7 @@ void init_chomp(py::module_& m);
 void init_collision(py::module_& m);
 void init_ik(py::module_& m);
 void init_isf(py::module_& m);
+void init_pickup_nlp(py::module_& m);
 }
 
 PYBIND11_MODULE(_core, m) {
@@ -25,4 +26,5 @@ PYBIND11_MODULE(_core, m) {
   pickplan::bind::init_collision(m);
   pickplan::bind::init_ik(m);
   pickplan::bind::init_isf(m);
+  pickplan::bind::init_pickup_nlp(m);
 }

@@ -4,6 +4,7 @@
   pickplan plan --scene SCENE.json       plan (and optionally execute) one scene
   pickplan scenes --n 100 --out DIR      generate a benchmark set of scenes
   pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
+  pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
 """
 from __future__ import annotations
 
@@ -63,9 +64,11 @@ def build_parser() -> argparse.ArgumentParser:
     plan.set_defaults(handler=_cmd_plan)
     from .scenes_cli import add_scene_commands
     from .pickup.cli import add_metamodel_commands
+    from .pickup.cases_cli import add_pickup_commands
 
     add_scene_commands(sub)
     add_metamodel_commands(sub)
+    add_pickup_commands(sub)
     return parser
 
 

@@ -1,0 +1,108 @@
+// Pick-up on the move (Thakar et al.): the five stages of successive refinement per test case,
+// and the single-shot baseline. Options: --mobile_urdf=PATH --cases=1,2,... --m=8 --shots=1
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <sstream>
+
+#include "bench_common.hpp"
+#include "pickplan/pickup_cases.hpp"
+
+namespace pickplan::bench {
+namespace {
+
+std::string find_mobile_urdf(const Options& opt) {
+  auto it = opt.extra.find("mobile_urdf");
+  if (it != opt.extra.end()) return it->second;
+  if (const char* env = std::getenv("PICKPLAN_MOBILE_UR5_URDF")) return env;
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path exe = fs::canonical("/proc/self/exe", ec);
+  for (fs::path dir = exe.parent_path(); !dir.empty() && dir != dir.root_path(); dir = dir.parent_path()) {
+    if (fs::is_regular_file(dir / "assets" / "mobile_ur5.urdf", ec)) return (dir / "assets" / "mobile_ur5.urdf").string();
+    fs::path lib = dir / "lib";
+    if (fs::is_directory(lib, ec))
+      for (const auto& py : fs::directory_iterator(lib, ec)) {
+        fs::path c = py.path() / "site-packages" / "pickplan" / "assets" / "mobile_ur5.urdf";
+        if (fs::is_regular_file(c, ec)) return c.string();
+      }
+  }
+  return "assets/mobile_ur5.urdf";
+}
+
+void bench_pickup(const Options& opt) {
+  Robot robot = Robot::from_urdf_file(find_mobile_urdf(opt));
+  PickupSettings st;
+  if (opt.extra.count("m")) st.samples_per_interval = std::atoi(opt.extra.at("m").c_str());
+  if (opt.extra.count("print")) st.print_level = std::atoi(opt.extra.at("print").c_str());
+  if (opt.extra.count("max_iter")) st.max_iter = std::atoi(opt.extra.at("max_iter").c_str());
+  if (opt.extra.count("mu")) st.mu_strategy = opt.extra.at("mu");
+  if (opt.extra.count("mu_init")) st.mu_init = std::atof(opt.extra.at("mu_init").c_str());
+  for (const auto& [k, v] : opt.extra)
+    if (k.rfind("ipopt.", 0) == 0) st.ipopt_options.push_back({k.substr(6), v});
+  const int shots = opt.extra.count("shots") ? std::atoi(opt.extra.at("shots").c_str()) : 1;
+  std::vector<int> cases = {1, 2, 3, 4, 5, 6};
+  if (opt.extra.count("cases")) {
+    cases.clear();
+    std::stringstream ss(opt.extra.at("cases"));
+    for (std::string tok; std::getline(ss, tok, ',');) cases.push_back(std::atoi(tok.c_str()));
+  }
+  std::printf("pick-up NLP: m = %d samples per interval, L-BFGS Hessian, MUMPS\n", st.samples_per_interval);
+  {
+    PickupProblem pb = paper_case(robot, 1, example_rho());
+    PickupConstraints all(robot, pb, st, 0);
+    Eigen::VectorXd x = heuristic_seed(robot, pb, st);
+    std::vector<double> g(all.num_constraints()), jv(all.num_nonzeros());
+    std::printf("all-constraint NLP: %d variables, %d constraints, %d Jacobian nonzeros\n", all.num_vars(),
+                all.num_constraints(), all.num_nonzeros());
+    report("constraints g(x), all stages' rows", summarize(time_samples(50, 5, [&](int) { all.eval_g(x.data(), g.data()); })));
+    report("constraint Jacobian, all stages' rows", summarize(time_samples(50, 5, [&](int) { all.eval_jac(x.data(), jv.data()); })));
+  }
+  if (opt.extra.count("diag")) {  // worst-violated rows of the heuristic seed, per stage
+    PickupProblem pb = paper_case(robot, std::atoi(opt.extra.at("diag").c_str()), example_rho());
+    Eigen::VectorXd x = heuristic_seed(robot, pb, st);
+    for (int stage = 1; stage <= 5; ++stage) {
+      PickupConstraints c(robot, pb, st, stage);
+      Eigen::VectorXd xl, xu, gl, gu, g(c.num_constraints());
+      c.bounds(xl, xu, gl, gu);
+      c.eval_g(x.data(), g.data());
+      auto names = c.row_names();
+      std::vector<std::pair<double, int>> v;
+      for (int r = 0; r < c.num_constraints(); ++r) v.push_back({std::max(gl[r] - g[r], g[r] - gu[r]), r});
+      std::sort(v.rbegin(), v.rend());
+      std::printf("seed, stage %d rows violated most:", stage);
+      for (int k = 0; k < 6 && k < (int)v.size(); ++k) std::printf(" %s %.3g;", names[v[k].second].c_str(), v[k].first);
+      std::printf("\n");
+    }
+  }
+  std::vector<double> totals;
+  for (int c : cases) {
+    PickupProblem pb = paper_case(robot, c, example_rho());
+    PickupResult r = solve_successive(robot, pb, st);
+    std::printf("case %d: %-12s total %.3f s |", c, r.status.c_str(), r.total_seconds);
+    for (const auto& s : r.stages) std::printf(" s%d %.3fs/%dit", s.stage, s.seconds, s.iterations);
+    std::printf("\n");
+    totals.push_back(r.total_seconds);
+    if (r.stages_completed > 0) {
+      PickupMetrics m = evaluate_pickup(robot, pb, r);
+      std::printf("   T %.2f s  T1 %.2f  T2 %.2f  Sg %.3f  Sc %.3f  rho %.4f | pose err %.2e m %.2e rad | NH mean %.2e m/s drift %.2e m"
+                  " | v err %.2e | clear %.3f | base %.2f m/s, grasp %.2f m/s, gripper %.2f m/s\n",
+                  r.T, r.T1, r.T2, r.S_g, r.S_c, m.success_probability, m.pose_error_position, m.pose_error_orientation,
+                  m.nonholonomic_mean, m.nonholonomic_drift, m.velocity_error_max, m.min_clearance, m.base_speed_max,
+                  m.base_speed_grasp_mean, m.gripper_speed_grasp_mean);
+    }
+    for (int k = 0; k < shots; ++k) {
+      PickupSettings s1 = st;
+      s1.seed = k;
+      PickupResult b = solve_single_shot(robot, pb, s1);
+      std::printf("   single-shot seed %d: %-12s %.3f s %d it, T %.2f\n", k, b.status.c_str(), b.total_seconds,
+                  b.stages[0].iterations, b.stages[0].objective);
+    }
+  }
+  report("successive refinement, all five stages (per case)", summarize(totals), "[target <= 1 s]");
+}
+
+Register reg("pickup_nlp", bench_pickup);
+
+}  // namespace
+}  // namespace pickplan::bench

@@ -1,0 +1,179 @@
+#pragma once
+// Time-optimal pick-up on the move (Thakar et al., Sec. III and V): a 9-DOF mobile manipulator
+// whose DOFs are polynomials in time picks up a part while driving from a start to a goal.
+// The NLP is solved by Ipopt (C++ TNLP interface, exact first derivatives, limited-memory
+// quasi-Newton Hessian) in five stages of successive refinement, each seeded by the previous.
+//
+// THREAD SAFETY: Ipopt 3.11 with MUMPS is NOT thread-safe. Never run two solves at once in one
+// process; run independent solves in separate processes (the Python layer does).
+//
+// Decision variables x = [polynomial coefficients | s1, s2, T | S_g, S_c]: each DOF is a polynomial
+// P_i(s) in normalised time s = t / T (q_i(t) = P_i(t / T), the paper's polynomial in t with its
+// coefficients scaled by T^k), and T1 = s1 T, T2 = s2 T with 0 <= s1 <= s2 <= 1.
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "pickplan/poly_traj.hpp"
+#include "pickplan/robot.hpp"
+#include "pickplan/transform.hpp"
+
+namespace pickplan {
+
+// rho_sigma(S_g, S_c) as a tensor-product Bernstein polynomial on [sg_lo, sg_hi] x [sc_lo, sc_hi]
+// (the RhoSurface format of the meta-model: coeffs[i, j] multiplies B_i(u) B_j(v)).
+struct RhoPoly {
+  Eigen::MatrixXd coeffs;  // (deg_g + 1) x (deg_c + 1)
+  double sg_lo = 0.0, sg_hi = 1.0, sc_lo = 0.0, sc_hi = 1.0;
+  void validate() const;  // throws std::invalid_argument
+  double value(double s_g, double s_c) const;
+  Eigen::Vector2d gradient(double s_g, double s_c) const;  // (d/dS_g, d/dS_c)
+};
+
+struct SphereObstacle {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  double radius = 0.1;
+};
+
+struct BodySphere {  // a sphere fixed on a robot link (center in the link frame)
+  int link = 0;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  double radius = 0.05;
+};
+
+// What to plan. The first three DOFs of the robot must be the planar base (x, y, yaw).
+struct PickupProblem {
+  Eigen::Vector3d start = Eigen::Vector3d::Zero();  // base x, y, phi at t = 0
+  Eigen::VectorXd arm_start;                        // arm joints at t = 0 (dof - 3)
+  Eigen::Vector3d goal = Eigen::Vector3d::Zero();   // base x, y, phi at T
+  double goal_tol_pos = 0.5, goal_tol_yaw = 0.7853981633974483;
+  Transform grasp_pose;                             // tool pose at T2 (world)
+  Eigen::Vector3d approach_dir = Eigen::Vector3d::UnitX();  // n_g, unit, world
+  Eigen::Vector2d part_xy = Eigen::Vector2d::Zero();        // grasping-area centre
+  double grasp_area_rmin = 0.35, grasp_area_rmax = 0.8;     // base distance to the part during grasping
+  RhoPoly rho;
+  double gamma = 0.96;                              // success-probability threshold
+  double stroke = 0.085;                            // finger travel: T2 - T1 = stroke / S_c
+  bool vary_sc = true;                              // false: S_c fixed at sc_fixed
+  double sc_fixed = 0.15;
+  double base_speed_limit = 2.0, base_yaw_rate_limit = 3.141592653589793;
+  Eigen::VectorXd arm_rate_limits;                  // (dof - 3), rad/s
+  std::vector<SphereObstacle> obstacles;
+  std::vector<BodySphere> body_spheres;
+  int tool_link = -1;                               // link index of the gripper tool frame
+  void validate(const Robot& robot) const;          // throws std::invalid_argument
+};
+
+struct PickupSettings {
+  int samples_per_interval = 8;         // m instants in each of [0,T1], [T1,T2], [T2,T]
+  std::vector<int> degrees;             // per DOF; empty: default_degrees() (5 base, 5 arm joints 1-3, 3 wrists)
+  // Non-holonomic base, in normalised time: |x_s sin phi - y_s cos phi| <= tol * L with L the
+  // start-part-goal distance, i.e. lateral speed <= tol L / T (heading error ~ tol rad at mean speed).
+  double nonholonomic_tol = 0.002;
+  std::string mu_strategy = "monotone";  // Ipopt barrier update ("monotone" | "adaptive")
+  double mu_init = 1e-2;
+  double velocity_tol = 0.005;          // |J q' - S_g n_g| per component (m/s) during grasping
+  double angular_velocity_tol = 0.01;   // |omega| per component (rad/s) during grasping
+  double collision_margin = 0.02;       // m
+  double joint_limit_margin = 0.05;     // rad, sampled position limits tightened (limits hold between samples)
+  double t_min = 0.5, t_max = 100.0;    // bounds on T (s)
+  double tol = 1e-6, constr_viol_tol = 1e-6;
+  int max_iter = 400;
+  double max_cpu_time = 20.0;           // per stage (s)
+  int print_level = 0;
+  bool derivative_test = false;         // runs Ipopt's first-order derivative checker
+  std::vector<std::pair<std::string, std::string>> ipopt_options;  // extra Ipopt options (name, value)
+  std::string output_file;              // non-empty: Ipopt's log (print level 5) goes to this file
+  double seed_speed = 1.0;              // heuristic seed: T = path length / seed_speed
+  unsigned seed = 0;                    // random seeds (arm perturbation, single-shot baseline)
+  double arm_seed_noise = 0.05;         // rad, heuristic seed arm perturbation
+};
+
+// The constraint system of one stage, evaluated natively (exposed for tests and the checker).
+class PickupConstraints {
+ public:
+  PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage);
+  int num_vars() const { return n_; }
+  int num_constraints() const { return static_cast<int>(rows_.size()); }
+  int num_nonzeros() const { return static_cast<int>(jac_col_.size()); }
+  int stage() const { return stage_; }
+  const PolyTraj& traj() const { return traj_; }
+  int idx_s1() const { return nc_; }      // T1 / T
+  int idx_s2() const { return nc_ + 1; }  // T2 / T
+  int idx_T() const { return nc_ + 2; }
+  int idx_Sg() const { return nc_ + 3; }
+  int idx_Sc() const { return nc_ + 4; }
+  void bounds(Eigen::VectorXd& x_lo, Eigen::VectorXd& x_hi, Eigen::VectorXd& g_lo, Eigen::VectorXd& g_hi) const;
+  void eval_g(const double* x, double* g) const;
+  void jac_structure(int* rows, int* cols) const;
+  void eval_jac(const double* x, double* values) const;
+  Eigen::MatrixXd dense_jacobian(const Eigen::VectorXd& x) const;
+  // Largest violation of the constraint bounds and the variable bounds at x.
+  double max_violation(const Eigen::VectorXd& x) const;
+  std::vector<std::string> row_names() const;  // "kind@sample" for diagnostics
+
+ private:
+  struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
+  struct Row { int kind, sample, aux; unsigned dof_mask; bool sg, sc; double lo, hi; int jac_begin; };
+  void add_row(int kind, int sample, int aux, unsigned dof_mask, bool sg, bool sc, double lo, double hi);
+  void sample_rows(const double* x, int sample, int r0, int r1, double* g, double* jac) const;
+
+  const Robot& robot_;
+  const PickupProblem& pb_;
+  PickupSettings st_;
+  int stage_;
+  PolyTraj traj_;
+  int nc_ = 0, n_ = 0, dof_ = 0;
+  std::vector<Sample> samples_;
+  std::vector<Row> rows_;
+  std::vector<int> sample_row_begin_;  // rows of sample s: [begin[s], begin[s+1]); special rows after
+  std::vector<int> jac_row_, jac_col_;
+};
+
+struct StageResult {
+  int stage = 0;
+  std::string status;          // "solved", "solved_acceptable", "infeasible", ... (see status_name)
+  std::string ipopt_status;    // Ipopt's ApplicationReturnStatus / SolverReturn as text
+  bool success = false;
+  double seconds = 0.0;
+  int iterations = 0;
+  double objective = 0.0;      // T
+  double max_violation = 0.0;  // at the returned x
+  Eigen::VectorXd x;
+};
+
+struct PickupResult {
+  std::string status;          // of the last attempted stage ("solved" when all succeeded)
+  bool success = false;
+  int stages_completed = 0;    // the returned x is the solution of this stage (0: the seed)
+  std::vector<StageResult> stages;
+  Eigen::VectorXd x;           // last good solution
+  double total_seconds = 0.0;
+  double T = 0, T1 = 0, T2 = 0, S_g = 0, S_c = 0;
+  PolyTraj traj;               // in absolute time: time_scale = T, coefficients x[0 : num_coeffs]
+};
+
+// The heuristic seed of stage 1: base through a grasping-area point, arm at arm_start (+ noise).
+Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
+// Stage-2 warm start: the arm polynomials re-fitted to blend from arm_start to a (multi-start,
+// damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
+Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                              const Eigen::VectorXd& x);
+// A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others
+// random, 0 <= T1 < T2 <= T (seeded by settings.seed).
+Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
+// One Ipopt solve of a stage (1..5) from x0; stage 0 = all constraints (single shot). Never throws
+// for solver failures: they are statuses. Throws std::invalid_argument for bad input.
+StageResult solve_stage(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage,
+                        const Eigen::VectorXd& x0);
+// The five stages of Sec. V-B from the heuristic seed (or x0 when given, non-empty).
+PickupResult solve_successive(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                              const Eigen::VectorXd& x0 = Eigen::VectorXd());
+// The baseline "without sequencing": all constraints at once from random_seed().
+PickupResult solve_single_shot(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
+// Default polynomial degrees for a robot with `dof` DOFs (3 base + arm).
+std::vector<int> default_degrees(int dof);
+
+}  // namespace pickplan

@@ -1,0 +1,391 @@
+// The constraint system of the pick-up NLP (Sec. V-A) with exact first derivatives.
+// The DOFs are polynomials P(s) in normalised time s = t / T, so q(t) = P(t / T), q'(t) = P_s / T;
+// T1 = s1 T and T2 = s2 T. Each sampled row is a function c(q, q', S_g, S_c) at s = w0 s1 + w1 s2 + c0;
+// the chain rule
+//   dc/da_ik = c_q[i] B_k(s) + c_q'[i] B'_k(s) / T,  dc/ds = c_q . P_s + c_q' . P_ss / T,
+//   dc/dT = -c_q' . q' / T
+// turns its partials in (q, q') into the Jacobian in (coefficients, s1, s2, T). Time scaling is then
+// one variable (T) instead of a coherent change of every coefficient, which Ipopt handles far better.
+#include "pickplan/pickup_nlp.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace pickplan {
+namespace {
+
+enum Kind {
+  K_START, K_NH, K_BSPEED, K_YAWRATE, K_JPOS, K_JRATE, K_AREA, K_VEL, K_OMEGA, K_POSE_P, K_POSE_R, K_POSE_TR,
+  K_GOALPOS, K_GOALYAW, K_COLL, K_TIMING, K_ORDER, K_RHO
+};
+const char* kKindName[] = {"start", "nonholonomic", "base_speed", "yaw_rate", "joint_position", "joint_rate",
+                           "grasp_area", "gripper_velocity", "gripper_angular_velocity", "grasp_position",
+                           "grasp_orientation", "grasp_orientation_half", "goal_position", "goal_yaw",
+                           "collision", "grasp_timing", "time_order", "success_probability"};
+constexpr double kInf = 2e19;
+
+// Tool-point linear/angular velocity Jacobian and the derivatives of (J q') with respect to q.
+void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool, const Eigen::VectorXd& qd,
+                          Eigen::Matrix<double, 6, Eigen::Dynamic>& J, Eigen::Matrix<double, 3, Eigen::Dynamic>& dv,
+                          Eigen::Matrix<double, 3, Eigen::Dynamic>& dw) {
+  const int n = robot.dof();
+  robot.point_jacobian(ws, tool, Eigen::Vector3d::Zero(), J);
+  const Eigen::Vector3d p = ws.link_pose[tool].p;
+  std::vector<Eigen::Vector3d> a(n), o(n);
+  std::vector<char> rev(n), moves_tool(n);
+  for (int i = 0; i < n; ++i) {
+    const int L = robot.link_of_q(i);
+    a[i] = ws.link_pose[L].R * robot.link(L).axis;
+    o[i] = ws.link_pose[L].p;
+    rev[i] = robot.link(L).joint_type != JointType::Prismatic;
+    moves_tool[i] = robot.moves(i, tool);
+  }
+  dv.setZero();
+  dw.setZero();
+  for (int j = 0; j < n; ++j) {
+    if (!moves_tool[j]) continue;
+    const Eigen::Vector3d dp = J.block<3, 1>(0, j);
+    for (int i = 0; i < n; ++i) {
+      if (!moves_tool[i] || qd[i] == 0.0) continue;
+      Eigen::Vector3d da = Eigen::Vector3d::Zero(), dor = Eigen::Vector3d::Zero();
+      if (j != i && robot.moves(j, robot.link_of_q(i))) {
+        if (rev[j]) {
+          da = a[j].cross(a[i]);
+          dor = a[j].cross(o[i] - o[j]);
+        } else {
+          dor = a[j];
+        }
+      }
+      if (rev[i]) {
+        dv.col(j) += qd[i] * (da.cross(p - o[i]) + a[i].cross(dp - dor));
+        dw.col(j) += qd[i] * da;
+      } else {
+        dv.col(j) += qd[i] * da;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                                     int stage)
+    : robot_(robot), pb_(problem), st_(settings), stage_(stage) {
+  if (stage < 0 || stage > 5) throw std::invalid_argument("stage must be 0 (all constraints) or 1..5, got " + std::to_string(stage));
+  problem.validate(robot);
+  if (settings.samples_per_interval < 2)
+    throw std::invalid_argument("samples_per_interval must be >= 2, got " + std::to_string(settings.samples_per_interval));
+  dof_ = robot.dof();
+  if (dof_ > 31) throw std::invalid_argument("at most 31 DOFs supported");
+  std::vector<int> deg = settings.degrees.empty() ? default_degrees(dof_) : settings.degrees;
+  if (static_cast<int>(deg.size()) != dof_)
+    throw std::invalid_argument("degrees: expected " + std::to_string(dof_) + " values, got " + std::to_string(deg.size()));
+  traj_ = PolyTraj(deg, 1.0);
+  nc_ = traj_.num_coeffs();
+  n_ = nc_ + 5;
+  const int level = stage == 0 ? 5 : stage;
+  const int m = settings.samples_per_interval, na = dof_ - 3;
+  const unsigned all = (dof_ == 32) ? ~0u : ((1u << dof_) - 1u), base = 7u;
+  for (int j = 0; j < m; ++j) samples_.push_back({{double(j) / m, 0.0, 0.0}});
+  for (int j = 0; j < m; ++j) {
+    double u = double(j) / (m - 1);
+    samples_.push_back({{1.0 - u, u, 0.0}});
+  }
+  for (int j = 1; j <= m; ++j) {
+    double u = double(j) / m;
+    samples_.push_back({{0.0, 1.0 - u, u}});
+  }
+  const double vt = settings.velocity_tol, wt = settings.angular_velocity_tol;
+  const double nh_bound = settings.nonholonomic_tol * ((problem.part_xy - problem.start.head<2>()).norm() +
+                                                       (problem.goal.head<2>() - problem.part_xy).norm());
+  for (int s = 0; s < static_cast<int>(samples_.size()); ++s) {
+    sample_row_begin_.push_back(static_cast<int>(rows_.size()));
+    const int interval = s / m;
+    if (s == 0) {
+      for (int i = 0; i < dof_; ++i) {
+        double v = i < 3 ? problem.start[i] : problem.arm_start[i - 3];
+        add_row(K_START, s, i, 1u << i, false, false, v, v);
+      }
+    }
+    add_row(K_NH, s, 0, base, false, false, -nh_bound, nh_bound);
+    add_row(K_BSPEED, s, 0, base, false, false, -kInf, problem.base_speed_limit * problem.base_speed_limit);
+    add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
+    for (int j = 0; j < na; ++j) {
+      double lo = robot.lower_limits()[3 + j], hi = robot.upper_limits()[3 + j];
+      if (std::isfinite(lo) || std::isfinite(hi))
+        add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo + settings.joint_limit_margin : -kInf,
+                std::isfinite(hi) ? hi - settings.joint_limit_margin : kInf);
+      add_row(K_JRATE, s, j, 1u << (3 + j), false, false, -problem.arm_rate_limits[j], problem.arm_rate_limits[j]);
+    }
+    if (interval == 1) {
+      add_row(K_AREA, s, 0, base, false, false, problem.grasp_area_rmin * problem.grasp_area_rmin,
+              problem.grasp_area_rmax * problem.grasp_area_rmax);
+      if (level >= 3) {
+        for (int i = 0; i < 3; ++i) add_row(K_VEL, s, i, all, true, false, -vt, vt);
+        for (int i = 0; i < 3; ++i) add_row(K_OMEGA, s, i, all, false, false, -wt, wt);
+      }
+      if (level >= 2 && s == 2 * m - 1) {
+        for (int i = 0; i < 3; ++i) add_row(K_POSE_P, s, i, all, false, false, 0.0, 0.0);
+        for (int i = 0; i < 3; ++i) add_row(K_POSE_R, s, i, all, false, false, 0.0, 0.0);
+        add_row(K_POSE_TR, s, 0, all, false, false, 1.0, kInf);
+      }
+    }
+    if (s == 3 * m - 1) {
+      add_row(K_GOALPOS, s, 0, base, false, false, -kInf, problem.goal_tol_pos * problem.goal_tol_pos);
+      add_row(K_GOALYAW, s, 0, base, false, false, problem.goal[2] - problem.goal_tol_yaw,
+              problem.goal[2] + problem.goal_tol_yaw);
+    }
+    if (level >= 5) {
+      const int no = static_cast<int>(problem.obstacles.size());
+      for (int b = 0; b < static_cast<int>(problem.body_spheres.size()); ++b) {
+        unsigned mask = 0;
+        for (int i = 0; i < dof_; ++i)
+          if (robot.moves(i, problem.body_spheres[b].link)) mask |= 1u << i;
+        for (int o = 0; o < no; ++o) add_row(K_COLL, s, b * no + o, mask, false, false, settings.collision_margin, kInf);
+      }
+    }
+  }
+  sample_row_begin_.push_back(static_cast<int>(rows_.size()));
+  add_row(K_TIMING, -1, 0, 0, false, true, problem.stroke, problem.stroke);
+  add_row(K_ORDER, -1, 0, 0, false, false, 0.0, kInf);
+  if (level >= 4) add_row(K_RHO, -1, 0, 0, true, true, problem.gamma, kInf);
+}
+
+void PickupConstraints::add_row(int kind, int sample, int aux, unsigned mask, bool sg, bool sc, double lo, double hi) {
+  Row r{kind, sample, aux, mask, sg, sc, lo, hi, static_cast<int>(jac_col_.size())};
+  const int row = static_cast<int>(rows_.size());
+  auto push = [&](int col) {
+    jac_row_.push_back(row);
+    jac_col_.push_back(col);
+  };
+  if (sample >= 0) {
+    for (int i = 0; i < dof_; ++i)
+      if (mask & (1u << i))
+        for (int k = 0; k <= traj_.degree(i); ++k) push(traj_.offset(i) + k);
+    for (int v = 0; v < 2; ++v)
+      if (samples_[sample].w[v] != 0.0) push(nc_ + v);
+    push(idx_T());
+  } else if (kind == K_TIMING) {
+    push(idx_s1());
+    push(idx_s2());
+    push(idx_T());
+  } else if (kind == K_ORDER) {
+    push(idx_s1());
+    push(idx_s2());
+  }
+  if (sg) push(idx_Sg());
+  if (sc) push(idx_Sc());
+  rows_.push_back(r);
+}
+
+void PickupConstraints::bounds(Eigen::VectorXd& xl, Eigen::VectorXd& xu, Eigen::VectorXd& gl, Eigen::VectorXd& gu) const {
+  xl = Eigen::VectorXd::Constant(n_, -kInf);
+  xu = Eigen::VectorXd::Constant(n_, kInf);
+  xl[idx_s1()] = 0.0;
+  xu[idx_s1()] = 1.0;
+  xl[idx_s2()] = 0.0;
+  xu[idx_s2()] = 1.0;
+  xl[idx_T()] = st_.t_min;
+  xu[idx_T()] = st_.t_max;
+  xl[idx_Sg()] = pb_.rho.sg_lo;
+  xu[idx_Sg()] = pb_.rho.sg_hi;
+  xl[idx_Sc()] = pb_.vary_sc ? pb_.rho.sc_lo : pb_.sc_fixed;
+  xu[idx_Sc()] = pb_.vary_sc ? pb_.rho.sc_hi : pb_.sc_fixed;
+  const int mrows = num_constraints();
+  gl.resize(mrows);
+  gu.resize(mrows);
+  for (int r = 0; r < mrows; ++r) {
+    gl[r] = rows_[r].lo;
+    gu[r] = rows_[r].hi;
+  }
+}
+
+void PickupConstraints::jac_structure(int* rows, int* cols) const {
+  std::copy(jac_row_.begin(), jac_row_.end(), rows);
+  std::copy(jac_col_.begin(), jac_col_.end(), cols);
+}
+
+void PickupConstraints::eval_g(const double* x, double* g) const {
+  for (int s = 0; s < static_cast<int>(samples_.size()); ++s)
+    sample_rows(x, s, sample_row_begin_[s], sample_row_begin_[s + 1], g, nullptr);
+  sample_rows(x, -1, sample_row_begin_.back(), num_constraints(), g, nullptr);
+}
+
+void PickupConstraints::eval_jac(const double* x, double* values) const {
+  for (int s = 0; s < static_cast<int>(samples_.size()); ++s)
+    sample_rows(x, s, sample_row_begin_[s], sample_row_begin_[s + 1], nullptr, values);
+  sample_rows(x, -1, sample_row_begin_.back(), num_constraints(), nullptr, values);
+}
+
+void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, double* g, double* jac) const {
+  const double s1 = x[idx_s1()], s2 = x[idx_s2()], T = x[idx_T()], Sg = x[idx_Sg()], Sc = x[idx_Sc()];
+  if (s < 0) {  // rows of the time variables and speeds only
+    for (int r = r0; r < r1; ++r) {
+      const Row& R = rows_[r];
+      double* J = jac ? jac + R.jac_begin : nullptr;
+      if (R.kind == K_TIMING) {  // (T2 - T1) S_c = stroke
+        if (g) g[r] = (s2 - s1) * T * Sc;
+        if (J) { J[0] = -T * Sc; J[1] = T * Sc; J[2] = (s2 - s1) * Sc; J[3] = (s2 - s1) * T; }
+      } else if (R.kind == K_ORDER) {
+        if (g) g[r] = s2 - s1;
+        if (J) { J[0] = -1.0; J[1] = 1.0; }
+      } else if (R.kind == K_RHO) {
+        if (g) g[r] = pb_.rho.value(Sg, Sc);
+        if (J) { Eigen::Vector2d d = pb_.rho.gradient(Sg, Sc); J[0] = d[0]; J[1] = d[1]; }
+      }
+    }
+    return;
+  }
+  const Sample& S = samples_[s];
+  const double t = S.w[0] * s1 + S.w[1] * s2 + S.w[2];  // normalised time
+  const int n = dof_;
+  Eigen::VectorXd q(n), Ps(n), Pss(n);
+  traj_.eval(x, t, q.data(), Ps.data(), Pss.data());
+  const Eigen::VectorXd qd = Ps / T;
+  bool need_kin = false, need_vel = false;
+  for (int r = r0; r < r1; ++r) {
+    const int k = rows_[r].kind;
+    need_kin |= (k == K_VEL || k == K_OMEGA || k == K_POSE_P || k == K_POSE_R || k == K_POSE_TR || k == K_COLL);
+    need_vel |= (k == K_VEL || k == K_OMEGA);
+  }
+  RobotWorkspace ws(robot_);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> Jt(6, n);
+  Eigen::Matrix<double, 3, Eigen::Dynamic> dv(3, n), dw(3, n), Jx(3, n);
+  if (need_kin) {
+    robot_.forward_kinematics(q.data(), ws);
+    if (need_vel) velocity_derivatives(robot_, ws, pb_.tool_link, qd, Jt, dv, dw);
+    else robot_.point_jacobian(ws, pb_.tool_link, Eigen::Vector3d::Zero(), Jt);
+  }
+  double B0[13], B1[13];  // basis values and time derivatives, shared by all DOFs
+  if (jac) {
+    double p = 1.0;
+    B1[0] = 0.0;
+    for (int k = 0; k < 13; ++k) {
+      B0[k] = p;
+      if (k + 1 < 13) B1[k + 1] = (k + 1) * p / T;  // d q' / d a_ik = B'_k(s) / T
+      p *= t;
+    }
+  }
+  const double ph = q[2], c = std::cos(ph), sn = std::sin(ph);
+  Eigen::VectorXd cq(n), cqd(n);
+  for (int r = r0; r < r1; ++r) {
+    const Row& R = rows_[r];
+    cq.setZero();
+    cqd.setZero();
+    double val = 0.0, dsg = 0.0;
+    bool nh_row = false;
+    const int a = R.aux;
+    switch (R.kind) {
+      case K_START: val = q[a]; cq[a] = 1.0; break;
+      case K_NH: {  // |x_s sin phi - y_s cos phi| <= eps L (normalised time: time-scale invariant)
+        val = Ps[0] * sn - Ps[1] * c;
+        cq[2] = Ps[0] * c + Ps[1] * sn;
+        cqd[0] = T * sn;  // c depends on q' only through P_s = T q'
+        cqd[1] = -T * c;
+        nh_row = true;
+        break;
+      }
+      case K_BSPEED: val = qd[0] * qd[0] + qd[1] * qd[1]; cqd[0] = 2 * qd[0]; cqd[1] = 2 * qd[1]; break;
+      case K_YAWRATE: val = qd[2]; cqd[2] = 1.0; break;
+      case K_JPOS: val = q[3 + a]; cq[3 + a] = 1.0; break;
+      case K_JRATE: val = qd[3 + a]; cqd[3 + a] = 1.0; break;
+      case K_AREA: {
+        double dx = q[0] - pb_.part_xy[0], dy = q[1] - pb_.part_xy[1];
+        val = dx * dx + dy * dy; cq[0] = 2 * dx; cq[1] = 2 * dy;
+        break;
+      }
+      case K_VEL:
+        val = Jt.row(a).dot(qd) - Sg * pb_.approach_dir[a];
+        cq = dv.row(a).transpose(); cqd = Jt.row(a).transpose(); dsg = -pb_.approach_dir[a];
+        break;
+      case K_OMEGA: val = Jt.row(3 + a).dot(qd); cq = dw.row(a).transpose(); cqd = Jt.row(3 + a).transpose(); break;
+      case K_POSE_P:
+        val = ws.link_pose[pb_.tool_link].p[a] - pb_.grasp_pose.p[a];
+        cq = Jt.row(a).transpose();
+        break;
+      case K_POSE_R:
+      case K_POSE_TR: {
+        const Eigen::Matrix3d& Rt = ws.link_pose[pb_.tool_link].R;
+        const Eigen::Matrix3d& Rd = pb_.grasp_pose.R;
+        Eigen::Vector3d e = Eigen::Vector3d::Zero();
+        double tr = 0.0;
+        for (int k = 0; k < 3; ++k) { e += 0.5 * Rt.col(k).cross(Rd.col(k)); tr += Rt.col(k).dot(Rd.col(k)); }
+        val = R.kind == K_POSE_R ? e[a] : tr;
+        for (int j = 0; j < n; ++j) {
+          const Eigen::Vector3d w = Jt.block<3, 1>(3, j);
+          Eigen::Vector3d de = Eigen::Vector3d::Zero();
+          double dtr = 0.0;
+          for (int k = 0; k < 3; ++k) {
+            const Eigen::Vector3d dr = w.cross(Rt.col(k));
+            de += 0.5 * dr.cross(Rd.col(k));
+            dtr += dr.dot(Rd.col(k));
+          }
+          cq[j] = R.kind == K_POSE_R ? de[a] : dtr;
+        }
+        break;
+      }
+      case K_GOALPOS: {
+        double dx = q[0] - pb_.goal[0], dy = q[1] - pb_.goal[1];
+        val = dx * dx + dy * dy; cq[0] = 2 * dx; cq[1] = 2 * dy;
+        break;
+      }
+      case K_GOALYAW: val = q[2]; cq[2] = 1.0; break;
+      case K_COLL: {
+        const int no = static_cast<int>(pb_.obstacles.size());
+        const BodySphere& b = pb_.body_spheres[a / no];
+        const SphereObstacle& o = pb_.obstacles[a % no];
+        const Eigen::Vector3d X = ws.link_pose[b.link].apply(b.center);
+        Eigen::Vector3d d = X - o.center;
+        const double dist = std::max(d.norm(), 1e-12);
+        val = dist - b.radius - o.radius;
+        robot_.position_jacobian_world(ws, b.link, X, Jx);
+        cq = (Jx.transpose() * (d / dist));
+        break;
+      }
+      default: break;
+    }
+    if (g) g[r] = val;
+    if (!jac) continue;
+    double* J = jac + R.jac_begin;
+    int e = 0;
+    for (int i = 0; i < n; ++i) {
+      if (!(R.dof_mask & (1u << i))) continue;
+      for (int k = 0; k <= traj_.degree(i); ++k) J[e++] = cq[i] * B0[k] + cqd[i] * B1[k];
+    }
+    const double dcds = cq.dot(Ps) + cqd.dot(Pss) / T;
+    for (int v = 0; v < 2; ++v)
+      if (S.w[v] != 0.0) J[e++] = dcds * S.w[v];
+    J[e++] = nh_row ? 0.0 : -cqd.dot(qd) / T;
+    if (R.sg) J[e++] = dsg;
+    if (R.sc) J[e++] = 0.0;
+  }
+}
+
+Eigen::MatrixXd PickupConstraints::dense_jacobian(const Eigen::VectorXd& x) const {
+  std::vector<double> v(num_nonzeros());
+  eval_jac(x.data(), v.data());
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(num_constraints(), n_);
+  for (int k = 0; k < num_nonzeros(); ++k) J(jac_row_[k], jac_col_[k]) += v[k];
+  return J;
+}
+
+double PickupConstraints::max_violation(const Eigen::VectorXd& x) const {
+  Eigen::VectorXd xl, xu, gl, gu, g(num_constraints());
+  bounds(xl, xu, gl, gu);
+  eval_g(x.data(), g.data());
+  double v = 0.0;
+  for (int i = 0; i < n_; ++i) v = std::max({v, xl[i] - x[i], x[i] - xu[i]});
+  for (int r = 0; r < num_constraints(); ++r) v = std::max({v, gl[r] - g[r], g[r] - gu[r]});
+  return v;
+}
+
+std::vector<std::string> PickupConstraints::row_names() const {
+  std::vector<std::string> out;
+  for (const Row& r : rows_)
+    out.push_back(std::string(kKindName[r.kind]) + "[" + std::to_string(r.aux) + "]@" + std::to_string(r.sample));
+  return out;
+}
+
+}  // namespace pickplan

@@ -1,0 +1,197 @@
+// Seeds of the pick-up NLP: the heuristic stage-1 seed, the IK warm start of the arm for stage 2,
+// and the random seeds of the single-shot baseline.
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+
+#include <Eigen/Dense>
+
+#include "pickplan/pickup_nlp.hpp"
+
+namespace pickplan {
+
+
+Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
+  pb.validate(robot);
+  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  PolyTraj tr(deg, 1.0);
+  const int nc = tr.num_coeffs();
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(nc + 5);
+  const Eigen::Vector2d s0 = pb.start.head<2>(), g0 = pb.goal.head<2>();
+  Eigen::Vector2d u0 = 0.5 * (s0 + g0) - pb.part_xy;
+  if (u0.norm() < 1e-9) u0 = Eigen::Vector2d::UnitX();
+  u0.normalize();
+  // Base: a cubic in s = t / T leaving the start along its heading, through a grasping-area point
+  // bp at s_m, to the goal. A small deterministic search over (bp direction, start speed, s_m)
+  // picks the curve whose end heading is within the goal tolerance and whose peak/mean speed
+  // ratio is smallest; T then puts the peak speed at 90 % of the limit.
+  const double rmid = 0.5 * (pb.grasp_area_rmin + pb.grasp_area_rmax);
+  double best = 1e300, sm = 0.5, tsc = 1.0;
+  Eigen::Vector4d cx, cy;
+  for (int ia = -9; ia <= 9; ++ia)
+    for (double f : {0.5, 0.75, 1.0, 1.5})
+      for (double smc : {0.3, 0.4, 0.5, 0.6}) {
+        const double ang = ia * M_PI / 18;
+        const Eigen::Vector2d b = pb.part_xy + rmid * Eigen::Vector2d(std::cos(ang) * u0.x() - std::sin(ang) * u0.y(),
+                                                                      std::sin(ang) * u0.x() + std::cos(ang) * u0.y());
+        Eigen::Matrix<double, 4, 4> A;
+        A << 1, 0, 0, 0, 0, 1, 0, 0, 1, smc, smc * smc, smc * smc * smc, 1, 1, 1, 1;
+        const double v0 = f * ((b - s0).norm() + (g0 - b).norm());
+        const Eigen::Vector4d ax = A.lu().solve(Eigen::Vector4d(s0.x(), v0 * std::cos(pb.start[2]), b.x(), g0.x()));
+        const Eigen::Vector4d ay = A.lu().solve(Eigen::Vector4d(s0.y(), v0 * std::sin(pb.start[2]), b.y(), g0.y()));
+        double vmax = 0.0, vsum = 0.0;
+        for (int k = 0; k <= 50; ++k) {
+          const double s = k / 50.0;
+          const double dx = ax[1] + s * (2 * ax[2] + 3 * s * ax[3]), dy = ay[1] + s * (2 * ay[2] + 3 * s * ay[3]);
+          vmax = std::max(vmax, std::hypot(dx, dy));
+          vsum += std::hypot(dx, dy) / 51;
+        }
+        const double he = std::atan2(ay[1] + 2 * ay[2] + 3 * ay[3], ax[1] + 2 * ax[2] + 3 * ax[3]);
+        const double dh = std::remainder(he - pb.goal[2], 2 * M_PI);
+        const double score = 100.0 * std::max(0.0, std::abs(dh) - 0.9 * pb.goal_tol_yaw) + vmax / std::max(vsum, 1e-9);
+        if (score < best) {
+          best = score;
+          sm = smc;
+          cx = ax;
+          cy = ay;
+          tsc = vmax;
+        }
+      }
+  const double T = std::max(1.0, tsc / (0.9 * pb.base_speed_limit));
+  const double sc = pb.vary_sc ? pb.rho.sc_hi : pb.sc_fixed, dtg = pb.stroke / sc;
+  const double tm = sm * T;
+  const double T1 = std::max(0.0, tm - 0.5 * dtg), T2 = T1 + dtg;
+  const int K = 60;
+  Eigen::VectorXd ts(K), xs(K), ys(K), ps(K), ws = Eigen::VectorXd::Ones(K);
+  double prev = pb.start[2];
+  for (int k = 0; k < K; ++k) {
+    const double s = double(k) / (K - 1);
+    ts[k] = s;
+    xs[k] = cx[0] + s * (cx[1] + s * (cx[2] + s * cx[3]));
+    ys[k] = cy[0] + s * (cy[1] + s * (cy[2] + s * cy[3]));
+    const double dx = cx[1] + s * (2 * cx[2] + 3 * s * cx[3]), dy = cy[1] + s * (2 * cy[2] + 3 * s * cy[3]);
+    double h = std::atan2(dy, dx);
+    while (h - prev > M_PI) h -= 2 * M_PI;
+    while (h - prev < -M_PI) h += 2 * M_PI;
+    ps[k] = prev = h;
+  }
+  ws[0] = 100.0;
+  tr.fit_dof(0, ts, xs, x.data(), ws);
+  tr.fit_dof(1, ts, ys, x.data(), ws);
+  tr.fit_dof(2, ts, ps, x.data(), ws);
+  std::mt19937 rng(st.seed);
+  std::normal_distribution<double> noise(0.0, st.arm_seed_noise);
+  for (int i = 3; i < robot.dof(); ++i) {
+    x[tr.offset(i)] = pb.arm_start[i - 3];
+    if (tr.degree(i) >= 1) x[tr.offset(i) + 1] = noise(rng);  // small random drift, start held exactly
+  }
+  x[nc] = T1 / T;
+  x[nc + 1] = T2 / T;
+  x[nc + 2] = T;
+  x[nc + 3] = 0.5 * (pb.rho.sg_lo + pb.rho.sg_hi);
+  x[nc + 4] = sc;
+  return x;
+}
+
+Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
+  pb.validate(robot);
+  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  PolyTraj tr(deg, 1.0);
+  const int nc = tr.num_coeffs();
+  std::mt19937 rng(st.seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), ut(0.0, 1.0);
+  Eigen::VectorXd x(nc + 5);
+  for (int k = 0; k < nc; ++k) x[k] = u(rng);
+  for (int i = 0; i < 3; ++i) x[tr.offset(i)] = pb.start[i];
+  const double T = 5.0 + 25.0 * ut(rng);
+  double a = ut(rng), b = ut(rng);
+  if (a > b) std::swap(a, b);
+  if (b - a < 0.01) b = std::min(1.0, a + 0.01);
+  x[nc] = a;
+  x[nc + 1] = b;
+  x[nc + 2] = T;
+  x[nc + 3] = pb.rho.sg_lo + ut(rng) * (pb.rho.sg_hi - pb.rho.sg_lo);
+  x[nc + 4] = pb.vary_sc ? pb.rho.sc_lo + ut(rng) * (pb.rho.sc_hi - pb.rho.sc_lo) : pb.sc_fixed;
+  return x;
+}
+
+namespace {
+
+// Damped least-squares IK of the arm joints for the tool pose, base fixed; returns the residual.
+double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, int iters, double margin) {
+  const int n = robot.dof(), na = n - 3;
+  RobotWorkspace ws(robot);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
+  double err = 1e300;
+  for (int it = 0; it < iters; ++it) {
+    robot.forward_kinematics(q.data(), ws);
+    const Transform& T = ws.link_pose[pb.tool_link];
+    Eigen::Matrix<double, 6, 1> e;
+    e.head<3>() = pb.grasp_pose.p - T.p;
+    Eigen::Vector3d eo = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) eo += 0.5 * T.R.col(k).cross(pb.grasp_pose.R.col(k));
+    if ((T.R.transpose() * pb.grasp_pose.R).trace() < 1.0) eo = eo.norm() < 1e-9 ? Eigen::Vector3d::UnitZ() : eo;
+    e.tail<3>() = eo;
+    err = e.norm();
+    if (err < 1e-10) break;
+    robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
+    const Eigen::MatrixXd Ja = J.rightCols(na);
+    const Eigen::Matrix<double, 6, 6> A = Ja * Ja.transpose() + 1e-4 * Eigen::Matrix<double, 6, 6>::Identity();
+    Eigen::VectorXd dq = Ja.transpose() * A.ldlt().solve(e);
+    if (dq.norm() > 0.3) dq *= 0.3 / dq.norm();
+    for (int j = 0; j < na; ++j)
+      q[3 + j] = std::clamp(q[3 + j] + dq[j], robot.lower_limits()[3 + j] + margin, robot.upper_limits()[3 + j] - margin);
+  }
+  return err;
+}
+
+}  // namespace
+
+Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+                              const Eigen::VectorXd& x) {
+  pb.validate(robot);
+  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  PolyTraj tr(deg, 1.0);
+  const int nc = tr.num_coeffs(), n = robot.dof();
+  if (x.size() != nc + 5) throw std::invalid_argument("grasp_ik_seed: expected " + std::to_string(nc + 5) + " variables");
+  const double s2 = x[nc + 1];
+  Eigen::VectorXd q2(n);
+  tr.eval(x.data(), s2, q2.data(), nullptr, nullptr);
+  // Deterministic multi-start: the start configuration with the pan and wrist turned.
+  Eigen::VectorXd best;
+  double best_score = 1e300;
+  for (double pan : {0.0, M_PI / 2, -M_PI / 2, M_PI})
+    for (double w3 : {0.0, M_PI / 2, -M_PI / 2}) {
+      Eigen::VectorXd q = q2;
+      q.tail(n - 3) = pb.arm_start;
+      q[3] += pan;
+      q[n - 1] += w3;
+      const double err = arm_ik(robot, pb, q, 150, st.joint_limit_margin);
+      const double score = (err > 1e-6 ? 1e3 * err : 0.0) + (q.tail(n - 3) - pb.arm_start).norm();
+      if (score < best_score) {
+        best_score = score;
+        best = q;
+      }
+    }
+  // Arm polynomials: smooth blend from arm_start to the IK solution at s2, then held.
+  Eigen::VectorXd out = x;
+  const int K = 40;
+  Eigen::VectorXd ss(K), vals(K), w = Eigen::VectorXd::Ones(K);
+  for (int j = 3; j < n; ++j) {
+    for (int k = 0; k < K; ++k) {
+      const double s = double(k) / (K - 1);
+      const double u = std::min(1.0, s / std::max(s2, 1e-6)), b = u * u * (3 - 2 * u);
+      ss[k] = s;
+      vals[k] = pb.arm_start[j - 3] + b * (best[j] - pb.arm_start[j - 3]);
+    }
+    ss[K - 1] = s2;  // the IK point itself, weighted
+    vals[K - 1] = best[j];
+    w[K - 1] = 30.0;
+    w[0] = 30.0;
+    tr.fit_dof(j, ss, vals, out.data(), w);
+  }
+  return out;
+}
+
+}  // namespace pickplan

@@ -1,0 +1,257 @@
+// Pick-up on the move NLP: kinematics against the UR5 DH closed form, polynomial and constraint
+// derivatives against finite differences, Ipopt's derivative checker, stage feasibility.
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "pickplan/pickup_cases.hpp"
+#include "pickplan/pickup_nlp.hpp"
+#include "pickplan/poly_traj.hpp"
+#include "pickplan/robot.hpp"
+#include "pickplan/stomp.hpp"
+
+using namespace pickplan;
+
+namespace {
+
+const std::string kUrdf = std::string(PICKPLAN_TEST_DATA_DIR) + "/../../../assets/mobile_ur5.urdf";
+
+Eigen::Matrix4d dh(double theta, double d, double a, double alpha) {
+  Eigen::Matrix4d T;
+  const double ct = std::cos(theta), st = std::sin(theta), ca = std::cos(alpha), sa = std::sin(alpha);
+  T << ct, -st * ca, st * sa, a * ct, st, ct * ca, -ct * sa, a * st, 0, sa, ca, d, 0, 0, 0, 1;
+  return T;
+}
+
+// World pose of the UR5 flange by the published DH table, on the planar base.
+Eigen::Matrix4d flange_dh(const Eigen::VectorXd& q) {
+  const double d[6] = {0.089159, 0, 0, 0.10915, 0.09465, 0.0823};
+  const double a[6] = {0, -0.425, -0.39225, 0, 0, 0};
+  const double al[6] = {M_PI / 2, 0, 0, M_PI / 2, -M_PI / 2, 0};
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  T.block<3, 3>(0, 0) = Eigen::AngleAxisd(q[2], Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T(0, 3) = q[0];
+  T(1, 3) = q[1];
+  Eigen::Matrix4d mount = Eigen::Matrix4d::Identity();
+  mount(0, 3) = 0.1;
+  mount(2, 3) = 0.35;
+  T = T * mount;
+  for (int i = 0; i < 6; ++i) T = T * dh(q[3 + i], d[i], a[i], al[i]);
+  return T;
+}
+
+Robot load() { return Robot::from_urdf_file(kUrdf); }
+
+PickupSettings fast_settings() {
+  PickupSettings st;
+  st.samples_per_interval = 6;
+  return st;
+}
+
+}  // namespace
+
+TEST(MobileUR5, ZeroPoseMatchesKnownUR5Values) {
+  Robot r = load();
+  ASSERT_EQ(r.dof(), 9);
+  EXPECT_EQ(r.joint_names()[0], "base_x");
+  EXPECT_EQ(r.joint_names()[3], "shoulder_pan_joint");
+  RobotWorkspace ws(r);
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(9);
+  r.forward_kinematics(q.data(), ws);
+  // The UR5 flange at zero joint angles is at (a2 + a3, -(d4 + d6), d1 - d5) in its base frame.
+  const Eigen::Vector3d p = ws.link_pose[r.link_index("flange")].p - Eigen::Vector3d(0.1, 0, 0.35);
+  EXPECT_NEAR(p.x(), -0.81725, 1e-12);
+  EXPECT_NEAR(p.y(), -0.19145, 1e-12);
+  EXPECT_NEAR(p.z(), -0.005491, 1e-12);
+}
+
+TEST(MobileUR5, ForwardKinematicsMatchesDHTable) {
+  Robot r = load();
+  RobotWorkspace ws(r);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-M_PI, M_PI);
+  for (int trial = 0; trial < 100; ++trial) {
+    Eigen::VectorXd q(9);
+    for (int i = 0; i < 9; ++i) q[i] = u(rng);
+    r.forward_kinematics(q.data(), ws);
+    const Eigen::Matrix4d A = ws.link_pose[r.link_index("flange")].matrix(), B = flange_dh(q);
+    EXPECT_LT((A - B).cwiseAbs().maxCoeff(), 1e-12);
+    const Transform tool = ws.link_pose[r.link_index("tool")];
+    const Eigen::Vector3d expect = B.block<3, 1>(0, 3) + 0.15 * B.block<3, 1>(0, 2);
+    EXPECT_LT((tool.p - expect).norm(), 1e-12);
+  }
+}
+
+TEST(PolyTraj, DerivativesMatchFiniteDifferences) {
+  PolyTraj tr({3, 5, 0, 4}, 7.0);
+  EXPECT_EQ(tr.num_coeffs(), 4 + 6 + 1 + 5);
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(-2, 2);
+  Eigen::VectorXd a(tr.num_coeffs());
+  for (int k = 0; k < a.size(); ++k) a[k] = u(rng);
+  const double h = 1e-5;
+  for (double t : {0.0, 0.3, 2.5, 9.0}) {
+    double q[4], qd[4], qdd[4], qp[4], qm[4], dp[4], dm[4];
+    tr.eval(a.data(), t, q, qd, qdd);
+    tr.eval(a.data(), t + h, qp, dp, nullptr);
+    tr.eval(a.data(), t - h, qm, dm, nullptr);
+    for (int i = 0; i < 4; ++i) {
+      EXPECT_NEAR(qd[i], (qp[i] - qm[i]) / (2 * h), 1e-7 * (1 + std::abs(qd[i])));
+      EXPECT_NEAR(qdd[i], (dp[i] - dm[i]) / (2 * h), 1e-6 * (1 + std::abs(qdd[i])));
+      // Linear in the coefficients: basis functions are the derivatives w.r.t. a_ik.
+      double direct = 0.0, directd = 0.0;
+      for (int k = 0; k <= tr.degree(i); ++k) {
+        direct += a[tr.offset(i) + k] * tr.basis(t, k, 0);
+        directd += a[tr.offset(i) + k] * tr.basis(t, k, 1);
+      }
+      EXPECT_NEAR(q[i], direct, 1e-10 * (1 + std::abs(q[i])));
+      EXPECT_NEAR(qd[i], directd, 1e-10 * (1 + std::abs(qd[i])));
+    }
+  }
+  EXPECT_THROW(PolyTraj({3}, 0.0), std::invalid_argument);
+}
+
+TEST(PickupNlp, ConstraintJacobianMatchesFiniteDifferences) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 2, example_rho());
+  PickupSettings st = fast_settings();
+  PickupConstraints c(r, pb, st, 0);  // all constraints
+  Eigen::VectorXd x = heuristic_seed(r, pb, st);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> nz(0.0, 0.05);
+  for (int k = 0; k < c.traj().num_coeffs(); ++k) x[k] += nz(rng);
+  x[c.idx_Sg()] = 0.4;
+  x[c.idx_Sc()] = 0.12;
+  const Eigen::MatrixXd J = c.dense_jacobian(x);
+  const int m = c.num_constraints();
+  Eigen::VectorXd gp(m), gm(m);
+  double worst = 0.0;
+  for (int j = 0; j < c.num_vars(); ++j) {
+    const double h = 1e-6 * std::max(1.0, std::abs(x[j]));
+    Eigen::VectorXd xp = x, xm = x;
+    xp[j] += h;
+    xm[j] -= h;
+    c.eval_g(xp.data(), gp.data());
+    c.eval_g(xm.data(), gm.data());
+    const Eigen::VectorXd fd = (gp - gm) / (2 * h);
+    for (int i = 0; i < m; ++i) worst = std::max(worst, std::abs(fd[i] - J(i, j)) / (1.0 + std::abs(J(i, j))));
+  }
+  EXPECT_LT(worst, 2e-5);
+}
+
+TEST(PickupNlp, RhoGradientMatchesFiniteDifferences) {
+  RhoPoly rho = example_rho();
+  const double h = 1e-6;
+  for (double sg : {0.1, 0.4, 1.0})
+    for (double sc : {0.06, 0.1, 0.14}) {
+      Eigen::Vector2d g = rho.gradient(sg, sc);
+      EXPECT_NEAR(g[0], (rho.value(sg + h, sc) - rho.value(sg - h, sc)) / (2 * h), 1e-6);
+      EXPECT_NEAR(g[1], (rho.value(sg, sc + h) - rho.value(sg, sc - h)) / (2 * h), 1e-6);
+      EXPECT_LE(g[0], 1e-12);  // monotone surface
+      EXPECT_GE(g[1], -1e-12);
+    }
+}
+
+TEST(PickupNlp, IpoptDerivativeCheckerFindsNoErrors) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 4, example_rho());
+  PickupSettings st = fast_settings();
+  st.derivative_test = true;
+  st.max_iter = 0;
+  st.print_level = 0;
+  st.output_file = ::testing::TempDir() + "pickup_dercheck.txt";
+  Eigen::VectorXd x = heuristic_seed(r, pb, st);
+  solve_stage(r, pb, st, 0, x);
+  std::ifstream f(st.output_file);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  const std::string out = ss.str();
+  ASSERT_NE(out.find("Starting derivative checker"), std::string::npos) << out.substr(0, 2000);
+  EXPECT_NE(out.find("No errors detected by derivative checker"), std::string::npos) << out.substr(0, 4000);
+}
+
+TEST(PickupNlp, EachStageSatisfiesItsConstraints) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 1, example_rho());
+  PickupSettings st = fast_settings();
+  PickupResult res = solve_successive(r, pb, st);
+  ASSERT_TRUE(res.success) << res.status;
+  ASSERT_EQ(res.stages.size(), 5u);
+  for (const StageResult& s : res.stages) {
+    PickupConstraints c(r, pb, st, s.stage);
+    EXPECT_LT(c.max_violation(s.x), 1e-5) << "stage " << s.stage;
+    EXPECT_TRUE(s.success) << "stage " << s.stage << ": " << s.ipopt_status;
+  }
+  EXPECT_GE(pb.rho.value(res.S_g, res.S_c), pb.gamma - 1e-6);
+  EXPECT_NEAR((res.T2 - res.T1) * res.S_c, pb.stroke, 1e-6);
+  EXPECT_LE(res.T2, res.T + 1e-9);
+  // Pose at T2 by an independent FK evaluation of the final polynomials.
+  Eigen::VectorXd q(9);
+  res.traj.eval(res.x.data(), res.T2, q.data(), nullptr, nullptr);
+  RobotWorkspace ws(r);
+  r.forward_kinematics(q.data(), ws);
+  EXPECT_LT((ws.link_pose[pb.tool_link].p - pb.grasp_pose.p).norm(), 1e-5);
+}
+
+TEST(PickupNlp, UnreachablePartReturnsStatusNotException) {
+  Robot r = load();
+  PaperCaseOptions opt;
+  opt.part_z = 3.5;  // far above anything the UR5 on its base can reach
+  opt.obstacles = false;
+  PickupProblem pb = paper_case(r, 1, example_rho(), opt);
+  PickupSettings st = fast_settings();
+  st.max_iter = 200;
+  PickupResult res;
+  ASSERT_NO_THROW(res = solve_successive(r, pb, st));
+  EXPECT_FALSE(res.success);
+  EXPECT_EQ(res.stages_completed, 1);  // the base-only stage is feasible; the grasp pose is not
+  EXPECT_EQ(res.status, "infeasible") << res.stages.back().ipopt_status;
+  EXPECT_EQ(res.x.size(), res.stages[0].x.size());
+}
+
+TEST(PickupNlp, BadInputThrowsClearErrors) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 1, example_rho());
+  PickupSettings st = fast_settings();
+  Eigen::VectorXd x = heuristic_seed(r, pb, st);
+  PickupConstraints c(r, pb, st, 1);
+  x[c.idx_s1()] = 0.6;
+  x[c.idx_s2()] = 0.4;
+  EXPECT_THROW(solve_stage(r, pb, st, 1, x), std::invalid_argument);
+  EXPECT_THROW(solve_stage(r, pb, st, 7, heuristic_seed(r, pb, st)), std::invalid_argument);
+  pb.arm_start.resize(5);
+  EXPECT_THROW(heuristic_seed(r, pb, st), std::invalid_argument);
+}
+
+TEST(Stomp, RefinesArmKeepsEndsAndLimits) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 1, example_rho());
+  const int N = 30;
+  const double dt = 0.1;
+  Eigen::MatrixXd Q(N, 9);
+  std::mt19937 rng(2);
+  std::normal_distribution<double> nz(0.0, 0.15);
+  for (int i = 0; i < N; ++i) {
+    const double s = double(i) / (N - 1);
+    Q.row(i).head<3>() << 2.4 + 0.3 * s, 3.3, 0.0;  // base parked next to the pedestal
+    Q.row(i).tail<6>() = pb.arm_start.transpose() * (1 - s) + Eigen::RowVectorXd::Constant(6, 0.3) * s;
+    if (i >= 2 && i < N - 2) Q.row(i).tail<6>() += Eigen::RowVectorXd::NullaryExpr(6, [&]() { return nz(rng); });
+  }
+  StompSettings st;
+  st.iterations = 30;
+  StompResult res = stomp_refine(r, Q, dt, Eigen::VectorXd::Constant(6, M_PI), pb.body_spheres, pb.obstacles, st);
+  EXPECT_EQ(res.iterations, 30);
+  EXPECT_LT((res.q.topRows(2) - Q.topRows(2)).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_LT((res.q.bottomRows(2) - Q.bottomRows(2)).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_LT((res.q.leftCols(3) - Q.leftCols(3)).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_LE(res.final_cost, res.initial_cost);
+  EXPECT_LT(res.final_smoothness, 0.5 * res.initial_smoothness);  // the noisy path gets smoother
+  EXPECT_GE(res.min_clearance, -1e-9);
+  EXPECT_TRUE(res.limits_ok);
+  EXPECT_LE(res.max_rate, M_PI + 1e-9);
+  EXPECT_THROW(stomp_refine(r, Q.topRows(4), dt, Eigen::VectorXd::Constant(6, M_PI), pb.body_spheres, pb.obstacles, st),
+               std::invalid_argument);
+}
