@@ -4,7 +4,7 @@ of the "simulated" (shake-verified) set against raw antipodal candidates (and th
     .venv/bin/python bench/bench_grasps.py                       # built-ins + YCB (if present)
     .venv/bin/python bench/bench_grasps.py --objects 025_mug --n 50 --sim-n 30 --workers 2
 
-Prints a Markdown table (figures in bench/README_grasps.md). No cache: every run simulates.
+Prints a Markdown table (figures in bench/README.md). No cache: every run simulates.
 """
 from __future__ import annotations
 

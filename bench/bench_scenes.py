@@ -1,4 +1,4 @@
-"""Scene-generation and object-loading timings for bench/README_world.md.
+"""Scene-generation and object-loading timings for bench/README.md.
 
     .venv/bin/python bench/bench_scenes.py [--scenes 20] [--ycb ../shared/data/ycb] [--markdown]
 
