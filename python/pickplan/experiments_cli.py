@@ -141,7 +141,7 @@ def write_report(settings: SweepSettings, records: List[dict]) -> str:
     titles = {"selection": "Table I: grasp selection", "refinement": "Table II: grasp refinement",
               "planners": "Table III: planners", "ablation": "Fig. 8: ablation of n and lambda"}
     header = (f"## {titles[s.table]}: {scenes} scenes, {s.grasps} grasps each scene, {s.runs} runs"
-              f" (objects: {s.objects or 'built-in'})")
+              f" (objects: {s.objects or (f'as in the scenes of {s.scene_dir}' if s.scene_dir else 'built-in')})")
     text = markdown(s.table, summary, records, header)
     write_text(os.path.join(s.out, "table.md"), text)
     write_csv(os.path.join(s.out, "runs.csv"), records)

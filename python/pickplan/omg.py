@@ -101,6 +101,7 @@ class OMGPlanner:
             grasps = self.default_grasps(world)
         elif isinstance(grasps, str):
             grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed).poses
+        world.checker("goal"), world.checker("hand")  # FCL models: built once per scene, cached
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
         timings["prepare"] = time.perf_counter() - t
