@@ -3,6 +3,7 @@
   pickplan demo                          the main job: plan + execute a grasp in clutter
   pickplan plan --scene SCENE.json       plan (and optionally execute) one scene
   pickplan scenes --n 100 --out DIR      generate a benchmark set of scenes
+  pickplan bench selection|refinement|planners|ablation   the paper's Tables I-III and Fig. 8
   pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
   pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
 """
@@ -65,8 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .scenes_cli import add_scene_commands
     from .pickup.cli import add_metamodel_commands
     from .pickup.cases_cli import add_pickup_commands
+    from .experiments_cli import add_bench_commands
 
     add_scene_commands(sub)
+    add_bench_commands(sub)
     add_metamodel_commands(sub)
     add_pickup_commands(sub)
     return parser
@@ -77,7 +80,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     handler = getattr(args, "handler", None) or getattr(args, "func")
     try:
         return int(handler(args) or 0)
-    except (FileNotFoundError, ValueError, KeyError) as exc:
+    except (FileNotFoundError, ValueError, KeyError, ImportError) as exc:
         print(f"pickplan {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

@@ -1,0 +1,151 @@
+"""The paper-table runner: a quick sweep gives complete, consistent tables; an interrupted sweep
+resumes to the same table; the baselines give valid trajectories; Ray started locally runs units."""
+import io
+import json
+import math
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+from pickplan import experiments as E
+from pickplan import experiments_cli as C
+
+
+def _check_summary(summary, methods, scenes, runs):
+    assert list(summary) == list(methods)
+    for m, row in summary.items():
+        assert row["units"] == scenes * runs, m
+        assert 0 <= row["planned"] <= row["valid"] <= row["units"]
+        assert 0 <= row["execution_successes"] <= row["planning_successes"] <= row["valid"]
+        for key in ("planning", "execution"):
+            assert 0.0 <= row[key] <= 1.0, (m, key)
+        assert row["planning"] == pytest.approx(row["planning_successes"] / row["valid"])
+        if row["planned"]:
+            for key in ("smoothness", "collision", "time", "goal_set_time"):
+                assert math.isfinite(row[key]) and row[key] >= 0, (m, key)
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory):
+    """Three generated scenes shared by the tests (built-in objects)."""
+    out = str(tmp_path_factory.mktemp("scenes"))
+    E.scene_files(E.SweepSettings("selection", out=out, scenes=3, workers=0, progress=False))
+    return os.path.join(out, "scenes")
+
+
+def test_quick_planners_sweep_tables_complete(scene_dir, tmp_path):
+    methods = ("CHOMP", "CHOMP-C", "RRT-C", "OMG")
+    s = E.SweepSettings("planners", out=str(tmp_path), scene_dir=scene_dir, runs=1, methods=methods, quick=True,
+                        workers=2, progress=True)
+    err = io.StringIO()
+    records = E.run_sweep(s, stream=err)
+    assert len(records) == 3 * len(methods)
+    assert "12/12" in err.getvalue()  # the progress bar reached the end
+    for r in records:
+        if r["execution_success"]:
+            assert r["planning_success"]  # failed plans are not executed: they count as failures
+        assert r["plan_time"] >= 0 and r["goal_set_time"] >= 0
+    text = C.write_report(s, records)
+    _check_summary(E.summarize(records, methods), methods, 3, 1)
+    for m in methods:
+        assert m in text
+    for name in ("table.md", "runs.csv", "runs.json", "summary.json"):
+        assert os.path.getsize(tmp_path / name) > 0
+    assert "(93%)" in text  # the paper's numbers beside ours
+    assert len(open(tmp_path / "runs.csv").read().strip().splitlines()) == 1 + len(records)
+
+
+def _table_without_times(records, methods):
+    summary = E.summarize(records, methods)
+    return {m: {k: v for k, v in row.items() if "time" not in k} for m, row in summary.items()}
+
+
+def test_interrupted_sweep_resumes_to_same_table(scene_dir, tmp_path):
+    methods = ("Fixed", "MD")
+    base = dict(scene_dir=scene_dir, runs=1, methods=methods, quick=True, workers=0, execute=False, progress=False)
+    full = E.run_sweep(E.SweepSettings("selection", out=str(tmp_path / "full"), **base))
+
+    calls = []
+
+    def interrupted(unit):
+        if len(calls) == 4:
+            raise KeyboardInterrupt  # the user stops the sweep after 4 finished units
+        calls.append(unit)
+        return E.run_unit(unit)
+
+    s = E.SweepSettings("selection", out=str(tmp_path / "resumed"), **base)
+    with pytest.raises(KeyboardInterrupt):
+        E.run_sweep(s, unit_fn=interrupted)
+    assert len(os.listdir(tmp_path / "resumed" / "units")) == 4
+    rerun = []
+
+    def counting(unit):
+        rerun.append(unit)
+        return E.run_unit(unit)
+
+    resumed = E.run_sweep(s, unit_fn=counting)
+    assert len(rerun) == 2  # only the units that had not finished
+    assert len(resumed) == len(full) == 6
+    assert _table_without_times(resumed, methods) == _table_without_times(full, methods)
+    keyed = lambda rs: {(r["scene"], r["method"], r["run"]): (r["status"], r["smoothness"]) for r in rs}  # noqa: E731
+    assert keyed(resumed) == keyed(full)
+
+
+def test_baselines_valid_trajectories(scene_dir):
+    from pickplan.baselines import BaselineSettings, plan_baseline
+    from pickplan.goals import GoalSetSettings
+    from pickplan.omg import OMGSettings
+    from pickplan.scenes import Scene
+    from pickplan.world import World
+
+    scene = Scene.load(os.path.join(scene_dir, sorted(os.listdir(scene_dir))[0]))
+    world = World(scene)
+    settings = BaselineSettings(omg=OMGSettings(goals=GoalSetSettings(max_goals=10), grasp_count=30),
+                                time_limit=0.5)
+    checker = world.checker("obstacles")
+    lo, hi = world.robot.lower_limits, world.robot.upper_limits
+    for name in ("CHOMP", "CHOMP-C", "FMT", "RRT-C"):
+        r = plan_baseline(name, scene, settings, world=world)
+        if r.status == "no_goals":
+            pytest.skip("the first scene has no reachable goal")
+        assert r.trajectory.shape == (31, world.robot.dof), name
+        assert np.allclose(r.trajectory[0], world.start)
+        assert np.all(r.trajectory >= lo - 1e-6) and np.all(r.trajectory <= hi + 1e-6), name
+        assert set(r.metrics) >= {"smoothness", "collision", "success"}
+        assert r.timings["total"] >= r.timings["goal_set"] >= 0
+        if name in ("FMT", "RRT-C") and r.success:
+            # the OMPL part (up to the pre-grasp) is collision-free at its waypoints
+            free = r.trajectory[:31 - 5]
+            assert not any(checker.in_collision(q) for q in free), name
+
+
+def test_ray_local_runs_units(scene_dir, tmp_path):
+    pytest.importorskip("ray")
+    s = E.SweepSettings("selection", out=str(tmp_path), scene_dir=scene_dir, runs=1, methods=("MD",), quick=True,
+                        workers=2, ray="local", execute=False, progress=False)
+    records = E.run_sweep(s)
+    assert len(records) == 3 and {r["method"] for r in records} == {"MD"}
+    # the same units in this process give the same plans
+    serial = E.run_sweep(E.SweepSettings("selection", out=str(tmp_path / "serial"), scene_dir=scene_dir, runs=1,
+                                         methods=("MD",), quick=True, workers=0, execute=False, progress=False))
+    assert [(r["status"], r["smoothness"]) for r in records] == [(r["status"], r["smoothness"]) for r in serial]
+
+
+def test_cli_ablation_quick_writes_plot(scene_dir, tmp_path):
+    out = tmp_path / "abl"
+    rc = C.main(["bench", "ablation", "--quick", "--scene-dir", scene_dir, "--methods", "n=20", "lambda=1",
+                 "--workers", "0", "--no-execute", "--no-progress", "--out", str(out)])
+    assert rc == 0
+    assert os.path.getsize(out / "fig8.png") > 0
+    assert "n=20" in (out / "table.md").read_text()
+
+
+def test_bad_arguments_are_clear():
+    with pytest.raises(ValueError, match="unknown table"):
+        E.SweepSettings("tables")
+    with pytest.raises(ValueError, match="unknown methods"):
+        E.SweepSettings("selection", methods=("OMG",))
+    with pytest.raises(ValueError, match="runs must be >= 1"):
+        E.SweepSettings("planners", runs=0)
