@@ -11,21 +11,6 @@
 namespace pickplan::bench {
 namespace {
 
-std::vector<Eigen::VectorXd> random_configurations(const Robot& robot, int n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::vector<Eigen::VectorXd> qs;
-  for (int i = 0; i < n; ++i) {
-    Eigen::VectorXd q(robot.dof());
-    for (int j = 0; j < robot.dof(); ++j) {
-      double lo = std::isfinite(robot.lower_limits()[j]) ? robot.lower_limits()[j] : -M_PI;
-      double hi = std::isfinite(robot.upper_limits()[j]) ? robot.upper_limits()[j] : M_PI;
-      q[j] = std::uniform_real_distribution<double>(lo, hi)(rng);
-    }
-    qs.push_back(q);
-  }
-  return qs;
-}
-
 // Five objects standing on a table whose top is z = 0, in front of the robot (seeded).
 std::vector<SceneObject> clutter(unsigned seed) {
   std::mt19937 rng(seed);

@@ -5,8 +5,12 @@
 #include <cstdio>
 #include <functional>
 #include <map>
+#include <cmath>
+#include <random>
 #include <string>
 #include <vector>
+
+#include "pickplan/robot.hpp"
 
 namespace pickplan::bench {
 
@@ -58,6 +62,22 @@ inline void report(const char* name, const Stats& s, const char* unit_note = "")
   };
   std::printf("%-48s median %12s   worst %12s   mean %12s %s\n", name, fmt(s.median), fmt(s.worst), fmt(s.mean), unit_note);
   std::fflush(stdout);
+}
+
+// n seeded configurations uniform within the joint limits (continuous joints in [-pi, pi]).
+inline std::vector<Eigen::VectorXd> random_configurations(const Robot& robot, int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::vector<Eigen::VectorXd> qs;
+  for (int i = 0; i < n; ++i) {
+    Eigen::VectorXd q(robot.dof());
+    for (int j = 0; j < robot.dof(); ++j) {
+      const double lo = std::isfinite(robot.lower_limits()[j]) ? robot.lower_limits()[j] : -M_PI;
+      const double hi = std::isfinite(robot.upper_limits()[j]) ? robot.upper_limits()[j] : M_PI;
+      q[j] = std::uniform_real_distribution<double>(lo, hi)(rng);
+    }
+    qs.push_back(q);
+  }
+  return qs;
 }
 
 // Benchmark sections register themselves; main runs those selected with --only.

@@ -5,12 +5,13 @@
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Optional, Sequence
 
 import numpy as np
 
 from . import _core
+from ._settings import to_native
 from .robots import BodyPoints, Robot
 from .sdf import SceneSdf
 
@@ -31,12 +32,8 @@ class ChompSettings:
     obstacle_tail: int = 0       # last waypoints without obstacle cost (standoff approach)
 
     def to_native(self, exclude_mask: int = 0, active: Optional[Sequence[bool]] = None) -> "_core.ChompSettings":
-        s = _core.ChompSettings()
-        for name, value in asdict(self).items():
-            setattr(s, name, value)
-        s.exclude_mask = int(exclude_mask)
-        s.active = [] if active is None else [bool(a) for a in active]
-        return s
+        return to_native(self, _core.ChompSettings, exclude_mask=int(exclude_mask),
+                         active=[] if active is None else [bool(a) for a in active])
 
 
 @dataclass(frozen=True)
@@ -53,11 +50,7 @@ class MetricSettings:
     smoothness_threshold: float = 30.0
 
     def to_native(self, exclude_mask: int = 0) -> "_core.MetricSettings":
-        s = _core.MetricSettings()
-        for name, value in asdict(self).items():
-            setattr(s, name, value)
-        s.exclude_mask = int(exclude_mask)
-        return s
+        return to_native(self, _core.MetricSettings, exclude_mask=int(exclude_mask))
 
 
 @dataclass

@@ -3,12 +3,13 @@ diversity -> cap. Native; every rejected grasp records why."""
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
 
 from . import _core
+from ._settings import to_native
 from .world import World
 
 
@@ -26,11 +27,7 @@ class IkSettings:
     duplicate_tolerance: float = 0.05
 
     def to_native(self, active) -> "_core.IkSettings":
-        s = _core.IkSettings()
-        for name, value in asdict(self).items():
-            setattr(s, name, value)
-        s.active = [bool(a) for a in active]
-        return s
+        return to_native(self, _core.IkSettings, active=[bool(a) for a in active])
 
 
 @dataclass(frozen=True)
@@ -46,10 +43,7 @@ class GoalSetSettings:
     seed: int = 0
 
     def to_native(self) -> "_core.GoalSetSettings":
-        s = _core.GoalSetSettings()
-        for name, value in asdict(self).items():
-            setattr(s, name, value)
-        return s
+        return to_native(self, _core.GoalSetSettings)
 
 
 @dataclass

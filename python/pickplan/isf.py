@@ -1,13 +1,14 @@
 """C-Space ISF grasp refinement (OMG Sec. III-E, Algorithm 1), native, for one target in one scene."""
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Tuple
 
 import numpy as np
 import trimesh
 
 from . import _core, grasps, sdf
+from ._settings import to_native
 from .world import World
 
 
@@ -26,11 +27,7 @@ class IsfSettings:
     max_joint_step: float = 0.05
 
     def to_native(self, active) -> "_core.IsfSettings":
-        s = _core.IsfSettings()
-        for name, value in asdict(self).items():
-            setattr(s, name, value)
-        s.active = [bool(a) for a in active]
-        return s
+        return to_native(self, _core.IsfSettings, active=[bool(a) for a in active])
 
 
 def hand_sdf(robot, opening: float = 0.04, resolution: float = 0.002) -> sdf.SceneSdf:
