@@ -90,7 +90,8 @@ void require_rigid(const char* what, const Eigen::Matrix4d& M, double tol) {
   }
 }
 
-RobotWorkspace::RobotWorkspace(const Robot& robot) : link_pose(robot.num_links()) {}
+RobotWorkspace::RobotWorkspace(const Robot& robot)
+    : link_pose(robot.num_links()), axis_world(robot.num_links(), Eigen::Vector3d::Zero()) {}
 
 Robot Robot::from_urdf_file(const std::string& path, const std::vector<std::string>& package_dirs) {
   const std::string xml = read_file(path);
@@ -144,6 +145,7 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
         if (axis.norm() < 1e-12)
           throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "' has a zero axis");
         link.axis = axis.normalized();
+        link.axis_is_z = (link.axis - Eigen::Vector3d::UnitZ()).norm() < 1e-15;
         link.q_index = static_cast<int>(robot.joint_names_.size());
         q_of_joint[j->name] = link.q_index;
         robot.joint_names_.push_back(j->name);
@@ -268,9 +270,15 @@ void Robot::forward_kinematics(const double* q, RobotWorkspace& ws) const {
     Transform& T = ws.link_pose[i];
     T = parent * L.joint_origin;
     if (L.q_index < 0) continue;
+    ws.axis_world[i].noalias() = T.R * L.axis;  // the joint's own motion leaves its axis fixed
     const double v = q[L.q_index];
     if (L.joint_type == JointType::Prismatic) {
       T.p.noalias() += T.R * (L.axis * v);
+    } else if (L.axis_is_z) {  // R * Rz(v): only the first two columns change
+      const double c = std::cos(v), s = std::sin(v);
+      const Eigen::Vector3d c0 = T.R.col(0), c1 = T.R.col(1);
+      T.R.col(0) = c * c0 + s * c1;
+      T.R.col(1) = c * c1 - s * c0;
     } else {
       T.R = T.R * axis_angle(L.axis, v);
     }
@@ -285,7 +293,7 @@ void Robot::point_jacobian(const RobotWorkspace& ws, int link, const Eigen::Vect
     const Link& L = links_[k];
     if (L.q_index < 0) continue;
     const Transform& T = ws.link_pose[k];
-    const Eigen::Vector3d a = T.R * L.axis;
+    const Eigen::Vector3d& a = ws.axis_world[k];
     if (L.joint_type == JointType::Prismatic) {
       J.block<3, 1>(0, L.q_index) = a;
     } else {
@@ -302,7 +310,7 @@ void Robot::position_jacobian_world(const RobotWorkspace& ws, int link, const Ei
     const Link& L = links_[k];
     if (L.q_index < 0) continue;
     const Transform& T = ws.link_pose[k];
-    const Eigen::Vector3d a = T.R * L.axis;
+    const Eigen::Vector3d& a = ws.axis_world[k];
     J.col(L.q_index) = L.joint_type == JointType::Prismatic ? a : Eigen::Vector3d(a.cross(x - T.p));
   }
 }

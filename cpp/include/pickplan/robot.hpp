@@ -34,6 +34,7 @@ struct Link {
   JointType joint_type = JointType::Fixed;
   Transform joint_origin;          // joint frame in the parent link frame
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // unit joint axis in the joint frame
+  bool axis_is_z = true;           // revolute about +z (every Panda joint): a cheaper rotation in FK
   int q_index = -1;                // configuration index of the joint, -1 for fixed joints
   Mimic mimic;
   std::vector<CollisionGeometry> collisions;
@@ -42,7 +43,8 @@ struct Link {
 class Robot;
 
 struct RobotWorkspace {
-  std::vector<Transform> link_pose;      // world pose of every link frame
+  std::vector<Transform> link_pose;          // world pose of every link frame
+  std::vector<Eigen::Vector3d> axis_world;   // world joint axis of every link (set by FK, read by Jacobians)
   explicit RobotWorkspace(const Robot& robot);
 };
 
