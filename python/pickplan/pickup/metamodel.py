@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -262,18 +261,11 @@ class MetaModel:
 
 
 def write_text_atomic(path, text: str) -> None:
-    path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=os.path.basename(path))
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Atomic write (pickplan.io.atomic_open: temp file, then os.replace)."""
+    from ..io import atomic_open
+
+    with atomic_open(path, "w", encoding="utf-8") as f:
+        f.write(text)
 
 
 def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, workers: int = 1,

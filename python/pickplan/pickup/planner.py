@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Optional, Sequence
@@ -251,19 +250,11 @@ def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterati
 
 # ---- files -------------------------------------------------------------------------------------
 def write_atomic(path, data: bytes) -> None:
-    """Write bytes atomically (temp file in the same folder, then os.replace)."""
-    path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=os.path.basename(path))
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Atomic write (pickplan.io.atomic_open: temp file, then os.replace)."""
+    from ..io import atomic_open
+
+    with atomic_open(path, "wb") as f:
+        f.write(data)
 
 
 def save_plan(plan_dict: dict, path_stem) -> None:
