@@ -61,13 +61,22 @@ void bench_sdf(const Options& opt) {
   }
   const long n = static_cast<long>(pts.size() / 3);
   std::vector<double> d(n), g(3 * n);
-  for (double cutoff : {0.2, 1e9}) {
-    auto s = time_samples(opt.samples, 5, [&](int) { scene.distances(pts.data(), n, d.data(), g.data(), cutoff); });
-    Stats st = summarize(s);
+  const auto throughput = [&](const char* what, double cutoff) {
+    Stats st = summarize(time_samples(opt.samples, 5, [&](int) { scene.distances(pts.data(), n, d.data(), g.data(), cutoff); }));
     char name[128];
-    std::snprintf(name, sizeof name, "SDF+grad, %ld pts (5 objects+table), cutoff %s", n, cutoff < 1 ? "0.2" : "none");
+    std::snprintf(name, sizeof name, "SDF+grad, %ld pts, %s", n, what);
     report(name, st);
     std::printf("    -> %.1f M points/s (median)%s\n", n / st.median / 1e6, cutoff < 1 ? "   [target >= 40 M/s]" : "");
+  };
+  throughput("per-object grids, cutoff 0.2", 0.2);
+  throughput("per-object grids, no cutoff", 1e9);
+  for (const MergedSdfSettings ms : {MergedSdfSettings{0.005, 0.2, 8}, MergedSdfSettings{}}) {
+    char what[128];
+    std::snprintf(what, sizeof what, "merged grid (%.0f mm, %d^3-voxel bricks)%s", ms.resolution * 1e3, ms.brick,
+                  ms.resolution == MergedSdfSettings{}.resolution ? ", the default" : "");
+    report((std::string(what) + ", build").c_str(), summarize(time_samples(3, 1, [&](int) { scene.merge(0, ms); })));
+    std::printf("    -> %ld bricks, %.1f MB\n", scene.merged()->num_bricks(), scene.merged()->bytes() / 1e6);
+    throughput(what, 0.2);
   }
   Vertices V;
   Faces F;

@@ -60,6 +60,7 @@ void init_chomp(py::module_& m) {
       .def_readwrite("joint_limit_steps", &ChompSettings::joint_limit_steps)
       .def_readwrite("obstacle_tail", &ChompSettings::obstacle_tail)
       .def_readwrite("exclude_mask", &ChompSettings::exclude_mask)
+      .def_readwrite("link_culling", &ChompSettings::link_culling)
       .def_readwrite("active", &ChompSettings::active);
 
   py::class_<MetricSettings>(m, "MetricSettings")

@@ -97,6 +97,44 @@ void init_sdf(py::module_& m) {
       .def("set_table", [](SceneSdf& s, const Eigen::Vector3d& size, const Array& pose) {
         s.set_table(size, Transform::from_matrix(matrix4(pose, "table pose")));
       }, py::arg("size"), py::arg("pose"))
+      .def(
+          "merge",
+          [](SceneSdf& s, const std::vector<int>& exclude, double resolution, double cutoff, int brick) {
+            const std::uint64_t mask = exclusion_mask(s, exclude, false);
+            py::gil_scoped_release release;
+            s.merge(mask, MergedSdfSettings{resolution, cutoff, brick});
+          },
+          py::arg("exclude") = std::vector<int>{}, py::arg("resolution") = MergedSdfSettings{}.resolution,
+          py::arg("cutoff") = MergedSdfSettings{}.cutoff, py::arg("brick") = MergedSdfSettings{}.brick,
+          "Resample the objects not in `exclude` into one world-frame bricked grid, clamped at cutoff: queries "
+          "with that exclusion and a cutoff <= this one then take one lookup.")
+      .def_property_readonly("merged_info", [](const SceneSdf& s) -> py::object {
+        const MergedSdf* m = s.merged();
+        if (!m) return py::none();
+        py::dict d;
+        d["bricks"] = m->num_bricks();
+        d["cells"] = m->num_cells();
+        d["bytes"] = m->bytes();
+        d["resolution"] = m->settings().resolution;
+        d["cutoff"] = m->cutoff();
+        d["exclude_mask"] = m->exclude_mask();
+        return d;
+      })
+      .def(
+          "lower_bound",
+          [](const SceneSdf& s, const Array& pts_in, const std::vector<int>& exclude, bool exclude_table) {
+            Array pts = points_arg(pts_in);
+            const std::uint64_t mask = exclusion_mask(s, exclude, exclude_table);
+            py::array_t<double> out(pts.shape(0));
+            double* o = out.mutable_data();
+            const double* p = pts.data();
+            py::gil_scoped_release release;
+            for (py::ssize_t i = 0; i < pts.shape(0); ++i)
+              o[i] = s.lower_bound(Eigen::Map<const Eigen::Vector3d>(p + 3 * i), mask);
+            return out;
+          },
+          py::arg("points"), py::arg("exclude") = std::vector<int>{}, py::arg("exclude_table") = false,
+          "Cheap lower bounds of the distance (used to cull links far from every obstacle).")
       .def_property_readonly("num_objects", &SceneSdf::num_objects)
       .def_property_readonly("has_table", &SceneSdf::has_table)
       .def(

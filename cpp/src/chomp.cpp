@@ -22,6 +22,8 @@ ChompWorkspace::ChompWorkspace(const ChompProblem& p)
       grad_d((p.settings().n + 1) * p.body().size(), 3),
       d((p.settings().n + 1) * p.body().size()),
       term(static_cast<size_t>(p.settings().n) * p.body().size()),
+      live(static_cast<size_t>(p.settings().n + 1) * p.groups().size(), 1),
+      wrench(Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>::Zero((p.settings().n + 1) * p.groups().size(), 6)),
       grad(p.settings().n, p.robot().dof()),
       u(p.settings().n, p.robot().dof()),
       J(3, p.robot().dof()) {
@@ -43,6 +45,18 @@ ChompProblem::ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<c
   for (int l : body_.link)
     if (l < 0 || l >= robot_->num_links()) throw std::invalid_argument("body points: link index " + std::to_string(l) + " out of range");
   require_finite("body points", body_.points.data(), body_.points.size());
+  for (int u = 0; u < body_.size(); ++u) {
+    if (groups_.empty() || groups_.back().link != body_.link[u]) groups_.push_back({body_.link[u], u, u});
+    groups_.back().end = u + 1;
+  }
+  group_of_.resize(body_.size());
+  for (int gi = 0; gi < static_cast<int>(groups_.size()); ++gi)
+    for (int u = groups_[gi].begin; u < groups_[gi].end; ++u) group_of_[u] = gi;
+  for (LinkGroup& g : groups_) {
+    const auto pts = body_.points.middleRows(g.begin, g.end - g.begin);
+    g.center = 0.5 * (pts.colwise().minCoeff() + pts.colwise().maxCoeff()).transpose();
+    g.radius = (pts.rowwise() - g.center.transpose()).rowwise().norm().maxCoeff();
+  }
   dt_ = s.duration / s.n;
   // A = K^T K with K the first-difference matrix scaled by 1/dt: tridiagonal, last diagonal a.
   const double a = 1.0 / (dt_ * dt_);
@@ -123,31 +137,64 @@ double ChompProblem::prior(const Trajectory& xi, const Eigen::VectorXd& q0, Traj
   return f;
 }
 
+bool ChompProblem::group_near_obstacles(const RobotWorkspace& fk, const LinkGroup& group) const {
+  if (!settings_.link_culling) return true;
+  const Eigen::Vector3d c = fk.link_pose[group.link].apply(group.center);
+  return scene_->lower_bound(c, settings_.exclude_mask) - group.radius < settings_.epsilon;
+}
+
+void ChompProblem::transform_points(const RobotWorkspace& fk, const LinkGroup& group, double* x) const {
+  const Transform& T = fk.link_pose[group.link];
+  const double* p = body_.points.data() + 3 * static_cast<long>(group.begin);
+  for (int u = group.begin; u < group.end; ++u, p += 3, x += 3) {
+    Eigen::Map<Eigen::Vector3d> xw(x);
+    xw.noalias() = T.R * Eigen::Map<const Eigen::Vector3d>(p) + T.p;
+  }
+}
+
 ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorXd& q0, Trajectory* grad,
                                       ChompWorkspace& ws) const {
   const int n = settings_.n, N = body_.size();
   const double eps = settings_.epsilon;
   ObjectiveTerms out;
+  const int G = static_cast<int>(groups_.size());
   for (int t = 0; t <= n; ++t) {
     robot_->forward_kinematics(t == 0 ? q0.data() : xi.row(t - 1).data(), ws.fk[t]);
-    for (int u = 0; u < N; ++u)
-      ws.x.row(t * N + u) = ws.fk[t].link_pose[body_.link[u]].apply(body_.points.row(u).transpose()).transpose();
+    for (int gi = 0; gi < G; ++gi) {
+      const LinkGroup& grp = groups_[gi];
+      const long first = static_cast<long>(t) * N + grp.begin, count = grp.end - grp.begin;
+      const bool live = group_near_obstacles(ws.fk[t], grp);
+      ws.live[t * G + gi] = live;
+      if (!live) {
+        ws.d.segment(first, count).setConstant(eps);
+        continue;
+      }
+      transform_points(ws.fk[t], grp, ws.x.data() + 3 * first);
+      scene_->distances(ws.x.data() + 3 * first, count, ws.d.data() + first, ws.grad_d.data() + 3 * first, eps,
+                        settings_.exclude_mask);
+    }
   }
-  scene_->distances(ws.x.data(), (n + 1) * N, ws.d.data(), ws.grad_d.data(), eps, settings_.exclude_mask);
   ws.order.clear();
   const int last_t = n - settings_.obstacle_tail;
   const double inv_dt = 1.0 / dt_;
-  for (int t = 1; t <= n; ++t)
-    for (int u = 0; u < N; ++u) {
-      const int i = (t - 1) * N + u;
-      ws.term[i] = 0;
-      if (t > last_t) continue;
-      const double d = ws.d[t * N + u];
-      if (d >= eps) continue;
-      if (d < 0) ++out.colliding_points;
-      const double c = chomp_cost(d, eps, nullptr);
-      ws.term[i] = c * (ws.x.row(t * N + u) - ws.x.row((t - 1) * N + u)).norm() * inv_dt;
-      if (ws.term[i] > 0) ws.order.push_back(i);
+  std::fill(ws.term.begin(), ws.term.end(), 0.0);
+  for (int t = 1; t <= last_t; ++t)
+    for (int gi = 0; gi < G; ++gi) {
+      if (!ws.live[t * G + gi]) continue;
+      const LinkGroup& grp = groups_[gi];
+      // The previous waypoint's points are needed for the speed even where they were culled.
+      if (!ws.live[(t - 1) * G + gi]) {
+        transform_points(ws.fk[t - 1], grp, ws.x.data() + 3 * (static_cast<long>(t - 1) * N + grp.begin));
+        ws.live[(t - 1) * G + gi] = 2;  // positions valid, distances still the culled epsilon
+      }
+      for (int u = grp.begin; u < grp.end; ++u) {
+        const double d = ws.d[t * N + u];
+        if (d >= eps) continue;
+        if (d < 0) ++out.colliding_points;
+        const int i = (t - 1) * N + u;
+        ws.term[i] = chomp_cost(d, eps, nullptr) * (ws.x.row(t * N + u) - ws.x.row((t - 1) * N + u)).norm() * inv_dt;
+        if (ws.term[i] > 0) ws.order.push_back(i);
+      }
     }
   const int k = settings_.top_k;
   if (k > 0 && static_cast<int>(ws.order.size()) > k) {
@@ -160,8 +207,18 @@ ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorX
   if (!grad) return out;
   Trajectory& g = ws.u;  // reuse as the obstacle-gradient accumulator
   g.setZero(n, robot_->dof());
+  // Each term's point forces are summed into a wrench per (waypoint, link group); one chain walk
+  // per loaded wrench then pulls them all back (J^T f without forming J).
+  const auto load = [&](int t, int u, const Eigen::Vector3d& x, const Eigen::Vector3d& f) {
+    const int row = t * G + group_of_[u];
+    auto w = ws.wrench.row(row);
+    if (w.squaredNorm() == 0) ws.loaded.push_back(row);
+    w.head<3>() += f.transpose();
+    w.tail<3>() += x.cross(f).transpose();
+  };
+  ws.loaded.clear();
   for (int i : ws.order) {
-    const int t = i / N + 1, u = i % N, link = body_.link[u];
+    const int t = i / N + 1, u = i % N;
     const double d = ws.d[t * N + u];
     double dc;
     const double c = chomp_cost(d, eps, &dc);
@@ -170,13 +227,16 @@ ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorX
     const double len = delta.norm();
     if (len < 1e-12) continue;
     const Eigen::Vector3d dir = delta / len;
-    const Eigen::Vector3d gt = (dc * len * ws.grad_d.row(t * N + u).transpose() + c * dir) * inv_dt;
-    robot_->position_jacobian_world(ws.fk[t], link, xt, ws.J);
-    g.row(t - 1).noalias() += (ws.J.transpose() * gt).transpose();
-    if (t >= 2) {
-      robot_->position_jacobian_world(ws.fk[t - 1], link, xp, ws.J);
-      g.row(t - 2).noalias() -= (ws.J.transpose() * (c * inv_dt * dir)).transpose();
-    }
+    // d/dx_t of c(d(x_t)) |x_t - x_{t-1}| / dt, and the matching term of x_{t-1}.
+    load(t, u, xt, (dc * len * ws.grad_d.row(t * N + u).transpose() + c * dir) * inv_dt);
+    if (t >= 2) load(t - 1, u, xp, -c * inv_dt * dir);
+  }
+  for (int row : ws.loaded) {
+    const int t = row / G;
+    auto w = ws.wrench.row(row);
+    robot_->add_wrench_jacobian_transpose(ws.fk[t], groups_[row % G].link, w.head<3>().transpose(),
+                                          w.tail<3>().transpose(), g.row(t - 1).data());
+    w.setZero();
   }
   if (settings_.clip_gradient > 0) g = g.cwiseMax(-settings_.clip_gradient).cwiseMin(settings_.clip_gradient);
   *grad += g;

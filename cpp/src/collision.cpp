@@ -343,6 +343,10 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
 bool CollisionChecker::in_collision(const double* q, CollisionWorkspace& ws) const {
   check_q(q);
   robot_.forward_kinematics(q, ws.robot);
+  return in_collision_posed(ws);
+}
+
+bool CollisionChecker::in_collision_posed(CollisionWorkspace& ws) const {
   const double m = settings_.margin;
   for (const auto& p : pairs_) {
     if (pair_lower_bound(p, ws) > m) continue;

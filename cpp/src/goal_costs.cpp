@@ -15,7 +15,7 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
   if (time_stride < 1 || point_stride < 1) throw std::invalid_argument("goal costs: strides must be >= 1");
   if (goals.cols() != robot_->dof())
     throw std::invalid_argument("goal costs: goals need " + std::to_string(robot_->dof()) + " columns");
-  const int n = settings_.n, N = body_.size();
+  const int n = settings_.n;
   const int k = std::min(n - 1, static_cast<int>(std::floor(static_cast<double>(n) * iteration / horizon)));
   const Eigen::VectorXd a = k == 0 ? q0 : Eigen::VectorXd(xi.row(k - 1).transpose());
   const int L = n - k;  // waypoints of the tail after a
@@ -34,13 +34,19 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
     for (int t = time_stride; t <= last_t; t += time_stride) {
       q = a + delta * (static_cast<double>(t) / L);
       robot_->forward_kinematics(q.data(), fk_cur);
-      for (int u = 0; u < N; u += point_stride) {
-        const Eigen::Vector3d x = fk_cur.link_pose[body_.link[u]].apply(body_.points.row(u).transpose());
-        const double d = scene_->distance(x, nullptr, eps, settings_.exclude_mask);
-        if (d >= eps) continue;
-        const Eigen::Vector3d xp = fk_prev.link_pose[body_.link[u]].apply(body_.points.row(u).transpose());
-        // Speed over the strided step, times the step count it stands for.
-        obstacle += chomp_cost(d, eps, nullptr) * (x - xp).norm() * inv_dt;
+      for (const LinkGroup& grp : groups_) {
+        if (!group_near_obstacles(fk_cur, grp)) continue;  // every point beyond epsilon: no cost
+        const Transform& T = fk_cur.link_pose[grp.link];
+        const Transform& Tp = fk_prev.link_pose[grp.link];
+        // Every point_stride-th body point overall, as before the grouping.
+        for (int u = grp.begin + (point_stride - grp.begin % point_stride) % point_stride; u < grp.end; u += point_stride) {
+          const Eigen::Vector3d p = body_.points.row(u).transpose();
+          const Eigen::Vector3d x = T.apply(p);
+          const double d = scene_->distance(x, nullptr, eps, settings_.exclude_mask);
+          if (d >= eps) continue;
+          // Speed over the strided step, times the step count it stands for.
+          obstacle += chomp_cost(d, eps, nullptr) * (x - Tp.apply(p)).norm() * inv_dt;
+        }
       }
       std::swap(fk_prev.link_pose, fk_cur.link_pose);
     }

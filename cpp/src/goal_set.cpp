@@ -27,7 +27,36 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
   // they collide, every arm configuration reaching this grasp collides too.
   std::unique_ptr<CollisionWorkspace> hws = hand_checker ? std::make_unique<CollisionWorkspace>(*hand_checker) : nullptr;
   auto hand_collides = [&](const Eigen::VectorXd& q) { return hand_checker && hand_checker->in_collision(q.data(), *hws); };
+  // The hand links' poses relative to the IK link (fingers as in `start`): a grasp whose hand
+  // collides at the grasp or anywhere on its approach is rejected before any IK.
+  std::vector<Transform> hand_relative;
+  if (hand_checker) {
+    RobotWorkspace fk(robot);
+    robot.forward_kinematics(start.data(), fk);
+    const Transform inv = fk.link_pose[ik.link()].inverse();
+    for (const Transform& T : fk.link_pose) hand_relative.push_back(inv * T);
+  }
+  const Transform tip_inverse = ik.tip().inverse();
+  auto free_hand_collides = [&](const Transform& ik_target) {
+    const Transform link_pose = ik_target * tip_inverse;
+    for (size_t l = 0; l < hand_relative.size(); ++l) hws->robot.link_pose[l] = link_pose * hand_relative[l];
+    return hand_checker->in_collision_posed(*hws);
+  };
+  auto approach_pose = [&](size_t g, int k) {  // k = m - 1: the grasp; 0: the pre-grasp
+    Transform pre = hand_poses[g];
+    pre.p -= s.standoff * static_cast<double>(m - 1 - k) / std::max(1, m - 1) * pre.R.col(2);
+    return pre;
+  };
   for (size_t g = 0; g < hand_poses.size(); ++g) {
+    if (hand_checker) {
+      std::string hand_reason;
+      for (int k = m - 1; k >= 0 && hand_reason.empty(); --k)
+        if (free_hand_collides(approach_pose(g, k))) hand_reason = k == m - 1 ? "in_collision" : "standoff_in_collision";
+      if (!hand_reason.empty()) {
+        out.reasons[g] = hand_reason;
+        continue;
+      }
+    }
     // Seeds in order (start first): the first solution that is collision-free and has a
     // feasible approach chain wins. Lazy, so reachable grasps cost one or two descents.
     std::string reason = "unreachable";
@@ -49,10 +78,7 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
       tail.row(m - 1) = sol.q.transpose();
       bool ok = true;
       for (int k2 = m - 2; k2 >= 0 && ok; --k2) {
-        Transform pre = hand_poses[g];
-        const double back = s.standoff * static_cast<double>(m - 1 - k2) / std::max(1, m - 1);
-        pre.p -= back * pre.R.col(2);  // back off along the approach axis
-        const IkSolution step = ik.solve(pre, tail.row(k2 + 1).transpose());
+        const IkSolution step = ik.solve(approach_pose(g, k2), tail.row(k2 + 1).transpose());  // backed off along z
         if (!step.converged || (step.q.transpose() - tail.row(k2 + 1)).cwiseAbs().maxCoeff() > s.max_joint_jump) {
           ok = false;
           reason = "standoff_unreachable";

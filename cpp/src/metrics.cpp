@@ -1,5 +1,6 @@
 #include "pickplan/metrics.hpp"
 
+#include <algorithm>
 #include <limits>
 #include <stdexcept>
 
@@ -32,9 +33,12 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
   for (int i = 0; i < scene.num_objects(); ++i) all_objects |= std::uint64_t{1} << i;
   RobotWorkspace ws(robot);
   const double inf = std::numeric_limits<double>::infinity();
-  m.min_clearance = inf;
-  m.min_table_clearance = inf;
-  Eigen::Vector3d g;
+  // Distances are measured up to `cap`; links whose bounding sphere is farther from everything
+  // are skipped (exact: no point of theirs can change a metric). The per-object grids are the
+  // reference here, not the merged grid the optimizer uses.
+  const double cap = std::max({s.epsilon, s.clearance, s.tail_clearance, s.collision_padding, s.table_clearance});
+  m.min_clearance = cap;
+  m.min_table_clearance = cap;
   const int n = static_cast<int>(xi.rows());
   // Dense steps at or after this one lie on the approach tail (waypoints n - tail .. n).
   const double tail_start = s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints) / n * (s.steps - 1) : s.steps;
@@ -43,15 +47,19 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
     robot.forward_kinematics(dense.row(t).data(), ws);
     const double need = t >= tail_start ? s.tail_clearance : s.clearance;
     double step_min = inf;
-    for (int u = 0; u < body.size(); ++u) {
-      const Eigen::Vector3d x = ws.link_pose[body.link[u]].apply(body.points.row(u).transpose());
-      const double d_obj = scene.distance(x, nullptr, inf, s.exclude_mask | SceneSdf::kTableBit);
-      const double d_table = scene.has_table() ? scene.distance(x, nullptr, inf, all_objects) : inf;
-      m.min_clearance = std::min(m.min_clearance, d_obj);
-      step_min = std::min(step_min, d_obj);
-      m.min_table_clearance = std::min(m.min_table_clearance, d_table);
-      const double d = std::min(d_obj, d_table);
-      if (d < s.collision_padding) m.collision += chomp_cost(d, s.epsilon, nullptr);
+    for (const LinkGroup& grp : problem.groups()) {
+      const Transform& T = ws.link_pose[grp.link];
+      if (scene.lower_bound(T.apply(grp.center), s.exclude_mask) - grp.radius >= cap) continue;
+      for (int u = grp.begin; u < grp.end; ++u) {
+        const Eigen::Vector3d x = T.apply(body.points.row(u).transpose());
+        const double d_obj = scene.distance_unmerged(x, nullptr, cap, s.exclude_mask | SceneSdf::kTableBit);
+        const double d_table = scene.has_table() ? scene.distance_unmerged(x, nullptr, cap, all_objects) : inf;
+        m.min_clearance = std::min(m.min_clearance, d_obj);
+        step_min = std::min(step_min, d_obj);
+        m.min_table_clearance = std::min(m.min_table_clearance, d_table);
+        const double d = std::min(d_obj, d_table);
+        if (d < s.collision_padding) m.collision += chomp_cost(d, s.epsilon, nullptr);
+      }
     }
     transit_free = transit_free && step_min >= need;
   }

@@ -315,4 +315,16 @@ void Robot::position_jacobian_world(const RobotWorkspace& ws, int link, const Ei
   }
 }
 
+void Robot::add_wrench_jacobian_transpose(const RobotWorkspace& ws, int link, const Eigen::Vector3d& force,
+                                          const Eigen::Vector3d& moment, double* out) const {
+  for (int k = link; k >= 0; k = links_[k].parent) {
+    const Link& L = links_[k];
+    if (L.q_index < 0) continue;
+    const Eigen::Vector3d& a = ws.axis_world[k];
+    // sum_i (a x (x_i - p)) . f_i = a . sum_i (x_i - p) x f_i = a . (M - p x F)
+    out[L.q_index] += L.joint_type == JointType::Prismatic ? a.dot(force)
+                                                          : a.dot(moment - ws.link_pose[k].p.cross(force));
+  }
+}
+
 }  // namespace pickplan

@@ -77,6 +77,7 @@ int SceneSdf::add_object(std::shared_ptr<const SdfGrid> grid, const Transform& p
   b.lo = b.grid->surface_lo();
   b.hi = b.grid->surface_hi();
   bodies_.push_back(std::move(b));
+  merged_.reset();
   return static_cast<int>(bodies_.size()) - 1;
 }
 
@@ -86,10 +87,131 @@ void SceneSdf::set_table(const Eigen::Vector3d& size, const Transform& pose) {
   table_half_ = size / 2;
   table_pose_ = pose;
   table_inverse_ = pose.inverse();
+  table_axis_aligned_ = pose.R.isIdentity(1e-15);
+}
+
+namespace {
+// Lower bound of a body's distance over the ball (x, radius): the gap to its surface box, less
+// one grid resolution for the interpolation; nothing (-inf) once the ball reaches the box,
+// since the inside can be arbitrarily deep.
+double box_gap_bound(const SceneSdf::Body& b, const Eigen::Vector3d& x, double radius) {
+  const Eigen::Vector3d xl = b.inverse.apply(x);
+  const double gap = (xl - xl.cwiseMax(b.lo).cwiseMin(b.hi)).norm() - radius;
+  return gap > 0 ? gap - b.grid->resolution() : -std::numeric_limits<double>::infinity();
+}
+}  // namespace
+
+double SceneSdf::table_distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient) const {
+  const Eigen::Vector3d xl = table_axis_aligned_ ? Eigen::Vector3d(x - table_pose_.p) : table_inverse_.apply(x);
+  // Most queried points are above the top face, inside its footprint: the distance is the height.
+  if (xl.z() >= table_half_.z() && std::abs(xl.x()) <= table_half_.x() && std::abs(xl.y()) <= table_half_.y()) {
+    if (gradient) *gradient = table_pose_.R.col(2);
+    return xl.z() - table_half_.z();
+  }
+  Eigen::Vector3d g;
+  const double d = box_signed_distance(xl, table_half_, gradient ? &g : nullptr);
+  if (gradient) gradient->noalias() = table_pose_.R * g;
+  return d;
 }
 
 double SceneSdf::distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
                           std::uint64_t exclude_mask) const {
+  if (!use_merged(exclude_mask, cutoff)) return distance_unmerged(x, gradient, cutoff, exclude_mask);
+  Eigen::Vector3d g;
+  double best = merged_->distance(x.data(), gradient ? g.data() : nullptr);
+  if (best >= cutoff) {
+    best = cutoff;
+    g.setZero();
+  }
+  if (has_table_ && !(exclude_mask & kTableBit)) {
+    Eigen::Vector3d gt;
+    const double d = table_distance(x, gradient ? &gt : nullptr);
+    if (d < best) {
+      best = d;
+      g = gt;
+    }
+  }
+  if (gradient) *gradient = g;
+  return best;
+}
+
+void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settings) {
+  if (!(settings.resolution > 0) || !std::isfinite(settings.resolution) || !(settings.cutoff > 0) ||
+      !std::isfinite(settings.cutoff) || settings.brick < 1 || settings.brick > 64)
+    throw std::invalid_argument("merged SDF: resolution and cutoff must be finite and > 0, brick in [1, 64]");
+  exclude_mask &= ~kTableBit;
+  // Beyond `pad` from every surface box, each object is beyond the cutoff (grid slack included).
+  double pad = settings.cutoff + settings.resolution;
+  for (const Body& b : bodies_) pad = std::max(pad, settings.cutoff + b.grid->resolution());
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int i = 0; i < num_objects(); ++i) {
+    if (exclude_mask >> i & 1) continue;
+    const Body& b = bodies_[i];
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner((c & 1) ? b.hi.x() : b.lo.x(), (c & 2) ? b.hi.y() : b.lo.y(), (c & 4) ? b.hi.z() : b.lo.z());
+      const Eigen::Vector3d w = b.pose.apply(corner);
+      lo = lo.cwiseMin(w);
+      hi = hi.cwiseMax(w);
+    }
+  }
+  if (!lo.allFinite()) lo = hi = Eigen::Vector3d::Zero();  // nothing to merge: every lookup is empty
+  lo.array() -= pad;
+  hi.array() += pad;
+  const double cell_edge = settings.brick * settings.resolution;
+  const double cells = ((hi - lo) / cell_edge).array().ceil().prod();
+  if (cells > 5e7)
+    throw std::invalid_argument("merged SDF: the objects span too large a region for resolution " +
+                                std::to_string(settings.resolution) + " m (" + std::to_string(cells) + " bricks)");
+  std::vector<int> included;
+  for (int i = 0; i < num_objects(); ++i)
+    if (!(exclude_mask >> i & 1)) included.push_back(i);
+  // Objects that may be the nearest somewhere in the ball: within the cutoff by their box gap,
+  // and not dominated by another object's distance interval at the centre (a grid interpolant
+  // changes by at most sqrt(3) per unit; 2 leaves slack).
+  const auto near = [&](const Eigen::Vector3d& center, double radius, int* ids) {
+    int count = 0;
+    double at_center[64];
+    double best_upper = settings.cutoff;
+    for (int i : included) {
+      if (box_gap_bound(bodies_[i], center, radius) >= settings.cutoff) continue;
+      const Body& b = bodies_[i];
+      at_center[count] = b.grid->distance(b.inverse.apply(center));
+      best_upper = std::min(best_upper, at_center[count] + 2 * radius);
+      ids[count++] = i;
+    }
+    int kept = 0;
+    for (int c = 0; c < count; ++c)
+      if (at_center[c] - 2 * radius < best_upper) ids[kept++] = ids[c];
+    return kept;
+  };
+  const auto object_distance = [&](int i, const Eigen::Vector3d& x) {
+    const Body& b = bodies_[i];
+    return b.grid->distance(b.inverse.apply(x));
+  };
+  const auto lower_bound = [&](const Eigen::Vector3d& center, double radius) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int i : included) best = std::min(best, box_gap_bound(bodies_[i], center, radius));
+    return best;
+  };
+  merged_ = std::make_shared<const MergedSdf>(MergedSdf::build(lo, hi, settings, exclude_mask, near, object_distance, lower_bound));
+}
+
+
+double SceneSdf::lower_bound(const Eigen::Vector3d& x, std::uint64_t exclude_mask) const {
+  double best = std::numeric_limits<double>::infinity();
+  if (use_merged(exclude_mask, 0.0)) {
+    best = merged_->lower_bound(x.data());
+  } else {
+    for (int i = 0; i < num_objects(); ++i) {
+      if (!(exclude_mask >> i & 1)) best = std::min(best, box_gap_bound(bodies_[i], x, 0.0));
+    }
+  }
+  if (has_table_ && !(exclude_mask & kTableBit)) best = std::min(best, table_distance(x, nullptr));
+  return best;
+}
+
+double SceneSdf::distance_unmerged(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
+                                   std::uint64_t exclude_mask) const {
   double best = cutoff;
   Eigen::Vector3d best_grad = Eigen::Vector3d::Zero();
   Eigen::Vector3d g;
@@ -121,10 +243,10 @@ double SceneSdf::distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, d
     }
   }
   if (has_table_ && !(exclude_mask & kTableBit)) {
-    const double d = box_signed_distance(table_inverse_.apply(x), table_half_, gradient ? &g : nullptr);
+    const double d = table_distance(x, gradient ? &g : nullptr);
     if (d < best) {
       best = d;
-      if (gradient) best_grad.noalias() = table_pose_.R * g;
+      if (gradient) best_grad = g;
     }
   }
   if (gradient) *gradient = best_grad;
@@ -133,6 +255,30 @@ double SceneSdf::distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, d
 
 void SceneSdf::distances(const double* points, long n, double* dist, double* grad, double cutoff,
                          std::uint64_t exclude_mask) const {
+  if (use_merged(exclude_mask, cutoff)) {
+    // The hot path, with the per-point dispatch hoisted out of the loop.
+    const bool table = has_table_ && !(exclude_mask & kTableBit);
+    double g[3];
+    Eigen::Vector3d gt;
+    for (long i = 0; i < n; ++i) {
+      const double* x = points + 3 * i;
+      double d = merged_->distance(x, grad ? g : nullptr);
+      if (d >= cutoff) {
+        d = cutoff;
+        g[0] = g[1] = g[2] = 0.0;
+      }
+      if (table) {
+        const double dt = table_distance(Eigen::Map<const Eigen::Vector3d>(x), grad ? &gt : nullptr);
+        if (dt < d) {
+          d = dt;
+          g[0] = gt.x(), g[1] = gt.y(), g[2] = gt.z();
+        }
+      }
+      dist[i] = d;
+      if (grad) grad[3 * i] = g[0], grad[3 * i + 1] = g[1], grad[3 * i + 2] = g[2];
+    }
+    return;
+  }
   Eigen::Vector3d g;
   for (long i = 0; i < n; ++i) {
     const Eigen::Map<const Eigen::Vector3d> x(points + 3 * i);

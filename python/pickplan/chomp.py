@@ -30,6 +30,7 @@ class ChompSettings:
     clip_gradient: float = 10.0  # element-wise clip of the obstacle gradient (0 = none)
     joint_limit_steps: int = 10
     obstacle_tail: int = 0       # last waypoints without obstacle cost (standoff approach)
+    link_culling: bool = True    # skip links whose bounding sphere is beyond epsilon (exact, faster)
 
     def to_native(self, exclude_mask: int = 0, active: Optional[Sequence[bool]] = None) -> "_core.ChompSettings":
         return to_native(self, _core.ChompSettings, exclude_mask=int(exclude_mask),

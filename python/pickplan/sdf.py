@@ -21,6 +21,9 @@ class SdfSettings:
     resolution: float = 0.005   # voxel edge (m), the paper-scale default
     margin: float = 0.2         # grid extends beyond the mesh by at least the CHOMP padding epsilon
     cache_dir: Optional[str] = None  # None: $PICKPLAN_CACHE_DIR or ~/.cache/pickplan; "": no cache
+    merged: bool = True         # resample the scene (less the target) into one grid for the planners
+    merged_resolution: float = 0.01  # resampling the 5 mm grids: < 1 mm off outside thin walls, 5x faster to build
+    merged_cutoff: float = 0.2  # >= the CHOMP padding, or the planners fall back to per-object grids
 
 
 def default_cache_dir() -> str:
@@ -102,6 +105,19 @@ class SceneSdf:
             return self._names.index(name)
         except ValueError:
             raise ValueError(f"unknown object {name!r}; objects are: {', '.join(self._names)}") from None
+
+    def merge(self, exclude: Sequence[str] = (), resolution: float = 0.01, cutoff: float = 0.2,
+              brick: int = 4) -> None:
+        """Resample every object but ``exclude`` into one world-frame grid clamped at ``cutoff``:
+        queries with the same exclusion and a cutoff no larger take a single lookup."""
+        self._native.merge([self.index(n) for n in exclude], float(resolution), float(cutoff), int(brick))
+
+    @property
+    def merged_info(self) -> Optional[dict]:
+        return self._native.merged_info
+
+    def lower_bound(self, points, exclude: Sequence[str] = (), exclude_table: bool = False) -> np.ndarray:
+        return self._native.lower_bound(points, [self.index(n) for n in exclude], exclude_table)
 
     def distance(self, points, cutoff: float = np.inf, exclude: Sequence[str] = (),
                  exclude_table: bool = False) -> Tuple[np.ndarray, np.ndarray]:

@@ -3,6 +3,7 @@ body points and FCL collision checkers. Built once per scene; immutable afterwar
 from __future__ import annotations
 
 import functools
+import time
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -36,6 +37,11 @@ class World:
         self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
         self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
         scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
+        t0 = time.perf_counter()
+        if settings.sdf.merged:  # the planners' obstacle costs all leave the target out
+            self.sdf.merge(exclude=(scene.target,), resolution=settings.sdf.merged_resolution,
+                           cutoff=settings.sdf.merged_cutoff)
+        self.merge_seconds = time.perf_counter() - t0
 
     @property
     def target(self) -> str:

@@ -161,3 +161,49 @@ def test_bad_inputs_raise(panda, body, wall_scene):
         chomp.Chomp(panda, wall_scene, body, exclude=("mug",))
     with pytest.raises(ValueError, match="n must be >= 2"):
         chomp.Chomp(panda, wall_scene, body, chomp.ChompSettings(n=1))
+
+
+def _clutter_sdf(merged: bool):
+    rng = np.random.default_rng(3)
+    grids = []
+    for i in range(4):
+        mesh = trimesh.creation.cylinder(radius=0.04, height=0.2) if i % 2 else trimesh.creation.box((0.08, 0.12, 0.2))
+        pose = trimesh.transformations.rotation_matrix(rng.uniform(-np.pi, np.pi), (0, 0, 1))
+        pose[:3, 3] = [rng.uniform(0.35, 0.7), rng.uniform(-0.35, 0.35), 0.1]
+        grids.append((f"o{i}", sdf.mesh_sdf(mesh, sdf.SdfSettings(cache_dir="")), pose))
+    scene = sdf.SceneSdf(grids, table=_table())
+    if merged:
+        scene.merge(exclude=("o1",))
+    return scene
+
+
+@pytest.mark.parametrize("merged", [False, True])
+def test_link_culling_changes_no_cost_or_gradient(panda, body, merged):
+    """Culling a link whose bounding sphere is beyond epsilon is exact: same objective, same gradient."""
+    scene = _clutter_sdf(merged)
+    rng = np.random.default_rng(1)
+    full = chomp.Chomp(panda, scene, body, chomp.ChompSettings(link_culling=False), exclude=("o1",))
+    culled = chomp.Chomp(panda, scene, body, chomp.ChompSettings(link_culling=True), exclude=("o1",))
+    for _ in range(5):
+        goal = Q_LEFT + np.r_[rng.uniform(-1, 1, 7), 0, 0]
+        xi = culled.initial_trajectory(Q_LEFT, goal)
+        (ref, g_ref), (got, g_got) = full.problem.obstacle(xi, Q_LEFT), culled.problem.obstacle(xi, Q_LEFT)
+        assert ref["obstacle"] > 0
+        assert got["obstacle"] == pytest.approx(ref["obstacle"], rel=1e-12)
+        np.testing.assert_allclose(g_got, g_ref, rtol=0, atol=1e-12 * np.abs(g_ref).max())
+
+
+def test_merged_scene_grid_matches_per_object_grids(panda, body):
+    """The merged grid resamples the per-object grids: the CHOMP objective barely moves."""
+    plain, merged = _clutter_sdf(False), _clutter_sdf(True)
+    info = merged.merged_info
+    assert info["bricks"] > 0 and info["cutoff"] == 0.2 and info["exclude_mask"] == 0b10
+    rng = np.random.default_rng(2)
+    pts = np.c_[rng.uniform(0.2, 0.8, 4000), rng.uniform(-0.5, 0.5, 4000), rng.uniform(0.0, 0.4, 4000)]
+    d0, _ = plain.distance(pts, 0.2, exclude=("o1",))
+    d1, _ = merged.distance(pts, 0.2, exclude=("o1",))
+    # Trilinear resampling of a 1-Lipschitz field at spacing h is off by at most h sqrt(3) / 2.
+    assert np.max(np.abs(d1 - d0)) <= info["resolution"] * np.sqrt(3) / 2
+    assert np.all(np.minimum(merged.lower_bound(pts, exclude=("o1",)), 0.2) <= d1 + 1e-12)
+    # Another exclusion falls back to the per-object grids exactly.
+    np.testing.assert_array_equal(merged.distance(pts, 0.2)[0], plain.distance(pts, 0.2)[0])

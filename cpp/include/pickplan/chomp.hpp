@@ -37,6 +37,7 @@ struct ChompSettings {
   int joint_limit_steps = 10;   // smooth projections back inside the joint limits
   int obstacle_tail = 0;        // last waypoints whose obstacle cost is ignored (the standoff approach)
   std::uint64_t exclude_mask = 0;  // SceneSdf objects ignored by the obstacle cost (e.g. the target)
+  bool link_culling = true;     // skip a link's points when its bounding sphere is beyond epsilon (exact)
   std::vector<bool> active;     // joints the optimizer moves (empty = all); others stay at q_0's value
 };
 
@@ -55,6 +56,9 @@ struct ChompWorkspace {
   Eigen::VectorXd d;                   // (n+1)*N distances
   std::vector<double> term;            // n*N obstacle terms
   std::vector<int> order;              // candidate term indices for the top-k selection
+  std::vector<char> live;              // (n+1) x groups: the link group had its points evaluated
+  Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor> wrench;  // (n+1) x groups: force, moment
+  std::vector<int> loaded;             // wrench rows touched this evaluation
   Trajectory grad, u;                  // gradient and A^-1 gradient
   Eigen::Matrix<double, 3, Eigen::Dynamic> J;
 };
@@ -74,6 +78,13 @@ struct ChompResult {
   double seconds = 0;
 };
 
+// Body points of one link, contiguous in BodyPoints, with a bounding sphere in the link frame.
+struct LinkGroup {
+  int link = 0, begin = 0, end = 0;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  double radius = 0;
+};
+
 class ChompProblem {
  public:
   ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<const SceneSdf> scene, BodyPoints body,
@@ -82,6 +93,10 @@ class ChompProblem {
   const Robot& robot() const { return *robot_; }
   const SceneSdf& scene() const { return *scene_; }
   const BodyPoints& body() const { return body_; }
+  const std::vector<LinkGroup>& groups() const { return groups_; }
+  // False when every point of the group, at the link pose in fk, is at least epsilon from
+  // every obstacle (a sound lower bound: culling never changes a cost).
+  bool group_near_obstacles(const RobotWorkspace& fk, const LinkGroup& group) const;
   const ChompSettings& settings() const { return settings_; }
   double dt() const { return dt_; }
 
@@ -118,10 +133,13 @@ class ChompProblem {
   const Eigen::MatrixXd& projector(int m) const;  // M = A^-1 C^T (C A^-1 C^T)^-1 for a tail of m rows
   void project_limits(Trajectory& xi, int m, ChompWorkspace& ws, StepInfo& info) const;
   void mask_inactive(Trajectory& g) const;
+  void transform_points(const RobotWorkspace& fk, const LinkGroup& group, double* x_world) const;
 
   std::shared_ptr<const Robot> robot_;
   std::shared_ptr<const SceneSdf> scene_;
   BodyPoints body_;
+  std::vector<LinkGroup> groups_;
+  std::vector<int> group_of_;  // body point -> its group
   ChompSettings settings_;
   double dt_;
   Eigen::VectorXd chol_diag_, chol_sub_;     // A = L L^T, L lower bidiagonal

@@ -95,6 +95,9 @@ class CollisionChecker {
 
   // q: dof finite values (validated). The workspace overloads do not allocate.
   bool in_collision(const double* q, CollisionWorkspace& ws) const;
+  // The same for link poses the caller has put in ws.robot.link_pose (e.g. a free-floating hand
+  // placed at a grasp before any IK); only the checked links' poses are read.
+  bool in_collision_posed(CollisionWorkspace& ws) const;
   double min_distance(const double* q, CollisionWorkspace& ws) const;
   bool in_collision(const Eigen::VectorXd& q) const;
   double min_distance(const Eigen::VectorXd& q) const;

@@ -38,6 +38,7 @@ class IkSolver {
   const Robot& robot() const { return *robot_; }
   const IkSettings& settings() const { return settings_; }
   int link() const { return link_; }
+  const Transform& tip() const { return tip_; }
 
   // One descent from `seed`; inactive joints keep the seed's values.
   IkSolution solve(const Transform& target, const Eigen::VectorXd& seed) const;

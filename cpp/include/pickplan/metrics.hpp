@@ -21,8 +21,8 @@ struct MetricSettings {
 struct TrajectoryMetrics {
   double smoothness = 0;        // f_prior of the planned waypoints (dt of the problem)
   double collision = 0;
-  double min_clearance = 0;     // to non-excluded objects (not the table)
-  double min_table_clearance = 0;
+  double min_clearance = 0;     // to non-excluded objects (not the table); capped at the largest of
+  double min_table_clearance = 0;  // epsilon and the clearances (farther is not measured)
   bool collision_free = false;
   bool success = false;         // collision-free and smooth enough
 };

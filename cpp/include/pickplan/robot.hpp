@@ -89,6 +89,11 @@ class Robot {
   // 3 x dof linear Jacobian of a world point x rigidly attached to `link` (cheaper: no local transform).
   void position_jacobian_world(const RobotWorkspace& ws, int link, const Eigen::Vector3d& x_world,
                                Eigen::Ref<Eigen::Matrix<double, 3, Eigen::Dynamic>> J) const;
+  // out += sum_i J(x_i)^T f_i over forces f_i at world points x_i on `link`, given only their
+  // sum F and world moment M = sum_i x_i x f_i: joint j gets a_j . (M - p_j x F) (revolute) or
+  // a_j . F (prismatic). The CHOMP gradient pull-back, one chain walk per link and waypoint.
+  void add_wrench_jacobian_transpose(const RobotWorkspace& ws, int link, const Eigen::Vector3d& force,
+                                     const Eigen::Vector3d& moment, double* out) const;
 
  private:
   void finalize();  // builds names, limits, chains after links_ are filled

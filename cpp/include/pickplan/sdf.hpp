@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 
+#include "pickplan/sdf_merged.hpp"
 #include "pickplan/transform.hpp"
 
 namespace pickplan {
@@ -80,6 +81,13 @@ class SceneSdf {
   void set_table(const Eigen::Vector3d& size, const Transform& pose);
   void clear_table() { has_table_ = false; }
 
+  // Resamples the minimum over the objects not in `exclude_mask` into one world-frame bricked
+  // grid (see MergedSdf). Afterwards, queries with that object mask and a cutoff no larger than
+  // settings.cutoff take one lookup (plus the analytic table); others use the per-object path.
+  // Adding an object drops the merged grid. Throws std::invalid_argument on bad settings.
+  void merge(std::uint64_t exclude_mask, const MergedSdfSettings& settings = {});
+  const MergedSdf* merged() const { return merged_.get(); }
+
   int num_objects() const { return static_cast<int>(bodies_.size()); }
   bool has_table() const { return has_table_; }
 
@@ -88,6 +96,12 @@ class SceneSdf {
   // when everything is beyond it the result is `cutoff` with a zero gradient.
   double distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
                   std::uint64_t exclude_mask = 0) const;
+  // A lower bound of distance(x, ., inf, exclude_mask) that is cheap (one array read with a
+  // matching merged grid, a box gap per object otherwise); used to cull whole links.
+  double lower_bound(const Eigen::Vector3d& x, std::uint64_t exclude_mask = 0) const;
+  // The same, by the per-object grids only (never the merged grid): the reference.
+  double distance_unmerged(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
+                           std::uint64_t exclude_mask = 0) const;
   // Batched: N points (row-major N x 3) into dist (N) and grad (N x 3, may be null).
   void distances(const double* points, long n, double* dist, double* grad, double cutoff,
                  std::uint64_t exclude_mask = 0) const;
@@ -95,8 +109,15 @@ class SceneSdf {
   static constexpr std::uint64_t kTableBit = std::uint64_t{1} << 63;
 
  private:
+  double table_distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient) const;
+  bool use_merged(std::uint64_t exclude_mask, double cutoff) const {
+    return merged_ && (exclude_mask & ~kTableBit) == merged_->exclude_mask() && cutoff <= merged_->cutoff();
+  }
+
   std::vector<Body> bodies_;
+  std::shared_ptr<const MergedSdf> merged_;
   bool has_table_ = false;
+  bool table_axis_aligned_ = false;
   Eigen::Vector3d table_half_ = Eigen::Vector3d::Zero();
   Transform table_pose_, table_inverse_;
 };

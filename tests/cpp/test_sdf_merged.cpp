@@ -1,0 +1,145 @@
+// The merged scene grid and the cheap lower bounds against the per-object grids (the reference)
+// and exact box geometry.
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "mesh_fixtures.hpp"
+#include "pickplan/sdf.hpp"
+
+using namespace pickplan;
+
+namespace {
+
+// Three rotated boxes on a table: rotated so the world-aligned merged grid resamples them.
+SceneSdf three_boxes(std::vector<std::pair<Transform, Eigen::Vector3d>>* boxes = nullptr) {
+  SceneSdf scene;
+  const Eigen::Vector3d sizes[3] = {{0.1, 0.06, 0.2}, {0.05, 0.05, 0.12}, {0.08, 0.12, 0.06}};
+  const double yaw[3] = {0.3, -1.1, 2.0};
+  const Eigen::Vector3d at[3] = {{0.5, 0.0, 0.1}, {0.6, 0.15, 0.06}, {0.45, -0.2, 0.03}};
+  for (int i = 0; i < 3; ++i) {
+    Vertices V;
+    Faces F;
+    test::box_mesh(sizes[i], V, F);
+    Transform T;
+    T.R = axis_angle(Eigen::Vector3d::UnitZ(), yaw[i]);
+    T.p = at[i];
+    scene.add_object(std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.005, 0.2})), T);
+    if (boxes) boxes->push_back({T, sizes[i]});
+  }
+  Transform table;
+  table.p = Eigen::Vector3d(0.5, 0, -0.025);
+  scene.set_table(Eigen::Vector3d(1.2, 1.2, 0.05), table);
+  return scene;
+}
+
+}  // namespace
+
+TEST(MergedSdf, MatchesExactBoxDistancesWithinTheCutoff) {
+  std::vector<std::pair<Transform, Eigen::Vector3d>> boxes;
+  SceneSdf scene = three_boxes(&boxes);
+  scene.merge(0);
+  ASSERT_NE(scene.merged(), nullptr);
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> ux(0.2, 0.8), uy(-0.45, 0.35), uz(-0.02, 0.35);
+  // Two trilinear resamplings of a 1-Lipschitz field, each off by at most h sqrt(3) / 2.
+  const double tol = (0.005 + MergedSdfSettings{}.resolution) * std::sqrt(3.0) / 2;
+  int within = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const Eigen::Vector3d x(ux(rng), uy(rng), uz(rng));
+    double exact = x.z();  // table top at z = 0
+    for (const auto& [T, size] : boxes)
+      exact = std::min(exact, box_signed_distance(T.inverse().apply(x), size / 2, nullptr));
+    const double d = scene.distance(x, nullptr, 0.2);
+    if (exact < 0.2 - tol) {
+      EXPECT_NEAR(d, exact, tol) << x.transpose();
+      ++within;
+    } else {
+      EXPECT_GE(d, std::min(exact, 0.2) - tol);
+    }
+  }
+  EXPECT_GT(within, 5000);
+}
+
+TEST(MergedSdf, AgreesWithThePerObjectGridsAndFallsBackForOtherMasks) {
+  SceneSdf scene = three_boxes();
+  SceneSdf reference = scene;
+  scene.merge(0b010);  // the second box excluded, as a planning target would be
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> ux(0.2, 0.8), uy(-0.45, 0.35), uz(0.0, 0.35);
+  for (int i = 0; i < 5000; ++i) {
+    const Eigen::Vector3d x(ux(rng), uy(rng), uz(rng));
+    Eigen::Vector3d g, gr;
+    EXPECT_NEAR(scene.distance(x, &g, 0.2, 0b010), reference.distance(x, &gr, 0.2, 0b010),
+                MergedSdfSettings{}.resolution * std::sqrt(3.0) / 2);
+    // Another mask or a larger cutoff: bit-identical to the per-object path.
+    EXPECT_EQ(scene.distance(x, &g, 0.2, 0), reference.distance(x, &gr, 0.2, 0));
+    EXPECT_EQ(scene.distance(x, &g, 0.5, 0b010), reference.distance(x, &gr, 0.5, 0b010));
+  }
+}
+
+TEST(MergedSdf, GradientIsTheInterpolantDerivative) {
+  SceneSdf scene = three_boxes();
+  scene.merge(0, {0.005, 0.2, 8});
+  std::mt19937 rng(6);
+  std::uniform_real_distribution<double> ux(0.3, 0.7), uy(-0.3, 0.3), uz(0.01, 0.3);
+  const double h = 1e-7;
+  int checked = 0;
+  for (int i = 0; i < 3000; ++i) {
+    const Eigen::Vector3d x(ux(rng), uy(rng), uz(rng));
+    Eigen::Vector3d g;
+    const double d = scene.distance(x, &g, 0.2, SceneSdf::kTableBit);
+    if (d >= 0.2 - 1e-3) continue;
+    for (int a = 0; a < 3; ++a) {
+      const double f = (x[a] - scene.merged()->origin()[a]) / 0.005;
+      if (std::abs(f - std::round(f)) < 1e-3) continue;  // kink at a node plane
+      Eigen::Vector3d e = Eigen::Vector3d::Zero();
+      e[a] = h;
+      const double fd = (scene.distance(x + e, nullptr, 0.2, SceneSdf::kTableBit) -
+                         scene.distance(x - e, nullptr, 0.2, SceneSdf::kTableBit)) / (2 * h);
+      EXPECT_NEAR(g[a], fd, 1e-5);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 2000);
+}
+
+TEST(MergedSdf, LowerBoundNeverExceedsTheDistance) {
+  for (bool merged : {false, true}) {
+    SceneSdf scene = three_boxes();
+    if (merged) scene.merge(0);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> ux(-0.5, 1.5), uy(-1.0, 1.0), uz(-0.1, 1.0);
+    int useful = 0;
+    for (int i = 0; i < 20000; ++i) {
+      const Eigen::Vector3d x(ux(rng), uy(rng), uz(rng));
+      const double lb = scene.lower_bound(x, 0);
+      EXPECT_LE(lb, scene.distance(x, nullptr, 1e9, 0) + 1e-12) << x.transpose() << " merged " << merged;
+      if (merged) EXPECT_LE(std::min(lb, 0.2), scene.distance(x, nullptr, 0.2, 0) + 1e-12);
+      useful += lb > 0.2;
+    }
+    EXPECT_GT(useful, 5000);  // far points are recognised as far
+  }
+}
+
+TEST(MergedSdf, BadSettingsThrowAndAddingAnObjectDropsTheMergedGrid) {
+  SceneSdf scene = three_boxes();
+  EXPECT_THROW(scene.merge(0, {0.0, 0.2, 8}), std::invalid_argument);
+  EXPECT_THROW(scene.merge(0, {0.005, -1.0, 8}), std::invalid_argument);
+  EXPECT_THROW(scene.merge(0, {0.005, 0.2, 0}), std::invalid_argument);
+  EXPECT_THROW(scene.merge(0, {std::nan(""), 0.2, 8}), std::invalid_argument);
+  scene.merge(0);
+  ASSERT_NE(scene.merged(), nullptr);
+  Vertices V;
+  Faces F;
+  test::box_mesh(Eigen::Vector3d(0.05, 0.05, 0.05), V, F);
+  scene.add_object(std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.05})), Transform());
+  EXPECT_EQ(scene.merged(), nullptr);
+  // NaN points never read outside the grid.
+  const double nan = std::nan("");
+  EXPECT_EQ(SceneSdf(three_boxes()).lower_bound(Eigen::Vector3d(0.5, 0, 0.5)) > 0, true);
+  SceneSdf m = three_boxes();
+  m.merge(0);
+  Eigen::Vector3d g;
+  m.distance(Eigen::Vector3d(nan, nan, nan), &g, 0.2, SceneSdf::kTableBit);
+}
