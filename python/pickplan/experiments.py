@@ -204,7 +204,6 @@ def run_unit(unit: dict) -> dict:
     from .baselines import BaselineSettings, plan_baseline
     from .chomp import ChompSettings
     from .goals import GoalSetSettings, IkSettings
-    from .isf import GraspRefiner
     from .omg import OMGPlanner, OMGSettings
     from .scenes import Scene
     from .world import World
@@ -244,7 +243,7 @@ def run_unit(unit: dict) -> dict:
                   smoothness=float(m["smoothness"]) if planned else None,
                   collision=float(m["collision"]) if planned else None,
                   min_clearance=float(m["min_clearance"]) if planned else None,
-                  grasp_cost=float(GraspRefiner(world, seed=0).cost(result.goal)[0]["total"]) if planned else None)
+                  grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None)
     record.update(execution_success=False, execution_status="not_executed")
     if unit["execute"] and result.success:
         from .execution import ExecutionSettings, execute_plan

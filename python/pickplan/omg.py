@@ -16,7 +16,7 @@ import numpy as np
 from . import grasps as grasps_mod
 from .chomp import Chomp, ChompSettings, MetricSettings, cubic_initialization
 from .goals import GoalSetSettings, IkSettings, build_goal_set
-from .isf import GraspRefiner, IsfSettings
+from .isf import IsfSettings
 from .scenes import Scene
 from .selection import make_policy
 from .world import World, WorldSettings
@@ -102,6 +102,8 @@ class OMGPlanner:
         elif isinstance(grasps, str):
             grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed).poses
         world.checker("goal"), world.checker("hand")  # FCL models: built once per scene, cached
+        if s.refine:
+            world.grasp_refiner(s.isf, s.seed)  # hand SDF, object samples: cached likewise
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
         timings["prepare"] = time.perf_counter() - t
@@ -124,7 +126,7 @@ class OMGPlanner:
         tails = [t_ for t_ in gs.tails]
         origin = list(gs.grasp_index)          # input grasp of each goal
         refined_copy: dict = {}                # goal index -> index of its refined copy
-        refiner = GraspRefiner(world, s.isf, seed=s.seed) if s.refine else None
+        refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
         policy = make_policy(s.selection)
         N = s.iterations
 

@@ -87,3 +87,10 @@ class World:
         table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
                                 pose=np.asarray(self.scene.table.pose, dtype=float))
         return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links)
+
+    @functools.lru_cache(maxsize=4)
+    def grasp_refiner(self, settings=None, seed: int = 0):
+        """C-Space ISF for this scene's target (``isf.GraspRefiner``), built once per settings:
+        the hand SDF and the object's surface samples are scene constants, not per-plan work."""
+        from . import isf  # isf builds on World
+        return isf.GraspRefiner(self, settings or isf.IsfSettings(), seed=seed)
