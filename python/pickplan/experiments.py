@@ -347,9 +347,26 @@ def unit_path(settings: SweepSettings, unit: dict) -> str:
     return os.path.join(settings.out, "units", unit_key(unit) + ".json")
 
 
+class RecordErrors:
+    """Wraps a unit function so an exception becomes the unit's record (status "error", counted as a
+    failed plan) instead of stopping the sweep; interrupts (KeyboardInterrupt) still stop it."""
+
+    def __init__(self, fn: Callable[[dict], dict]):
+        self.fn = fn
+
+    def __call__(self, unit: dict) -> dict:
+        try:
+            return self.fn(unit)
+        except Exception as exc:  # noqa: BLE001 - any planner failure is data here, with its reason
+            return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
+                    "seed": int(unit["seed"]), "status": "error", "error": f"{type(exc).__name__}: {exc}",
+                    "valid": True, "planned": False, "planning_success": False, "execution_success": False}
+
+
 def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
               unit_fn: Callable[[dict], dict] = run_unit) -> List[dict]:
-    """Run every unit not yet on disk (each written once finished); return all records in unit order."""
+    """Run every unit not yet on disk (each written once finished, an exception recorded as an
+    "error" unit); return all records in unit order."""
     s = settings.effective()
     files = scene_files(s, stream)
     units = make_units(s, files)
@@ -358,7 +375,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
     if gjobs:
         for _ in run_tasks(_grasps_job, gjobs, s, "grasps", stream):
             pass
-    for unit, record in run_tasks(unit_fn, todo, s, f"{s.table} units", stream, done=len(units) - len(todo),
+    for unit, record in run_tasks(RecordErrors(unit_fn), todo, s, f"{s.table} units", stream, done=len(units) - len(todo),
                                   total=len(units)):
         write_json(unit_path(s, unit), record)
     return load_records(s, units)
@@ -387,7 +404,7 @@ def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict
         planned = [r for r in valid if r.get("planned")]
         n = len(valid)
         out[m] = {
-            "units": len(rs), "valid": n, "planned": len(planned),
+            "units": len(rs), "valid": n, "planned": len(planned), "errors": sum(r["status"] == "error" for r in rs),
             "planning_successes": sum(r["planning_success"] for r in valid),
             "execution_successes": sum(r["execution_success"] for r in valid),
             "planning": sum(r["planning_success"] for r in valid) / n if n else float("nan"),

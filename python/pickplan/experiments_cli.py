@@ -143,6 +143,10 @@ def write_report(settings: SweepSettings, records: List[dict]) -> str:
     header = (f"## {titles[s.table]}: {scenes} scenes, {s.grasps} grasps each scene, {s.runs} runs"
               f" (objects: {s.objects or (f'as in the scenes of {s.scene_dir}' if s.scene_dir else 'built-in')})")
     text = markdown(s.table, summary, records, header)
+    errors = {m: row["errors"] for m, row in summary.items() if row["errors"]}
+    if errors:
+        text += ("\nUnits that raised an error (counted as failed plans; reasons in runs.json): "
+                 + ", ".join(f"{m} {n}" for m, n in errors.items()) + "\n")
     write_text(os.path.join(s.out, "table.md"), text)
     write_csv(os.path.join(s.out, "runs.csv"), records)
     write_json(os.path.join(s.out, "runs.json"), records)

@@ -93,6 +93,27 @@ def test_interrupted_sweep_resumes_to_same_table(scene_dir, tmp_path):
     assert keyed(resumed) == keyed(full)
 
 
+def test_a_failing_unit_is_recorded_and_the_sweep_goes_on(scene_dir, tmp_path):
+    base = dict(scene_dir=scene_dir, runs=1, methods=("Fixed",), quick=True, workers=0, execute=False, progress=False)
+    s = E.SweepSettings("selection", out=str(tmp_path / "errors"), **base)
+    calls = []
+
+    def flaky(unit):
+        calls.append(unit)
+        if len(calls) == 2:
+            raise RuntimeError("solver blew up")
+        return E.run_unit(unit)
+
+    records = E.run_sweep(s, unit_fn=flaky)
+    assert len(records) == len(calls) == 3
+    errors = [r for r in records if r["status"] == "error"]
+    assert len(errors) == 1 and "RuntimeError: solver blew up" in errors[0]["error"]
+    row = E.summarize(records, ("Fixed",))["Fixed"]
+    assert row["errors"] == 1 and row["valid"] == 3 and row["planning_successes"] <= 2
+    # The error is a finished unit: a rerun does not repeat it.
+    assert len(E.run_sweep(s, unit_fn=flaky)) == 3 and len(calls) == 3
+
+
 def test_baselines_valid_trajectories(scene_dir):
     from pickplan.baselines import BaselineSettings, plan_baseline
     from pickplan.goals import GoalSetSettings
