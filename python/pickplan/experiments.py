@@ -330,7 +330,10 @@ def _ray_tasks(fn, jobs, settings: SweepSettings) -> Iterator[Tuple[dict, dict]]
             ray.init(address=settings.ray, log_to_driver=False)
         started = True
     try:
-        remote = ray.remote(num_cpus=1, max_retries=2)(fn)
+        def call(job: dict) -> dict:  # Ray wraps functions only, not callable objects
+            return fn(job)
+
+        remote = ray.remote(num_cpus=1, max_retries=2)(call)
         pending = {remote.remote(job): job for job in jobs}
         while pending:
             finished, _ = ray.wait(list(pending), num_returns=1)

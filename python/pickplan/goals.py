@@ -17,7 +17,7 @@ from .world import World
 class IkSettings:
     """Mirror of the native ``IkSettings``."""
 
-    max_iterations: int = 100
+    max_iterations: int = 40
     position_tolerance: float = 1e-4
     rotation_tolerance: float = 1e-3
     damping: float = 1e-2
