@@ -1,5 +1,5 @@
 """Grasp sets: convention (YCB files + PyBullet), antipodal / approach geometry, the physics-verified
-"simulated" set (determinism, cache, workers, lift test), hand contacts, bad input."""
+"simulated" set (determinism, cache, workers, lift and transport tests), hand contacts, bad input."""
 import os
 
 import numpy as np
@@ -235,11 +235,52 @@ def test_simulated_grasps_deterministic_cached_and_worker_independent(builtins, 
     assert G.grasp_set(model, "simulated", 3, 5, oversample=2).poses.shape == (3, 4, 4)
 
 
-def test_simulated_grasps_lift_at_least_as_often_as_antipodal(builtins):
-    model = builtins.get("006_mustard_bottle")
-    raw = G.antipodal_grasps(model, 10, seed=0)
-    sim = S.simulated_grasps(model, 5, seed=0, oversample=2, cache=False)
-    r_raw, r_sim = S.lift_test(model, raw.poses), S.lift_test(model, sim.poses)
-    assert (r_raw >= 0).sum() >= 2 and (r_sim >= 0).sum() >= 2  # enough grasps clear the table
-    assert S.lift_rate(r_sim) >= S.lift_rate(r_raw)
-    assert S.lift_rate(r_sim) >= 0.5
+def test_simulated_grasps_lift_from_the_table(builtins):
+    model = builtins.get("005_tomato_soup_can")
+    sim = S.simulated_grasps(model, 3, seed=0, oversample=2, cache=False)
+    r_sim = S.lift_test(model, sim.poses)
+    assert (r_sim >= 0).sum() >= 2 and S.lift_rate(r_sim) == 1.0
+
+
+# The transport test (lift, raise, carry, tilt and swirl; grasps_sim module docstring) separates the
+# "Simulated" grasps from their antipodal candidates on the elongated / heavy objects. The same
+# protocol on 40 candidates x 8 objects per library is in bench/README.md ("Simulated vs antipodal:
+# transport test"). Pooled over the built-in cracker box, sugar box, mustard and bleach bottles there:
+# simulated 39/43 = 0.91 (Wilson 95 % [0.78, 0.96]), all candidates 48/77 = 0.62 ([0.51, 0.72]),
+# shake-rejected 9/34 = 0.26; difference simulated - all 0.29 (normal 95 % CI [0.15, 0.43]),
+# simulated - rejected 0.65 ([0.48, 0.82]). The margins below are those lower bounds. This test runs
+# the two objects with the largest gap (a subset of those figures: simulated 8/8, all 13/31,
+# rejected 5/23); seeded, deterministic, 19 s at load average 2.
+TRANSPORT_OBJECTS = ("006_mustard_bottle", "021_bleach_cleanser")
+TRANSPORT_CANDIDATES = 40
+
+
+def test_simulated_grasps_survive_transport_more_often_than_antipodal(builtins):
+    sim_ok = sim_n = all_ok = all_n = rej_ok = rej_n = 0
+    for name in TRANSPORT_OBJECTS:
+        rows = S.shake_and_transport(builtins.get(name), TRANSPORT_CANDIDATES, seed=0, workers=1)
+        held = np.array([r["shake"]["held"] for r in rows], bool)
+        ok = np.array([r["transport"]["held"] for r in rows], bool)
+        assert len(rows) >= 8 and held.any() and (~held).any(), (name, len(rows), held.sum())
+        sim_ok, sim_n = sim_ok + int(ok[held].sum()), sim_n + int(held.sum())
+        rej_ok, rej_n = rej_ok + int(ok[~held].sum()), rej_n + int((~held).sum())
+        all_ok, all_n = all_ok + int(ok.sum()), all_n + len(ok)
+    sim, raw, rej = sim_ok / sim_n, all_ok / all_n, rej_ok / rej_n
+    report = f"simulated {sim_ok}/{sim_n}, antipodal {all_ok}/{all_n}, shake-rejected {rej_ok}/{rej_n}"
+    assert sim >= 0.78, report
+    assert sim - raw >= 0.15, report
+    assert sim - rej >= 0.48, report
+
+
+def test_transport_test_reports_not_applicable_and_failures(builtins):
+    model = builtins.get("021_bleach_cleanser")
+    cand, _ = S.shake_candidates(model, 6, seed=0)
+    out, trials = S.transport_test(model, cand.poses, details=True)
+    assert out.shape == (6,) and set(out.tolist()) <= {-1, 0, 1}
+    for o, t in zip(out, trials):
+        assert (o == -1) == (not t["applicable"])
+        assert (o == 1) == (t["held"] and t["stage"] == "held")
+        if o == 0:
+            assert t["stage"] in ("lift", "raise", "carry", "tilt", "swirl", "dropped")
+    with pytest.raises(ValueError, match="workers"):
+        S.transport_test(model, cand.poses, workers=0)
