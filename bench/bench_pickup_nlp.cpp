@@ -37,6 +37,7 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("print")) st.print_level = std::atoi(opt.extra.at("print").c_str());
   if (opt.extra.count("max_iter")) st.max_iter = std::atoi(opt.extra.at("max_iter").c_str());
   if (opt.extra.count("mu")) st.mu_strategy = opt.extra.at("mu");
+  if (opt.extra.count("hessian")) st.hessian = opt.extra.at("hessian");
   if (opt.extra.count("mu_init")) st.mu_init = std::atof(opt.extra.at("mu_init").c_str());
   for (const auto& [k, v] : opt.extra)
     if (k.rfind("ipopt.", 0) == 0) st.ipopt_options.push_back({k.substr(6), v});
@@ -47,7 +48,7 @@ void bench_pickup(const Options& opt) {
     std::stringstream ss(opt.extra.at("cases"));
     for (std::string tok; std::getline(ss, tok, ',');) cases.push_back(std::atoi(tok.c_str()));
   }
-  std::printf("pick-up NLP: m = %d samples per interval, L-BFGS Hessian, MUMPS\n", st.samples_per_interval);
+  std::printf("pick-up NLP: m = %d samples per interval, %s Hessian, MUMPS\n", st.samples_per_interval, st.hessian.c_str());
   {
     PickupProblem pb = paper_case(robot, 1, example_rho());
     PickupConstraints all(robot, pb, st, 0);

@@ -110,6 +110,7 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("max_iter", &PickupSettings::max_iter)
       .def_readwrite("max_cpu_time", &PickupSettings::max_cpu_time)
       .def_readwrite("print_level", &PickupSettings::print_level)
+      .def_readwrite("hessian", &PickupSettings::hessian)
       .def_readwrite("mu_strategy", &PickupSettings::mu_strategy)
       .def_readwrite("mu_init", &PickupSettings::mu_init)
       .def_readwrite("seed", &PickupSettings::seed)

@@ -7,6 +7,7 @@
 // turns its partials in (q, q') into the Jacobian in (coefficients, s1, s2, T). Time scaling is then
 // one variable (T) instead of a coherent change of every coefficient, which Ipopt handles far better.
 #include "pickplan/pickup_nlp.hpp"
+#include "pickup_nlp_detail.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,18 +15,17 @@
 #include <stdexcept>
 
 namespace pickplan {
+using namespace pickup_detail;
 namespace {
 
-enum Kind {
-  K_START, K_NH, K_BSPEED, K_YAWRATE, K_JPOS, K_JRATE, K_AREA, K_VEL, K_OMEGA, K_POSE_P, K_POSE_R, K_POSE_TR,
-  K_GOALPOS, K_GOALYAW, K_COLL, K_TIMING, K_ORDER, K_RHO
-};
 const char* kKindName[] = {"start", "nonholonomic", "base_speed", "yaw_rate", "joint_position", "joint_rate",
                            "grasp_area", "gripper_velocity", "gripper_angular_velocity", "grasp_position",
                            "grasp_orientation", "grasp_orientation_half", "goal_position", "goal_yaw",
                            "collision", "grasp_timing", "time_order", "success_probability"};
-constexpr double kInf = 2e19;
 
+}  // namespace
+
+namespace pickup_detail {
 // Tool-point linear/angular velocity Jacobian and the derivatives of (J q') with respect to q.
 void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool, const Eigen::VectorXd& qd,
                           Eigen::Matrix<double, 6, Eigen::Dynamic>& J, Eigen::Matrix<double, 3, Eigen::Dynamic>& dv,
@@ -68,7 +68,7 @@ void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool
   }
 }
 
-}  // namespace
+}  // namespace pickup_detail
 
 PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                                      int stage)
@@ -219,6 +219,113 @@ void PickupConstraints::eval_jac(const double* x, double* values) const {
   sample_rows(x, -1, sample_row_begin_.back(), num_constraints(), nullptr, values);
 }
 
+void PickupConstraints::kinematics(Kin& k, const double* x, int s, int r0, int r1) const {
+  const Sample& S = samples_[s];
+  k.T = x[idx_T()];
+  k.Sg = x[idx_Sg()];
+  k.t = S.w[0] * x[idx_s1()] + S.w[1] * x[idx_s2()] + S.w[2];  // normalised time
+  traj_.eval(x, k.t, k.q.data(), k.Ps.data(), k.Pss.data());
+  k.qd = k.Ps / k.T;
+  k.need_kin = k.need_vel = false;
+  for (int r = r0; r < r1; ++r) {
+    k.need_kin |= is_kinematic(rows_[r].kind);
+    k.need_vel |= (rows_[r].kind == K_VEL || rows_[r].kind == K_OMEGA);
+  }
+  update_kinematics(k);
+}
+
+void PickupConstraints::update_kinematics(Kin& k) const {
+  k.c = std::cos(k.q[2]);
+  k.sn = std::sin(k.q[2]);
+  if (!k.need_kin) return;
+  robot_.forward_kinematics(k.q.data(), k.ws);
+  if (k.need_vel) velocity_derivatives(robot_, k.ws, pb_.tool_link, k.qd, k.Jt, k.dv, k.dw);
+  else robot_.point_jacobian(k.ws, pb_.tool_link, Eigen::Vector3d::Zero(), k.Jt);
+}
+
+bool PickupConstraints::is_kinematic(int kind) {
+  return kind == K_VEL || kind == K_OMEGA || kind == K_POSE_P || kind == K_POSE_R || kind == K_POSE_TR || kind == K_COLL;
+}
+
+double PickupConstraints::row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq, Eigen::VectorXd& cqd, double& dsg) const {
+  const int n = dof_;
+  const Eigen::VectorXd &q = k.q, &Ps = k.Ps, &qd = k.qd;
+  const double T = k.T, c = k.c, sn = k.sn;
+  cq.setZero();
+  cqd.setZero();
+  dsg = 0.0;
+  double val = 0.0;
+  const int a = R.aux;
+  switch (R.kind) {
+    case K_START: val = q[a]; cq[a] = 1.0; break;
+    case K_NH:  // |x_s sin phi - y_s cos phi| <= eps L (normalised time: time-scale invariant)
+      val = Ps[0] * sn - Ps[1] * c;
+      cq[2] = Ps[0] * c + Ps[1] * sn;
+      cqd[0] = T * sn;  // c depends on q' only through P_s = T q'
+      cqd[1] = -T * c;
+      break;
+    case K_BSPEED: val = qd[0] * qd[0] + qd[1] * qd[1]; cqd[0] = 2 * qd[0]; cqd[1] = 2 * qd[1]; break;
+    case K_YAWRATE: val = qd[2]; cqd[2] = 1.0; break;
+    case K_JPOS: val = q[3 + a]; cq[3 + a] = 1.0; break;
+    case K_JRATE: val = qd[3 + a]; cqd[3 + a] = 1.0; break;
+    case K_AREA: {
+      const double dx = q[0] - pb_.part_xy[0], dy = q[1] - pb_.part_xy[1];
+      val = dx * dx + dy * dy; cq[0] = 2 * dx; cq[1] = 2 * dy;
+      break;
+    }
+    case K_VEL:
+      val = k.Jt.row(a).dot(qd) - k.Sg * pb_.approach_dir[a];
+      cq = k.dv.row(a).transpose(); cqd = k.Jt.row(a).transpose(); dsg = -pb_.approach_dir[a];
+      break;
+    case K_OMEGA: val = k.Jt.row(3 + a).dot(qd); cq = k.dw.row(a).transpose(); cqd = k.Jt.row(3 + a).transpose(); break;
+    case K_POSE_P:
+      val = k.ws.link_pose[pb_.tool_link].p[a] - pb_.grasp_pose.p[a];
+      cq = k.Jt.row(a).transpose();
+      break;
+    case K_POSE_R:
+    case K_POSE_TR: {
+      const Eigen::Matrix3d& Rt = k.ws.link_pose[pb_.tool_link].R;
+      const Eigen::Matrix3d& Rd = pb_.grasp_pose.R;
+      Eigen::Vector3d e = Eigen::Vector3d::Zero();
+      double tr = 0.0;
+      for (int j = 0; j < 3; ++j) { e += 0.5 * Rt.col(j).cross(Rd.col(j)); tr += Rt.col(j).dot(Rd.col(j)); }
+      val = R.kind == K_POSE_R ? e[a] : tr;
+      for (int j = 0; j < n; ++j) {
+        const Eigen::Vector3d w = k.Jt.block<3, 1>(3, j);
+        Eigen::Vector3d de = Eigen::Vector3d::Zero();
+        double dtr = 0.0;
+        for (int l = 0; l < 3; ++l) {
+          const Eigen::Vector3d dr = w.cross(Rt.col(l));
+          de += 0.5 * dr.cross(Rd.col(l));
+          dtr += dr.dot(Rd.col(l));
+        }
+        cq[j] = R.kind == K_POSE_R ? de[a] : dtr;
+      }
+      break;
+    }
+    case K_GOALPOS: {
+      const double dx = q[0] - pb_.goal[0], dy = q[1] - pb_.goal[1];
+      val = dx * dx + dy * dy; cq[0] = 2 * dx; cq[1] = 2 * dy;
+      break;
+    }
+    case K_GOALYAW: val = q[2]; cq[2] = 1.0; break;
+    case K_COLL: {
+      const int no = static_cast<int>(pb_.obstacles.size());
+      const BodySphere& b = pb_.body_spheres[a / no];
+      const SphereObstacle& o = pb_.obstacles[a % no];
+      const Eigen::Vector3d X = k.ws.link_pose[b.link].apply(b.center);
+      const Eigen::Vector3d d = X - o.center;
+      const double dist = std::max(d.norm(), 1e-12);
+      val = dist - b.radius - o.radius;
+      robot_.position_jacobian_world(k.ws, b.link, X, k.Jx);
+      cq = k.Jx.transpose() * (d / dist);
+      break;
+    }
+    default: break;
+  }
+  return val;
+}
+
 void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, double* g, double* jac) const {
   const double s1 = x[idx_s1()], s2 = x[idx_s2()], T = x[idx_T()], Sg = x[idx_Sg()], Sc = x[idx_Sc()];
   if (s < 0) {  // rows of the time variables and speeds only
@@ -239,125 +346,37 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
     return;
   }
   const Sample& S = samples_[s];
-  const double t = S.w[0] * s1 + S.w[1] * s2 + S.w[2];  // normalised time
   const int n = dof_;
-  Eigen::VectorXd q(n), Ps(n), Pss(n);
-  traj_.eval(x, t, q.data(), Ps.data(), Pss.data());
-  const Eigen::VectorXd qd = Ps / T;
-  bool need_kin = false, need_vel = false;
-  for (int r = r0; r < r1; ++r) {
-    const int k = rows_[r].kind;
-    need_kin |= (k == K_VEL || k == K_OMEGA || k == K_POSE_P || k == K_POSE_R || k == K_POSE_TR || k == K_COLL);
-    need_vel |= (k == K_VEL || k == K_OMEGA);
-  }
-  RobotWorkspace ws(robot_);
-  Eigen::Matrix<double, 6, Eigen::Dynamic> Jt(6, n);
-  Eigen::Matrix<double, 3, Eigen::Dynamic> dv(3, n), dw(3, n), Jx(3, n);
-  if (need_kin) {
-    robot_.forward_kinematics(q.data(), ws);
-    if (need_vel) velocity_derivatives(robot_, ws, pb_.tool_link, qd, Jt, dv, dw);
-    else robot_.point_jacobian(ws, pb_.tool_link, Eigen::Vector3d::Zero(), Jt);
-  }
+  Kin k(robot_);
+  kinematics(k, x, s, r0, r1);
+  const double t = k.t;
   double B0[13], B1[13];  // basis values and time derivatives, shared by all DOFs
   if (jac) {
     double p = 1.0;
     B1[0] = 0.0;
-    for (int k = 0; k < 13; ++k) {
-      B0[k] = p;
-      if (k + 1 < 13) B1[k + 1] = (k + 1) * p / T;  // d q' / d a_ik = B'_k(s) / T
+    for (int j = 0; j < 13; ++j) {
+      B0[j] = p;
+      if (j + 1 < 13) B1[j + 1] = (j + 1) * p / T;  // d q' / d a_ik = B'_k(s) / T
       p *= t;
     }
   }
-  const double ph = q[2], c = std::cos(ph), sn = std::sin(ph);
   Eigen::VectorXd cq(n), cqd(n);
   for (int r = r0; r < r1; ++r) {
     const Row& R = rows_[r];
-    cq.setZero();
-    cqd.setZero();
-    double val = 0.0, dsg = 0.0;
-    bool nh_row = false;
-    const int a = R.aux;
-    switch (R.kind) {
-      case K_START: val = q[a]; cq[a] = 1.0; break;
-      case K_NH: {  // |x_s sin phi - y_s cos phi| <= eps L (normalised time: time-scale invariant)
-        val = Ps[0] * sn - Ps[1] * c;
-        cq[2] = Ps[0] * c + Ps[1] * sn;
-        cqd[0] = T * sn;  // c depends on q' only through P_s = T q'
-        cqd[1] = -T * c;
-        nh_row = true;
-        break;
-      }
-      case K_BSPEED: val = qd[0] * qd[0] + qd[1] * qd[1]; cqd[0] = 2 * qd[0]; cqd[1] = 2 * qd[1]; break;
-      case K_YAWRATE: val = qd[2]; cqd[2] = 1.0; break;
-      case K_JPOS: val = q[3 + a]; cq[3 + a] = 1.0; break;
-      case K_JRATE: val = qd[3 + a]; cqd[3 + a] = 1.0; break;
-      case K_AREA: {
-        double dx = q[0] - pb_.part_xy[0], dy = q[1] - pb_.part_xy[1];
-        val = dx * dx + dy * dy; cq[0] = 2 * dx; cq[1] = 2 * dy;
-        break;
-      }
-      case K_VEL:
-        val = Jt.row(a).dot(qd) - Sg * pb_.approach_dir[a];
-        cq = dv.row(a).transpose(); cqd = Jt.row(a).transpose(); dsg = -pb_.approach_dir[a];
-        break;
-      case K_OMEGA: val = Jt.row(3 + a).dot(qd); cq = dw.row(a).transpose(); cqd = Jt.row(3 + a).transpose(); break;
-      case K_POSE_P:
-        val = ws.link_pose[pb_.tool_link].p[a] - pb_.grasp_pose.p[a];
-        cq = Jt.row(a).transpose();
-        break;
-      case K_POSE_R:
-      case K_POSE_TR: {
-        const Eigen::Matrix3d& Rt = ws.link_pose[pb_.tool_link].R;
-        const Eigen::Matrix3d& Rd = pb_.grasp_pose.R;
-        Eigen::Vector3d e = Eigen::Vector3d::Zero();
-        double tr = 0.0;
-        for (int k = 0; k < 3; ++k) { e += 0.5 * Rt.col(k).cross(Rd.col(k)); tr += Rt.col(k).dot(Rd.col(k)); }
-        val = R.kind == K_POSE_R ? e[a] : tr;
-        for (int j = 0; j < n; ++j) {
-          const Eigen::Vector3d w = Jt.block<3, 1>(3, j);
-          Eigen::Vector3d de = Eigen::Vector3d::Zero();
-          double dtr = 0.0;
-          for (int k = 0; k < 3; ++k) {
-            const Eigen::Vector3d dr = w.cross(Rt.col(k));
-            de += 0.5 * dr.cross(Rd.col(k));
-            dtr += dr.dot(Rd.col(k));
-          }
-          cq[j] = R.kind == K_POSE_R ? de[a] : dtr;
-        }
-        break;
-      }
-      case K_GOALPOS: {
-        double dx = q[0] - pb_.goal[0], dy = q[1] - pb_.goal[1];
-        val = dx * dx + dy * dy; cq[0] = 2 * dx; cq[1] = 2 * dy;
-        break;
-      }
-      case K_GOALYAW: val = q[2]; cq[2] = 1.0; break;
-      case K_COLL: {
-        const int no = static_cast<int>(pb_.obstacles.size());
-        const BodySphere& b = pb_.body_spheres[a / no];
-        const SphereObstacle& o = pb_.obstacles[a % no];
-        const Eigen::Vector3d X = ws.link_pose[b.link].apply(b.center);
-        Eigen::Vector3d d = X - o.center;
-        const double dist = std::max(d.norm(), 1e-12);
-        val = dist - b.radius - o.radius;
-        robot_.position_jacobian_world(ws, b.link, X, Jx);
-        cq = (Jx.transpose() * (d / dist));
-        break;
-      }
-      default: break;
-    }
+    double dsg = 0.0;
+    const double val = row_partials(R, k, cq, cqd, dsg);
     if (g) g[r] = val;
     if (!jac) continue;
     double* J = jac + R.jac_begin;
     int e = 0;
     for (int i = 0; i < n; ++i) {
       if (!(R.dof_mask & (1u << i))) continue;
-      for (int k = 0; k <= traj_.degree(i); ++k) J[e++] = cq[i] * B0[k] + cqd[i] * B1[k];
+      for (int j = 0; j <= traj_.degree(i); ++j) J[e++] = cq[i] * B0[j] + cqd[i] * B1[j];
     }
-    const double dcds = cq.dot(Ps) + cqd.dot(Pss) / T;
+    const double dcds = cq.dot(k.Ps) + cqd.dot(k.Pss) / T;
     for (int v = 0; v < 2; ++v)
       if (S.w[v] != 0.0) J[e++] = dcds * S.w[v];
-    J[e++] = nh_row ? 0.0 : -cqd.dot(qd) / T;
+    J[e++] = R.kind == K_NH ? 0.0 : -cqd.dot(k.qd) / T;
     if (R.sg) J[e++] = dsg;
     if (R.sc) J[e++] = 0.0;
   }

@@ -30,6 +30,7 @@ struct RhoPoly {
   void validate() const;  // throws std::invalid_argument
   double value(double s_g, double s_c) const;
   Eigen::Vector2d gradient(double s_g, double s_c) const;  // (d/dS_g, d/dS_c)
+  Eigen::Matrix2d hessian(double s_g, double s_c) const;
 };
 
 struct SphereObstacle {
@@ -72,6 +73,7 @@ struct PickupSettings {
   // Non-holonomic base, in normalised time: |x_s sin phi - y_s cos phi| <= tol * L with L the
   // start-part-goal distance, i.e. lateral speed <= tol L / T (heading error ~ tol rad at mean speed).
   double nonholonomic_tol = 0.002;
+  std::string hessian = "exact";         // "exact" (eval_hessian) | "limited-memory" (Ipopt's L-BFGS)
   std::string mu_strategy = "monotone";  // Ipopt barrier update ("monotone" | "adaptive")
   double mu_init = 1e-2;
   double velocity_tol = 0.005;          // |J q' - S_g n_g| per component (m/s) during grasping
@@ -110,6 +112,13 @@ class PickupConstraints {
   void jac_structure(int* rows, int* cols) const;
   void eval_jac(const double* x, double* values) const;
   Eigen::MatrixXd dense_jacobian(const Eigen::VectorXd& x) const;
+  // Hessian of the Lagrangian sum_r lambda_r g_r(x) (the objective T is linear): the lower
+  // triangle of all variables, row-major (row i >= col j); exact for the polynomial rows, forward
+  // differences of the exact gradients in q for the forward-kinematics rows.
+  int num_hess_nonzeros() const { return n_ * (n_ + 1) / 2; }
+  void hess_structure(int* rows, int* cols) const;
+  void eval_hessian(const double* x, const double* lambda, double* values) const;
+  Eigen::MatrixXd dense_hessian(const Eigen::VectorXd& x, const Eigen::VectorXd& lambda) const;  // symmetric
   // Largest violation of the constraint bounds and the variable bounds at x.
   double max_violation(const Eigen::VectorXd& x) const;
   std::vector<std::string> row_names() const;  // "kind@sample" for diagnostics
@@ -118,7 +127,14 @@ class PickupConstraints {
   struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
   struct Row { int kind, sample, aux; unsigned dof_mask; bool sg, sc; double lo, hi; int jac_begin; };
   void add_row(int kind, int sample, int aux, unsigned dof_mask, bool sg, bool sc, double lo, double hi);
+  struct Kin;  // kinematic state at one sample (pickup_nlp_detail.hpp)
   void sample_rows(const double* x, int sample, int r0, int r1, double* g, double* jac) const;
+  void kinematics(Kin& k, const double* x, int sample, int r0, int r1) const;
+  void update_kinematics(Kin& k) const;  // FK and tool Jacobians at k.q, k.qd
+  static bool is_kinematic(int kind);
+  // Value of row R and its partials in (q, q') (the non-holonomic row: in (q, T q')) and S_g.
+  double row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq, Eigen::VectorXd& cqd, double& dsg) const;
+  void sample_hessian(const double* x, const double* lambda, int sample, Eigen::MatrixXd& H) const;
 
   const Robot& robot_;
   const PickupProblem& pb_;

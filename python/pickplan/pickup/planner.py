@@ -51,6 +51,7 @@ class PlannerSettings:
     max_iter: int = 400
     max_cpu_time: float = 20.0
     print_level: int = 0
+    hessian: str = "exact"                # or "limited-memory" (Ipopt's L-BFGS)
     mu_strategy: str = "monotone"
     mu_init: float = 1e-2
     seed: int = 0

@@ -1,0 +1,39 @@
+#pragma once
+// Internals shared by pickup_nlp.cpp (rows, values, Jacobian) and pickup_hessian.cpp (Hessian of
+// the Lagrangian). Not installed; not part of the public API.
+#include <Eigen/Core>
+
+#include "pickplan/pickup_nlp.hpp"
+#include "pickplan/robot.hpp"
+
+namespace pickplan {
+namespace pickup_detail {
+
+enum Kind {
+  K_START, K_NH, K_BSPEED, K_YAWRATE, K_JPOS, K_JRATE, K_AREA, K_VEL, K_OMEGA, K_POSE_P, K_POSE_R, K_POSE_TR,
+  K_GOALPOS, K_GOALYAW, K_COLL, K_TIMING, K_ORDER, K_RHO
+};
+constexpr double kInf = 2e19;
+
+// Tool-point linear/angular velocity Jacobian J and the derivatives of (J q') with respect to q
+// (dv: linear, dw: angular), at the kinematics already in ws.
+void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool, const Eigen::VectorXd& qd,
+                          Eigen::Matrix<double, 6, Eigen::Dynamic>& J, Eigen::Matrix<double, 3, Eigen::Dynamic>& dv,
+                          Eigen::Matrix<double, 3, Eigen::Dynamic>& dw);
+
+}  // namespace pickup_detail
+
+// Kinematic state at one sample: q, P_s = dq/ds, P_ss, q' = P_s / T, FK and tool Jacobians.
+struct PickupConstraints::Kin {
+  explicit Kin(const Robot& r)
+      : q(r.dof()), Ps(r.dof()), Pss(r.dof()), qd(r.dof()), ws(r), Jt(6, r.dof()), dv(3, r.dof()), dw(3, r.dof()),
+        Jx(3, r.dof()) {}
+  double T = 1.0, Sg = 0.0, t = 0.0, c = 1.0, sn = 0.0;
+  bool need_kin = false, need_vel = false;
+  Eigen::VectorXd q, Ps, Pss, qd;
+  RobotWorkspace ws;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> Jt;
+  Eigen::Matrix<double, 3, Eigen::Dynamic> dv, dw, Jx;
+};
+
+}  // namespace pickplan
