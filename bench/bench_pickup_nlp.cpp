@@ -38,6 +38,10 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("max_iter")) st.max_iter = std::atoi(opt.extra.at("max_iter").c_str());
   if (opt.extra.count("mu")) st.mu_strategy = opt.extra.at("mu");
   if (opt.extra.count("hessian")) st.hessian = opt.extra.at("hessian");
+  if (opt.extra.count("basis")) st.basis = opt.extra.at("basis");
+  if (opt.extra.count("active")) st.active_set = std::atoi(opt.extra.at("active").c_str()) != 0;
+  if (opt.extra.count("dense")) st.dense_subdivisions = std::atoi(opt.extra.at("dense").c_str());
+  if (opt.extra.count("mu_resolve")) st.mu_resolve = std::atof(opt.extra.at("mu_resolve").c_str());
   if (opt.extra.count("mu_init")) st.mu_init = std::atof(opt.extra.at("mu_init").c_str());
   for (const auto& [k, v] : opt.extra)
     if (k.rfind("ipopt.", 0) == 0) st.ipopt_options.push_back({k.substr(6), v});
@@ -80,8 +84,10 @@ void bench_pickup(const Options& opt) {
   for (int c : cases) {
     PickupProblem pb = paper_case(robot, c, example_rho());
     PickupResult r = solve_successive(robot, pb, st);
-    std::printf("case %d: %-12s total %.3f s |", c, r.status.c_str(), r.total_seconds);
-    for (const auto& s : r.stages) std::printf(" s%d %.3fs/%dit", s.stage, s.seconds, s.iterations);
+    std::printf("case %d: %-12s total %.3f s (cpu %.3f s) |", c, r.status.c_str(), r.total_seconds, r.total_cpu_seconds);
+    for (const auto& s : r.stages)
+      std::printf(" s%d %.3fs/%dit%s", s.stage, s.seconds, s.iterations,
+                  s.rounds > 1 ? ("/" + std::to_string(s.rounds) + "r").c_str() : "");
     std::printf("\n");
     totals.push_back(r.total_seconds);
     if (r.stages_completed > 0) {

@@ -71,7 +71,7 @@ void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool
 }  // namespace pickup_detail
 
 PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
-                                     int stage)
+                                     int stage, const PickupRowSubset* subset)
     : robot_(robot), pb_(problem), st_(settings), stage_(stage) {
   if (stage < 0 || stage > 5) throw std::invalid_argument("stage must be 0 (all constraints) or 1..5, got " + std::to_string(stage));
   problem.validate(robot);
@@ -83,9 +83,15 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   if (static_cast<int>(deg.size()) != dof_)
     throw std::invalid_argument("degrees: expected " + std::to_string(dof_) + " values, got " + std::to_string(deg.size()));
   traj_ = PolyTraj(deg, 1.0);
+  // S_g above this bound can never meet rho >= gamma: bounding it in every stage (not only from
+  // stage 4 on, where the probability row enforces it) keeps stage 3 from driving the gripper to
+  // a speed stage 4 must then undo.
+  sg_cap_ = problem.vary_sc ? problem.rho.sg_upper_bound(problem.gamma, problem.rho.sc_lo, problem.rho.sc_hi)
+                            : problem.rho.sg_upper_bound(problem.gamma, problem.sc_fixed, problem.sc_fixed);
   nc_ = traj_.num_coeffs();
   n_ = nc_ + 5;
   const int level = stage == 0 ? 5 : stage;
+  level_ = level;
   const int m = settings.samples_per_interval, na = dof_ - 3;
   const unsigned all = (dof_ == 32) ? ~0u : ((1u << dof_) - 1u), base = 7u;
   for (int j = 0; j < m; ++j) samples_.push_back({{double(j) / m, 0.0, 0.0}});
@@ -100,21 +106,71 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   const double vt = settings.velocity_tol, wt = settings.angular_velocity_tol;
   const double nh_bound = settings.nonholonomic_tol * ((problem.part_xy - problem.start.head<2>()).norm() +
                                                        (problem.goal.head<2>() - problem.part_xy).norm());
-  for (int s = 0; s < static_cast<int>(samples_.size()); ++s) {
+  nreg_ = static_cast<int>(samples_.size());
+  // Optional rows: every one (no subset) or those of the subset; collision rows between samples
+  // get extra samples (one per distinct instant), after the regular ones.
+  std::vector<char> jsel(nreg_ * na, subset ? 0 : 1);
+  std::vector<std::vector<int>> csel(nreg_);
+  std::vector<std::pair<Sample, std::vector<int>>> extra;
+  const int no = static_cast<int>(problem.obstacles.size()), npairs = no * static_cast<int>(problem.body_spheres.size());
+  if (subset) {
+    for (const auto& j : subset->joints) {
+      if (j.sample < 0 || j.sample >= nreg_ || j.joint < 0 || j.joint >= na)
+        throw std::invalid_argument("row subset: joint row (sample " + std::to_string(j.sample) + ", joint " +
+                                    std::to_string(j.joint) + ") out of range");
+      jsel[j.sample * na + j.joint] = 1;
+    }
+    for (const auto& c : subset->collisions) {
+      if (c.pair < 0 || c.pair >= npairs || c.sample >= nreg_)
+        throw std::invalid_argument("row subset: collision row (sample " + std::to_string(c.sample) + ", pair " +
+                                    std::to_string(c.pair) + ") out of range");
+      if (c.sample >= 0) {
+        csel[c.sample].push_back(c.pair);
+        continue;
+      }
+      auto it = std::find_if(extra.begin(), extra.end(), [&](const auto& e) {
+        return e.first.w[0] == c.w[0] && e.first.w[1] == c.w[1] && e.first.w[2] == c.w[2];
+      });
+      if (it == extra.end()) {
+        extra.push_back({{{c.w[0], c.w[1], c.w[2]}}, {}});
+        it = extra.end() - 1;
+      }
+      it->second.push_back(c.pair);
+    }
+  } else {
+    for (auto& v : csel)
+      for (int p = 0; p < npairs; ++p) v.push_back(p);
+  }
+  for (auto& v : csel) {
+    std::sort(v.begin(), v.end());
+    v.erase(std::unique(v.begin(), v.end()), v.end());
+  }
+  for (auto& e : extra) {
+    samples_.push_back(e.first);
+    std::sort(e.second.begin(), e.second.end());
+    e.second.erase(std::unique(e.second.begin(), e.second.end()), e.second.end());
+  }
+  std::vector<unsigned> body_mask;
+  for (const auto& b : problem.body_spheres) {
+    unsigned mask = 0;
+    for (int i = 0; i < dof_; ++i)
+      if (robot.moves(i, b.link)) mask |= 1u << i;
+    body_mask.push_back(mask);
+  }
+  auto collision_rows = [&](int s, const std::vector<int>& pairs) {
+    if (level < 5) return;
+    for (int p : pairs) add_row(K_COLL, s, p, body_mask[p / no], false, false, settings.collision_margin, kInf);
+  };
+  for (int s = 0; s < nreg_; ++s) {
     sample_row_begin_.push_back(static_cast<int>(rows_.size()));
     const int interval = s / m;
-    if (s == 0) {
-      for (int i = 0; i < dof_; ++i) {
-        double v = i < 3 ? problem.start[i] : problem.arm_start[i - 3];
-        add_row(K_START, s, i, 1u << i, false, false, v, v);
-      }
-    }
+    // The start configuration is q(0) = a_i0: variable bounds (bounds()), not rows.
     add_row(K_NH, s, 0, base, false, false, -nh_bound, nh_bound);
     add_row(K_BSPEED, s, 0, base, false, false, -kInf, problem.base_speed_limit * problem.base_speed_limit);
     add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
     for (int j = 0; j < na; ++j) {
       double lo = robot.lower_limits()[3 + j], hi = robot.upper_limits()[3 + j];
-      if (std::isfinite(lo) || std::isfinite(hi))
+      if ((std::isfinite(lo) || std::isfinite(hi)) && s > 0 && jsel[s * na + j])  // q(0) is fixed
         add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo + settings.joint_limit_margin : -kInf,
                 std::isfinite(hi) ? hi - settings.joint_limit_margin : kInf);
       add_row(K_JRATE, s, j, 1u << (3 + j), false, false, -problem.arm_rate_limits[j], problem.arm_rate_limits[j]);
@@ -137,15 +193,11 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
       add_row(K_GOALYAW, s, 0, base, false, false, problem.goal[2] - problem.goal_tol_yaw,
               problem.goal[2] + problem.goal_tol_yaw);
     }
-    if (level >= 5) {
-      const int no = static_cast<int>(problem.obstacles.size());
-      for (int b = 0; b < static_cast<int>(problem.body_spheres.size()); ++b) {
-        unsigned mask = 0;
-        for (int i = 0; i < dof_; ++i)
-          if (robot.moves(i, problem.body_spheres[b].link)) mask |= 1u << i;
-        for (int o = 0; o < no; ++o) add_row(K_COLL, s, b * no + o, mask, false, false, settings.collision_margin, kInf);
-      }
-    }
+    collision_rows(s, csel[s]);
+  }
+  for (int e = 0; e < static_cast<int>(extra.size()); ++e) {
+    sample_row_begin_.push_back(static_cast<int>(rows_.size()));
+    collision_rows(nreg_ + e, extra[e].second);
   }
   sample_row_begin_.push_back(static_cast<int>(rows_.size()));
   add_row(K_TIMING, -1, 0, 0, false, true, problem.stroke, problem.stroke);
@@ -183,6 +235,8 @@ void PickupConstraints::add_row(int kind, int sample, int aux, unsigned mask, bo
 void PickupConstraints::bounds(Eigen::VectorXd& xl, Eigen::VectorXd& xu, Eigen::VectorXd& gl, Eigen::VectorXd& gu) const {
   xl = Eigen::VectorXd::Constant(n_, -kInf);
   xu = Eigen::VectorXd::Constant(n_, kInf);
+  for (int i = 0; i < dof_; ++i)  // q(0) = a_i0: the start configuration
+    xl[traj_.offset(i)] = xu[traj_.offset(i)] = i < 3 ? pb_.start[i] : pb_.arm_start[i - 3];
   xl[idx_s1()] = 0.0;
   xu[idx_s1()] = 1.0;
   xl[idx_s2()] = 0.0;
@@ -190,7 +244,7 @@ void PickupConstraints::bounds(Eigen::VectorXd& xl, Eigen::VectorXd& xu, Eigen::
   xl[idx_T()] = st_.t_min;
   xu[idx_T()] = st_.t_max;
   xl[idx_Sg()] = pb_.rho.sg_lo;
-  xu[idx_Sg()] = pb_.rho.sg_hi;
+  xu[idx_Sg()] = std::isnan(sg_cap_) ? pb_.rho.sg_hi : sg_cap_;
   xl[idx_Sc()] = pb_.vary_sc ? pb_.rho.sc_lo : pb_.sc_fixed;
   xu[idx_Sc()] = pb_.vary_sc ? pb_.rho.sc_hi : pb_.sc_fixed;
   const int mrows = num_constraints();
@@ -398,6 +452,13 @@ double PickupConstraints::max_violation(const Eigen::VectorXd& x) const {
   for (int i = 0; i < n_; ++i) v = std::max({v, xl[i] - x[i], x[i] - xu[i]});
   for (int r = 0; r < num_constraints(); ++r) v = std::max({v, gl[r] - g[r], g[r] - gu[r]});
   return v;
+}
+
+std::array<double, 5> PickupConstraints::row_key(int r) const {
+  const Row& R = rows_.at(r);
+  if (R.sample < 0) return {double(R.kind), -1.0, -1.0, -1.0, double(R.aux)};
+  const Sample& S = samples_[R.sample];
+  return {double(R.kind), S.w[0], S.w[1], S.w[2], double(R.aux)};
 }
 
 std::vector<std::string> PickupConstraints::row_names() const {

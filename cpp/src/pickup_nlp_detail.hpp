@@ -1,6 +1,8 @@
 #pragma once
 // Internals shared by pickup_nlp.cpp (rows, values, Jacobian) and pickup_hessian.cpp (Hessian of
 // the Lagrangian). Not installed; not part of the public API.
+#include <string>
+
 #include <Eigen/Core>
 
 #include "pickplan/pickup_nlp.hpp"
@@ -20,6 +22,26 @@ constexpr double kInf = 2e19;
 void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool, const Eigen::VectorXd& qd,
                           Eigen::Matrix<double, 6, Eigen::Dynamic>& J, Eigen::Matrix<double, 3, Eigen::Dynamic>& dv,
                           Eigen::Matrix<double, 3, Eigen::Dynamic>& dw);
+
+// Ipopt's multipliers: variable bounds (lower, upper) and constraint rows.
+struct Multipliers {
+  Eigen::VectorXd zl, zu, lambda;
+};
+
+// One Ipopt run on a constraint system from x0 (Ipopt's errors are statuses, never exceptions;
+// bad options throw std::invalid_argument).
+struct IpoptRun {
+  std::string status, ipopt_status;  // short status ("solved", ...) and Ipopt's return code as text
+  bool converged = false;            // Solve_Succeeded or Solved_To_Acceptable_Level
+  int iterations = 0;
+  double seconds = 0.0, cpu_seconds = 0.0;  // wall and thread CPU time
+  Eigen::VectorXd x;                 // the final iterate (x0 when Ipopt returned nothing usable)
+  Multipliers mult;                  // at the final iterate (empty when Ipopt returned none)
+};
+// warm (optional): multipliers to start from (Ipopt's warm_start_init_point).
+IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, const Eigen::VectorXd& x0, double mu_init,
+                   const Multipliers* warm = nullptr);
+double thread_cpu_seconds();
 
 }  // namespace pickup_detail
 

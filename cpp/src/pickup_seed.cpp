@@ -10,7 +10,14 @@
 #include "pickplan/pickup_nlp.hpp"
 
 namespace pickplan {
-
+namespace {
+// The S_g bound of PickupConstraints (sg_hi when rho >= gamma is unattainable: seeds still work).
+double sg_cap(const PickupProblem& pb) {
+  const double a = pb.vary_sc ? pb.rho.sc_lo : pb.sc_fixed, b = pb.vary_sc ? pb.rho.sc_hi : pb.sc_fixed;
+  const double cap = pb.rho.sg_upper_bound(pb.gamma, a, b);
+  return std::isnan(cap) ? pb.rho.sg_hi : cap;
+}
+}  // namespace
 
 Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
   pb.validate(robot);
@@ -89,7 +96,7 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, cons
   x[nc] = T1 / T;
   x[nc + 1] = T2 / T;
   x[nc + 2] = T;
-  x[nc + 3] = 0.5 * (pb.rho.sg_lo + pb.rho.sg_hi);
+  x[nc + 3] = 0.5 * (pb.rho.sg_lo + sg_cap(pb));
   x[nc + 4] = sc;
   return x;
 }
@@ -111,7 +118,7 @@ Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const P
   x[nc] = a;
   x[nc + 1] = b;
   x[nc + 2] = T;
-  x[nc + 3] = pb.rho.sg_lo + ut(rng) * (pb.rho.sg_hi - pb.rho.sg_lo);
+  x[nc + 3] = pb.rho.sg_lo + ut(rng) * (sg_cap(pb) - pb.rho.sg_lo);
   x[nc + 4] = pb.vary_sc ? pb.rho.sc_lo + ut(rng) * (pb.rho.sc_hi - pb.rho.sc_lo) : pb.sc_fixed;
   return x;
 }

@@ -10,6 +10,7 @@
 // Decision variables x = [polynomial coefficients | s1, s2, T | S_g, S_c]: each DOF is a polynomial
 // P_i(s) in normalised time s = t / T (q_i(t) = P_i(t / T), the paper's polynomial in t with its
 // coefficients scaled by T^k), and T1 = s1 T, T2 = s2 T with 0 <= s1 <= s2 <= 1.
+#include <array>
 #include <string>
 #include <utility>
 #include <vector>
@@ -31,6 +32,10 @@ struct RhoPoly {
   double value(double s_g, double s_c) const;
   Eigen::Vector2d gradient(double s_g, double s_c) const;  // (d/dS_g, d/dS_c)
   Eigen::Matrix2d hessian(double s_g, double s_c) const;
+  // An upper bound on the S_g of any point with rho >= gamma and S_c in [sc_a, sc_b], from a grid
+  // (64 x 16 points): the grid S_g just above the largest feasible grid S_g, or sg_hi.
+  // NaN when no grid point reaches gamma (the success-probability threshold is unattainable).
+  double sg_upper_bound(double gamma, double sc_a, double sc_b) const;
 };
 
 struct SphereObstacle {
@@ -74,6 +79,7 @@ struct PickupSettings {
   // start-part-goal distance, i.e. lateral speed <= tol L / T (heading error ~ tol rad at mean speed).
   double nonholonomic_tol = 0.002;
   std::string hessian = "exact";         // "exact" (eval_hessian) | "limited-memory" (Ipopt's L-BFGS)
+  std::string basis = "bernstein";      // Ipopt's coefficient variables: "bernstein" | "monomial" (results: monomial)
   std::string mu_strategy = "monotone";  // Ipopt barrier update ("monotone" | "adaptive")
   double mu_init = 1e-2;
   double velocity_tol = 0.005;          // |J q' - S_g n_g| per component (m/s) during grasping
@@ -88,15 +94,48 @@ struct PickupSettings {
   bool derivative_test = false;         // runs Ipopt's first-order derivative checker
   std::vector<std::pair<std::string, std::string>> ipopt_options;  // extra Ipopt options (name, value)
   std::string output_file;              // non-empty: Ipopt's log (print level 5) goes to this file
+  // Active set: joint-position and collision rows only where the trajectory comes within these
+  // windows of them; every row is checked after each solve and violated/near rows join for a
+  // re-solve from the last solution (at most active_max_rounds runs). false: every row always.
+  bool active_set = true;
+  double active_joint_window = 0.3;      // rad
+  double active_collision_window = 0.15; // m
+  int active_max_rounds = 6;
+  double mu_resolve = 1e-4;             // mu_init of the re-solves (warm: multipliers carried over)
+  double warm_start_push = 1e-6;        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
+  // Collision stages: the trajectory between the regular samples is checked at this many
+  // subdivisions of each gap; where a body comes closer than collision_margin / 2, a collision row
+  // at that instant joins and the stage is re-solved (0: samples only, as the paper).
+  int dense_subdivisions = 16;
   double seed_speed = 1.0;              // heuristic seed: T = path length / seed_speed
   unsigned seed = 0;                    // random seeds (arm perturbation, single-shot baseline)
   double arm_seed_noise = 0.05;         // rad, heuristic seed arm perturbation
 };
 
+// A subset of a stage's optional rows (joint-position and collision rows), for the active-set
+// solve: a joint row at a regular sample, a collision row at a regular sample or at any instant
+// s = w0 s1 + w1 s2 + w2 (e.g. between samples, where a dense check found the trajectory too close).
+struct PickupRowSubset {
+  struct Joint { int sample = 0, joint = 0; };  // arm joint 0..dof-4
+  struct Collision {
+    int sample = -1;   // >= 0: a regular sample (w unused); -1: the instant given by w
+    double w[3] = {0.0, 0.0, 0.0};
+    int pair = 0;      // body_sphere * num_obstacles + obstacle
+  };
+  std::vector<Joint> joints;
+  std::vector<Collision> collisions;
+  void merge(const PickupRowSubset& other);  // union, without duplicates
+  int size() const { return static_cast<int>(joints.size() + collisions.size()); }
+};
+
 // The constraint system of one stage, evaluated natively (exposed for tests and the checker).
+// Regular samples: m per interval, in time order ([0, T1): j/m; [T1, T2]: j/(m-1); (T2, T]: j/m).
 class PickupConstraints {
  public:
-  PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage);
+  // subset == nullptr: every joint-position and collision row at every regular sample (the full
+  // stage); otherwise exactly the optional rows of the subset (all other rows always).
+  PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage,
+                    const PickupRowSubset* subset = nullptr);
   int num_vars() const { return n_; }
   int num_constraints() const { return static_cast<int>(rows_.size()); }
   int num_nonzeros() const { return static_cast<int>(jac_col_.size()); }
@@ -107,6 +146,8 @@ class PickupConstraints {
   int idx_T() const { return nc_ + 2; }
   int idx_Sg() const { return nc_ + 3; }
   int idx_Sc() const { return nc_ + 4; }
+  // Upper bound on S_g implied by rho >= gamma (RhoPoly::sg_upper_bound; NaN: gamma unattainable).
+  double sg_cap() const { return sg_cap_; }
   void bounds(Eigen::VectorXd& x_lo, Eigen::VectorXd& x_hi, Eigen::VectorXd& g_lo, Eigen::VectorXd& g_hi) const;
   void eval_g(const double* x, double* g) const;
   void jac_structure(int* rows, int* cols) const;
@@ -122,6 +163,20 @@ class PickupConstraints {
   // Largest violation of the constraint bounds and the variable bounds at x.
   double max_violation(const Eigen::VectorXd& x) const;
   std::vector<std::string> row_names() const;  // "kind@sample" for diagnostics
+  // A key of row r that is the same in every stage and row subset: (kind, instant w0, w1, w2, aux)
+  // (w = -1 for the rows of the time variables).
+  std::array<double, 5> row_key(int r) const;
+  int num_regular_samples() const { return nreg_; }
+  bool has_collision_rows() const { return level_ >= 5 && !pb_.obstacles.empty() && !pb_.body_spheres.empty(); }
+  // The optional rows at the regular samples whose slack at x is below the window (violated ones
+  // included): joint rows within joint_window (rad) of the tightened limits, collision rows whose
+  // clearance is within collision_window (m) of the collision margin (the latter for stages >= 5).
+  PickupRowSubset near_rows(const Eigen::VectorXd& x, double joint_window, double collision_window) const;
+  // Dense check between the regular samples (each gap split into `subdivisions`): per gap and
+  // body/obstacle pair, the instant of least clearance when that clearance is below `threshold`.
+  // min_clearance (optional) receives the least clearance over the dense instants and the samples.
+  PickupRowSubset dense_collision_points(const Eigen::VectorXd& x, int subdivisions, double threshold,
+                                         double* min_clearance = nullptr) const;
 
  private:
   struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
@@ -141,7 +196,8 @@ class PickupConstraints {
   PickupSettings st_;
   int stage_;
   PolyTraj traj_;
-  int nc_ = 0, n_ = 0, dof_ = 0;
+  int nc_ = 0, n_ = 0, dof_ = 0, level_ = 0, nreg_ = 0;
+  double sg_cap_ = 0.0;
   std::vector<Sample> samples_;
   std::vector<Row> rows_;
   std::vector<int> sample_row_begin_;  // rows of sample s: [begin[s], begin[s+1]); special rows after
@@ -153,8 +209,11 @@ struct StageResult {
   std::string status;          // "solved", "solved_acceptable", "infeasible", ... (see status_name)
   std::string ipopt_status;    // Ipopt's ApplicationReturnStatus / SolverReturn as text
   bool success = false;
-  double seconds = 0.0;
-  int iterations = 0;
+  double seconds = 0.0;         // wall time of the Ipopt runs
+  double cpu_seconds = 0.0;     // their thread CPU time (the machine may be shared)
+  int iterations = 0;           // over all active-set rounds
+  int rounds = 0;               // Ipopt runs (active-set re-solves + 1)
+  int rows = 0;                 // constraint rows of the last run
   double objective = 0.0;      // T
   double max_violation = 0.0;  // at the returned x
   Eigen::VectorXd x;
@@ -167,6 +226,7 @@ struct PickupResult {
   std::vector<StageResult> stages;
   Eigen::VectorXd x;           // last good solution
   double total_seconds = 0.0;
+  double total_cpu_seconds = 0.0;
   double T = 0, T1 = 0, T2 = 0, S_g = 0, S_c = 0;
   PolyTraj traj;               // in absolute time: time_scale = T, coefficients x[0 : num_coeffs]
 };

@@ -1,0 +1,90 @@
+// Active-set support of the pick-up NLP: which optional rows (joint-position, collision) a stage
+// needs near a point, and the dense collision check between the regular samples.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "pickplan/pickup_nlp.hpp"
+#include "pickup_nlp_detail.hpp"
+
+namespace pickplan {
+
+void PickupRowSubset::merge(const PickupRowSubset& o) {
+  for (const auto& j : o.joints)
+    if (std::none_of(joints.begin(), joints.end(), [&](const Joint& a) { return a.sample == j.sample && a.joint == j.joint; }))
+      joints.push_back(j);
+  for (const auto& c : o.collisions)
+    if (std::none_of(collisions.begin(), collisions.end(), [&](const Collision& a) {
+          return a.pair == c.pair && a.sample == c.sample &&
+                 (c.sample >= 0 || (a.w[0] == c.w[0] && a.w[1] == c.w[1] && a.w[2] == c.w[2]));
+        }))
+      collisions.push_back(c);
+}
+
+namespace {
+double clearance(const RobotWorkspace& ws, const PickupProblem& pb, int pair) {
+  const int no = static_cast<int>(pb.obstacles.size());
+  const BodySphere& b = pb.body_spheres[pair / no];
+  const SphereObstacle& o = pb.obstacles[pair % no];
+  return (ws.link_pose[b.link].apply(b.center) - o.center).norm() - b.radius - o.radius;
+}
+}  // namespace
+
+PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double joint_window, double collision_window) const {
+  PickupRowSubset out;
+  const int na = dof_ - 3, npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());
+  const double s1 = x[idx_s1()], s2 = x[idx_s2()];
+  Eigen::VectorXd q(dof_);
+  RobotWorkspace ws(robot_);
+  for (int s = 0; s < nreg_; ++s) {
+    const Sample& S = samples_[s];
+    traj_.eval(x.data(), S.w[0] * s1 + S.w[1] * s2 + S.w[2], q.data(), nullptr, nullptr);
+    for (int j = 0; j < na && s > 0; ++j) {
+      const double lo = robot_.lower_limits()[3 + j] + st_.joint_limit_margin;
+      const double hi = robot_.upper_limits()[3 + j] - st_.joint_limit_margin;
+      if (std::min(q[3 + j] - lo, hi - q[3 + j]) < joint_window) out.joints.push_back({s, j});
+    }
+    if (!has_collision_rows()) continue;
+    robot_.forward_kinematics(q.data(), ws);
+    for (int p = 0; p < npairs; ++p)
+      if (clearance(ws, pb_, p) - st_.collision_margin < collision_window) out.collisions.push_back({s, {0, 0, 0}, p});
+  }
+  return out;
+}
+
+PickupRowSubset PickupConstraints::dense_collision_points(const Eigen::VectorXd& x, int subdivisions, double threshold,
+                                                          double* min_clearance) const {
+  PickupRowSubset out;
+  double least = std::numeric_limits<double>::infinity();
+  if (has_collision_rows()) {
+    const int npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());
+    const double s1 = x[idx_s1()], s2 = x[idx_s2()];
+    Eigen::VectorXd q(dof_);
+    RobotWorkspace ws(robot_);
+    std::vector<double> best(npairs);
+    std::vector<PickupRowSubset::Collision> at(npairs);
+    for (int g = 0; g + 1 < nreg_; ++g) {  // gap between regular samples g and g + 1 (time order)
+      const Sample &A = samples_[g], &B = samples_[g + 1];
+      std::fill(best.begin(), best.end(), std::numeric_limits<double>::infinity());
+      for (int k = 0; k <= subdivisions; ++k) {
+        const double f = double(k) / subdivisions;
+        const double w[3] = {A.w[0] + f * (B.w[0] - A.w[0]), A.w[1] + f * (B.w[1] - A.w[1]), A.w[2] + f * (B.w[2] - A.w[2])};
+        traj_.eval(x.data(), w[0] * s1 + w[1] * s2 + w[2], q.data(), nullptr, nullptr);
+        robot_.forward_kinematics(q.data(), ws);
+        for (int p = 0; p < npairs; ++p) {
+          const double c = clearance(ws, pb_, p);
+          least = std::min(least, c);
+          if (k == 0 || k == subdivisions || c >= best[p]) continue;  // interior instants only
+          best[p] = c;
+          at[p] = {-1, {w[0], w[1], w[2]}, p};
+        }
+      }
+      for (int p = 0; p < npairs; ++p)
+        if (best[p] < threshold) out.collisions.push_back(at[p]);
+    }
+  }
+  if (min_clearance) *min_clearance = least;
+  return out;
+}
+
+}  // namespace pickplan
