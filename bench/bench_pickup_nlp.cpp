@@ -41,6 +41,11 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("basis")) st.basis = opt.extra.at("basis");
   if (opt.extra.count("active")) st.active_set = std::atoi(opt.extra.at("active").c_str()) != 0;
   if (opt.extra.count("dense")) st.dense_subdivisions = std::atoi(opt.extra.at("dense").c_str());
+  if (opt.extra.count("jwin")) st.active_joint_window = std::atof(opt.extra.at("jwin").c_str());
+  if (opt.extra.count("cwin")) st.active_collision_window = std::atof(opt.extra.at("cwin").c_str());
+  if (opt.extra.count("tseed")) st.timing_seed = std::atoi(opt.extra.at("tseed").c_str()) != 0;
+  if (opt.extra.count("warm")) st.warm_start_stages = std::atoi(opt.extra.at("warm").c_str()) != 0;
+  if (opt.extra.count("push")) st.warm_start_push = std::atof(opt.extra.at("push").c_str());
   if (opt.extra.count("mu_resolve")) st.mu_resolve = std::atof(opt.extra.at("mu_resolve").c_str());
   if (opt.extra.count("mu_init")) st.mu_init = std::atof(opt.extra.at("mu_init").c_str());
   for (const auto& [k, v] : opt.extra)

@@ -150,16 +150,15 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     std::sort(e.second.begin(), e.second.end());
     e.second.erase(std::unique(e.second.begin(), e.second.end()), e.second.end());
   }
-  std::vector<unsigned> body_mask;
   for (const auto& b : problem.body_spheres) {
     unsigned mask = 0;
     for (int i = 0; i < dof_; ++i)
       if (robot.moves(i, b.link)) mask |= 1u << i;
-    body_mask.push_back(mask);
+    body_mask_.push_back(mask);
   }
   auto collision_rows = [&](int s, const std::vector<int>& pairs) {
-    if (level < 5) return;
-    for (int p : pairs) add_row(K_COLL, s, p, body_mask[p / no], false, false, settings.collision_margin, kInf);
+    for (int p : pairs)
+      if (pair_in_stage(p)) add_row(K_COLL, s, p, body_mask_[p / no], false, false, settings.collision_margin, kInf);
   };
   for (int s = 0; s < nreg_; ++s) {
     sample_row_begin_.push_back(static_cast<int>(rows_.size()));
@@ -452,6 +451,18 @@ double PickupConstraints::max_violation(const Eigen::VectorXd& x) const {
   for (int i = 0; i < n_; ++i) v = std::max({v, xl[i] - x[i], x[i] - xu[i]});
   for (int r = 0; r < num_constraints(); ++r) v = std::max({v, gl[r] - g[r], g[r] - gu[r]});
   return v;
+}
+
+bool PickupConstraints::pair_in_stage(int pair) const {
+  if (pb_.obstacles.empty()) return false;
+  return level_ >= 5 || (body_mask_.at(pair / static_cast<int>(pb_.obstacles.size())) & ~7u) == 0u;
+}
+
+bool PickupConstraints::has_collision_rows() const {
+  const int npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());
+  for (int p = 0; p < npairs; ++p)
+    if (pair_in_stage(p)) return true;
+  return false;
 }
 
 std::array<double, 5> PickupConstraints::row_key(int r) const {

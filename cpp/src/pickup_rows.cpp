@@ -47,7 +47,8 @@ PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double jo
     if (!has_collision_rows()) continue;
     robot_.forward_kinematics(q.data(), ws);
     for (int p = 0; p < npairs; ++p)
-      if (clearance(ws, pb_, p) - st_.collision_margin < collision_window) out.collisions.push_back({s, {0, 0, 0}, p});
+      if (pair_in_stage(p) && clearance(ws, pb_, p) - st_.collision_margin < collision_window)
+        out.collisions.push_back({s, {0, 0, 0}, p});
   }
   return out;
 }
@@ -72,6 +73,7 @@ PickupRowSubset PickupConstraints::dense_collision_points(const Eigen::VectorXd&
         traj_.eval(x.data(), w[0] * s1 + w[1] * s2 + w[2], q.data(), nullptr, nullptr);
         robot_.forward_kinematics(q.data(), ws);
         for (int p = 0; p < npairs; ++p) {
+          if (!pair_in_stage(p)) continue;
           const double c = clearance(ws, pb_, p);
           least = std::min(least, c);
           if (k == 0 || k == subdivisions || c >= best[p]) continue;  // interior instants only

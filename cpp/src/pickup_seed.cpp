@@ -201,4 +201,36 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
   return out;
 }
 
+Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+                                  const Eigen::VectorXd& x) {
+  pb.validate(robot);
+  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  PolyTraj tr(deg, 1.0);
+  const int nc = tr.num_coeffs(), n = robot.dof();
+  if (x.size() != nc + 5) throw std::invalid_argument("grasp_timing_seed: expected " + std::to_string(nc + 5) + " variables");
+  const double s1 = x[nc], s2 = x[nc + 1], Sg = x[nc + 3], Sc = x[nc + 4];
+  // Tool velocity per unit normalised time, v_j = J P_s, at the grasping samples; T such that the
+  // tool's rms speed v / T during grasping is S_g (the speed stage 3 asks for).
+  RobotWorkspace ws(robot);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
+  Eigen::VectorXd q(n), ps(n);
+  double vv = 0.0;
+  const int m = std::max(2, st.samples_per_interval);
+  for (int j = 0; j < m; ++j) {
+    const double s = s1 + (s2 - s1) * j / (m - 1);
+    tr.eval(x.data(), s, q.data(), ps.data(), nullptr);
+    robot.forward_kinematics(q.data(), ws);
+    robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
+    const Eigen::Vector3d v = J.topRows<3>() * ps;
+    vv += v.squaredNorm();
+  }
+  if (!(vv > 0.0)) return x;
+  const double T = std::clamp(std::sqrt(vv / m) / Sg, st.t_min, st.t_max);
+  if (!(T > x[nc + 2])) return x;  // only ever slows down
+  Eigen::VectorXd out = x;
+  out[nc + 2] = T;
+  out[nc] = std::max(0.0, s2 - pb.stroke / (T * Sc));  // (T2 - T1) S_c = stroke, T2 kept
+  return out;
+}
+
 }  // namespace pickplan

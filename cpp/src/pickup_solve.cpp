@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <map>
@@ -175,8 +176,25 @@ bool grasp_unreachable(const Robot& robot, const PickupProblem& pb, std::string&
 }
 }  // namespace
 
+namespace {
+// Multipliers of a solved stage, by row key (PickupConstraints::row_key), for the next one.
+struct StageMultipliers {
+  std::map<std::array<double, 5>, double> lambda;
+  Eigen::VectorXd zl, zu;
+};
+
+StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
+                             const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out);
+}  // namespace
+
 StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
                         const Eigen::VectorXd& x0) {
+  return solve_stage_warm(robot, pb, st, stage, x0, nullptr, nullptr);
+}
+
+namespace {
+StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
+                             const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out) {
   PickupConstraints cons(robot, pb, st, stage);  // validates (throws std::invalid_argument)
   if (x0.size() != cons.num_vars())
     throw std::invalid_argument("seed: expected " + std::to_string(cons.num_vars()) + " variables, got " + std::to_string(x0.size()));
@@ -215,31 +233,39 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
                                          : cons.near_rows(x0, inf, inf);  // every optional row
   Eigen::VectorXd x = x0;
   double mu = st.mu_init;
-  std::map<std::array<double, 5>, double> lambda_prev;  // by row key, from the last round
-  Multipliers prev;
+  StageMultipliers prev;  // from the last round (or the previous stage)
+  if (warm_in) {
+    prev = *warm_in;
+    mu = st.mu_resolve;
+  }
   for (int round = 0;; ++round) {
     const PickupConstraints part(robot, pb, st, stage, &subset);
     Multipliers warm;
-    if (prev.lambda.size()) {  // carried over; the rows new in this round start at 0
+    if (prev.zl.size() == part.num_vars()) {  // carried over; the rows new in this run start at 0
       warm.zl = prev.zl;
       warm.zu = prev.zu;
       warm.lambda = Eigen::VectorXd::Zero(part.num_constraints());
       for (int r = 0; r < part.num_constraints(); ++r) {
-        auto it = lambda_prev.find(part.row_key(r));
-        if (it != lambda_prev.end()) warm.lambda[r] = it->second;
+        auto it = prev.lambda.find(part.row_key(r));
+        if (it != prev.lambda.end()) warm.lambda[r] = it->second;
       }
     }
     IpoptRun run = run_ipopt(part, st, x, mu, warm.lambda.size() ? &warm : nullptr);
     if (run.mult.lambda.size() == part.num_constraints()) {
-      prev = run.mult;
-      lambda_prev.clear();
-      for (int r = 0; r < part.num_constraints(); ++r) lambda_prev[part.row_key(r)] = run.mult.lambda[r];
+      prev.zl = run.mult.zl;
+      prev.zu = run.mult.zu;
+      prev.lambda.clear();
+      for (int r = 0; r < part.num_constraints(); ++r) prev.lambda[part.row_key(r)] = run.mult.lambda[r];
     }
     res.seconds += run.seconds;
     res.cpu_seconds += run.cpu_seconds;
     res.iterations += run.iterations;
     res.rounds = round + 1;
     res.rows = part.num_constraints();
+    if (st.print_level > 0)
+      std::fprintf(stderr, "pickup stage %d round %d: %d rows (%d optional), %s, %d iterations, %.3f s, T %.3f\n", stage,
+                   round + 1, part.num_constraints(), subset.size(), run.status.c_str(), run.iterations, run.seconds,
+                   run.x[cons.idx_T()]);
     res.status = run.status;
     res.ipopt_status = run.ipopt_status;
     x = run.x;
@@ -267,8 +293,10 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
   const bool converged = res.status == "solved" || res.status == "solved_acceptable";
   res.success = converged && res.max_violation <= tol;
   if (converged && !res.success) res.status = "constraint_violation";
+  if (warm_out && res.success) *warm_out = prev;
   return res;
 }
+}  // namespace
 
 namespace {
 void fill_result(PickupResult& out, const Robot& robot, const PickupSettings& st) {
@@ -295,9 +323,16 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     throw std::invalid_argument("seed: expected " + std::to_string(num_vars(robot, st)) + " variables, got " + std::to_string(out.x.size()));
   out.status = "solved";
   out.success = true;
+  StageMultipliers mult;
   for (int stage = 1; stage <= 5; ++stage) {
-    // Stage 2 adds the grasp pose: its arm seed comes from an IK solution at T2 (base as stage 1).
-    StageResult r = solve_stage(robot, pb, st, stage, stage == 2 ? grasp_ik_seed(robot, pb, st, out.x) : out.x);
+    // Stage 2 adds the grasp pose: its arm seed comes from an IK solution at T2 (base as stage 1),
+    // so it starts cold, as does stage 3 (its new velocity rows are far from satisfied); stages 4
+    // and 5 start from the previous stage's multipliers.
+    const bool warm = st.warm_start_stages && stage > 3;
+    Eigen::VectorXd seed = out.x;
+    if (stage == 2) seed = grasp_ik_seed(robot, pb, st, out.x);
+    if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, out.x);
+    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, warm ? &mult : nullptr, &mult);
     out.stages.push_back(r);
     if (!r.success) {
       out.status = r.status;

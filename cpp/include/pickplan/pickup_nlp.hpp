@@ -102,7 +102,9 @@ struct PickupSettings {
   double active_collision_window = 0.15; // m
   int active_max_rounds = 6;
   double mu_resolve = 1e-4;             // mu_init of the re-solves (warm: multipliers carried over)
-  double warm_start_push = 1e-6;        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
+  double warm_start_push = 1e-6;
+  bool timing_seed = true;              // stage 3 starts from grasp_timing_seed()
+  bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
   // Collision stages: the trajectory between the regular samples is checked at this many
   // subdivisions of each gap; where a body comes closer than collision_margin / 2, a collision row
   // at that instant joins and the stage is re-solved (0: samples only, as the paper).
@@ -167,10 +169,13 @@ class PickupConstraints {
   // (w = -1 for the rows of the time variables).
   std::array<double, 5> row_key(int r) const;
   int num_regular_samples() const { return nreg_; }
-  bool has_collision_rows() const { return level_ >= 5 && !pb_.obstacles.empty() && !pb_.body_spheres.empty(); }
+  // Collision rows of a stage: from stage 5 on (and in stage 0) every body sphere; before, the
+  // spheres moved by the base DOFs only (the base's path constraints, C_mbpath of stage 1).
+  bool pair_in_stage(int pair) const;  // pair = body_sphere * num_obstacles + obstacle
+  bool has_collision_rows() const;
   // The optional rows at the regular samples whose slack at x is below the window (violated ones
   // included): joint rows within joint_window (rad) of the tightened limits, collision rows whose
-  // clearance is within collision_window (m) of the collision margin (the latter for stages >= 5).
+  // clearance is within collision_window (m) of the collision margin (pairs of pair_in_stage).
   PickupRowSubset near_rows(const Eigen::VectorXd& x, double joint_window, double collision_window) const;
   // Dense check between the regular samples (each gap split into `subdivisions`): per gap and
   // body/obstacle pair, the instant of least clearance when that clearance is below `threshold`.
@@ -198,6 +203,7 @@ class PickupConstraints {
   PolyTraj traj_;
   int nc_ = 0, n_ = 0, dof_ = 0, level_ = 0, nreg_ = 0;
   double sg_cap_ = 0.0;
+  std::vector<unsigned> body_mask_;  // DOFs moving each body sphere
   std::vector<Sample> samples_;
   std::vector<Row> rows_;
   std::vector<int> sample_row_begin_;  // rows of sample s: [begin[s], begin[s+1]); special rows after
@@ -237,6 +243,11 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem,
 // damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x);
+// Stage-3 warm start: the same path in normalised time, slowed down (T larger) so that the tool's
+// rms speed over the grasping samples is S_g, and T1 moved to keep (T2 - T1) S_c = stroke; x
+// unchanged when that would not slow it down.
+Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                                  const Eigen::VectorXd& x);
 // A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others
 // random, 0 <= T1 < T2 <= T (seeded by settings.seed).
 Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
