@@ -274,16 +274,15 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
     app->Options()->SetNumericValue("derivative_test_perturbation", 1e-7);
   }
   for (const auto& [name, value] : st.ipopt_options) {
+    // An integer-looking value may still be a numeric option ("tol", "10"): try each kind in turn.
     char* end = nullptr;
     const long iv = std::strtol(value.c_str(), &end, 10);
-    bool ok;
-    if (!value.empty() && *end == '\0') {
-      ok = app->Options()->SetIntegerValue(name, static_cast<int>(iv));
-    } else {
-      const double dv = std::strtod(value.c_str(), &end);
-      ok = (!value.empty() && *end == '\0') ? app->Options()->SetNumericValue(name, dv)
-                                             : app->Options()->SetStringValue(name, value);
-    }
+    const bool is_int = !value.empty() && *end == '\0';
+    const double dv = std::strtod(value.c_str(), &end);
+    const bool is_num = !value.empty() && *end == '\0';
+    bool ok = is_int && app->Options()->SetIntegerValue(name, static_cast<int>(iv), true, true);
+    if (!ok && is_num) ok = app->Options()->SetNumericValue(name, dv, true, true);
+    if (!ok && !is_num) ok = app->Options()->SetStringValue(name, value, true, true);
     if (!ok) throw std::invalid_argument("invalid Ipopt option " + name + " = " + value);
   }
   Ipopt::ApplicationReturnStatus status = app->Initialize();

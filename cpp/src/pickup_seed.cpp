@@ -153,6 +153,39 @@ double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, i
   return err;
 }
 
+// Whole-body damped least squares (base translation steps scaled by base_weight) from q, for the grasp pose;
+// the base is then kept in the grasping area and the arm re-solved. Returns the residual.
+double body_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, int iters, double margin,
+               double base_weight) {
+  const int n = robot.dof();
+  RobotWorkspace ws(robot);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
+  Eigen::VectorXd W = Eigen::VectorXd::Ones(n);
+  W.head<2>().setConstant(base_weight);
+  W[2] = 0.0;  // heading kept (it follows the path)
+  for (int it = 0; it < iters; ++it) {
+    robot.forward_kinematics(q.data(), ws);
+    const Transform& T = ws.link_pose[pb.tool_link];
+    Eigen::Matrix<double, 6, 1> e;
+    e.head<3>() = pb.grasp_pose.p - T.p;
+    Eigen::Vector3d eo = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) eo += 0.5 * T.R.col(k).cross(pb.grasp_pose.R.col(k));
+    e.tail<3>() = eo;
+    if (e.norm() < 1e-10) break;
+    robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
+    const Eigen::Matrix<double, 6, 6> A = J * W.asDiagonal() * J.transpose() + 1e-4 * Eigen::Matrix<double, 6, 6>::Identity();
+    Eigen::VectorXd dq = W.asDiagonal() * (J.transpose() * A.ldlt().solve(e));
+    if (dq.norm() > 0.3) dq *= 0.3 / dq.norm();
+    q += dq;
+    for (int j = 3; j < n; ++j)
+      q[j] = std::clamp(q[j], robot.lower_limits()[j] + margin, robot.upper_limits()[j] - margin);
+  }
+  Eigen::Vector2d d = q.head<2>() - pb.part_xy;
+  const double r = std::clamp(d.norm(), pb.grasp_area_rmin + 0.02, pb.grasp_area_rmax - 0.02);
+  if (d.norm() > 1e-9) q.head<2>() = pb.part_xy + r * d.normalized();
+  return arm_ik(robot, pb, q, iters, margin);
+}
+
 }  // namespace
 
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
@@ -181,8 +214,46 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
         best = q;
       }
     }
-  // Arm polynomials: smooth blend from arm_start to the IK solution at s2, then held.
   Eigen::VectorXd out = x;
+  if (best_score >= 1e3 * 1e-6) {
+    // Out of reach from the stage-1 base pose at T2 (it tends to skim the grasping area's outer
+    // edge): move the base too, then bend the base path through the new pose at s2.
+    Eigen::VectorXd q = best;
+    if (body_ik(robot, pb, q, 150, st.joint_limit_margin, 0.3) < 1e-6) {
+      // Base path: the old one plus the displacement at s2 faded out smoothly away from s2; the
+      // heading then follows the new path's tangent (keeps the non-holonomic rows nearly met).
+      const Eigen::Vector2d delta = q.head<2>() - q2.head<2>();
+      const int K = 60;
+      Eigen::VectorXd ss(K), vx(K), vy(K), vp(K), w = Eigen::VectorXd::Ones(K);
+      Eigen::VectorXd qk(n), qdk(n);
+      w[0] = 100.0;
+      for (int k = 0; k < K; ++k) {
+        ss[k] = double(k) / (K - 1);
+        tr.eval(x.data(), ss[k], qk.data(), nullptr, nullptr);
+        const double b = std::exp(-std::pow((ss[k] - s2) / 0.25, 2)) * (k == 0 ? 0.0 : 1.0);
+        vx[k] = qk[0] + b * delta.x();
+        vy[k] = qk[1] + b * delta.y();
+      }
+      tr.fit_dof(0, ss, vx, out.data(), w);
+      tr.fit_dof(1, ss, vy, out.data(), w);
+      double prev = pb.start[2];
+      for (int k = 0; k < K; ++k) {
+        tr.eval(out.data(), ss[k], qk.data(), qdk.data(), nullptr);
+        double h = k == 0 ? pb.start[2] : std::atan2(qdk[1], qdk[0]);
+        while (h - prev > M_PI) h -= 2 * M_PI;
+        while (h - prev < -M_PI) h += 2 * M_PI;
+        vp[k] = prev = h;
+      }
+      tr.fit_dof(2, ss, vp, out.data(), w);
+      for (int j = 0; j < 3; ++j) out[tr.offset(j)] = pb.start[j];
+      // The arm again, at the base pose the new path actually has at s2.
+      tr.eval(out.data(), s2, qk.data(), nullptr, nullptr);
+      q.head<3>() = qk.head<3>();
+      arm_ik(robot, pb, q, 150, st.joint_limit_margin);
+      best = q;
+    }
+  }
+  // Arm polynomials: smooth blend from arm_start to the IK solution at s2, then held.
   const int K = 40;
   Eigen::VectorXd ss(K), vals(K), w = Eigen::VectorXd::Ones(K);
   for (int j = 3; j < n; ++j) {

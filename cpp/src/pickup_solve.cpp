@@ -263,8 +263,9 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     res.rounds = round + 1;
     res.rows = part.num_constraints();
     if (st.print_level > 0)
-      std::fprintf(stderr, "pickup stage %d round %d: %d rows (%d optional), %s, %d iterations, %.3f s, T %.3f\n", stage,
-                   round + 1, part.num_constraints(), subset.size(), run.status.c_str(), run.iterations, run.seconds,
+      std::fprintf(stderr, "pickup stage %d round %d: %d rows (optional: %d joint, %d collision), %s, %d iterations, %.3f s, T %.3f\n",
+                   stage, round + 1, part.num_constraints(), static_cast<int>(subset.joints.size()),
+                   static_cast<int>(subset.collisions.size()), run.status.c_str(), run.iterations, run.seconds,
                    run.x[cons.idx_T()]);
     res.status = run.status;
     res.ipopt_status = run.ipopt_status;
@@ -277,6 +278,11 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
       more.merge(cons.dense_collision_points(x, st.dense_subdivisions, 0.5 * st.collision_margin));
     if (feasible && more.size() == 0) break;
     const int before = subset.size();
+    if (st.print_level > 0) {
+      std::fprintf(stderr, "  violated/near joints:");
+      for (const auto& j : more.joints) std::fprintf(stderr, " %d@%d", j.joint, j.sample);
+      std::fprintf(stderr, "\n");
+    }
     subset.merge(more);
     if (subset.size() == before || round + 1 >= st.active_max_rounds) {
       res.status = feasible ? "collision_between_samples" : "constraint_violation";
