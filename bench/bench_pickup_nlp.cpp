@@ -42,6 +42,8 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("active")) st.active_set = std::atoi(opt.extra.at("active").c_str()) != 0;
   if (opt.extra.count("dense")) st.dense_subdivisions = std::atoi(opt.extra.at("dense").c_str());
   if (opt.extra.count("jwin")) st.active_joint_window = std::atof(opt.extra.at("jwin").c_str());
+  if (opt.extra.count("rates")) st.rate_rows = opt.extra.at("rates");
+  if (opt.extra.count("hulldeg")) st.rate_hull_degree = std::atoi(opt.extra.at("hulldeg").c_str());
   if (opt.extra.count("cwin")) st.active_collision_window = std::atof(opt.extra.at("cwin").c_str());
   if (opt.extra.count("tseed")) st.timing_seed = std::atoi(opt.extra.at("tseed").c_str()) != 0;
   if (opt.extra.count("warm")) st.warm_start_stages = std::atoi(opt.extra.at("warm").c_str()) != 0;

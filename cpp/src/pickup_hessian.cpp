@@ -184,6 +184,11 @@ Eigen::MatrixXd PickupConstraints::dense_hessian(const Eigen::VectorXd& xv, cons
       add(idx_s1(), idx_Sc(), -l * T);
       add(idx_s2(), idx_Sc(), l * T);
       add(idx_T(), idx_Sc(), l * (s2 - s1));
+    } else if (rows_[r].kind == K_RATE_HULL) {  // beta_k(a) / T, beta linear in a
+      const int i = rows_[r].aux / 64, k = rows_[r].aux % 64, d = traj_.degree(i);
+      const double b = rate_hull_[i].row(k).dot(xv.segment(traj_.offset(i), d + 1));
+      for (int l = 0; l <= d; ++l) add(traj_.offset(i) + l, idx_T(), -rate_hull_[i](k, l) * lambda[r] / (T * T));
+      add(idx_T(), idx_T(), 2.0 * lambda[r] * b / (T * T * T));
     } else if (rows_[r].kind == K_RHO) {
       const Eigen::Matrix2d h = pb_.rho.hessian(Sg, Sc);
       add(idx_Sg(), idx_Sg(), l * h(0, 0));

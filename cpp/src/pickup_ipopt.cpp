@@ -30,6 +30,8 @@ class CoeffBasis {
  public:
   CoeffBasis(const PolyTraj& tr, int n, bool bernstein) : M_(Eigen::MatrixXd::Identity(n, n)) {
     if (!bernstein) return;
+    for (int i = 0; i < tr.dof(); ++i)
+      if (tr.degree(i) + 1 > 16) throw std::invalid_argument("Bernstein basis: degree at most 15");
     for (int i = 0; i < tr.dof(); ++i) {
       const int d = tr.degree(i), o = tr.offset(i);
       for (int k = 0; k <= d; ++k)  // B_{k,d}(s) = C(d,k) s^k (1-s)^(d-k) = sum_j M(j,k) s^j
@@ -52,13 +54,26 @@ class CoeffBasis {
         if (cols[e] == blocks_[b].first) segments_.push_back({e, b});
   }
   void jacobian_to_z(double* values) const {
+    double tmp[16];
     for (const auto& [e, b] : segments_) {
       const int o = blocks_[b].first, len = blocks_[b].second;
-      Eigen::Map<Eigen::RowVectorXd> v(values + e, len);
-      v = (v * M_.block(o, o, len, len)).eval();
+      for (int k = 0; k < len; ++k) {
+        double acc = 0.0;
+        for (int j = k; j < len; ++j) acc += values[e + j] * M_(o + j, o + k);  // M lower triangular
+        tmp[k] = acc;
+      }
+      std::copy(tmp, tmp + len, values + e);
     }
   }
-  Eigen::MatrixXd hessian_to_z(const Eigen::MatrixXd& H) const { return identity() ? H : Eigen::MatrixXd(M_.transpose() * H * M_); }
+  // M^T H M block by block (M is block diagonal; identity outside the coefficient blocks).
+  Eigen::MatrixXd hessian_to_z(const Eigen::MatrixXd& H) const {
+    if (identity()) return H;
+    Eigen::MatrixXd HM = H;  // H M: columns of each block mixed
+    for (const auto& [o, len] : blocks_) HM.middleCols(o, len) = H.middleCols(o, len) * M_.block(o, o, len, len);
+    Eigen::MatrixXd out = HM;  // M^T (H M): rows of each block mixed
+    for (const auto& [o, len] : blocks_) out.middleRows(o, len) = M_.block(o, o, len, len).transpose() * HM.middleRows(o, len);
+    return out;
+  }
 
  private:
   static double binom(int n, int k) {

@@ -21,7 +21,7 @@ namespace {
 const char* kKindName[] = {"start", "nonholonomic", "base_speed", "yaw_rate", "joint_position", "joint_rate",
                            "grasp_area", "gripper_velocity", "gripper_angular_velocity", "grasp_position",
                            "grasp_orientation", "grasp_orientation_half", "goal_position", "goal_yaw",
-                           "collision", "grasp_timing", "time_order", "success_probability"};
+                           "collision", "grasp_timing", "time_order", "success_probability", "rate_hull"};
 
 }  // namespace
 
@@ -93,6 +93,28 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   const int level = stage == 0 ? 5 : stage;
   level_ = level;
   const int m = settings.samples_per_interval, na = dof_ - 3;
+  if (settings.rate_rows != "hull" && settings.rate_rows != "sampled")
+    throw std::invalid_argument("rate_rows must be \"hull\" or \"sampled\", got \"" + settings.rate_rows + "\"");
+  const bool hull = settings.rate_rows == "hull";
+  if (hull) {
+    // P_s of DOF i (degree d - 1, monomial p_l = (l + 1) a_{l+1}) in the Bernstein basis of degree
+    // n: beta_k = sum_{l <= k} C(k, l) / C(n, l) p_l. |P_s| <= max_k |beta_k| on [0, 1] (convex hull).
+    const int n = settings.rate_hull_degree;
+    if (n < 1 || n > 60) throw std::invalid_argument("rate_hull_degree must be in [1, 60], got " + std::to_string(n));
+    auto binom = [](int a, int b) {
+      double r = 1.0;
+      for (int i = 1; i <= b; ++i) r = r * (a - b + i) / i;
+      return r;
+    };
+    rate_hull_.assign(dof_, Eigen::MatrixXd());
+    for (int i = 2; i < dof_; ++i) {
+      const int d = traj_.degree(i), nn = std::max(n, d - 1);
+      Eigen::MatrixXd E = Eigen::MatrixXd::Zero(nn + 1, d + 1);
+      for (int k = 0; k <= nn; ++k)
+        for (int l = 0; l <= std::min(k, d - 1); ++l) E(k, l + 1) = (l + 1) * binom(k, l) / binom(nn, l);
+      rate_hull_[i] = E;
+    }
+  }
   const unsigned all = (dof_ == 32) ? ~0u : ((1u << dof_) - 1u), base = 7u;
   for (int j = 0; j < m; ++j) samples_.push_back({{double(j) / m, 0.0, 0.0}});
   for (int j = 0; j < m; ++j) {
@@ -166,13 +188,15 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     // The start configuration is q(0) = a_i0: variable bounds (bounds()), not rows.
     add_row(K_NH, s, 0, base, false, false, -nh_bound, nh_bound);
     add_row(K_BSPEED, s, 0, base, false, false, -kInf, problem.base_speed_limit * problem.base_speed_limit);
-    add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
+    if (!hull)
+      add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
     for (int j = 0; j < na; ++j) {
       double lo = robot.lower_limits()[3 + j], hi = robot.upper_limits()[3 + j];
       if ((std::isfinite(lo) || std::isfinite(hi)) && s > 0 && jsel[s * na + j])  // q(0) is fixed
         add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo + settings.joint_limit_margin : -kInf,
                 std::isfinite(hi) ? hi - settings.joint_limit_margin : kInf);
-      add_row(K_JRATE, s, j, 1u << (3 + j), false, false, -problem.arm_rate_limits[j], problem.arm_rate_limits[j]);
+      if (!hull)
+        add_row(K_JRATE, s, j, 1u << (3 + j), false, false, -problem.arm_rate_limits[j], problem.arm_rate_limits[j]);
     }
     if (interval == 1) {
       add_row(K_AREA, s, 0, base, false, false, problem.grasp_area_rmin * problem.grasp_area_rmin,
@@ -199,6 +223,12 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     collision_rows(nreg_ + e, extra[e].second);
   }
   sample_row_begin_.push_back(static_cast<int>(rows_.size()));
+  if (hull) {  // yaw and arm joint rates over all of [0, T]: the hull of the rate's Bernstein points
+    for (int i = 2; i < dof_; ++i) {
+      const double lim = i == 2 ? problem.base_yaw_rate_limit : problem.arm_rate_limits[i - 3];
+      for (int k = 0; k < rate_hull_[i].rows(); ++k) add_row(K_RATE_HULL, -1, i * 64 + k, 0, false, false, -lim, lim);
+    }
+  }
   add_row(K_TIMING, -1, 0, 0, false, true, problem.stroke, problem.stroke);
   add_row(K_ORDER, -1, 0, 0, false, false, 0.0, kInf);
   if (level >= 4) add_row(K_RHO, -1, 0, 0, true, true, problem.gamma, kInf);
@@ -225,6 +255,10 @@ void PickupConstraints::add_row(int kind, int sample, int aux, unsigned mask, bo
   } else if (kind == K_ORDER) {
     push(idx_s1());
     push(idx_s2());
+  } else if (kind == K_RATE_HULL) {
+    const int i = aux / 64;
+    for (int k = 0; k <= traj_.degree(i); ++k) push(traj_.offset(i) + k);
+    push(idx_T());
   }
   if (sg) push(idx_Sg());
   if (sc) push(idx_Sc());
@@ -388,6 +422,14 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
       if (R.kind == K_TIMING) {  // (T2 - T1) S_c = stroke
         if (g) g[r] = (s2 - s1) * T * Sc;
         if (J) { J[0] = -T * Sc; J[1] = T * Sc; J[2] = (s2 - s1) * Sc; J[3] = (s2 - s1) * T; }
+      } else if (R.kind == K_RATE_HULL) {  // beta_k / T
+        const int i = R.aux / 64, k = R.aux % 64, d = traj_.degree(i);
+        const double b = rate_hull_[i].row(k).dot(Eigen::Map<const Eigen::VectorXd>(x + traj_.offset(i), d + 1));
+        if (g) g[r] = b / T;
+        if (J) {
+          for (int l = 0; l <= d; ++l) J[l] = rate_hull_[i](k, l) / T;
+          J[d + 1] = -b / (T * T);
+        }
       } else if (R.kind == K_ORDER) {
         if (g) g[r] = s2 - s1;
         if (J) { J[0] = -1.0; J[1] = 1.0; }

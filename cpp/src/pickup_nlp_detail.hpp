@@ -13,7 +13,7 @@ namespace pickup_detail {
 
 enum Kind {
   K_START, K_NH, K_BSPEED, K_YAWRATE, K_JPOS, K_JRATE, K_AREA, K_VEL, K_OMEGA, K_POSE_P, K_POSE_R, K_POSE_TR,
-  K_GOALPOS, K_GOALYAW, K_COLL, K_TIMING, K_ORDER, K_RHO
+  K_GOALPOS, K_GOALYAW, K_COLL, K_TIMING, K_ORDER, K_RHO, K_RATE_HULL
 };
 constexpr double kInf = 2e19;
 

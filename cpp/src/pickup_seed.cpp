@@ -296,8 +296,11 @@ Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, c
     vv += v.squaredNorm();
   }
   if (!(vv > 0.0)) return x;
-  const double T = std::clamp(std::sqrt(vv / m) / Sg, st.t_min, st.t_max);
-  if (!(T > x[nc + 2])) return x;  // only ever slows down
+  const double Tfull = std::clamp(std::sqrt(vv / m) / Sg, st.t_min, st.t_max);
+  if (!(Tfull > x[nc + 2])) return x;  // only ever slows down
+  // Halfway (geometrically) to the fully slowed T: stage 3 then approaches its T from both sides
+  // (from the full slow-down it stopped at slower local optima in cases 3 and 6).
+  const double T = std::sqrt(x[nc + 2] * Tfull);
   Eigen::VectorXd out = x;
   out[nc + 2] = T;
   out[nc] = std::max(0.0, s2 - pb.stroke / (T * Sc));  // (T2 - T1) S_c = stroke, T2 kept

@@ -87,6 +87,11 @@ struct PickupSettings {
   double collision_margin = 0.02;       // m
   double joint_limit_margin = 0.05;     // rad, sampled position limits tightened (limits hold between samples)
   double t_min = 0.5, t_max = 100.0;    // bounds on T (s)
+  // Yaw and arm joint rate limits: "hull" bounds each rate polynomial by its Bernstein points of
+  // degree rate_hull_degree (the convex-hull property: the limit then holds on all of [0, T], with
+  // a small margin of conservatism, in a few rows per DOF); "sampled": at the m samples per interval.
+  std::string rate_rows = "hull";
+  int rate_hull_degree = 12;
   double tol = 1e-6, constr_viol_tol = 1e-6;
   int max_iter = 400;
   double max_cpu_time = 20.0;           // per stage (s)
@@ -204,6 +209,7 @@ class PickupConstraints {
   int nc_ = 0, n_ = 0, dof_ = 0, level_ = 0, nreg_ = 0;
   double sg_cap_ = 0.0;
   std::vector<unsigned> body_mask_;  // DOFs moving each body sphere
+  std::vector<Eigen::MatrixXd> rate_hull_;  // per DOF: monomial coefficients -> Bernstein points of P_s
   std::vector<Sample> samples_;
   std::vector<Row> rows_;
   std::vector<int> sample_row_begin_;  // rows of sample s: [begin[s], begin[s+1]); special rows after
@@ -243,9 +249,9 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem,
 // damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x);
-// Stage-3 warm start: the same path in normalised time, slowed down (T larger) so that the tool's
-// rms speed over the grasping samples is S_g, and T1 moved to keep (T2 - T1) S_c = stroke; x
-// unchanged when that would not slow it down.
+// Stage-3 warm start: the same path in normalised time, slowed down: T becomes the geometric mean
+// of its value and the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
+// to keep (T2 - T1) S_c = stroke. x unchanged when that would not slow it down.
 Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                                   const Eigen::VectorXd& x);
 // A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others
