@@ -204,6 +204,8 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     throw std::invalid_argument("seed: inconsistent time ordering, expected 0 <= T1 <= T2 <= T, got T1=" +
                                 std::to_string(T1) + " T2=" + std::to_string(T2) + " T=" + std::to_string(T));
   StageResult res;
+  const auto t_start = std::chrono::steady_clock::now();
+  const double cpu_start = thread_cpu_seconds();
   res.stage = stage;
   std::string why;
   if ((stage == 0 || stage >= 2) && grasp_unreachable(robot, pb, why)) {
@@ -257,8 +259,6 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
       prev.lambda.clear();
       for (int r = 0; r < part.num_constraints(); ++r) prev.lambda[part.row_key(r)] = run.mult.lambda[r];
     }
-    res.seconds += run.seconds;
-    res.cpu_seconds += run.cpu_seconds;
     res.iterations += run.iterations;
     res.rounds = round + 1;
     res.rows = part.num_constraints();
@@ -294,6 +294,9 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     mu = st.mu_resolve;  // a warm re-solve: start near the boundary of the (mostly) active rows
   }
   res.x = x;
+  // Everything of the stage: Ipopt runs, row selection, full-stage and dense checks.
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  res.cpu_seconds = thread_cpu_seconds() - cpu_start;
   res.objective = res.x[cons.idx_T()];
   res.max_violation = cons.max_violation(res.x);
   const bool converged = res.status == "solved" || res.status == "solved_acceptable";
@@ -324,7 +327,11 @@ void fill_result(PickupResult& out, const Robot& robot, const PickupSettings& st
 PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                               const Eigen::VectorXd& x0) {
   PickupResult out;
+  const auto t_h = std::chrono::steady_clock::now();
+  const double cpu_h = thread_cpu_seconds();
   out.x = x0.size() ? x0 : heuristic_seed(robot, pb, st);
+  double seed_wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_h).count();
+  double seed_cpu = thread_cpu_seconds() - cpu_h;  // the heuristic seed counts as stage 1's time
   if (out.x.size() != num_vars(robot, st))
     throw std::invalid_argument("seed: expected " + std::to_string(num_vars(robot, st)) + " variables, got " + std::to_string(out.x.size()));
   out.status = "solved";
@@ -335,10 +342,17 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     // so it starts cold, as does stage 3 (its new velocity rows are far from satisfied); stages 4
     // and 5 start from the previous stage's multipliers.
     const bool warm = st.warm_start_stages && stage > 3;
+    const auto t_seed = std::chrono::steady_clock::now();
+    const double cpu_seed = thread_cpu_seconds();
     Eigen::VectorXd seed = out.x;
+    if (stage > 1) seed_wall = seed_cpu = 0.0;
     if (stage == 2) seed = grasp_ik_seed(robot, pb, st, out.x);
     if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, out.x);
+    seed_wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_seed).count();
+    seed_cpu += thread_cpu_seconds() - cpu_seed;
     StageResult r = solve_stage_warm(robot, pb, st, stage, seed, warm ? &mult : nullptr, &mult);
+    r.seconds += seed_wall;  // the stage's warm start (IK, timing) counts as the stage's time
+    r.cpu_seconds += seed_cpu;
     out.stages.push_back(r);
     if (!r.success) {
       out.status = r.status;

@@ -221,8 +221,8 @@ struct StageResult {
   std::string status;          // "solved", "solved_acceptable", "infeasible", ... (see status_name)
   std::string ipopt_status;    // Ipopt's ApplicationReturnStatus / SolverReturn as text
   bool success = false;
-  double seconds = 0.0;         // wall time of the Ipopt runs
-  double cpu_seconds = 0.0;     // their thread CPU time (the machine may be shared)
+  double seconds = 0.0;         // wall time of the stage (Ipopt runs, checks, and in solve_successive its seed)
+  double cpu_seconds = 0.0;     // its thread CPU time (the machine may be shared)
   int iterations = 0;           // over all active-set rounds
   int rounds = 0;               // Ipopt runs (active-set re-solves + 1)
   int rows = 0;                 // constraint rows of the last run
