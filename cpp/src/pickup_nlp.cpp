@@ -133,31 +133,31 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   // get extra samples (one per distinct instant), after the regular ones.
   std::vector<char> jsel(nreg_ * na, subset ? 0 : 1);
   std::vector<std::vector<int>> csel(nreg_);
-  std::vector<std::pair<Sample, std::vector<int>>> extra;
+  struct Extra { Sample at; std::vector<int> joints, pairs; };
+  std::vector<Extra> extra;
+  auto extra_at = [&](const double* w) -> Extra& {
+    auto it = std::find_if(extra.begin(), extra.end(), [&](const Extra& e) {
+      return e.at.w[0] == w[0] && e.at.w[1] == w[1] && e.at.w[2] == w[2];
+    });
+    if (it != extra.end()) return *it;
+    extra.push_back({{{w[0], w[1], w[2]}}, {}, {}});
+    return extra.back();
+  };
   const int no = static_cast<int>(problem.obstacles.size()), npairs = no * static_cast<int>(problem.body_spheres.size());
   if (subset) {
     for (const auto& j : subset->joints) {
-      if (j.sample < 0 || j.sample >= nreg_ || j.joint < 0 || j.joint >= na)
+      if (j.sample >= nreg_ || j.joint < 0 || j.joint >= na)
         throw std::invalid_argument("row subset: joint row (sample " + std::to_string(j.sample) + ", joint " +
                                     std::to_string(j.joint) + ") out of range");
-      jsel[j.sample * na + j.joint] = 1;
+      if (j.sample >= 0) jsel[j.sample * na + j.joint] = 1;
+      else extra_at(j.w).joints.push_back(j.joint);
     }
     for (const auto& c : subset->collisions) {
       if (c.pair < 0 || c.pair >= npairs || c.sample >= nreg_)
         throw std::invalid_argument("row subset: collision row (sample " + std::to_string(c.sample) + ", pair " +
                                     std::to_string(c.pair) + ") out of range");
-      if (c.sample >= 0) {
-        csel[c.sample].push_back(c.pair);
-        continue;
-      }
-      auto it = std::find_if(extra.begin(), extra.end(), [&](const auto& e) {
-        return e.first.w[0] == c.w[0] && e.first.w[1] == c.w[1] && e.first.w[2] == c.w[2];
-      });
-      if (it == extra.end()) {
-        extra.push_back({{{c.w[0], c.w[1], c.w[2]}}, {}});
-        it = extra.end() - 1;
-      }
-      it->second.push_back(c.pair);
+      if (c.sample >= 0) csel[c.sample].push_back(c.pair);
+      else extra_at(c.w).pairs.push_back(c.pair);
     }
   } else {
     for (auto& v : csel)
@@ -168,9 +168,11 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     v.erase(std::unique(v.begin(), v.end()), v.end());
   }
   for (auto& e : extra) {
-    samples_.push_back(e.first);
-    std::sort(e.second.begin(), e.second.end());
-    e.second.erase(std::unique(e.second.begin(), e.second.end()), e.second.end());
+    samples_.push_back(e.at);
+    for (auto* v : {&e.joints, &e.pairs}) {
+      std::sort(v->begin(), v->end());
+      v->erase(std::unique(v->begin(), v->end()), v->end());
+    }
   }
   for (const auto& b : problem.body_spheres) {
     unsigned mask = 0;
@@ -178,6 +180,12 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
       if (robot.moves(i, b.link)) mask |= 1u << i;
     body_mask_.push_back(mask);
   }
+  auto joint_row = [&](int s, int j) {
+    const double lo = robot.lower_limits()[3 + j], hi = robot.upper_limits()[3 + j];
+    if (std::isfinite(lo) || std::isfinite(hi))
+      add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo + settings.joint_limit_margin : -kInf,
+              std::isfinite(hi) ? hi - settings.joint_limit_margin : kInf);
+  };
   auto collision_rows = [&](int s, const std::vector<int>& pairs) {
     for (int p : pairs)
       if (pair_in_stage(p)) add_row(K_COLL, s, p, body_mask_[p / no], false, false, settings.collision_margin, kInf);
@@ -191,10 +199,7 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     if (!hull)
       add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
     for (int j = 0; j < na; ++j) {
-      double lo = robot.lower_limits()[3 + j], hi = robot.upper_limits()[3 + j];
-      if ((std::isfinite(lo) || std::isfinite(hi)) && s > 0 && jsel[s * na + j])  // q(0) is fixed
-        add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo + settings.joint_limit_margin : -kInf,
-                std::isfinite(hi) ? hi - settings.joint_limit_margin : kInf);
+      if (s > 0 && jsel[s * na + j]) joint_row(s, j);  // q(0) is fixed
       if (!hull)
         add_row(K_JRATE, s, j, 1u << (3 + j), false, false, -problem.arm_rate_limits[j], problem.arm_rate_limits[j]);
     }
@@ -220,7 +225,8 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   }
   for (int e = 0; e < static_cast<int>(extra.size()); ++e) {
     sample_row_begin_.push_back(static_cast<int>(rows_.size()));
-    collision_rows(nreg_ + e, extra[e].second);
+    for (int j : extra[e].joints) joint_row(nreg_ + e, j);
+    collision_rows(nreg_ + e, extra[e].pairs);
   }
   sample_row_begin_.push_back(static_cast<int>(rows_.size()));
   if (hull) {  // yaw and arm joint rates over all of [0, T]: the hull of the rate's Bernstein points

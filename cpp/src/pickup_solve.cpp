@@ -177,10 +177,12 @@ bool grasp_unreachable(const Robot& robot, const PickupProblem& pb, std::string&
 }  // namespace
 
 namespace {
-// Multipliers of a solved stage, by row key (PickupConstraints::row_key), for the next one.
+// What a solved stage hands the next: its multipliers by row key (PickupConstraints::row_key) and
+// its optional rows (those found between samples are not rediscovered by near_rows).
 struct StageMultipliers {
   std::map<std::array<double, 5>, double> lambda;
   Eigen::VectorXd zl, zu;
+  PickupRowSubset subset;
 };
 
 StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
@@ -238,7 +240,8 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
   StageMultipliers prev;  // from the last round (or the previous stage)
   if (warm_in) {
     prev = *warm_in;
-    mu = st.mu_resolve;
+    subset.merge(warm_in->subset);
+    if (prev.zl.size()) mu = st.mu_resolve;
   }
   for (int round = 0;; ++round) {
     const PickupConstraints part(robot, pb, st, stage, &subset);
@@ -274,8 +277,8 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     const bool feasible = cons.max_violation(x) <= tol;
     PickupRowSubset more;
     if (st.active_set && !feasible) more = cons.near_rows(x, st.active_joint_window, st.active_collision_window);
-    if (cons.has_collision_rows() && st.dense_subdivisions > 0)
-      more.merge(cons.dense_collision_points(x, st.dense_subdivisions, 0.5 * st.collision_margin));
+    if (st.dense_subdivisions > 0)
+      more.merge(cons.dense_points(x, st.dense_subdivisions, 0.5 * st.collision_margin, 0.5 * st.joint_limit_margin));
     if (feasible && more.size() == 0) break;
     const int before = subset.size();
     if (st.print_level > 0) {
@@ -285,7 +288,7 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     }
     subset.merge(more);
     if (subset.size() == before || round + 1 >= st.active_max_rounds) {
-      res.status = feasible ? "collision_between_samples" : "constraint_violation";
+      res.status = feasible ? "violation_between_samples" : "constraint_violation";
       res.ipopt_status += " (active set: " + std::to_string(round + 1) + " rounds, " +
                           (feasible ? "the dense check between samples still fails" : "rows still violated") + ")";
       run.converged = false;
@@ -302,7 +305,10 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
   const bool converged = res.status == "solved" || res.status == "solved_acceptable";
   res.success = converged && res.max_violation <= tol;
   if (converged && !res.success) res.status = "constraint_violation";
-  if (warm_out && res.success) *warm_out = prev;
+  if (warm_out && res.success) {
+    *warm_out = prev;
+    warm_out->subset = subset;
+  }
   return res;
 }
 }  // namespace
@@ -342,6 +348,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     // so it starts cold, as does stage 3 (its new velocity rows are far from satisfied); stages 4
     // and 5 start from the previous stage's multipliers.
     const bool warm = st.warm_start_stages && stage > 3;
+    if (!warm) mult = StageMultipliers();  // stages 2 and 3 start afresh
     const auto t_seed = std::chrono::steady_clock::now();
     const double cpu_seed = thread_cpu_seconds();
     Eigen::VectorXd seed = out.x;
@@ -350,7 +357,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, out.x);
     seed_wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_seed).count();
     seed_cpu += thread_cpu_seconds() - cpu_seed;
-    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, warm ? &mult : nullptr, &mult);
+    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult);
     r.seconds += seed_wall;  // the stage's warm start (IK, timing) counts as the stage's time
     r.cpu_seconds += seed_cpu;
     out.stages.push_back(r);

@@ -58,7 +58,8 @@ TEST(PickupActiveSet, SubsetRowsHaveExactDerivatives) {
   PickupProblem pb = paper_case(r, 5, example_rho());
   PickupSettings st = fast_settings();
   PickupRowSubset sub;
-  sub.joints = {{1, 0}, {5, 2}, {12, 5}, {17, 1}};
+  sub.joints = {{1, 0, {0, 0, 0}}, {5, 2, {0, 0, 0}}, {12, 5, {0, 0, 0}}, {17, 1, {0, 0, 0}},
+                {-1, 2, {0.3, 0.7, 0.0}}};  // the elbow between two grasping samples
   sub.collisions.push_back({3, {0, 0, 0}, 4});
   sub.collisions.push_back({-1, {0.55, 0.0, 0.0}, 7});    // inside [0, T1)
   sub.collisions.push_back({-1, {0.55, 0.0, 0.0}, 12});   // same instant, another pair
@@ -112,6 +113,15 @@ TEST(PickupActiveSet, SubsetRowsHaveExactDerivatives) {
       found = true;
     }
   EXPECT_TRUE(found);
+  Eigen::VectorXd qm(r.dof());
+  c.traj().eval(x.data(), s_mid, qm.data(), nullptr, nullptr);
+  found = false;
+  for (int i = 0; i < m; ++i)
+    if (names[i].rfind("joint_position[2]@", 0) == 0 && std::stoi(names[i].substr(18)) >= c.num_regular_samples()) {
+      EXPECT_NEAR(g[i], qm[5], 1e-12);
+      found = true;
+    }
+  EXPECT_TRUE(found);
   PickupRowSubset bad;
   bad.collisions.push_back({-1, {0.5, 0.5, 0.0}, 99});
   EXPECT_THROW(PickupConstraints(r, pb, st, 5, &bad), std::invalid_argument);
@@ -141,7 +151,7 @@ TEST(PickupActiveSet, DenseCheckFindsCollisionsBetweenSamples) {
   // ... but not in between, and the dense check reports it there.
   EXPECT_LT(pair_clearance(r, pb, c, x, s_mid, pair), 0.0);
   double least = 0.0;
-  PickupRowSubset pts = c.dense_collision_points(x, 16, 0.5 * st.collision_margin, &least);
+  PickupRowSubset pts = c.dense_points(x, 16, 0.5 * st.collision_margin, 0.5 * st.joint_limit_margin, &least);
   EXPECT_LT(least, 0.0);
   bool between = false;
   for (const auto& p : pts.collisions) {
@@ -153,7 +163,7 @@ TEST(PickupActiveSet, DenseCheckFindsCollisionsBetweenSamples) {
   EXPECT_TRUE(between);
   // Stages before 5 carry only the base's collision rows; the dense check follows the stage.
   PickupConstraints s1(r, pb, st, 1);
-  for (const auto& p : s1.dense_collision_points(x, 16, 1.0).collisions) EXPECT_TRUE(s1.pair_in_stage(p.pair));
+  for (const auto& p : s1.dense_points(x, 16, 1.0, 0.0).collisions) EXPECT_TRUE(s1.pair_in_stage(p.pair));
   EXPECT_TRUE(s1.pair_in_stage(pair));        // base sphere: a base path constraint
   EXPECT_FALSE(s1.pair_in_stage(no * 4));     // flange sphere: stage 5 only
   EXPECT_TRUE(c.pair_in_stage(no * 4));

@@ -110,9 +110,10 @@ struct PickupSettings {
   double warm_start_push = 1e-6;
   bool timing_seed = true;              // stage 3 starts from grasp_timing_seed()
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
-  // Collision stages: the trajectory between the regular samples is checked at this many
-  // subdivisions of each gap; where a body comes closer than collision_margin / 2, a collision row
-  // at that instant joins and the stage is re-solved (0: samples only, as the paper).
+  // The trajectory between the regular samples is checked at this many subdivisions of each gap;
+  // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
+  // closer than joint_limit_margin / 2 to its limit, a row at that instant joins and the stage is
+  // re-solved (0: samples only, as the paper).
   int dense_subdivisions = 16;
   double seed_speed = 1.0;              // heuristic seed: T = path length / seed_speed
   unsigned seed = 0;                    // random seeds (arm perturbation, single-shot baseline)
@@ -120,10 +121,14 @@ struct PickupSettings {
 };
 
 // A subset of a stage's optional rows (joint-position and collision rows), for the active-set
-// solve: a joint row at a regular sample, a collision row at a regular sample or at any instant
-// s = w0 s1 + w1 s2 + w2 (e.g. between samples, where a dense check found the trajectory too close).
+// solve: a joint or collision row at a regular sample or at any instant s = w0 s1 + w1 s2 + w2
+// (e.g. between samples, where the dense check found the trajectory too close to a limit).
 struct PickupRowSubset {
-  struct Joint { int sample = 0, joint = 0; };  // arm joint 0..dof-4
+  struct Joint {
+    int sample = 0;    // >= 0: a regular sample (w unused); -1: the instant given by w
+    int joint = 0;     // arm joint 0..dof-4
+    double w[3] = {0.0, 0.0, 0.0};
+  };
   struct Collision {
     int sample = -1;   // >= 0: a regular sample (w unused); -1: the instant given by w
     double w[3] = {0.0, 0.0, 0.0};
@@ -183,10 +188,12 @@ class PickupConstraints {
   // clearance is within collision_window (m) of the collision margin (pairs of pair_in_stage).
   PickupRowSubset near_rows(const Eigen::VectorXd& x, double joint_window, double collision_window) const;
   // Dense check between the regular samples (each gap split into `subdivisions`): per gap and
-  // body/obstacle pair, the instant of least clearance when that clearance is below `threshold`.
-  // min_clearance (optional) receives the least clearance over the dense instants and the samples.
-  PickupRowSubset dense_collision_points(const Eigen::VectorXd& x, int subdivisions, double threshold,
-                                         double* min_clearance = nullptr) const;
+  // body/obstacle pair, the instant of least clearance when that clearance is below `threshold`;
+  // per gap and arm joint, the instant of largest excursion when the joint comes closer than
+  // joint_limit_margin - joint_slack to its limit. min_clearance (optional) receives the least
+  // clearance over the dense instants and the samples.
+  PickupRowSubset dense_points(const Eigen::VectorXd& x, int subdivisions, double threshold, double joint_slack,
+                               double* min_clearance = nullptr) const;
 
  private:
   struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
