@@ -10,7 +10,14 @@
 #include "pickplan/pickup_nlp.hpp"
 
 namespace pickplan {
-
+namespace {
+// The S_g bound of PickupConstraints (sg_hi when rho >= gamma is unattainable: seeds still work).
+double sg_cap(const PickupProblem& pb) {
+  const double a = pb.vary_sc ? pb.rho.sc_lo : pb.sc_fixed, b = pb.vary_sc ? pb.rho.sc_hi : pb.sc_fixed;
+  const double cap = pb.rho.sg_upper_bound(pb.gamma, a, b);
+  return std::isnan(cap) ? pb.rho.sg_hi : cap;
+}
+}  // namespace
 
 Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
   pb.validate(robot);
@@ -89,7 +96,7 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, cons
   x[nc] = T1 / T;
   x[nc + 1] = T2 / T;
   x[nc + 2] = T;
-  x[nc + 3] = 0.5 * (pb.rho.sg_lo + pb.rho.sg_hi);
+  x[nc + 3] = 0.5 * (pb.rho.sg_lo + sg_cap(pb));
   x[nc + 4] = sc;
   return x;
 }
@@ -111,7 +118,7 @@ Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const P
   x[nc] = a;
   x[nc + 1] = b;
   x[nc + 2] = T;
-  x[nc + 3] = pb.rho.sg_lo + ut(rng) * (pb.rho.sg_hi - pb.rho.sg_lo);
+  x[nc + 3] = pb.rho.sg_lo + ut(rng) * (sg_cap(pb) - pb.rho.sg_lo);
   x[nc + 4] = pb.vary_sc ? pb.rho.sc_lo + ut(rng) * (pb.rho.sc_hi - pb.rho.sc_lo) : pb.sc_fixed;
   return x;
 }
@@ -146,6 +153,39 @@ double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, i
   return err;
 }
 
+// Whole-body damped least squares (base translation steps scaled by base_weight) from q, for the grasp pose;
+// the base is then kept in the grasping area and the arm re-solved. Returns the residual.
+double body_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, int iters, double margin,
+               double base_weight) {
+  const int n = robot.dof();
+  RobotWorkspace ws(robot);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
+  Eigen::VectorXd W = Eigen::VectorXd::Ones(n);
+  W.head<2>().setConstant(base_weight);
+  W[2] = 0.0;  // heading kept (it follows the path)
+  for (int it = 0; it < iters; ++it) {
+    robot.forward_kinematics(q.data(), ws);
+    const Transform& T = ws.link_pose[pb.tool_link];
+    Eigen::Matrix<double, 6, 1> e;
+    e.head<3>() = pb.grasp_pose.p - T.p;
+    Eigen::Vector3d eo = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) eo += 0.5 * T.R.col(k).cross(pb.grasp_pose.R.col(k));
+    e.tail<3>() = eo;
+    if (e.norm() < 1e-10) break;
+    robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
+    const Eigen::Matrix<double, 6, 6> A = J * W.asDiagonal() * J.transpose() + 1e-4 * Eigen::Matrix<double, 6, 6>::Identity();
+    Eigen::VectorXd dq = W.asDiagonal() * (J.transpose() * A.ldlt().solve(e));
+    if (dq.norm() > 0.3) dq *= 0.3 / dq.norm();
+    q += dq;
+    for (int j = 3; j < n; ++j)
+      q[j] = std::clamp(q[j], robot.lower_limits()[j] + margin, robot.upper_limits()[j] - margin);
+  }
+  Eigen::Vector2d d = q.head<2>() - pb.part_xy;
+  const double r = std::clamp(d.norm(), pb.grasp_area_rmin + 0.02, pb.grasp_area_rmax - 0.02);
+  if (d.norm() > 1e-9) q.head<2>() = pb.part_xy + r * d.normalized();
+  return arm_ik(robot, pb, q, iters, margin);
+}
+
 }  // namespace
 
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
@@ -174,8 +214,46 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
         best = q;
       }
     }
-  // Arm polynomials: smooth blend from arm_start to the IK solution at s2, then held.
   Eigen::VectorXd out = x;
+  if (best_score >= 1e3 * 1e-6) {
+    // Out of reach from the stage-1 base pose at T2 (it tends to skim the grasping area's outer
+    // edge): move the base too, then bend the base path through the new pose at s2.
+    Eigen::VectorXd q = best;
+    if (body_ik(robot, pb, q, 150, st.joint_limit_margin, 0.3) < 1e-6) {
+      // Base path: the old one plus the displacement at s2 faded out smoothly away from s2; the
+      // heading then follows the new path's tangent (keeps the non-holonomic rows nearly met).
+      const Eigen::Vector2d delta = q.head<2>() - q2.head<2>();
+      const int K = 60;
+      Eigen::VectorXd ss(K), vx(K), vy(K), vp(K), w = Eigen::VectorXd::Ones(K);
+      Eigen::VectorXd qk(n), qdk(n);
+      w[0] = 100.0;
+      for (int k = 0; k < K; ++k) {
+        ss[k] = double(k) / (K - 1);
+        tr.eval(x.data(), ss[k], qk.data(), nullptr, nullptr);
+        const double b = std::exp(-std::pow((ss[k] - s2) / 0.25, 2)) * (k == 0 ? 0.0 : 1.0);
+        vx[k] = qk[0] + b * delta.x();
+        vy[k] = qk[1] + b * delta.y();
+      }
+      tr.fit_dof(0, ss, vx, out.data(), w);
+      tr.fit_dof(1, ss, vy, out.data(), w);
+      double prev = pb.start[2];
+      for (int k = 0; k < K; ++k) {
+        tr.eval(out.data(), ss[k], qk.data(), qdk.data(), nullptr);
+        double h = k == 0 ? pb.start[2] : std::atan2(qdk[1], qdk[0]);
+        while (h - prev > M_PI) h -= 2 * M_PI;
+        while (h - prev < -M_PI) h += 2 * M_PI;
+        vp[k] = prev = h;
+      }
+      tr.fit_dof(2, ss, vp, out.data(), w);
+      for (int j = 0; j < 3; ++j) out[tr.offset(j)] = pb.start[j];
+      // The arm again, at the base pose the new path actually has at s2.
+      tr.eval(out.data(), s2, qk.data(), nullptr, nullptr);
+      q.head<3>() = qk.head<3>();
+      arm_ik(robot, pb, q, 150, st.joint_limit_margin);
+      best = q;
+    }
+  }
+  // Arm polynomials: smooth blend from arm_start to the IK solution at s2, then held.
   const int K = 40;
   Eigen::VectorXd ss(K), vals(K), w = Eigen::VectorXd::Ones(K);
   for (int j = 3; j < n; ++j) {
@@ -191,6 +269,41 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
     w[0] = 30.0;
     tr.fit_dof(j, ss, vals, out.data(), w);
   }
+  return out;
+}
+
+Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+                                  const Eigen::VectorXd& x) {
+  pb.validate(robot);
+  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  PolyTraj tr(deg, 1.0);
+  const int nc = tr.num_coeffs(), n = robot.dof();
+  if (x.size() != nc + 5) throw std::invalid_argument("grasp_timing_seed: expected " + std::to_string(nc + 5) + " variables");
+  const double s1 = x[nc], s2 = x[nc + 1], Sg = x[nc + 3], Sc = x[nc + 4];
+  // Tool velocity per unit normalised time, v_j = J P_s, at the grasping samples; T such that the
+  // tool's rms speed v / T during grasping is S_g (the speed stage 3 asks for).
+  RobotWorkspace ws(robot);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
+  Eigen::VectorXd q(n), ps(n);
+  double vv = 0.0;
+  const int m = std::max(2, st.samples_per_interval);
+  for (int j = 0; j < m; ++j) {
+    const double s = s1 + (s2 - s1) * j / (m - 1);
+    tr.eval(x.data(), s, q.data(), ps.data(), nullptr);
+    robot.forward_kinematics(q.data(), ws);
+    robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
+    const Eigen::Vector3d v = J.topRows<3>() * ps;
+    vv += v.squaredNorm();
+  }
+  if (!(vv > 0.0)) return x;
+  const double Tfull = std::clamp(std::sqrt(vv / m) / Sg, st.t_min, st.t_max);
+  if (!(Tfull > x[nc + 2])) return x;  // only ever slows down
+  // Halfway (geometrically) to the fully slowed T: stage 3 then approaches its T from both sides
+  // (from the full slow-down it stopped at slower local optima in cases 3 and 6).
+  const double T = std::sqrt(x[nc + 2] * Tfull);
+  Eigen::VectorXd out = x;
+  out[nc + 2] = T;
+  out[nc] = std::max(0.0, s2 - pb.stroke / (T * Sc));  // (T2 - T1) S_c = stroke, T2 kept
   return out;
 }
 

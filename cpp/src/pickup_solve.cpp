@@ -4,7 +4,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <limits>
+#include <map>
 #include <stdexcept>
 
 #include <coin/IpIpoptApplication.hpp>
@@ -12,8 +15,10 @@
 #include <coin/IpTNLP.hpp>
 
 #include "pickplan/pickup_nlp.hpp"
+#include "pickup_nlp_detail.hpp"
 
 namespace pickplan {
+using namespace pickup_detail;
 
 // ---- rho ---------------------------------------------------------------------------------------
 namespace {
@@ -33,6 +38,20 @@ void bernstein(int n, double u, Eigen::VectorXd& b, Eigen::VectorXd& db) {
     if (k < n) d -= (n - k) * std::pow(u, k) * std::pow(1.0 - u, n - k - 1);
     db[k] = binom(n, k) * d;
   }
+}
+// Second derivatives (w.r.t. u) of the Bernstein basis of degree n at u.
+Eigen::VectorXd bernstein_dd(int n, double u) {
+  Eigen::VectorXd d2(n + 1);
+  auto mono = [&](int a, int b) { return std::pow(u, a) * std::pow(1.0 - u, b); };
+  for (int k = 0; k <= n; ++k) {
+    const int m = n - k;
+    double d = 0.0;
+    if (k >= 2) d += k * (k - 1) * mono(k - 2, m);
+    if (k >= 1 && m >= 1) d -= 2.0 * k * m * mono(k - 1, m - 1);
+    if (m >= 2) d += m * (m - 1) * mono(k, m - 2);
+    d2[k] = binom(n, k) * d;
+  }
+  return d2;
 }
 }  // namespace
 
@@ -56,6 +75,38 @@ Eigen::Vector2d RhoPoly::gradient(double sg, double sc) const {
   bernstein(static_cast<int>(coeffs.rows()) - 1, std::clamp((sg - sg_lo) / (sg_hi - sg_lo), 0.0, 1.0), bu, dbu);
   bernstein(static_cast<int>(coeffs.cols()) - 1, std::clamp((sc - sc_lo) / (sc_hi - sc_lo), 0.0, 1.0), bv, dbv);
   return {dbu.dot(coeffs * bv) / (sg_hi - sg_lo), bu.dot(coeffs * dbv) / (sc_hi - sc_lo)};
+}
+
+Eigen::Matrix2d RhoPoly::hessian(double sg, double sc) const {
+  Eigen::VectorXd bu, dbu, bv, dbv;
+  const double u = std::clamp((sg - sg_lo) / (sg_hi - sg_lo), 0.0, 1.0), v = std::clamp((sc - sc_lo) / (sc_hi - sc_lo), 0.0, 1.0);
+  bernstein(static_cast<int>(coeffs.rows()) - 1, u, bu, dbu);
+  bernstein(static_cast<int>(coeffs.cols()) - 1, v, bv, dbv);
+  const Eigen::VectorXd ddu = bernstein_dd(static_cast<int>(coeffs.rows()) - 1, u);
+  const Eigen::VectorXd ddv = bernstein_dd(static_cast<int>(coeffs.cols()) - 1, v);
+  const double gu = sg_hi - sg_lo, gv = sc_hi - sc_lo;
+  Eigen::Matrix2d h;
+  h(0, 0) = ddu.dot(coeffs * bv) / (gu * gu);
+  h(0, 1) = h(1, 0) = dbu.dot(coeffs * dbv) / (gu * gv);
+  h(1, 1) = bu.dot(coeffs * ddv) / (gv * gv);
+  return h;
+}
+
+double RhoPoly::sg_upper_bound(double gamma, double sc_a, double sc_b) const {
+  constexpr int NG = 64, NC = 16;
+  Eigen::MatrixXd bv(coeffs.cols(), NC);
+  Eigen::VectorXd b, db;
+  for (int j = 0; j < NC; ++j) {
+    const double sc = sc_a + (sc_b - sc_a) * j / (NC - 1);
+    bernstein(static_cast<int>(coeffs.cols()) - 1, std::clamp((sc - sc_lo) / (sc_hi - sc_lo), 0.0, 1.0), b, db);
+    bv.col(j) = b;
+  }
+  const Eigen::MatrixXd Cb = coeffs * bv;
+  for (int i = NG - 1; i >= 0; --i) {
+    bernstein(static_cast<int>(coeffs.rows()) - 1, double(i) / (NG - 1), b, db);
+    if ((b.transpose() * Cb).maxCoeff() >= gamma) return sg_lo + (sg_hi - sg_lo) * std::min(i + 1, NG - 1) / (NG - 1);
+  }
+  return std::numeric_limits<double>::quiet_NaN();
 }
 
 void PickupProblem::validate(const Robot& robot) const {
@@ -98,126 +149,6 @@ int num_vars(const Robot& robot, const PickupSettings& st) {
 }
 }  // namespace
 
-// ---- Ipopt -------------------------------------------------------------------------------------
-namespace {
-
-class PickupTNLP : public Ipopt::TNLP {
- public:
-  PickupTNLP(const PickupConstraints& c, const Eigen::VectorXd& x0) : c_(c), x0_(x0), x_(x0) {}
-  Eigen::VectorXd x_;
-  int iterations = 0;
-  Ipopt::SolverReturn solver_status = Ipopt::UNASSIGNED;
-
-  bool get_nlp_info(Ipopt::Index& n, Ipopt::Index& m, Ipopt::Index& nnz_jac, Ipopt::Index& nnz_h,
-                    IndexStyleEnum& style) override {
-    n = c_.num_vars();
-    m = c_.num_constraints();
-    nnz_jac = c_.num_nonzeros();
-    nnz_h = 0;
-    style = C_STYLE;
-    return true;
-  }
-  bool get_bounds_info(Ipopt::Index n, Ipopt::Number* xl, Ipopt::Number* xu, Ipopt::Index m, Ipopt::Number* gl,
-                       Ipopt::Number* gu) override {
-    Eigen::VectorXd a, b, c, d;
-    c_.bounds(a, b, c, d);
-    std::copy(a.data(), a.data() + n, xl);
-    std::copy(b.data(), b.data() + n, xu);
-    std::copy(c.data(), c.data() + m, gl);
-    std::copy(d.data(), d.data() + m, gu);
-    return true;
-  }
-  bool get_starting_point(Ipopt::Index n, bool init_x, Ipopt::Number* x, bool init_z, Ipopt::Number*, Ipopt::Number*,
-                          Ipopt::Index, bool init_lambda, Ipopt::Number*) override {
-    if (init_z || init_lambda) return false;
-    if (init_x) std::copy(x0_.data(), x0_.data() + n, x);
-    return true;
-  }
-  bool eval_f(Ipopt::Index, const Ipopt::Number* x, bool, Ipopt::Number& f) override {
-    f = x[c_.idx_T()];
-    return std::isfinite(f);
-  }
-  bool eval_grad_f(Ipopt::Index n, const Ipopt::Number*, bool, Ipopt::Number* g) override {
-    std::fill(g, g + n, 0.0);
-    g[c_.idx_T()] = 1.0;
-    return true;
-  }
-  bool eval_g(Ipopt::Index, const Ipopt::Number* x, bool, Ipopt::Index m, Ipopt::Number* g) override {
-    try {
-      c_.eval_g(x, g);
-    } catch (...) {
-      return false;
-    }
-    for (int i = 0; i < m; ++i)
-      if (!std::isfinite(g[i])) return false;
-    return true;
-  }
-  bool eval_jac_g(Ipopt::Index, const Ipopt::Number* x, bool, Ipopt::Index, Ipopt::Index nele, Ipopt::Index* rows,
-                  Ipopt::Index* cols, Ipopt::Number* values) override {
-    try {
-      if (values == nullptr) {
-        c_.jac_structure(rows, cols);
-      } else {
-        c_.eval_jac(x, values);
-        for (int i = 0; i < nele; ++i)
-          if (!std::isfinite(values[i])) return false;
-      }
-    } catch (...) {
-      return false;
-    }
-    return true;
-  }
-  void finalize_solution(Ipopt::SolverReturn status, Ipopt::Index n, const Ipopt::Number* x, const Ipopt::Number*,
-                         const Ipopt::Number*, Ipopt::Index, const Ipopt::Number*, const Ipopt::Number*, Ipopt::Number,
-                         const Ipopt::IpoptData* ip_data, Ipopt::IpoptCalculatedQuantities*) override {
-    solver_status = status;
-    if (x) x_ = Eigen::Map<const Eigen::VectorXd>(x, n);
-    if (ip_data) iterations = ip_data->iter_count();
-  }
-
- private:
-  const PickupConstraints& c_;
-  Eigen::VectorXd x0_;
-};
-
-const char* app_status_text(Ipopt::ApplicationReturnStatus s) {
-  switch (s) {
-    case Ipopt::Solve_Succeeded: return "Solve_Succeeded";
-    case Ipopt::Solved_To_Acceptable_Level: return "Solved_To_Acceptable_Level";
-    case Ipopt::Infeasible_Problem_Detected: return "Infeasible_Problem_Detected";
-    case Ipopt::Search_Direction_Becomes_Too_Small: return "Search_Direction_Becomes_Too_Small";
-    case Ipopt::Diverging_Iterates: return "Diverging_Iterates";
-    case Ipopt::User_Requested_Stop: return "User_Requested_Stop";
-    case Ipopt::Feasible_Point_Found: return "Feasible_Point_Found";
-    case Ipopt::Maximum_Iterations_Exceeded: return "Maximum_Iterations_Exceeded";
-    case Ipopt::Restoration_Failed: return "Restoration_Failed";
-    case Ipopt::Error_In_Step_Computation: return "Error_In_Step_Computation";
-    case Ipopt::Maximum_CpuTime_Exceeded: return "Maximum_CpuTime_Exceeded";
-    case Ipopt::Not_Enough_Degrees_Of_Freedom: return "Not_Enough_Degrees_Of_Freedom";
-    case Ipopt::Invalid_Problem_Definition: return "Invalid_Problem_Definition";
-    case Ipopt::Invalid_Option: return "Invalid_Option";
-    case Ipopt::Invalid_Number_Detected: return "Invalid_Number_Detected";
-    default: return "Internal_Error";
-  }
-}
-
-const char* short_status(Ipopt::ApplicationReturnStatus s) {
-  switch (s) {
-    case Ipopt::Solve_Succeeded: return "solved";
-    case Ipopt::Solved_To_Acceptable_Level: return "solved_acceptable";
-    case Ipopt::Infeasible_Problem_Detected: return "infeasible";
-    case Ipopt::Diverging_Iterates: return "diverging";
-    case Ipopt::Maximum_Iterations_Exceeded: return "max_iterations";
-    case Ipopt::Maximum_CpuTime_Exceeded: return "max_cpu_time";
-    case Ipopt::Restoration_Failed: return "restoration_failed";
-    case Ipopt::Search_Direction_Becomes_Too_Small: return "step_too_small";
-    case Ipopt::Invalid_Number_Detected: return "invalid_number";
-    default: return "solver_error";
-  }
-}
-
-}  // namespace
-
 namespace {
 // Sound reachability test of the grasp position: the tool is at most R (sum of the fixed link
 // offsets from the first arm joint to the tool, triangle inequality) from the first arm joint, whose
@@ -245,8 +176,27 @@ bool grasp_unreachable(const Robot& robot, const PickupProblem& pb, std::string&
 }
 }  // namespace
 
+namespace {
+// What a solved stage hands the next: its multipliers by row key (PickupConstraints::row_key) and
+// its optional rows (those found between samples are not rediscovered by near_rows).
+struct StageMultipliers {
+  std::map<std::array<double, 5>, double> lambda;
+  Eigen::VectorXd zl, zu;
+  PickupRowSubset subset;
+};
+
+StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
+                             const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out);
+}  // namespace
+
 StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
                         const Eigen::VectorXd& x0) {
+  return solve_stage_warm(robot, pb, st, stage, x0, nullptr, nullptr);
+}
+
+namespace {
+StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
+                             const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out) {
   PickupConstraints cons(robot, pb, st, stage);  // validates (throws std::invalid_argument)
   if (x0.size() != cons.num_vars())
     throw std::invalid_argument("seed: expected " + std::to_string(cons.num_vars()) + " variables, got " + std::to_string(x0.size()));
@@ -256,6 +206,8 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
     throw std::invalid_argument("seed: inconsistent time ordering, expected 0 <= T1 <= T2 <= T, got T1=" +
                                 std::to_string(T1) + " T2=" + std::to_string(T2) + " T=" + std::to_string(T));
   StageResult res;
+  const auto t_start = std::chrono::steady_clock::now();
+  const double cpu_start = thread_cpu_seconds();
   res.stage = stage;
   std::string why;
   if ((stage == 0 || stage >= 2) && grasp_unreachable(robot, pb, why)) {
@@ -266,55 +218,100 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
     res.max_violation = cons.max_violation(x0);
     return res;
   }
-  const auto t0 = std::chrono::steady_clock::now();
-  Ipopt::SmartPtr<PickupTNLP> nlp = new PickupTNLP(cons, x0);
-  Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
-  app->Options()->SetIntegerValue("print_level", st.print_level);
-  app->Options()->SetStringValue("sb", "yes");
-  app->Options()->SetStringValue("hessian_approximation", "limited-memory");
-  app->Options()->SetStringValue("mu_strategy", st.mu_strategy);
-  app->Options()->SetNumericValue("mu_init", st.mu_init);
-  app->Options()->SetNumericValue("tol", st.tol);
-  app->Options()->SetNumericValue("constr_viol_tol", st.constr_viol_tol);
-  app->Options()->SetNumericValue("acceptable_constr_viol_tol", std::max(1e-5, st.constr_viol_tol));
-  app->Options()->SetIntegerValue("max_iter", st.max_iter);
-  app->Options()->SetNumericValue("max_cpu_time", st.max_cpu_time);
-  if (st.derivative_test) {
-    app->Options()->SetStringValue("derivative_test", "first-order");
-    app->Options()->SetNumericValue("derivative_test_tol", 1e-4);
-    app->Options()->SetNumericValue("derivative_test_perturbation", 1e-7);
+  if ((stage == 0 || stage >= 4) && std::isnan(cons.sg_cap())) {
+    res.status = "infeasible";
+    res.ipopt_status = "Not_Solved (success-probability pre-check: rho < gamma = " + std::to_string(pb.gamma) +
+                       " over the whole (S_g, S_c) range)";
+    res.x = x0;
+    res.objective = x0[cons.idx_T()];
+    res.max_violation = cons.max_violation(x0);
+    return res;
   }
-  for (const auto& [name, value] : st.ipopt_options) {
-    char* end = nullptr;
-    const long iv = std::strtol(value.c_str(), &end, 10);
-    bool ok;
-    if (!value.empty() && *end == '\0') {
-      ok = app->Options()->SetIntegerValue(name, static_cast<int>(iv));
-    } else {
-      const double dv = std::strtod(value.c_str(), &end);
-      ok = (!value.empty() && *end == '\0') ? app->Options()->SetNumericValue(name, dv)
-                                             : app->Options()->SetStringValue(name, value);
+  // Active set: the optional rows (joint positions, collisions) only where x is near them; after
+  // each solve, every row of the full stage is checked (and, with collisions, the trajectory
+  // between the samples, densely); rows that are violated or near join and the stage is re-solved
+  // from its last solution.
+  const double tol = std::max(1e-4, 10 * st.constr_viol_tol);
+  const double inf = std::numeric_limits<double>::infinity();
+  PickupRowSubset subset = st.active_set ? cons.near_rows(x0, st.active_joint_window, st.active_collision_window)
+                                         : cons.near_rows(x0, inf, inf);  // every optional row
+  Eigen::VectorXd x = x0;
+  double mu = st.mu_init;
+  StageMultipliers prev;  // from the last round (or the previous stage)
+  if (warm_in) {
+    prev = *warm_in;
+    subset.merge(warm_in->subset);
+    if (prev.zl.size()) mu = st.mu_resolve;
+  }
+  for (int round = 0;; ++round) {
+    const PickupConstraints part(robot, pb, st, stage, &subset);
+    Multipliers warm;
+    if (prev.zl.size() == part.num_vars()) {  // carried over; the rows new in this run start at 0
+      warm.zl = prev.zl;
+      warm.zu = prev.zu;
+      warm.lambda = Eigen::VectorXd::Zero(part.num_constraints());
+      for (int r = 0; r < part.num_constraints(); ++r) {
+        auto it = prev.lambda.find(part.row_key(r));
+        if (it != prev.lambda.end()) warm.lambda[r] = it->second;
+      }
     }
-    if (!ok) throw std::invalid_argument("invalid Ipopt option " + name + " = " + value);
+    IpoptRun run = run_ipopt(part, st, x, mu, warm.lambda.size() ? &warm : nullptr);
+    if (run.mult.lambda.size() == part.num_constraints()) {
+      prev.zl = run.mult.zl;
+      prev.zu = run.mult.zu;
+      prev.lambda.clear();
+      for (int r = 0; r < part.num_constraints(); ++r) prev.lambda[part.row_key(r)] = run.mult.lambda[r];
+    }
+    res.iterations += run.iterations;
+    res.rounds = round + 1;
+    res.rows = part.num_constraints();
+    if (st.print_level > 0)
+      std::fprintf(stderr, "pickup stage %d round %d: %d rows (optional: %d joint, %d collision), %s, %d iterations, %.3f s, T %.3f\n",
+                   stage, round + 1, part.num_constraints(), static_cast<int>(subset.joints.size()),
+                   static_cast<int>(subset.collisions.size()), run.status.c_str(), run.iterations, run.seconds,
+                   run.x[cons.idx_T()]);
+    res.status = run.status;
+    res.ipopt_status = run.ipopt_status;
+    x = run.x;
+    if (!run.converged) break;
+    const bool feasible = cons.max_violation(x) <= tol;
+    PickupRowSubset more;
+    if (st.active_set && !feasible) more = cons.near_rows(x, st.active_joint_window, st.active_collision_window);
+    if (st.dense_subdivisions > 0)
+      more.merge(cons.dense_points(x, st.dense_subdivisions, 0.5 * st.collision_margin, 0.5 * st.joint_limit_margin));
+    if (feasible && more.size() == 0) break;
+    const int before = subset.size();
+    if (st.print_level > 0) {
+      std::fprintf(stderr, "  violated/near joints:");
+      for (const auto& j : more.joints) std::fprintf(stderr, " %d@%d", j.joint, j.sample);
+      std::fprintf(stderr, "\n");
+    }
+    subset.merge(more);
+    if (subset.size() == before || round + 1 >= st.active_max_rounds) {
+      res.status = feasible ? "violation_between_samples" : "constraint_violation";
+      res.ipopt_status += " (active set: " + std::to_string(round + 1) + " rounds, " +
+                          (feasible ? "the dense check between samples still fails" : "rows still violated") + ")";
+      run.converged = false;
+      break;
+    }
+    mu = st.mu_resolve;  // a warm re-solve: start near the boundary of the (mostly) active rows
   }
-  Ipopt::ApplicationReturnStatus status = app->Initialize();
-  if (!st.output_file.empty() && !app->OpenOutputFile(st.output_file, Ipopt::J_ITERSUMMARY))
-    throw std::invalid_argument("cannot open Ipopt output file " + st.output_file);
-  if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(Ipopt::GetRawPtr(nlp));
-  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  res.ipopt_status = app_status_text(status);
-  res.status = short_status(status);
-  res.iterations = nlp->iterations;
-  res.x = nlp->x_;
-  if (res.x.size() != x0.size() || !res.x.allFinite()) res.x = x0;
+  res.x = x;
+  // Everything of the stage: Ipopt runs, row selection, full-stage and dense checks.
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  res.cpu_seconds = thread_cpu_seconds() - cpu_start;
   res.objective = res.x[cons.idx_T()];
   res.max_violation = cons.max_violation(res.x);
-  res.success = (status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level) &&
-                res.max_violation <= std::max(1e-4, 10 * st.constr_viol_tol);
-  if (!res.success && (status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level))
-    res.status = "constraint_violation";
+  const bool converged = res.status == "solved" || res.status == "solved_acceptable";
+  res.success = converged && res.max_violation <= tol;
+  if (converged && !res.success) res.status = "constraint_violation";
+  if (warm_out && res.success) {
+    *warm_out = prev;
+    warm_out->subset = subset;
+  }
   return res;
 }
+}  // namespace
 
 namespace {
 void fill_result(PickupResult& out, const Robot& robot, const PickupSettings& st) {
@@ -326,21 +323,43 @@ void fill_result(PickupResult& out, const Robot& robot, const PickupSettings& st
   out.traj = PolyTraj(deg, out.T);
   out.S_g = out.x[nc + 3];
   out.S_c = out.x[nc + 4];
-  for (const auto& s : out.stages) out.total_seconds += s.seconds;
+  for (const auto& s : out.stages) {
+    out.total_seconds += s.seconds;
+    out.total_cpu_seconds += s.cpu_seconds;
+  }
 }
 }  // namespace
 
 PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                               const Eigen::VectorXd& x0) {
   PickupResult out;
+  const auto t_h = std::chrono::steady_clock::now();
+  const double cpu_h = thread_cpu_seconds();
   out.x = x0.size() ? x0 : heuristic_seed(robot, pb, st);
+  double seed_wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_h).count();
+  double seed_cpu = thread_cpu_seconds() - cpu_h;  // the heuristic seed counts as stage 1's time
   if (out.x.size() != num_vars(robot, st))
     throw std::invalid_argument("seed: expected " + std::to_string(num_vars(robot, st)) + " variables, got " + std::to_string(out.x.size()));
   out.status = "solved";
   out.success = true;
+  StageMultipliers mult;
   for (int stage = 1; stage <= 5; ++stage) {
-    // Stage 2 adds the grasp pose: its arm seed comes from an IK solution at T2 (base as stage 1).
-    StageResult r = solve_stage(robot, pb, st, stage, stage == 2 ? grasp_ik_seed(robot, pb, st, out.x) : out.x);
+    // Stage 2 adds the grasp pose: its arm seed comes from an IK solution at T2 (base as stage 1),
+    // so it starts cold, as does stage 3 (its new velocity rows are far from satisfied); stages 4
+    // and 5 start from the previous stage's multipliers.
+    const bool warm = st.warm_start_stages && stage > 3;
+    if (!warm) mult = StageMultipliers();  // stages 2 and 3 start afresh
+    const auto t_seed = std::chrono::steady_clock::now();
+    const double cpu_seed = thread_cpu_seconds();
+    Eigen::VectorXd seed = out.x;
+    if (stage > 1) seed_wall = seed_cpu = 0.0;
+    if (stage == 2) seed = grasp_ik_seed(robot, pb, st, out.x);
+    if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, out.x);
+    seed_wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_seed).count();
+    seed_cpu += thread_cpu_seconds() - cpu_seed;
+    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult);
+    r.seconds += seed_wall;  // the stage's warm start (IK, timing) counts as the stage's time
+    r.cpu_seconds += seed_cpu;
     out.stages.push_back(r);
     if (!r.success) {
       out.status = r.status;

@@ -10,6 +10,7 @@
 // Decision variables x = [polynomial coefficients | s1, s2, T | S_g, S_c]: each DOF is a polynomial
 // P_i(s) in normalised time s = t / T (q_i(t) = P_i(t / T), the paper's polynomial in t with its
 // coefficients scaled by T^k), and T1 = s1 T, T2 = s2 T with 0 <= s1 <= s2 <= 1.
+#include <array>
 #include <string>
 #include <utility>
 #include <vector>
@@ -30,6 +31,11 @@ struct RhoPoly {
   void validate() const;  // throws std::invalid_argument
   double value(double s_g, double s_c) const;
   Eigen::Vector2d gradient(double s_g, double s_c) const;  // (d/dS_g, d/dS_c)
+  Eigen::Matrix2d hessian(double s_g, double s_c) const;
+  // An upper bound on the S_g of any point with rho >= gamma and S_c in [sc_a, sc_b], from a grid
+  // (64 x 16 points): the grid S_g just above the largest feasible grid S_g, or sg_hi.
+  // NaN when no grid point reaches gamma (the success-probability threshold is unattainable).
+  double sg_upper_bound(double gamma, double sc_a, double sc_b) const;
 };
 
 struct SphereObstacle {
@@ -72,6 +78,8 @@ struct PickupSettings {
   // Non-holonomic base, in normalised time: |x_s sin phi - y_s cos phi| <= tol * L with L the
   // start-part-goal distance, i.e. lateral speed <= tol L / T (heading error ~ tol rad at mean speed).
   double nonholonomic_tol = 0.002;
+  std::string hessian = "exact";         // "exact" (eval_hessian) | "limited-memory" (Ipopt's L-BFGS)
+  std::string basis = "bernstein";      // Ipopt's coefficient variables: "bernstein" | "monomial" (results: monomial)
   std::string mu_strategy = "monotone";  // Ipopt barrier update ("monotone" | "adaptive")
   double mu_init = 1e-2;
   double velocity_tol = 0.005;          // |J q' - S_g n_g| per component (m/s) during grasping
@@ -79,6 +87,11 @@ struct PickupSettings {
   double collision_margin = 0.02;       // m
   double joint_limit_margin = 0.05;     // rad, sampled position limits tightened (limits hold between samples)
   double t_min = 0.5, t_max = 100.0;    // bounds on T (s)
+  // Yaw and arm joint rate limits: "hull" bounds each rate polynomial by its Bernstein points of
+  // degree rate_hull_degree (the convex-hull property: the limit then holds on all of [0, T], with
+  // a small margin of conservatism, in a few rows per DOF); "sampled": at the m samples per interval.
+  std::string rate_rows = "hull";
+  int rate_hull_degree = 12;
   double tol = 1e-6, constr_viol_tol = 1e-6;
   int max_iter = 400;
   double max_cpu_time = 20.0;           // per stage (s)
@@ -86,15 +99,55 @@ struct PickupSettings {
   bool derivative_test = false;         // runs Ipopt's first-order derivative checker
   std::vector<std::pair<std::string, std::string>> ipopt_options;  // extra Ipopt options (name, value)
   std::string output_file;              // non-empty: Ipopt's log (print level 5) goes to this file
+  // Active set: joint-position and collision rows only where the trajectory comes within these
+  // windows of them; every row is checked after each solve and violated/near rows join for a
+  // re-solve from the last solution (at most active_max_rounds runs). false: every row always.
+  bool active_set = true;
+  double active_joint_window = 0.3;      // rad
+  double active_collision_window = 0.15; // m
+  int active_max_rounds = 6;
+  double mu_resolve = 1e-4;             // mu_init of the re-solves (warm: multipliers carried over)
+  double warm_start_push = 1e-6;
+  bool timing_seed = true;              // stage 3 starts from grasp_timing_seed()
+  bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
+  // The trajectory between the regular samples is checked at this many subdivisions of each gap;
+  // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
+  // closer than joint_limit_margin / 2 to its limit, a row at that instant joins and the stage is
+  // re-solved (0: samples only, as the paper).
+  int dense_subdivisions = 16;
   double seed_speed = 1.0;              // heuristic seed: T = path length / seed_speed
   unsigned seed = 0;                    // random seeds (arm perturbation, single-shot baseline)
   double arm_seed_noise = 0.05;         // rad, heuristic seed arm perturbation
 };
 
+// A subset of a stage's optional rows (joint-position and collision rows), for the active-set
+// solve: a joint or collision row at a regular sample or at any instant s = w0 s1 + w1 s2 + w2
+// (e.g. between samples, where the dense check found the trajectory too close to a limit).
+struct PickupRowSubset {
+  struct Joint {
+    int sample = 0;    // >= 0: a regular sample (w unused); -1: the instant given by w
+    int joint = 0;     // arm joint 0..dof-4
+    double w[3] = {0.0, 0.0, 0.0};
+  };
+  struct Collision {
+    int sample = -1;   // >= 0: a regular sample (w unused); -1: the instant given by w
+    double w[3] = {0.0, 0.0, 0.0};
+    int pair = 0;      // body_sphere * num_obstacles + obstacle
+  };
+  std::vector<Joint> joints;
+  std::vector<Collision> collisions;
+  void merge(const PickupRowSubset& other);  // union, without duplicates
+  int size() const { return static_cast<int>(joints.size() + collisions.size()); }
+};
+
 // The constraint system of one stage, evaluated natively (exposed for tests and the checker).
+// Regular samples: m per interval, in time order ([0, T1): j/m; [T1, T2]: j/(m-1); (T2, T]: j/m).
 class PickupConstraints {
  public:
-  PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage);
+  // subset == nullptr: every joint-position and collision row at every regular sample (the full
+  // stage); otherwise exactly the optional rows of the subset (all other rows always).
+  PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage,
+                    const PickupRowSubset* subset = nullptr);
   int num_vars() const { return n_; }
   int num_constraints() const { return static_cast<int>(rows_.size()); }
   int num_nonzeros() const { return static_cast<int>(jac_col_.size()); }
@@ -105,27 +158,65 @@ class PickupConstraints {
   int idx_T() const { return nc_ + 2; }
   int idx_Sg() const { return nc_ + 3; }
   int idx_Sc() const { return nc_ + 4; }
+  // Upper bound on S_g implied by rho >= gamma (RhoPoly::sg_upper_bound; NaN: gamma unattainable).
+  double sg_cap() const { return sg_cap_; }
   void bounds(Eigen::VectorXd& x_lo, Eigen::VectorXd& x_hi, Eigen::VectorXd& g_lo, Eigen::VectorXd& g_hi) const;
   void eval_g(const double* x, double* g) const;
   void jac_structure(int* rows, int* cols) const;
   void eval_jac(const double* x, double* values) const;
   Eigen::MatrixXd dense_jacobian(const Eigen::VectorXd& x) const;
+  // Hessian of the Lagrangian sum_r lambda_r g_r(x) (the objective T is linear): the lower
+  // triangle of all variables, row-major (row i >= col j); exact for the polynomial rows, forward
+  // differences of the exact gradients in q for the forward-kinematics rows.
+  int num_hess_nonzeros() const { return n_ * (n_ + 1) / 2; }
+  void hess_structure(int* rows, int* cols) const;
+  void eval_hessian(const double* x, const double* lambda, double* values) const;
+  Eigen::MatrixXd dense_hessian(const Eigen::VectorXd& x, const Eigen::VectorXd& lambda) const;  // symmetric
   // Largest violation of the constraint bounds and the variable bounds at x.
   double max_violation(const Eigen::VectorXd& x) const;
   std::vector<std::string> row_names() const;  // "kind@sample" for diagnostics
+  // A key of row r that is the same in every stage and row subset: (kind, instant w0, w1, w2, aux)
+  // (w = -1 for the rows of the time variables).
+  std::array<double, 5> row_key(int r) const;
+  int num_regular_samples() const { return nreg_; }
+  // Collision rows of a stage: from stage 5 on (and in stage 0) every body sphere; before, the
+  // spheres moved by the base DOFs only (the base's path constraints, C_mbpath of stage 1).
+  bool pair_in_stage(int pair) const;  // pair = body_sphere * num_obstacles + obstacle
+  bool has_collision_rows() const;
+  // The optional rows at the regular samples whose slack at x is below the window (violated ones
+  // included): joint rows within joint_window (rad) of the tightened limits, collision rows whose
+  // clearance is within collision_window (m) of the collision margin (pairs of pair_in_stage).
+  PickupRowSubset near_rows(const Eigen::VectorXd& x, double joint_window, double collision_window) const;
+  // Dense check between the regular samples (each gap split into `subdivisions`): per gap and
+  // body/obstacle pair, the instant of least clearance when that clearance is below `threshold`;
+  // per gap and arm joint, the instant of largest excursion when the joint comes closer than
+  // joint_limit_margin - joint_slack to its limit. min_clearance (optional) receives the least
+  // clearance over the dense instants and the samples.
+  PickupRowSubset dense_points(const Eigen::VectorXd& x, int subdivisions, double threshold, double joint_slack,
+                               double* min_clearance = nullptr) const;
 
  private:
   struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
   struct Row { int kind, sample, aux; unsigned dof_mask; bool sg, sc; double lo, hi; int jac_begin; };
   void add_row(int kind, int sample, int aux, unsigned dof_mask, bool sg, bool sc, double lo, double hi);
+  struct Kin;  // kinematic state at one sample (pickup_nlp_detail.hpp)
   void sample_rows(const double* x, int sample, int r0, int r1, double* g, double* jac) const;
+  void kinematics(Kin& k, const double* x, int sample, int r0, int r1) const;
+  void update_kinematics(Kin& k) const;  // FK and tool Jacobians at k.q, k.qd
+  static bool is_kinematic(int kind);
+  // Value of row R and its partials in (q, q') (the non-holonomic row: in (q, T q')) and S_g.
+  double row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq, Eigen::VectorXd& cqd, double& dsg) const;
+  void sample_hessian(const double* x, const double* lambda, int sample, Eigen::MatrixXd& H) const;
 
   const Robot& robot_;
   const PickupProblem& pb_;
   PickupSettings st_;
   int stage_;
   PolyTraj traj_;
-  int nc_ = 0, n_ = 0, dof_ = 0;
+  int nc_ = 0, n_ = 0, dof_ = 0, level_ = 0, nreg_ = 0;
+  double sg_cap_ = 0.0;
+  std::vector<unsigned> body_mask_;  // DOFs moving each body sphere
+  std::vector<Eigen::MatrixXd> rate_hull_;  // per DOF: monomial coefficients -> Bernstein points of P_s
   std::vector<Sample> samples_;
   std::vector<Row> rows_;
   std::vector<int> sample_row_begin_;  // rows of sample s: [begin[s], begin[s+1]); special rows after
@@ -137,8 +228,11 @@ struct StageResult {
   std::string status;          // "solved", "solved_acceptable", "infeasible", ... (see status_name)
   std::string ipopt_status;    // Ipopt's ApplicationReturnStatus / SolverReturn as text
   bool success = false;
-  double seconds = 0.0;
-  int iterations = 0;
+  double seconds = 0.0;         // wall time of the stage (Ipopt runs, checks, and in solve_successive its seed)
+  double cpu_seconds = 0.0;     // its thread CPU time (the machine may be shared)
+  int iterations = 0;           // over all active-set rounds
+  int rounds = 0;               // Ipopt runs (active-set re-solves + 1)
+  int rows = 0;                 // constraint rows of the last run
   double objective = 0.0;      // T
   double max_violation = 0.0;  // at the returned x
   Eigen::VectorXd x;
@@ -151,6 +245,7 @@ struct PickupResult {
   std::vector<StageResult> stages;
   Eigen::VectorXd x;           // last good solution
   double total_seconds = 0.0;
+  double total_cpu_seconds = 0.0;
   double T = 0, T1 = 0, T2 = 0, S_g = 0, S_c = 0;
   PolyTraj traj;               // in absolute time: time_scale = T, coefficients x[0 : num_coeffs]
 };
@@ -161,6 +256,11 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem,
 // damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x);
+// Stage-3 warm start: the same path in normalised time, slowed down: T becomes the geometric mean
+// of its value and the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
+// to keep (T2 - T1) S_c = stroke. x unchanged when that would not slow it down.
+Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                                  const Eigen::VectorXd& x);
 // A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others
 // random, 0 <= T1 < T2 <= T (seeded by settings.seed).
 Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);

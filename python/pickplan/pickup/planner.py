@@ -51,6 +51,14 @@ class PlannerSettings:
     max_iter: int = 400
     max_cpu_time: float = 20.0
     print_level: int = 0
+    hessian: str = "exact"                # or "limited-memory" (Ipopt's L-BFGS)
+    basis: str = "bernstein"              # Ipopt's coefficient variables (results are monomial)
+    active_set: bool = True               # joint/collision rows only where needed, re-solve on violation
+    active_joint_window: float = 0.3
+    active_collision_window: float = 0.15
+    active_max_rounds: int = 6
+    mu_resolve: float = 1e-4
+    dense_subdivisions: int = 16          # collision check between samples (0: samples only)
     mu_strategy: str = "monotone"
     mu_init: float = 1e-2
     seed: int = 0
@@ -73,6 +81,9 @@ class StageInfo:
     iterations: int
     objective: float
     max_violation: float
+    cpu_seconds: float = 0.0              # thread CPU time (the machine may be shared)
+    rounds: int = 1                       # Ipopt runs (active-set re-solves + 1)
+    rows: int = 0                         # constraint rows of the last run
 
 
 @dataclass
@@ -90,13 +101,14 @@ class PickupPlan:
     S_c: float
     total_seconds: float
     native: object = field(repr=False, default=None)  # _core.PickupResult
+    total_cpu_seconds: float = 0.0
 
     @classmethod
     def from_native(cls, r) -> "PickupPlan":
         stages = [StageInfo(s.stage, s.status, s.ipopt_status, s.success, s.seconds, s.iterations,
-                            s.objective, s.max_violation) for s in r.stages]
+                            s.objective, s.max_violation, s.cpu_seconds, s.rounds, s.rows) for s in r.stages]
         return cls(r.status, r.success, r.stages_completed, stages, r.T, r.T1, r.T2, r.S_g, r.S_c,
-                   r.total_seconds, r)
+                   r.total_seconds, r, r.total_cpu_seconds)
 
     def sample(self, times) -> tuple:
         """(q, q', q'') at the given times (s), each of shape (len(times), 9)."""
@@ -107,7 +119,7 @@ class PickupPlan:
         q, qd, _ = self.sample(t)
         return {"status": self.status, "success": self.success, "stages_completed": self.stages_completed,
                 "T": self.T, "T1": self.T1, "T2": self.T2, "S_g": self.S_g, "S_c": self.S_c,
-                "total_seconds": self.total_seconds, "stages": [asdict(s) for s in self.stages],
+                "total_seconds": self.total_seconds, "total_cpu_seconds": self.total_cpu_seconds, "stages": [asdict(s) for s in self.stages],
                 "degrees": list(self.native.degrees), "x": np.asarray(self.native.x).tolist(),
                 "t": t.tolist(), "q": q.tolist(), "qd": qd.tolist()}
 
