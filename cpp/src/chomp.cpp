@@ -25,8 +25,7 @@ ChompWorkspace::ChompWorkspace(const ChompProblem& p)
       live(static_cast<size_t>(p.settings().n + 1) * p.groups().size(), 1),
       wrench(Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>::Zero((p.settings().n + 1) * p.groups().size(), 6)),
       grad(p.settings().n, p.robot().dof()),
-      u(p.settings().n, p.robot().dof()),
-      J(3, p.robot().dof()) {
+      u(p.settings().n, p.robot().dof()) {
   order.reserve(term.size());
 }
 

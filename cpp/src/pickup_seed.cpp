@@ -125,6 +125,19 @@ Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const P
 
 namespace {
 
+// FK of q into ws, then the tool's pose error toward the grasp: position, and the rotation as
+// half the sum of the column cross products (zero at the target).
+Eigen::Matrix<double, 6, 1> tool_pose_error(const Robot& robot, const PickupProblem& pb, const Eigen::VectorXd& q,
+                                            RobotWorkspace& ws) {
+  robot.forward_kinematics(q.data(), ws);
+  const Transform& T = ws.link_pose[pb.tool_link];
+  Eigen::Matrix<double, 6, 1> e;
+  e.head<3>() = pb.grasp_pose.p - T.p;
+  e.tail<3>().setZero();
+  for (int k = 0; k < 3; ++k) e.tail<3>() += 0.5 * T.R.col(k).cross(pb.grasp_pose.R.col(k));
+  return e;
+}
+
 // Damped least-squares IK of the arm joints for the tool pose, base fixed; returns the residual.
 double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, int iters, double margin) {
   const int n = robot.dof(), na = n - 3;
@@ -132,14 +145,9 @@ double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, i
   Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
   double err = 1e300;
   for (int it = 0; it < iters; ++it) {
-    robot.forward_kinematics(q.data(), ws);
+    Eigen::Matrix<double, 6, 1> e = tool_pose_error(robot, pb, q, ws);
     const Transform& T = ws.link_pose[pb.tool_link];
-    Eigen::Matrix<double, 6, 1> e;
-    e.head<3>() = pb.grasp_pose.p - T.p;
-    Eigen::Vector3d eo = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) eo += 0.5 * T.R.col(k).cross(pb.grasp_pose.R.col(k));
-    if ((T.R.transpose() * pb.grasp_pose.R).trace() < 1.0) eo = eo.norm() < 1e-9 ? Eigen::Vector3d::UnitZ() : eo;
-    e.tail<3>() = eo;
+    if ((T.R.transpose() * pb.grasp_pose.R).trace() < 1.0 && e.tail<3>().norm() < 1e-9) e.tail<3>() = Eigen::Vector3d::UnitZ();
     err = e.norm();
     if (err < 1e-10) break;
     robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
@@ -164,13 +172,7 @@ double body_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, 
   W.head<2>().setConstant(base_weight);
   W[2] = 0.0;  // heading kept (it follows the path)
   for (int it = 0; it < iters; ++it) {
-    robot.forward_kinematics(q.data(), ws);
-    const Transform& T = ws.link_pose[pb.tool_link];
-    Eigen::Matrix<double, 6, 1> e;
-    e.head<3>() = pb.grasp_pose.p - T.p;
-    Eigen::Vector3d eo = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) eo += 0.5 * T.R.col(k).cross(pb.grasp_pose.R.col(k));
-    e.tail<3>() = eo;
+    const Eigen::Matrix<double, 6, 1> e = tool_pose_error(robot, pb, q, ws);
     if (e.norm() < 1e-10) break;
     robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
     const Eigen::Matrix<double, 6, 6> A = J * W.asDiagonal() * J.transpose() + 1e-4 * Eigen::Matrix<double, 6, 6>::Identity();

@@ -117,22 +117,8 @@ double SceneSdf::table_distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradi
 double SceneSdf::distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
                           std::uint64_t exclude_mask) const {
   if (!use_merged(exclude_mask, cutoff)) return distance_unmerged(x, gradient, cutoff, exclude_mask);
-  Eigen::Vector3d g;
-  double best = merged_->distance(x.data(), gradient ? g.data() : nullptr);
-  if (best >= cutoff) {
-    best = cutoff;
-    g.setZero();
-  }
-  if (has_table_ && !(exclude_mask & kTableBit)) {
-    Eigen::Vector3d gt;
-    const double d = table_distance(x, gradient ? &gt : nullptr);
-    if (d < best) {
-      best = d;
-      g = gt;
-    }
-  }
-  if (gradient) *gradient = g;
-  return best;
+  return merged_distance(x.data(), gradient ? gradient->data() : nullptr, cutoff,
+                         has_table_ && !(exclude_mask & kTableBit));
 }
 
 void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settings) {
@@ -258,25 +244,7 @@ void SceneSdf::distances(const double* points, long n, double* dist, double* gra
   if (use_merged(exclude_mask, cutoff)) {
     // The hot path, with the per-point dispatch hoisted out of the loop.
     const bool table = has_table_ && !(exclude_mask & kTableBit);
-    double g[3];
-    Eigen::Vector3d gt;
-    for (long i = 0; i < n; ++i) {
-      const double* x = points + 3 * i;
-      double d = merged_->distance(x, grad ? g : nullptr);
-      if (d >= cutoff) {
-        d = cutoff;
-        g[0] = g[1] = g[2] = 0.0;
-      }
-      if (table) {
-        const double dt = table_distance(Eigen::Map<const Eigen::Vector3d>(x), grad ? &gt : nullptr);
-        if (dt < d) {
-          d = dt;
-          g[0] = gt.x(), g[1] = gt.y(), g[2] = gt.z();
-        }
-      }
-      dist[i] = d;
-      if (grad) grad[3 * i] = g[0], grad[3 * i + 1] = g[1], grad[3 * i + 2] = g[2];
-    }
+    for (long i = 0; i < n; ++i) dist[i] = merged_distance(points + 3 * i, grad ? grad + 3 * i : nullptr, cutoff, table);
     return;
   }
   Eigen::Vector3d g;

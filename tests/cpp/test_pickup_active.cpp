@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "pickup_fixtures.hpp"
 #include "pickplan/pickup_cases.hpp"
 #include "pickplan/pickup_nlp.hpp"
 #include "pickplan/robot.hpp"
@@ -15,15 +16,8 @@ using namespace pickplan;
 
 namespace {
 
-const std::string kUrdf = std::string(PICKPLAN_TEST_DATA_DIR) + "/../../../assets/mobile_ur5.urdf";
-
-Robot load() { return Robot::from_urdf_file(kUrdf); }
-
-PickupSettings fast_settings() {
-  PickupSettings st;
-  st.samples_per_interval = 6;
-  return st;
-}
+Robot load() { return test::load_mobile_ur5(); }
+PickupSettings fast_settings() { return test::fast_pickup_settings(); }
 
 Eigen::VectorXd perturbed_seed(const Robot& r, const PickupProblem& pb, const PickupSettings& st, const PickupConstraints& c,
                                unsigned seed) {
@@ -72,32 +66,13 @@ TEST(PickupActiveSet, SubsetRowsHaveExactDerivatives) {
   for (const std::string& name : c.row_names()) coll += name.rfind("collision", 0) == 0;
   EXPECT_EQ(coll, 5);
   const Eigen::VectorXd x = perturbed_seed(r, pb, st, c, 11);
-  const Eigen::MatrixXd J = c.dense_jacobian(x);
   const int m = c.num_constraints();
   std::mt19937 rng(3);
   std::normal_distribution<double> nz(0.0, 1.0);
   Eigen::VectorXd lam(m);
   for (int i = 0; i < m; ++i) lam[i] = 10.0 * nz(rng);
   const Eigen::MatrixXd H = c.dense_hessian(x, lam);
-  Eigen::VectorXd gp(m), gm(m);
-  double worst_j = 0.0, worst_h = 0.0;
-  for (int j = 0; j < c.num_vars(); ++j) {
-    const double h = 1e-6 * std::max(1.0, std::abs(x[j]));
-    Eigen::VectorXd xp = x, xm = x;
-    xp[j] += h;
-    xm[j] -= h;
-    c.eval_g(xp.data(), gp.data());
-    c.eval_g(xm.data(), gm.data());
-    const Eigen::VectorXd fd = (gp - gm) / (2 * h);
-    for (int i = 0; i < m; ++i) worst_j = std::max(worst_j, std::abs(fd[i] - J(i, j)) / (1.0 + std::abs(J(i, j))));
-    const double hh = 1e-5 * std::max(1.0, std::abs(x[j]));
-    xp = x;
-    xm = x;
-    xp[j] += hh;
-    xm[j] -= hh;
-    const Eigen::VectorXd fh = (c.dense_jacobian(xp).transpose() * lam - c.dense_jacobian(xm).transpose() * lam) / (2 * hh);
-    for (int i = 0; i < c.num_vars(); ++i) worst_h = std::max(worst_h, std::abs(fh[i] - H(i, j)) / (1.0 + std::abs(H(i, j))));
-  }
+  const double worst_j = test::jacobian_fd_error(c, x), worst_h = test::hessian_fd_error(c, x, lam, H);
   EXPECT_LT(worst_j, 2e-5);
   EXPECT_LT(worst_h, 1e-4);
   // A collision row between samples is the clearance at that instant, minus nothing: its value

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "pickup_fixtures.hpp"
 #include "pickplan/pickup_cases.hpp"
 #include "pickplan/pickup_nlp.hpp"
 #include "pickplan/poly_traj.hpp"
@@ -16,8 +17,6 @@
 using namespace pickplan;
 
 namespace {
-
-const std::string kUrdf = std::string(PICKPLAN_TEST_DATA_DIR) + "/../../../assets/mobile_ur5.urdf";
 
 Eigen::Matrix4d dh(double theta, double d, double a, double alpha) {
   Eigen::Matrix4d T;
@@ -43,13 +42,8 @@ Eigen::Matrix4d flange_dh(const Eigen::VectorXd& q) {
   return T;
 }
 
-Robot load() { return Robot::from_urdf_file(kUrdf); }
-
-PickupSettings fast_settings() {
-  PickupSettings st;
-  st.samples_per_interval = 6;
-  return st;
-}
+Robot load() { return test::load_mobile_ur5(); }
+PickupSettings fast_settings() { return test::fast_pickup_settings(); }
 
 }  // namespace
 
@@ -125,21 +119,7 @@ TEST(PickupNlp, ConstraintJacobianMatchesFiniteDifferences) {
   for (int k = 0; k < c.traj().num_coeffs(); ++k) x[k] += nz(rng);
   x[c.idx_Sg()] = 0.4;
   x[c.idx_Sc()] = 0.12;
-  const Eigen::MatrixXd J = c.dense_jacobian(x);
-  const int m = c.num_constraints();
-  Eigen::VectorXd gp(m), gm(m);
-  double worst = 0.0;
-  for (int j = 0; j < c.num_vars(); ++j) {
-    const double h = 1e-6 * std::max(1.0, std::abs(x[j]));
-    Eigen::VectorXd xp = x, xm = x;
-    xp[j] += h;
-    xm[j] -= h;
-    c.eval_g(xp.data(), gp.data());
-    c.eval_g(xm.data(), gm.data());
-    const Eigen::VectorXd fd = (gp - gm) / (2 * h);
-    for (int i = 0; i < m; ++i) worst = std::max(worst, std::abs(fd[i] - J(i, j)) / (1.0 + std::abs(J(i, j))));
-  }
-  EXPECT_LT(worst, 2e-5);
+  EXPECT_LT(test::jacobian_fd_error(c, x), 2e-5);
 }
 
 // The Hessian of the Lagrangian against central differences of the exact Jacobian, J(x)^T lambda,
@@ -169,16 +149,7 @@ TEST(PickupNlp, LagrangianHessianMatchesFiniteDifferences) {
       ASSERT_GE(hr[e], hc[e]);
       EXPECT_DOUBLE_EQ(vals[e], H(hr[e], hc[e]));
     }
-    double worst = 0.0;
-    for (int j = 0; j < c.num_vars(); ++j) {
-      const double h = 1e-5 * std::max(1.0, std::abs(x[j]));
-      Eigen::VectorXd xp = x, xm = x;
-      xp[j] += h;
-      xm[j] -= h;
-      const Eigen::VectorXd fd = (c.dense_jacobian(xp).transpose() * lam - c.dense_jacobian(xm).transpose() * lam) / (2 * h);
-      for (int i = 0; i < c.num_vars(); ++i)
-        worst = std::max(worst, std::abs(fd[i] - H(i, j)) / (1.0 + std::abs(H(i, j))));
-    }
+    const double worst = test::hessian_fd_error(c, x, lam, H);
     EXPECT_LT(worst, 1e-4) << "case " << case_id;
     std::printf("case %d: worst relative Hessian error %.2e\n", case_id, worst);
   }

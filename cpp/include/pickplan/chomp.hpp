@@ -60,7 +60,6 @@ struct ChompWorkspace {
   Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor> wrench;  // (n+1) x groups: force, moment
   std::vector<int> loaded;             // wrench rows touched this evaluation
   Trajectory grad, u;                  // gradient and A^-1 gradient
-  Eigen::Matrix<double, 3, Eigen::Dynamic> J;
 };
 
 struct StepInfo {

@@ -110,6 +110,9 @@ class SceneSdf {
 
  private:
   double table_distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient) const;
+  // The merged grid (objects) and optionally the table, for a query use_merged() accepts
+  // (inline: it is the per-point body of the batched hot loop).
+  double merged_distance(const double* x, double* gradient, double cutoff, bool table) const;
   bool use_merged(std::uint64_t exclude_mask, double cutoff) const {
     return merged_ && (exclude_mask & ~kTableBit) == merged_->exclude_mask() && cutoff <= merged_->cutoff();
   }
@@ -121,6 +124,25 @@ class SceneSdf {
   Eigen::Vector3d table_half_ = Eigen::Vector3d::Zero();
   Transform table_pose_, table_inverse_;
 };
+
+inline double SceneSdf::merged_distance(const double* x, double* gradient, double cutoff, bool table) const {
+  double g[3];
+  double best = merged_->distance(x, gradient ? g : nullptr);
+  if (best >= cutoff) {
+    best = cutoff;
+    g[0] = g[1] = g[2] = 0.0;
+  }
+  if (table) {
+    Eigen::Vector3d gt;
+    const double d = table_distance(Eigen::Map<const Eigen::Vector3d>(x), gradient ? &gt : nullptr);
+    if (d < best) {
+      best = d;
+      g[0] = gt.x(), g[1] = gt.y(), g[2] = gt.z();
+    }
+  }
+  if (gradient) gradient[0] = g[0], gradient[1] = g[1], gradient[2] = g[2];
+  return best;
+}
 
 // Exact signed distance to a box of half extents h centred at the origin, with gradient.
 double box_signed_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& h, Eigen::Vector3d* gradient);
