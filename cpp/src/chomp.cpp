@@ -136,10 +136,11 @@ double ChompProblem::prior(const Trajectory& xi, const Eigen::VectorXd& q0, Traj
   return f;
 }
 
-bool ChompProblem::group_near_obstacles(const RobotWorkspace& fk, const LinkGroup& group) const {
-  if (!settings_.link_culling) return true;
+ChompProblem::GroupReach ChompProblem::group_reach(const RobotWorkspace& fk, const LinkGroup& group) const {
+  if (!settings_.link_culling) return {true, true};
   const Eigen::Vector3d c = fk.link_pose[group.link].apply(group.center);
-  return scene_->lower_bound(c, settings_.exclude_mask) - group.radius < settings_.epsilon;
+  const SceneSdf::PartBounds b = scene_->part_lower_bounds(c, settings_.exclude_mask);
+  return {b.objects - group.radius < settings_.epsilon, b.table - group.radius < settings_.epsilon};
 }
 
 void ChompProblem::transform_points(const RobotWorkspace& fk, const LinkGroup& group, double* x) const {
@@ -157,41 +158,48 @@ ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorX
   const double eps = settings_.epsilon;
   ObjectiveTerms out;
   const int G = static_cast<int>(groups_.size());
-  for (int t = 0; t <= n; ++t) {
+  const int last_t = n - settings_.obstacle_tail;
+  // ws.live per (waypoint, group): 1 = points and distances evaluated, 2 = points only, 0 = neither.
+  // The start has no term and waypoints past last_t are not charged, so neither needs distances
+  // (the start's points are made on demand below, for the speed of waypoint 1).
+  for (int t = 0; t <= last_t; ++t) {
     robot_->forward_kinematics(t == 0 ? q0.data() : xi.row(t - 1).data(), ws.fk[t]);
     for (int gi = 0; gi < G; ++gi) {
+      char& live = ws.live[t * G + gi];
+      live = 0;
+      if (t == 0) continue;
       const LinkGroup& grp = groups_[gi];
+      const GroupReach reach = group_reach(ws.fk[t], grp);
+      if (!reach.any()) continue;
+      live = 1;
       const long first = static_cast<long>(t) * N + grp.begin, count = grp.end - grp.begin;
-      const bool live = group_near_obstacles(ws.fk[t], grp);
-      ws.live[t * G + gi] = live;
-      if (!live) {
-        ws.d.segment(first, count).setConstant(eps);
-        continue;
-      }
       transform_points(ws.fk[t], grp, ws.x.data() + 3 * first);
       scene_->distances(ws.x.data() + 3 * first, count, ws.d.data() + first, ws.grad_d.data() + 3 * first, eps,
-                        settings_.exclude_mask);
+                        settings_.exclude_mask, reach.objects, reach.table);
     }
   }
   ws.order.clear();
-  const int last_t = n - settings_.obstacle_tail;
   const double inv_dt = 1.0 / dt_;
-  std::fill(ws.term.begin(), ws.term.end(), 0.0);
+  // ws.term is only read at the indices ws.order lists, all written below: no clearing needed.
   for (int t = 1; t <= last_t; ++t)
     for (int gi = 0; gi < G; ++gi) {
-      if (!ws.live[t * G + gi]) continue;
+      if (ws.live[t * G + gi] != 1) continue;
       const LinkGroup& grp = groups_[gi];
       // The previous waypoint's points are needed for the speed even where they were culled.
       if (!ws.live[(t - 1) * G + gi]) {
         transform_points(ws.fk[t - 1], grp, ws.x.data() + 3 * (static_cast<long>(t - 1) * N + grp.begin));
-        ws.live[(t - 1) * G + gi] = 2;  // positions valid, distances still the culled epsilon
+        ws.live[(t - 1) * G + gi] = 2;
       }
       for (int u = grp.begin; u < grp.end; ++u) {
         const double d = ws.d[t * N + u];
         if (d >= eps) continue;
         if (d < 0) ++out.colliding_points;
         const int i = (t - 1) * N + u;
-        ws.term[i] = chomp_cost(d, eps, nullptr) * (ws.x.row(t * N + u) - ws.x.row((t - 1) * N + u)).norm() * inv_dt;
+        const double* xt = ws.x.data() + 3 * (static_cast<long>(t) * N + u);
+        const double* xp = xt - 3 * static_cast<long>(N);
+        const double speed = std::sqrt((xt[0] - xp[0]) * (xt[0] - xp[0]) + (xt[1] - xp[1]) * (xt[1] - xp[1]) +
+                                       (xt[2] - xp[2]) * (xt[2] - xp[2]));
+        ws.term[i] = chomp_cost(d, eps, nullptr) * speed * inv_dt;
         if (ws.term[i] > 0) ws.order.push_back(i);
       }
     }

@@ -35,14 +35,16 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
       q = a + delta * (static_cast<double>(t) / L);
       robot_->forward_kinematics(q.data(), fk_cur);
       for (const LinkGroup& grp : groups_) {
-        if (!group_near_obstacles(fk_cur, grp)) continue;  // every point beyond epsilon: no cost
+        const GroupReach reach = group_reach(fk_cur, grp);
+        if (!reach.any()) continue;  // every point beyond epsilon: no cost
         const Transform& T = fk_cur.link_pose[grp.link];
         const Transform& Tp = fk_prev.link_pose[grp.link];
         // Every point_stride-th body point overall, as before the grouping.
         for (int u = grp.begin + (point_stride - grp.begin % point_stride) % point_stride; u < grp.end; u += point_stride) {
           const Eigen::Vector3d p = body_.points.row(u).transpose();
           const Eigen::Vector3d x = T.apply(p);
-          const double d = scene_->distance(x, nullptr, eps, settings_.exclude_mask);
+          double d;
+          scene_->distances(x.data(), 1, &d, nullptr, eps, settings_.exclude_mask, reach.objects, reach.table);
           if (d >= eps) continue;
           // Speed over the strided step, times the step count it stands for.
           obstacle += chomp_cost(d, eps, nullptr) * (x - Tp.apply(p)).norm() * inv_dt;

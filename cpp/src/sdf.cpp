@@ -183,17 +183,22 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
 }
 
 
-double SceneSdf::lower_bound(const Eigen::Vector3d& x, std::uint64_t exclude_mask) const {
-  double best = std::numeric_limits<double>::infinity();
+SceneSdf::PartBounds SceneSdf::part_lower_bounds(const Eigen::Vector3d& x, std::uint64_t exclude_mask) const {
+  PartBounds b{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
   if (use_merged(exclude_mask, 0.0)) {
-    best = merged_->lower_bound(x.data());
+    b.objects = merged_->lower_bound(x.data());
   } else {
     for (int i = 0; i < num_objects(); ++i) {
-      if (!(exclude_mask >> i & 1)) best = std::min(best, box_gap_bound(bodies_[i], x, 0.0));
+      if (!(exclude_mask >> i & 1)) b.objects = std::min(b.objects, box_gap_bound(bodies_[i], x, 0.0));
     }
   }
-  if (has_table_ && !(exclude_mask & kTableBit)) best = std::min(best, table_distance(x, nullptr));
-  return best;
+  if (has_table_ && !(exclude_mask & kTableBit)) b.table = table_distance(x, nullptr);
+  return b;
+}
+
+double SceneSdf::lower_bound(const Eigen::Vector3d& x, std::uint64_t exclude_mask) const {
+  const PartBounds b = part_lower_bounds(x, exclude_mask);
+  return std::min(b.objects, b.table);
 }
 
 double SceneSdf::distance_unmerged(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
@@ -240,17 +245,33 @@ double SceneSdf::distance_unmerged(const Eigen::Vector3d& x, Eigen::Vector3d* gr
 }
 
 void SceneSdf::distances(const double* points, long n, double* dist, double* grad, double cutoff,
-                         std::uint64_t exclude_mask) const {
+                         std::uint64_t exclude_mask, bool objects, bool table) const {
+  table = table && has_table_ && !(exclude_mask & kTableBit);
+  if (!objects) {
+    Eigen::Vector3d g;
+    for (long i = 0; i < n; ++i) {
+      double d = cutoff;
+      g.setZero();
+      if (table) {
+        Eigen::Vector3d gt = Eigen::Vector3d::Zero();
+        const double dt = table_distance(Eigen::Map<const Eigen::Vector3d>(points + 3 * i), grad ? &gt : nullptr);
+        if (dt < d) d = dt, g = gt;
+      }
+      dist[i] = d;
+      if (grad) Eigen::Map<Eigen::Vector3d>(grad + 3 * i) = g;
+    }
+    return;
+  }
   if (use_merged(exclude_mask, cutoff)) {
     // The hot path, with the per-point dispatch hoisted out of the loop.
-    const bool table = has_table_ && !(exclude_mask & kTableBit);
     for (long i = 0; i < n; ++i) dist[i] = merged_distance(points + 3 * i, grad ? grad + 3 * i : nullptr, cutoff, table);
     return;
   }
+  const std::uint64_t mask = table ? exclude_mask : exclude_mask | kTableBit;
   Eigen::Vector3d g;
   for (long i = 0; i < n; ++i) {
     const Eigen::Map<const Eigen::Vector3d> x(points + 3 * i);
-    dist[i] = distance(x, grad ? &g : nullptr, cutoff, exclude_mask);
+    dist[i] = distance(x, grad ? &g : nullptr, cutoff, mask);
     if (grad) Eigen::Map<Eigen::Vector3d>(grad + 3 * i) = g;
   }
 }

@@ -11,17 +11,17 @@ double MergedSdf::distance(const double* x, double* gradient) const {
     if (gradient) gradient[0] = gradient[1] = gradient[2] = 0.0;
     return settings_.cutoff;
   };
-  // Negated comparisons also reject NaN.
-  if (!(fx >= 0 && fy >= 0 && fz >= 0)) return empty();
-  const int cx = static_cast<int>(fx) / B, cy = static_cast<int>(fy) / B, cz = static_cast<int>(fz) / B;
-  if (cx >= cells_.x() || cy >= cells_.y() || cz >= cells_.z()) return empty();
+  // Negated comparisons also reject NaN; the upper bounds keep the int conversions in range.
+  if (!(fx >= 0 && fy >= 0 && fz >= 0 && fx < voxels_[0] && fy < voxels_[1] && fz < voxels_[2])) return empty();
+  const int ix = static_cast<int>(fx), iy = static_cast<int>(fy), iz = static_cast<int>(fz);
+  // The default brick (4) is a power of two: a shift instead of three integer divisions.
+  const int cx = brick_shift_ >= 0 ? ix >> brick_shift_ : ix / B, cy = brick_shift_ >= 0 ? iy >> brick_shift_ : iy / B,
+            cz = brick_shift_ >= 0 ? iz >> brick_shift_ : iz / B;
   const std::int32_t brick = brick_of_cell_[(static_cast<long>(cz) * cells_.y() + cy) * cells_.x() + cx];
   if (brick < 0) return empty();
   // Local voxel inside the brick; the brick's last node layer is shared with its neighbour.
-  const double lx = fx - cx * B, ly = fy - cy * B, lz = fz - cz * B;
-  const int i = std::min(static_cast<int>(lx), B - 1), j = std::min(static_cast<int>(ly), B - 1),
-            k = std::min(static_cast<int>(lz), B - 1);
-  const double tx = lx - i, ty = ly - j, tz = lz - k;
+  const int i = ix - cx * B, j = iy - cy * B, k = iz - cz * B;
+  const double tx = fx - ix, ty = fy - iy, tz = fz - iz;
   const long sy = B + 1, sz = sy * sy;
   const float* c = values_.data() + brick * brick_nodes_ + (k * sz + j * sy + i);
   const double c000 = c[0], c100 = c[1], c010 = c[sy], c110 = c[1 + sy];

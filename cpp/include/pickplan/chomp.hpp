@@ -56,7 +56,7 @@ struct ChompWorkspace {
   Eigen::VectorXd d;                   // (n+1)*N distances
   std::vector<double> term;            // n*N obstacle terms
   std::vector<int> order;              // candidate term indices for the top-k selection
-  std::vector<char> live;              // (n+1) x groups: the link group had its points evaluated
+  std::vector<char> live;              // (n+1) x groups: 1 distances evaluated, 2 points only, 0 culled
   Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor> wrench;  // (n+1) x groups: force, moment
   std::vector<int> loaded;             // wrench rows touched this evaluation
   Trajectory grad, u;                  // gradient and A^-1 gradient
@@ -93,9 +93,14 @@ class ChompProblem {
   const SceneSdf& scene() const { return *scene_; }
   const BodyPoints& body() const { return body_; }
   const std::vector<LinkGroup>& groups() const { return groups_; }
-  // False when every point of the group, at the link pose in fk, is at least epsilon from
-  // every obstacle (a sound lower bound: culling never changes a cost).
-  bool group_near_obstacles(const RobotWorkspace& fk, const LinkGroup& group) const;
+  // Whether the objects and the table can come within epsilon of the group's points at the
+  // link pose in fk (sound lower bounds over its bounding sphere: culling never changes a cost).
+  struct GroupReach {
+    bool objects, table;
+    bool any() const { return objects || table; }
+  };
+  GroupReach group_reach(const RobotWorkspace& fk, const LinkGroup& group) const;
+  bool group_near_obstacles(const RobotWorkspace& fk, const LinkGroup& group) const { return group_reach(fk, group).any(); }
   const ChompSettings& settings() const { return settings_; }
   double dt() const { return dt_; }
 

@@ -99,12 +99,23 @@ class SceneSdf {
   // A lower bound of distance(x, ., inf, exclude_mask) that is cheap (one array read with a
   // matching merged grid, a box gap per object otherwise); used to cull whole links.
   double lower_bound(const Eigen::Vector3d& x, std::uint64_t exclude_mask = 0) const;
+  // The same bound for the objects and for the table apart (+inf for an absent or excluded
+  // part), so a caller can skip either part for a whole link (both sides 1-Lipschitz).
+  struct PartBounds {
+    double objects, table;
+  };
+  PartBounds part_lower_bounds(const Eigen::Vector3d& x, std::uint64_t exclude_mask = 0) const;
   // The same, by the per-object grids only (never the merged grid): the reference.
   double distance_unmerged(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
                            std::uint64_t exclude_mask = 0) const;
   // Batched: N points (row-major N x 3) into dist (N) and grad (N x 3, may be null).
   void distances(const double* points, long n, double* dist, double* grad, double cutoff,
-                 std::uint64_t exclude_mask = 0) const;
+                 std::uint64_t exclude_mask = 0) const {
+    distances(points, n, dist, grad, cutoff, exclude_mask, true, true);
+  }
+  // Restricted to the objects and/or the table (callers that know a part is beyond the cutoff).
+  void distances(const double* points, long n, double* dist, double* grad, double cutoff, std::uint64_t exclude_mask,
+                 bool objects, bool table) const;
 
   static constexpr std::uint64_t kTableBit = std::uint64_t{1} << 63;
 

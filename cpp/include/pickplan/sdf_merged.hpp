@@ -52,6 +52,8 @@ class MergedSdf {
   Eigen::Vector3i cells_ = Eigen::Vector3i::Zero();
   double inv_resolution_ = 0.0;
   long brick_nodes_ = 1;
+  int brick_shift_ = -1;                     // log2(brick) when a power of two: shifts, not divisions
+  double voxels_[3] = {0, 0, 0};             // covered box in voxels (cells * brick)
   std::vector<std::int32_t> brick_of_cell_;  // -1: every node at or beyond the cutoff
   std::vector<float> values_;                // brick after brick, x fastest inside a brick
   std::vector<float> cell_lower_;            // per cell: lower bound of the distance anywhere in it
@@ -71,6 +73,9 @@ MergedSdf MergedSdf::build(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
   for (int a = 0; a < 3; ++a) m.cells_[a] = std::max(1, static_cast<int>(std::ceil((hi[a] - lo[a]) / edge)));
   const long nodes1 = B + 1;
   m.brick_nodes_ = nodes1 * nodes1 * nodes1;
+  for (int a = 0; a < 3; ++a) m.voxels_[a] = static_cast<double>(m.cells_[a]) * B;
+  for (int shift = 0; shift < 7; ++shift)
+    if ((1 << shift) == B) m.brick_shift_ = shift;
   m.brick_of_cell_.assign(static_cast<std::size_t>(m.cells_.prod()), -1);
   m.cell_lower_.assign(m.brick_of_cell_.size(), 0.0f);
   // The cell's half diagonal plus one voxel diagonal: the bound then also holds for the
