@@ -38,16 +38,22 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
         const GroupReach reach = group_reach(fk_cur, grp);
         if (!reach.any()) continue;  // every point beyond epsilon: no cost
         const Transform& T = fk_cur.link_pose[grp.link];
+        // Every point_stride-th body point overall, as before the grouping: transformed into
+        // ws.x and looked up in one batch (ws.x, ws.d are scratch here).
+        const int first = grp.begin + (point_stride - grp.begin % point_stride) % point_stride;
+        long count = 0;
+        for (int u = first; u < grp.end; u += point_stride, ++count)
+          Eigen::Map<Eigen::Vector3d>(ws.x.data() + 3 * count) = T.apply(body_.points.row(u).transpose());
+        scene_->distances(ws.x.data(), count, ws.d.data(), nullptr, eps, settings_.exclude_mask, reach.objects,
+                          reach.table);
         const Transform& Tp = fk_prev.link_pose[grp.link];
-        // Every point_stride-th body point overall, as before the grouping.
-        for (int u = grp.begin + (point_stride - grp.begin % point_stride) % point_stride; u < grp.end; u += point_stride) {
-          const Eigen::Vector3d p = body_.points.row(u).transpose();
-          const Eigen::Vector3d x = T.apply(p);
-          double d;
-          scene_->distances(x.data(), 1, &d, nullptr, eps, settings_.exclude_mask, reach.objects, reach.table);
+        for (long j = 0; j < count; ++j) {
+          const double d = ws.d[j];
           if (d >= eps) continue;
+          const Eigen::Vector3d x = Eigen::Map<const Eigen::Vector3d>(ws.x.data() + 3 * j);
+          const Eigen::Vector3d xp = Tp.apply(body_.points.row(first + j * point_stride).transpose());
           // Speed over the strided step, times the step count it stands for.
-          obstacle += chomp_cost(d, eps, nullptr) * (x - Tp.apply(p)).norm() * inv_dt;
+          obstacle += chomp_cost(d, eps, nullptr) * (x - xp).norm() * inv_dt;
         }
       }
       std::swap(fk_prev.link_pose, fk_cur.link_pose);

@@ -47,7 +47,15 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
     pre.p -= s.standoff * static_cast<double>(m - 1 - k) / std::max(1, m - 1) * pre.R.col(2);
     return pre;
   };
-  for (size_t g = 0; g < hand_poses.size(); ++g) {
+  // Grasps are tried in a seeded random order until max_goals goals are kept: the kept set is a
+  // uniform random choice of the feasible, diverse grasps, and the work stops when enough are found.
+  std::vector<size_t> order(hand_poses.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::mt19937 rng(s.seed);
+  std::shuffle(order.begin(), order.end(), rng);
+  size_t tried_grasps = 0;
+  for (; tried_grasps < order.size() && static_cast<int>(tails.size()) < s.max_goals; ++tried_grasps) {
+    const size_t g = order[tried_grasps];
     if (hand_checker) {
       std::string hand_reason;
       for (int k = m - 1; k >= 0 && hand_reason.empty(); --k)
@@ -90,32 +98,24 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
         }
       }
       if (ok) {
+        // Diversity: a goal too close to one already kept is a duplicate.
         reason = "ok";
-        tails.push_back(std::move(tail));
-        index.push_back(static_cast<int>(g));
+        for (const Trajectory& kept : tails)
+          if ((tail.row(m - 1) - kept.row(m - 1)).cwiseAbs().maxCoeff() < s.diversity) reason = "duplicate";
+        if (reason == "ok") {
+          tails.push_back(std::move(tail));
+          index.push_back(static_cast<int>(g));
+        }
         break;
       }
     }
     out.reasons[g] = reason;
   }
-  // Diversity: drop goals too close to one already kept (in input order, deterministic).
-  std::vector<int> kept;
-  for (size_t i = 0; i < tails.size(); ++i) {
-    bool dup = false;
-    for (int k : kept)
-      if ((tails[i].row(m - 1) - tails[k].row(m - 1)).cwiseAbs().maxCoeff() < s.diversity) dup = true;
-    if (dup) out.reasons[index[i]] = "duplicate";
-    else kept.push_back(static_cast<int>(i));
-  }
-  if (static_cast<int>(kept.size()) > s.max_goals) {
-    std::mt19937 rng(s.seed);
-    std::vector<int> shuffled = kept;
-    std::shuffle(shuffled.begin(), shuffled.end(), rng);
-    for (size_t i = s.max_goals; i < shuffled.size(); ++i) out.reasons[index[shuffled[i]]] = "over_cap";
-    shuffled.resize(s.max_goals);
-    std::sort(shuffled.begin(), shuffled.end());
-    kept = shuffled;
-  }
+  for (size_t i = tried_grasps; i < order.size(); ++i) out.reasons[order[i]] = "over_cap";  // never tried
+  // Goals in input order (deterministic, independent of the trial order).
+  std::vector<int> kept(tails.size());
+  std::iota(kept.begin(), kept.end(), 0);
+  std::sort(kept.begin(), kept.end(), [&](int a, int b) { return index[a] < index[b]; });
   out.goals.resize(kept.size(), d);
   for (size_t i = 0; i < kept.size(); ++i) {
     out.goals.row(i) = tails[kept[i]].row(m - 1);

@@ -127,6 +127,7 @@ class OMGPlanner:
         origin = list(gs.grasp_index)          # input grasp of each goal
         refined_copy: dict = {}                # goal index -> index of its refined copy
         refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
+        isf_stalled: set = set()               # goals where ISF found no decrease: refine(g) would return g again
         policy = make_policy(s.selection)
         N = s.iterations
 
@@ -165,10 +166,12 @@ class OMGPlanner:
             p = policy.update(c)
             g_next = policy.select()
             timings["selection"] += time.perf_counter() - t
-            if refiner is not None:
+            if refiner is not None and g_next not in isf_stalled:
                 t = time.perf_counter()
                 q_ref, _ = refiner.refine(goals[g_next], s.isf_steps)
-                if np.abs(q_ref - goals[g_next]).max() > 0:
+                if np.abs(q_ref - goals[g_next]).max() == 0:
+                    isf_stalled.add(g_next)  # deterministic: stays put until the goal changes
+                else:
                     shifted = tails[g_next] + (q_ref - goals[g_next])  # keep the approach's shape
                     if g_next in refined_copy.values():       # already a refined goal: update in place
                         goals[g_next], tails[g_next] = q_ref, shifted

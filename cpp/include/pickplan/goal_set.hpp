@@ -15,9 +15,10 @@ struct GoalSetSettings {
   int standoff_steps = 4;    // waypoints from the pre-grasp to the grasp (the tail has steps + 1 rows)
   double max_joint_jump = 0.5;  // rad between consecutive tail configurations (continuity)
   double diversity = 0.1;    // rad (max-norm): goals closer than this to a kept goal are duplicates
-  int max_goals = 30;        // cap, as in the paper's experiments (up to 100)
+  int max_goals = 30;        // cap, as in the paper's experiments (up to 100): grasps are tried
+                             // in a seeded random order until this many goals are kept
   int max_solutions = 4;     // distinct IK solutions tried per grasp before giving up on it
-  unsigned seed = 0;         // which goals survive the cap (a seeded, uniform subset)
+  unsigned seed = 0;         // the trial order (so which goals are kept: a seeded, uniform subset)
 };
 
 struct GoalSet {
@@ -25,7 +26,8 @@ struct GoalSet {
   std::vector<Trajectory> tails;    // per goal: (steps + 1) x dof, pre-grasp first, grasp last
   std::vector<int> grasp_index;     // input grasp of each goal
   std::vector<std::string> reasons; // per input grasp: "ok", "unreachable", "in_collision",
-                                    // "standoff_unreachable", "standoff_in_collision", "duplicate", "over_cap"
+                                    // "standoff_unreachable", "standoff_in_collision", "duplicate",
+                                    // "over_cap" (not tried: the cap was reached first)
   double seconds = 0;
 };
 
