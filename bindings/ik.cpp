@@ -112,14 +112,14 @@ void init_ik(py::module_& m) {
 
   m.def("build_goal_set", [](const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                              const Array& hand_poses,
-                             const Array& start, const GoalSetSettings& s) {
+                             const Array& start, const GoalSetSettings& s, const CollisionChecker* approach) {
     std::vector<Transform> poses = poses_arg(hand_poses, "grasps");
     Array q = configuration(ik.robot(), start, "start");
     Eigen::VectorXd qs = Eigen::Map<const Eigen::VectorXd>(q.data(), q.shape(0));
     GoalSet gs;
     {
       py::gil_scoped_release release;
-      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s);
+      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, approach);
     }
     py::dict d;
     d["goals"] = traj_array(gs.goals);
@@ -133,7 +133,7 @@ void init_ik(py::module_& m) {
     d["seconds"] = gs.seconds;
     return d;
   }, py::arg("ik"), py::arg("checker"), py::arg("hand_checker"), py::arg("hand_poses"), py::arg("start"),
-     py::arg("settings") = GoalSetSettings());
+     py::arg("settings") = GoalSetSettings(), py::arg("approach_checker") = nullptr);
 }
 
 }  // namespace pickplan::bind

@@ -58,7 +58,8 @@ class PlanResult:
     grasp_cost: float              # f_grasp at the final goal (eq. 10)
     goal_set_size: int
     iterations: int
-    history: dict                  # objective, goal, p (per iteration), switches
+    history: dict                  # objective, goal, p, costs (normalized estimates; per iteration),
+                                   # switches, initial_grasp
     timings: dict                  # seconds: prepare (world, grasps; not planning), goal_set, chomp, costs,
                                    # selection, isf, metrics, total (goal set + planning)
     goal_reasons: dict = field(default_factory=dict)
@@ -102,6 +103,8 @@ class OMGPlanner:
         elif isinstance(grasps, str):
             grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed).poses
         world.checker("goal"), world.checker("hand")  # FCL models: built once per scene, cached
+        if s.goals.approach_clearance > 0:
+            world.checker("approach", s.goals.approach_clearance)
         if s.refine:
             world.grasp_refiner(s.isf, s.seed)  # hand SDF, object samples: cached likewise
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
@@ -116,7 +119,7 @@ class OMGPlanner:
             timings["total"] = time.perf_counter() - t_total
             empty = np.zeros((0, world.robot.dof))
             return PlanResult("no_goals", np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
-                              {"objective": [], "goal": [], "p": [], "switches": 0}, timings, gs.reason_counts())
+                              {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}, timings, gs.reason_counts())
 
         m = gs.tails.shape[1]
         chomp = Chomp(world.robot, world.sdf, world.body, replace(s.chomp, obstacle_tail=m), exclude=(world.target,))
@@ -149,7 +152,7 @@ class OMGPlanner:
         g = int(np.argmin(c0))  # the initial goal: best by the initial estimate (as Fixed)
         xi = cubic_initialization(q0, goals[g], s.chomp.n)
         xi[-m:] = tails[g]
-        history = {"objective": [], "goal": [], "p": [], "switches": 0}
+        history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": int(origin[g])}
         iterations = 0
         metrics = None
         for i in range(N):
@@ -162,6 +165,7 @@ class OMGPlanner:
             c = estimates(xi, i + 1)
             timings["costs"] += time.perf_counter() - t
             t = time.perf_counter()
+            history["costs"].append(c)
             p = policy.update(c)
             g_next = policy.select()
             timings["selection"] += time.perf_counter() - t

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
@@ -63,12 +63,14 @@ class World:
     def scene_meshes(self):
         return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
 
-    @functools.lru_cache(maxsize=4)
-    def checker(self, kind: str = "goal") -> collision.CollisionChecker:
+    @functools.lru_cache(maxsize=8)
+    def checker(self, kind: str = "goal", margin: float = 0.0) -> collision.CollisionChecker:
         """FCL checker against objects and table. "goal": the fingers may touch the target
         (grasp configurations close around it); "hand": the same for the hand and fingers alone;
         "strict": nothing may touch anything;
-        "obstacles": the target is ignored entirely (trajectory validation)."""
+        "obstacles": the target is ignored entirely (trajectory validation);
+        "approach": the other objects only (target and table ignored), as the success test's
+        approach clearance measures them. ``margin``: closer than this counts as a collision."""
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())
@@ -82,8 +84,11 @@ class World:
             settings = collision.CollisionSettings(allowed_pairs=mounted)
         elif kind == "obstacles":
             settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
+        elif kind == "approach":
+            settings = collision.CollisionSettings(excluded_objects=(self.target, "table"))
         else:
-            raise ValueError(f"unknown checker kind {kind!r}; use 'goal', 'hand', 'strict' or 'obstacles'")
+            raise ValueError(f"unknown checker kind {kind!r}; use 'goal', 'hand', 'strict', 'obstacles' or 'approach'")
+        settings = replace(settings, margin=float(margin))
         table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
                                 pose=np.asarray(self.scene.table.pose, dtype=float))
         return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links)

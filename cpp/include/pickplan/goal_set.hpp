@@ -25,14 +25,19 @@ struct GoalSet {
   std::vector<Trajectory> tails;    // per goal: (steps + 1) x dof, pre-grasp first, grasp last
   std::vector<int> grasp_index;     // input grasp of each goal
   std::vector<std::string> reasons; // per input grasp: "ok", "unreachable", "in_collision",
-                                    // "standoff_unreachable", "standoff_in_collision", "duplicate", "over_cap"
+                                    // "standoff_unreachable", "standoff_in_collision", "approach_clearance",
+                                    // "duplicate", "over_cap"
   double seconds = 0;
 };
 
 // hand_poses: world poses of the IK link for each grasp. `checker` may be null (no collision
 // filter); `hand_checker` (optional) holds only the hand and finger links, for early rejection.
+// `approach_checker` (optional): every tail configuration (pre-grasp .. grasp) must also be free
+// under it, i.e. keep its margin from what it checks (the clearance a plan's approach must keep);
+// a grasp failing it is rejected as "approach_clearance".
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
-                       const Eigen::VectorXd& start, const GoalSetSettings& settings = {});
+                       const Eigen::VectorXd& start, const GoalSetSettings& settings = {},
+                       const CollisionChecker* approach_checker = nullptr);
 
 }  // namespace pickplan
