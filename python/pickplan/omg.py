@@ -133,6 +133,9 @@ class OMGPlanner:
         policy = make_policy(s.selection)
         N = s.iterations
 
+        def on_goal(xi, g):  # the tail sits on goal g's tail (after a projection step: to round-off)
+            return np.allclose(xi[-m:], tails[g], rtol=0.0, atol=1e-9)
+
         def estimates(xi, i):
             if policy.cost_kind == "distance":  # Proj: distance of the free end point to each goal
                 _, grad = chomp.problem.objective(xi, q0, i)
@@ -191,18 +194,22 @@ class OMGPlanner:
             history["switches"] += int(g_next != g)
             history["goal"].append(g_next)
             history["p"].append(p.copy())
-            if g_next != g:
-                xi[-m:] = tails[g_next]  # the projection puts the tail there anyway; start it there
-                g = g_next
+            # On a switch the tail is left where it is: the next CHOMP-Proj step's offset term
+            # (eq. 7, -A^-1 C^T (C A^-1 C^T)^-1 b) moves the whole trajectory smoothly onto the new
+            # goal; overwriting the tail instead would leave a jump before it for CHOMP to undo.
+            g = g_next
             if s.pre_terminate and iterations >= s.min_iterations and iterations % s.check_every == 0:
                 t = time.perf_counter()
-                metrics = chomp.metrics(xi, q0, metric_settings)
+                # Judge the trajectory that would be returned: with its tail on the current goal.
+                cand = xi if on_goal(xi, g) else chomp.step(xi.copy(), q0, tails[g], iterations, ws)[0]
+                metrics = chomp.metrics(cand, q0, metric_settings)
                 timings["metrics"] += time.perf_counter() - t
                 if metrics["success"]:
+                    xi = cand
                     break
                 metrics = None
-        # The tail sits exactly on the current goal after its last projection step.
-        xi, _ = chomp.step(xi, q0, tails[g], iterations, ws) if not np.allclose(xi[-m:], tails[g]) else (xi, None)
+        if not on_goal(xi, g):  # the last selection (a switch or a refined goal): project onto it
+            xi, _ = chomp.step(xi, q0, tails[g], iterations, ws)
         t = time.perf_counter()
         if metrics is None:
             metrics = chomp.metrics(xi, q0, metric_settings)
