@@ -33,6 +33,7 @@ POLICIES = ("Fixed", "Proj", "FTC", "FTL", "EXP", "MD")
 SETS = {
     "builtin": (None, scenes.SceneSettings()),
     "dense": (None, scenes.SceneSettings(min_objects=6, max_objects=7, region_x=(0.4, 0.7), region_y=(-0.25, 0.25))),
+    "clutter": (None, scenes.SceneSettings(min_objects=8, max_objects=10, region_x=(0.4, 0.7), region_y=(-0.2, 0.2))),
     "ycb": ("/work/shared/data/ycb", scenes.SceneSettings()),
 }
 
