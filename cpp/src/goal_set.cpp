@@ -11,7 +11,7 @@ namespace pickplan {
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& s,
-                       const CollisionChecker* approach_checker) {
+                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok) {
   const auto t0 = std::chrono::steady_clock::now();
   if (s.standoff_steps < 0 || s.standoff < 0 || s.max_goals < 1 || s.diversity < 0)
     throw std::invalid_argument("goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1 required");
@@ -28,8 +28,7 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
   // they collide, every arm configuration reaching this grasp collides too.
   std::unique_ptr<CollisionWorkspace> hws = hand_checker ? std::make_unique<CollisionWorkspace>(*hand_checker) : nullptr;
   auto hand_collides = [&](const Eigen::VectorXd& q) { return hand_checker && hand_checker->in_collision(q.data(), *hws); };
-  std::unique_ptr<CollisionWorkspace> aws = approach_checker ? std::make_unique<CollisionWorkspace>(*approach_checker) : nullptr;
-  auto too_close = [&](const Eigen::VectorXd& q) { return approach_checker && approach_checker->in_collision(q.data(), *aws); };
+  auto too_close = [&](const Eigen::VectorXd& q) { return approach_ok && !approach_ok(q); };
   // The hand links' poses relative to the IK link (fingers as in `start`): a grasp whose hand
   // collides at the grasp or anywhere on its approach is rejected before any IK.
   std::vector<Transform> hand_relative;

@@ -34,9 +34,11 @@ class IkSettings:
 class GoalSetSettings:
     """Mirror of the native ``GoalSetSettings`` (paper: 30 goals per scene, 8 cm standoff), plus
     ``approach_clearance``: every configuration of the standoff approach (pre-grasp to grasp) must
-    keep this distance from the other objects (exact meshes, FCL), the clearance the success test
-    demands of a plan's approach (``MetricSettings.tail_clearance``; the approach is pinned, neither
-    CHOMP nor the goal-cost estimate can move or charge it). 0 disables the check."""
+    keep this distance from the other objects, measured as the success test measures it (body
+    points in the scene SDF, target and table left out): the clearance the test demands of a plan's
+    approach (``MetricSettings.tail_clearance``). The approach is pinned: neither CHOMP nor the
+    goal-cost estimate can move or charge it, so a goal failing this could never succeed.
+    0 disables the check."""
 
     approach_clearance: float = 0.01
     standoff: float = 0.08
@@ -96,9 +98,8 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     hand_poses = np.einsum("ij,njk->nik", world.target_pose, grasps) if len(grasps) else grasps
     checker = world.checker("goal").native if collision_check else None
     hand_checker = world.checker("hand").native if collision_check else None
-    approach = world.checker("approach", settings.approach_clearance).native \
-        if collision_check and settings.approach_clearance > 0 else None
+    problem = world.clearance_problem if collision_check and settings.approach_clearance > 0 else None
     out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses, start, settings.to_native(),
-                               approach)
+                               problem, float(settings.approach_clearance))
     return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), np.asarray(out["grasp_index"], dtype=int),
                    grasps, list(out["reasons"]), float(out["seconds"]))

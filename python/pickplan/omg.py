@@ -103,8 +103,6 @@ class OMGPlanner:
         elif isinstance(grasps, str):
             grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed).poses
         world.checker("goal"), world.checker("hand")  # FCL models: built once per scene, cached
-        if s.goals.approach_clearance > 0:
-            world.checker("approach", s.goals.approach_clearance)
         if s.refine:
             world.grasp_refiner(s.isf, s.seed)  # hand SDF, object samples: cached likewise
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.

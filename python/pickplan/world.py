@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -63,14 +63,12 @@ class World:
     def scene_meshes(self):
         return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
 
-    @functools.lru_cache(maxsize=8)
-    def checker(self, kind: str = "goal", margin: float = 0.0) -> collision.CollisionChecker:
+    @functools.lru_cache(maxsize=4)
+    def checker(self, kind: str = "goal") -> collision.CollisionChecker:
         """FCL checker against objects and table. "goal": the fingers may touch the target
         (grasp configurations close around it); "hand": the same for the hand and fingers alone;
         "strict": nothing may touch anything;
-        "obstacles": the target is ignored entirely (trajectory validation);
-        "approach": the other objects only (target and table ignored), as the success test's
-        approach clearance measures them. ``margin``: closer than this counts as a collision."""
+        "obstacles": the target is ignored entirely (trajectory validation)."""
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())
@@ -84,14 +82,19 @@ class World:
             settings = collision.CollisionSettings(allowed_pairs=mounted)
         elif kind == "obstacles":
             settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
-        elif kind == "approach":
-            settings = collision.CollisionSettings(excluded_objects=(self.target, "table"))
         else:
-            raise ValueError(f"unknown checker kind {kind!r}; use 'goal', 'hand', 'strict', 'obstacles' or 'approach'")
-        settings = replace(settings, margin=float(margin))
+            raise ValueError(f"unknown checker kind {kind!r}; use 'goal', 'hand', 'strict' or 'obstacles'")
         table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
                                 pose=np.asarray(self.scene.table.pose, dtype=float))
         return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links)
+
+    @functools.cached_property
+    def clearance_problem(self):
+        """A CHOMP problem on this scene with the target excluded: what the success test measures
+        clearances with (body points in the scene SDF); the goal set checks approaches with it."""
+        from .chomp import Chomp
+
+        return Chomp(self.robot, self.sdf, self.body, exclude=(self.target,)).problem
 
     @functools.lru_cache(maxsize=4)
     def grasp_refiner(self, settings=None, seed: int = 0):

@@ -5,12 +5,13 @@ Fixed fails").
 BOWL: the goal with the best initial estimate had a fixed 8 cm standoff approach (the pinned tail,
 neither optimized by CHOMP nor charged by the estimate) passing the mug within millimetres, under
 the 1 cm the success test demands of the approach, so it could never succeed and no policy could
-see why. The goal set now rejects such approaches (``GoalSetSettings.approach_clearance``, FCL at
-the success test's ``tail_clearance``); the first test pins that down.
+see why. The goal set now rejects such approaches (``GoalSetSettings.approach_clearance``: the
+success test's ``tail_clearance``, measured as the test measures it); the first test pins that down.
 
 MEAT: frozen from the "dense" set of ``bench/bench_selection_study.py`` (scene 57 of seed 0: 6-7
-built-in objects in x 0.4-0.7, y -0.25-0.25; poses rounded, tilts dropped), the one scene of 100
-where Fixed fails and another goal succeeds alone. The goal with the best initial estimate cannot
+built-in objects in x 0.4-0.7, y -0.25-0.25; poses rounded, tilts dropped) with the 30 grasps its
+goal set held when it was found (an FCL version of the approach filter drew another subset under
+the 30-goal cap), the one case in 100 where Fixed failed and other goals succeeded alone. The goal with the best initial estimate cannot
 be reached smoothly (planned alone its trajectory ends above the smoothness threshold); as CHOMP
 bends the trajectory toward it, its normalized estimate (the tail from xi(t_i)) rises and other
 goals' fall, the online policies switch, and the CHOMP-Proj step carries the whole trajectory
@@ -86,9 +87,15 @@ def bowl():
     return _setup(BOWL)
 
 
+# The 30 antipodal grasps (of 100, seed 0) that make MEAT's goal set: all reachable, none capped.
+MEAT_GRASPS = [1, 4, 7, 8, 13, 18, 20, 23, 26, 35, 43, 47, 48, 49, 53, 56, 58, 60, 66, 69, 71, 73, 75, 81, 83, 88,
+               90, 91, 95, 99]
+
+
 @pytest.fixture(scope="module")
 def meat():
-    return _setup(MEAT)
+    scene, world, poses = _setup(MEAT)
+    return scene, world, poses[MEAT_GRASPS]
 
 
 @pytest.fixture(scope="module")
@@ -97,9 +104,15 @@ def meat_runs(meat):
 
 
 def _approach_distances(world, gs):
-    """Exact (FCL) distance of every goal's tail (pre-grasp .. grasp) to the non-target objects."""
-    check = world.checker("approach")
-    return np.array([min(check.min_distance(q) for q in tail) for tail in gs.tails])
+    """Per goal: the smallest distance of the body points to the non-target objects (table left out)
+    over its tail (pre-grasp .. grasp), from the scene SDF (the success test's measure)."""
+    body = world.body
+    out = []
+    for tail in gs.tails:
+        P = world.robot.fk_batch(tail)[:, body.links]
+        pts = np.einsum("mkij,kj->mki", P[:, :, :3, :3], body.points) + P[:, :, :3, 3]
+        out.append(world.sdf.distance(pts.reshape(-1, 3), 0.2, exclude=(world.target,), exclude_table=True)[0].min())
+    return np.array(out)
 
 
 def test_goal_set_keeps_the_success_tests_approach_clearance(bowl):
@@ -117,7 +130,7 @@ def test_goal_set_keeps_the_success_tests_approach_clearance(bowl):
     # with it: that grasp is rejected for its approach, every offered approach keeps 1 cm ...
     gs = goals.build_goal_set(world, poses)
     assert gs.reasons[first] == "approach_clearance" and first not in gs.grasp_index
-    assert len(gs) >= 10 and _approach_distances(world, gs).min() >= need - 1e-9
+    assert len(gs) >= 10 and _approach_distances(world, gs).min() >= need - 2e-3  # merged vs per-object grids
     # ... and the plan toward the best remaining initial estimate succeeds
     after = _plan(scene, world, poses, selection="Fixed")
     assert after.success and after.grasp_index != first

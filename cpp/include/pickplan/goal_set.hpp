@@ -1,6 +1,7 @@
 #pragma once
 // Goal sets: grasps in the world -> IK -> standoff approach chain -> collision filter ->
 // diversity filter -> capped set. Every rejected grasp carries its reason.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -32,12 +33,11 @@ struct GoalSet {
 
 // hand_poses: world poses of the IK link for each grasp. `checker` may be null (no collision
 // filter); `hand_checker` (optional) holds only the hand and finger links, for early rejection.
-// `approach_checker` (optional): every tail configuration (pre-grasp .. grasp) must also be free
-// under it, i.e. keep its margin from what it checks (the clearance a plan's approach must keep);
-// a grasp failing it is rejected as "approach_clearance".
+// `approach_ok` (optional): every tail configuration (pre-grasp .. grasp) must pass it (e.g. keep
+// the clearance the success test demands of a plan's approach); failing grasps: "approach_clearance".
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& settings = {},
-                       const CollisionChecker* approach_checker = nullptr);
+                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok = {});
 
 }  // namespace pickplan
