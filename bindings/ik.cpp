@@ -1,6 +1,7 @@
 #include "common.hpp"
 #include "pickplan/goal_set.hpp"
 #include "pickplan/ik.hpp"
+#include "pickplan/metrics.hpp"
 
 namespace pickplan::bind {
 
@@ -112,14 +113,23 @@ void init_ik(py::module_& m) {
 
   m.def("build_goal_set", [](const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                              const Array& hand_poses,
-                             const Array& start, const GoalSetSettings& s) {
+                             const Array& start, const GoalSetSettings& s, const ChompProblem* problem,
+                             double clearance) {
     std::vector<Transform> poses = poses_arg(hand_poses, "grasps");
     Array q = configuration(ik.robot(), start, "start");
     Eigen::VectorXd qs = Eigen::Map<const Eigen::VectorXd>(q.data(), q.shape(0));
     GoalSet gs;
     {
       py::gil_scoped_release release;
-      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s);
+      // The success test's approach clearance: body points to the objects the problem does not
+      // exclude (the target), the table left out (metrics.cpp, object_clearance).
+      RobotWorkspace rws(ik.robot());
+      std::function<bool(const Eigen::VectorXd&)> ok;
+      if (problem && clearance > 0)
+        ok = [&](const Eigen::VectorXd& q) {
+          return object_clearance(*problem, q.data(), problem->settings().exclude_mask, clearance, rws) >= clearance;
+        };
+      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok);
     }
     py::dict d;
     d["goals"] = traj_array(gs.goals);
@@ -133,7 +143,8 @@ void init_ik(py::module_& m) {
     d["seconds"] = gs.seconds;
     return d;
   }, py::arg("ik"), py::arg("checker"), py::arg("hand_checker"), py::arg("hand_poses"), py::arg("start"),
-     py::arg("settings") = GoalSetSettings());
+     py::arg("settings") = GoalSetSettings(), py::arg("clearance_problem") = nullptr,
+     py::arg("approach_clearance") = 0.0);
 }
 
 }  // namespace pickplan::bind

@@ -10,7 +10,8 @@ namespace pickplan {
 
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
-                       const Eigen::VectorXd& start, const GoalSetSettings& s) {
+                       const Eigen::VectorXd& start, const GoalSetSettings& s,
+                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok) {
   const auto t0 = std::chrono::steady_clock::now();
   if (s.standoff_steps < 0 || s.standoff < 0 || s.max_goals < 1 || s.diversity < 0)
     throw std::invalid_argument("goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1 required");
@@ -27,6 +28,7 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
   // they collide, every arm configuration reaching this grasp collides too.
   std::unique_ptr<CollisionWorkspace> hws = hand_checker ? std::make_unique<CollisionWorkspace>(*hand_checker) : nullptr;
   auto hand_collides = [&](const Eigen::VectorXd& q) { return hand_checker && hand_checker->in_collision(q.data(), *hws); };
+  auto too_close = [&](const Eigen::VectorXd& q) { return approach_ok && !approach_ok(q); };
   // The hand links' poses relative to the IK link (fingers as in `start`): a grasp whose hand
   // collides at the grasp or anywhere on its approach is rejected before any IK.
   std::vector<Transform> hand_relative;
@@ -82,6 +84,10 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
         if (hand_collides(sol.q)) break;
         continue;
       }
+      if (too_close(sol.q)) {
+        reason = "approach_clearance";
+        continue;
+      }
       Trajectory tail(m, d);
       tail.row(m - 1) = sol.q.transpose();
       bool ok = true;
@@ -93,6 +99,9 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
         } else if (collides(step.q)) {
           ok = false;
           reason = "standoff_in_collision";
+        } else if (too_close(step.q)) {
+          ok = false;
+          reason = "approach_clearance";
         } else {
           tail.row(k2) = step.q.transpose();
         }

@@ -20,6 +20,22 @@ Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int step
   return out;
 }
 
+double object_clearance(const ChompProblem& problem, const double* q, std::uint64_t exclude_mask, double cap,
+                        RobotWorkspace& ws) {
+  const SceneSdf& scene = problem.scene();
+  const BodyPoints& body = problem.body();
+  problem.robot().forward_kinematics(q, ws);
+  double out = cap;
+  for (const LinkGroup& grp : problem.groups()) {
+    const Transform& T = ws.link_pose[grp.link];
+    if (scene.lower_bound(T.apply(grp.center), exclude_mask) - grp.radius >= out) continue;
+    for (int u = grp.begin; u < grp.end; ++u)
+      out = std::min(out, scene.distance_unmerged(T.apply(body.points.row(u).transpose()), nullptr, out,
+                                                  exclude_mask | SceneSdf::kTableBit));
+  }
+  return out;
+}
+
 TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
                                       const MetricSettings& s) {
   problem.check_trajectory(xi, q0);

@@ -1,9 +1,9 @@
-"""Goal sets: grasps (hand poses in the object frame) -> IK -> standoff approach -> FCL filter ->
-diversity -> cap. Native; every rejected grasp records why."""
+"""Goal sets: grasps (hand poses in the object frame) -> IK -> standoff approach -> FCL filter
+(approach clearance) -> diversity -> cap. Native; every rejected grasp records why."""
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -32,8 +32,15 @@ class IkSettings:
 
 @dataclass(frozen=True)
 class GoalSetSettings:
-    """Mirror of the native ``GoalSetSettings`` (paper: 30 goals per scene, 8 cm standoff)."""
+    """Mirror of the native ``GoalSetSettings`` (paper: 30 goals per scene, 8 cm standoff), plus
+    ``approach_clearance``: every configuration of the standoff approach (pre-grasp to grasp) must
+    keep this distance from the other objects, measured as the success test measures it (body
+    points in the scene SDF, target and table left out): the clearance the test demands of a plan's
+    approach (``MetricSettings.tail_clearance``). The approach is pinned: neither CHOMP nor the
+    goal-cost estimate can move or charge it, so a goal failing this could never succeed.
+    0 disables the check."""
 
+    approach_clearance: float = 0.01
     standoff: float = 0.08
     standoff_steps: int = 4
     max_joint_jump: float = 0.5
@@ -43,7 +50,11 @@ class GoalSetSettings:
     seed: int = 0
 
     def to_native(self) -> "_core.GoalSetSettings":
-        return to_native(self, _core.GoalSetSettings)
+        out = _core.GoalSetSettings()
+        for name, value in asdict(self).items():
+            if name != "approach_clearance":
+                setattr(out, name, value)
+        return out
 
 
 @dataclass
@@ -87,6 +98,8 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     hand_poses = np.einsum("ij,njk->nik", world.target_pose, grasps) if len(grasps) else grasps
     checker = world.checker("goal").native if collision_check else None
     hand_checker = world.checker("hand").native if collision_check else None
-    out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses, start, settings.to_native())
+    problem = world.clearance_problem if collision_check and settings.approach_clearance > 0 else None
+    out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses, start, settings.to_native(),
+                               problem, float(settings.approach_clearance))
     return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), np.asarray(out["grasp_index"], dtype=int),
                    grasps, list(out["reasons"]), float(out["seconds"]))

@@ -58,7 +58,8 @@ class PlanResult:
     grasp_cost: float              # f_grasp at the final goal (eq. 10)
     goal_set_size: int
     iterations: int
-    history: dict                  # objective, goal, p (per iteration), switches
+    history: dict                  # objective, goal, p, costs (normalized estimates; per iteration),
+                                   # switches, initial_grasp
     timings: dict                  # seconds: prepare (world, grasps; not planning), goal_set, chomp, costs,
                                    # selection, isf, metrics, total (goal set + planning)
     goal_reasons: dict = field(default_factory=dict)
@@ -116,7 +117,7 @@ class OMGPlanner:
             timings["total"] = time.perf_counter() - t_total
             empty = np.zeros((0, world.robot.dof))
             return PlanResult("no_goals", np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
-                              {"objective": [], "goal": [], "p": [], "switches": 0}, timings, gs.reason_counts())
+                              {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}, timings, gs.reason_counts())
 
         m = gs.tails.shape[1]
         chomp = Chomp(world.robot, world.sdf, world.body, replace(s.chomp, obstacle_tail=m), exclude=(world.target,))
@@ -130,6 +131,9 @@ class OMGPlanner:
         isf_stalled: set = set()               # goals where ISF found no decrease: refine(g) would return g again
         policy = make_policy(s.selection)
         N = s.iterations
+
+        def on_goal(xi, g):  # the tail sits on goal g's tail (after a projection step: to round-off)
+            return np.allclose(xi[-m:], tails[g], rtol=0.0, atol=1e-9)
 
         def estimates(xi, i):
             if policy.cost_kind == "distance":  # Proj: distance of the free end point to each goal
@@ -150,7 +154,7 @@ class OMGPlanner:
         g = int(np.argmin(c0))  # the initial goal: best by the initial estimate (as Fixed)
         xi = cubic_initialization(q0, goals[g], s.chomp.n)
         xi[-m:] = tails[g]
-        history = {"objective": [], "goal": [], "p": [], "switches": 0}
+        history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": int(origin[g])}
         iterations = 0
         metrics = None
         for i in range(N):
@@ -163,6 +167,7 @@ class OMGPlanner:
             c = estimates(xi, i + 1)
             timings["costs"] += time.perf_counter() - t
             t = time.perf_counter()
+            history["costs"].append(c)
             p = policy.update(c)
             g_next = policy.select()
             timings["selection"] += time.perf_counter() - t
@@ -190,18 +195,22 @@ class OMGPlanner:
             history["switches"] += int(g_next != g)
             history["goal"].append(g_next)
             history["p"].append(p.copy())
-            if g_next != g:
-                xi[-m:] = tails[g_next]  # the projection puts the tail there anyway; start it there
-                g = g_next
+            # On a switch the tail is left where it is: the next CHOMP-Proj step's offset term
+            # (eq. 7, -A^-1 C^T (C A^-1 C^T)^-1 b) moves the whole trajectory smoothly onto the new
+            # goal; overwriting the tail instead would leave a jump before it for CHOMP to undo.
+            g = g_next
             if s.pre_terminate and iterations >= s.min_iterations and iterations % s.check_every == 0:
                 t = time.perf_counter()
-                metrics = chomp.metrics(xi, q0, metric_settings)
+                # Judge the trajectory that would be returned: with its tail on the current goal.
+                cand = xi if on_goal(xi, g) else chomp.step(xi.copy(), q0, tails[g], iterations, ws)[0]
+                metrics = chomp.metrics(cand, q0, metric_settings)
                 timings["metrics"] += time.perf_counter() - t
                 if metrics["success"]:
+                    xi = cand
                     break
                 metrics = None
-        # The tail sits exactly on the current goal after its last projection step.
-        xi, _ = chomp.step(xi, q0, tails[g], iterations, ws) if not np.allclose(xi[-m:], tails[g]) else (xi, None)
+        if not on_goal(xi, g):  # the last selection (a switch or a refined goal): project onto it
+            xi, _ = chomp.step(xi, q0, tails[g], iterations, ws)
         t = time.perf_counter()
         if metrics is None:
             metrics = chomp.metrics(xi, q0, metric_settings)

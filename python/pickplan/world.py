@@ -88,6 +88,14 @@ class World:
                                 pose=np.asarray(self.scene.table.pose, dtype=float))
         return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links)
 
+    @functools.cached_property
+    def clearance_problem(self):
+        """A CHOMP problem on this scene with the target excluded: what the success test measures
+        clearances with (body points in the scene SDF); the goal set checks approaches with it."""
+        from .chomp import Chomp
+
+        return Chomp(self.robot, self.sdf, self.body, exclude=(self.target,)).problem
+
     @functools.lru_cache(maxsize=4)
     def grasp_refiner(self, settings=None, seed: int = 0):
         """C-Space ISF for this scene's target (``isf.GraspRefiner``), built once per settings:

@@ -66,7 +66,8 @@ def test_goal_set_reaches_grasps_with_a_straight_standoff(scene_world):
     gs = goals.build_goal_set(w, grasps, settings=goals.GoalSetSettings(max_goals=100))
     assert len(gs) >= 3, gs.reason_counts()
     assert len(gs.reasons) == len(grasps) and set(gs.reasons) <= {
-        "ok", "unreachable", "in_collision", "standoff_unreachable", "standoff_in_collision", "duplicate", "over_cap"}
+        "ok", "unreachable", "in_collision", "standoff_unreachable", "standoff_in_collision", "approach_clearance",
+        "duplicate", "over_cap"}
     hand = w.robot.link_index("panda_hand")
     for g, tail, gi in zip(gs.goals, gs.tails, gs.grasp_index):
         np.testing.assert_array_equal(tail[-1], g)

@@ -1,6 +1,7 @@
 #pragma once
 // Goal sets: grasps in the world -> IK -> standoff approach chain -> collision filter ->
 // diversity filter -> capped set. Every rejected grasp carries its reason.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -26,15 +27,18 @@ struct GoalSet {
   std::vector<Trajectory> tails;    // per goal: (steps + 1) x dof, pre-grasp first, grasp last
   std::vector<int> grasp_index;     // input grasp of each goal
   std::vector<std::string> reasons; // per input grasp: "ok", "unreachable", "in_collision",
-                                    // "standoff_unreachable", "standoff_in_collision", "duplicate",
-                                    // "over_cap" (not tried: the cap was reached first)
+                                    // "standoff_unreachable", "standoff_in_collision", "approach_clearance",
+                                    // "duplicate", "over_cap" (not tried: the cap was reached first)
   double seconds = 0;
 };
 
 // hand_poses: world poses of the IK link for each grasp. `checker` may be null (no collision
 // filter); `hand_checker` (optional) holds only the hand and finger links, for early rejection.
+// `approach_ok` (optional): every tail configuration (pre-grasp .. grasp) must pass it (e.g. keep
+// the clearance the success test demands of a plan's approach); failing grasps: "approach_clearance".
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
-                       const Eigen::VectorXd& start, const GoalSetSettings& settings = {});
+                       const Eigen::VectorXd& start, const GoalSetSettings& settings = {},
+                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok = {});
 
 }  // namespace pickplan

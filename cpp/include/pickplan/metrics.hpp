@@ -13,7 +13,7 @@ struct MetricSettings {
   double clearance = 0.05;             // collision-free: every point at least this far from objects
   double table_clearance = 0.0;        // ... and this far from the table (grasps sit close to it)
   int tail_waypoints = 0;              // the last waypoints (the standoff approach into the clutter,
-  double tail_clearance = 0.01;        //   FCL-checked with the goal set) need only this clearance
+  double tail_clearance = 0.01;        //   the goal set checks it) need only this clearance
   double smoothness_threshold = 30.0;  // planning success needs smoothness below this
   std::uint64_t exclude_mask = 0;      // objects not counted (the target)
 };
@@ -29,6 +29,11 @@ struct TrajectoryMetrics {
 
 // Linear interpolation of [q0; xi] to `steps` configurations (rows).
 Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int steps);
+
+// Smallest distance (up to `cap`) of the problem's body points at configuration q to the objects
+// outside `exclude_mask` (the table left out), measured as evaluate_trajectory measures it.
+double object_clearance(const ChompProblem& problem, const double* q, std::uint64_t exclude_mask, double cap,
+                        RobotWorkspace& ws);
 
 TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
                                       const MetricSettings& settings);
