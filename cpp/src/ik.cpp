@@ -52,7 +52,7 @@ IkSolution IkSolver::solve(const Transform& target, const Eigen::VectorXd& seed)
   sol.q = seed.cwiseMax(r.lower_limits()).cwiseMin(r.upper_limits());
   double lambda = settings_.damping;
   auto error = [&](const Eigen::VectorXd& q, Eigen::Matrix<double, 6, 1>& err) {
-    r.forward_kinematics(q.data(), ws);
+    r.forward_kinematics(q.data(), ws, link_);
     const Transform T = ws.link_pose[link_] * tip_;
     err.head<3>() = target.p - T.p;
     err.tail<3>() = rotation_log(target.R * T.R.transpose());

@@ -65,11 +65,16 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
     double step_min = inf;
     for (const LinkGroup& grp : problem.groups()) {
       const Transform& T = ws.link_pose[grp.link];
-      if (scene.lower_bound(T.apply(grp.center), s.exclude_mask) - grp.radius >= cap) continue;
+      // Objects and table bounded apart: a part beyond the cap for the whole group reads as the cap.
+      const SceneSdf::PartBounds b = scene.part_lower_bounds(T.apply(grp.center), s.exclude_mask);
+      const bool objects_near = b.objects - grp.radius < cap, table_near = b.table - grp.radius < cap;
+      if (!objects_near && !table_near) continue;
       for (int u = grp.begin; u < grp.end; ++u) {
         const Eigen::Vector3d x = T.apply(body.points.row(u).transpose());
-        const double d_obj = scene.distance_unmerged(x, nullptr, cap, s.exclude_mask | SceneSdf::kTableBit);
-        const double d_table = scene.has_table() ? scene.distance_unmerged(x, nullptr, cap, all_objects) : inf;
+        const double d_obj =
+            objects_near ? scene.distance_unmerged(x, nullptr, cap, s.exclude_mask | SceneSdf::kTableBit) : cap;
+        const double d_table =
+            !scene.has_table() ? inf : (table_near ? scene.distance_unmerged(x, nullptr, cap, all_objects) : cap);
         m.min_clearance = std::min(m.min_clearance, d_obj);
         step_min = std::min(step_min, d_obj);
         m.min_table_clearance = std::min(m.min_table_clearance, d_table);

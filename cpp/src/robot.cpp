@@ -262,8 +262,8 @@ void Robot::check_configuration(const double* q, long n) const {
   require_finite("configuration", q, n);
 }
 
-void Robot::forward_kinematics(const double* q, RobotWorkspace& ws) const {
-  const int n = num_links();
+void Robot::forward_kinematics(const double* q, RobotWorkspace& ws, int last) const {
+  const int n = std::min(last + 1, num_links());
   for (int i = 0; i < n; ++i) {
     const Link& L = links_[i];
     const Transform& parent = L.parent < 0 ? base_ : ws.link_pose[L.parent];

@@ -81,7 +81,10 @@ class Robot {
   void check_configuration(const double* q, long n) const;  // size and finiteness
 
   // Fills ws.link_pose for configuration q (size dof, not validated: hot path).
-  void forward_kinematics(const double* q, RobotWorkspace& ws) const;
+  void forward_kinematics(const double* q, RobotWorkspace& ws) const { forward_kinematics(q, ws, num_links() - 1); }
+  // Links 0..last only (links are stored parents first, so these include every ancestor of
+  // `last`): what IK needs for its tip, without the links past it (the fingers).
+  void forward_kinematics(const double* q, RobotWorkspace& ws, int last) const;
   // 6 x dof Jacobian (linear rows 0-2, angular rows 3-5, world frame) of a point fixed on a
   // link, given in the link frame. Uses poses already in ws. J must be 6 x dof.
   void point_jacobian(const RobotWorkspace& ws, int link, const Eigen::Vector3d& point_local,
