@@ -48,6 +48,8 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("hulldeg")) st.rate_hull_degree = std::atoi(opt.extra.at("hulldeg").c_str());
   if (opt.extra.count("cwin")) st.active_collision_window = std::atof(opt.extra.at("cwin").c_str());
   if (opt.extra.count("tseed")) st.timing_seed = std::atoi(opt.extra.at("tseed").c_str()) != 0;
+  if (opt.extra.count("tfrac")) st.timing_fraction = std::atof(opt.extra.at("tfrac").c_str());
+  if (opt.extra.count("direct")) st.direct_track = std::atoi(opt.extra.at("direct").c_str()) != 0;
   if (opt.extra.count("warm")) st.warm_start_stages = std::atoi(opt.extra.at("warm").c_str()) != 0;
   if (opt.extra.count("push")) st.warm_start_push = std::atof(opt.extra.at("push").c_str());
   if (opt.extra.count("mu_resolve")) st.mu_resolve = std::atof(opt.extra.at("mu_resolve").c_str());
@@ -98,6 +100,9 @@ void bench_pickup(const Options& opt) {
     for (const auto& s : r.stages)
       std::printf(" s%d %.3fs/%dit%s", s.stage, s.seconds, s.iterations,
                   s.rounds > 1 ? ("/" + std::to_string(s.rounds) + "r").c_str() : "");
+    if (r.direct.stage == 0 && !r.direct.status.empty())
+      std::printf(" direct %.3fs/%dit (cpu %.3f s) %s T %.2f%s", r.direct.seconds, r.direct.iterations, r.direct.cpu_seconds,
+                  r.direct.status.c_str(), r.direct.objective, r.direct_chosen ? " [chosen]" : "");
     std::printf("\n");
     totals.push_back(r.total_seconds);
     cpu_totals.push_back(r.total_cpu_seconds);

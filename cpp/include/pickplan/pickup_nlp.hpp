@@ -109,6 +109,11 @@ struct PickupSettings {
   double mu_resolve = 1e-4;             // mu_init of the re-solves (warm: multipliers carried over)
   double warm_start_push = 1e-6;
   bool timing_seed = true;              // stage 3 starts from grasp_timing_seed()
+  double timing_fraction = 0.5;         // ... with this fraction of the full slow-down (in log T)
+  // The successive refinement also solves the all-constraint NLP (stage 0) once from the stage-1
+  // solution (a direct track that is not committed to the stage-2 IK branch and grasp timing) and
+  // returns the better of the two (PickupResult::direct; false: the five stages only).
+  bool direct_track = true;
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
@@ -248,6 +253,11 @@ struct PickupResult {
   double total_cpu_seconds = 0.0;
   double T = 0, T1 = 0, T2 = 0, S_g = 0, S_c = 0;
   PolyTraj traj;               // in absolute time: time_scale = T, coefficients x[0 : num_coeffs]
+  // solve_successive with settings.direct_track: the all-constraint solve from the stage-1
+  // solution (stage 0 = not run), and whether its solution is the one returned (x, T, ...;
+  // then stages_completed is 5 too, the stage records stay those of the five stages).
+  StageResult direct;
+  bool direct_chosen = false;
 };
 
 // The heuristic seed of stage 1: base through a grasping-area point, arm at arm_start (+ noise).
@@ -256,11 +266,11 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem,
 // damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x);
-// Stage-3 warm start: the same path in normalised time, slowed down: T becomes the geometric mean
-// of its value and the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
+// Stage-3 warm start: the same path in normalised time, slowed down: T moves `fraction` of the way
+// (in log T; 0.5: the geometric mean) from its value to the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
 // to keep (T2 - T1) S_c = stroke. x unchanged when that would not slow it down.
 Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
-                                  const Eigen::VectorXd& x);
+                                  const Eigen::VectorXd& x, double fraction = 0.5);
 // A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others
 // random, 0 <= T1 < T2 <= T (seeded by settings.seed).
 Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
