@@ -21,7 +21,7 @@ def test_cases_cli_writes_tables_plot_trajectories_and_replays(tmp_path, monkeyp
     failed = {**copy.deepcopy(plan_dict), "success": False, "status": "infeasible", "seed": 1}
     one = lambda c, **kw: {**copy.deepcopy(plan_dict), "case": c, **kw}  # noqa: E731
     monkeypatch.setattr(cases, "run_main_cases", lambda cfg: {
-        c: {"successive": one(c), "single_shot": one(c, method="single_shot"),
+        c: {"successive": one(c, direct_chosen=c == 5), "single_shot": one(c, method="single_shot"),
             "single_shot_all": [one(c, method="single_shot"), {**failed, "case": c}]} for c in range(1, 7)})
     monkeypatch.setattr(cases, "run_table4", lambda cfg: {(c, lv): one(c) for c in cases.TABLE4_CASES for lv in ("low", "high")})
     monkeypatch.setattr(cases, "run_fig5", lambda cfg: {"high (3 pi rad/s)": one(1), "low (pi/2 rad/s)": one(1)})
@@ -33,6 +33,7 @@ def test_cases_cli_writes_tables_plot_trajectories_and_replays(tmp_path, monkeyp
     # The paper's numbers beside ours, e.g. Table III case 5 execution times 17.54 / 19.54 s.
     assert f"17.54 / {plan_dict['T']:.2f}" in md and f"19.54 / {plan_dict['T']:.2f}" in md
     assert "Single-shot seeds solved per case: [1, 1, 1, 1, 1, 1]" in md
+    assert "direct track (all constraints from the stage-1 solution, shorter than the five stages'): cases [5]" in md
     assert (out / "fig5_speeds.png").stat().st_size > 1000
     names = sorted(os.listdir(out / "trajectories"))
     assert "case4_sequential.json" in names and "case4_sequential.npz" in names

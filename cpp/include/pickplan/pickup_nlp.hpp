@@ -32,8 +32,8 @@ struct RhoPoly {
   double value(double s_g, double s_c) const;
   Eigen::Vector2d gradient(double s_g, double s_c) const;  // (d/dS_g, d/dS_c)
   Eigen::Matrix2d hessian(double s_g, double s_c) const;
-  // An upper bound on the S_g of any point with rho >= gamma and S_c in [sc_a, sc_b], from a grid
-  // (64 x 16 points): the grid S_g just above the largest feasible grid S_g, or sg_hi.
+  // The largest S_g with rho >= gamma for some S_c in [sc_a, sc_b] (16 S_c grid points): the last
+  // crossing of gamma on a 64-point S_g grid, refined by bisection (sg_hi when rho >= gamma there).
   // NaN when no grid point reaches gamma (the success-probability threshold is unattainable).
   double sg_upper_bound(double gamma, double sc_a, double sc_b) const;
 };
@@ -114,6 +114,7 @@ struct PickupSettings {
   // solution (a direct track that is not committed to the stage-2 IK branch and grasp timing) and
   // returns the better of the two (PickupResult::direct; false: the five stages only).
   bool direct_track = true;
+  int direct_max_iter = 200;            // its Ipopt iterations (a hedge: it must not dominate the time)
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
