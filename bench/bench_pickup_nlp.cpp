@@ -48,6 +48,16 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("hulldeg")) st.rate_hull_degree = std::atoi(opt.extra.at("hulldeg").c_str());
   if (opt.extra.count("cwin")) st.active_collision_window = std::atof(opt.extra.at("cwin").c_str());
   if (opt.extra.count("tseed")) st.timing_seed = std::atoi(opt.extra.at("tseed").c_str()) != 0;
+  if (opt.extra.count("tfrac")) st.timing_fraction = std::atof(opt.extra.at("tfrac").c_str());
+  if (opt.extra.count("direct")) st.direct_track = std::atoi(opt.extra.at("direct").c_str()) != 0;
+  // --synth=A: the Python stand-in surface synthetic_rho with slope A (medium sigma: 0.22).
+  RhoPoly rho = example_rho();
+  if (opt.extra.count("synth")) {
+    const double a = std::atof(opt.extra.at("synth").c_str());
+    rho.coeffs.resize(4, 3);
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 3; ++j) rho.coeffs(i, j) = std::clamp(1.0 - a * (i / 3.0) * (1.0 - 0.3 * j / 2.0), 0.0, 1.0);
+  }
   if (opt.extra.count("warm")) st.warm_start_stages = std::atoi(opt.extra.at("warm").c_str()) != 0;
   if (opt.extra.count("push")) st.warm_start_push = std::atof(opt.extra.at("push").c_str());
   if (opt.extra.count("mu_resolve")) st.mu_resolve = std::atof(opt.extra.at("mu_resolve").c_str());
@@ -92,12 +102,15 @@ void bench_pickup(const Options& opt) {
   std::vector<double> totals, cpu_totals;
   int seq_wins = 0, compared = 0;
   for (int c : cases) {
-    PickupProblem pb = paper_case(robot, c, example_rho());
+    PickupProblem pb = paper_case(robot, c, rho);
     PickupResult r = solve_successive(robot, pb, st);
     std::printf("case %d: %-12s total %.3f s (cpu %.3f s) |", c, r.status.c_str(), r.total_seconds, r.total_cpu_seconds);
     for (const auto& s : r.stages)
       std::printf(" s%d %.3fs/%dit%s", s.stage, s.seconds, s.iterations,
                   s.rounds > 1 ? ("/" + std::to_string(s.rounds) + "r").c_str() : "");
+    if (r.direct.stage == 0 && !r.direct.status.empty())
+      std::printf(" direct %.3fs/%dit (cpu %.3f s) %s T %.2f%s", r.direct.seconds, r.direct.iterations, r.direct.cpu_seconds,
+                  r.direct.status.c_str(), r.direct.objective, r.direct_chosen ? " [chosen]" : "");
     std::printf("\n");
     totals.push_back(r.total_seconds);
     cpu_totals.push_back(r.total_cpu_seconds);

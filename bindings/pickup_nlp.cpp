@@ -103,6 +103,8 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("angular_velocity_tol", &PickupSettings::angular_velocity_tol)
       .def_readwrite("collision_margin", &PickupSettings::collision_margin)
       .def_readwrite("joint_limit_margin", &PickupSettings::joint_limit_margin)
+      .def_readwrite("timing_fraction", &PickupSettings::timing_fraction)
+      .def_readwrite("direct_track", &PickupSettings::direct_track)
       .def_readwrite("t_min", &PickupSettings::t_min)
       .def_readwrite("t_max", &PickupSettings::t_max)
       .def_readwrite("tol", &PickupSettings::tol)
@@ -151,6 +153,8 @@ void init_pickup_nlp(py::module_& m) {
       .def_readonly("T2", &PickupResult::T2)
       .def_readonly("S_g", &PickupResult::S_g)
       .def_readonly("S_c", &PickupResult::S_c)
+      .def_readonly("direct", &PickupResult::direct)
+      .def_readonly("direct_chosen", &PickupResult::direct_chosen)
       .def_property_readonly("degrees", [](const PickupResult& r) { return r.traj.degrees(); })
       .def("sample", [](const PickupResult& r, const Eigen::VectorXd& times) {
              if (r.x.size() != r.traj.num_coeffs() + 5) throw std::invalid_argument("result holds no trajectory");

@@ -275,7 +275,7 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
 }
 
 Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
-                                  const Eigen::VectorXd& x) {
+                                  const Eigen::VectorXd& x, double fraction) {
   pb.validate(robot);
   std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
   PolyTraj tr(deg, 1.0);
@@ -302,7 +302,7 @@ Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, c
   if (!(Tfull > x[nc + 2])) return x;  // only ever slows down
   // Halfway (geometrically) to the fully slowed T: stage 3 then approaches its T from both sides
   // (from the full slow-down it stopped at slower local optima in cases 3 and 6).
-  const double T = std::sqrt(x[nc + 2] * Tfull);
+  const double T = x[nc + 2] * std::pow(Tfull / x[nc + 2], fraction);
   Eigen::VectorXd out = x;
   out[nc + 2] = T;
   out[nc] = std::max(0.0, s2 - pb.stroke / (T * Sc));  // (T2 - T1) S_c = stroke, T2 kept

@@ -102,9 +102,17 @@ double RhoPoly::sg_upper_bound(double gamma, double sc_a, double sc_b) const {
     bv.col(j) = b;
   }
   const Eigen::MatrixXd Cb = coeffs * bv;
+  auto best = [&](double u) {  // max over the S_c grid of rho at S_g = sg_lo + u (sg_hi - sg_lo)
+    bernstein(static_cast<int>(coeffs.rows()) - 1, u, b, db);
+    return (b.transpose() * Cb).maxCoeff();
+  };
   for (int i = NG - 1; i >= 0; --i) {
-    bernstein(static_cast<int>(coeffs.rows()) - 1, double(i) / (NG - 1), b, db);
-    if ((b.transpose() * Cb).maxCoeff() >= gamma) return sg_lo + (sg_hi - sg_lo) * std::min(i + 1, NG - 1) / (NG - 1);
+    if (best(double(i) / (NG - 1)) < gamma) continue;
+    if (i == NG - 1) return sg_hi;
+    // The crossing between grid points i (feasible) and i + 1 (not), by bisection.
+    double a = double(i) / (NG - 1), c = double(i + 1) / (NG - 1);
+    for (int k = 0; k < 40; ++k) (best(0.5 * (a + c)) >= gamma ? a : c) = 0.5 * (a + c);
+    return sg_lo + (sg_hi - sg_lo) * c;
   }
   return std::numeric_limits<double>::quiet_NaN();
 }
@@ -327,6 +335,8 @@ void fill_result(PickupResult& out, const Robot& robot, const PickupSettings& st
     out.total_seconds += s.seconds;
     out.total_cpu_seconds += s.cpu_seconds;
   }
+  out.total_seconds += out.direct.seconds;
+  out.total_cpu_seconds += out.direct.cpu_seconds;
 }
 }  // namespace
 
@@ -354,7 +364,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     Eigen::VectorXd seed = out.x;
     if (stage > 1) seed_wall = seed_cpu = 0.0;
     if (stage == 2) seed = grasp_ik_seed(robot, pb, st, out.x);
-    if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, out.x);
+    if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, out.x, st.timing_fraction);
     seed_wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_seed).count();
     seed_cpu += thread_cpu_seconds() - cpu_seed;
     StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult);
@@ -368,6 +378,22 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     }
     out.x = r.x;
     out.stages_completed = stage;
+  }
+  // The direct track: all constraints at once from the stage-1 solution (a feasible base path with
+  // the arm at rest). Stages 2 and 3 commit the arm to one IK branch and grasp timing; this solve
+  // is free to choose both, and the shorter of the two solutions is returned.
+  if (st.direct_track && out.stages_completed >= 1) {
+    PickupSettings sd = st;
+    sd.max_iter = std::min(st.max_iter, st.direct_max_iter);
+    out.direct = solve_stage(robot, pb, sd, 0, out.stages.front().x);
+    // Shorter by more than Ipopt's tolerance (a tie keeps the successive solution).
+    if (out.direct.success && (!out.success || out.direct.objective < out.stages.back().objective * (1.0 - 1e-4))) {
+      out.x = out.direct.x;
+      out.direct_chosen = true;
+      out.success = true;
+      out.status = "solved";
+      out.stages_completed = 5;
+    }
   }
   fill_result(out, robot, st);
   return out;

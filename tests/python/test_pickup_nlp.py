@@ -82,6 +82,16 @@ def test_plan_dict_round_trip(tmp_path, solved):
     d = json.loads((tmp_path / "plan.json").read_text())
     z = np.load(tmp_path / "plan.npz")
     assert d["status"] == "solved" and z["q"].shape == (201, 9)
+    # The direct track's record: an all-constraint solve (stage 0); when chosen, its T is returned.
+    assert d["direct"]["stage"] == 0 and isinstance(d["direct_chosen"], bool)
+    assert d["T"] == pytest.approx(d["direct"]["objective"] if d["direct_chosen"] else d["stages"][-1]["objective"])
+
+
+def test_direct_track_can_be_switched_off(robot):
+    problem = cases.make_problem(robot, 1)
+    p = planner.plan(robot, problem, planner.PlannerSettings(samples_per_interval=6, direct_track=False))
+    assert p.success and p.direct is None and not p.direct_chosen
+    assert p.T == pytest.approx(p.stages[-1].objective)
 
 
 def test_stomp_keeps_interval_ends(robot, solved):

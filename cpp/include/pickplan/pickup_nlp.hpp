@@ -32,8 +32,8 @@ struct RhoPoly {
   double value(double s_g, double s_c) const;
   Eigen::Vector2d gradient(double s_g, double s_c) const;  // (d/dS_g, d/dS_c)
   Eigen::Matrix2d hessian(double s_g, double s_c) const;
-  // An upper bound on the S_g of any point with rho >= gamma and S_c in [sc_a, sc_b], from a grid
-  // (64 x 16 points): the grid S_g just above the largest feasible grid S_g, or sg_hi.
+  // The largest S_g with rho >= gamma for some S_c in [sc_a, sc_b] (16 S_c grid points): the last
+  // crossing of gamma on a 64-point S_g grid, refined by bisection (sg_hi when rho >= gamma there).
   // NaN when no grid point reaches gamma (the success-probability threshold is unattainable).
   double sg_upper_bound(double gamma, double sc_a, double sc_b) const;
 };
@@ -109,6 +109,12 @@ struct PickupSettings {
   double mu_resolve = 1e-4;             // mu_init of the re-solves (warm: multipliers carried over)
   double warm_start_push = 1e-6;
   bool timing_seed = true;              // stage 3 starts from grasp_timing_seed()
+  double timing_fraction = 0.5;         // ... with this fraction of the full slow-down (in log T)
+  // The successive refinement also solves the all-constraint NLP (stage 0) once from the stage-1
+  // solution (a direct track that is not committed to the stage-2 IK branch and grasp timing) and
+  // returns the better of the two (PickupResult::direct; false: the five stages only).
+  bool direct_track = true;
+  int direct_max_iter = 200;            // its Ipopt iterations (a hedge: it must not dominate the time)
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
@@ -248,6 +254,11 @@ struct PickupResult {
   double total_cpu_seconds = 0.0;
   double T = 0, T1 = 0, T2 = 0, S_g = 0, S_c = 0;
   PolyTraj traj;               // in absolute time: time_scale = T, coefficients x[0 : num_coeffs]
+  // solve_successive with settings.direct_track: the all-constraint solve from the stage-1
+  // solution (stage 0 = not run), and whether its solution is the one returned (x, T, ...;
+  // then stages_completed is 5 too, the stage records stay those of the five stages).
+  StageResult direct;
+  bool direct_chosen = false;
 };
 
 // The heuristic seed of stage 1: base through a grasping-area point, arm at arm_start (+ noise).
@@ -256,11 +267,11 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem,
 // damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x);
-// Stage-3 warm start: the same path in normalised time, slowed down: T becomes the geometric mean
-// of its value and the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
+// Stage-3 warm start: the same path in normalised time, slowed down: T moves `fraction` of the way
+// (in log T; 0.5: the geometric mean) from its value to the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
 // to keep (T2 - T1) S_c = stroke. x unchanged when that would not slow it down.
 Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
-                                  const Eigen::VectorXd& x);
+                                  const Eigen::VectorXd& x, double fraction = 0.5);
 // A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others
 // random, 0 <= T1 < T2 <= T (seeded by settings.seed).
 Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);

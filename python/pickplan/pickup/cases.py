@@ -99,23 +99,29 @@ def run_table4(cfg: CaseRunConfig) -> dict:
     return {(j[0], j[3]["sigma"]): r for j, r in zip(jobs, res)}
 
 
-def speed_profiles(plan_dict: dict, n: int = 300):
-    """Base and gripper speeds over [0, T] of a plan dict (for Fig. 5)."""
-    robot = planner.mobile_ur5()
-    T = plan_dict["T"]
-    t = np.linspace(0.0, T, n)
-    # Re-evaluate the polynomials from the stored coefficients (normalised time s = t / T).
-    x = np.asarray(plan_dict["x"])
+def plan_states(plan_dict: dict, t):
+    """(q, q') at the times t (s) of a plan dict, from its stored coefficients (normalised time
+    s = t / T, monomial), each of shape (len(t), dof)."""
+    T = float(plan_dict["T"])
+    x = np.asarray(plan_dict["x"], float)
+    s = np.atleast_1d(np.asarray(t, float)) / T
     deg = plan_dict["degrees"]
-    q = np.zeros((n, len(deg)))
+    q = np.zeros((len(s), len(deg)))
     qd = np.zeros_like(q)
-    s = t / T
     off = 0
     for i, d in enumerate(deg):
         a = x[off:off + d + 1]
         q[:, i] = np.polynomial.polynomial.polyval(s, a)
         qd[:, i] = np.polynomial.polynomial.polyval(s, np.polynomial.polynomial.polyder(a)) / T
         off += d + 1
+    return q, qd
+
+
+def speed_profiles(plan_dict: dict, n: int = 300):
+    """Base and gripper speeds over [0, T] of a plan dict (for Fig. 5)."""
+    robot = planner.mobile_ur5()
+    t = np.linspace(0.0, plan_dict["T"], n)
+    q, qd = plan_states(plan_dict, t)
     tool = robot.link_index("tool")
     grip = np.array([np.linalg.norm(robot.jacobian(q[k], tool)[:3] @ qd[k]) for k in range(n)])
     base = np.hypot(qd[:, 0], qd[:, 1])

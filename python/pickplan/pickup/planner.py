@@ -63,6 +63,8 @@ class PlannerSettings:
     mu_init: float = 1e-2
     seed: int = 0
     arm_seed_noise: float = 0.05
+    timing_fraction: float = 0.5          # stage-3 seed: fraction (log T) of the full slow-down
+    direct_track: bool = True             # also solve all constraints from the stage-1 solution, keep the shorter
 
     def native(self) -> "_core.PickupSettings":
         s = _core.PickupSettings()
@@ -102,13 +104,17 @@ class PickupPlan:
     total_seconds: float
     native: object = field(repr=False, default=None)  # _core.PickupResult
     total_cpu_seconds: float = 0.0
+    direct: Optional[StageInfo] = None    # the direct track's solve (successive only)
+    direct_chosen: bool = False           # its solution is the one returned
 
     @classmethod
     def from_native(cls, r) -> "PickupPlan":
-        stages = [StageInfo(s.stage, s.status, s.ipopt_status, s.success, s.seconds, s.iterations,
-                            s.objective, s.max_violation, s.cpu_seconds, s.rounds, s.rows) for s in r.stages]
+        info = lambda s: StageInfo(s.stage, s.status, s.ipopt_status, s.success, s.seconds, s.iterations,  # noqa: E731
+                                   s.objective, s.max_violation, s.cpu_seconds, s.rounds, s.rows)
+        stages = [info(s) for s in r.stages]
+        direct = info(r.direct) if r.direct.status else None
         return cls(r.status, r.success, r.stages_completed, stages, r.T, r.T1, r.T2, r.S_g, r.S_c,
-                   r.total_seconds, r, r.total_cpu_seconds)
+                   r.total_seconds, r, r.total_cpu_seconds, direct, r.direct_chosen)
 
     def sample(self, times) -> tuple:
         """(q, q', q'') at the given times (s), each of shape (len(times), 9)."""
@@ -120,6 +126,7 @@ class PickupPlan:
         return {"status": self.status, "success": self.success, "stages_completed": self.stages_completed,
                 "T": self.T, "T1": self.T1, "T2": self.T2, "S_g": self.S_g, "S_c": self.S_c,
                 "total_seconds": self.total_seconds, "total_cpu_seconds": self.total_cpu_seconds, "stages": [asdict(s) for s in self.stages],
+                "direct": asdict(self.direct) if self.direct else None, "direct_chosen": self.direct_chosen,
                 "degrees": list(self.native.degrees), "x": np.asarray(self.native.x).tolist(),
                 "t": t.tolist(), "q": q.tolist(), "qd": qd.tolist()}
 
