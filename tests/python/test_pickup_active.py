@@ -43,7 +43,8 @@ def test_active_beats_random_sampling_at_equal_budget():
 def test_active_loop_samples_near_the_boundary():
     oracle = EllipsoidOracle(0.3, 0.1)
     res = learn_boundary(oracle, CFG, seed=2)
-    later = res.X[CFG.n_init:len(res.X) - CFG.n_holdout]  # chosen by the active loop
+    n_first = CFG.n_init + CFG.query_init * len(CFG.query_sigmas)
+    later = res.X[n_first:len(res.X) - CFG.n_holdout]  # chosen by the active loop
     band = lambda U: np.abs(np.sqrt(((U / oracle.half_axes) ** 2).sum(1)) - 1) < 0.3
     uniform = np.random.default_rng(0).uniform(-1, 1, (20000, 3))
     assert band(later).mean() > 10 * band(uniform).mean()
