@@ -29,8 +29,6 @@ def test_rho_in_unit_interval_and_monotone(model):
         R = model.rho(G, C, lv.sigma_r, lv.sigma_phi)
         assert R.min() >= 0.0 and R.max() <= 1.0
         assert np.all(np.diff(R, axis=0) <= 1e-9)  # non-increasing in S_g
-        grid = model.rho_grids[lv.name]
-        assert np.all(np.diff(grid, axis=0) <= 0.03)  # the raw grid too, within MC noise
     # The high-uncertainty level is never more likely to succeed than the low one.
     lo, hi = DEFAULT_LEVELS[0], DEFAULT_LEVELS[2]
     assert np.all(model.rho(G, C, hi.sigma_r, hi.sigma_phi)

@@ -207,9 +207,12 @@ def explore(rng, X, k, n_candidates, focus_scale=0.25, focus_fraction=0.0, query
     return np.vstack(picked)
 
 
-def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02) -> np.ndarray:
+def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02,
+            query_sigmas=()) -> np.ndarray:
     """Midpoints of pairs of support vectors with opposite labels (each SV with its nearest
-    opposite SV). Shortest pairs first, since they straddle the boundary most tightly;
+    opposite SV). Shortest pairs first, since they straddle the boundary most tightly; with
+    query_sigmas, the length is divided by (0.05 + the largest unnormalized query-Gaussian
+    density at the midpoint), so the boundary where rho is decided comes first;
     midpoints closer than min_spacing to a sample are skipped; jittered midpoints (spread
     ~ a quarter of the pair length) fill up when there are too few."""
     if k <= 0:
@@ -222,8 +225,15 @@ def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02) -> np.
     d2 = ((P[:, None, :] - N[None, :, :]) ** 2).sum(-1)
     pairs = {(i, int(np.argmin(d2[i]))) for i in range(len(P))}
     pairs |= {(int(np.argmin(d2[:, j])), j) for j in range(len(N))}
-    pairs = sorted(pairs, key=lambda ij: (d2[ij], ij))
+    pairs = sorted(pairs)
     mids = np.array([(P[i] + N[j]) / 2 for i, j in pairs])
+    key = np.sqrt(np.array([d2[ij] for ij in pairs]))
+    if len(query_sigmas):
+        dens = np.max([np.exp(-0.5 * ((mids / np.asarray(sg)) ** 2).sum(1))
+                       for sg in query_sigmas], axis=0)
+        key = key / (0.05 + dens)
+    order = np.argsort(key, kind="stable")
+    pairs, mids = [pairs[o] for o in order], mids[order]
     lens = np.sqrt(np.array([d2[ij] for ij in pairs]))
     picked = []
     existing = X
@@ -309,7 +319,7 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
         if k <= 0:
             break
         n_exploit = int(round(w * k))
-        Pe = exploit(rng, model, X, y, n_exploit, config.n_candidates)
+        Pe = exploit(rng, model, X, y, n_exploit, config.n_candidates, query_sigmas=qs)
         Pr = explore(rng, np.vstack([X, Pe]) if len(Pe) else X, k - len(Pe),
                      config.n_candidates, fs, ff, qs, config.query_fraction)
         P = np.vstack([Pe, Pr])

@@ -54,24 +54,38 @@ def extensive_sampling(runner: SimRunner, s_g: float, s_c: float, sigma_r: float
         raise ValueError(f"n_samples must be >= 1, got {n_samples}")
     path = None
     if cache_dir is not None:
-        key = json.dumps({"part": runner.part.name, "sim": asdict(runner.config),
-                          "s_g": float(s_g), "s_c": float(s_c), "sigma_r": float(sigma_r),
-                          "sigma_phi": float(sigma_phi), "n": int(n_samples),
-                          "seed": int(seed)}, sort_keys=True)
-        digest = hashlib.sha256(key.encode()).hexdigest()[:24]
-        path = os.path.join(os.fspath(cache_dir), f"ext_{runner.part.name}_{digest}.json")
-        if os.path.exists(path):
-            with open(path, encoding="utf-8") as f:
-                ok = np.asarray(json.load(f)["labels"], bool)
+        path = reference_cache_path(cache_dir, runner.part.name, runner.config, s_g, s_c,
+                                    sigma_r, sigma_phi, n_samples, seed)
+        ok = load_cached_labels(path)
+        if ok is not None:
             return _binomial(ok)
     z = np.random.default_rng(seed).standard_normal((n_samples, 3))
     offsets = z * np.array([sigma_r, sigma_r, sigma_phi])
     ok = runner.run(offsets, s_g, s_c, sample_seeds(seed, 0, n_samples))
     if path is not None:
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        write_text_atomic(path, json.dumps({"key": json.loads(key),
-                                            "labels": ok.astype(int).tolist()}))
+        write_text_atomic(path, json.dumps({"labels": ok.astype(int).tolist()}))
     return _binomial(ok)
+
+
+def reference_cache_path(cache_dir, part_name: str, sim_config: SimConfig, s_g, s_c, sigma_r,
+                         sigma_phi, n_samples: int, seed: int) -> str:
+    """Cache file of one extensive-sampling run: the key hashes every input that changes
+    the labels."""
+    key = json.dumps({"part": part_name, "sim": asdict(sim_config), "s_g": float(s_g),
+                      "s_c": float(s_c), "sigma_r": float(sigma_r),
+                      "sigma_phi": float(sigma_phi), "n": int(n_samples), "seed": int(seed)},
+                     sort_keys=True)
+    digest = hashlib.sha256(key.encode()).hexdigest()[:24]
+    return os.path.join(os.fspath(cache_dir), f"ext_{part_name}_{digest}.json")
+
+
+def load_cached_labels(path):
+    """The cached labels (bool array), or None when the file does not exist."""
+    if not os.path.exists(path):
+        return None
+    with open(path, encoding="utf-8") as f:
+        return np.asarray(json.load(f)["labels"], bool)
 
 
 def reference_seed(seed: int, s_g: float, s_c: float, sigma_r: float, sigma_phi: float) -> int:
