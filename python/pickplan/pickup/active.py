@@ -79,7 +79,7 @@ class ActiveConfig:
     # matters rather than in far corners of the domain that are plain failures.
     focus_scale: float = 0.25
     focus_fraction: float = 0.5
-    query_init: int = 3  # initial samples from each query Gaussian
+    query_init: int = 3  # initial samples (of n_init) from each query Gaussian
     query_fraction: float = 0.3  # share of exploration samples from the query Gaussians
 
 
@@ -289,11 +289,13 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
     fs, ff = config.focus_scale, config.focus_fraction
     # Initial samples: the nominal pose, a stratified (Latin hypercube) design over the
     # domain and points from the focus Gaussian.
+    qs = [np.asarray(sg, float) for sg in config.query_sigmas]
     n_g = int(round(ff * (config.n_init - 1)))
     n = config.n_init - 1 - n_g
+    n_q = min(config.query_init, n_g // max(len(qs), 1))  # taken from the focus share
+    n_g -= n_q * len(qs)
     lhs = (np.stack([rng.permutation(n) for _ in range(3)], 1) + rng.uniform(size=(n, 3))) / n
-    qs = [np.asarray(sg, float) for sg in config.query_sigmas]
-    Q0 = [np.clip(rng.standard_normal((config.query_init, 3)) * sg, -1, 1) for sg in qs]
+    Q0 = [np.clip(rng.standard_normal((n_q, 3)) * sg, -1, 1) for sg in qs]
     X = np.vstack([np.zeros((1, 3)), 2 * lhs - 1, sample_focus(rng, n_g, fs, 1.0), *Q0])
     y, sim = query(X)
     H = sample_focus(rng, config.n_holdout, fs, ff)
