@@ -123,6 +123,7 @@ def cmd_compare(args) -> int:
             print("matplotlib not installed: skipped the plot", file=sys.stderr)
         for lv, s in summarize(rows).items():
             print(f"{part} {lv}: mean |active-ext| {s['mean_abs_error_active']:.3f}, "
+                  f"worst under {s['max_under_active']:+.3f}, "
                   f"max over {s['max_over_active']:+.3f}; surface mean |err| "
                   f"{s['mean_abs_error_surface']:.3f}, max over {s['max_over_surface']:+.3f}")
     return 0

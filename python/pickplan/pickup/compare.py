@@ -132,7 +132,10 @@ def compare(model: MetaModel, n_samples: int = 2000, pairs=None, seed: int = 0,
 
 
 def summarize(rows) -> dict:
-    """Per level: mean |error| and worst over-estimate of the grid and surface values."""
+    """Per level: mean |error|, worst under- and over-estimate of the grid and surface
+    values, pairs within 5 %, and the pairs whose grid value is above the reference by more
+    than 1 % + 2 reference standard errors (an over-estimate the reference's own binomial
+    noise cannot explain)."""
     out = {}
     for lv in dict.fromkeys(r.level for r in rows):
         rs = [r for r in rows if r.level == lv]
@@ -141,6 +144,10 @@ def summarize(rows) -> dict:
         out[lv] = {"pairs": len(rs), "mean_abs_error_active": float(np.abs(ea).mean()),
                    "max_abs_error_active": float(np.abs(ea).max()),
                    "max_over_active": float(ea.max()),
+                   "max_under_active": float(ea.min()),
+                   "within_5pct_active": int(np.sum(np.abs(ea) <= 0.05)),
+                   "over_significant_active": int(sum(
+                       r.error_active > 0.01 + 2 * r.stderr_extensive for r in rs)),
                    "mean_abs_error_surface": float(np.abs(es).mean()),
                    "max_abs_error_surface": float(np.abs(es).max()),
                    "max_over_surface": float(es.max())}

@@ -1,12 +1,14 @@
 """Success-probability meta-model rho_sigma(S_g, S_c) (Sec. IV-B of Thakar et al.).
 
 For each (S_g, S_c) on a grid, a GSB is learned actively (active.py) from simulations
-(sim.py). The success depth SD of a pose is its distance, in the normalized pose space, from
-the GSB into the success region; the failure threshold distance D_FT is estimated from the
-data: how deep simulated failures reached inside the classifier's success region. The
-probability of success for a pose uncertainty sigma = (sigma_r, sigma_phi) is the fraction
-of Monte-Carlo poses from N(0, sigma) with SD >= D_FT. The grid of probabilities is turned
-into a conservative analytic surface (surface.py), saved to JSON with all samples.
+(sim.py). The success depth SD of a pose is its (first-order) distance, in the normalized pose
+space, from the GSB into the success region. Because the simulated labels are noisy near the
+boundary, the probability of success of a pose is a logistic function of SD centred on the
+failure threshold distance D_FT, with D_FT and the band width fitted to out-of-fold depths
+(calibration.py). The probability of success for a pose uncertainty sigma is the mean of that
+probability over Monte-Carlo poses from N(0, sigma), minus z jackknife standard errors of the
+boundary (conservative). The grid of probabilities is turned into a conservative analytic
+surface (surface.py), saved to JSON with all samples.
 """
 from __future__ import annotations
 

@@ -32,9 +32,13 @@ class EllipsoidOracle:
     def probability(self, sigma_r: float, sigma_phi: float, domain: PoseDomain = PoseDomain(),
                     n: int = 200000, seed: int = 12345) -> float:
         """Monte-Carlo truth of P(success) for poses ~ N(0, sigma) (independent samples)."""
-        z = np.random.default_rng(seed).standard_normal((n, 3))
-        U = domain.to_normalized(z * np.array([sigma_r, sigma_r, sigma_phi]))
-        return float(np.mean(self(U)))
+        return _gaussian_mean(self, sigma_r, sigma_phi, domain, n, seed)
+
+
+def _gaussian_mean(fn, sigma_r, sigma_phi, domain, n, seed) -> float:
+    """Mean of fn over n normalized poses from N(0, diag(sigma_r, sigma_r, sigma_phi))."""
+    z = np.random.default_rng(seed).standard_normal((n, 3))
+    return float(np.mean(fn(domain.to_normalized(z * np.array([sigma_r, sigma_r, sigma_phi])))))
 
 
 def oracle_factory(s_g: float, s_c: float, seed: int):
@@ -71,9 +75,7 @@ class NoisyEllipsoidOracle:
                     n: int = 200000, seed: int = 12345) -> float:
         """Expected success rate for poses ~ N(0, sigma) (Monte-Carlo of the exact p(u);
         standard error < 0.001 at the default n)."""
-        z = np.random.default_rng(seed).standard_normal((n, 3))
-        U = domain.to_normalized(z * np.array([sigma_r, sigma_r, sigma_phi]))
-        return float(np.mean(self.success_probability(U)))
+        return _gaussian_mean(self.success_probability, sigma_r, sigma_phi, domain, n, seed)
 
 
 def noisy_oracle_factory(width: float = 0.1):
