@@ -83,6 +83,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--samples", type=int, default=None, help="extensive samples per pair")
     ap.add_argument("--out", default=os.path.join("results", "bench_pickup"))
+    ap.add_argument("--cache", default=None,
+                    help="directory caching the extensive-sampling labels (reruns are free)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
     report = {"part": args.part, "quick": args.quick, "seed": args.seed}
@@ -108,10 +110,12 @@ def main(argv=None) -> int:
     mm.save(os.path.join(args.out, f"metamodel_{args.part}.json"))
     report["boundaries"] = [{"s_g": bm.s_g, "s_c": bm.s_c, "simulations": bm.n_simulations,
                              "free_labels": int((~bm.simulated).sum()), "d_ft": bm.d_ft,
+                             "width": bm.width,
                              "converged": bm.converged}
                             for _, bm in sorted(mm.boundaries.items())]
     t0 = time.perf_counter()
-    rows = compare(mm, n_samples=n_ext, seed=args.seed + 11, workers=args.workers)
+    rows = compare(mm, n_samples=n_ext, seed=args.seed, workers=args.workers,
+                   cache_dir=args.cache)
     report["compare_s"] = time.perf_counter() - t0
     report["n_extensive"] = n_ext
     report["compare_summary"] = summarize(rows)

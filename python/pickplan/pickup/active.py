@@ -7,9 +7,14 @@ oracles. Loop: a few initial samples and a uniform held-out set; then rounds tha
 exploration (random candidates, keeping those farthest from every existing sample) and
 exploitation (midpoints of nearest pairs of support vectors with opposite labels, which lie
 near the boundary by the maximal-margin property). The share of exploitation rises when the
-accuracy improves and falls when it drops. Stop when the held-out accuracy reaches the target
-(balanced, so a tiny success region counts) and successive classifiers agree, for `patience`
-rounds, or when the simulation budget is spent.
+accuracy improves and falls when it drops.
+
+Stopping (label-noise aware): near the boundary the simulated labels are noisy, so no
+classifier reaches a high held-out accuracy there and an accuracy threshold never stops. The
+learner instead stops when what the meta-model needs is settled: the calibrated success
+probabilities rho for the query uncertainties (calibration.py) have a jackknife standard
+error <= se_target and moved by <= rho_tol since the previous round, for `patience` rounds;
+or when the simulation budget is spent.
 """
 from __future__ import annotations
 
@@ -18,8 +23,9 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
-from scipy.spatial import cKDTree
 from sklearn.svm import SVC
+
+from .calibration import calibrate, gaussian_queries
 
 
 @dataclass(frozen=True)
@@ -47,8 +53,14 @@ class ActiveConfig:
     n_holdout: int = 40
     batch_size: int = 20
     budget: int = 300  # simulations per boundary, held-out set included
-    accuracy_target: float = 0.95
-    stability_target: float = 0.99  # agreement of successive classifiers on probe points
+    # Stopping rule: rho for each query sigma (normalized (x, y, phi) standard deviations;
+    # default: the low / medium / high levels of metamodel.DEFAULT_LEVELS in the default
+    # PoseDomain) estimated on n_rho_queries poses.
+    query_sigmas: tuple = ((0.04, 0.04, 1 / 12), (0.14, 0.14, 1 / 6), (0.24, 0.24, 0.25))
+    n_rho_queries: int = 2000
+    se_target: float = 0.035
+    rho_tol: float = 0.03
+    calib_folds: int = 5
     patience: int = 2
     min_rounds: int = 3
     exploit_weight: float = 0.5  # start with equal exploration and exploitation
@@ -57,10 +69,9 @@ class ActiveConfig:
     svm_c: float = 100.0  # initial hyperparameters; re-selected by cross-validation
     svm_gamma: float = 2.0
     c_grid: tuple = (10.0, 100.0, 1000.0)
-    gamma_grid: tuple = (1.0, 3.0, 10.0, 30.0)
+    gamma_grid: tuple = (1.0, 3.0, 10.0, 30.0, 100.0)
     select_every: int = 3  # rounds between hyperparameter selections
     n_candidates: int = 2000
-    n_probe: int = 2000
     known_margin: float = 1.0  # decision value beyond which a lower-S_c success is trusted
     # Where the meta-model is queried: poses ~ N(0, focus_scale^2) in normalized units
     # (0.25 ~ the highest modelled uncertainty). The held-out set, the probe points and part
@@ -68,6 +79,8 @@ class ActiveConfig:
     # matters rather than in far corners of the domain that are plain failures.
     focus_scale: float = 0.25
     focus_fraction: float = 0.5
+    query_init: int = 3  # initial samples (of n_init) from each query Gaussian
+    query_fraction: float = 0.3  # share of exploration samples from the query Gaussians
 
 
 class _Constant:
@@ -91,24 +104,25 @@ def fit_svm(X, y, c: float, gamma: float):
     return clf
 
 
-def select_svm_params(X, y, c_grid, gamma_grid, seed: int = 0, folds: int = 5):
-    """(C, gamma) with the best k-fold accuracy; ties go to the smoother (smaller gamma,
-    then smaller C) model. The GSB's scale varies a lot with the speeds (a thin slab at high
-    S_g, a wide region at low S_g), so one fixed kernel width does not fit every pair."""
-    from sklearn.model_selection import StratifiedKFold, cross_val_score
-
+def select_svm_params(X, y, c_grid, gamma_grid, seed: int = 0, folds: int = 5,
+                      simulated=None):
+    """(C, gamma) with the best calibrated out-of-fold likelihood (calibration.calibrate:
+    k-fold depths of the simulated samples through the fitted logistic in depth); ties go to
+    the smoother model (smaller gamma, then smaller C). The GSB's scale varies a lot with
+    the speeds (a thin slab at high S_g, a wide region at low S_g), so one fixed kernel
+    width does not fit every pair; plain accuracy is a poor criterion with noisy labels
+    near the boundary (it cannot tell a well-placed boundary from a lucky one)."""
     y = np.asarray(y, dtype=bool)
-    n_min = int(min(y.sum(), (~y).sum()))
-    if n_min < 2:
+    if min(y.sum(), (~y).sum()) < 2:
         return None
-    cv = StratifiedKFold(n_splits=min(folds, n_min), shuffle=True, random_state=seed)
-    best, best_acc = None, -1.0
+    sim = np.ones(len(y), bool) if simulated is None else np.asarray(simulated, bool)
+    best, best_nll = None, np.inf
     for gamma in sorted(gamma_grid):
         for c in sorted(c_grid):
-            clf = SVC(kernel="rbf", C=c, gamma=gamma, class_weight="balanced")
-            acc = float(np.mean(cross_val_score(clf, X, y.astype(int), cv=cv)))
-            if acc > best_acc + 1e-9:
-                best, best_acc = (float(c), float(gamma)), acc
+            cal = calibrate(X, y, sim, lambda A, b: fit_svm(A, b, c, gamma), folds, seed,
+                            fit_full=False)
+            if cal.nll < best_nll - 1e-6:
+                best, best_nll = (float(c), float(gamma)), cal.nll
     return best
 
 
@@ -172,16 +186,33 @@ def sample_focus(rng, n, focus_scale, focus_fraction) -> np.ndarray:
     return np.vstack([g, u])
 
 
-def explore(rng, X, k, n_candidates, focus_scale=0.25, focus_fraction=0.0) -> np.ndarray:
+def explore(rng, X, k, n_candidates, focus_scale=0.25, focus_fraction=0.0, query_sigmas=(),
+            query_fraction=0.0) -> np.ndarray:
     """Random samples biased toward regions with few samples (farthest-point selection
-    among random candidates drawn from the focus mixture)."""
+    among random candidates drawn from the focus mixture). A share query_fraction of them
+    comes from the query Gaussians N(0, query_sigma), farthest-point in that Gaussian's own
+    scale: the interior of a success region is rarely sampled otherwise, and an RBF
+    classifier falls back to its bias (failure) in unsampled space."""
+    picked = []
+    n_q = int(round(query_fraction * k)) if len(query_sigmas) else 0
+    for i, sig in enumerate(query_sigmas):
+        k_i = n_q // len(query_sigmas) + (i < n_q % len(query_sigmas))
+        sig = np.asarray(sig, dtype=float)
+        cands = np.clip(rng.standard_normal((max(n_candidates // 4, k_i), 3)) * sig, -1.0, 1.0)
+        existing = np.vstack([X, *picked]) if picked else X
+        picked.append(_greedy_farthest(cands / sig, existing / sig, k_i).reshape(-1, 3) * sig)
     cands = sample_focus(rng, max(n_candidates, k), focus_scale, focus_fraction)
-    return _greedy_farthest(cands, X, k)
+    existing = np.vstack([X, *picked]) if picked else X
+    picked.append(_greedy_farthest(cands, existing, k - n_q).reshape(-1, 3))
+    return np.vstack(picked)
 
 
-def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02) -> np.ndarray:
+def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02,
+            query_sigmas=()) -> np.ndarray:
     """Midpoints of pairs of support vectors with opposite labels (each SV with its nearest
-    opposite SV). Shortest pairs first, since they straddle the boundary most tightly;
+    opposite SV). Shortest pairs first, since they straddle the boundary most tightly; with
+    query_sigmas, the length is divided by (0.05 + the largest unnormalized query-Gaussian
+    density at the midpoint), so the boundary where rho is decided comes first;
     midpoints closer than min_spacing to a sample are skipped; jittered midpoints (spread
     ~ a quarter of the pair length) fill up when there are too few."""
     if k <= 0:
@@ -194,8 +225,15 @@ def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02) -> np.
     d2 = ((P[:, None, :] - N[None, :, :]) ** 2).sum(-1)
     pairs = {(i, int(np.argmin(d2[i]))) for i in range(len(P))}
     pairs |= {(int(np.argmin(d2[:, j])), j) for j in range(len(N))}
-    pairs = sorted(pairs, key=lambda ij: (d2[ij], ij))
+    pairs = sorted(pairs)
     mids = np.array([(P[i] + N[j]) / 2 for i, j in pairs])
+    key = np.sqrt(np.array([d2[ij] for ij in pairs]))
+    if len(query_sigmas):
+        dens = np.max([np.exp(-0.5 * ((mids / np.asarray(sg)) ** 2).sum(1))
+                       for sg in query_sigmas], axis=0)
+        key = key / (0.05 + dens)
+    order = np.argsort(key, kind="stable")
+    pairs, mids = [pairs[o] for o in order], mids[order]
     lens = np.sqrt(np.array([d2[ij] for ij in pairs]))
     picked = []
     existing = X
@@ -209,36 +247,6 @@ def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02) -> np.
     src = rng.integers(0, len(mids), size=need)
     jit = mids[src] + rng.normal(size=(need, 3)) * (0.25 * lens[src] + 0.01)[:, None]
     return np.vstack([np.asarray(picked).reshape(-1, 3), np.clip(jit, -1.0, 1.0)])
-
-
-def boundary_cloud(model, resolution: int = 33) -> np.ndarray:
-    """Points on the decision surface f = 0 inside [-1, 1]^3: linear interpolation of the
-    zero crossings along every grid edge."""
-    g = np.linspace(-1.0, 1.0, resolution)
-    G = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
-    F = model.decision_function(G.reshape(-1, 3)).reshape(G.shape[:3])
-    pts = []
-    for ax in range(3):
-        a = [slice(None)] * 3
-        b = [slice(None)] * 3
-        a[ax], b[ax] = slice(0, -1), slice(1, None)
-        fa, fb = F[tuple(a)], F[tuple(b)]
-        cross = (fa > 0) != (fb > 0)
-        if not cross.any():
-            continue
-        t = fa[cross] / (fa[cross] - fb[cross])
-        pa, pb = G[tuple(a)][cross], G[tuple(b)][cross]
-        pts.append(pa + t[:, None] * (pb - pa))
-    return np.vstack(pts) if pts else np.zeros((0, 3))
-
-
-def success_depth(model, U, tree) -> np.ndarray:
-    U = np.asarray(U, float).reshape(-1, 3)
-    inside = model.decision_function(U) > 0
-    if tree is False or tree is None:
-        return np.where(inside, np.inf, -np.inf)
-    d, _ = tree.query(U)
-    return np.where(inside, d, -d)
 
 
 KnownFn = Callable[[np.ndarray], tuple]
@@ -281,68 +289,67 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
     fs, ff = config.focus_scale, config.focus_fraction
     # Initial samples: the nominal pose, a stratified (Latin hypercube) design over the
     # domain and points from the focus Gaussian.
+    qs = [np.asarray(sg, float) for sg in config.query_sigmas]
     n_g = int(round(ff * (config.n_init - 1)))
     n = config.n_init - 1 - n_g
+    n_q = min(config.query_init, n_g // max(len(qs), 1))  # taken from the focus share
+    n_g -= n_q * len(qs)
     lhs = (np.stack([rng.permutation(n) for _ in range(3)], 1) + rng.uniform(size=(n, 3))) / n
-    X = np.vstack([np.zeros((1, 3)), 2 * lhs - 1, sample_focus(rng, n_g, fs, 1.0)])
+    Q0 = [np.clip(rng.standard_normal((n_q, 3)) * sg, -1, 1) for sg in qs]
+    X = np.vstack([np.zeros((1, 3)), 2 * lhs - 1, sample_focus(rng, n_g, fs, 1.0), *Q0])
     y, sim = query(X)
     H = sample_focus(rng, config.n_holdout, fs, ff)
     yh, simh = query(H)
-    probe = sample_focus(rng, config.n_probe, fs, ff)
+    Z = gaussian_queries(config.n_rho_queries, seed + 1)
+    queries = [Z * sg for sg in qs]
     params = (config.svm_c, config.svm_gamma)
 
     def refit(rnd):
         nonlocal params
         if rnd % config.select_every == 0:
-            params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed) or params
+            params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed,
+                                       config.calib_folds, sim) or params
         return fit_svm(X, y, *params)
 
     model = refit(0)
-    prev_probe = predict(model, probe)
     w = config.exploit_weight
     prev_acc = balanced_accuracy(predict(model, H), yh)
-    both_classes = bool(yh.any() and (~yh).any())
-    history, streak, converged = [], 0, False
+    history, streak, converged, prev_rho = [], 0, False, None
     max_rounds = 4 * config.budget // config.batch_size  # free labels do not spend budget
     for rnd in range(max_rounds):
         k = min(config.batch_size, config.budget - n_sims)
         if k <= 0:
             break
         n_exploit = int(round(w * k))
-        Pe = exploit(rng, model, X, y, n_exploit, config.n_candidates)
+        Pe = exploit(rng, model, X, y, n_exploit, config.n_candidates, query_sigmas=qs)
         Pr = explore(rng, np.vstack([X, Pe]) if len(Pe) else X, k - len(Pe),
-                     config.n_candidates, fs, ff)
+                     config.n_candidates, fs, ff, qs, config.query_fraction)
         P = np.vstack([Pe, Pr])
         before = predict(model, P)
         yp, simp = query(P)
-        # Out-of-sample overreach: how deep inside the current success region the newly
-        # simulated failures lie (evidence for D_FT, see metamodel.estimate_dft).
-        over = before & ~yp & simp
-        overreach = []
-        if over.any():
-            pts = boundary_cloud(model)
-            tree = cKDTree(pts) if len(pts) else False
-            sd = success_depth(model, P[over], tree)
-            overreach = [float(d) for d in sd if np.isfinite(d) and d > 0]
         X, y, sim = np.vstack([X, P]), np.concatenate([y, yp]), np.concatenate([sim, simp])
         model = refit(rnd + 1)
         acc_hold = balanced_accuracy(predict(model, H), yh)
         acc_batch = float(np.mean(before == yp))
-        now_probe = predict(model, probe)
-        agreement = float(np.mean(now_probe == prev_probe))
-        prev_probe = now_probe
         acc = 0.5 * (acc_hold + acc_batch)
         if acc > prev_acc:
             w = min(w + config.weight_step, config.weight_bounds[1])
         elif acc < prev_acc:
             w = max(w - config.weight_step, config.weight_bounds[0])
         prev_acc = acc
-        history.append({"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
-                        "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch,
-                        "agreement": agreement, "exploit_weight": w,
-                        "overreach": overreach})
-        ok = (both_classes and rnd + 1 >= config.min_rounds
-              and acc_hold >= config.accuracy_target and agreement >= config.stability_target)
+        h = {"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
+             "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch, "exploit_weight": w}
+        ok = False
+        if rnd + 1 >= config.min_rounds and y.any() and (~y).any():
+            cal = calibrate(X, y, sim, lambda A, b: fit_svm(A, b, *params),
+                            config.calib_folds, seed)
+            est = np.array([cal.rho(Q) for Q in queries])
+            change = None if prev_rho is None else float(np.abs(est[:, 0] - prev_rho).max())
+            prev_rho = est[:, 0]
+            h.update(rho=est[:, 0].tolist(), rho_se=est[:, 1].tolist(), rho_change=change)
+            ok = bool(change is not None and est[:, 1].max() <= config.se_target
+                      and change <= config.rho_tol)
+        history.append(h)
         streak = streak + 1 if ok else 0
         if streak >= config.patience:
             converged = True

@@ -49,6 +49,8 @@ def add_metamodel_commands(subparsers) -> argparse.ArgumentParser:
     c.add_argument("--samples", type=int, default=None,
                    help="direct simulations per pair and level (default 2000, quick 100)")
     c.add_argument("--rebuild", action="store_true", help="rebuild even if a model file exists")
+    c.add_argument("--cache", default=None,
+                   help="directory caching the extensive-sampling labels (reruns are free)")
     c.set_defaults(func=cmd_compare)
     return mm
 
@@ -67,8 +69,10 @@ def model_path(out: str, part: str) -> str:
 def rho_markdown(mm: MetaModel) -> str:
     lines = [f"rho for {mm.part_name}: rows S_g, columns S_c (grid Monte-Carlo / surface)", ""]
     sims = [bm.n_simulations for bm in mm.boundaries.values()]
-    lines.append(f"simulations per boundary: mean {np.mean(sims):.0f}, max {max(sims)}; "
-                 f"D_FT: " + ", ".join(f"{bm.d_ft:.3f}" for _, bm in sorted(mm.boundaries.items())))
+    bms = [bm for _, bm in sorted(mm.boundaries.items())]
+    lines.append(f"simulations per boundary: mean {np.mean(sims):.0f}, max {max(sims)}, "
+                 f"converged {sum(bm.converged for bm in bms)}/{len(bms)}; "
+                 f"D_FT / width: " + ", ".join(f"{bm.d_ft:.3f}/{bm.width:.3f}" for bm in bms))
     for lv in mm.levels:
         lines += ["", f"### {lv.name}: sigma_r = {lv.sigma_r * 1000:.0f} mm, "
                       f"sigma_phi = {np.degrees(lv.sigma_phi):.0f} deg", "",
@@ -108,7 +112,7 @@ def cmd_compare(args) -> int:
         mm = MetaModel.load(path) if os.path.exists(path) and not args.rebuild \
             else _build_one(args, part)
         rows = compare(mm, n_samples=n, seed=args.seed, workers=args.workers,
-                       use_ray=args.ray, progress=not args.quiet)
+                       use_ray=args.ray, progress=not args.quiet, cache_dir=args.cache)
         paths = write_results(rows, args.out, part)
         print(f"wrote {paths['md']}")
         try:
@@ -119,6 +123,7 @@ def cmd_compare(args) -> int:
             print("matplotlib not installed: skipped the plot", file=sys.stderr)
         for lv, s in summarize(rows).items():
             print(f"{part} {lv}: mean |active-ext| {s['mean_abs_error_active']:.3f}, "
+                  f"worst under {s['max_under_active']:+.3f}, "
                   f"max over {s['max_over_active']:+.3f}; surface mean |err| "
                   f"{s['mean_abs_error_surface']:.3f}, max over {s['max_over_surface']:+.3f}")
     return 0

@@ -1,32 +1,33 @@
 """Success-probability meta-model rho_sigma(S_g, S_c) (Sec. IV-B of Thakar et al.).
 
 For each (S_g, S_c) on a grid, a GSB is learned actively (active.py) from simulations
-(sim.py). The success depth SD of a pose is its distance, in the normalized pose space, from
-the GSB into the success region; the failure threshold distance D_FT is estimated from the
-data: how deep simulated failures reached inside the classifier's success region. The
-probability of success for a pose uncertainty sigma = (sigma_r, sigma_phi) is the fraction
-of Monte-Carlo poses from N(0, sigma) with SD >= D_FT. The grid of probabilities is turned
-into a conservative analytic surface (surface.py), saved to JSON with all samples.
+(sim.py). The success depth SD of a pose is its (first-order) distance, in the normalized pose
+space, from the GSB into the success region. Because the simulated labels are noisy near the
+boundary, the probability of success of a pose is a logistic function of SD centred on the
+failure threshold distance D_FT, with D_FT and the band width fitted to out-of-fold depths
+(calibration.py). The probability of success for a pose uncertainty sigma is the mean of that
+probability over Monte-Carlo poses from N(0, sigma), minus z jackknife standard errors of the
+boundary (conservative). The grid of probabilities is turned into a conservative analytic
+surface (surface.py), saved to JSON with all samples.
 """
 from __future__ import annotations
 
 import json
 import math
 import os
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from .active import (ActiveConfig, PoseDomain, boundary_cloud, fit_svm, known_from_lower_sc,
-                     learn_boundary, success_depth)
+from .active import ActiveConfig, PoseDomain, fit_svm, known_from_lower_sc, learn_boundary
+from .calibration import calibrate, gaussian_queries, svm_depth
 from .parallel import SimRunner, sample_seeds
 from .parts import get_part
 from .sim import SimConfig
 from .surface import RhoSurface, fit_rho_surface
 
 FORMAT = "pickplan.pickup.metamodel"
-VERSION = 1
+VERSION = 2  # 2: calibrated probability (D_FT, width, jackknife), conservative_z
 
 
 @dataclass(frozen=True)
@@ -50,12 +51,12 @@ def check_sigma(sigma_r: float, sigma_phi: float) -> None:
 
 
 class BoundaryModel:
-    """One GSB: the labelled samples, the SVM refitted from them, the boundary as a point
-    cloud (zero crossings of the decision function on a grid) and D_FT."""
+    """One GSB: the labelled samples, the SVM refitted from them and its calibration
+    (calibration.py): D_FT (the success depth at which success and failure are equally
+    likely), the width w of the noisy band and the fold classifiers for the jackknife."""
 
-    def __init__(self, s_g, s_c, X, y, simulated, svm_c, svm_gamma, d_ft=None,
-                 history=None, converged=False, resolution=33, dft_floor=0.02,
-                 dft_quantile=0.5):
+    def __init__(self, s_g, s_c, X, y, simulated, svm_c, svm_gamma, history=None,
+                 converged=False, calib_folds=5, calib_seed=0):
         self.s_g, self.s_c = float(s_g), float(s_c)
         self.X = np.asarray(X, float).reshape(-1, 3)
         self.y = np.asarray(y, bool)
@@ -63,87 +64,66 @@ class BoundaryModel:
         self.svm_c, self.svm_gamma = float(svm_c), float(svm_gamma)
         self.history = list(history or [])
         self.converged = bool(converged)
-        self.resolution = int(resolution)
-        self.model = fit_svm(self.X, self.y, self.svm_c, self.svm_gamma)
-        self._tree = None
-        self.d_ft = float(d_ft) if d_ft is not None else estimate_dft(self, dft_floor,
-                                                                        dft_quantile)
+        self.calib_folds, self.calib_seed = int(calib_folds), int(calib_seed)
+        self.calibration = calibrate(self.X, self.y, self.simulated,
+                                     lambda A, b: fit_svm(A, b, self.svm_c, self.svm_gamma),
+                                     self.calib_folds, self.calib_seed)
+        self.model = self.calibration.model
 
     @property
     def n_simulations(self) -> int:
         return int(self.simulated.sum())
 
+    @property
+    def d_ft(self) -> float:
+        return self.calibration.d_ft
+
+    @property
+    def width(self) -> float:
+        return self.calibration.width
+
     def decision(self, U) -> np.ndarray:
         return self.model.decision_function(np.asarray(U, float))
 
-    def boundary_points(self) -> np.ndarray:
-        return boundary_cloud(self.model, self.resolution)
-
     def success_depth(self, U) -> np.ndarray:
-        """Signed distance to the GSB in normalized pose space: > 0 inside the success
-        region, < 0 in the failure region (+-inf when the GSB is empty)."""
-        return success_depth(self.model, U, self._kdtree())
+        """Signed distance (first order) to the GSB in normalized pose space: > 0 inside
+        the success region, < 0 in the failure region."""
+        return svm_depth(self.model, U)
 
-    def _kdtree(self):
-        if self._tree is None:
-            pts = self.boundary_points()
-            self._tree = cKDTree(pts) if len(pts) else False
-        return self._tree
+    def probability(self, U) -> np.ndarray:
+        """Calibrated P(success) of normalized poses (0 outside the domain)."""
+        return self.calibration.probability(U)
 
     def to_dict(self) -> dict:
         return {"s_g": self.s_g, "s_c": self.s_c, "X": self.X.tolist(),
                 "y": self.y.astype(int).tolist(), "simulated": self.simulated.astype(int).tolist(),
                 "svm_c": self.svm_c, "svm_gamma": self.svm_gamma, "d_ft": self.d_ft,
-                "converged": self.converged, "history": self.history,
-                "resolution": self.resolution}
+                "width": self.width, "converged": self.converged, "history": self.history,
+                "calib_folds": self.calib_folds, "calib_seed": self.calib_seed}
 
     @classmethod
     def from_dict(cls, d: dict) -> "BoundaryModel":
         return cls(d["s_g"], d["s_c"], d["X"], d["y"], d["simulated"], d["svm_c"],
-                   d["svm_gamma"], d_ft=d["d_ft"], history=d.get("history"),
-                   converged=d.get("converged", False), resolution=d.get("resolution", 33))
-
-
-def estimate_dft(bm: "BoundaryModel", floor: float = 0.02, quantile: float = 0.5,
-                 last_rounds: int = 3) -> float:
-    """D_FT from the data, the larger of two depths (normalized units), at least `floor`
-    (0.02 = 1 mm / 1.2 deg):
-      * out of sample: in the last `last_rounds` rounds of active learning, the deepest
-        that a newly simulated failure lay inside the success region of the classifier of
-        the time (how far the classifier still overreaches);
-      * in sample: the `quantile` of the success depths of simulated failures that the
-        final classifier puts inside (physics noise at the boundary).
-    (A k-fold estimate was tried: refitting without the boundary samples moves the GSB so
-    much that D_FT became 5-15 mm and rho far too pessimistic.)"""
-    y, sim = bm.y, bm.simulated
-    if y.all() or (~y).all():
-        return float(floor)
-    depth = float(floor)
-    recent = [d for h in bm.history[-last_rounds:] for d in h.get("overreach", [])]
-    if recent:
-        depth = max(depth, float(np.max(recent)))
-    sd = bm.success_depth(bm.X[sim & ~y])
-    sd = sd[np.isfinite(sd) & (sd > 0)]
-    if len(sd):
-        depth = max(depth, float(np.quantile(sd, quantile)))
-    return depth
+                   d["svm_gamma"], history=d.get("history"),
+                   converged=d.get("converged", False), calib_folds=d.get("calib_folds", 5),
+                   calib_seed=d.get("calib_seed", 0))
 
 
 def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
                         domain: PoseDomain = PoseDomain(), n_queries: int = 20000,
-                        seed: int = 0) -> float:
-    """Fraction of poses from N(0, diag(sigma_r, sigma_r, sigma_phi)) with SD >= D_FT.
-    Poses outside the modelled domain count as failures (conservative)."""
+                        seed: int = 0, z: float = 1.0, details: bool = False):
+    """Conservative P(success) for poses from N(0, diag(sigma_r, sigma_r, sigma_phi)):
+    rho_hat - z * se, clipped to [0, 1], where rho_hat is the mean calibrated probability of
+    n_queries Monte-Carlo poses (outside the modelled domain: failure) and se the jackknife
+    standard error of the boundary. details=True returns (rho, rho_hat, se)."""
     check_sigma(sigma_r, sigma_phi)
     if n_queries < 1:
         raise ValueError(f"n_queries must be >= 1, got {n_queries}")
-    z = np.random.default_rng(seed).standard_normal((n_queries, 3))
-    U = domain.to_normalized(z * np.array([sigma_r, sigma_r, sigma_phi]))
-    ok = np.all(np.abs(U) <= 1.0, axis=1)
-    sd = np.full(n_queries, -np.inf)
-    if ok.any():
-        sd[ok] = bm.success_depth(U[ok])
-    return float(np.mean(sd >= bm.d_ft))
+    U = domain.to_normalized(gaussian_queries(n_queries, seed)
+                             * np.array([sigma_r, sigma_r, sigma_phi]))
+    rho_hat, se = bm.calibration.rho(U)
+    rho = float(np.clip(rho_hat - z * se, 0.0, 1.0))
+    return (rho, rho_hat, se) if details else rho
 
 
 @dataclass
@@ -156,8 +136,7 @@ class BuildConfig:
     domain: PoseDomain = field(default_factory=PoseDomain)
     n_queries: int = 20000
     use_sc_monotonicity: bool = True
-    dft_floor: float = 0.02
-    dft_quantile: float = 0.5
+    conservative_z: float = 1.0  # rho = rho_hat - z * jackknife se
     surface_degree: tuple = (3, 2)
 
     @classmethod
@@ -173,7 +152,8 @@ class MetaModel:
     probability grids and surfaces for the built sigma levels. Query with rho()."""
 
     def __init__(self, part_name, sg_grid, sc_grid, boundaries, levels, rho_grids, surfaces,
-                 domain=PoseDomain(), n_queries=20000, surface_degree=(3, 2), info=None):
+                 domain=PoseDomain(), n_queries=20000, surface_degree=(3, 2), info=None,
+                 conservative_z=1.0):
         self.part_name = part_name
         self.sg_grid = tuple(float(s) for s in sg_grid)
         self.sc_grid = tuple(float(s) for s in sc_grid)
@@ -185,6 +165,7 @@ class MetaModel:
         self.n_queries = int(n_queries)
         self.surface_degree = tuple(surface_degree)
         self.info = dict(info or {})
+        self.conservative_z = float(conservative_z)
 
     def level(self, sigma_r: float, sigma_phi: float):
         for lv in self.levels:
@@ -209,7 +190,8 @@ class MetaModel:
         """Monte-Carlo success probabilities on the speed grid (common random numbers)."""
         out = np.zeros((len(self.sg_grid), len(self.sc_grid)))
         for (i, j), bm in self.boundaries.items():
-            out[i, j] = success_probability(bm, sigma_r, sigma_phi, self.domain, self.n_queries)
+            out[i, j] = success_probability(bm, sigma_r, sigma_phi, self.domain, self.n_queries,
+                                            z=self.conservative_z)
         return out
 
     def rho(self, s_g, s_c, sigma_r: float, sigma_phi: float):
@@ -224,6 +206,7 @@ class MetaModel:
             "sg_grid": list(self.sg_grid), "sc_grid": list(self.sc_grid),
             "domain": asdict(self.domain), "n_queries": self.n_queries,
             "surface_degree": list(self.surface_degree), "info": self.info,
+            "conservative_z": self.conservative_z,
             "levels": [{**asdict(lv), "rho_grid": np.asarray(self.rho_grids[lv.name]).tolist(),
                         "surface": self.surfaces[lv.name].to_dict()} for lv in self.levels],
             "boundaries": [{"i": i, "j": j, **bm.to_dict()}
@@ -245,7 +228,7 @@ class MetaModel:
         bounds = {(b["i"], b["j"]): BoundaryModel.from_dict(b) for b in d["boundaries"]}
         return cls(d["part"], d["sg_grid"], d["sc_grid"], bounds, levels, grids, surfaces,
                    PoseDomain(**d["domain"]), d["n_queries"], tuple(d["surface_degree"]),
-                   d.get("info"))
+                   d.get("info"), d.get("conservative_z", 1.0))
 
     def save(self, path) -> None:
         """Write JSON atomically (temp file in the same directory, then os.replace)."""
@@ -279,6 +262,11 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
     sg_grid = sorted(float(s) for s in config.sg_grid)
     sc_grid = sorted(float(s) for s in config.sc_grid)
     boundaries = {}
+    # The learner's stopping rule watches rho at the levels being built.
+    active = replace(config.active, query_sigmas=tuple(
+        tuple(float(v) for v in config.domain.to_normalized([lv.sigma_r, lv.sigma_r,
+                                                             lv.sigma_phi]))
+        for lv in config.levels))
     with SimRunner(part, config.sim, workers, use_ray, progress=False) as runner:
         for i, s_g in enumerate(sg_grid):
             prev = None
@@ -291,11 +279,11 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                 known = None
                 if config.use_sc_monotonicity and prev is not None:
                     known = known_from_lower_sc(prev.model, config.active.known_margin)
-                res = learn_boundary(label_fn, config.active, seed=pair_seed, known_fn=known)
+                res = learn_boundary(label_fn, active, seed=pair_seed, known_fn=known)
                 bm = BoundaryModel(s_g, s_c, res.X, res.y, res.simulated, res.svm_c,
                                    res.svm_gamma, history=res.history,
-                                   converged=res.converged, dft_floor=config.dft_floor,
-                                   dft_quantile=config.dft_quantile)
+                                   converged=res.converged,
+                                   calib_folds=config.active.calib_folds, calib_seed=pair_seed)
                 boundaries[(i, j)] = bm
                 prev = bm
                 if progress:
@@ -304,7 +292,7 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                                      f"{bm.n_simulations} sims, {res.n_free} free, "
                                      f"D_FT={bm.d_ft:.3f}, converged={res.converged}\n")
     mm = MetaModel(part.name, sg_grid, sc_grid, boundaries, [], {}, {}, config.domain,
-                   config.n_queries, config.surface_degree,
+                   config.n_queries, config.surface_degree, conservative_z=config.conservative_z,
                    info={"seed": seed, "sim": asdict(config.sim), "active": asdict(config.active),
                          "use_sc_monotonicity": config.use_sc_monotonicity})
     for lv in config.levels:

@@ -1,0 +1,83 @@
+"""rho against exact truth on a noisy synthetic oracle (labels drawn with a known success
+probability that falls off smoothly across the boundary, like the simulation's friction
+jitter), and the calibration pieces it rests on."""
+import numpy as np
+import pytest
+
+from pickplan.pickup.active import fit_svm
+from pickplan.pickup.calibration import calibrate, fit_depth_sigmoid, svm_depth
+from pickplan.pickup.metamodel import BuildConfig, build_metamodel, success_probability
+from pickplan.pickup.synthetic import NoisyEllipsoidOracle, noisy_oracle_factory
+
+WIDTH = 0.1  # noise band of the oracle, in ellipsoid-radius units
+
+
+@pytest.fixture(scope="module")
+def noisy_model():
+    cfg = BuildConfig(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.15), n_queries=20000)
+    return build_metamodel("box", cfg, seed=0, label_fn_factory=noisy_oracle_factory(WIDTH))
+
+
+def test_rho_accurate_and_conservative_on_noisy_oracle(noisy_model):
+    """Issue target on exact truth: within 5 % and never more than 1 % above (the truth's
+    Monte-Carlo error is < 0.001, the model's 20,000 common queries add ~0.003)."""
+    errors = []
+    for lv in noisy_model.levels:
+        for (i, j), bm in noisy_model.boundaries.items():
+            truth = NoisyEllipsoidOracle(bm.s_g, bm.s_c, WIDTH).probability(lv.sigma_r,
+                                                                            lv.sigma_phi)
+            errors.append(noisy_model.rho_grids[lv.name][i, j] - truth)
+    errors = np.array(errors)
+    assert errors.max() <= 0.01, errors
+    assert np.mean(np.abs(errors)) <= 0.05, errors
+    assert errors.min() >= -0.12, errors  # occasional pairs are more conservative
+
+
+def test_boundaries_stop_within_budget(noisy_model):
+    sims = [bm.n_simulations for bm in noisy_model.boundaries.values()]
+    assert max(sims) <= 300
+    assert any(bm.converged for bm in noisy_model.boundaries.values()), sims
+
+
+def test_conservative_margin_is_the_jackknife_error(noisy_model):
+    lv = noisy_model.levels[1]
+    bm = noisy_model.boundaries[(1, 0)]
+    rho, rho_hat, se = success_probability(bm, lv.sigma_r, lv.sigma_phi, details=True)
+    assert se > 0 and rho == pytest.approx(max(rho_hat - noisy_model.conservative_z * se, 0.0))
+
+
+def test_depth_sigmoid_recovers_known_noise():
+    rng = np.random.default_rng(0)
+    depth = rng.uniform(-0.2, 0.2, 4000)
+    y = rng.uniform(size=4000) < 1 / (1 + np.exp(-(depth - 0.03) / 0.02))
+    d_ft, w, nll = fit_depth_sigmoid(depth, y)
+    assert d_ft == pytest.approx(0.03, abs=0.005)
+    assert w == pytest.approx(0.02, rel=0.15)
+    assert 0 < nll < np.log(2)
+
+
+def test_svm_depth_is_signed_distance_near_the_boundary():
+    """Sphere of radius 0.5: near the surface the first-order depth is the distance."""
+    rng = np.random.default_rng(1)
+    X = rng.uniform(-1, 1, (600, 3))
+    y = np.linalg.norm(X, axis=1) < 0.5
+    model = fit_svm(X, y, 100.0, 3.0)
+    U = rng.normal(size=(500, 3))
+    U *= (0.5 + rng.uniform(-0.08, 0.08, (500, 1))) / np.linalg.norm(U, axis=1, keepdims=True)
+    true = 0.5 - np.linalg.norm(U, axis=1)
+    d = svm_depth(model, U)
+    np.testing.assert_array_equal(d > 0, model.decision_function(U) > 0)
+    assert np.median(np.abs(d - true)) < 0.03
+
+
+def test_calibration_width_reflects_label_noise():
+    """Noisier labels give a wider fitted band."""
+    rng = np.random.default_rng(2)
+    X = rng.uniform(-1, 1, (500, 3))
+    widths = []
+    for noise in (0.02, 0.2):
+        oracle = NoisyEllipsoidOracle(0.1, 0.15, noise, seed=3)
+        y = oracle(X)
+        cal = calibrate(X, y, np.ones(len(y), bool), lambda A, b: fit_svm(A, b, 100.0, 3.0))
+        widths.append(cal.width)
+    assert widths[1] > 2 * widths[0], widths
