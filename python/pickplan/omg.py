@@ -36,6 +36,8 @@ class OMGSettings:
     iterations: int = 50           # N, the optimization horizon
     refine: bool = True            # C-Space ISF on the selected goal every iteration
     isf_steps: int = 1             # ISF steps per planner iteration
+    isf_max_shift: float = 0.01    # m: ISF may move the hand at most this far from the input grasp (a
+                                   # local refinement; verified grasps moved farther were dropped in execution)
     cost_time_stride: int = 2      # goal-cost estimates on every k-th tail waypoint ...
     cost_point_stride: int = 2     # ... and every k-th body point (rescaled)
     pre_terminate: bool = True     # stop once the plan succeeds (checked every check_every iterations)
@@ -126,9 +128,12 @@ class OMGPlanner:
         goals = [g for g in gs.goals]
         tails = [t_ for t_ in gs.tails]
         origin = list(gs.grasp_index)          # input grasp of each goal
+        origin_goal = list(range(len(gs)))     # goal-set goal each goal came from (refined copies: their source)
         refined_copy: dict = {}                # goal index -> index of its refined copy
         refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
-        isf_stalled: set = set()               # goals where ISF found no decrease: refine(g) would return g again
+        isf_stalled: set = set()               # goals ISF leaves alone: no decrease found, or at its trust radius
+        hand_link = world.robot.hand_link
+        grasp_hand: dict = {}                  # hand position at an input goal, made when ISF first refines it
         policy = make_policy(s.selection)
         N = s.iterations
 
@@ -174,8 +179,12 @@ class OMGPlanner:
             if refiner is not None and g_next not in isf_stalled:
                 t = time.perf_counter()
                 q_ref, _ = refiner.refine(goals[g_next], s.isf_steps)
-                if np.abs(q_ref - goals[g_next]).max() == 0:
-                    isf_stalled.add(g_next)  # deterministic: stays put until the goal changes
+                source = origin_goal[g_next]
+                if source not in grasp_hand:
+                    grasp_hand[source] = world.robot.link_pose(goals[source], hand_link)[:3, 3]
+                shift = np.linalg.norm(world.robot.link_pose(q_ref, hand_link)[:3, 3] - grasp_hand[source])
+                if np.abs(q_ref - goals[g_next]).max() == 0 or shift > s.isf_max_shift:
+                    isf_stalled.add(g_next)  # deterministic: refine would give the same again
                 else:
                     shifted = tails[g_next] + (q_ref - goals[g_next])  # keep the approach's shape
                     if g_next in refined_copy.values():       # already a refined goal: update in place
@@ -188,6 +197,7 @@ class OMGPlanner:
                         goals.append(q_ref)
                         tails.append(shifted)
                         origin.append(origin[g_next])
+                        origin_goal.append(g_next)
                         refined_copy[g_next] = len(goals) - 1
                         policy.add_goal()
                         g_next = len(goals) - 1

@@ -45,6 +45,10 @@ class SceneSettings:
     table_thickness: float = 0.05
     drop_height: float = 0.005         # gap between the object's lowest point and the table at release
     spawn_gap: float = 0.005           # minimum gap between footprint circles at release
+    # "upright" (the paper: "random upright poses"): every object stands on the resting pose that keeps
+    # its model +z closest to up; "resting": any sufficiently stable resting pose (lying boxes,
+    # upside-down bowls), sampled with the two settings below.
+    orientation: str = "upright"
     min_barrier: float = 0.002         # resting poses that tip with less COM rise (m) are not sampled
     barrier_fraction: float = 0.1      # ... nor those below this fraction of the most stable one's
     time_step: float = 1.0 / 240.0
@@ -61,6 +65,8 @@ class SceneSettings:
     non_targets: Tuple[str, ...] = ("002_master_chef_can",)
 
     def __post_init__(self):
+        if self.orientation not in ("upright", "resting"):
+            raise ValueError(f"orientation: expected 'upright' or 'resting', got {self.orientation!r}")
         if not 1 <= self.min_objects <= self.max_objects:
             raise ValueError(f"need 1 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
         for name in ("region_x", "region_y", "table_x", "table_y"):
@@ -336,7 +342,10 @@ def default_table(settings: SceneSettings = SceneSettings()) -> Table:
 
 
 def _allowed_poses(model: objects_mod.ObjectModel, settings: SceneSettings) -> List[int]:
-    """Indices of the resting poses stable enough to sample: the most stable one always qualifies."""
+    """Indices of the resting poses to sample from. "upright": the one whose model +z points most
+    nearly up; "resting": those stable enough (the most stable one always qualifies)."""
+    if settings.orientation == "upright":
+        return [int(np.argmax([pose[2, 2] for pose in model.resting_poses]))]
     b = np.asarray(model.resting_barriers if model.resting_barriers else [1.0], dtype=float)
     floor = max(settings.min_barrier, settings.barrier_fraction * b[0])
     return [i for i in range(min(len(b), len(model.resting_poses))) if i == 0 or b[i] >= floor]

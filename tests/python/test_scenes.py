@@ -188,3 +188,16 @@ def test_scene_from_real_ycb_objects(bullet):
         assert "robot" not in ids and len(ids) == len(scene.objects) + 1
     finally:
         pb.disconnect(c)
+
+
+def test_default_scenes_stand_objects_upright_as_the_paper(generated):
+    """The paper drops objects "with random upright poses": each model's +z axis stays within the
+    settling tilt of world up; "resting" samples other stable poses (lying boxes) too."""
+    for scene in generated.values():
+        for o in scene.objects:
+            assert o.pose[2, 2] >= math.cos(math.radians(scenes.SceneSettings().max_tilt_deg)), (o.name, o.pose[:3, 2])
+    lib = objects.library("builtin")
+    resting = [scenes.generate_scene(s, lib, scenes.SceneSettings(orientation="resting")) for s in range(6)]
+    assert any(o.pose[2, 2] < 0.5 for sc in resting for o in sc.objects)  # some object lies on its side
+    with pytest.raises(ValueError, match="orientation"):
+        scenes.SceneSettings(orientation="sideways")
