@@ -18,7 +18,7 @@ def main():
     ap.add_argument("--iterations", type=int, default=100)
     args = ap.parse_args()
     warnings.simplefilter("ignore")
-    ok = tried = 0
+    ok = tried = free = 0
     times = []
     for seed in range(args.scenes):
         sc = scenes.generate_scene(seed)
@@ -37,10 +37,13 @@ def main():
         times.append(time.perf_counter() - t)
         tried += 1
         ok += bool(res.metrics["success"])
-        print(f"scene {seed}: {'success' if res.metrics['success'] else 'failure'}, clearance "
+        free += bool(res.metrics["collision_free"])
+        print(f"scene {seed}: {'success' if res.metrics['success'] else 'failure'}, "
+              f"{'collision-free' if res.metrics['collision_free'] else 'in collision'}, clearance "
               f"{res.metrics['min_clearance'] * 100:.1f} cm, smoothness {res.metrics['smoothness']:.1f}, "
               f"{times[-1] * 1e3:.0f} ms", flush=True)
-    print(f"CHOMP success {ok}/{tried}; median {np.median(times) * 1e3:.0f} ms per 100-iteration optimization")
+    print(f"CHOMP success {ok}/{tried}, collision-free {free}/{tried}; "
+          f"median {np.median(times) * 1e3:.0f} ms per 100-iteration optimization")
 
 
 if __name__ == "__main__":
