@@ -165,7 +165,7 @@ class MirrorDescent(SelectionPolicy):
     def __init__(self, exponents: Sequence[int] = (-2, -1, 0, 2, 4)):
         super().__init__()
         self.exponents = tuple(exponents)
-        self.experts: List[np.ndarray] = []
+        self.experts = np.zeros((len(self.exponents), 0))  # one distribution per row
         self.weights = np.ones(len(self.exponents)) / len(self.exponents)
 
     def etas(self) -> np.ndarray:
@@ -173,21 +173,26 @@ class MirrorDescent(SelectionPolicy):
 
     def reset(self, num_goals, horizon, initial_costs=None):
         p = super().reset(num_goals, horizon, None)
-        self.experts = [p.copy() for _ in self.exponents]
+        self.experts = np.tile(p, (len(self.exponents), 1))
         self.weights = np.ones(len(self.exponents)) / len(self.exponents)
         if initial_costs is not None:
             self._start(np.asarray(initial_costs, dtype=float))
         return self.p
 
     def _grow(self):
-        self.experts = [np.concatenate([e, [e.max()]]) / (1 + e.max()) for e in self.experts]
+        top = self.experts.max(axis=1, keepdims=True)
+        self.experts = np.hstack([self.experts, top]) / (1 + top)
 
     def _next(self, c):
-        losses = np.array([float(e @ c) for e in self.experts])
+        losses = self.experts @ c
         meta_eta = math.sqrt(math.log(len(self.experts)) / self.horizon) if len(self.experts) > 1 else 0.0
         self.weights = _multiplicative(self.weights, losses, meta_eta)
-        self.experts = [_multiplicative(e, c, eta) for e, eta in zip(self.experts, self.etas())]
-        p = np.sum(self.weights[:, None] * np.array(self.experts), axis=0)
+        # Every expert's closed-form KL step at once (rows), in log space as _multiplicative.
+        logits = np.log(np.maximum(self.experts, 1e-300)) - self.etas()[:, None] * c
+        logits -= logits.max(axis=1, keepdims=True)
+        w = np.exp(logits)
+        self.experts = w / w.sum(axis=1, keepdims=True)
+        p = self.weights @ self.experts
         return p / p.sum()
 
 
