@@ -28,7 +28,8 @@ double object_clearance(const ChompProblem& problem, const double* q, std::uint6
   double out = cap;
   for (const LinkGroup& grp : problem.groups()) {
     const Transform& T = ws.link_pose[grp.link];
-    if (scene.lower_bound(T.apply(grp.center), exclude_mask) - grp.radius >= out) continue;
+    // Objects only (the table is not measured here), so links near the table are not kept for it.
+    if (scene.part_lower_bounds(T.apply(grp.center), exclude_mask).objects - grp.radius >= out) continue;
     for (int u = grp.begin; u < grp.end; ++u)
       out = std::min(out, scene.distance_unmerged(T.apply(body.points.row(u).transpose()), nullptr, out,
                                                   exclude_mask | SceneSdf::kTableBit));

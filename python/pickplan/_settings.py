@@ -4,9 +4,11 @@ from __future__ import annotations
 from dataclasses import asdict
 
 
-def to_native(settings, native_type, **extra):
-    """An instance of ``native_type`` with every dataclass field of ``settings`` and ``extra`` copied."""
+def to_native(settings, native_type, skip=(), **extra):
+    """An instance of ``native_type`` with every dataclass field of ``settings`` (but those named in
+    ``skip``: Python-only fields) and ``extra`` copied."""
     out = native_type()
     for name, value in {**asdict(settings), **extra}.items():
-        setattr(out, name, value)
+        if name not in skip:
+            setattr(out, name, value)
     return out

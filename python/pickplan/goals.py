@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -50,11 +50,7 @@ class GoalSetSettings:
     seed: int = 0
 
     def to_native(self) -> "_core.GoalSetSettings":
-        out = _core.GoalSetSettings()
-        for name, value in asdict(self).items():
-            if name != "approach_clearance":
-                setattr(out, name, value)
-        return out
+        return to_native(self, _core.GoalSetSettings, skip=("approach_clearance",))
 
 
 @dataclass

@@ -38,10 +38,9 @@ def replay(plan_dict: dict, case_id: int, gui: bool = False, frames: int = 400,
     cid = pb.connect(pb.GUI if gui else pb.DIRECT)
     try:
         body = pb.loadURDF(robot.urdf_path, [0, 0, 0], [0, 0, 0, 1], useFixedBase=True, physicsClientId=cid)
-        by_name = {pb.getJointInfo(body, j, physicsClientId=cid)[1].decode(): j
-                   for j in range(pb.getNumJoints(body, physicsClientId=cid))}
-        link_of = {pb.getJointInfo(body, j, physicsClientId=cid)[12].decode(): j
-                   for j in range(pb.getNumJoints(body, physicsClientId=cid))}
+        info = [pb.getJointInfo(body, j, physicsClientId=cid) for j in range(pb.getNumJoints(body, physicsClientId=cid))]
+        by_name = {inf[1].decode(): j for j, inf in enumerate(info)}   # joint name -> index
+        link_of = {inf[12].decode(): j for j, inf in enumerate(info)}  # child link name -> index
         missing = [n for n in robot.joint_names if n not in by_name]
         if missing:
             raise RuntimeError(f"PyBullet model lacks joints {missing}")
@@ -62,8 +61,7 @@ def replay(plan_dict: dict, case_id: int, gui: bool = False, frames: int = 400,
         for k in range(frames):
             for j, v in zip(joints, q[k]):
                 pb.resetJointState(body, j, float(v), physicsClientId=cid)
-            pb.performCollisionDetection(physicsClientId=cid)
-            for ob in obstacles:
+            for ob in obstacles:  # getClosestPoints computes its own narrow phase
                 for c in pb.getClosestPoints(body, ob, 1.0, physicsClientId=cid):
                     if c[8] < best:
                         best, best_t = c[8], float(t[k])
