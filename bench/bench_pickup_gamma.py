@@ -1,4 +1,4 @@
-"""Success probability vs gamma (bench/README.md, "Success probability vs gamma"): case 1 of Sec. VI
+"""Success probability vs gamma (bench/PICKUP.md, "Success probability vs gamma"): case 1 of Sec. VI
 solved by the successive refinement for several thresholds gamma on the stand-in surface
 `synthetic_rho` at sigma = 7 mm / 10 deg; prints a Markdown table (rho, S_g, T, wall and CPU time).
 
