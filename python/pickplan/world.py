@@ -36,6 +36,8 @@ class World:
         grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf), o.pose) for o in scene.objects]
         self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
         self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
+        self._checkers: dict = {}
+        self._refiners: dict = {}
         scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
         t0 = time.perf_counter()
         if settings.sdf.merged:  # the planners' obstacle costs all leave the target out
@@ -63,12 +65,18 @@ class World:
     def scene_meshes(self):
         return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
 
-    @functools.lru_cache(maxsize=4)
     def checker(self, kind: str = "goal") -> collision.CollisionChecker:
         """FCL checker against objects and table. "goal": the fingers may touch the target
         (grasp configurations close around it); "hand": the same for the hand and fingers alone;
         "strict": nothing may touch anything;
-        "obstacles": the target is ignored entirely (trajectory validation)."""
+        "obstacles": the target is ignored entirely (trajectory validation). Built once per kind
+        and kept by this world (not in a module-level cache, which would keep worlds alive and
+        rebuild them when a user alternates between scenes)."""
+        if kind not in self._checkers:
+            self._checkers[kind] = self._build_checker(kind)
+        return self._checkers[kind]
+
+    def _build_checker(self, kind: str) -> collision.CollisionChecker:
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())
@@ -96,9 +104,13 @@ class World:
 
         return Chomp(self.robot, self.sdf, self.body, exclude=(self.target,)).problem
 
-    @functools.lru_cache(maxsize=4)
     def grasp_refiner(self, settings=None, seed: int = 0):
-        """C-Space ISF for this scene's target (``isf.GraspRefiner``), built once per settings:
-        the hand SDF and the object's surface samples are scene constants, not per-plan work."""
+        """C-Space ISF for this scene's target (``isf.GraspRefiner``), built once per (settings,
+        seed) and kept by this world: the hand SDF and the object's surface samples are scene
+        constants, not per-plan work."""
         from . import isf  # isf builds on World
-        return isf.GraspRefiner(self, settings or isf.IsfSettings(), seed=seed)
+        settings = settings or isf.IsfSettings()
+        key = (settings, int(seed))
+        if key not in self._refiners:
+            self._refiners[key] = isf.GraspRefiner(self, settings, seed=seed)
+        return self._refiners[key]

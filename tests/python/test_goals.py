@@ -127,3 +127,25 @@ def test_bad_grasps_raise(scene_world):
     bad[1, :3, :3] *= 2.0
     with pytest.raises(ValueError, match=r"grasps \[1\]: not a rigid transform"):
         goals.build_goal_set(scene_world, bad)
+
+
+def test_world_caches_are_per_world_and_release_the_world(scene_world):
+    """Checkers and refiners are built once per world and die with it: alternating between worlds
+    must not rebuild them (a shared module-level cache of 4 entries did), nor keep worlds alive."""
+    import gc
+    import weakref
+
+    from pickplan import isf
+
+    goal, hand = scene_world.checker("goal"), scene_world.checker("hand")
+    refiner = scene_world.grasp_refiner(isf.IsfSettings(), 0)
+    others = [world.World(scenes.generate_scene(seed)) for seed in (1, 2, 3)]
+    for w in others:
+        w.checker("goal"), w.checker("hand"), w.grasp_refiner(isf.IsfSettings(), 0)
+    assert scene_world.checker("goal") is goal and scene_world.checker("hand") is hand
+    assert scene_world.grasp_refiner(isf.IsfSettings(), 0) is refiner
+    assert scene_world.grasp_refiner(isf.IsfSettings(), 1) is not refiner  # another seed: another refiner
+    refs = [weakref.ref(w) for w in others]
+    del others, w
+    gc.collect()
+    assert all(r() is None for r in refs)
