@@ -6,6 +6,8 @@ scenes, with the data that explains the differences: switches, the initial goal'
     .venv/bin/python bench/bench_selection_study.py --set dense --scenes 20 --oracle --out out/selstudy/dense.json
     .venv/bin/python bench/bench_selection_study.py --set ycb --scenes 20 --out out/selstudy/ycb.json
     ... --approach-clearance 0      # the goal set without the approach-clearance filter (before)
+    ... --start-spread 0.8          # random starts: ready pose + U(-0.8, 0.8) rad per arm joint, >= 5 cm clear
+    ... --n 50                      # 50 waypoints instead of 30 (Fig. 8's hardest discretization)
 
 Serial, one process; scenes are generated once into ``--scene-dir`` and reused. Built-in scenes use
 100 antipodal grasps (seed 0; the built-ins have no stored simulated set), YCB scenes the stored
@@ -65,12 +67,29 @@ def scene_grasps(world: World, kind: str) -> np.ndarray:
         return grasps_mod.antipodal_grasps(world.target_model, 100, seed=0).poses
 
 
-def study_scene(scene, settings: omg.OMGSettings, policies, oracle: bool, kind: str) -> dict:
+def random_start(world: World, spread: float, seed: int) -> np.ndarray:
+    """The ready pose with every arm joint moved by U(-spread, spread) rad (clipped to the limits),
+    redrawn until the arm is at least 5 cm from the table and objects (FCL)."""
+    rng = np.random.default_rng(seed)
+    ready, checker = np.array(world.start), world.checker("goal")
+    arm = world.robot.info.arm_dof
+    for _ in range(200):
+        q = ready.copy()
+        q[:arm] += rng.uniform(-spread, spread, arm)
+        q = world.robot.clip_to_limits(q)
+        if checker.min_distance(q) > 0.05:
+            return q
+    raise RuntimeError(f"no start with 5 cm clearance within {spread} rad of the ready pose")
+
+
+def study_scene(scene, settings: omg.OMGSettings, policies, oracle: bool, kind: str,
+                start_spread: float = 0.0, start_seed: int = 0) -> dict:
     world = World(scene)
     g = scene_grasps(world, kind)
+    start = random_start(world, start_spread, start_seed) if start_spread > 0 else None
     rec = {"target": scene.target, "objects": len(scene.objects), "policies": {}}
     for p in policies:
-        r = omg.OMGPlanner(None, scene, replace(settings, selection=p), world=world).plan(grasps=g)
+        r = omg.OMGPlanner(None, scene, replace(settings, selection=p), world=world).plan(start=start, grasps=g)
         h = r.history
         rec["policies"][p] = {
             "status": r.status, "success": bool(r.success), "goal_set": r.goal_set_size, "iterations": r.iterations,
@@ -80,10 +99,11 @@ def study_scene(scene, settings: omg.OMGSettings, policies, oracle: bool, kind: 
             "costs": [np.round(c, 5).tolist() for c in h["costs"]] if p == "MD" else None,
             "reasons": r.goal_reasons if p == "Fixed" else None}
     if oracle:
-        gs = build_goal_set(world, g, world.start, settings.goals, settings.ik)
+        gs = build_goal_set(world, g, world.start if start is None else start, settings.goals, settings.ik)
         alone = {}
         for gi in gs.grasp_index:
-            r = omg.OMGPlanner(None, scene, replace(settings, selection="Fixed"), world=world).plan(grasps=g[[gi]])
+            r = omg.OMGPlanner(None, scene, replace(settings, selection="Fixed"), world=world).plan(
+                start=start, grasps=g[[gi]])
             alone[int(gi)] = r.status
         rec["alone"] = alone
         rec["goal_grasps"] = [int(x) for x in gs.grasp_index]
@@ -100,16 +120,21 @@ def main(argv=None) -> int:
     ap.add_argument("--approach-clearance", type=float, default=None,
                     help="goal-set approach clearance (m); default: the goal set's default")
     ap.add_argument("--oracle", action="store_true", help="also plan every goal of the goal set alone")
+    ap.add_argument("--start-spread", type=float, default=0.0,
+                    help="random start per scene: ready pose + U(-S, S) rad per arm joint (0: the ready pose)")
+    ap.add_argument("--n", type=int, default=None, help="trajectory waypoints (default: the planner's, 30)")
     ap.add_argument("--scene-dir", default="out/selstudy/scenes")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     goals = GoalSetSettings() if a.approach_clearance is None else GoalSetSettings(approach_clearance=a.approach_clearance)
     settings = omg.OMGSettings(refine=False, goals=goals)
+    if a.n is not None:
+        settings = replace(settings, chomp=replace(settings.chomp, n=a.n))
     kind = "simulated" if a.set == "ycb" else "antipodal"
     records = []
     t0 = time.perf_counter()
     for k, (path, scene) in enumerate(load_scenes(a.set, a.first + a.scenes, a.seed, a.scene_dir)[a.first:]):
-        rec = study_scene(scene, settings, a.policies, a.oracle, kind)
+        rec = study_scene(scene, settings, a.policies, a.oracle, kind, a.start_spread, start_seed=a.first + k)
         rec["scene"] = path
         records.append(rec)
         line = " ".join(f"{p}:{'ok' if v['success'] else v['status'][:4]}/{v['switches']}"

@@ -151,25 +151,58 @@ class EXP(SelectionPolicy):
         return _multiplicative(self.p, c, self.eta())
 
 
-class MirrorDescent(SelectionPolicy):
-    """Mirror descent with the KL regularizer over an ensemble of learning rates.
+def shifted_kl_step(P: np.ndarray, scaled_costs: np.ndarray, shift: float) -> np.ndarray:
+    """Rows of argmin_p <eta c, p> + KL(p + shift || p_k + shift) over the simplex, exactly.
 
-    Each expert k solves p = argmin_p eta_k <c, p> + KL(p || p_k), whose Lagrangian closed form is
-    p ∝ p_k exp(-eta_k c), with eta_k = 2^k log N, k in {-2, -1, 0, 2, 4} (paper Sec. IV-B). The
-    experts are combined by exponential weights on their own losses <c, p_k> (rate
-    sqrt(log K / N)); p is the weighted mixture.
+    KKT: p_g = max(0, a_g e^lam - shift) with a_g = (p_k,g + shift) exp(-eta c_g) and lam such that
+    sum p = 1; the goals with p_g > 0 are the k largest a_g, so lam follows from sorted partial
+    sums. ``shift`` = 0 is the plain KL step p ∝ p_k exp(-eta c). ``scaled_costs`` holds eta_k c.
+    """
+    P = np.atleast_2d(P)
+    logits = np.log(np.maximum(P + shift, 1e-300)) - scaled_costs
+    logits -= logits.max(axis=1, keepdims=True)  # a scaled so its largest entry is 1: no overflow
+    a = np.exp(logits)
+    if shift == 0.0:
+        return a / a.sum(axis=1, keepdims=True)
+    a_sorted = -np.sort(-a, axis=1)
+    k = np.arange(1, a.shape[1] + 1)
+    scale = (1.0 + k * shift) / np.cumsum(a_sorted, axis=1)  # e^lam if the top k are the active set
+    # The active set is the largest k whose k-th entry stays positive (a_(k) e^lam > shift).
+    active = a_sorted * scale > shift
+    kstar = a.shape[1] - 1 - np.argmax(active[:, ::-1], axis=1)
+    e_lam = scale[np.arange(a.shape[0]), kstar]
+    out = np.maximum(a * e_lam[:, None] - shift, 0.0)
+    return out / out.sum(axis=1, keepdims=True)  # exact up to round-off
+
+
+class MirrorDescent(SelectionPolicy):
+    """Mirror descent with a (shifted) KL regularizer over an ensemble of learning rates.
+
+    Each expert k solves p = argmin_p eta_k <c, p> + KL(p + delta || p_k + delta), eta_k = 2^k log N,
+    k in {-2, -1, 0, 2, 4} (paper Sec. IV-B), exactly (``shifted_kl_step``). The shift delta =
+    1 / (4 |G| + 1), as in the authors' implementation, keeps every goal's probability recoverable:
+    with delta = 0 the step is p ∝ p_k exp(-eta_k c), whose mode is always the cumulative leader (MD
+    then selects exactly as FTL); with the shift MD tracks a goal that has become cheaper (regret
+    against a shifting comparator). The experts are combined by exponential weights on their loss
+    <c, p_k> plus the switching cost |p_k - p_k,old|_1 (rate sqrt(log K / N)); p is the mixture.
     """
 
     name = "MD"
 
-    def __init__(self, exponents: Sequence[int] = (-2, -1, 0, 2, 4)):
+    def __init__(self, exponents: Sequence[int] = (-2, -1, 0, 2, 4), shift: Optional[float] = None):
         super().__init__()
         self.exponents = tuple(exponents)
+        self.shift_setting = shift  # None: 1 / (4 |G| + 1)
         self.experts = np.zeros((len(self.exponents), 0))  # one distribution per row
         self.weights = np.ones(len(self.exponents)) / len(self.exponents)
 
     def etas(self) -> np.ndarray:
         return np.array([2.0**k * math.log(max(self.horizon, 2)) for k in self.exponents])
+
+    def shift(self) -> float:
+        if self.shift_setting is not None:
+            return float(self.shift_setting)
+        return 1.0 / (4 * self.experts.shape[1] + 1)
 
     def reset(self, num_goals, horizon, initial_costs=None):
         p = super().reset(num_goals, horizon, None)
@@ -184,14 +217,11 @@ class MirrorDescent(SelectionPolicy):
         self.experts = np.hstack([self.experts, top]) / (1 + top)
 
     def _next(self, c):
-        losses = self.experts @ c
+        new = shifted_kl_step(self.experts, self.etas()[:, None] * c, self.shift())
+        losses = new @ c + np.abs(new - self.experts).sum(axis=1)
         meta_eta = math.sqrt(math.log(len(self.experts)) / self.horizon) if len(self.experts) > 1 else 0.0
         self.weights = _multiplicative(self.weights, losses, meta_eta)
-        # Every expert's closed-form KL step at once (rows), in log space as _multiplicative.
-        logits = np.log(np.maximum(self.experts, 1e-300)) - self.etas()[:, None] * c
-        logits -= logits.max(axis=1, keepdims=True)
-        w = np.exp(logits)
-        self.experts = w / w.sum(axis=1, keepdims=True)
+        self.experts = new
         p = self.weights @ self.experts
         return p / p.sum()
 

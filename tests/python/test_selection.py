@@ -45,10 +45,48 @@ def test_exp_and_single_expert_md_equal_the_closed_form():
     eta = math.sqrt(math.log(5) / N)
     closed = np.exp(-eta * costs.sum(axis=0))
     np.testing.assert_allclose(exp, closed / closed.sum(), rtol=1e-10)
-    md = _run(selection.MirrorDescent(exponents=(0,)), costs)[-1]
+    md = _run(selection.MirrorDescent(exponents=(0,), shift=0.0), costs)[-1]
     eta_md = math.log(N)  # 2^0 log N
     closed = np.exp(-eta_md * costs.sum(axis=0))
     np.testing.assert_allclose(md, closed / closed.sum(), rtol=1e-8)
+
+
+def test_shifted_kl_step_matches_a_numerical_minimizer():
+    """The exact thresholded step against SLSQP on the same objective (generalized KL of p + delta)."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(3)
+    for trial in range(20):
+        n = int(rng.integers(2, 9))
+        q = rng.dirichlet(np.ones(n) * 0.3)
+        eta_c = rng.uniform(0, 8, size=n)
+        delta = [0.0, 1.0 / (4 * n + 1), 0.3][trial % 3]
+
+        def objective(p):
+            u, v = p + delta, q + delta
+            return eta_c @ p + np.sum(u * np.log(np.maximum(u, 1e-300) / v) - u + v)
+
+        exact = selection.shifted_kl_step(q, eta_c[None, :], delta)[0]
+        assert np.all(exact >= 0) and np.isclose(exact.sum(), 1.0)
+        num = minimize(objective, np.full(n, 1.0 / n), method="SLSQP", bounds=[(0, 1)] * n,
+                       constraints=[{"type": "eq", "fun": lambda p: p.sum() - 1}],
+                       options={"ftol": 1e-14, "maxiter": 500})
+        assert objective(exact) <= num.fun + 1e-9
+        np.testing.assert_allclose(exact, num.x, atol=2e-4)
+
+
+def test_shifted_md_tracks_a_goal_that_became_cheaper_and_plain_kl_follows_the_leader():
+    # Goal 0 is cheaper for 20 rounds, then goal 1 for 30: the cumulative leader changes only at
+    # round 36 (-4 + 16 * 0.26 > 0; FTL, and MD without the shift, whose mode is always the
+    # leader); the shift keeps goal 1's probability recoverable, so MD moves within a few rounds.
+    costs = np.array([[0.4, 0.6]] * 20 + [[0.66, 0.4]] * 30)
+    first_switch = {}
+    for label, policy in (("FTL", selection.FTL()), ("MD0", selection.MirrorDescent(shift=0.0)),
+                          ("MD", selection.MirrorDescent())):
+        modes = [int(np.argmax(p)) for p in _run(policy, costs)]
+        first_switch[label] = modes.index(1)
+    assert first_switch["FTL"] == first_switch["MD0"] == 35  # index of round 36
+    assert 20 <= first_switch["MD"] <= 23
 
 
 def _adversarial(N):
