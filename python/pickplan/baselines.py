@@ -63,7 +63,7 @@ class _Problem:
         s = settings.omg
         self.settings = settings
         self.world = world if world is not None and world.target == scene.target else World(scene, s.world)
-        self.q0 = self.world.start
+        self.q0 = self.world.robot.check_within_limits(self.world.start, "start")
         if grasps is None or isinstance(grasps, str):
             kind = grasps or s.grasp_kind
             grasps = grasps_mod.grasp_set(self.world.target_model, kind, s.grasp_count, seed=s.seed).poses

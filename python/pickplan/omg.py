@@ -98,8 +98,7 @@ class OMGPlanner:
         s = self.settings
         t = time.perf_counter()
         world = self.world(target)
-        q0 = world.start if start is None else np.asarray(start, dtype=float)
-        world.robot.native.fk(q0)  # validates the start: shape, NaN
+        q0 = world.robot.check_within_limits(world.start if start is None else start, "start")
         if grasps is None:
             grasps = self.default_grasps(world)
         elif isinstance(grasps, str):

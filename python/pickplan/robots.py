@@ -136,6 +136,19 @@ class Robot:
                 moving.append(i)
         return moving
 
+    def check_within_limits(self, q, name: str = "configuration", tolerance: float = 1e-6) -> np.ndarray:
+        """``q`` as a float array; ValueError naming the first joint outside its limits (shape and
+        NaN are checked by FK)."""
+        self._native.fk(q)
+        q = np.asarray(q, dtype=float)
+        lo, hi = self.lower_limits - tolerance, self.upper_limits + tolerance
+        bad = np.flatnonzero((q < lo) | (q > hi))
+        if bad.size:
+            j = int(bad[0])
+            raise ValueError(f"{name}: joint {self.joint_names[j]} = {q[j]:.4f} is outside its limits "
+                             f"[{self.lower_limits[j]:.4f}, {self.upper_limits[j]:.4f}]")
+        return q
+
     def clip_to_limits(self, q) -> np.ndarray:
         return np.clip(np.asarray(q, dtype=float), self.lower_limits, self.upper_limits)
 

@@ -75,8 +75,16 @@ def test_unreachable_grasps_give_a_no_goals_status(scene):
 
 
 def test_bad_start_raises(scene):
+    planner = omg.OMGPlanner(None, scene, SETTINGS)
     with pytest.raises(ValueError, match="expected 9 joint values, got 7"):
-        omg.OMGPlanner(None, scene, SETTINGS).plan(start=np.zeros(7))
+        planner.plan(start=np.zeros(7))
+    robot = planner.world().robot
+    q = planner.world().start.copy()
+    q[3] = robot.upper_limits[3] + 0.5
+    lo, hi = robot.lower_limits[3], robot.upper_limits[3]
+    with pytest.raises(ValueError, match=rf"start: joint panda_joint4 = {q[3]:.4f} is outside its limits "
+                                         rf"\[{lo:.4f}, {hi:.4f}\]"):
+        planner.plan(start=q)
 
 
 def test_isf_decreases_f_grasp_on_ycb_simulated_grasps(tmp_path):
