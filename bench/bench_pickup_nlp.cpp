@@ -51,6 +51,7 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("tfrac")) st.timing_fraction = std::atof(opt.extra.at("tfrac").c_str());
   if (opt.extra.count("direct")) st.direct_track = std::atoi(opt.extra.at("direct").c_str()) != 0;
   if (opt.extra.count("armseeds")) st.arm_seeds = std::atoi(opt.extra.at("armseeds").c_str());
+  if (opt.extra.count("direct_iter")) st.direct_max_iter = std::atoi(opt.extra.at("direct_iter").c_str());
   // --synth=A: the Python stand-in surface synthetic_rho with slope A (medium sigma: 0.22).
   RhoPoly rho = example_rho();
   if (opt.extra.count("synth")) {
