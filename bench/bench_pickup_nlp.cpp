@@ -50,6 +50,8 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("tseed")) st.timing_seed = std::atoi(opt.extra.at("tseed").c_str()) != 0;
   if (opt.extra.count("tfrac")) st.timing_fraction = std::atof(opt.extra.at("tfrac").c_str());
   if (opt.extra.count("direct")) st.direct_track = std::atoi(opt.extra.at("direct").c_str()) != 0;
+  if (opt.extra.count("armseeds")) st.arm_seeds = std::atoi(opt.extra.at("armseeds").c_str());
+  if (opt.extra.count("direct_iter")) st.direct_max_iter = std::atoi(opt.extra.at("direct_iter").c_str());
   // --synth=A: the Python stand-in surface synthetic_rho with slope A (medium sigma: 0.22).
   RhoPoly rho = example_rho();
   if (opt.extra.count("synth")) {
@@ -99,6 +101,24 @@ void bench_pickup(const Options& opt) {
       std::printf("\n");
     }
   }
+  // --dumpq=1: the arm at T2 and each arm joint's range over [0, T] (to tell local optima apart).
+  const bool dumpq = opt.extra.count("dumpq") && std::atoi(opt.extra.at("dumpq").c_str()) != 0;
+  auto dump = [&](const char* what, const PickupResult& r) {
+    if (!dumpq || r.x.size() == 0) return;
+    Eigen::VectorXd q(robot.dof());
+    r.traj.eval(r.x.data(), r.T2, q.data(), nullptr, nullptr);
+    std::printf("   %s q(T2):", what);
+    for (int i = 0; i < robot.dof(); ++i) std::printf(" %.2f", q[i]);
+    Eigen::VectorXd lo = Eigen::VectorXd::Constant(robot.dof(), 1e9), hi = -lo;
+    for (int k = 0; k <= 400; ++k) {
+      r.traj.eval(r.x.data(), r.T * k / 400.0, q.data(), nullptr, nullptr);
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+    std::printf(" | range:");
+    for (int i = 3; i < robot.dof(); ++i) std::printf(" [%.2f, %.2f]", lo[i], hi[i]);
+    std::printf("\n");
+  };
   std::vector<double> totals, cpu_totals;
   int seq_wins = 0, compared = 0;
   for (int c : cases) {
@@ -111,6 +131,10 @@ void bench_pickup(const Options& opt) {
     if (r.direct.stage == 0 && !r.direct.status.empty())
       std::printf(" direct %.3fs/%dit (cpu %.3f s) %s T %.2f%s", r.direct.seconds, r.direct.iterations, r.direct.cpu_seconds,
                   r.direct.status.c_str(), r.direct.objective, r.direct_chosen ? " [chosen]" : "");
+    if (r.arm_seeds_tried > 1) {
+      std::printf("   arm seeds (cpu %.3f s not kept), T:", r.search_cpu_seconds);
+      for (int k = 0; k < r.arm_seeds_tried; ++k) std::printf(" %.2f%s", r.arm_seed_T[k], k == r.arm_seed_chosen ? "*" : "");
+    }
     std::printf("\n");
     totals.push_back(r.total_seconds);
     cpu_totals.push_back(r.total_cpu_seconds);
@@ -122,6 +146,7 @@ void bench_pickup(const Options& opt) {
                   m.nonholonomic_mean, m.nonholonomic_drift, m.velocity_error_max, m.min_clearance, m.base_speed_max,
                   m.base_speed_grasp_mean, m.gripper_speed_grasp_mean);
     }
+    dump("sequential", r);
     double best_single = std::numeric_limits<double>::infinity();
     for (int k = 0; k < shots; ++k) {
       PickupSettings s1 = st;
@@ -130,6 +155,7 @@ void bench_pickup(const Options& opt) {
       std::printf("   single-shot seed %d: %-12s %.3f s (cpu %.3f s) %d it, T %.2f\n", k, b.status.c_str(), b.total_seconds,
                   b.total_cpu_seconds, b.stages[0].iterations, b.stages[0].objective);
       if (b.success) best_single = std::min(best_single, b.T);
+      if (b.success) dump("single shot", b);
     }
     if (shots > 0 && r.success) {
       ++compared;

@@ -105,6 +105,7 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("joint_limit_margin", &PickupSettings::joint_limit_margin)
       .def_readwrite("timing_fraction", &PickupSettings::timing_fraction)
       .def_readwrite("direct_track", &PickupSettings::direct_track)
+      .def_readwrite("arm_seeds", &PickupSettings::arm_seeds)
       .def_readwrite("t_min", &PickupSettings::t_min)
       .def_readwrite("t_max", &PickupSettings::t_max)
       .def_readwrite("tol", &PickupSettings::tol)
@@ -155,6 +156,11 @@ void init_pickup_nlp(py::module_& m) {
       .def_readonly("S_c", &PickupResult::S_c)
       .def_readonly("direct", &PickupResult::direct)
       .def_readonly("direct_chosen", &PickupResult::direct_chosen)
+      .def_readonly("arm_seeds_tried", &PickupResult::arm_seeds_tried)
+      .def_readonly("arm_seed_chosen", &PickupResult::arm_seed_chosen)
+      .def_readonly("arm_seed_T", &PickupResult::arm_seed_T)
+      .def_readonly("search_seconds", &PickupResult::search_seconds)
+      .def_readonly("search_cpu_seconds", &PickupResult::search_cpu_seconds)
       .def_property_readonly("degrees", [](const PickupResult& r) { return r.traj.degrees(); })
       .def("sample", [](const PickupResult& r, const Eigen::VectorXd& times) {
              if (r.x.size() != r.traj.num_coeffs() + 5) throw std::invalid_argument("result holds no trajectory");

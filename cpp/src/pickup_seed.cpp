@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <cstdio>
 #include <stdexcept>
 
 #include <Eigen/Dense>
@@ -190,13 +191,13 @@ double body_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, 
 
 }  // namespace
 
-Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
-                              const Eigen::VectorXd& x) {
+GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+                              const Eigen::VectorXd& x, bool shoulder_flip) {
   pb.validate(robot);
   std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
   PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs(), n = robot.dof();
-  if (x.size() != nc + 5) throw std::invalid_argument("grasp_ik_seed: expected " + std::to_string(nc + 5) + " variables");
+  if (x.size() != nc + 5) throw std::invalid_argument("grasp_arm_seeds: expected " + std::to_string(nc + 5) + " variables");
   const double s2 = x[nc + 1];
   Eigen::VectorXd q2(n);
   tr.eval(x.data(), s2, q2.data(), nullptr, nullptr);
@@ -255,6 +256,34 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
       best = q;
     }
   }
+  // The same grasp with the shoulder flipped (UR-type 6-joint arm): pan + pi, the planar chain
+  // and the wrist mirrored, then DLS. It leads the stages to a different local optimum.
+  GraspArmSeeds g;
+  g.path = out;
+  g.arms = {best};
+  const int na = n - 3;
+  if (shoulder_flip && na == 6) {
+    Eigen::VectorXd f = best;
+    double* a = f.data() + 3;
+    a[0] += M_PI;
+    a[1] = -M_PI - a[1];
+    a[2] = -a[2];
+    a[3] = -M_PI - a[3];
+    a[4] = -a[4];
+    for (int j : {0, 3, 5}) a[j] = pb.arm_start[j] + std::remainder(a[j] - pb.arm_start[j], 2 * M_PI);
+    if (arm_ik(robot, pb, f, 150, st.joint_limit_margin) < 1e-6 && (f - best).norm() > 1e-3) g.arms.push_back(f);
+  }
+  return g;
+}
+
+Eigen::VectorXd arm_blend_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+                               const Eigen::VectorXd& path, const Eigen::VectorXd& q2) {
+  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  PolyTraj tr(deg, 1.0);
+  const int nc = tr.num_coeffs(), n = robot.dof();
+  if (path.size() != nc + 5 || q2.size() != n) throw std::invalid_argument("arm_blend_seed: wrong sizes");
+  const double s2 = path[nc + 1];
+  Eigen::VectorXd out = path;
   // Arm polynomials: smooth blend from arm_start to the IK solution at s2, then held.
   const int K = 40;
   Eigen::VectorXd ss(K), vals(K), w = Eigen::VectorXd::Ones(K);
@@ -263,15 +292,53 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
       const double s = double(k) / (K - 1);
       const double u = std::min(1.0, s / std::max(s2, 1e-6)), b = u * u * (3 - 2 * u);
       ss[k] = s;
-      vals[k] = pb.arm_start[j - 3] + b * (best[j] - pb.arm_start[j - 3]);
+      vals[k] = pb.arm_start[j - 3] + b * (q2[j] - pb.arm_start[j - 3]);
     }
     ss[K - 1] = s2;  // the IK point itself, weighted
-    vals[K - 1] = best[j];
+    vals[K - 1] = q2[j];
     w[K - 1] = 30.0;
     w[0] = 30.0;
     tr.fit_dof(j, ss, vals, out.data(), w);
   }
   return out;
+}
+
+std::vector<Eigen::VectorXd> wound_arm_configurations(const Robot& robot, const PickupProblem& pb,
+                                                      const PickupSettings& st, const Eigen::VectorXd& q2,
+                                                      const Eigen::VectorXd& solution, const Eigen::VectorXd& price) {
+  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  PolyTraj tr(deg, 1.0);
+  const int n = robot.dof();
+  if (solution.size() != tr.num_coeffs() + 5 || q2.size() != n) throw std::invalid_argument("wound_arm_configurations: wrong sizes");
+  // Where each arm joint of the solution comes within 1.5 margins of a limit (dense in s).
+  Eigen::VectorXd lo = Eigen::VectorXd::Constant(n, 1e300), hi = -lo, q(n);
+  for (int k = 0; k <= 200; ++k) {
+    tr.eval(solution.data(), k / 200.0, q.data(), nullptr, nullptr);
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  std::vector<std::pair<double, Eigen::VectorXd>> found;
+  const double m = st.joint_limit_margin;
+  for (int j = 3; j < n; ++j) {
+    const double L = robot.lower_limits()[j], U = robot.upper_limits()[j];
+    for (int side : {-1, 1}) {
+      const bool touches = side < 0 ? lo[j] <= L + 1.5 * m : hi[j] >= U - 1.5 * m;
+      Eigen::VectorXd w = q2;
+      w[j] -= side * 2 * M_PI;  // away from the limit it runs into
+      if (touches && w[j] >= L + m && w[j] <= U - m) found.push_back({price.size() == n ? price[j] : 0.0, w});
+    }
+  }
+  // The joint whose limits cost the most time first (stable: joint order among equals).
+  std::stable_sort(found.begin(), found.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<Eigen::VectorXd> out;
+  for (auto& f : found) out.push_back(f.second);
+  return out;
+}
+
+Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+                              const Eigen::VectorXd& x) {
+  const GraspArmSeeds g = grasp_arm_seeds(robot, pb, st, x, false);
+  return arm_blend_seed(robot, pb, st, g.path, g.arms.front());
 }
 
 Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,

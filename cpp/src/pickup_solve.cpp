@@ -193,8 +193,10 @@ struct StageMultipliers {
   PickupRowSubset subset;
 };
 
+// bound: a run whose T ends at or above it stops the stage ("bounded"; a better solution is known).
 StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
-                             const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out);
+                             const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out,
+                             double bound = std::numeric_limits<double>::infinity());
 }  // namespace
 
 StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
@@ -204,7 +206,8 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const Picku
 
 namespace {
 StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
-                             const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out) {
+                             const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out,
+                             double bound) {
   PickupConstraints cons(robot, pb, st, stage);  // validates (throws std::invalid_argument)
   if (x0.size() != cons.num_vars())
     throw std::invalid_argument("seed: expected " + std::to_string(cons.num_vars()) + " variables, got " + std::to_string(x0.size()));
@@ -282,6 +285,11 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     res.ipopt_status = run.ipopt_status;
     x = run.x;
     if (!run.converged) break;
+    if (x[cons.idx_T()] >= bound) {
+      res.status = "bounded";
+      res.ipopt_status += " (T " + std::to_string(x[cons.idx_T()]) + " s, not below the best known " + std::to_string(bound) + " s)";
+      break;
+    }
     const bool feasible = cons.max_violation(x) <= tol;
     PickupRowSubset more;
     if (st.active_set && !feasible) more = cons.near_rows(x, st.active_joint_window, st.active_collision_window);
@@ -292,6 +300,8 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     if (st.print_level > 0) {
       std::fprintf(stderr, "  violated/near joints:");
       for (const auto& j : more.joints) std::fprintf(stderr, " %d@%d", j.joint, j.sample);
+      std::fprintf(stderr, "; collisions (pair@sample or @s):");
+      for (const auto& c : more.collisions) std::fprintf(stderr, " %d@%d(%.3f,%.3f,%.3f)", c.pair, c.sample, c.w[0], c.w[1], c.w[2]);
       std::fprintf(stderr, "\n");
     }
     subset.merge(more);
@@ -313,7 +323,7 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
   const bool converged = res.status == "solved" || res.status == "solved_acceptable";
   res.success = converged && res.max_violation <= tol;
   if (converged && !res.success) res.status = "constraint_violation";
-  if (warm_out && res.success) {
+  if (warm_out && (res.success || res.status == "bounded")) {  // (bounded: its multipliers still price the rows)
     *warm_out = prev;
     warm_out->subset = subset;
   }
@@ -335,8 +345,54 @@ void fill_result(PickupResult& out, const Robot& robot, const PickupSettings& st
     out.total_seconds += s.seconds;
     out.total_cpu_seconds += s.cpu_seconds;
   }
-  out.total_seconds += out.direct.seconds;
-  out.total_cpu_seconds += out.direct.cpu_seconds;
+  out.total_seconds += out.direct.seconds + out.search_seconds;
+  out.total_cpu_seconds += out.direct.cpu_seconds + out.search_cpu_seconds;
+}
+}  // namespace
+
+namespace {
+double elapsed(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Stages 2-5 from the stage-2 seed x2 (stage 1's record is the first of `stages`), each stopped
+// when its T reaches `bound`. Returns whether all succeeded; x: the last good solution.
+// limit_price: per DOF, the sum of |multiplier| of its joint-position rows in the last Ipopt run
+// (dT per unit of that joint's limits: how much time the limit costs).
+bool run_stages_2_to_5(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, const Eigen::VectorXd& x2,
+                       double seed_wall, double seed_cpu, double bound, std::vector<StageResult>& stages,
+                       Eigen::VectorXd& x, std::string& status, Eigen::VectorXd& limit_price) {
+  StageMultipliers mult;
+  limit_price = Eigen::VectorXd::Zero(robot.dof());
+  auto price = [&]() {
+    limit_price.setZero();
+    for (const auto& [key, lambda] : mult.lambda)
+      if (static_cast<int>(key[0]) == K_JPOS) limit_price[3 + static_cast<int>(key[4])] += std::abs(lambda);
+  };
+  for (int stage = 2; stage <= 5; ++stage) {
+    // Stages 2 and 3 start cold (stage 2 from an IK seed, stage 3's new velocity rows are far
+    // from satisfied); stages 4 and 5 from the previous stage's multipliers.
+    const bool warm = st.warm_start_stages && stage > 3;
+    if (!warm) mult = StageMultipliers();
+    const auto t_seed = std::chrono::steady_clock::now();
+    const double cpu_seed = thread_cpu_seconds();
+    Eigen::VectorXd seed = stage == 2 ? x2 : x;
+    if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, x, st.timing_fraction);
+    seed_wall += elapsed(t_seed);
+    seed_cpu += thread_cpu_seconds() - cpu_seed;
+    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult, bound);
+    r.seconds += seed_wall;  // the stage's warm start (IK, timing) counts as the stage's time
+    r.cpu_seconds += seed_cpu;
+    seed_wall = seed_cpu = 0.0;
+    stages.push_back(r);
+    if (r.success || r.status == "bounded") price();
+    if (!r.success) {
+      status = r.status;
+      return false;
+    }
+    x = r.x;
+  }
+  return true;
 }
 }  // namespace
 
@@ -346,38 +402,92 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   const auto t_h = std::chrono::steady_clock::now();
   const double cpu_h = thread_cpu_seconds();
   out.x = x0.size() ? x0 : heuristic_seed(robot, pb, st);
-  double seed_wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_h).count();
-  double seed_cpu = thread_cpu_seconds() - cpu_h;  // the heuristic seed counts as stage 1's time
+  const double seed_wall = elapsed(t_h), seed_cpu = thread_cpu_seconds() - cpu_h;  // counted in stage 1
   if (out.x.size() != num_vars(robot, st))
     throw std::invalid_argument("seed: expected " + std::to_string(num_vars(robot, st)) + " variables, got " + std::to_string(out.x.size()));
-  out.status = "solved";
-  out.success = true;
-  StageMultipliers mult;
-  for (int stage = 1; stage <= 5; ++stage) {
-    // Stage 2 adds the grasp pose: its arm seed comes from an IK solution at T2 (base as stage 1),
-    // so it starts cold, as does stage 3 (its new velocity rows are far from satisfied); stages 4
-    // and 5 start from the previous stage's multipliers.
-    const bool warm = st.warm_start_stages && stage > 3;
-    if (!warm) mult = StageMultipliers();  // stages 2 and 3 start afresh
-    const auto t_seed = std::chrono::steady_clock::now();
-    const double cpu_seed = thread_cpu_seconds();
-    Eigen::VectorXd seed = out.x;
-    if (stage > 1) seed_wall = seed_cpu = 0.0;
-    if (stage == 2) seed = grasp_ik_seed(robot, pb, st, out.x);
-    if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, out.x, st.timing_fraction);
-    seed_wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_seed).count();
-    seed_cpu += thread_cpu_seconds() - cpu_seed;
-    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult);
-    r.seconds += seed_wall;  // the stage's warm start (IK, timing) counts as the stage's time
-    r.cpu_seconds += seed_cpu;
-    out.stages.push_back(r);
-    if (!r.success) {
-      out.status = r.status;
-      out.success = false;
-      break;
+  StageResult r1 = solve_stage_warm(robot, pb, st, 1, out.x, nullptr, nullptr);
+  r1.seconds += seed_wall;
+  r1.cpu_seconds += seed_cpu;
+  out.stages.push_back(r1);
+  out.success = r1.success;
+  out.status = r1.success ? "solved" : r1.status;
+  if (r1.success) {
+    out.x = r1.x;
+    out.stages_completed = 1;
+    // Stages 2-5 from up to st.arm_seeds arm configurations at T2 (PickupSettings::arm_seeds).
+    // The polynomials commit early: the wrists are cubics, so a joint's value at T2 (any 2 pi
+    // turn gives the same grasp) decides where its polynomial runs after T2 and which limits bind.
+    // A run's joint-limit multipliers say which turn is worth a run. The IK counts as the first
+    // run's stage 2; the shortest successful run is kept, the others' time goes to search_seconds.
+    const auto t_ik = std::chrono::steady_clock::now();
+    const double cpu_ik = thread_cpu_seconds();
+    const int max_seeds = std::max(1, st.arm_seeds);
+    const GraspArmSeeds g = grasp_arm_seeds(robot, pb, st, r1.x, max_seeds > 2);
+    // Run order: the IK solution; its configuration with the joint whose limits cost the most time
+    // turned by 2 pi; the shoulder flip; then the other turns, in the order found.
+    std::vector<Eigen::VectorXd> arms = {g.arms.front()}, later(g.arms.begin() + 1, g.arms.end());
+    double ik_wall = elapsed(t_ik), ik_cpu = thread_cpu_seconds() - cpu_ik;
+    double best = std::numeric_limits<double>::infinity();
+    auto known = [&](const Eigen::VectorXd& w) {
+      for (const auto* v : {&arms, &later})
+        for (const auto& a : *v)
+          if ((a - w).norm() < 1e-3) return true;
+      return false;
+    };
+    for (int k = 0; k < max_seeds; ++k) {
+      if (k >= static_cast<int>(arms.size())) {
+        if (later.empty()) break;
+        arms.push_back(later.front());
+        later.erase(later.begin());
+      }
+      const auto t_seed = std::chrono::steady_clock::now();
+      const double cpu_seed = thread_cpu_seconds();
+      const Eigen::VectorXd x2 = arm_blend_seed(robot, pb, st, g.path, arms[k]);
+      ik_wall += elapsed(t_seed);
+      ik_cpu += thread_cpu_seconds() - cpu_seed;
+      if (st.print_level > 0) {
+        std::fprintf(stderr, "arm seed %d at T2:", k);
+        for (int j = 3; j < arms[k].size(); ++j) std::fprintf(stderr, " %.2f", arms[k][j]);
+        std::fprintf(stderr, "\n");
+      }
+      std::vector<StageResult> stages = {r1};
+      Eigen::VectorXd x = r1.x, price;
+      std::string status;
+      // Shorter than the best by more than Ipopt's tolerance, or it is not kept.
+      const bool ok = run_stages_2_to_5(robot, pb, st, x2, ik_wall, ik_cpu, best * (1.0 - 1e-4), stages, x, status, price);
+      ik_wall = ik_cpu = 0.0;
+      if (stages.size() >= 3 && max_seeds > 1) {  // a trajectory with the grasp velocity: where it meets limits
+        std::vector<Eigen::VectorXd> turns;
+        for (const Eigen::VectorXd& w : wound_arm_configurations(robot, pb, st, arms[k], stages.back().x, price))
+          if (!known(w)) turns.push_back(w);
+        if (k == 0 && !turns.empty()) {  // the dearest turn of the IK solution runs next
+          arms.push_back(turns.front());
+          turns.erase(turns.begin());
+        }
+        later.insert(later.end(), turns.begin(), turns.end());
+      }
+      ++out.arm_seeds_tried;
+      out.arm_seed_T.push_back(ok ? x[num_vars(robot, st) - 3] : std::numeric_limits<double>::quiet_NaN());
+      const bool keep = k == 0 || (ok && (!out.success || out.arm_seed_T.back() < best));
+      auto count_search = [&](const std::vector<StageResult>& v) {
+        for (size_t i = 1; i < v.size(); ++i) {
+          out.search_seconds += v[i].seconds;
+          out.search_cpu_seconds += v[i].cpu_seconds;
+        }
+      };
+      if (!keep) {
+        count_search(stages);
+        continue;
+      }
+      if (k > 0) count_search(out.stages);  // the records replaced are those of a run not kept
+      out.stages = stages;
+      out.x = x;
+      out.success = ok;
+      out.status = ok ? "solved" : status;
+      out.stages_completed = static_cast<int>(stages.size()) - (ok ? 0 : 1);
+      out.arm_seed_chosen = k;
+      if (ok) best = out.arm_seed_T.back();
     }
-    out.x = r.x;
-    out.stages_completed = stage;
   }
   // The direct track: all constraints at once from the stage-1 solution (a feasible base path with
   // the arm at rest). Stages 2 and 3 commit the arm to one IK branch and grasp timing; this solve
@@ -385,9 +495,10 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   if (st.direct_track && out.stages_completed >= 1) {
     PickupSettings sd = st;
     sd.max_iter = std::min(st.max_iter, st.direct_max_iter);
-    out.direct = solve_stage(robot, pb, sd, 0, out.stages.front().x);
+    const double staged = out.success ? out.stages.back().objective : std::numeric_limits<double>::infinity();
     // Shorter by more than Ipopt's tolerance (a tie keeps the successive solution).
-    if (out.direct.success && (!out.success || out.direct.objective < out.stages.back().objective * (1.0 - 1e-4))) {
+    out.direct = solve_stage_warm(robot, pb, sd, 0, out.stages.front().x, nullptr, nullptr, staged * (1.0 - 1e-4));
+    if (out.direct.success && out.direct.objective < staged * (1.0 - 1e-4)) {
       out.x = out.direct.x;
       out.direct_chosen = true;
       out.success = true;

@@ -85,6 +85,9 @@ def test_plan_dict_round_trip(tmp_path, solved):
     # The direct track's record: an all-constraint solve (stage 0); when chosen, its T is returned.
     assert d["direct"]["stage"] == 0 and isinstance(d["direct_chosen"], bool)
     assert d["T"] == pytest.approx(d["direct"]["objective"] if d["direct_chosen"] else d["stages"][-1]["objective"])
+    # The arm seeds of stages 2-5: the final T of each run (None: failed or stopped by the bound).
+    assert 1 <= len(d["arm_seed_T"]) <= 2 and 0 <= d["arm_seed_chosen"] < len(d["arm_seed_T"])
+    assert d["arm_seed_T"][d["arm_seed_chosen"]] == pytest.approx(d["stages"][-1]["objective"])
 
 
 def test_direct_track_can_be_switched_off(robot):
@@ -92,6 +95,13 @@ def test_direct_track_can_be_switched_off(robot):
     p = planner.plan(robot, problem, planner.PlannerSettings(samples_per_interval=6, direct_track=False))
     assert p.success and p.direct is None and not p.direct_chosen
     assert p.T == pytest.approx(p.stages[-1].objective)
+
+
+def test_single_arm_seed(robot):
+    problem = cases.make_problem(robot, 1)
+    p = planner.plan(robot, problem, planner.PlannerSettings(samples_per_interval=6, direct_track=False, arm_seeds=1))
+    assert p.success and len(p.arm_seed_T) == 1 and p.arm_seed_chosen == 0
+    assert p.T == pytest.approx(p.arm_seed_T[0])
 
 
 def test_stomp_keeps_interval_ends(robot, solved):

@@ -115,6 +115,13 @@ struct PickupSettings {
   // returns the better of the two (PickupResult::direct; false: the five stages only).
   bool direct_track = true;
   int direct_max_iter = 200;            // its Ipopt iterations (a hedge: it must not dominate the time)
+  // Stages 2-5 run from up to this many arm configurations at T2 (1: the single IK seed of the
+  // paper's scheme), in this order: the IK solution (grasp_ik_seed); the same with the arm joint
+  // whose limit rows carry the largest multipliers in that run (the limit that costs the most
+  // time) turned by 2 pi away from that limit; the shoulder flip; further turns. The shortest
+  // solution is kept. A later seed's run (and the direct track) stops after any Ipopt run whose T
+  // is not below the best found so far: rows only join, its T would not fall below it again.
+  int arm_seeds = 2;
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
@@ -259,6 +266,13 @@ struct PickupResult {
   // then stages_completed is 5 too, the stage records stay those of the five stages).
   StageResult direct;
   bool direct_chosen = false;
+  // The arm seeds of stages 2-5 (PickupSettings::arm_seeds): how many were tried, which one the
+  // stage records (and, unless the direct track won, x) come from, the final T of each (NaN:
+  // failed or stopped by the bound), and the time of the runs not kept (in the totals).
+  int arm_seeds_tried = 0;
+  int arm_seed_chosen = 0;
+  std::vector<double> arm_seed_T;
+  double search_seconds = 0.0, search_cpu_seconds = 0.0;
 };
 
 // The heuristic seed of stage 1: base through a grasping-area point, arm at arm_start (+ noise).
@@ -267,6 +281,26 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem,
 // damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x);
+// The arm configurations at T2 of the stage-2 seeds: `path` is x with its base path (bent through
+// a reachable base pose if needed), arms[0] the configuration of grasp_ik_seed; with shoulder_flip
+// (6-joint UR-type arm) also the same grasp with the shoulder flipped when DLS IK reaches it.
+struct GraspArmSeeds {
+  Eigen::VectorXd path;
+  std::vector<Eigen::VectorXd> arms;  // full configurations q(T2), dof entries
+};
+GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                              const Eigen::VectorXd& x, bool shoulder_flip);
+// The stage-2 seed: `path` with the arm polynomials blended from arm_start to q2 at s2 (then held).
+Eigen::VectorXd arm_blend_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                               const Eigen::VectorXd& path, const Eigen::VectorXd& q2);
+// q2 with one arm joint turned by 2 pi away from a joint limit that `solution` (a trajectory from
+// the seed of q2) runs into, one configuration per such joint and side, where the turned value is
+// within the limits: the same grasp pose, but the joint's polynomial has room on that side.
+// Ordered by price (per DOF, e.g. the multipliers of its limit rows; empty: joint order), highest first.
+std::vector<Eigen::VectorXd> wound_arm_configurations(const Robot& robot, const PickupProblem& problem,
+                                                      const PickupSettings& settings, const Eigen::VectorXd& q2,
+                                                      const Eigen::VectorXd& solution,
+                                                      const Eigen::VectorXd& price = Eigen::VectorXd());
 // Stage-3 warm start: the same path in normalised time, slowed down: T moves `fraction` of the way
 // (in log T; 0.5: the geometric mean) from its value to the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
 // to keep (T2 - T1) S_c = stroke. x unchanged when that would not slow it down.

@@ -82,7 +82,7 @@ def tables_markdown(main: dict, t4: dict, rho_source: str) -> str:
     direct = [c for c in range(1, 7) if main[c]["successive"].get("direct_chosen")]
     L.append(f"\nSingle-shot seeds solved per case: {solved_w}. Sequential solutions from the direct track "
              f"(all constraints from the stage-1 solution, shorter than the five stages'): cases {direct or 'none'}. "
-             "Solve times: the five stages plus the direct track.\n")
+             "Solve times: the five stages (from both arm seeds) plus the direct track.\n")
     L.append("## Table IV: low vs high uncertainty (sequential)\n\n| Case | base speed in grasp low | high | S_g low | high | "
              "rho low | high |\n|---|---|---|---|---|---|---|")
     for c in cases.TABLE4_CASES:

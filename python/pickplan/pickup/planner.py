@@ -65,6 +65,7 @@ class PlannerSettings:
     arm_seed_noise: float = 0.05
     timing_fraction: float = 0.5          # stage-3 seed: fraction (log T) of the full slow-down
     direct_track: bool = True             # also solve all constraints from the stage-1 solution, keep the shorter
+    arm_seeds: int = 2                    # stages 2-5 from up to this many arm configurations at T2, keep the shortest
 
     def native(self) -> "_core.PickupSettings":
         s = _core.PickupSettings()
@@ -106,6 +107,8 @@ class PickupPlan:
     total_cpu_seconds: float = 0.0
     direct: Optional[StageInfo] = None    # the direct track's solve (successive only)
     direct_chosen: bool = False           # its solution is the one returned
+    arm_seed_T: list = field(default_factory=list)  # final T of each arm seed's run (nan: failed or bounded)
+    arm_seed_chosen: int = 0              # the run the stage records come from
 
     @classmethod
     def from_native(cls, r) -> "PickupPlan":
@@ -114,7 +117,8 @@ class PickupPlan:
         stages = [info(s) for s in r.stages]
         direct = info(r.direct) if r.direct.status else None
         return cls(r.status, r.success, r.stages_completed, stages, r.T, r.T1, r.T2, r.S_g, r.S_c,
-                   r.total_seconds, r, r.total_cpu_seconds, direct, r.direct_chosen)
+                   r.total_seconds, r, r.total_cpu_seconds, direct, r.direct_chosen, list(r.arm_seed_T),
+                   r.arm_seed_chosen)
 
     def sample(self, times) -> tuple:
         """(q, q', q'') at the given times (s), each of shape (len(times), 9)."""
@@ -127,6 +131,8 @@ class PickupPlan:
                 "T": self.T, "T1": self.T1, "T2": self.T2, "S_g": self.S_g, "S_c": self.S_c,
                 "total_seconds": self.total_seconds, "total_cpu_seconds": self.total_cpu_seconds, "stages": [asdict(s) for s in self.stages],
                 "direct": asdict(self.direct) if self.direct else None, "direct_chosen": self.direct_chosen,
+                "arm_seed_T": [None if math.isnan(t) else t for t in self.arm_seed_T],
+                "arm_seed_chosen": self.arm_seed_chosen,
                 "degrees": list(self.native.degrees), "x": np.asarray(self.native.x).tolist(),
                 "t": t.tolist(), "q": q.tolist(), "qd": qd.tolist()}
 
