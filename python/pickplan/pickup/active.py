@@ -58,8 +58,8 @@ class ActiveConfig:
     # PoseDomain) estimated on n_rho_queries poses.
     query_sigmas: tuple = ((0.04, 0.04, 1 / 12), (0.14, 0.14, 1 / 6), (0.24, 0.24, 0.25))
     n_rho_queries: int = 2000
-    se_target: float = 0.035
-    rho_tol: float = 0.03
+    se_target: float = 0.02  # the conservative margin is z * se: stop when it is small
+    rho_tol: float = 0.02
     calib_folds: int = 5
     patience: int = 2
     min_rounds: int = 3
@@ -370,8 +370,12 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
         h = {"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
              "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch, "exploit_weight": w}
         ok = False
-        if rnd + 1 >= config.min_rounds and y.any() and (~y).any():
-            cal = calibrate(X, y, sim, lambda A, b: fit_svm(A, b, *params),
+        # The stopping rule judges exactly the GSB that is returned: every sample (held-out
+        # ones included) with the current hyperparameters (no re-selection at the end: a
+        # final re-selection once returned a model with twice the se the rule had seen).
+        XA, yA, simA = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
+        if rnd + 1 >= config.min_rounds and yA.any() and (~yA).any():
+            cal = calibrate(XA, yA, simA, lambda A, b: fit_svm(A, b, *params),
                             config.calib_folds, seed, local_kappa=config.local_kappa,
                             local_floor=config.local_floor)
             est = np.array([cal.rho(Q, sg) for Q, sg in zip(queries, qs)])
@@ -387,7 +391,7 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
             break
     # The final GSB uses every labelled sample, held-out ones included.
     X, y, sim = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
-    model = refit(0)
+    model = fit_svm(X, y, *params)
     return BoundaryResult(X=X, y=y, simulated=sim, model=model, n_simulations=n_sims,
                           converged=converged, history=history, svm_c=params[0],
                           svm_gamma=params[1], svm_metric=params[2])
