@@ -7,7 +7,10 @@ oracles. Loop: a few initial samples and a uniform held-out set; then rounds tha
 exploration (random candidates, keeping those farthest from every existing sample) and
 exploitation (midpoints of nearest pairs of support vectors with opposite labels, which lie
 near the boundary by the maximal-margin property). The share of exploitation rises when the
-accuracy improves and falls when it drops.
+accuracy improves and falls when it drops. Once rho is estimated, half of the exploitation
+samples go where the fold classifiers disagree most inside the query Gaussians
+(exploit_rho: query-by-committee on rho's jackknife variance). The SVM's kernel metric is
+chosen with (C, gamma) (kernel.py).
 
 Stopping (label-noise aware): near the boundary the simulated labels are noisy, so no
 classifier reaches a high held-out accuracy there and an accuracy threshold never stops. The
@@ -370,9 +373,8 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
         h = {"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
              "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch, "exploit_weight": w}
         ok = False
-        # The stopping rule judges exactly the GSB that is returned: every sample (held-out
-        # ones included) with the current hyperparameters (no re-selection at the end: a
-        # final re-selection once returned a model with twice the se the rule had seen).
+        # The stopping rule judges the GSB of every sample, held-out ones included (the
+        # returned one; the final hyperparameter re-selection may still change it).
         XA, yA, simA = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
         if rnd + 1 >= config.min_rounds and yA.any() and (~yA).any():
             cal = calibrate(XA, yA, simA, lambda A, b: fit_svm(A, b, *params),
@@ -391,7 +393,7 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
             break
     # The final GSB uses every labelled sample, held-out ones included.
     X, y, sim = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
-    model = fit_svm(X, y, *params)
+    model = refit(0)
     return BoundaryResult(X=X, y=y, simulated=sim, model=model, n_simulations=n_sims,
                           converged=converged, history=history, svm_c=params[0],
                           svm_gamma=params[1], svm_metric=params[2])

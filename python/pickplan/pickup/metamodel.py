@@ -5,7 +5,8 @@ For each (S_g, S_c) on a grid, a GSB is learned actively (active.py) from simula
 space, from the GSB into the success region. Because the simulated labels are noisy near the
 boundary, the probability of success of a pose is a logistic function of SD centred on the
 failure threshold distance D_FT, with D_FT and the band width fitted to out-of-fold depths
-(calibration.py). The probability of success for a pose uncertainty sigma is the mean of that
+(calibration.py), locally to each query sigma; the SVM kernel has a metric learned from the
+successful samples (kernel.py). The probability of success for a pose uncertainty sigma is the mean of that
 probability over Monte-Carlo poses from N(0, sigma), minus z jackknife standard errors of the
 boundary (conservative). The grid of probabilities is turned into a conservative analytic
 surface (surface.py), saved to JSON with all samples.
