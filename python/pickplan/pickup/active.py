@@ -7,7 +7,10 @@ oracles. Loop: a few initial samples and a uniform held-out set; then rounds tha
 exploration (random candidates, keeping those farthest from every existing sample) and
 exploitation (midpoints of nearest pairs of support vectors with opposite labels, which lie
 near the boundary by the maximal-margin property). The share of exploitation rises when the
-accuracy improves and falls when it drops.
+accuracy improves and falls when it drops. Once rho is estimated, half of the exploitation
+samples go where the fold classifiers disagree most inside the query Gaussians
+(exploit_rho: query-by-committee on rho's jackknife variance). The SVM's kernel metric is
+chosen with (C, gamma) (kernel.py).
 
 Stopping (label-noise aware): near the boundary the simulated labels are noisy, so no
 classifier reaches a high held-out accuracy there and an accuracy threshold never stops. The
@@ -23,9 +26,9 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
-from sklearn.svm import SVC
 
 from .calibration import calibrate, gaussian_queries
+from .kernel import fit_svm, success_metric
 
 
 @dataclass(frozen=True)
@@ -58,8 +61,8 @@ class ActiveConfig:
     # PoseDomain) estimated on n_rho_queries poses.
     query_sigmas: tuple = ((0.04, 0.04, 1 / 12), (0.14, 0.14, 1 / 6), (0.24, 0.24, 0.25))
     n_rho_queries: int = 2000
-    se_target: float = 0.035
-    rho_tol: float = 0.03
+    se_target: float = 0.02  # the conservative margin is z * se: stop when it is small
+    rho_tol: float = 0.02
     calib_folds: int = 5
     patience: int = 2
     min_rounds: int = 3
@@ -70,6 +73,11 @@ class ActiveConfig:
     svm_gamma: float = 2.0
     c_grid: tuple = (10.0, 100.0, 1000.0)
     gamma_grid: tuple = (1.0, 3.0, 10.0, 30.0, 100.0)
+    # Kernel metric Sigma_success^(-alpha/2) (kernel.py), alpha chosen with (C, gamma).
+    metric_powers: tuple = (0.0, 0.5, 1.0)
+    # Noise band fitted locally to each query sigma (calibration.Calibration.band).
+    local_kappa: float = 3.0
+    local_floor: float = 1.0
     select_every: int = 3  # rounds between hyperparameter selections
     n_candidates: int = 2000
     known_margin: float = 1.0  # decision value beyond which a lower-S_c success is trusted
@@ -81,48 +89,33 @@ class ActiveConfig:
     focus_fraction: float = 0.5
     query_init: int = 3  # initial samples (of n_init) from each query Gaussian
     query_fraction: float = 0.3  # share of exploration samples from the query Gaussians
-
-
-class _Constant:
-    """Stand-in classifier while only one label has been seen."""
-
-    def __init__(self, label: bool):
-        self.label = bool(label)
-        self.support_ = np.zeros(0, dtype=int)
-
-    def decision_function(self, X):
-        return np.full(len(X), 1.0 if self.label else -1.0)
-
-
-def fit_svm(X, y, c: float, gamma: float):
-    """RBF SVC on success labels (decision > 0 means success); deterministic."""
-    y = np.asarray(y, dtype=bool)
-    if y.all() or (~y).all():
-        return _Constant(y[0] if len(y) else False)
-    clf = SVC(kernel="rbf", C=c, gamma=gamma, class_weight="balanced")
-    clf.fit(np.asarray(X, dtype=float), y.astype(int))
-    return clf
+    # Share of the exploitation samples placed where the fold classifiers disagree most
+    # about P(success) inside the query Gaussians (exploit_rho), once rho is estimated.
+    rho_share: float = 0.5
 
 
 def select_svm_params(X, y, c_grid, gamma_grid, seed: int = 0, folds: int = 5,
-                      simulated=None):
-    """(C, gamma) with the best calibrated out-of-fold likelihood (calibration.calibrate:
-    k-fold depths of the simulated samples through the fitted logistic in depth); ties go to
-    the smoother model (smaller gamma, then smaller C). The GSB's scale varies a lot with
-    the speeds (a thin slab at high S_g, a wide region at low S_g), so one fixed kernel
-    width does not fit every pair; plain accuracy is a poor criterion with noisy labels
-    near the boundary (it cannot tell a well-placed boundary from a lucky one)."""
+                      simulated=None, metric_powers=(0.0,)):
+    """(C, gamma, metric) with the best calibrated out-of-fold likelihood
+    (calibration.calibrate: k-fold depths through the logistic in depth fitted to the
+    simulated samples, scored on every label); ties go to the smoother model (isotropic
+    metric first, then smaller gamma, then smaller C). The GSB's scale and shape vary a lot
+    with the speeds (a thin slab at high S_g, a wide region at low S_g), so one fixed kernel
+    does not fit every pair; plain accuracy is a poor criterion with noisy labels near the
+    boundary (it cannot tell a well-placed boundary from a lucky one)."""
     y = np.asarray(y, dtype=bool)
     if min(y.sum(), (~y).sum()) < 2:
         return None
     sim = np.ones(len(y), bool) if simulated is None else np.asarray(simulated, bool)
     best, best_nll = None, np.inf
-    for gamma in sorted(gamma_grid):
-        for c in sorted(c_grid):
-            cal = calibrate(X, y, sim, lambda A, b: fit_svm(A, b, c, gamma), folds, seed,
-                            fit_full=False)
-            if cal.nll < best_nll - 1e-6:
-                best, best_nll = (float(c), float(gamma)), cal.nll
+    for alpha in sorted(metric_powers):
+        L = success_metric(X, y, alpha)
+        for gamma in sorted(gamma_grid):
+            for c in sorted(c_grid):
+                cal = calibrate(X, y, sim, lambda A, b: fit_svm(A, b, c, gamma, L), folds,
+                                seed, fit_full=False)
+                if cal.nll < best_nll - 1e-6:
+                    best, best_nll = (float(c), float(gamma), L), cal.nll
     return best
 
 
@@ -152,6 +145,7 @@ class BoundaryResult:
     history: list = field(default_factory=list)
     svm_c: float = 100.0
     svm_gamma: float = 2.0
+    svm_metric: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     @property
     def n_free(self) -> int:
@@ -249,6 +243,38 @@ def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02,
     return np.vstack([np.asarray(picked).reshape(-1, 3), np.clip(jit, -1.0, 1.0)])
 
 
+def exploit_rho(rng, cal, query_sigmas, se, X, k, n_candidates,
+                min_spacing: float = 0.5) -> np.ndarray:
+    """Query-by-committee for rho: candidates from each query Gaussian N(0, sigma), scored by
+    the spread (standard deviation) of P(success) over the k fold classifiers of the
+    calibration, i.e. by their share of rho's jackknife variance; the levels get samples in
+    proportion to their jackknife se. Greedy: best score first, no two picks (or a pick and
+    an existing sample) closer than min_spacing in that Gaussian's sigma units. The SV
+    midpoints refine the boundary everywhere; these refine it where rho is undecided."""
+    if k <= 0 or not cal.fold_models or not len(query_sigmas):
+        return np.zeros((0, 3))
+    se = np.asarray(se, float) + 1e-3
+    alloc = np.floor(k * se / se.sum()).astype(int)
+    for i in np.argsort(-se, kind="stable")[:k - alloc.sum()]:
+        alloc[i] += 1
+    picked = []
+    for sg, k_l in zip(query_sigmas, alloc):
+        if k_l <= 0:
+            continue
+        sg = np.asarray(sg, float)
+        C = np.clip(rng.standard_normal((max(n_candidates // 2, k_l), 3)) * sg, -1.0, 1.0)
+        score = np.std([cal.probability(C, m, sg) for m in cal.fold_models], axis=0)
+        existing = np.vstack([X, *picked]) if picked else X
+        score[_nearest_dist(C / sg, existing / sg) < min_spacing] = -1.0
+        for _ in range(k_l):
+            i = int(np.argmax(score))
+            if score[i] < 0:
+                break
+            picked.append(C[i][None])
+            score[np.sqrt((((C - C[i]) / sg) ** 2).sum(axis=1)) < min_spacing] = -1.0
+    return np.vstack(picked) if picked else np.zeros((0, 3))
+
+
 KnownFn = Callable[[np.ndarray], tuple]
 
 
@@ -302,26 +328,33 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
     yh, simh = query(H)
     Z = gaussian_queries(config.n_rho_queries, seed + 1)
     queries = [Z * sg for sg in qs]
-    params = (config.svm_c, config.svm_gamma)
+    params = (config.svm_c, config.svm_gamma, np.eye(3))
 
     def refit(rnd):
         nonlocal params
         if rnd % config.select_every == 0:
             params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed,
-                                       config.calib_folds, sim) or params
+                                       config.calib_folds, sim, config.metric_powers) or params
         return fit_svm(X, y, *params)
 
     model = refit(0)
     w = config.exploit_weight
     prev_acc = balanced_accuracy(predict(model, H), yh)
     history, streak, converged, prev_rho = [], 0, False, None
+    cal, rho_se = None, None  # the latest calibration, for exploit_rho
     max_rounds = 4 * config.budget // config.batch_size  # free labels do not spend budget
     for rnd in range(max_rounds):
         k = min(config.batch_size, config.budget - n_sims)
         if k <= 0:
             break
         n_exploit = int(round(w * k))
-        Pe = exploit(rng, model, X, y, n_exploit, config.n_candidates, query_sigmas=qs)
+        Pq = np.zeros((0, 3))
+        if cal is not None:
+            Pq = exploit_rho(rng, cal, qs, rho_se, X, int(round(config.rho_share * n_exploit)),
+                             config.n_candidates)
+        Pe = exploit(rng, model, np.vstack([X, Pq]), y, n_exploit - len(Pq),
+                     config.n_candidates, query_sigmas=qs)
+        Pe = np.vstack([Pq, Pe])
         Pr = explore(rng, np.vstack([X, Pe]) if len(Pe) else X, k - len(Pe),
                      config.n_candidates, fs, ff, qs, config.query_fraction)
         P = np.vstack([Pe, Pr])
@@ -340,12 +373,16 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
         h = {"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
              "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch, "exploit_weight": w}
         ok = False
-        if rnd + 1 >= config.min_rounds and y.any() and (~y).any():
-            cal = calibrate(X, y, sim, lambda A, b: fit_svm(A, b, *params),
-                            config.calib_folds, seed)
-            est = np.array([cal.rho(Q) for Q in queries])
+        # The stopping rule judges the GSB of every sample, held-out ones included (the
+        # returned one; the final hyperparameter re-selection may still change it).
+        XA, yA, simA = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
+        if rnd + 1 >= config.min_rounds and yA.any() and (~yA).any():
+            cal = calibrate(XA, yA, simA, lambda A, b: fit_svm(A, b, *params),
+                            config.calib_folds, seed, local_kappa=config.local_kappa,
+                            local_floor=config.local_floor)
+            est = np.array([cal.rho(Q, sg) for Q, sg in zip(queries, qs)])
             change = None if prev_rho is None else float(np.abs(est[:, 0] - prev_rho).max())
-            prev_rho = est[:, 0]
+            prev_rho, rho_se = est[:, 0], est[:, 1]
             h.update(rho=est[:, 0].tolist(), rho_se=est[:, 1].tolist(), rho_change=change)
             ok = bool(change is not None and est[:, 1].max() <= config.se_target
                       and change <= config.rho_tol)
@@ -359,7 +396,7 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
     model = refit(0)
     return BoundaryResult(X=X, y=y, simulated=sim, model=model, n_simulations=n_sims,
                           converged=converged, history=history, svm_c=params[0],
-                          svm_gamma=params[1])
+                          svm_gamma=params[1], svm_metric=params[2])
 
 
 def learn_random(label_fn, n_samples: int, config: ActiveConfig = ActiveConfig(),
@@ -368,9 +405,10 @@ def learn_random(label_fn, n_samples: int, config: ActiveConfig = ActiveConfig()
     rng = np.random.default_rng(seed)
     X = rng.uniform(-1.0, 1.0, size=(n_samples, 3))
     y = np.asarray(label_fn(X), dtype=bool)
-    params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed)
-    params = params or (config.svm_c, config.svm_gamma)
+    params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed,
+                               metric_powers=config.metric_powers)
+    params = params or (config.svm_c, config.svm_gamma, np.eye(3))
     model = fit_svm(X, y, *params)
     return BoundaryResult(X=X, y=y, simulated=np.ones(n_samples, dtype=bool), model=model,
                           n_simulations=n_samples, converged=False, svm_c=params[0],
-                          svm_gamma=params[1])
+                          svm_gamma=params[1], svm_metric=params[2])

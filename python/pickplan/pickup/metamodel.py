@@ -5,7 +5,8 @@ For each (S_g, S_c) on a grid, a GSB is learned actively (active.py) from simula
 space, from the GSB into the success region. Because the simulated labels are noisy near the
 boundary, the probability of success of a pose is a logistic function of SD centred on the
 failure threshold distance D_FT, with D_FT and the band width fitted to out-of-fold depths
-(calibration.py). The probability of success for a pose uncertainty sigma is the mean of that
+(calibration.py), locally to each query sigma; the SVM kernel has a metric learned from the
+successful samples (kernel.py). The probability of success for a pose uncertainty sigma is the mean of that
 probability over Monte-Carlo poses from N(0, sigma), minus z jackknife standard errors of the
 boundary (conservative). The grid of probabilities is turned into a conservative analytic
 surface (surface.py), saved to JSON with all samples.
@@ -27,7 +28,9 @@ from .sim import SimConfig
 from .surface import RhoSurface, fit_rho_surface
 
 FORMAT = "pickplan.pickup.metamodel"
-VERSION = 2  # 2: calibrated probability (D_FT, width, jackknife), conservative_z
+VERSION = 3  # 2: calibrated probability (D_FT, width, jackknife), conservative_z;
+# 3: kernel metric (svm_metric) and noise band local to each sigma (local_kappa, local_floor)
+READABLE_VERSIONS = (2, 3)  # a version-2 file reads as the isotropic kernel
 
 
 @dataclass(frozen=True)
@@ -56,7 +59,8 @@ class BoundaryModel:
     likely), the width w of the noisy band and the fold classifiers for the jackknife."""
 
     def __init__(self, s_g, s_c, X, y, simulated, svm_c, svm_gamma, history=None,
-                 converged=False, calib_folds=5, calib_seed=0):
+                 converged=False, calib_folds=5, calib_seed=0, svm_metric=None,
+                 local_kappa=3.0, local_floor=1.0):
         self.s_g, self.s_c = float(s_g), float(s_c)
         self.X = np.asarray(X, float).reshape(-1, 3)
         self.y = np.asarray(y, bool)
@@ -64,10 +68,15 @@ class BoundaryModel:
         self.svm_c, self.svm_gamma = float(svm_c), float(svm_gamma)
         self.history = list(history or [])
         self.converged = bool(converged)
+        self.svm_metric = (np.eye(3) if svm_metric is None
+                           else np.asarray(svm_metric, float).reshape(3, 3))
         self.calib_folds, self.calib_seed = int(calib_folds), int(calib_seed)
-        self.calibration = calibrate(self.X, self.y, self.simulated,
-                                     lambda A, b: fit_svm(A, b, self.svm_c, self.svm_gamma),
-                                     self.calib_folds, self.calib_seed)
+        self.local_kappa, self.local_floor = float(local_kappa), float(local_floor)
+        self.calibration = calibrate(
+            self.X, self.y, self.simulated,
+            lambda A, b: fit_svm(A, b, self.svm_c, self.svm_gamma, self.svm_metric),
+            self.calib_folds, self.calib_seed, local_kappa=self.local_kappa,
+            local_floor=self.local_floor)
         self.model = self.calibration.model
 
     @property
@@ -90,23 +99,27 @@ class BoundaryModel:
         the success region, < 0 in the failure region."""
         return svm_depth(self.model, U)
 
-    def probability(self, U) -> np.ndarray:
-        """Calibrated P(success) of normalized poses (0 outside the domain)."""
-        return self.calibration.probability(U)
+    def probability(self, U, sigma=None) -> np.ndarray:
+        """Calibrated P(success) of normalized poses (0 outside the domain); with sigma
+        (normalized standard deviations) the noise band local to that query Gaussian."""
+        return self.calibration.probability(U, sigma=sigma)
 
     def to_dict(self) -> dict:
         return {"s_g": self.s_g, "s_c": self.s_c, "X": self.X.tolist(),
                 "y": self.y.astype(int).tolist(), "simulated": self.simulated.astype(int).tolist(),
                 "svm_c": self.svm_c, "svm_gamma": self.svm_gamma, "d_ft": self.d_ft,
                 "width": self.width, "converged": self.converged, "history": self.history,
-                "calib_folds": self.calib_folds, "calib_seed": self.calib_seed}
+                "calib_folds": self.calib_folds, "calib_seed": self.calib_seed,
+                "svm_metric": self.svm_metric.tolist(), "local_kappa": self.local_kappa,
+                "local_floor": self.local_floor}
 
     @classmethod
     def from_dict(cls, d: dict) -> "BoundaryModel":
         return cls(d["s_g"], d["s_c"], d["X"], d["y"], d["simulated"], d["svm_c"],
                    d["svm_gamma"], history=d.get("history"),
                    converged=d.get("converged", False), calib_folds=d.get("calib_folds", 5),
-                   calib_seed=d.get("calib_seed", 0))
+                   calib_seed=d.get("calib_seed", 0), svm_metric=d.get("svm_metric"),
+                   local_kappa=d.get("local_kappa", 0.0), local_floor=d.get("local_floor", 1.0))
 
 
 def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
@@ -119,9 +132,9 @@ def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
     check_sigma(sigma_r, sigma_phi)
     if n_queries < 1:
         raise ValueError(f"n_queries must be >= 1, got {n_queries}")
-    U = domain.to_normalized(gaussian_queries(n_queries, seed)
-                             * np.array([sigma_r, sigma_r, sigma_phi]))
-    rho_hat, se = bm.calibration.rho(U)
+    sigma = domain.to_normalized(np.array([sigma_r, sigma_r, sigma_phi]))
+    U = gaussian_queries(n_queries, seed) * sigma
+    rho_hat, se = bm.calibration.rho(U, sigma)
     rho = float(np.clip(rho_hat - z * se, 0.0, 1.0))
     return (rho, rho_hat, se) if details else rho
 
@@ -217,7 +230,7 @@ class MetaModel:
     def from_dict(cls, d: dict) -> "MetaModel":
         if d.get("format") != FORMAT:
             raise ValueError(f"not a pickplan meta-model (format={d.get('format')!r})")
-        if d.get("version") != VERSION:
+        if d.get("version") not in READABLE_VERSIONS:
             raise ValueError(f"unsupported meta-model version {d.get('version')!r}")
         levels, grids, surfaces = [], {}, {}
         for lv in d["levels"]:
@@ -283,7 +296,10 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                 bm = BoundaryModel(s_g, s_c, res.X, res.y, res.simulated, res.svm_c,
                                    res.svm_gamma, history=res.history,
                                    converged=res.converged,
-                                   calib_folds=config.active.calib_folds, calib_seed=pair_seed)
+                                   calib_folds=config.active.calib_folds, calib_seed=pair_seed,
+                                   svm_metric=res.svm_metric,
+                                   local_kappa=config.active.local_kappa,
+                                   local_floor=config.active.local_floor)
                 boundaries[(i, j)] = bm
                 prev = bm
                 if progress:
