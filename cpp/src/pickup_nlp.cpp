@@ -79,7 +79,7 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     throw std::invalid_argument("samples_per_interval must be >= 2, got " + std::to_string(settings.samples_per_interval));
   dof_ = robot.dof();
   if (dof_ > 31) throw std::invalid_argument("at most 31 DOFs supported");
-  std::vector<int> deg = settings.degrees.empty() ? default_degrees(dof_) : settings.degrees;
+  const std::vector<int> deg = resolved_degrees(settings, dof_);
   if (static_cast<int>(deg.size()) != dof_)
     throw std::invalid_argument("degrees: expected " + std::to_string(dof_) + " values, got " + std::to_string(deg.size()));
   traj_ = PolyTraj(deg, 1.0);

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
-#include <cstdio>
 #include <stdexcept>
 
 #include <Eigen/Dense>
@@ -22,7 +21,7 @@ double sg_cap(const PickupProblem& pb) {
 
 Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
   pb.validate(robot);
-  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs();
   Eigen::VectorXd x = Eigen::VectorXd::Zero(nc + 5);
@@ -104,7 +103,7 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, cons
 
 Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
   pb.validate(robot);
-  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs();
   std::mt19937 rng(st.seed);
@@ -194,7 +193,7 @@ double body_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, 
 GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                               const Eigen::VectorXd& x, bool shoulder_flip) {
   pb.validate(robot);
-  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs(), n = robot.dof();
   if (x.size() != nc + 5) throw std::invalid_argument("grasp_arm_seeds: expected " + std::to_string(nc + 5) + " variables");
@@ -278,7 +277,7 @@ GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const
 
 Eigen::VectorXd arm_blend_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                                const Eigen::VectorXd& path, const Eigen::VectorXd& q2) {
-  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs(), n = robot.dof();
   if (path.size() != nc + 5 || q2.size() != n) throw std::invalid_argument("arm_blend_seed: wrong sizes");
@@ -306,7 +305,7 @@ Eigen::VectorXd arm_blend_seed(const Robot& robot, const PickupProblem& pb, cons
 std::vector<Eigen::VectorXd> wound_arm_configurations(const Robot& robot, const PickupProblem& pb,
                                                       const PickupSettings& st, const Eigen::VectorXd& q2,
                                                       const Eigen::VectorXd& solution, const Eigen::VectorXd& price) {
-  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int n = robot.dof();
   if (solution.size() != tr.num_coeffs() + 5 || q2.size() != n) throw std::invalid_argument("wound_arm_configurations: wrong sizes");
@@ -344,7 +343,7 @@ Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const
 Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                                   const Eigen::VectorXd& x, double fraction) {
   pb.validate(robot);
-  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs(), n = robot.dof();
   if (x.size() != nc + 5) throw std::invalid_argument("grasp_timing_seed: expected " + std::to_string(nc + 5) + " variables");

@@ -150,9 +150,13 @@ std::vector<int> default_degrees(int dof) {
   return d;
 }
 
+std::vector<int> resolved_degrees(const PickupSettings& settings, int dof) {
+  return settings.degrees.empty() ? default_degrees(dof) : settings.degrees;
+}
+
 namespace {
 int num_vars(const Robot& robot, const PickupSettings& st) {
-  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
   return PolyTraj(deg, 1.0).num_coeffs() + 5;
 }
 }  // namespace
@@ -333,7 +337,7 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
 
 namespace {
 void fill_result(PickupResult& out, const Robot& robot, const PickupSettings& st) {
-  std::vector<int> deg = st.degrees.empty() ? default_degrees(robot.dof()) : st.degrees;
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
   const int nc = PolyTraj(deg, 1.0).num_coeffs();
   out.T = out.x[nc + 2];
   out.T1 = out.x[nc] * out.T;

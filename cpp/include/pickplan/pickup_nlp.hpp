@@ -320,5 +320,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& problem, 
 PickupResult solve_single_shot(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
 // Default polynomial degrees for a robot with `dof` DOFs (3 base + arm).
 std::vector<int> default_degrees(int dof);
+// The degrees a solve uses: settings.degrees, or default_degrees(dof) when empty.
+std::vector<int> resolved_degrees(const PickupSettings& settings, int dof);
 
 }  // namespace pickplan
