@@ -2,12 +2,14 @@
 (Table IV) and the joint-rate-limit comparison (Fig. 5), with the paper's numbers for comparison.
 
 The case geometry is defined once, natively (cpp/src/pickup_cases.cpp), and reached through
-``make_problem``. rho_sigma comes from a part-1 meta-model file when given, else from the clearly
-labelled stand-in ``planner.synthetic_rho``.
+``make_problem``. rho_sigma comes from a part-1 meta-model file: by default the box model that
+``ensure_metamodel`` builds from simulation (seeded, about 1.5 min on 2 cores) and caches; the
+clearly labelled stand-in ``planner.synthetic_rho`` only when asked for ("standin").
 """
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Optional
 
@@ -19,8 +21,11 @@ from . import planner
 SIGMAS = {"low": (0.002, math.radians(5)), "medium": (0.007, math.radians(10)),
           "high": (0.012, math.radians(15))}
 # The paper does not state gamma for Table IV; its reported probabilities (~98 % low, ~86 % high)
-# cannot meet 0.96 at high uncertainty, so these thresholds reproduce that setting.
-TABLE4_GAMMA = {"low": 0.98, "high": 0.85}
+# cannot meet 0.96 at high uncertainty. Our box part reaches at most ~0.85 at high uncertainty
+# (S_g = 0.1 m/s, the slowest modelled), so high uses 0.82 to leave the speeds something to trade.
+TABLE4_GAMMA = {"low": 0.98, "high": 0.82}
+STANDIN = "standin"           # --metamodel value for the stand-in surface
+METAMODEL_PART = "box"        # the part whose meta-model the cases use by default
 TABLE4_CASES = (1, 4, 6)
 
 # Paper values, (sequential, without sequencing) pairs per case.
@@ -49,7 +54,30 @@ def rho_for(sigma: str, metamodel: Optional[str] = None):
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {sorted(SIGMAS)}, got {sigma!r}")
     sr, sp = SIGMAS[sigma]
-    return planner.load_rho(metamodel, sr, sp) if metamodel else planner.synthetic_rho(sr, sp)
+    if metamodel in (None, STANDIN):
+        return planner.synthetic_rho(sr, sp)
+    return planner.load_rho(metamodel, sr, sp)
+
+
+def ensure_metamodel(path, config=None, seed: int = 0, workers: int = 1, progress: bool = True) -> str:
+    """The part-1 meta-model file at ``path``: reused when it exists and loads, else built for the
+    box part from simulation (``metamodel.build_metamodel``, seeded) and written atomically."""
+    from .metamodel import BuildConfig, MetaModel, build_metamodel
+    path = os.fspath(path)
+    if os.path.exists(path):
+        mm = MetaModel.load(path)  # raises on a file that is not a readable meta-model
+        if mm.part_name != METAMODEL_PART:
+            raise ValueError(f"{path}: a meta-model of {mm.part_name!r}, expected {METAMODEL_PART!r}")
+        if progress:
+            print(f"using the meta-model {path} (delete it to rebuild)", flush=True)
+        return path
+    if progress:
+        print(f"building the {METAMODEL_PART} meta-model from simulation (seed {seed}, {workers} worker(s)) "
+              f"-> {path}", flush=True)
+    mm = build_metamodel(METAMODEL_PART, config or BuildConfig(), seed=seed, workers=workers, progress=progress)
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    mm.save(path)
+    return path
 
 
 def make_problem(robot, case_id: int, sigma: str = "medium", gamma: float = 0.96, arm_rate: float = math.pi,
@@ -64,7 +92,7 @@ class CaseRunConfig:
     quick: bool = False
     shots: int = 3                 # single-shot random seeds per case (best solved one reported)
     workers: int = 1               # processes (Ipopt is not thread-safe)
-    metamodel: Optional[str] = None
+    metamodel: Optional[str] = None  # a meta-model file, or None / STANDIN for the stand-in surface
     samples_per_interval: int = 8
 
     def settings(self) -> dict:

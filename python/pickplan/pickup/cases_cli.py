@@ -1,5 +1,6 @@
-"""`pickplan pickup cases [--out DIR] [--quick] [--metamodel FILE] [--workers N] [--replay NAME [--gui]]`:
-runs the Sec. VI experiments and writes Tables I-IV (Markdown, the paper's numbers beside ours), the
+"""`pickplan pickup cases [--out DIR] [--quick] [--metamodel FILE|standin] [--workers N] [--replay NAME [--gui]]`:
+runs the Sec. VI experiments on the rho_sigma of a part-1 meta-model (by default the box model, built
+from simulation on the first run and cached as OUT/metamodel_box.json) and writes Tables I-IV (Markdown, the paper's numbers beside ours), the
 Fig. 5 speed plots and every trajectory as JSON + NPZ (atomic writes). `--replay NAME` plays one
 written trajectory (e.g. case5_sequential) back in PyBullet (DIRECT, or the GUI with --gui) and
 prints PyBullet's independent tool-pose error at T2 and least link-obstacle distance;
@@ -19,7 +20,9 @@ def add_pickup_commands(subparsers) -> None:
     c = sub.add_parser("cases", help="Tables I-IV and Fig. 5 of Sec. VI")
     c.add_argument("--out", default="out/pickup_cases", help="output folder")
     c.add_argument("--quick", action="store_true", help="fewer samples per interval, one single-shot seed")
-    c.add_argument("--metamodel", default=None, help="part-1 meta-model JSON (else a labelled stand-in surface)")
+    c.add_argument("--metamodel", default=None,
+                   help="part-1 meta-model JSON; default OUT/metamodel_box.json, built from simulation when "
+                        f"missing; '{cases.STANDIN}' for the labelled stand-in surface (no physics)")
     c.add_argument("--workers", type=int, default=1, help="solver processes (Ipopt is not thread-safe)")
     c.add_argument("--shots", type=int, default=3, help="single-shot random seeds per case")
     c.add_argument("--replay", default=None, metavar="NAME",
@@ -54,7 +57,8 @@ def tables_markdown(main: dict, t4: dict, rho_source: str) -> str:
         L.append(f"| {c} | " + " | ".join(cells) + " |")
     L.append("\nS_mb: mean base speed during grasping [T1, T2].\n")
     L.append("## Table II: errors\n\n| Case | pos. err seq (mm) | pos. err w/o seq (mm) | orient. err seq | orient. err w/o seq | "
-             "non-holonomic seq (m) | non-holonomic w/o seq (m) |\n|---|---|---|---|---|---|---|")
+             "avg. non-holonomic seq | avg. non-holonomic w/o seq | drift seq (m) | drift w/o seq (m) |\n"
+             "|---|---|---|---|---|---|---|---|---|")
     for c in range(1, 7):
         s, w = main[c]["successive"], main[c]["single_shot"]
         pp, po, pn = cases.PAPER_T2[c]
@@ -63,10 +67,12 @@ def tables_markdown(main: dict, t4: dict, rho_source: str) -> str:
                  f"{pp[1]:.1e} / {_f(g(w, 'pose_error_position', 1e3), '{:.1e}')} | "
                  f"{po[0]:.1e} / {_f(g(s, 'pose_error_orientation', 1e3), '{:.1e}')} | "
                  f"{po[1]:.1e} / {_f(g(w, 'pose_error_orientation', 1e3), '{:.1e}')} | "
-                 f"{pn[0]:.1e} / {_f(g(s, 'nonholonomic_drift'), '{:.1e}')} | {pn[1]:.1e} / {_f(g(w, 'nonholonomic_drift'), '{:.1e}')} |")
+                 f"{pn[0]:.1e} / {_f(g(s, 'nonholonomic_mean'), '{:.1e}')} | {pn[1]:.1e} / {_f(g(w, 'nonholonomic_mean'), '{:.1e}')} | "
+                 f"{_f(g(s, 'nonholonomic_drift'), '{:.1e}')} | {_f(g(w, 'nonholonomic_drift'), '{:.1e}')} |")
     L.append("\nOurs: position error of the tool at T2 by dense re-sampling (mm); orientation error as the rotation "
-             "angle (mrad; the paper labels it mm); non-holonomic error as the lateral drift, the integral of "
-             "|x' sin phi - y' cos phi| over [0, T] (m) (the paper does not define its average).\n")
+             "angle (mrad; the paper labels it mm); avg. non-holonomic error as the mean of |x' sin phi - y' cos phi| "
+             "over 2001 instants in [0, T] (m/s; the paper labels it m and does not define it); drift (ours only): "
+             "its integral over [0, T], the lateral slip of the whole trajectory (m).\n")
     L.append("## Table III: times and probability\n\n| Case | grasp time seq (s) | grasp time w/o seq (s) | T seq (s) | "
              "T w/o seq (s) | rho seq | rho w/o seq | solve seq (s) | solve w/o seq (s) |\n|---|---|---|---|---|---|---|---|---|")
     for c in range(1, 7):
@@ -138,10 +144,14 @@ def run_cases(args: argparse.Namespace) -> int:
         if not args.replay:
             raise ValueError("--replay-only needs --replay NAME")
         return _replay(args)
-    cfg = cases.CaseRunConfig(quick=args.quick, shots=args.shots, workers=args.workers, metamodel=args.metamodel)
-    if cfg.metamodel and not os.path.exists(cfg.metamodel):
-        raise FileNotFoundError(f"meta-model file not found: {cfg.metamodel}")
     os.makedirs(args.out, exist_ok=True)
+    metamodel = args.metamodel
+    if metamodel is None:
+        metamodel = cases.ensure_metamodel(os.path.join(args.out, f"metamodel_{cases.METAMODEL_PART}.json"),
+                                           workers=args.workers)
+    elif metamodel != cases.STANDIN and not os.path.exists(metamodel):
+        raise FileNotFoundError(f"meta-model file not found: {metamodel}")
+    cfg = cases.CaseRunConfig(quick=args.quick, shots=args.shots, workers=args.workers, metamodel=metamodel)
     main = cases.run_main_cases(cfg)
     t4 = cases.run_table4(cfg)
     fig5 = cases.run_fig5(cfg)
@@ -154,7 +164,8 @@ def run_cases(args: argparse.Namespace) -> int:
         planner.save_plan(p, os.path.join(traj, f"case{c}_{lv}_uncertainty"))
     for i, (name, p) in enumerate(fig5.items()):
         planner.save_plan(p, os.path.join(traj, f"fig5_case1_{'high' if i == 0 else 'low'}_rates"))
-    src = f"meta-model {cfg.metamodel}" if cfg.metamodel else "STAND-IN surface planner.synthetic_rho (no meta-model file given)"
+    src = ("STAND-IN surface planner.synthetic_rho (no physics behind it)" if cfg.metamodel == cases.STANDIN
+           else f"meta-model {cfg.metamodel} (part-1 simulation)")
     md = tables_markdown(main, t4, src)
     planner.write_atomic(os.path.join(args.out, "tables.md"), md.encode())
     plot_fig5(fig5, os.path.join(args.out, "fig5_speeds.png"))
