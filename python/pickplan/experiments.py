@@ -373,6 +373,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
     """Run every unit not yet on disk (each written once finished, an exception recorded as an
     "error" unit); return all records in unit order."""
     s = settings.effective()
+    check_resumable(s)
     files = scene_files(s, stream)
     units = make_units(s, files)
     todo = [u for u in units if not os.path.exists(unit_path(s, u))]
@@ -384,6 +385,37 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
                                   total=len(units)):
         write_json(unit_path(s, unit), record)
     return load_records(s, units)
+
+
+# Settings a finished unit (or a generated scene) depends on; methods, runs and scene count only
+# add units, and workers / Ray / progress do not change results.
+RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
+               "time_limit", "max_goals_tried")
+
+
+def sweep_fingerprint(settings: SweepSettings) -> dict:
+    s = settings.effective()
+    fp = {k: getattr(s, k) for k in RESUME_KEYS}
+    for k in ("objects", "scene_dir"):
+        fp[k] = os.path.realpath(fp[k]) if fp[k] else None
+    return fp
+
+
+def check_resumable(settings: SweepSettings) -> None:
+    """OUT/sweep.json records the settings its units were made with. Resuming with other settings
+    would mix incomparable units (or reuse scenes of another seed or object set), so it is refused."""
+    path = os.path.join(settings.out, "sweep.json")
+    fp = sweep_fingerprint(settings)
+    if os.path.exists(path):
+        with open(path) as f:
+            old = json.load(f)
+        diff = [k for k in RESUME_KEYS if k in old and old[k] != fp[k]]
+        if diff:
+            detail = ", ".join(f"{k}: {old[k]!r} there, {fp[k]!r} now" for k in diff)
+            raise ValueError(f"{settings.out} holds a sweep made with other settings ({detail}); "
+                             "use another --out or delete that folder")
+        return
+    write_json(path, fp)
 
 
 def load_records(settings: SweepSettings, units: Sequence[dict]) -> List[dict]:

@@ -170,3 +170,26 @@ def test_bad_arguments_are_clear():
         E.SweepSettings("selection", methods=("OMG",))
     with pytest.raises(ValueError, match="runs must be >= 1"):
         E.SweepSettings("planners", runs=0)
+
+
+def test_resuming_with_other_settings_is_refused(scene_dir, tmp_path):
+    calls = []
+
+    def counting(unit):
+        calls.append(unit)
+        return {"table": unit["table"], "scene": unit["scene_name"], "target": "t", "method": unit["method"],
+                "run": unit["run"], "status": "no_goals", "valid": True, "planned": False,
+                "planning_success": False, "execution_success": False}
+
+    base = dict(out=str(tmp_path / "sweep"), scene_dir=scene_dir, runs=1, methods=("Fixed",), grasps=10,
+                workers=0, execute=False, progress=False)
+    assert len(E.run_sweep(E.SweepSettings("selection", **base), unit_fn=counting)) == 3
+    # More runs and another method only add units; the finished ones are reused.
+    more = {**base, "runs": 2, "methods": ("Fixed", "MD")}
+    assert len(E.run_sweep(E.SweepSettings("selection", **more), unit_fn=counting)) == 12 and len(calls) == 12
+    # A setting the units depend on may not change under the same folder: nothing is run or written.
+    with pytest.raises(ValueError, match=r"other settings \(grasps: 10 there, 5 now"):
+        E.run_sweep(E.SweepSettings("selection", **{**base, "grasps": 5}), unit_fn=counting)
+    with pytest.raises(ValueError, match="seed: 0 there, 3 now"):
+        E.run_sweep(E.SweepSettings("selection", **{**base, "seed": 3}), unit_fn=counting)
+    assert len(calls) == 12 and len(os.listdir(tmp_path / "sweep" / "units")) == 12
