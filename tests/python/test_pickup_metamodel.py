@@ -104,3 +104,23 @@ def test_bad_input(model, tmp_path):
     with pytest.raises(ValueError, match="meta-model"):
         MetaModel.load(bad)
     assert not os.path.exists(missing)
+
+
+def test_closing_speed_monotonicity_follows_the_part(tmp_path):
+    """Free labels from the lower-S_c boundary and an S_c-monotone surface only for parts whose
+    success is monotone in the closing speed (Part.closing_monotone)."""
+    from dataclasses import replace as dc_replace
+
+    from pickplan.pickup.parts import get_part
+
+    cfg = BuildConfig(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.1, 0.15), n_queries=3000, surface_degree=(1, 2),
+                      active=ActiveConfig(n_init=20, n_holdout=20, batch_size=15, budget=60, select_every=100))
+    assert get_part("box").closing_monotone and not get_part("cylinder").closing_monotone
+    mono = build_metamodel("box", cfg, seed=1, label_fn_factory=oracle_factory)
+    free = build_metamodel(dc_replace(get_part("box"), closing_monotone=False), cfg, seed=1,
+                           label_fn_factory=oracle_factory)
+    assert sum((~bm.simulated).sum() for bm in mono.boundaries.values()) > 0
+    assert all(bm.simulated.all() for bm in free.boundaries.values())  # every label simulated
+    assert mono.monotone_sc and not free.monotone_sc
+    free.save(tmp_path / "m.json")
+    assert not MetaModel.load(tmp_path / "m.json").monotone_sc

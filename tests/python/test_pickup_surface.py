@@ -54,3 +54,19 @@ def test_roundtrip_and_bad_input():
         fit_rho_surface(SG, SC, np.zeros((3, 3)))
     with pytest.raises(ValueError, match=r"\[0, 1\]"):
         fit_rho_surface(SG, SC, np.full((5, 3), 1.5))
+
+
+def test_without_sc_monotonicity_a_peaked_closing_speed_is_kept():
+    # Success that peaks at the middle closing speed (as the cylinder's): forcing monotonicity in
+    # S_c drags the whole surface down to the fast-closing column; without it the surface stays
+    # a lower bound, monotone in S_g, and close to the grid.
+    G, C = np.meshgrid(SG, SC, indexing="ij")
+    r = np.clip(0.95 - 1.2 * (G - 0.1) ** 1.2 - 8.0 * (C - 0.1) ** 2 - 0.25 * (C > 0.12), 0, 1)
+    forced = fit_rho_surface(SG, SC, r)
+    free = fit_rho_surface(SG, SC, r, monotone_sc=False)
+    assert np.all(free(G, C) <= r + 1e-9)
+    gap_forced, gap_free = np.max(r - forced(G, C)), np.max(r - free(G, C))
+    assert gap_forced > 0.2 and gap_free < 0.1
+    D = free(*np.meshgrid(np.linspace(0.1, 0.5, 41), np.linspace(0.05, 0.15, 21), indexing="ij"))
+    assert np.all(np.diff(D, axis=0) <= 1e-12) and D.min() >= 0 and D.max() <= 1
+    assert np.any(np.diff(D, axis=1) < -1e-3)  # it does fall towards fast closing

@@ -17,6 +17,7 @@ import json
 import math
 import os
 from dataclasses import asdict, dataclass, field, replace
+from typing import Optional
 
 import numpy as np
 
@@ -148,7 +149,7 @@ class BuildConfig:
     sim: SimConfig = field(default_factory=SimConfig)
     domain: PoseDomain = field(default_factory=PoseDomain)
     n_queries: int = 20000
-    use_sc_monotonicity: bool = True
+    use_sc_monotonicity: Optional[bool] = None  # None: the part's closing_monotone
     conservative_z: float = 1.0  # rho = rho_hat - z * jackknife se
     surface_degree: tuple = (3, 2)
 
@@ -166,7 +167,7 @@ class MetaModel:
 
     def __init__(self, part_name, sg_grid, sc_grid, boundaries, levels, rho_grids, surfaces,
                  domain=PoseDomain(), n_queries=20000, surface_degree=(3, 2), info=None,
-                 conservative_z=1.0):
+                 conservative_z=1.0, monotone_sc=True):
         self.part_name = part_name
         self.sg_grid = tuple(float(s) for s in sg_grid)
         self.sc_grid = tuple(float(s) for s in sc_grid)
@@ -179,6 +180,7 @@ class MetaModel:
         self.surface_degree = tuple(surface_degree)
         self.info = dict(info or {})
         self.conservative_z = float(conservative_z)
+        self.monotone_sc = bool(monotone_sc)  # the surfaces are non-decreasing in S_c
 
     def level(self, sigma_r: float, sigma_phi: float):
         for lv in self.levels:
@@ -195,7 +197,8 @@ class MetaModel:
             lv = SigmaLevel(f"sigma_{sigma_r:g}_{sigma_phi:g}", float(sigma_r), float(sigma_phi))
             self.rho_grids[lv.name] = self.probability_grid(sigma_r, sigma_phi)
             self.surfaces[lv.name] = fit_rho_surface(self.sg_grid, self.sc_grid,
-                                                     self.rho_grids[lv.name], self.surface_degree)
+                                                     self.rho_grids[lv.name], self.surface_degree,
+                                                     self.monotone_sc)
             self.levels.append(lv)
         return self.surfaces[lv.name]
 
@@ -219,7 +222,7 @@ class MetaModel:
             "sg_grid": list(self.sg_grid), "sc_grid": list(self.sc_grid),
             "domain": asdict(self.domain), "n_queries": self.n_queries,
             "surface_degree": list(self.surface_degree), "info": self.info,
-            "conservative_z": self.conservative_z,
+            "conservative_z": self.conservative_z, "surface_monotone_sc": self.monotone_sc,
             "levels": [{**asdict(lv), "rho_grid": np.asarray(self.rho_grids[lv.name]).tolist(),
                         "surface": self.surfaces[lv.name].to_dict()} for lv in self.levels],
             "boundaries": [{"i": i, "j": j, **bm.to_dict()}
@@ -241,7 +244,7 @@ class MetaModel:
         bounds = {(b["i"], b["j"]): BoundaryModel.from_dict(b) for b in d["boundaries"]}
         return cls(d["part"], d["sg_grid"], d["sc_grid"], bounds, levels, grids, surfaces,
                    PoseDomain(**d["domain"]), d["n_queries"], tuple(d["surface_degree"]),
-                   d.get("info"), d.get("conservative_z", 1.0))
+                   d.get("info"), d.get("conservative_z", 1.0), d.get("surface_monotone_sc", True))
 
     def save(self, path) -> None:
         """Write JSON atomically (temp file in the same directory, then os.replace)."""
@@ -268,10 +271,12 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                     use_ray: bool = False, progress: bool = False, label_fn_factory=None) -> MetaModel:
     """Learn a GSB for every (S_g, S_c) on the grid and the surfaces for config.levels.
 
-    S_c is processed in ascending order for each S_g so that, with use_sc_monotonicity, poses
-    deep in the previous (lower S_c) success region are labelled success for free.
+    S_c is processed in ascending order for each S_g so that, where success is monotone in S_c
+    (config.use_sc_monotonicity, by default the part's closing_monotone), poses deep in the
+    previous (lower S_c) success region are labelled success for free.
     label_fn_factory(s_g, s_c, seed) -> label_fn replaces the simulation (tests)."""
     part = get_part(part)
+    sc_monotone = part.closing_monotone if config.use_sc_monotonicity is None else config.use_sc_monotonicity
     sg_grid = sorted(float(s) for s in config.sg_grid)
     sc_grid = sorted(float(s) for s in config.sc_grid)
     boundaries = {}
@@ -290,7 +295,7 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                 else:
                     label_fn = _sim_label_fn(runner, config.domain, s_g, s_c, pair_seed)
                 known = None
-                if config.use_sc_monotonicity and prev is not None:
+                if sc_monotone and prev is not None:
                     known = known_from_lower_sc(prev.model, config.active.known_margin)
                 res = learn_boundary(label_fn, active, seed=pair_seed, known_fn=known)
                 bm = BoundaryModel(s_g, s_c, res.X, res.y, res.simulated, res.svm_c,
@@ -309,12 +314,13 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                                      f"D_FT={bm.d_ft:.3f}, converged={res.converged}\n")
     mm = MetaModel(part.name, sg_grid, sc_grid, boundaries, [], {}, {}, config.domain,
                    config.n_queries, config.surface_degree, conservative_z=config.conservative_z,
+                   monotone_sc=sc_monotone,
                    info={"seed": seed, "sim": asdict(config.sim), "active": asdict(config.active),
-                         "use_sc_monotonicity": config.use_sc_monotonicity})
+                         "use_sc_monotonicity": sc_monotone})
     for lv in config.levels:
         mm.rho_grids[lv.name] = mm.probability_grid(lv.sigma_r, lv.sigma_phi)
         mm.surfaces[lv.name] = fit_rho_surface(sg_grid, sc_grid, mm.rho_grids[lv.name],
-                                               config.surface_degree)
+                                               config.surface_degree, sc_monotone)
         mm.levels.append(lv)
     return mm
 

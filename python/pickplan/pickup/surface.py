@@ -3,9 +3,9 @@
 A tensor-product Bernstein polynomial on the modelled speed box. Its Bernstein coefficients
 are fitted by least squares under linear constraints that make the surface
   * a lower bound of the grid probabilities (conservative, as in the paper),
-  * non-increasing in S_g and non-decreasing in S_c (the physics: faster approach is harder,
-    faster closing is easier), which holds everywhere because a Bernstein polynomial with
-    monotone coefficients is monotone,
+  * non-increasing in S_g (the physics: a faster approach is harder) and, for parts where the
+    physics has it (``Part.closing_monotone``), non-decreasing in S_c (faster closing is easier);
+    this holds everywhere because a Bernstein polynomial with monotone coefficients is monotone,
   * inside [0, 1] everywhere (Bernstein coefficients in [0, 1] give a convex combination).
 The gradient is analytic, for the trajectory NLP.
 """
@@ -90,8 +90,9 @@ class RhoSurface:
         return cls(c, tuple(d["sg_range"]), tuple(d["sc_range"]))
 
 
-def fit_rho_surface(sg_grid, sc_grid, rho_grid, degree=(3, 2)) -> RhoSurface:
-    """Fit the conservative monotone surface to rho_grid[i, j] = rho(sg_grid[i], sc_grid[j])."""
+def fit_rho_surface(sg_grid, sc_grid, rho_grid, degree=(3, 2), monotone_sc: bool = True) -> RhoSurface:
+    """Fit the conservative monotone surface to rho_grid[i, j] = rho(sg_grid[i], sc_grid[j]);
+    monotone in S_c too only with monotone_sc."""
     sg, sc = np.asarray(sg_grid, float), np.asarray(sc_grid, float)
     r = np.asarray(rho_grid, float)
     if r.shape != (len(sg), len(sc)):
@@ -110,13 +111,13 @@ def fit_rho_surface(sg_grid, sc_grid, rho_grid, degree=(3, 2)) -> RhoSurface:
     b = r.ravel()
     nc = (m + 1) * (n + 1)
     idx = np.arange(nc).reshape(m + 1, n + 1)
-    rows = []  # G c >= 0 rows: monotone in S_g (down) and S_c (up)
+    rows = []  # G c >= 0 rows: monotone in S_g (down) and, with monotone_sc, S_c (up)
     for i in range(m):
         for j in range(n + 1):
             g = np.zeros(nc)
             g[idx[i, j]], g[idx[i + 1, j]] = 1.0, -1.0
             rows.append(g)
-    for i in range(m + 1):
+    for i in range(m + 1 if monotone_sc else 0):
         for j in range(n):
             g = np.zeros(nc)
             g[idx[i, j + 1]], g[idx[i, j]] = 1.0, -1.0
