@@ -75,8 +75,7 @@ def ensure_metamodel(path, config=None, seed: int = 0, workers: int = 1, progres
         print(f"building the {METAMODEL_PART} meta-model from simulation (seed {seed}, {workers} worker(s)) "
               f"-> {path}", flush=True)
     mm = build_metamodel(METAMODEL_PART, config or BuildConfig(), seed=seed, workers=workers, progress=progress)
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    mm.save(path)
+    mm.save(path)  # atomic, creates the folder
     return path
 
 
