@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from sklearn.svm import SVC
 
-from pickplan.pickup.active import exploit_rho, select_svm_params
+from pickplan.pickup.active import exploit_band, exploit_rho, select_svm_params
 from pickplan.pickup.calibration import calibrate, svm_depth
 from pickplan.pickup.kernel import fit_svm, success_metric
 
@@ -83,3 +83,25 @@ def test_exploit_rho_samples_inside_the_query_gaussians_where_folds_disagree():
     assert spread(P).mean() > 3 * spread(R).mean()
     P2 = exploit_rho(np.random.default_rng(0), cal, sigmas, [0.0, 0.05], X, 10, 2000)
     np.testing.assert_array_equal(P, P2)  # deterministic by seed
+
+
+def test_exploit_band_samples_each_gaussians_stretch_of_the_boundary():
+    """Half-space boundary x = 0.03 through a small Gaussian (rho undecided there) and a
+    wide one: picks lie on the boundary, inside their Gaussian, spaced, and the small
+    Gaussian gets its share although its region is a few millimetres wide."""
+    rng = np.random.default_rng(8)
+    X = np.clip(np.vstack([rng.uniform(-1, 1, (200, 3)), rng.normal(0, 0.1, (100, 3))]), -1, 1)
+    y = X[:, 0] < 0.03
+    cal = calibrate(X, y, np.ones(len(y), bool), lambda A, b: fit_svm(A, b, 100.0, 3.0))
+    small, wide = np.array([0.04, 0.04, 0.08]), np.array([0.24, 0.24, 0.25])
+    P = exploit_band(np.random.default_rng(0), cal, [small, wide], X, 12, 2000)
+    assert 6 <= len(P) <= 12
+    p = cal.probability(P)
+    assert np.all(p * (1 - p) > 0.05)  # undecided: on the boundary band
+    in_small = np.all(np.abs(P / small) < 4, axis=1)
+    assert in_small.sum() >= 2
+    d = np.sqrt((((P[:, None] - P[None]) / wide) ** 2).sum(-1)) + np.eye(len(P))
+    assert d[~in_small][:, ~in_small].min() >= 0.5 - 1e-9
+    np.testing.assert_array_equal(
+        P, exploit_band(np.random.default_rng(0), cal, [small, wide], X, 12, 2000))
+    assert len(exploit_band(np.random.default_rng(0), None, [small], X, 5, 100)) == 0

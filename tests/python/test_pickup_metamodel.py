@@ -13,7 +13,7 @@ from pickplan.pickup.synthetic import EllipsoidOracle, oracle_factory
 CFG = BuildConfig(
     sg_grid=(0.1, 0.3, 0.5), sc_grid=(0.05, 0.15),
     active=ActiveConfig(n_init=20, n_holdout=20, batch_size=15, budget=90, select_every=100),
-    n_queries=6000, surface_degree=(2, 1))
+    n_queries=6000, surface_degree=(2, 1), rho_model="svm")  # the GP: test_pickup_rho.py
 
 
 @pytest.fixture(scope="module")

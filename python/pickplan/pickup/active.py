@@ -28,6 +28,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from .calibration import calibrate, gaussian_queries
+from .gpc import GPConfig, GPSuccessModel, exploit_gp
 from .kernel import fit_svm, success_metric
 
 
@@ -91,7 +92,15 @@ class ActiveConfig:
     query_fraction: float = 0.3  # share of exploration samples from the query Gaussians
     # Share of the exploitation samples placed where the fold classifiers disagree most
     # about P(success) inside the query Gaussians (exploit_rho), once rho is estimated.
-    rho_share: float = 0.5
+    rho_share: float = 0.25
+    # Share placed on each query Gaussian's stretch of the boundary (exploit_band).
+    band_share: float = 0.5
+    # What estimates rho inside the loop (stopping rule, rho-directed samples): "svm" (the
+    # calibrated SVM depth, calibration.py) or "gp" (GP classification, gpc.py: its
+    # posterior standard deviation of rho is calibrated against direct simulation). The GP's
+    # hyperparameters are re-optimized every select_every rounds.
+    rho_model: str = "svm"
+    gp_se_queries: int = 500
 
 
 def select_svm_params(X, y, c_grid, gamma_grid, seed: int = 0, folds: int = 5,
@@ -275,6 +284,44 @@ def exploit_rho(rng, cal, query_sigmas, se, X, k, n_candidates,
     return np.vstack(picked) if picked else np.zeros((0, 3))
 
 
+def exploit_band(rng, cal, query_sigmas, X, k, n_candidates,
+                 min_spacing: float = 0.5) -> np.ndarray:
+    """Uncertainty sampling weighted by each query Gaussian: candidates from N(0, sigma),
+    scored by p (1 - p) of the calibrated success probability, so the picks lie on the
+    stretch of the GSB that carries that Gaussian's mass. A small sigma's Gaussian covers a
+    region a few millimetres wide where rho moves by tens of percent per millimetre of
+    boundary shift; the boundary-wide exploitation rarely lands there. The levels get
+    samples in proportion to their band mass E[p (1 - p)]; greedy picks as in exploit_rho."""
+    if k <= 0 or cal is None or not len(query_sigmas):
+        return np.zeros((0, 3))
+    cands, scores = [], []
+    for sg in query_sigmas:
+        sg = np.asarray(sg, float)
+        C = np.clip(rng.standard_normal((max(n_candidates // 2, k), 3)) * sg, -1.0, 1.0)
+        p = cal.probability(C, sigma=sg)
+        cands.append(C)
+        scores.append(p * (1.0 - p))
+    mass = np.array([s.mean() for s in scores]) + 1e-3
+    alloc = np.floor(k * mass / mass.sum()).astype(int)
+    for i in np.argsort(-mass, kind="stable")[:k - alloc.sum()]:
+        alloc[i] += 1
+    picked = []
+    for sg, C, score, k_l in zip(query_sigmas, cands, scores, alloc):
+        if k_l <= 0:
+            continue
+        sg = np.asarray(sg, float)
+        score = score.copy()
+        existing = np.vstack([X, *picked]) if picked else X
+        score[_nearest_dist(C / sg, existing / sg) < min_spacing] = -1.0
+        for _ in range(k_l):
+            i = int(np.argmax(score))
+            if score[i] <= 0:
+                break
+            picked.append(C[i][None])
+            score[np.sqrt((((C - C[i]) / sg) ** 2).sum(axis=1)) < min_spacing] = -1.0
+    return np.vstack(picked) if picked else np.zeros((0, 3))
+
+
 KnownFn = Callable[[np.ndarray], tuple]
 
 
@@ -342,6 +389,10 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
     prev_acc = balanced_accuracy(predict(model, H), yh)
     history, streak, converged, prev_rho = [], 0, False, None
     cal, rho_se = None, None  # the latest calibration, for exploit_rho
+    if config.rho_model not in ("svm", "gp"):
+        raise ValueError(f"rho_model must be 'svm' or 'gp', got {config.rho_model!r}")
+    use_gp, gp, gp_theta = config.rho_model == "gp", None, None
+    gp_config = GPConfig(restarts=0, n_se_queries=config.gp_se_queries)
     max_rounds = 4 * config.budget // config.batch_size  # free labels do not spend budget
     for rnd in range(max_rounds):
         k = min(config.batch_size, config.budget - n_sims)
@@ -349,9 +400,16 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
             break
         n_exploit = int(round(w * k))
         Pq = np.zeros((0, 3))
-        if cal is not None:
+        if gp is not None:
+            Pq = exploit_gp(rng, gp, qs, rho_se, X,
+                            int(round((config.rho_share + config.band_share) * n_exploit)),
+                            config.n_candidates)
+        elif cal is not None:
             Pq = exploit_rho(rng, cal, qs, rho_se, X, int(round(config.rho_share * n_exploit)),
                              config.n_candidates)
+            Pb = exploit_band(rng, cal, qs, np.vstack([X, Pq]),
+                              int(round(config.band_share * n_exploit)), config.n_candidates)
+            Pq = np.vstack([Pq, Pb])
         Pe = exploit(rng, model, np.vstack([X, Pq]), y, n_exploit - len(Pq),
                      config.n_candidates, query_sigmas=qs)
         Pe = np.vstack([Pq, Pe])
@@ -372,15 +430,21 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
         prev_acc = acc
         h = {"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
              "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch, "exploit_weight": w}
-        ok = False
+        ok, est = False, None
         # The stopping rule judges the GSB of every sample, held-out ones included (the
         # returned one; the final hyperparameter re-selection may still change it).
         XA, yA, simA = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
-        if rnd + 1 >= config.min_rounds and yA.any() and (~yA).any():
+        if rnd + 1 >= config.min_rounds and yA.any() and (~yA).any() and use_gp:
+            gp = GPSuccessModel(XA, yA, theta=None if gp_theta is None or rnd % config.select_every == 0
+                                else gp_theta, seed=seed, config=gp_config)
+            gp_theta = gp.theta
+            est = np.array([gp.rho(Q, seed) for Q in queries])
+        elif rnd + 1 >= config.min_rounds and yA.any() and (~yA).any():
             cal = calibrate(XA, yA, simA, lambda A, b: fit_svm(A, b, *params),
                             config.calib_folds, seed, local_kappa=config.local_kappa,
                             local_floor=config.local_floor)
             est = np.array([cal.rho(Q, sg) for Q, sg in zip(queries, qs)])
+        if est is not None:
             change = None if prev_rho is None else float(np.abs(est[:, 0] - prev_rho).max())
             prev_rho, rho_se = est[:, 0], est[:, 1]
             h.update(rho=est[:, 0].tolist(), rho_se=est[:, 1].tolist(), rho_change=change)

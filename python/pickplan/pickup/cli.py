@@ -34,6 +34,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ray", action="store_true", help="run simulations on Ray (needs ray)")
     p.add_argument("--budget", type=int, default=None,
                    help="simulations per boundary (default 300, quick 80)")
+    p.add_argument("--rho-model", choices=("gp", "svm"), default="gp",
+                   help="rho per boundary: GP classification of the samples (default) or "
+                        "the calibrated SVM success depth")
     p.add_argument("--quiet", action="store_true", help="no progress output")
 
 
@@ -59,7 +62,7 @@ def _config(args) -> BuildConfig:
     cfg = BuildConfig.quick() if args.quick else BuildConfig()
     if args.budget is not None:
         cfg = replace(cfg, active=replace(cfg.active, budget=args.budget))
-    return cfg
+    return replace(cfg, rho_model=args.rho_model)
 
 
 def model_path(out: str, part: str) -> str:

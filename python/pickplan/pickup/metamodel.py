@@ -23,15 +23,17 @@ import numpy as np
 
 from .active import ActiveConfig, PoseDomain, fit_svm, known_from_lower_sc, learn_boundary
 from .calibration import calibrate, gaussian_queries, svm_depth
+from .gpc import GPConfig, GPSuccessModel
 from .parallel import SimRunner, sample_seeds
 from .parts import get_part
 from .sim import SimConfig
 from .surface import RhoSurface, fit_rho_surface
 
 FORMAT = "pickplan.pickup.metamodel"
-VERSION = 3  # 2: calibrated probability (D_FT, width, jackknife), conservative_z;
-# 3: kernel metric (svm_metric) and noise band local to each sigma (local_kappa, local_floor)
-READABLE_VERSIONS = (2, 3)  # a version-2 file reads as the isotropic kernel
+VERSION = 4  # 2: calibrated probability (D_FT, width, jackknife), conservative_z;
+# 3: kernel metric (svm_metric) and noise band local to each sigma (local_kappa, local_floor);
+# 4: rho_model and gp_theta per boundary (GP classification for rho, gpc.py)
+READABLE_VERSIONS = (2, 3, 4)  # a version-2 file reads as the isotropic kernel
 
 
 @dataclass(frozen=True)
@@ -61,7 +63,7 @@ class BoundaryModel:
 
     def __init__(self, s_g, s_c, X, y, simulated, svm_c, svm_gamma, history=None,
                  converged=False, calib_folds=5, calib_seed=0, svm_metric=None,
-                 local_kappa=3.0, local_floor=1.0):
+                 local_kappa=3.0, local_floor=1.0, rho_model="svm", gp_theta=None):
         self.s_g, self.s_c = float(s_g), float(s_c)
         self.X = np.asarray(X, float).reshape(-1, 3)
         self.y = np.asarray(y, bool)
@@ -79,6 +81,14 @@ class BoundaryModel:
             self.calib_folds, self.calib_seed, local_kappa=self.local_kappa,
             local_floor=self.local_floor)
         self.model = self.calibration.model
+        if rho_model not in ("svm", "gp"):
+            raise ValueError(f"rho_model must be 'svm' or 'gp', got {rho_model!r}")
+        self.rho_model = rho_model
+        # rho_model "gp": P(success) and rho from GP classification of the same samples
+        # (gpc.py); gp_theta reuses saved hyperparameters instead of optimizing them.
+        self.gp = (GPSuccessModel(self.X, self.y, theta=gp_theta, seed=self.calib_seed,
+                                  config=GPConfig(restarts=0))
+                   if rho_model == "gp" else None)
 
     @property
     def n_simulations(self) -> int:
@@ -102,8 +112,17 @@ class BoundaryModel:
 
     def probability(self, U, sigma=None) -> np.ndarray:
         """Calibrated P(success) of normalized poses (0 outside the domain); with sigma
-        (normalized standard deviations) the noise band local to that query Gaussian."""
+        (normalized standard deviations) the noise band local to that query Gaussian; with
+        the GP rho model, the GP's predictive probability."""
+        if self.gp is not None:
+            return self.gp.probability(U)
         return self.calibration.probability(U, sigma=sigma)
+
+    def rho(self, U, sigma=None) -> tuple:
+        """(rho_hat, standard error) for the Monte-Carlo poses U ~ N(0, sigma)."""
+        if self.gp is not None:
+            return self.gp.rho(U, self.calib_seed)
+        return self.calibration.rho(U, sigma)
 
     def to_dict(self) -> dict:
         return {"s_g": self.s_g, "s_c": self.s_c, "X": self.X.tolist(),
@@ -112,7 +131,8 @@ class BoundaryModel:
                 "width": self.width, "converged": self.converged, "history": self.history,
                 "calib_folds": self.calib_folds, "calib_seed": self.calib_seed,
                 "svm_metric": self.svm_metric.tolist(), "local_kappa": self.local_kappa,
-                "local_floor": self.local_floor}
+                "local_floor": self.local_floor, "rho_model": self.rho_model,
+                "gp_theta": None if self.gp is None else self.gp.theta}
 
     @classmethod
     def from_dict(cls, d: dict) -> "BoundaryModel":
@@ -120,7 +140,8 @@ class BoundaryModel:
                    d["svm_gamma"], history=d.get("history"),
                    converged=d.get("converged", False), calib_folds=d.get("calib_folds", 5),
                    calib_seed=d.get("calib_seed", 0), svm_metric=d.get("svm_metric"),
-                   local_kappa=d.get("local_kappa", 0.0), local_floor=d.get("local_floor", 1.0))
+                   local_kappa=d.get("local_kappa", 0.0), local_floor=d.get("local_floor", 1.0),
+                   rho_model=d.get("rho_model", "svm"), gp_theta=d.get("gp_theta"))
 
 
 def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
@@ -135,7 +156,7 @@ def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
         raise ValueError(f"n_queries must be >= 1, got {n_queries}")
     sigma = domain.to_normalized(np.array([sigma_r, sigma_r, sigma_phi]))
     U = gaussian_queries(n_queries, seed) * sigma
-    rho_hat, se = bm.calibration.rho(U, sigma)
+    rho_hat, se = bm.rho(U, sigma)
     rho = float(np.clip(rho_hat - z * se, 0.0, 1.0))
     return (rho, rho_hat, se) if details else rho
 
@@ -150,7 +171,11 @@ class BuildConfig:
     domain: PoseDomain = field(default_factory=PoseDomain)
     n_queries: int = 20000
     use_sc_monotonicity: Optional[bool] = None  # None: the part's closing_monotone
-    conservative_z: float = 1.0  # rho = rho_hat - z * jackknife se
+    conservative_z: float = 0.0  # rho = rho_hat - z * se (the surface is a lower bound anyway)
+    # rho per boundary: "gp" (GP classification of the samples, gpc.py) or "svm" (the
+    # calibrated SVM success depth, calibration.py). Against 2,000 direct simulations per
+    # pair the GP is the more accurate (bench/README.md).
+    rho_model: str = "gp"
     surface_degree: tuple = (3, 2)
 
     @classmethod
@@ -304,7 +329,8 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                                    calib_folds=config.active.calib_folds, calib_seed=pair_seed,
                                    svm_metric=res.svm_metric,
                                    local_kappa=config.active.local_kappa,
-                                   local_floor=config.active.local_floor)
+                                   local_floor=config.active.local_floor,
+                                   rho_model=config.rho_model)
                 boundaries[(i, j)] = bm
                 prev = bm
                 if progress:
@@ -316,7 +342,7 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                    config.n_queries, config.surface_degree, conservative_z=config.conservative_z,
                    monotone_sc=sc_monotone,
                    info={"seed": seed, "sim": asdict(config.sim), "active": asdict(config.active),
-                         "use_sc_monotonicity": sc_monotone})
+                         "use_sc_monotonicity": sc_monotone, "rho_model": config.rho_model})
     for lv in config.levels:
         mm.rho_grids[lv.name] = mm.probability_grid(lv.sigma_r, lv.sigma_phi)
         mm.surfaces[lv.name] = fit_rho_surface(sg_grid, sc_grid, mm.rho_grids[lv.name],
