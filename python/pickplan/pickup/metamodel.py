@@ -2,14 +2,15 @@
 
 For each (S_g, S_c) on a grid, a GSB is learned actively (active.py) from simulations
 (sim.py). The success depth SD of a pose is its (first-order) distance, in the normalized pose
-space, from the GSB into the success region. Because the simulated labels are noisy near the
-boundary, the probability of success of a pose is a logistic function of SD centred on the
-failure threshold distance D_FT, with D_FT and the band width fitted to out-of-fold depths
-(calibration.py), locally to each query sigma; the SVM kernel has a metric learned from the
-successful samples (kernel.py). The probability of success for a pose uncertainty sigma is the mean of that
-probability over Monte-Carlo poses from N(0, sigma), minus z jackknife standard errors of the
-boundary (conservative). The grid of probabilities is turned into a conservative analytic
-surface (surface.py), saved to JSON with all samples.
+space, from the GSB into the success region; D_FT and the width of the noisy band are fitted
+to out-of-fold depths (calibration.py), and the SVM kernel has a metric learned from the
+successful samples (kernel.py). The probability of success for a pose uncertainty sigma is
+the mean P(success) of Monte-Carlo poses from N(0, sigma), minus z standard errors. By
+default P(success) comes from Gaussian-process classification of the same labelled samples
+(gpc.py, rho_model="gp"), whose posterior also gives the standard error; rho_model="svm"
+uses the calibrated SVM depth and the jackknife of its fold classifiers instead. The grid
+of probabilities is turned into a conservative analytic surface (surface.py), saved to
+JSON with all samples.
 """
 from __future__ import annotations
 
