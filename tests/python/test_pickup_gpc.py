@@ -113,3 +113,20 @@ def test_boundary_model_gp_rho_tracks_a_noisy_oracle_and_round_trips():
     with pytest.raises(ValueError, match="rho_model"):
         BoundaryModel(0.3, 0.1, X, y, np.ones(len(X), bool), 100.0, 3.0, rho_model="mlp")
 
+
+
+def test_learning_loop_can_stop_and_sample_on_the_gp_posterior():
+    """ActiveConfig(rho_model="gp"): the stopping rule and the rho-directed samples use the
+    GP; rho estimates and their posterior errors are recorded per round, the budget holds."""
+    from pickplan.pickup.active import ActiveConfig, learn_boundary
+
+    oracle = NoisyEllipsoidOracle(0.3, 0.15, width=0.1, seed=0)
+    res = learn_boundary(oracle, ActiveConfig(budget=150, rho_model="gp"), seed=0)
+    assert res.n_simulations <= 150
+    rounds = [h for h in res.history if "rho" in h]
+    assert rounds and all(len(h["rho"]) == 3 and all(0 <= s < 0.5 for s in h["rho_se"])
+                          for h in rounds)
+    truth = oracle.probability(0.012, math.radians(15))
+    assert abs(rounds[-1]["rho"][2] - truth) < 0.1
+    with pytest.raises(ValueError, match="rho_model"):
+        learn_boundary(oracle, ActiveConfig(budget=150, rho_model="tree"), seed=0)
