@@ -4,7 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from pickplan.pickup.gpc import GPSuccessModel, exploit_gp
+from pickplan.pickup.active import exploit_gp
+from pickplan.pickup.gpc import GPSuccessModel
 from pickplan.pickup.metamodel import BoundaryModel
 from pickplan.pickup.synthetic import NoisyEllipsoidOracle
 

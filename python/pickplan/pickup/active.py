@@ -30,7 +30,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from .calibration import calibrate, gaussian_queries
-from .gpc import GPConfig, GPSuccessModel, exploit_gp
+from .gpc import GPConfig, GPSuccessModel
 from .kernel import fit_svm, success_metric
 
 
@@ -254,6 +254,36 @@ def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02,
     return np.vstack([np.asarray(picked).reshape(-1, 3), np.clip(jit, -1.0, 1.0)])
 
 
+def _allocate(k: int, weights) -> np.ndarray:
+    """k samples split across the query levels in proportion to weights (+ 1e-3, so a
+    settled level still gets a share), remainders to the largest weights."""
+    w = np.asarray(weights, float) + 1e-3
+    alloc = np.floor(k * w / w.sum()).astype(int)
+    for i in np.argsort(-w, kind="stable")[:k - alloc.sum()]:
+        alloc[i] += 1
+    return alloc
+
+
+def _pick_spaced(C, score, sg, existing, k, min_spacing, keep_zero=False) -> list:
+    """Greedy, best score first: up to k candidates C, no two picks (or a pick and an
+    existing sample) closer than min_spacing in the Gaussian's sigma units sg; stops at a
+    non-positive score (a zero score is still taken with keep_zero)."""
+    score = np.array(score, float)
+    score[_nearest_dist(C / sg, existing / sg) < min_spacing] = -1.0
+    picked = []
+    for _ in range(k):
+        i = int(np.argmax(score))
+        if score[i] < 0 or (score[i] == 0 and not keep_zero):
+            break
+        picked.append(C[i][None])
+        score[np.sqrt((((C - C[i]) / sg) ** 2).sum(axis=1)) < min_spacing] = -1.0
+    return picked
+
+
+def _candidates(rng, sg, n) -> np.ndarray:
+    return np.clip(rng.standard_normal((n, 3)) * sg, -1.0, 1.0)
+
+
 def exploit_rho(rng, cal, query_sigmas, se, X, k, n_candidates,
                 min_spacing: float = 0.5) -> np.ndarray:
     """Query-by-committee for rho: candidates from each query Gaussian N(0, sigma), scored by
@@ -264,25 +294,15 @@ def exploit_rho(rng, cal, query_sigmas, se, X, k, n_candidates,
     midpoints refine the boundary everywhere; these refine it where rho is undecided."""
     if k <= 0 or not cal.fold_models or not len(query_sigmas):
         return np.zeros((0, 3))
-    se = np.asarray(se, float) + 1e-3
-    alloc = np.floor(k * se / se.sum()).astype(int)
-    for i in np.argsort(-se, kind="stable")[:k - alloc.sum()]:
-        alloc[i] += 1
     picked = []
-    for sg, k_l in zip(query_sigmas, alloc):
+    for sg, k_l in zip(query_sigmas, _allocate(k, se)):
         if k_l <= 0:
             continue
         sg = np.asarray(sg, float)
-        C = np.clip(rng.standard_normal((max(n_candidates // 2, k_l), 3)) * sg, -1.0, 1.0)
+        C = _candidates(rng, sg, max(n_candidates // 2, k_l))
         score = np.std([cal.probability(C, m, sg) for m in cal.fold_models], axis=0)
-        existing = np.vstack([X, *picked]) if picked else X
-        score[_nearest_dist(C / sg, existing / sg) < min_spacing] = -1.0
-        for _ in range(k_l):
-            i = int(np.argmax(score))
-            if score[i] < 0:
-                break
-            picked.append(C[i][None])
-            score[np.sqrt((((C - C[i]) / sg) ** 2).sum(axis=1)) < min_spacing] = -1.0
+        picked += _pick_spaced(C, score, sg, np.vstack([X, *picked]), k_l, min_spacing,
+                               keep_zero=True)
     return np.vstack(picked) if picked else np.zeros((0, 3))
 
 
@@ -296,31 +316,37 @@ def exploit_band(rng, cal, query_sigmas, X, k, n_candidates,
     samples in proportion to their band mass E[p (1 - p)]; greedy picks as in exploit_rho."""
     if k <= 0 or cal is None or not len(query_sigmas):
         return np.zeros((0, 3))
-    cands, scores = [], []
-    for sg in query_sigmas:
-        sg = np.asarray(sg, float)
-        C = np.clip(rng.standard_normal((max(n_candidates // 2, k), 3)) * sg, -1.0, 1.0)
+    sigmas = [np.asarray(sg, float) for sg in query_sigmas]
+    cands = [_candidates(rng, sg, max(n_candidates // 2, k)) for sg in sigmas]
+    scores = []
+    for sg, C in zip(sigmas, cands):
         p = cal.probability(C, sigma=sg)
-        cands.append(C)
         scores.append(p * (1.0 - p))
-    mass = np.array([s.mean() for s in scores]) + 1e-3
-    alloc = np.floor(k * mass / mass.sum()).astype(int)
-    for i in np.argsort(-mass, kind="stable")[:k - alloc.sum()]:
-        alloc[i] += 1
     picked = []
-    for sg, C, score, k_l in zip(query_sigmas, cands, scores, alloc):
+    for sg, C, score, k_l in zip(sigmas, cands, scores,
+                                 _allocate(k, [s.mean() for s in scores])):
+        if k_l > 0:
+            picked += _pick_spaced(C, score, sg, np.vstack([X, *picked]), k_l, min_spacing)
+    return np.vstack(picked) if picked else np.zeros((0, 3))
+
+
+def exploit_gp(rng, gp, query_sigmas, se, X, k, n_candidates,
+               min_spacing: float = 0.5) -> np.ndarray:
+    """Samples where rho is undecided on the GP (gpc.GPSuccessModel): candidates from each
+    query Gaussian N(0, sigma), scored by the posterior variance of P(success), so they land
+    on the stretch of the boundary that carries the Gaussian's mass and is least pinned
+    down. The levels get samples in proportion to their rho posterior standard deviation;
+    greedy picks as in exploit_rho."""
+    if k <= 0 or gp is None or gp.constant is not None or not len(query_sigmas):
+        return np.zeros((0, 3))
+    picked = []
+    for sg, k_l in zip(query_sigmas, _allocate(k, se)):
         if k_l <= 0:
             continue
         sg = np.asarray(sg, float)
-        score = score.copy()
-        existing = np.vstack([X, *picked]) if picked else X
-        score[_nearest_dist(C / sg, existing / sg) < min_spacing] = -1.0
-        for _ in range(k_l):
-            i = int(np.argmax(score))
-            if score[i] <= 0:
-                break
-            picked.append(C[i][None])
-            score[np.sqrt((((C - C[i]) / sg) ** 2).sum(axis=1)) < min_spacing] = -1.0
+        C = _candidates(rng, sg, max(n_candidates // 2, k_l))
+        picked += _pick_spaced(C, gp.probability_variance(C), sg, np.vstack([X, *picked]),
+                               k_l, min_spacing)
     return np.vstack(picked) if picked else np.zeros((0, 3))
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import solve_triangular
+from threadpoolctl import threadpool_limits
 
 AMPLITUDE_BOUNDS = (1e-2, 1e4)  # a^2
 LENGTH_BOUNDS = (1e-3, 10.0)
@@ -75,8 +76,6 @@ class GPSuccessModel:
             return
         from sklearn.gaussian_process import GaussianProcessClassifier
 
-        from threadpoolctl import threadpool_limits
-
         # Nearly separable labels push the amplitude to its cap, where the Laplace mode
         # search can stop short of the mode (f != K (y - pi)) and the predictions go wild.
         # Each fit is checked and, if it failed, redone with a 10x lower cap.
@@ -102,8 +101,6 @@ class GPSuccessModel:
         if self._gpc is None:
             return 0.0
         b = self._gpc.base_estimator_
-        from threadpoolctl import threadpool_limits
-
         with threadpool_limits(1):
             f = b.kernel_(b.X_train_) @ (b.y_train_ - b.pi_)
         return float(np.max(np.abs(0.5 * (1.0 + np.tanh(0.5 * f)) - b.pi_)))
@@ -161,8 +158,6 @@ class GPSuccessModel:
         sub = np.flatnonzero(ok)[:self.config.n_se_queries]
         if len(sub) == 0:
             return rho_hat, 0.0
-        from threadpoolctl import threadpool_limits
-
         with threadpool_limits(1):
             mean, cov = self._latent_posterior(U[sub])
             # Draws of f at the subset (eigen-decomposition: the covariance of close poses
@@ -173,38 +168,3 @@ class GPSuccessModel:
         f = mean[:, None] + root @ z
         draws = (0.5 * (1.0 + np.tanh(0.5 * f))).mean(axis=0)
         return rho_hat, float(ok.mean() * draws.std(ddof=1))
-
-
-
-
-def exploit_gp(rng, gp: GPSuccessModel, query_sigmas, se, X, k, n_candidates,
-               min_spacing: float = 0.5) -> np.ndarray:
-    """Samples where rho is undecided: candidates from each query Gaussian N(0, sigma),
-    scored by the posterior variance of P(success) (GPSuccessModel.probability_variance),
-    so they land on the stretch of the boundary that carries the Gaussian's mass and is
-    least pinned down. The levels get samples in proportion to their rho posterior
-    standard deviation; greedy, best first, no two picks (or a pick and an existing sample)
-    closer than min_spacing in that Gaussian's sigma units."""
-    if k <= 0 or gp is None or gp.constant is not None or not len(query_sigmas):
-        return np.zeros((0, 3))
-    se = np.asarray(se, float) + 1e-3
-    alloc = np.floor(k * se / se.sum()).astype(int)
-    for i in np.argsort(-se, kind="stable")[:k - alloc.sum()]:
-        alloc[i] += 1
-    picked = []
-    for sg, k_l in zip(query_sigmas, alloc):
-        if k_l <= 0:
-            continue
-        sg = np.asarray(sg, float)
-        C = np.clip(rng.standard_normal((max(n_candidates // 2, k_l), 3)) * sg, -1.0, 1.0)
-        score = gp.probability_variance(C)
-        existing = np.vstack([X, *picked]) if picked else X
-        d = np.sqrt((((C[:, None, :] - existing[None]) / sg) ** 2).sum(-1)).min(axis=1)
-        score[d < min_spacing] = -1.0
-        for _ in range(k_l):
-            i = int(np.argmax(score))
-            if score[i] <= 0:
-                break
-            picked.append(C[i][None])
-            score[np.sqrt((((C - C[i]) / sg) ** 2).sum(axis=1)) < min_spacing] = -1.0
-    return np.vstack(picked) if picked else np.zeros((0, 3))
