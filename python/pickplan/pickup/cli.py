@@ -6,7 +6,8 @@
 build writes <out>/metamodel_<part>.json (GSBs with their samples, probability grids and
 surfaces for the low / medium / high uncertainty levels) and <out>/<part>_rho.md.
 compare reuses those files when present (else builds), simulates extensive sampling and
-writes <out>/<part>_comparison.{md,csv,json} and <out>/<part>_comparison.png.
+writes <out>/<part>_comparison.{md,csv,json} and <out>/<part>_comparison.png. Its
+reference poses come from --reference-seed (default 0), not from the build's --seed.
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true",
                    help="CI mode: 2x2 speed grid, small budgets")
     p.add_argument("--out", default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the meta-model build")
     p.add_argument("--workers", type=int, default=1, help="simulation worker processes")
     p.add_argument("--ray", action="store_true", help="run simulations on Ray (needs ray)")
     p.add_argument("--budget", type=int, default=None,
@@ -54,6 +55,10 @@ def add_metamodel_commands(subparsers) -> argparse.ArgumentParser:
     c.add_argument("--rebuild", action="store_true", help="rebuild even if a model file exists")
     c.add_argument("--cache", default=None,
                    help="directory caching the extensive-sampling labels (reruns are free)")
+    c.add_argument("--reference-seed", type=int, default=0,
+                   help="seed of the extensive-sampling poses (default 0), independent of "
+                        "--seed: models built with different seeds are measured against the "
+                        "same references, which a --cache directory then reuses")
     c.set_defaults(func=cmd_compare)
     return mm
 
@@ -114,9 +119,9 @@ def cmd_compare(args) -> int:
         path = model_path(args.out, part)
         mm = MetaModel.load(path) if os.path.exists(path) and not args.rebuild \
             else _build_one(args, part)
-        rows = compare(mm, n_samples=n, seed=args.seed, workers=args.workers,
+        rows = compare(mm, n_samples=n, seed=args.reference_seed, workers=args.workers,
                        use_ray=args.ray, progress=not args.quiet, cache_dir=args.cache)
-        paths = write_results(rows, args.out, part)
+        paths = write_results(rows, args.out, part, reference_seed=args.reference_seed)
         print(f"wrote {paths['md']}")
         try:
             png = plot_comparison(rows, os.path.join(args.out, f"{part}_comparison.png"),

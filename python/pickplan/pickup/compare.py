@@ -177,7 +177,7 @@ def table_csv(rows) -> str:
     return buf.getvalue()
 
 
-def write_results(rows, out_dir, part: str) -> dict:
+def write_results(rows, out_dir, part: str, reference_seed: int = 0) -> dict:
     """Write <part>_comparison.{md,csv,json} atomically; returns the paths."""
     import os
 
@@ -185,7 +185,8 @@ def write_results(rows, out_dir, part: str) -> dict:
     write_text_atomic(base + ".md", table_markdown(rows, part))
     write_text_atomic(base + ".csv", table_csv(rows))
     write_text_atomic(base + ".json", json.dumps(
-        {"part": part, "rows": [asdict(r) for r in rows], "summary": summarize(rows)}, indent=1))
+        {"part": part, "reference_seed": int(reference_seed), "rows": [asdict(r) for r in rows],
+         "summary": summarize(rows)}, indent=1))
     return {"md": base + ".md", "csv": base + ".csv", "json": base + ".json"}
 
 
