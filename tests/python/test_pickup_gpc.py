@@ -5,23 +5,23 @@ import numpy as np
 import pytest
 
 from pickplan.pickup.active import exploit_gp
-from pickplan.pickup.gpc import GPSuccessModel
+from pickplan.pickup.gpc import GPSuccessModel, lapse_rate
 from pickplan.pickup.metamodel import BoundaryModel
 from pickplan.pickup.synthetic import NoisyEllipsoidOracle
 
 
-def _half_space_samples(n, a, seed, width=0.03, s=0.1):
-    """Success with probability sigmoid((a - x) / width) (normalized units), like the
-    simulation's nearly deterministic boundary. As the active learner places them: a
-    quarter of the samples uniform, a quarter from the query Gaussian N(0, s^2), the rest
-    near the boundary."""
+def _half_space_samples(n, a, seed, width=0.03, s=0.1, lapse=0.0):
+    """Success with probability (1 - lapse) sigmoid((a - x) / width) (normalized units),
+    like the simulation's nearly deterministic boundary and its rare failures that no pose
+    explains. As the active learner places them: a quarter of the samples uniform, a
+    quarter from the query Gaussian N(0, s^2), the rest near the boundary."""
     rng = np.random.default_rng(seed)
     k = n // 4
     X = np.vstack([rng.uniform(-1, 1, (k, 3)), rng.normal(0, s, (k, 3)),
                    np.column_stack([a + rng.normal(0, 0.15, n - 2 * k),
                                     rng.uniform(-1, 1, (n - 2 * k, 2))])])
     X = np.clip(X, -1, 1)
-    p = 1 / (1 + np.exp(-(a - X[:, 0]) / width))
+    p = (1 - lapse) / (1 + np.exp(-(a - X[:, 0]) / width))
     return X, rng.uniform(size=n) < p
 
 
@@ -114,6 +114,37 @@ def test_boundary_model_gp_rho_tracks_a_noisy_oracle_and_round_trips():
     with pytest.raises(ValueError, match="rho_model"):
         BoundaryModel(0.3, 0.1, X, y, np.ones(len(X), bool), 100.0, 3.0, rho_model="mlp")
 
+
+@pytest.mark.parametrize("lapse", [0.0, 0.05])
+def test_lapse_rate_recovers_the_failures_no_pose_explains(lapse):
+    """Pooled over two boundaries, the share of confidently-successful simulated samples
+    that failed is the oracle's lapse, within 3 binomial standard errors; free (not
+    simulated) samples do not count."""
+    fits, n_confident = [], 0
+    for seed, a in ((11, 0.3), (12, 0.1)):
+        X, y = _half_space_samples(400, a, seed=seed, lapse=lapse)
+        gp = GPSuccessModel(X, y, seed=0)
+        simulated = np.arange(len(X)) % 4 != 0
+        fits.append((gp, simulated))
+        n_confident += int(((gp.probability(X) >= 0.9) & simulated).sum())
+    assert n_confident > 200
+    est = lapse_rate(fits)
+    assert abs(est - lapse) <= 3 * math.sqrt(max(lapse, 0.01) / n_confident) + 1 / n_confident
+    # Free samples are successes by construction: counting them would dilute the rate.
+    with_free = lapse_rate([(gp, np.ones(len(gp.X), bool)) for gp, _ in fits])
+    assert with_free != est
+
+
+def test_rho_caps_each_probability_at_the_ceiling():
+    X, y = _half_space_samples(300, 0.3, seed=13)
+    gp = GPSuccessModel(X, y, seed=0)
+    U = np.random.default_rng(14).standard_normal((5000, 3)) * 0.1
+    p = gp.probability(U)
+    assert p.max() > 0.99  # deep inside the success region
+    rho, se = gp.rho(U, ceiling=0.97)
+    assert rho == pytest.approx(np.minimum(p, 0.97).mean(), abs=1e-12)
+    assert rho <= 0.97 and se >= 0
+    assert gp.rho(U, ceiling=1.0)[0] == pytest.approx(p.mean(), abs=1e-12)
 
 
 def test_learning_loop_can_stop_and_sample_on_the_gp_posterior():

@@ -6,7 +6,7 @@ import pytest
 
 from pickplan.pickup.active import fit_svm
 from pickplan.pickup.calibration import calibrate, fit_depth_sigmoid, svm_depth
-from pickplan.pickup.metamodel import BuildConfig, build_metamodel, success_probability
+from pickplan.pickup.metamodel import BuildConfig, MetaModel, build_metamodel, success_probability
 from pickplan.pickup.synthetic import NoisyEllipsoidOracle, noisy_oracle_factory
 
 WIDTH = 0.1  # noise band of the oracle, in ellipsoid-radius units
@@ -55,6 +55,32 @@ def test_conservative_margin_is_the_posterior_error(noisy_model):
     rho, _, _ = success_probability(bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries,
                                     z=noisy_model.conservative_z, details=True)
     assert noisy_model.rho_grids[lv.name][1, 0] == pytest.approx(rho, abs=1e-12)
+
+
+def test_lapse_caps_the_grid_and_survives_a_round_trip(noisy_model, tmp_path):
+    """The build measures the part's lapse (the oracle's noise band leaves a few failures
+    deep inside) and the grid is computed with each pose capped at 1 - lapse; the file keeps
+    it, a version-4 file (before the lapse) reads as 0, and a lapse outside [0, 1) is refused."""
+    lapse = noisy_model.lapse
+    assert 0 < lapse < 0.05
+    lv = noisy_model.levels[0]
+    bm = noisy_model.boundaries[(0, 1)]
+    capped = success_probability(bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries,
+                                 z=noisy_model.conservative_z, lapse=lapse)
+    assert noisy_model.rho_grids[lv.name][0, 1] == pytest.approx(capped, abs=1e-12)
+    assert capped <= 1 - lapse
+    uncapped = success_probability(bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries,
+                                   z=noisy_model.conservative_z)
+    assert capped < uncapped
+    noisy_model.save(tmp_path / "mm.json")
+    assert MetaModel.load(tmp_path / "mm.json").lapse == lapse
+    old = noisy_model.to_dict()
+    old["version"] = 4
+    del old["lapse"]
+    assert MetaModel.from_dict(old).lapse == 0.0
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="lapse"):
+            success_probability(bm, lv.sigma_r, lv.sigma_phi, lapse=bad)
 
 
 def test_depth_sigmoid_recovers_known_noise():

@@ -38,6 +38,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rho-model", choices=("gp", "svm"), default="gp",
                    help="rho per boundary: GP classification of the samples (default) or "
                         "the calibrated SVM success depth")
+    p.add_argument("--no-lapse", action="store_true",
+                   help="GP rho: do not cap each pose's probability at 1 - the part's lapse "
+                        "rate (the failures no pose explains)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
 
 
@@ -67,7 +70,7 @@ def _config(args) -> BuildConfig:
     cfg = BuildConfig.quick() if args.quick else BuildConfig()
     if args.budget is not None:
         cfg = replace(cfg, active=replace(cfg.active, budget=args.budget))
-    return replace(cfg, rho_model=args.rho_model)
+    return replace(cfg, rho_model=args.rho_model, lapse_ceiling=not args.no_lapse)
 
 
 def model_path(out: str, part: str) -> str:
@@ -81,6 +84,9 @@ def rho_markdown(mm: MetaModel) -> str:
     lines.append(f"simulations per boundary: mean {np.mean(sims):.0f}, max {max(sims)}, "
                  f"converged {sum(bm.converged for bm in bms)}/{len(bms)}; "
                  f"D_FT / width: " + ", ".join(f"{bm.d_ft:.3f}/{bm.width:.3f}" for bm in bms))
+    if mm.lapse > 0:
+        lines.append(f"lapse (failures no pose explains; each pose's probability is capped at "
+                     f"1 - lapse): {mm.lapse:.2%}")
     for lv in mm.levels:
         lines += ["", f"### {lv.name}: sigma_r = {lv.sigma_r * 1000:.0f} mm, "
                       f"sigma_phi = {np.degrees(lv.sigma_phi):.0f} deg", "",

@@ -24,17 +24,18 @@ import numpy as np
 
 from .active import ActiveConfig, PoseDomain, fit_svm, known_from_lower_sc, learn_boundary
 from .calibration import calibrate, gaussian_queries, svm_depth
-from .gpc import GPConfig, GPSuccessModel
+from .gpc import GPConfig, GPSuccessModel, lapse_rate
 from .parallel import SimRunner, sample_seeds
 from .parts import get_part
 from .sim import SimConfig
 from .surface import RhoSurface, fit_rho_surface
 
 FORMAT = "pickplan.pickup.metamodel"
-VERSION = 4  # 2: calibrated probability (D_FT, width, jackknife), conservative_z;
+VERSION = 5  # 2: calibrated probability (D_FT, width, jackknife), conservative_z;
 # 3: kernel metric (svm_metric) and noise band local to each sigma (local_kappa, local_floor);
-# 4: rho_model and gp_theta per boundary (GP classification for rho, gpc.py)
-READABLE_VERSIONS = (2, 3, 4)  # a version-2 file reads as the isotropic kernel
+# 4: rho_model and gp_theta per boundary (GP classification for rho, gpc.py);
+# 5: the part's lapse rate (gpc.lapse_rate; older files read as 0)
+READABLE_VERSIONS = (2, 3, 4, 5)  # a version-2 file reads as the isotropic kernel
 
 
 @dataclass(frozen=True)
@@ -119,10 +120,11 @@ class BoundaryModel:
             return self.gp.probability(U)
         return self.calibration.probability(U, sigma=sigma)
 
-    def rho(self, U, sigma=None) -> tuple:
-        """(rho_hat, standard error) for the Monte-Carlo poses U ~ N(0, sigma)."""
+    def rho(self, U, sigma=None, ceiling: float = 1.0) -> tuple:
+        """(rho_hat, standard error) for the Monte-Carlo poses U ~ N(0, sigma); with the GP
+        rho model each pose's probability is capped at ceiling (1 - the part's lapse rate)."""
         if self.gp is not None:
-            return self.gp.rho(U, self.calib_seed)
+            return self.gp.rho(U, self.calib_seed, ceiling)
         return self.calibration.rho(U, sigma)
 
     def to_dict(self) -> dict:
@@ -147,17 +149,21 @@ class BoundaryModel:
 
 def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
                         domain: PoseDomain = PoseDomain(), n_queries: int = 20000,
-                        seed: int = 0, z: float = 1.0, details: bool = False):
+                        seed: int = 0, z: float = 1.0, details: bool = False,
+                        lapse: float = 0.0):
     """Conservative P(success) for poses from N(0, diag(sigma_r, sigma_r, sigma_phi)):
     rho_hat - z * se, clipped to [0, 1], where rho_hat is the mean calibrated probability of
-    n_queries Monte-Carlo poses (outside the modelled domain: failure) and se the jackknife
-    standard error of the boundary. details=True returns (rho, rho_hat, se)."""
+    n_queries Monte-Carlo poses (outside the modelled domain: failure; with the GP rho model
+    capped at 1 - lapse) and se the standard error of the boundary's estimate.
+    details=True returns (rho, rho_hat, se)."""
     check_sigma(sigma_r, sigma_phi)
     if n_queries < 1:
         raise ValueError(f"n_queries must be >= 1, got {n_queries}")
+    if not 0.0 <= lapse < 1.0:
+        raise ValueError(f"lapse must be in [0, 1), got {lapse!r}")
     sigma = domain.to_normalized(np.array([sigma_r, sigma_r, sigma_phi]))
     U = gaussian_queries(n_queries, seed) * sigma
-    rho_hat, se = bm.rho(U, sigma)
+    rho_hat, se = bm.rho(U, sigma, 1.0 - lapse)
     rho = float(np.clip(rho_hat - z * se, 0.0, 1.0))
     return (rho, rho_hat, se) if details else rho
 
@@ -177,6 +183,10 @@ class BuildConfig:
     # calibrated SVM success depth, calibration.py). Against 2,000 direct simulations per
     # pair the GP is the more accurate (bench/README.md).
     rho_model: str = "gp"
+    # rho_model "gp": cap each pose's probability at 1 - the part's lapse rate, the failures
+    # no pose explains (gpc.lapse_rate). Without it the cylinder's rho is 1.000 where 2,000
+    # direct simulations give 0.973.
+    lapse_ceiling: bool = True
     surface_degree: tuple = (3, 2)
 
     @classmethod
@@ -193,7 +203,7 @@ class MetaModel:
 
     def __init__(self, part_name, sg_grid, sc_grid, boundaries, levels, rho_grids, surfaces,
                  domain=PoseDomain(), n_queries=20000, surface_degree=(3, 2), info=None,
-                 conservative_z=1.0, monotone_sc=True):
+                 conservative_z=1.0, monotone_sc=True, lapse=0.0):
         self.part_name = part_name
         self.sg_grid = tuple(float(s) for s in sg_grid)
         self.sc_grid = tuple(float(s) for s in sc_grid)
@@ -207,6 +217,7 @@ class MetaModel:
         self.info = dict(info or {})
         self.conservative_z = float(conservative_z)
         self.monotone_sc = bool(monotone_sc)  # the surfaces are non-decreasing in S_c
+        self.lapse = float(lapse)  # rho caps each pose's probability at 1 - lapse (GP model)
 
     def level(self, sigma_r: float, sigma_phi: float):
         for lv in self.levels:
@@ -233,7 +244,7 @@ class MetaModel:
         out = np.zeros((len(self.sg_grid), len(self.sc_grid)))
         for (i, j), bm in self.boundaries.items():
             out[i, j] = success_probability(bm, sigma_r, sigma_phi, self.domain, self.n_queries,
-                                            z=self.conservative_z)
+                                            z=self.conservative_z, lapse=self.lapse)
         return out
 
     def rho(self, s_g, s_c, sigma_r: float, sigma_phi: float):
@@ -249,6 +260,7 @@ class MetaModel:
             "domain": asdict(self.domain), "n_queries": self.n_queries,
             "surface_degree": list(self.surface_degree), "info": self.info,
             "conservative_z": self.conservative_z, "surface_monotone_sc": self.monotone_sc,
+            "lapse": self.lapse,
             "levels": [{**asdict(lv), "rho_grid": np.asarray(self.rho_grids[lv.name]).tolist(),
                         "surface": self.surfaces[lv.name].to_dict()} for lv in self.levels],
             "boundaries": [{"i": i, "j": j, **bm.to_dict()}
@@ -270,7 +282,8 @@ class MetaModel:
         bounds = {(b["i"], b["j"]): BoundaryModel.from_dict(b) for b in d["boundaries"]}
         return cls(d["part"], d["sg_grid"], d["sc_grid"], bounds, levels, grids, surfaces,
                    PoseDomain(**d["domain"]), d["n_queries"], tuple(d["surface_degree"]),
-                   d.get("info"), d.get("conservative_z", 1.0), d.get("surface_monotone_sc", True))
+                   d.get("info"), d.get("conservative_z", 1.0), d.get("surface_monotone_sc", True),
+                   d.get("lapse", 0.0))
 
     def save(self, path) -> None:
         """Write JSON atomically (temp file in the same directory, then os.replace)."""
@@ -343,7 +356,10 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                    config.n_queries, config.surface_degree, conservative_z=config.conservative_z,
                    monotone_sc=sc_monotone,
                    info={"seed": seed, "sim": asdict(config.sim), "active": asdict(config.active),
-                         "use_sc_monotonicity": sc_monotone, "rho_model": config.rho_model})
+                         "use_sc_monotonicity": sc_monotone, "rho_model": config.rho_model,
+                         "lapse_ceiling": config.lapse_ceiling})
+    if config.rho_model == "gp" and config.lapse_ceiling:
+        mm.lapse = lapse_rate((bm.gp, bm.simulated) for bm in boundaries.values())
     for lv in config.levels:
         mm.rho_grids[lv.name] = mm.probability_grid(lv.sigma_r, lv.sigma_phi)
         mm.surfaces[lv.name] = fit_rho_surface(sg_grid, sc_grid, mm.rho_grids[lv.name],
