@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pickplan.pickup.active import exploit_gp
-from pickplan.pickup.gpc import GPSuccessModel, lapse_rate
+from pickplan.pickup.gpc import CONFIDENT, GPSuccessModel, lapse_rate
 from pickplan.pickup.metamodel import BoundaryModel
 from pickplan.pickup.synthetic import NoisyEllipsoidOracle
 
@@ -126,7 +126,7 @@ def test_lapse_rate_recovers_the_failures_no_pose_explains(lapse):
         gp = GPSuccessModel(X, y, seed=0)
         simulated = np.arange(len(X)) % 4 != 0
         fits.append((gp, simulated))
-        n_confident += int(((gp.probability(X) >= 0.9) & simulated).sum())
+        n_confident += int(((gp.probability(X) >= CONFIDENT) & simulated).sum())
     assert n_confident > 200
     est = lapse_rate(fits)
     assert abs(est - lapse) <= 3 * math.sqrt(max(lapse, 0.01) / n_confident) + 1 / n_confident
