@@ -10,14 +10,14 @@ OUT ?= out
 
 SYSTEM_PACKAGES := g++ make pkg-config python3-venv python3-dev \
   libeigen3-dev libfcl-dev libccd-dev liburdfdom-dev liburdfdom-headers-dev \
-  libnlopt-cxx-dev coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev
+  libnlopt-cxx-dev coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache
 PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.10" "pybind11>=2.12" "cmake>=3.18" ninja
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 .PHONY: demo test system-deps venv install test-cpp test-python bench clean
 
 demo: install
-	$(PY) -m pickplan.cli demo --out $(OUT)/demo
+	$(PY) -m pickplan demo --out $(OUT)/demo
 
 test: install test-cpp test-python
 

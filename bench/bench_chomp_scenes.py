@@ -9,7 +9,11 @@ import warnings
 
 import numpy as np
 
-from pickplan import chomp, goals, grasps, scenes, world
+from pickplan.omg import chomp
+from pickplan.omg import goals
+from pickplan.omg import grasps
+from pickplan.sim import scenes
+from pickplan.omg import world
 
 
 def main():

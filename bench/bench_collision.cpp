@@ -6,7 +6,7 @@
 #include <random>
 
 #include "bench_common.hpp"
-#include "pickplan/collision.hpp"
+#include "pickplan/geometry/collision.hpp"
 
 namespace pickplan::bench {
 namespace {

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "pickplan/robot.hpp"
+#include "pickplan/core/robot.hpp"
 
 namespace pickplan::bench {
 

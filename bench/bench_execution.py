@@ -19,7 +19,9 @@ sys.path.insert(0, os.path.join(HERE, "..", "tests", "python"))
 
 from test_execution import grasp_trajectory, top_down_grasp  # noqa: E402  (the test's grasp builder)
 
-from pickplan import execution, robots, scenes  # noqa: E402
+from pickplan.sim import execution  # noqa: E402
+from pickplan.core import robots
+from pickplan.sim import scenes
 
 
 def main(argv=None):

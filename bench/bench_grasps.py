@@ -15,9 +15,9 @@ import time
 
 import numpy as np
 
-from pickplan import grasps as G
-from pickplan import grasps_sim as S
-from pickplan import objects
+from pickplan.omg import grasps as G
+from pickplan.omg import grasps_sim as S
+from pickplan.core import objects
 
 DEFAULT_OBJECTS = ("005_tomato_soup_can", "006_mustard_bottle", "021_bleach_cleanser", "025_mug", "024_bowl")
 YCB_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "data", "ycb")

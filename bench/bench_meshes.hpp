@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "pickplan/sdf.hpp"
+#include "pickplan/geometry/sdf.hpp"
 
 namespace pickplan::bench {
 

@@ -22,12 +22,12 @@ import time
 
 import numpy as np
 
-from pickplan.pickup.active import ActiveConfig, PoseDomain, learn_boundary, learn_random, predict
-from pickplan.pickup.compare import compare, plot_comparison, summarize, table_markdown
-from pickplan.pickup.metamodel import BuildConfig, build_metamodel, write_text_atomic
-from pickplan.pickup.parallel import SimRunner, sample_seeds
-from pickplan.pickup.parts import PARTS
-from pickplan.pickup.sim import SimConfig, simulate_grasp
+from pickplan.pickup.metamodel.active import ActiveConfig, PoseDomain, learn_boundary, learn_random, predict
+from pickplan.pickup.metamodel.compare import compare, plot_comparison, summarize, table_markdown
+from pickplan.pickup.metamodel.model import BuildConfig, build_metamodel, write_text_atomic
+from pickplan.pickup.metamodel.parallel import SimRunner, sample_seeds
+from pickplan.pickup.metamodel.parts import PARTS
+from pickplan.pickup.metamodel.sim import SimConfig, simulate_grasp
 
 
 def bench_sim_time(n: int, seed: int) -> dict:

@@ -7,7 +7,8 @@ solved by the successive refinement for several thresholds gamma on the stand-in
 import argparse
 import os
 
-from pickplan.pickup import cases, planner
+from pickplan.pickup.nlp import cases
+from pickplan.pickup.nlp import planner
 
 
 def main() -> None:

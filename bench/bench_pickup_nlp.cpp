@@ -8,7 +8,7 @@
 #include <sstream>
 
 #include "bench_common.hpp"
-#include "pickplan/pickup_cases.hpp"
+#include "pickplan/pickup/cases.hpp"
 
 namespace pickplan::bench {
 namespace {

@@ -14,7 +14,10 @@ import dataclasses
 import statistics
 import time
 
-from pickplan import omg, scenes, sdf, world
+from pickplan.omg import planner as omg
+from pickplan.sim import scenes
+from pickplan.core import sdf
+from pickplan.omg import world
 
 STAGES = ("goal_set", "chomp", "costs", "selection", "isf", "metrics", "total")
 

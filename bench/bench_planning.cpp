@@ -5,11 +5,11 @@
 #include <random>
 
 #include "bench_common.hpp"
-#include "pickplan/chomp.hpp"
-#include "pickplan/collision.hpp"
-#include "pickplan/goal_set.hpp"
-#include "pickplan/ik.hpp"
-#include "pickplan/mesh.hpp"
+#include "pickplan/omg/chomp.hpp"
+#include "pickplan/geometry/collision.hpp"
+#include "pickplan/omg/goal_set.hpp"
+#include "pickplan/core/ik.hpp"
+#include "pickplan/geometry/mesh.hpp"
 
 namespace pickplan::bench {
 namespace {

@@ -2,7 +2,7 @@
 #include <random>
 
 #include "bench_common.hpp"
-#include "pickplan/robot.hpp"
+#include "pickplan/core/robot.hpp"
 
 namespace pickplan::bench {
 namespace {

@@ -16,7 +16,10 @@ import time
 
 import numpy as np
 
-from pickplan import objects, objects_builtin, scenes, scenes_cli
+from pickplan.core import objects
+from pickplan.core import objects_builtin
+from pickplan.sim import scenes
+from pickplan.sim import scene_sets
 
 
 def _timed(fn, *args):
@@ -52,7 +55,7 @@ def bench_scenes(lib, n, seed=0):
     for name in lib.names:  # load outside the timing
         lib.get(name)
     times, counts = [], []
-    for s in scenes_cli.scene_seeds(seed, n):
+    for s in scene_sets.scene_seeds(seed, n):
         scene, t = _timed(scenes.generate_scene, s, lib)
         times.append(t)
         counts.append(len(scene.objects))

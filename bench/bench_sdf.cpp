@@ -4,8 +4,8 @@
 
 #include "bench_common.hpp"
 #include "bench_meshes.hpp"
-#include "pickplan/robot.hpp"
-#include "pickplan/sdf.hpp"
+#include "pickplan/core/robot.hpp"
+#include "pickplan/geometry/sdf.hpp"
 
 namespace pickplan::bench {
 namespace {

@@ -25,11 +25,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from pickplan import grasps as grasps_mod
-from pickplan import objects, omg, scenes
-from pickplan.goals import GoalSetSettings, build_goal_set
-from pickplan.scenes_cli import scene_seeds
-from pickplan.world import World
+from pickplan.omg import grasps as grasps_mod
+from pickplan.core import objects
+from pickplan.omg import planner as omg
+from pickplan.sim import scenes
+from pickplan.omg.goals import GoalSetSettings, build_goal_set
+from pickplan.sim.scene_sets import scene_seeds
+from pickplan.omg.world import World
 
 POLICIES = ("Fixed", "Proj", "FTC", "FTL", "EXP", "MD")
 SETS = {

@@ -21,8 +21,8 @@ import time
 
 import numpy as np
 
-from pickplan import grasps_sim as S
-from pickplan import objects
+from pickplan.omg import grasps_sim as S
+from pickplan.core import objects
 
 HARD = ("003_cracker_box", "004_sugar_box", "006_mustard_bottle", "021_bleach_cleanser")
 EASY = ("005_tomato_soup_can", "010_potted_meat_can", "024_bowl", "025_mug")

@@ -16,13 +16,13 @@ if [ -n "${FULL:-}" ]; then
   size=(--scenes 100 --runs 10 --objects "$YCB")
   mkdir -p "$OUT"
   # one scene set for every table: generated once by the first sweep, then shared
-  $PY -m pickplan.experiments_cli bench selection "${size[@]}" "${extra[@]}" --out "$OUT/selection"
+  $PY -m pickplan bench selection "${size[@]}" "${extra[@]}" --out "$OUT/selection"
   scenes=(--scene-dir "$OUT/selection/scenes" --runs 10)
-  $PY -m pickplan.experiments_cli bench planners "${scenes[@]}" "${extra[@]}" --out "$OUT/planners"
-  $PY -m pickplan.experiments_cli bench refinement "${scenes[@]}" --grasps 60 "${extra[@]}" --out "$OUT/refinement"
-  $PY -m pickplan.experiments_cli bench ablation "${scenes[@]}" "${extra[@]}" --out "$OUT/ablation"
+  $PY -m pickplan bench planners "${scenes[@]}" "${extra[@]}" --out "$OUT/planners"
+  $PY -m pickplan bench refinement "${scenes[@]}" --grasps 60 "${extra[@]}" --out "$OUT/refinement"
+  $PY -m pickplan bench ablation "${scenes[@]}" "${extra[@]}" --out "$OUT/ablation"
 else
   for t in selection planners refinement ablation; do
-    $PY -m pickplan.experiments_cli bench "$t" --quick "${extra[@]}" --out "$OUT/quick_$t"
+    $PY -m pickplan bench "$t" --quick "${extra[@]}" --out "$OUT/quick_$t"
   done
 fi

@@ -9,8 +9,8 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include "pickplan/errors.hpp"
-#include "pickplan/robot.hpp"
+#include "pickplan/core/errors.hpp"
+#include "pickplan/core/robot.hpp"
 
 namespace py = pybind11;
 

@@ -1,6 +1,6 @@
 #pragma once
 // Small meshes built in code for the C++ tests.
-#include "pickplan/sdf.hpp"
+#include "pickplan/geometry/sdf.hpp"
 
 namespace pickplan::test {
 

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <string>
 
-#include "pickplan/pickup_nlp.hpp"
-#include "pickplan/robot.hpp"
+#include "pickplan/pickup/nlp.hpp"
+#include "pickplan/core/robot.hpp"
 
 namespace pickplan::test {
 

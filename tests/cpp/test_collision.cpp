@@ -7,9 +7,9 @@
 
 #include <gtest/gtest.h>
 
-#include "pickplan/collision.hpp"
-#include "pickplan/errors.hpp"
-#include "pickplan/mesh.hpp"
+#include "pickplan/geometry/collision.hpp"
+#include "pickplan/core/errors.hpp"
+#include "pickplan/geometry/mesh.hpp"
 
 using namespace pickplan;
 

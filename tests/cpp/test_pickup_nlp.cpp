@@ -8,11 +8,11 @@
 #include <gtest/gtest.h>
 
 #include "pickup_fixtures.hpp"
-#include "pickplan/pickup_cases.hpp"
-#include "pickplan/pickup_nlp.hpp"
-#include "pickplan/poly_traj.hpp"
-#include "pickplan/robot.hpp"
-#include "pickplan/stomp.hpp"
+#include "pickplan/pickup/cases.hpp"
+#include "pickplan/pickup/nlp.hpp"
+#include "pickplan/pickup/poly_traj.hpp"
+#include "pickplan/core/robot.hpp"
+#include "pickplan/pickup/stomp.hpp"
 
 using namespace pickplan;
 

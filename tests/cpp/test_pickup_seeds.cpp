@@ -6,9 +6,9 @@
 #include <gtest/gtest.h>
 
 #include "pickup_fixtures.hpp"
-#include "pickplan/pickup_cases.hpp"
-#include "pickplan/pickup_nlp.hpp"
-#include "pickplan/robot.hpp"
+#include "pickplan/pickup/cases.hpp"
+#include "pickplan/pickup/nlp.hpp"
+#include "pickplan/core/robot.hpp"
 
 using namespace pickplan;
 

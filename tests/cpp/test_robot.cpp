@@ -3,8 +3,8 @@
 
 #include <gtest/gtest.h>
 
-#include "pickplan/errors.hpp"
-#include "pickplan/robot.hpp"
+#include "pickplan/core/errors.hpp"
+#include "pickplan/core/robot.hpp"
 
 using namespace pickplan;
 

@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "mesh_fixtures.hpp"
-#include "pickplan/sdf.hpp"
+#include "pickplan/geometry/sdf.hpp"
 
 using namespace pickplan;
 

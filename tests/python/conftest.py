@@ -9,7 +9,7 @@ YCB_DIR = os.environ.get("PICKPLAN_YCB_DIR",
 
 @pytest.fixture(scope="session")
 def panda():
-    import pickplan.robots
+    import pickplan.core.robots
 
     return pickplan.robots.panda()
 

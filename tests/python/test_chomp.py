@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from pickplan import chomp, robots, sdf
+from pickplan.omg import chomp
+from pickplan.core import robots
+from pickplan.core import sdf
 
 Q_LEFT = np.array([1.0, 0.2, 0.0, -2.0, 0.0, 2.2, 0.785, 0.04, 0.04])
 Q_RIGHT = np.array([-1.0, 0.2, 0.0, -2.0, 0.0, 2.2, 0.785, 0.04, 0.04])

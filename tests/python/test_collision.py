@@ -7,7 +7,7 @@ import pybullet as pb
 import pytest
 import trimesh
 
-from pickplan.collision import CollisionChecker, CollisionSettings, SceneMesh, Table
+from pickplan.core.collision import CollisionChecker, CollisionSettings, SceneMesh, Table
 
 N_SCENES = 4
 N_PER_SCENE = 250          # 1,000 configurations in total

@@ -9,7 +9,10 @@ import struct
 import numpy as np
 import pytest
 
-from pickplan import execution, objects, robots, scenes
+from pickplan.sim import execution
+from pickplan.core import objects
+from pickplan.core import robots
+from pickplan.sim import scenes
 
 GRASP_DEPTH = 0.105  # panda_hand origin -> the point between the finger pads (panda_grasptarget)
 SEED_CAN, CAN = 5, "005_tomato_soup_can"   # an upside-down can with free space around it

@@ -9,8 +9,8 @@ import shutil
 import numpy as np
 import pytest
 
-from pickplan import experiments as E
-from pickplan import experiments_cli as C
+from pickplan.eval import experiments as E
+from pickplan.cli import bench as C
 
 
 def _check_summary(summary, methods, scenes, runs):
@@ -115,11 +115,11 @@ def test_a_failing_unit_is_recorded_and_the_sweep_goes_on(scene_dir, tmp_path):
 
 
 def test_baselines_valid_trajectories(scene_dir):
-    from pickplan.baselines import BaselineSettings, plan_baseline
-    from pickplan.goals import GoalSetSettings
-    from pickplan.omg import OMGSettings
-    from pickplan.scenes import Scene
-    from pickplan.world import World
+    from pickplan.eval.baselines import BaselineSettings, plan_baseline
+    from pickplan.omg.goals import GoalSetSettings
+    from pickplan.omg.planner import OMGSettings
+    from pickplan.sim.scenes import Scene
+    from pickplan.omg.world import World
 
     scene = Scene.load(os.path.join(scene_dir, sorted(os.listdir(scene_dir))[0]))
     world = World(scene)

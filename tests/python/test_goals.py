@@ -3,7 +3,10 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from pickplan import _core, goals, scenes, world
+from pickplan import _core
+from pickplan.omg import goals
+from pickplan.sim import scenes
+from pickplan.omg import world
 
 
 def _side_grasps(model, n_angles=24, heights=(0.35, 0.55, 0.75)):
@@ -135,7 +138,7 @@ def test_world_caches_are_per_world_and_release_the_world(scene_world):
     import gc
     import weakref
 
-    from pickplan import isf
+    from pickplan.omg import isf
 
     goal, hand = scene_world.checker("goal"), scene_world.checker("hand")
     refiner = scene_world.grasp_refiner(isf.IsfSettings(), 0)

@@ -7,9 +7,9 @@ import pytest
 
 from conftest import ycb_dir_or_skip
 
-from pickplan import grasps as G
-from pickplan import grasps_sim as S
-from pickplan import objects
+from pickplan.omg import grasps as G
+from pickplan.omg import grasps_sim as S
+from pickplan.core import objects
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,7 @@ def _private_cache(tmp_path, monkeypatch):
 def _hand_surface(n=400, seed=0):
     """Points on the hand + open finger collision meshes (panda_hand frame), via the Panda model."""
     import trimesh
-    from pickplan.robots import panda
+    from pickplan.core.robots import panda
 
     robot = panda()
     q = robot.ready_configuration
@@ -50,7 +50,7 @@ _SDFS = {}
 def _sdf(model):
     """A fine native SDF grid of the object mesh: an inside test independent of FCL (2 mm voxels,
     ~1 mm interpolation error near the surface; trimesh's ``contains`` is ~10 ms a point)."""
-    from pickplan import sdf
+    from pickplan.core import sdf
 
     if model.source not in _SDFS:
         _SDFS[model.source] = sdf.mesh_sdf(model.mesh, sdf.SdfSettings(resolution=0.002, margin=0.05, cache_dir=""))
@@ -124,7 +124,7 @@ def test_hand_contacts_asset_is_reproducible_and_moves_with_fingers():
     closed = G.hand_contacts(0.01)
     assert np.allclose(closed.points[closed.finger == 0, 1], 0.01, atol=1e-3)
     # the pad points lie on the finger surfaces of the Panda model at its open configuration
-    from pickplan.robots import panda
+    from pickplan.core.robots import panda
     import trimesh
     robot = panda()
     q = robot.ready_configuration

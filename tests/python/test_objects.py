@@ -6,7 +6,8 @@ import pytest
 import trimesh
 from scipy.spatial import ConvexHull
 
-from pickplan import objects, objects_builtin
+from pickplan.core import objects
+from pickplan.core import objects_builtin
 from conftest import ycb_dir_or_skip
 
 YCB_TEN = ["002_master_chef_can", "003_cracker_box", "004_sugar_box", "005_tomato_soup_can",
@@ -135,7 +136,7 @@ def test_upright_can_barrier_matches_closed_form(builtins):
 def test_resting_poses_are_stable_in_pybullet(builtins, bullet):
     """Each object at its most stable pose stays put for 0.5 s of simulation."""
     import pybullet as pb
-    from pickplan import scenes
+    from pickplan.sim import scenes
 
     pb.setGravity(0, 0, -9.81, physicsClientId=bullet)
     plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=bullet)

@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from pickplan import grasps, isf, objects, omg, scenes, world
+from pickplan.omg import grasps
+from pickplan.omg import isf
+from pickplan.core import objects
+from pickplan.omg import planner as omg
+from pickplan.sim import scenes
+from pickplan.omg import world
 from conftest import ycb_dir_or_skip
 
 SETTINGS = omg.OMGSettings(grasp_kind="antipodal")
@@ -92,7 +97,7 @@ def test_isf_decreases_f_grasp_on_ycb_simulated_grasps(tmp_path):
     lib = objects.library(folder)
     sc = scenes.generate_scene(3, library=lib)
     w = world.World(sc)
-    from pickplan import goals
+    from pickplan.omg import goals
 
     gset = grasps.grasp_set(w.target_model, "simulated", 100)
     gs = goals.build_goal_set(w, gset.poses, settings=goals.GoalSetSettings(max_goals=10))
@@ -106,7 +111,7 @@ def test_isf_decreases_f_grasp_on_ycb_simulated_grasps(tmp_path):
 
 def test_isf_pushes_a_penetrating_hand_out(scene):
     w = world.World(scene)
-    from pickplan import goals
+    from pickplan.omg import goals
 
     gset = grasps.grasp_set(w.target_model, "antipodal", 60, seed=0)
     gs = goals.build_goal_set(w, gset.poses, settings=goals.GoalSetSettings(max_goals=5))

@@ -25,10 +25,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pickplan import goals, grasps, omg, scenes
-from pickplan.chomp import Chomp
-from pickplan.robots import PandaInfo
-from pickplan.world import World
+from pickplan.omg import goals
+from pickplan.omg import grasps
+from pickplan.omg import planner as omg
+from pickplan.sim import scenes
+from pickplan.omg.chomp import Chomp
+from pickplan.core.robots import PandaInfo
+from pickplan.omg.world import World
 
 ONLINE = ("FTC", "FTL", "EXP", "MD")
 SETTINGS = omg.OMGSettings(refine=False)  # Table I setting: selection only, no ISF

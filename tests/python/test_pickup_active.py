@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from pickplan.pickup.active import (ActiveConfig, known_from_lower_sc, learn_boundary,
+from pickplan.pickup.metamodel.active import (ActiveConfig, known_from_lower_sc, learn_boundary,
                                     learn_random, predict)
-from pickplan.pickup.synthetic import EllipsoidOracle
+from pickplan.pickup.metamodel.synthetic import EllipsoidOracle
 
 CFG = ActiveConfig(n_init=20, n_holdout=20, batch_size=15, budget=100, select_every=100)
 

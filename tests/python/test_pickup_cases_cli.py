@@ -8,12 +8,15 @@ import os
 import numpy as np
 import pytest
 
-from pickplan.pickup import cases, cases_cli, planner, replay
+from pickplan.pickup.nlp import cases
+from pickplan.cli import pickup as cases_cli
+from pickplan.pickup.nlp import planner
+from pickplan.pickup.nlp import replay
 
 
 @pytest.fixture(scope="module")
 def plan_dict():
-    return planner._solve_job((4, "successive", 0, {"sigma": "medium"}, {"samples_per_interval": 6}))
+    return cases._solve_job((4, "successive", 0, {"sigma": "medium"}, {"samples_per_interval": 6}))
 
 
 def test_cases_cli_writes_tables_plot_trajectories_and_replays(tmp_path, monkeypatch, plan_dict, capsys):
@@ -68,8 +71,8 @@ def test_replay_checks_pose_and_finds_a_collision(plan_dict):
 
 
 def test_ensure_metamodel_builds_once_from_simulation_and_the_nlp_reads_it(tmp_path, monkeypatch):
-    from pickplan.pickup import metamodel
-    from pickplan.pickup.active import ActiveConfig
+    from pickplan.pickup.metamodel import model as metamodel
+    from pickplan.pickup.metamodel.active import ActiveConfig
     tiny = metamodel.BuildConfig(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.15), n_queries=2000,
                                  active=ActiveConfig(n_init=12, n_holdout=12, batch_size=10, budget=30))
     path = tmp_path / "mm" / "metamodel_box.json"

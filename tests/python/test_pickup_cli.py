@@ -3,10 +3,10 @@ import json
 import math
 import os
 
-from pickplan.pickup.cli import main
-from pickplan.pickup.compare import reference_cache_path, reference_seed
-from pickplan.pickup.metamodel import MetaModel
-from pickplan.pickup.sim import SimConfig
+from pickplan.cli.metamodel import main
+from pickplan.pickup.metamodel.compare import reference_cache_path, reference_seed
+from pickplan.pickup.metamodel.model import MetaModel
+from pickplan.pickup.metamodel.sim import SimConfig
 
 
 def test_build_and_compare(tmp_path):

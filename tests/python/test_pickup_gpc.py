@@ -4,10 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from pickplan.pickup.active import exploit_gp
-from pickplan.pickup.gpc import CONFIDENT, GPSuccessModel, lapse_rate
-from pickplan.pickup.metamodel import BoundaryModel
-from pickplan.pickup.synthetic import NoisyEllipsoidOracle
+from pickplan.pickup.metamodel.active import exploit_gp
+from pickplan.pickup.metamodel.gpc import CONFIDENT, GPSuccessModel, lapse_rate
+from pickplan.pickup.metamodel.model import BoundaryModel
+from pickplan.pickup.metamodel.synthetic import NoisyEllipsoidOracle
 
 
 def _half_space_samples(n, a, seed, width=0.03, s=0.1, lapse=0.0):
@@ -150,7 +150,7 @@ def test_rho_caps_each_probability_at_the_ceiling():
 def test_learning_loop_can_stop_and_sample_on_the_gp_posterior():
     """ActiveConfig(rho_model="gp"): the stopping rule and the rho-directed samples use the
     GP; rho estimates and their posterior errors are recorded per round, the budget holds."""
-    from pickplan.pickup.active import ActiveConfig, learn_boundary
+    from pickplan.pickup.metamodel.active import ActiveConfig, learn_boundary
 
     oracle = NoisyEllipsoidOracle(0.3, 0.15, width=0.1, seed=0)
     res = learn_boundary(oracle, ActiveConfig(budget=150, rho_model="gp"), seed=0)

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 from sklearn.svm import SVC
 
-from pickplan.pickup.active import exploit_band, exploit_rho, select_svm_params
-from pickplan.pickup.calibration import calibrate, svm_depth
-from pickplan.pickup.kernel import fit_svm, success_metric
+from pickplan.pickup.metamodel.active import exploit_band, exploit_rho, select_svm_params
+from pickplan.pickup.metamodel.calibration import calibrate, svm_depth
+from pickplan.pickup.metamodel.kernel import fit_svm, success_metric
 
 
 def _slab(n, seed):

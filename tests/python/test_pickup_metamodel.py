@@ -6,9 +6,9 @@ import os
 import numpy as np
 import pytest
 
-from pickplan.pickup.active import ActiveConfig
-from pickplan.pickup.metamodel import DEFAULT_LEVELS, BuildConfig, MetaModel, build_metamodel
-from pickplan.pickup.synthetic import EllipsoidOracle, oracle_factory
+from pickplan.pickup.metamodel.active import ActiveConfig
+from pickplan.pickup.metamodel.model import DEFAULT_LEVELS, BuildConfig, MetaModel, build_metamodel
+from pickplan.pickup.metamodel.synthetic import EllipsoidOracle, oracle_factory
 
 CFG = BuildConfig(
     sg_grid=(0.1, 0.3, 0.5), sc_grid=(0.05, 0.15),
@@ -111,7 +111,7 @@ def test_closing_speed_monotonicity_follows_the_part(tmp_path):
     success is monotone in the closing speed (Part.closing_monotone)."""
     from dataclasses import replace as dc_replace
 
-    from pickplan.pickup.parts import get_part
+    from pickplan.pickup.metamodel.parts import get_part
 
     cfg = BuildConfig(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.1, 0.15), n_queries=3000, surface_degree=(1, 2),
                       active=ActiveConfig(n_init=20, n_holdout=20, batch_size=15, budget=60, select_every=100))

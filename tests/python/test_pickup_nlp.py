@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from pickplan.pickup import cases, planner
+from pickplan.pickup.nlp import cases
+from pickplan.pickup.nlp import planner
 
 FAST = planner.PlannerSettings(samples_per_interval=6)
 

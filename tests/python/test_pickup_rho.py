@@ -4,10 +4,10 @@ jitter), and the calibration pieces it rests on."""
 import numpy as np
 import pytest
 
-from pickplan.pickup.active import fit_svm
-from pickplan.pickup.calibration import calibrate, fit_depth_sigmoid, svm_depth
-from pickplan.pickup.metamodel import BuildConfig, MetaModel, build_metamodel, success_probability
-from pickplan.pickup.synthetic import NoisyEllipsoidOracle, noisy_oracle_factory
+from pickplan.pickup.metamodel.active import fit_svm
+from pickplan.pickup.metamodel.calibration import calibrate, fit_depth_sigmoid, svm_depth
+from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel, success_probability
+from pickplan.pickup.metamodel.synthetic import NoisyEllipsoidOracle, noisy_oracle_factory
 
 WIDTH = 0.1  # noise band of the oracle, in ellipsoid-radius units
 

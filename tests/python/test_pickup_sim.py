@@ -4,9 +4,9 @@ import os
 import numpy as np
 import pytest
 
-from pickplan.pickup.parallel import run_batch, sample_seeds
-from pickplan.pickup.parts import PARTS, get_part
-from pickplan.pickup.sim import SimConfig, closing_time, nominal_part_pose, simulate_grasp
+from pickplan.pickup.metamodel.parallel import run_batch, sample_seeds
+from pickplan.pickup.metamodel.parts import PARTS, get_part
+from pickplan.pickup.metamodel.sim import SimConfig, closing_time, nominal_part_pose, simulate_grasp
 
 
 def test_same_seed_same_result_and_seed_matters():

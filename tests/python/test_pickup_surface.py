@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from pickplan.pickup.surface import RhoSurface, fit_rho_surface
+from pickplan.pickup.metamodel.surface import RhoSurface, fit_rho_surface
 
 SG = np.array([0.1, 0.2, 0.3, 0.4, 0.5])
 SC = np.array([0.05, 0.1, 0.15])

@@ -6,7 +6,7 @@ import pybullet as pb
 import pytest
 
 import pickplan
-from pickplan import robots
+from pickplan.core import robots
 
 
 def _load_in_bullet(cid, robot):

@@ -1,5 +1,4 @@
 """pickplan.scenes: seeded generation, resting objects, JSON round trip, reloading, the CLI."""
-import ast
 import json
 import math
 import os
@@ -8,7 +7,10 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from pickplan import objects, scenes, scenes_cli
+from pickplan.core import objects
+from pickplan.sim import scenes
+from pickplan.cli import scenes as scenes_cli
+from pickplan.sim import scene_sets
 from conftest import ycb_dir_or_skip
 
 SEEDS = (0, 5, 11)
@@ -73,9 +75,9 @@ def test_scene_contents_follow_the_conventions(generated):
 
 def test_targets_and_counts_vary_over_seeds():
     # cheap settings-independent check on many seeds: the sampler uses its seed
-    seeds = scenes_cli.scene_seeds(0, 4)
-    assert len(set(seeds)) == 4 and seeds == scenes_cli.scene_seeds(0, 4)
-    assert scenes_cli.scene_seeds(1, 4) != seeds
+    seeds = scene_sets.scene_seeds(0, 4)
+    assert len(set(seeds)) == 4 and seeds == scene_sets.scene_seeds(0, 4)
+    assert scene_sets.scene_seeds(1, 4) != seeds
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -148,12 +150,12 @@ def test_settings_and_library_are_validated():
         scenes.generate_scene(0, "/no_such_folder")
 
 
-def test_fallback_ready_configuration_matches_robots():
-    """scenes keeps a copy of PandaInfo.ready for builds without the native module: pin them together."""
-    src = open(os.path.join(os.path.dirname(scenes.__file__), "robots.py")).read()
-    cls = next(n for n in ast.parse(src).body if isinstance(n, ast.ClassDef) and n.name == "PandaInfo")
-    ready = next(n.value for n in cls.body if isinstance(n, ast.AnnAssign) and n.target.id == "ready")
-    assert ast.literal_eval(ready) == scenes._PANDA_READY_FALLBACK
+def test_scenes_start_the_panda_in_its_ready_configuration():
+    """scenes and robots read the Panda's ready configuration from one place (core.panda)."""
+    from pickplan.core import robots
+
+    path, ready = scenes._panda_defaults()
+    assert ready == tuple(robots.panda().ready_configuration) and os.path.isfile(path)
 
 
 def test_cli_writes_scenes_and_an_index(tmp_path, capsys, monkeypatch):

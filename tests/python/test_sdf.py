@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from pickplan import _core, sdf
+from pickplan import _core
+from pickplan.core import sdf
 from conftest import ycb_dir_or_skip
 
 

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from pickplan import selection
+from pickplan.omg import selection
 
 
 def _run(policy, costs, initial=None):

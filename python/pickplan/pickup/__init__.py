@@ -5,13 +5,13 @@ rho_sigma(S_g, S_c) used by the trajectory NLP.
 Pure Python (numpy, pybullet, scikit-learn, scipy); never imports pickplan._core.
 matplotlib is needed only for compare.plot_comparison.
 """
-from .active import ActiveConfig, BoundaryResult, PoseDomain, learn_boundary, learn_random
-from .metamodel import (DEFAULT_LEVELS, BoundaryModel, BuildConfig, MetaModel, SigmaLevel,
+from pickplan.pickup.metamodel.active import ActiveConfig, BoundaryResult, PoseDomain, learn_boundary, learn_random
+from pickplan.pickup.metamodel.model import (DEFAULT_LEVELS, BoundaryModel, BuildConfig, MetaModel, SigmaLevel,
                         build_metamodel, success_probability)
-from .parallel import SimRunner, run_batch
-from .parts import PARTS, GraspStrategy, Part, get_part
-from .sim import GraspOutcome, SimConfig, simulate_grasp
-from .surface import RhoSurface, fit_rho_surface
+from pickplan.pickup.metamodel.parallel import SimRunner, run_batch
+from pickplan.pickup.metamodel.parts import PARTS, GraspStrategy, Part, get_part
+from pickplan.pickup.metamodel.sim import GraspOutcome, SimConfig, simulate_grasp
+from pickplan.pickup.metamodel.surface import RhoSurface, fit_rho_surface
 
 __all__ = [
     "ActiveConfig", "BoundaryResult", "PoseDomain", "learn_boundary", "learn_random",

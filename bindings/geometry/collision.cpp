@@ -1,0 +1,152 @@
+// Bindings of the FCL collision checker (pickplan/collision.hpp).
+#include "../common.hpp"
+#include "pickplan/geometry/collision.hpp"
+
+namespace pickplan::bind {
+
+namespace {
+
+TriangleMesh mesh_arg(const Array& V, const IntArray& F, const std::string& what) {
+  require_shape((what + " vertices").c_str(), V, {-1, 3}, "(V, 3)");
+  require_shape((what + " faces").c_str(), F, {-1, 3}, "(F, 3)");
+  TriangleMesh m;
+  m.vertices = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(V.data(), V.shape(0), 3);
+  m.faces = Eigen::Map<const Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>>(F.data(), F.shape(0), 3);
+  return m;
+}
+
+const char* kind_name(OtherKind k) {
+  switch (k) {
+    case OtherKind::Object: return "object";
+    case OtherKind::Table: return "table";
+    case OtherKind::Link: return "link";
+  }
+  return "?";
+}
+
+std::unique_ptr<CollisionChecker> make_checker(const Robot& robot, const py::list& link_meshes, const py::list& objects,
+                                               const py::object& table_size, const py::object& table_pose,
+                                               const CollisionSettings& settings) {
+  std::vector<LinkMesh> links;
+  for (const auto& item : link_meshes) {
+    auto t = item.cast<py::tuple>();
+    if (t.size() != 3) throw std::invalid_argument("link_meshes: expected (link name, vertices, faces) tuples");
+    auto name = t[0].cast<std::string>();
+    links.push_back({name, mesh_arg(t[1].cast<Array>(), t[2].cast<IntArray>(), "mesh of link '" + name + "'")});
+  }
+  std::vector<SceneObject> objs;
+  for (const auto& item : objects) {
+    auto t = item.cast<py::tuple>();
+    if (t.size() != 4) throw std::invalid_argument("objects: expected (name, vertices, faces, pose 4x4) tuples");
+    auto name = t[0].cast<std::string>();
+    const std::string what = "object '" + name + "'";
+    objs.push_back({name, mesh_arg(t[1].cast<Array>(), t[2].cast<IntArray>(), what),
+                    Transform::from_matrix(matrix4(t[3].cast<Array>(), ("pose of " + what).c_str()))});
+  }
+  TableBox table;
+  if (!table_size.is_none()) {
+    Array s = table_size.cast<Array>();
+    require_shape("table size", s, {3}, "(3,)");
+    require_finite_array("table size", s);
+    table.size = Eigen::Vector3d(s.at(0), s.at(1), s.at(2));
+    if (table.size.isZero()) throw std::invalid_argument("table size: expected 3 positive extents, got zeros");
+    table.pose = table_pose.is_none() ? Transform{} : Transform::from_matrix(matrix4(table_pose.cast<Array>(), "table pose"));
+  }
+  py::gil_scoped_release release;
+  return std::make_unique<CollisionChecker>(robot, std::move(links), std::move(objs), table, settings);
+}
+
+Eigen::VectorXd q_arg(const CollisionChecker& c, const Array& q_in) {
+  Array q = configuration(c.robot(), q_in);
+  return Eigen::Map<const Eigen::VectorXd>(q.data(), q.shape(0));
+}
+
+}  // namespace
+
+void init_collision(py::module_& m) {
+  py::class_<CollisionSettings>(m, "CollisionSettings", "Options of the FCL collision checker (see collision.hpp).")
+      .def(py::init<>())
+      .def_readwrite("allowed_pairs", &CollisionSettings::allowed_pairs)
+      .def_readwrite("excluded_objects", &CollisionSettings::excluded_objects)
+      .def_readwrite("self_collision", &CollisionSettings::self_collision)
+      .def_readwrite("self_collision_reference", &CollisionSettings::self_collision_reference)
+      .def_readwrite("margin", &CollisionSettings::margin)
+      .def_readwrite("detect_containment", &CollisionSettings::detect_containment);
+
+  py::class_<CollisionChecker>(m, "CollisionChecker",
+                               "Immutable FCL collision checker: robot link meshes against scene meshes and a table box.")
+      .def(py::init(&make_checker), py::arg("robot"), py::arg("link_meshes"), py::arg("objects"),
+           py::arg("table_size") = py::none(), py::arg("table_pose") = py::none(),
+           py::arg("settings") = CollisionSettings{},
+           "link_meshes: [(link, V (n,3), F (m,3))] in link frames; objects: [(name, V, F, pose 4x4)].")
+      .def_property_readonly("num_pairs", &CollisionChecker::num_pairs)
+      .def_property_readonly("checked_pairs", &CollisionChecker::checked_pairs)
+      .def_property_readonly("object_names", &CollisionChecker::object_names)
+      .def_property_readonly("settings", &CollisionChecker::settings)
+      .def("in_collision",
+           [](const CollisionChecker& c, const Array& q) {
+             Eigen::VectorXd v = q_arg(c, q);
+             py::gil_scoped_release release;
+             return c.in_collision(v);
+           },
+           py::arg("q"))
+      .def("min_distance",
+           [](const CollisionChecker& c, const Array& q) {
+             Eigen::VectorXd v = q_arg(c, q);
+             py::gil_scoped_release release;
+             return c.min_distance(v);
+           },
+           py::arg("q"))
+      .def("in_collision_batch",
+           [](const CollisionChecker& c, const Array& Q_in, int threads) {
+             Array Q = configurations(c.robot(), Q_in);
+             const long B = static_cast<long>(Q.shape(0));
+             py::array_t<bool> out(B);
+             bool* o = out.mutable_data();
+             const double* q = Q.data();
+             {
+               py::gil_scoped_release release;
+               c.in_collision_batch(q, B, o, threads);
+             }
+             return out;
+           },
+           py::arg("Q"), py::arg("threads") = 1)
+      .def("min_distance_batch",
+           [](const CollisionChecker& c, const Array& Q_in, int threads) {
+             Array Q = configurations(c.robot(), Q_in);
+             const long B = static_cast<long>(Q.shape(0));
+             py::array_t<double> out(B);
+             double* o = out.mutable_data();
+             const double* q = Q.data();
+             {
+               py::gil_scoped_release release;
+               c.min_distance_batch(q, B, o, threads);
+             }
+             return out;
+           },
+           py::arg("Q"), py::arg("threads") = 1)
+      .def("contacts",
+           [](const CollisionChecker& c, const Array& q, double within) {
+             Eigen::VectorXd v = q_arg(c, q);
+             std::vector<ContactInfo> found;
+             {
+               py::gil_scoped_release release;
+               found = c.contacts(v, within);
+             }
+             py::list out;
+             for (const auto& ci : found) {
+               py::dict d;
+               d["link"] = ci.link;
+               d["other"] = ci.other;
+               d["kind"] = kind_name(ci.kind);
+               d["distance"] = ci.distance;
+               d["point_link"] = Eigen::Vector3d(ci.point_link);
+               d["point_other"] = Eigen::Vector3d(ci.point_other);
+               out.append(d);
+             }
+             return out;
+           },
+           py::arg("q"), py::arg("within") = 0.0);
+}
+
+}  // namespace pickplan::bind

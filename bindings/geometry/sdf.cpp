@@ -1,0 +1,162 @@
+#include "../common.hpp"
+#include "pickplan/geometry/sdf.hpp"
+
+namespace pickplan::bind {
+
+namespace {
+
+using FaceArray = py::array_t<int, py::array::c_style | py::array::forcecast>;
+
+std::uint64_t exclusion_mask(const SceneSdf& scene, const std::vector<int>& exclude, bool exclude_table) {
+  std::uint64_t mask = exclude_table ? SceneSdf::kTableBit : 0;
+  for (int i : exclude) {
+    if (i < 0 || i >= scene.num_objects())
+      throw std::invalid_argument("exclude: object index " + std::to_string(i) + " out of range [0, " +
+                                  std::to_string(scene.num_objects()) + ")");
+    mask |= std::uint64_t{1} << i;
+  }
+  return mask;
+}
+
+Array points_arg(const Array& pts) {
+  require_shape("points", pts, {-1, 3}, "(N, 3)");
+  require_finite_array("points", pts);
+  return pts;
+}
+
+}  // namespace
+
+void init_sdf(py::module_& m) {
+  py::class_<SdfGrid, std::shared_ptr<SdfGrid>>(m, "SdfGrid", "Dense signed distance grid of one mesh (grid frame = mesh frame).")
+      .def_static(
+          "build",
+          [](const Array& V, const FaceArray& F, double resolution, double margin) {
+            require_shape("vertices", V, {-1, 3}, "(N, 3)");
+            if (F.ndim() != 2 || F.shape(1) != 3)
+              throw std::invalid_argument("faces: expected shape (M, 3), got " + shape_str(F));
+            Vertices Vm = Eigen::Map<const Vertices>(V.data(), V.shape(0), 3);
+            Faces Fm = Eigen::Map<const Faces>(F.data(), F.shape(0), 3);
+            SdfBuildReport report;
+            std::shared_ptr<SdfGrid> grid;
+            {
+              py::gil_scoped_release release;
+              grid = std::make_shared<SdfGrid>(SdfGrid::build(Vm, Fm, {resolution, margin}, &report));
+            }
+            py::dict info;
+            info["degenerate_faces"] = report.degenerate_faces;
+            info["sign_disagreement"] = report.sign_disagreement;
+            return py::make_tuple(grid, info);
+          },
+          py::arg("vertices"), py::arg("faces"), py::arg("resolution") = 0.005, py::arg("margin") = 0.2,
+          "Build from a triangle mesh; returns (grid, report).")
+      .def_static(
+          "from_values",
+          [](const Eigen::Vector3d& origin, double resolution,
+             const py::array_t<float, py::array::c_style | py::array::forcecast>& values) {
+            if (values.ndim() != 3) throw std::invalid_argument("values: expected a 3-D array (nz, ny, nx), got " + shape_str(values));
+            std::vector<float> v(values.data(), values.data() + values.size());
+            Eigen::Vector3i dims(values.shape(2), values.shape(1), values.shape(0));
+            return std::make_shared<SdfGrid>(SdfGrid::from_values(origin, resolution, dims, std::move(v)));
+          },
+          py::arg("origin"), py::arg("resolution"), py::arg("values"))
+      .def_property_readonly("origin", &SdfGrid::origin)
+      .def_property_readonly("resolution", &SdfGrid::resolution)
+      .def_property_readonly("upper", &SdfGrid::upper)
+      .def_property_readonly("shape", [](const SdfGrid& g) { return py::make_tuple(g.dims().z(), g.dims().y(), g.dims().x()); })
+      .def_property_readonly("values", [](const SdfGrid& g) {
+        py::array_t<float> out({g.dims().z(), g.dims().y(), g.dims().x()});
+        std::copy(g.values().begin(), g.values().end(), out.mutable_data());
+        return out;
+      }, "Node values, array (nz, ny, nx) float32 (x fastest).")
+      .def(
+          "distance",
+          [](const SdfGrid& g, const Array& pts_in) {
+            Array pts = points_arg(pts_in);
+            const py::ssize_t n = pts.shape(0);
+            py::array_t<double> d(n), grad({n, py::ssize_t{3}});
+            double* dp = d.mutable_data();
+            double* gp = grad.mutable_data();
+            const double* p = pts.data();
+            {
+              py::gil_scoped_release release;
+              Eigen::Vector3d gr;
+              for (py::ssize_t i = 0; i < n; ++i) {
+                dp[i] = g.distance(Eigen::Map<const Eigen::Vector3d>(p + 3 * i), &gr);
+                Eigen::Map<Eigen::Vector3d>(gp + 3 * i) = gr;
+              }
+            }
+            return py::make_tuple(d, grad);
+          },
+          py::arg("points"), "Trilinear signed distance and gradient at (N, 3) grid-frame points.");
+
+  py::class_<SceneSdf, std::shared_ptr<SceneSdf>>(m, "SceneSdf", "Posed SDF grids plus a table box.")
+      .def(py::init<>())
+      .def("add_object", [](SceneSdf& s, std::shared_ptr<SdfGrid> grid, const Array& pose) {
+        return s.add_object(std::move(grid), Transform::from_matrix(matrix4(pose, "object pose")));
+      }, py::arg("grid"), py::arg("pose"))
+      .def("set_table", [](SceneSdf& s, const Eigen::Vector3d& size, const Array& pose) {
+        s.set_table(size, Transform::from_matrix(matrix4(pose, "table pose")));
+      }, py::arg("size"), py::arg("pose"))
+      .def(
+          "merge",
+          [](SceneSdf& s, const std::vector<int>& exclude, double resolution, double cutoff, int brick) {
+            const std::uint64_t mask = exclusion_mask(s, exclude, false);
+            py::gil_scoped_release release;
+            s.merge(mask, MergedSdfSettings{resolution, cutoff, brick});
+          },
+          py::arg("exclude") = std::vector<int>{}, py::arg("resolution") = MergedSdfSettings{}.resolution,
+          py::arg("cutoff") = MergedSdfSettings{}.cutoff, py::arg("brick") = MergedSdfSettings{}.brick,
+          "Resample the objects not in `exclude` into one world-frame bricked grid, clamped at cutoff: queries "
+          "with that exclusion and a cutoff <= this one then take one lookup.")
+      .def_property_readonly("merged_info", [](const SceneSdf& s) -> py::object {
+        const MergedSdf* m = s.merged();
+        if (!m) return py::none();
+        py::dict d;
+        d["bricks"] = m->num_bricks();
+        d["cells"] = m->num_cells();
+        d["bytes"] = m->bytes();
+        d["resolution"] = m->settings().resolution;
+        d["cutoff"] = m->cutoff();
+        d["exclude_mask"] = m->exclude_mask();
+        return d;
+      })
+      .def(
+          "lower_bound",
+          [](const SceneSdf& s, const Array& pts_in, const std::vector<int>& exclude, bool exclude_table) {
+            Array pts = points_arg(pts_in);
+            const std::uint64_t mask = exclusion_mask(s, exclude, exclude_table);
+            py::array_t<double> out(pts.shape(0));
+            double* o = out.mutable_data();
+            const double* p = pts.data();
+            py::gil_scoped_release release;
+            for (py::ssize_t i = 0; i < pts.shape(0); ++i)
+              o[i] = s.lower_bound(Eigen::Map<const Eigen::Vector3d>(p + 3 * i), mask);
+            return out;
+          },
+          py::arg("points"), py::arg("exclude") = std::vector<int>{}, py::arg("exclude_table") = false,
+          "Cheap lower bounds of the distance (used to cull links far from every obstacle).")
+      .def_property_readonly("num_objects", &SceneSdf::num_objects)
+      .def_property_readonly("has_table", &SceneSdf::has_table)
+      .def(
+          "distance",
+          [](const SceneSdf& s, const Array& pts_in, double cutoff, const std::vector<int>& exclude, bool exclude_table) {
+            Array pts = points_arg(pts_in);
+            const std::uint64_t mask = exclusion_mask(s, exclude, exclude_table);
+            const py::ssize_t n = pts.shape(0);
+            py::array_t<double> d(n), grad({n, py::ssize_t{3}});
+            double* dp = d.mutable_data();
+            double* gp = grad.mutable_data();
+            const double* p = pts.data();
+            {
+              py::gil_scoped_release release;
+              s.distances(p, n, dp, gp, cutoff, mask);
+            }
+            return py::make_tuple(d, grad);
+          },
+          py::arg("points"), py::arg("cutoff") = std::numeric_limits<double>::infinity(),
+          py::arg("exclude") = std::vector<int>{}, py::arg("exclude_table") = false,
+          "Signed distance to the nearest body and its gradient for (N, 3) world points. Bodies farther than "
+          "cutoff are skipped (the result is then cutoff with a zero gradient).");
+}
+
+}  // namespace pickplan::bind

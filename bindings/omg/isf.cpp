@@ -1,0 +1,93 @@
+#include "../common.hpp"
+#include "pickplan/omg/isf.hpp"
+
+namespace pickplan::bind {
+
+namespace {
+
+Vertices points3(const Array& a, const char* what) {
+  require_shape(what, a, {-1, 3}, "(N, 3)");
+  require_finite_array(what, a);
+  return Eigen::Map<const Vertices>(a.data(), a.shape(0), 3);
+}
+
+py::dict terms_dict(const GraspTerms& t) {
+  py::dict d;
+  d["pml"] = t.pml;
+  d["align"] = t.align;
+  d["isf"] = t.isf;
+  d["hand"] = t.hand;
+  d["obstacle"] = t.obstacle;
+  d["collision"] = t.collision;
+  d["total"] = t.total;
+  d["matched"] = t.matched;
+  return d;
+}
+
+Eigen::VectorXd q_of(const GraspRefiner& r, const Robot& robot, const Array& q) {
+  Array c = configuration(robot, q);
+  return Eigen::Map<const Eigen::VectorXd>(c.data(), c.shape(0));
+}
+
+}  // namespace
+
+void init_isf(py::module_& m) {
+  py::class_<IsfSettings>(m, "IsfSettings")
+      .def(py::init<>())
+      .def_readwrite("alpha", &IsfSettings::alpha)
+      .def_readwrite("beta", &IsfSettings::beta)
+      .def_readwrite("gamma", &IsfSettings::gamma)
+      .def_readwrite("step_size", &IsfSettings::step_size)
+      .def_readwrite("max_halvings", &IsfSettings::max_halvings)
+      .def_readwrite("length_unit", &IsfSettings::length_unit)
+      .def_readwrite("hand_epsilon", &IsfSettings::hand_epsilon)
+      .def_readwrite("arm_epsilon", &IsfSettings::arm_epsilon)
+      .def_readwrite("max_joint_step", &IsfSettings::max_joint_step)
+      .def_readwrite("active", &IsfSettings::active);
+
+  struct Holder {
+    std::shared_ptr<Robot> robot;
+    std::shared_ptr<GraspRefiner> refiner;
+  };
+  py::class_<Holder>(m, "GraspRefiner", "C-Space ISF (Algorithm 1) for one target object in one scene.")
+      .def(py::init([](std::shared_ptr<Robot> robot, const py::object& hand_link, const Array& contacts,
+                       const Array& normals, std::shared_ptr<SceneSdf> hand_sdf, const Array& object_points,
+                       const Array& object_normals, std::shared_ptr<SceneSdf> scene, const IntArray& body_links,
+                       const Array& body_points, std::uint64_t exclude_mask, const IsfSettings& settings) {
+             BodyPoints body;
+             body.points = points3(body_points, "body points");
+             if (body_links.ndim() != 1 || body_links.shape(0) != body_points.shape(0))
+               throw std::invalid_argument("body links: expected one link index per body point");
+             body.link.assign(body_links.data(), body_links.data() + body_links.shape(0));
+             const int hand = link_arg(*robot, hand_link);
+             auto refiner = std::make_shared<GraspRefiner>(
+                 robot, hand, points3(contacts, "contact points"), points3(normals, "contact normals"), hand_sdf,
+                 points3(object_points, "object points"), points3(object_normals, "object normals"), scene,
+                 std::move(body), exclude_mask, settings);
+             return Holder{robot, refiner};
+           }),
+           py::arg("robot"), py::arg("hand_link"), py::arg("contacts"), py::arg("normals"), py::arg("hand_sdf"),
+           py::arg("object_points"), py::arg("object_normals"), py::arg("scene"), py::arg("body_links"),
+           py::arg("body_points"), py::arg("exclude_mask"), py::arg("settings"))
+      .def("cost", [](const Holder& h, const Array& q) {
+        Eigen::VectorXd qq = q_of(*h.refiner, *h.robot, q), g;
+        GraspTerms t;
+        {
+          py::gil_scoped_release release;
+          t = h.refiner->cost(qq, &g);
+        }
+        return py::make_tuple(terms_dict(t), g);
+      }, py::arg("q"), "f_grasp terms and the gradient with respect to q.")
+      .def("refine", [](const Holder& h, const Array& q, int iterations) {
+        if (iterations < 0) throw std::invalid_argument("iterations must be >= 0");
+        Eigen::VectorXd qq = q_of(*h.refiner, *h.robot, q), out;
+        GraspTerms t;
+        {
+          py::gil_scoped_release release;
+          out = h.refiner->refine(qq, iterations, &t);
+        }
+        return py::make_tuple(out, terms_dict(t));
+      }, py::arg("q"), py::arg("iterations") = 1, "Algorithm 1 steps; returns (q, terms at q).");
+}
+
+}  // namespace pickplan::bind

@@ -1,0 +1,131 @@
+#pragma once
+// Exact collision checking of a robot against a static scene with FCL (BVH models, OBBRSS).
+//
+// A CollisionChecker is built once per scene from the robot, one triangle mesh per link (link
+// frame), the scene objects (name, mesh in the object frame, pose) and an optional table box.
+// It is immutable afterwards: every query takes a CollisionWorkspace (or makes one), so
+// queries are reentrant and may run in parallel threads.
+//
+// Semantics. Link meshes and object meshes are triangle surfaces (FCL BVH); the table is a
+// solid box. Two surfaces collide when triangles intersect; with `detect_containment` a mesh
+// lying entirely inside a closed mesh (no triangle crossing) also counts, found by a
+// generalized-winding-number test. Distances are exact separations between the surfaces
+// when apart. In collision they are <= 0 but not a full penetration depth (which would be
+// more negative): against the table, minus the largest per-triangle penetration depth (FCL,
+// MPR); for two intersecting meshes 0 (FCL has no penetration depth for mesh pairs); for a
+// mesh contained in another, minus the gap between the two surfaces.
+// in_collision(q) is true when any checked pair collides or is closer than `margin`.
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "pickplan/geometry/mesh.hpp"
+#include "pickplan/core/robot.hpp"
+#include "pickplan/core/transform.hpp"
+
+namespace pickplan {
+
+struct LinkMesh {
+  std::string link;   // robot link name
+  TriangleMesh mesh;  // in the link frame
+};
+
+struct SceneObject {
+  std::string name;   // unique, not "table"
+  TriangleMesh mesh;  // in the object frame
+  Transform pose;     // object frame in the world
+};
+
+struct TableBox {
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();  // full extents; all zero = no table
+  Transform pose;                                   // box centre in the world
+};
+
+struct CollisionSettings {
+  // (link, other) pairs never checked; other is an object name, "table" or (self-collision)
+  // another link name. Names must exist.
+  std::vector<std::pair<std::string, std::string>> allowed_pairs;
+  std::vector<std::string> excluded_objects;  // object names (or "table") ignored entirely
+  bool self_collision = false;
+  // With self_collision: link pairs adjacent in the tree (through links without geometry)
+  // and pairs already colliding at the reference configuration are not checked.
+  // Empty reference = zero configuration clipped to the joint limits.
+  std::vector<double> self_collision_reference;
+  double margin = 0.0;              // safety margin (m) for in_collision, >= 0
+  bool detect_containment = true;   // a mesh entirely inside another counts as collision
+};
+
+enum class OtherKind { Object, Table, Link };
+
+struct ContactInfo {
+  std::string link;    // robot link
+  std::string other;   // object name, "table" or link name
+  OtherKind kind = OtherKind::Object;
+  double distance = 0;  // signed: > 0 apart (exact), <= 0 in collision (see the header comment)
+  Eigen::Vector3d point_link = Eigen::Vector3d::Zero();   // world; a contact point when colliding
+  Eigen::Vector3d point_other = Eigen::Vector3d::Zero();  // world; nearest point otherwise
+};
+
+class CollisionChecker;
+
+struct CollisionWorkspace {
+  RobotWorkspace robot;
+  std::vector<std::pair<double, int>> order;  // (lower bound, pair) scratch
+  explicit CollisionWorkspace(const CollisionChecker& checker);
+};
+
+class CollisionChecker {
+ public:
+  // Throws std::invalid_argument for empty/degenerate/non-finite meshes, unknown link or
+  // object names, duplicate names, a non-positive table size, a negative margin.
+  CollisionChecker(const Robot& robot, std::vector<LinkMesh> link_meshes, std::vector<SceneObject> objects,
+                   const TableBox& table = TableBox{}, CollisionSettings settings = CollisionSettings{});
+  ~CollisionChecker();
+  CollisionChecker(CollisionChecker&&) noexcept;
+  CollisionChecker& operator=(CollisionChecker&&) noexcept;
+
+  const Robot& robot() const { return robot_; }
+  const CollisionSettings& settings() const { return settings_; }
+  int num_pairs() const { return static_cast<int>(pairs_.size()); }  // pairs actually checked
+  std::vector<std::pair<std::string, std::string>> checked_pairs() const;
+  std::vector<std::string> object_names() const;
+
+  // q: dof finite values (validated). The workspace overloads do not allocate.
+  bool in_collision(const double* q, CollisionWorkspace& ws) const;
+  // The same for link poses the caller has put in ws.robot.link_pose (e.g. a free-floating hand
+  // placed at a grasp before any IK); only the checked links' poses are read.
+  bool in_collision_posed(CollisionWorkspace& ws) const;
+  double min_distance(const double* q, CollisionWorkspace& ws) const;
+  bool in_collision(const Eigen::VectorXd& q) const;
+  double min_distance(const Eigen::VectorXd& q) const;
+  // Every checked pair in collision or closer than max(margin, within), nearest first.
+  std::vector<ContactInfo> contacts(const Eigen::VectorXd& q, double within = 0.0) const;
+
+  // Batches: Q row-major (B, dof); out has B entries. threads <= 0 uses the hardware count.
+  void in_collision_batch(const double* Q, long B, bool* out, int threads = 1) const;
+  void min_distance_batch(const double* Q, long B, double* out, int threads = 1) const;
+
+  struct Impl;
+
+ private:
+  struct Pair {
+    int link_geom;   // index into link geometry
+    OtherKind kind;
+    int other;       // object index, or link geometry index for Link, unused for Table
+  };
+  void check_q(const double* q) const;
+  double pair_lower_bound(const Pair& p, const CollisionWorkspace& ws) const;
+  // Signed distance of one pair (fills info when given).
+  double pair_distance(const Pair& p, const CollisionWorkspace& ws, bool want_points, ContactInfo* info) const;
+  bool pair_collides(const Pair& p, const CollisionWorkspace& ws) const;
+
+  Robot robot_;
+  CollisionSettings settings_;
+  std::unique_ptr<Impl> impl_;
+  std::vector<Pair> pairs_;
+};
+
+}  // namespace pickplan

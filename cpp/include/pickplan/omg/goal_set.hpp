@@ -1,0 +1,44 @@
+#pragma once
+// Goal sets: grasps in the world -> IK -> standoff approach chain -> collision filter ->
+// diversity filter -> capped set. Every rejected grasp carries its reason.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "pickplan/omg/chomp.hpp"
+#include "pickplan/geometry/collision.hpp"
+#include "pickplan/core/ik.hpp"
+
+namespace pickplan {
+
+struct GoalSetSettings {
+  double standoff = 0.08;    // m, pre-grasp distance back along the approach axis (hand +z)
+  int standoff_steps = 4;    // waypoints from the pre-grasp to the grasp (the tail has steps + 1 rows)
+  double max_joint_jump = 0.5;  // rad between consecutive tail configurations (continuity)
+  double diversity = 0.1;    // rad (max-norm): goals closer than this to a kept goal are duplicates
+  int max_goals = 30;        // cap, as in the paper's experiments (up to 100): grasps are tried
+                             // in a seeded random order until this many goals are kept
+  int max_solutions = 4;     // distinct IK solutions tried per grasp before giving up on it
+  unsigned seed = 0;         // the trial order (so which goals are kept: a seeded, uniform subset)
+};
+
+struct GoalSet {
+  Trajectory goals;                 // G x dof grasp configurations
+  std::vector<Trajectory> tails;    // per goal: (steps + 1) x dof, pre-grasp first, grasp last
+  std::vector<int> grasp_index;     // input grasp of each goal
+  std::vector<std::string> reasons; // per input grasp: "ok", "unreachable", "in_collision",
+                                    // "standoff_unreachable", "standoff_in_collision", "approach_clearance",
+                                    // "duplicate", "over_cap" (not tried: the cap was reached first)
+  double seconds = 0;
+};
+
+// hand_poses: world poses of the IK link for each grasp. `checker` may be null (no collision
+// filter); `hand_checker` (optional) holds only the hand and finger links, for early rejection.
+// `approach_ok` (optional): every tail configuration (pre-grasp .. grasp) must pass it (e.g. keep
+// the clearance the success test demands of a plan's approach); failing grasps: "approach_clearance".
+GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
+                       const std::vector<Transform>& hand_poses,
+                       const Eigen::VectorXd& start, const GoalSetSettings& settings = {},
+                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok = {});
+
+}  // namespace pickplan

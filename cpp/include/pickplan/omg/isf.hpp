@@ -1,0 +1,66 @@
+#pragma once
+// C-Space Iterative Surface Fitting (OMG Sec. III-E, Algorithm 1): refine a grasp configuration
+// so the hand's contact surface fits the object, while the hand stays out of the object and the
+// arm out of obstacles. f_grasp = f_pml + alpha f_align + gamma (f_hand + beta f_obstacle).
+#include <cstdint>
+#include <memory>
+
+#include <Eigen/Core>
+
+#include "pickplan/omg/chomp.hpp"
+#include "pickplan/core/robot.hpp"
+#include "pickplan/geometry/sdf.hpp"
+
+namespace pickplan {
+
+struct IsfSettings {
+  double alpha = 0.01;        // normal alignment weight (eq. 13)
+  double beta = 0.001;        // arm obstacle weight (eq. 14)
+  double gamma = 0.5;         // collision weight (eq. 10)
+  double step_size = 0.05;    // eta_grasp: first trial step; shortened until f_grasp decreases
+  int max_halvings = 8;        // shortenings of a failed trial step (each at least halves it)
+  double length_unit = 0.01;  // distances enter f_pml in this unit (cm), which sets the cost scale
+  double hand_epsilon = 0.01; // padding of the hand-collision cost (m)
+  double arm_epsilon = 0.2;   // padding of the arm obstacle cost at g (m), CHOMP's epsilon
+  double max_joint_step = 0.05;  // rad: the largest joint change of one step
+  std::vector<bool> active;   // joints ISF moves (empty = all)
+};
+
+struct GraspTerms {
+  double pml = 0, align = 0, isf = 0, hand = 0, obstacle = 0, collision = 0, total = 0;
+  int matched = 0;  // contact points kept after the repeated-neighbour filter
+};
+
+class GraspRefiner {
+ public:
+  // contacts/normals: hand contact points and inward pad normals in the hand-link frame.
+  // hand_sdf: the hand and open fingers as SDF parts, in the hand-link frame. object points/normals:
+  // the target's surface samples in the world. body: arm body points for f_obstacle at g.
+  GraspRefiner(std::shared_ptr<const Robot> robot, int hand_link, Vertices contacts, Vertices contact_normals,
+               std::shared_ptr<const SceneSdf> hand_sdf, Vertices object_points, Vertices object_normals,
+               std::shared_ptr<const SceneSdf> scene, BodyPoints body, std::uint64_t exclude_mask, IsfSettings settings);
+  ~GraspRefiner();
+  GraspRefiner(GraspRefiner&&) noexcept;
+
+  GraspTerms cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) const;
+  // One Algorithm-1 step; returns the new configuration and its terms (never worse than q's).
+  Eigen::VectorXd step(const Eigen::VectorXd& q, GraspTerms* terms = nullptr) const;
+  Eigen::VectorXd refine(const Eigen::VectorXd& q, int iterations, GraspTerms* terms = nullptr) const;
+
+  const IsfSettings& settings() const { return settings_; }
+
+ private:
+  struct Index;
+  std::shared_ptr<const Robot> robot_;
+  int hand_;
+  Vertices contacts_, contact_normals_;
+  std::shared_ptr<const SceneSdf> hand_sdf_;
+  Vertices object_points_, object_normals_;
+  std::shared_ptr<const SceneSdf> scene_;
+  BodyPoints body_;
+  std::uint64_t exclude_mask_;
+  IsfSettings settings_;
+  std::unique_ptr<Index> index_;
+};
+
+}  // namespace pickplan

@@ -1,0 +1,41 @@
+#pragma once
+// The paper's trajectory metrics (Sec. IV-A) on a densely interpolated trajectory.
+#include <cstdint>
+
+#include "pickplan/omg/chomp.hpp"
+
+namespace pickplan {
+
+struct MetricSettings {
+  int steps = 200;                     // dense interpolation, start included
+  double collision_padding = 0.05;     // "collision": sum of c(d) of points closer than this
+  double epsilon = 0.2;                // padding of the cost c(d) summed by "collision"
+  double clearance = 0.05;             // collision-free: every point at least this far from objects
+  double table_clearance = 0.0;        // ... and this far from the table (grasps sit close to it)
+  int tail_waypoints = 0;              // the last waypoints (the standoff approach into the clutter,
+  double tail_clearance = 0.01;        //   the goal set checks it) need only this clearance
+  double smoothness_threshold = 30.0;  // planning success needs smoothness below this
+  std::uint64_t exclude_mask = 0;      // objects not counted (the target)
+};
+
+struct TrajectoryMetrics {
+  double smoothness = 0;        // f_prior of the planned waypoints (dt of the problem)
+  double collision = 0;
+  double min_clearance = 0;     // to non-excluded objects (not the table); capped at the largest of
+  double min_table_clearance = 0;  // epsilon and the clearances (farther is not measured)
+  bool collision_free = false;
+  bool success = false;         // collision-free and smooth enough
+};
+
+// Linear interpolation of [q0; xi] to `steps` configurations (rows).
+Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int steps);
+
+// Smallest distance (up to `cap`) of the problem's body points at configuration q to the objects
+// outside `exclude_mask` (the table left out), measured as evaluate_trajectory measures it.
+double object_clearance(const ChompProblem& problem, const double* q, std::uint64_t exclude_mask, double cap,
+                        RobotWorkspace& ws);
+
+TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
+                                      const MetricSettings& settings);
+
+}  // namespace pickplan

@@ -1,0 +1,330 @@
+#include "pickplan/core/robot.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <sstream>
+
+#include <urdf_parser/urdf_parser.h>
+
+#include "pickplan/core/errors.hpp"
+
+namespace fs = std::filesystem;
+
+namespace pickplan {
+namespace {
+
+Transform to_transform(const urdf::Pose& pose) {
+  Transform T;
+  double x, y, z, w;
+  pose.rotation.getQuaternion(x, y, z, w);
+  T.R = Eigen::Quaterniond(w, x, y, z).normalized().toRotationMatrix();
+  T.p = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  return T;
+}
+
+std::string read_file(const std::string& path) {
+  if (!fs::is_regular_file(path)) throw FileNotFound("URDF file not found: '" + path + "'");
+  std::ifstream in(path);
+  std::stringstream buf;
+  buf << in.rdbuf();
+  return buf.str();
+}
+
+// Resolves a URDF mesh reference to an absolute path, or "" when nothing exists.
+std::string resolve_mesh(const std::string& uri, const fs::path& base_dir,
+                         const std::vector<std::string>& package_dirs) {
+  const std::string pkg = "package://", file = "file://";
+  std::vector<fs::path> candidates;
+  if (uri.rfind(pkg, 0) == 0) {
+    std::string rest = uri.substr(pkg.size());
+    auto slash = rest.find('/');
+    std::string package = rest.substr(0, slash);
+    std::string inner = slash == std::string::npos ? "" : rest.substr(slash + 1);
+    for (const auto& dir : package_dirs) {
+      candidates.push_back(fs::path(dir) / package / inner);
+      if (fs::path(dir).filename() == package) candidates.push_back(fs::path(dir) / inner);
+    }
+    // Many URDFs (pybullet_data's included) name a folder next to the URDF as the package.
+    for (fs::path dir = base_dir; !dir.empty(); dir = dir.parent_path()) {
+      candidates.push_back(dir / package / inner);
+      if (dir.filename() == package) candidates.push_back(dir / inner);
+      if (dir == dir.parent_path()) break;
+    }
+  } else if (uri.rfind(file, 0) == 0) {
+    candidates.push_back(fs::path(uri.substr(file.size())));
+  } else {
+    fs::path p(uri);
+    candidates.push_back(p.is_absolute() ? p : base_dir / p);
+  }
+  for (const auto& c : candidates)
+    if (fs::is_regular_file(c)) return fs::absolute(c).lexically_normal().string();
+  return "";
+}
+
+// Order of first appearance of each <joint name="..."> in the document, so that the
+// configuration follows the URDF's own joint order (as PyBullet does).
+std::map<std::string, int> joint_document_order(const std::string& xml) {
+  std::map<std::string, int> order;
+  static const std::regex joint_tag(R"(<\s*joint\b[^>]*\bname\s*=\s*["']([^"']+)["'])");
+  int k = 0;
+  for (auto it = std::sregex_iterator(xml.begin(), xml.end(), joint_tag); it != std::sregex_iterator(); ++it)
+    order.emplace((*it)[1].str(), k++);
+  return order;
+}
+
+}  // namespace
+
+void require_rigid(const char* what, const Eigen::Matrix4d& M, double tol) {
+  require_finite(what, M.data(), 16);
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  const double orth = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double last = (M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff();
+  if (orth > tol || std::abs(R.determinant() - 1.0) > tol || last > tol) {
+    std::ostringstream msg;
+    msg << what << ": not a rigid transform (rotation orthonormality error " << orth << ", determinant "
+        << R.determinant() << ", last row error " << last << ")";
+    throw std::invalid_argument(msg.str());
+  }
+}
+
+RobotWorkspace::RobotWorkspace(const Robot& robot)
+    : link_pose(robot.num_links()), axis_world(robot.num_links(), Eigen::Vector3d::Zero()) {}
+
+Robot Robot::from_urdf_file(const std::string& path, const std::vector<std::string>& package_dirs) {
+  const std::string xml = read_file(path);
+  return from_urdf_string(xml, fs::absolute(path).parent_path().string(), package_dirs, path);
+}
+
+Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_dir,
+                              const std::vector<std::string>& package_dirs, const std::string& source) {
+  urdf::ModelInterfaceSharedPtr model;
+  try {
+    model = urdf::parseURDF(xml);
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("malformed URDF '" + source + "': " + e.what());
+  }
+  if (!model || !model->getRoot())
+    throw std::invalid_argument("malformed URDF '" + source +
+                                "': urdfdom could not parse it (not a <robot> document, or a broken link/joint tree)");
+
+  const auto order = joint_document_order(xml);
+  auto rank = [&](const urdf::LinkConstSharedPtr& l) {
+    auto it = l->parent_joint ? order.find(l->parent_joint->name) : order.end();
+    return it == order.end() ? static_cast<int>(order.size()) : it->second;
+  };
+
+  Robot robot;
+  robot.name_ = model->getName();
+  std::map<std::string, int> q_of_joint;
+  // Depth-first from the root so parents precede children.
+  std::vector<std::pair<urdf::LinkConstSharedPtr, int>> stack{{model->getRoot(), -1}};
+  while (!stack.empty()) {
+    auto [ulink, parent] = stack.back();
+    stack.pop_back();
+    Link link;
+    link.name = ulink->name;
+    link.parent = parent;
+    if (const auto& j = ulink->parent_joint) {
+      link.joint_name = j->name;
+      link.joint_origin = to_transform(j->parent_to_joint_origin_transform);
+      Eigen::Vector3d axis(j->axis.x, j->axis.y, j->axis.z);
+      switch (j->type) {
+        case urdf::Joint::FIXED: link.joint_type = JointType::Fixed; break;
+        case urdf::Joint::REVOLUTE: link.joint_type = JointType::Revolute; break;
+        case urdf::Joint::CONTINUOUS: link.joint_type = JointType::Continuous; break;
+        case urdf::Joint::PRISMATIC: link.joint_type = JointType::Prismatic; break;
+        default:
+          throw std::invalid_argument("URDF '" + source + "': joint '" + j->name +
+                                      "' has an unsupported type (floating/planar); model planar bases as "
+                                      "two prismatic joints and a revolute joint");
+      }
+      if (link.joint_type != JointType::Fixed) {
+        if (axis.norm() < 1e-12)
+          throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "' has a zero axis");
+        link.axis = axis.normalized();
+        link.axis_is_z = (link.axis - Eigen::Vector3d::UnitZ()).norm() < 1e-15;
+        link.q_index = static_cast<int>(robot.joint_names_.size());
+        q_of_joint[j->name] = link.q_index;
+        robot.joint_names_.push_back(j->name);
+        const double inf = std::numeric_limits<double>::infinity();
+        double lo = -inf, hi = inf, vel = inf;
+        if (j->limits && link.joint_type != JointType::Continuous) {
+          lo = j->limits->lower;
+          hi = j->limits->upper;
+        }
+        if (j->limits && j->limits->velocity > 0) vel = j->limits->velocity;
+        robot.lower_.conservativeResize(link.q_index + 1);
+        robot.upper_.conservativeResize(link.q_index + 1);
+        robot.velocity_.conservativeResize(link.q_index + 1);
+        robot.lower_[link.q_index] = lo;
+        robot.upper_[link.q_index] = hi;
+        robot.velocity_[link.q_index] = vel;
+        if (j->mimic) {
+          link.mimic.multiplier = j->mimic->multiplier;
+          link.mimic.offset = j->mimic->offset;
+          link.mimic.source_q = -2;  // resolved below, once every joint has an index
+        }
+      }
+    }
+    for (const auto& col : ulink->collision_array) {
+      if (!col || !col->geometry) continue;
+      CollisionGeometry g;
+      g.origin = to_transform(col->origin);
+      switch (col->geometry->type) {
+        case urdf::Geometry::MESH: {
+          auto mesh = std::static_pointer_cast<const urdf::Mesh>(col->geometry);
+          g.kind = CollisionGeometry::Kind::Mesh;
+          g.mesh_path = resolve_mesh(mesh->filename, base_dir, package_dirs);
+          if (g.mesh_path.empty())
+            throw FileNotFound("URDF '" + source + "': collision mesh '" + mesh->filename + "' of link '" +
+                               ulink->name + "' not found (searched relative to '" + base_dir +
+                               "' and the package directories)");
+          g.scale = Eigen::Vector3d(mesh->scale.x, mesh->scale.y, mesh->scale.z);
+          break;
+        }
+        case urdf::Geometry::BOX: {
+          auto box = std::static_pointer_cast<const urdf::Box>(col->geometry);
+          g.kind = CollisionGeometry::Kind::Box;
+          g.size = Eigen::Vector3d(box->dim.x, box->dim.y, box->dim.z);
+          break;
+        }
+        case urdf::Geometry::CYLINDER: {
+          auto cyl = std::static_pointer_cast<const urdf::Cylinder>(col->geometry);
+          g.kind = CollisionGeometry::Kind::Cylinder;
+          g.size = Eigen::Vector3d(cyl->radius, cyl->length, 0.0);
+          break;
+        }
+        case urdf::Geometry::SPHERE: {
+          auto sph = std::static_pointer_cast<const urdf::Sphere>(col->geometry);
+          g.kind = CollisionGeometry::Kind::Sphere;
+          g.size = Eigen::Vector3d(sph->radius, 0.0, 0.0);
+          break;
+        }
+      }
+      link.collisions.push_back(g);
+    }
+    const int index = static_cast<int>(robot.links_.size());
+    robot.links_.push_back(std::move(link));
+    std::vector<urdf::LinkConstSharedPtr> children(ulink->child_links.begin(), ulink->child_links.end());
+    std::sort(children.begin(), children.end(), [&](const auto& a, const auto& b) { return rank(a) > rank(b); });
+    for (const auto& child : children) stack.emplace_back(child, index);
+  }
+  // Resolve mimic sources now that all joints are numbered.
+  for (auto& link : robot.links_) {
+    if (link.mimic.source_q != -2) continue;
+    std::string src;
+    for (const auto& ulink_pair : model->joints_)
+      if (ulink_pair.first == link.joint_name && ulink_pair.second->mimic) src = ulink_pair.second->mimic->joint_name;
+    auto it = q_of_joint.find(src);
+    link.mimic.source_q = it == q_of_joint.end() ? -1 : it->second;
+  }
+  robot.finalize();
+  return robot;
+}
+
+void Robot::finalize() {
+  link_names_.clear();
+  q_link_.assign(dof(), -1);
+  for (int i = 0; i < num_links(); ++i) {
+    link_names_.push_back(links_[i].name);
+    if (links_[i].q_index >= 0) q_link_[links_[i].q_index] = i;
+  }
+  chain_mask_.assign(static_cast<size_t>(num_links()) * dof(), 0);
+  for (int i = 0; i < num_links(); ++i)
+    for (int k = i; k >= 0; k = links_[k].parent)
+      if (links_[k].q_index >= 0) chain_mask_[i * dof() + links_[k].q_index] = 1;
+  if (lower_.size() != dof()) {
+    lower_.resize(dof());
+    upper_.resize(dof());
+    velocity_.resize(dof());
+  }
+}
+
+Robot Robot::with_base(const Transform& base) const {
+  Robot copy = *this;
+  copy.base_ = base;
+  return copy;
+}
+
+int Robot::link_index(const std::string& name) const {
+  for (int i = 0; i < num_links(); ++i)
+    if (links_[i].name == name) return i;
+  std::string all;
+  for (const auto& n : link_names_) all += (all.empty() ? "" : ", ") + n;
+  throw std::invalid_argument("unknown link '" + name + "'; links are: " + all);
+}
+
+void Robot::check_configuration(const double* q, long n) const {
+  require_size("configuration", dof(), n, "joint values");
+  require_finite("configuration", q, n);
+}
+
+void Robot::forward_kinematics(const double* q, RobotWorkspace& ws, int last) const {
+  const int n = std::min(last + 1, num_links());
+  for (int i = 0; i < n; ++i) {
+    const Link& L = links_[i];
+    const Transform& parent = L.parent < 0 ? base_ : ws.link_pose[L.parent];
+    Transform& T = ws.link_pose[i];
+    T = parent * L.joint_origin;
+    if (L.q_index < 0) continue;
+    ws.axis_world[i].noalias() = T.R * L.axis;  // the joint's own motion leaves its axis fixed
+    const double v = q[L.q_index];
+    if (L.joint_type == JointType::Prismatic) {
+      T.p.noalias() += T.R * (L.axis * v);
+    } else if (L.axis_is_z) {  // R * Rz(v): only the first two columns change
+      const double c = std::cos(v), s = std::sin(v);
+      const Eigen::Vector3d c0 = T.R.col(0), c1 = T.R.col(1);
+      T.R.col(0) = c * c0 + s * c1;
+      T.R.col(1) = c * c1 - s * c0;
+    } else {
+      T.R = T.R * axis_angle(L.axis, v);
+    }
+  }
+}
+
+void Robot::point_jacobian(const RobotWorkspace& ws, int link, const Eigen::Vector3d& point_local,
+                           Eigen::Ref<Eigen::Matrix<double, 6, Eigen::Dynamic>> J) const {
+  J.setZero();
+  const Eigen::Vector3d x = ws.link_pose[link].apply(point_local);
+  for (int k = link; k >= 0; k = links_[k].parent) {
+    const Link& L = links_[k];
+    if (L.q_index < 0) continue;
+    const Transform& T = ws.link_pose[k];
+    const Eigen::Vector3d& a = ws.axis_world[k];
+    if (L.joint_type == JointType::Prismatic) {
+      J.block<3, 1>(0, L.q_index) = a;
+    } else {
+      J.block<3, 1>(0, L.q_index) = a.cross(x - T.p);
+      J.block<3, 1>(3, L.q_index) = a;
+    }
+  }
+}
+
+void Robot::position_jacobian_world(const RobotWorkspace& ws, int link, const Eigen::Vector3d& x,
+                                    Eigen::Ref<Eigen::Matrix<double, 3, Eigen::Dynamic>> J) const {
+  J.setZero();
+  for (int k = link; k >= 0; k = links_[k].parent) {
+    const Link& L = links_[k];
+    if (L.q_index < 0) continue;
+    const Transform& T = ws.link_pose[k];
+    const Eigen::Vector3d& a = ws.axis_world[k];
+    J.col(L.q_index) = L.joint_type == JointType::Prismatic ? a : Eigen::Vector3d(a.cross(x - T.p));
+  }
+}
+
+void Robot::add_wrench_jacobian_transpose(const RobotWorkspace& ws, int link, const Eigen::Vector3d& force,
+                                          const Eigen::Vector3d& moment, double* out) const {
+  for (int k = link; k >= 0; k = links_[k].parent) {
+    const Link& L = links_[k];
+    if (L.q_index < 0) continue;
+    const Eigen::Vector3d& a = ws.axis_world[k];
+    // sum_i (a x (x_i - p)) . f_i = a . sum_i (x_i - p) x f_i = a . (M - p x F)
+    out[L.q_index] += L.joint_type == JointType::Prismatic ? a.dot(force)
+                                                          : a.dot(moment - ws.link_pose[k].p.cross(force));
+  }
+}
+
+}  // namespace pickplan

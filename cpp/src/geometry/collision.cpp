@@ -1,0 +1,442 @@
+#include "pickplan/geometry/collision.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <stdexcept>
+#include <thread>
+
+#include <Eigen/Geometry>
+#include <fcl/fcl.h>
+
+#include "pickplan/core/errors.hpp"
+
+namespace pickplan {
+namespace {
+
+using Bvh = fcl::BVHModel<fcl::OBBRSSd>;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+const char* const kTable = "table";
+
+std::shared_ptr<Bvh> make_bvh(const TriangleMesh& m) {
+  std::vector<fcl::Vector3d> v(m.num_vertices());
+  std::vector<fcl::Triangle> t(m.num_faces());
+  for (int i = 0; i < m.num_vertices(); ++i) v[i] = m.vertices.row(i).transpose();
+  for (int i = 0; i < m.num_faces(); ++i) t[i] = fcl::Triangle(m.faces(i, 0), m.faces(i, 1), m.faces(i, 2));
+  auto bvh = std::make_shared<Bvh>();
+  bvh->beginModel(static_cast<int>(t.size()), static_cast<int>(v.size()));
+  bvh->addSubModel(v, t);
+  bvh->endModel();
+  bvh->computeLocalAABB();
+  return bvh;
+}
+
+fcl::Transform3d to_fcl(const Transform& T) {
+  fcl::Transform3d tf = fcl::Transform3d::Identity();
+  tf.linear() = T.R;
+  tf.translation() = T.p;
+  return tf;
+}
+
+Eigen::AlignedBox3d bounds(const TriangleMesh& m, const Transform& T = Transform{}) {
+  Eigen::AlignedBox3d box;
+  for (int i = 0; i < m.num_vertices(); ++i) box.extend(T.apply(m.vertices.row(i).transpose()));
+  return box;
+}
+
+// Generalized winding number of a closed (possibly not watertight) surface around p:
+// ~1 inside, ~0 outside (Jacobson et al. 2013, solid angles by Van Oosterom & Strackee).
+double winding_number(const TriangleMesh& m, const Eigen::Vector3d& p) {
+  double sum = 0.0;
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0)).transpose() - p;
+    const Eigen::Vector3d b = m.vertices.row(m.faces(f, 1)).transpose() - p;
+    const Eigen::Vector3d c = m.vertices.row(m.faces(f, 2)).transpose() - p;
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    const double num = a.dot(b.cross(c));
+    const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+    sum += 2.0 * std::atan2(num, den);
+  }
+  return sum / (4.0 * M_PI);
+}
+
+}  // namespace
+
+struct CollisionChecker::Impl {
+  struct LinkGeom {
+    int link;
+    TriangleMesh mesh;
+    std::shared_ptr<Bvh> bvh;
+    Eigen::AlignedBox3d box;   // link frame
+    Eigen::Vector3d center;    // bounding sphere, link frame
+    double radius;
+  };
+  struct ObjGeom {
+    std::string name;
+    TriangleMesh mesh;
+    std::shared_ptr<Bvh> bvh;
+    Transform pose, inv_pose;
+    fcl::Transform3d tf;
+    Eigen::AlignedBox3d box, world_box;
+    Eigen::Vector3d probe_world;  // a vertex, for the object-inside-link test
+  };
+  std::vector<LinkGeom> links;
+  std::vector<ObjGeom> objects;
+  bool has_table = false;
+  std::shared_ptr<fcl::Boxd> table;
+  fcl::Transform3d table_tf;
+  Eigen::AlignedBox3d table_world_box;
+
+  const fcl::CollisionGeometryd* other_geom(OtherKind k, int i) const {
+    if (k == OtherKind::Object) return objects[i].bvh.get();
+    if (k == OtherKind::Table) return table.get();
+    return links[i].bvh.get();
+  }
+};
+
+CollisionWorkspace::CollisionWorkspace(const CollisionChecker& checker) : robot(checker.robot()) {
+  order.reserve(checker.num_pairs());
+}
+
+CollisionChecker::~CollisionChecker() = default;
+CollisionChecker::CollisionChecker(CollisionChecker&&) noexcept = default;
+CollisionChecker& CollisionChecker::operator=(CollisionChecker&&) noexcept = default;
+
+CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> link_meshes,
+                                   std::vector<SceneObject> objects, const TableBox& table, CollisionSettings settings)
+    : robot_(robot), settings_(std::move(settings)), impl_(std::make_unique<Impl>()) {
+  if (!(settings_.margin >= 0.0) || !std::isfinite(settings_.margin))
+    throw std::invalid_argument("margin: expected a finite value >= 0, got " + std::to_string(settings_.margin));
+  // Robot links.
+  std::vector<int> geom_of_link(robot_.num_links(), -1);
+  for (auto& lm : link_meshes) {
+    const int li = robot_.link_index(lm.link);
+    if (geom_of_link[li] >= 0) throw std::invalid_argument("link mesh for '" + lm.link + "' given twice");
+    lm.mesh.validate("mesh of link '" + lm.link + "'");
+    Impl::LinkGeom g{li, std::move(lm.mesh), nullptr, {}, {}, 0.0};
+    g.bvh = make_bvh(g.mesh);
+    g.box = bounds(g.mesh);
+    g.center = g.box.center();
+    for (int i = 0; i < g.mesh.num_vertices(); ++i)
+      g.radius = std::max(g.radius, (g.mesh.vertices.row(i).transpose() - g.center).norm());
+    geom_of_link[li] = static_cast<int>(impl_->links.size());
+    impl_->links.push_back(std::move(g));
+  }
+  // Scene objects.
+  std::set<std::string> names;
+  for (auto& o : objects) {
+    if (o.name.empty() || o.name == kTable)
+      throw std::invalid_argument("object name '" + o.name + "' is reserved or empty");
+    if (!names.insert(o.name).second) throw std::invalid_argument("object name '" + o.name + "' given twice");
+    o.mesh.validate("mesh of object '" + o.name + "'");
+    require_rigid(("pose of object '" + o.name + "'").c_str(), o.pose.matrix());
+    Impl::ObjGeom g;
+    g.name = o.name;
+    g.mesh = std::move(o.mesh);
+    g.bvh = make_bvh(g.mesh);
+    g.pose = o.pose;
+    g.inv_pose = o.pose.inverse();
+    g.tf = to_fcl(o.pose);
+    g.box = bounds(g.mesh);
+    g.world_box = bounds(g.mesh, o.pose);
+    g.probe_world = o.pose.apply(g.mesh.vertices.row(0).transpose());
+    impl_->objects.push_back(std::move(g));
+  }
+  // Table.
+  require_finite("table size", table.size.data(), 3);
+  if (!table.size.isZero()) {
+    if (!(table.size.array() > 0).all())
+      throw std::invalid_argument("table size: expected 3 positive extents (or all zero for no table)");
+    require_rigid("table pose", table.pose.matrix());
+    impl_->has_table = true;
+    impl_->table = std::make_shared<fcl::Boxd>(table.size);
+    impl_->table_tf = to_fcl(table.pose);
+    for (int c = 0; c < 8; ++c)
+      impl_->table_world_box.extend(table.pose.apply(
+          0.5 * Eigen::Vector3d((c & 1 ? 1 : -1) * table.size.x(), (c & 2 ? 1 : -1) * table.size.y(), (c & 4 ? 1 : -1) * table.size.z())));
+  }
+  // Exclusions and allowed pairs, by name.
+  std::set<std::string> excluded;
+  for (const auto& n : settings_.excluded_objects) {
+    if (!names.count(n) && !(n == kTable && impl_->has_table))
+      throw std::invalid_argument("excluded_objects: unknown object '" + n + "'");
+    excluded.insert(n);
+  }
+  auto is_link = [&](const std::string& n) {
+    const auto& ln = robot_.link_names();
+    return std::find(ln.begin(), ln.end(), n) != ln.end();
+  };
+  std::set<std::pair<std::string, std::string>> allowed;
+  for (auto [a, b] : settings_.allowed_pairs) {
+    if (!is_link(a) && is_link(b)) std::swap(a, b);
+    robot_.link_index(a);  // throws, naming the links
+    if (!names.count(b) && !(b == kTable && impl_->has_table) && !is_link(b))
+      throw std::invalid_argument("allowed_pairs: unknown object or link '" + b + "' (paired with link '" + a + "')");
+    allowed.insert({a, b});
+    if (is_link(b)) allowed.insert({b, a});
+  }
+  auto link_name = [&](int g) { return robot_.link(impl_->links[g].link).name; };
+  const int nl = static_cast<int>(impl_->links.size());
+  for (int g = 0; g < nl; ++g) {
+    if (impl_->has_table && !excluded.count(kTable) && !allowed.count({link_name(g), kTable}))
+      pairs_.push_back({g, OtherKind::Table, -1});
+    for (int o = 0; o < static_cast<int>(impl_->objects.size()); ++o) {
+      const auto& on = impl_->objects[o].name;
+      if (!excluded.count(on) && !allowed.count({link_name(g), on})) pairs_.push_back({g, OtherKind::Object, o});
+    }
+  }
+  if (settings_.self_collision) {
+    std::vector<double> ref = settings_.self_collision_reference;
+    if (ref.empty()) {
+      ref.assign(robot_.dof(), 0.0);
+      for (int j = 0; j < robot_.dof(); ++j)
+        ref[j] = std::clamp(0.0, robot_.lower_limits()[j], robot_.upper_limits()[j]);
+    }
+    robot_.check_configuration(ref.data(), static_cast<long>(ref.size()));
+    CollisionWorkspace ws(*this);
+    robot_.forward_kinematics(ref.data(), ws.robot);
+    auto geometric_parent = [&](int g) {
+      for (int l = robot_.link(impl_->links[g].link).parent; l >= 0; l = robot_.link(l).parent)
+        if (geom_of_link[l] >= 0) return geom_of_link[l];
+      return -1;
+    };
+    for (int a = 0; a < nl; ++a)
+      for (int b = a + 1; b < nl; ++b) {
+        if (geometric_parent(a) == b || geometric_parent(b) == a) continue;
+        if (allowed.count({link_name(a), link_name(b)})) continue;
+        Pair p{a, OtherKind::Link, b};
+        if (pair_collides(p, ws)) continue;
+        pairs_.push_back(p);
+      }
+  }
+}
+
+std::vector<std::pair<std::string, std::string>> CollisionChecker::checked_pairs() const {
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const auto& p : pairs_) {
+    const std::string a = robot_.link(impl_->links[p.link_geom].link).name;
+    if (p.kind == OtherKind::Table) out.emplace_back(a, kTable);
+    else if (p.kind == OtherKind::Object) out.emplace_back(a, impl_->objects[p.other].name);
+    else out.emplace_back(a, robot_.link(impl_->links[p.other].link).name);
+  }
+  return out;
+}
+
+std::vector<std::string> CollisionChecker::object_names() const {
+  std::vector<std::string> out;
+  for (const auto& o : impl_->objects) out.push_back(o.name);
+  return out;
+}
+
+void CollisionChecker::check_q(const double* q) const { robot_.check_configuration(q, robot_.dof()); }
+
+double CollisionChecker::pair_lower_bound(const Pair& p, const CollisionWorkspace& ws) const {
+  const auto& lg = impl_->links[p.link_geom];
+  const Eigen::Vector3d c = ws.robot.link_pose[lg.link].apply(lg.center);
+  double d;
+  if (p.kind == OtherKind::Link) {
+    const auto& og = impl_->links[p.other];
+    d = (c - ws.robot.link_pose[og.link].apply(og.center)).norm() - og.radius;
+  } else {
+    const auto& box = p.kind == OtherKind::Table ? impl_->table_world_box : impl_->objects[p.other].world_box;
+    d = box.exteriorDistance(c);
+  }
+  d -= lg.radius;
+  return d > 0.0 ? d : -kInf;  // only separated bounding volumes give a usable bound
+}
+
+namespace {
+
+// True when some vertex of `inner` (placed by T_inner) lies inside the closed mesh `outer`
+// (placed by T_outer). With no triangle crossing, one vertex decides for the whole mesh.
+bool contained(const TriangleMesh& inner_mesh, const Transform& T_inner, const TriangleMesh& outer,
+               const Eigen::AlignedBox3d& outer_box, const Transform& T_outer_inv) {
+  const Eigen::Vector3d p = T_outer_inv.apply(T_inner.apply(inner_mesh.vertices.row(0).transpose()));
+  return outer_box.contains(p) && winding_number(outer, p) > 0.5;
+}
+
+}  // namespace
+
+bool CollisionChecker::pair_collides(const Pair& p, const CollisionWorkspace& ws) const {
+  const auto& lg = impl_->links[p.link_geom];
+  const Transform& Tl = ws.robot.link_pose[lg.link];
+  const fcl::Transform3d tf_link = to_fcl(Tl);
+  fcl::CollisionRequestd req(1, false);
+  fcl::CollisionResultd res;
+  if (p.kind == OtherKind::Table) {
+    fcl::collide(lg.bvh.get(), tf_link, impl_->table.get(), impl_->table_tf, req, res);
+    return res.isCollision();
+  }
+  if (p.kind == OtherKind::Object) {
+    const auto& og = impl_->objects[p.other];
+    fcl::collide(lg.bvh.get(), tf_link, og.bvh.get(), og.tf, req, res);
+    if (res.isCollision()) return true;
+    if (!settings_.detect_containment) return false;
+    return contained(lg.mesh, Tl, og.mesh, og.box, og.inv_pose) ||
+           contained(og.mesh, og.pose, lg.mesh, lg.box, Tl.inverse());
+  }
+  const auto& og = impl_->links[p.other];
+  const Transform& To = ws.robot.link_pose[og.link];
+  fcl::collide(lg.bvh.get(), tf_link, og.bvh.get(), to_fcl(To), req, res);
+  if (res.isCollision()) return true;
+  if (!settings_.detect_containment) return false;
+  return contained(lg.mesh, Tl, og.mesh, og.box, To.inverse()) || contained(og.mesh, To, lg.mesh, lg.box, Tl.inverse());
+}
+
+double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& ws, bool want_points,
+                                       ContactInfo* info) const {
+  const auto& lg = impl_->links[p.link_geom];
+  const Transform& Tl = ws.robot.link_pose[lg.link];
+  const fcl::Transform3d tf_link = to_fcl(Tl);
+  const fcl::CollisionGeometryd* other = impl_->other_geom(p.kind, p.other);
+  const fcl::Transform3d tf_other = p.kind == OtherKind::Object ? impl_->objects[p.other].tf
+                                    : p.kind == OtherKind::Table ? impl_->table_tf
+                                                                 : to_fcl(ws.robot.link_pose[impl_->links[p.other].link]);
+  fcl::DistanceRequestd dreq(want_points);
+  fcl::DistanceResultd dres;
+  fcl::distance(lg.bvh.get(), tf_link, other, tf_other, dreq, dres);
+  double d = dres.min_distance;
+  Eigen::Vector3d pl = dres.nearest_points[0], po = dres.nearest_points[1];
+  if (d <= 1e-12) {
+    // Touching or intersecting. FCL's contacts carry a usable depth only against the solid
+    // table box (per triangle, by MPR); for two triangle surfaces the per-triangle-pair
+    // "depths" say nothing about the bodies, so the value stays 0 (touching or intersecting).
+    const bool table = p.kind == OtherKind::Table;
+    fcl::CollisionRequestd creq(table ? 64 : 1, true);
+    fcl::CollisionResultd cres;
+    fcl::collide(lg.bvh.get(), tf_link, other, tf_other, creq, cres);
+    if (cres.isCollision()) {
+      double depth = 0.0;
+      for (size_t i = 0; i < cres.numContacts(); ++i) {
+        const auto& c = cres.getContact(i);
+        if (i == 0 || c.penetration_depth > depth) {
+          depth = std::max(0.0, c.penetration_depth);
+          pl = po = c.pos;
+        }
+      }
+      d = table ? -depth : 0.0;
+    } else {
+      d = std::max(d, 0.0);
+    }
+  } else if (settings_.detect_containment && p.kind != OtherKind::Table) {
+    const bool self = p.kind == OtherKind::Link;
+    const TriangleMesh& om = self ? impl_->links[p.other].mesh : impl_->objects[p.other].mesh;
+    const Eigen::AlignedBox3d& ob = self ? impl_->links[p.other].box : impl_->objects[p.other].box;
+    const Transform To = self ? ws.robot.link_pose[impl_->links[p.other].link] : impl_->objects[p.other].pose;
+    if (contained(lg.mesh, Tl, om, ob, To.inverse()) || contained(om, To, lg.mesh, lg.box, Tl.inverse())) d = -d;
+  }
+  if (info) {
+    info->link = robot_.link(lg.link).name;
+    info->kind = p.kind;
+    info->other = p.kind == OtherKind::Object ? impl_->objects[p.other].name
+                  : p.kind == OtherKind::Table ? std::string(kTable)
+                                               : robot_.link(impl_->links[p.other].link).name;
+    info->distance = d;
+    // FCL reports BVH nearest points in world coordinates (0.7 convention).
+    info->point_link = pl;
+    info->point_other = po;
+  }
+  return d;
+}
+
+bool CollisionChecker::in_collision(const double* q, CollisionWorkspace& ws) const {
+  check_q(q);
+  robot_.forward_kinematics(q, ws.robot);
+  return in_collision_posed(ws);
+}
+
+bool CollisionChecker::in_collision_posed(CollisionWorkspace& ws) const {
+  const double m = settings_.margin;
+  for (const auto& p : pairs_) {
+    if (pair_lower_bound(p, ws) > m) continue;
+    if (pair_collides(p, ws)) return true;
+    if (m > 0.0 && pair_distance(p, ws, false, nullptr) < m) return true;
+  }
+  return false;
+}
+
+double CollisionChecker::min_distance(const double* q, CollisionWorkspace& ws) const {
+  check_q(q);
+  robot_.forward_kinematics(q, ws.robot);
+  ws.order.clear();
+  for (int i = 0; i < num_pairs(); ++i) ws.order.emplace_back(pair_lower_bound(pairs_[i], ws), i);
+  std::sort(ws.order.begin(), ws.order.end());
+  double best = kInf;
+  for (const auto& [lb, i] : ws.order) {
+    if (lb >= best) break;  // sorted: no later pair can be closer
+    best = std::min(best, pair_distance(pairs_[i], ws, false, nullptr));
+  }
+  return best;
+}
+
+bool CollisionChecker::in_collision(const Eigen::VectorXd& q) const {
+  require_size("configuration", robot_.dof(), q.size(), "joint values");
+  CollisionWorkspace ws(*this);
+  return in_collision(q.data(), ws);
+}
+
+double CollisionChecker::min_distance(const Eigen::VectorXd& q) const {
+  require_size("configuration", robot_.dof(), q.size(), "joint values");
+  CollisionWorkspace ws(*this);
+  return min_distance(q.data(), ws);
+}
+
+std::vector<ContactInfo> CollisionChecker::contacts(const Eigen::VectorXd& q, double within) const {
+  require_size("configuration", robot_.dof(), q.size(), "joint values");
+  check_q(q.data());
+  if (!(within >= 0.0)) throw std::invalid_argument("within: expected a value >= 0");
+  CollisionWorkspace ws(*this);
+  robot_.forward_kinematics(q.data(), ws.robot);
+  const double thr = std::max(settings_.margin, within);
+  std::vector<ContactInfo> out;
+  for (const auto& p : pairs_) {
+    if (pair_lower_bound(p, ws) > thr) continue;
+    ContactInfo info;
+    const double d = pair_distance(p, ws, true, &info);
+    if (d < thr || d <= 0.0) out.push_back(std::move(info));
+  }
+  std::sort(out.begin(), out.end(), [](const ContactInfo& a, const ContactInfo& b) { return a.distance < b.distance; });
+  return out;
+}
+
+namespace {
+
+template <class Fn>
+void parallel_rows(long B, int threads, const Fn& fn) {
+  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  threads = static_cast<int>(std::min<long>(threads, std::max(1L, B)));
+  if (threads == 1) {
+    fn(0L, B);
+    return;
+  }
+  std::vector<std::thread> pool;
+  const long chunk = (B + threads - 1) / threads;
+  for (int t = 0; t < threads; ++t) {
+    const long lo = t * chunk, hi = std::min(B, lo + chunk);
+    if (lo < hi) pool.emplace_back([&fn, lo, hi] { fn(lo, hi); });
+  }
+  for (auto& th : pool) th.join();
+}
+
+}  // namespace
+
+void CollisionChecker::in_collision_batch(const double* Q, long B, bool* out, int threads) const {
+  const int d = robot_.dof();
+  for (long b = 0; b < B; ++b) check_q(Q + b * d);  // validate before any thread starts
+  parallel_rows(B, threads, [&](long lo, long hi) {
+    CollisionWorkspace ws(*this);
+    for (long b = lo; b < hi; ++b) out[b] = in_collision(Q + b * d, ws);
+  });
+}
+
+void CollisionChecker::min_distance_batch(const double* Q, long B, double* out, int threads) const {
+  const int d = robot_.dof();
+  for (long b = 0; b < B; ++b) check_q(Q + b * d);
+  parallel_rows(B, threads, [&](long lo, long hi) {
+    CollisionWorkspace ws(*this);
+    for (long b = lo; b < hi; ++b) out[b] = min_distance(Q + b * d, ws);
+  });
+}
+
+}  // namespace pickplan

@@ -1,0 +1,173 @@
+#include "pickplan/omg/isf.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include <nanoflann.hpp>
+
+#include "pickplan/core/errors.hpp"
+
+namespace pickplan {
+
+namespace {
+// nanoflann dataset adaptor over the object points (rows of a row-major N x 3 matrix).
+struct PointCloud {
+  const Vertices* pts;
+  size_t kdtree_get_point_count() const { return static_cast<size_t>(pts->rows()); }
+  double kdtree_get_pt(size_t i, size_t d) const { return (*pts)(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(d)); }
+  template <class BBOX>
+  bool kdtree_get_bbox(BBOX&) const { return false; }
+};
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, PointCloud>, PointCloud, 3>;
+}  // namespace
+
+struct GraspRefiner::Index {
+  PointCloud cloud;
+  KdTree tree;
+  explicit Index(const Vertices* pts) : cloud{pts}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {
+    tree.buildIndex();
+  }
+};
+
+GraspRefiner::~GraspRefiner() = default;
+GraspRefiner::GraspRefiner(GraspRefiner&&) noexcept = default;
+
+GraspRefiner::GraspRefiner(std::shared_ptr<const Robot> robot, int hand_link, Vertices contacts, Vertices contact_normals,
+                           std::shared_ptr<const SceneSdf> hand_sdf, Vertices object_points, Vertices object_normals,
+                           std::shared_ptr<const SceneSdf> scene, BodyPoints body, std::uint64_t exclude_mask,
+                           IsfSettings settings)
+    : robot_(std::move(robot)), hand_(hand_link), contacts_(std::move(contacts)),
+      contact_normals_(std::move(contact_normals)), hand_sdf_(std::move(hand_sdf)),
+      object_points_(std::move(object_points)), object_normals_(std::move(object_normals)), scene_(std::move(scene)),
+      body_(std::move(body)), exclude_mask_(exclude_mask), settings_(std::move(settings)) {
+  if (!robot_ || !hand_sdf_ || !scene_) throw std::invalid_argument("ISF: robot, hand SDF and scene must not be null");
+  if (hand_ < 0 || hand_ >= robot_->num_links()) throw std::invalid_argument("ISF: hand link out of range");
+  if (contacts_.rows() == 0) throw std::invalid_argument("ISF: no hand contact points");
+  require_size("ISF contact normals", contacts_.rows(), contact_normals_.rows(), "rows");
+  if (object_points_.rows() == 0) throw std::invalid_argument("ISF: no object surface points");
+  require_size("ISF object normals", object_points_.rows(), object_normals_.rows(), "rows");
+  require_finite("ISF object points", object_points_.data(), object_points_.size());
+  if (!settings_.active.empty())
+    require_size("ISF settings: active joint mask", robot_->dof(), static_cast<long>(settings_.active.size()), "entries");
+  index_ = std::make_unique<Index>(&object_points_);
+}
+
+GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) const {
+  robot_->check_configuration(q.data(), q.size());
+  const IsfSettings& s = settings_;
+  RobotWorkspace ws(*robot_);
+  robot_->forward_kinematics(q.data(), ws);
+  const Transform& H = ws.link_pose[hand_];
+  const double unit = s.length_unit;
+  GraspTerms t;
+  // Wrench on the hand about its origin: force (d f / d position) and torque.
+  Eigen::Vector3d F = Eigen::Vector3d::Zero(), tau = Eigen::Vector3d::Zero();
+  // Nearest object point of every contact; a repeated neighbour keeps only its closest contact.
+  const int M = static_cast<int>(contacts_.rows());
+  std::vector<size_t> nn(M);
+  std::vector<double> dist2(M);
+  std::vector<Eigen::Vector3d> uh(M), un(M);
+  for (int j = 0; j < M; ++j) {
+    uh[j] = H.apply(contacts_.row(j).transpose());
+    un[j] = H.R * contact_normals_.row(j).transpose();
+    nanoflann::KNNResultSet<double, size_t> res(1);
+    res.init(&nn[j], &dist2[j]);
+    index_->tree.findNeighbors(res, uh[j].data(), nanoflann::SearchParams(10));
+  }
+  for (int j = 0; j < M; ++j) {
+    bool keep = true;
+    for (int k = 0; k < M && keep; ++k)
+      if (k != j && nn[k] == nn[j] && (dist2[k] < dist2[j] || (dist2[k] == dist2[j] && k < j))) keep = false;
+    if (!keep) continue;
+    ++t.matched;
+    const Eigen::Vector3d uo = object_points_.row(nn[j]).transpose();
+    const Eigen::Vector3d no = object_normals_.row(nn[j]).transpose();
+    const double r = (uh[j] - uo).dot(no) / unit;           // eq. 11 residual, in length units
+    const double a = un[j].dot(no) + 1.0;                    // eq. 12 residual
+    t.pml += r * r;
+    t.align += a * a;
+    const Eigen::Vector3d gp = 2.0 * r / unit * no;          // d f_pml / d u_h
+    const Eigen::Vector3d gn = 2.0 * s.alpha * a * no;       // d (alpha f_align) / d u_h^n
+    F += gp;
+    tau += (uh[j] - H.p).cross(gp) + un[j].cross(gn);
+  }
+  t.isf = t.pml + s.alpha * t.align;
+  // Hand collision: object points inside (or near) the hand push the hand away (eq. 14).
+  const Transform Hinv = H.inverse();
+  Eigen::Vector3d g;
+  for (Eigen::Index k = 0; k < object_points_.rows(); ++k) {
+    const Eigen::Vector3d o = object_points_.row(k).transpose();
+    const double d = hand_sdf_->distance(Hinv.apply(o), &g, s.hand_epsilon, 0);
+    if (d >= s.hand_epsilon) continue;
+    double dc;
+    t.hand += chomp_cost(d, s.hand_epsilon, &dc) / unit;
+    const Eigen::Vector3d gw = -(dc / unit) * (H.R * g);  // moving the hand toward o raises the cost
+    F += s.gamma * gw;
+    tau += s.gamma * (o - H.p).cross(gw);
+  }
+  Eigen::VectorXd gq = Eigen::VectorXd::Zero(robot_->dof());
+  Eigen::Matrix<double, 3, Eigen::Dynamic> Jp(3, robot_->dof());
+  // Arm obstacle cost at the single configuration g (eq. 14's f_obstacle).
+  for (int u = 0; u < body_.size(); ++u) {
+    const Eigen::Vector3d x = ws.link_pose[body_.link[u]].apply(body_.points.row(u).transpose());
+    const double d = scene_->distance(x, &g, s.arm_epsilon, exclude_mask_);
+    if (d >= s.arm_epsilon) continue;
+    double dc;
+    t.obstacle += chomp_cost(d, s.arm_epsilon, &dc);
+    if (grad) {
+      robot_->position_jacobian_world(ws, body_.link[u], x, Jp);
+      gq += s.gamma * s.beta * Jp.transpose() * (dc * g);
+    }
+  }
+  t.collision = t.hand + s.beta * t.obstacle;
+  t.total = t.isf + s.gamma * t.collision;
+  if (grad) {
+    Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, robot_->dof());
+    robot_->point_jacobian(ws, hand_, Eigen::Vector3d::Zero(), J);
+    Eigen::Matrix<double, 6, 1> W;
+    W << F, tau;
+    gq += J.transpose() * W;
+    if (!s.active.empty())
+      for (int j = 0; j < robot_->dof(); ++j)
+        if (!s.active[j]) gq[j] = 0;
+    *grad = gq;
+  }
+  return t;
+}
+
+Eigen::VectorXd GraspRefiner::step(const Eigen::VectorXd& q, GraspTerms* terms) const {
+  Eigen::VectorXd grad;
+  const GraspTerms t0 = cost(q, &grad);
+  // eta_grasp step, capped at max_joint_step, then shortened until f_grasp decreases: each
+  // retry goes to the minimizer of the quadratic through f(0), f'(0) and the failed trial,
+  // kept within [0.1, 0.5] of the failed length (so at least a halving, as plain backtracking,
+  // but a badly scaled first trial costs two or three evaluations instead of eight).
+  Eigen::VectorXd dq = -settings_.step_size * grad;
+  const double m = dq.cwiseAbs().maxCoeff();
+  if (m > settings_.max_joint_step) dq *= settings_.max_joint_step / m;
+  const double slope = grad.dot(dq);
+  double alpha = 1.0;
+  for (int h = 0; h <= settings_.max_halvings; ++h) {
+    const Eigen::VectorXd q1 = (q + alpha * dq).cwiseMax(robot_->lower_limits()).cwiseMin(robot_->upper_limits());
+    const GraspTerms t1 = cost(q1, nullptr);
+    if (t1.total < t0.total) {
+      if (terms) *terms = t1;
+      return q1;
+    }
+    const double curvature = (t1.total - t0.total - slope * alpha) / (alpha * alpha);
+    const double next = curvature > 0 && slope < 0 ? -slope / (2 * curvature) : 0.5 * alpha;
+    alpha = std::clamp(next, 0.1 * alpha, 0.5 * alpha);
+  }
+  if (terms) *terms = t0;
+  return q;  // no decrease found: a (local) minimum at this resolution
+}
+
+Eigen::VectorXd GraspRefiner::refine(const Eigen::VectorXd& q, int iterations, GraspTerms* terms) const {
+  Eigen::VectorXd cur = q;
+  GraspTerms t = cost(q, nullptr);
+  for (int i = 0; i < iterations; ++i) cur = step(cur, &t);
+  if (terms) *terms = t;
+  return cur;
+}
+
+}  // namespace pickplan

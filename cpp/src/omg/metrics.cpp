@@ -1,0 +1,93 @@
+#include "pickplan/omg/metrics.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <stdexcept>
+
+namespace pickplan {
+
+Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int steps) {
+  if (steps < 2) throw std::invalid_argument("interpolate: steps must be >= 2");
+  const int n = static_cast<int>(xi.rows());
+  Trajectory out(steps, xi.cols());
+  for (int s = 0; s < steps; ++s) {
+    const double pos = static_cast<double>(s) * n / (steps - 1);
+    const int i = std::min(static_cast<int>(pos), n - 1);
+    const double f = pos - i;
+    const Eigen::RowVectorXd a = i == 0 ? Eigen::RowVectorXd(q0.transpose()) : Eigen::RowVectorXd(xi.row(i - 1));
+    out.row(s) = (1 - f) * a + f * xi.row(i);
+  }
+  return out;
+}
+
+double object_clearance(const ChompProblem& problem, const double* q, std::uint64_t exclude_mask, double cap,
+                        RobotWorkspace& ws) {
+  const SceneSdf& scene = problem.scene();
+  const BodyPoints& body = problem.body();
+  problem.robot().forward_kinematics(q, ws);
+  double out = cap;
+  for (const LinkGroup& grp : problem.groups()) {
+    const Transform& T = ws.link_pose[grp.link];
+    // Objects only (the table is not measured here), so links near the table are not kept for it.
+    if (scene.part_lower_bounds(T.apply(grp.center), exclude_mask).objects - grp.radius >= out) continue;
+    for (int u = grp.begin; u < grp.end; ++u)
+      out = std::min(out, scene.distance_unmerged(T.apply(body.points.row(u).transpose()), nullptr, out,
+                                                  exclude_mask | SceneSdf::kTableBit));
+  }
+  return out;
+}
+
+TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
+                                      const MetricSettings& s) {
+  problem.check_trajectory(xi, q0);
+  TrajectoryMetrics m;
+  m.smoothness = problem.prior(xi, q0, nullptr);
+  const Trajectory dense = interpolate(q0, xi, s.steps);
+  const Robot& robot = problem.robot();
+  const BodyPoints& body = problem.body();
+  const SceneSdf& scene = problem.scene();
+  std::uint64_t all_objects = 0;
+  for (int i = 0; i < scene.num_objects(); ++i) all_objects |= std::uint64_t{1} << i;
+  RobotWorkspace ws(robot);
+  const double inf = std::numeric_limits<double>::infinity();
+  // Distances are measured up to `cap`; links whose bounding sphere is farther from everything
+  // are skipped (exact: no point of theirs can change a metric). The per-object grids are the
+  // reference here, not the merged grid the optimizer uses.
+  const double cap = std::max({s.epsilon, s.clearance, s.tail_clearance, s.collision_padding, s.table_clearance});
+  m.min_clearance = cap;
+  m.min_table_clearance = cap;
+  const int n = static_cast<int>(xi.rows());
+  // Dense steps at or after this one lie on the approach tail (waypoints n - tail .. n).
+  const double tail_start = s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints) / n * (s.steps - 1) : s.steps;
+  bool transit_free = true;
+  for (int t = 0; t < dense.rows(); ++t) {
+    robot.forward_kinematics(dense.row(t).data(), ws);
+    const double need = t >= tail_start ? s.tail_clearance : s.clearance;
+    double step_min = inf;
+    for (const LinkGroup& grp : problem.groups()) {
+      const Transform& T = ws.link_pose[grp.link];
+      // Objects and table bounded apart: a part beyond the cap for the whole group reads as the cap.
+      const SceneSdf::PartBounds b = scene.part_lower_bounds(T.apply(grp.center), s.exclude_mask);
+      const bool objects_near = b.objects - grp.radius < cap, table_near = b.table - grp.radius < cap;
+      if (!objects_near && !table_near) continue;
+      for (int u = grp.begin; u < grp.end; ++u) {
+        const Eigen::Vector3d x = T.apply(body.points.row(u).transpose());
+        const double d_obj =
+            objects_near ? scene.distance_unmerged(x, nullptr, cap, s.exclude_mask | SceneSdf::kTableBit) : cap;
+        const double d_table =
+            !scene.has_table() ? inf : (table_near ? scene.distance_unmerged(x, nullptr, cap, all_objects) : cap);
+        m.min_clearance = std::min(m.min_clearance, d_obj);
+        step_min = std::min(step_min, d_obj);
+        m.min_table_clearance = std::min(m.min_table_clearance, d_table);
+        const double d = std::min(d_obj, d_table);
+        if (d < s.collision_padding) m.collision += chomp_cost(d, s.epsilon, nullptr);
+      }
+    }
+    transit_free = transit_free && step_min >= need;
+  }
+  m.collision_free = transit_free && m.min_table_clearance >= s.table_clearance;
+  m.success = m.collision_free && m.smoothness < s.smoothness_threshold;
+  return m;
+}
+
+}  // namespace pickplan

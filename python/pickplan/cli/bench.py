@@ -1,0 +1,220 @@
+"""``pickplan bench selection|refinement|planners|ablation``: the OMG paper's Tables I, II, III and
+Fig. 8 with one command each; Markdown tables with the paper's numbers beside ours, CSV/JSON of
+every run, the Fig. 8 plot.
+
+Wired into ``pickplan.cli`` through ``add_bench_commands``; also runs on its own:
+``python -m pickplan.experiments_cli bench selection --quick --out /tmp/t1``.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import math
+import os
+import sys
+from typing import Dict, List, Optional, Sequence
+
+from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize)
+from pickplan.core.io import write_json, write_text
+
+# The paper's numbers (100 scenes, 30 grasps, 10 runs; Table II: 60 grasps, 30 refinement iterations).
+PAPER: Dict[str, Dict[str, dict]] = {
+    "selection": {
+        "execution": dict(Fixed=.74, Proj=.75, FTC=.81, FTL=.79, EXP=.80, MD=.81),
+        "planning": dict(Fixed=.78, Proj=.79, FTC=.91, FTL=.89, EXP=.90, MD=.92),
+        "smoothness": dict(Fixed=18.87, Proj=11.24, FTC=15.78, FTL=15.86, EXP=15.71, MD=15.54),
+        "collision": dict(Fixed=5.97, Proj=12.06, FTC=4.68, FTL=4.10, EXP=4.95, MD=3.87),
+        "time": dict(Fixed=.18, Proj=.15, FTC=.20, FTL=.22, EXP=.23, MD=.30)},
+    "planners": {
+        "execution": {"CHOMP": .77, "CHOMP-C": .75, "FMT": .66, "RRT-C": .64, "OMG": .84},
+        "planning": {"CHOMP": .82, "CHOMP-C": .79, "FMT": .80, "RRT-C": .78, "OMG": .93},
+        "smoothness": {"CHOMP": 19.12, "CHOMP-C": 11.24, "FMT": 27.21, "RRT-C": 26.45, "OMG": 15.43},
+        "collision": {"CHOMP": 4.78, "CHOMP-C": 12.06, "FMT": 6.37, "RRT-C": 6.52, "OMG": 3.92},
+        "grasp": {"CHOMP": 3.43, "CHOMP-C": 3.35, "FMT": 3.49, "RRT-C": 3.48, "OMG": 3.04},
+        "time": {"CHOMP": .25, "CHOMP-C": .15, "FMT": .67, "RRT-C": .22, "OMG": .42}},
+    "refinement": {
+        "mean": {"S": 3.62, "S+ISF": 2.77, "G": 4.72, "G+ISF": 3.63, "A": 7.83, "A+ISF": 5.43},
+        "planning": {"S": .92, "S+ISF": .93, "G": .84, "G+ISF": .84, "A": .71, "A+ISF": .73},
+        "execution": {"S": .80, "S+ISF": .82, "G": .56, "G+ISF": .59, "A": .26, "A+ISF": .33}},
+}
+PAPER_GRASP_COSTS = {  # Table II rows: S, S refined, G, G refined, A, A refined
+    "003_cracker_box": (2.47, 2.32, 4.27, 3.31, 6.58, 4.36), "025_mug": (5.11, 3.93, 7.24, 5.55, 9.05, 5.18),
+    "005_tomato_soup_can": (2.38, 2.27, 3.15, 2.83, 7.06, 6.27),
+    "006_mustard_bottle": (4.40, 3.19, 4.91, 3.79, 8.15, 5.73),
+    "010_potted_meat_can": (2.96, 1.95, 3.08, 2.54, 7.47, 4.91),
+    "019_pitcher_base": (4.41, 2.97, 5.68, 3.76, 8.69, 6.14)}
+ROWS = {"selection": ("execution", "planning", "smoothness", "collision", "time", "goal_set_time"),
+        "planners": ("execution", "planning", "smoothness", "collision", "grasp", "time", "goal_set_time"),
+        "refinement": ("planning", "execution", "time", "goal_set_time"),
+        "ablation": ("execution", "planning", "smoothness", "collision", "grasp", "time", "goal_set_time")}
+LABELS = {"execution": "Execution", "planning": "Planning", "smoothness": "Smoothness", "collision": "Collision",
+          "grasp": "Grasp", "time": "Time (s, planning)", "goal_set_time": "Goal-set time (s)", "mean": "Mean"}
+RATES = ("execution", "planning")
+
+
+def _fmt(key: str, value) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "n/a"
+    return f"{100 * value:.0f}%" if key in RATES else f"{value:.2f}"
+
+
+def _cell(table: str, key: str, method: str, ours) -> str:
+    paper = PAPER.get(table, {}).get(key, {}).get(method)
+    return _fmt(key, ours) + (f" ({_fmt(key, paper)})" if paper is not None else "")
+
+
+def _object_label(name: str) -> str:
+    return " ".join(w.capitalize() for w in name.split("_")[1:]) or name
+
+
+def markdown(table: str, summary: Dict[str, dict], records: Sequence[dict], header: str) -> str:
+    methods = list(summary)
+    lines = [header, "", "Cells: ours (paper). Rates over all valid units: a scene without goals or a failed",
+             "plan is a failed execution. Means over units that produced a trajectory.", ""]
+    lines += ["| Algorithm | " + " | ".join(methods) + " |", "|---" * (len(methods) + 1) + "|"]
+    if table == "refinement":
+        costs = grasp_costs_by_object(records, methods)
+        order = ["S", "S+ISF", "G", "G+ISF", "A", "A+ISF"]
+        for obj, row in costs.items():
+            paper = PAPER_GRASP_COSTS.get(obj)
+            cells = []
+            for m in methods:
+                p = paper[order.index(m)] if paper and m in order else None
+                cells.append(_fmt("grasp", row[m]) + (f" ({p:.2f})" if p is not None else ""))
+            lines.append(f"| {_object_label(obj)} | " + " | ".join(cells) + " |")
+        lines.append("| Mean | " + " | ".join(_cell(table, "mean", m, summary[m]["grasp"]) for m in methods) + " |")
+    for key in ROWS[table]:
+        lines.append(f"| {LABELS[key]} | " + " | ".join(_cell(table, key, m, summary[m][key]) for m in methods) + " |")
+    lines.append("| Units (valid / planned) | " + " | ".join(
+        f"{summary[m]['valid']}/{summary[m]['units']} ({summary[m]['planned']})" for m in methods) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_csv(path: str, records: Sequence[dict]) -> None:
+    keys = sorted({k for r in records for k in r})
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=keys)
+    w.writeheader()
+    for r in records:
+        w.writerow(r)
+    write_text(path, buf.getvalue())
+
+
+def plot_ablation(path: str, summary: Dict[str, dict]) -> None:
+    """Fig. 8: metrics against n and lambda, each scaled to [0, 1] by its maximum (planning rate as is)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for ax, prefix, label in ((axes[0], "n=", "n"), (axes[1], "lambda=", "lambda")):
+        ms = [m for m in summary if m.startswith(prefix)]
+        if not ms:
+            ax.set_visible(False)
+            continue
+        xs = [float(m[len(prefix):]) for m in ms]
+        for key in ("planning", "execution", "smoothness", "collision", "time"):
+            ys = [summary[m][key] for m in ms]
+            top = max((y for y in ys if y == y), default=0.0)
+            if key not in RATES and top > 0:
+                ys = [y / top for y in ys]
+            ax.plot(xs, ys, marker="o", label=key)
+        if prefix == "lambda=":
+            ax.set_xscale("log")
+        ax.set_xlabel(label)
+        ax.set_ylim(-0.05, 1.05)
+        ax.legend(fontsize=8)
+    fig.suptitle("Ablation of n and lambda (OMG, metrics except planning scaled to [0, 1])")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def write_report(settings: SweepSettings, records: List[dict]) -> str:
+    """table.md, runs.csv, runs.json, summary.json (and fig8.png for the ablation) in ``settings.out``."""
+    s = settings.effective()
+    methods = methods_for(s)
+    summary = summarize(records, methods)
+    scenes = len({r["scene"] for r in records})
+    titles = {"selection": "Table I: grasp selection", "refinement": "Table II: grasp refinement",
+              "planners": "Table III: planners", "ablation": "Fig. 8: ablation of n and lambda"}
+    header = (f"## {titles[s.table]}: {scenes} scenes, {s.grasps} grasps each scene, {s.runs} runs"
+              f" (objects: {s.objects or (f'as in the scenes of {s.scene_dir}' if s.scene_dir else 'built-in')})")
+    text = markdown(s.table, summary, records, header)
+    errors = {m: row["errors"] for m, row in summary.items() if row["errors"]}
+    if errors:
+        text += ("\nUnits that raised an error (counted as failed plans; reasons in runs.json): "
+                 + ", ".join(f"{m} {n}" for m, n in errors.items()) + "\n")
+    write_text(os.path.join(s.out, "table.md"), text)
+    write_csv(os.path.join(s.out, "runs.csv"), records)
+    write_json(os.path.join(s.out, "runs.json"), records)
+    write_json(os.path.join(s.out, "summary.json"), summary)
+    if s.table == "ablation":
+        plot_ablation(os.path.join(s.out, "fig8.png"), summary)
+    return text
+
+
+def settings_from_args(args: argparse.Namespace) -> SweepSettings:
+    return SweepSettings(args.table, out=args.out or os.path.join("out", "bench", args.table), scenes=args.scenes,
+                         scene_dir=args.scene_dir, objects=args.objects, grasps=args.grasps,
+                         grasp_candidates=args.grasp_candidates, runs=args.runs,
+                         methods=tuple(args.methods) if args.methods else None, quick=args.quick,
+                         workers=args.workers, ray=args.ray, seed=args.seed, iterations=args.iterations,
+                         execute=not args.no_execute, time_limit=args.time_limit,
+                         max_goals_tried=args.max_goals_tried, progress=not args.no_progress)
+
+
+def run_bench(args: argparse.Namespace) -> int:
+    settings = settings_from_args(args)
+    records = run_sweep(settings)
+    print(write_report(settings, records))
+    print(f"wrote {settings.out}/table.md, runs.csv, runs.json, summary.json"
+          + (", fig8.png" if settings.table == "ablation" else ""))
+    return 0
+
+
+def add_bench_commands(subparsers) -> None:
+    """Add ``bench selection|refinement|planners|ablation`` to a ``pickplan`` sub-parser set."""
+    bench = subparsers.add_parser("bench", help="reproduce the OMG paper's tables (I, II, III, Fig. 8)")
+    sub = bench.add_subparsers(dest="table", required=True)
+    helps = {"selection": "Table I: goal selection (Fixed, Proj, FTC, FTL, EXP, MD; no refinement)",
+             "refinement": "Table II: grasp sets S/G/A with and without C-Space ISF",
+             "planners": "Table III: CHOMP, CHOMP-C, FMT, RRT-C, OMG",
+             "ablation": "Fig. 8: OMG over the discretization n and the smoothness weight lambda"}
+    for table in TABLES:
+        p = sub.add_parser(table, help=helps[table])
+        p.add_argument("--scenes", type=int, default=100, help="generated scenes (default 100)")
+        p.add_argument("--scene-dir", default=None, help="load scene JSON files from here instead")
+        p.add_argument("--objects", default=None, help="YCB object folder for generated scenes (default built-ins)")
+        p.add_argument("--grasps", type=int, default=30, help="goal-set size per scene (default 30)")
+        p.add_argument("--grasp-candidates", type=int, default=100,
+                       help="grasps generated per object without a stored set (default 100)")
+        p.add_argument("--runs", type=int, default=10, help="runs per scene and method (default 10)")
+        p.add_argument("--methods", nargs="+", default=None, help="subset of the table's methods")
+        p.add_argument("--quick", action="store_true", help="CI setting: <= 4 scenes, 1 run, 10 goals")
+        p.add_argument("--out", default=None, help="output folder (default out/bench/TABLE); resumes there")
+        p.add_argument("--workers", type=int, default=2, help="local worker processes (0: serial)")
+        p.add_argument("--ray", default=None, help="Ray cluster address, or 'local' to start Ray here")
+        p.add_argument("--seed", type=int, default=0)
+        p.add_argument("--iterations", type=int, default=50)
+        p.add_argument("--time-limit", type=float, default=1.0, help="OMPL seconds per goal")
+        p.add_argument("--max-goals-tried", type=int, default=5, help="ranked goals tried by the baselines")
+        p.add_argument("--no-execute", action="store_true", help="skip PyBullet execution")
+        p.add_argument("--no-progress", action="store_true")
+        p.set_defaults(handler=run_bench)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="pickplan", description=__doc__.splitlines()[0])
+    add_bench_commands(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    try:
+        return args.handler(args)
+    except (FileNotFoundError, ValueError, KeyError, ImportError) as exc:
+        parser.exit(2, f"pickplan bench: error: {exc}\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

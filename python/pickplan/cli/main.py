@@ -1,0 +1,89 @@
+"""The ``pickplan`` command line.
+
+  pickplan demo                          the main job: plan + execute a grasp in clutter
+  pickplan plan --scene SCENE.json       plan (and optionally execute) one scene
+  pickplan scenes --n 100 --out DIR      generate a benchmark set of scenes
+  pickplan bench selection|refinement|planners|ablation   the paper's Tables I-III and Fig. 8
+  pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
+  pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from dataclasses import replace
+from typing import Optional, Sequence
+
+
+def _cmd_demo(args) -> int:
+    from pickplan.eval.demo import DemoSettings, run_demo
+
+    return run_demo(args.out, DemoSettings(seed=args.seed))
+
+
+def _cmd_plan(args) -> int:
+    from pickplan.sim import execution
+    from pickplan.eval.demo import metrics_table
+    from pickplan.core.io import write_json, write_text
+    from pickplan.omg.planner import OMGPlanner, OMGSettings
+    from pickplan.sim.scenes import Scene
+
+    scene = Scene.load(args.scene)
+    settings = OMGSettings(selection=args.selection, refine=not args.no_refine, iterations=args.iterations,
+                           grasp_kind=args.grasps, seed=args.seed)
+    result = OMGPlanner(None, scene, settings).plan()
+    executed = execution.execute_plan(scene, result.trajectory) if args.execute and result.status != "no_goals" else None
+    table = metrics_table(result, executed)
+    print(table)
+    if args.out:
+        os.makedirs(args.out, exist_ok=True)
+        write_text(os.path.join(args.out, "metrics.md"), table)
+        write_json(os.path.join(args.out, "plan.json"), {
+            "status": result.status, "trajectory": result.trajectory.tolist(), "metrics": result.metrics,
+            "grasp_cost": result.grasp_cost, "timings": result.timings,
+            "execution": executed.to_dict() if executed else None})
+    return 0 if result.success else 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="pickplan", description="Joint motion and grasp planning.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    demo = sub.add_parser("demo", help="plan and execute a grasp in a generated cluttered scene")
+    demo.add_argument("--out", default="out/demo", help="folder for the picture and the metrics table")
+    demo.add_argument("--seed", type=int, default=1, help="scene seed")
+    demo.set_defaults(handler=_cmd_demo)
+    plan = sub.add_parser("plan", help="plan one scene (JSON from `pickplan scenes`)")
+    plan.add_argument("--scene", required=True)
+    plan.add_argument("--selection", default="MD", choices=["Fixed", "Proj", "FTC", "FTL", "EXP", "MD"])
+    plan.add_argument("--grasps", default="simulated", choices=["simulated", "graspit", "approach", "antipodal"])
+    plan.add_argument("--iterations", type=int, default=50)
+    plan.add_argument("--no-refine", action="store_true", help="turn C-Space ISF off")
+    plan.add_argument("--execute", action="store_true", help="also execute the plan in PyBullet")
+    plan.add_argument("--seed", type=int, default=0)
+    plan.add_argument("--out", default=None, help="folder for metrics.md and plan.json")
+    plan.set_defaults(handler=_cmd_plan)
+    from pickplan.cli.scenes import add_scene_commands
+    from pickplan.cli.metamodel import add_metamodel_commands
+    from pickplan.cli.pickup import add_pickup_commands
+    from pickplan.cli.bench import add_bench_commands
+
+    add_scene_commands(sub)
+    add_bench_commands(sub)
+    add_metamodel_commands(sub)
+    add_pickup_commands(sub)
+    return parser
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    args = build_parser().parse_args(argv)
+    handler = getattr(args, "handler", None) or getattr(args, "func")
+    try:
+        return int(handler(args) or 0)
+    except (FileNotFoundError, ValueError, KeyError, ImportError) as exc:
+        print(f"pickplan {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

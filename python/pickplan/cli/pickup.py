@@ -1,0 +1,189 @@
+"""`pickplan pickup cases [--out DIR] [--quick] [--metamodel FILE|standin] [--workers N] [--replay NAME [--gui]]`:
+runs the Sec. VI experiments on the rho_sigma of a part-1 meta-model (by default the box model, built
+from simulation on the first run and cached as OUT/metamodel_box.json) and writes Tables I-IV (Markdown, the paper's numbers beside ours), the
+Fig. 5 speed plots and every trajectory as JSON + NPZ (atomic writes). `--replay NAME` plays one
+written trajectory (e.g. case5_sequential) back in PyBullet (DIRECT, or the GUI with --gui) and
+prints PyBullet's independent tool-pose error at T2 and least link-obstacle distance;
+`--replay-only` replays from an earlier run's OUT/trajectories without solving again."""
+from __future__ import annotations
+
+import argparse
+import os
+
+from pickplan.pickup.nlp import cases
+from pickplan.pickup.nlp import planner
+
+
+def add_pickup_commands(subparsers) -> None:
+    """Adds `pickup cases` to an argparse subparsers object (the pickplan CLI's)."""
+    pk = subparsers.add_parser("pickup", help="pick-up on the move (Thakar et al.)")
+    sub = pk.add_subparsers(dest="pickup_command", required=True)
+    c = sub.add_parser("cases", help="Tables I-IV and Fig. 5 of Sec. VI")
+    c.add_argument("--out", default="out/pickup_cases", help="output folder")
+    c.add_argument("--quick", action="store_true", help="fewer samples per interval, one single-shot seed")
+    c.add_argument("--metamodel", default=None,
+                   help="part-1 meta-model JSON; default OUT/metamodel_box.json, built from simulation when "
+                        f"missing; '{cases.STANDIN}' for the labelled stand-in surface (no physics)")
+    c.add_argument("--workers", type=int, default=1, help="solver processes (Ipopt is not thread-safe)")
+    c.add_argument("--shots", type=int, default=3, help="single-shot random seeds per case")
+    c.add_argument("--replay", default=None, metavar="NAME",
+                   help="replay OUT/trajectories/NAME.json in PyBullet (e.g. case1_sequential)")
+    c.add_argument("--replay-only", action="store_true", help="only replay (no solving); needs --replay")
+    c.add_argument("--gui", action="store_true", help="replay in the PyBullet GUI, in real time")
+    c.set_defaults(func=run_cases)
+
+
+def _f(x, fmt="{:.2f}"):
+    return "fail" if x is None else fmt.format(x)
+
+
+def _m(p, key):
+    return None if not p.get("metrics") else p["metrics"][key]
+
+
+def tables_markdown(main: dict, t4: dict, rho_source: str) -> str:
+    L = [f"# Pick-up on the move: Sec. VI experiments\n\nrho_sigma source: {rho_source}. "
+         "Each cell: paper / ours. Sequential = five stages of successive refinement; without sequencing = "
+         "all constraints at once from random seeds (best solved seed). `fail` = no solution (status in the JSON).\n"]
+    L.append("## Table I: speeds (m/s)\n\n| Case | S_mb seq | S_mb w/o seq | S_g seq | S_g w/o seq | S_c seq | S_c w/o seq |\n|---|---|---|---|---|---|---|")
+    for c in range(1, 7):
+        s, w = main[c]["successive"], main[c]["single_shot"]
+        (pm, pg, pc) = cases.PAPER_T1[c]
+        ours = [(_m(s, "base_speed_grasp_mean"), _m(w, "base_speed_grasp_mean")),
+                (s["S_g"] if s["success"] else None, w["S_g"] if w["success"] else None),
+                (s["S_c"] if s["success"] else None, w["S_c"] if w["success"] else None)]
+        cells = []
+        for paper, mine in zip((pm, pg, pc), ours):
+            cells += [f"{paper[0]:.2f} / {_f(mine[0])}", f"{paper[1]:.2f} / {_f(mine[1])}"]
+        L.append(f"| {c} | " + " | ".join(cells) + " |")
+    L.append("\nS_mb: mean base speed during grasping [T1, T2].\n")
+    L.append("## Table II: errors\n\n| Case | pos. err seq (mm) | pos. err w/o seq (mm) | orient. err seq | orient. err w/o seq | "
+             "avg. non-holonomic seq | avg. non-holonomic w/o seq | drift seq (m) | drift w/o seq (m) |\n"
+             "|---|---|---|---|---|---|---|---|---|")
+    for c in range(1, 7):
+        s, w = main[c]["successive"], main[c]["single_shot"]
+        pp, po, pn = cases.PAPER_T2[c]
+        g = lambda p, k, sc=1.0: None if (_m(p, k) is None or not p["success"]) else _m(p, k) * sc  # noqa: E731
+        L.append(f"| {c} | {pp[0]:.1e} / {_f(g(s, 'pose_error_position', 1e3), '{:.1e}')} | "
+                 f"{pp[1]:.1e} / {_f(g(w, 'pose_error_position', 1e3), '{:.1e}')} | "
+                 f"{po[0]:.1e} / {_f(g(s, 'pose_error_orientation', 1e3), '{:.1e}')} | "
+                 f"{po[1]:.1e} / {_f(g(w, 'pose_error_orientation', 1e3), '{:.1e}')} | "
+                 f"{pn[0]:.1e} / {_f(g(s, 'nonholonomic_mean'), '{:.1e}')} | {pn[1]:.1e} / {_f(g(w, 'nonholonomic_mean'), '{:.1e}')} | "
+                 f"{_f(g(s, 'nonholonomic_drift'), '{:.1e}')} | {_f(g(w, 'nonholonomic_drift'), '{:.1e}')} |")
+    L.append("\nOurs: position error of the tool at T2 by dense re-sampling (mm); orientation error as the rotation "
+             "angle (mrad; the paper labels it mm); avg. non-holonomic error as the mean of |x' sin phi - y' cos phi| "
+             "over 2001 instants in [0, T] (m/s; the paper labels it m and does not define it); drift (ours only): "
+             "its integral over [0, T], the lateral slip of the whole trajectory (m).\n")
+    L.append("## Table III: times and probability\n\n| Case | grasp time seq (s) | grasp time w/o seq (s) | T seq (s) | "
+             "T w/o seq (s) | rho seq | rho w/o seq | solve seq (s) | solve w/o seq (s) |\n|---|---|---|---|---|---|---|---|---|")
+    for c in range(1, 7):
+        s, w = main[c]["successive"], main[c]["single_shot"]
+        pg, pt, pr = cases.PAPER_T3[c]
+        ok = lambda p, v: v if p["success"] else None  # noqa: E731
+        L.append(f"| {c} | {pg[0]:.2f} / {_f(ok(s, s['T2'] - s['T1']))} | {pg[1]:.2f} / {_f(ok(w, w['T2'] - w['T1']))} | "
+                 f"{pt[0]:.2f} / {_f(ok(s, s['T']))} | {pt[1]:.2f} / {_f(ok(w, w['T']))} | "
+                 f"{pr[0]:.2%} / {_f(ok(s, _m(s, 'success_probability')), '{:.2%}')} | "
+                 f"{pr[1]:.2%} / {_f(ok(w, _m(w, 'success_probability')), '{:.2%}')} | "
+                 f"- / {s['total_seconds']:.2f} | - / {w['total_seconds']:.2f} |")
+    solved_w = [sum(r["success"] for r in main[c]["single_shot_all"]) for c in range(1, 7)]
+    direct = [c for c in range(1, 7) if main[c]["successive"].get("direct_chosen")]
+    L.append(f"\nSingle-shot seeds solved per case: {solved_w}. Sequential solutions from the direct track "
+             f"(all constraints from the stage-1 solution, shorter than the five stages'): cases {direct or 'none'}. "
+             "Solve times: the five stages (from both arm seeds) plus the direct track.\n")
+    L.append("## Table IV: low vs high uncertainty (sequential)\n\n| Case | base speed in grasp low | high | S_g low | high | "
+             "rho low | high |\n|---|---|---|---|---|---|---|")
+    for c in cases.TABLE4_CASES:
+        lo, hi = t4[(c, "low")], t4[(c, "high")]
+        pb, pg, pr = cases.PAPER_T4[c]
+        okm = lambda p, k: _m(p, k) if p["success"] else None  # noqa: E731
+        L.append(f"| {c} | {pb[0]:.2f} / {_f(okm(lo, 'base_speed_grasp_mean'))} | {pb[1]:.2f} / {_f(okm(hi, 'base_speed_grasp_mean'))} | "
+                 f"{pg[0]:.2f} / {_f(lo['S_g'] if lo['success'] else None)} | {pg[1]:.2f} / {_f(hi['S_g'] if hi['success'] else None)} | "
+                 f"{pr[0]:.2%} / {_f(okm(lo, 'success_probability'), '{:.2%}')} | {pr[1]:.2%} / {_f(okm(hi, 'success_probability'), '{:.2%}')} |")
+    L.append(f"\ngamma: low {cases.TABLE4_GAMMA['low']}, high {cases.TABLE4_GAMMA['high']} (the paper does not state it).\n")
+    return "\n".join(L) + "\n"
+
+
+def plot_fig5(fig5: dict, path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(fig5), figsize=(11, 3.6), sharey=True)
+    for ax, (name, p) in zip(axes, fig5.items()):
+        if p["stages_completed"] == 0:
+            ax.set_title(f"{name}: {p['status']}")
+            continue
+        t, base, grip = cases.speed_profiles(p)
+        ax.plot(t, base, label="mobile base")
+        ax.plot(t, grip, label="gripper")
+        ax.axvspan(p["T1"], p["T2"], color="0.85", label="grasping")
+        ax.set_title(f"Case 1, joint rates {name}")
+        ax.set_xlabel("t (s)")
+        ax.legend()
+    axes[0].set_ylabel("speed (m/s)")
+    fig.tight_layout()
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120)
+    plt.close(fig)
+    planner.write_atomic(path, buf.getvalue())
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from pickplan.pickup.nlp import replay
+    path = os.path.join(args.out, "trajectories", f"{args.replay}.json")
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"no trajectory {path} (names: caseN_sequential, caseN_single_shot_seedK, ...)")
+    r = replay.replay_file(path, gui=args.gui)
+    print(f"replayed {path} in PyBullet ({r['frames']} frames): tool error at T2 {r['tool_error_T2'][0]:.2e} m / "
+          f"{r['tool_error_T2'][1]:.2e} rad, least link-obstacle distance {r['min_distance']:.3f} m "
+          f"at t = {r['min_distance_t']:.2f} s")
+    return 0
+
+
+def run_cases(args: argparse.Namespace) -> int:
+    if getattr(args, "replay_only", False):
+        if not args.replay:
+            raise ValueError("--replay-only needs --replay NAME")
+        return _replay(args)
+    os.makedirs(args.out, exist_ok=True)
+    metamodel = args.metamodel
+    if metamodel is None:
+        metamodel = cases.ensure_metamodel(os.path.join(args.out, f"metamodel_{cases.METAMODEL_PART}.json"),
+                                           workers=args.workers)
+    elif metamodel != cases.STANDIN and not os.path.exists(metamodel):
+        raise FileNotFoundError(f"meta-model file not found: {metamodel}")
+    cfg = cases.CaseRunConfig(quick=args.quick, shots=args.shots, workers=args.workers, metamodel=metamodel)
+    main = cases.run_main_cases(cfg)
+    t4 = cases.run_table4(cfg)
+    fig5 = cases.run_fig5(cfg)
+    traj = os.path.join(args.out, "trajectories")
+    for c, r in main.items():
+        planner.save_plan(r["successive"], os.path.join(traj, f"case{c}_sequential"))
+        for p in r["single_shot_all"]:
+            planner.save_plan(p, os.path.join(traj, f"case{c}_single_shot_seed{p['seed']}"))
+    for (c, lv), p in t4.items():
+        planner.save_plan(p, os.path.join(traj, f"case{c}_{lv}_uncertainty"))
+    for i, (name, p) in enumerate(fig5.items()):
+        planner.save_plan(p, os.path.join(traj, f"fig5_case1_{'high' if i == 0 else 'low'}_rates"))
+    src = ("STAND-IN surface planner.synthetic_rho (no physics behind it)" if cfg.metamodel == cases.STANDIN
+           else f"meta-model {cfg.metamodel} (part-1 simulation)")
+    md = tables_markdown(main, t4, src)
+    planner.write_atomic(os.path.join(args.out, "tables.md"), md.encode())
+    plot_fig5(fig5, os.path.join(args.out, "fig5_speeds.png"))
+    print(md)
+    print(f"wrote {args.out}/tables.md, fig5_speeds.png and trajectories/")
+    return _replay(args) if args.replay else 0
+
+
+def main(argv=None) -> int:
+    """Stand-alone entry (`python -m pickplan.pickup.cases_cli cases ...`) until the pickplan CLI wires
+    in add_pickup_commands."""
+    parser = argparse.ArgumentParser(prog="pickplan")
+    add_pickup_commands(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["pickup"] + list(argv) if argv is not None else None)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    import sys
+    raise SystemExit(main(sys.argv[1:]))

@@ -1,0 +1,1 @@
+"""Shared core: robot models, objects and meshes, signed distance fields, collision checking, files."""

@@ -1,0 +1,158 @@
+"""Exact collision checking (native, FCL): a robot against scene meshes and a table box.
+
+>>> import numpy as np, trimesh, pickplan
+>>> from pickplan.collision import CollisionChecker, SceneMesh, Table
+>>> panda = pickplan.robots.panda()
+>>> box = trimesh.creation.box(extents=[0.1, 0.1, 0.2])
+>>> pose = np.eye(4); pose[:3, 3] = [0.5, 0.0, 0.1]
+>>> checker = CollisionChecker(panda, [SceneMesh("box", box, pose)], Table(size=(1.0, 1.4, 0.05)))
+>>> bool(checker.in_collision(panda.ready_configuration))
+False
+
+Link meshes are the robot's collision meshes in the link frames (``robot.collision_meshes``),
+object meshes are triangle surfaces, the table is a solid box. Distances are exact when apart
+and <= 0 in collision: minus a lower bound of the penetration (the deepest triangle's depth
+against the table, 0 for intersecting meshes, minus the surface gap for a mesh contained in
+another). See ``cpp/include/pickplan/collision.hpp`` for the precise semantics.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import List, NamedTuple, Optional, Sequence, Tuple
+
+import numpy as np
+
+from pickplan import _core
+from pickplan.core.robots import Robot
+
+
+class SceneMesh(NamedTuple):
+    """A scene object: unique name, mesh (anything with ``vertices`` and ``faces``) in the
+    object frame, and its 4x4 pose in the world."""
+
+    name: str
+    mesh: object
+    pose: np.ndarray
+
+
+@dataclass(frozen=True)
+class Table:
+    """A solid box; by default its top face is at z = 0, centred at (0.75, 0) in front of the robot."""
+
+    size: Tuple[float, float, float] = (1.1, 1.4, 0.05)
+    pose: Optional[np.ndarray] = None  # box centre; None: translation (0.75, 0, -size_z / 2)
+
+    def pose_matrix(self) -> np.ndarray:
+        if self.pose is not None:
+            return np.asarray(self.pose, dtype=float)
+        T = np.eye(4)
+        T[:3, 3] = [0.75, 0.0, -0.5 * float(self.size[2])]
+        return T
+
+
+@dataclass(frozen=True)
+class CollisionSettings:
+    """Mirror of the C++ ``CollisionSettings`` (same field names and defaults)."""
+
+    allowed_pairs: Tuple[Tuple[str, str], ...] = ()   # (link, object | "table" | link) never checked
+    excluded_objects: Tuple[str, ...] = ()            # object names (or "table") ignored entirely
+    self_collision: bool = False                      # adjacent links and pairs touching at the reference skipped
+    self_collision_reference: Optional[Tuple[float, ...]] = None  # None: zero clipped to the limits
+    margin: float = 0.0                               # in_collision when closer than this (m)
+    detect_containment: bool = True                   # a mesh entirely inside another collides
+
+    def to_native(self) -> "_core.CollisionSettings":
+        s = _core.CollisionSettings()
+        s.allowed_pairs = [(str(a), str(b)) for a, b in self.allowed_pairs]
+        s.excluded_objects = [str(n) for n in self.excluded_objects]
+        s.self_collision = bool(self.self_collision)
+        s.self_collision_reference = [] if self.self_collision_reference is None else \
+            [float(v) for v in self.self_collision_reference]
+        s.margin = float(self.margin)
+        s.detect_containment = bool(self.detect_containment)
+        return s
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A checked pair in collision (distance <= 0) or within the requested distance."""
+
+    link: str
+    other: str
+    kind: str                 # "object", "table" or "link"
+    distance: float           # > 0 separation (exact); <= 0 in collision (see the module docstring)
+    point_link: np.ndarray    # world coordinates
+    point_other: np.ndarray
+
+
+def _mesh_arrays(mesh, what: str):
+    if mesh is None or not hasattr(mesh, "vertices") or not hasattr(mesh, "faces"):
+        raise ValueError(f"{what}: expected a mesh with vertices and faces, got {type(mesh).__name__}")
+    return np.ascontiguousarray(mesh.vertices, dtype=float), np.ascontiguousarray(mesh.faces, dtype=np.int32)
+
+
+class CollisionChecker:
+    """Robot-vs-scene collision checker, built once per scene; immutable and thread-safe.
+
+    ``convex_links=True`` hands the convex hull of each link mesh to FCL instead of the mesh
+    itself (what PyBullet does with URDF meshes): conservative, and identical geometry when
+    comparing with PyBullet.
+    """
+
+    def __init__(self, robot: Robot, objects: Sequence[SceneMesh] = (), table: Optional[Table] = None,
+                 settings: CollisionSettings = CollisionSettings(), convex_links: bool = False,
+                 links: Optional[Sequence[str]] = None):
+        """``links``: check only these links (default: every link with collision geometry)."""
+        self.robot = robot
+        self.settings = settings
+        link_meshes = []
+        for name in (robot.link_names if links is None else links):
+            mesh = robot.collision_meshes(name)
+            if mesh is None:
+                continue
+            if convex_links:
+                mesh = mesh.convex_hull
+            link_meshes.append((name, *_mesh_arrays(mesh, f"mesh of link '{name}'")))
+        native_objects = []
+        for obj in objects:
+            name, mesh, pose = obj
+            V, F = _mesh_arrays(mesh, f"object '{name}'")
+            native_objects.append((str(name), V, F, np.asarray(pose, dtype=float)))
+        size = pose = None
+        if table is not None:
+            size, pose = np.asarray(table.size, dtype=float), table.pose_matrix()
+        self._native = _core.CollisionChecker(robot.native, link_meshes, native_objects, size, pose,
+                                              settings.to_native())
+
+    @property
+    def native(self) -> "_core.CollisionChecker":
+        return self._native
+
+    @property
+    def object_names(self) -> List[str]:
+        return list(self._native.object_names)
+
+    @property
+    def checked_pairs(self) -> List[Tuple[str, str]]:
+        """(link, other) pairs actually checked, after exclusions and self-collision filtering."""
+        return [tuple(p) for p in self._native.checked_pairs]
+
+    def in_collision(self, q) -> bool:
+        return bool(self._native.in_collision(q))
+
+    def min_distance(self, q) -> float:
+        """Smallest signed distance over the checked pairs (inf when there are none)."""
+        return float(self._native.min_distance(q))
+
+    def in_collision_batch(self, Q, threads: int = 1) -> np.ndarray:
+        """(B,) bool for a (B, dof) batch; ``threads <= 0`` uses every core."""
+        return np.asarray(self._native.in_collision_batch(Q, threads))
+
+    def min_distance_batch(self, Q, threads: int = 1) -> np.ndarray:
+        return np.asarray(self._native.min_distance_batch(Q, threads))
+
+    def contacts(self, q, within: float = 0.0) -> List[Contact]:
+        """Pairs in collision, or closer than ``max(margin, within)``, nearest first."""
+        return [Contact(d["link"], d["other"], d["kind"], float(d["distance"]),
+                        np.asarray(d["point_link"]), np.asarray(d["point_other"]))
+                for d in self._native.contacts(q, float(within))]

@@ -1,0 +1,224 @@
+"""Robot models: URDF kinematics (native), body points sampled on collision meshes.
+
+>>> import pickplan
+>>> r = pickplan.robots.panda()
+>>> r.dof, r.link_names[:2]
+(9, ['panda_link0', 'panda_link1'])
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Optional, Sequence, Union
+
+import numpy as np
+
+from pickplan import _core
+from pickplan.core.panda import PandaInfo, panda_urdf_path  # noqa: F401  (re-exported)
+from pickplan.core.paths import assets_dir  # noqa: F401  (re-exported: robots.assets_dir)
+
+LinkRef = Union[int, str]
+
+
+@dataclass(frozen=True)
+class BodyPoints:
+    """Points fixed on robot links (link-frame coordinates), with outward surface normals."""
+
+    links: np.ndarray    # (N,) int32 link index of each point
+    points: np.ndarray   # (N, 3) link-frame positions
+    normals: np.ndarray  # (N, 3) link-frame unit normals
+
+    def __len__(self) -> int:
+        return int(self.links.shape[0])
+
+
+class Robot:
+    """A robot loaded from URDF. Immutable: ``with_base`` returns a moved copy.
+
+    Configurations are numpy arrays of ``dof`` joint values in ``joint_names`` order,
+    including gripper finger joints where the URDF has them.
+    """
+
+    def __init__(self, native: "_core.Robot", urdf_path: Optional[str] = None):
+        self._native = native
+        self.urdf_path = urdf_path
+
+    @classmethod
+    def from_urdf(cls, path: Union[str, os.PathLike], package_dirs: Sequence[str] = ()) -> "Robot":
+        path = os.fspath(path)
+        return cls(_core.Robot.from_urdf_file(path, [os.fspath(p) for p in package_dirs]), urdf_path=path)
+
+    # --- model ---------------------------------------------------------------------------
+    @property
+    def native(self) -> "_core.Robot":
+        return self._native
+
+    @property
+    def name(self) -> str:
+        return self._native.name
+
+    @property
+    def dof(self) -> int:
+        return self._native.dof
+
+    @property
+    def link_names(self) -> list:
+        return list(self._native.link_names)
+
+    @property
+    def joint_names(self) -> list:
+        return list(self._native.joint_names)
+
+    @property
+    def lower_limits(self) -> np.ndarray:
+        return np.asarray(self._native.lower_limits)
+
+    @property
+    def upper_limits(self) -> np.ndarray:
+        return np.asarray(self._native.upper_limits)
+
+    @property
+    def velocity_limits(self) -> np.ndarray:
+        return np.asarray(self._native.velocity_limits)
+
+    @property
+    def base_pose(self) -> np.ndarray:
+        return np.asarray(self._native.base_pose)
+
+    def link_index(self, link: LinkRef) -> int:
+        if isinstance(link, str):
+            return self._native.link_index(link)
+        if not 0 <= int(link) < len(self.link_names):
+            raise ValueError(f"link index {link} out of range [0, {len(self.link_names)})")
+        return int(link)
+
+    def with_base(self, base_pose: np.ndarray) -> "Robot":
+        return type(self)._rewrap(self, self._native.with_base(np.asarray(base_pose, dtype=float)))
+
+    @classmethod
+    def _rewrap(cls, old: "Robot", native) -> "Robot":
+        new = object.__new__(cls)
+        new.__dict__.update(old.__dict__)
+        new._native = native
+        return new
+
+    # --- kinematics ----------------------------------------------------------------------
+    def fk(self, q) -> np.ndarray:
+        """World poses of every link, (num_links, 4, 4)."""
+        return self._native.fk(q)
+
+    def fk_batch(self, Q) -> np.ndarray:
+        """World poses for a batch of configurations, (B, num_links, 4, 4)."""
+        return self._native.fk_batch(Q)
+
+    def link_pose(self, q, link: LinkRef) -> np.ndarray:
+        return self._native.fk(q)[self.link_index(link)]
+
+    def jacobian(self, q, link: LinkRef, point=None) -> np.ndarray:
+        """6 x dof world Jacobian (linear rows, then angular) of a point fixed on ``link``."""
+        return self._native.jacobian(q, link, point)
+
+    def link_jacobians(self, q) -> np.ndarray:
+        return self._native.link_jacobians(q)
+
+    def transform_points(self, Q, body: BodyPoints) -> np.ndarray:
+        """World positions (T, N, 3) of body points along a trajectory Q (T, dof)."""
+        return self._native.transform_points(Q, body.links, body.points)
+
+    def moving_links(self) -> list:
+        """Indices of links moved by at least one joint (the fixed base chain is excluded)."""
+        parents, q_index = self._native.link_parents, self._native.link_q_index
+        moving = []
+        for i in range(len(parents)):
+            k = i
+            while k >= 0 and q_index[k] < 0:
+                k = parents[k]
+            if k >= 0:
+                moving.append(i)
+        return moving
+
+    def check_within_limits(self, q, name: str = "configuration", tolerance: float = 1e-6) -> np.ndarray:
+        """``q`` as a float array; ValueError naming the first joint outside its limits (shape and
+        NaN are checked by FK)."""
+        self._native.fk(q)
+        q = np.asarray(q, dtype=float)
+        lo, hi = self.lower_limits - tolerance, self.upper_limits + tolerance
+        bad = np.flatnonzero((q < lo) | (q > hi))
+        if bad.size:
+            j = int(bad[0])
+            raise ValueError(f"{name}: joint {self.joint_names[j]} = {q[j]:.4f} is outside its limits "
+                             f"[{self.lower_limits[j]:.4f}, {self.upper_limits[j]:.4f}]")
+        return q
+
+    def clip_to_limits(self, q) -> np.ndarray:
+        return np.clip(np.asarray(q, dtype=float), self.lower_limits, self.upper_limits)
+
+    def random_configurations(self, n: int, seed: int) -> np.ndarray:
+        """n configurations uniform within the joint limits (continuous joints in [-pi, pi])."""
+        rng = np.random.default_rng(seed)
+        lo = np.where(np.isfinite(self.lower_limits), self.lower_limits, -np.pi)
+        hi = np.where(np.isfinite(self.upper_limits), self.upper_limits, np.pi)
+        return rng.uniform(lo, hi, size=(n, self.dof))
+
+    # --- geometry ------------------------------------------------------------------------
+    def collision_meshes(self, link: LinkRef):
+        """The collision geometry of a link as one trimesh in the link frame (None if it has none)."""
+        from pickplan.core.meshes import geometry_to_trimesh
+
+        parts = [geometry_to_trimesh(g) for g in self._native.collision_geometries(self.link_index(link))]
+        if not parts:
+            return None
+        import trimesh
+
+        return trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
+
+    def sample_body_points(self, per_link: int = 20, seed: int = 0,
+                           links: Optional[Sequence[LinkRef]] = None) -> BodyPoints:
+        """Sample ``per_link`` points and normals on each link's collision surface (seeded).
+
+        By default every link that moves (``moving_links``); links without collision geometry
+        contribute no points.
+        """
+        if per_link < 1:
+            raise ValueError(f"per_link must be >= 1, got {per_link}")
+        import trimesh
+
+        rng = np.random.default_rng(seed)
+        chosen = self.moving_links() if links is None else [self.link_index(l) for l in links]
+        all_links, all_pts, all_nrm = [], [], []
+        for li in chosen:
+            mesh = self.collision_meshes(li)
+            if mesh is None or mesh.area <= 0:
+                continue
+            pts, faces = trimesh.sample.sample_surface(mesh, per_link, seed=int(rng.integers(2**31)))
+            all_links.append(np.full(len(pts), li, dtype=np.int32))
+            all_pts.append(np.asarray(pts, dtype=float))
+            all_nrm.append(np.asarray(mesh.face_normals[faces], dtype=float))
+        if not all_pts:
+            return BodyPoints(np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 3)))
+        return BodyPoints(np.concatenate(all_links), np.concatenate(all_pts), np.concatenate(all_nrm))
+
+
+class Panda(Robot):
+    """The Franka Emika Panda from pybullet_data, with its hand and finger link names."""
+
+    info = PandaInfo()
+
+    @property
+    def hand_link(self) -> str:
+        return self.info.hand_link
+
+    @property
+    def finger_links(self) -> tuple:
+        return self.info.finger_links
+
+    @property
+    def ready_configuration(self) -> np.ndarray:
+        return np.array(self.info.ready, dtype=float)
+
+
+def panda(base_pose: Optional[np.ndarray] = None) -> Panda:
+    """The Panda shipped in pybullet_data (7 arm joints + 2 finger joints, real limits)."""
+    path = panda_urdf_path()
+    robot = Panda(_core.Robot.from_urdf_file(path, []), urdf_path=path)
+    return robot if base_pose is None else robot.with_base(base_pose)

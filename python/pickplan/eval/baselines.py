@@ -1,0 +1,237 @@
+"""Baselines of the OMG paper's Table III on the same scenes, goal sets and collision model as OMG.
+
+* ``CHOMP`` [33]: the goals are ranked by OMG's initial objective estimate (the native
+  ``goal_costs`` at iteration 0), then plain CHOMP toward one fixed goal (with its standoff tail)
+  runs through the ranked list until a plan meets the paper's success test (collision-free,
+  smoothness < 30); at most ``max_goals_tried`` goals are tried (default 5).
+* ``CHOMP-C`` [11]: OMG with ``selection="Proj", refine=False`` (see ``chomp_c_settings``).
+* ``FMT`` [21] and ``RRT-C`` [25]: OMPL (PyPI wheel ``ompl``) in the 7-D space of the arm joints
+  within their limits; state validity is the native FCL checker ``world.checker("obstacles")``
+  (the target ignored: the plan ends at the pre-grasp, the first row of the goal's standoff tail,
+  and the tail is appended); OMPL's standard simplification (shortcutting + smoothing); a time
+  limit per goal; through the same ranked goal list; the path is resampled by arc length to the
+  same n waypoints (tail included) so the paper's metrics apply unchanged.
+
+Every baseline returns an ``omg.PlanResult``.
+
+>>> result = plan_baseline("RRT-C", scene, BaselineSettings())
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Optional
+
+import numpy as np
+
+from pickplan.omg import grasps as grasps_mod
+from pickplan.omg.chomp import Chomp, cubic_initialization
+from pickplan.omg.goals import build_goal_set
+from pickplan.omg.planner import OMGSettings, PlanResult
+from pickplan.sim.scenes import Scene
+from pickplan.omg.world import World
+
+BASELINES = ("CHOMP", "FMT", "RRT-C")
+
+
+@dataclass(frozen=True)
+class BaselineSettings:
+    """Shared with OMG through ``omg`` (CHOMP settings, goal set, IK, metrics, grasps, seed)."""
+
+    omg: OMGSettings = field(default_factory=OMGSettings)
+    max_goals_tried: int = 5        # goals of the ranked list tried before giving up
+    chomp_iterations: int = 50      # plain CHOMP iterations per goal (OMG's N)
+    time_limit: float = 1.0         # s of OMPL planning per goal
+    simplify_time: float = 0.2      # s of OMPL path simplification per solution
+    check_resolution: float = 0.005  # OMPL motion-validation step, fraction of the space's extent
+
+
+def chomp_c_settings(settings: OMGSettings) -> OMGSettings:
+    """CHOMP-C [11] is OMG's goal-set CHOMP with the projection rule and no refinement."""
+    return replace(settings, selection="Proj", refine=False)
+
+
+def _empty(q0, timings, gs) -> PlanResult:
+    return PlanResult("no_goals", np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
+                      {"objective": [], "goal": [], "p": [], "switches": 0}, timings, gs.reason_counts())
+
+
+class _Problem:
+    """Goal set, CHOMP problem and ranking shared by the baselines."""
+
+    def __init__(self, scene: Scene, settings: BaselineSettings, world: Optional[World], grasps):
+        s = settings.omg
+        self.settings = settings
+        self.world = world if world is not None and world.target == scene.target else World(scene, s.world)
+        self.q0 = self.world.robot.check_within_limits(self.world.start, "start")
+        if grasps is None or isinstance(grasps, str):
+            kind = grasps or s.grasp_kind
+            grasps = grasps_mod.grasp_set(self.world.target_model, kind, s.grasp_count, seed=s.seed).poses
+        self.timings = dict.fromkeys(("goal_set", "ranking", "planning", "metrics"), 0.0)
+        t = time.perf_counter()
+        self.gs = build_goal_set(self.world, grasps, self.q0, s.goals, s.ik)
+        self.timings["goal_set"] = time.perf_counter() - t
+        if len(self.gs) == 0:
+            return
+        self.m = self.gs.tails.shape[1]
+        self.chomp = Chomp(self.world.robot, self.world.sdf, self.world.body, replace(s.chomp, obstacle_tail=self.m),
+                           exclude=(self.world.target,))
+        self.metric_settings = replace(s.metrics, tail_waypoints=self.m)
+        t = time.perf_counter()
+        xi = cubic_initialization(self.q0, self.gs.goals[0], s.chomp.n)
+        c = self.chomp.problem.goal_costs(xi, self.q0, 0, s.iterations, np.asarray(self.gs.goals),
+                                          s.cost_time_stride, s.cost_point_stride, self.chomp.workspace())
+        self.ranking = [int(i) for i in np.argsort(np.asarray(c), kind="stable")]
+        self.timings["ranking"] = time.perf_counter() - t
+
+    def metrics(self, xi) -> dict:
+        t = time.perf_counter()
+        out = self.chomp.metrics(xi, self.q0, self.metric_settings)
+        self.timings["metrics"] += time.perf_counter() - t
+        return out
+
+    def result(self, xi, g, metrics, attempts, t_total) -> PlanResult:
+        self.timings["total"] = time.perf_counter() - t_total
+        status = "success" if metrics["success"] else ("in_collision" if not metrics["collision_free"] else "not_smooth")
+        robot = self.world.robot
+        hand = robot.link_pose(xi[-1], robot.hand_link)
+        history = {"objective": [], "goal": [g], "p": [], "switches": 0, "attempts": attempts,
+                   "ranking": self.ranking[:self.settings.max_goals_tried]}
+        return PlanResult(status, np.vstack([self.q0, xi]), xi[-1].copy(), int(self.gs.grasp_index[g]), hand, False,
+                          metrics, float("nan"), len(self.gs), len(attempts), history, dict(self.timings),
+                          self.gs.reason_counts())
+
+
+def plan_chomp(scene: Scene, settings: BaselineSettings = BaselineSettings(), world: Optional[World] = None,
+               grasps=None) -> PlanResult:
+    """Plain CHOMP through the ranked goal list (first feasible plan; else the top goal's plan)."""
+    t_total = time.perf_counter()
+    pb = _Problem(scene, settings, world, grasps)
+    if len(pb.gs) == 0:
+        pb.timings["total"] = time.perf_counter() - t_total
+        return _empty(pb.q0, pb.timings, pb.gs)
+    first = None
+    attempts = []
+    for g in pb.ranking[:settings.max_goals_tried]:
+        t = time.perf_counter()
+        out = pb.chomp.optimize(pb.q0, pb.gs.tails[g], settings.chomp_iterations, metric_settings=None)
+        pb.timings["planning"] += time.perf_counter() - t
+        metrics = pb.metrics(out.xi)
+        attempts.append({"goal": g, "success": bool(metrics["success"])})
+        if first is None:
+            first = (out.xi, g, metrics)
+        if metrics["success"]:
+            return pb.result(out.xi, g, metrics, attempts, t_total)
+    return pb.result(*first, attempts, t_total)
+
+
+def resample_path(points: np.ndarray, count: int) -> np.ndarray:
+    """``count`` points at equal arc length along a piecewise-linear path, the first after its start
+    (fractions 1/count .. 1): the last point is the path's end."""
+    points = np.asarray(points, dtype=float)
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] <= 0:
+        return np.repeat(points[-1:], count, axis=0)
+    targets = s[-1] * np.arange(1, count + 1) / count
+    return np.stack([np.interp(targets, s, points[:, j]) for j in range(points.shape[1])], axis=1)
+
+
+def _ompl():
+    try:
+        from ompl import base as ob, geometric as og, util as ou
+    except ImportError as exc:  # a clear message rather than a deep traceback
+        raise ImportError("the FMT and RRT-C baselines need OMPL's Python wheel: pip install ompl") from exc
+    ou.setLogLevel(ou.LogLevel.LOG_ERROR)
+    return ob, og, ou
+
+
+_OMPL_SEEDED = []  # OMPL's seed is process-wide and can be set once, before its first random number
+
+
+def _seed_ompl(ou, seed: int) -> None:
+    """Seed OMPL once per process (later seeds would be ignored with an error message): OMPL runs are
+    reproducible for a fresh process, not across plans within one."""
+    if not _OMPL_SEEDED:
+        ou.RNG.setSeed(int(seed) + 1)
+        _OMPL_SEEDED.append(int(seed) + 1)
+
+
+def plan_ompl(scene: Scene, planner: str = "RRT-C", settings: BaselineSettings = BaselineSettings(),
+              world: Optional[World] = None, grasps=None) -> PlanResult:
+    """FMT* or RRT-Connect to the pre-grasp of each ranked goal, then the goal's standoff tail."""
+    ob, og, ou = _ompl()
+    if planner not in ("FMT", "RRT-C"):
+        raise ValueError(f"unknown OMPL planner {planner!r}; use 'FMT' or 'RRT-C'")
+    t_total = time.perf_counter()
+    pb = _Problem(scene, settings, world, grasps)
+    if len(pb.gs) == 0:
+        pb.timings["total"] = time.perf_counter() - t_total
+        return _empty(pb.q0, pb.timings, pb.gs)
+    robot = pb.world.robot
+    arm = robot.info.arm_dof
+    q0 = pb.q0
+    checker = pb.world.checker("obstacles").native
+    _seed_ompl(ou, settings.omg.seed)
+    space = ob.RealVectorStateSpace(arm)
+    bounds = ob.RealVectorBounds(arm)
+    for j in range(arm):
+        bounds.setLow(j, float(robot.lower_limits[j]))
+        bounds.setHigh(j, float(robot.upper_limits[j]))
+    space.setBounds(bounds)
+    ss = og.SimpleSetup(space)
+    q = q0.copy()
+
+    def valid(state) -> bool:
+        q[:arm] = state[0:arm]
+        return not bool(checker.in_collision(q))  # a Python bool: OMPL's binding rejects numpy bools
+
+    ss.setStateValidityChecker(valid)
+    si = ss.getSpaceInformation()
+    si.setStateValidityCheckingResolution(settings.check_resolution)
+    n = settings.omg.chomp.n
+    free = n - pb.m  # waypoints before the tail; the path ends at the tail's first row
+    first = None
+    attempts = []
+    for g in pb.ranking[:settings.max_goals_tried]:
+        tail = pb.gs.tails[g]
+        start, goal = space.allocState(), space.allocState()
+        for j in range(arm):
+            start[j], goal[j] = float(q0[j]), float(tail[0][j])
+        ss.clear()
+        ss.setStartAndGoalStates(start, goal)
+        ss.setPlanner(og.RRTConnect(si) if planner == "RRT-C" else og.FMT(si))
+        t = time.perf_counter()
+        solved = ss.solve(settings.time_limit) if valid(goal) and valid(start) else None
+        exact = solved is not None and bool(ss.haveExactSolutionPath())
+        if exact:
+            ss.simplifySolution(settings.simplify_time)
+            path = ss.getSolutionPath()
+            pts = np.array([path.getState(i)[0:arm] for i in range(path.getStateCount())])
+        else:  # no path: the straight line (it fails the metrics, as a failed plan should)
+            pts = np.stack([q0[:arm], tail[0][:arm]])
+        pb.timings["planning"] += time.perf_counter() - t
+        xi = np.repeat(q0[None, :], n, axis=0)
+        xi[:free + 1, :arm] = resample_path(np.vstack([q0[:arm], pts[1:]]), free + 1)
+        xi[free:] = tail
+        metrics = pb.metrics(xi)
+        attempts.append({"goal": g, "found": exact, "success": bool(metrics["success"])})
+        if first is None:
+            first = (xi, g, metrics)
+        if exact and metrics["success"]:
+            return pb.result(xi, g, metrics, attempts, t_total)
+    return pb.result(*first, attempts, t_total)
+
+
+def plan_baseline(name: str, scene: Scene, settings: BaselineSettings = BaselineSettings(),
+                  world: Optional[World] = None, grasps=None) -> PlanResult:
+    """One of ``CHOMP``, ``CHOMP-C``, ``FMT``, ``RRT-C`` on ``scene`` (its target, its start)."""
+    if name == "CHOMP":
+        return plan_chomp(scene, settings, world, grasps)
+    if name in ("FMT", "RRT-C"):
+        return plan_ompl(scene, name, settings, world, grasps)
+    if name == "CHOMP-C":
+        from pickplan.omg.planner import OMGPlanner
+
+        return OMGPlanner(None, scene, chomp_c_settings(settings.omg), world=world).plan(grasps=grasps)
+    raise ValueError(f"unknown baseline {name!r}; expected one of {list(BASELINES) + ['CHOMP-C']}")

@@ -1,0 +1,463 @@
+"""Sweeps that reproduce the OMG paper's Tables I, II, III and Fig. 8 (Sec. IV).
+
+A sweep is a list of units, one per (scene, method, run). A unit plans one scene with one method
+(OMG with some settings, or a baseline), executes successful plans in PyBullet (failed plans count
+as failed executions, as in the paper) and returns one flat record. Every finished unit is written
+at once to ``OUT/units/<scene>_<method>_r<run>.json`` (atomically), so an interrupted sweep resumes
+where it stopped with nothing counted twice. Units run serially (``workers=0``), over a local
+process pool (default), or as Ray tasks (``ray="local"`` or a cluster address).
+
+>>> settings = SweepSettings("selection", scenes=4, runs=1, out="/tmp/t1", quick=True)
+>>> records = run_sweep(settings)
+>>> summary = summarize(records, methods_for(settings))
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field, replace
+from typing import Callable, Dict, Iterable, Iterator, List, Optional, Sequence, TextIO, Tuple
+
+import numpy as np
+
+from pickplan.core.io import write_json
+
+TABLES = ("selection", "refinement", "planners", "ablation")
+SELECTION_METHODS = ("Fixed", "Proj", "FTC", "FTL", "EXP", "MD")
+REFINEMENT_METHODS = ("S", "S+ISF", "G", "G+ISF", "A", "A+ISF")
+PLANNER_METHODS = ("CHOMP", "CHOMP-C", "FMT", "RRT-C", "OMG")
+ABLATION_N = (10, 20, 30, 40, 50)
+ABLATION_LAMBDA = (0.01, 0.05, 0.1, 0.5, 1.0)
+GRASP_KINDS = {"S": "simulated", "G": "graspit", "A": "approach"}
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """One sweep; defaults are the paper's (100 scenes, 30 grasps, 10 runs)."""
+
+    table: str                         # selection | refinement | planners | ablation
+    out: str = "out/bench"
+    scenes: int = 100                  # generated scenes (ignored with scene_dir)
+    scene_dir: Optional[str] = None    # load scene_*.json from here instead
+    objects: Optional[str] = None      # YCB folder for generated scenes (None: the built-ins)
+    grasps: int = 30                   # goal-set size (the paper's "30 grasps each scene")
+    grasp_candidates: int = 100        # grasps generated per object when it has no stored set
+    runs: int = 10
+    methods: Optional[Tuple[str, ...]] = None   # None: every method of the table
+    quick: bool = False                # CI setting: see ``effective``
+    workers: int = 2                   # local processes (0: serial, in this process)
+    ray: Optional[str] = None          # "local" or a Ray cluster address
+    seed: int = 0                      # scene set seed; run r of every scene uses seed + r
+    iterations: int = 50               # OMG / CHOMP iterations N
+    execute: bool = True               # execute successful plans in PyBullet
+    time_limit: float = 1.0            # OMPL seconds per goal
+    max_goals_tried: int = 5           # ranked goals tried by CHOMP / FMT / RRT-C
+    progress: bool = True
+
+    def __post_init__(self):
+        if self.table not in TABLES:
+            raise ValueError(f"unknown table {self.table!r}; expected one of {list(TABLES)}")
+        for name in ("scenes", "grasps", "grasp_candidates", "runs", "iterations"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.methods is not None:
+            bad = [m for m in self.methods if m not in all_methods(self.table)]
+            if bad:
+                raise ValueError(f"unknown methods {bad} for table {self.table!r}; "
+                                 f"expected some of {list(all_methods(self.table))}")
+
+    def effective(self) -> "SweepSettings":
+        """``quick`` shrinks the sweep for CI: <= 4 scenes, 1 run, 10 goals, 30 candidates, 0.5 s OMPL."""
+        if not self.quick:
+            return self
+        return replace(self, scenes=min(self.scenes, 4), runs=1, grasps=min(self.grasps, 10),
+                       grasp_candidates=min(self.grasp_candidates, 30), time_limit=min(self.time_limit, 0.5))
+
+
+def all_methods(table: str, quick: bool = False) -> Tuple[str, ...]:
+    if table == "selection":
+        return SELECTION_METHODS
+    if table == "refinement":
+        return REFINEMENT_METHODS
+    if table == "planners":
+        return PLANNER_METHODS
+    ns, lams = ((20, 30), (0.1, 1.0)) if quick else (ABLATION_N, ABLATION_LAMBDA)
+    return tuple(f"n={n}" for n in ns) + tuple(f"lambda={x:g}" for x in lams)
+
+
+def methods_for(settings: SweepSettings) -> Tuple[str, ...]:
+    if settings.methods:
+        return tuple(settings.methods)
+    return all_methods(settings.table, settings.quick)
+
+
+def method_spec(table: str, method: str) -> dict:
+    """What a method means: planner ("omg" or a baseline name), selection, refine, grasp kind, n, lambda."""
+    spec = {"planner": "omg", "selection": "MD", "refine": True, "grasp_kind": "simulated", "n": 30, "lambda": 0.1}
+    if table == "selection":
+        spec.update(selection=method, refine=False)
+    elif table == "refinement":
+        spec.update(grasp_kind=GRASP_KINDS[method[0]], refine=method.endswith("+ISF"))
+    elif table == "planners":
+        if method != "OMG":
+            spec.update(planner=method)
+    elif method.startswith("n="):
+        spec.update(n=int(method[2:]))
+    elif method.startswith("lambda="):
+        spec.update({"lambda": float(method[7:])})
+    else:
+        raise ValueError(f"unknown method {method!r} for table {table!r}")
+    return spec
+
+
+# --- scenes ----------------------------------------------------------------------------------------
+def _make_scene(job: dict) -> dict:
+    from pickplan.core import objects as objects_mod
+    from pickplan.sim.scenes import generate_scene
+
+    path = job["path"]
+    if not os.path.exists(path):
+        generate_scene(job["seed"], objects_mod.library(job["objects"])).save(path)
+    return {"path": path}
+
+
+def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None) -> List[str]:
+    """The sweep's scene files: those of ``scene_dir``, or generated once into ``OUT/scenes``."""
+    s = settings.effective()
+    if s.scene_dir:
+        files = sorted(f for f in os.listdir(s.scene_dir) if f.endswith(".json") and f != "index.json")
+        if not files:
+            raise FileNotFoundError(f"no scene JSON files in {s.scene_dir}")
+        return [os.path.join(s.scene_dir, f) for f in files]
+    from pickplan.sim.scene_sets import scene_seeds
+
+    folder = os.path.join(s.out, "scenes")
+    os.makedirs(folder, exist_ok=True)
+    jobs = [{"path": os.path.join(folder, f"scene_{i:04d}.json"), "seed": seed, "objects": s.objects}
+            for i, seed in enumerate(scene_seeds(s.seed, s.scenes))]
+    todo = [j for j in jobs if not os.path.exists(j["path"])]
+    for _ in run_tasks(_make_scene, todo, s, "scenes", stream):
+        pass
+    return [j["path"] for j in jobs]
+
+
+# --- units -----------------------------------------------------------------------------------------
+def unit_key(unit: dict) -> str:
+    return f"{unit['scene_name']}_{unit['method']}_r{unit['run']}".replace("=", "-").replace("+", "p")
+
+
+def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
+    s = settings.effective()
+    knobs = {k: getattr(s, k) for k in ("grasps", "grasp_candidates", "iterations", "execute", "time_limit",
+                                         "max_goals_tried")}
+    units = []
+    for path in files:
+        with open(path) as f:
+            scene = json.load(f)
+        name = os.path.splitext(os.path.basename(path))[0]
+        for method in methods_for(s):
+            for run in range(s.runs):
+                units.append({"table": s.table, "scene_name": name, "scene": scene, "method": method, "run": run,
+                              "seed": s.seed + run, **knobs})
+    return units
+
+
+def _grasps_job(job: dict) -> dict:
+    """Generate (and cache on disk) an object's grasp set once, before the units need it."""
+    from pickplan.omg import grasps as grasps_mod
+    from pickplan.core.objects import model_from_source
+
+    try:
+        grasps_mod.grasp_set(model_from_source(job["name"], job["source"]), job["kind"], job["n"], seed=0,
+                             progress=False) if job["kind"] == "simulated" else None
+    except (ValueError, TypeError):
+        pass  # no such set (e.g. graspit for the built-ins): the units report it
+    return job
+
+
+def grasp_jobs(units: Sequence[dict]) -> List[dict]:
+    seen = {}
+    for u in units:
+        target = u["scene"]["target"]
+        src = next(o["source"] for o in u["scene"]["objects"] if o["name"] == target)
+        kind = method_spec(u["table"], u["method"])["grasp_kind"]
+        seen[(target, src, kind)] = {"name": target, "source": src, "kind": kind, "n": u["grasp_candidates"]}
+    return list(seen.values())
+
+
+def _orthonormalized(poses: np.ndarray) -> np.ndarray:
+    """Project rotations onto SO(3): stored float32 grasp sets (graspit) can be off by ~1e-6, more than the
+    native goal-set check accepts."""
+    poses = np.array(poses, dtype=float)
+    u, _, vt = np.linalg.svd(poses[:, :3, :3])
+    poses[:, :3, :3] = u @ vt
+    return poses
+
+
+def run_unit(unit: dict) -> dict:
+    """Plan (and execute) one unit; returns its flat record. Deterministic for a given unit."""
+    from pickplan.omg import grasps as grasps_mod
+    from pickplan.eval.baselines import BaselineSettings, plan_baseline
+    from pickplan.omg.chomp import ChompSettings
+    from pickplan.omg.goals import GoalSetSettings, IkSettings
+    from pickplan.omg.planner import OMGPlanner, OMGSettings
+    from pickplan.sim.scenes import Scene
+    from pickplan.omg.world import World
+
+    t0 = time.perf_counter()
+    spec = method_spec(unit["table"], unit["method"])
+    scene = Scene.from_dict(unit["scene"])
+    seed = int(unit["seed"])
+    record = {"table": unit["table"], "scene": unit["scene_name"], "target": scene.target, "method": unit["method"],
+              "run": unit["run"], "seed": seed, "grasp_kind": spec["grasp_kind"]}
+    world = World(scene)
+    # Scene setup (FCL meshes), not goal-set or planning time; only the OMPL baselines validate
+    # states with the "obstacles" checker.
+    for kind in ("goal", "hand") + (("obstacles",) if spec["planner"] in ("FMT", "RRT-C") else ()):
+        world.checker(kind)
+    try:
+        grasps = grasps_mod.grasp_set(world.target_model, spec["grasp_kind"], unit["grasp_candidates"], seed=0).poses
+    except ValueError as exc:  # e.g. no stored graspit set for a built-in object: not a planning failure
+        record.update(status="no_grasps", reason=str(exc), valid=False, planning_success=False,
+                      execution_success=False, unit_seconds=time.perf_counter() - t0)
+        return record
+    grasps = _orthonormalized(grasps)
+    chomp = ChompSettings(n=spec["n"], lambda_=spec["lambda"], duration=0.1 * 30)
+    omg = OMGSettings(chomp=chomp, goals=GoalSetSettings(max_goals=unit["grasps"], seed=seed), ik=IkSettings(seed=seed),
+                      selection=spec["selection"], refine=spec["refine"], iterations=unit["iterations"],
+                      grasp_kind=spec["grasp_kind"], grasp_count=unit["grasp_candidates"], seed=seed)
+    if spec["planner"] == "omg":
+        result = OMGPlanner(None, scene, omg, world=world).plan(grasps=grasps)
+    else:
+        bs = BaselineSettings(omg=omg, max_goals_tried=unit["max_goals_tried"], chomp_iterations=unit["iterations"],
+                              time_limit=unit["time_limit"])
+        result = plan_baseline(spec["planner"], scene, bs, world=world, grasps=grasps)
+    planned = result.status != "no_goals"
+    m = result.metrics
+    record.update(status=result.status, valid=True, planned=planned, planning_success=bool(result.success),
+                  goal_set_size=result.goal_set_size, iterations=result.iterations, refined=bool(result.refined),
+                  goal_set_time=float(result.timings.get("goal_set", 0.0)),
+                  plan_time=float(result.timings["total"] - result.timings.get("goal_set", 0.0)),
+                  smoothness=float(m["smoothness"]) if planned else None,
+                  collision=float(m["collision"]) if planned else None,
+                  min_clearance=float(m["min_clearance"]) if planned else None,
+                  grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None)
+    record.update(execution_success=False, execution_status="not_executed")
+    if unit["execute"] and result.success:
+        from pickplan.sim.execution import ExecutionSettings, execute_plan
+
+        ex = execute_plan(scene, result.trajectory, ExecutionSettings(waypoint_dt=chomp.duration / chomp.n))
+        record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds)
+    record["unit_seconds"] = time.perf_counter() - t0
+    return record
+
+
+# --- running tasks: serial, process pool or Ray ----------------------------------------------------
+class Progress:
+    """``label [#####.....] done/total  elapsed  ~left`` on a stream (stderr by default)."""
+
+    def __init__(self, label: str, total: int, done: int = 0, stream: Optional[TextIO] = None, width: int = 30):
+        self.label, self.total, self.done, self.width = label, total, done, width
+        self.start_done, self.started = done, time.perf_counter()
+        self.stream = stream if stream is not None else sys.stderr
+
+    def step(self, k: int = 1) -> None:
+        self.done += k
+        elapsed = time.perf_counter() - self.started
+        new = self.done - self.start_done
+        left = elapsed / new * (self.total - self.done) if new else float("nan")
+        filled = self.width * self.done // max(self.total, 1)
+        self.stream.write(f"\r{self.label} [{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total}"
+                          f"  {_clock(elapsed)} elapsed  ~{_clock(left)} left ")
+        if self.done >= self.total:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+def _clock(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "?"
+    m, s = divmod(int(round(seconds)), 60)
+    return f"{m}m{s:02d}s" if m else f"{s}s"
+
+
+def run_tasks(fn: Callable[[dict], dict], jobs: Sequence[dict], settings: SweepSettings, label: str = "units",
+              stream: Optional[TextIO] = None, done: int = 0, total: Optional[int] = None) -> Iterator[Tuple[dict, dict]]:
+    """Yield (job, fn(job)) in completion order: serially, over a process pool, or as Ray tasks."""
+    jobs = list(jobs)
+    bar = Progress(label, len(jobs) + done if total is None else total, done, stream) if settings.progress else None
+    if not jobs:
+        return
+    if settings.ray:
+        it = _ray_tasks(fn, jobs, settings)
+    elif settings.workers <= 0 or len(jobs) == 1:
+        it = ((job, fn(job)) for job in jobs)
+    else:
+        it = _pool_tasks(fn, jobs, settings.workers)
+    for job, out in it:
+        yield job, out
+        if bar:
+            bar.step()
+
+
+def _pool_tasks(fn, jobs, workers) -> Iterator[Tuple[dict, dict]]:
+    import multiprocessing
+
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=multiprocessing.get_context("spawn")) as ex:
+        pending = {ex.submit(fn, job): job for job in jobs}
+        try:
+            while pending:
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    yield pending.pop(fut), fut.result()
+        finally:
+            for fut in pending:
+                fut.cancel()
+
+
+def _ray_tasks(fn, jobs, settings: SweepSettings) -> Iterator[Tuple[dict, dict]]:
+    try:
+        import ray
+    except ImportError as exc:
+        raise ImportError("--ray needs Ray: pip install ray") from exc
+    started = False
+    if not ray.is_initialized():
+        if settings.ray == "local":
+            ray.init(num_cpus=max(settings.workers, 1), include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=settings.ray, log_to_driver=False)
+        started = True
+    try:
+        def call(job: dict) -> dict:  # Ray wraps functions only, not callable objects
+            return fn(job)
+
+        remote = ray.remote(num_cpus=1, max_retries=2)(call)
+        pending = {remote.remote(job): job for job in jobs}
+        while pending:
+            finished, _ = ray.wait(list(pending), num_returns=1)
+            for ref in finished:
+                job = pending.pop(ref)
+                yield job, ray.get(ref)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+# --- sweeps ----------------------------------------------------------------------------------------
+def unit_path(settings: SweepSettings, unit: dict) -> str:
+    return os.path.join(settings.out, "units", unit_key(unit) + ".json")
+
+
+class RecordErrors:
+    """Wraps a unit function so an exception becomes the unit's record (status "error", counted as a
+    failed plan) instead of stopping the sweep; interrupts (KeyboardInterrupt) still stop it."""
+
+    def __init__(self, fn: Callable[[dict], dict]):
+        self.fn = fn
+
+    def __call__(self, unit: dict) -> dict:
+        try:
+            return self.fn(unit)
+        except Exception as exc:  # noqa: BLE001 - any planner failure is data here, with its reason
+            return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
+                    "seed": int(unit["seed"]), "status": "error", "error": f"{type(exc).__name__}: {exc}",
+                    "valid": True, "planned": False, "planning_success": False, "execution_success": False}
+
+
+def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
+              unit_fn: Callable[[dict], dict] = run_unit) -> List[dict]:
+    """Run every unit not yet on disk (each written once finished, an exception recorded as an
+    "error" unit); return all records in unit order."""
+    s = settings.effective()
+    check_resumable(s)
+    files = scene_files(s, stream)
+    units = make_units(s, files)
+    todo = [u for u in units if not os.path.exists(unit_path(s, u))]
+    gjobs = grasp_jobs(todo)
+    if gjobs:
+        for _ in run_tasks(_grasps_job, gjobs, s, "grasps", stream):
+            pass
+    for unit, record in run_tasks(RecordErrors(unit_fn), todo, s, f"{s.table} units", stream, done=len(units) - len(todo),
+                                  total=len(units)):
+        write_json(unit_path(s, unit), record)
+    return load_records(s, units)
+
+
+# Settings a finished unit (or a generated scene) depends on; methods, runs and scene count only
+# add units, and workers / Ray / progress do not change results.
+RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
+               "time_limit", "max_goals_tried")
+
+
+def sweep_fingerprint(settings: SweepSettings) -> dict:
+    s = settings.effective()
+    fp = {k: getattr(s, k) for k in RESUME_KEYS}
+    for k in ("objects", "scene_dir"):
+        fp[k] = os.path.realpath(fp[k]) if fp[k] else None
+    return fp
+
+
+def check_resumable(settings: SweepSettings) -> None:
+    """OUT/sweep.json records the settings its units were made with. Resuming with other settings
+    would mix incomparable units (or reuse scenes of another seed or object set), so it is refused."""
+    path = os.path.join(settings.out, "sweep.json")
+    fp = sweep_fingerprint(settings)
+    if os.path.exists(path):
+        with open(path) as f:
+            old = json.load(f)
+        diff = [k for k in RESUME_KEYS if k in old and old[k] != fp[k]]
+        if diff:
+            detail = ", ".join(f"{k}: {old[k]!r} there, {fp[k]!r} now" for k in diff)
+            raise ValueError(f"{settings.out} holds a sweep made with other settings ({detail}); "
+                             "use another --out or delete that folder")
+        return
+    write_json(path, fp)
+
+
+def load_records(settings: SweepSettings, units: Sequence[dict]) -> List[dict]:
+    records = []
+    for u in units:
+        with open(unit_path(settings, u)) as f:
+            records.append(json.load(f))
+    return records
+
+
+def _mean(xs: Iterable[Optional[float]]) -> float:
+    xs = [x for x in xs if x is not None and math.isfinite(x)]
+    return float(np.mean(xs)) if xs else float("nan")
+
+
+def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict]:
+    """Per method: units, valid units (grasp set available), plans (a goal set existed), rates over valid
+    units (no goals = failed plan = failed execution), means of the metrics over plans."""
+    out = {}
+    for m in methods:
+        rs = [r for r in records if r["method"] == m]
+        valid = [r for r in rs if r.get("valid", True)]
+        planned = [r for r in valid if r.get("planned")]
+        n = len(valid)
+        out[m] = {
+            "units": len(rs), "valid": n, "planned": len(planned), "errors": sum(r["status"] == "error" for r in rs),
+            "planning_successes": sum(r["planning_success"] for r in valid),
+            "execution_successes": sum(r["execution_success"] for r in valid),
+            "planning": sum(r["planning_success"] for r in valid) / n if n else float("nan"),
+            "execution": sum(r["execution_success"] for r in valid) / n if n else float("nan"),
+            "smoothness": _mean(r["smoothness"] for r in planned),
+            "collision": _mean(r["collision"] for r in planned),
+            "grasp": _mean(r["grasp_cost"] for r in planned),
+            "time": _mean(r["plan_time"] for r in planned),
+            "goal_set_time": _mean(r["goal_set_time"] for r in planned),
+            "goal_set_size": _mean(r["goal_set_size"] for r in planned),
+        }
+    return out
+
+
+def grasp_costs_by_object(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, Dict[str, float]]:
+    """Table II's rows: mean f_grasp at the final goal per target object and method (plans only)."""
+    objects = sorted({r["target"] for r in records if r.get("planned")})
+    return {o: {m: _mean(r["grasp_cost"] for r in records if r["method"] == m and r["target"] == o and r.get("planned"))
+                for m in methods} for o in objects}

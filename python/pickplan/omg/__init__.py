@@ -1,0 +1,20 @@
+"""The OMG planner (Wang, Xiang, Fox): CHOMP with a goal set, online grasp selection, C-Space ISF.
+
+- ``world``: one scene as the planner sees it (robot, SDF, collision, target);
+- ``chomp``: CHOMP / CHOMP-Proj (Sec. III-A, native) and the paper's metrics;
+- ``grasps``, ``grasps_sim``: grasp sets (stored, approach, antipodal, physics-verified);
+- ``goals``: goal sets by IK (Sec. III-B);
+- ``selection``: Fixed, Proj, FTC, FTL, EXP and Mirror Descent (Sec. III-C, Eq. 7-9);
+- ``isf``: C-Space ISF grasp refinement (Sec. III-D);
+- ``planner``: Algorithm 2, ``OMGPlanner``.
+"""
+import importlib
+
+__all__ = ["OMGPlanner", "OMGSettings", "PlanResult"]
+
+
+def __getattr__(name: str):
+    # lazily, so that importing one module of the planner does not load all of them
+    if name in __all__:
+        return getattr(importlib.import_module(f"{__name__}.planner"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

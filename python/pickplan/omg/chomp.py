@@ -1,0 +1,135 @@
+"""CHOMP and CHOMP-Proj (OMG paper Sec. III-A..C), native, with the paper's defaults.
+
+>>> chomp = Chomp(robot, scene_sdf, body, ChompSettings(), exclude=("target",))
+>>> result = chomp.optimize(q0, goal, iterations=100)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+
+from pickplan import _core
+from pickplan.core.settings import to_native
+from pickplan.core.robots import BodyPoints, Robot
+from pickplan.core.sdf import SceneSdf
+
+
+@dataclass(frozen=True)
+class ChompSettings:
+    """Mirrors the native ``ChompSettings``; defaults are the paper's (Sec. IV-B)."""
+
+    n: int = 30                  # waypoints after the fixed start
+    duration: float = 3.0        # dt = duration / n = 0.1 s at n = 30
+    lambda_: float = 0.1         # smoothness weight lambda (eq. 2)
+    lambda_growth: float = 1.02  # lambda_i = lambda * growth**i
+    step_size: float = 0.1       # 1 / eta_motion (eq. 6)
+    epsilon: float = 0.2         # obstacle padding (m)
+    top_k: int = 500             # largest obstacle terms that contribute (0 = all)
+    clip_gradient: float = 10.0  # element-wise clip of the obstacle gradient (0 = none)
+    joint_limit_steps: int = 10
+    obstacle_tail: int = 0       # last waypoints without obstacle cost (standoff approach)
+    link_culling: bool = True    # skip links whose bounding sphere is beyond epsilon (exact, faster)
+
+    def to_native(self, exclude_mask: int = 0, active: Optional[Sequence[bool]] = None) -> "_core.ChompSettings":
+        return to_native(self, _core.ChompSettings, exclude_mask=int(exclude_mask),
+                         active=[] if active is None else [bool(a) for a in active])
+
+
+@dataclass(frozen=True)
+class MetricSettings:
+    """The paper's metrics (Sec. IV-A): dense interpolation to 200 steps, 5 cm padding."""
+
+    steps: int = 200
+    collision_padding: float = 0.05
+    epsilon: float = 0.2
+    clearance: float = 0.05
+    table_clearance: float = 0.0
+    tail_waypoints: int = 0        # last waypoints (standoff approach) held to tail_clearance only
+    tail_clearance: float = 0.01
+    smoothness_threshold: float = 30.0
+
+    def to_native(self, exclude_mask: int = 0) -> "_core.MetricSettings":
+        return to_native(self, _core.MetricSettings, exclude_mask=int(exclude_mask))
+
+
+@dataclass
+class ChompResult:
+    xi: np.ndarray                 # (n, dof) waypoints after the start
+    objective: list                # f_motion before each iteration
+    final: dict                    # obstacle, prior, total, colliding_points at the end
+    iterations: int
+    status: str
+    seconds: float
+    metrics: dict = field(default_factory=dict)
+
+
+def cubic_initialization(q0: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
+    """Cubic spline from q0 to goal with zero end velocities, sampled at t = 1/n .. 1 (paper Sec. IV)."""
+    s = np.arange(1, n + 1) / n
+    blend = 3 * s**2 - 2 * s**3
+    return np.asarray(q0)[None, :] + blend[:, None] * (np.asarray(goal) - np.asarray(q0))[None, :]
+
+
+def linear_initialization(q0: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
+    s = np.arange(1, n + 1) / n
+    return np.asarray(q0)[None, :] + s[:, None] * (np.asarray(goal) - np.asarray(q0))[None, :]
+
+
+class Chomp:
+    """A CHOMP problem: robot + scene SDF + body points + settings.
+
+    ``exclude`` names SDF objects the obstacle cost ignores (the grasp target); ``active``
+    marks the joints the optimizer moves (default: all; for the Panda, the 7 arm joints).
+    """
+
+    def __init__(self, robot: Robot, scene: SceneSdf, body: BodyPoints, settings: ChompSettings = ChompSettings(),
+                 exclude: Sequence[str] = (), active: Optional[Sequence[bool]] = None):
+        self.robot, self.scene, self.body, self.settings = robot, scene, body, settings
+        self.exclude_mask = sum(1 << scene.index(name) for name in exclude)
+        if active is None and hasattr(robot, "info"):
+            active = [i < robot.info.arm_dof for i in range(robot.dof)]
+        self.active = None if active is None else list(active)
+        self.problem = _core.ChompProblem(robot.native, scene.native, body.links, body.points,
+                                          settings.to_native(self.exclude_mask, self.active))
+
+    @property
+    def dt(self) -> float:
+        return self.problem.dt
+
+    def initial_trajectory(self, q0, goal, kind: str = "cubic") -> np.ndarray:
+        if kind == "cubic":
+            return cubic_initialization(q0, goal, self.settings.n)
+        if kind == "linear":
+            return linear_initialization(q0, goal, self.settings.n)
+        raise ValueError(f"unknown initialization {kind!r}; use 'cubic' or 'linear'")
+
+    def workspace(self):
+        return self.problem.workspace()
+
+    def step(self, xi, q0, goal=None, iteration: int = 0, workspace=None):
+        """One CHOMP-Proj step toward ``goal`` ((dof,) or a (m, dof) standoff tail); returns (xi, info)."""
+        return self.problem.step(xi, q0, goal, iteration, workspace)
+
+    def objective(self, xi, q0, iteration: int = 0):
+        return self.problem.objective(xi, q0, iteration)
+
+    def optimize(self, q0, goal, iterations: int = 100, xi0: Optional[np.ndarray] = None,
+                 metric_settings: Optional[MetricSettings] = MetricSettings()) -> ChompResult:
+        """Plain CHOMP toward a fixed goal (or standoff tail) from ``xi0`` (default: cubic)."""
+        goal = np.asarray(goal, dtype=float)
+        final_goal = goal if goal.ndim == 1 else goal[-1]
+        xi0 = self.initial_trajectory(q0, final_goal) if xi0 is None else xi0
+        if goal.ndim == 2:  # put the initial tail on the standoff chain
+            xi0 = np.array(xi0, dtype=float)
+            xi0[-len(goal):] = goal
+        out = self.problem.optimize(xi0, q0, goal, iterations)
+        result = ChompResult(out["xi"], list(out["objective"]), out["final"], out["iterations"], out["status"],
+                             out["seconds"])
+        if metric_settings is not None:
+            result.metrics = self.metrics(result.xi, q0, metric_settings)
+        return result
+
+    def metrics(self, xi, q0, settings: MetricSettings = MetricSettings()) -> dict:
+        return self.problem.metrics(xi, q0, settings.to_native(self.exclude_mask))

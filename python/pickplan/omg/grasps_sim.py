@@ -1,0 +1,669 @@
+"""Physics-verified grasps (the OMG paper's "Simulated" set, after Eppner et al. [12]) and an
+independent lift test, in PyBullet DIRECT with a free-floating Panda hand.
+
+Shake test (what ``simulated_grasps`` keeps): antipodal candidates; the hand is held in space with
+its approach axis pointing down, the object free with gravity off; the fingers close; gravity comes
+on; the hand shakes (a translation along a random direction, then a rotation about a random axis
+through the pads), then turns +-90 degrees about its closing axis and holds each side, so gravity
+pulls along the approach axis and both ways across it. A grasp holds when the fingers did not
+close on nothing, the object point that sat between the pads drifted less than ``max_drift``
+relative to the hand and the object turned less than ``max_rotation`` in the hand (both measured
+from the settled grasp, worst over the checkpoints). The rotation check matters: a two-finger
+pinch fails mostly by the object pivoting about the closing axis (the pads' torsional friction
+is small), which leaves the point between the pads in place.
+
+Lift test (``lift_test``, for evaluation): the object rests on a table in its most stable pose,
+gravity on throughout; the open hand is placed at the grasp (grasps whose hand touches the table
+are not applicable), closes and lifts; success when the object rose with the hand.
+
+Transport test (``transport_test``, a harder independent evaluation): the lift test's start, then
+the object is carried: raised 30 cm, moved 25 cm sideways (quintic profiles, peak accelerations
+1.7 and 1.4 m/s^2), tilted 60 degrees and swirled once around the vertical (gravity sweeps a cone
+in the hand frame), with gravity on throughout. Success when the object stays in the hand in the
+pose it took after the lift: off the table, turned at most ``max_rotation`` and its centre of
+mass moved at most ``max_slip`` relative to the hand, at every checkpoint. It shares no motion,
+start state or randomness with the shake test.
+
+The two fingers are coupled by a gear constraint (PyBullet ignores the URDF's ``<mimic>``; the
+Franka hand drives both with one motor, and ``execution.py`` couples them the same way): without
+it, gravity along the closing axis pushes the object and both force-limited fingers sideways.
+
+Every candidate runs from a fresh ``resetSimulation`` with its own seed, so results do not depend on
+the number of workers or the order of the runs. ``simulated_grasps`` caches its result on disk.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import asdict, dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+
+from pickplan.omg import grasps as G
+from pickplan.core.io import atomic_open
+from pickplan.sim.scenes import _mat_to_quat, _quat_to_mat, add_object_body
+
+CACHE_ENV = "PICKPLAN_CACHE_DIR"
+CACHE_VERSION = 2  # 2: the shake test's turns and rotation check; coupled fingers
+_FINGERS = (0, 1)  # joint indices of finger_joint1/2 in the hand URDF
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Physics and shake-test settings (the candidates come from ``grasps.AntipodalSettings``)."""
+
+    time_step: float = 1.0 / 240.0
+    solver_iterations: int = 50
+    finger_force: float = 35.0     # N per finger (the Franka hand: 70 N continuous in total)
+    finger_speed: float = 0.1      # m/s per finger
+    close_time: float = 0.5        # s, gravity off
+    settle_time: float = 0.25      # s with gravity on before shaking
+    shake_time: float = 1.0        # s: first half translation, second half rotation
+    shake_frequency: float = 2.0   # Hz
+    shake_amplitude: float = 0.02  # m (peak acceleration 3.2 m/s^2 at 2 Hz)
+    shake_angle: float = 0.35      # rad (about 20 deg)
+    max_drift: float = 0.02        # m: the held object point may move this much relative to the hand
+    max_rotation: float = 15.0     # deg: the object may turn this much in the hand
+    turn_angle: float = 90.0       # deg about the closing axis, each way (0: no turns)
+    turn_time: float = 0.4         # s per turn (smooth-step) and per return
+    turn_hold: float = 0.3         # s held at each turn
+    min_gap: float = 0.001         # m between the pads at the end: less = closed on nothing
+    object_friction: float = 0.8
+    pad_friction: float = 1.0      # the Panda URDF's lateral friction (Bullet multiplies the two bodies')
+    pad_spinning_friction: float = 0.005  # m; the URDF's 0.1 would let a pinch resist any torque
+    hand_force: float = 2000.0     # N of the constraint that carries the hand
+    couple_fingers: bool = True    # gear constraint: the fingers move together, as the Franka hand's do
+
+
+@dataclass(frozen=True)
+class LiftSettings:
+    time_step: float = 1.0 / 240.0
+    solver_iterations: int = 50
+    finger_force: float = 35.0
+    finger_speed: float = 0.1
+    close_time: float = 0.5
+    lift_height: float = 0.1       # m
+    lift_time: float = 1.0         # s (smooth-step profile)
+    hold_time: float = 0.5
+    min_rise: float = 0.7          # success: the object rose by at least this fraction of the lift
+    min_gap: float = 0.001
+    table_clearance: float = 0.002  # m: an open hand closer than this to the table is not applicable
+    object_friction: float = 0.8
+    pad_friction: float = 1.0
+    pad_spinning_friction: float = 0.005
+    table_friction: float = 0.8
+    hand_force: float = 2000.0
+    couple_fingers: bool = True
+    rest_index: Optional[int] = None  # resting pose; None: the most stable one where the hand clears the table
+
+
+@dataclass(frozen=True)
+class TransportSettings(LiftSettings):
+    """The lift test's start (table, resting pose, close, lift, hold), then a carry with tilts."""
+
+    raise_height: float = 0.3      # m, after the lift (quintic, so the tilted object clears the table)
+    raise_time: float = 1.0        # s: peak acceleration 5.77 * 0.3 / 1.0^2 = 1.7 m/s^2
+    carry_distance: float = 0.25   # m along world x
+    carry_time: float = 1.0        # s: peak acceleration 1.4 m/s^2
+    tilt: float = 60.0             # deg about a horizontal axis through the pads ...
+    tilt_time: float = 0.5
+    swirl_time: float = 2.0        # ... whose direction then turns once around the vertical
+    settle: float = 0.2            # s held still at the end
+    max_rotation: float = 15.0     # deg the object may turn in the hand after the lift
+    max_slip: float = 0.02         # m its centre of mass may move in the hand after the lift
+
+
+class _SimObject:
+    """What ``scenes.add_object_body`` needs of a model: cheap to send to worker processes."""
+
+    def __init__(self, model):
+        self.name, self.mass = model.name, float(model.mass)
+        self.com, self.inertia = np.asarray(model.com, float), np.asarray(model.inertia, float)
+        self._path = model.collision_obj_path()
+
+    def collision_obj_path(self) -> str:
+        return self._path
+
+
+# --- one PyBullet world per process -----------------------------------------------------------------
+_CLIENT = {"id": None}
+
+
+def _client() -> int:
+    import pybullet as pb
+
+    if _CLIENT["id"] is None or not pb.isConnected(_CLIENT["id"]):
+        _CLIENT["id"] = pb.connect(pb.DIRECT)
+    return _CLIENT["id"]
+
+
+def _pose_of(cid: int, body: int) -> np.ndarray:
+    import pybullet as pb
+
+    pos, quat = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = _quat_to_mat(quat), pos
+    return T
+
+
+class _World:
+    """A reset world with the hand (base = panda_hand, carried by a fixed constraint) and the object."""
+
+    def __init__(self, s, obj: _SimObject, T_hand: np.ndarray, T_obj: np.ndarray, gravity: bool,
+                 table: bool = False, table_friction: float = 0.8):
+        import pybullet as pb
+
+        self.pb, self.s = pb, s
+        cid = self.cid = _client()
+        pb.resetSimulation(physicsClientId=cid)
+        pb.setPhysicsEngineParameter(fixedTimeStep=s.time_step, numSolverIterations=s.solver_iterations,
+                                     deterministicOverlappingPairs=1, physicsClientId=cid)
+        self.gravity(gravity)
+        self.table = -1
+        if table:  # the scenes' table: a box whose top face is z = 0
+            shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5, 0.5, 0.025], physicsClientId=cid)
+            self.table = pb.createMultiBody(0.0, shape, basePosition=[0, 0, -0.025], physicsClientId=cid)
+            pb.changeDynamics(self.table, -1, lateralFriction=table_friction, physicsClientId=cid)
+        self.hand = pb.loadURDF(G.hand_urdf_path(False), T_hand[:3, 3].tolist(), _mat_to_quat(T_hand[:3, :3]),
+                                useFixedBase=False, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
+        for j in _FINGERS:
+            pb.changeDynamics(self.hand, j, lateralFriction=s.pad_friction,
+                              spinningFriction=s.pad_spinning_friction, physicsClientId=cid)
+            pb.resetJointState(self.hand, j, G.FINGER_OPEN, physicsClientId=cid)
+            pb.setJointMotorControl2(self.hand, j, pb.POSITION_CONTROL, targetPosition=G.FINGER_OPEN,
+                                     force=s.finger_force, physicsClientId=cid)
+        if getattr(s, "couple_fingers", False):
+            # PyBullet ignores the URDF's <mimic>: without the gear two force-limited fingers let a
+            # load along the closing axis push the object (and both fingers) sideways in the hand
+            # (as execution.py, and the Franka hand's single motor).
+            gear = pb.createConstraint(self.hand, _FINGERS[0], self.hand, _FINGERS[1], pb.JOINT_GEAR, [1, 0, 0],
+                                       [0, 0, 0], [0, 0, 0], physicsClientId=cid)
+            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * s.finger_force, physicsClientId=cid)
+        # the base pose PyBullet reports (and constrains) is the inertial frame: keep its offset
+        T_in = np.eye(4)
+        info = pb.getDynamicsInfo(self.hand, -1, physicsClientId=cid)
+        T_in[:3, :3], T_in[:3, 3] = _quat_to_mat(info[4]), info[3]
+        self.T_inertial = T_in
+        self.T_hand0 = np.asarray(T_hand, float)
+        target = T_hand @ T_in
+        self.drive = pb.createConstraint(self.hand, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
+                                         target[:3, 3].tolist(), childFrameOrientation=_mat_to_quat(target[:3, :3]),
+                                         physicsClientId=cid)
+        pb.changeConstraint(self.drive, maxForce=s.hand_force, physicsClientId=cid)
+        self.body = add_object_body(cid, obj, T_obj, friction=s.object_friction)
+
+    def gravity(self, on: bool) -> None:
+        self.pb.setGravity(0, 0, -9.81 if on else 0.0, physicsClientId=self.cid)
+
+    def move_hand(self, T_hand: np.ndarray) -> None:
+        t = T_hand @ self.T_inertial
+        self.pb.changeConstraint(self.drive, jointChildPivot=t[:3, 3].tolist(),
+                                 jointChildFrameOrientation=_mat_to_quat(t[:3, :3]), maxForce=self.s.hand_force,
+                                 physicsClientId=self.cid)
+
+    def close(self) -> None:
+        for j in _FINGERS:
+            self.pb.setJointMotorControl2(self.hand, j, self.pb.POSITION_CONTROL, targetPosition=0.0,
+                                          force=self.s.finger_force, maxVelocity=self.s.finger_speed,
+                                          physicsClientId=self.cid)
+
+    def step(self, seconds: float, hand_path=None) -> None:
+        n = int(round(seconds / self.s.time_step))
+        for i in range(n):
+            if hand_path is not None:
+                self.move_hand(hand_path((i + 1) / n))
+            self.pb.stepSimulation(physicsClientId=self.cid)
+
+    def gap(self) -> float:
+        return sum(self.pb.getJointState(self.hand, j, physicsClientId=self.cid)[0] for j in _FINGERS)
+
+    def hand_pose(self) -> np.ndarray:
+        return _pose_of(self.cid, self.hand) @ np.linalg.inv(self.T_inertial)
+
+    def body_pose(self) -> np.ndarray:
+        return _pose_of(self.cid, self.body)  # the body's inertial frame: fine for relative motion
+
+    def touches(self, other: int, distance: float) -> bool:
+        return bool(self.pb.getClosestPoints(self.hand, other, distance, physicsClientId=self.cid))
+
+
+def _rot(axis: np.ndarray, angle: float) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_rotvec(axis * angle).as_matrix()
+
+
+def _smooth(u: float) -> float:
+    return u * u * (3.0 - 2.0 * u)
+
+
+def _quintic(u: float) -> float:
+    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+
+
+def _turned(T: np.ndarray, pivot: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """``T`` rotated by ``angle`` about the world ``axis`` through the world point ``pivot``."""
+    R = np.eye(4)
+    R[:3, :3] = _rot(axis, angle)
+    R[:3, 3] = pivot[:3] - R[:3, :3] @ pivot[:3]
+    return R @ T
+
+
+def _angle_deg(R: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+class _InHand:
+    """The object's pose in the hand at a reference instant, and how far it has moved since."""
+
+    def __init__(self, world: "_World"):
+        self.world = world
+        self.ref = np.linalg.inv(world.hand_pose()) @ world.body_pose()
+
+    def now(self) -> np.ndarray:
+        return np.linalg.inv(self.world.hand_pose()) @ self.world.body_pose()
+
+    def rotation(self) -> float:
+        """Degrees the object turned relative to the hand."""
+        return _angle_deg(self.ref[:3, :3].T @ self.now()[:3, :3])
+
+    def moved(self, p_body: np.ndarray) -> float:
+        """Metres the body-frame point ``p_body`` moved relative to the hand."""
+        return float(np.linalg.norm((self.now() @ p_body - self.ref @ p_body)[:3]))
+
+
+def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSettings()) -> dict:
+    """One shake test of a hand pose ``grasp`` (object frame). Returns held, drift (m, the pad
+    point), rotation (deg, the object in the hand), gap (m); drift and rotation are the worst
+    over the checkpoints run (after the shake, at each turn, back at the start; the test stops
+    at the first failing one)."""
+    s = settings
+    obj = obj if isinstance(obj, _SimObject) else _SimObject(obj)
+    rng = np.random.default_rng(seed)
+    T_hand = np.eye(4)
+    T_hand[:3, :3] = np.diag([1.0, -1.0, -1.0])  # approach pointing down: gravity pulls out of the hand
+    T_hand[2, 3] = 0.5
+    world = _World(s, obj, T_hand, T_hand @ np.linalg.inv(grasp), gravity=False)
+    world.close()
+    world.step(s.close_time)
+    world.gravity(True)
+    world.step(s.settle_time)
+    # the object point between the pads (in the body frame) and the settled grasp
+    pad = np.array([0.0, 0.0, G.PAD_DEPTH, 1.0])
+    H0 = world.hand_pose()
+    held = _InHand(world)
+    p_body = np.linalg.inv(held.ref) @ pad
+    d = rng.normal(size=3)
+    d /= np.linalg.norm(d)
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    half, w = 0.5 * s.shake_time, 2 * np.pi * s.shake_frequency
+    pivot = H0 @ pad
+
+    def translate(u):
+        T = H0.copy()
+        T[:3, 3] += d * s.shake_amplitude * math.sin(w * half * u)
+        return T
+
+    world.step(half, translate)
+    world.step(half, lambda u: _turned(H0, pivot, axis, s.shake_angle * math.sin(w * half * u)))
+    world.step(0.1, lambda u: H0)
+    drift, rotation = [], []
+
+    def holds() -> bool:
+        drift.append(held.moved(p_body))
+        rotation.append(held.rotation())
+        return world.gap() > s.min_gap and drift[-1] < s.max_drift and rotation[-1] < s.max_rotation
+
+    ok = holds()
+    if s.turn_angle:
+        closing = H0[:3, 1]
+        for sign in (1.0, -1.0):
+            if not ok:
+                break  # a failed checkpoint is final: skip the rest
+            a = sign * math.radians(s.turn_angle)
+            world.step(s.turn_time, lambda u: _turned(H0, pivot, closing, a * _smooth(u)))
+            world.step(s.turn_hold, lambda u: _turned(H0, pivot, closing, a))
+            ok = holds()
+            world.step(s.turn_time, lambda u: _turned(H0, pivot, closing, a * (1.0 - _smooth(u))))
+        if ok:
+            world.step(0.1, lambda u: H0)
+            ok = holds()
+    return {"held": bool(ok), "drift": max(drift), "rotation": max(rotation), "gap": world.gap()}
+
+
+def close_on_object(model, grasp: np.ndarray, settings: SimSettings = SimSettings()) -> dict:
+    """Close the hand at ``grasp`` (object frame) on the free object with gravity off: the final
+    pad gap (m) and whether each finger ends touching the object ("left", "right")."""
+    obj = model if isinstance(model, _SimObject) else _SimObject(model)
+    world = _World(settings, obj, np.eye(4), np.linalg.inv(G.check_grasps([grasp])[0]), gravity=False)
+    world.close()
+    world.step(settings.close_time)
+    touch = [bool(world.pb.getContactPoints(world.hand, world.body, j, physicsClientId=world.cid))
+             for j in _FINGERS]
+    return {"gap": world.gap(), "left": touch[0], "right": touch[1]}
+
+
+def _shake_chunk(obj: _SimObject, poses: np.ndarray, seeds, settings: SimSettings):
+    """Worker entry point (module level so ``spawn`` can import it)."""
+    return [shake_test(obj, T, int(sd), settings) for T, sd in zip(poses, seeds)]
+
+
+def _rests(model, s) -> list:
+    return [model.resting_poses[s.rest_index]] if s.rest_index is not None else list(model.resting_poses[:3])
+
+
+def _table_world(obj: _SimObject, rests, T: np.ndarray, s) -> Optional[_World]:
+    """A world with the object resting on the table and the open hand at grasp ``T``, in the first
+    resting pose where the hand clears the table; None when there is none (not applicable)."""
+    for rest in rests:
+        rest = np.asarray(rest, float)
+        world = _World(s, obj, rest @ T, rest, gravity=True, table=True, table_friction=s.table_friction)
+        if not world.touches(world.table, s.table_clearance):
+            return world
+    return None
+
+
+def _close_and_lift(world: _World, s) -> Tuple[np.ndarray, bool]:
+    """Close on the resting object, lift ``lift_height`` and hold; the lifted hand pose and whether
+    the object rose with it (the lift test's success)."""
+    z0 = world.body_pose()[2, 3]
+    H0 = world.hand_pose()
+    world.close()
+    world.step(s.close_time, lambda u: H0)
+
+    def lift(u):
+        T_ = H0.copy()
+        T_[2, 3] += s.lift_height * _smooth(u)
+        return T_
+
+    world.step(s.lift_time, lift)
+    world.step(s.hold_time, lambda u: lift(1.0))
+    rise = world.body_pose()[2, 3] - z0
+    return lift(1.0), bool(world.gap() > s.min_gap and rise >= s.min_rise * s.lift_height)
+
+
+def lift_test(model, poses, settings: LiftSettings = LiftSettings()) -> np.ndarray:
+    """Table lift test of hand poses (object frame): (N,) int8, 1 lifted, 0 failed, -1 not
+    applicable (the open hand touches the table at the grasp in every resting pose tried: the
+    ``rest_index`` one, or by default the three most stable ones, first clear one used).
+    Independent of the shake test: table, gravity throughout, lift instead of shaking."""
+    s = settings
+    poses = G.check_grasps(poses)
+    obj = _SimObject(model)
+    rests = _rests(model, s)
+    out = np.zeros(len(poses), dtype=np.int8)
+    for i, T in enumerate(poses):
+        world = _table_world(obj, rests, T, s)
+        out[i] = -1 if world is None else int(_close_and_lift(world, s)[1])
+    return out
+
+
+def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings = TransportSettings()) -> dict:
+    """One transport test (see the module docstring). Returns applicable, lifted, held, rotation
+    (deg) and slip (m) of the object in the hand since the lift (worst checkpoint run; the test
+    stops at the first failing one), gap (m), table (the object touches the table at the end) and
+    stage (the checkpoint that failed, or "held")."""
+    s = settings
+    obj = obj if isinstance(obj, _SimObject) else _SimObject(obj)
+    out = {"applicable": False, "lifted": False, "held": False, "rotation": float("nan"),
+           "slip": float("nan"), "gap": float("nan"), "table": False, "stage": "not applicable"}
+    world = _table_world(obj, rests, np.asarray(grasp, float), s)
+    if world is None:
+        return out
+    out["applicable"] = True
+    H1, lifted = _close_and_lift(world, s)
+    out["lifted"] = lifted
+    if not lifted:
+        out.update(stage="lift", gap=world.gap())
+        return out
+    held = _InHand(world)
+    com = np.array([0.0, 0.0, 0.0, 1.0])  # the body frame is the inertial frame
+    rotation, slip, stage = [], [], None
+
+    def check(name):
+        nonlocal stage
+        rotation.append(held.rotation())
+        slip.append(held.moved(com))
+        if stage is None and (rotation[-1] > s.max_rotation or slip[-1] > s.max_slip):
+            stage = name
+        return stage is None
+
+    def failed():
+        out.update(rotation=max(rotation), slip=max(slip), gap=world.gap(), stage=stage,
+                   table=bool(world.pb.getContactPoints(world.body, world.table, physicsClientId=world.cid)))
+        return out
+
+    def up(u):
+        T_ = H1.copy()
+        T_[2, 3] += s.raise_height * _quintic(u)
+        return T_
+
+    world.step(s.raise_time, up)
+    if not check("raise"):
+        return failed()  # a failed checkpoint is final: skip the rest
+    H2 = up(1.0)
+
+    def carry(u):
+        T_ = H2.copy()
+        T_[0, 3] += s.carry_distance * _quintic(u)
+        return T_
+
+    world.step(s.carry_time, carry)
+    H3 = carry(1.0)
+    world.step(0.1, lambda u: H3)
+    if not check("carry"):
+        return failed()
+    pivot = H3 @ np.array([0.0, 0.0, G.PAD_DEPTH, 1.0])
+    tilt = math.radians(s.tilt)
+
+    def tilted(angle, phi):
+        return _turned(H3, pivot, np.array([math.cos(phi), math.sin(phi), 0.0]), angle)
+
+    world.step(s.tilt_time, lambda u: tilted(tilt * _smooth(u), 0.0))
+    if not check("tilt"):
+        return failed()
+    world.step(s.swirl_time, lambda u: tilted(tilt, 2 * math.pi * u))
+    world.step(s.settle, lambda u: tilted(tilt, 0.0))
+    check("swirl")
+    gap = world.gap()
+    table = bool(world.pb.getContactPoints(world.body, world.table, physicsClientId=world.cid))
+    if stage is None and (gap <= s.min_gap or table):
+        stage = "dropped"
+    out.update(held=stage is None, rotation=max(rotation), slip=max(slip), gap=gap, table=table,
+               stage=stage or "held")
+    return out
+
+
+def _transport_chunk(obj: _SimObject, rests, poses: np.ndarray, settings: TransportSettings):
+    return [transport_trial(obj, rests, T, settings) for T in poses]
+
+
+def _star_transport(job):
+    return _transport_chunk(*job)
+
+
+def transport_test(model, poses, settings: TransportSettings = TransportSettings(), workers: int = 1,
+                   details: bool = False):
+    """Transport test of hand poses (object frame): (N,) int8 like ``lift_test`` (1 held, 0 failed,
+    -1 not applicable); with ``details=True`` also the per-grasp dicts of ``transport_trial``.
+    ``workers`` > 1 runs worker processes (spawn); results do not depend on it."""
+    poses = G.check_grasps(poses)
+    if int(workers) < 1:
+        raise ValueError(f"workers: expected >= 1, got {workers}")
+    obj, rests = _SimObject(model), [np.asarray(r, float) for r in _rests(model, settings)]
+    if int(workers) == 1 or len(poses) < 2:
+        trials = _transport_chunk(obj, rests, poses, settings)
+    else:
+        import multiprocessing as mp
+
+        chunk = max(1, min(8, len(poses) // (4 * int(workers)) or 1))
+        jobs = [(obj, rests, poses[i:i + chunk], settings) for i in range(0, len(poses), chunk)]
+        trials = []
+        with mp.get_context("spawn").Pool(int(workers)) as pool:
+            for res in pool.imap(_star_transport, jobs):
+                trials += res
+    out = np.array([(1 if t["held"] else 0) if t["applicable"] else -1 for t in trials], dtype=np.int8)
+    return (out, trials) if details else out
+
+
+def lift_rate(results: np.ndarray) -> float:
+    """Success rate over the applicable grasps (nan when none is)."""
+    r = np.asarray(results)
+    ok = r >= 0
+    return float(r[ok].mean()) if ok.any() else float("nan")
+
+
+def _shake_transport_job(job):
+    obj, rests, T, seed, sim, transport = job
+    return shake_test(obj, T, seed, sim), transport_trial(obj, rests, T, transport)
+
+
+def shake_and_transport(model, m: int, seed: int = 0, workers: int = 1, sim: "SimSettings" = None,
+                        transport: TransportSettings = TransportSettings()) -> list:
+    """The "Simulated" filter against the transport test on the same candidates: round 0 of
+    ``simulated_grasps(model, ..., seed)`` (``m`` antipodal candidates, ``shake_candidates``);
+    for each candidate applicable on the table (the open hand clears it), its ``shake_test``
+    (same seed as ``simulated_grasps``) and its ``transport_trial``. Returns one dict per
+    applicable candidate: index, pose, shake (dict), transport (dict). The shake-held ones are
+    exactly the "Simulated" grasps of that round. Worker processes (spawn) do not change results."""
+    sim = SimSettings() if sim is None else sim
+    cand, seeds = shake_candidates(model, m, seed)
+    obj = _SimObject(model)
+    rests = [np.asarray(r, float) for r in _rests(model, transport)]
+    idx = [i for i, T in enumerate(cand.poses) if _table_world(obj, rests, T, transport) is not None]
+    jobs = [(obj, rests, cand.poses[i], seeds[i], sim, transport) for i in idx]
+    if int(workers) > 1 and len(jobs) > 1:
+        import multiprocessing as mp
+
+        with mp.get_context("spawn").Pool(int(workers)) as pool:
+            res = pool.map(_shake_transport_job, jobs, chunksize=2)
+    else:
+        res = [_shake_transport_job(j) for j in jobs]
+    return [{"index": i, "pose": cand.poses[i], "shake": sh, "transport": tr} for i, (sh, tr) in zip(idx, res)]
+
+
+# --- the "Simulated" set ------------------------------------------------------------------------------
+class _Progress:
+    def __init__(self, total: int, desc: str, enabled: bool):
+        self.total, self.desc, self.enabled, self.count, self.t0 = max(total, 1), desc, enabled, 0, time.time()
+
+    def update(self, k: int) -> None:
+        self.count += k
+        if self.enabled:
+            f = min(self.count / self.total, 1.0)
+            sys.stderr.write(f"\r{self.desc} [{'#' * int(24 * f):<24}] {self.count}/{self.total} "
+                             f"{time.time() - self.t0:.0f}s" + ("\n" if f >= 1 else ""))
+            sys.stderr.flush()
+
+
+def cache_dir() -> str:
+    root = os.environ.get(CACHE_ENV) or os.path.join(os.path.expanduser("~"), ".cache", "pickplan")
+    return os.path.join(root, "grasps")
+
+
+def _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds) -> str:
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(model.mesh.vertices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(model.mesh.faces, dtype=np.int64).tobytes())
+    with open(model.collision_obj_path(), "rb") as f:
+        h.update(f.read())
+    h.update(json.dumps({"v": CACHE_VERSION, "mass": float(model.mass), "sim": asdict(settings),
+                         "antipodal": asdict(antipodal), "n": int(n), "seed": int(seed),
+                         "oversample": float(oversample), "rounds": int(max_rounds)}, sort_keys=True).encode())
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in model.name)
+    return os.path.join(cache_dir(), f"{safe}-simulated-{h.hexdigest()[:24]}.npz")
+
+
+def shake_candidates(model, m: int, seed: int = 0, round: int = 0,
+                     antipodal: G.AntipodalSettings = G.AntipodalSettings()):
+    """Round ``round`` of ``simulated_grasps``: its ``m`` antipodal candidates and the shake-test
+    seed of each. ``simulated_grasps(model, n, seed)`` keeps, round by round, the candidates whose
+    ``shake_test(model, pose, seed_i)`` holds (first ``n``)."""
+    rseed = int(np.random.SeedSequence([int(seed), int(round)]).generate_state(1)[0])
+    cand = G.antipodal_grasps(model, m, rseed, settings=antipodal)
+    seeds = [int(np.random.SeedSequence([int(seed), int(round), i]).generate_state(1)[0]) for i in range(len(cand))]
+    return cand, seeds
+
+
+def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
+                     settings: SimSettings = SimSettings(),
+                     antipodal: G.AntipodalSettings = G.AntipodalSettings(), oversample: float = 3.0,
+                     max_rounds: int = 4, progress: Optional[bool] = None, cache: bool = True) -> G.GraspSet:
+    """The "Simulated" set: antipodal candidates (``ceil(n * oversample)`` per round, seeded per
+    round) that hold in the shake test, first ``n`` in candidate order; fewer (with a warning)
+    when ``max_rounds`` rounds do not give ``n``. ``workers`` > 1 runs worker processes (spawn);
+    the result does not depend on it. ``scores`` = 1 - drift / max_drift; ``info`` carries the
+    antipodal contacts, normals, widths and drifts, plus "tested" (candidates simulated, 0-d).
+    Cached in ``$PICKPLAN_CACHE_DIR/grasps`` (default ``~/.cache/pickplan/grasps``)."""
+    G._check_count(n, seed)
+    if int(workers) < 1:
+        raise ValueError(f"workers: expected >= 1, got {workers}")
+    path = _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds) if cache else None
+    if path and os.path.isfile(path):
+        with np.load(path) as z:
+            info = {k[5:]: z[k] for k in z.files if k.startswith("info_")}
+            return G.GraspSet("simulated", z["poses"], model.name, scores=z["scores"], info=info)
+    progress = sys.stderr.isatty() if progress is None else progress
+    obj = _SimObject(model)
+    m = int(math.ceil(n * oversample))
+    keep = {k: [] for k in ("poses", "scores", "contacts", "normals", "width", "drift")}
+    tested = 0
+    pool = None
+    try:
+        for rnd in range(max_rounds):
+            cand, seeds = shake_candidates(model, m, seed, rnd, antipodal)
+            if len(cand) == 0:
+                break
+            chunk = max(1, min(8, len(cand) // (4 * int(workers)) or 1))
+            jobs = [(obj, cand.poses[i:i + chunk], seeds[i:i + chunk], settings) for i in range(0, len(cand), chunk)]
+            bar = _Progress(len(cand), f"{model.name} shake round {rnd + 1}", progress)
+            results = []
+            if int(workers) == 1:
+                for job in jobs:
+                    results += _shake_chunk(*job)
+                    bar.update(len(job[1]))
+            else:
+                if pool is None:
+                    import multiprocessing as mp
+                    pool = mp.get_context("spawn").Pool(int(workers))
+                for res in pool.imap(_star_shake, jobs):  # imap keeps the candidate order
+                    results += res
+                    bar.update(len(res))
+            tested += len(cand)
+            for i, r in enumerate(results):
+                if r["held"]:
+                    keep["poses"].append(cand.poses[i])
+                    keep["scores"].append(1.0 - r["drift"] / settings.max_drift)
+                    for k in ("contacts", "normals", "width"):
+                        keep[k].append(cand.info[k][i])
+                    keep["drift"].append(r["drift"])
+            if len(keep["poses"]) >= n:
+                break
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
+    got = min(n, len(keep["poses"]))
+    if got < n:
+        import warnings
+        warnings.warn(f"{model.name}: only {got} of {n} simulated grasps held ({tested} tested)", stacklevel=2)
+    arr = {k: np.asarray(v[:got], dtype=float) for k, v in keep.items()}
+    if got == 0:
+        arr["poses"] = np.zeros((0, 4, 4))
+    info = {k: arr[k] for k in ("contacts", "normals", "width", "drift")}
+    info["tested"] = np.asarray(tested)
+    gs = G.GraspSet("simulated", arr["poses"], model.name, scores=arr["scores"], info=info)
+    if path:
+        with atomic_open(path, "wb") as f:
+            np.savez(f, poses=gs.poses, scores=gs.scores, **{f"info_{k}": v for k, v in info.items()})
+    return gs
+
+
+def _star_shake(job):
+    return _shake_chunk(*job)

@@ -1,0 +1,82 @@
+"""C-Space ISF grasp refinement (OMG Sec. III-E, Algorithm 1), native, for one target in one scene."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Tuple
+
+import numpy as np
+import trimesh
+
+from pickplan import _core
+from pickplan.omg import grasps
+from pickplan.core import sdf
+from pickplan.core.settings import to_native
+
+if TYPE_CHECKING:  # the world owns its refiner; isf only reads it
+    from pickplan.omg.world import World
+
+
+@dataclass(frozen=True)
+class IsfSettings:
+    """Mirror of the native ``IsfSettings``; alpha, beta, gamma and eta_grasp are the paper's."""
+
+    alpha: float = 0.01
+    beta: float = 0.001
+    gamma: float = 0.5
+    step_size: float = 0.05
+    max_halvings: int = 8
+    length_unit: float = 0.01
+    hand_epsilon: float = 0.01
+    arm_epsilon: float = 0.2
+    max_joint_step: float = 0.05
+
+    def to_native(self, active) -> "_core.IsfSettings":
+        return to_native(self, _core.IsfSettings, active=[bool(a) for a in active])
+
+
+def hand_sdf(robot, opening: float = grasps.FINGER_OPEN, resolution: float = 0.002) -> sdf.SceneSdf:
+    """The hand and its open fingers as SDF parts in the hand-link frame (min over parts, so the
+    overlapping closed meshes need no boolean union)."""
+    q = robot.ready_configuration.copy()
+    q[7:] = opening
+    poses = robot.fk(q)
+    H_inv = np.linalg.inv(poses[robot.link_index(robot.hand_link)])
+    settings = sdf.SdfSettings(resolution=resolution, margin=0.03)
+    parts = []
+    for name in (robot.hand_link,) + tuple(robot.finger_links):
+        mesh = robot.collision_meshes(name)
+        parts.append((name, sdf.mesh_sdf(mesh, settings), H_inv @ poses[robot.link_index(name)]))
+    hand = sdf.SceneSdf(parts)
+    # One lookup instead of one per part, at the parts' own resolution (queries use a 1 cm cutoff).
+    hand.merge(resolution=resolution, cutoff=settings.margin)
+    return hand
+
+
+def object_surface(mesh: trimesh.Trimesh, pose: np.ndarray, n: int = 1000, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+    """n seeded surface samples of the object with outward normals, in the world."""
+    pts, faces = trimesh.sample.sample_surface(mesh, n, seed=seed)
+    normals = mesh.face_normals[faces]
+    return (np.asarray(pts) @ pose[:3, :3].T + pose[:3, 3], np.asarray(normals) @ pose[:3, :3].T)
+
+
+class GraspRefiner:
+    """f_grasp and C-Space ISF steps for the world's target (1000 object points, as the paper)."""
+
+    def __init__(self, world: "World", settings: IsfSettings = IsfSettings(), object_points: int = 1000, seed: int = 0):
+        robot = world.robot
+        contacts = grasps.hand_contacts()
+        pts, nrm = object_surface(world.target_model.mesh, world.target_pose, object_points, seed)
+        active = [i < robot.info.arm_dof for i in range(robot.dof)]
+        exclude = 1 << world.sdf.index(world.target)
+        self._hand_sdf = hand_sdf(robot)
+        self.settings = settings
+        self._native = _core.GraspRefiner(robot.native, robot.hand_link, contacts.points, contacts.normals,
+                                          self._hand_sdf.native, pts, nrm, world.sdf.native, world.body.links,
+                                          world.body.points, exclude, settings.to_native(active))
+
+    def cost(self, q) -> Tuple[dict, np.ndarray]:
+        """f_grasp terms (pml, align, isf, hand, obstacle, collision, total) and the gradient."""
+        return self._native.cost(q)
+
+    def refine(self, q, iterations: int = 1) -> Tuple[np.ndarray, dict]:
+        return self._native.refine(q, iterations)

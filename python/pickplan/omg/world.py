@@ -1,0 +1,118 @@
+"""One scene, prepared for planning: the robot at its base, object models, the scene SDF,
+body points and FCL collision checkers. Built once per scene; immutable afterwards."""
+from __future__ import annotations
+
+import functools
+import time
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from pickplan.core import collision
+from pickplan.core import objects
+from pickplan.core import robots
+from pickplan.core import sdf
+from pickplan.sim.scenes import Scene
+from pickplan.omg import isf
+from pickplan.omg.chomp import Chomp
+
+
+@dataclass(frozen=True)
+class WorldSettings:
+    sdf: sdf.SdfSettings = field(default_factory=sdf.SdfSettings)
+    body_points_per_link: int = 20   # the paper samples 20 points per body part
+    body_seed: int = 0
+
+
+class World:
+    """Planning view of a ``Scene``: ``robot``, ``models``, ``sdf`` (SceneSdf), ``body`` points,
+    ``checker(kind)`` (FCL; "goal" lets the fingers touch the target, "strict" does not)."""
+
+    def __init__(self, scene: Scene, settings: WorldSettings = WorldSettings(),
+                 library: Optional[objects.ObjectLibrary] = None):
+        self.scene = scene
+        self.settings = settings
+        self.robot = robots.panda(np.asarray(scene.robot_base, dtype=float))
+        self.models = {}
+        for o in scene.objects:
+            self.models[o.name] = library.get(o.name) if library is not None and o.name in library \
+                else objects.model_from_source(o.name, o.source)
+        grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf), o.pose) for o in scene.objects]
+        self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
+        self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
+        self._checkers: dict = {}
+        self._refiners: dict = {}
+        scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
+        t0 = time.perf_counter()
+        if settings.sdf.merged:  # the planners' obstacle costs all leave the target out
+            self.sdf.merge(exclude=(scene.target,), resolution=settings.sdf.merged_resolution,
+                           cutoff=settings.sdf.merged_cutoff)
+        self.merge_seconds = time.perf_counter() - t0
+
+    @property
+    def target(self) -> str:
+        return self.scene.target
+
+    @property
+    def target_pose(self) -> np.ndarray:
+        return np.asarray(self.scene.object(self.target).pose, dtype=float)
+
+    @property
+    def target_model(self) -> objects.ObjectModel:
+        return self.models[self.target]
+
+    @property
+    def start(self) -> np.ndarray:
+        q = self.scene.robot_configuration
+        return np.asarray(q, dtype=float) if len(q) else self.robot.ready_configuration
+
+    def scene_meshes(self):
+        return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
+
+    def checker(self, kind: str = "goal") -> collision.CollisionChecker:
+        """FCL checker against objects and table. "goal": the fingers may touch the target
+        (grasp configurations close around it); "hand": the same for the hand and fingers alone;
+        "strict": nothing may touch anything;
+        "obstacles": the target is ignored entirely (trajectory validation). Built once per kind
+        and kept by this world (not in a module-level cache, which would keep worlds alive and
+        rebuild them when a user alternates between scenes)."""
+        if kind not in self._checkers:
+            self._checkers[kind] = self._build_checker(kind)
+        return self._checkers[kind]
+
+    def _build_checker(self, kind: str) -> collision.CollisionChecker:
+        fingers = self.robot.finger_links
+        # The base is mounted on the table: links that never move always touch it.
+        moving = set(self.robot.moving_links())
+        mounted = tuple((name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving)
+        links = None
+        if kind in ("goal", "hand"):
+            settings = collision.CollisionSettings(allowed_pairs=mounted + tuple((f, self.target) for f in fingers))
+            if kind == "hand":  # only what the grasp pose places: hand and fingers
+                links = (self.robot.hand_link,) + tuple(fingers)
+        elif kind == "strict":
+            settings = collision.CollisionSettings(allowed_pairs=mounted)
+        elif kind == "obstacles":
+            settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
+        else:
+            raise ValueError(f"unknown checker kind {kind!r}; use 'goal', 'hand', 'strict' or 'obstacles'")
+        table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
+                                pose=np.asarray(self.scene.table.pose, dtype=float))
+        return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links)
+
+    @functools.cached_property
+    def clearance_problem(self):
+        """A CHOMP problem on this scene with the target excluded: what the success test measures
+        clearances with (body points in the scene SDF); the goal set checks approaches with it."""
+        return Chomp(self.robot, self.sdf, self.body, exclude=(self.target,)).problem
+
+    def grasp_refiner(self, settings=None, seed: int = 0):
+        """C-Space ISF for this scene's target (``isf.GraspRefiner``), built once per (settings,
+        seed) and kept by this world: the hand SDF and the object's surface samples are scene
+        constants, not per-plan work."""
+        settings = settings or isf.IsfSettings()
+        key = (settings, int(seed))
+        if key not in self._refiners:
+            self._refiners[key] = isf.GraspRefiner(self, settings, seed=seed)
+        return self._refiners[key]

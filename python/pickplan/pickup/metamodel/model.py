@@ -1,0 +1,379 @@
+"""Success-probability meta-model rho_sigma(S_g, S_c) (Sec. IV-B of Thakar et al.).
+
+For each (S_g, S_c) on a grid, a GSB is learned actively (active.py) from simulations
+(sim.py). The success depth SD of a pose is its (first-order) distance, in the normalized pose
+space, from the GSB into the success region; D_FT and the width of the noisy band are fitted
+to out-of-fold depths (calibration.py), and the SVM kernel has a metric learned from the
+successful samples (kernel.py). The probability of success for a pose uncertainty sigma is
+the mean P(success) of Monte-Carlo poses from N(0, sigma), minus z standard errors. By
+default P(success) comes from Gaussian-process classification of the same labelled samples
+(gpc.py, rho_model="gp"), whose posterior also gives the standard error; rho_model="svm"
+uses the calibrated SVM depth and the jackknife of its fold classifiers instead. The grid
+of probabilities is turned into a conservative analytic surface (surface.py), saved to
+JSON with all samples.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field, replace
+from typing import Optional
+
+import numpy as np
+
+from pickplan.pickup.metamodel.active import ActiveConfig, PoseDomain, fit_svm, known_from_lower_sc, learn_boundary
+from pickplan.pickup.metamodel.calibration import calibrate, gaussian_queries, svm_depth
+from pickplan.pickup.metamodel.gpc import GPConfig, GPSuccessModel, lapse_rate
+from pickplan.pickup.metamodel.parallel import SimRunner, sample_seeds
+from pickplan.pickup.metamodel.parts import get_part
+from pickplan.pickup.metamodel.sim import SimConfig
+from pickplan.pickup.metamodel.surface import RhoSurface, fit_rho_surface
+
+FORMAT = "pickplan.pickup.metamodel"
+VERSION = 5  # 2: calibrated probability (D_FT, width, jackknife), conservative_z;
+# 3: kernel metric (svm_metric) and noise band local to each sigma (local_kappa, local_floor);
+# 4: rho_model and gp_theta per boundary (GP classification for rho, gpc.py);
+# 5: the part's lapse rate (gpc.lapse_rate; older files read as 0)
+READABLE_VERSIONS = (2, 3, 4, 5)  # a version-2 file reads as the isotropic kernel
+
+
+@dataclass(frozen=True)
+class SigmaLevel:
+    name: str
+    sigma_r: float  # m, standard deviation in x and y
+    sigma_phi: float  # rad
+
+
+DEFAULT_LEVELS = (
+    SigmaLevel("low", 0.002, math.radians(5)),
+    SigmaLevel("medium", 0.007, math.radians(10)),
+    SigmaLevel("high", 0.012, math.radians(15)),
+)
+
+
+def check_sigma(sigma_r: float, sigma_phi: float) -> None:
+    for name, s in (("sigma_r", sigma_r), ("sigma_phi", sigma_phi)):
+        if not (isinstance(s, (int, float, np.floating)) and math.isfinite(s) and s > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {s!r}")
+
+
+class BoundaryModel:
+    """One GSB: the labelled samples, the SVM refitted from them and its calibration
+    (calibration.py): D_FT (the success depth at which success and failure are equally
+    likely), the width w of the noisy band and the fold classifiers for the jackknife."""
+
+    def __init__(self, s_g, s_c, X, y, simulated, svm_c, svm_gamma, history=None,
+                 converged=False, calib_folds=5, calib_seed=0, svm_metric=None,
+                 local_kappa=3.0, local_floor=1.0, rho_model="svm", gp_theta=None):
+        self.s_g, self.s_c = float(s_g), float(s_c)
+        self.X = np.asarray(X, float).reshape(-1, 3)
+        self.y = np.asarray(y, bool)
+        self.simulated = np.asarray(simulated, bool)
+        self.svm_c, self.svm_gamma = float(svm_c), float(svm_gamma)
+        self.history = list(history or [])
+        self.converged = bool(converged)
+        self.svm_metric = (np.eye(3) if svm_metric is None
+                           else np.asarray(svm_metric, float).reshape(3, 3))
+        self.calib_folds, self.calib_seed = int(calib_folds), int(calib_seed)
+        self.local_kappa, self.local_floor = float(local_kappa), float(local_floor)
+        self.calibration = calibrate(
+            self.X, self.y, self.simulated,
+            lambda A, b: fit_svm(A, b, self.svm_c, self.svm_gamma, self.svm_metric),
+            self.calib_folds, self.calib_seed, local_kappa=self.local_kappa,
+            local_floor=self.local_floor)
+        self.model = self.calibration.model
+        if rho_model not in ("svm", "gp"):
+            raise ValueError(f"rho_model must be 'svm' or 'gp', got {rho_model!r}")
+        self.rho_model = rho_model
+        # rho_model "gp": P(success) and rho from GP classification of the same samples
+        # (gpc.py); gp_theta reuses saved hyperparameters instead of optimizing them.
+        self.gp = (GPSuccessModel(self.X, self.y, theta=gp_theta, seed=self.calib_seed,
+                                  config=GPConfig(restarts=0))
+                   if rho_model == "gp" else None)
+
+    @property
+    def n_simulations(self) -> int:
+        return int(self.simulated.sum())
+
+    @property
+    def d_ft(self) -> float:
+        return self.calibration.d_ft
+
+    @property
+    def width(self) -> float:
+        return self.calibration.width
+
+    def decision(self, U) -> np.ndarray:
+        return self.model.decision_function(np.asarray(U, float))
+
+    def success_depth(self, U) -> np.ndarray:
+        """Signed distance (first order) to the GSB in normalized pose space: > 0 inside
+        the success region, < 0 in the failure region."""
+        return svm_depth(self.model, U)
+
+    def probability(self, U, sigma=None) -> np.ndarray:
+        """Calibrated P(success) of normalized poses (0 outside the domain); with sigma
+        (normalized standard deviations) the noise band local to that query Gaussian; with
+        the GP rho model, the GP's predictive probability."""
+        if self.gp is not None:
+            return self.gp.probability(U)
+        return self.calibration.probability(U, sigma=sigma)
+
+    def rho(self, U, sigma=None, ceiling: float = 1.0) -> tuple:
+        """(rho_hat, standard error) for the Monte-Carlo poses U ~ N(0, sigma); with the GP
+        rho model each pose's probability is capped at ceiling (1 - the part's lapse rate)."""
+        if self.gp is not None:
+            return self.gp.rho(U, self.calib_seed, ceiling)
+        return self.calibration.rho(U, sigma)
+
+    def to_dict(self) -> dict:
+        return {"s_g": self.s_g, "s_c": self.s_c, "X": self.X.tolist(),
+                "y": self.y.astype(int).tolist(), "simulated": self.simulated.astype(int).tolist(),
+                "svm_c": self.svm_c, "svm_gamma": self.svm_gamma, "d_ft": self.d_ft,
+                "width": self.width, "converged": self.converged, "history": self.history,
+                "calib_folds": self.calib_folds, "calib_seed": self.calib_seed,
+                "svm_metric": self.svm_metric.tolist(), "local_kappa": self.local_kappa,
+                "local_floor": self.local_floor, "rho_model": self.rho_model,
+                "gp_theta": None if self.gp is None else self.gp.theta}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "BoundaryModel":
+        return cls(d["s_g"], d["s_c"], d["X"], d["y"], d["simulated"], d["svm_c"],
+                   d["svm_gamma"], history=d.get("history"),
+                   converged=d.get("converged", False), calib_folds=d.get("calib_folds", 5),
+                   calib_seed=d.get("calib_seed", 0), svm_metric=d.get("svm_metric"),
+                   local_kappa=d.get("local_kappa", 0.0), local_floor=d.get("local_floor", 1.0),
+                   rho_model=d.get("rho_model", "svm"), gp_theta=d.get("gp_theta"))
+
+
+def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
+                        domain: PoseDomain = PoseDomain(), n_queries: int = 20000,
+                        seed: int = 0, z: float = 1.0, details: bool = False,
+                        lapse: float = 0.0):
+    """Conservative P(success) for poses from N(0, diag(sigma_r, sigma_r, sigma_phi)):
+    rho_hat - z * se, clipped to [0, 1], where rho_hat is the mean calibrated probability of
+    n_queries Monte-Carlo poses (outside the modelled domain: failure; with the GP rho model
+    capped at 1 - lapse) and se the standard error of the boundary's estimate.
+    details=True returns (rho, rho_hat, se)."""
+    check_sigma(sigma_r, sigma_phi)
+    if n_queries < 1:
+        raise ValueError(f"n_queries must be >= 1, got {n_queries}")
+    if not 0.0 <= lapse < 1.0:
+        raise ValueError(f"lapse must be in [0, 1), got {lapse!r}")
+    sigma = domain.to_normalized(np.array([sigma_r, sigma_r, sigma_phi]))
+    U = gaussian_queries(n_queries, seed) * sigma
+    rho_hat, se = bm.rho(U, sigma, 1.0 - lapse)
+    rho = float(np.clip(rho_hat - z * se, 0.0, 1.0))
+    return (rho, rho_hat, se) if details else rho
+
+
+@dataclass
+class BuildConfig:
+    sg_grid: tuple = (0.1, 0.2, 0.3, 0.4, 0.5)
+    sc_grid: tuple = (0.05, 0.1, 0.15)
+    levels: tuple = DEFAULT_LEVELS
+    active: ActiveConfig = field(default_factory=ActiveConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+    domain: PoseDomain = field(default_factory=PoseDomain)
+    n_queries: int = 20000
+    use_sc_monotonicity: Optional[bool] = None  # None: the part's closing_monotone
+    conservative_z: float = 0.0  # rho = rho_hat - z * se (the surface is a lower bound anyway)
+    # rho per boundary: "gp" (GP classification of the samples, gpc.py) or "svm" (the
+    # calibrated SVM success depth, calibration.py). Against 2,000 direct simulations per
+    # pair the GP is the more accurate (bench/README.md).
+    rho_model: str = "gp"
+    # rho_model "gp": cap each pose's probability at 1 - the part's lapse rate, the failures
+    # no pose explains (gpc.lapse_rate). Without it the cylinder's rho is 1.000 where 2,000
+    # direct simulations give 0.973.
+    lapse_ceiling: bool = True
+    surface_degree: tuple = (3, 2)
+
+    @classmethod
+    def quick(cls) -> "BuildConfig":
+        """A few minutes of CPU at most: 2 x 2 grid, small budgets."""
+        return cls(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.15),
+                   active=ActiveConfig(n_init=16, n_holdout=16, batch_size=12, budget=80),
+                   n_queries=4000)
+
+
+class MetaModel:
+    """The meta-model of one part and grasping strategy: GSBs on the speed grid, the
+    probability grids and surfaces for the built sigma levels. Query with rho()."""
+
+    def __init__(self, part_name, sg_grid, sc_grid, boundaries, levels, rho_grids, surfaces,
+                 domain=PoseDomain(), n_queries=20000, surface_degree=(3, 2), info=None,
+                 conservative_z=1.0, monotone_sc=True, lapse=0.0):
+        self.part_name = part_name
+        self.sg_grid = tuple(float(s) for s in sg_grid)
+        self.sc_grid = tuple(float(s) for s in sc_grid)
+        self.boundaries = boundaries  # {(i, j): BoundaryModel}
+        self.levels = list(levels)
+        self.rho_grids = dict(rho_grids)  # level name -> (n_g, n_c)
+        self.surfaces = dict(surfaces)  # level name -> RhoSurface
+        self.domain = domain
+        self.n_queries = int(n_queries)
+        self.surface_degree = tuple(surface_degree)
+        self.info = dict(info or {})
+        self.conservative_z = float(conservative_z)
+        self.monotone_sc = bool(monotone_sc)  # the surfaces are non-decreasing in S_c
+        self.lapse = float(lapse)  # rho caps each pose's probability at 1 - lapse (GP model)
+
+    def level(self, sigma_r: float, sigma_phi: float):
+        for lv in self.levels:
+            if math.isclose(lv.sigma_r, sigma_r, rel_tol=1e-9) and \
+                    math.isclose(lv.sigma_phi, sigma_phi, rel_tol=1e-9):
+                return lv
+        return None
+
+    def surface(self, sigma_r: float, sigma_phi: float) -> RhoSurface:
+        """The surface for this sigma; built (and cached) from the GSBs if new."""
+        check_sigma(sigma_r, sigma_phi)
+        lv = self.level(sigma_r, sigma_phi)
+        if lv is None:
+            lv = SigmaLevel(f"sigma_{sigma_r:g}_{sigma_phi:g}", float(sigma_r), float(sigma_phi))
+            self.rho_grids[lv.name] = self.probability_grid(sigma_r, sigma_phi)
+            self.surfaces[lv.name] = fit_rho_surface(self.sg_grid, self.sc_grid,
+                                                     self.rho_grids[lv.name], self.surface_degree,
+                                                     self.monotone_sc)
+            self.levels.append(lv)
+        return self.surfaces[lv.name]
+
+    def probability_grid(self, sigma_r: float, sigma_phi: float) -> np.ndarray:
+        """Monte-Carlo success probabilities on the speed grid (common random numbers)."""
+        out = np.zeros((len(self.sg_grid), len(self.sc_grid)))
+        for (i, j), bm in self.boundaries.items():
+            out[i, j] = success_probability(bm, sigma_r, sigma_phi, self.domain, self.n_queries,
+                                            z=self.conservative_z, lapse=self.lapse)
+        return out
+
+    def rho(self, s_g, s_c, sigma_r: float, sigma_phi: float):
+        return self.surface(sigma_r, sigma_phi)(s_g, s_c)
+
+    def rho_gradient(self, s_g, s_c, sigma_r: float, sigma_phi: float):
+        return self.surface(sigma_r, sigma_phi).gradient(s_g, s_c)
+
+    def to_dict(self) -> dict:
+        return {
+            "format": FORMAT, "version": VERSION, "part": self.part_name,
+            "sg_grid": list(self.sg_grid), "sc_grid": list(self.sc_grid),
+            "domain": asdict(self.domain), "n_queries": self.n_queries,
+            "surface_degree": list(self.surface_degree), "info": self.info,
+            "conservative_z": self.conservative_z, "surface_monotone_sc": self.monotone_sc,
+            "lapse": self.lapse,
+            "levels": [{**asdict(lv), "rho_grid": np.asarray(self.rho_grids[lv.name]).tolist(),
+                        "surface": self.surfaces[lv.name].to_dict()} for lv in self.levels],
+            "boundaries": [{"i": i, "j": j, **bm.to_dict()}
+                           for (i, j), bm in sorted(self.boundaries.items())],
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "MetaModel":
+        if d.get("format") != FORMAT:
+            raise ValueError(f"not a pickplan meta-model (format={d.get('format')!r})")
+        if d.get("version") not in READABLE_VERSIONS:
+            raise ValueError(f"unsupported meta-model version {d.get('version')!r}")
+        levels, grids, surfaces = [], {}, {}
+        for lv in d["levels"]:
+            s = SigmaLevel(lv["name"], lv["sigma_r"], lv["sigma_phi"])
+            levels.append(s)
+            grids[s.name] = np.asarray(lv["rho_grid"], float)
+            surfaces[s.name] = RhoSurface.from_dict(lv["surface"])
+        bounds = {(b["i"], b["j"]): BoundaryModel.from_dict(b) for b in d["boundaries"]}
+        return cls(d["part"], d["sg_grid"], d["sc_grid"], bounds, levels, grids, surfaces,
+                   PoseDomain(**d["domain"]), d["n_queries"], tuple(d["surface_degree"]),
+                   d.get("info"), d.get("conservative_z", 1.0), d.get("surface_monotone_sc", True),
+                   d.get("lapse", 0.0))
+
+    def save(self, path) -> None:
+        """Write JSON atomically (temp file in the same directory, then os.replace)."""
+        write_text_atomic(path, json.dumps(self.to_dict()))
+
+    @classmethod
+    def load(cls, path) -> "MetaModel":
+        path = os.fspath(path)
+        if not os.path.exists(path):
+            raise FileNotFoundError(f"meta-model file not found: {path}")
+        with open(path, "r", encoding="utf-8") as f:
+            return cls.from_dict(json.load(f))
+
+
+def write_text_atomic(path, text: str) -> None:
+    """Atomic write (pickplan.io.atomic_open: temp file, then os.replace)."""
+    from pickplan.core.io import atomic_open
+
+    with atomic_open(path, "w", encoding="utf-8") as f:
+        f.write(text)
+
+
+def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, workers: int = 1,
+                    use_ray: bool = False, progress: bool = False, label_fn_factory=None) -> MetaModel:
+    """Learn a GSB for every (S_g, S_c) on the grid and the surfaces for config.levels.
+
+    S_c is processed in ascending order for each S_g so that, where success is monotone in S_c
+    (config.use_sc_monotonicity, by default the part's closing_monotone), poses deep in the
+    previous (lower S_c) success region are labelled success for free.
+    label_fn_factory(s_g, s_c, seed) -> label_fn replaces the simulation (tests)."""
+    part = get_part(part)
+    sc_monotone = part.closing_monotone if config.use_sc_monotonicity is None else config.use_sc_monotonicity
+    sg_grid = sorted(float(s) for s in config.sg_grid)
+    sc_grid = sorted(float(s) for s in config.sc_grid)
+    boundaries = {}
+    # The learner's stopping rule watches rho at the levels being built.
+    active = replace(config.active, query_sigmas=tuple(
+        tuple(float(v) for v in config.domain.to_normalized([lv.sigma_r, lv.sigma_r,
+                                                             lv.sigma_phi]))
+        for lv in config.levels))
+    with SimRunner(part, config.sim, workers, use_ray, progress=False) as runner:
+        for i, s_g in enumerate(sg_grid):
+            prev = None
+            for j, s_c in enumerate(sc_grid):
+                pair_seed = int(np.random.SeedSequence([seed, i, j]).generate_state(1)[0])
+                if label_fn_factory is not None:
+                    label_fn = label_fn_factory(s_g, s_c, pair_seed)
+                else:
+                    label_fn = _sim_label_fn(runner, config.domain, s_g, s_c, pair_seed)
+                known = None
+                if sc_monotone and prev is not None:
+                    known = known_from_lower_sc(prev.model, config.active.known_margin)
+                res = learn_boundary(label_fn, active, seed=pair_seed, known_fn=known)
+                bm = BoundaryModel(s_g, s_c, res.X, res.y, res.simulated, res.svm_c,
+                                   res.svm_gamma, history=res.history,
+                                   converged=res.converged,
+                                   calib_folds=config.active.calib_folds, calib_seed=pair_seed,
+                                   svm_metric=res.svm_metric,
+                                   local_kappa=config.active.local_kappa,
+                                   local_floor=config.active.local_floor,
+                                   rho_model=config.rho_model)
+                boundaries[(i, j)] = bm
+                prev = bm
+                if progress:
+                    import sys
+                    sys.stderr.write(f"{part.name}: S_g={s_g:.2f} S_c={s_c:.2f} "
+                                     f"{bm.n_simulations} sims, {res.n_free} free, "
+                                     f"D_FT={bm.d_ft:.3f}, converged={res.converged}\n")
+    mm = MetaModel(part.name, sg_grid, sc_grid, boundaries, [], {}, {}, config.domain,
+                   config.n_queries, config.surface_degree, conservative_z=config.conservative_z,
+                   monotone_sc=sc_monotone,
+                   info={"seed": seed, "sim": asdict(config.sim), "active": asdict(config.active),
+                         "use_sc_monotonicity": sc_monotone, "rho_model": config.rho_model,
+                         "lapse_ceiling": config.lapse_ceiling})
+    if config.rho_model == "gp" and config.lapse_ceiling:
+        mm.lapse = lapse_rate((bm.gp, bm.simulated) for bm in boundaries.values())
+    for lv in config.levels:
+        mm.rho_grids[lv.name] = mm.probability_grid(lv.sigma_r, lv.sigma_phi)
+        mm.surfaces[lv.name] = fit_rho_surface(sg_grid, sc_grid, mm.rho_grids[lv.name],
+                                               config.surface_degree, sc_monotone)
+        mm.levels.append(lv)
+    return mm
+
+
+def _sim_label_fn(runner: SimRunner, domain: PoseDomain, s_g: float, s_c: float, seed: int):
+    count = [0]
+
+    def label(U):
+        seeds = sample_seeds(seed, count[0], len(U))
+        count[0] += len(U)
+        return runner.run(domain.to_offsets(U), s_g, s_c, seeds)
+
+    return label

@@ -1,0 +1,260 @@
+"""Time-optimal pick-up on the move (Thakar et al., Sec. V): the native Ipopt NLP in five stages
+of successive refinement, the single-shot baseline, STOMP refinement of the arm tails, and the
+success-probability surface rho_sigma(S_g, S_c) read from a part-1 meta-model file.
+
+Ipopt + MUMPS are not thread-safe: never solve in two threads of one process. ``cases.solve_many``
+runs independent solves in separate processes.
+
+>>> from pickplan.pickup.nlp import planner
+>>> robot = planner.mobile_ur5()
+>>> robot.dof
+9
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+
+from pickplan import _core
+from pickplan.core.robots import Robot, assets_dir
+
+METAMODEL_FORMAT = "pickplan.pickup.metamodel"
+
+
+def mobile_ur5() -> Robot:
+    """The 9-DOF mobile manipulator of assets/mobile_ur5.urdf (planar base + UR5 + gripper)."""
+    return Robot.from_urdf(os.path.join(assets_dir(), "mobile_ur5.urdf"))
+
+
+# ---- settings and results ----------------------------------------------------------------------
+@dataclass
+class PlannerSettings:
+    """Mirrors the native PickupSettings (same field names and defaults)."""
+
+    samples_per_interval: int = 8
+    degrees: Sequence[int] = ()           # empty: quintic base and arm joints 1-3, cubic wrists
+    nonholonomic_tol: float = 0.002
+    velocity_tol: float = 0.005
+    angular_velocity_tol: float = 0.01
+    collision_margin: float = 0.02
+    joint_limit_margin: float = 0.05
+    t_min: float = 0.5
+    t_max: float = 100.0
+    tol: float = 1e-6
+    constr_viol_tol: float = 1e-6
+    max_iter: int = 400
+    max_cpu_time: float = 20.0
+    print_level: int = 0
+    hessian: str = "exact"                # or "limited-memory" (Ipopt's L-BFGS)
+    basis: str = "bernstein"              # Ipopt's coefficient variables (results are monomial)
+    active_set: bool = True               # joint/collision rows only where needed, re-solve on violation
+    active_joint_window: float = 0.3
+    active_collision_window: float = 0.15
+    active_max_rounds: int = 6
+    mu_resolve: float = 1e-4
+    dense_subdivisions: int = 16          # collision check between samples (0: samples only)
+    mu_strategy: str = "monotone"
+    mu_init: float = 1e-2
+    seed: int = 0
+    arm_seed_noise: float = 0.05
+    timing_fraction: float = 0.5          # stage-3 seed: fraction (log T) of the full slow-down
+    direct_track: bool = True             # also solve all constraints from the stage-1 solution, keep the shorter
+    arm_seeds: int = 2                    # stages 2-5 from up to this many arm configurations at T2, keep the shortest
+
+    def native(self) -> "_core.PickupSettings":
+        s = _core.PickupSettings()
+        for k, v in asdict(self).items():
+            setattr(s, k, list(v) if k == "degrees" else v)
+        return s
+
+
+@dataclass
+class StageInfo:
+    stage: int
+    status: str
+    ipopt_status: str
+    success: bool
+    seconds: float
+    iterations: int
+    objective: float
+    max_violation: float
+    cpu_seconds: float = 0.0              # thread CPU time (the machine may be shared)
+    rounds: int = 1                       # Ipopt runs (active-set re-solves + 1)
+    rows: int = 0                         # constraint rows of the last run
+
+
+@dataclass
+class PickupPlan:
+    """A planned pick-up: status, per-stage records and the polynomial trajectory."""
+
+    status: str
+    success: bool
+    stages_completed: int
+    stages: list
+    T: float
+    T1: float
+    T2: float
+    S_g: float
+    S_c: float
+    total_seconds: float
+    native: object = field(repr=False, default=None)  # _core.PickupResult
+    total_cpu_seconds: float = 0.0
+    direct: Optional[StageInfo] = None    # the direct track's solve (successive only)
+    direct_chosen: bool = False           # its solution is the one returned
+    arm_seed_T: list = field(default_factory=list)  # final T of each arm seed's run (nan: failed or bounded)
+    arm_seed_chosen: int = 0              # the run the stage records come from
+
+    @classmethod
+    def from_native(cls, r) -> "PickupPlan":
+        info = lambda s: StageInfo(s.stage, s.status, s.ipopt_status, s.success, s.seconds, s.iterations,  # noqa: E731
+                                   s.objective, s.max_violation, s.cpu_seconds, s.rounds, s.rows)
+        stages = [info(s) for s in r.stages]
+        direct = info(r.direct) if r.direct.status else None
+        return cls(r.status, r.success, r.stages_completed, stages, r.T, r.T1, r.T2, r.S_g, r.S_c,
+                   r.total_seconds, r, r.total_cpu_seconds, direct, r.direct_chosen, list(r.arm_seed_T),
+                   r.arm_seed_chosen)
+
+    def sample(self, times) -> tuple:
+        """(q, q', q'') at the given times (s), each of shape (len(times), 9)."""
+        return self.native.sample(np.asarray(times, dtype=float))
+
+    def to_dict(self, n: int = 201) -> dict:
+        t = np.linspace(0.0, self.T, n)
+        q, qd, _ = self.sample(t)
+        return {"status": self.status, "success": self.success, "stages_completed": self.stages_completed,
+                "T": self.T, "T1": self.T1, "T2": self.T2, "S_g": self.S_g, "S_c": self.S_c,
+                "total_seconds": self.total_seconds, "total_cpu_seconds": self.total_cpu_seconds, "stages": [asdict(s) for s in self.stages],
+                "direct": asdict(self.direct) if self.direct else None, "direct_chosen": self.direct_chosen,
+                "arm_seed_T": [None if math.isnan(t) else t for t in self.arm_seed_T],
+                "arm_seed_chosen": self.arm_seed_chosen,
+                "degrees": list(self.native.degrees), "x": np.asarray(self.native.x).tolist(),
+                "t": t.tolist(), "q": q.tolist(), "qd": qd.tolist()}
+
+
+# ---- rho ---------------------------------------------------------------------------------------
+def rho_from_surface(surface) -> "_core.RhoPoly":
+    """A native surface from any object with ``coeffs``, ``sg_range``, ``sc_range`` (a RhoSurface)."""
+    return _core.RhoPoly(np.asarray(surface.coeffs, float), tuple(surface.sg_range), tuple(surface.sc_range))
+
+
+def load_rho(path, sigma_r: float, sigma_phi: float) -> "_core.RhoPoly":
+    """rho_sigma from a meta-model JSON written by pickplan.pickup.metamodel (part 1). Levels
+    stored in the file are read directly; other sigmas are built with the part-1 code."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"meta-model file not found: {path}")
+    with open(path, "r", encoding="utf-8") as f:
+        d = json.load(f)
+    if d.get("format") != METAMODEL_FORMAT:
+        raise ValueError(f"{path}: not a pickplan meta-model (format={d.get('format')!r})")
+    for lv in d.get("levels", []):
+        if math.isclose(lv["sigma_r"], sigma_r, rel_tol=1e-9) and math.isclose(lv["sigma_phi"], sigma_phi, rel_tol=1e-9):
+            s = lv["surface"]
+            return _core.RhoPoly(np.asarray(s["coeffs"], float), tuple(s["sg_range"]), tuple(s["sc_range"]))
+    from pickplan.pickup.metamodel.model import MetaModel  # part 1, only needed for a sigma the file does not hold
+    return rho_from_surface(MetaModel.from_dict(d).surface(sigma_r, sigma_phi))
+
+
+_SYNTH_ANCHORS = ((0.002, 0.035), (0.007, 0.22), (0.012, 1.2))  # (sigma_r, slope a)
+
+
+def synthetic_rho(sigma_r: float, sigma_phi: float) -> "_core.RhoPoly":
+    """A STAND-IN surface (no physics behind it) for runs without a meta-model file: a monotone
+    Bernstein surface rho = sum c_ij B_i(u) B_j(v), c_ij = clip(1 - a(sigma) (i/3) (1 - 0.3 j/2)),
+    on S_g in [0.05, 1.2], S_c in [0.05, 0.15] m/s; a(sigma) interpolates log-linearly between
+    anchors chosen so the paper's low/medium/high gripper speeds come out at gamma."""
+    if not (sigma_r > 0 and sigma_phi > 0):
+        raise ValueError(f"sigma_r and sigma_phi must be > 0, got {sigma_r}, {sigma_phi}")
+    xs = np.log([a[0] for a in _SYNTH_ANCHORS])
+    ys = np.log([a[1] for a in _SYNTH_ANCHORS])
+    a = float(np.exp(np.interp(np.log(sigma_r), xs, ys)))
+    i = np.arange(4)[:, None] / 3.0
+    j = np.arange(3)[None, :] / 2.0
+    c = np.clip(1.0 - a * i * (1.0 - 0.3 * j), 0.0, 1.0)
+    return _core.RhoPoly(c, (0.05, 1.2), (0.05, 0.15))
+
+
+# ---- solving -----------------------------------------------------------------------------------
+def _check(problem, robot: Robot):
+    problem.validate(robot.native)
+
+
+def plan(robot: Robot, problem, settings: PlannerSettings = PlannerSettings(),
+         method: str = "successive") -> PickupPlan:
+    """Solve: method "successive" (the five stages) or "single_shot" (all constraints at once from
+    a random seed, settings.seed). Solver failures are statuses; bad input raises ValueError."""
+    _check(problem, robot)
+    if method == "successive":
+        r = _core.pickup_solve_successive(robot.native, problem, settings.native())
+    elif method == "single_shot":
+        r = _core.pickup_solve_single_shot(robot.native, problem, settings.native())
+    else:
+        raise ValueError(f"method must be 'successive' or 'single_shot', got {method!r}")
+    return PickupPlan.from_native(r)
+
+
+def solve_stage(robot: Robot, problem, x0, stage: int, settings: PlannerSettings = PlannerSettings()):
+    """One stage (1..5, or 0 = all constraints) from the variable vector x0 (coefficients of the
+    normalised-time polynomials, then T1/T, T2/T, T, S_g, S_c)."""
+    return _core.pickup_solve_stage(robot.native, problem, settings.native(), int(stage),
+                                    np.asarray(x0, dtype=float))
+
+
+def seed_from_times(robot: Robot, problem, T: float, T1: float, T2: float,
+                    settings: PlannerSettings = PlannerSettings()) -> np.ndarray:
+    """The heuristic seed with its times replaced; checks 0 <= T1 <= T2 <= T (ValueError)."""
+    if not (np.isfinite([T, T1, T2]).all() and 0.0 <= T1 <= T2 <= T and T > 0):
+        raise ValueError(f"inconsistent time ordering: expected 0 <= T1 <= T2 <= T, got T1={T1}, T2={T2}, T={T}")
+    x = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.native()))
+    n = len(x) - 5
+    x[n], x[n + 1], x[n + 2] = T1 / T, T2 / T, T
+    return x
+
+
+def evaluate(robot: Robot, problem, result: PickupPlan, n: int = 2001) -> dict:
+    """Native dense re-sampling metrics (pose error at T2, non-holonomic error, limits, clearance)."""
+    return dict(_core.pickup_evaluate(robot.native, problem, result.native, int(n)))
+
+
+# ---- STOMP -------------------------------------------------------------------------------------
+def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterations: int = 40,
+                 seed: int = 0) -> dict:
+    """STOMP on the arm over [0, T1] and [T2, T] (n waypoints each); base unchanged. Returns
+    {"pre": (t, Q, info), "post": (t, Q, info)} with info the native StompResult."""
+    out = {}
+    for name, (a, b) in (("pre", (0.0, result.T1)), ("post", (result.T2, result.T))):
+        if b - a < 1e-6:
+            continue
+        t = np.linspace(a, b, n)
+        q, _, _ = result.sample(t)
+        st = _core.StompSettings()
+        st.iterations = int(iterations)
+        st.seed = int(seed)
+        info = _core.stomp_refine(robot.native, q, float(t[1] - t[0]), np.asarray(problem.arm_rate_limits),
+                                  problem.body_spheres, problem.obstacles, st)
+        out[name] = (t, np.array(info.q), info)
+    return out
+
+
+# ---- files -------------------------------------------------------------------------------------
+def write_atomic(path, data: bytes) -> None:
+    """Atomic write (pickplan.io.atomic_open: temp file, then os.replace)."""
+    from pickplan.core.io import atomic_open
+
+    with atomic_open(path, "wb") as f:
+        f.write(data)
+
+
+def save_plan(plan_dict: dict, path_stem) -> None:
+    """<stem>.json (everything) and <stem>.npz (t, q, qd, x) written atomically."""
+    import io
+    write_atomic(f"{path_stem}.json", json.dumps(plan_dict, indent=1).encode())
+    buf = io.BytesIO()
+    np.savez(buf, t=np.asarray(plan_dict["t"]), q=np.asarray(plan_dict["q"]), qd=np.asarray(plan_dict["qd"]),
+             x=np.asarray(plan_dict["x"]))
+    write_atomic(f"{path_stem}.npz", buf.getvalue())

@@ -1,0 +1,490 @@
+"""Executing a plan in PyBullet: follow the trajectory, close the gripper, lift, hold (OMG Sec. IV-A).
+
+One call, one fresh DIRECT client (always disconnected): the scene is loaded with
+``scenes.load_into_pybullet``, the Panda is reset to ``trajectory[0]`` and then
+
+1. **approach**: follows the (T, 9) joint trajectory at ``waypoint_dt`` per segment, densely
+   interpolated at the 240 Hz control rate, under joint position control with the Panda's torque
+   limits (87 Nm joints 1-4, 12 Nm joints 5-7) and velocity feed-forward; segments that would exceed
+   the joint speed limits are slowed down; contacts of the robot with every body but the target are
+   recorded (max penetration per body);
+2. **close**: both finger joints are commanded together to closed, squeezing with ``finger_force`` N
+   per finger; PyBullet ignores the URDF's ``<mimic>``, so a gear constraint makes the second finger
+   follow the first (``couple_fingers``), as the real hand's mechanism does;
+3. **lift**: the hand moves straight up by ``lift_height`` with its orientation held: joint targets
+   come from damped least squares on the native ``Robot.jacobian`` of ``panda_hand`` (7 arm joints),
+   precomputed from the last waypoint (the arm's commanded pose while closing);
+4. **hold**: the final targets are held for ``hold_duration``.
+
+"Execution success" (the paper's metric) = the target's centre of mass rose by at least
+``success_lift_fraction * lift_height`` and the target is still between the fingers at the end.
+
+``ExecutionResult.status``: "lifted" (success); otherwise "collision" (the robot penetrated a
+non-target object or the table deeper than ``collision_depth`` while following the plan),
+"missed" (the target was not between the fingers after closing), "dropped" (it was, but it was not
+lifted or not held at the end), "invalid_trajectory" (waypoints outside the joint limits: not run),
+"unstable" (the simulation diverged). Touches are recorded even when they are not collisions.
+
+>>> result = execute_plan(scene, plan.trajectory)
+>>> result.success, result.status, round(result.target_lift, 3)
+(True, 'lifted', 0.15)
+"""
+from __future__ import annotations
+
+import struct
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from pickplan.core import objects as objects_mod
+from pickplan.core.panda import PANDA
+from pickplan.sim import scenes as scenes_mod
+
+#: Every value ``ExecutionResult.status`` takes.
+STATUSES = ("lifted", "dropped", "missed", "collision", "invalid_trajectory", "unstable")
+
+
+@dataclass(frozen=True)
+class ExecutionSettings:
+    """Simulation, controller, gripper and success-test settings; defaults model the real Panda."""
+
+    # --- simulation
+    time_step: float = 1.0 / 240.0        # s; also the control rate (a new target every step)
+    solver_iterations: int = 100          # PyBullet constraint-solver iterations per step
+    start_settle: float = 0.05            # s simulated with the robot held at trajectory[0] first
+    # --- following the trajectory
+    waypoint_dt: float = 0.1              # s per trajectory segment (the planner's default)
+    respect_velocity_limits: bool = True  # stretch segments that exceed the URDF joint speed limits
+    joint_limit_tolerance: float = 1e-3   # rad (m for fingers) beyond the limits -> "invalid_trajectory"
+    approach_settle: float = 0.25         # s holding the last waypoint so the tracking lag vanishes
+    # --- joint position control (PyBullet's motor: v_cmd = kp * err / dt + v_ff, force-limited)
+    arm_forces: Tuple[float, ...] = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)  # Nm, Franka datasheet
+    position_gain: float = 0.1            # fraction of the position error corrected per step
+    velocity_gain: float = 1.0            # weight of the velocity feed-forward term
+    # --- gripper
+    couple_fingers: bool = True           # a gear constraint keeps finger 2 = finger 1, like the real hand
+    finger_force: float = 40.0            # N per finger when squeezing (Franka Hand: 70 N continuous)
+    finger_speed: float = 0.1             # m/s per finger while closing
+    close_duration: float = 0.5           # s from the close command to the lift
+    finger_friction: float = 1.0          # lateral friction of the finger pads (the URDF's value)
+    finger_spinning_friction: float = 0.1 # torsional friction of the pads (the URDF's value)
+    object_friction: float = 0.8          # lateral friction of the objects (and the table)
+    object_spinning_friction: float = 0.003
+    # --- lift and hold
+    lift_height: float = 0.15             # m, straight up
+    lift_duration: float = 1.5            # s (0.1 m/s)
+    lift_waypoints: int = 30              # damped-least-squares waypoints along the lift
+    ik_damping: float = 0.01              # DLS damping lambda
+    hold_duration: float = 0.5            # s
+    # --- success test and bookkeeping
+    success_lift_fraction: float = 0.8    # the target must rise by this fraction of lift_height
+    hold_margin: float = 0.005            # m; the target is "between the fingers" within this of both
+    min_finger_gap: float = 0.002         # m; fingers closer than this hold nothing
+    collision_depth: float = 0.002        # m; deeper contact with a non-target body = "collision"
+
+    def __post_init__(self):
+        for name in ("time_step", "waypoint_dt", "finger_force", "finger_speed", "lift_duration",
+                     "ik_damping"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("start_settle", "approach_settle", "close_duration", "hold_duration", "lift_height",
+                     "hold_margin", "min_finger_gap", "collision_depth", "joint_limit_tolerance"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if len(self.arm_forces) != 7 or min(self.arm_forces) <= 0:
+            raise ValueError(f"arm_forces: expected 7 positive values, got {self.arm_forces}")
+        if not 0 < self.position_gain <= 1 or not 0 <= self.velocity_gain <= 1:
+            raise ValueError("position_gain must be in (0, 1] and velocity_gain in [0, 1]")
+        if not 0 < self.success_lift_fraction <= 1:
+            raise ValueError(f"success_lift_fraction must be in (0, 1], got {self.success_lift_fraction}")
+        if self.lift_waypoints < 1 or self.solver_iterations < 1:
+            raise ValueError("lift_waypoints and solver_iterations must be >= 1")
+
+
+@dataclass(frozen=True)
+class RecordSettings:
+    """Frames rendered headless (TinyRenderer) every ``every`` simulation steps, first and last included."""
+
+    every: int = 24                       # steps between frames (0.1 s at 240 Hz)
+    width: int = 320
+    height: int = 240
+    max_frames: int = 300                 # later frames are dropped (the last one is always kept)
+    target: Tuple[float, float, float] = (0.4, 0.0, 0.3)   # orbit camera (viz.render)
+    distance: float = 1.5
+    yaw: float = 45.0
+    pitch: float = -25.0
+    colorize: bool = True                 # paint the objects (target red); visuals only, physics unchanged
+
+    def __post_init__(self):
+        if self.every < 1 or self.width < 8 or self.height < 8 or self.max_frames < 2:
+            raise ValueError("RecordSettings: need every >= 1, width/height >= 8, max_frames >= 2")
+
+
+@dataclass
+class ExecutionResult:
+    success: bool                          # execution success: lifted and still held
+    status: str                            # one of STATUSES
+    target: str
+    target_lift: float                     # m, rise of the target's centre of mass
+    target_final_pose: np.ndarray          # (4, 4) object frame -> world at the end
+    contacts_during_approach: Dict[str, float]  # non-target body touched by the robot -> max penetration (m)
+    max_penetration: float                 # m, over contacts_during_approach (0 if none)
+    collided: bool                         # some penetration deeper than settings.collision_depth
+    object_displacements: Dict[str, float] # non-target object -> centre-of-mass travel (m) by the end
+    target_pushed: float                   # m, target centre-of-mass travel before the fingers closed
+    held: bool                             # target between the fingers at the end
+    finger_gap: float                      # m, opening between the finger pads at the end (0 if not run)
+    tracking_error: float                  # rad, worst arm joint error at the plan's waypoints
+    sim_time: float                        # simulated seconds
+    steps: int
+    seconds: float                         # wall time of the whole call
+    message: str = ""
+    frames: List[np.ndarray] = field(default_factory=list, repr=False)
+
+    def to_dict(self) -> dict:
+        """JSON-ready (frames left out)."""
+        d = asdict(self)
+        d.pop("frames")
+        d["target_final_pose"] = np.asarray(self.target_final_pose).tolist()
+        return d
+
+
+# --- input checks --------------------------------------------------------------------------------
+def _check_trajectory(trajectory) -> np.ndarray:
+    try:
+        Q = np.array(trajectory, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"trajectory: expected a (T, 9) array of numbers, got {type(trajectory).__name__}") from exc
+    if Q.ndim != 2 or Q.shape[1] != 9:
+        raise ValueError(f"trajectory: expected shape (T, 9) (7 arm + 2 finger joints), got {Q.shape}")
+    if Q.shape[0] < 1:
+        raise ValueError("trajectory: expected at least one waypoint, got 0")
+    bad = np.argwhere(~np.isfinite(Q))
+    if len(bad):
+        raise ValueError(f"trajectory: contains NaN or infinity (first at waypoint {bad[0][0]}, joint {bad[0][1]})")
+    return Q
+
+
+# --- simulation helpers --------------------------------------------------------------------------
+class _Sim:
+    """The PyBullet world of one execution: robot, bodies, models, frame recorder."""
+
+    def __init__(self, pb, client, ids, models, scene, settings, record):
+        self.pb, self.c, self.s, self.record = pb, client, settings, record
+        self.robot = ids["robot"]
+        self.names = {bid: name for name, bid in ids.items() if name != "robot"}
+        self.bodies = {name: bid for name, bid in ids.items() if name not in ("robot", "table")}
+        self.models = models
+        self.target = scene.target
+        joints = {pb.getJointInfo(self.robot, j, physicsClientId=client)[1].decode(): j
+                  for j in range(pb.getNumJoints(self.robot, physicsClientId=client))}
+        links = {pb.getJointInfo(self.robot, j, physicsClientId=client)[12].decode(): j
+                 for j in range(pb.getNumJoints(self.robot, physicsClientId=client))}
+        self.arm = [joints[f"panda_joint{i}"] for i in range(1, 8)]
+        self.fingers = [joints[name] for name in PANDA.finger_joints]
+        self.finger_links = [links["panda_leftfinger"], links["panda_rightfinger"]]
+        self.steps = 0
+        self.frames: List[np.ndarray] = []
+        self.contacts: Dict[str, float] = {}
+        self.tracking_error = 0.0
+
+    def com(self, name: str) -> np.ndarray:
+        T = scenes_mod.object_pose(self.c, self.bodies[name], self.models[name])
+        return T[:3, :3] @ self.models[name].com + T[:3, 3]
+
+    def joint_positions(self) -> np.ndarray:
+        states = self.pb.getJointStates(self.robot, self.arm + self.fingers, physicsClientId=self.c)
+        return np.array([st[0] for st in states])
+
+    def command_arm(self, q, v) -> None:
+        s = self.s
+        self.pb.setJointMotorControlArray(
+            self.robot, self.arm, self.pb.POSITION_CONTROL, targetPositions=[float(x) for x in q[:7]],
+            targetVelocities=[float(x) for x in v[:7]], forces=list(s.arm_forces),
+            positionGains=[s.position_gain] * 7, velocityGains=[s.velocity_gain] * 7, physicsClientId=self.c)
+
+    def command_fingers(self, width: float, force: float) -> None:
+        for j in self.fingers:  # one command for both (and the gear constraint couples them)
+            self.pb.setJointMotorControl2(self.robot, j, self.pb.POSITION_CONTROL, targetPosition=float(width),
+                                          force=float(force), maxVelocity=self.s.finger_speed,
+                                          physicsClientId=self.c)
+
+    def step(self, watch_contacts: bool = False) -> None:
+        self.pb.stepSimulation(physicsClientId=self.c)
+        self.steps += 1
+        if watch_contacts:
+            for cp in self.pb.getContactPoints(bodyA=self.robot, physicsClientId=self.c):
+                other = self.names.get(cp[2])
+                if other is None or other == self.target or cp[8] > 0:
+                    continue
+                self.contacts[other] = max(self.contacts.get(other, 0.0), -float(cp[8]))
+        if self.record is not None and self.steps % self.record.every == 0:
+            self.capture()
+
+    def capture(self) -> None:
+        from pickplan.sim import render as viz
+
+        r = self.record
+        if len(self.frames) >= r.max_frames:
+            self.frames.pop()  # keep the latest in the last slot
+        self.frames.append(viz.render(self.c, r.width, r.height, r.target, r.distance, r.yaw, r.pitch))
+
+    def finger_gap(self) -> float:
+        """Opening between the pads: the sum of the two finger joint positions."""
+        return float(sum(st[0] for st in self.pb.getJointStates(self.robot, self.fingers, physicsClientId=self.c)))
+
+    def held(self) -> bool:
+        """The target touches (within hold_margin) both fingers, and the fingers are not shut."""
+        if self.finger_gap() < self.s.min_finger_gap:
+            return False
+        for link in self.finger_links:
+            if not self.pb.getClosestPoints(self.robot, self.bodies[self.target], self.s.hold_margin,
+                                            linkIndexA=link, physicsClientId=self.c):
+                return False
+        return True
+
+
+def _segment_steps(Q: np.ndarray, vmax: np.ndarray, s: ExecutionSettings) -> List[Tuple[float, int]]:
+    """(duration, steps) per segment; stretched where a joint would exceed its speed limit."""
+    out = []
+    for k in range(len(Q) - 1):
+        d = s.waypoint_dt
+        if s.respect_velocity_limits:
+            d = max(d, float(np.max(np.abs(Q[k + 1] - Q[k]) / vmax)))
+        out.append((d, max(1, int(round(d / s.time_step)))))
+    return out
+
+
+def _lift_path(robot, q0: np.ndarray, s: ExecutionSettings) -> np.ndarray:
+    """Arm configurations (lift_waypoints + 1, 9) moving the hand straight up, orientation held (DLS)."""
+    hand = robot.link_index(PANDA.hand_link)
+    T0 = robot.fk(q0)[hand]
+    q = q0.copy()
+    path = [q.copy()]
+    lam2 = s.ik_damping ** 2
+    for k in range(1, s.lift_waypoints + 1):
+        goal = T0[:3, 3] + np.array([0.0, 0.0, s.lift_height * k / s.lift_waypoints])
+        for _ in range(3):
+            T = robot.fk(q)[hand]
+            rot_err = 0.5 * sum(np.cross(T[:3, i], T0[:3, i]) for i in range(3))
+            err = np.concatenate([goal - T[:3, 3], rot_err])
+            J = robot.jacobian(q, hand, None)[:, :7]
+            q[:7] += J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(6), err)
+            q[:7] = np.clip(q[:7], robot.lower_limits[:7], robot.upper_limits[:7])
+        path.append(q.copy())
+    return np.array(path)
+
+
+def _follow(sim: _Sim, Q: np.ndarray, segments, fingers_from_plan: bool, finger_force: float,
+            watch: bool) -> None:
+    for k, (d, n) in enumerate(segments):
+        v = (Q[k + 1] - Q[k]) / d
+        for i in range(1, n + 1):
+            q = Q[k] + (i / n) * (Q[k + 1] - Q[k])
+            sim.command_arm(q, v)
+            if fingers_from_plan:
+                sim.command_fingers(q[7], finger_force)
+            sim.step(watch)
+        if watch:  # tracking error of the arm at each waypoint of the plan
+            err = float(np.max(np.abs(sim.joint_positions()[:7] - Q[k + 1, :7])))
+            sim.tracking_error = max(sim.tracking_error, err)
+
+
+def _hold(sim: _Sim, q: np.ndarray, seconds: float, watch: bool) -> None:
+    zero = np.zeros(9)
+    sim.command_arm(q, zero)
+    for _ in range(int(round(seconds / sim.s.time_step))):
+        sim.step(watch)
+
+
+# --- the entry point -----------------------------------------------------------------------------
+def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSettings = ExecutionSettings(),
+                 library: Optional[objects_mod.ObjectLibrary] = None,
+                 record: Optional[RecordSettings] = None) -> ExecutionResult:
+    """Run ``trajectory`` (T, 9) in ``scene``, grasp ``scene.target`` and lift it; see the module doc.
+
+    Raises ValueError for a malformed trajectory (shape, NaN); a trajectory outside the joint limits
+    is not run and reports status "invalid_trajectory". Deterministic for identical inputs.
+    """
+    import pybullet as pb
+
+    from pickplan.core import robots
+
+    t_start = time.perf_counter()
+    s = settings
+    Q = _check_trajectory(trajectory)
+    if scene.target not in [o.name for o in scene.objects]:
+        raise ValueError(f"scene target {scene.target!r} is not one of its objects")
+    robot = robots.panda(np.asarray(scene.robot_base, dtype=float))
+    lo, hi = robot.lower_limits, robot.upper_limits
+    over = np.maximum(lo - Q, Q - hi)
+    models = {o.name: library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
+              for o in scene.objects}
+
+    def scene_com(name):
+        T = np.asarray(scene.object(name).pose, dtype=float)
+        return T[:3, :3] @ models[name].com + T[:3, 3]
+
+    if np.max(over) > s.joint_limit_tolerance:
+        k, j = np.unravel_index(int(np.argmax(over)), over.shape)
+        return ExecutionResult(
+            success=False, status="invalid_trajectory", target=scene.target, target_lift=0.0,
+            target_final_pose=np.asarray(scene.object(scene.target).pose, dtype=float).copy(),
+            contacts_during_approach={}, max_penetration=0.0, collided=False,
+            object_displacements={o.name: 0.0 for o in scene.objects if o.name != scene.target},
+            target_pushed=0.0, held=False, finger_gap=0.0, tracking_error=0.0, sim_time=0.0, steps=0,
+            seconds=time.perf_counter() - t_start,
+            message=f"waypoint {k}, joint {robot.joint_names[j]}: {Q[k, j]:.4f} outside "
+                    f"[{lo[j]:.4f}, {hi[j]:.4f}] by {over[k, j]:.4f}")
+    Q = np.clip(Q, lo, hi)
+
+    start_scene = scenes_mod.Scene(robot_base=scene.robot_base, table=scene.table, objects=scene.objects,
+                                   target=scene.target, seed=scene.seed, robot_configuration=list(Q[0]))
+    client = pb.connect(pb.DIRECT)
+    try:
+        pb.resetSimulation(physicsClientId=client)
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, numSolverIterations=s.solver_iterations,
+                                     physicsClientId=client)
+        pb.setGravity(0, 0, -9.81, physicsClientId=client)
+        pb.setTimeStep(s.time_step, physicsClientId=client)
+        ids = scenes_mod.load_into_pybullet(start_scene, client, library, with_robot=True)
+        sim = _Sim(pb, client, ids, models, scene, s, record)
+        for link in sim.finger_links:
+            pb.changeDynamics(sim.robot, link, lateralFriction=s.finger_friction,
+                              spinningFriction=s.finger_spinning_friction, frictionAnchor=1, physicsClientId=client)
+        for name, bid in ids.items():
+            if name != "robot":
+                pb.changeDynamics(bid, -1, lateralFriction=s.object_friction,
+                                  spinningFriction=s.object_spinning_friction, physicsClientId=client)
+        if s.couple_fingers:  # PyBullet ignores <mimic>: couple the fingers' motion with a gear constraint
+            gear = pb.createConstraint(sim.robot, sim.fingers[0], sim.robot, sim.fingers[1], pb.JOINT_GEAR,
+                                       [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=client)
+            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * s.finger_force, physicsClientId=client)
+        com0 = {name: scene_com(name) for name in sim.bodies}
+        if record is not None:
+            if record.colorize:
+                _colorize(pb, client, sim)
+            sim.capture()
+
+        # 1. approach
+        zero = np.zeros(9)
+        sim.command_arm(Q[0], zero)
+        sim.command_fingers(Q[0, 7], s.finger_force)
+        for _ in range(int(round(s.start_settle / s.time_step))):
+            sim.step(True)
+        _follow(sim, Q, _segment_steps(Q, robot.velocity_limits, s), True, s.finger_force, True)
+        _hold(sim, Q[-1], s.approach_settle, True)
+        target_pushed = float(np.linalg.norm(sim.com(scene.target) - com0[scene.target]))
+
+        # 2. close (arm holds the last waypoint)
+        sim.command_fingers(0.0, s.finger_force)
+        _hold(sim, Q[-1], s.close_duration, False)
+        held_after_close = sim.held()
+
+        # 3. lift, 4. hold
+        q_lift = Q[-1].copy()  # continue from the commanded pose, so the arm target does not jump
+        q_lift[7:] = sim.joint_positions()[7:]
+        lift = _lift_path(robot, q_lift, s)
+        seg = s.lift_duration / s.lift_waypoints
+        _follow(sim, lift, [(seg, max(1, int(round(seg / s.time_step))))] * s.lift_waypoints, False,
+                s.finger_force, False)
+        _hold(sim, lift[-1], s.hold_duration, False)
+
+        # outcome
+        T_final = scenes_mod.object_pose(client, sim.bodies[scene.target], models[scene.target])
+        com_final = {name: sim.com(name) for name in sim.bodies}
+        held = sim.held()
+        gap = sim.finger_gap()
+        if record is not None and sim.steps % record.every != 0:
+            sim.capture()
+        finite = np.all(np.isfinite(sim.joint_positions())) and all(np.all(np.isfinite(c)) for c in com_final.values())
+    finally:
+        pb.disconnect(client)
+
+    lift_m = float(com_final[scene.target][2] - com0[scene.target][2]) if finite else float("nan")
+    max_pen = max(sim.contacts.values(), default=0.0)
+    collided = max_pen > s.collision_depth
+    success = bool(finite and held and lift_m >= s.success_lift_fraction * s.lift_height)
+    if not finite:
+        status, msg = "unstable", "the simulation produced non-finite states"
+    elif success:
+        status, msg = "lifted", ""
+    elif collided:
+        worst = max(sim.contacts, key=sim.contacts.get)
+        status, msg = "collision", f"robot penetrated {worst} by {max_pen * 1000:.1f} mm during the approach"
+    elif not held_after_close:
+        status, msg = "missed", "the fingers closed without the target between them"
+    else:
+        status, msg = "dropped", (f"target held after closing but at the end held={held}, "
+                                  f"lift {lift_m:.3f} m of {s.lift_height:.3f} m")
+    return ExecutionResult(
+        success=success, status=status, target=scene.target, target_lift=lift_m, target_final_pose=T_final,
+        contacts_during_approach=dict(sorted(sim.contacts.items())), max_penetration=float(max_pen),
+        collided=bool(collided),
+        object_displacements={n: float(np.linalg.norm(com_final[n] - com0[n])) for n in sorted(sim.bodies)
+                              if n != scene.target},
+        target_pushed=target_pushed, held=bool(held), finger_gap=gap, tracking_error=sim.tracking_error,
+        sim_time=sim.steps * s.time_step, steps=sim.steps, seconds=time.perf_counter() - t_start, message=msg,
+        frames=sim.frames)
+
+
+_PALETTE = ((0.20, 0.45, 0.80), (0.25, 0.65, 0.35), (0.85, 0.65, 0.15), (0.55, 0.35, 0.70),
+            (0.20, 0.65, 0.70), (0.60, 0.60, 0.60), (0.80, 0.45, 0.60))
+
+
+def _colorize(pb, client, sim: _Sim) -> None:
+    for i, name in enumerate(sorted(sim.bodies)):
+        rgb = (0.85, 0.15, 0.10) if name == sim.target else _PALETTE[i % len(_PALETTE)]
+        pb.changeVisualShape(sim.bodies[name], -1, rgbaColor=[*rgb, 1.0], physicsClientId=client)
+
+
+def save_frames(frames: Sequence[np.ndarray], path_png: str, columns: int = 4) -> None:
+    """Write ``frames`` as one contact-sheet PNG (a grid, ``columns`` wide)."""
+    from pickplan.sim import render as viz
+
+    if not frames:
+        raise ValueError("save_frames: no frames to write")
+    if columns < 1:
+        raise ValueError(f"columns must be >= 1, got {columns}")
+    viz.write_png(path_png, viz.tile(list(frames), columns))
+
+
+def save_gif(frames: Sequence[np.ndarray], path: str, fps: float = 10.0) -> None:
+    """Write ``frames`` as a looping animated GIF (pure Python + numpy, 252-colour palette).
+
+    The LZW stream sends literal codes only, with a clear code every 250 pixels so the code width
+    stays at 9 bits: larger files than a real LZW encoder writes, valid for every decoder.
+    """
+    from pickplan.core.io import atomic_open
+
+    if not frames:
+        raise ValueError("save_gif: no frames to write")
+    h, w = frames[0].shape[:2]
+    if any(f.shape[:2] != (h, w) for f in frames):
+        raise ValueError("save_gif: frames must all have the same size")
+    levels = np.array([6, 7, 6])
+    grid = np.stack(np.meshgrid(*[np.arange(n) for n in levels], indexing="ij"), -1).reshape(-1, 3)
+    palette = np.zeros((256, 3), np.uint8)
+    palette[:len(grid)] = np.round(grid * 255.0 / (levels - 1)).astype(np.uint8)
+    out = [b"GIF89a", struct.pack("<HHBBB", w, h, 0xF7, 0, 0), palette.tobytes(),
+           b"\x21\xFF\x0BNETSCAPE2.0\x03\x01\x00\x00\x00"]  # loop forever
+    delay = max(1, int(round(100.0 / fps)))
+    for f in frames:
+        q = np.round(np.asarray(f[..., :3], dtype=float) * (levels - 1) / 255.0).astype(np.int64)
+        idx = (q[..., 0] * 42 + q[..., 1] * 6 + q[..., 2]).ravel()
+        n = len(idx)
+        chunks = -(-n // 250)
+        codes = np.full(n + chunks + 1, 256, dtype=np.int64)  # 256 = clear, 257 = end of information
+        pos = np.arange(n) + np.arange(n) // 250 + 1           # a clear before every 250 literals
+        codes[pos] = idx
+        codes[-1] = 257
+        bits = ((codes[:, None] >> np.arange(9)) & 1).astype(np.uint8).ravel()
+        data = np.packbits(bits, bitorder="little").tobytes()
+        blocks = b"".join(bytes([len(data[i:i + 255])]) + data[i:i + 255] for i in range(0, len(data), 255))
+        out += [b"\x21\xF9\x04\x04" + struct.pack("<H", delay) + b"\x00\x00",
+                b"\x2C" + struct.pack("<HHHHB", 0, 0, w, h, 0), b"\x08", blocks, b"\x00"]
+    out.append(b"\x3B")
+    with atomic_open(path, "wb") as fh:
+        fh.write(b"".join(out))

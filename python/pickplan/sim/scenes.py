@@ -1,0 +1,483 @@
+"""Cluttered tabletop scenes: seeded generation in PyBullet, a JSON record, and reloading.
+
+Conventions (other modules rely on them):
+
+* world frame = Panda base frame; the Panda base sits at the origin (``robot_base`` = identity);
+* the table is a box whose top surface is the plane z = 0, spanning x in [-0.2, 1.1], y in
+  [-0.8, 0.8], 0.05 m thick (``Table.pose`` is the pose of the box centre);
+* objects are dropped in the reachable area x in [0.35, 0.75], y in [-0.35, 0.35];
+* ``SceneObject.pose`` maps the object (mesh) frame into the world, like ``ObjectModel.resting_poses``.
+
+>>> scene = generate_scene(seed=3)
+>>> scene.save("out/scene_3.json"); Scene.load("out/scene_3.json").target
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from pickplan.core import objects as objects_mod
+from pickplan.core import objects_builtin
+from pickplan.core.io import atomic_open
+from pickplan.core.panda import PANDA, panda_urdf_path
+
+SCENE_FORMAT = "pickplan.scene"
+SCENE_VERSION = 1
+
+
+@dataclass(frozen=True)
+class SceneSettings:
+    """How scenes are generated; every field has the default used for the benchmark sets."""
+
+    min_objects: int = 3
+    max_objects: int = 7
+    region_x: Tuple[float, float] = (0.35, 0.75)   # where object centres are dropped
+    region_y: Tuple[float, float] = (-0.35, 0.35)
+    table_x: Tuple[float, float] = (-0.2, 1.1)
+    table_y: Tuple[float, float] = (-0.8, 0.8)
+    table_thickness: float = 0.05
+    drop_height: float = 0.005         # gap between the object's lowest point and the table at release
+    spawn_gap: float = 0.005           # minimum gap between footprint circles at release
+    # "upright" (the paper: "random upright poses"): every object stands on the resting pose that keeps
+    # its model +z closest to up; "resting": any sufficiently stable resting pose (lying boxes,
+    # upside-down bowls), sampled with the two settings below.
+    orientation: str = "upright"
+    min_barrier: float = 0.002         # resting poses that tip with less COM rise (m) are not sampled
+    barrier_fraction: float = 0.1      # ... nor those below this fraction of the most stable one's
+    time_step: float = 1.0 / 240.0
+    max_settle_time: float = 2.0       # seconds of simulation per settling round
+    settle_speed: float = 0.005        # m/s; below this (and settle_spin) an object counts as at rest
+    settle_spin: float = 0.05          # rad/s
+    max_tilt_deg: float = 15.0         # more than this away from the sampled upright = tipped over
+    max_lift: float = 0.005            # lowest point higher than this above the table = not resting on it
+    robot_clearance: float = 0.01      # objects closer than this to the robot are discarded
+    friction: float = 0.8
+    max_attempts: int = 20
+    robot_configuration: Optional[Tuple[float, ...]] = None  # None: core.panda.PANDA.ready
+    # Never the target: wider than the Panda's 8 cm opening (the paper's grasp data has none for it).
+    non_targets: Tuple[str, ...] = ("002_master_chef_can",)
+
+    def __post_init__(self):
+        if self.orientation not in ("upright", "resting"):
+            raise ValueError(f"orientation: expected 'upright' or 'resting', got {self.orientation!r}")
+        if not 1 <= self.min_objects <= self.max_objects:
+            raise ValueError(f"need 1 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
+        for name in ("region_x", "region_y", "table_x", "table_y"):
+            lo, hi = getattr(self, name)
+            if not lo < hi:
+                raise ValueError(f"{name}: expected (low, high) with low < high, got {(lo, hi)}")
+
+
+@dataclass(eq=False)
+class Table:
+    size: np.ndarray   # (3,) box extents
+    pose: np.ndarray   # (4, 4) pose of the box centre; the top face is at z = 0 by convention
+
+
+@dataclass(eq=False)
+class SceneObject:
+    name: str
+    source: str        # "builtin:NAME" or the object's folder
+    pose: np.ndarray   # (4, 4) object frame -> world
+
+
+@dataclass(eq=False)
+class Scene:
+    robot_base: np.ndarray
+    table: Table
+    objects: List[SceneObject]
+    target: str
+    seed: Optional[int] = None
+    robot_configuration: List[float] = field(default_factory=list)  # the start configuration
+
+    def object(self, name: str) -> SceneObject:
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise KeyError(f"no object {name!r} in scene; objects: {[o.name for o in self.objects]}")
+
+    # --- JSON ---------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return {
+            "format": SCENE_FORMAT, "version": SCENE_VERSION, "seed": self.seed,
+            "robot_base": np.asarray(self.robot_base, dtype=float).tolist(),
+            "robot_configuration": [float(x) for x in self.robot_configuration],
+            "table": {"size": np.asarray(self.table.size, dtype=float).tolist(),
+                      "pose": np.asarray(self.table.pose, dtype=float).tolist()},
+            "objects": [{"name": o.name, "source": o.source, "pose": np.asarray(o.pose, dtype=float).tolist()}
+                        for o in self.objects],
+            "target": self.target,
+        }
+
+    def to_json(self) -> str:
+        # Python writes the shortest repr that round-trips, so floats come back bit-identical.
+        return json.dumps(self.to_dict(), indent=1)
+
+    @classmethod
+    def from_dict(cls, d) -> "Scene":
+        if not isinstance(d, dict):
+            raise ValueError(f"expected a JSON object, got {type(d).__name__}")
+        if d.get("format") != SCENE_FORMAT:
+            raise ValueError(f"not a scene: 'format' is {d.get('format')!r}, expected {SCENE_FORMAT!r}")
+        if d.get("version") != SCENE_VERSION:
+            raise ValueError(f"unsupported scene version {d.get('version')!r} (this pickplan reads {SCENE_VERSION})")
+        for key in ("robot_base", "table", "objects", "target"):
+            if key not in d:
+                raise ValueError(f"missing key {key!r}")
+        table = d["table"]
+        if not isinstance(table, dict) or "size" not in table or "pose" not in table:
+            raise ValueError("'table' needs 'size' and 'pose'")
+        if not isinstance(d["objects"], list):
+            raise ValueError("'objects' must be a list")
+        objs = []
+        for i, o in enumerate(d["objects"]):
+            if not isinstance(o, dict) or not {"name", "source", "pose"} <= set(o):
+                raise ValueError(f"objects[{i}] needs 'name', 'source' and 'pose'")
+            objs.append(SceneObject(str(o["name"]), str(o["source"]), _pose(o["pose"], f"objects[{i}].pose")))
+        names = [o.name for o in objs]
+        if len(set(names)) != len(names):
+            raise ValueError(f"object names must be unique, got {names}")
+        if d["target"] not in names:
+            raise ValueError(f"target {d['target']!r} is not one of the objects {names}")
+        size = _array(table["size"], (3,), "table.size")
+        q = d.get("robot_configuration", [])
+        return cls(robot_base=_pose(d["robot_base"], "robot_base"),
+                   table=Table(size=size, pose=_pose(table["pose"], "table.pose")),
+                   objects=objs, target=str(d["target"]), seed=d.get("seed"),
+                   robot_configuration=[float(x) for x in _array(q, (len(q),), "robot_configuration")])
+
+    @classmethod
+    def from_json(cls, text: str) -> "Scene":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"malformed scene JSON: {exc}") from exc
+        return cls.from_dict(data)
+
+    def save(self, path: str) -> None:
+        with atomic_open(path, "w") as f:
+            f.write(self.to_json())
+
+    @classmethod
+    def load(cls, path: str) -> "Scene":
+        path = os.fspath(path)
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"scene file not found: {path}")
+        with open(path, "r", encoding="utf-8") as f:
+            text = f.read()
+        try:
+            return cls.from_json(text)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from exc
+
+
+def _array(value, shape, what) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what}: expected numbers, got {value!r}") from exc
+    if arr.shape != shape:
+        raise ValueError(f"{what}: expected shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{what}: contains NaN or infinity")
+    return arr
+
+
+def _pose(value, what) -> np.ndarray:
+    T = _array(value, (4, 4), what)
+    R = T[:3, :3]
+    if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6) \
+            or np.linalg.det(R) < 0:
+        raise ValueError(f"{what}: not a rigid transform")
+    return T
+
+
+# --- PyBullet helpers ------------------------------------------------------------------------------
+def _panda_defaults() -> Tuple[str, Tuple[float, ...]]:
+    """URDF path and ready configuration of the Panda."""
+    return panda_urdf_path(), tuple(PANDA.ready)
+
+
+def _inertial_frame(model: objects_mod.ObjectModel) -> Tuple[np.ndarray, np.ndarray]:
+    """Object -> principal inertial frame (4x4) and the principal moments."""
+    moments, axes = np.linalg.eigh(model.inertia)
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = axes, model.com
+    return T, np.maximum(moments, 1e-9)
+
+
+def _mat_to_quat(R: np.ndarray) -> List[float]:
+    """Rotation matrix -> (x, y, z, w), the numerically stable branch per largest diagonal term."""
+    m = R
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        return [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    i = int(np.argmax([m[0, 0], m[1, 1], m[2, 2]]))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = 2.0 * math.sqrt(max(1.0 + m[i, i] - m[j, j] - m[k, k], 1e-300))
+    q = [0.0, 0.0, 0.0, 0.0]
+    q[i] = 0.25 * s
+    q[j] = (m[j, i] + m[i, j]) / s
+    q[k] = (m[k, i] + m[i, k]) / s
+    q[3] = (m[k, j] - m[j, k]) / s
+    return q
+
+
+def _quat_to_mat(q) -> np.ndarray:
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def add_object_body(client: int, model: objects_mod.ObjectModel, pose: np.ndarray,
+                    friction: float = 0.8) -> int:
+    """Create a dynamic body for ``model`` at ``pose`` (object frame -> world); returns its id.
+
+    The body's base frame is the object's principal inertial frame, so PyBullet's base pose (which
+    it always reports for the inertial frame) needs no further correction; ``object_pose`` converts
+    back to the object frame.
+    """
+    import pybullet as pb
+
+    T_in, moments = _inertial_frame(model)
+    T_shape = np.linalg.inv(T_in)  # the object (mesh) frame seen from the inertial frame
+    shape = pb.createCollisionShape(pb.GEOM_MESH, fileName=model.collision_obj_path(),
+                                    collisionFramePosition=T_shape[:3, 3].tolist(),
+                                    collisionFrameOrientation=_mat_to_quat(T_shape[:3, :3]),
+                                    physicsClientId=client)
+    if shape < 0:
+        raise RuntimeError(f"PyBullet could not create the collision shape of {model.name}")
+    T_base = np.asarray(pose, dtype=float) @ T_in
+    body = pb.createMultiBody(baseMass=model.mass, baseCollisionShapeIndex=shape,
+                              basePosition=T_base[:3, 3].tolist(), baseOrientation=_mat_to_quat(T_base[:3, :3]),
+                              physicsClientId=client)
+    pb.changeDynamics(body, -1, localInertiaDiagonal=moments.tolist(), lateralFriction=friction,
+                      rollingFriction=1e-4, spinningFriction=1e-3, restitution=0.0, physicsClientId=client)
+    return body
+
+
+def object_pose(client: int, body: int, model: objects_mod.ObjectModel) -> np.ndarray:
+    """The object-frame pose (4x4) of a body created by ``add_object_body``."""
+    import pybullet as pb
+
+    pos, quat = pb.getBasePositionAndOrientation(body, physicsClientId=client)
+    T_base = np.eye(4)
+    T_base[:3, :3], T_base[:3, 3] = _quat_to_mat(quat), pos
+    return T_base @ np.linalg.inv(_inertial_frame(model)[0])
+
+
+def add_table(client: int, table: Table, friction: float = 0.8) -> int:
+    import pybullet as pb
+
+    half = (np.asarray(table.size, dtype=float) / 2).tolist()
+    shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=client)
+    visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=[0.75, 0.65, 0.5, 1],
+                                  physicsClientId=client)
+    T = np.asarray(table.pose, dtype=float)
+    body = pb.createMultiBody(0.0, shape, visual, basePosition=T[:3, 3].tolist(),
+                              baseOrientation=_mat_to_quat(T[:3, :3]), physicsClientId=client)
+    pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=client)
+    return body
+
+
+def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None) -> int:
+    """The Panda with a fixed base; ``q`` sets the movable joints in URDF order (7 arm + 2 fingers)."""
+    import pybullet as pb
+
+    urdf, ready = _panda_defaults()
+    T = np.asarray(base, dtype=float)
+    body = pb.loadURDF(urdf, basePosition=T[:3, 3].tolist(), baseOrientation=_mat_to_quat(T[:3, :3]),
+                       useFixedBase=True, physicsClientId=client)
+    q = ready if q is None or len(q) == 0 else q
+    movable = [j for j in range(pb.getNumJoints(body, physicsClientId=client))
+               if pb.getJointInfo(body, j, physicsClientId=client)[2] != pb.JOINT_FIXED]
+    if len(q) != len(movable):
+        raise ValueError(f"robot configuration: expected {len(movable)} joint values, got {len(q)}")
+    for j, v in zip(movable, q):
+        pb.resetJointState(body, j, float(v), physicsClientId=client)
+        # hold the pose against gravity while objects settle
+        pb.setJointMotorControl2(body, j, pb.POSITION_CONTROL, targetPosition=float(v), force=500.0,
+                                 physicsClientId=client)
+    return body
+
+
+def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None,
+                       with_robot: bool = True) -> Dict[str, int]:
+    """Recreate ``scene`` in ``client``: body ids by object name, plus "table" and "robot"."""
+    ids = {"table": add_table(client, scene.table)}
+    if with_robot:
+        ids["robot"] = add_robot(client, scene.robot_base, scene.robot_configuration)
+    for o in scene.objects:
+        model = library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
+        ids[o.name] = add_object_body(client, model, o.pose)
+    return ids
+
+# --- generation ----------------------------------------------------------------------------------
+def default_table(settings: SceneSettings = SceneSettings()) -> Table:
+    """The table box: top face at z = 0 spanning ``table_x`` x ``table_y``."""
+    (x0, x1), (y0, y1), t = settings.table_x, settings.table_y, settings.table_thickness
+    pose = np.eye(4)
+    pose[:3, 3] = [(x0 + x1) / 2, (y0 + y1) / 2, -t / 2]
+    return Table(size=np.array([x1 - x0, y1 - y0, t]), pose=pose)
+
+
+def _allowed_poses(model: objects_mod.ObjectModel, settings: SceneSettings) -> List[int]:
+    """Indices of the resting poses to sample from. "upright": the one whose model +z points most
+    nearly up; "resting": those stable enough (the most stable one always qualifies)."""
+    if settings.orientation == "upright":
+        return [int(np.argmax([pose[2, 2] for pose in model.resting_poses]))]
+    b = np.asarray(model.resting_barriers if model.resting_barriers else [1.0], dtype=float)
+    floor = max(settings.min_barrier, settings.barrier_fraction * b[0])
+    return [i for i in range(min(len(b), len(model.resting_poses))) if i == 0 or b[i] >= floor]
+
+
+def _hull_points(model: objects_mod.ObjectModel) -> np.ndarray:
+    return np.asarray(model.mesh.convex_hull.vertices, dtype=float)  # trimesh caches the hull
+
+
+@dataclass
+class _Placed:
+    name: str
+    model: objects_mod.ObjectModel
+    body: int
+    up: np.ndarray  # the world's up direction in the object frame when it was dropped
+
+
+def _settle(client: int, bodies: Sequence[int], settings: SceneSettings) -> None:
+    import pybullet as pb
+
+    chunk = max(1, int(round(0.1 / settings.time_step)))
+    for i in range(max(2, int(math.ceil(settings.max_settle_time / 0.1)))):
+        for _ in range(chunk):
+            pb.stepSimulation(physicsClientId=client)
+        if i == 0:
+            continue  # give every object at least 0.2 s to land
+        still = True
+        for b in bodies:
+            v, w = pb.getBaseVelocity(b, physicsClientId=client)
+            if np.linalg.norm(v) > settings.settle_speed or np.linalg.norm(w) > settings.settle_spin:
+                still = False
+                break
+        if still:
+            return
+
+
+def _resting_ok(client: int, p: _Placed, robot: int, table: Table, settings: SceneSettings) -> bool:
+    """On the table, upright as dropped, touching the table and clear of the robot."""
+    import pybullet as pb
+
+    T = object_pose(client, p.body, p.model)
+    up_now = T[:3, :3] @ p.up
+    if up_now[2] < math.cos(math.radians(settings.max_tilt_deg)):
+        return False
+    lo = table.pose[:3, 3] - np.asarray(table.size) / 2
+    hi = table.pose[:3, 3] + np.asarray(table.size) / 2
+    com = T[:3, :3] @ p.model.com + T[:3, 3]
+    if not (lo[0] <= com[0] <= hi[0] and lo[1] <= com[1] <= hi[1]):
+        return False
+    lowest = float(np.min(_hull_points(p.model) @ T[:3, :3].T[:, 2] + T[2, 3]))
+    if not -settings.max_lift <= lowest - hi[2] <= settings.max_lift:
+        return False
+    if robot >= 0 and pb.getClosestPoints(p.body, robot, settings.robot_clearance, physicsClientId=client):
+        return False
+    return True
+
+
+def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSettings()) -> Scene:
+    """Drop 3-7 sampled objects in front of the Panda, let them settle, keep those resting upright.
+
+    ``library``: an ``ObjectLibrary``, a YCB-layout folder, or None (``objects.library()``: the
+    built-ins or $PICKPLAN_YCB_DIR). Same seed, library and settings -> the identical scene: every
+    random draw comes from one ``default_rng(seed)`` and PyBullet runs in a fresh DIRECT client.
+    """
+    import pybullet as pb
+
+    lib = library if isinstance(library, objects_mod.ObjectLibrary) else objects_mod.library(library)
+    if len(lib) < settings.min_objects:
+        raise ValueError(f"library {lib.source} has {len(lib)} objects, fewer than min_objects={settings.min_objects}")
+    rng = np.random.default_rng(seed)
+    table = default_table(settings)
+    q = settings.robot_configuration or _panda_defaults()[1]
+    (x0, x1), (y0, y1) = settings.region_x, settings.region_y
+    client = pb.connect(pb.DIRECT)
+    try:
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=client)
+        pb.setGravity(0, 0, -9.81, physicsClientId=client)
+        pb.setTimeStep(settings.time_step, physicsClientId=client)
+        add_table(client, table, settings.friction)
+        robot = add_robot(client, np.eye(4), q)
+        kept: List[_Placed] = []
+        for _attempt in range(settings.max_attempts):
+            n = min(int(rng.integers(settings.min_objects, settings.max_objects + 1)), len(lib))
+            names = [lib.names[i] for i in rng.choice(len(lib), size=n, replace=False)]
+            placed, circles = [], []
+            for name in names:
+                model = lib.get(name)
+                allowed = _allowed_poses(model, settings)
+                rest = model.resting_poses[allowed[int(rng.integers(len(allowed)))]]
+                yaw = rng.uniform(-math.pi, math.pi)
+                radius = float(np.max(np.linalg.norm((_hull_points(model) @ rest[:3, :3].T)[:, :2]
+                                                     + rest[:2, 3], axis=1)))
+                for _ in range(50):  # rejection sampling of a free spot; the object is skipped if none
+                    xy = rng.uniform([x0, y0], [x1, y1])
+                    if all(np.linalg.norm(xy - c) >= radius + r + settings.spawn_gap for c, r in circles):
+                        break
+                else:
+                    continue
+                circles.append((xy, radius))
+                Rz = np.eye(4)
+                Rz[:2, :2] = [[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]]
+                T = Rz @ rest
+                T[:3, 3] += [xy[0], xy[1], settings.drop_height]
+                body = add_object_body(client, model, T, settings.friction)
+                placed.append(_Placed(name, model, body, rest[2, :3].copy()))
+            kept = _settle_and_filter(client, placed, robot, table, settings)
+            if len(kept) >= settings.min_objects:
+                break
+            for p in kept:
+                pb.removeBody(p.body, physicsClientId=client)
+            kept = []
+        else:
+            raise RuntimeError(f"seed {seed}: fewer than {settings.min_objects} objects came to rest in "
+                               f"{settings.max_attempts} attempts")
+        # Built-in shapes the Panda cannot hold (no handle on the built-in pitcher) are never targets.
+        never = set(settings.non_targets) | {p.name for p in kept if p.model.source.startswith(
+            objects_mod.BUILTIN_PREFIX) and p.name in objects_builtin.UNGRASPABLE}
+        candidates = [p for p in kept if p.name not in never] or kept
+        target = candidates[int(rng.integers(len(candidates)))].name
+        objs = [SceneObject(p.name, p.model.source, object_pose(client, p.body, p.model)) for p in kept]
+    finally:
+        pb.disconnect(client)
+    return Scene(robot_base=np.eye(4), table=table, objects=objs, target=target,
+                 seed=None if seed is None else int(seed), robot_configuration=[float(v) for v in q])
+
+
+def _settle_and_filter(client: int, placed: List[_Placed], robot: int, table: Table,
+                       settings: SceneSettings) -> List[_Placed]:
+    """Settle, drop the objects that fell, tipped or touch the robot, and settle again until none go.
+
+    Returns [] when the survivors still do not come to rest (the caller then re-samples).
+    """
+    import pybullet as pb
+
+    kept = list(placed)
+    for _round in range(3):
+        _settle(client, [p.body for p in kept], settings)
+        bad = [p for p in kept if not _resting_ok(client, p, robot, table, settings)]
+        if not bad:
+            return kept
+        for p in bad:
+            pb.removeBody(p.body, physicsClientId=client)
+        kept = [p for p in kept if p not in bad]
+    for p in kept:
+        pb.removeBody(p.body, physicsClientId=client)
+    return []
