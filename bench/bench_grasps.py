@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from pickplan.omg import grasps as G
-from pickplan.omg import grasps_sim as S
+from pickplan.omg.grasps import physics as S
 from pickplan.core import objects
 
 DEFAULT_OBJECTS = ("005_tomato_soup_can", "006_mustard_bottle", "021_bleach_cleanser", "025_mug", "024_bowl")

@@ -1,9 +1,9 @@
 """Transport test of the "Simulated" (shake-verified) grasps against their raw antipodal candidates.
 
 For each object: the ``--n`` antipodal candidates of round 0 of ``simulated_grasps(model, n, --seed)``
-(``grasps_sim.shake_candidates``); those applicable on the table (the open hand clears it in one of
+(``grasps.physics.shake_candidates``); those applicable on the table (the open hand clears it in one of
 the three most stable resting poses) are shake-tested (the ``simulated_grasps`` rule: kept when
-``shake_test`` holds, with the same seeds) and transport-tested (``grasps_sim.transport_trial``). Rates are over the
+``shake_test`` holds, with the same seeds) and transport-tested (``grasps.physics.transport_trial``). Rates are over the
 applicable candidates: all of them ("antipodal"), the shake-held ones ("simulated") and the
 shake-rejected ones. Prints a Markdown table; pooled rates with Wilson 95 % intervals and a
 one-sided Fisher exact test (simulated vs rejected).
@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from pickplan.omg import grasps_sim as S
+from pickplan.omg.grasps import physics as S
 from pickplan.core import objects
 
 HARD = ("003_cracker_box", "004_sugar_box", "006_mustard_bottle", "021_bleach_cleanser")

@@ -8,7 +8,7 @@ import pytest
 from conftest import ycb_dir_or_skip
 
 from pickplan.omg import grasps as G
-from pickplan.omg import grasps_sim as S
+from pickplan.omg.grasps import physics as S
 from pickplan.core import objects
 
 
@@ -242,7 +242,7 @@ def test_simulated_grasps_lift_from_the_table(builtins):
     assert (r_sim >= 0).sum() >= 2 and S.lift_rate(r_sim) == 1.0
 
 
-# The transport test (lift, raise, carry, tilt and swirl; grasps_sim module docstring) separates the
+# The transport test (lift, raise, carry, tilt and swirl; grasps.physics module docstring) separates the
 # "Simulated" grasps from their antipodal candidates on the elongated / heavy objects. The same
 # protocol on 40 candidates x 8 objects per library is in bench/README.md ("Simulated vs antipodal:
 # transport test"). Pooled over the built-in cracker box, sugar box, mustard and bleach bottles there:

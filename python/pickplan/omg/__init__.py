@@ -2,7 +2,7 @@
 
 - ``world``: one scene as the planner sees it (robot, SDF, collision, target);
 - ``chomp``: CHOMP / CHOMP-Proj (Sec. III-A, native) and the paper's metrics;
-- ``grasps``, ``grasps_sim``: grasp sets (stored, approach, antipodal, physics-verified);
+- ``grasps``: grasp sets (stored, generated: approach, antipodal; physics-verified) and the hand model;
 - ``goals``: goal sets by IK (Sec. III-B);
 - ``selection``: Fixed, Proj, FTC, FTL, EXP and Mirror Descent (Sec. III-C, Eq. 7-9);
 - ``isf``: C-Space ISF grasp refinement (Sec. III-D);

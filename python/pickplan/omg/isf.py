@@ -38,7 +38,7 @@ def hand_sdf(robot, opening: float = grasps.FINGER_OPEN, resolution: float = 0.0
     """The hand and its open fingers as SDF parts in the hand-link frame (min over parts, so the
     overlapping closed meshes need no boolean union)."""
     q = robot.ready_configuration.copy()
-    q[7:] = opening
+    q[robot.info.arm_dof:] = opening
     poses = robot.fk(q)
     H_inv = np.linalg.inv(poses[robot.link_index(robot.hand_link)])
     settings = sdf.SdfSettings(resolution=resolution, margin=0.03)

@@ -1,9 +1,12 @@
-"""Pick-up on the move (Thakar et al., Sec. IV): moving-gripper grasp simulation, SVM active
-learning of the grasping success boundary and the success-probability meta-model
-rho_sigma(S_g, S_c) used by the trajectory NLP.
+"""Pick-up on the move (Thakar et al.).
 
-Pure Python (numpy, pybullet, scikit-learn, scipy); never imports pickplan._core.
-matplotlib is needed only for compare.plot_comparison.
+- ``metamodel`` (Sec. IV): moving-gripper grasp simulation, SVM active learning of the grasping
+  success boundary and the success-probability meta-model rho_sigma(S_g, S_c). Pure Python (numpy,
+  pybullet, scikit-learn, scipy): it never imports pickplan._core; matplotlib only for plots.
+- ``nlp`` (Sec. V): the mobile-manipulator polynomial NLP (native Ipopt through pickplan._core),
+  successive refinement, the paper's cases and their PyBullet replay.
+
+This package's own names are part 1's, importable without the native module.
 """
 from pickplan.pickup.metamodel.active import ActiveConfig, BoundaryResult, PoseDomain, learn_boundary, learn_random
 from pickplan.pickup.metamodel.model import (DEFAULT_LEVELS, BoundaryModel, BuildConfig, MetaModel, SigmaLevel,

@@ -147,7 +147,7 @@ class ChompProblem {
   ChompSettings settings_;
   double dt_;
   Eigen::VectorXd chol_diag_, chol_sub_;     // A = L L^T, L lower bidiagonal
-  std::vector<Eigen::MatrixXd> projectors_;  // by tail length m (1..n), built on construction
+  std::vector<Eigen::MatrixXd> projectors_;  // by tail length m = 1..min(n, 16) (chomp.cpp), built on construction
 };
 
 // CHOMP workspace cost c(d) and its derivative (Ratliff et al.).

@@ -44,8 +44,10 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from pickplan.omg import grasps as G
 from pickplan.core.io import atomic_open
+from pickplan.omg.grasps.generators import AntipodalSettings, antipodal_grasps
+from pickplan.omg.grasps.hand import FINGER_OPEN, PAD_DEPTH, hand_urdf_path
+from pickplan.omg.grasps.sets import GraspSet, _check_count, check_grasps
 from pickplan.sim.scenes import _mat_to_quat, _quat_to_mat, add_object_body
 
 CACHE_ENV = "PICKPLAN_CACHE_DIR"
@@ -169,13 +171,13 @@ class _World:
             shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5, 0.5, 0.025], physicsClientId=cid)
             self.table = pb.createMultiBody(0.0, shape, basePosition=[0, 0, -0.025], physicsClientId=cid)
             pb.changeDynamics(self.table, -1, lateralFriction=table_friction, physicsClientId=cid)
-        self.hand = pb.loadURDF(G.hand_urdf_path(False), T_hand[:3, 3].tolist(), _mat_to_quat(T_hand[:3, :3]),
+        self.hand = pb.loadURDF(hand_urdf_path(False), T_hand[:3, 3].tolist(), _mat_to_quat(T_hand[:3, :3]),
                                 useFixedBase=False, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
         for j in _FINGERS:
             pb.changeDynamics(self.hand, j, lateralFriction=s.pad_friction,
                               spinningFriction=s.pad_spinning_friction, physicsClientId=cid)
-            pb.resetJointState(self.hand, j, G.FINGER_OPEN, physicsClientId=cid)
-            pb.setJointMotorControl2(self.hand, j, pb.POSITION_CONTROL, targetPosition=G.FINGER_OPEN,
+            pb.resetJointState(self.hand, j, FINGER_OPEN, physicsClientId=cid)
+            pb.setJointMotorControl2(self.hand, j, pb.POSITION_CONTROL, targetPosition=FINGER_OPEN,
                                      force=s.finger_force, physicsClientId=cid)
         if getattr(s, "couple_fingers", False):
             # PyBullet ignores the URDF's <mimic>: without the gear two force-limited fingers let a
@@ -294,7 +296,7 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
     world.gravity(True)
     world.step(s.settle_time)
     # the object point between the pads (in the body frame) and the settled grasp
-    pad = np.array([0.0, 0.0, G.PAD_DEPTH, 1.0])
+    pad = np.array([0.0, 0.0, PAD_DEPTH, 1.0])
     H0 = world.hand_pose()
     held = _InHand(world)
     p_body = np.linalg.inv(held.ref) @ pad
@@ -341,7 +343,7 @@ def close_on_object(model, grasp: np.ndarray, settings: SimSettings = SimSetting
     """Close the hand at ``grasp`` (object frame) on the free object with gravity off: the final
     pad gap (m) and whether each finger ends touching the object ("left", "right")."""
     obj = model if isinstance(model, _SimObject) else _SimObject(model)
-    world = _World(settings, obj, np.eye(4), np.linalg.inv(G.check_grasps([grasp])[0]), gravity=False)
+    world = _World(settings, obj, np.eye(4), np.linalg.inv(check_grasps([grasp])[0]), gravity=False)
     world.close()
     world.step(settings.close_time)
     touch = [bool(world.pb.getContactPoints(world.hand, world.body, j, physicsClientId=world.cid))
@@ -394,7 +396,7 @@ def lift_test(model, poses, settings: LiftSettings = LiftSettings()) -> np.ndarr
     ``rest_index`` one, or by default the three most stable ones, first clear one used).
     Independent of the shake test: table, gravity throughout, lift instead of shaking."""
     s = settings
-    poses = G.check_grasps(poses)
+    poses = check_grasps(poses)
     obj = _SimObject(model)
     rests = _rests(model, s)
     out = np.zeros(len(poses), dtype=np.int8)
@@ -459,7 +461,7 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     world.step(0.1, lambda u: H3)
     if not check("carry"):
         return failed()
-    pivot = H3 @ np.array([0.0, 0.0, G.PAD_DEPTH, 1.0])
+    pivot = H3 @ np.array([0.0, 0.0, PAD_DEPTH, 1.0])
     tilt = math.radians(s.tilt)
 
     def tilted(angle, phi):
@@ -493,7 +495,7 @@ def transport_test(model, poses, settings: TransportSettings = TransportSettings
     """Transport test of hand poses (object frame): (N,) int8 like ``lift_test`` (1 held, 0 failed,
     -1 not applicable); with ``details=True`` also the per-grasp dicts of ``transport_trial``.
     ``workers`` > 1 runs worker processes (spawn); results do not depend on it."""
-    poses = G.check_grasps(poses)
+    poses = check_grasps(poses)
     if int(workers) < 1:
         raise ValueError(f"workers: expected >= 1, got {workers}")
     obj, rests = _SimObject(model), [np.asarray(r, float) for r in _rests(model, settings)]
@@ -581,34 +583,34 @@ def _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds) -> 
 
 
 def shake_candidates(model, m: int, seed: int = 0, round: int = 0,
-                     antipodal: G.AntipodalSettings = G.AntipodalSettings()):
+                     antipodal: AntipodalSettings = AntipodalSettings()):
     """Round ``round`` of ``simulated_grasps``: its ``m`` antipodal candidates and the shake-test
     seed of each. ``simulated_grasps(model, n, seed)`` keeps, round by round, the candidates whose
     ``shake_test(model, pose, seed_i)`` holds (first ``n``)."""
     rseed = int(np.random.SeedSequence([int(seed), int(round)]).generate_state(1)[0])
-    cand = G.antipodal_grasps(model, m, rseed, settings=antipodal)
+    cand = antipodal_grasps(model, m, rseed, settings=antipodal)
     seeds = [int(np.random.SeedSequence([int(seed), int(round), i]).generate_state(1)[0]) for i in range(len(cand))]
     return cand, seeds
 
 
 def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
                      settings: SimSettings = SimSettings(),
-                     antipodal: G.AntipodalSettings = G.AntipodalSettings(), oversample: float = 3.0,
-                     max_rounds: int = 4, progress: Optional[bool] = None, cache: bool = True) -> G.GraspSet:
+                     antipodal: AntipodalSettings = AntipodalSettings(), oversample: float = 3.0,
+                     max_rounds: int = 4, progress: Optional[bool] = None, cache: bool = True) -> GraspSet:
     """The "Simulated" set: antipodal candidates (``ceil(n * oversample)`` per round, seeded per
     round) that hold in the shake test, first ``n`` in candidate order; fewer (with a warning)
     when ``max_rounds`` rounds do not give ``n``. ``workers`` > 1 runs worker processes (spawn);
     the result does not depend on it. ``scores`` = 1 - drift / max_drift; ``info`` carries the
     antipodal contacts, normals, widths and drifts, plus "tested" (candidates simulated, 0-d).
     Cached in ``$PICKPLAN_CACHE_DIR/grasps`` (default ``~/.cache/pickplan/grasps``)."""
-    G._check_count(n, seed)
+    _check_count(n, seed)
     if int(workers) < 1:
         raise ValueError(f"workers: expected >= 1, got {workers}")
     path = _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds) if cache else None
     if path and os.path.isfile(path):
         with np.load(path) as z:
             info = {k[5:]: z[k] for k in z.files if k.startswith("info_")}
-            return G.GraspSet("simulated", z["poses"], model.name, scores=z["scores"], info=info)
+            return GraspSet("simulated", z["poses"], model.name, scores=z["scores"], info=info)
     progress = sys.stderr.isatty() if progress is None else progress
     obj = _SimObject(model)
     m = int(math.ceil(n * oversample))
@@ -658,7 +660,7 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
         arr["poses"] = np.zeros((0, 4, 4))
     info = {k: arr[k] for k in ("contacts", "normals", "width", "drift")}
     info["tested"] = np.asarray(tested)
-    gs = G.GraspSet("simulated", arr["poses"], model.name, scores=arr["scores"], info=info)
+    gs = GraspSet("simulated", arr["poses"], model.name, scores=arr["scores"], info=info)
     if path:
         with atomic_open(path, "wb") as f:
             np.savez(f, poses=gs.poses, scores=gs.scores, **{f"info_{k}": v for k, v in info.items()})

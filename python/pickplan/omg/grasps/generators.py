@@ -1,0 +1,154 @@
+"""Grasp sets generated from an object's mesh: the paper's naive "Approach" set and antipodal grasps."""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, replace
+from typing import Optional
+
+import numpy as np
+import trimesh
+
+from pickplan.omg.grasps.hand import PAD_DEPTH, HandObjectChecker
+from pickplan.omg.grasps.sets import GraspSet, _check_count, _frame, _perpendicular
+
+
+@dataclass(frozen=True)
+class ApproachSettings:
+    clearance: float = 0.002   # m kept between hand and object
+    step: float = 0.005        # m between back-off samples, then bisected
+    refine: int = 4            # bisection steps (0.3 mm with the default step)
+
+
+def approach_grasps(model, n: int = 100, seed: int = 0,
+                    settings: ApproachSettings = ApproachSettings()) -> GraspSet:
+    """The paper's naive "Approach" set: uniformly random approach directions towards the centre of
+    the object's bounding box, random roll, the hand backed off along its approach axis until it
+    and its open fingers stay clear of the object all the way out (so the approach is free too).
+
+    Starts with the pad centre at the object centre; a hand that fits there collision-free (inside
+    a bowl) is kept where it is. ``scores`` are the back-off distances (smaller = closer).
+    """
+    _check_count(n, seed)
+    rng = np.random.default_rng(seed)
+    centre = np.asarray(model.mesh.bounds, float).mean(axis=0)
+    radius = float(np.linalg.norm(np.asarray(model.mesh.vertices) - centre, axis=1).max())
+    steps = np.arange(0.0, radius + 0.02 + settings.step, settings.step)
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    roll = rng.uniform(-np.pi, np.pi, n)
+    R = np.stack([_frame(d[i], np.cos(roll[i]) * _perpendicular(d[i]) +
+                         np.sin(roll[i]) * np.cross(d[i], _perpendicular(d[i]))) for i in range(n)])
+
+    def poses(R_, s_):  # hand poses with the pad centre at centre - s * approach
+        T = np.tile(np.eye(4), (len(s_), 1, 1))
+        T[:, :3, :3] = R_
+        T[:, :3, 3] = centre - (np.asarray(s_) + PAD_DEPTH)[:, None] * R_[:, :, 2]
+        return T
+
+    check = HandObjectChecker(model, settings.clearance)
+    hit = check.in_collision(poses(np.repeat(R, len(steps), 0), np.tile(steps, n))).reshape(n, len(steps))
+    lo = np.where(hit.any(1), len(steps) - 1 - np.argmax(hit[:, ::-1], axis=1), -1)  # last colliding
+    s_free = np.where(lo < 0, 0.0, steps[np.minimum(lo + 1, len(steps) - 1)])
+    s_hit = np.where(lo < 0, 0.0, steps[np.maximum(lo, 0)])
+    for _ in range(settings.refine if hit.any() else 0):
+        mid = 0.5 * (s_free + s_hit)
+        c = check.in_collision(poses(R, mid)) & (lo >= 0)
+        s_hit, s_free = np.where(c, mid, s_hit), np.where(c | (lo < 0), s_free, mid)
+    return GraspSet("approach", poses(R, s_free), model.name, scores=-s_free,
+                    info={"approach_distance": s_free, "centre": np.tile(centre, (n, 1))})
+
+
+@dataclass(frozen=True)
+class AntipodalSettings:
+    friction: float = 0.3        # Coulomb coefficient: friction cone half-angle atan(0.3) = 16.7 deg
+    max_width: float = 0.08      # the Panda's opening
+    width_margin: float = 0.005  # pairs must be this much narrower than max_width
+    min_width: float = 0.002
+    clearance: float = 0.001     # m kept between the open hand and the object
+    approach_angles: int = 8     # hand orientations tried about each pair's axis
+    per_pair: int = 1            # grasps kept per surface pair (diversity)
+    samples_per_round: int = 400
+    max_rounds: int = 25
+
+
+def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[float] = None,
+                     max_width: Optional[float] = None,
+                     settings: AntipodalSettings = AntipodalSettings()) -> GraspSet:
+    """Antipodal grasps from the mesh: a surface point p (outward normal n_p), a ray from p into
+    the object inside the friction cone around -n_p, its exit point q (normal n_q); kept when the
+    axis lies in both friction cones and the width fits the opening. The hand closes along the
+    axis with the pad centre at the pair midpoint, at ``approach_angles`` rotations about the axis
+    (random offset); those whose open hand hits the object are rejected.
+
+    ``info``: "contacts" (N, 2, 3) p and q, "normals" (N, 2, 3) outward object normals, "width".
+    ``scores``: cone margin 1 - max angle / cone angle. Fewer than ``n`` (with a warning) if the
+    object offers fewer after ``max_rounds`` rounds.
+    """
+    _check_count(n, seed)
+    s = replace(settings, **{k: v for k, v in (("friction", friction), ("max_width", max_width)) if v is not None})
+    if s.friction <= 0 or s.max_width <= s.width_margin + s.min_width:
+        raise ValueError(f"antipodal: need friction > 0 and max_width > {s.width_margin + s.min_width}, "
+                         f"got friction={s.friction}, max_width={s.max_width}")
+    mesh = model.mesh
+    cone = np.arctan(s.friction)
+    rng = np.random.default_rng(seed)
+    check = HandObjectChecker(model, s.clearance)
+    out_T, out_c, out_n, out_w, out_s = [], [], [], [], []
+    count = 0
+    for _ in range(s.max_rounds):
+        m = s.samples_per_round
+        p, face = trimesh.sample.sample_surface(mesh, m, seed=int(rng.integers(2**31)))
+        n_p = mesh.face_normals[face]
+        # ray direction uniform in the cone around -n_p
+        cos_t = rng.uniform(np.cos(cone), 1.0, m)
+        phi = rng.uniform(0, 2 * np.pi, m)
+        u = np.array([_perpendicular(v) for v in n_p])
+        v = np.cross(n_p, u)
+        sin_t = np.sqrt(1 - cos_t ** 2)
+        d = -cos_t[:, None] * n_p + sin_t[:, None] * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)
+        loc, ray, tri = mesh.ray.intersects_location(p + 1e-5 * d, d, multiple_hits=False)
+        q = np.full((m, 3), np.nan)
+        n_q = np.full((m, 3), np.nan)
+        q[ray], n_q[ray] = loc, mesh.face_normals[tri]
+        w = np.linalg.norm(q - p, axis=1)
+        with np.errstate(invalid="ignore"):
+            ang_q = np.arccos(np.clip(np.einsum("ij,ij->i", n_q, d), -1, 1))
+            ang_p = np.arccos(np.clip(-np.einsum("ij,ij->i", n_p, d), -1, 1))
+            ok = (ang_q <= cone) & (w >= s.min_width) & (w <= s.max_width - s.width_margin)
+        idx = np.flatnonzero(ok)
+        if len(idx) == 0:
+            continue
+        k = s.approach_angles
+        theta = rng.uniform(0, 2 * np.pi, len(idx))[:, None] + 2 * np.pi * np.arange(k) / k
+        flip = rng.random(len(idx)) < 0.5  # which finger takes p
+        T = np.tile(np.eye(4), (len(idx), k, 1, 1))
+        for a, i in enumerate(idx):
+            y = -d[i] if flip[a] else d[i]  # +y points from the right finger to the left finger
+            z0 = _perpendicular(y)
+            for b in range(k):
+                z = np.cos(theta[a, b]) * z0 + np.sin(theta[a, b]) * np.cross(y, z0)
+                T[a, b, :3, :3] = np.column_stack([np.cross(y, z), y, z])
+                T[a, b, :3, 3] = 0.5 * (p[i] + q[i]) - PAD_DEPTH * z
+        free = ~check.in_collision(T.reshape(-1, 4, 4)).reshape(len(idx), k)
+        for a, i in enumerate(idx):
+            choices = np.flatnonzero(free[a])
+            if len(choices) == 0:
+                continue
+            for b in rng.permutation(choices)[:s.per_pair]:
+                out_T.append(T[a, b])
+                out_c.append([p[i], q[i]])
+                out_n.append([n_p[i], n_q[i]])
+                out_w.append(w[i])
+                out_s.append(1.0 - max(ang_p[i], ang_q[i]) / cone)
+                count += 1
+            if count >= n:
+                break
+        if count >= n:
+            break
+    if count < n:
+        warnings.warn(f"{model.name}: only {count} antipodal grasps found (asked for {n})", stacklevel=2)
+    if count == 0:
+        return GraspSet("antipodal", np.zeros((0, 4, 4)), model.name, scores=np.zeros(0))
+    return GraspSet("antipodal", np.asarray(out_T)[:n], model.name, scores=np.asarray(out_s)[:n],
+                    info={"contacts": np.asarray(out_c)[:n], "normals": np.asarray(out_n)[:n],
+                          "width": np.asarray(out_w)[:n]})
