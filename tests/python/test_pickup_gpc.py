@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from pickplan.pickup.metamodel.active import exploit_gp
+from pickplan.pickup.metamodel.sampling import exploit_gp
 from pickplan.pickup.metamodel.gpc import CONFIDENT, GPSuccessModel, lapse_rate
 from pickplan.pickup.metamodel.model import BoundaryModel
 from pickplan.pickup.metamodel.synthetic import NoisyEllipsoidOracle

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 from sklearn.svm import SVC
 
-from pickplan.pickup.metamodel.active import exploit_band, exploit_rho, select_svm_params
+from pickplan.pickup.metamodel.active import select_svm_params
+from pickplan.pickup.metamodel.sampling import exploit_band, exploit_rho
 from pickplan.pickup.metamodel.calibration import calibrate, svm_depth
 from pickplan.pickup.metamodel.kernel import fit_svm, success_metric
 
