@@ -6,9 +6,22 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 
 from pickplan.sim.scene_sets import write_scene_set
+from pickplan.sim.scenes import ORIENTATIONS, SceneSettings
+
+
+def clutter_range(text: str) -> Tuple[int, int]:
+    """'8-12' -> (8, 12); a single number N means exactly N objects."""
+    lo, sep, hi = text.partition("-")
+    try:
+        pair = (int(lo), int(hi) if sep else int(lo))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected N-M (e.g. 8-12), got {text!r}") from None
+    if not 1 <= pair[0] <= pair[1]:
+        raise argparse.ArgumentTypeError(f"expected 1 <= N <= M, got {text!r}")
+    return pair
 
 
 def add_scene_commands(subparsers) -> None:
@@ -18,14 +31,18 @@ def add_scene_commands(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the set (each scene gets its own derived seed)")
     p.add_argument("--out", required=True, help="output folder: scene_XXXX.json and index.json")
     p.add_argument("--objects", default=None,
-                   help="YCB-layout object folder (default: $PICKPLAN_YCB_DIR if set, else the built-in objects)")
-    p.add_argument("--orientation", choices=("upright", "resting"), default="upright",
-                   help="upright (the paper's protocol) or any stable resting pose (lying boxes, upside-down bowls)")
+                   help="'builtin' (YCB stand-ins), 'procedural' (generated families: thin, flat, small, tools, "
+                        "handles) or a YCB-layout object folder (default: $PICKPLAN_YCB_DIR if set, else builtin)")
+    p.add_argument("--poses", "--orientation", dest="poses", choices=ORIENTATIONS, default="upright",
+                   help="upright (the paper's protocol); stable: a resting pose drawn with the probability a random "
+                        "drop ends on it (lying bottles, boxes on any face); resting: any stable pose, uniformly")
+    p.add_argument("--clutter", type=clutter_range, default=(SceneSettings.min_objects, SceneSettings.max_objects),
+                   metavar="N-M", help="objects per scene, fewest-most (default 3-7, the paper's)")
     p.set_defaults(handler=run_scenes)
 
 
 def run_scenes(args: argparse.Namespace) -> int:
-    index = write_scene_set(args.n, args.seed, args.out, args.objects, orientation=args.orientation)
+    index = write_scene_set(args.n, args.seed, args.out, args.objects, orientation=args.poses, clutter=args.clutter)
     per = index["seconds"] / max(index["count"], 1)
     print(f"wrote {index['count']} scenes to {args.out} ({per:.2f} s per scene, objects: {index['objects']})")
     return 0

@@ -24,7 +24,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 import trimesh
 
-from pickplan.core import objects_builtin
+from pickplan.core import objects_builtin, procedural, stability
 from pickplan.core.io import atomic_open
 
 YCB_ENV = "PICKPLAN_YCB_DIR"
@@ -50,6 +50,8 @@ class ObjectModel:
     grasps: Dict[str, np.ndarray] = field(default_factory=dict)  # set name -> (N, 4, 4) gripper in object
     resting_barriers: List[float] = field(default_factory=list)  # COM rise (m) needed to tip each pose
     collision_file: Optional[str] = None  # OBJ with the parts as separate objects (PyBullet compound)
+    friction: Optional[float] = None      # lateral friction; None: the scene's setting
+    resting_probabilities: List[float] = field(default_factory=list)  # of each resting pose, dropped at random
 
     @property
     def extents(self) -> np.ndarray:
@@ -177,8 +179,8 @@ def _check_mesh(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
 
 def make_object(name: str, mesh: trimesh.Trimesh, collision_parts: Sequence[trimesh.Trimesh], source: str,
                 mass: Optional[float] = None, density: float = DEFAULT_DENSITY,
-                grasps: Optional[Dict[str, np.ndarray]] = None, collision_file: Optional[str] = None
-                ) -> ObjectModel:
+                grasps: Optional[Dict[str, np.ndarray]] = None, collision_file: Optional[str] = None,
+                friction: Optional[float] = None) -> ObjectModel:
     """Build a record from a mesh: mass properties and resting poses are computed here.
 
     A mesh that is not watertight still works (with a warning): mass properties and resting poses
@@ -196,10 +198,19 @@ def make_object(name: str, mesh: trimesh.Trimesh, collision_parts: Sequence[trim
         solid = mesh
     m, com, inertia = mass_properties(solid, mass=mass, density=density)
     poses, barriers = compute_resting_poses(solid, com)
+    probabilities = stability.resting_probabilities(solid, com, poses)
     parts = list(collision_parts) if collision_parts else [mesh.convex_hull]
     return ObjectModel(name=name, mesh=mesh, collision_parts=parts, mass=m, com=com, inertia=inertia,
                        resting_poses=poses, source=source, grasps=dict(grasps or {}),
-                       resting_barriers=barriers, collision_file=collision_file)
+                       resting_barriers=barriers, collision_file=collision_file, friction=friction,
+                       resting_probabilities=probabilities)
+
+
+def procedural_object(name: str) -> ObjectModel:
+    """An object of the procedural families (see ``procedural.FAMILIES``), e.g. ``"scissors_01"``."""
+    mesh, parts, gen = procedural.generate(name)
+    return make_object(name, mesh, parts, source=procedural.PROCEDURAL_PREFIX + name, mass=gen.mass,
+                       friction=gen.friction)
 
 
 def builtin_object(name: str) -> ObjectModel:
@@ -303,8 +314,9 @@ def _write_parts_obj(parts: Sequence[trimesh.Trimesh]) -> str:
 class ObjectLibrary:
     """A named set of objects, loaded lazily on first ``get`` and kept."""
 
-    def __init__(self, names: Sequence[str], root: Optional[str] = None):
-        self.root = root  # None for the built-ins, else the folder holding one folder per object
+    def __init__(self, names: Sequence[str], root: Optional[str] = None, kind: str = ""):
+        self.root = root  # None for the built-in sets, else the folder holding one folder per object
+        self.kind = kind or ("builtin" if root is None else "folder")
         self._names = list(names)
         self._models: Dict[str, ObjectModel] = {}
 
@@ -314,14 +326,18 @@ class ObjectLibrary:
 
     @property
     def source(self) -> str:
-        return "builtin" if self.root is None else self.root
+        return self.kind if self.root is None else self.root
 
     def get(self, name: str) -> ObjectModel:
         if name not in self._names:
             raise KeyError(f"object {name!r} not in library {self.source}; expected one of {self._names}")
         if name not in self._models:
-            self._models[name] = (builtin_object(name) if self.root is None
-                                  else load_ycb_object(os.path.join(self.root, name)))
+            if self.root is not None:
+                self._models[name] = load_ycb_object(os.path.join(self.root, name))
+            elif self.kind == "procedural":
+                self._models[name] = procedural_object(name)
+            else:
+                self._models[name] = builtin_object(name)
         return self._models[name]
 
     def __contains__(self, name: str) -> bool:
@@ -338,18 +354,21 @@ _LIBRARIES: Dict[str, ObjectLibrary] = {}  # per-process cache: meshes and hulls
 
 
 def library(source: Optional[Union[str, os.PathLike]] = None) -> ObjectLibrary:
-    """The built-in set (``source`` None/"builtin" and no $PICKPLAN_YCB_DIR), or a YCB-layout folder.
+    """The built-in set (``source`` None/"builtin" and no $PICKPLAN_YCB_DIR), the procedural families
+    (``"procedural"``), or a YCB-layout folder.
 
     A folder qualifies an object when its sub-folder holds ``mesh.stl``.
     """
     if source is None:
         source = os.environ.get(YCB_ENV) or "builtin"
     source = os.fspath(source)
-    key = source if source == "builtin" else os.path.abspath(source)
+    key = source if source in ("builtin", "procedural") else os.path.abspath(source)
     if key in _LIBRARIES:
         return _LIBRARIES[key]
     if key == "builtin":
         lib = ObjectLibrary(sorted(objects_builtin.BUILTIN_SPECS))
+    elif key == "procedural":
+        lib = ObjectLibrary(procedural.names(), kind="procedural")
     else:
         if not os.path.isdir(key):
             raise FileNotFoundError(f"object library folder not found: {key}")
@@ -365,6 +384,8 @@ def model_from_source(name: str, source: str) -> ObjectModel:
     """The model a scene refers to: ``builtin:NAME`` or an object folder (through the cached libraries)."""
     if source.startswith(BUILTIN_PREFIX):
         return library("builtin").get(source[len(BUILTIN_PREFIX):])
+    if source.startswith(procedural.PROCEDURAL_PREFIX):
+        return library("procedural").get(source[len(procedural.PROCEDURAL_PREFIX):])
     folder = os.path.abspath(source)
     if not os.path.isdir(folder):
         raise FileNotFoundError(f"object folder not found: {folder} (object {name!r})")

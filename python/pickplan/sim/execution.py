@@ -356,7 +356,8 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                               spinningFriction=s.finger_spinning_friction, frictionAnchor=1, physicsClientId=client)
         for name, bid in ids.items():
             if name != "robot":
-                pb.changeDynamics(bid, -1, lateralFriction=s.object_friction,
+                own = getattr(models.get(name), "friction", None)  # an object's own friction, where it has one
+                pb.changeDynamics(bid, -1, lateralFriction=s.object_friction if own is None else own,
                                   spinningFriction=s.object_spinning_friction, physicsClientId=client)
         if s.couple_fingers:  # PyBullet ignores <mimic>: couple the fingers' motion with a gear constraint
             gear = pb.createConstraint(sim.robot, sim.fingers[0], sim.robot, sim.fingers[1], pb.JOINT_GEAR,

@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 import sys
 import time
-from typing import List, Optional, TextIO
+from typing import List, Optional, TextIO, Tuple
 
 import numpy as np
 
@@ -29,15 +29,17 @@ def _progress(done: int, total: int, started: float, stream: TextIO, width: int 
 
 
 def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
-                    progress: bool = True, stream: Optional[TextIO] = None, orientation: str = "upright") -> dict:
+                    progress: bool = True, stream: Optional[TextIO] = None, orientation: str = "upright",
+                    clutter: Tuple[int, int] = (SceneSettings.min_objects, SceneSettings.max_objects)) -> dict:
     """Generate ``n`` scenes into ``out`` (scene_0000.json, ...) and return the index it writes.
 
-    The progress bar goes to ``stream`` (default: the current ``sys.stderr``).
+    ``clutter`` = (fewest, most) objects per scene. The progress bar goes to ``stream`` (default: the
+    current ``sys.stderr``).
     """
     if n < 1:
         raise ValueError(f"--n must be >= 1, got {n}")
     lib = objects_mod.library(objects)  # None: $PICKPLAN_YCB_DIR, else the built-ins
-    settings = SceneSettings(orientation=orientation)
+    settings = SceneSettings(orientation=orientation, min_objects=int(clutter[0]), max_objects=int(clutter[1]))
     os.makedirs(out, exist_ok=True)
     started = time.perf_counter()
     entries = []
@@ -50,7 +52,8 @@ def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
                         "objects": [o.name for o in scene.objects], "seconds": round(time.perf_counter() - t0, 4)})
         if progress:
             _progress(i + 1, n, started, stream if stream is not None else sys.stderr)
-    index = {"count": n, "seed": seed, "objects": lib.source, "orientation": orientation, "scenes": entries,
+    index = {"count": n, "seed": seed, "objects": lib.source, "orientation": orientation,
+             "clutter": [settings.min_objects, settings.max_objects], "scenes": entries,
              "seconds": round(time.perf_counter() - started, 3)}
     write_json(os.path.join(out, "index.json"), index)
     return index

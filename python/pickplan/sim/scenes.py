@@ -24,8 +24,10 @@ import numpy as np
 from pickplan.core import objects as objects_mod
 from pickplan.core import objects_builtin
 from pickplan.core.io import atomic_open
-from pickplan.core.panda import PANDA, panda_urdf_path
+from pickplan.sim.bodies import (_inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat,  # noqa: F401
+                                  add_object_body, add_robot, add_table, object_pose)  # (re-exported)
 
+ORIENTATIONS = ("upright", "stable", "resting")  # how objects are posed: see SceneSettings.orientation
 SCENE_FORMAT = "pickplan.scene"
 SCENE_VERSION = 1
 
@@ -44,8 +46,10 @@ class SceneSettings:
     drop_height: float = 0.005         # gap between the object's lowest point and the table at release
     spawn_gap: float = 0.005           # minimum gap between footprint circles at release
     # "upright" (the paper: "random upright poses"): every object stands on the resting pose that keeps
-    # its model +z closest to up; "resting": any sufficiently stable resting pose (lying boxes,
-    # upside-down bowls), sampled with the two settings below.
+    # its model +z closest to up; "stable": a resting pose drawn with the probability that a random
+    # drop ends on it (core.stability), among those that tip with at least min_barrier of COM rise;
+    # "resting": any sufficiently stable resting pose (lying boxes, upside-down bowls), drawn uniformly
+    # among those passing both settings below.
     orientation: str = "upright"
     min_barrier: float = 0.002         # resting poses that tip with less COM rise (m) are not sampled
     barrier_fraction: float = 0.1      # ... nor those below this fraction of the most stable one's
@@ -63,8 +67,8 @@ class SceneSettings:
     non_targets: Tuple[str, ...] = ("002_master_chef_can",)
 
     def __post_init__(self):
-        if self.orientation not in ("upright", "resting"):
-            raise ValueError(f"orientation: expected 'upright' or 'resting', got {self.orientation!r}")
+        if self.orientation not in ORIENTATIONS:
+            raise ValueError(f"orientation: expected one of {list(ORIENTATIONS)}, got {self.orientation!r}")
         if not 1 <= self.min_objects <= self.max_objects:
             raise ValueError(f"need 1 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
         for name in ("region_x", "region_y", "table_x", "table_y"):
@@ -197,119 +201,6 @@ def _pose(value, what) -> np.ndarray:
     return T
 
 
-# --- PyBullet helpers ------------------------------------------------------------------------------
-def _panda_defaults() -> Tuple[str, Tuple[float, ...]]:
-    """URDF path and ready configuration of the Panda."""
-    return panda_urdf_path(), tuple(PANDA.ready)
-
-
-def _inertial_frame(model: objects_mod.ObjectModel) -> Tuple[np.ndarray, np.ndarray]:
-    """Object -> principal inertial frame (4x4) and the principal moments."""
-    moments, axes = np.linalg.eigh(model.inertia)
-    if np.linalg.det(axes) < 0:
-        axes[:, 2] *= -1
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = axes, model.com
-    return T, np.maximum(moments, 1e-9)
-
-
-def _mat_to_quat(R: np.ndarray) -> List[float]:
-    """Rotation matrix -> (x, y, z, w), the numerically stable branch per largest diagonal term."""
-    m = R
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        return [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    i = int(np.argmax([m[0, 0], m[1, 1], m[2, 2]]))
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = 2.0 * math.sqrt(max(1.0 + m[i, i] - m[j, j] - m[k, k], 1e-300))
-    q = [0.0, 0.0, 0.0, 0.0]
-    q[i] = 0.25 * s
-    q[j] = (m[j, i] + m[i, j]) / s
-    q[k] = (m[k, i] + m[i, k]) / s
-    q[3] = (m[k, j] - m[j, k]) / s
-    return q
-
-
-def _quat_to_mat(q) -> np.ndarray:
-    x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def add_object_body(client: int, model: objects_mod.ObjectModel, pose: np.ndarray,
-                    friction: float = 0.8) -> int:
-    """Create a dynamic body for ``model`` at ``pose`` (object frame -> world); returns its id.
-
-    The body's base frame is the object's principal inertial frame, so PyBullet's base pose (which
-    it always reports for the inertial frame) needs no further correction; ``object_pose`` converts
-    back to the object frame.
-    """
-    import pybullet as pb
-
-    T_in, moments = _inertial_frame(model)
-    T_shape = np.linalg.inv(T_in)  # the object (mesh) frame seen from the inertial frame
-    shape = pb.createCollisionShape(pb.GEOM_MESH, fileName=model.collision_obj_path(),
-                                    collisionFramePosition=T_shape[:3, 3].tolist(),
-                                    collisionFrameOrientation=_mat_to_quat(T_shape[:3, :3]),
-                                    physicsClientId=client)
-    if shape < 0:
-        raise RuntimeError(f"PyBullet could not create the collision shape of {model.name}")
-    T_base = np.asarray(pose, dtype=float) @ T_in
-    body = pb.createMultiBody(baseMass=model.mass, baseCollisionShapeIndex=shape,
-                              basePosition=T_base[:3, 3].tolist(), baseOrientation=_mat_to_quat(T_base[:3, :3]),
-                              physicsClientId=client)
-    pb.changeDynamics(body, -1, localInertiaDiagonal=moments.tolist(), lateralFriction=friction,
-                      rollingFriction=1e-4, spinningFriction=1e-3, restitution=0.0, physicsClientId=client)
-    return body
-
-
-def object_pose(client: int, body: int, model: objects_mod.ObjectModel) -> np.ndarray:
-    """The object-frame pose (4x4) of a body created by ``add_object_body``."""
-    import pybullet as pb
-
-    pos, quat = pb.getBasePositionAndOrientation(body, physicsClientId=client)
-    T_base = np.eye(4)
-    T_base[:3, :3], T_base[:3, 3] = _quat_to_mat(quat), pos
-    return T_base @ np.linalg.inv(_inertial_frame(model)[0])
-
-
-def add_table(client: int, table: Table, friction: float = 0.8) -> int:
-    import pybullet as pb
-
-    half = (np.asarray(table.size, dtype=float) / 2).tolist()
-    shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=client)
-    visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=[0.75, 0.65, 0.5, 1],
-                                  physicsClientId=client)
-    T = np.asarray(table.pose, dtype=float)
-    body = pb.createMultiBody(0.0, shape, visual, basePosition=T[:3, 3].tolist(),
-                              baseOrientation=_mat_to_quat(T[:3, :3]), physicsClientId=client)
-    pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=client)
-    return body
-
-
-def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None) -> int:
-    """The Panda with a fixed base; ``q`` sets the movable joints in URDF order (7 arm + 2 fingers)."""
-    import pybullet as pb
-
-    urdf, ready = _panda_defaults()
-    T = np.asarray(base, dtype=float)
-    body = pb.loadURDF(urdf, basePosition=T[:3, 3].tolist(), baseOrientation=_mat_to_quat(T[:3, :3]),
-                       useFixedBase=True, physicsClientId=client)
-    q = ready if q is None or len(q) == 0 else q
-    movable = [j for j in range(pb.getNumJoints(body, physicsClientId=client))
-               if pb.getJointInfo(body, j, physicsClientId=client)[2] != pb.JOINT_FIXED]
-    if len(q) != len(movable):
-        raise ValueError(f"robot configuration: expected {len(movable)} joint values, got {len(q)}")
-    for j, v in zip(movable, q):
-        pb.resetJointState(body, j, float(v), physicsClientId=client)
-        # hold the pose against gravity while objects settle
-        pb.setJointMotorControl2(body, j, pb.POSITION_CONTROL, targetPosition=float(v), force=500.0,
-                                 physicsClientId=client)
-    return body
-
-
 def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None,
                        with_robot: bool = True) -> Dict[str, int]:
     """Recreate ``scene`` in ``client``: body ids by object name, plus "table" and "robot"."""
@@ -332,12 +223,27 @@ def default_table(settings: SceneSettings = SceneSettings()) -> Table:
 
 def _allowed_poses(model: objects_mod.ObjectModel, settings: SceneSettings) -> List[int]:
     """Indices of the resting poses to sample from. "upright": the one whose model +z points most
-    nearly up; "resting": those stable enough (the most stable one always qualifies)."""
+    nearly up; "stable" and "resting": those stable enough (the most stable one always qualifies)."""
     if settings.orientation == "upright":
         return [int(np.argmax([pose[2, 2] for pose in model.resting_poses]))]
+    if settings.orientation == "stable":
+        b = model.resting_barriers or [1.0]
+        return [i for i in range(min(len(b), len(model.resting_poses))) if i == 0 or b[i] >= settings.min_barrier]
     b = np.asarray(model.resting_barriers if model.resting_barriers else [1.0], dtype=float)
     floor = max(settings.min_barrier, settings.barrier_fraction * b[0])
     return [i for i in range(min(len(b), len(model.resting_poses))) if i == 0 or b[i] >= floor]
+
+
+def _sample_pose(rng: np.random.Generator, model: objects_mod.ObjectModel, settings: SceneSettings) -> int:
+    """One resting pose index: uniform over the allowed ones, or by drop probability for "stable"."""
+    allowed = _allowed_poses(model, settings)
+    probabilities = model.resting_probabilities
+    if settings.orientation != "stable" or len(probabilities) < len(model.resting_poses):
+        return allowed[int(rng.integers(len(allowed)))]
+    p = np.asarray([probabilities[i] for i in allowed], dtype=float)
+    if p.sum() <= 0:
+        return allowed[int(rng.integers(len(allowed)))]
+    return allowed[int(rng.choice(len(allowed), p=p / p.sum()))]
 
 
 def _hull_points(model: objects_mod.ObjectModel) -> np.ndarray:
@@ -422,8 +328,7 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
             placed, circles = [], []
             for name in names:
                 model = lib.get(name)
-                allowed = _allowed_poses(model, settings)
-                rest = model.resting_poses[allowed[int(rng.integers(len(allowed)))]]
+                rest = model.resting_poses[_sample_pose(rng, model, settings)]
                 yaw = rng.uniform(-math.pi, math.pi)
                 radius = float(np.max(np.linalg.norm((_hull_points(model) @ rest[:3, :3].T)[:, :2]
                                                      + rest[:2, 3], axis=1)))
