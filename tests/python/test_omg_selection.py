@@ -30,7 +30,7 @@ from pickplan.omg import grasps
 from pickplan.omg import planner as omg
 from pickplan.sim import scenes
 from pickplan.omg.chomp import Chomp
-from pickplan.core.robots import PandaInfo
+from pickplan.core.panda import PANDA
 from pickplan.omg.world import World
 
 ONLINE = ("FTC", "FTL", "EXP", "MD")
@@ -73,7 +73,7 @@ MEAT = {
 def _setup(objects):
     objs = [scenes.SceneObject(name, "builtin:" + name, _pose(*p)) for name, p in objects.items()]
     scene = scenes.Scene(np.eye(4), scenes.default_table(scenes.SceneSettings()), objs, next(iter(objects)),
-                         None, list(PandaInfo.ready))
+                         None, list(PANDA.ready))
     world = World(scene)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -1,4 +1,1 @@
-"""The ``pickplan`` command: one module per command group (``main`` wires them).""" 
-from pickplan.cli.main import main
-
-__all__ = ["main"]
+"""The ``pickplan`` command: one module per command group; ``pickplan.cli.main`` wires them."""

@@ -67,11 +67,13 @@ def build_parser() -> argparse.ArgumentParser:
     from pickplan.cli.metamodel import add_metamodel_commands
     from pickplan.cli.pickup import add_pickup_commands
     from pickplan.cli.bench import add_bench_commands
+    from pickplan.cli.robots import add_robot_commands
 
     add_scene_commands(sub)
     add_bench_commands(sub)
     add_metamodel_commands(sub)
     add_pickup_commands(sub)
+    add_robot_commands(sub)
     return parser
 
 

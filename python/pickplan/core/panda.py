@@ -1,29 +1,39 @@
-"""Every fact pickplan uses about the Franka Emika Panda and its hand, in one place.
+"""The Franka Emika Panda's facts as pickplan's Panda-specific code names them, read from its
+description file ``assets/robots/panda.toml``, the one place they are written.
 
 Pure Python (no native module): scene generation and PyBullet execution read these without
 building the robot model. ``pickplan.core.robots.panda()`` builds the kinematic model from them.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from pickplan.core.description import RobotDescription, load_description
+
 
 @dataclass(frozen=True)
 class PandaInfo:
-    hand_link: str = "panda_hand"
-    finger_links: tuple = ("panda_leftfinger", "panda_rightfinger")
-    finger_joints: tuple = ("panda_finger_joint1", "panda_finger_joint2")
-    arm_dof: int = 7
-    # A comfortable start configuration above the table (fingers open).
-    ready: tuple = (0.0, -1.285, 0.0, -2.356, 0.0, 1.571, 0.785, 0.04, 0.04)
-    finger_open: float = 0.04   # m per finger joint: the pads are 2 x 0.04 apart when open
-    pad_depth: float = 0.1034   # m along the hand's +z: centre of the finger pads (the YCB README's grasp point)
+    hand_link: str
+    finger_links: tuple
+    finger_joints: tuple
+    arm_dof: int
+    ready: tuple        # a comfortable start configuration above the table (fingers open)
+    finger_open: float  # m per finger joint with the hand open
+    pad_depth: float    # m along the hand's +z: centre of the finger pads (the YCB README's grasp point)
+
+    @classmethod
+    def from_description(cls, desc: RobotDescription) -> "PandaInfo":
+        g = desc.gripper
+        fingers = tuple(f.open for f in g.finger_joints)
+        return cls(hand_link=g.hand_link, finger_links=tuple(g.finger_links),
+                   finger_joints=tuple(f.name for f in g.finger_joints), arm_dof=len(desc.arm_joints),
+                   ready=tuple(desc.start) + fingers, finger_open=fingers[0], pad_depth=float(g.grasp_frame[2, 3]))
 
 
-PANDA = PandaInfo()
+PANDA_DESCRIPTION = load_description("panda")
+PANDA = PandaInfo.from_description(PANDA_DESCRIPTION)
 
 #: +pi/2 about z: the YCB files' gripper frame (closing along x) -> panda_hand (closing along y).
 YCB_TO_HAND = np.array([[0.0, -1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0],
@@ -32,6 +42,4 @@ YCB_TO_HAND = np.array([[0.0, -1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 
 
 def panda_urdf_path() -> str:
     """The Panda URDF shipped in pybullet_data."""
-    import pybullet_data  # the URDF's package: imported only when the path is asked for
-
-    return os.path.join(pybullet_data.getDataPath(), "franka_panda", "panda.urdf")
+    return PANDA_DESCRIPTION.urdf

@@ -14,7 +14,7 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from pickplan import _core
-from pickplan.core.panda import PandaInfo, panda_urdf_path  # noqa: F401  (re-exported)
+from pickplan.core.panda import PANDA, PandaInfo, panda_urdf_path  # noqa: F401  (re-exported)
 from pickplan.core.paths import assets_dir  # noqa: F401  (re-exported: robots.assets_dir)
 
 LinkRef = Union[int, str]
@@ -202,7 +202,7 @@ class Robot:
 class Panda(Robot):
     """The Franka Emika Panda from pybullet_data, with its hand and finger link names."""
 
-    info = PandaInfo()
+    info = PANDA
 
     @property
     def hand_link(self) -> str:
