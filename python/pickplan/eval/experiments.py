@@ -207,6 +207,7 @@ def run_unit(unit: dict) -> dict:
     from pickplan.omg.planner import OMGPlanner, OMGSettings
     from pickplan.sim.scenes import Scene
     from pickplan.omg.world import World
+    from pickplan.core.timing import time_parameterize
 
     t0 = time.perf_counter()
     spec = method_spec(unit["table"], unit["method"])
@@ -246,7 +247,9 @@ def run_unit(unit: dict) -> dict:
                   collision=float(m["collision"]) if planned else None,
                   min_clearance=float(m["min_clearance"]) if planned else None,
                   grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None)
-    record.update(execution_success=False, execution_status="not_executed")
+    # The duration a controller needs: the path timed within the Panda's velocity/acceleration limits.
+    record["trajectory_duration"] = time_parameterize(result.trajectory).duration if planned else None
+    record.update(execution_success=False, execution_status="not_executed", execution_run=bool(unit["execute"]))
     if unit["execute"] and result.success:
         from pickplan.sim.execution import ExecutionSettings, execute_plan
 
@@ -365,7 +368,8 @@ class RecordErrors:
         except Exception as exc:  # noqa: BLE001 - any planner failure is data here, with its reason
             return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
                     "seed": int(unit["seed"]), "status": "error", "error": f"{type(exc).__name__}: {exc}",
-                    "valid": True, "planned": False, "planning_success": False, "execution_success": False}
+                    "valid": True, "planned": False, "planning_success": False, "execution_success": False,
+                    "execution_run": bool(unit.get("execute", True))}
 
 
 def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
@@ -440,16 +444,19 @@ def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict
         valid = [r for r in rs if r.get("valid", True)]
         planned = [r for r in valid if r.get("planned")]
         n = len(valid)
+        executed = any(r.get("execution_run", True) for r in valid)  # False: --no-execute, a column not run
         out[m] = {
             "units": len(rs), "valid": n, "planned": len(planned), "errors": sum(r["status"] == "error" for r in rs),
             "planning_successes": sum(r["planning_success"] for r in valid),
             "execution_successes": sum(r["execution_success"] for r in valid),
             "planning": sum(r["planning_success"] for r in valid) / n if n else float("nan"),
-            "execution": sum(r["execution_success"] for r in valid) / n if n else float("nan"),
+            "execution": (sum(r["execution_success"] for r in valid) / n if n else float("nan")) if executed else None,
+            "execution_run": executed,
             "smoothness": _mean(r["smoothness"] for r in planned),
             "collision": _mean(r["collision"] for r in planned),
             "grasp": _mean(r["grasp_cost"] for r in planned),
             "time": _mean(r["plan_time"] for r in planned),
+            "duration": _mean(r.get("trajectory_duration") for r in planned),
             "goal_set_time": _mean(r["goal_set_time"] for r in planned),
             "goal_set_size": _mean(r["goal_set_size"] for r in planned),
         }
