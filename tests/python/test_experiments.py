@@ -214,3 +214,22 @@ def test_no_execute_says_not_run_and_durations_are_reported(scene_dir, tmp_path)
     # Executed units still give a rate, failed plans counted as failed executions.
     executed = [{**r, "execution_run": True} for r in records]
     assert E.summarize(executed, ("Fixed",))["Fixed"]["execution"] == 0.0
+
+
+def test_timed_execution_follows_the_timed_trajectory(scene_dir, tmp_path):
+    from pickplan.sim.execution import ExecutionSettings
+
+    s = E.SweepSettings("selection", out=str(tmp_path), scene_dir=scene_dir, runs=1, methods=("Fixed",), quick=True,
+                        workers=0, timed_execution=True, progress=False)
+    units = E.make_units(s, E.scene_files(s))
+    executed = []
+    for unit in units:
+        r = E.run_unit(unit)
+        if r["planning_success"]:
+            executed.append(r)
+            assert r["execution_run"] and r["execution_status"] != "not_executed"
+            x = ExecutionSettings()  # sim time = the timed approach + the fixed settle, close, lift and hold phases
+            fixed = x.start_settle + x.approach_settle + x.close_duration + x.lift_duration + x.hold_duration
+            assert r["execution_sim_time"] == pytest.approx(fixed + r["trajectory_duration"], abs=3 * x.time_step)
+    if not executed:
+        pytest.skip("no scene planned successfully")

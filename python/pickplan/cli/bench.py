@@ -167,7 +167,7 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
                          grasp_candidates=args.grasp_candidates, runs=args.runs,
                          methods=tuple(args.methods) if args.methods else None, quick=args.quick,
                          workers=args.workers, ray=args.ray, seed=args.seed, iterations=args.iterations,
-                         execute=not args.no_execute, time_limit=args.time_limit,
+                         execute=not args.no_execute, timed_execution=args.timed_execution, time_limit=args.time_limit,
                          max_goals_tried=args.max_goals_tried, progress=not args.no_progress)
 
 
@@ -207,6 +207,8 @@ def add_bench_commands(subparsers) -> None:
         p.add_argument("--time-limit", type=float, default=1.0, help="OMPL seconds per goal")
         p.add_argument("--max-goals-tried", type=int, default=5, help="ranked goals tried by the baselines")
         p.add_argument("--no-execute", action="store_true", help="skip PyBullet execution")
+        p.add_argument("--timed-execution", action="store_true",
+                       help="execute the plans timed within the Panda's limits (default: 0.1 s per waypoint)")
         p.add_argument("--no-progress", action="store_true")
         p.set_defaults(handler=run_bench)
 

@@ -26,7 +26,7 @@ from typing import Optional
 import numpy as np
 
 from pickplan.core import robots
-from pickplan.core.io import atomic_open, write_json
+from pickplan.core.io import atomic_open
 from pickplan.core.panda import PANDA
 
 FORMAT = "pickplan.timed_trajectory/1"
@@ -103,7 +103,8 @@ class TimedTrajectory:
         """Write JSON (``.json``) or NumPy (``.npz``) with t, q, qd, qdd, rate; atomically."""
         ext = os.path.splitext(os.fspath(path))[1].lower()
         if ext == ".json":
-            write_json(path, self.to_dict())
+            with atomic_open(path, "w") as f:
+                json.dump(self.to_dict(), f, separators=(",", ":"))  # compact: thousands of samples
         elif ext == ".npz":
             with atomic_open(path, "wb") as f:
                 np.savez(f, t=self.t, q=self.q, qd=self.qd, qdd=self.qdd, rate=self.rate, slowdown=self.slowdown)

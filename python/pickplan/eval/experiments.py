@@ -54,6 +54,7 @@ class SweepSettings:
     seed: int = 0                      # scene set seed; run r of every scene uses seed + r
     iterations: int = 50               # OMG / CHOMP iterations N
     execute: bool = True               # execute successful plans in PyBullet
+    timed_execution: bool = False      # execute them timed within the Panda's limits (else 0.1 s per waypoint)
     time_limit: float = 1.0            # OMPL seconds per goal
     max_goals_tried: int = 5           # ranked goals tried by CHOMP / FMT / RRT-C
     progress: bool = True
@@ -153,7 +154,7 @@ def unit_key(unit: dict) -> str:
 def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
     s = settings.effective()
     knobs = {k: getattr(s, k) for k in ("grasps", "grasp_candidates", "iterations", "execute", "time_limit",
-                                         "max_goals_tried")}
+                                         "max_goals_tried", "timed_execution")}
     units = []
     for path in files:
         with open(path) as f:
@@ -248,13 +249,16 @@ def run_unit(unit: dict) -> dict:
                   min_clearance=float(m["min_clearance"]) if planned else None,
                   grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None)
     # The duration a controller needs: the path timed within the Panda's velocity/acceleration limits.
-    record["trajectory_duration"] = time_parameterize(result.trajectory).duration if planned else None
+    timed = time_parameterize(result.trajectory) if planned else None
+    record["trajectory_duration"] = timed.duration if planned else None
     record.update(execution_success=False, execution_status="not_executed", execution_run=bool(unit["execute"]))
     if unit["execute"] and result.success:
         from pickplan.sim.execution import ExecutionSettings, execute_plan
 
-        ex = execute_plan(scene, result.trajectory, ExecutionSettings(waypoint_dt=chomp.duration / chomp.n))
-        record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds)
+        ex = execute_plan(scene, timed if unit.get("timed_execution") else result.trajectory,
+                          ExecutionSettings(waypoint_dt=chomp.duration / chomp.n))
+        record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds,
+                      execution_sim_time=ex.sim_time)
     record["unit_seconds"] = time.perf_counter() - t0
     return record
 
@@ -394,7 +398,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
 # Settings a finished unit (or a generated scene) depends on; methods, runs and scene count only
 # add units, and workers / Ray / progress do not change results.
 RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
-               "time_limit", "max_goals_tried")
+               "time_limit", "max_goals_tried", "timed_execution")
 
 
 def sweep_fingerprint(settings: SweepSettings) -> dict:
