@@ -83,13 +83,14 @@ class TimedTrajectory:
 
     def __post_init__(self):
         self.t = np.asarray(self.t, dtype=float)
+        if self.t.ndim != 1 or len(self.t) < 1 or np.any(np.diff(self.t) <= 0):
+            raise ValueError(f"timed trajectory: t must be increasing times, shape (K,), got shape {self.t.shape}")
         arrays = {name: np.asarray(getattr(self, name), dtype=float) for name in ("q", "qd", "qdd")}
         for name, a in arrays.items():
             if a.ndim != 2 or a.shape[0] != len(self.t):
                 raise ValueError(f"timed trajectory: {name} must be ({len(self.t)}, dof), got {a.shape}")
             setattr(self, name, a)
-        if not (self.rate > 0 and math.isfinite(self.rate)):
-            raise ValueError(f"rate must be a positive number of Hz, got {self.rate}")
+        self.rate = _check_rate(self.rate)
 
     @property
     def duration(self) -> float:
@@ -130,8 +131,7 @@ class TimedTrajectory:
         """The same motion at another rate: cubic Hermite through (q, qd) and (qd, qdd), qdd linear."""
         from scipy.interpolate import CubicHermiteSpline
 
-        if not (rate > 0 and math.isfinite(rate)):
-            raise ValueError(f"rate must be a positive number of Hz, got {rate}")
+        rate = _check_rate(rate)
         if len(self.t) < 2:
             return TimedTrajectory(self.t, self.q, self.qd, self.qdd, rate, self.slowdown)
         t = np.arange(int(math.ceil(self.duration * rate - 1e-9)) + 1) / rate
@@ -139,6 +139,16 @@ class TimedTrajectory:
         qdd = np.column_stack([np.interp(t, self.t, a) for a in self.qdd.T])
         return TimedTrajectory(t, CubicHermiteSpline(self.t, self.q, self.qd)(t),
                                CubicHermiteSpline(self.t, self.qd, self.qdd)(t), qdd, rate, self.slowdown)
+
+
+def _check_rate(rate) -> float:
+    try:
+        value = float(rate)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if not (value > 0 and math.isfinite(value)):
+        raise ValueError(f"rate must be a positive number of Hz, got {rate!r}")
+    return value
 
 
 def _check_waypoints(waypoints) -> np.ndarray:
@@ -194,8 +204,7 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
     import toppra.constraint
 
     Q = _check_waypoints(waypoints)
-    if not (isinstance(rate, (int, float)) and rate > 0 and math.isfinite(rate)):
-        raise ValueError(f"rate must be a positive number of Hz, got {rate!r}")
+    rate = _check_rate(rate)
     if not isinstance(interpolation, Interpolation):
         raise ValueError(f"interpolation: expected an Interpolation, got {interpolation!r}")
     if grid_per_segment < 1:
@@ -207,7 +216,7 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
     Q = Q[keep]
     if len(Q) == 1:
         zero = np.zeros_like(Q)
-        return TimedTrajectory(np.zeros(1), Q, zero, zero.copy(), float(rate))
+        return TimedTrajectory(np.zeros(1), Q, zero, zero.copy(), rate)
     path, ss = _path(Q, interpolation)
     grid = np.concatenate([np.linspace(0.0, 1.0, (len(Q) - 1) * grid_per_segment + 1),
                            ss[1:-1] - _KNOT_EPS, ss[1:-1] + _KNOT_EPS])
@@ -236,4 +245,4 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
         raise TimingError(f"could not bring the samples within the limits (excess {excess:.4f})")
     qd[0], qd[-1] = 0.0, 0.0  # rest to rest (toppra's end velocity is zero to round-off)
     q[0], q[-1] = Q[0], Q[-1]
-    return TimedTrajectory(t, q, qd, qdd, float(rate), scale)
+    return TimedTrajectory(t, q, qd, qdd, rate, scale)
