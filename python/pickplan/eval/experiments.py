@@ -209,6 +209,7 @@ def run_unit(unit: dict) -> dict:
     from pickplan.sim.scenes import Scene
     from pickplan.omg.world import World
     from pickplan.core.timing import time_parameterize
+    from pickplan.sim.execution import ExecutionSettings, execute_plan
 
     t0 = time.perf_counter()
     spec = method_spec(unit["table"], unit["method"])
@@ -249,12 +250,11 @@ def run_unit(unit: dict) -> dict:
                   min_clearance=float(m["min_clearance"]) if planned else None,
                   grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None)
     # The duration a controller needs: the path timed within the Panda's velocity/acceleration limits.
-    timed = time_parameterize(result.trajectory) if planned else None
+    control_rate = 1.0 / ExecutionSettings.time_step  # samples at PyBullet's control rate: executed as they are
+    timed = time_parameterize(result.trajectory, control_rate) if planned else None
     record["trajectory_duration"] = timed.duration if planned else None
     record.update(execution_success=False, execution_status="not_executed", execution_run=bool(unit["execute"]))
     if unit["execute"] and result.success:
-        from pickplan.sim.execution import ExecutionSettings, execute_plan
-
         ex = execute_plan(scene, timed if unit.get("timed_execution") else result.trajectory,
                           ExecutionSettings(waypoint_dt=chomp.duration / chomp.n))
         record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds,
