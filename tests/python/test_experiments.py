@@ -193,3 +193,43 @@ def test_resuming_with_other_settings_is_refused(scene_dir, tmp_path):
     with pytest.raises(ValueError, match="seed: 0 there, 3 now"):
         E.run_sweep(E.SweepSettings("selection", **{**base, "seed": 3}), unit_fn=counting)
     assert len(calls) == 12 and len(os.listdir(tmp_path / "sweep" / "units")) == 12
+
+
+def test_no_execute_says_not_run_and_durations_are_reported(scene_dir, tmp_path):
+    out = tmp_path / "noexec"
+    rc = C.main(["bench", "selection", "--quick", "--scene-dir", scene_dir, "--methods", "Fixed",
+                 "--workers", "0", "--no-execute", "--no-progress", "--out", str(out)])
+    assert rc == 0
+    rows = {line.split("|")[1].strip(): line for line in (out / "table.md").read_text().splitlines()
+            if line.startswith("| ")}
+    assert "not run" in rows["Execution"] and "0%" not in rows["Execution"]  # never a zero for a column not run
+    records = json.loads((out / "runs.json").read_text())
+    planned = [r for r in records if r.get("planned")]
+    assert planned and all(r["trajectory_duration"] > 0 for r in planned)
+    summary = E.summarize(records, ("Fixed",))["Fixed"]
+    assert summary["execution"] is None and summary["execution_run"] is False
+    assert summary["duration"] == pytest.approx(np.mean([r["trajectory_duration"] for r in planned]))
+    duration_cell = rows["Trajectory duration (s, timed within the joint limits)"].split("|")[2].strip()
+    assert float(duration_cell) == pytest.approx(summary["duration"], abs=0.005)
+    # Executed units still give a rate, failed plans counted as failed executions.
+    executed = [{**r, "execution_run": True} for r in records]
+    assert E.summarize(executed, ("Fixed",))["Fixed"]["execution"] == 0.0
+
+
+def test_timed_execution_follows_the_timed_trajectory(scene_dir, tmp_path):
+    from pickplan.sim.execution import ExecutionSettings
+
+    s = E.SweepSettings("selection", out=str(tmp_path), scene_dir=scene_dir, runs=1, methods=("Fixed",), quick=True,
+                        workers=0, timed_execution=True, progress=False)
+    units = E.make_units(s, E.scene_files(s))
+    executed = []
+    for unit in units:
+        r = E.run_unit(unit)
+        if r["planning_success"]:
+            executed.append(r)
+            assert r["execution_run"] and r["execution_status"] != "not_executed"
+            x = ExecutionSettings()  # sim time = the timed approach + the fixed settle, close, lift and hold phases
+            fixed = x.start_settle + x.approach_settle + x.close_duration + x.lift_duration + x.hold_duration
+            assert r["execution_sim_time"] == pytest.approx(fixed + r["trajectory_duration"], abs=3 * x.time_step)
+    if not executed:
+        pytest.skip("no scene planned successfully")

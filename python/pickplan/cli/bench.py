@@ -44,12 +44,14 @@ PAPER_GRASP_COSTS = {  # Table II rows: S, S refined, G, G refined, A, A refined
     "006_mustard_bottle": (4.40, 3.19, 4.91, 3.79, 8.15, 5.73),
     "010_potted_meat_can": (2.96, 1.95, 3.08, 2.54, 7.47, 4.91),
     "019_pitcher_base": (4.41, 2.97, 5.68, 3.76, 8.69, 6.14)}
-ROWS = {"selection": ("execution", "planning", "smoothness", "collision", "time", "goal_set_time"),
-        "planners": ("execution", "planning", "smoothness", "collision", "grasp", "time", "goal_set_time"),
-        "refinement": ("planning", "execution", "time", "goal_set_time"),
-        "ablation": ("execution", "planning", "smoothness", "collision", "grasp", "time", "goal_set_time")}
+ROWS = {"selection": ("execution", "planning", "smoothness", "collision", "time", "goal_set_time", "duration"),
+        "planners": ("execution", "planning", "smoothness", "collision", "grasp", "time", "goal_set_time", "duration"),
+        "refinement": ("planning", "execution", "time", "goal_set_time", "duration"),
+        "ablation": ("execution", "planning", "smoothness", "collision", "grasp", "time", "goal_set_time",
+                     "duration")}
 LABELS = {"execution": "Execution", "planning": "Planning", "smoothness": "Smoothness", "collision": "Collision",
-          "grasp": "Grasp", "time": "Time (s, planning)", "goal_set_time": "Goal-set time (s)", "mean": "Mean"}
+          "grasp": "Grasp", "time": "Time (s, planning)", "goal_set_time": "Goal-set time (s)", "mean": "Mean",
+          "duration": "Trajectory duration (s, timed within the joint limits)"}
 RATES = ("execution", "planning")
 
 
@@ -59,9 +61,10 @@ def _fmt(key: str, value) -> str:
     return f"{100 * value:.0f}%" if key in RATES else f"{value:.2f}"
 
 
-def _cell(table: str, key: str, method: str, ours) -> str:
+def _cell(table: str, key: str, method: str, ours, run: bool = True) -> str:
+    """Ours (paper); a column that was not run (execution with --no-execute) says so, never a zero."""
     paper = PAPER.get(table, {}).get(key, {}).get(method)
-    return _fmt(key, ours) + (f" ({_fmt(key, paper)})" if paper is not None else "")
+    return (_fmt(key, ours) if run else "not run") + (f" ({_fmt(key, paper)})" if paper is not None else "")
 
 
 def _object_label(name: str) -> str:
@@ -85,7 +88,9 @@ def markdown(table: str, summary: Dict[str, dict], records: Sequence[dict], head
             lines.append(f"| {_object_label(obj)} | " + " | ".join(cells) + " |")
         lines.append("| Mean | " + " | ".join(_cell(table, "mean", m, summary[m]["grasp"]) for m in methods) + " |")
     for key in ROWS[table]:
-        lines.append(f"| {LABELS[key]} | " + " | ".join(_cell(table, key, m, summary[m][key]) for m in methods) + " |")
+        lines.append(f"| {LABELS[key]} | " + " | ".join(
+            _cell(table, key, m, summary[m][key], key != "execution" or summary[m].get("execution_run", True))
+            for m in methods) + " |")
     lines.append("| Units (valid / planned) | " + " | ".join(
         f"{summary[m]['valid']}/{summary[m]['units']} ({summary[m]['planned']})" for m in methods) + " |")
     return "\n".join(lines) + "\n"
@@ -116,7 +121,7 @@ def plot_ablation(path: str, summary: Dict[str, dict]) -> None:
             continue
         xs = [float(m[len(prefix):]) for m in ms]
         for key in ("planning", "execution", "smoothness", "collision", "time"):
-            ys = [summary[m][key] for m in ms]
+            ys = [math.nan if summary[m][key] is None else summary[m][key] for m in ms]  # None: not run
             top = max((y for y in ys if y == y), default=0.0)
             if key not in RATES and top > 0:
                 ys = [y / top for y in ys]
@@ -162,7 +167,7 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
                          grasp_candidates=args.grasp_candidates, runs=args.runs,
                          methods=tuple(args.methods) if args.methods else None, quick=args.quick,
                          workers=args.workers, ray=args.ray, seed=args.seed, iterations=args.iterations,
-                         execute=not args.no_execute, time_limit=args.time_limit,
+                         execute=not args.no_execute, timed_execution=args.timed_execution, time_limit=args.time_limit,
                          max_goals_tried=args.max_goals_tried, progress=not args.no_progress)
 
 
@@ -202,6 +207,8 @@ def add_bench_commands(subparsers) -> None:
         p.add_argument("--time-limit", type=float, default=1.0, help="OMPL seconds per goal")
         p.add_argument("--max-goals-tried", type=int, default=5, help="ranked goals tried by the baselines")
         p.add_argument("--no-execute", action="store_true", help="skip PyBullet execution")
+        p.add_argument("--timed-execution", action="store_true",
+                       help="execute the plans timed within the Panda's limits (default: 0.1 s per waypoint)")
         p.add_argument("--no-progress", action="store_true")
         p.set_defaults(handler=run_bench)
 

@@ -75,6 +75,7 @@ class RobotDescription:
     velocity_limits: Optional[Tuple[float, ...]]      # per arm joint; None: the URDF's
     acceleration_limits: Optional[Tuple[float, ...]]
     jerk_limits: Optional[Tuple[float, ...]]
+    finger_acceleration_limit: Optional[float]        # per finger joint (m/s^2 or rad/s^2)
     gripper: GripperSpec
 
     @property
@@ -218,7 +219,10 @@ def parse_description(name_or_file: str) -> Tuple[Optional[RobotDescription], Li
         problems.append(f"skip_collision: expected pairs of link names, got {skip!r}")
         skip = []
     limits = r.get(data, "limits", dict, "", default={}, required=False)
-    r.unknown(limits, ("velocity", "acceleration", "jerk"), "limits.")
+    r.unknown(limits, ("velocity", "acceleration", "jerk", "finger_acceleration"), "limits.")
+    finger_acc = r.get(limits, "finger_acceleration", float, "limits.", required=False)
+    if finger_acc is not None and finger_acc <= 0:
+        problems.append(f"limits.finger_acceleration: expected a positive value, got {finger_acc}")
     lim = {k: r.numbers(limits, k, "limits.", len(arm) if arm else None, required=False)
            for k in ("velocity", "acceleration", "jerk")}
     for k, v in lim.items():
@@ -232,7 +236,7 @@ def parse_description(name_or_file: str) -> Tuple[Optional[RobotDescription], Li
                             package_dirs=package_dirs, base_pose=base, arm_joints=tuple(arm), start=start,
                             body_points_per_link=int(per_link or 20), skip_collision=tuple(tuple(p) for p in skip),
                             velocity_limits=lim["velocity"], acceleration_limits=lim["acceleration"],
-                            jerk_limits=lim["jerk"], gripper=gripper), problems
+                            jerk_limits=lim["jerk"], finger_acceleration_limit=finger_acc, gripper=gripper), problems
 
 
 def _gripper(r: _Reader, g: dict) -> Optional[GripperSpec]:

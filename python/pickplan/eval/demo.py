@@ -14,6 +14,7 @@ import numpy as np
 from pickplan.sim import execution
 from pickplan.sim import scenes
 from pickplan.core.io import write_json, write_text
+from pickplan.core.timing import TimedTrajectory
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanResult
 
 # OMG paper, Table III (100 scenes, 30 grasps, 10 runs), the OMG column.
@@ -27,18 +28,23 @@ class DemoSettings:
     planner: OMGSettings = OMGSettings(grasp_kind="antipodal")
     record_every: int = 24  # simulation steps between pictures (0.1 s)
     frames_in_sheet: int = 12
+    timed_rate: float = 1000.0  # Hz of the exported timed trajectory (Franka's control rate)
 
 
-def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResult]) -> str:
+def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResult],
+                  timed: Optional[TimedTrajectory] = None) -> str:
     m = result.metrics
     planning_time = result.timings["total"] - result.timings["goal_set"]
+    lifted = "not run" if executed is None else ("yes" if executed.success else "no")
     rows = [
-        ("Execution (target lifted)", "yes" if executed and executed.success else "no", PAPER_OMG["execution"]),
+        ("Execution (target lifted)", lifted, PAPER_OMG["execution"]),
         ("Planning success (collision-free, smoothness < 30)", "yes" if result.success else "no", PAPER_OMG["planning"]),
         ("Smoothness (f_prior)", f"{m.get('smoothness', float('nan')):.2f}", PAPER_OMG["smoothness"]),
         ("Collision (sum of c(x) within 5 cm, 200 steps)", f"{m.get('collision', float('nan')):.2f}", PAPER_OMG["collision"]),
         ("Grasp cost f_grasp", f"{result.grasp_cost:.2f}", PAPER_OMG["grasp"]),
         ("Planning time (s)", f"{planning_time:.3f}", PAPER_OMG["time"]),
+        ("Trajectory duration (s, timed within the Panda's velocity and acceleration limits)",
+         f"{timed.duration:.3f}" if timed is not None else "not timed", "not reported"),
     ]
     lines = ["| metric | this run | OMG paper (Table III, mean of 100 scenes) |", "|---|---|---|"]
     lines += [f"| {a} | {b} | {c} |" for a, b, c in rows]
@@ -63,25 +69,30 @@ def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
     planner = OMGPlanner(None, scene, settings.planner)
     result = planner.plan()
     print(f"      {result.status} in {result.iterations} iterations")
-    executed = None
+    executed = timed = None
     frames = []
     if result.status != "no_goals":
-        print("[3/4] executing the plan in PyBullet: follow, close, lift")
+        timed = result.timed(rate=settings.timed_rate)
+        timed.save(os.path.join(out, "timed.json"))
+        timed.save(os.path.join(out, "timed.npz"))
+        print(f"[3/4] executing the timed plan ({timed.duration:.2f} s) in PyBullet: follow, close, lift")
         record = execution.RecordSettings(every=settings.record_every)
-        executed = execution.execute_plan(scene, result.trajectory, record=record)
+        executed = execution.execute_plan(scene, timed, record=record)
         frames = executed.frames or []
         print(f"      {executed.status}: target lifted {executed.target_lift * 100:.1f} cm")
     print("[4/4] writing the picture and the metrics table")
     if frames:
         pick = np.linspace(0, len(frames) - 1, min(settings.frames_in_sheet, len(frames))).round().astype(int)
         execution.save_frames([frames[i] for i in pick], os.path.join(out, "demo.png"), columns=4)
-    table = metrics_table(result, executed)
+    table = metrics_table(result, executed, timed)
     write_text(os.path.join(out, "metrics.md"), table)
     write_json(os.path.join(out, "plan.json"), {
         "status": result.status, "trajectory": result.trajectory.tolist(), "metrics": result.metrics,
         "grasp_cost": result.grasp_cost, "timings": result.timings, "iterations": result.iterations,
+        "trajectory_duration": timed.duration if timed is not None else None,
         "execution": executed.to_dict() if executed else None})
     print()
     print(table)
-    print(f"wrote {out}/demo.png, metrics.md, plan.json, scene.json ({time.perf_counter() - t0:.1f} s)")
+    print(f"wrote {out}/demo.png, metrics.md, plan.json, scene.json"
+          f"{', timed.json, timed.npz' if timed is not None else ''} ({time.perf_counter() - t0:.1f} s)")
     return 0 if executed is not None and executed.success else 1

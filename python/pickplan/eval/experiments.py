@@ -54,6 +54,7 @@ class SweepSettings:
     seed: int = 0                      # scene set seed; run r of every scene uses seed + r
     iterations: int = 50               # OMG / CHOMP iterations N
     execute: bool = True               # execute successful plans in PyBullet
+    timed_execution: bool = False      # execute them timed within the Panda's limits (else 0.1 s per waypoint)
     time_limit: float = 1.0            # OMPL seconds per goal
     max_goals_tried: int = 5           # ranked goals tried by CHOMP / FMT / RRT-C
     progress: bool = True
@@ -153,7 +154,7 @@ def unit_key(unit: dict) -> str:
 def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
     s = settings.effective()
     knobs = {k: getattr(s, k) for k in ("grasps", "grasp_candidates", "iterations", "execute", "time_limit",
-                                         "max_goals_tried")}
+                                         "max_goals_tried", "timed_execution")}
     units = []
     for path in files:
         with open(path) as f:
@@ -207,6 +208,8 @@ def run_unit(unit: dict) -> dict:
     from pickplan.omg.planner import OMGPlanner, OMGSettings
     from pickplan.sim.scenes import Scene
     from pickplan.omg.world import World
+    from pickplan.core.timing import time_parameterize
+    from pickplan.sim.execution import ExecutionSettings, execute_plan
 
     t0 = time.perf_counter()
     spec = method_spec(unit["table"], unit["method"])
@@ -246,12 +249,16 @@ def run_unit(unit: dict) -> dict:
                   collision=float(m["collision"]) if planned else None,
                   min_clearance=float(m["min_clearance"]) if planned else None,
                   grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None)
-    record.update(execution_success=False, execution_status="not_executed")
+    # The duration a controller needs: the path timed within the Panda's velocity/acceleration limits.
+    control_rate = 1.0 / ExecutionSettings.time_step  # samples at PyBullet's control rate: executed as they are
+    timed = time_parameterize(result.trajectory, control_rate) if planned else None
+    record["trajectory_duration"] = timed.duration if planned else None
+    record.update(execution_success=False, execution_status="not_executed", execution_run=bool(unit["execute"]))
     if unit["execute"] and result.success:
-        from pickplan.sim.execution import ExecutionSettings, execute_plan
-
-        ex = execute_plan(scene, result.trajectory, ExecutionSettings(waypoint_dt=chomp.duration / chomp.n))
-        record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds)
+        ex = execute_plan(scene, timed if unit.get("timed_execution") else result.trajectory,
+                          ExecutionSettings(waypoint_dt=chomp.duration / chomp.n))
+        record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds,
+                      execution_sim_time=ex.sim_time)
     record["unit_seconds"] = time.perf_counter() - t0
     return record
 
@@ -365,7 +372,8 @@ class RecordErrors:
         except Exception as exc:  # noqa: BLE001 - any planner failure is data here, with its reason
             return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
                     "seed": int(unit["seed"]), "status": "error", "error": f"{type(exc).__name__}: {exc}",
-                    "valid": True, "planned": False, "planning_success": False, "execution_success": False}
+                    "valid": True, "planned": False, "planning_success": False, "execution_success": False,
+                    "execution_run": bool(unit.get("execute", True))}
 
 
 def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
@@ -390,7 +398,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
 # Settings a finished unit (or a generated scene) depends on; methods, runs and scene count only
 # add units, and workers / Ray / progress do not change results.
 RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
-               "time_limit", "max_goals_tried")
+               "time_limit", "max_goals_tried", "timed_execution")
 
 
 def sweep_fingerprint(settings: SweepSettings) -> dict:
@@ -440,16 +448,19 @@ def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict
         valid = [r for r in rs if r.get("valid", True)]
         planned = [r for r in valid if r.get("planned")]
         n = len(valid)
+        executed = any(r.get("execution_run", True) for r in valid)  # False: --no-execute, a column not run
         out[m] = {
             "units": len(rs), "valid": n, "planned": len(planned), "errors": sum(r["status"] == "error" for r in rs),
             "planning_successes": sum(r["planning_success"] for r in valid),
             "execution_successes": sum(r["execution_success"] for r in valid),
             "planning": sum(r["planning_success"] for r in valid) / n if n else float("nan"),
-            "execution": sum(r["execution_success"] for r in valid) / n if n else float("nan"),
+            "execution": (sum(r["execution_success"] for r in valid) / n if n else float("nan")) if executed else None,
+            "execution_run": executed,
             "smoothness": _mean(r["smoothness"] for r in planned),
             "collision": _mean(r["collision"] for r in planned),
             "grasp": _mean(r["grasp_cost"] for r in planned),
             "time": _mean(r["plan_time"] for r in planned),
+            "duration": _mean(r.get("trajectory_duration") for r in planned),
             "goal_set_time": _mean(r["goal_set_time"] for r in planned),
             "goal_set_size": _mean(r["goal_set_size"] for r in planned),
         }

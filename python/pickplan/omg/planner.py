@@ -13,6 +13,7 @@ from typing import Optional, Union
 
 import numpy as np
 
+from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, time_parameterize
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import Chomp, ChompSettings, MetricSettings, cubic_initialization
 from pickplan.omg.goals import GoalSetSettings, IkSettings, build_goal_set
@@ -69,6 +70,12 @@ class PlanResult:
     @property
     def success(self) -> bool:
         return self.status == "success"
+
+    def timed(self, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
+              interpolation: Interpolation = Interpolation.PCHIP) -> TimedTrajectory:
+        """The trajectory timed within ``limits`` (default: the Panda's), sampled at ``rate`` Hz, from rest
+        to rest along the same path (``pickplan.core.timing.time_parameterize``)."""
+        return time_parameterize(self.trajectory, rate, limits, interpolation)
 
 
 class OMGPlanner:

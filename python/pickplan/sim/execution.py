@@ -6,8 +6,9 @@ One call, one fresh DIRECT client (always disconnected): the scene is loaded wit
 1. **approach**: follows the (T, 9) joint trajectory at ``waypoint_dt`` per segment, densely
    interpolated at the 240 Hz control rate, under joint position control with the Panda's torque
    limits (87 Nm joints 1-4, 12 Nm joints 5-7) and velocity feed-forward; segments that would exceed
-   the joint speed limits are slowed down; contacts of the robot with every body but the target are
-   recorded (max penetration per body);
+   the joint speed limits are slowed down (a ``TimedTrajectory`` is followed at its own times, its
+   velocities as the feed-forward, resampled to the control rate); contacts of the robot with every
+   body but the target are recorded (max penetration per body);
 2. **close**: both finger joints are commanded together to closed, squeezing with ``finger_force`` N
    per finger; PyBullet ignores the URDF's ``<mimic>``, so a gear constraint makes the second finger
    follow the first (``couple_fingers``), as the real hand's mechanism does;
@@ -40,6 +41,7 @@ import numpy as np
 
 from pickplan.core import objects as objects_mod
 from pickplan.core.panda import PANDA
+from pickplan.core.timing import TimedTrajectory
 from pickplan.sim import scenes as scenes_mod
 
 #: Every value ``ExecutionResult.status`` takes.
@@ -278,9 +280,9 @@ def _lift_path(robot, q0: np.ndarray, s: ExecutionSettings) -> np.ndarray:
 
 
 def _follow(sim: _Sim, Q: np.ndarray, segments, fingers_from_plan: bool, finger_force: float,
-            watch: bool) -> None:
+            watch: bool, V: Optional[np.ndarray] = None) -> None:
     for k, (d, n) in enumerate(segments):
-        v = (Q[k + 1] - Q[k]) / d
+        v = (Q[k + 1] - Q[k]) / d if V is None else V[k + 1]  # feed-forward: the timed velocities if given
         for i in range(1, n + 1):
             q = Q[k] + (i / n) * (Q[k + 1] - Q[k])
             sim.command_arm(q, v)
@@ -303,7 +305,8 @@ def _hold(sim: _Sim, q: np.ndarray, seconds: float, watch: bool) -> None:
 def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSettings = ExecutionSettings(),
                  library: Optional[objects_mod.ObjectLibrary] = None,
                  record: Optional[RecordSettings] = None) -> ExecutionResult:
-    """Run ``trajectory`` (T, 9) in ``scene``, grasp ``scene.target`` and lift it; see the module doc.
+    """Run ``trajectory`` ((T, 9) waypoints or a ``TimedTrajectory``) in ``scene``, grasp ``scene.target``
+    and lift it; see the module doc.
 
     Raises ValueError for a malformed trajectory (shape, NaN); a trajectory outside the joint limits
     is not run and reports status "invalid_trajectory". Deterministic for identical inputs.
@@ -314,7 +317,10 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
 
     t_start = time.perf_counter()
     s = settings
-    Q = _check_trajectory(trajectory)
+    timed = trajectory if isinstance(trajectory, TimedTrajectory) else None
+    if timed is not None and abs(timed.rate * s.time_step - 1.0) > 1e-9:
+        timed = timed.resampled(1.0 / s.time_step)  # one sample per control step
+    Q = _check_trajectory(trajectory if timed is None else timed.q)
     if scene.target not in [o.name for o in scene.objects]:
         raise ValueError(f"scene target {scene.target!r} is not one of its objects")
     robot = robots.panda(np.asarray(scene.robot_base, dtype=float))
@@ -375,7 +381,9 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         sim.command_fingers(Q[0, 7], s.finger_force)
         for _ in range(int(round(s.start_settle / s.time_step))):
             sim.step(True)
-        _follow(sim, Q, _segment_steps(Q, robot.velocity_limits, s), True, s.finger_force, True)
+        segments = ([(s.time_step, 1)] * (len(Q) - 1) if timed is not None
+                    else _segment_steps(Q, robot.velocity_limits, s))
+        _follow(sim, Q, segments, True, s.finger_force, True, None if timed is None else timed.qd)
         _hold(sim, Q[-1], s.approach_settle, True)
         target_pushed = float(np.linalg.norm(sim.com(scene.target) - com0[scene.target]))
 

@@ -1,0 +1,248 @@
+"""Timed trajectories: planned waypoints become q(t), qd(t), qdd(t) within joint velocity and
+acceleration limits, by time-optimal path parameterization (TOPP-RA, the ``toppra`` library).
+
+The waypoints (T, dof) define a path q(s) through them, s in [0, 1] spaced evenly (the planner spaces
+its waypoints evenly in time). toppra finds the fastest s(t) from rest to rest with every joint inside
+its limits; the result is sampled at exactly ``rate`` Hz. The path is not changed, only the speed
+along it: with the default PCHIP interpolation each joint moves monotonically between two waypoints,
+so the path stays inside every segment's bounding box (and inside the joint limits).
+
+Jerk is not bounded: toppra's solution has piecewise constant path acceleration. The datasheet's
+jerk limits are stated in ``pickplan.core.panda`` for controllers that smooth the samples.
+
+>>> timed = time_parameterize(plan.trajectory, rate=1000.0)     # the Panda's limits by default
+>>> timed.duration, timed.q.shape, timed.qd[0]
+>>> timed.save("out/timed.json"); timed.save("out/timed.npz")
+"""
+from __future__ import annotations
+
+import enum
+import json
+import math
+import os
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from pickplan.core import robots
+from pickplan.core.io import atomic_open
+from pickplan.core.panda import PANDA
+
+FORMAT = "pickplan.timed_trajectory/1"
+_KNOT_EPS = 1e-6  # grid points this close on both sides of each waypoint: PCHIP's qdd jumps there
+
+
+class Interpolation(enum.Enum):
+    """How the path passes through the waypoints."""
+
+    PCHIP = "pchip"   # shape-preserving cubic (C1): no overshoot between waypoints
+    CUBIC = "cubic"   # not-a-knot cubic spline (C2): smoother, rounds sharp corners more widely
+
+
+class TimingError(RuntimeError):
+    """TOPP-RA found no parameterization (numerical trouble; rest to rest is always feasible)."""
+
+
+@dataclass(frozen=True)
+class KinematicLimits:
+    """Symmetric per-joint limits: |qd| <= velocity, |qdd| <= acceleration."""
+
+    velocity: np.ndarray
+    acceleration: np.ndarray
+
+    def __post_init__(self):
+        for name in ("velocity", "acceleration"):
+            v = np.asarray(getattr(self, name), dtype=float)
+            if v.ndim != 1 or not np.all(np.isfinite(v)) or not np.all(v > 0):
+                raise ValueError(f"{name} limits: expected a vector of positive finite numbers, got {v}")
+            object.__setattr__(self, name, v)
+        if self.velocity.shape != self.acceleration.shape:
+            raise ValueError(f"limits: {len(self.velocity)} velocity limits but "
+                             f"{len(self.acceleration)} acceleration limits")
+
+
+def panda_limits(robot=None) -> KinematicLimits:
+    """The Panda's limits: velocity from the URDF (``robot``, default ``robots.panda()``), acceleration
+    from Franka's datasheet (``PANDA.arm_acceleration_limits``; the fingers: see ``PANDA``)."""
+    robot = robots.panda() if robot is None else robot
+    fingers = (PANDA.finger_acceleration_limit,) * (robot.dof - PANDA.arm_dof)
+    return KinematicLimits(robot.velocity_limits, np.array(PANDA.arm_acceleration_limits + fingers))
+
+
+@dataclass
+class TimedTrajectory:
+    """Samples of a timed trajectory every 1 / ``rate`` s, from rest (t = 0) to rest (t = duration)."""
+
+    t: np.ndarray        # (K,) s
+    q: np.ndarray        # (K, dof)
+    qd: np.ndarray       # (K, dof) per s
+    qdd: np.ndarray      # (K, dof) per s^2
+    rate: float          # Hz
+    slowdown: float = 1.0  # factor TOPP-RA's optimum was stretched by: whole samples, limits between grid points
+
+    def __post_init__(self):
+        self.t = np.asarray(self.t, dtype=float)
+        if self.t.ndim != 1 or len(self.t) < 1 or np.any(np.diff(self.t) <= 0):
+            raise ValueError(f"timed trajectory: t must be increasing times, shape (K,), got shape {self.t.shape}")
+        arrays = {name: np.asarray(getattr(self, name), dtype=float) for name in ("q", "qd", "qdd")}
+        for name, a in arrays.items():
+            if a.ndim != 2 or a.shape[0] != len(self.t):
+                raise ValueError(f"timed trajectory: {name} must be ({len(self.t)}, dof), got {a.shape}")
+            setattr(self, name, a)
+        self.rate = _check_rate(self.rate)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+    def to_dict(self) -> dict:
+        return {"format": FORMAT, "rate": self.rate, "duration": self.duration, "slowdown": self.slowdown,
+                "t": self.t.tolist(), "q": self.q.tolist(), "qd": self.qd.tolist(), "qdd": self.qdd.tolist()}
+
+    def save(self, path: str) -> None:
+        """Write JSON (``.json``) or NumPy (``.npz``) with t, q, qd, qdd, rate; atomically."""
+        ext = os.path.splitext(os.fspath(path))[1].lower()
+        if ext == ".json":
+            with atomic_open(path, "w") as f:
+                json.dump(self.to_dict(), f, separators=(",", ":"))  # compact: thousands of samples
+        elif ext == ".npz":
+            with atomic_open(path, "wb") as f:
+                np.savez(f, t=self.t, q=self.q, qd=self.qd, qdd=self.qdd, rate=self.rate, slowdown=self.slowdown)
+        else:
+            raise ValueError(f"timed trajectory: cannot save to {path!r}; expected a .json or .npz path")
+
+    @classmethod
+    def load(cls, path: str) -> "TimedTrajectory":
+        ext = os.path.splitext(os.fspath(path))[1].lower()
+        if ext == ".json":
+            with open(path) as f:
+                d = json.load(f)
+            if d.get("format") != FORMAT:
+                raise ValueError(f"{path}: not a timed trajectory ({FORMAT}), format={d.get('format')!r}")
+        elif ext == ".npz":
+            with np.load(path) as z:
+                d = {k: z[k] for k in z.files}
+        else:
+            raise ValueError(f"timed trajectory: cannot load {path!r}; expected a .json or .npz path")
+        return cls(d["t"], d["q"], d["qd"], d["qdd"], float(d["rate"]), float(d.get("slowdown", 1.0)))
+
+    def resampled(self, rate: float) -> "TimedTrajectory":
+        """The same motion at another rate: cubic Hermite through (q, qd) and (qd, qdd), qdd linear."""
+        from scipy.interpolate import CubicHermiteSpline
+
+        rate = _check_rate(rate)
+        if len(self.t) < 2:
+            return TimedTrajectory(self.t, self.q, self.qd, self.qdd, rate, self.slowdown)
+        t = np.arange(int(math.ceil(self.duration * rate - 1e-9)) + 1) / rate
+        t[-1] = min(t[-1], self.duration)
+        qdd = np.column_stack([np.interp(t, self.t, a) for a in self.qdd.T])
+        return TimedTrajectory(t, CubicHermiteSpline(self.t, self.q, self.qd)(t),
+                               CubicHermiteSpline(self.t, self.qd, self.qdd)(t), qdd, rate, self.slowdown)
+
+
+def _check_rate(rate) -> float:
+    try:
+        value = float(rate)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if not (value > 0 and math.isfinite(value)):
+        raise ValueError(f"rate must be a positive number of Hz, got {rate!r}")
+    return value
+
+
+def _check_waypoints(waypoints) -> np.ndarray:
+    try:
+        Q = np.array(waypoints, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"waypoints: expected a (T, dof) array of numbers, got {type(waypoints).__name__}") from exc
+    if Q.ndim != 2 or Q.shape[0] < 1 or Q.shape[1] < 1:
+        raise ValueError(f"waypoints: expected shape (T, dof) with T >= 1, got {Q.shape}")
+    if not np.all(np.isfinite(Q)):
+        k, j = np.argwhere(~np.isfinite(Q))[0]
+        raise ValueError(f"waypoints: contains NaN or infinity (first at waypoint {k}, joint {j})")
+    return Q
+
+
+def _path(Q: np.ndarray, interpolation: Interpolation):
+    """The geometric path q(s) through Q, s evenly spaced on [0, 1], as toppra reads a path."""
+    from scipy.interpolate import CubicSpline, PchipInterpolator
+    from toppra.interpolator import AbstractGeometricPath
+
+    ss = np.linspace(0.0, 1.0, len(Q))
+    spline = PchipInterpolator(ss, Q) if interpolation is Interpolation.PCHIP else CubicSpline(ss, Q)
+    derivatives = (spline, spline.derivative(1), spline.derivative(2))
+
+    class _ScipyPath(AbstractGeometricPath):
+        def __call__(self, path_positions, order=0):
+            return derivatives[order](path_positions)
+
+        @property
+        def dof(self):
+            return Q.shape[1]
+
+        @property
+        def path_interval(self):
+            return np.array([0.0, 1.0])
+
+        @property
+        def waypoints(self):
+            return ss, Q
+
+    return _ScipyPath(), ss
+
+
+def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
+                      interpolation: Interpolation = Interpolation.PCHIP,
+                      grid_per_segment: int = 16) -> TimedTrajectory:
+    """Time-optimal rest-to-rest timing of ``waypoints`` (T, dof) under ``limits`` (default: the Panda's),
+    sampled at ``rate`` Hz (default 1 kHz, Franka's control rate); see the module doc.
+
+    ``grid_per_segment``: TOPP-RA grid points per waypoint interval (more: closer to time-optimal, slower).
+    """
+    import toppra.algorithm  # toppra imports matplotlib: loaded when a trajectory is timed
+    import toppra.constraint
+
+    Q = _check_waypoints(waypoints)
+    rate = _check_rate(rate)
+    if not isinstance(interpolation, Interpolation):
+        raise ValueError(f"interpolation: expected an Interpolation, got {interpolation!r}")
+    if grid_per_segment < 1:
+        raise ValueError(f"grid_per_segment must be >= 1, got {grid_per_segment}")
+    limits = panda_limits() if limits is None else limits
+    if len(limits.velocity) != Q.shape[1]:
+        raise ValueError(f"limits: expected {Q.shape[1]} joints (the waypoints' dof), got {len(limits.velocity)}")
+    keep = np.concatenate([[True], np.any(np.diff(Q, axis=0) != 0.0, axis=1)])  # a repeated waypoint adds no path
+    Q = Q[keep]
+    if len(Q) == 1:
+        zero = np.zeros_like(Q)
+        return TimedTrajectory(np.zeros(1), Q, zero, zero.copy(), rate)
+    path, ss = _path(Q, interpolation)
+    grid = np.concatenate([np.linspace(0.0, 1.0, (len(Q) - 1) * grid_per_segment + 1),
+                           ss[1:-1] - _KNOT_EPS, ss[1:-1] + _KNOT_EPS])
+    constraints = [toppra.constraint.JointVelocityConstraint(limits.velocity),
+                   toppra.constraint.JointAccelerationConstraint(limits.acceleration)]
+    solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=np.unique(grid),
+                                     parametrizer="ParametrizeConstAccel")
+    timing = solver.compute_trajectory(0.0, 0.0)
+    if timing is None:
+        raise TimingError(f"TOPP-RA found no time parameterization of {len(Q)} waypoints")
+    optimum = float(timing.duration)
+    # Limits hold at TOPP-RA's grid points; between them they can be exceeded by a little. Stretch time
+    # (qd / c, qdd / c^2) until every sample is within, with a whole number of samples at ``rate``.
+    scale = 1.0
+    for _ in range(5):
+        k = max(1, int(math.ceil(optimum * scale * rate - 1e-9)))
+        scale = k / (rate * optimum)
+        t = np.arange(k + 1) / rate
+        tau = np.clip(t / scale, 0.0, optimum)
+        q, qd, qdd = timing(tau), timing(tau, 1) / scale, timing(tau, 2) / scale ** 2
+        excess = max(np.max(np.abs(qd) / limits.velocity), math.sqrt(np.max(np.abs(qdd) / limits.acceleration)))
+        if excess <= 1.0:
+            break
+        scale *= excess * (1.0 + 1e-9)
+    else:
+        raise TimingError(f"could not bring the samples within the limits (excess {excess:.4f})")
+    qd[0], qd[-1] = 0.0, 0.0  # rest to rest (toppra's end velocity is zero to round-off)
+    q[0], q[-1] = Q[0], Q[-1]
+    return TimedTrajectory(t, q, qd, qdd, rate, scale)

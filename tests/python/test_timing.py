@@ -1,0 +1,213 @@
+"""Timed trajectories: samples within the limits, on the planned path, rest to rest, the closed-form
+time-optimal duration of a straight line, export round trips, and execution of a timed plan."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pickplan.core.panda import PANDA
+from pickplan.core.timing import (Interpolation, KinematicLimits, TimedTrajectory, panda_limits,
+                                  time_parameterize)
+
+RATE = 1000.0
+
+
+@pytest.fixture(scope="module")
+def demo_plan():
+    """The demo's scene (seed 1) planned by OMG with antipodal grasps, as ``make demo`` does."""
+    from pickplan.omg.planner import OMGPlanner, OMGSettings
+    from pickplan.sim import scenes
+
+    scene = scenes.generate_scene(1)
+    result = OMGPlanner(None, scene, OMGSettings(grasp_kind="antipodal")).plan()
+    assert result.success
+    return scene, result
+
+
+def random_paths(count=3, waypoints=12, seed=0):
+    """Seeded smooth-ish paths inside the Panda's joint range (random walks, fingers fixed open)."""
+    rng = np.random.default_rng(seed)
+    ready = np.array(PANDA.ready)
+    for _ in range(count):
+        steps = rng.normal(0.0, 0.15, size=(waypoints - 1, 9))
+        steps[:, 7:] = 0.0
+        yield ready + np.vstack([np.zeros(9), np.cumsum(steps, axis=0)])
+
+
+def check_within_limits(timed, limits):
+    assert np.all(np.abs(timed.qd) <= limits.velocity * (1 + 1e-9))
+    assert np.all(np.abs(timed.qdd) <= limits.acceleration * (1 + 1e-9))
+    # Independent of the reported qdd: the velocity samples change no faster than the limits allow.
+    dt = np.diff(timed.t)[:, None]
+    assert np.all(np.abs(np.diff(timed.qd, axis=0)) <= limits.acceleration * dt * (1 + 1e-6) + 1e-12)
+    # qd is the derivative of q: trapezoid rule, exact to a * dt^2 / 4 for |qdd| <= a.
+    trapezoid = dt * (timed.qd[1:] + timed.qd[:-1]) / 2
+    assert np.all(np.abs(np.diff(timed.q, axis=0) - trapezoid) <= limits.acceleration * dt ** 2 / 4 + 1e-9)
+
+
+def distance_to_polyline(points, Q):
+    A, d = Q[:-1], np.diff(Q, axis=0)
+    L2 = np.maximum((d * d).sum(1), 1e-300)
+    out = []
+    for p in points:
+        u = np.clip(((p - A) * d).sum(1) / L2, 0.0, 1.0)
+        out.append(np.min(np.linalg.norm(A + u[:, None] * d - p, axis=1)))
+    return np.array(out)
+
+
+def in_some_segment_box(points, Q, tol=1e-9):
+    lo = np.minimum(Q[:-1], Q[1:]) - tol
+    hi = np.maximum(Q[:-1], Q[1:]) + tol
+    return np.array([np.any(np.all((p >= lo) & (p <= hi), axis=1)) for p in points])
+
+
+def test_panda_limits_from_urdf_and_datasheet(panda):
+    limits = panda_limits(panda)
+    assert np.allclose(limits.velocity[:7], [2.175] * 4 + [2.61] * 3)  # the URDF agrees with the datasheet
+    assert np.allclose(limits.acceleration[:7], [15, 7.5, 10, 12.5, 15, 20, 20])
+    assert len(limits.velocity) == len(limits.acceleration) == panda.dof
+
+
+@pytest.mark.parametrize("interpolation", list(Interpolation))
+def test_planned_trajectory_timed_within_limits_from_rest_to_rest(demo_plan, interpolation):
+    _, result = demo_plan
+    timed = result.timed(rate=RATE, interpolation=interpolation)
+    limits = panda_limits()
+    check_within_limits(timed, limits)
+    assert np.allclose(np.diff(timed.t), 1.0 / RATE, rtol=0, atol=1e-12)  # exactly the chosen rate
+    assert np.all(timed.qd[0] == 0) and np.all(timed.qd[-1] == 0)
+    assert np.allclose(timed.q[0], result.trajectory[0]) and np.allclose(timed.q[-1], result.trajectory[-1])
+    # TOPP-RA is (close to) time-optimal: some sample is at a velocity or acceleration limit.
+    worst = max(np.max(np.abs(timed.qd) / limits.velocity), np.max(np.abs(timed.qdd) / limits.acceleration))
+    assert worst > 0.95
+    # Faster than the planner's nominal 0.1 s per waypoint, as the limits allow.
+    assert 0.3 < timed.duration < 0.1 * (len(result.trajectory) - 1)
+
+
+def test_planned_path_is_unchanged(demo_plan):
+    _, result = demo_plan
+    Q = result.trajectory
+    timed = result.timed(rate=RATE)
+    # PCHIP moves each joint monotonically between waypoints: every sample is in a segment's box ...
+    assert np.all(in_some_segment_box(timed.q, Q))
+    # ... close to the piecewise-linear path (corners are rounded by a few mrad at most) ...
+    assert distance_to_polyline(timed.q, Q).max() < 0.02
+    # ... and the waypoints are passed in their order, each within one sample step.
+    step = np.linalg.norm(np.diff(timed.q, axis=0), axis=1).max()
+    nearest = [int(np.argmin(np.linalg.norm(timed.q - w, axis=1))) for w in Q]
+    assert all(np.linalg.norm(timed.q[i] - w) <= step for i, w in zip(nearest, Q))
+    assert nearest == sorted(nearest)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_random_paths_within_limits(seed):
+    limits = panda_limits()
+    for Q in random_paths(seed=seed):
+        timed = time_parameterize(Q, 500.0, limits)
+        check_within_limits(timed, limits)
+        assert np.all(in_some_segment_box(timed.q, Q))
+        assert np.all(timed.qd[0] == 0) and np.all(timed.qd[-1] == 0)
+
+
+@pytest.mark.parametrize("delta, v, a", [
+    ((0.8, -0.3, 0.1), (2.0, 1.0, 1.0), (10.0, 4.0, 5.0)),    # reaches full speed: accelerate, coast, brake
+    ((0.05, 0.02, 0.0), (2.0, 2.0, 2.0), (5.0, 5.0, 5.0)),    # too short to reach it: bang-bang
+])
+def test_straight_line_matches_closed_form_time_optimum(delta, v, a):
+    """On a straight joint-space line q = q0 + s * delta the joints move together: the path speed is
+    limited by V = min v_j / |delta_j|, A = min a_j / |delta_j|, and the fastest rest-to-rest motion
+    over s in [0, 1] takes 1 / V + V / A if it reaches V (1 >= V^2 / A), else 2 sqrt(1 / A)."""
+    delta, v, a = (np.array(x, dtype=float) for x in (delta, v, a))
+    moving = np.abs(delta) > 0
+    V = np.min(v[moving] / np.abs(delta[moving]))
+    A = np.min(a[moving] / np.abs(delta[moving]))
+    optimum = 1.0 / V + V / A if 1.0 >= V ** 2 / A else 2.0 * math.sqrt(1.0 / A)
+    Q = np.array([np.zeros(3), delta])
+    timed = time_parameterize(Q, RATE, KinematicLimits(v, a), grid_per_segment=200)
+    assert timed.duration == pytest.approx(optimum, rel=0.02, abs=2.0 / RATE)
+    assert timed.duration >= optimum - 1.0 / RATE  # nothing beats the time optimum
+    assert distance_to_polyline(timed.q, Q).max() < 1e-12  # two waypoints: the path is the line
+
+
+def test_export_round_trips(tmp_path, demo_plan):
+    timed = demo_plan[1].timed(rate=250.0)
+    for name in ("timed.json", "timed.npz"):
+        timed.save(tmp_path / name)
+        back = TimedTrajectory.load(tmp_path / name)
+        for key in ("t", "q", "qd", "qdd"):
+            assert np.array_equal(getattr(back, key), getattr(timed, key)), (name, key)
+        assert back.rate == timed.rate and back.duration == timed.duration
+    data = json.loads((tmp_path / "timed.json").read_text())
+    assert data["format"] == "pickplan.timed_trajectory/1" and len(data["q"]) == len(timed.t)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["timed.json", "timed.npz"]  # no temporary files left
+
+
+def test_resampled_keeps_the_motion(demo_plan):
+    timed = demo_plan[1].timed(rate=RATE)
+    coarse = timed.resampled(240.0)
+    assert np.allclose(np.diff(coarse.t[:-1]), 1 / 240.0) and coarse.duration == pytest.approx(timed.duration)
+    idx = np.round(coarse.t * RATE).astype(int)
+    near = np.abs(coarse.t * RATE - idx) < 1e-6  # the times both sample
+    assert near.sum() > 10 and np.allclose(coarse.q[near], timed.q[idx[near]], atol=1e-9)
+
+
+def test_degenerate_paths():
+    q = np.array(PANDA.ready)
+    single = time_parameterize(q[None], RATE)
+    assert single.duration == 0.0 and np.array_equal(single.q[0], q)
+    repeated = time_parameterize(np.array([q, q, q + 0.1, q + 0.1]), RATE)  # repeated waypoints add no path
+    assert repeated.duration > 0 and np.allclose(repeated.q[-1], q + 0.1)
+
+
+def test_bad_input_is_a_clear_error(tmp_path):
+    q = np.array(PANDA.ready)
+    with pytest.raises(ValueError, match="NaN or infinity"):
+        time_parameterize(np.array([q, q * np.nan]))
+    with pytest.raises(ValueError, match=r"shape \(T, dof\)"):
+        time_parameterize(q)
+    with pytest.raises(ValueError, match="rate must be a positive"):
+        time_parameterize(np.array([q, q + 0.1]), rate=0.0)
+    with pytest.raises(ValueError, match="expected 9 joints"):
+        time_parameterize(np.array([q, q + 0.1]), limits=KinematicLimits(np.ones(7), np.ones(7)))
+    with pytest.raises(ValueError, match="positive finite"):
+        KinematicLimits(np.ones(3), -np.ones(3))
+    with pytest.raises(ValueError, match="Interpolation"):
+        time_parameterize(np.array([q, q + 0.1]), interpolation="pchip")
+    timed = time_parameterize(np.array([q, q + 0.1]), RATE)
+    with pytest.raises(ValueError, match=".json or .npz"):
+        timed.save(tmp_path / "timed.csv")
+    (tmp_path / "other.json").write_text('{"format": "something else"}')
+    with pytest.raises(ValueError, match="not a timed trajectory"):
+        TimedTrajectory.load(tmp_path / "other.json")
+
+
+def test_executing_the_timed_plan_lifts_on_its_schedule(demo_plan):
+    """The demo scene lifts with the waypoints (the existing behaviour) and with the timed trajectory,
+    which PyBullet follows at its own times: the simulated time is the timed duration plus the fixed
+    settle, close, lift and hold phases."""
+    from pickplan.sim.execution import ExecutionSettings, execute_plan
+
+    scene, result = demo_plan
+    timed = result.timed(rate=RATE)  # 1 kHz: resampled to the 240 Hz control rate by execute_plan
+    s = ExecutionSettings()
+    by_waypoints = execute_plan(scene, result.trajectory, s)
+    by_time = execute_plan(scene, timed, s)
+    assert by_waypoints.success
+    assert by_time.success and by_time.status == "lifted" and by_time.target_lift > 0.8 * s.lift_height
+    assert not by_time.collided and by_time.tracking_error < 0.05
+    fixed = s.start_settle + s.approach_settle + s.close_duration + s.lift_duration + s.hold_duration
+    assert by_time.sim_time == pytest.approx(fixed + timed.duration, abs=3 * s.time_step)
+    assert by_time.sim_time < by_waypoints.sim_time  # the limits allow a faster approach than 0.1 s per waypoint
+
+
+def test_demo_table_reports_duration_and_a_run_that_did_not_happen(demo_plan):
+    from pickplan.eval.demo import metrics_table
+
+    _, result = demo_plan
+    timed = result.timed(rate=RATE)
+    rows = {line.split("|")[1].strip(): line.split("|")[2].strip() for line in
+            metrics_table(result, None, timed).splitlines() if line.startswith("| ")}
+    assert rows["Execution (target lifted)"] == "not run"
+    duration = rows["Trajectory duration (s, timed within the Panda's velocity and acceleration limits)"]
+    assert float(duration) == pytest.approx(timed.duration, abs=1e-3)
