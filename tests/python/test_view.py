@@ -124,7 +124,9 @@ def test_view_draws_the_scene_the_goal_set_and_both_grasps(planned):
         assert f"/meshcat/pickplan/objects/{o.name}" in drawn
     assert "/meshcat/pickplan/table" in drawn
     hands = [p for p in drawn if p.startswith("/meshcat/pickplan/goal_set/")]
-    assert len(hands) == min(2, len(plan["goal_set"]))
+    others = [g for g in plan["goal_set"] if g != plan["chosen_goal"]]  # the chosen one has its own colour
+    assert len(others) == len(plan["goal_set"]) - 1
+    assert len(hands) == min(2, len(others))
     assert "/meshcat/pickplan/chosen_grasp" in drawn
     assert ("/meshcat/pickplan/refined_grasp" in drawn) == result.refined
     # The object sits where the scene puts it.
@@ -225,3 +227,10 @@ def test_chromium_renders_the_robot_and_the_scene(planned, tmp_path):
     robot_pixels = canvas[changed]
     greyish = (robot_pixels.max(axis=1) - robot_pixels.min(axis=1) < 40) & (robot_pixels.min(axis=1) > 120)
     assert greyish.mean() > 0.5
+    # At the end of the motion (page#t=...) the robot stands elsewhere: the animation drives it.
+    end = _pixels(screenshot(str(tmp_path / "full.html"), str(tmp_path / "end.png"), moment=view.duration))
+    moved = np.abs(end - full).sum(axis=2)[: h - 140, : w - 260] > 30
+    assert moved.mean() > 0.01
+    robot_at_end = end[: h - 140, : w - 260][np.abs(end - bare).sum(axis=2)[: h - 140, : w - 260] > 30]
+    light = (robot_at_end.max(axis=1) - robot_at_end.min(axis=1) < 40) & (robot_at_end.min(axis=1) > 120)
+    assert len(robot_at_end) > 0.01 * changed.size and light.mean() > 0.4

@@ -25,7 +25,7 @@ from pickplan.sim.scenes import Scene
 # Colours (0xRRGGBB): what a person tells apart at a glance.
 TABLE_COLOR = 0x9C7A54
 TARGET_COLOR = 0xF2C230
-OBJECT_COLORS = (0x4C78A8, 0x54A24B, 0xB279A2, 0x72B7B2, 0x9D755D, 0xE45756, 0xBAB0AC)
+OBJECT_COLORS = (0x4C78A8, 0xB279A2, 0x72B7B2, 0x7F7F7F, 0xD37295, 0x3B4CC0, 0x6B4C9A)  # none like a marker colour
 ROBOT_COLOR, HAND_COLOR = 0xE8E8E8, 0x505050
 GOAL_COLOR, CHOSEN_COLOR, REFINED_COLOR = 0x6FA8DC, 0xFF7F0E, 0x2CA02C
 COLLISION_COLOR = (1.0, 0.0, 0.0)
@@ -39,7 +39,7 @@ class ViewSettings:
     seconds_per_waypoint: float = 0.15  # plan.json has no timing: a steady pace through the waypoints
     substeps: int = 4                   # joint-space samples per waypoint (three.js interpolates poses linearly)
     max_goal_hands: int = 40            # goal-set hands drawn; larger sets are thinned evenly
-    goal_opacity: float = 0.35
+    goal_opacity: float = 0.25
     collision_point_size: float = 0.012  # m
 
 
@@ -143,7 +143,11 @@ def _draw_scene(vis: meshcat.Visualizer, scene: Scene) -> None:
 
 def _draw_grasps(vis: meshcat.Visualizer, drawing: _RobotDrawing, plan: dict, settings: ViewSettings) -> None:
     dof = drawing.robot.dof
-    goals = _thin(_configurations(plan.get("goal_set"), dof, "goal_set"), settings.max_goal_hands)
+    goals = _configurations(plan.get("goal_set"), dof, "goal_set")
+    chosen = _configurations(plan.get("chosen_goal"), dof, "chosen_goal")
+    if len(chosen):  # drawn apart below, in its own colour
+        goals = goals[~np.all(goals == chosen[0], axis=1)]
+    goals = _thin(goals, settings.max_goal_hands)
     for i, q in enumerate(goals):
         vis["goal_set"][f"goal_{i:03d}"].set_object(_mesh_geometry(drawing.hand_mesh(q)),
                                                     _material(GOAL_COLOR, settings.goal_opacity))
@@ -208,7 +212,9 @@ def build_view(scene: Scene, plan: dict, settings: ViewSettings = ViewSettings()
     _draw_grasps(vis, drawing, plan, settings)
     animation, duration = _draw_robot(vis, drawing, trajectory, settings)
     _set_camera(root, scene)
-    root.set_animation(animation, play=True, repetitions=1)
+    # Not played on opening: a playing animation redraws every frame, which a software renderer
+    # (a headless browser, a remote desktop) cannot keep up with; play and the time slider are in view.
+    root.set_animation(animation, play=False, repetitions=1)
     return PlanView(recorder.commands, duration, title)
 
 

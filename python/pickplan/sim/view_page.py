@@ -35,7 +35,7 @@ body {{ margin: 0; }}
 </style></head>
 <body>
 <div id="meshcat-pane"></div>
-<div id="legend"><b>{title}</b><br>{legend}<br>time slider: Animations &gt; default &gt; time ({duration:.1f} s)</div>
+<div id="legend"><b>{title}</b><br>{legend}<br>time slider: Animations &gt; default &gt; time ({duration:.1f} s); page#t=SECONDS opens at a moment</div>
 <script>
 {viewer}
 </script>
@@ -49,6 +49,15 @@ for (const encoded of pickplanCommands) {{
   viewer.handle_command_bytearray(bytes);
 }}
 viewer.gui.open();  // the time slider in view from the start
+// Played and paused at once: the actions are live, so the time slider moves the robot, but nothing
+// redraws until asked. A link ending in #t=SECONDS opens the plan at that moment.
+viewer.animator.play();
+viewer.animator.pause();
+const moment = /[#&]t=([0-9.]+)/.exec(location.hash);
+if (moment) {{
+  viewer.animator.seek(parseFloat(moment[1]));
+  viewer.animator.display_progress(parseFloat(moment[1]));
+}}
 </script>
 </body>
 </html>
@@ -109,10 +118,11 @@ def find_chromium() -> Optional[str]:
     return None
 
 
-def screenshot(page: str, png: str, width: int = 1200, height: int = 800, wait_ms: int = 8000,
-               attempts: int = 2) -> str:
-    """Render the page ``page`` in headless Chromium (software WebGL, all network off) to ``png``.
-    ``wait_ms`` of virtual time lets the canvas draw and the animation run. Returns ``png``'s path."""
+def screenshot(page: str, png: str, width: int = 1200, height: int = 800, wait_ms: int = 5000,
+               attempts: int = 2, moment: Optional[float] = None) -> str:
+    """Render the page ``page`` in headless Chromium (software WebGL, all network off) to ``png``,
+    with the robot at ``moment`` seconds into the motion (default: the start). ``wait_ms`` of virtual
+    time lets the canvas draw. Returns ``png``'s path."""
     browser = find_chromium()
     if browser is None:
         raise FileNotFoundError("chromium not found (Debian package `chromium`): cannot take a screenshot")
@@ -127,7 +137,7 @@ def screenshot(page: str, png: str, width: int = 1200, height: int = 800, wait_m
                             "--enable-unsafe-swiftshader", f"--user-data-dir={profile}",
                             "--host-resolver-rules=MAP * ~NOTFOUND", "--no-first-run",
                             f"--window-size={width},{height}", f"--virtual-time-budget={wait_ms}",
-                            f"--screenshot={png}", f"file://{page}"],
+                            f"--screenshot={png}", f"file://{page}" + (f"#t={moment}" if moment is not None else "")],
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=180, check=False)
         if os.path.isfile(png) and os.path.getsize(png) > 0:
             return png
