@@ -8,7 +8,6 @@ from html.parser import HTMLParser
 
 import numpy as np
 import pytest
-import umsgpack
 
 from pickplan.cli.main import main
 from pickplan.core.io import write_json
@@ -18,7 +17,7 @@ from pickplan.omg.plan_file import collision_points, plan_record
 from pickplan.omg.world import World
 from pickplan.sim import scenes
 from pickplan.sim.view import PlanView, ViewSettings, build_view, read_plan, view_folder
-from pickplan.sim.view_page import find_chromium, page_html, screenshot, serve, write_html
+from pickplan.sim.view_page import find_chromium, screenshot, serve, write_html
 
 SETTINGS = omg.OMGSettings(grasp_kind="antipodal")
 

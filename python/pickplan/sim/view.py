@@ -1,5 +1,5 @@
 """A 3D view of a plan with meshcat (three.js in the browser): the table and the objects of the scene,
-the robot moving along the trajectory (a time slider under Open Controls > Animations), the goal set
+the robot moving along the trajectory (a time slider: Animations > default > time), the goal set
 as hand poses, the chosen and the refined grasp, and the body points that penetrate an obstacle.
 
 ``build_view`` turns a scene and a ``plan.json`` record into meshcat commands; ``sim.view_page``
@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass
-from typing import List, Optional
+from typing import List
 
 import meshcat
 import meshcat.geometry as mg
