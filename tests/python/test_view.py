@@ -233,3 +233,15 @@ def test_chromium_renders_the_robot_and_the_scene(planned, tmp_path):
     robot_at_end = end[: h - 140, : w - 260][np.abs(end - bare).sum(axis=2)[: h - 140, : w - 260] > 30]
     light = (robot_at_end.max(axis=1) - robot_at_end.min(axis=1) < 40) & (robot_at_end.min(axis=1) > 120)
     assert len(robot_at_end) > 0.01 * changed.size and light.mean() > 0.4
+
+
+def test_plan_command_writes_a_folder_the_view_reads(tmp_path, capsys):
+    scene_file = tmp_path / "scene.json"
+    scenes.generate_scene(1).save(str(scene_file))
+    out = tmp_path / "plan"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["plan", "--scene", str(scene_file), "--grasps", "antipodal", "--out", str(out)]) == 0
+    assert (out / "scene.json").read_text() == scene_file.read_text()
+    assert main(["view", str(out), "--html", str(out / "view.html")]) == 0
+    assert "wrote" in capsys.readouterr().out and (out / "view.html").stat().st_size > 500_000
