@@ -213,8 +213,10 @@ def test_chromium_renders_the_robot_and_the_scene(planned, tmp_path):
     robot_paths = ("/meshcat/pickplan/robot/",)
     without_robot = PlanView([c for c in view.commands if getattr(c, "path", None) is not None
                               and not c.path.lower().startswith(robot_paths)], view.duration, view.title)
-    full = _pixels(screenshot(write_html(view, str(tmp_path / "full.html")), str(tmp_path / "full.png")))
-    bare = _pixels(screenshot(write_html(without_robot, str(tmp_path / "bare.html")), str(tmp_path / "bare.png")))
+    size = dict(width=900, height=640)  # software WebGL: fewer pixels, less time
+    full = _pixels(screenshot(write_html(view, str(tmp_path / "full.html")), str(tmp_path / "full.png"), **size))
+    bare = _pixels(screenshot(write_html(without_robot, str(tmp_path / "bare.html")), str(tmp_path / "bare.png"),
+                              **size))
     h, w, _ = full.shape
     canvas = full[: h - 140, : w - 260]  # leave out the legend and the controls panel
     assert len(np.unique(canvas.reshape(-1, 3), axis=0)) > 2000  # shaded meshes, not an empty canvas
@@ -227,7 +229,7 @@ def test_chromium_renders_the_robot_and_the_scene(planned, tmp_path):
     greyish = (robot_pixels.max(axis=1) - robot_pixels.min(axis=1) < 40) & (robot_pixels.min(axis=1) > 120)
     assert greyish.mean() > 0.5
     # At the end of the motion (page#t=...) the robot stands elsewhere: the animation drives it.
-    end = _pixels(screenshot(str(tmp_path / "full.html"), str(tmp_path / "end.png"), moment=view.duration))
+    end = _pixels(screenshot(str(tmp_path / "full.html"), str(tmp_path / "end.png"), moment=view.duration, **size))
     moved = np.abs(end - full).sum(axis=2)[: h - 140, : w - 260] > 30
     assert moved.mean() > 0.01
     robot_at_end = end[: h - 140, : w - 260][np.abs(end - bare).sum(axis=2)[: h - 140, : w - 260] > 30]

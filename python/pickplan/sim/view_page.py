@@ -7,6 +7,7 @@ import base64
 import html
 import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -119,7 +120,7 @@ def find_chromium() -> Optional[str]:
 
 
 def screenshot(page: str, png: str, width: int = 1200, height: int = 800, wait_ms: int = 5000,
-               attempts: int = 2, moment: Optional[float] = None) -> str:
+               attempts: int = 3, moment: Optional[float] = None, timeout: float = 120.0) -> str:
     """Render the page ``page`` in headless Chromium (software WebGL, all network off) to ``png``,
     with the robot at ``moment`` seconds into the motion (default: the start). ``wait_ms`` of virtual
     time lets the canvas draw. Returns ``png``'s path."""
@@ -129,16 +130,25 @@ def screenshot(page: str, png: str, width: int = 1200, height: int = 800, wait_m
     page, png = os.path.abspath(page), os.path.abspath(png)
     if not os.path.isfile(page):
         raise FileNotFoundError(f"page not found: {page}")
-    for _ in range(attempts):  # a first start in a fresh profile now and then exits without a picture
+    url = f"file://{page}" + (f"#t={moment}" if moment is not None else "")
+    # On a loaded machine the software renderer now and then stalls: such a start is stopped (its
+    # whole process group) and tried again.
+    for _ in range(attempts):
         with tempfile.TemporaryDirectory(prefix="pickplan-chromium-") as profile:
             if os.path.exists(png):
                 os.unlink(png)
-            subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
-                            "--enable-unsafe-swiftshader", f"--user-data-dir={profile}",
-                            "--host-resolver-rules=MAP * ~NOTFOUND", "--no-first-run",
-                            f"--window-size={width},{height}", f"--virtual-time-budget={wait_ms}",
-                            f"--screenshot={png}", f"file://{page}" + (f"#t={moment}" if moment is not None else "")],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=180, check=False)
+            proc = subprocess.Popen([browser, "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
+                                     "--enable-unsafe-swiftshader", f"--user-data-dir={profile}",
+                                     "--host-resolver-rules=MAP * ~NOTFOUND", "--no-first-run",
+                                     f"--window-size={width},{height}", f"--virtual-time-budget={wait_ms}",
+                                     f"--screenshot={png}", url],
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+            try:
+                proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+                continue
         if os.path.isfile(png) and os.path.getsize(png) > 0:
             return png
-    raise RuntimeError(f"chromium wrote no screenshot of {page}")
+    raise RuntimeError(f"chromium wrote no screenshot of {url} in {attempts} attempts")
