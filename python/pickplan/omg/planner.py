@@ -66,6 +66,8 @@ class PlanResult:
     timings: dict                  # seconds: prepare (world, grasps; not planning), goal_set, chomp, costs,
                                    # selection, isf, metrics, total (goal set + planning)
     goal_reasons: dict = field(default_factory=dict)
+    goal_set: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (G, dof) the IK goal set
+    goal_source: int = -1          # row of goal_set the final goal came from (refined or not; -1: none)
 
     @property
     def success(self) -> bool:
@@ -236,4 +238,5 @@ class OMGPlanner:
         status = "success" if metrics["success"] else ("in_collision" if not metrics["collision_free"] else "not_smooth")
         hand = world.robot.link_pose(xi[-1], world.robot.hand_link)
         return PlanResult(status, np.vstack([q0, xi]), xi[-1].copy(), int(origin[g]), hand, g in refined_copy.values(),
-                          metrics, grasp_cost, len(goals), iterations, history, timings, gs.reason_counts())
+                          metrics, grasp_cost, len(goals), iterations, history, timings, gs.reason_counts(),
+                          goal_set=gs.goals.copy(), goal_source=int(origin_goal[g]))
