@@ -68,12 +68,14 @@ def build_parser() -> argparse.ArgumentParser:
     from pickplan.cli.pickup import add_pickup_commands
     from pickplan.cli.bench import add_bench_commands
     from pickplan.cli.robots import add_robot_commands
+    from pickplan.cli.observe import add_observe_commands
 
     add_scene_commands(sub)
     add_bench_commands(sub)
     add_metamodel_commands(sub)
     add_pickup_commands(sub)
     add_robot_commands(sub)
+    add_observe_commands(sub)
     return parser
 
 
