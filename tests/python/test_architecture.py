@@ -9,9 +9,9 @@ import pytest
 import pickplan
 
 PACKAGE_DIR = os.path.dirname(pickplan.__file__)
-# rank of each layer; a module imports only from its own layer or a lower rank. omg and pickup are two
-# applications side by side: neither imports the other.
-LAYERS = {"core": 0, "sim": 1, "omg": 2, "pickup": 2, "eval": 3, "cli": 4}
+# rank of each layer; a module imports only from its own layer or a lower rank. Layers of one rank sit
+# side by side and neither imports the other: sim and perception; omg and pickup (two applications).
+LAYERS = {"core": 0, "sim": 1, "perception": 1, "omg": 2, "pickup": 2, "eval": 3, "cli": 4}
 
 
 def _modules():

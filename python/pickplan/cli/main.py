@@ -71,6 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     from pickplan.cli.bench import add_bench_commands
     from pickplan.cli.robots import add_robot_commands
     from pickplan.cli.view import add_view_commands
+    from pickplan.cli.observe import add_observe_commands
 
     add_scene_commands(sub)
     add_bench_commands(sub)
@@ -78,6 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_pickup_commands(sub)
     add_robot_commands(sub)
     add_view_commands(sub)
+    add_observe_commands(sub)
     return parser
 
 

@@ -1,0 +1,90 @@
+// Bindings of the depth-image world model (pickplan/perception/depth_field.hpp).
+#include "../common.hpp"
+#include "pickplan/perception/depth_field.hpp"
+
+namespace pickplan::bind {
+
+namespace {
+
+using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+using ByteArray = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
+
+DepthView view_arg(const FloatArray& depth, const Array& K, const Array& pose, const py::object& target, std::size_t k) {
+  const std::string w = "view " + std::to_string(k);
+  require_shape((w + " depth").c_str(), depth, {-1, -1}, "(H, W)");
+  require_shape((w + " K").c_str(), K, {3, 3}, "(3, 3)");
+  DepthView v;
+  v.depth = Eigen::Map<const DepthImage>(depth.data(), depth.shape(0), depth.shape(1));
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) v.K(r, c) = K.at(r, c);
+  v.camera_pose = Transform::from_matrix(matrix4(pose, (w + " camera pose").c_str()));
+  if (!target.is_none()) {
+    const ByteArray mask = target.cast<ByteArray>();
+    require_shape((w + " target mask").c_str(), mask, {depth.shape(0), depth.shape(1)},
+                  ("(" + std::to_string(depth.shape(0)) + ", " + std::to_string(depth.shape(1)) + ")").c_str());
+    v.target = Eigen::Map<const PixelMask>(mask.data(), mask.shape(0), mask.shape(1));
+  }
+  return v;
+}
+
+}  // namespace
+
+void init_perception(py::module_& m) {
+  py::class_<DepthFieldSettings>(m, "DepthFieldSettings")
+      .def(py::init<>())
+      .def_readwrite("lo", &DepthFieldSettings::lo)
+      .def_readwrite("hi", &DepthFieldSettings::hi)
+      .def_readwrite("resolution", &DepthFieldSettings::resolution)
+      .def_readwrite("surface_margin", &DepthFieldSettings::surface_margin)
+      .def_readwrite("has_plane", &DepthFieldSettings::has_plane)
+      .def_readwrite("plane_normal", &DepthFieldSettings::plane_normal)
+      .def_readwrite("plane_offset", &DepthFieldSettings::plane_offset)
+      .def_readwrite("plane_margin", &DepthFieldSettings::plane_margin)
+      .def_readwrite("target_stride", &DepthFieldSettings::target_stride);
+
+  m.def(
+      "build_depth_field",
+      [](const std::vector<FloatArray>& depths, const std::vector<Array>& Ks, const std::vector<Array>& poses,
+         const std::vector<py::object>& targets, const DepthFieldSettings& settings) {
+        if (Ks.size() != depths.size() || poses.size() != depths.size() || targets.size() != depths.size())
+          throw std::invalid_argument("depth field: expected as many intrinsics, poses and target masks as depth "
+                                      "images (" + std::to_string(depths.size()) + "), got " + std::to_string(Ks.size()) +
+                                      ", " + std::to_string(poses.size()) + ", " + std::to_string(targets.size()));
+        std::vector<DepthView> views;
+        for (std::size_t k = 0; k < depths.size(); ++k) views.push_back(view_arg(depths[k], Ks[k], poses[k], targets[k], k));
+        DepthField f;
+        {
+          py::gil_scoped_release release;
+          f = build_depth_field(views, settings);
+        }
+        py::dict out;
+        out["obstacles"] = std::const_pointer_cast<SdfGrid>(f.obstacles);
+        out["target_points"] = f.target_points;
+        out["target_normals"] = f.target_normals;
+        out["occupied"] = f.occupied;
+        out["target"] = f.target;
+        out["free"] = f.free;
+        return out;
+      },
+      py::arg("depths"), py::arg("K"), py::arg("camera_poses"), py::arg("target_masks"), py::arg("settings"),
+      "Fuse depth views into a signed distance grid of the obstacles and the target's observed points.");
+
+  m.def(
+      "squared_distance_transform",
+      [](const ByteArray& mask) {
+        if (mask.ndim() != 3) throw std::invalid_argument("mask: expected a 3-D array (nz, ny, nx), got " + shape_str(mask));
+        std::vector<std::uint8_t> v(mask.data(), mask.data() + mask.size());
+        const Eigen::Vector3i dims(mask.shape(2), mask.shape(1), mask.shape(0));
+        std::vector<float> d;
+        {
+          py::gil_scoped_release release;
+          d = squared_distance_transform(v, dims);
+        }
+        py::array_t<float> out({mask.shape(0), mask.shape(1), mask.shape(2)});
+        std::copy(d.begin(), d.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("mask"), "Exact squared Euclidean distance (voxels) to the nearest nonzero voxel.");
+}
+
+}  // namespace pickplan::bind

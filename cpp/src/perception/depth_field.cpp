@@ -1,0 +1,199 @@
+#include "pickplan/perception/depth_field.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace pickplan {
+
+namespace {
+
+enum class VoxelState : std::uint8_t { kNone = 0, kOccupied = 1, kTarget = 2, kFree = 3 };  // by priority
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument(what);
+}
+
+void validate_view(const DepthView& v, std::size_t k) {
+  const std::string w = "depth view " + std::to_string(k) + ": ";
+  require(v.depth.rows() > 1 && v.depth.cols() > 1, w + "expected an H x W depth image, got " +
+                                                        std::to_string(v.depth.rows()) + " x " + std::to_string(v.depth.cols()));
+  require(v.target.size() == 0 || (v.target.rows() == v.depth.rows() && v.target.cols() == v.depth.cols()),
+          w + "target mask is " + std::to_string(v.target.rows()) + " x " + std::to_string(v.target.cols()) +
+              ", the depth image " + std::to_string(v.depth.rows()) + " x " + std::to_string(v.depth.cols()));
+  require(v.K.allFinite() && v.K(0, 0) > 0 && v.K(1, 1) > 0 && v.K(2, 2) == 1.0 && v.K(2, 0) == 0 && v.K(2, 1) == 0,
+          w + "intrinsics must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0");
+  const Eigen::Matrix3d& R = v.camera_pose.R;
+  require(v.camera_pose.p.allFinite() && R.allFinite() &&
+              (R * R.transpose() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-6 && R.determinant() > 0,
+          w + "camera pose is not a rigid transform");
+}
+
+// One 1-D pass of the squared distance transform: the lower envelope of the parabolas
+// (q - p)^2 + f[p] (Felzenszwalb and Huttenlocher, 2012). v: parabola apexes, z: envelope breaks.
+void dt_1d(const float* f, float* d, int n, int* v, float* z) {
+  auto cross = [&](int q, int p) {
+    return ((f[q] + float(q) * float(q)) - (f[p] + float(p) * float(p))) / (2.0f * float(q - p));
+  };
+  int k = 0;
+  v[0] = 0;
+  z[0] = -std::numeric_limits<float>::infinity();
+  z[1] = std::numeric_limits<float>::infinity();
+  for (int q = 1; q < n; ++q) {
+    float s = cross(q, v[k]);
+    while (s <= z[k]) {  // z[0] = -inf ends the loop at k = 0
+      --k;
+      s = cross(q, v[k]);
+    }
+    ++k;
+    v[k] = q;
+    z[k] = s;
+    z[k + 1] = std::numeric_limits<float>::infinity();
+  }
+  k = 0;
+  for (int q = 0; q < n; ++q) {
+    while (z[k + 1] < float(q)) ++k;
+    const float dq = float(q - v[k]);
+    d[q] = dq * dq + f[v[k]];
+  }
+}
+
+}  // namespace
+
+void DepthFieldSettings::validate() const {
+  require(lo.allFinite() && hi.allFinite() && (hi - lo).minCoeff() > 0, "depth field: workspace box needs lo < hi");
+  require(std::isfinite(resolution) && resolution > 1e-4, "depth field: resolution must be > 0.1 mm");
+  const Eigen::Vector3d n = (hi - lo) / resolution;
+  require(n.prod() < 2.0e8, "depth field: more than 2e8 voxels; coarsen the resolution or shrink the box");
+  require(std::isfinite(surface_margin) && surface_margin >= 0, "depth field: surface_margin must be >= 0");
+  require(!has_plane || (plane_normal.allFinite() && std::abs(plane_normal.norm() - 1) < 1e-6 && std::isfinite(plane_offset)),
+          "depth field: the support plane needs a unit normal and a finite offset");
+  require(target_stride >= 1, "depth field: target_stride must be >= 1");
+}
+
+std::vector<float> squared_distance_transform(const std::vector<std::uint8_t>& mask, const Eigen::Vector3i& dims) {
+  const long total = static_cast<long>(dims.prod());
+  require(dims.minCoeff() >= 1 && static_cast<long>(mask.size()) == total,
+          "distance transform: expected " + std::to_string(total) + " mask values, got " + std::to_string(mask.size()));
+  const float big = 1e20f;
+  std::vector<float> g(total);
+  for (long i = 0; i < total; ++i) g[i] = mask[i] ? 0.0f : big;
+  const int n_max = dims.maxCoeff();
+  std::vector<float> f(n_max), d(n_max), z(n_max + 1);
+  std::vector<int> v(n_max);
+  const long stride[3] = {1, dims.x(), static_cast<long>(dims.x()) * dims.y()};
+  for (int axis = 0; axis < 3; ++axis) {
+    const int n = dims[axis];
+    const int a = (axis + 1) % 3, b = (axis + 2) % 3;
+    for (int i = 0; i < dims[a]; ++i)
+      for (int j = 0; j < dims[b]; ++j) {
+        const long base = i * stride[a] + j * stride[b];
+        for (int q = 0; q < n; ++q) f[q] = g[base + q * stride[axis]];
+        dt_1d(f.data(), d.data(), n, v.data(), z.data());
+        for (int q = 0; q < n; ++q) g[base + q * stride[axis]] = std::min(d[q], big);
+      }
+  }
+  return g;
+}
+
+DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFieldSettings& s) {
+  s.validate();
+  require(!views.empty(), "depth field: no depth views");
+  for (std::size_t k = 0; k < views.size(); ++k) validate_view(views[k], k);
+  const double res = s.resolution;
+  const Eigen::Vector3i dims = (((s.hi - s.lo) / res).array().floor() + 1).cast<int>();
+  const long total = static_cast<long>(dims.prod());
+  std::vector<std::uint8_t> state(total, static_cast<std::uint8_t>(VoxelState::kNone));
+
+  for (const DepthView& view : views) {
+    const Eigen::Matrix3d Rt = view.camera_pose.R.transpose();
+    const Eigen::Vector3d t = view.camera_pose.p;
+    const double fx = view.K(0, 0), fy = view.K(1, 1), cx = view.K(0, 2), cy = view.K(1, 2), sk = view.K(0, 1);
+    const long H = view.depth.rows(), W = view.depth.cols();
+    const bool has_target = view.target.size() > 0;
+    for (int kz = 0; kz < dims.z(); ++kz)
+      for (int ky = 0; ky < dims.y(); ++ky) {
+        const long row_base = (static_cast<long>(kz) * dims.y() + ky) * dims.x();
+        for (int kx = 0; kx < dims.x(); ++kx) {
+          const Eigen::Vector3d x = s.lo + res * Eigen::Vector3d(kx, ky, kz);
+          const Eigen::Vector3d p = Rt * (x - t);
+          if (p.z() <= 1e-6) continue;
+          const double u = fx * p.x() / p.z() + sk * p.y() / p.z() + cx, v = fy * p.y() / p.z() + cy;
+          if (!(u >= 0 && v >= 0 && u < W && v < H)) continue;
+          const long col = static_cast<long>(u), row = static_cast<long>(v);
+          const float d = view.depth(row, col);
+          if (!(std::isfinite(d) && d > 0)) continue;
+          VoxelState c;
+          if (p.z() < d - s.surface_margin) c = VoxelState::kFree;
+          else if (has_target && view.target(row, col)) c = VoxelState::kTarget;
+          else c = VoxelState::kOccupied;
+          std::uint8_t& st = state[row_base + kx];
+          st = std::max(st, static_cast<std::uint8_t>(c));
+        }
+      }
+  }
+
+  DepthField out;
+  std::vector<std::uint8_t> occupied(total), outside(total);
+  for (long i = 0; i < total; ++i) {
+    const long kx = i % dims.x(), ky = (i / dims.x()) % dims.y(), kz = i / (static_cast<long>(dims.x()) * dims.y());
+    const Eigen::Vector3d x = s.lo + res * Eigen::Vector3d(kx, ky, kz);
+    const bool table = s.has_plane && s.plane_normal.dot(x) - s.plane_offset < s.plane_margin;
+    const auto st = static_cast<VoxelState>(state[i]);
+    occupied[i] = !table && st == VoxelState::kOccupied;
+    outside[i] = !occupied[i];
+    out.occupied += occupied[i];
+    out.target += st == VoxelState::kTarget;
+    out.free += st == VoxelState::kFree;
+  }
+  // Node distances: to the nearest occupied node minus half a voxel outside, minus the distance to
+  // the nearest free node plus half a voxel inside (the surface lies between the two node sets).
+  const std::vector<float> to_occupied = squared_distance_transform(occupied, dims);
+  const std::vector<float> to_free = squared_distance_transform(outside, dims);
+  const float half = static_cast<float>(0.5 * res), cap = 1.0f;
+  std::vector<float> values(total);
+  for (long i = 0; i < total; ++i) {
+    values[i] = occupied[i] ? -(std::sqrt(to_free[i]) * float(res) - half)
+                            : std::min(std::sqrt(to_occupied[i]) * float(res) - half, cap);
+  }
+  out.obstacles = std::make_shared<SdfGrid>(SdfGrid::from_values(s.lo, res, dims, std::move(values)));
+
+  // The target's observed surface: back-projected target pixels, normals from neighbouring pixels.
+  std::vector<Eigen::Vector3d> pts, nrm;
+  for (const DepthView& view : views) {
+    if (view.target.size() == 0) continue;
+    const double fx = view.K(0, 0), fy = view.K(1, 1), cx = view.K(0, 2), cy = view.K(1, 2);
+    const long H = view.depth.rows(), W = view.depth.cols();
+    auto point = [&](long r, long c, Eigen::Vector3d* w) {
+      const float d = view.depth(r, c);
+      if (!(std::isfinite(d) && d > 0)) return false;
+      const double y = (r + 0.5 - cy) / fy * d, x = (c + 0.5 - cx) / fx * d;
+      *w = view.camera_pose.R * Eigen::Vector3d(x, y, d) + view.camera_pose.p;
+      return true;
+    };
+    for (long r = 0; r + 1 < H; r += s.target_stride)
+      for (long c = 0; c + 1 < W; c += s.target_stride) {
+        if (!view.target(r, c)) continue;
+        Eigen::Vector3d p, pr, pd;
+        if (!point(r, c, &p) || !point(r, c + 1, &pr) || !point(r + 1, c, &pd)) continue;
+        if ((pr - p).norm() > 4 * res || (pd - p).norm() > 4 * res) continue;  // a depth edge, no normal
+        Eigen::Vector3d n = (pr - p).cross(pd - p);
+        if (n.norm() < 1e-12) continue;
+        n.normalize();
+        if (n.dot(view.camera_pose.p - p) < 0) n = -n;  // towards the camera: outward from the object
+        pts.push_back(p);
+        nrm.push_back(n);
+      }
+  }
+  out.target_points.resize(static_cast<long>(pts.size()), 3);
+  out.target_normals.resize(static_cast<long>(pts.size()), 3);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    out.target_points.row(static_cast<long>(i)) = pts[i].transpose();
+    out.target_normals.row(static_cast<long>(i)) = nrm[i].transpose();
+  }
+  return out;
+}
+
+}  // namespace pickplan

@@ -1,0 +1,155 @@
+"""Grasps from what a depth camera sees of the target: observed surface points with normals, the
+support plane, and the rest of the scene as a field. No mesh and no stored grasp is read.
+
+Two kinds of candidates, both in the world frame (a ``GraspSet`` whose object frame is the world):
+
+- antipodal pairs: a point p and a point q seen on the opposite side (q - p within the friction cone
+  of -n_p and of n_q, the width within the opening), the pads centred on their midpoint, the hand
+  turned about the closing axis;
+- footprint grasps: the target's points projected onto the support plane give its width across each
+  closing direction even when one side is hidden; the hand comes from above (tilted up to
+  ``max_tilt`` off vertical), centred on the footprint, its pads as low as the table allows.
+
+Every candidate is kept only if its fingertips stay above the support plane (less a contact
+tolerance: resting on the table is fine), no observed target point lies inside the open hand
+(``hand_sdf``), and the hand is clear of the other obstacles (``scene_distance``). Scores from
+points: antipodal margin, how much of the pads the points fill, and the spare opening.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from pickplan.omg.grasps.hand import PAD_DEPTH
+from pickplan.omg.grasps.sets import GraspSet, _check_count, _perpendicular
+
+
+@dataclass(frozen=True)
+class PointGraspSettings:
+    friction: float = 0.3            # Coulomb coefficient: the friction cone's half-angle atan(0.3)
+    max_width: float = 0.08          # the gripper's opening (m)
+    width_margin: float = 0.008      # widths must be this much below the opening (the cloud is noisy)
+    min_width: float = 0.004
+    pad_length: float = 0.018        # m of finger along the approach axis that grips
+    table_contact: float = 0.003     # m the fingertips may press into the support plane
+    clearance: float = 0.003         # m kept between the open hand and observed target points
+    obstacle_clearance: float = 0.005  # m kept between hand sample points and the other obstacles
+    approach_angles: int = 8         # turns about the closing axis tried per antipodal pair
+    yaw_steps: int = 12              # closing directions tried for footprint grasps
+    max_tilt: float = 0.6            # rad off vertical for footprint grasps' approaches
+    grasp_depths: tuple = (0.012, 0.025, 0.04)  # m below the target's top for the pads' centre
+    samples: int = 600               # antipodal seed points
+
+
+def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Hand poses with closing axis y, approach z and the pad centre at ``centre``."""
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
+    T[:3, 3] = centre - PAD_DEPTH * z
+    return T
+
+
+def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
+    tree = cKDTree(P)
+    cone = np.cos(np.arctan(s.friction))
+    out = []
+    for i in rng.choice(len(P), min(s.samples, len(P)), replace=False):
+        p, n_p = P[i], N[i]
+        for j in tree.query_ball_point(p, s.max_width - s.width_margin):
+            v = P[j] - p
+            w = np.linalg.norm(v)
+            if w < s.min_width:
+                continue
+            axis = v / w
+            margin = min(-n_p @ axis, N[j] @ axis)
+            if margin < cone:
+                continue
+            z0 = _perpendicular(axis)
+            theta = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(s.approach_angles) / s.approach_angles
+            for t in theta:
+                z = np.cos(t) * z0 + np.sin(t) * np.cross(axis, z0)
+                out.append((_frames(axis, z, 0.5 * (p + P[j])), margin, w))
+    return out
+
+
+def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
+    n, d = plane
+    lo_h = P @ n - d  # heights above the plane
+    top = float(lo_h.max())
+    flat = P - np.outer(lo_h, n)
+    centre_flat = flat.mean(axis=0)
+    e1 = _perpendicular(n)
+    e2 = np.cross(n, e1)
+    out = []
+    for k in range(s.yaw_steps):
+        a = np.pi * k / s.yaw_steps
+        y = np.cos(a) * e1 + np.sin(a) * e2
+        proj = (flat - centre_flat) @ y
+        width = float(proj.max() - proj.min())
+        if not s.min_width <= width <= s.max_width - s.width_margin:
+            continue
+        mid = centre_flat + 0.5 * (proj.max() + proj.min()) * y
+        x = np.cross(y, n)
+        for tilt in (0.0, s.max_tilt / 2, -s.max_tilt / 2, s.max_tilt, -s.max_tilt):
+            z = -np.cos(tilt) * n + np.sin(tilt) * x  # down, tilted about the closing axis
+            # pad centre heights above the plane, from just under the top down as far as the hand
+            # reaches (the open-hand check rejects those whose palm meets the object), no lower
+            # than the fingertips (half a pad further along the approach) allow
+            lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
+            for depth in s.grasp_depths:
+                height = max(lowest, top - depth)
+                centre = mid + height * n  # mid lies on the plane
+                out.append((_frames(y, z, centre), 1.0 - abs(tilt) / (np.pi / 2), width))
+                if height == lowest:
+                    break
+    return out
+
+
+def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int = 0,
+                       scene_distance: Optional[Callable[[np.ndarray], np.ndarray]] = None,
+                       hand_points: Optional[np.ndarray] = None,
+                       settings: PointGraspSettings = PointGraspSettings()) -> GraspSet:
+    """Up to ``n`` grasps of the observed target (world frame), best scores first.
+
+    ``hand_sdf``: the open hand as a ``core.sdf.SceneSdf`` in the hand frame; ``scene_distance`` maps
+    world points (M, 3) to their distance from the obstacles (the fused field), checked at
+    ``hand_points`` (sample points on the open hand, hand frame) when both are given.
+    """
+    _check_count(n, seed)
+    P, N = np.asarray(points, float), np.asarray(normals, float)
+    if P.ndim != 2 or P.shape[1] != 3 or N.shape != P.shape or len(P) < 3:
+        raise ValueError(f"points and normals: expected two (N, 3) arrays with N >= 3, got {P.shape}, {N.shape}")
+    s = settings
+    rng = np.random.default_rng(seed)
+    cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s)
+    if not cands:
+        return GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0))
+    T = np.stack([c[0] for c in cands])
+    margin = np.array([c[1] for c in cands])
+    width = np.array([c[2] for c in cands])
+    plane_n, plane_d = plane
+    # fingertips above the plane: the lowest point of the pads, half a pad beyond their centre
+    tips = T[:, :3, 3] + (PAD_DEPTH + s.pad_length / 2) * T[:, :3, 2]
+    keep = tips @ plane_n - plane_d > -s.table_contact
+    # no observed target point inside the open hand (between the pads is outside the hand)
+    local = np.einsum("kji,kmj->kmi", T[:, :3, :3], P[None, :, :] - T[:, None, :3, 3])
+    for k in np.flatnonzero(keep):
+        d, _ = hand_sdf.distance(local[k], cutoff=0.05)
+        keep[k] = d.min() > s.clearance
+    if scene_distance is not None and hand_points is not None:
+        for k in np.flatnonzero(keep):
+            world = hand_points @ T[k, :3, :3].T + T[k, :3, 3]
+            keep[k] = scene_distance(world).min() > s.obstacle_clearance
+    # how much of the pads the points fill: points within the pad rectangle between the fingers
+    fill = np.zeros(len(T))
+    for k in np.flatnonzero(keep):
+        q = local[k] - [0.0, 0.0, PAD_DEPTH]
+        inside = (np.abs(q[:, 2]) < s.pad_length / 2) & (np.abs(q[:, 0]) < 0.01) & (np.abs(q[:, 1]) < width[k] / 2 + 0.005)
+        fill[k] = min(1.0, inside.sum() / 30.0)
+    score = margin + 0.5 * fill + 2.0 * (s.max_width - width) / s.max_width
+    order = [k for k in np.argsort(-score, kind="stable") if keep[k]][:n]
+    return GraspSet("points", T[order] if order else np.zeros((0, 4, 4)), "observed target",
+                    scores=score[order], info={"width": width[order]})

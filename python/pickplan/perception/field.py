@@ -1,0 +1,125 @@
+"""From an observation (depth images, intrinsics, poses, target mask) to what the planner needs: a
+signed distance field of everything but the target (native space carving + exact distance
+transform), the support plane as an analytic table, and the target's observed points with normals.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+
+from pickplan import _core
+from pickplan.core.observation import Observation
+from pickplan.core.sdf import SceneSdf
+
+OBSTACLES = "observed"   # the object name of the fused field in the SceneSdf
+
+
+@dataclass(frozen=True)
+class FieldSettings:
+    resolution: float = 0.01                    # m, voxel edge
+    lo: Sequence[float] = (-0.1, -0.6, -0.02)   # workspace box (world) the field covers
+    hi: Sequence[float] = (1.0, 0.6, 0.6)
+    surface_margin: float = 0.003               # m before a measured depth still counted as the surface (noise)
+    plane: Optional[Tuple[Sequence[float], float]] = None   # (normal, offset) if known; None: detect it
+    plane_margin: float = 0.01                  # m above the plane left to the analytic table
+    plane_tolerance: float = 0.006              # m: RANSAC inlier distance
+    target_stride: int = 2                      # every k-th target pixel becomes a point
+
+
+@dataclass
+class PerceivedScene:
+    sdf: SceneSdf                       # the fused obstacles (object OBSTACLES) + the table below the plane
+    target_points: np.ndarray           # (N, 3) world
+    target_normals: np.ndarray          # (N, 3) unit, outward (towards the cameras)
+    plane: Tuple[np.ndarray, float]     # support plane n . x = d, n up
+    counts: dict = field(default_factory=dict)
+    seconds: dict = field(default_factory=dict)
+
+
+def _points(obs: Observation, stride: int) -> np.ndarray:
+    """World points of every stride-th pixel with depth, over all views."""
+    out = []
+    for v in range(obs.views):
+        d = obs.depth[v, ::stride, ::stride].astype(float)
+        rows, cols = np.mgrid[0:obs.depth.shape[1]:stride, 0:obs.depth.shape[2]:stride]
+        ok = np.isfinite(d) & (d > 0)
+        K = obs.K[v]
+        x = (cols[ok] + 0.5 - K[0, 2]) / K[0, 0] * d[ok]
+        y = (rows[ok] + 0.5 - K[1, 2]) / K[1, 1] * d[ok]
+        P = np.column_stack([x, y, d[ok]])
+        out.append(P @ obs.camera_pose[v, :3, :3].T + obs.camera_pose[v, :3, 3])
+    return np.vstack(out)
+
+
+def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int = 200, seed: int = 0,
+                  min_up: float = 0.9) -> Tuple[np.ndarray, float]:
+    """The dominant near-horizontal plane n . x = d (n up) by RANSAC, refit to its inliers."""
+    P = np.asarray(points, float)
+    if len(P) < 3:
+        raise ValueError("support plane: fewer than 3 points")
+    rng = np.random.default_rng(seed)
+    best, best_count = None, -1
+    for _ in range(iterations):
+        a, b, c = P[rng.choice(len(P), 3, replace=False)]
+        n = np.cross(b - a, c - a)
+        if np.linalg.norm(n) < 1e-9:
+            continue
+        n /= np.linalg.norm(n)
+        n = -n if n[2] < 0 else n
+        if n[2] < min_up:
+            continue
+        count = int((np.abs(P @ n - n @ a) < tolerance).sum())
+        if count > best_count:
+            best, best_count = (n, float(n @ a)), count
+    if best is None:
+        raise ValueError("support plane: no near-horizontal plane in the points; give the plane explicitly")
+    n, d = best
+    inliers = P[np.abs(P @ n - d) < tolerance]
+    centre = inliers.mean(axis=0)
+    n = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]  # (M, 3): never the M x M U
+    n = -n if n[2] < 0 else n
+    return n, float(n @ centre)
+
+
+def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: int = 0) -> PerceivedScene:
+    """The planner's world from ``obs``: fused field, support plane (detected unless given), target."""
+    t0 = time.perf_counter()
+    if settings.plane is None:
+        n, d = support_plane(_points(obs, 4), settings.plane_tolerance, seed=seed)
+    else:
+        n = np.asarray(settings.plane[0], float)
+        n, d = n / np.linalg.norm(n), float(settings.plane[1])
+    t1 = time.perf_counter()
+    native = _core.DepthFieldSettings()
+    native.lo, native.hi = np.asarray(settings.lo, float), np.asarray(settings.hi, float)
+    native.resolution, native.surface_margin = float(settings.resolution), float(settings.surface_margin)
+    native.has_plane, native.plane_normal, native.plane_offset = True, n, d
+    native.plane_margin, native.target_stride = float(settings.plane_margin), int(settings.target_stride)
+    built = _core.build_depth_field(list(obs.depth), list(obs.K), list(obs.camera_pose),
+                                    [m.astype(np.uint8) for m in obs.target_mask], native)
+    t2 = time.perf_counter()
+    # the table: a slab under the plane, as wide as the workspace (its top face is the plane)
+    lo, hi = np.asarray(settings.lo, float), np.asarray(settings.hi, float)
+    thickness = 0.05
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, n)
+    R = np.eye(3)
+    if np.linalg.norm(axis) > 1e-9:
+        angle = np.arccos(np.clip(n @ z, -1, 1))
+        k = axis / np.linalg.norm(axis)
+        Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+        R = np.eye(3) + np.sin(angle) * Kx + (1 - np.cos(angle)) * Kx @ Kx
+    centre_xy = 0.5 * (lo + hi)
+    T = np.eye(4)
+    T[:3, :3] = R
+    on_plane = np.array([centre_xy[0], centre_xy[1], (d - n[0] * centre_xy[0] - n[1] * centre_xy[1]) / n[2]])
+    T[:3, 3] = on_plane - R @ [0, 0, thickness / 2]
+    size = (hi - lo) + 1.0
+    sdf = SceneSdf([(OBSTACLES, built["obstacles"], np.eye(4))], table=((size[0], size[1], thickness), T))
+    t3 = time.perf_counter()
+    return PerceivedScene(sdf, np.asarray(built["target_points"]), np.asarray(built["target_normals"]), (n, d),
+                          counts={k: int(built[k]) for k in ("occupied", "target", "free")},
+                          seconds={"plane": t1 - t0, "field": t2 - t1, "scene": t3 - t2})
