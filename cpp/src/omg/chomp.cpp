@@ -85,7 +85,7 @@ ChompProblem::ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<c
 
 void ChompProblem::solve_A(const Trajectory& v, Trajectory& out) const {
   const int n = settings_.n;
-  require_size("A^-1 v: v", n, v.rows(), "rows");
+  require_size("solve_A: v", n, v.rows(), "rows");
   out.resize(v.rows(), v.cols());
   out.row(0) = v.row(0) / chol_diag_[0];
   for (int i = 1; i < n; ++i) out.row(i) = (v.row(i) - chol_sub_[i] * out.row(i - 1)) / chol_diag_[i];
