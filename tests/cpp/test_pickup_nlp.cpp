@@ -1,5 +1,5 @@
-// Pick-up on the move NLP: kinematics against the UR5 DH closed form, polynomial and constraint
-// derivatives against finite differences, Ipopt's derivative checker, stage feasibility.
+// Pick-up on the move NLP: kinematics against the UR5 DH closed form, constraint derivatives
+// against finite differences, Ipopt's derivative checker, stage feasibility, size checks.
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -7,12 +7,12 @@
 
 #include <gtest/gtest.h>
 
+#include "arm_fixtures.hpp"
 #include "pickup_fixtures.hpp"
 #include "pickplan/pickup/cases.hpp"
 #include "pickplan/pickup/nlp.hpp"
 #include "pickplan/pickup/poly_traj.hpp"
 #include "pickplan/core/robot.hpp"
-#include "pickplan/pickup/stomp.hpp"
 
 using namespace pickplan;
 
@@ -77,35 +77,6 @@ TEST(MobileUR5, ForwardKinematicsMatchesDHTable) {
     const Eigen::Vector3d expect = B.block<3, 1>(0, 3) + 0.15 * B.block<3, 1>(0, 2);
     EXPECT_LT((tool.p - expect).norm(), 1e-12);
   }
-}
-
-TEST(PolyTraj, DerivativesMatchFiniteDifferences) {
-  PolyTraj tr({3, 5, 0, 4}, 7.0);
-  EXPECT_EQ(tr.num_coeffs(), 4 + 6 + 1 + 5);
-  std::mt19937 rng(1);
-  std::uniform_real_distribution<double> u(-2, 2);
-  Eigen::VectorXd a(tr.num_coeffs());
-  for (int k = 0; k < a.size(); ++k) a[k] = u(rng);
-  const double h = 1e-5;
-  for (double t : {0.0, 0.3, 2.5, 9.0}) {
-    double q[4], qd[4], qdd[4], qp[4], qm[4], dp[4], dm[4];
-    tr.eval(a.data(), t, q, qd, qdd);
-    tr.eval(a.data(), t + h, qp, dp, nullptr);
-    tr.eval(a.data(), t - h, qm, dm, nullptr);
-    for (int i = 0; i < 4; ++i) {
-      EXPECT_NEAR(qd[i], (qp[i] - qm[i]) / (2 * h), 1e-7 * (1 + std::abs(qd[i])));
-      EXPECT_NEAR(qdd[i], (dp[i] - dm[i]) / (2 * h), 1e-6 * (1 + std::abs(qdd[i])));
-      // Linear in the coefficients: basis functions are the derivatives w.r.t. a_ik.
-      double direct = 0.0, directd = 0.0;
-      for (int k = 0; k <= tr.degree(i); ++k) {
-        direct += a[tr.offset(i) + k] * tr.basis(t, k, 0);
-        directd += a[tr.offset(i) + k] * tr.basis(t, k, 1);
-      }
-      EXPECT_NEAR(q[i], direct, 1e-10 * (1 + std::abs(q[i])));
-      EXPECT_NEAR(qd[i], directd, 1e-10 * (1 + std::abs(qd[i])));
-    }
-  }
-  EXPECT_THROW(PolyTraj({3}, 0.0), std::invalid_argument);
 }
 
 TEST(PickupNlp, ConstraintJacobianMatchesFiniteDifferences) {
@@ -239,32 +210,31 @@ TEST(PickupNlp, BadInputThrowsClearErrors) {
   EXPECT_THROW(heuristic_seed(r, pb, st), std::invalid_argument);
 }
 
-TEST(Stomp, RefinesArmKeepsEndsAndLimits) {
+TEST(PickupNlp, SizeChecksNameTheProblem) {
+  using test::expect_invalid_argument;
   Robot r = load();
   PickupProblem pb = paper_case(r, 1, example_rho());
-  const int N = 30;
-  const double dt = 0.1;
-  Eigen::MatrixXd Q(N, 9);
-  std::mt19937 rng(2);
-  std::normal_distribution<double> nz(0.0, 0.15);
-  for (int i = 0; i < N; ++i) {
-    const double s = double(i) / (N - 1);
-    Q.row(i).head<3>() << 2.4 + 0.3 * s, 3.3, 0.0;  // base parked next to the pedestal
-    Q.row(i).tail<6>() = pb.arm_start.transpose() * (1 - s) + Eigen::RowVectorXd::Constant(6, 0.3) * s;
-    if (i >= 2 && i < N - 2) Q.row(i).tail<6>() += Eigen::RowVectorXd::NullaryExpr(6, [&]() { return nz(rng); });
-  }
-  StompSettings st;
-  st.iterations = 30;
-  StompResult res = stomp_refine(r, Q, dt, Eigen::VectorXd::Constant(6, M_PI), pb.body_spheres, pb.obstacles, st);
-  EXPECT_EQ(res.iterations, 30);
-  EXPECT_LT((res.q.topRows(2) - Q.topRows(2)).cwiseAbs().maxCoeff(), 1e-15);
-  EXPECT_LT((res.q.bottomRows(2) - Q.bottomRows(2)).cwiseAbs().maxCoeff(), 1e-15);
-  EXPECT_LT((res.q.leftCols(3) - Q.leftCols(3)).cwiseAbs().maxCoeff(), 1e-15);
-  EXPECT_LE(res.final_cost, res.initial_cost);
-  EXPECT_LT(res.final_smoothness, 0.5 * res.initial_smoothness);  // the noisy path gets smoother
-  EXPECT_GE(res.min_clearance, -1e-9);
-  EXPECT_TRUE(res.limits_ok);
-  EXPECT_LE(res.max_rate, M_PI + 1e-9);
-  EXPECT_THROW(stomp_refine(r, Q.topRows(4), dt, Eigen::VectorXd::Constant(6, M_PI), pb.body_spheres, pb.obstacles, st),
-               std::invalid_argument);
+  PickupSettings st = fast_settings();
+  const Eigen::VectorXd x = heuristic_seed(r, pb, st);
+  const PickupConstraints c(r, pb, st, 5);
+  const std::string n = std::to_string(c.num_vars()), m = std::to_string(c.num_constraints());
+  const Eigen::VectorXd short_x = x.head(x.size() - 1);
+  const std::string got = "expected " + n + " values, got " + std::to_string(x.size() - 1);
+  expect_invalid_argument([&] { c.dense_jacobian(short_x); }, got);
+  expect_invalid_argument([&] { c.max_violation(short_x); }, got);
+  expect_invalid_argument([&] { c.near_rows(short_x, 0.1, 0.1); }, got);
+  expect_invalid_argument([&] { c.dense_points(short_x, 4, 0.01, 0.01); }, got);
+  expect_invalid_argument([&] { c.dense_hessian(short_x, Eigen::VectorXd::Zero(c.num_constraints())); }, got);
+  expect_invalid_argument([&] { c.dense_hessian(x, Eigen::VectorXd::Zero(3)); },
+                          "lambda: expected " + m + " values (one per constraint row), got 3");
+  expect_invalid_argument([&] { c.dense_points(x, 0, 0.01, 0.01); }, "subdivisions must be >= 1, got 0");
+  expect_invalid_argument([&] { solve_stage(r, pb, st, 1, short_x); }, "seed: expected " + n + " variables");
+  PickupResult res;
+  res.x = x;
+  res.traj = PolyTraj(std::vector<int>(8, 3), 1.0);  // 8 DOFs for a 9-DOF robot
+  res.x.resize(res.traj.num_coeffs() + 5);
+  res.x.setZero();
+  expect_invalid_argument([&] { evaluate_pickup(r, pb, res); }, "result trajectory: expected 9 DOFs (the robot's), got 8");
+  pb.arm_start.resize(5);
+  expect_invalid_argument([&] { PickupConstraints(r, pb, st, 1); }, "arm_start: expected 6 joint values, got 5");
 }

@@ -287,6 +287,7 @@ void Robot::forward_kinematics(const double* q, RobotWorkspace& ws, int last) co
 
 void Robot::point_jacobian(const RobotWorkspace& ws, int link, const Eigen::Vector3d& point_local,
                            Eigen::Ref<Eigen::Matrix<double, 6, Eigen::Dynamic>> J) const {
+  require_size("point Jacobian", dof(), J.cols(), "columns");
   J.setZero();
   const Eigen::Vector3d x = ws.link_pose[link].apply(point_local);
   for (int k = link; k >= 0; k = links_[k].parent) {
@@ -305,6 +306,7 @@ void Robot::point_jacobian(const RobotWorkspace& ws, int link, const Eigen::Vect
 
 void Robot::position_jacobian_world(const RobotWorkspace& ws, int link, const Eigen::Vector3d& x,
                                     Eigen::Ref<Eigen::Matrix<double, 3, Eigen::Dynamic>> J) const {
+  require_size("position Jacobian", dof(), J.cols(), "columns");
   J.setZero();
   for (int k = link; k >= 0; k = links_[k].parent) {
     const Link& L = links_[k];

@@ -14,7 +14,14 @@ namespace pickplan {
 
 namespace {
 constexpr int kMaxPrecomputedTail = 16;
+
+// Sizes only (O(1), so hot loops can afford it): xi is (n, dof) and q0 has dof entries.
+void require_shapes(const ChompProblem& p, const Trajectory& xi, const Eigen::VectorXd& q0) {
+  require_size("trajectory rows", p.settings().n, xi.rows(), "waypoints");
+  require_size("trajectory columns", p.robot().dof(), xi.cols(), "joint values");
+  require_size("start configuration", p.robot().dof(), q0.size(), "joint values");
 }
+}  // namespace
 
 ChompWorkspace::ChompWorkspace(const ChompProblem& p)
     : fk(p.settings().n + 1, RobotWorkspace(p.robot())),
@@ -78,6 +85,7 @@ ChompProblem::ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<c
 
 void ChompProblem::solve_A(const Trajectory& v, Trajectory& out) const {
   const int n = settings_.n;
+  require_size("solve_A: v", n, v.rows(), "rows");
   out.resize(v.rows(), v.cols());
   out.row(0) = v.row(0) / chol_diag_[0];
   for (int i = 1; i < n; ++i) out.row(i) = (v.row(i) - chol_sub_[i] * out.row(i - 1)) / chol_diag_[i];
@@ -121,6 +129,7 @@ void ChompProblem::mask_inactive(Trajectory& g) const {
 }
 
 double ChompProblem::prior(const Trajectory& xi, const Eigen::VectorXd& q0, Trajectory* grad) const {
+  require_shapes(*this, xi, q0);
   const int n = settings_.n;
   const double inv_dt2 = 1.0 / (dt_ * dt_);
   double f = 0;
@@ -154,6 +163,11 @@ void ChompProblem::transform_points(const RobotWorkspace& fk, const LinkGroup& g
 
 ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorXd& q0, Trajectory* grad,
                                       ChompWorkspace& ws) const {
+  require_shapes(*this, xi, q0);
+  if (grad) {
+    require_size("obstacle gradient rows", settings_.n, grad->rows(), "waypoints");
+    require_size("obstacle gradient columns", robot_->dof(), grad->cols(), "joint values");
+  }
   const int n = settings_.n, N = body_.size();
   const double eps = settings_.epsilon;
   ObjectiveTerms out;
@@ -302,7 +316,7 @@ StepInfo ChompProblem::step(Trajectory& xi, const Eigen::VectorXd& q0, const Tra
   Trajectory delta = -s * ws.u;
   delta.noalias() += s * (M * ws.u.bottomRows(m));
   if (goal) {
-    if (goal->cols() != robot_->dof()) throw std::invalid_argument("CHOMP goal: expected " + std::to_string(robot_->dof()) + " columns");
+    require_size("CHOMP goal", robot_->dof(), goal->cols(), "joint values per row");
     require_finite("CHOMP goal", goal->data(), goal->size());
     delta.noalias() -= M * (xi.bottomRows(m) - *goal);
   }
@@ -313,6 +327,7 @@ StepInfo ChompProblem::step(Trajectory& xi, const Eigen::VectorXd& q0, const Tra
 }
 
 ChompResult ChompProblem::optimize(Trajectory xi, const Eigen::VectorXd& q0, const Trajectory& goal, int iterations) const {
+  if (iterations < 0) throw std::invalid_argument("CHOMP: iterations must be >= 0, got " + std::to_string(iterations));
   const auto t0 = std::chrono::steady_clock::now();
   ChompWorkspace ws(*this);
   ChompResult res;

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "pickplan/omg/chomp.hpp"
+#include "pickplan/core/errors.hpp"
 
 namespace pickplan {
 
@@ -13,8 +14,7 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
   check_trajectory(xi, q0);
   if (horizon < 1 || iteration < 0) throw std::invalid_argument("goal costs: horizon >= 1 and iteration >= 0 required");
   if (time_stride < 1 || point_stride < 1) throw std::invalid_argument("goal costs: strides must be >= 1");
-  if (goals.cols() != robot_->dof())
-    throw std::invalid_argument("goal costs: goals need " + std::to_string(robot_->dof()) + " columns");
+  require_size("goal costs: goals", robot_->dof(), goals.cols(), "joint values per row");
   const int n = settings_.n;
   const int k = std::min(n - 1, static_cast<int>(std::floor(static_cast<double>(n) * iteration / horizon)));
   const Eigen::VectorXd a = k == 0 ? q0 : Eigen::VectorXd(xi.row(k - 1).transpose());

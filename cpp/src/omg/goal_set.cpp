@@ -6,6 +6,8 @@
 #include <random>
 #include <stdexcept>
 
+#include "pickplan/core/errors.hpp"
+
 namespace pickplan {
 
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
@@ -17,6 +19,9 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
     throw std::invalid_argument("goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1 required");
   const Robot& robot = ik.robot();
   robot.check_configuration(start.data(), start.size());
+  // The checkers read the IK robot's configurations: they must describe a robot of the same size.
+  if (checker) require_size("goal set: collision checker robot", robot.dof(), checker->robot().dof(), "joints");
+  if (hand_checker) require_size("goal set: hand checker robot", robot.dof(), hand_checker->robot().dof(), "joints");
   const int d = robot.dof(), m = s.standoff_steps + 1;
   GoalSet out;
   out.reasons.assign(hand_poses.size(), "");

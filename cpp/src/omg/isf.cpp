@@ -44,9 +44,18 @@ GraspRefiner::GraspRefiner(std::shared_ptr<const Robot> robot, int hand_link, Ve
   if (hand_ < 0 || hand_ >= robot_->num_links()) throw std::invalid_argument("ISF: hand link out of range");
   if (contacts_.rows() == 0) throw std::invalid_argument("ISF: no hand contact points");
   require_size("ISF contact normals", contacts_.rows(), contact_normals_.rows(), "rows");
+  require_finite("ISF contact points", contacts_.data(), contacts_.size());
+  require_finite("ISF contact normals", contact_normals_.data(), contact_normals_.size());
   if (object_points_.rows() == 0) throw std::invalid_argument("ISF: no object surface points");
   require_size("ISF object normals", object_points_.rows(), object_normals_.rows(), "rows");
   require_finite("ISF object points", object_points_.data(), object_points_.size());
+  require_finite("ISF object normals", object_normals_.data(), object_normals_.size());
+  require_size("ISF body points: links", body_.points.rows(), static_cast<long>(body_.link.size()), "entries");
+  for (int l : body_.link)
+    if (l < 0 || l >= robot_->num_links())
+      throw std::invalid_argument("ISF body points: link index " + std::to_string(l) + " out of range [0, " +
+                                  std::to_string(robot_->num_links()) + ")");
+  require_finite("ISF body points", body_.points.data(), body_.points.size());
   if (!settings_.active.empty())
     require_size("ISF settings: active joint mask", robot_->dof(), static_cast<long>(settings_.active.size()), "entries");
   index_ = std::make_unique<Index>(&object_points_);

@@ -3,11 +3,16 @@
 #include <algorithm>
 #include <limits>
 #include <stdexcept>
+#include <string>
+
+#include "pickplan/core/errors.hpp"
 
 namespace pickplan {
 
 Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int steps) {
-  if (steps < 2) throw std::invalid_argument("interpolate: steps must be >= 2");
+  if (steps < 2) throw std::invalid_argument("interpolate: steps must be >= 2, got " + std::to_string(steps));
+  if (xi.rows() < 1) throw std::invalid_argument("interpolate: the trajectory has no waypoints");
+  require_size("interpolate: trajectory columns", q0.size(), xi.cols(), "joint values (the size of q0)");
   const int n = static_cast<int>(xi.rows());
   Trajectory out(steps, xi.cols());
   for (int s = 0; s < steps; ++s) {

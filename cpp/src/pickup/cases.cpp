@@ -4,6 +4,9 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
+
+#include "pickplan/core/errors.hpp"
 
 namespace pickplan {
 
@@ -77,6 +80,10 @@ namespace pickplan {
 PickupMetrics evaluate_pickup(const Robot& robot, const PickupProblem& pb, const PickupResult& res, int n) {
   if (n < 3) throw std::invalid_argument("evaluate_pickup: need at least 3 samples");
   if (res.x.size() != res.traj.num_coeffs() + 5) throw std::invalid_argument("evaluate_pickup: result has no solution vector");
+  require_size("evaluate_pickup: result trajectory", robot.dof(), res.traj.dof(), "DOFs (the robot's)");
+  if (pb.tool_link < 0 || pb.tool_link >= robot.num_links()) throw std::invalid_argument("evaluate_pickup: tool_link out of range");
+  for (const auto& b : pb.body_spheres)
+    if (b.link < 0 || b.link >= robot.num_links()) throw std::invalid_argument("evaluate_pickup: body sphere link out of range");
   PickupMetrics m;
   const int d = robot.dof();
   RobotWorkspace ws(robot);

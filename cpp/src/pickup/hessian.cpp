@@ -6,9 +6,12 @@
 // through y(a, s, T) (linear in the coefficients a, polynomial in s) into the variables.
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 #include "pickplan/pickup/nlp.hpp"
 #include "nlp_detail.hpp"
+#include "pickplan/core/errors.hpp"
 
 namespace pickplan {
 using namespace pickup_detail;
@@ -168,6 +171,8 @@ void PickupConstraints::eval_hessian(const double* x, const double* lambda, doub
 }
 
 Eigen::MatrixXd PickupConstraints::dense_hessian(const Eigen::VectorXd& xv, const Eigen::VectorXd& lambda) const {
+  require_size("NLP variables x", n_, xv.size(), "values");
+  require_size("NLP multipliers lambda", num_constraints(), lambda.size(), "values (one per constraint row)");
   const double* x = xv.data();
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n_, n_);
   for (int s = 0; s < static_cast<int>(samples_.size()); ++s) sample_hessian(x, lambda.data(), s, H);

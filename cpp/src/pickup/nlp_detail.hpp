@@ -1,6 +1,7 @@
 #pragma once
-// Internals shared by pickup_nlp.cpp (rows, values, Jacobian) and pickup_hessian.cpp (Hessian of
-// the Lagrangian). Not installed; not part of the public API.
+// Internals shared by nlp_layout.cpp (rows), nlp.cpp (values, Jacobian), hessian.cpp (Hessian of
+// the Lagrangian), rows.cpp (active set), ipopt.cpp and solve.cpp (the solver). Not installed; not
+// part of the public API.
 #include <string>
 
 #include <Eigen/Core>

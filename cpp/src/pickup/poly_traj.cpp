@@ -6,6 +6,8 @@
 
 #include <Eigen/Dense>
 
+#include "pickplan/core/errors.hpp"
+
 namespace pickplan {
 
 PolyTraj::PolyTraj(std::vector<int> degrees, double time_scale) : degrees_(std::move(degrees)), tau_(time_scale) {
@@ -48,9 +50,7 @@ void PolyTraj::eval(const double* a, double t, double* q, double* qd, double* qd
 
 void PolyTraj::eval_many(const Eigen::VectorXd& coeffs, const Eigen::VectorXd& times, Eigen::MatrixXd* q,
                          Eigen::MatrixXd* qd, Eigen::MatrixXd* qdd) const {
-  if (coeffs.size() != num_coeffs())
-    throw std::invalid_argument("PolyTraj: expected " + std::to_string(num_coeffs()) + " coefficients, got " +
-                                std::to_string(coeffs.size()));
+  require_size("PolyTraj coefficients", num_coeffs(), coeffs.size(), "coefficients");
   const long n = times.size();
   if (q) q->resize(n, dof());
   if (qd) qd->resize(n, dof());
@@ -66,9 +66,12 @@ void PolyTraj::eval_many(const Eigen::VectorXd& coeffs, const Eigen::VectorXd& t
 
 void PolyTraj::fit_dof(int i, const Eigen::VectorXd& times, const Eigen::VectorXd& values, double* coeffs,
                        const Eigen::VectorXd& weights) const {
-  const int d = degrees_.at(i);
-  if (values.size() != times.size() || (weights.size() && weights.size() != times.size()))
-    throw std::invalid_argument("PolyTraj::fit_dof: times, values and weights must have the same length");
+  if (i < 0 || i >= dof())
+    throw std::invalid_argument("PolyTraj::fit_dof: DOF index " + std::to_string(i) + " out of range [0, " +
+                                std::to_string(dof()) + ")");
+  require_size("PolyTraj::fit_dof values", times.size(), values.size());
+  if (weights.size()) require_size("PolyTraj::fit_dof weights", times.size(), weights.size());
+  const int d = degrees_[i];
   Eigen::MatrixXd A(times.size(), d + 1);
   Eigen::VectorXd b = values;
   for (long r = 0; r < times.size(); ++r) {

@@ -2,10 +2,13 @@
 // needs near a point, and the dense collision check between the regular samples.
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 #include <limits>
 
 #include "pickplan/pickup/nlp.hpp"
 #include "nlp_detail.hpp"
+#include "pickplan/core/errors.hpp"
 
 namespace pickplan {
 
@@ -34,6 +37,7 @@ double clearance(const RobotWorkspace& ws, const PickupProblem& pb, int pair) {
 }  // namespace
 
 PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double joint_window, double collision_window) const {
+  require_size("NLP variables x", n_, x.size(), "values");
   PickupRowSubset out;
   const int na = dof_ - 3, npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());
   const double s1 = x[idx_s1()], s2 = x[idx_s2()];
@@ -58,6 +62,8 @@ PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double jo
 
 PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int subdivisions, double threshold,
                                                 double joint_slack, double* min_clearance) const {
+  require_size("NLP variables x", n_, x.size(), "values");
+  if (subdivisions < 1) throw std::invalid_argument("dense check: subdivisions must be >= 1, got " + std::to_string(subdivisions));
   PickupRowSubset out;
   double least = std::numeric_limits<double>::infinity();
   const int na = dof_ - 3, npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());

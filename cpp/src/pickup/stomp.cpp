@@ -9,6 +9,8 @@
 
 #include <Eigen/Dense>
 
+#include "pickplan/core/errors.hpp"
+
 namespace pickplan {
 namespace {
 
@@ -63,10 +65,12 @@ StompResult stomp_refine(const Robot& robot, const Eigen::MatrixXd& Q0, double d
                          const std::vector<BodySphere>& spheres, const std::vector<SphereObstacle>& obstacles,
                          const StompSettings& st) {
   const int N = static_cast<int>(Q0.rows()), d = robot.dof(), na = d - 3;
-  if (Q0.cols() != d) throw std::invalid_argument("stomp: expected " + std::to_string(d) + " columns, got " + std::to_string(Q0.cols()));
+  if (na < 1) throw std::invalid_argument("stomp: expected 3 base DOFs plus an arm, got " + std::to_string(d) + " DOFs");
+  require_size("stomp: waypoints", d, Q0.cols(), "joint values per row");
   if (N < 5) throw std::invalid_argument("stomp: need at least 5 waypoints, got " + std::to_string(N));
+  require_finite("stomp: waypoints", Q0.data(), Q0.size());
   if (!(dt > 0)) throw std::invalid_argument("stomp: dt must be positive");
-  if (rate.size() != na) throw std::invalid_argument("stomp: expected " + std::to_string(na) + " rate limits");
+  require_size("stomp: arm rate limits", na, rate.size(), "values");
   if (st.rollouts < 2 || st.iterations < 0) throw std::invalid_argument("stomp: need rollouts >= 2, iterations >= 0");
   for (const auto& b : spheres)
     if (b.link < 0 || b.link >= robot.num_links()) throw std::invalid_argument("stomp: body sphere link out of range");

@@ -100,7 +100,6 @@ class ChompProblem {
     bool any() const { return objects || table; }
   };
   GroupReach group_reach(const RobotWorkspace& fk, const LinkGroup& group) const;
-  bool group_near_obstacles(const RobotWorkspace& fk, const LinkGroup& group) const { return group_reach(fk, group).any(); }
   const ChompSettings& settings() const { return settings_; }
   double dt() const { return dt_; }
 

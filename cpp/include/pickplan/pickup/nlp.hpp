@@ -107,7 +107,7 @@ struct PickupSettings {
   double active_collision_window = 0.15; // m
   int active_max_rounds = 6;
   double mu_resolve = 1e-4;             // mu_init of the re-solves (warm: multipliers carried over)
-  double warm_start_push = 1e-6;
+  double warm_start_push = 1e-6;        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
   bool timing_seed = true;              // stage 3 starts from grasp_timing_seed()
   double timing_fraction = 0.5;         // ... with this fraction of the full slow-down (in log T)
   // The successive refinement also solves the all-constraint NLP (stage 0) once from the stage-1
@@ -122,7 +122,7 @@ struct PickupSettings {
   // solution is kept. A later seed's run (and the direct track) stops after any Ipopt run whose T
   // is not below the best found so far: rows only join, its T would not fall below it again.
   int arm_seeds = 2;
-  bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
+  bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
   // closer than joint_limit_margin / 2 to its limit, a row at that instant joins and the stage is
@@ -212,7 +212,7 @@ class PickupConstraints {
   struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
   struct Row { int kind, sample, aux; unsigned dof_mask; bool sg, sc; double lo, hi; int jac_begin; };
   void add_row(int kind, int sample, int aux, unsigned dof_mask, bool sg, bool sc, double lo, double hi);
-  struct Kin;  // kinematic state at one sample (pickup_nlp_detail.hpp)
+  struct Kin;  // kinematic state at one sample (cpp/src/pickup/nlp_detail.hpp)
   void sample_rows(const double* x, int sample, int r0, int r1, double* g, double* jac) const;
   void kinematics(Kin& k, const double* x, int sample, int r0, int r1) const;
   void update_kinematics(Kin& k) const;  // FK and tool Jacobians at k.q, k.qd
