@@ -34,9 +34,14 @@ void init_ik(py::module_& m) {
       .value("max_abs", IkStepNorm::max_abs)
       .value("euclidean", IkStepNorm::euclidean);
 
+  py::enum_<IkRotationError>(m, "IkRotationError")
+      .value("angle_axis", IkRotationError::angle_axis)
+      .value("sine_axis", IkRotationError::sine_axis);
+
   py::class_<DlsSettings>(m, "DlsSettings")
       .def(py::init<>())
       .def_readwrite("task", &DlsSettings::task)
+      .def_readwrite("rotation_error", &DlsSettings::rotation_error)
       .def_readwrite("max_iterations", &DlsSettings::max_iterations)
       .def_readwrite("position_tolerance", &DlsSettings::position_tolerance)
       .def_readwrite("rotation_tolerance", &DlsSettings::rotation_tolerance)

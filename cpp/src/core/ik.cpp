@@ -24,6 +24,10 @@ namespace {
 using Vector6 = Eigen::Matrix<double, 6, 1>;
 using Matrix6 = Eigen::Matrix<double, 6, 6>;
 
+// sine_axis: below this |sin(angle)|, with the angle past 90 degrees, the cross products vanish
+// half a turn from the target; the rotation vector gives the step a direction there.
+constexpr double kVanishingSine = 1e-9;
+
 void require(bool ok, const char* what) {
   if (!ok) throw std::invalid_argument(std::string("IK settings: ") + what);
 }
@@ -73,25 +77,34 @@ IkSolution solve_ik(const Robot& r, int link, const Transform& tip, const Transf
   }
   RobotWorkspace ws(r);
   Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, d), Jw(6, d);
-  auto error = [&](const Eigen::VectorXd& q, Vector6& e) {  // FK of the links up to `link` into ws
+  // FK of the links up to `link` into ws, the error e and the rotation angle (rad).
+  auto error = [&](const Eigen::VectorXd& q, Vector6& e) {
     r.forward_kinematics(q.data(), ws, link);
     const Transform T = ws.link_pose[link] * tip;
     e.head<3>() = target.p - T.p;
-    e.tail<3>() = rotation_log(target.R * T.R.transpose());
+    if (s.rotation_error == IkRotationError::angle_axis) {
+      e.tail<3>() = rotation_log(target.R * T.R.transpose());
+      return e.tail<3>().norm();
+    }
+    e.tail<3>() = 0.5 * (T.R.col(0).cross(target.R.col(0)) + T.R.col(1).cross(target.R.col(1)) +
+                         T.R.col(2).cross(target.R.col(2)));
+    const double sine = e.tail<3>().norm(), cosine = 0.5 * ((T.R.transpose() * target.R).trace() - 1.0);
+    if (sine < kVanishingSine && cosine < 0) e.tail<3>() = rotation_log(target.R * T.R.transpose());  // half a turn away
+    return std::atan2(sine, cosine);
   };
   auto cost = [&](const Vector6& e) { return pose ? e.squaredNorm() : e.head<3>().squaredNorm(); };
-  auto reached = [&](const Vector6& e) {
-    return e.head<3>().norm() < s.position_tolerance && (!pose || e.tail<3>().norm() < s.rotation_tolerance);
+  auto reached = [&](const Vector6& e, double angle) {
+    return e.head<3>().norm() < s.position_tolerance && (!pose || angle < s.rotation_tolerance);
   };
 
   IkSolution sol;
   sol.q = seed.cwiseMax(lo).cwiseMin(hi);
   Vector6 e, e_new;
-  error(sol.q, e);
+  double angle = error(sol.q, e);
   double c = cost(e), lambda = s.damping;
   Eigen::VectorXd q_new(d), dq(d);
   int stalled = 0;
-  for (int it = 0; it < s.max_iterations && !reached(e); ++it) {
+  for (int it = 0; it < s.max_iterations && !reached(e, angle); ++it) {
     if (s.max_stalled_iterations > 0 && stalled >= s.max_stalled_iterations) break;
     sol.iterations = it + 1;
     r.point_jacobian(ws, link, tip.p, J);
@@ -106,12 +119,13 @@ IkSolution solve_ik(const Robot& r, int link, const Transform& tip, const Transf
     const double size = s.step_norm == IkStepNorm::max_abs ? dq.cwiseAbs().maxCoeff() : dq.norm();
     if (size > s.max_step) dq *= s.max_step / size;
     q_new = (sol.q + dq).cwiseMax(lo).cwiseMin(hi);
-    error(q_new, e_new);
+    const double angle_new = error(q_new, e_new);
     const double c_new = cost(e_new);
     stalled = c_new < c * (1 - s.min_relative_decrease) ? 0 : stalled + 1;
     if (s.damping_schedule == IkDamping::fixed || c_new < c) {
       sol.q = q_new;
       e = e_new;
+      angle = angle_new;
       c = c_new;
       if (s.damping_schedule == IkDamping::adaptive) lambda = std::max(lambda * s.damping_decrease, s.min_damping);
     } else {
@@ -120,8 +134,8 @@ IkSolution solve_ik(const Robot& r, int link, const Transform& tip, const Transf
     }
   }
   sol.position_error = e.head<3>().norm();
-  sol.rotation_error = e.tail<3>().norm();
-  sol.converged = reached(e);
+  sol.rotation_error = angle;
+  sol.converged = reached(e, angle);
   return sol;
 }
 

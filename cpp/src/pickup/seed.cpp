@@ -140,6 +140,7 @@ constexpr double kUnreachedPenalty = 1e3;   // arm seeds: score per unit residua
 // The arm alone (base_weight 0) or the arm and the base translation (base_weight > 0).
 DlsSettings seed_ik_settings(const Robot& robot, const PickupSettings& st, double base_weight) {
   DlsSettings s;
+  s.rotation_error = IkRotationError::sine_axis;
   s.max_iterations = kSeedIkIterations;
   s.position_tolerance = s.rotation_tolerance = kSeedIkTolerance;
   s.damping_schedule = IkDamping::fixed;
@@ -154,12 +155,20 @@ DlsSettings seed_ik_settings(const Robot& robot, const PickupSettings& st, doubl
   return s;
 }
 
-// IK of the tool for the grasp pose from q (updated in place); returns the residual.
+// The error's norm as the steps see it: position and sin(angle) * axis.
+double residual(const IkSolution& sol) { return std::hypot(sol.position_error, std::sin(sol.rotation_error)); }
+
+// IK of the tool for the grasp pose from q (updated in place); returns the residual before the
+// last step. A descent that does not converge oscillates, and the arm seeds choose among such
+// starts by this residual (their choice was tuned with it: the final one loses case 1's flip).
 double grasp_ik(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, Eigen::VectorXd& q,
                 double base_weight = 0.0) {
-  const IkSolution sol = solve_ik(robot, pb.tool_link, Transform{}, pb.grasp_pose, q, seed_ik_settings(robot, st, base_weight));
-  q = sol.q;
-  return std::hypot(sol.position_error, sol.rotation_error);
+  DlsSettings s = seed_ik_settings(robot, st, base_weight);
+  s.max_iterations = kSeedIkIterations - 1;
+  const IkSolution before_last = solve_ik(robot, pb.tool_link, Transform{}, pb.grasp_pose, q, s);
+  s.max_iterations = 1;  // the last step (none when converged)
+  q = solve_ik(robot, pb.tool_link, Transform{}, pb.grasp_pose, before_last.q, s).q;
+  return residual(before_last);
 }
 
 // Whole-body IK (base translation weighted by kBaseWeight) from q, for the grasp pose; the base is

@@ -269,6 +269,7 @@ def _lift_path(robot, q0: np.ndarray, s: ExecutionSettings) -> np.ndarray:
     hand = robot.link_index(PANDA.hand_link)
     ik = _core.IkSettings()
     ik.weights = [1.0] * PANDA.arm_dof + [0.0] * (robot.dof - PANDA.arm_dof)
+    ik.rotation_error = _core.IkRotationError.sine_axis
     ik.damping_schedule = _core.IkDamping.fixed
     ik.damping = s.ik_damping ** 2
     ik.max_iterations = _LIFT_IK_STEPS

@@ -18,12 +18,18 @@ namespace pickplan {
 enum class IkTask { pose, position };          // the target fixes the full pose | its position only
 enum class IkDamping { adaptive, fixed };      // Levenberg-Marquardt: only decreases kept | every step kept
 enum class IkStepNorm { max_abs, euclidean };  // the norm max_step bounds
+// The rotation part of the error the steps reduce: angle * axis (the rotation vector) | sin(angle)
+// * axis (half the sum of the columns' cross products). Equal near the target; they differ on the
+// way, and where the target is out of reach they settle on different compromises (the pick-up
+// seeds and the lift were tuned with sine_axis).
+enum class IkRotationError { angle_axis, sine_axis };
 
 // One descent. Each step is dq = W J^T (J W J^T + damping I)^-1 e, W = diag(weights), e the error
-// (position; rotation vector of target * current^-1), shrunk to max_step and clamped into
+// (position; rotation of target * current^-1, see IkRotationError), shrunk to max_step and clamped into
 // [lower + limit_margin, upper - limit_margin] for every joint with a weight above zero.
 struct DlsSettings {
   IkTask task = IkTask::pose;
+  IkRotationError rotation_error = IkRotationError::angle_axis;
   int max_iterations = 40;  // converging descents: median 8, 90 % <= 26; later seeds cover the rest (99.6 %)
   double position_tolerance = 1e-4;   // m: converged below this and rotation_tolerance
   double rotation_tolerance = 1e-3;   // rad (ignored for IkTask::position)
@@ -50,7 +56,7 @@ struct IkSettings : DlsSettings {
 
 struct IkSolution {
   Eigen::VectorXd q;
-  double position_error = 0, rotation_error = 0;  // m, rad at q
+  double position_error = 0, rotation_error = 0;  // m, rad (the angle) at q
   int iterations = 0;                             // steps computed
   bool converged = false;                         // both errors below the tolerances (position only for IkTask::position)
 };
