@@ -55,16 +55,24 @@ void validate(const DlsSettings& s, const Robot& robot) {
   require(s.limit_margin >= 0, "limit_margin must be >= 0");
 }
 
-IkSolution solve_ik(const Robot& r, int link, const Transform& tip, const Transform& target,
-                    const Eigen::VectorXd& seed, const DlsSettings& s) {
+namespace {
+
+void check_link(const Robot& r, int link) {
   if (link < 0 || link >= r.num_links())
     throw std::invalid_argument("IK: link index " + std::to_string(link) + " out of range [0, " +
                                 std::to_string(r.num_links()) + ")");
+}
+
+void check_problem(const Robot& r, const Transform& target, const Eigen::VectorXd& seed) {
   require_size("IK seed", r.dof(), static_cast<long>(seed.size()), "joint values");
   require_finite("IK seed", seed.data(), static_cast<long>(seed.size()));
   require_finite("IK target position", target.p.data(), 3);
   require_finite("IK target rotation", target.R.data(), 9);
-  validate(s, r);
+}
+
+// The descent of solve_ik, its arguments already checked.
+IkSolution descend(const Robot& r, int link, const Transform& tip, const Transform& target,
+                   const Eigen::VectorXd& seed, const DlsSettings& s) {
   const int d = r.dof();
   const bool pose = s.task == IkTask::pose;
   const Eigen::VectorXd w = joint_weights(s, d);
@@ -139,10 +147,20 @@ IkSolution solve_ik(const Robot& r, int link, const Transform& tip, const Transf
   return sol;
 }
 
+}  // namespace
+
+IkSolution solve_ik(const Robot& robot, int link, const Transform& tip, const Transform& target,
+                    const Eigen::VectorXd& seed, const DlsSettings& settings) {
+  check_link(robot, link);
+  check_problem(robot, target, seed);
+  validate(settings, robot);
+  return descend(robot, link, tip, target, seed, settings);
+}
+
 IkSolver::IkSolver(std::shared_ptr<const Robot> robot, int link, IkSettings settings, const Transform& tip)
     : robot_(std::move(robot)), link_(link), settings_(std::move(settings)), tip_(tip) {
   if (!robot_) throw std::invalid_argument("IK: robot must not be null");
-  if (link < 0 || link >= robot_->num_links()) throw std::invalid_argument("IK: link index out of range");
+  check_link(*robot_, link);
   validate(settings_, *robot_);
   if (settings_.num_seeds < 1) throw std::invalid_argument("IK settings: num_seeds must be >= 1");
   std::mt19937 rng(settings_.seed);
@@ -162,7 +180,8 @@ std::pair<double, double> IkSolver::pose_error(const Eigen::VectorXd& q, const T
 }
 
 IkSolution IkSolver::solve(const Transform& target, const Eigen::VectorXd& seed) const {
-  return solve_ik(*robot_, link_, tip_, target, seed, settings_);
+  check_problem(*robot_, target, seed);  // the link and the settings were checked on construction
+  return descend(*robot_, link_, tip_, target, seed, settings_);
 }
 
 std::vector<IkSolution> IkSolver::solve_path(const std::vector<Transform>& targets, const Eigen::VectorXd& seed) const {
