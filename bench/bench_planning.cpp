@@ -116,7 +116,7 @@ void bench_planning(const Options& opt) {
 
   // IK and goal sets.
   IkSettings iks;
-  iks.active = cs.active;
+  for (bool a : cs.active) iks.weights.push_back(a ? 1.0 : 0.0);
   IkSolver ik(robot, robot->link_index("panda_hand"), iks);
   RobotWorkspace rws(*robot);
   std::vector<Transform> targets;

@@ -64,6 +64,22 @@ inline Eigen::Matrix4d matrix4(const Array& a, const char* what) {
   return M;
 }
 
+// A rigid (4, 4) pose.
+inline Transform pose_arg(const Array& T, const char* what) { return Transform::from_matrix(matrix4(T, what)); }
+
+// An (N, 4, 4) array of rigid poses.
+inline std::vector<Transform> poses_arg(const Array& P, const char* what) {
+  require_shape(what, P, {-1, 4, 4}, "(N, 4, 4)");
+  require_finite_array(what, P);
+  std::vector<Transform> out;
+  for (py::ssize_t i = 0; i < P.shape(0); ++i) {
+    Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(P.data() + 16 * i);
+    require_rigid((std::string(what) + " [" + std::to_string(i) + "]").c_str(), M);
+    out.push_back(Transform::from_matrix(M));
+  }
+  return out;
+}
+
 inline void write_matrix4(const Transform& T, double* out) {
   Eigen::Map<Eigen::Matrix<double, 4, 4, Eigen::RowMajor>> M(out);
   M = T.matrix();

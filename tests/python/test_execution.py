@@ -241,3 +241,19 @@ def test_recorded_frames_and_files(tmp_path, can_scene, can_plan, can_result):
     assert np.abs(decoded - r.frames[-1]).max() <= 26  # half a palette step
     with pytest.raises(ValueError, match="no frames"):
         execution.save_frames([], str(png))
+
+
+def test_lift_path_raises_the_hand_straight_up_with_the_native_ik(robot):
+    """The lift's joint targets (native damped least squares): FK of each waypoint puts the hand
+    lift_height * k / lift_waypoints above its start, orientation held, fingers untouched."""
+    s = execution.ExecutionSettings()
+    q0 = np.array(robot.ready_configuration, dtype=float)
+    path = execution._lift_path(robot, q0, s)
+    assert path.shape == (s.lift_waypoints + 1, robot.dof)
+    hand = robot.link_index("panda_hand")
+    T0, poses = robot.fk(q0)[hand], robot.fk_batch(path)[:, hand]
+    rise = s.lift_height * np.arange(s.lift_waypoints + 1) / s.lift_waypoints
+    np.testing.assert_allclose(poses[:, :3, 3], T0[:3, 3] + np.outer(rise, [0.0, 0.0, 1.0]), atol=1e-4)
+    np.testing.assert_allclose(poses[:, :3, :3], np.broadcast_to(T0[:3, :3], poses[:, :3, :3].shape), atol=1e-3)
+    np.testing.assert_array_equal(path[:, 7:], np.broadcast_to(q0[7:], path[:, 7:].shape))
+    assert np.all(path >= robot.lower_limits) and np.all(path <= robot.upper_limits)

@@ -152,3 +152,28 @@ def test_world_caches_are_per_world_and_release_the_world(scene_world):
     del others, w
     gc.collect()
     assert all(r() is None for r in refs)
+
+
+def test_native_ik_path_weights_and_errors(panda):
+    """The binding of the one IK solver: solve_path's poses checked by FK, frozen joints kept, and
+    bad sizes raise ValueError naming the problem."""
+    s = _core.IkSettings()
+    s.weights = [1.0] * 7 + [0.0] * 2
+    s.rotation_error = _core.IkRotationError.sine_axis
+    ik = _core.IkSolver(panda.native, "panda_hand", s)
+    q0 = np.array(panda.ready_configuration, dtype=float)
+    targets = np.repeat(panda.link_pose(q0, "panda_hand")[None], 5, axis=0)
+    targets[:, 0, 3] += 0.03 * np.arange(1, 6)
+    Q, ok = ik.solve_path(targets, q0)
+    assert ok.all() and Q.shape == (5, 9)
+    reached = panda.fk_batch(Q)[:, panda.link_index("panda_hand")]
+    assert np.abs(reached[:, :3, 3] - targets[:, :3, 3]).max() < s.position_tolerance
+    np.testing.assert_array_equal(Q[:, 7:], np.broadcast_to(q0[7:], (5, 2)))
+    bad = _core.IkSettings()
+    bad.weights = [1.0]
+    with pytest.raises(ValueError, match="weights: expected 9 entries"):
+        _core.IkSolver(panda.native, "panda_hand", bad)
+    with pytest.raises(ValueError, match=r"target poses: expected shape \(N, 4, 4\)"):
+        ik.solve_path(np.eye(4), q0)
+    with pytest.raises(ValueError, match="expected 9 joint values, got 7"):
+        ik.solve_path(targets, q0[:7])

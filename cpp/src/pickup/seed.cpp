@@ -7,6 +7,7 @@
 
 #include <Eigen/Dense>
 
+#include "pickplan/core/ik.hpp"
 #include "pickplan/pickup/nlp.hpp"
 
 namespace pickplan {
@@ -125,67 +126,59 @@ Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const P
 
 namespace {
 
-// FK of q into ws, then the tool's pose error toward the grasp: position, and the rotation as
-// half the sum of the column cross products (zero at the target).
-Eigen::Matrix<double, 6, 1> tool_pose_error(const Robot& robot, const PickupProblem& pb, const Eigen::VectorXd& q,
-                                            RobotWorkspace& ws) {
-  robot.forward_kinematics(q.data(), ws);
-  const Transform& T = ws.link_pose[pb.tool_link];
-  Eigen::Matrix<double, 6, 1> e;
-  e.head<3>() = pb.grasp_pose.p - T.p;
-  e.tail<3>().setZero();
-  for (int k = 0; k < 3; ++k) e.tail<3>() += 0.5 * T.R.col(k).cross(pb.grasp_pose.R.col(k));
-  return e;
+// The seeds' IK (core/ik.hpp): plain damped least squares, every step kept, solved to machine
+// precision; the base path's heading is never moved by IK (it follows the path's tangent).
+constexpr int kSeedIkIterations = 150;
+constexpr double kSeedIkTolerance = 1e-10;  // m and rad: descents stop here
+constexpr double kSeedIkDamping = 1e-4;
+constexpr double kSeedIkMaxStep = 0.3;      // Euclidean norm of one step (rad and m)
+constexpr double kReachTolerance = 1e-6;    // a residual below this reaches the grasp pose
+constexpr double kBaseWeight = 0.3;         // whole-body IK: weight of the base translation
+constexpr double kAreaInset = 0.02;         // m: the whole-body IK's base kept this far inside the grasping area
+constexpr double kUnreachedPenalty = 1e3;   // arm seeds: score per unit residual of a seed that misses the pose
+
+// The arm alone (base_weight 0) or the arm and the base translation (base_weight > 0).
+DlsSettings seed_ik_settings(const Robot& robot, const PickupSettings& st, double base_weight) {
+  DlsSettings s;
+  s.rotation_error = IkRotationError::sine_axis;
+  s.max_iterations = kSeedIkIterations;
+  s.position_tolerance = s.rotation_tolerance = kSeedIkTolerance;
+  s.damping_schedule = IkDamping::fixed;
+  s.damping = kSeedIkDamping;
+  s.max_stalled_iterations = 0;
+  s.max_step = kSeedIkMaxStep;
+  s.step_norm = IkStepNorm::euclidean;
+  s.limit_margin = st.joint_limit_margin;
+  s.weights.assign(robot.dof(), 1.0);
+  s.weights[0] = s.weights[1] = base_weight;
+  s.weights[2] = 0.0;
+  return s;
 }
 
-// Damped least-squares IK of the arm joints for the tool pose, base fixed; returns the residual.
-double arm_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, int iters, double margin) {
-  const int n = robot.dof(), na = n - 3;
-  RobotWorkspace ws(robot);
-  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
-  double err = 1e300;
-  for (int it = 0; it < iters; ++it) {
-    Eigen::Matrix<double, 6, 1> e = tool_pose_error(robot, pb, q, ws);
-    const Transform& T = ws.link_pose[pb.tool_link];
-    if ((T.R.transpose() * pb.grasp_pose.R).trace() < 1.0 && e.tail<3>().norm() < 1e-9) e.tail<3>() = Eigen::Vector3d::UnitZ();
-    err = e.norm();
-    if (err < 1e-10) break;
-    robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
-    const Eigen::MatrixXd Ja = J.rightCols(na);
-    const Eigen::Matrix<double, 6, 6> A = Ja * Ja.transpose() + 1e-4 * Eigen::Matrix<double, 6, 6>::Identity();
-    Eigen::VectorXd dq = Ja.transpose() * A.ldlt().solve(e);
-    if (dq.norm() > 0.3) dq *= 0.3 / dq.norm();
-    for (int j = 0; j < na; ++j)
-      q[3 + j] = std::clamp(q[3 + j] + dq[j], robot.lower_limits()[3 + j] + margin, robot.upper_limits()[3 + j] - margin);
-  }
-  return err;
+// The error's norm as the steps see it: position and sin(angle) * axis.
+double residual(const IkSolution& sol) { return std::hypot(sol.position_error, std::sin(sol.rotation_error)); }
+
+// IK of the tool for the grasp pose from q (updated in place); returns the residual before the
+// last step. A descent that does not converge oscillates, and the arm seeds choose among such
+// starts by this residual (their choice was tuned with it: the final one loses case 1's flip).
+double grasp_ik(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, Eigen::VectorXd& q,
+                double base_weight = 0.0) {
+  DlsSettings s = seed_ik_settings(robot, st, base_weight);
+  s.max_iterations = kSeedIkIterations - 1;
+  const IkSolution before_last = solve_ik(robot, pb.tool_link, Transform{}, pb.grasp_pose, q, s);
+  s.max_iterations = 1;  // the last step (none when converged)
+  q = solve_ik(robot, pb.tool_link, Transform{}, pb.grasp_pose, before_last.q, s).q;
+  return residual(before_last);
 }
 
-// Whole-body damped least squares (base translation steps scaled by base_weight) from q, for the grasp pose;
-// the base is then kept in the grasping area and the arm re-solved. Returns the residual.
-double body_ik(const Robot& robot, const PickupProblem& pb, Eigen::VectorXd& q, int iters, double margin,
-               double base_weight) {
-  const int n = robot.dof();
-  RobotWorkspace ws(robot);
-  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
-  Eigen::VectorXd W = Eigen::VectorXd::Ones(n);
-  W.head<2>().setConstant(base_weight);
-  W[2] = 0.0;  // heading kept (it follows the path)
-  for (int it = 0; it < iters; ++it) {
-    const Eigen::Matrix<double, 6, 1> e = tool_pose_error(robot, pb, q, ws);
-    if (e.norm() < 1e-10) break;
-    robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
-    const Eigen::Matrix<double, 6, 6> A = J * W.asDiagonal() * J.transpose() + 1e-4 * Eigen::Matrix<double, 6, 6>::Identity();
-    Eigen::VectorXd dq = W.asDiagonal() * (J.transpose() * A.ldlt().solve(e));
-    if (dq.norm() > 0.3) dq *= 0.3 / dq.norm();
-    q += dq;
-    for (int j = 3; j < n; ++j)
-      q[j] = std::clamp(q[j], robot.lower_limits()[j] + margin, robot.upper_limits()[j] - margin);
-  }
+// Whole-body IK (base translation weighted by kBaseWeight) from q, for the grasp pose; the base is
+// then kept in the grasping area and the arm re-solved. Returns the residual.
+double body_ik(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, Eigen::VectorXd& q) {
+  grasp_ik(robot, pb, st, q, kBaseWeight);
   Eigen::Vector2d d = q.head<2>() - pb.part_xy;
-  const double r = std::clamp(d.norm(), pb.grasp_area_rmin + 0.02, pb.grasp_area_rmax - 0.02);
+  const double r = std::clamp(d.norm(), pb.grasp_area_rmin + kAreaInset, pb.grasp_area_rmax - kAreaInset);
   if (d.norm() > 1e-9) q.head<2>() = pb.part_xy + r * d.normalized();
-  return arm_ik(robot, pb, q, iters, margin);
+  return grasp_ik(robot, pb, st, q);
 }
 
 }  // namespace
@@ -209,19 +202,19 @@ GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const
       q.tail(n - 3) = pb.arm_start;
       q[3] += pan;
       q[n - 1] += w3;
-      const double err = arm_ik(robot, pb, q, 150, st.joint_limit_margin);
-      const double score = (err > 1e-6 ? 1e3 * err : 0.0) + (q.tail(n - 3) - pb.arm_start).norm();
+      const double err = grasp_ik(robot, pb, st, q);
+      const double score = (err > kReachTolerance ? kUnreachedPenalty * err : 0.0) + (q.tail(n - 3) - pb.arm_start).norm();
       if (score < best_score) {
         best_score = score;
         best = q;
       }
     }
   Eigen::VectorXd out = x;
-  if (best_score >= 1e3 * 1e-6) {
+  if (best_score >= kUnreachedPenalty * kReachTolerance) {
     // Out of reach from the stage-1 base pose at T2 (it tends to skim the grasping area's outer
     // edge): move the base too, then bend the base path through the new pose at s2.
     Eigen::VectorXd q = best;
-    if (body_ik(robot, pb, q, 150, st.joint_limit_margin, 0.3) < 1e-6) {
+    if (body_ik(robot, pb, st, q) < kReachTolerance) {
       // Base path: the old one plus the displacement at s2 faded out smoothly away from s2; the
       // heading then follows the new path's tangent (keeps the non-holonomic rows nearly met).
       const Eigen::Vector2d delta = q.head<2>() - q2.head<2>();
@@ -251,7 +244,7 @@ GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const
       // The arm again, at the base pose the new path actually has at s2.
       tr.eval(out.data(), s2, qk.data(), nullptr, nullptr);
       q.head<3>() = qk.head<3>();
-      arm_ik(robot, pb, q, 150, st.joint_limit_margin);
+      grasp_ik(robot, pb, st, q);
       best = q;
     }
   }
@@ -270,7 +263,7 @@ GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const
     a[3] = -M_PI - a[3];
     a[4] = -a[4];
     for (int j : {0, 3, 5}) a[j] = pb.arm_start[j] + std::remainder(a[j] - pb.arm_start[j], 2 * M_PI);
-    if (arm_ik(robot, pb, f, 150, st.joint_limit_margin) < 1e-6 && (f - best).norm() > 1e-3) g.arms.push_back(f);
+    if (grasp_ik(robot, pb, st, f) < kReachTolerance && (f - best).norm() > 1e-3) g.arms.push_back(f);
   }
   return g;
 }

@@ -27,7 +27,8 @@ class IkSettings:
     duplicate_tolerance: float = 0.05
 
     def to_native(self, active) -> "_core.IkSettings":
-        return to_native(self, _core.IkSettings, active=[bool(a) for a in active])
+        """The native settings; joints not ``active`` are frozen (weight 0)."""
+        return to_native(self, _core.IkSettings, weights=[1.0 if a else 0.0 for a in active])
 
 
 @dataclass(frozen=True)

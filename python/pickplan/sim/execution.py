@@ -13,7 +13,7 @@ One call, one fresh DIRECT client (always disconnected): the scene is loaded wit
    per finger; PyBullet ignores the URDF's ``<mimic>``, so a gear constraint makes the second finger
    follow the first (``couple_fingers``), as the real hand's mechanism does;
 3. **lift**: the hand moves straight up by ``lift_height`` with its orientation held: joint targets
-   come from damped least squares on the native ``Robot.jacobian`` of ``panda_hand`` (7 arm joints),
+   come from the native damped-least-squares IK of ``panda_hand`` (7 arm joints),
    precomputed from the last waypoint (the arm's commanded pose while closing);
 4. **hold**: the final targets are held for ``hold_duration``.
 
@@ -39,6 +39,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from pickplan import _core
 from pickplan.core import objects as objects_mod
 from pickplan.core.panda import PANDA
 from pickplan.core.timing import TimedTrajectory
@@ -259,24 +260,28 @@ def _segment_steps(Q: np.ndarray, vmax: np.ndarray, s: ExecutionSettings) -> Lis
     return out
 
 
+#: Damped-least-squares steps per lift waypoint, each waypoint solved from the previous one.
+_LIFT_IK_STEPS = 3
+
+
 def _lift_path(robot, q0: np.ndarray, s: ExecutionSettings) -> np.ndarray:
-    """Arm configurations (lift_waypoints + 1, 9) moving the hand straight up, orientation held (DLS)."""
+    """Arm configurations (lift_waypoints + 1, 9) moving the hand straight up, orientation held:
+    the native damped-least-squares IK (fixed damping ``ik_damping**2``, the 7 arm joints inside
+    their limits, fingers frozen), _LIFT_IK_STEPS steps per waypoint."""
     hand = robot.link_index(PANDA.hand_link)
-    T0 = robot.fk(q0)[hand]
-    q = q0.copy()
-    path = [q.copy()]
-    lam2 = s.ik_damping ** 2
-    for k in range(1, s.lift_waypoints + 1):
-        goal = T0[:3, 3] + np.array([0.0, 0.0, s.lift_height * k / s.lift_waypoints])
-        for _ in range(3):
-            T = robot.fk(q)[hand]
-            rot_err = 0.5 * sum(np.cross(T[:3, i], T0[:3, i]) for i in range(3))
-            err = np.concatenate([goal - T[:3, 3], rot_err])
-            J = robot.jacobian(q, hand, None)[:, :7]
-            q[:7] += J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(6), err)
-            q[:7] = np.clip(q[:7], robot.lower_limits[:7], robot.upper_limits[:7])
-        path.append(q.copy())
-    return np.array(path)
+    ik = _core.IkSettings()
+    ik.weights = [1.0] * PANDA.arm_dof + [0.0] * (robot.dof - PANDA.arm_dof)
+    ik.rotation_error = _core.IkRotationError.sine_axis
+    ik.damping_schedule = _core.IkDamping.fixed
+    ik.damping = s.ik_damping ** 2
+    ik.max_iterations = _LIFT_IK_STEPS
+    ik.max_stalled_iterations = 0      # every step is taken, as many as asked
+    ik.position_tolerance = ik.rotation_tolerance = 0.0
+    ik.max_step = float("inf")
+    targets = np.repeat(robot.fk(q0)[hand][None], s.lift_waypoints, axis=0)
+    targets[:, 2, 3] += s.lift_height * np.arange(1, s.lift_waypoints + 1) / s.lift_waypoints
+    path, _ = _core.IkSolver(robot.native, hand, ik).solve_path(targets, q0)
+    return np.vstack([q0, path])
 
 
 def _follow(sim: _Sim, Q: np.ndarray, segments, fingers_from_plan: bool, finger_force: float,
