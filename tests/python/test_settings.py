@@ -15,7 +15,7 @@ from pickplan.omg.isf import IsfSettings
 from pickplan.omg.planner import OMGSettings, PlanStatus
 from pickplan.omg.selection import CostKind, Selection
 from pickplan.omg.world import CheckerKind
-from pickplan.pickup.nlp import planner as nlp
+from pickplan.pickup.nlp import cases, planner as nlp
 from pickplan.sim.execution import ExecutionStatus
 
 ARM = [True] * 7 + [False] * 2
@@ -130,3 +130,17 @@ def test_api_boundaries_accept_spellings_and_reject_misspellings():
         CheckerKind.parse("hands", "checker kind")
     # A status read back from an old JSON file compares equal to the enum.
     assert json.loads('{"status": "no_goals"}')["status"] == PlanStatus.no_goals
+
+
+@pytest.mark.parametrize("hessian", list(nlp.HessianMode), ids=str)
+def test_the_hessian_option_reaches_ipopt(tmp_path, hessian):
+    """Ipopt's own log: with its L-BFGS approximation the NLP hands it no Hessian entries."""
+    robot = nlp.mobile_ur5()
+    problem = cases.make_problem(robot, 1)
+    log = tmp_path / "ipopt.txt"
+    settings = nlp.PlannerSettings(samples_per_interval=4, max_iter=1, hessian=hessian.value, output_file=str(log))
+    x0 = _core.pickup_heuristic_seed(robot.native, problem, settings.native())
+    nlp.solve_stage(robot, problem, x0, 1, settings)
+    line = next(x for x in log.read_text().splitlines() if x.startswith("Number of nonzeros in Lagrangian Hessian"))
+    nonzeros = int(line.rsplit(":", 1)[1])
+    assert (nonzeros == 0) == (hessian is nlp.HessianMode.limited_memory), line
