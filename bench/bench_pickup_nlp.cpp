@@ -38,13 +38,13 @@ void bench_pickup(const Options& opt) {
   if (opt.extra.count("m")) st.samples_per_interval = std::atoi(opt.extra.at("m").c_str());
   if (opt.extra.count("print")) st.print_level = std::atoi(opt.extra.at("print").c_str());
   if (opt.extra.count("max_iter")) st.max_iter = std::atoi(opt.extra.at("max_iter").c_str());
-  if (opt.extra.count("mu")) st.mu_strategy = opt.extra.at("mu");
-  if (opt.extra.count("hessian")) st.hessian = opt.extra.at("hessian");
-  if (opt.extra.count("basis")) st.basis = opt.extra.at("basis");
+  if (opt.extra.count("mu")) st.mu_strategy = parse_mu_strategy(opt.extra.at("mu"));
+  if (opt.extra.count("hessian")) st.hessian = parse_hessian_mode(opt.extra.at("hessian"));
+  if (opt.extra.count("basis")) st.basis = parse_coefficient_basis(opt.extra.at("basis"));
   if (opt.extra.count("active")) st.active_set = std::atoi(opt.extra.at("active").c_str()) != 0;
   if (opt.extra.count("dense")) st.dense_subdivisions = std::atoi(opt.extra.at("dense").c_str());
   if (opt.extra.count("jwin")) st.active_joint_window = std::atof(opt.extra.at("jwin").c_str());
-  if (opt.extra.count("rates")) st.rate_rows = opt.extra.at("rates");
+  if (opt.extra.count("rates")) st.rate_rows = parse_rate_rows(opt.extra.at("rates"));
   if (opt.extra.count("hulldeg")) st.rate_hull_degree = std::atoi(opt.extra.at("hulldeg").c_str());
   if (opt.extra.count("cwin")) st.active_collision_window = std::atof(opt.extra.at("cwin").c_str());
   if (opt.extra.count("tseed")) st.timing_seed = std::atoi(opt.extra.at("tseed").c_str()) != 0;
@@ -73,7 +73,7 @@ void bench_pickup(const Options& opt) {
     std::stringstream ss(opt.extra.at("cases"));
     for (std::string tok; std::getline(ss, tok, ',');) cases.push_back(std::atoi(tok.c_str()));
   }
-  std::printf("pick-up NLP: m = %d samples per interval, %s Hessian, MUMPS\n", st.samples_per_interval, st.hessian.c_str());
+  std::printf("pick-up NLP: m = %d samples per interval, %s Hessian, MUMPS\n", st.samples_per_interval, to_string(st.hessian));
   {
     PickupProblem pb = paper_case(robot, 1, example_rho());
     PickupConstraints all(robot, pb, st, 0);

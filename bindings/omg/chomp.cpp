@@ -47,6 +47,7 @@ py::array_t<double> to_array(const Trajectory& t) {
 }  // namespace
 
 void init_chomp(py::module_& m) {
+  py::enum_<ChompStatus>(m, "ChompStatus").value("ok", ChompStatus::ok);
   py::class_<ChompSettings>(m, "ChompSettings")
       .def(py::init<>())
       .def_readwrite("n", &ChompSettings::n)

@@ -94,6 +94,15 @@ void init_pickup_nlp(py::module_& m) {
                     })
       .def("validate", &PickupProblem::validate, py::arg("robot"));
 
+  py::enum_<HessianMode>(m, "HessianMode")
+      .value("exact", HessianMode::exact)
+      .value("limited_memory", HessianMode::limited_memory);
+  py::enum_<CoefficientBasis>(m, "CoefficientBasis")
+      .value("bernstein", CoefficientBasis::bernstein)
+      .value("monomial", CoefficientBasis::monomial);
+  py::enum_<MuStrategy>(m, "MuStrategy").value("monotone", MuStrategy::monotone).value("adaptive", MuStrategy::adaptive);
+  py::enum_<RateRows>(m, "RateRows").value("hull", RateRows::hull).value("sampled", RateRows::sampled);
+
   py::class_<PickupSettings>(m, "PickupSettings")
       .def(py::init<>())
       .def_readwrite("samples_per_interval", &PickupSettings::samples_per_interval)
@@ -125,7 +134,16 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("mu_init", &PickupSettings::mu_init)
       .def_readwrite("seed", &PickupSettings::seed)
       .def_readwrite("arm_seed_noise", &PickupSettings::arm_seed_noise)
-      .def_readwrite("ipopt_options", &PickupSettings::ipopt_options);
+      .def_readwrite("ipopt_options", &PickupSettings::ipopt_options)
+      .def_readwrite("rate_rows", &PickupSettings::rate_rows)
+      .def_readwrite("rate_hull_degree", &PickupSettings::rate_hull_degree)
+      .def_readwrite("derivative_test", &PickupSettings::derivative_test)
+      .def_readwrite("output_file", &PickupSettings::output_file)
+      .def_readwrite("warm_start_push", &PickupSettings::warm_start_push)
+      .def_readwrite("timing_seed", &PickupSettings::timing_seed)
+      .def_readwrite("direct_max_iter", &PickupSettings::direct_max_iter)
+      .def_readwrite("warm_start_stages", &PickupSettings::warm_start_stages)
+      .def_readwrite("seed_speed", &PickupSettings::seed_speed);
 
   py::class_<StageResult>(m, "StageResult")
       .def_readonly("stage", &StageResult::stage)

@@ -338,7 +338,7 @@ ChompResult ChompProblem::optimize(Trajectory xi, const Eigen::VectorXd& q0, con
   res.final_terms = objective(xi, q0, iterations, nullptr, ws);
   res.xi = std::move(xi);
   res.iterations = iterations;
-  res.status = "ok";
+  res.status = ChompStatus::ok;
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }

@@ -257,16 +257,13 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
   IpoptRun res;
   const auto t0 = std::chrono::steady_clock::now();
   const double c0 = thread_cpu_seconds();
-  if (st.hessian != "exact" && st.hessian != "limited-memory")
-    throw std::invalid_argument("hessian must be \"exact\" or \"limited-memory\", got \"" + st.hessian + "\"");
-  if (st.basis != "bernstein" && st.basis != "monomial")
-    throw std::invalid_argument("basis must be \"bernstein\" or \"monomial\", got \"" + st.basis + "\"");
-  Ipopt::SmartPtr<PickupTNLP> nlp = new PickupTNLP(cons, x0, st.hessian == "exact", st.basis == "bernstein", warm);
+  Ipopt::SmartPtr<PickupTNLP> nlp = new PickupTNLP(cons, x0, st.hessian == HessianMode::exact,
+                                                   st.basis == CoefficientBasis::bernstein, warm);
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
   app->Options()->SetIntegerValue("print_level", st.print_level);
   app->Options()->SetStringValue("sb", "yes");
-  app->Options()->SetStringValue("hessian_approximation", st.hessian);
-  app->Options()->SetStringValue("mu_strategy", st.mu_strategy);
+  app->Options()->SetStringValue("hessian_approximation", to_string(st.hessian));
+  app->Options()->SetStringValue("mu_strategy", to_string(st.mu_strategy));
   app->Options()->SetNumericValue("mu_init", mu_init);
   if (warm) {
     if (warm->lambda.size() != cons.num_constraints() || warm->zl.size() != cons.num_vars() || warm->zu.size() != cons.num_vars())

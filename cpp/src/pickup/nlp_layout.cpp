@@ -42,9 +42,7 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   const int level = stage == 0 ? 5 : stage;
   level_ = level;
   const int m = settings.samples_per_interval, na = dof_ - 3;
-  if (settings.rate_rows != "hull" && settings.rate_rows != "sampled")
-    throw std::invalid_argument("rate_rows must be \"hull\" or \"sampled\", got \"" + settings.rate_rows + "\"");
-  const bool hull = settings.rate_rows == "hull";
+  const bool hull = settings.rate_rows == RateRows::hull;
   if (hull) {
     // P_s of DOF i (degree d - 1, monomial p_l = (l + 1) a_{l+1}) in the Bernstein basis of degree
     // n: beta_k = sum_{l <= k} C(k, l) / C(n, l) p_l. |P_s| <= max_k |beta_k| on [0, 1] (convex hull).

@@ -16,6 +16,9 @@ import sys
 from dataclasses import replace
 from typing import Optional, Sequence
 
+from pickplan.omg.grasps.sets import GraspKind
+from pickplan.omg.selection import Selection
+
 
 def _cmd_demo(args) -> int:
     from pickplan.eval.demo import DemoSettings, run_demo
@@ -28,7 +31,7 @@ def _cmd_plan(args) -> int:
     from pickplan.eval.demo import metrics_table
     from pickplan.core.io import write_json, write_text
     from pickplan.omg.plan_file import plan_record
-    from pickplan.omg.planner import OMGPlanner, OMGSettings
+    from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
     from pickplan.sim.scenes import Scene
 
     scene = Scene.load(args.scene)
@@ -36,7 +39,7 @@ def _cmd_plan(args) -> int:
                            grasp_kind=args.grasps, seed=args.seed)
     planner = OMGPlanner(None, scene, settings)
     result = planner.plan()
-    executed = execution.execute_plan(scene, result.trajectory) if args.execute and result.status != "no_goals" else None
+    executed = execution.execute_plan(scene, result.trajectory) if args.execute and result.status != PlanStatus.no_goals else None
     table = metrics_table(result, executed)
     print(table)
     if args.out:
@@ -57,8 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(handler=_cmd_demo)
     plan = sub.add_parser("plan", help="plan one scene (JSON from `pickplan scenes`)")
     plan.add_argument("--scene", required=True)
-    plan.add_argument("--selection", default="MD", choices=["Fixed", "Proj", "FTC", "FTL", "EXP", "MD"])
-    plan.add_argument("--grasps", default="simulated", choices=["simulated", "graspit", "approach", "antipodal"])
+    plan.add_argument("--selection", default=Selection.MD.value, choices=[s.value for s in Selection])
+    plan.add_argument("--grasps", default=GraspKind.simulated.value, choices=[k.value for k in GraspKind])
     plan.add_argument("--iterations", type=int, default=50)
     plan.add_argument("--no-refine", action="store_true", help="turn C-Space ISF off")
     plan.add_argument("--execute", action="store_true", help="also execute the plan in PyBullet")

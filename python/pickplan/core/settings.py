@@ -1,7 +1,49 @@
-"""Python dataclass settings -> the native settings structs with the same field names."""
+"""Settings plumbing shared by every layer: option enums with string values, and Python dataclass
+settings -> the native settings structs with the same field names."""
 from __future__ import annotations
 
+import enum
 from dataclasses import asdict
+
+
+class Option(str, enum.Enum):
+    """An option or status with a string value: equal to, hashed and serialised (JSON) as that
+    value, so old files and the CLI keep their spellings. ``parse`` converts a spelling once, at an
+    API boundary. Members with a native counterpart (``py::enum_``) share its member names."""
+
+    def __str__(self) -> str:
+        return self.value
+
+    def __format__(self, spec: str) -> str:
+        return format(self.value, spec)
+
+    def __hash__(self) -> int:  # as the value's, so a member and its spelling are one dict key
+        return hash(self.value)
+
+    @classmethod
+    def parse(cls, value, what: str = ""):
+        """The member spelt ``value`` (a member passes through); otherwise a ValueError naming
+        the valid spellings."""
+        if isinstance(value, cls):
+            return value
+        try:
+            return cls(value)
+        except ValueError:
+            valid = ", ".join(repr(m.value) for m in cls)
+            raise ValueError(f"unknown {what or cls.__name__} {value!r}; valid: {valid}") from None
+
+    @classmethod
+    def from_native(cls, native):
+        """The member named as the native enum value ``native``."""
+        return cls[native.name]
+
+
+def native_value(value, native_default):
+    """``value`` as the native struct field holding ``native_default`` expects it: an Option
+    becomes the member of the same name of the field's ``py::enum_``."""
+    if isinstance(value, Option):
+        return getattr(type(native_default), value.name)
+    return value
 
 
 def to_native(settings, native_type, skip=(), **extra):
@@ -10,5 +52,5 @@ def to_native(settings, native_type, skip=(), **extra):
     out = native_type()
     for name, value in {**asdict(settings), **extra}.items():
         if name not in skip:
-            setattr(out, name, value)
+            setattr(out, name, native_value(value, getattr(out, name)))
     return out

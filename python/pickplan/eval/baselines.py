@@ -27,7 +27,7 @@ import numpy as np
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import Chomp, cubic_initialization
 from pickplan.omg.goals import build_goal_set
-from pickplan.omg.planner import OMGSettings, PlanResult
+from pickplan.omg.planner import OMGSettings, PlanResult, PlanStatus
 from pickplan.sim.scenes import Scene
 from pickplan.omg.world import World
 
@@ -52,7 +52,7 @@ def chomp_c_settings(settings: OMGSettings) -> OMGSettings:
 
 
 def _empty(q0, timings, gs) -> PlanResult:
-    return PlanResult("no_goals", np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
+    return PlanResult(PlanStatus.no_goals, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
                       {"objective": [], "goal": [], "p": [], "switches": 0}, timings, gs.reason_counts())
 
 
@@ -92,7 +92,7 @@ class _Problem:
 
     def result(self, xi, g, metrics, attempts, t_total) -> PlanResult:
         self.timings["total"] = time.perf_counter() - t_total
-        status = "success" if metrics["success"] else ("in_collision" if not metrics["collision_free"] else "not_smooth")
+        status = PlanStatus.of(metrics)
         robot = self.world.robot
         hand = robot.link_pose(xi[-1], robot.hand_link)
         history = {"objective": [], "goal": [g], "p": [], "switches": 0, "attempts": attempts,

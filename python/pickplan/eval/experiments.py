@@ -205,7 +205,7 @@ def run_unit(unit: dict) -> dict:
     from pickplan.eval.baselines import BaselineSettings, plan_baseline
     from pickplan.omg.chomp import ChompSettings
     from pickplan.omg.goals import GoalSetSettings, IkSettings
-    from pickplan.omg.planner import OMGPlanner, OMGSettings
+    from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
     from pickplan.sim.scenes import Scene
     from pickplan.omg.world import World
     from pickplan.core.timing import time_parameterize
@@ -239,7 +239,7 @@ def run_unit(unit: dict) -> dict:
         bs = BaselineSettings(omg=omg, max_goals_tried=unit["max_goals_tried"], chomp_iterations=unit["iterations"],
                               time_limit=unit["time_limit"])
         result = plan_baseline(spec["planner"], scene, bs, world=world, grasps=grasps)
-    planned = result.status != "no_goals"
+    planned = result.status != PlanStatus.no_goals
     m = result.metrics
     record.update(status=result.status, valid=True, planned=planned, planning_success=bool(result.success),
                   goal_set_size=result.goal_set_size, iterations=result.iterations, refined=bool(result.refined),

@@ -6,12 +6,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Union
 
 import numpy as np
 
 from pickplan import _core
-from pickplan.core.settings import to_native
+from pickplan.core.settings import Option, to_native
 from pickplan.core.robots import BodyPoints, Robot
 from pickplan.core.sdf import SceneSdf
 
@@ -54,15 +54,28 @@ class MetricSettings:
         return to_native(self, _core.MetricSettings, exclude_mask=int(exclude_mask))
 
 
+class ChompStatus(Option):
+    """How a CHOMP run ended (the native ``ChompStatus``); bad input raises instead."""
+
+    ok = "ok"
+
+
 @dataclass
 class ChompResult:
     xi: np.ndarray                 # (n, dof) waypoints after the start
     objective: list                # f_motion before each iteration
     final: dict                    # obstacle, prior, total, colliding_points at the end
     iterations: int
-    status: str
+    status: ChompStatus
     seconds: float
     metrics: dict = field(default_factory=dict)
+
+
+class Initialization(Option):
+    """The initial trajectory from the start to a goal."""
+
+    cubic = "cubic"     # zero end velocities (the paper's)
+    linear = "linear"
 
 
 def cubic_initialization(q0: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
@@ -98,12 +111,11 @@ class Chomp:
     def dt(self) -> float:
         return self.problem.dt
 
-    def initial_trajectory(self, q0, goal, kind: str = "cubic") -> np.ndarray:
-        if kind == "cubic":
+    def initial_trajectory(self, q0, goal, kind: Union[Initialization, str] = Initialization.cubic) -> np.ndarray:
+        kind = Initialization.parse(kind, "initialization")
+        if kind is Initialization.cubic:
             return cubic_initialization(q0, goal, self.settings.n)
-        if kind == "linear":
-            return linear_initialization(q0, goal, self.settings.n)
-        raise ValueError(f"unknown initialization {kind!r}; use 'cubic' or 'linear'")
+        return linear_initialization(q0, goal, self.settings.n)
 
     def workspace(self):
         return self.problem.workspace()
@@ -125,8 +137,8 @@ class Chomp:
             xi0 = np.array(xi0, dtype=float)
             xi0[-len(goal):] = goal
         out = self.problem.optimize(xi0, q0, goal, iterations)
-        result = ChompResult(out["xi"], list(out["objective"]), out["final"], out["iterations"], out["status"],
-                             out["seconds"])
+        result = ChompResult(out["xi"], list(out["objective"]), out["final"], out["iterations"],
+                             ChompStatus.from_native(out["status"]), out["seconds"])
         if metric_settings is not None:
             result.metrics = self.metrics(result.xi, q0, metric_settings)
         return result

@@ -10,7 +10,7 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core.settings import to_native
-from pickplan.omg.world import World
+from pickplan.omg.world import CheckerKind, World
 
 
 @dataclass(frozen=True)
@@ -93,8 +93,8 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     grasps = check_grasps(grasps)
     start = world.start if start is None else np.asarray(start, dtype=float)
     hand_poses = np.einsum("ij,njk->nik", world.target_pose, grasps) if len(grasps) else grasps
-    checker = world.checker("goal").native if collision_check else None
-    hand_checker = world.checker("hand").native if collision_check else None
+    checker = world.checker(CheckerKind.goal).native if collision_check else None
+    hand_checker = world.checker(CheckerKind.hand).native if collision_check else None
     problem = world.clearance_problem if collision_check and settings.approach_clearance > 0 else None
     out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses, start, settings.to_native(),
                                problem, float(settings.approach_clearance))

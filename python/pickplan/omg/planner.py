@@ -9,18 +9,36 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Optional, Union
+from typing import Optional, Tuple, Union
 
 import numpy as np
 
 from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, time_parameterize
+from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import Chomp, ChompSettings, MetricSettings, cubic_initialization
-from pickplan.omg.goals import GoalSetSettings, IkSettings, build_goal_set
+from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, build_goal_set
+from pickplan.omg.grasps import GraspKind
 from pickplan.omg.isf import IsfSettings
 from pickplan.sim.scenes import Scene
-from pickplan.omg.selection import make_policy
-from pickplan.omg.world import World, WorldSettings
+from pickplan.omg.selection import CostKind, Selection, make_policy
+from pickplan.omg.world import CheckerKind, World, WorldSettings
+
+
+class PlanStatus(Option):
+    """How a plan ended (the paper's success test, Sec. IV-A)."""
+
+    success = "success"            # collision-free and smooth
+    in_collision = "in_collision"
+    not_smooth = "not_smooth"
+    no_goals = "no_goals"          # no grasp gave a goal configuration (see PlanResult.goal_reasons)
+
+    @classmethod
+    def of(cls, metrics: dict) -> "PlanStatus":
+        """The status of a trajectory with these metrics (``Chomp.metrics``)."""
+        if metrics["success"]:
+            return cls.success
+        return cls.in_collision if not metrics["collision_free"] else cls.not_smooth
 
 
 @dataclass(frozen=True)
@@ -33,7 +51,7 @@ class OMGSettings:
     isf: IsfSettings = field(default_factory=IsfSettings)
     metrics: MetricSettings = field(default_factory=MetricSettings)
     world: WorldSettings = field(default_factory=WorldSettings)
-    selection: str = "MD"          # Fixed | Proj | FTC | FTL | EXP | MD
+    selection: Selection = Selection.MD  # Fixed | Proj | FTC | FTL | EXP | MD (a spelling converts)
     iterations: int = 50           # N, the optimization horizon
     refine: bool = True            # C-Space ISF on the selected goal every iteration
     isf_steps: int = 1             # ISF steps per planner iteration
@@ -44,14 +62,18 @@ class OMGSettings:
     pre_terminate: bool = True     # stop once the plan succeeds (checked every check_every iterations)
     min_iterations: int = 10
     check_every: int = 5
-    grasp_kind: str = "simulated"  # default grasps when plan() gets none: stored set, else generated
+    grasp_kind: GraspKind = GraspKind.simulated  # default grasps when plan() gets none: stored, else generated
     grasp_count: int = 100
     seed: int = 0
+
+    def __post_init__(self):  # the options' spellings ("MD", "antipodal") become their enums, once
+        object.__setattr__(self, "selection", Selection.parse(self.selection, "selection policy"))
+        object.__setattr__(self, "grasp_kind", GraspKind.parse(self.grasp_kind, "grasp set kind"))
 
 
 @dataclass
 class PlanResult:
-    status: str                    # "success", "in_collision", "not_smooth", "no_goals"
+    status: PlanStatus
     trajectory: np.ndarray         # (n + 1, dof): the start, then the n waypoints
     goal: np.ndarray               # final configuration (the grasp)
     grasp_index: int               # input grasp the final goal came from (-1 when none)
@@ -71,7 +93,7 @@ class PlanResult:
 
     @property
     def success(self) -> bool:
-        return self.status == "success"
+        return self.status == PlanStatus.success
 
     def timed(self, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
               interpolation: Interpolation = Interpolation.PCHIP) -> TimedTrajectory:
@@ -102,19 +124,27 @@ class OMGPlanner:
         s = self.settings
         return grasps_mod.grasp_set(world.target_model, s.grasp_kind, s.grasp_count, seed=s.seed).poses
 
-    def plan(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
-             grasps: Optional[Union[np.ndarray, str]] = None) -> PlanResult:
+    def _prepare(self, world: World, start, grasps) -> Tuple[np.ndarray, np.ndarray]:
+        """The checked start and the grasps; builds what the scene caches (FCL models, ISF data)."""
         s = self.settings
-        t = time.perf_counter()
-        world = self.world(target)
         q0 = world.robot.check_within_limits(world.start if start is None else start, "start")
         if grasps is None:
             grasps = self.default_grasps(world)
         elif isinstance(grasps, str):
             grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed).poses
-        world.checker("goal"), world.checker("hand")  # FCL models: built once per scene, cached
+        world.checker(CheckerKind.goal), world.checker(CheckerKind.hand)  # FCL models: built once per scene, cached
         if s.refine:
             world.grasp_refiner(s.isf, s.seed)  # hand SDF, object samples: cached likewise
+        return q0, grasps
+
+    def plan(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
+             grasps: Optional[Union[np.ndarray, str]] = None) -> PlanResult:
+        """Algorithm 2 from ``start`` (default: the scene's) to one of ``grasps`` of ``target``
+        (default: the scene's; grasps: poses, a grasp set kind, or None for ``default_grasps``)."""
+        s = self.settings
+        t = time.perf_counter()
+        world = self.world(target)
+        q0, grasps = self._prepare(world, start, grasps)
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
         timings["prepare"] = time.perf_counter() - t
@@ -125,91 +155,141 @@ class OMGPlanner:
         timings["goal_set"] = time.perf_counter() - t
         if len(gs) == 0:
             timings["total"] = time.perf_counter() - t_total
-            empty = np.zeros((0, world.robot.dof))
-            return PlanResult("no_goals", np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
-                              {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}, timings, gs.reason_counts())
+            history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}
+            return PlanResult(PlanStatus.no_goals, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0,
+                              0, history, timings, gs.reason_counts())
+        result = _Optimization(s, world, q0, GoalBook(gs, world.robot), timings).run()
+        timings["total"] = time.perf_counter() - t_total
+        result.goal_reasons = gs.reason_counts()
+        return result
 
-        m = gs.tails.shape[1]
-        chomp = Chomp(world.robot, world.sdf, world.body, replace(s.chomp, obstacle_tail=m), exclude=(world.target,))
-        metric_settings = replace(s.metrics, tail_waypoints=m)
-        ws = chomp.workspace()
-        goals = [g for g in gs.goals]
-        tails = [t_ for t_ in gs.tails]
-        origin = list(gs.grasp_index)          # input grasp of each goal
-        origin_goal = list(range(len(gs)))     # goal-set goal each goal came from (refined copies: their source)
-        refined_copy: dict = {}                # goal index -> index of its refined copy
-        refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
-        isf_stalled: set = set()               # goals ISF leaves alone: no decrease found, or at its trust radius
-        hand_link = world.robot.hand_link
-        grasp_hand: dict = {}                  # hand position at an input goal, made when ISF first refines it
-        policy = make_policy(s.selection)
-        N = s.iterations
 
-        def on_goal(xi, g):  # the tail sits on goal g's tail (after a projection step: to round-off)
-            return np.allclose(xi[-m:], tails[g], rtol=0.0, atol=1e-9)
+class GoalBook:
+    """The goal set as the planner changes it: the first time C-Space ISF moves a goal, its refined
+    copy joins the set; later refinements update that copy in place. Goals ISF cannot improve (no
+    decrease found, or beyond ``isf_max_shift`` from their input grasp) are left alone."""
 
-        def estimates(xi, i):
-            if policy.cost_kind == "distance":  # Proj: distance of the free end point to each goal
-                _, grad = chomp.problem.objective(xi, q0, i)
-                free_end = xi[-1] - s.chomp.step_size * chomp.problem.solve_A(grad)[-1]
-                c = np.linalg.norm(np.array(goals) - free_end, axis=1)
-            else:
-                c = chomp.problem.goal_costs(xi, q0, i, N, np.array(goals), s.cost_time_stride,
-                                             s.cost_point_stride, ws)
-            norm = np.linalg.norm(c)
-            return c / norm if norm > 0 else c
+    def __init__(self, gs: GoalSet, robot):
+        self.robot = robot
+        self.initial_goals = np.array(gs.goals)  # the IK goal set as built, before any refinement
+        self.goals = list(gs.goals)
+        self.tails = list(gs.tails)
+        self.origin = list(gs.grasp_index)         # input grasp of each goal
+        self.origin_goal = list(range(len(gs)))    # goal-set goal each goal came from (refined copies: their source)
+        self.refined_copy: dict = {}               # goal index -> index of its refined copy
+        self.stalled: set = set()                  # goals ISF leaves alone
+        self.grasp_hand: dict = {}                 # hand position at an input goal, made when ISF first refines it
+        self.tail_length = gs.tails.shape[1]
 
+    def __len__(self) -> int:
+        return len(self.goals)
+
+    def on_goal(self, xi, g: int) -> bool:
+        """The tail sits on goal g's tail (after a projection step: to round-off)."""
+        return np.allclose(xi[-self.tail_length:], self.tails[g], rtol=0.0, atol=1e-9)
+
+    def is_refined(self, g: int) -> bool:
+        return g in self.refined_copy.values()
+
+    def refine(self, g: int, refiner, steps: int, max_shift: float) -> Tuple[int, bool]:
+        """ISF steps on goal g; returns the goal to follow (g or its refined copy) and whether that
+        copy is new (a selection policy then grows by one goal)."""
+        q_ref, _ = refiner.refine(self.goals[g], steps)
+        hand_link = self.robot.hand_link
+        source = self.origin_goal[g]
+        if source not in self.grasp_hand:
+            self.grasp_hand[source] = self.robot.link_pose(self.goals[source], hand_link)[:3, 3]
+        shift = np.linalg.norm(self.robot.link_pose(q_ref, hand_link)[:3, 3] - self.grasp_hand[source])
+        if np.abs(q_ref - self.goals[g]).max() == 0 or shift > max_shift:
+            self.stalled.add(g)  # deterministic: refine would give the same again
+            return g, False
+        shifted = self.tails[g] + (q_ref - self.goals[g])  # keep the approach's shape
+        if self.is_refined(g):  # already a refined goal: update in place
+            self.goals[g], self.tails[g] = q_ref, shifted
+            return g, False
+        if g in self.refined_copy:
+            k = self.refined_copy[g]
+            self.goals[k], self.tails[k] = q_ref, shifted
+            return k, False
+        self.goals.append(q_ref)
+        self.tails.append(shifted)
+        self.origin.append(self.origin[g])
+        self.origin_goal.append(g)
+        self.refined_copy[g] = len(self.goals) - 1
+        return len(self.goals) - 1, True
+
+
+class _Optimization:
+    """The loop of Algorithm 2 over a non-empty goal set; ``timings`` accumulates its phases."""
+
+    def __init__(self, settings: OMGSettings, world: World, q0: np.ndarray, book: GoalBook, timings: dict):
+        s = self.settings = settings
+        self.world, self.q0, self.book, self.timings = world, q0, book, timings
+        m = book.tail_length
+        self.chomp = Chomp(world.robot, world.sdf, world.body, replace(s.chomp, obstacle_tail=m),
+                           exclude=(world.target,))
+        self.metric_settings = replace(s.metrics, tail_waypoints=m)
+        self.ws = self.chomp.workspace()
+        self.refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
+        self.policy = make_policy(s.selection)
+
+    def estimates(self, xi, i: int) -> np.ndarray:
+        """Normalized cost of each goal for the trajectory xi at iteration i."""
+        s, goals = self.settings, np.array(self.book.goals)
+        if self.policy.cost_kind is CostKind.distance:  # Proj: distance of the free end point to each goal
+            _, grad = self.chomp.problem.objective(xi, self.q0, i)
+            free_end = xi[-1] - s.chomp.step_size * self.chomp.problem.solve_A(grad)[-1]
+            c = np.linalg.norm(goals - free_end, axis=1)
+        else:
+            c = self.chomp.problem.goal_costs(xi, self.q0, i, s.iterations, goals, s.cost_time_stride,
+                                              s.cost_point_stride, self.ws)
+        norm = np.linalg.norm(c)
+        return c / norm if norm > 0 else c
+
+    def _timed(self, phase: str, fn, *args):
         t = time.perf_counter()
-        xi = cubic_initialization(q0, goals[0], s.chomp.n)
-        c0 = estimates(xi, 0)
-        timings["costs"] += time.perf_counter() - t
-        policy.reset(len(goals), N, c0)
+        out = fn(*args)
+        self.timings[phase] += time.perf_counter() - t
+        return out
+
+    def _select(self, c) -> Tuple[int, np.ndarray]:
+        """The policy's update and its choice: (goal, p)."""
+        p = self.policy.update(c)
+        return self.policy.select(), p
+
+    def _refine(self, g: int) -> int:
+        g, added = self.book.refine(g, self.refiner, self.settings.isf_steps, self.settings.isf_max_shift)
+        if added:
+            self.policy.add_goal()
+        return g
+
+    def _succeeds(self, xi, g: int, iterations: int):
+        """The trajectory that would be returned (its tail on goal g) and its metrics when it succeeds."""
+        book, q0 = self.book, self.q0
+        cand = xi if book.on_goal(xi, g) else self.chomp.step(xi.copy(), q0, book.tails[g], iterations, self.ws)[0]
+        metrics = self.chomp.metrics(cand, q0, self.metric_settings)
+        return (cand, metrics) if metrics["success"] else (None, None)
+
+    def run(self) -> PlanResult:
+        s, book, q0, chomp, ws = self.settings, self.book, self.q0, self.chomp, self.ws
+        xi = cubic_initialization(q0, book.goals[0], s.chomp.n)
+        c0 = self._timed("costs", self.estimates, xi, 0)
+        self.policy.reset(len(book), s.iterations, c0)
         g = int(np.argmin(c0))  # the initial goal: best by the initial estimate (as Fixed)
-        xi = cubic_initialization(q0, goals[g], s.chomp.n)
-        xi[-m:] = tails[g]
-        history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": int(origin[g])}
-        iterations = 0
-        metrics = None
-        for i in range(N):
+        xi = cubic_initialization(q0, book.goals[g], s.chomp.n)
+        xi[-book.tail_length:] = book.tails[g]
+        history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0,
+                   "initial_grasp": int(book.origin[g])}
+        iterations, metrics = 0, None
+        for i in range(s.iterations):
             iterations = i + 1
-            t = time.perf_counter()
-            xi, info = chomp.step(xi, q0, tails[g], i, ws)
-            timings["chomp"] += time.perf_counter() - t
+            xi, info = self._timed("chomp", chomp.step, xi, q0, book.tails[g], i, ws)
             history["objective"].append(info["before"]["total"])
-            t = time.perf_counter()
-            c = estimates(xi, i + 1)
-            timings["costs"] += time.perf_counter() - t
-            t = time.perf_counter()
+            c = self._timed("costs", self.estimates, xi, i + 1)
             history["costs"].append(c)
-            p = policy.update(c)
-            g_next = policy.select()
-            timings["selection"] += time.perf_counter() - t
-            if refiner is not None and g_next not in isf_stalled:
-                t = time.perf_counter()
-                q_ref, _ = refiner.refine(goals[g_next], s.isf_steps)
-                source = origin_goal[g_next]
-                if source not in grasp_hand:
-                    grasp_hand[source] = world.robot.link_pose(goals[source], hand_link)[:3, 3]
-                shift = np.linalg.norm(world.robot.link_pose(q_ref, hand_link)[:3, 3] - grasp_hand[source])
-                if np.abs(q_ref - goals[g_next]).max() == 0 or shift > s.isf_max_shift:
-                    isf_stalled.add(g_next)  # deterministic: refine would give the same again
-                else:
-                    shifted = tails[g_next] + (q_ref - goals[g_next])  # keep the approach's shape
-                    if g_next in refined_copy.values():       # already a refined goal: update in place
-                        goals[g_next], tails[g_next] = q_ref, shifted
-                    elif g_next in refined_copy:
-                        k = refined_copy[g_next]
-                        goals[k], tails[k] = q_ref, shifted
-                        g_next = k
-                    else:
-                        goals.append(q_ref)
-                        tails.append(shifted)
-                        origin.append(origin[g_next])
-                        origin_goal.append(g_next)
-                        refined_copy[g_next] = len(goals) - 1
-                        policy.add_goal()
-                        g_next = len(goals) - 1
-                timings["isf"] += time.perf_counter() - t
+            g_next, p = self._timed("selection", self._select, c)
+            if self.refiner is not None and g_next not in book.stalled:
+                g_next = self._timed("isf", self._refine, g_next)
             history["switches"] += int(g_next != g)
             history["goal"].append(g_next)
             history["p"].append(p.copy())
@@ -218,25 +298,23 @@ class OMGPlanner:
             # goal; overwriting the tail instead would leave a jump before it for CHOMP to undo.
             g = g_next
             if s.pre_terminate and iterations >= s.min_iterations and iterations % s.check_every == 0:
-                t = time.perf_counter()
-                # Judge the trajectory that would be returned: with its tail on the current goal.
-                cand = xi if on_goal(xi, g) else chomp.step(xi.copy(), q0, tails[g], iterations, ws)[0]
-                metrics = chomp.metrics(cand, q0, metric_settings)
-                timings["metrics"] += time.perf_counter() - t
-                if metrics["success"]:
+                cand, metrics = self._timed("metrics", self._succeeds, xi, g, iterations)
+                if cand is not None:
                     xi = cand
                     break
-                metrics = None
-        if not on_goal(xi, g):  # the last selection (a switch or a refined goal): project onto it
-            xi, _ = chomp.step(xi, q0, tails[g], iterations, ws)
+        if not book.on_goal(xi, g):  # the last selection (a switch or a refined goal): project onto it
+            xi, _ = chomp.step(xi, q0, book.tails[g], iterations, ws)
+        return self._result(xi, g, iterations, metrics, history)
+
+    def _result(self, xi, g: int, iterations: int, metrics: Optional[dict], history: dict) -> PlanResult:
         t = time.perf_counter()
         if metrics is None:
-            metrics = chomp.metrics(xi, q0, metric_settings)
+            metrics = self.chomp.metrics(xi, self.q0, self.metric_settings)
+        refiner = self.refiner
         grasp_cost = float(refiner.cost(xi[-1])[0]["total"]) if refiner is not None else float("nan")
-        timings["metrics"] += time.perf_counter() - t
-        timings["total"] = time.perf_counter() - t_total
-        status = "success" if metrics["success"] else ("in_collision" if not metrics["collision_free"] else "not_smooth")
-        hand = world.robot.link_pose(xi[-1], world.robot.hand_link)
-        return PlanResult(status, np.vstack([q0, xi]), xi[-1].copy(), int(origin[g]), hand, g in refined_copy.values(),
-                          metrics, grasp_cost, len(goals), iterations, history, timings, gs.reason_counts(),
-                          goal_set=gs.goals.copy(), goal_source=int(origin_goal[g]))
+        self.timings["metrics"] += time.perf_counter() - t
+        robot = self.world.robot
+        return PlanResult(PlanStatus.of(metrics), np.vstack([self.q0, xi]), xi[-1].copy(), int(self.book.origin[g]),
+                          robot.link_pose(xi[-1], robot.hand_link), self.book.is_refined(g), metrics, grasp_cost,
+                          len(self.book), iterations, history, self.timings,
+                          goal_set=self.book.initial_goals.copy(), goal_source=int(self.book.origin_goal[g]))

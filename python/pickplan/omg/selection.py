@@ -10,16 +10,36 @@ from __future__ import annotations
 import abc
 import math
 from dataclasses import dataclass, field
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Union
 
 import numpy as np
+
+from pickplan.core.settings import Option
+
+
+class Selection(Option):
+    """The goal selection policies (the values are the paper's names, used in JSON and the CLI)."""
+
+    Fixed = "Fixed"
+    Proj = "Proj"
+    FTC = "FTC"
+    FTL = "FTL"
+    EXP = "EXP"
+    MD = "MD"
+
+
+class CostKind(Option):
+    """What a policy's cost vector measures."""
+
+    objective = "objective"  # goal-cost estimates (eq. 8)
+    distance = "distance"    # |xi(1) - g|, the free end point's distance to each goal (Proj)
 
 
 class SelectionPolicy(abc.ABC):
     """Base: keeps p, the cost history and the regret bookkeeping."""
 
     name = "base"
-    cost_kind = "objective"  # "objective": goal-cost estimates; "distance": |xi(1) - g| (Proj)
+    cost_kind = CostKind.objective
 
     def __init__(self):
         self.p: Optional[np.ndarray] = None
@@ -88,7 +108,7 @@ def _one_hot(n: int, i: int) -> np.ndarray:
 class Fixed(SelectionPolicy):
     """The best goal by the initial estimate, kept for the whole optimization."""
 
-    name = "Fixed"
+    name = Selection.Fixed
 
     def _start(self, costs):
         self.p = _one_hot(len(costs), int(np.argmin(costs)))
@@ -103,7 +123,7 @@ class Fixed(SelectionPolicy):
 class FTC(SelectionPolicy):
     """Follow the cheapest: all mass on the goal with the lowest current cost."""
 
-    name = "FTC"
+    name = Selection.FTC
 
     def _next(self, c):
         return _one_hot(len(c), int(np.argmin(c)))
@@ -112,14 +132,14 @@ class FTC(SelectionPolicy):
 class Proj(FTC):
     """Goal-set CHOMP (Dragan et al. [11]): FTC on the distance from the free end point to each goal."""
 
-    name = "Proj"
-    cost_kind = "distance"
+    name = Selection.Proj
+    cost_kind = CostKind.distance
 
 
 class FTL(SelectionPolicy):
     """Follow the leader: all mass on the goal with the lowest cumulative cost."""
 
-    name = "FTL"
+    name = Selection.FTL
 
     def _next(self, c):
         return _one_hot(len(c), int(np.argmin(np.sum(self.costs, axis=0))))
@@ -136,7 +156,7 @@ def _multiplicative(p: np.ndarray, c: np.ndarray, eta: float) -> np.ndarray:
 class EXP(SelectionPolicy):
     """Exponential weighting with eta = sqrt(log|G| / N)."""
 
-    name = "EXP"
+    name = Selection.EXP
 
     def __init__(self, eta: Optional[float] = None):
         super().__init__()
@@ -187,7 +207,7 @@ class MirrorDescent(SelectionPolicy):
     <c, p_k> plus the switching cost |p_k - p_k,old|_1 (rate sqrt(log K / N)); p is the mixture.
     """
 
-    name = "MD"
+    name = Selection.MD
 
     def __init__(self, exponents: Sequence[int] = (-2, -1, 0, 2, 4), shift: Optional[float] = None):
         super().__init__()
@@ -226,11 +246,9 @@ class MirrorDescent(SelectionPolicy):
         return p / p.sum()
 
 
-POLICIES = {"Fixed": Fixed, "Proj": Proj, "FTC": FTC, "FTL": FTL, "EXP": EXP, "MD": MirrorDescent}
+POLICIES = {policy.name: policy for policy in (Fixed, Proj, FTC, FTL, EXP, MirrorDescent)}
 
 
-def make_policy(name: str) -> SelectionPolicy:
-    try:
-        return POLICIES[name]()
-    except KeyError:
-        raise ValueError(f"unknown selection policy {name!r}; choose from {', '.join(POLICIES)}") from None
+def make_policy(name: Union[Selection, str]) -> SelectionPolicy:
+    """A fresh policy by its ``Selection`` (or that's spelling: "MD")."""
+    return POLICIES[Selection.parse(name, "selection policy")]()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 import time
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Optional, Union
 
 import numpy as np
 
@@ -13,9 +13,19 @@ from pickplan.core import collision
 from pickplan.core import objects
 from pickplan.core import robots
 from pickplan.core import sdf
+from pickplan.core.settings import Option
 from pickplan.sim.scenes import Scene
 from pickplan.omg import isf
 from pickplan.omg.chomp import Chomp
+
+
+class CheckerKind(Option):
+    """What a world's FCL checker lets touch (``World.checker``)."""
+
+    goal = "goal"            # the fingers may touch the target (grasp configurations close around it)
+    hand = "hand"            # the same, for the hand and fingers alone
+    strict = "strict"        # nothing may touch anything
+    obstacles = "obstacles"  # the target is ignored entirely (trajectory validation)
 
 
 @dataclass(frozen=True)
@@ -70,33 +80,29 @@ class World:
     def scene_meshes(self):
         return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
 
-    def checker(self, kind: str = "goal") -> collision.CollisionChecker:
-        """FCL checker against objects and table. "goal": the fingers may touch the target
-        (grasp configurations close around it); "hand": the same for the hand and fingers alone;
-        "strict": nothing may touch anything;
-        "obstacles": the target is ignored entirely (trajectory validation). Built once per kind
-        and kept by this world (not in a module-level cache, which would keep worlds alive and
-        rebuild them when a user alternates between scenes)."""
+    def checker(self, kind: Union[CheckerKind, str] = CheckerKind.goal) -> collision.CollisionChecker:
+        """FCL checker against objects and table, of a ``CheckerKind`` (or its spelling: "goal").
+        Built once per kind and kept by this world (not in a module-level cache, which would keep
+        worlds alive and rebuild them when a user alternates between scenes)."""
+        kind = CheckerKind.parse(kind, "checker kind")
         if kind not in self._checkers:
             self._checkers[kind] = self._build_checker(kind)
         return self._checkers[kind]
 
-    def _build_checker(self, kind: str) -> collision.CollisionChecker:
+    def _build_checker(self, kind: CheckerKind) -> collision.CollisionChecker:
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())
         mounted = tuple((name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving)
         links = None
-        if kind in ("goal", "hand"):
+        if kind in (CheckerKind.goal, CheckerKind.hand):
             settings = collision.CollisionSettings(allowed_pairs=mounted + tuple((f, self.target) for f in fingers))
-            if kind == "hand":  # only what the grasp pose places: hand and fingers
+            if kind is CheckerKind.hand:  # only what the grasp pose places: hand and fingers
                 links = (self.robot.hand_link,) + tuple(fingers)
-        elif kind == "strict":
+        elif kind is CheckerKind.strict:
             settings = collision.CollisionSettings(allowed_pairs=mounted)
-        elif kind == "obstacles":
-            settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
         else:
-            raise ValueError(f"unknown checker kind {kind!r}; use 'goal', 'hand', 'strict' or 'obstacles'")
+            settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
         table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
                                 pose=np.asarray(self.scene.table.pose, dtype=float))
         return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links)

@@ -43,10 +43,17 @@ from pickplan import _core
 from pickplan.core import objects as objects_mod
 from pickplan.core.panda import PANDA
 from pickplan.core.timing import TimedTrajectory
+from pickplan.core.settings import Option
 from pickplan.sim import scenes as scenes_mod
 
-#: Every value ``ExecutionResult.status`` takes.
-STATUSES = ("lifted", "dropped", "missed", "collision", "invalid_trajectory", "unstable")
+
+class ExecutionStatus(Option):
+    """Every value ``ExecutionResult.status`` takes (see the module docstring)."""
+    lifted, dropped, missed, collision = "lifted", "dropped", "missed", "collision"
+    invalid_trajectory, unstable = "invalid_trajectory", "unstable"
+
+
+STATUSES = tuple(ExecutionStatus)
 
 
 @dataclass(frozen=True)
@@ -128,7 +135,7 @@ class RecordSettings:
 @dataclass
 class ExecutionResult:
     success: bool                          # execution success: lifted and still held
-    status: str                            # one of STATUSES
+    status: ExecutionStatus
     target: str
     target_lift: float                     # m, rise of the target's centre of mass
     target_final_pose: np.ndarray          # (4, 4) object frame -> world at the end
@@ -341,7 +348,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     if np.max(over) > s.joint_limit_tolerance:
         k, j = np.unravel_index(int(np.argmax(over)), over.shape)
         return ExecutionResult(
-            success=False, status="invalid_trajectory", target=scene.target, target_lift=0.0,
+            success=False, status=ExecutionStatus.invalid_trajectory, target=scene.target, target_lift=0.0,
             target_final_pose=np.asarray(scene.object(scene.target).pose, dtype=float).copy(),
             contacts_during_approach={}, max_penetration=0.0, collided=False,
             object_displacements={o.name: 0.0 for o in scene.objects if o.name != scene.target},
@@ -422,17 +429,17 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     collided = max_pen > s.collision_depth
     success = bool(finite and held and lift_m >= s.success_lift_fraction * s.lift_height)
     if not finite:
-        status, msg = "unstable", "the simulation produced non-finite states"
+        status, msg = ExecutionStatus.unstable, "the simulation produced non-finite states"
     elif success:
-        status, msg = "lifted", ""
+        status, msg = ExecutionStatus.lifted, ""
     elif collided:
         worst = max(sim.contacts, key=sim.contacts.get)
-        status, msg = "collision", f"robot penetrated {worst} by {max_pen * 1000:.1f} mm during the approach"
+        status, msg = ExecutionStatus.collision, f"robot penetrated {worst} by {max_pen * 1000:.1f} mm during the approach"
     elif not held_after_close:
-        status, msg = "missed", "the fingers closed without the target between them"
+        status, msg = ExecutionStatus.missed, "the fingers closed without the target between them"
     else:
-        status, msg = "dropped", (f"target held after closing but at the end held={held}, "
-                                  f"lift {lift_m:.3f} m of {s.lift_height:.3f} m")
+        status, msg = ExecutionStatus.dropped, (f"target held after closing but at the end held={held}, "
+                                                f"lift {lift_m:.3f} m of {s.lift_height:.3f} m")
     return ExecutionResult(
         success=success, status=status, target=scene.target, target_lift=lift_m, target_final_pose=T_final,
         contacts_during_approach=dict(sorted(sim.contacts.items())), max_penetration=float(max_pen),

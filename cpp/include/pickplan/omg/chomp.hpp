@@ -68,12 +68,15 @@ struct StepInfo {
   int limit_projections = 0;
 };
 
+// How an optimize() run ended. Bad input throws instead; a fixed iteration count always finishes.
+enum class ChompStatus { ok };
+
 struct ChompResult {
   Trajectory xi;
   std::vector<double> objective;  // per iteration, before each step
   ObjectiveTerms final_terms;
   int iterations = 0;
-  std::string status;             // "ok", or a reason
+  ChompStatus status = ChompStatus::ok;
   double seconds = 0;
 };
 

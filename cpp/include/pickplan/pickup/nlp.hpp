@@ -17,6 +17,7 @@
 
 #include <Eigen/Core>
 
+#include "pickplan/pickup/options.hpp"
 #include "pickplan/pickup/poly_traj.hpp"
 #include "pickplan/core/robot.hpp"
 #include "pickplan/core/transform.hpp"
@@ -78,19 +79,19 @@ struct PickupSettings {
   // Non-holonomic base, in normalised time: |x_s sin phi - y_s cos phi| <= tol * L with L the
   // start-part-goal distance, i.e. lateral speed <= tol L / T (heading error ~ tol rad at mean speed).
   double nonholonomic_tol = 0.002;
-  std::string hessian = "exact";         // "exact" (eval_hessian) | "limited-memory" (Ipopt's L-BFGS)
-  std::string basis = "bernstein";      // Ipopt's coefficient variables: "bernstein" | "monomial" (results: monomial)
-  std::string mu_strategy = "monotone";  // Ipopt barrier update ("monotone" | "adaptive")
+  HessianMode hessian = HessianMode::exact;          // exact (eval_hessian) | limited_memory (Ipopt's L-BFGS)
+  CoefficientBasis basis = CoefficientBasis::bernstein;  // Ipopt's coefficient variables (results: monomial)
+  MuStrategy mu_strategy = MuStrategy::monotone;     // Ipopt barrier update
   double mu_init = 1e-2;
   double velocity_tol = 0.005;          // |J q' - S_g n_g| per component (m/s) during grasping
   double angular_velocity_tol = 0.01;   // |omega| per component (rad/s) during grasping
   double collision_margin = 0.02;       // m
   double joint_limit_margin = 0.05;     // rad, sampled position limits tightened (limits hold between samples)
   double t_min = 0.5, t_max = 100.0;    // bounds on T (s)
-  // Yaw and arm joint rate limits: "hull" bounds each rate polynomial by its Bernstein points of
+  // Yaw and arm joint rate limits: hull bounds each rate polynomial by its Bernstein points of
   // degree rate_hull_degree (the convex-hull property: the limit then holds on all of [0, T], with
-  // a small margin of conservatism, in a few rows per DOF); "sampled": at the m samples per interval.
-  std::string rate_rows = "hull";
+  // a small margin of conservatism, in a few rows per DOF); sampled: at the m samples per interval.
+  RateRows rate_rows = RateRows::hull;
   int rate_hull_degree = 12;
   double tol = 1e-6, constr_viol_tol = 1e-6;
   int max_iter = 400;

@@ -12,8 +12,19 @@ from typing import Dict, Optional
 import numpy as np
 
 from pickplan.core.panda import YCB_TO_HAND
+from pickplan.core.settings import Option
 
-KINDS = ("simulated", "graspit", "approach", "antipodal")
+
+class GraspKind(Option):
+    """The grasp set kinds (``grasp_set``): stored with YCB objects, or generated."""
+
+    simulated = "simulated"  # stored, else physics-verified (physics.simulated_grasps)
+    graspit = "graspit"      # stored only
+    approach = "approach"
+    antipodal = "antipodal"
+
+
+KINDS = tuple(GraspKind)
 
 
 # --- grasp sets ------------------------------------------------------------------------------------

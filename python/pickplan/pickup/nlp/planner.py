@@ -16,12 +16,13 @@ import json
 import math
 import os
 from dataclasses import asdict, dataclass, field
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from pickplan import _core
 from pickplan.core.robots import Robot, assets_dir
+from pickplan.core.settings import Option, to_native
 
 METAMODEL_FORMAT = "pickplan.pickup.metamodel"
 
@@ -32,9 +33,49 @@ def mobile_ur5() -> Robot:
 
 
 # ---- settings and results ----------------------------------------------------------------------
+class HessianMode(Option):
+    """The NLP's Hessian (native ``HessianMode``; the values are Ipopt's spellings)."""
+
+    exact = "exact"                      # eval_hessian
+    limited_memory = "limited-memory"    # Ipopt's L-BFGS
+
+
+class CoefficientBasis(Option):
+    """Ipopt's coefficient variables (native ``CoefficientBasis``); results are monomial either way."""
+
+    bernstein = "bernstein"
+    monomial = "monomial"
+
+
+class MuStrategy(Option):
+    """Ipopt's barrier update (native ``MuStrategy``)."""
+
+    monotone = "monotone"
+    adaptive = "adaptive"
+
+
+class RateRows(Option):
+    """Yaw and arm rate limits (native ``RateRows``): on the Bernstein points of each rate
+    polynomial (they then hold on all of [0, T]) or at the samples only."""
+
+    hull = "hull"
+    sampled = "sampled"
+
+
+class Method(Option):
+    """How ``plan`` solves: the five stages of successive refinement, or all constraints at once."""
+
+    successive = "successive"
+    single_shot = "single_shot"
+
+
+_OPTIONS = {"hessian": HessianMode, "basis": CoefficientBasis, "mu_strategy": MuStrategy, "rate_rows": RateRows}
+
+
 @dataclass
 class PlannerSettings:
-    """Mirrors the native PickupSettings (same field names and defaults)."""
+    """Mirrors the native PickupSettings (same field names and defaults; a test checks them
+    field by field). Options take their enums or their spellings ("limited-memory")."""
 
     samples_per_interval: int = 8
     degrees: Sequence[int] = ()           # empty: quintic base and arm joints 1-3, cubic wrists
@@ -45,32 +86,59 @@ class PlannerSettings:
     joint_limit_margin: float = 0.05
     t_min: float = 0.5
     t_max: float = 100.0
+    rate_rows: RateRows = RateRows.hull
+    rate_hull_degree: int = 12            # Bernstein degree of the rate hull
     tol: float = 1e-6
     constr_viol_tol: float = 1e-6
     max_iter: int = 400
     max_cpu_time: float = 20.0
     print_level: int = 0
-    hessian: str = "exact"                # or "limited-memory" (Ipopt's L-BFGS)
-    basis: str = "bernstein"              # Ipopt's coefficient variables (results are monomial)
+    derivative_test: bool = False         # Ipopt's first-order derivative checker
+    ipopt_options: Sequence[Tuple[str, str]] = ()  # extra Ipopt options (name, value)
+    output_file: str = ""                 # non-empty: Ipopt's log (print level 5) goes to this file
+    hessian: HessianMode = HessianMode.exact
+    basis: CoefficientBasis = CoefficientBasis.bernstein
     active_set: bool = True               # joint/collision rows only where needed, re-solve on violation
     active_joint_window: float = 0.3
     active_collision_window: float = 0.15
     active_max_rounds: int = 6
     mu_resolve: float = 1e-4
+    warm_start_push: float = 1e-6
     dense_subdivisions: int = 16          # collision check between samples (0: samples only)
-    mu_strategy: str = "monotone"
+    mu_strategy: MuStrategy = MuStrategy.monotone
     mu_init: float = 1e-2
     seed: int = 0
     arm_seed_noise: float = 0.05
-    timing_fraction: float = 0.5          # stage-3 seed: fraction (log T) of the full slow-down
+    seed_speed: float = 1.0               # heuristic seed: T = path length / seed_speed
+    timing_seed: bool = True              # stage 3 starts from the grasp-timing seed ...
+    timing_fraction: float = 0.5          # ... with this fraction (log T) of the full slow-down
     direct_track: bool = True             # also solve all constraints from the stage-1 solution, keep the shorter
+    direct_max_iter: int = 200            # its Ipopt iterations
     arm_seeds: int = 2                    # stages 2-5 from up to this many arm configurations at T2, keep the shortest
+    warm_start_stages: bool = True        # stages 4 and 5 start from the previous stage's multipliers
+
+    def __post_init__(self):
+        for name, option in _OPTIONS.items():
+            setattr(self, name, option.parse(getattr(self, name), name))
 
     def native(self) -> "_core.PickupSettings":
-        s = _core.PickupSettings()
-        for k, v in asdict(self).items():
-            setattr(s, k, list(v) if k == "degrees" else v)
-        return s
+        return to_native(self, _core.PickupSettings, degrees=list(self.degrees),
+                         ipopt_options=[(str(k), str(v)) for k, v in self.ipopt_options])
+
+
+@dataclass(frozen=True)
+class StompSettings:
+    """Mirrors the native StompSettings (same field names and defaults)."""
+
+    iterations: int = 40
+    rollouts: int = 12
+    noise_stddev: float = 0.1        # scales the smooth exploration noise N(0, R^-1)
+    temperature: float = 10.0        # h of the per-timestep softmax
+    control_weight: float = 1.0      # smoothness (squared acceleration) cost
+    obstacle_weight: float = 1e3     # hinge obstacle cost per waypoint
+    limit_weight: float = 1e3        # joint position / rate limit hinge costs
+    margin: float = 0.02             # m, obstacle clearance wanted
+    seed: int = 0
 
 
 @dataclass
@@ -185,17 +253,13 @@ def _check(problem, robot: Robot):
 
 
 def plan(robot: Robot, problem, settings: PlannerSettings = PlannerSettings(),
-         method: str = "successive") -> PickupPlan:
+         method: Union[Method, str] = Method.successive) -> PickupPlan:
     """Solve: method "successive" (the five stages) or "single_shot" (all constraints at once from
     a random seed, settings.seed). Solver failures are statuses; bad input raises ValueError."""
+    method = Method.parse(method, "method")
     _check(problem, robot)
-    if method == "successive":
-        r = _core.pickup_solve_successive(robot.native, problem, settings.native())
-    elif method == "single_shot":
-        r = _core.pickup_solve_single_shot(robot.native, problem, settings.native())
-    else:
-        raise ValueError(f"method must be 'successive' or 'single_shot', got {method!r}")
-    return PickupPlan.from_native(r)
+    solve = _core.pickup_solve_successive if method is Method.successive else _core.pickup_solve_single_shot
+    return PickupPlan.from_native(solve(robot.native, problem, settings.native()))
 
 
 def solve_stage(robot: Robot, problem, x0, stage: int, settings: PlannerSettings = PlannerSettings()):
@@ -232,9 +296,7 @@ def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterati
             continue
         t = np.linspace(a, b, n)
         q, _, _ = result.sample(t)
-        st = _core.StompSettings()
-        st.iterations = int(iterations)
-        st.seed = int(seed)
+        st = to_native(StompSettings(iterations=int(iterations), seed=int(seed)), _core.StompSettings)
         info = _core.stomp_refine(robot.native, q, float(t[1] - t[0]), np.asarray(problem.arm_rate_limits),
                                   problem.body_spheres, problem.obstacles, st)
         out[name] = (t, np.array(info.q), info)
