@@ -37,7 +37,7 @@ system-deps:
 $(VENV)/.stamp: pyproject.toml
 	[ -x $(PY) ] || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh rtree scikit-learn matplotlib pytest ompl ray manifold3d
+	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh rtree scikit-learn matplotlib pillow tqdm pytest ompl ray manifold3d
 	touch $@
 
 venv: $(VENV)/.stamp

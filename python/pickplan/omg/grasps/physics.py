@@ -37,14 +37,13 @@ import hashlib
 import json
 import math
 import os
-import sys
-import time
 from dataclasses import asdict, dataclass
 from typing import Optional, Tuple
 
 import numpy as np
 
 from pickplan.core.io import atomic_open
+from pickplan.core.runner import Runner, run_jobs
 from pickplan.omg.grasps.generators import AntipodalSettings, antipodal_grasps
 from pickplan.omg.grasps.hand import FINGER_OPEN, PAD_DEPTH, hand_urdf_path
 from pickplan.omg.grasps.sets import GraspSet, _check_count, check_grasps
@@ -351,9 +350,15 @@ def close_on_object(model, grasp: np.ndarray, settings: SimSettings = SimSetting
     return {"gap": world.gap(), "left": touch[0], "right": touch[1]}
 
 
-def _shake_chunk(obj: _SimObject, poses: np.ndarray, seeds, settings: SimSettings):
+def _shake_job(job) -> dict:
     """Worker entry point (module level so ``spawn`` can import it)."""
-    return [shake_test(obj, T, int(sd), settings) for T, sd in zip(poses, seeds)]
+    obj, T, seed, settings = job
+    return shake_test(obj, T, int(seed), settings)
+
+
+def _chunksize(n: int, workers: int) -> int:
+    """Jobs per worker task: a few per worker and pool, at most 8 (results do not depend on it)."""
+    return max(1, min(8, n // (4 * int(workers)) or 1))
 
 
 def _rests(model, s) -> list:
@@ -482,12 +487,9 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     return out
 
 
-def _transport_chunk(obj: _SimObject, rests, poses: np.ndarray, settings: TransportSettings):
-    return [transport_trial(obj, rests, T, settings) for T in poses]
-
-
-def _star_transport(job):
-    return _transport_chunk(*job)
+def _transport_job(job) -> dict:
+    obj, rests, T, settings = job
+    return transport_trial(obj, rests, T, settings)
 
 
 def transport_test(model, poses, settings: TransportSettings = TransportSettings(), workers: int = 1,
@@ -499,17 +501,8 @@ def transport_test(model, poses, settings: TransportSettings = TransportSettings
     if int(workers) < 1:
         raise ValueError(f"workers: expected >= 1, got {workers}")
     obj, rests = _SimObject(model), [np.asarray(r, float) for r in _rests(model, settings)]
-    if int(workers) == 1 or len(poses) < 2:
-        trials = _transport_chunk(obj, rests, poses, settings)
-    else:
-        import multiprocessing as mp
-
-        chunk = max(1, min(8, len(poses) // (4 * int(workers)) or 1))
-        jobs = [(obj, rests, poses[i:i + chunk], settings) for i in range(0, len(poses), chunk)]
-        trials = []
-        with mp.get_context("spawn").Pool(int(workers)) as pool:
-            for res in pool.imap(_star_transport, jobs):
-                trials += res
+    trials = run_jobs(_transport_job, [(obj, rests, T, settings) for T in poses], int(workers),
+                      chunksize=_chunksize(len(poses), workers))
     out = np.array([(1 if t["held"] else 0) if t["applicable"] else -1 for t in trials], dtype=np.int8)
     return (out, trials) if details else out
 
@@ -540,30 +533,11 @@ def shake_and_transport(model, m: int, seed: int = 0, workers: int = 1, sim: "Si
     rests = [np.asarray(r, float) for r in _rests(model, transport)]
     idx = [i for i, T in enumerate(cand.poses) if _table_world(obj, rests, T, transport) is not None]
     jobs = [(obj, rests, cand.poses[i], seeds[i], sim, transport) for i in idx]
-    if int(workers) > 1 and len(jobs) > 1:
-        import multiprocessing as mp
-
-        with mp.get_context("spawn").Pool(int(workers)) as pool:
-            res = pool.map(_shake_transport_job, jobs, chunksize=2)
-    else:
-        res = [_shake_transport_job(j) for j in jobs]
+    res = run_jobs(_shake_transport_job, jobs, int(workers), chunksize=2)
     return [{"index": i, "pose": cand.poses[i], "shake": sh, "transport": tr} for i, (sh, tr) in zip(idx, res)]
 
 
 # --- the "Simulated" set ------------------------------------------------------------------------------
-class _Progress:
-    def __init__(self, total: int, desc: str, enabled: bool):
-        self.total, self.desc, self.enabled, self.count, self.t0 = max(total, 1), desc, enabled, 0, time.time()
-
-    def update(self, k: int) -> None:
-        self.count += k
-        if self.enabled:
-            f = min(self.count / self.total, 1.0)
-            sys.stderr.write(f"\r{self.desc} [{'#' * int(24 * f):<24}] {self.count}/{self.total} "
-                             f"{time.time() - self.t0:.0f}s" + ("\n" if f >= 1 else ""))
-            sys.stderr.flush()
-
-
 def cache_dir() -> str:
     root = os.environ.get(CACHE_ENV) or os.path.join(os.path.expanduser("~"), ".cache", "pickplan")
     return os.path.join(root, "grasps")
@@ -611,32 +585,18 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
         with np.load(path) as z:
             info = {k[5:]: z[k] for k in z.files if k.startswith("info_")}
             return GraspSet("simulated", z["poses"], model.name, scores=z["scores"], info=info)
-    progress = sys.stderr.isatty() if progress is None else progress
     obj = _SimObject(model)
     m = int(math.ceil(n * oversample))
     keep = {k: [] for k in ("poses", "scores", "contacts", "normals", "width", "drift")}
     tested = 0
-    pool = None
-    try:
+    with Runner(int(workers)) as runner:  # one pool for every round
         for rnd in range(max_rounds):
             cand, seeds = shake_candidates(model, m, seed, rnd, antipodal)
             if len(cand) == 0:
                 break
-            chunk = max(1, min(8, len(cand) // (4 * int(workers)) or 1))
-            jobs = [(obj, cand.poses[i:i + chunk], seeds[i:i + chunk], settings) for i in range(0, len(cand), chunk)]
-            bar = _Progress(len(cand), f"{model.name} shake round {rnd + 1}", progress)
-            results = []
-            if int(workers) == 1:
-                for job in jobs:
-                    results += _shake_chunk(*job)
-                    bar.update(len(job[1]))
-            else:
-                if pool is None:
-                    import multiprocessing as mp
-                    pool = mp.get_context("spawn").Pool(int(workers))
-                for res in pool.imap(_star_shake, jobs):  # imap keeps the candidate order
-                    results += res
-                    bar.update(len(res))
+            jobs = [(obj, T, sd, settings) for T, sd in zip(cand.poses, seeds)]
+            results = [r for _, r in runner.map(_shake_job, jobs, chunksize=_chunksize(len(jobs), workers),
+                                                progress=progress, label=f"{model.name} shake round {rnd + 1}")]
             tested += len(cand)
             for i, r in enumerate(results):
                 if r["held"]:
@@ -647,10 +607,6 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
                     keep["drift"].append(r["drift"])
             if len(keep["poses"]) >= n:
                 break
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
     got = min(n, len(keep["poses"]))
     if got < n:
         import warnings
@@ -665,7 +621,3 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
         with atomic_open(path, "wb") as f:
             np.savez(f, poses=gs.poses, scores=gs.scores, **{f"info_{k}": v for k, v in info.items()})
     return gs
-
-
-def _star_shake(job):
-    return _shake_chunk(*job)
