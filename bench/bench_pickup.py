@@ -24,7 +24,8 @@ import numpy as np
 
 from pickplan.pickup.metamodel.active import ActiveConfig, PoseDomain, learn_boundary, learn_random, predict
 from pickplan.pickup.metamodel.compare import compare, plot_comparison, summarize, table_markdown
-from pickplan.pickup.metamodel.model import BuildConfig, build_metamodel, write_text_atomic
+from pickplan.core.io import write_text
+from pickplan.pickup.metamodel.model import BuildConfig, build_metamodel
 from pickplan.pickup.metamodel.parallel import SimRunner, sample_seeds
 from pickplan.pickup.metamodel.parts import PARTS
 from pickplan.pickup.metamodel.sim import SimConfig, simulate_grasp
@@ -119,12 +120,12 @@ def main(argv=None) -> int:
     report["compare_s"] = time.perf_counter() - t0
     report["n_extensive"] = n_ext
     report["compare_summary"] = summarize(rows)
-    write_text_atomic(os.path.join(args.out, "comparison.md"), table_markdown(rows, args.part))
+    write_text(os.path.join(args.out, "comparison.md"), table_markdown(rows, args.part))
     try:
         plot_comparison(rows, os.path.join(args.out, "comparison.png"), title=args.part)
     except ImportError:
         print("matplotlib missing: no plot", file=sys.stderr)
-    write_text_atomic(os.path.join(args.out, "report.json"), json.dumps(report, indent=1))
+    write_text(os.path.join(args.out, "report.json"), json.dumps(report, indent=1))
     print(json.dumps(report, indent=1))
     print(table_markdown(rows, args.part))
     return 0

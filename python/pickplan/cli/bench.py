@@ -168,7 +168,8 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
                          methods=tuple(args.methods) if args.methods else None, quick=args.quick,
                          workers=args.workers, ray=args.ray, seed=args.seed, iterations=args.iterations,
                          execute=not args.no_execute, timed_execution=args.timed_execution, time_limit=args.time_limit,
-                         max_goals_tried=args.max_goals_tried, progress=not args.no_progress)
+                         max_goals_tried=args.max_goals_tried,
+                         progress=False if args.no_progress else None)
 
 
 def run_bench(args: argparse.Namespace) -> int:
@@ -200,7 +201,7 @@ def add_bench_commands(subparsers) -> None:
         p.add_argument("--methods", nargs="+", default=None, help="subset of the table's methods")
         p.add_argument("--quick", action="store_true", help="CI setting: <= 4 scenes, 1 run, 10 goals")
         p.add_argument("--out", default=None, help="output folder (default out/bench/TABLE); resumes there")
-        p.add_argument("--workers", type=int, default=2, help="local worker processes (0: serial)")
+        p.add_argument("--workers", type=int, default=2, help="local worker processes (<= 1: serial)")
         p.add_argument("--ray", default=None, help="Ray cluster address, or 'local' to start Ray here")
         p.add_argument("--seed", type=int, default=0)
         p.add_argument("--iterations", type=int, default=50)

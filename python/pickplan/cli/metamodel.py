@@ -18,7 +18,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel, write_text_atomic
+from pickplan.core.io import write_text
+from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
 from pickplan.pickup.metamodel.parts import PARTS
 
 DEFAULT_OUT = os.path.join("results", "metamodel")
@@ -104,7 +105,7 @@ def _build_one(args, part: str) -> MetaModel:
     mm = build_metamodel(part, _config(args), seed=args.seed, workers=args.workers,
                          use_ray=args.ray, progress=not args.quiet)
     mm.save(model_path(args.out, part))
-    write_text_atomic(os.path.join(args.out, f"{part}_rho.md"), rho_markdown(mm))
+    write_text(os.path.join(args.out, f"{part}_rho.md"), rho_markdown(mm))
     print(f"wrote {model_path(args.out, part)}")
     return mm
 

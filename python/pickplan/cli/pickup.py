@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import os
 
+from pickplan.core.io import atomic_open, write_text
 from pickplan.pickup.nlp import cases
 from pickplan.pickup.nlp import planner
 
@@ -121,11 +122,11 @@ def plot_fig5(fig5: dict, path) -> None:
         ax.legend()
     axes[0].set_ylabel("speed (m/s)")
     fig.tight_layout()
-    import io
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=120)
-    plt.close(fig)
-    planner.write_atomic(path, buf.getvalue())
+    try:
+        with atomic_open(path, "wb") as f:
+            fig.savefig(f, format="png", dpi=120)
+    finally:
+        plt.close(fig)
 
 
 def _replay(args: argparse.Namespace) -> int:
@@ -168,7 +169,7 @@ def run_cases(args: argparse.Namespace) -> int:
     src = ("STAND-IN surface planner.synthetic_rho (no physics behind it)" if cfg.metamodel == cases.STANDIN
            else f"meta-model {cfg.metamodel} (part-1 simulation)")
     md = tables_markdown(main, t4, src)
-    planner.write_atomic(os.path.join(args.out, "tables.md"), md.encode())
+    write_text(os.path.join(args.out, "tables.md"), md)
     plot_fig5(fig5, os.path.join(args.out, "fig5_speeds.png"))
     print(md)
     print(f"wrote {args.out}/tables.md, fig5_speeds.png and trajectories/")

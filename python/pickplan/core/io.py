@@ -16,6 +16,8 @@ def atomic_open(path: str, mode: str = "w", **kwargs) -> Iterator[Any]:
     os.makedirs(folder, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=folder)
     try:
+        # mkstemp makes owner-only files; a result keeps the mode of the file it replaces, else rw-r--r--.
+        os.chmod(tmp, os.stat(path).st_mode & 0o777 if os.path.exists(path) else 0o644)
         with os.fdopen(fd, mode, **kwargs) as f:
             yield f
             f.flush()
@@ -28,10 +30,16 @@ def atomic_open(path: str, mode: str = "w", **kwargs) -> Iterator[Any]:
 
 
 def write_json(path: str, data: Any) -> None:
-    with atomic_open(path, "w") as f:
+    """Indented, key-sorted JSON (results people read and diff)."""
+    with atomic_open(path, "w", encoding="utf-8") as f:
         json.dump(data, f, indent=2, sort_keys=True)
 
 
 def write_text(path: str, text: str) -> None:
-    with atomic_open(path, "w") as f:
+    with atomic_open(path, "w", encoding="utf-8") as f:
         f.write(text)
+
+
+def write_bytes(path: str, data: bytes) -> None:
+    with atomic_open(path, "wb") as f:
+        f.write(data)

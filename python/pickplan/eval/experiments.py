@@ -4,8 +4,9 @@ A sweep is a list of units, one per (scene, method, run). A unit plans one scene
 (OMG with some settings, or a baseline), executes successful plans in PyBullet (failed plans count
 as failed executions, as in the paper) and returns one flat record. Every finished unit is written
 at once to ``OUT/units/<scene>_<method>_r<run>.json`` (atomically), so an interrupted sweep resumes
-where it stopped with nothing counted twice. Units run serially (``workers=0``), over a local
-process pool (default), or as Ray tasks (``ray="local"`` or a cluster address).
+where it stopped with nothing counted twice. Units run through ``pickplan.core.runner``: serially
+(``workers`` <= 1), over a local process pool (default), or as Ray tasks (``ray="local"`` or a
+cluster address).
 
 >>> settings = SweepSettings("selection", scenes=4, runs=1, out="/tmp/t1", quick=True)
 >>> records = run_sweep(settings)
@@ -13,18 +14,18 @@ process pool (default), or as Ray tasks (``ray="local"`` or a cluster address).
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
-import sys
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import asdict, dataclass, field, replace
-from typing import Callable, Dict, Iterable, Iterator, List, Optional, Sequence, TextIO, Tuple
+from dataclasses import dataclass, replace
+from typing import Callable, Dict, Iterable, List, Optional, Sequence, TextIO, Tuple
 
 import numpy as np
 
 from pickplan.core.io import write_json
+from pickplan.core.runner import JobFailure, OnError, Order, Runner
 
 TABLES = ("selection", "refinement", "planners", "ablation")
 SELECTION_METHODS = ("Fixed", "Proj", "FTC", "FTL", "EXP", "MD")
@@ -49,7 +50,7 @@ class SweepSettings:
     runs: int = 10
     methods: Optional[Tuple[str, ...]] = None   # None: every method of the table
     quick: bool = False                # CI setting: see ``effective``
-    workers: int = 2                   # local processes (0: serial, in this process)
+    workers: int = 2                   # local processes (<= 1: serial, in this process)
     ray: Optional[str] = None          # "local" or a Ray cluster address
     seed: int = 0                      # scene set seed; run r of every scene uses seed + r
     iterations: int = 50               # OMG / CHOMP iterations N
@@ -57,7 +58,7 @@ class SweepSettings:
     timed_execution: bool = False      # execute them timed within the Panda's limits (else 0.1 s per waypoint)
     time_limit: float = 1.0            # OMPL seconds per goal
     max_goals_tried: int = 5           # ranked goals tried by CHOMP / FMT / RRT-C
-    progress: bool = True
+    progress: Optional[bool] = None     # None: a progress bar only on a terminal
 
     def __post_init__(self):
         if self.table not in TABLES:
@@ -126,8 +127,10 @@ def _make_scene(job: dict) -> dict:
     return {"path": path}
 
 
-def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None) -> List[str]:
-    """The sweep's scene files: those of ``scene_dir``, or generated once into ``OUT/scenes``."""
+def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None,
+                runner: Optional[Runner] = None) -> List[str]:
+    """The sweep's scene files: those of ``scene_dir``, or generated once into ``OUT/scenes``
+    (with ``runner``, else the sweep's own back end)."""
     s = settings.effective()
     if s.scene_dir:
         files = sorted(f for f in os.listdir(s.scene_dir) if f.endswith(".json") and f != "index.json")
@@ -141,8 +144,9 @@ def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None) -> Lis
     jobs = [{"path": os.path.join(folder, f"scene_{i:04d}.json"), "seed": seed, "objects": s.objects}
             for i, seed in enumerate(scene_seeds(s.seed, s.scenes))]
     todo = [j for j in jobs if not os.path.exists(j["path"])]
-    for _ in run_tasks(_make_scene, todo, s, "scenes", stream):
-        pass
+    with sweep_runner(s) if runner is None else contextlib.nullcontext(runner) as backend:
+        for _ in backend.map(_make_scene, todo, Order.COMPLETION, progress=s.progress, label="scenes", stream=stream):
+            pass
     return [j["path"] for j in jobs]
 
 
@@ -263,135 +267,41 @@ def run_unit(unit: dict) -> dict:
     return record
 
 
-# --- running tasks: serial, process pool or Ray ----------------------------------------------------
-class Progress:
-    """``label [#####.....] done/total  elapsed  ~left`` on a stream (stderr by default)."""
-
-    def __init__(self, label: str, total: int, done: int = 0, stream: Optional[TextIO] = None, width: int = 30):
-        self.label, self.total, self.done, self.width = label, total, done, width
-        self.start_done, self.started = done, time.perf_counter()
-        self.stream = stream if stream is not None else sys.stderr
-
-    def step(self, k: int = 1) -> None:
-        self.done += k
-        elapsed = time.perf_counter() - self.started
-        new = self.done - self.start_done
-        left = elapsed / new * (self.total - self.done) if new else float("nan")
-        filled = self.width * self.done // max(self.total, 1)
-        self.stream.write(f"\r{self.label} [{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total}"
-                          f"  {_clock(elapsed)} elapsed  ~{_clock(left)} left ")
-        if self.done >= self.total:
-            self.stream.write("\n")
-        self.stream.flush()
-
-
-def _clock(seconds: float) -> str:
-    if not math.isfinite(seconds):
-        return "?"
-    m, s = divmod(int(round(seconds)), 60)
-    return f"{m}m{s:02d}s" if m else f"{s}s"
-
-
-def run_tasks(fn: Callable[[dict], dict], jobs: Sequence[dict], settings: SweepSettings, label: str = "units",
-              stream: Optional[TextIO] = None, done: int = 0, total: Optional[int] = None) -> Iterator[Tuple[dict, dict]]:
-    """Yield (job, fn(job)) in completion order: serially, over a process pool, or as Ray tasks."""
-    jobs = list(jobs)
-    bar = Progress(label, len(jobs) + done if total is None else total, done, stream) if settings.progress else None
-    if not jobs:
-        return
-    if settings.ray:
-        it = _ray_tasks(fn, jobs, settings)
-    elif settings.workers <= 0 or len(jobs) == 1:
-        it = ((job, fn(job)) for job in jobs)
-    else:
-        it = _pool_tasks(fn, jobs, settings.workers)
-    for job, out in it:
-        yield job, out
-        if bar:
-            bar.step()
-
-
-def _pool_tasks(fn, jobs, workers) -> Iterator[Tuple[dict, dict]]:
-    import multiprocessing
-
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=multiprocessing.get_context("spawn")) as ex:
-        pending = {ex.submit(fn, job): job for job in jobs}
-        try:
-            while pending:
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    yield pending.pop(fut), fut.result()
-        finally:
-            for fut in pending:
-                fut.cancel()
-
-
-def _ray_tasks(fn, jobs, settings: SweepSettings) -> Iterator[Tuple[dict, dict]]:
-    try:
-        import ray
-    except ImportError as exc:
-        raise ImportError("--ray needs Ray: pip install ray") from exc
-    started = False
-    if not ray.is_initialized():
-        if settings.ray == "local":
-            ray.init(num_cpus=max(settings.workers, 1), include_dashboard=False, log_to_driver=False)
-        else:
-            ray.init(address=settings.ray, log_to_driver=False)
-        started = True
-    try:
-        def call(job: dict) -> dict:  # Ray wraps functions only, not callable objects
-            return fn(job)
-
-        remote = ray.remote(num_cpus=1, max_retries=2)(call)
-        pending = {remote.remote(job): job for job in jobs}
-        while pending:
-            finished, _ = ray.wait(list(pending), num_returns=1)
-            for ref in finished:
-                job = pending.pop(ref)
-                yield job, ray.get(ref)
-    finally:
-        if started:
-            ray.shutdown()
-
-
 # --- sweeps ----------------------------------------------------------------------------------------
 def unit_path(settings: SweepSettings, unit: dict) -> str:
     return os.path.join(settings.out, "units", unit_key(unit) + ".json")
 
 
-class RecordErrors:
-    """Wraps a unit function so an exception becomes the unit's record (status "error", counted as a
-    failed plan) instead of stopping the sweep; interrupts (KeyboardInterrupt) still stop it."""
+def error_record(unit: dict, failure: JobFailure) -> dict:
+    """The record of a unit whose function raised: status "error", counted as a failed plan."""
+    return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
+            "seed": int(unit["seed"]), "status": "error", "error": failure.error,
+            "valid": True, "planned": False, "planning_success": False, "execution_success": False,
+            "execution_run": bool(unit.get("execute", True))}
 
-    def __init__(self, fn: Callable[[dict], dict]):
-        self.fn = fn
 
-    def __call__(self, unit: dict) -> dict:
-        try:
-            return self.fn(unit)
-        except Exception as exc:  # noqa: BLE001 - any planner failure is data here, with its reason
-            return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
-                    "seed": int(unit["seed"]), "status": "error", "error": f"{type(exc).__name__}: {exc}",
-                    "valid": True, "planned": False, "planning_success": False, "execution_success": False,
-                    "execution_run": bool(unit.get("execute", True))}
+def sweep_runner(settings: SweepSettings) -> Runner:
+    """The sweep's back end: serial (workers <= 1), a local process pool, or Ray."""
+    return Runner(settings.workers, settings.ray)
 
 
 def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
               unit_fn: Callable[[dict], dict] = run_unit) -> List[dict]:
-    """Run every unit not yet on disk (each written once finished, an exception recorded as an
-    "error" unit); return all records in unit order."""
+    """Run every unit not yet on disk (each written as soon as it finishes, an exception recorded as
+    an "error" unit; interrupts stop the sweep); return all records in unit order."""
     s = settings.effective()
     check_resumable(s)
-    files = scene_files(s, stream)
-    units = make_units(s, files)
-    todo = [u for u in units if not os.path.exists(unit_path(s, u))]
-    gjobs = grasp_jobs(todo)
-    if gjobs:
-        for _ in run_tasks(_grasps_job, gjobs, s, "grasps", stream):
+    with sweep_runner(s) as runner:
+        files = scene_files(s, stream, runner)
+        units = make_units(s, files)
+        todo = [u for u in units if not os.path.exists(unit_path(s, u))]
+        for _ in runner.map(_grasps_job, grasp_jobs(todo), Order.COMPLETION, progress=s.progress, label="grasps",
+                            stream=stream):
             pass
-    for unit, record in run_tasks(RecordErrors(unit_fn), todo, s, f"{s.table} units", stream, done=len(units) - len(todo),
-                                  total=len(units)):
-        write_json(unit_path(s, unit), record)
+        for unit, out in runner.map(unit_fn, todo, Order.COMPLETION, OnError.RECORD, progress=s.progress,
+                                    label=f"{s.table} units", stream=stream, done=len(units) - len(todo),
+                                    total=len(units)):
+            write_json(unit_path(s, unit), error_record(unit, out) if isinstance(out, JobFailure) else out)
     return load_records(s, units)
 
 

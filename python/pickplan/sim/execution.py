@@ -32,7 +32,6 @@ lifted or not held at the end), "invalid_trajectory" (waypoints outside the join
 """
 from __future__ import annotations
 
-import struct
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Dict, List, Optional, Sequence, Tuple
@@ -473,39 +472,7 @@ def save_frames(frames: Sequence[np.ndarray], path_png: str, columns: int = 4) -
 
 
 def save_gif(frames: Sequence[np.ndarray], path: str, fps: float = 10.0) -> None:
-    """Write ``frames`` as a looping animated GIF (pure Python + numpy, 252-colour palette).
+    """Write ``frames`` as a looping animated GIF (Pillow)."""
+    from pickplan.sim import render as viz
 
-    The LZW stream sends literal codes only, with a clear code every 250 pixels so the code width
-    stays at 9 bits: larger files than a real LZW encoder writes, valid for every decoder.
-    """
-    from pickplan.core.io import atomic_open
-
-    if not frames:
-        raise ValueError("save_gif: no frames to write")
-    h, w = frames[0].shape[:2]
-    if any(f.shape[:2] != (h, w) for f in frames):
-        raise ValueError("save_gif: frames must all have the same size")
-    levels = np.array([6, 7, 6])
-    grid = np.stack(np.meshgrid(*[np.arange(n) for n in levels], indexing="ij"), -1).reshape(-1, 3)
-    palette = np.zeros((256, 3), np.uint8)
-    palette[:len(grid)] = np.round(grid * 255.0 / (levels - 1)).astype(np.uint8)
-    out = [b"GIF89a", struct.pack("<HHBBB", w, h, 0xF7, 0, 0), palette.tobytes(),
-           b"\x21\xFF\x0BNETSCAPE2.0\x03\x01\x00\x00\x00"]  # loop forever
-    delay = max(1, int(round(100.0 / fps)))
-    for f in frames:
-        q = np.round(np.asarray(f[..., :3], dtype=float) * (levels - 1) / 255.0).astype(np.int64)
-        idx = (q[..., 0] * 42 + q[..., 1] * 6 + q[..., 2]).ravel()
-        n = len(idx)
-        chunks = -(-n // 250)
-        codes = np.full(n + chunks + 1, 256, dtype=np.int64)  # 256 = clear, 257 = end of information
-        pos = np.arange(n) + np.arange(n) // 250 + 1           # a clear before every 250 literals
-        codes[pos] = idx
-        codes[-1] = 257
-        bits = ((codes[:, None] >> np.arange(9)) & 1).astype(np.uint8).ravel()
-        data = np.packbits(bits, bitorder="little").tobytes()
-        blocks = b"".join(bytes([len(data[i:i + 255])]) + data[i:i + 255] for i in range(0, len(data), 255))
-        out += [b"\x21\xF9\x04\x04" + struct.pack("<H", delay) + b"\x00\x00",
-                b"\x2C" + struct.pack("<HHHHB", 0, 0, w, h, 0), b"\x08", blocks, b"\x00"]
-    out.append(b"\x3B")
-    with atomic_open(path, "wb") as fh:
-        fh.write(b"".join(out))
+    viz.write_gif(path, frames, fps)

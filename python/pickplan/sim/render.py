@@ -1,28 +1,55 @@
-"""Headless pictures: PyBullet's TinyRenderer into PNG files (no display, no extra packages)."""
+"""Headless pictures: PyBullet's TinyRenderer (no display) into PNG files and animated GIFs (Pillow)."""
 from __future__ import annotations
 
-import struct
-import zlib
 from typing import Sequence
 
 import numpy as np
+from PIL import GifImagePlugin, Image
 
 from pickplan.core.io import atomic_open
 
 
+def _rgb_image(rgb: np.ndarray) -> Image.Image:
+    img = np.asarray(rgb)
+    if img.ndim != 3 or img.shape[2] not in (3, 4):
+        raise ValueError(f"expected an (H, W, 3|4) image, got shape {img.shape}")
+    return Image.fromarray(np.ascontiguousarray(img[..., :3], dtype=np.uint8), "RGB")
+
+
 def write_png(path: str, rgb: np.ndarray) -> None:
     """Write an (H, W, 3|4) uint8 image as PNG (atomic)."""
-    img = np.ascontiguousarray(rgb[..., :3], dtype=np.uint8)
-    h, w = img.shape[:2]
-    raw = b"".join(b"\x00" + img[y].tobytes() for y in range(h))
-
-    def chunk(tag: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
-
-    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-    png += chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b"")
+    image = _rgb_image(rgb)
     with atomic_open(path, "wb") as f:
-        f.write(png)
+        image.save(f, format="PNG")
+
+
+def write_gif(path: str, frames: Sequence[np.ndarray], fps: float = 10.0) -> None:
+    """Write equal-size (H, W, 3|4) frames as a looping animated GIF (atomic), one GIF frame per
+    frame, all sharing one 256-colour palette fitted to the whole animation (Pillow's median cut).
+
+    Frames go through Pillow's per-frame GIF encoder (``getheader`` / ``getdata``): ``save_all``
+    would merge identical consecutive frames, and a held pose would drop out of the frame count.
+    """
+    if not frames:
+        raise ValueError("write_gif: no frames to write")
+    if not fps > 0:
+        raise ValueError(f"fps must be > 0, got {fps}")
+    images = [_rgb_image(f) for f in frames]
+    w, h = images[0].size
+    if any(im.size != (w, h) for im in images):
+        raise ValueError("write_gif: frames must all have the same size")
+    sheet = Image.new("RGB", (w, h * len(images)))
+    for i, im in enumerate(images):
+        sheet.paste(im, (0, i * h))
+    palette = sheet.quantize(256, dither=Image.Dither.NONE)
+    indexed = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
+    header, _ = GifImagePlugin.getheader(indexed[0], info={"loop": 0})
+    delay_ms = max(10, int(round(1000.0 / fps)))
+    with atomic_open(path, "wb") as f:
+        f.writelines(header)
+        for im in indexed:
+            f.writelines(GifImagePlugin.getdata(im, duration=delay_ms))
+        f.write(b";")  # the GIF trailer
 
 
 def render(client: int, width: int = 640, height: int = 480, target: Sequence[float] = (0.45, 0.0, 0.35),

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import os
-import sys
 import time
 from typing import List, Optional, TextIO, Tuple
 
@@ -10,6 +9,7 @@ import numpy as np
 
 from pickplan.core import objects as objects_mod
 from pickplan.core.io import write_json
+from pickplan.core.runner import progress_bar
 from pickplan.sim.scenes import SceneSettings, generate_scene
 
 
@@ -18,23 +18,13 @@ def scene_seeds(seed: int, n: int) -> List[int]:
     return [int(s) for s in np.random.SeedSequence(int(seed)).generate_state(n, dtype=np.uint32)]
 
 
-def _progress(done: int, total: int, started: float, stream: TextIO, width: int = 30) -> None:
-    filled = width * done // max(total, 1)
-    elapsed = time.perf_counter() - started
-    rate = elapsed / done if done else 0.0
-    stream.write(f"\rscenes [{'#' * filled}{'.' * (width - filled)}] {done}/{total}  {rate:.2f} s/scene")
-    if done == total:
-        stream.write("\n")
-    stream.flush()
-
-
 def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
-                    progress: bool = True, stream: Optional[TextIO] = None, orientation: str = "upright",
+                    progress: Optional[bool] = True, stream: Optional[TextIO] = None, orientation: str = "upright",
                     clutter: Tuple[int, int] = (SceneSettings.min_objects, SceneSettings.max_objects)) -> dict:
     """Generate ``n`` scenes into ``out`` (scene_0000.json, ...) and return the index it writes.
 
     ``clutter`` = (fewest, most) objects per scene. The progress bar goes to ``stream`` (default: the
-    current ``sys.stderr``).
+    current ``sys.stderr``); ``progress`` None shows it only when that is a terminal, False never.
     """
     if n < 1:
         raise ValueError(f"--n must be >= 1, got {n}")
@@ -43,15 +33,15 @@ def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
     os.makedirs(out, exist_ok=True)
     started = time.perf_counter()
     entries = []
-    for i, s in enumerate(scene_seeds(seed, n)):
-        t0 = time.perf_counter()
-        scene = generate_scene(s, lib, settings)
-        fname = f"scene_{i:04d}.json"
-        scene.save(os.path.join(out, fname))
-        entries.append({"file": fname, "seed": s, "target": scene.target,
-                        "objects": [o.name for o in scene.objects], "seconds": round(time.perf_counter() - t0, 4)})
-        if progress:
-            _progress(i + 1, n, started, stream if stream is not None else sys.stderr)
+    with progress_bar(n, "scenes", progress, stream, unit="scene") as bar:
+        for i, s in enumerate(scene_seeds(seed, n)):
+            t0 = time.perf_counter()
+            scene = generate_scene(s, lib, settings)
+            fname = f"scene_{i:04d}.json"
+            scene.save(os.path.join(out, fname))
+            entries.append({"file": fname, "seed": s, "target": scene.target, "objects": [o.name for o in scene.objects],
+                            "seconds": round(time.perf_counter() - t0, 4)})
+            bar.update()
     index = {"count": n, "seed": seed, "objects": lib.source, "orientation": orientation,
              "clutter": [settings.min_objects, settings.max_objects], "scenes": entries,
              "seconds": round(time.perf_counter() - started, 3)}

@@ -37,22 +37,21 @@ import hashlib
 import json
 import math
 import os
-import sys
-import time
 from dataclasses import asdict, dataclass
 from typing import Optional, Tuple
 
 import numpy as np
 
 from pickplan.core.io import atomic_open
+from pickplan.core.runner import Runner, run_jobs
 from pickplan.omg.grasps.generators import AntipodalSettings, antipodal_grasps
-from pickplan.omg.grasps.hand import FINGER_OPEN, PAD_DEPTH, hand_urdf_path
+from pickplan.omg.grasps.hand import PAD_DEPTH
+from pickplan.omg.grasps.hand_world import (FINGER_JOINT_INDICES, HandWorld, InHand, SimObject, quintic_step,
+                                            smooth_step, turned_about)
 from pickplan.omg.grasps.sets import GraspSet, _check_count, check_grasps
-from pickplan.sim.scenes import _mat_to_quat, _quat_to_mat, add_object_body
 
 CACHE_ENV = "PICKPLAN_CACHE_DIR"
 CACHE_VERSION = 2  # 2: the shake test's turns and rotation check; coupled fingers
-_FINGERS = (0, 1)  # joint indices of finger_joint1/2 in the hand URDF
 
 
 @dataclass(frozen=True)
@@ -120,177 +119,18 @@ class TransportSettings(LiftSettings):
     max_slip: float = 0.02         # m its centre of mass may move in the hand after the lift
 
 
-class _SimObject:
-    """What ``scenes.add_object_body`` needs of a model: cheap to send to worker processes."""
-
-    def __init__(self, model):
-        self.name, self.mass = model.name, float(model.mass)
-        self.com, self.inertia = np.asarray(model.com, float), np.asarray(model.inertia, float)
-        self._path = model.collision_obj_path()
-
-    def collision_obj_path(self) -> str:
-        return self._path
-
-
-# --- one PyBullet world per process -----------------------------------------------------------------
-_CLIENT = {"id": None}
-
-
-def _client() -> int:
-    import pybullet as pb
-
-    if _CLIENT["id"] is None or not pb.isConnected(_CLIENT["id"]):
-        _CLIENT["id"] = pb.connect(pb.DIRECT)
-    return _CLIENT["id"]
-
-
-def _pose_of(cid: int, body: int) -> np.ndarray:
-    import pybullet as pb
-
-    pos, quat = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = _quat_to_mat(quat), pos
-    return T
-
-
-class _World:
-    """A reset world with the hand (base = panda_hand, carried by a fixed constraint) and the object."""
-
-    def __init__(self, s, obj: _SimObject, T_hand: np.ndarray, T_obj: np.ndarray, gravity: bool,
-                 table: bool = False, table_friction: float = 0.8):
-        import pybullet as pb
-
-        self.pb, self.s = pb, s
-        cid = self.cid = _client()
-        pb.resetSimulation(physicsClientId=cid)
-        pb.setPhysicsEngineParameter(fixedTimeStep=s.time_step, numSolverIterations=s.solver_iterations,
-                                     deterministicOverlappingPairs=1, physicsClientId=cid)
-        self.gravity(gravity)
-        self.table = -1
-        if table:  # the scenes' table: a box whose top face is z = 0
-            shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5, 0.5, 0.025], physicsClientId=cid)
-            self.table = pb.createMultiBody(0.0, shape, basePosition=[0, 0, -0.025], physicsClientId=cid)
-            pb.changeDynamics(self.table, -1, lateralFriction=table_friction, physicsClientId=cid)
-        self.hand = pb.loadURDF(hand_urdf_path(False), T_hand[:3, 3].tolist(), _mat_to_quat(T_hand[:3, :3]),
-                                useFixedBase=False, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
-        for j in _FINGERS:
-            pb.changeDynamics(self.hand, j, lateralFriction=s.pad_friction,
-                              spinningFriction=s.pad_spinning_friction, physicsClientId=cid)
-            pb.resetJointState(self.hand, j, FINGER_OPEN, physicsClientId=cid)
-            pb.setJointMotorControl2(self.hand, j, pb.POSITION_CONTROL, targetPosition=FINGER_OPEN,
-                                     force=s.finger_force, physicsClientId=cid)
-        if getattr(s, "couple_fingers", False):
-            # PyBullet ignores the URDF's <mimic>: without the gear two force-limited fingers let a
-            # load along the closing axis push the object (and both fingers) sideways in the hand
-            # (as execution.py, and the Franka hand's single motor).
-            gear = pb.createConstraint(self.hand, _FINGERS[0], self.hand, _FINGERS[1], pb.JOINT_GEAR, [1, 0, 0],
-                                       [0, 0, 0], [0, 0, 0], physicsClientId=cid)
-            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * s.finger_force, physicsClientId=cid)
-        # the base pose PyBullet reports (and constrains) is the inertial frame: keep its offset
-        T_in = np.eye(4)
-        info = pb.getDynamicsInfo(self.hand, -1, physicsClientId=cid)
-        T_in[:3, :3], T_in[:3, 3] = _quat_to_mat(info[4]), info[3]
-        self.T_inertial = T_in
-        self.T_hand0 = np.asarray(T_hand, float)
-        target = T_hand @ T_in
-        self.drive = pb.createConstraint(self.hand, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
-                                         target[:3, 3].tolist(), childFrameOrientation=_mat_to_quat(target[:3, :3]),
-                                         physicsClientId=cid)
-        pb.changeConstraint(self.drive, maxForce=s.hand_force, physicsClientId=cid)
-        self.body = add_object_body(cid, obj, T_obj, friction=s.object_friction)
-
-    def gravity(self, on: bool) -> None:
-        self.pb.setGravity(0, 0, -9.81 if on else 0.0, physicsClientId=self.cid)
-
-    def move_hand(self, T_hand: np.ndarray) -> None:
-        t = T_hand @ self.T_inertial
-        self.pb.changeConstraint(self.drive, jointChildPivot=t[:3, 3].tolist(),
-                                 jointChildFrameOrientation=_mat_to_quat(t[:3, :3]), maxForce=self.s.hand_force,
-                                 physicsClientId=self.cid)
-
-    def close(self) -> None:
-        for j in _FINGERS:
-            self.pb.setJointMotorControl2(self.hand, j, self.pb.POSITION_CONTROL, targetPosition=0.0,
-                                          force=self.s.finger_force, maxVelocity=self.s.finger_speed,
-                                          physicsClientId=self.cid)
-
-    def step(self, seconds: float, hand_path=None) -> None:
-        n = int(round(seconds / self.s.time_step))
-        for i in range(n):
-            if hand_path is not None:
-                self.move_hand(hand_path((i + 1) / n))
-            self.pb.stepSimulation(physicsClientId=self.cid)
-
-    def gap(self) -> float:
-        return sum(self.pb.getJointState(self.hand, j, physicsClientId=self.cid)[0] for j in _FINGERS)
-
-    def hand_pose(self) -> np.ndarray:
-        return _pose_of(self.cid, self.hand) @ np.linalg.inv(self.T_inertial)
-
-    def body_pose(self) -> np.ndarray:
-        return _pose_of(self.cid, self.body)  # the body's inertial frame: fine for relative motion
-
-    def touches(self, other: int, distance: float) -> bool:
-        return bool(self.pb.getClosestPoints(self.hand, other, distance, physicsClientId=self.cid))
-
-
-def _rot(axis: np.ndarray, angle: float) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_rotvec(axis * angle).as_matrix()
-
-
-def _smooth(u: float) -> float:
-    return u * u * (3.0 - 2.0 * u)
-
-
-def _quintic(u: float) -> float:
-    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
-
-
-def _turned(T: np.ndarray, pivot: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
-    """``T`` rotated by ``angle`` about the world ``axis`` through the world point ``pivot``."""
-    R = np.eye(4)
-    R[:3, :3] = _rot(axis, angle)
-    R[:3, 3] = pivot[:3] - R[:3, :3] @ pivot[:3]
-    return R @ T
-
-
-def _angle_deg(R: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
-
-
-class _InHand:
-    """The object's pose in the hand at a reference instant, and how far it has moved since."""
-
-    def __init__(self, world: "_World"):
-        self.world = world
-        self.ref = np.linalg.inv(world.hand_pose()) @ world.body_pose()
-
-    def now(self) -> np.ndarray:
-        return np.linalg.inv(self.world.hand_pose()) @ self.world.body_pose()
-
-    def rotation(self) -> float:
-        """Degrees the object turned relative to the hand."""
-        return _angle_deg(self.ref[:3, :3].T @ self.now()[:3, :3])
-
-    def moved(self, p_body: np.ndarray) -> float:
-        """Metres the body-frame point ``p_body`` moved relative to the hand."""
-        return float(np.linalg.norm((self.now() @ p_body - self.ref @ p_body)[:3]))
-
-
 def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSettings()) -> dict:
     """One shake test of a hand pose ``grasp`` (object frame). Returns held, drift (m, the pad
     point), rotation (deg, the object in the hand), gap (m); drift and rotation are the worst
     over the checkpoints run (after the shake, at each turn, back at the start; the test stops
     at the first failing one)."""
     s = settings
-    obj = obj if isinstance(obj, _SimObject) else _SimObject(obj)
+    obj = obj if isinstance(obj, SimObject) else SimObject(obj)
     rng = np.random.default_rng(seed)
     T_hand = np.eye(4)
     T_hand[:3, :3] = np.diag([1.0, -1.0, -1.0])  # approach pointing down: gravity pulls out of the hand
     T_hand[2, 3] = 0.5
-    world = _World(s, obj, T_hand, T_hand @ np.linalg.inv(grasp), gravity=False)
+    world = HandWorld(s, obj, T_hand, T_hand @ np.linalg.inv(grasp), gravity=False)
     world.close()
     world.step(s.close_time)
     world.gravity(True)
@@ -298,7 +138,7 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
     # the object point between the pads (in the body frame) and the settled grasp
     pad = np.array([0.0, 0.0, PAD_DEPTH, 1.0])
     H0 = world.hand_pose()
-    held = _InHand(world)
+    held = InHand(world)
     p_body = np.linalg.inv(held.ref) @ pad
     d = rng.normal(size=3)
     d /= np.linalg.norm(d)
@@ -313,7 +153,7 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
         return T
 
     world.step(half, translate)
-    world.step(half, lambda u: _turned(H0, pivot, axis, s.shake_angle * math.sin(w * half * u)))
+    world.step(half, lambda u: turned_about(H0, pivot, axis, s.shake_angle * math.sin(w * half * u)))
     world.step(0.1, lambda u: H0)
     drift, rotation = [], []
 
@@ -329,10 +169,10 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
             if not ok:
                 break  # a failed checkpoint is final: skip the rest
             a = sign * math.radians(s.turn_angle)
-            world.step(s.turn_time, lambda u: _turned(H0, pivot, closing, a * _smooth(u)))
-            world.step(s.turn_hold, lambda u: _turned(H0, pivot, closing, a))
+            world.step(s.turn_time, lambda u: turned_about(H0, pivot, closing, a * smooth_step(u)))
+            world.step(s.turn_hold, lambda u: turned_about(H0, pivot, closing, a))
             ok = holds()
-            world.step(s.turn_time, lambda u: _turned(H0, pivot, closing, a * (1.0 - _smooth(u))))
+            world.step(s.turn_time, lambda u: turned_about(H0, pivot, closing, a * (1.0 - smooth_step(u))))
         if ok:
             world.step(0.1, lambda u: H0)
             ok = holds()
@@ -342,36 +182,42 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
 def close_on_object(model, grasp: np.ndarray, settings: SimSettings = SimSettings()) -> dict:
     """Close the hand at ``grasp`` (object frame) on the free object with gravity off: the final
     pad gap (m) and whether each finger ends touching the object ("left", "right")."""
-    obj = model if isinstance(model, _SimObject) else _SimObject(model)
-    world = _World(settings, obj, np.eye(4), np.linalg.inv(check_grasps([grasp])[0]), gravity=False)
+    obj = model if isinstance(model, SimObject) else SimObject(model)
+    world = HandWorld(settings, obj, np.eye(4), np.linalg.inv(check_grasps([grasp])[0]), gravity=False)
     world.close()
     world.step(settings.close_time)
     touch = [bool(world.pb.getContactPoints(world.hand, world.body, j, physicsClientId=world.cid))
-             for j in _FINGERS]
+             for j in FINGER_JOINT_INDICES]
     return {"gap": world.gap(), "left": touch[0], "right": touch[1]}
 
 
-def _shake_chunk(obj: _SimObject, poses: np.ndarray, seeds, settings: SimSettings):
+def _shake_job(job) -> dict:
     """Worker entry point (module level so ``spawn`` can import it)."""
-    return [shake_test(obj, T, int(sd), settings) for T, sd in zip(poses, seeds)]
+    obj, T, seed, settings = job
+    return shake_test(obj, T, int(seed), settings)
+
+
+def _chunksize(n: int, workers: int) -> int:
+    """Jobs per worker task: a few per worker and pool, at most 8 (results do not depend on it)."""
+    return max(1, min(8, n // (4 * int(workers)) or 1))
 
 
 def _rests(model, s) -> list:
     return [model.resting_poses[s.rest_index]] if s.rest_index is not None else list(model.resting_poses[:3])
 
 
-def _table_world(obj: _SimObject, rests, T: np.ndarray, s) -> Optional[_World]:
+def _table_world(obj: SimObject, rests, T: np.ndarray, s) -> Optional[HandWorld]:
     """A world with the object resting on the table and the open hand at grasp ``T``, in the first
     resting pose where the hand clears the table; None when there is none (not applicable)."""
     for rest in rests:
         rest = np.asarray(rest, float)
-        world = _World(s, obj, rest @ T, rest, gravity=True, table=True, table_friction=s.table_friction)
+        world = HandWorld(s, obj, rest @ T, rest, gravity=True, table=True, table_friction=s.table_friction)
         if not world.touches(world.table, s.table_clearance):
             return world
     return None
 
 
-def _close_and_lift(world: _World, s) -> Tuple[np.ndarray, bool]:
+def _close_and_lift(world: HandWorld, s) -> Tuple[np.ndarray, bool]:
     """Close on the resting object, lift ``lift_height`` and hold; the lifted hand pose and whether
     the object rose with it (the lift test's success)."""
     z0 = world.body_pose()[2, 3]
@@ -381,7 +227,7 @@ def _close_and_lift(world: _World, s) -> Tuple[np.ndarray, bool]:
 
     def lift(u):
         T_ = H0.copy()
-        T_[2, 3] += s.lift_height * _smooth(u)
+        T_[2, 3] += s.lift_height * smooth_step(u)
         return T_
 
     world.step(s.lift_time, lift)
@@ -397,7 +243,7 @@ def lift_test(model, poses, settings: LiftSettings = LiftSettings()) -> np.ndarr
     Independent of the shake test: table, gravity throughout, lift instead of shaking."""
     s = settings
     poses = check_grasps(poses)
-    obj = _SimObject(model)
+    obj = SimObject(model)
     rests = _rests(model, s)
     out = np.zeros(len(poses), dtype=np.int8)
     for i, T in enumerate(poses):
@@ -412,7 +258,7 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     stops at the first failing one), gap (m), table (the object touches the table at the end) and
     stage (the checkpoint that failed, or "held")."""
     s = settings
-    obj = obj if isinstance(obj, _SimObject) else _SimObject(obj)
+    obj = obj if isinstance(obj, SimObject) else SimObject(obj)
     out = {"applicable": False, "lifted": False, "held": False, "rotation": float("nan"),
            "slip": float("nan"), "gap": float("nan"), "table": False, "stage": "not applicable"}
     world = _table_world(obj, rests, np.asarray(grasp, float), s)
@@ -424,7 +270,7 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     if not lifted:
         out.update(stage="lift", gap=world.gap())
         return out
-    held = _InHand(world)
+    held = InHand(world)
     com = np.array([0.0, 0.0, 0.0, 1.0])  # the body frame is the inertial frame
     rotation, slip, stage = [], [], None
 
@@ -443,7 +289,7 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
 
     def up(u):
         T_ = H1.copy()
-        T_[2, 3] += s.raise_height * _quintic(u)
+        T_[2, 3] += s.raise_height * quintic_step(u)
         return T_
 
     world.step(s.raise_time, up)
@@ -453,7 +299,7 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
 
     def carry(u):
         T_ = H2.copy()
-        T_[0, 3] += s.carry_distance * _quintic(u)
+        T_[0, 3] += s.carry_distance * quintic_step(u)
         return T_
 
     world.step(s.carry_time, carry)
@@ -465,9 +311,9 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     tilt = math.radians(s.tilt)
 
     def tilted(angle, phi):
-        return _turned(H3, pivot, np.array([math.cos(phi), math.sin(phi), 0.0]), angle)
+        return turned_about(H3, pivot, np.array([math.cos(phi), math.sin(phi), 0.0]), angle)
 
-    world.step(s.tilt_time, lambda u: tilted(tilt * _smooth(u), 0.0))
+    world.step(s.tilt_time, lambda u: tilted(tilt * smooth_step(u), 0.0))
     if not check("tilt"):
         return failed()
     world.step(s.swirl_time, lambda u: tilted(tilt, 2 * math.pi * u))
@@ -482,12 +328,9 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     return out
 
 
-def _transport_chunk(obj: _SimObject, rests, poses: np.ndarray, settings: TransportSettings):
-    return [transport_trial(obj, rests, T, settings) for T in poses]
-
-
-def _star_transport(job):
-    return _transport_chunk(*job)
+def _transport_job(job) -> dict:
+    obj, rests, T, settings = job
+    return transport_trial(obj, rests, T, settings)
 
 
 def transport_test(model, poses, settings: TransportSettings = TransportSettings(), workers: int = 1,
@@ -498,18 +341,9 @@ def transport_test(model, poses, settings: TransportSettings = TransportSettings
     poses = check_grasps(poses)
     if int(workers) < 1:
         raise ValueError(f"workers: expected >= 1, got {workers}")
-    obj, rests = _SimObject(model), [np.asarray(r, float) for r in _rests(model, settings)]
-    if int(workers) == 1 or len(poses) < 2:
-        trials = _transport_chunk(obj, rests, poses, settings)
-    else:
-        import multiprocessing as mp
-
-        chunk = max(1, min(8, len(poses) // (4 * int(workers)) or 1))
-        jobs = [(obj, rests, poses[i:i + chunk], settings) for i in range(0, len(poses), chunk)]
-        trials = []
-        with mp.get_context("spawn").Pool(int(workers)) as pool:
-            for res in pool.imap(_star_transport, jobs):
-                trials += res
+    obj, rests = SimObject(model), [np.asarray(r, float) for r in _rests(model, settings)]
+    trials = run_jobs(_transport_job, [(obj, rests, T, settings) for T in poses], int(workers),
+                      chunksize=_chunksize(len(poses), workers))
     out = np.array([(1 if t["held"] else 0) if t["applicable"] else -1 for t in trials], dtype=np.int8)
     return (out, trials) if details else out
 
@@ -536,34 +370,15 @@ def shake_and_transport(model, m: int, seed: int = 0, workers: int = 1, sim: "Si
     exactly the "Simulated" grasps of that round. Worker processes (spawn) do not change results."""
     sim = SimSettings() if sim is None else sim
     cand, seeds = shake_candidates(model, m, seed)
-    obj = _SimObject(model)
+    obj = SimObject(model)
     rests = [np.asarray(r, float) for r in _rests(model, transport)]
     idx = [i for i, T in enumerate(cand.poses) if _table_world(obj, rests, T, transport) is not None]
     jobs = [(obj, rests, cand.poses[i], seeds[i], sim, transport) for i in idx]
-    if int(workers) > 1 and len(jobs) > 1:
-        import multiprocessing as mp
-
-        with mp.get_context("spawn").Pool(int(workers)) as pool:
-            res = pool.map(_shake_transport_job, jobs, chunksize=2)
-    else:
-        res = [_shake_transport_job(j) for j in jobs]
+    res = run_jobs(_shake_transport_job, jobs, int(workers), chunksize=2)
     return [{"index": i, "pose": cand.poses[i], "shake": sh, "transport": tr} for i, (sh, tr) in zip(idx, res)]
 
 
 # --- the "Simulated" set ------------------------------------------------------------------------------
-class _Progress:
-    def __init__(self, total: int, desc: str, enabled: bool):
-        self.total, self.desc, self.enabled, self.count, self.t0 = max(total, 1), desc, enabled, 0, time.time()
-
-    def update(self, k: int) -> None:
-        self.count += k
-        if self.enabled:
-            f = min(self.count / self.total, 1.0)
-            sys.stderr.write(f"\r{self.desc} [{'#' * int(24 * f):<24}] {self.count}/{self.total} "
-                             f"{time.time() - self.t0:.0f}s" + ("\n" if f >= 1 else ""))
-            sys.stderr.flush()
-
-
 def cache_dir() -> str:
     root = os.environ.get(CACHE_ENV) or os.path.join(os.path.expanduser("~"), ".cache", "pickplan")
     return os.path.join(root, "grasps")
@@ -611,32 +426,18 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
         with np.load(path) as z:
             info = {k[5:]: z[k] for k in z.files if k.startswith("info_")}
             return GraspSet("simulated", z["poses"], model.name, scores=z["scores"], info=info)
-    progress = sys.stderr.isatty() if progress is None else progress
-    obj = _SimObject(model)
+    obj = SimObject(model)
     m = int(math.ceil(n * oversample))
     keep = {k: [] for k in ("poses", "scores", "contacts", "normals", "width", "drift")}
     tested = 0
-    pool = None
-    try:
+    with Runner(int(workers)) as runner:  # one pool for every round
         for rnd in range(max_rounds):
             cand, seeds = shake_candidates(model, m, seed, rnd, antipodal)
             if len(cand) == 0:
                 break
-            chunk = max(1, min(8, len(cand) // (4 * int(workers)) or 1))
-            jobs = [(obj, cand.poses[i:i + chunk], seeds[i:i + chunk], settings) for i in range(0, len(cand), chunk)]
-            bar = _Progress(len(cand), f"{model.name} shake round {rnd + 1}", progress)
-            results = []
-            if int(workers) == 1:
-                for job in jobs:
-                    results += _shake_chunk(*job)
-                    bar.update(len(job[1]))
-            else:
-                if pool is None:
-                    import multiprocessing as mp
-                    pool = mp.get_context("spawn").Pool(int(workers))
-                for res in pool.imap(_star_shake, jobs):  # imap keeps the candidate order
-                    results += res
-                    bar.update(len(res))
+            jobs = [(obj, T, sd, settings) for T, sd in zip(cand.poses, seeds)]
+            results = [r for _, r in runner.map(_shake_job, jobs, chunksize=_chunksize(len(jobs), workers),
+                                                progress=progress, label=f"{model.name} shake round {rnd + 1}")]
             tested += len(cand)
             for i, r in enumerate(results):
                 if r["held"]:
@@ -647,10 +448,6 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
                     keep["drift"].append(r["drift"])
             if len(keep["poses"]) >= n:
                 break
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
     got = min(n, len(keep["poses"]))
     if got < n:
         import warnings
@@ -665,7 +462,3 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
         with atomic_open(path, "wb") as f:
             np.savez(f, poses=gs.poses, scores=gs.scores, **{f"info_{k}": v for k, v in info.items()})
     return gs
-
-
-def _star_shake(job):
-    return _shake_chunk(*job)

@@ -15,7 +15,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from pickplan.pickup.metamodel.model import MetaModel, check_sigma, write_text_atomic
+from pickplan.core.io import atomic_open, write_text
+from pickplan.pickup.metamodel.model import MetaModel, check_sigma
 from pickplan.pickup.metamodel.parallel import SimRunner, sample_seeds
 from pickplan.pickup.metamodel.sim import SimConfig
 
@@ -63,8 +64,7 @@ def extensive_sampling(runner: SimRunner, s_g: float, s_c: float, sigma_r: float
     offsets = z * np.array([sigma_r, sigma_r, sigma_phi])
     ok = runner.run(offsets, s_g, s_c, sample_seeds(seed, 0, n_samples))
     if path is not None:
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        write_text_atomic(path, json.dumps({"labels": ok.astype(int).tolist()}))
+        write_text(path, json.dumps({"labels": ok.astype(int).tolist()}))
     return _binomial(ok)
 
 
@@ -182,9 +182,9 @@ def write_results(rows, out_dir, part: str, reference_seed: int = 0) -> dict:
     import os
 
     base = os.path.join(os.fspath(out_dir), f"{part}_comparison")
-    write_text_atomic(base + ".md", table_markdown(rows, part))
-    write_text_atomic(base + ".csv", table_csv(rows))
-    write_text_atomic(base + ".json", json.dumps(
+    write_text(base + ".md", table_markdown(rows, part))
+    write_text(base + ".csv", table_csv(rows))
+    write_text(base + ".json", json.dumps(
         {"part": part, "reference_seed": int(reference_seed), "rows": [asdict(r) for r in rows],
          "summary": summarize(rows)}, indent=1))
     return {"md": base + ".md", "csv": base + ".csv", "json": base + ".json"}
@@ -193,9 +193,6 @@ def write_results(rows, out_dir, part: str, reference_seed: int = 0) -> dict:
 def plot_comparison(rows, path, title: str = "") -> str:
     """Fig. 3-like 3-D bars, one panel per sigma level: light = extensive sampling,
     dark = active learning (grid); written atomically as PNG. Needs matplotlib."""
-    import os
-    import tempfile
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -224,15 +221,9 @@ def plot_comparison(rows, path, title: str = "") -> str:
     if title:
         fig.suptitle(title)
     path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=".png")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        os.replace(tmp, path)
+        with atomic_open(path, "wb") as f:
+            fig.savefig(f, format="png", dpi=110, bbox_inches="tight")
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return path

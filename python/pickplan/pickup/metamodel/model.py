@@ -22,6 +22,7 @@ from typing import Optional
 
 import numpy as np
 
+from pickplan.core.io import write_text
 from pickplan.pickup.metamodel.active import ActiveConfig, PoseDomain, fit_svm, known_from_lower_sc, learn_boundary
 from pickplan.pickup.metamodel.calibration import calibrate, gaussian_queries, svm_depth
 from pickplan.pickup.metamodel.gpc import GPConfig, GPSuccessModel, lapse_rate
@@ -220,11 +221,7 @@ class MetaModel:
         self.lapse = float(lapse)  # rho caps each pose's probability at 1 - lapse (GP model)
 
     def level(self, sigma_r: float, sigma_phi: float):
-        for lv in self.levels:
-            if math.isclose(lv.sigma_r, sigma_r, rel_tol=1e-9) and \
-                    math.isclose(lv.sigma_phi, sigma_phi, rel_tol=1e-9):
-                return lv
-        return None
+        return next((lv for lv in self.levels if _same_sigma(lv, sigma_r, sigma_phi)), None)
 
     def surface(self, sigma_r: float, sigma_phi: float) -> RhoSurface:
         """The surface for this sigma; built (and cached) from the GSBs if new."""
@@ -269,16 +266,14 @@ class MetaModel:
 
     @classmethod
     def from_dict(cls, d: dict) -> "MetaModel":
-        if d.get("format") != FORMAT:
-            raise ValueError(f"not a pickplan meta-model (format={d.get('format')!r})")
+        _check_format(d)
         if d.get("version") not in READABLE_VERSIONS:
             raise ValueError(f"unsupported meta-model version {d.get('version')!r}")
         levels, grids, surfaces = [], {}, {}
-        for lv in d["levels"]:
-            s = SigmaLevel(lv["name"], lv["sigma_r"], lv["sigma_phi"])
-            levels.append(s)
-            grids[s.name] = np.asarray(lv["rho_grid"], float)
-            surfaces[s.name] = RhoSurface.from_dict(lv["surface"])
+        for stored, (lv, surface) in zip(d["levels"], _stored_levels(d)):
+            levels.append(lv)
+            grids[lv.name] = np.asarray(stored["rho_grid"], float)
+            surfaces[lv.name] = surface
         bounds = {(b["i"], b["j"]): BoundaryModel.from_dict(b) for b in d["boundaries"]}
         return cls(d["part"], d["sg_grid"], d["sc_grid"], bounds, levels, grids, surfaces,
                    PoseDomain(**d["domain"]), d["n_queries"], tuple(d["surface_degree"]),
@@ -286,24 +281,55 @@ class MetaModel:
                    d.get("lapse", 0.0))
 
     def save(self, path) -> None:
-        """Write JSON atomically (temp file in the same directory, then os.replace)."""
-        write_text_atomic(path, json.dumps(self.to_dict()))
+        """Write JSON atomically (pickplan.core.io: a temp file, then a rename)."""
+        write_text(path, json.dumps(self.to_dict()))
 
     @classmethod
     def load(cls, path) -> "MetaModel":
-        path = os.fspath(path)
-        if not os.path.exists(path):
-            raise FileNotFoundError(f"meta-model file not found: {path}")
-        with open(path, "r", encoding="utf-8") as f:
-            return cls.from_dict(json.load(f))
+        return cls.from_dict(read_metamodel_file(path))
 
 
-def write_text_atomic(path, text: str) -> None:
-    """Atomic write (pickplan.io.atomic_open: temp file, then os.replace)."""
-    from pickplan.core.io import atomic_open
+def _same_sigma(level: SigmaLevel, sigma_r: float, sigma_phi: float) -> bool:
+    return math.isclose(level.sigma_r, sigma_r, rel_tol=1e-9) and math.isclose(level.sigma_phi, sigma_phi, rel_tol=1e-9)
 
-    with atomic_open(path, "w", encoding="utf-8") as f:
-        f.write(text)
+
+def _check_format(d) -> None:
+    found = d.get("format") if isinstance(d, dict) else type(d).__name__
+    if found != FORMAT:
+        raise ValueError(f"not a pickplan meta-model (format={found!r})")
+
+
+def _stored_levels(d: dict) -> list:
+    """(SigmaLevel, RhoSurface) of every level a meta-model dict stores."""
+    return [(SigmaLevel(lv["name"], lv["sigma_r"], lv["sigma_phi"]), RhoSurface.from_dict(lv["surface"]))
+            for lv in d.get("levels", [])]
+
+
+def read_metamodel_file(path) -> dict:
+    """The JSON of a meta-model file, checked to be one (the one reader of these files)."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"meta-model file not found: {path}")
+    with open(path, "r", encoding="utf-8") as f:
+        try:
+            d = json.load(f)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}: not a pickplan meta-model (not JSON: {exc})") from None
+    try:
+        _check_format(d)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    return d
+
+
+def load_surface(path, sigma_r: float, sigma_phi: float) -> RhoSurface:
+    """rho_sigma from a meta-model file: a level the file stores is read as it is (the boundaries
+    are not refitted); another sigma is built from the file's boundaries."""
+    d = read_metamodel_file(path)
+    for level, surface in _stored_levels(d):
+        if _same_sigma(level, sigma_r, sigma_phi):
+            return surface
+    return MetaModel.from_dict(d).surface(sigma_r, sigma_phi)
 
 
 def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, workers: int = 1,

@@ -6,13 +6,9 @@ which is what makes worker processes safe.
 """
 from __future__ import annotations
 
-import sys
-import time
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
-
 import numpy as np
 
+from pickplan.core.runner import RAY_LOCAL, Runner
 from pickplan.pickup.metamodel.parts import get_part
 from pickplan.pickup.metamodel.sim import SimConfig, check_speeds, simulate_grasp
 
@@ -25,49 +21,19 @@ def sample_seeds(seed: int, start: int, n: int) -> np.ndarray:
     )
 
 
-class Progress:
-    """A tiny progress bar on stderr (no tqdm dependency)."""
-
-    def __init__(self, total: int, desc: str = "", enabled: bool = True, width: int = 30):
-        self.total, self.desc, self.enabled, self.width = max(total, 1), desc, enabled, width
-        self.count = 0
-        self.t0 = time.perf_counter()
-        self._last = -1.0
-
-    def update(self, n: int = 1) -> None:
-        self.count += n
-        if not self.enabled:
-            return
-        now = time.perf_counter()
-        if self.count < self.total and now - self._last < 0.25:  # throttle redraws
-            return
-        self._last = now
-        frac = min(self.count / self.total, 1.0)
-        bar = "#" * int(frac * self.width)
-        rate = self.count / max(time.perf_counter() - self.t0, 1e-9)
-        sys.stderr.write(f"\r{self.desc} [{bar:<{self.width}}] {self.count}/{self.total} "
-                         f"{rate:.1f}/s")
-        if self.count >= self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-
-
-def _simulate_chunk(part_name, offsets, s_g, s_c, config, seeds):
-    """Worker entry point: returns (successes, wall times) for one chunk."""
-    ok, wall = [], []
-    for off, sd in zip(offsets, seeds):
-        out = simulate_grasp(part_name, off, s_g, s_c, config, seed=int(sd))
-        ok.append(out.success)
-        wall.append(out.wall_time)
-    return ok, wall
+def _simulate_one(job):
+    """Worker entry point: (success, wall time) of one seeded simulation."""
+    part_name, offset, s_g, s_c, config, seed = job
+    out = simulate_grasp(part_name, offset, s_g, s_c, config, seed=int(seed))
+    return out.success, out.wall_time
 
 
 class SimRunner:
     """Runs batches of simulations for one part. Use as a context manager so the worker
     pool (created once, reused across batches) is shut down.
 
-    workers <= 1 runs in-process; use_ray=True sends chunks to Ray (ray is imported only
-    then, and must be installed)."""
+    workers <= 1 runs in-process; use_ray=True sends chunks to a local Ray (ray is imported
+    only then, and must be installed)."""
 
     def __init__(self, part, config: SimConfig = SimConfig(), workers: int = 1,
                  use_ray: bool = False, progress: bool = False, chunk_size: int = 4):
@@ -79,8 +45,7 @@ class SimRunner:
         self.chunk_size = max(int(chunk_size), 1)
         self.n_simulations = 0
         self.wall_times: list[float] = []
-        self._pool = None
-        self._ray_fn = None
+        self._runner = Runner(self.workers, RAY_LOCAL if use_ray else None)
 
     def __enter__(self):
         return self
@@ -89,20 +54,7 @@ class SimRunner:
         self.close()
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
-
-    def _ensure_backend(self):
-        if self.use_ray and self._ray_fn is None:
-            import ray  # optional dependency
-
-            if not ray.is_initialized():
-                ray.init(ignore_reinit_error=True, log_to_driver=False)
-            self._ray_fn = ray.remote(_simulate_chunk)
-        elif not self.use_ray and self.workers > 1 and self._pool is None:
-            # spawn: a clean interpreter per worker, no inherited PyBullet state.
-            self._pool = ProcessPoolExecutor(self.workers, mp_context=get_context("spawn"))
+        self._runner.close()
 
     def run(self, offsets, s_g: float, s_c: float, seeds, desc: str = "") -> np.ndarray:
         """Simulate each offset (n, 3) with its seed; returns a bool array of successes."""
@@ -116,36 +68,13 @@ class SimRunner:
         n = len(offsets)
         if n == 0:
             return np.zeros(0, dtype=bool)
-        bar = Progress(n, desc or f"{self.part.name} S_g={s_g:.2f} S_c={s_c:.2f}", self.progress)
-        name = self.part.name
-        chunks = [(offsets[i:i + self.chunk_size], seeds[i:i + self.chunk_size])
-                  for i in range(0, n, self.chunk_size)]
-        results = []
-        if self.workers <= 1 and not self.use_ray:
-            for off, sd in chunks:
-                results.append(_simulate_chunk(name, off, s_g, s_c, self.config, sd))
-                bar.update(len(off))
-        else:
-            self._ensure_backend()
-            if self.use_ray:
-                import ray
-
-                refs = [self._ray_fn.remote(name, off, s_g, s_c, self.config, sd)
-                        for off, sd in chunks]
-                for ref, (off, _) in zip(refs, chunks):
-                    results.append(ray.get(ref))
-                    bar.update(len(off))
-            else:
-                futs = [self._pool.submit(_simulate_chunk, name, off, s_g, s_c, self.config, sd)
-                        for off, sd in chunks]
-                for fut, (off, _) in zip(futs, chunks):
-                    results.append(fut.result())
-                    bar.update(len(off))
-        ok = np.concatenate([np.asarray(r[0], dtype=bool) for r in results])
-        for r in results:
-            self.wall_times.extend(r[1])
+        jobs = [(self.part.name, off, s_g, s_c, self.config, sd) for off, sd in zip(offsets, seeds)]
+        results = [r for _, r in self._runner.map(
+            _simulate_one, jobs, chunksize=self.chunk_size, progress=self.progress,
+            label=desc or f"{self.part.name} S_g={s_g:.2f} S_c={s_c:.2f}")]
+        self.wall_times.extend(wall for _, wall in results)
         self.n_simulations += n
-        return ok
+        return np.array([ok for ok, _ in results], dtype=bool)
 
 
 def run_batch(part, offsets, s_g: float, s_c: float, config: SimConfig = SimConfig(),

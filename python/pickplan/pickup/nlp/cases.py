@@ -9,15 +9,14 @@ clearly labelled stand-in ``planner.synthetic_rho`` only when asked for ("standi
 from __future__ import annotations
 
 import math
-import multiprocessing as mp
 import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.runner import run_jobs
 from pickplan.pickup.nlp import planner
 
 SIGMAS = {"low": (0.002, math.radians(5)), "medium": (0.007, math.radians(10)),
@@ -202,8 +201,4 @@ def _solve_job(job):
 def solve_many(jobs, workers: int = 1) -> list:
     """Runs (case_id, method, seed, case_kwargs, settings_dict) jobs; with workers > 1 in separate
     processes (Ipopt/MUMPS are not thread-safe). Returns the plans as dicts, in job order."""
-    jobs = list(jobs)
-    if workers <= 1:
-        return [_solve_job(j) for j in jobs]
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as ex:
-        return list(ex.map(_solve_job, jobs))
+    return run_jobs(_solve_job, jobs, workers)

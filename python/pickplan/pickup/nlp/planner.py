@@ -21,10 +21,11 @@ from typing import Optional, Sequence, Tuple, Union
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.io import write_bytes
 from pickplan.core.robots import Robot, assets_dir
 from pickplan.core.settings import Option, to_native
+from pickplan.pickup.metamodel.model import FORMAT as METAMODEL_FORMAT, load_surface  # noqa: F401 - the format, re-exported
 
-METAMODEL_FORMAT = "pickplan.pickup.metamodel"
 
 
 def mobile_ur5() -> Robot:
@@ -211,21 +212,8 @@ def rho_from_surface(surface) -> "_core.RhoPoly":
 
 
 def load_rho(path, sigma_r: float, sigma_phi: float) -> "_core.RhoPoly":
-    """rho_sigma from a meta-model JSON written by pickplan.pickup.metamodel (part 1). Levels
-    stored in the file are read directly; other sigmas are built with the part-1 code."""
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileNotFoundError(f"meta-model file not found: {path}")
-    with open(path, "r", encoding="utf-8") as f:
-        d = json.load(f)
-    if d.get("format") != METAMODEL_FORMAT:
-        raise ValueError(f"{path}: not a pickplan meta-model (format={d.get('format')!r})")
-    for lv in d.get("levels", []):
-        if math.isclose(lv["sigma_r"], sigma_r, rel_tol=1e-9) and math.isclose(lv["sigma_phi"], sigma_phi, rel_tol=1e-9):
-            s = lv["surface"]
-            return _core.RhoPoly(np.asarray(s["coeffs"], float), tuple(s["sg_range"]), tuple(s["sc_range"]))
-    from pickplan.pickup.metamodel.model import MetaModel  # part 1, only needed for a sigma the file does not hold
-    return rho_from_surface(MetaModel.from_dict(d).surface(sigma_r, sigma_phi))
+    """rho_sigma, native, from a meta-model file written by pickplan.pickup.metamodel (part 1)."""
+    return rho_from_surface(load_surface(path, sigma_r, sigma_phi))
 
 
 _SYNTH_ANCHORS = ((0.002, 0.035), (0.007, 0.22), (0.012, 1.2))  # (sigma_r, slope a)
@@ -304,19 +292,11 @@ def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterati
 
 
 # ---- files -------------------------------------------------------------------------------------
-def write_atomic(path, data: bytes) -> None:
-    """Atomic write (pickplan.io.atomic_open: temp file, then os.replace)."""
-    from pickplan.core.io import atomic_open
-
-    with atomic_open(path, "wb") as f:
-        f.write(data)
-
-
 def save_plan(plan_dict: dict, path_stem) -> None:
     """<stem>.json (everything) and <stem>.npz (t, q, qd, x) written atomically."""
     import io
-    write_atomic(f"{path_stem}.json", json.dumps(plan_dict, indent=1).encode())
+    write_bytes(f"{path_stem}.json", json.dumps(plan_dict, indent=1).encode())
     buf = io.BytesIO()
     np.savez(buf, t=np.asarray(plan_dict["t"]), q=np.asarray(plan_dict["q"]), qd=np.asarray(plan_dict["qd"]),
              x=np.asarray(plan_dict["x"]))
-    write_atomic(f"{path_stem}.npz", buf.getvalue())
+    write_bytes(f"{path_stem}.npz", buf.getvalue())
