@@ -10,7 +10,6 @@ models, grasp generation) is reported apart: it is done once per scene, not per 
 Prints one line per scene and the median of every stage over the scenes with a goal set.
 """
 import argparse
-import dataclasses
 import statistics
 import time
 

@@ -6,7 +6,6 @@ import pytest
 import trimesh
 
 from pickplan.omg import chomp
-from pickplan.core import robots
 from pickplan.core import sdf
 
 Q_LEFT = np.array([1.0, 0.2, 0.0, -2.0, 0.0, 2.2, 0.785, 0.04, 0.04])

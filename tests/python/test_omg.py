@@ -1,10 +1,8 @@
 """The OMG planner end to end, and C-Space ISF, checked against independent truth."""
-import os
 import warnings
 
 import numpy as np
 import pytest
-import trimesh
 
 from pickplan.omg import grasps
 from pickplan.omg import isf

@@ -10,7 +10,6 @@ import pytest
 
 from pickplan.pickup.nlp import cases
 from pickplan.cli import pickup as cases_cli
-from pickplan.pickup.nlp import planner
 from pickplan.pickup.nlp import replay
 
 

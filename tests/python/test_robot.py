@@ -5,7 +5,6 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-import pickplan
 from pickplan.core import robots
 
 

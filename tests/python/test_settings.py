@@ -7,7 +7,6 @@ import pytest
 
 from pickplan import _core
 from pickplan.core.collision import CollisionSettings
-from pickplan.core.settings import Option
 from pickplan.omg.chomp import ChompSettings, ChompStatus, Initialization, MetricSettings
 from pickplan.omg.goals import GoalSetSettings, IkSettings
 from pickplan.omg.grasps import GraspKind

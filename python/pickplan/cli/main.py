@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from dataclasses import replace
 from typing import Optional, Sequence
 
 from pickplan.omg.grasps.sets import GraspKind

@@ -17,7 +17,7 @@ another). See ``cpp/include/pickplan/collision.hpp`` for the precise semantics.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np

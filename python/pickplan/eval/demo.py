@@ -3,10 +3,9 @@ OMG planner, executed in PyBullet (close, lift), a picture of the execution and 
 beside the paper's."""
 from __future__ import annotations
 
-import json
 import os
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np

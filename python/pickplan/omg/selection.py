@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import abc
 import math
-from dataclasses import dataclass, field
 from typing import List, Optional, Sequence, Union
 
 import numpy as np
