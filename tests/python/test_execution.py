@@ -88,7 +88,8 @@ def robot():
 
 @pytest.fixture(scope="module")
 def can_scene():
-    scene = scenes.generate_scene(SEED_CAN)
+    # the built-ins whatever $PICKPLAN_YCB_DIR says: the scene and its free space are chosen for them
+    scene = scenes.generate_scene(SEED_CAN, objects.library("builtin"))
     scene.target = CAN
     return scene
 
