@@ -15,8 +15,7 @@ std::vector<Transform> poses_arg(const Array& P, const char* what) {
   std::vector<Transform> out;
   for (py::ssize_t i = 0; i < P.shape(0); ++i) {
     Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(P.data() + 16 * i);
-    require_rigid((std::string(what) + " [" + std::to_string(i) + "]").c_str(), M);
-    out.push_back(Transform::from_matrix(M));
+    out.push_back(Transform::from_matrix(cleaned_rigid((std::string(what) + " [" + std::to_string(i) + "]").c_str(), M)));
   }
   return out;
 }

@@ -6,6 +6,8 @@
   pickplan bench selection|refinement|planners|ablation   the paper's Tables I-III and Fig. 8
   pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
   pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
+
+Exit codes (cli/exit_codes.py): 0 success, 1 ran but no plan, 2 bad input, 3 internal error.
 """
 from __future__ import annotations
 
@@ -14,6 +16,8 @@ import os
 import sys
 from dataclasses import replace
 from typing import Optional, Sequence
+
+from pickplan.cli.exit_codes import ExitCode, run_command
 
 
 def _cmd_demo(args) -> int:
@@ -43,7 +47,7 @@ def _cmd_plan(args) -> int:
             "status": result.status, "trajectory": result.trajectory.tolist(), "metrics": result.metrics,
             "grasp_cost": result.grasp_cost, "timings": result.timings,
             "execution": executed.to_dict() if executed else None})
-    return 0 if result.success else 1
+    return ExitCode.OK if result.success else ExitCode.NO_PLAN
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -78,11 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     args = build_parser().parse_args(argv)
     handler = getattr(args, "handler", None) or getattr(args, "func")
-    try:
-        return int(handler(args) or 0)
-    except (FileNotFoundError, ValueError, KeyError, ImportError) as exc:
-        print(f"pickplan {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    return run_command(args.command, handler, args)
 
 
 if __name__ == "__main__":

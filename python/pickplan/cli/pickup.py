@@ -10,6 +10,9 @@ from __future__ import annotations
 import argparse
 import os
 
+from pickplan.cli.exit_codes import run_command
+from pickplan.core.io import read_json
+from pickplan.pickup.metamodel.validate import validate_metamodel
 from pickplan.pickup.nlp import cases
 from pickplan.pickup.nlp import planner
 
@@ -150,8 +153,8 @@ def run_cases(args: argparse.Namespace) -> int:
     if metamodel is None:
         metamodel = cases.ensure_metamodel(os.path.join(args.out, f"metamodel_{cases.METAMODEL_PART}.json"),
                                            workers=args.workers)
-    elif metamodel != cases.STANDIN and not os.path.exists(metamodel):
-        raise FileNotFoundError(f"meta-model file not found: {metamodel}")
+    if metamodel != cases.STANDIN:  # checked at the door: a NaN sigma_r must not reach the solver
+        validate_metamodel(read_json(metamodel, "meta-model file"), metamodel)
     cfg = cases.CaseRunConfig(quick=args.quick, shots=args.shots, workers=args.workers, metamodel=metamodel)
     main = cases.run_main_cases(cfg)
     t4 = cases.run_table4(cfg)
@@ -181,7 +184,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan")
     add_pickup_commands(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["pickup"] + list(argv) if argv is not None else None)
-    return args.func(args)
+    return run_command("pickup", args.func, args)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
+from pickplan.cli.exit_codes import run_command
 from pickplan.sim.scene_sets import write_scene_set
 
 
@@ -35,10 +36,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan", description=__doc__)
     add_scene_commands(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    try:
-        return args.handler(args)
-    except (FileNotFoundError, ValueError) as exc:
-        parser.exit(2, f"pickplan {args.command}: error: {exc}\n")
+    return run_command(args.command, args.handler, args)
 
 
 if __name__ == "__main__":

@@ -35,3 +35,24 @@ def write_json(path: str, data: Any) -> None:
 def write_text(path: str, text: str) -> None:
     with atomic_open(path, "w") as f:
         f.write(text)
+
+
+def read_json(path: str, what: str = "JSON file") -> Any:
+    """The parsed JSON at ``path``; InputError naming the file for a missing file, a folder, bytes
+    that are not UTF-8, malformed JSON or nesting too deep for the decoder."""
+    from pickplan.core.errors import InputError
+
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise InputError(f"expected a {what}, got a folder", path=path)
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"{what} not found: {path}")
+    try:
+        with open(path, "r", encoding="utf-8") as f:
+            return json.load(f)
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", path=path) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"malformed JSON: {exc}", path=path) from None
+    except RecursionError:  # the decoder recurses once per level of nesting
+        raise InputError("malformed JSON: nested too deeply", path=path) from None

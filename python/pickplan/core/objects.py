@@ -246,6 +246,22 @@ def read_obj_parts(path: str) -> List[trimesh.Trimesh]:
     return meshes
 
 
+def read_grasp_array(path: str) -> np.ndarray:
+    """A stored grasp array (``.npy``, float (N, 4, 4)); ValueError naming the file when it is damaged
+    or of the wrong kind (rigidity is checked where grasp sets are made: ``omg.grasps.check_grasps``)."""
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except (ValueError, EOFError, OSError) as exc:  # numpy reports damage as any of these
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise ValueError(f"{path}: not a readable .npy grasp array ({type(exc).__name__}: {exc})") from None
+    if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "fiu":
+        raise ValueError(f"{path}: expected a float array of grasps, got dtype {getattr(arr, 'dtype', type(arr))}")
+    if arr.ndim != 3 or arr.shape[1:] != (4, 4):
+        raise ValueError(f"{path}: expected an (N, 4, 4) array of grasps, got shape {arr.shape}")
+    return np.asarray(arr, dtype=float)
+
+
 def load_ycb_object(folder: Union[str, os.PathLike], density: float = DEFAULT_DENSITY) -> ObjectModel:
     """Load one object folder: ``mesh.stl`` (required), ``collision.obj``, ``grasps_*.npy``.
 
@@ -273,10 +289,7 @@ def load_ycb_object(folder: Union[str, os.PathLike], density: float = DEFAULT_DE
     grasps = {}
     for path in sorted(glob.glob(os.path.join(folder, "grasps_*.npy"))):
         key = os.path.basename(path)[len("grasps_"):-len(".npy")]
-        arr = np.load(path, allow_pickle=False)
-        if arr.ndim != 3 or arr.shape[1:] != (4, 4):
-            raise ValueError(f"{path}: expected an (N, 4, 4) array of grasps, got shape {arr.shape}")
-        grasps[key] = np.asarray(arr, dtype=float)
+        grasps[key] = read_grasp_array(path)
     return make_object(name, loaded, parts, source=folder, mass=KNOWN_MASSES.get(name), density=density,
                        grasps=grasps, collision_file=coll_file)
 
