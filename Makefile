@@ -34,7 +34,7 @@ system-deps:
 $(VENV)/.stamp: pyproject.toml
 	[ -x $(PY) ] || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh rtree scikit-learn matplotlib pytest ompl ray
+	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pytest ompl ray
 	touch $@
 
 venv: $(VENV)/.stamp

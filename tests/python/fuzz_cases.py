@@ -70,15 +70,15 @@ def mutate_json(data, rng: random.Random) -> str:
                 _set(data, path, value * rng.choice([-1, 1e-9, 1e9, 1 + 1e-6, 1.5]))
         elif op < 0.8:
             _set(data, path, [_get(data, path)] * rng.randint(0, 3))
-        elif op < 0.9:
-            nested = 0
-            for _ in range(rng.choice([10, 1000, 50_000])):
-                nested = [nested]
-            _set(data, path, nested)
+        elif op < 0.9:  # deep nesting, spliced in as text (json.dumps itself recurses)
+            _set(data, path, f"__NEST_{rng.choice([10, 1000, 50_000])}__")
         else:
             value = _get(data, path)
             _set(data, path, str(value) if not isinstance(value, str) else 12345)
-    return json.dumps(data, allow_nan=True) if rng.random() < 0.95 else json.dumps(data)[:-rng.randint(1, 20)]
+    text = json.dumps(data, allow_nan=True)
+    for depth in (10, 1000, 50_000):
+        text = text.replace(f'"__NEST_{depth}__"', "[" * depth + "0" + "]" * depth)
+    return text if rng.random() < 0.95 else text[:-rng.randint(1, 20)]
 
 
 def mutate_text(text: str, rng: random.Random) -> str:
@@ -193,7 +193,12 @@ def run_metamodel(text: str, work: str):
     from pickplan import _core
     from pickplan.pickup.metamodel.validate import validate_metamodel
 
-    d = validate_metamodel(json.loads(text), "metamodel.json")
+    from pickplan.core.io import read_json
+
+    path = os.path.join(work, "metamodel.json")
+    with open(path, "w", encoding="utf-8", errors="surrogatepass") as f:
+        f.write(text)
+    d = validate_metamodel(read_json(path, "meta-model file"), path)
     for lv in d["levels"]:  # what the pickup NLP reads from a file (planner.load_rho)
         s = lv["surface"]
         rho = _core.RhoPoly(np.asarray(s["coeffs"], float), tuple(s["sg_range"]), tuple(s["sc_range"]))

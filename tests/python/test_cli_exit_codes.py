@@ -6,9 +6,13 @@ import types
 
 import pytest
 
-from pickplan.cli import exit_codes, main as cli
+import importlib
+
+from pickplan.cli import exit_codes
 from pickplan.cli.exit_codes import ExitCode
 from pickplan.sim import scenes
+
+cli = importlib.import_module("pickplan.cli.main")  # the package re-exports main() under the same name
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ is caught and pinned on its case) with a time limit. Every case must end in a va
 finite numbers or a documented error with a message (fuzz_cases.ALLOWED_ERRORS): never a signal, a
 hang past the limit, NaN in a result, or another exception type.
 
-PICKPLAN_FUZZ_COUNT cases per kind (default 200; `make fuzz FUZZ_COUNT=5000` runs more),
+PICKPLAN_FUZZ_COUNT cases per kind (default 300; `make fuzz FUZZ_COUNT=5000` runs more),
 PICKPLAN_FUZZ_SEED the seed (default 0)."""
 import base64
 import collections
@@ -24,7 +24,7 @@ import trimesh
 import fuzz_cases
 from conftest import YCB_DIR
 
-COUNT = int(os.environ.get("PICKPLAN_FUZZ_COUNT", "200"))
+COUNT = int(os.environ.get("PICKPLAN_FUZZ_COUNT", "300"))
 SEED = int(os.environ.get("PICKPLAN_FUZZ_SEED", "0"))
 CASE_SECONDS = float(os.environ.get("PICKPLAN_FUZZ_CASE_SECONDS", "30"))
 WORKER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "fuzz_cases.py")

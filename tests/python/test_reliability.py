@@ -238,13 +238,13 @@ def _moved(d, dz):
 
 
 def test_object_3cm_into_the_table_is_refused(scene_dict):
-    with pytest.raises(ValueError, match=r"objects\[0\]\.pose: object .* reaches 3\.\d cm below the table top"):
+    with pytest.raises(ValueError, match=r"objects\[0\]\.pose: object .* reaches (2\.[5-9]|3\.[0-4]) cm below the table top"):
         scenes.Scene.from_dict(_moved(scene_dict, -0.03))
     scenes.Scene.from_dict(_moved(scene_dict, -0.002))  # settling contact depth: accepted
 
 
 def test_object_50cm_under_the_table_is_refused(scene_dict):
-    with pytest.raises(ValueError, match=r"objects\[0\]\.pose: .* 5\d\.\d cm below the table top"):
+    with pytest.raises(ValueError, match=r"objects\[0\]\.pose: .* (49|50)\.\d cm below the table top"):
         scenes.Scene.from_dict(_moved(scene_dict, -0.5))
 
 
@@ -276,7 +276,7 @@ def test_deeply_nested_json_is_a_clear_error(tmp_path):
         scenes.Scene.from_json(nested)
     path = tmp_path / "deep.json"
     path.write_text(nested)
-    with pytest.raises(InputError, match=r"deep\.json: malformed JSON: nested too deeply"):
+    with pytest.raises(InputError, match=r"deep\.json: malformed scene JSON: nested too deeply"):
         scenes.Scene.load(str(path))
     with pytest.raises(InputError, match="nested too deeply"):
         read_json(str(path))
@@ -333,3 +333,19 @@ def test_check_every_0_is_a_clear_error_not_zero_division():
 
     with pytest.raises(ValueError, match="OMGSettings.check_every: expected an integer >= 1, got 0"):
         OMGSettings(check_every=0)
+
+
+def test_object_mesh_that_is_not_watertight_loads_from_its_convex_hull(tmp_path):
+    """Found by the fuzz suite: trimesh's convex hull of an open mesh needs networkx, which was not
+    a dependency (ModuleNotFoundError for any object folder whose mesh has a hole)."""
+    from pickplan.core import objects
+
+    box = trimesh.creation.box(extents=[0.05, 0.04, 0.1])
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-1], process=False)
+    folder = tmp_path / "open_box"
+    folder.mkdir()
+    open_box.export(str(folder / "mesh.stl"))
+    with pytest.warns(UserWarning, match="not watertight"):
+        model = objects.load_ycb_object(str(folder))
+    assert model.mass > 0 and np.all(np.isfinite(model.com))
+    np.testing.assert_allclose(model.com, box.center_mass, atol=1e-9)  # the hull is the full box

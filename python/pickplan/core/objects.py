@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import glob
 import hashlib
+import math
 import os
 import tempfile
 import warnings
@@ -223,7 +224,10 @@ def read_obj_parts(path: str) -> List[trimesh.Trimesh]:
                 continue
             try:
                 if tok[0] == "v":
-                    verts.append([float(x) for x in tok[1:4]])
+                    v = [float(x) for x in tok[1:4]]
+                    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+                        raise ValueError("expected 3 finite coordinates")
+                    verts.append(v)
                 elif tok[0] in ("o", "g"):
                     if parts[-1]:
                         parts.append([])

@@ -56,7 +56,10 @@ def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None) 
     half = 0.5 * np.asarray(scene.table.size, dtype=float)
     to_table = np.linalg.inv(T_table)
     for i, o in enumerate(scene.objects):
-        model = library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
+        try:
+            model = library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
+        except KeyError as exc:  # not an object of that library: bad input, named
+            raise ValueError(f"objects[{i}].source: {exc.args[0] if exc.args else exc}") from None
         V = np.asarray(model.mesh.vertices, dtype=float)
         local = (to_table @ np.asarray(o.pose, dtype=float))
         P = V @ local[:3, :3].T + local[:3, 3]
