@@ -211,7 +211,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan", description=__doc__.splitlines()[0])
     add_bench_commands(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    return run_command("bench", args.handler, args)
+    code = run_command("bench", args.handler, args)
+    if code:  # as argparse does for its own errors: the stand-alone entry exits
+        raise SystemExit(code)
+    return code
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import os
 
-from pickplan.cli.exit_codes import run_command
 from pickplan.core.io import read_json
 from pickplan.pickup.metamodel.validate import validate_metamodel
 from pickplan.pickup.nlp import cases
@@ -153,7 +152,7 @@ def run_cases(args: argparse.Namespace) -> int:
     if metamodel is None:
         metamodel = cases.ensure_metamodel(os.path.join(args.out, f"metamodel_{cases.METAMODEL_PART}.json"),
                                            workers=args.workers)
-    if metamodel != cases.STANDIN:  # checked at the door: a NaN sigma_r must not reach the solver
+    elif metamodel != cases.STANDIN:  # checked at the door: a NaN sigma_r must not reach the solver
         validate_metamodel(read_json(metamodel, "meta-model file"), metamodel)
     cfg = cases.CaseRunConfig(quick=args.quick, shots=args.shots, workers=args.workers, metamodel=metamodel)
     main = cases.run_main_cases(cfg)
@@ -184,7 +183,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan")
     add_pickup_commands(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["pickup"] + list(argv) if argv is not None else None)
-    return run_command("pickup", args.func, args)
+    return args.func(args)
 
 
 if __name__ == "__main__":

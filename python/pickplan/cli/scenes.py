@@ -36,7 +36,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan", description=__doc__)
     add_scene_commands(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    return run_command(args.command, args.handler, args)
+    code = run_command(args.command, args.handler, args)
+    if code:  # as argparse does for its own errors: the stand-alone entry exits
+        raise SystemExit(code)
+    return code
 
 
 if __name__ == "__main__":
