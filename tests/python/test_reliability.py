@@ -349,3 +349,21 @@ def test_object_mesh_that_is_not_watertight_loads_from_its_convex_hull(tmp_path)
         model = objects.load_ycb_object(str(folder))
     assert model.mass > 0 and np.all(np.isfinite(model.com))
     np.testing.assert_allclose(model.com, box.center_mass, atol=1e-9)  # the hull is the full box
+
+
+def test_grasp_array_with_a_broken_npy_header_is_a_clear_error(tmp_path):
+    """Found by the fuzz suite: numpy parses the .npy header with the tokenizer, and a damaged
+    header escaped as tokenize.TokenError."""
+    import io
+
+    from pickplan.core.objects import read_grasp_array
+
+    buf = io.BytesIO()
+    np.save(buf, np.tile(np.eye(4), (3, 1, 1)))
+    data = buf.getvalue().replace(b"(3, 4, 4)", b"(3, 4, 4 ")
+    path = tmp_path / "grasps_graspit.npy"
+    path.write_bytes(data)
+    with pytest.raises(ValueError, match=r"grasps_graspit\.npy: not a readable \.npy grasp array \(TokenError"):
+        read_grasp_array(str(path))
+    path.write_bytes(buf.getvalue())
+    assert read_grasp_array(str(path)).shape == (3, 4, 4)

@@ -255,9 +255,10 @@ def read_grasp_array(path: str) -> np.ndarray:
     or of the wrong kind (rigidity is checked where grasp sets are made: ``omg.grasps.check_grasps``)."""
     try:
         arr = np.load(path, allow_pickle=False)
-    except (ValueError, EOFError, OSError) as exc:  # numpy reports damage as any of these
-        if isinstance(exc, FileNotFoundError):
-            raise
+    except FileNotFoundError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - numpy reports a damaged file as ValueError, EOFError,
+        # OSError, or (a broken header) SyntaxError / tokenize.TokenError: each means "damaged"
         raise ValueError(f"{path}: not a readable .npy grasp array ({type(exc).__name__}: {exc})") from None
     if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "fiu":
         raise ValueError(f"{path}: expected a float array of grasps, got dtype {getattr(arr, 'dtype', type(arr))}")
