@@ -367,3 +367,16 @@ def test_grasp_array_with_a_broken_npy_header_is_a_clear_error(tmp_path):
         read_grasp_array(str(path))
     path.write_bytes(buf.getvalue())
     assert read_grasp_array(str(path)).shape == (3, 4, 4)
+
+
+def test_mesh_43_km_across_is_refused_before_building_its_sdf():
+    """Found by the fuzz suite: one corrupt vertex at 42,949 m made the SDF builder run for minutes
+    (a hang past the time limit); at 4.3e9 m it would exhaust memory."""
+    box = trimesh.creation.box(extents=[0.05, 0.04, 0.1])
+    V = np.asarray(box.vertices).copy()
+    V[0, 0] = 42949.0
+    far = trimesh.Trimesh(V, box.faces, process=False)
+    with pytest.raises(InputError, match=r"mesh: mesh is \[42949\.\d+, 0\.04, 0\.1\] m across: its SDF grid"):
+        sdf.mesh_sdf(far, sdf.SdfSettings(cache_dir=""))
+    grid = sdf.mesh_sdf(box, sdf.SdfSettings(resolution=0.01, margin=0.05, cache_dir=""))
+    assert np.asarray(grid.values).size < sdf.MAX_GRID_CELLS

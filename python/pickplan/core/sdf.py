@@ -11,6 +11,7 @@ from typing import Iterable, Optional, Sequence, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
 from pickplan.core.meshes import check_mesh_arrays
 
@@ -42,6 +43,22 @@ def default_cache_dir() -> str:
 
 def _mesh_arrays(mesh) -> Tuple[np.ndarray, np.ndarray]:
     return check_mesh_arrays(mesh.vertices, mesh.faces, "mesh")
+
+
+MAX_GRID_CELLS = 30_000_000  # 240 MB of distances; a 30 cm object at 5 mm with a 20 cm margin is 2.7 million
+
+
+def _check_grid_size(V: np.ndarray, settings: SdfSettings) -> None:
+    """InputError before building a grid that would not fit: a mesh 43 km across (one corrupt vertex)
+    otherwise keeps the native builder busy for minutes or exhausts memory."""
+    if not (np.isfinite(settings.resolution) and settings.resolution > 0 and np.isfinite(settings.margin)
+            and settings.margin >= 0):
+        raise InputError(f"SDF resolution must be > 0 and margin >= 0, got {settings.resolution}, {settings.margin}")
+    cells = np.prod(np.ceil((np.ptp(V, axis=0) + 2 * settings.margin) / settings.resolution) + 1)
+    if cells > MAX_GRID_CELLS:
+        raise InputError(f"mesh is {np.round(np.ptp(V, axis=0), 3).tolist()} m across: its SDF grid at "
+                         f"{settings.resolution} m would have {cells:.2g} cells (at most {MAX_GRID_CELLS:.0e})",
+                         field="mesh")
 
 
 def _checksum(origin, resolution, values) -> str:
@@ -108,6 +125,7 @@ def mesh_sdf(mesh, settings: SdfSettings = SdfSettings()) -> "_core.SdfGrid":
         cached = _read_cache(path)
         if cached is not None:
             return cached
+    _check_grid_size(V, settings)
     grid, _report = _core.SdfGrid.build(V, F, settings.resolution, settings.margin)
     if path:
         _write_cache(path, grid)
