@@ -61,7 +61,7 @@ fuzz: install
 	PICKPLAN_FUZZ_COUNT=$(FUZZ_COUNT) PICKPLAN_FUZZ_SEED=$(FUZZ_SEED) $(PY) -m pytest tests/python/test_fuzz.py -q -s
 
 # AddressSanitizer + UndefinedBehaviorSanitizer: the core, its gtests and the extension in their own
-# build folder; the extension runs under the venv's Python with libasan preloaded (the interpreter is
+# build folder (RelWithDebInfo, whose flags are emptied: pybind11 neither strips nor LTO-links it, asserts on); the extension runs under the venv's Python with libasan preloaded (the interpreter is
 # not instrumented, so ASan must be the first runtime loaded; leak checks off: CPython keeps
 # its arenas to exit). CCACHE_BASEDIR makes the objects reusable from clones in other folders.
 SANITIZE_BUILD := build/sanitize
@@ -72,7 +72,7 @@ SANITIZE_ENV := ASAN_OPTIONS=detect_leaks=0:abort_on_error=1:strict_init_order=1
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 CCACHE_BASEDIR=$(CURDIR) CCACHE_NOHASHDIR=1
 sanitize: system-deps venv
 	$(SANITIZE_ENV) $(VENV)/bin/cmake -S . -B $(SANITIZE_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV))/bin/ninja \
-	  -DCMAKE_BUILD_TYPE=Sanitize -DCMAKE_CXX_FLAGS="$(SANITIZE_FLAGS) -O1" \
+	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO= -DCMAKE_CXX_FLAGS="$(SANITIZE_FLAGS) -O1" \
 	  -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DCMAKE_MODULE_LINKER_FLAGS="-fsanitize=address,undefined" \
 	  -DPICKPLAN_BUILD_TESTS=ON -DPICKPLAN_BUILD_PYTHON=ON -DPICKPLAN_BUILD_BENCH=OFF \
 	  -DPython_EXECUTABLE=$(abspath $(PY)) -Dpybind11_DIR=$$($(PY) -m pybind11 --cmakedir)
