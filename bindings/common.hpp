@@ -60,8 +60,17 @@ inline Eigen::Matrix4d matrix4(const Array& a, const char* what) {
   Eigen::Matrix4d M;
   for (int r = 0; r < 4; ++r)
     for (int c = 0; c < 4; ++c) M(r, c) = a.at(r, c);
-  pickplan::require_rigid(what, M);
-  return M;
+  return pickplan::cleaned_rigid(what, M);  // the same tolerance as pickplan.core.poses
+}
+
+// An index into [0, size): Python ints of any size are compared before narrowing, so 2**32 + 3
+// is out of range instead of wrapping to 3.
+inline int index_arg(const char* what, const py::object& value, int size) {
+  const long long i = value.cast<long long>();  // raises for ints past 64 bits
+  if (i < 0 || i >= size)
+    throw std::invalid_argument(std::string(what) + " " + std::to_string(i) + " out of range [0, " +
+                                std::to_string(size) + ")");
+  return static_cast<int>(i);
 }
 
 // A rigid (4, 4) pose.
@@ -74,8 +83,7 @@ inline std::vector<Transform> poses_arg(const Array& P, const char* what) {
   std::vector<Transform> out;
   for (py::ssize_t i = 0; i < P.shape(0); ++i) {
     Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(P.data() + 16 * i);
-    require_rigid((std::string(what) + " [" + std::to_string(i) + "]").c_str(), M);
-    out.push_back(Transform::from_matrix(M));
+    out.push_back(Transform::from_matrix(cleaned_rigid((std::string(what) + " [" + std::to_string(i) + "]").c_str(), M)));
   }
   return out;
 }
@@ -88,13 +96,7 @@ inline void write_matrix4(const Transform& T, double* out) {
 // A link given by index or by name.
 inline int link_arg(const Robot& robot, const py::object& link) {
   if (py::isinstance<py::str>(link)) return robot.link_index(link.cast<std::string>());
-  if (py::isinstance<py::int_>(link)) {
-    int i = link.cast<int>();
-    if (i < 0 || i >= robot.num_links())
-      throw std::invalid_argument("link index " + std::to_string(i) + " out of range [0, " +
-                                  std::to_string(robot.num_links()) + ")");
-    return i;
-  }
+  if (py::isinstance<py::int_>(link)) return index_arg("link index", link, robot.num_links());
   throw std::invalid_argument("link: expected a link name (str) or index (int)");
 }
 

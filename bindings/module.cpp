@@ -22,6 +22,7 @@ PYBIND11_MODULE(_core, m) {
       PyErr_SetString(PyExc_FileNotFoundError, e.what());
     }
   });
+  m.attr("RIGID_CLEAN_TOLERANCE") = pickplan::kRigidCleanTolerance;
   pickplan::bind::init_robot(m);
   pickplan::bind::init_sdf(m);
   pickplan::bind::init_chomp(m);

@@ -4,9 +4,11 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <regex>
+#include <cctype>
+#include <cmath>
 #include <sstream>
 
+#include <Eigen/SVD>
 #include <urdf_parser/urdf_parser.h>
 
 #include "pickplan/core/errors.hpp"
@@ -15,6 +17,8 @@ namespace fs = std::filesystem;
 
 namespace pickplan {
 namespace {
+
+constexpr int kMaxUrdfNesting = 64;  // real URDFs nest 5-6 deep (robot, link, collision, geometry, mesh)
 
 Transform to_transform(const urdf::Pose& pose) {
   Transform T;
@@ -65,14 +69,85 @@ std::string resolve_mesh(const std::string& uri, const fs::path& base_dir,
 }
 
 // Order of first appearance of each <joint name="..."> in the document, so that the
-// configuration follows the URDF's own joint order (as PyBullet does).
+// configuration follows the URDF's own joint order (as PyBullet does). A linear scan: std::regex
+// recurses per character and overflows the stack on long tags.
 std::map<std::string, int> joint_document_order(const std::string& xml) {
   std::map<std::string, int> order;
-  static const std::regex joint_tag(R"(<\s*joint\b[^>]*\bname\s*=\s*["']([^"']+)["'])");
   int k = 0;
-  for (auto it = std::sregex_iterator(xml.begin(), xml.end(), joint_tag); it != std::sregex_iterator(); ++it)
-    order.emplace((*it)[1].str(), k++);
+  for (size_t at = xml.find('<'); at != std::string::npos; at = xml.find('<', at + 1)) {
+    size_t i = at + 1;
+    while (i < xml.size() && std::isspace(static_cast<unsigned char>(xml[i]))) ++i;
+    if (xml.compare(i, 5, "joint") != 0) continue;
+    i += 5;
+    if (i >= xml.size() || !std::isspace(static_cast<unsigned char>(xml[i]))) continue;
+    const size_t end = xml.find('>', i);
+    if (end == std::string::npos) break;
+    for (size_t n = xml.find("name", i); n != std::string::npos && n < end; n = xml.find("name", n + 4)) {
+      if (!std::isspace(static_cast<unsigned char>(xml[n - 1]))) continue;
+      size_t j = n + 4;
+      while (j < end && std::isspace(static_cast<unsigned char>(xml[j]))) ++j;
+      if (j >= end || xml[j] != '=') continue;
+      ++j;
+      while (j < end && std::isspace(static_cast<unsigned char>(xml[j]))) ++j;
+      if (j >= end || (xml[j] != '"' && xml[j] != '\'')) continue;
+      const size_t close = xml.find(xml[j], j + 1);
+      if (close == std::string::npos || close > end) break;
+      order.emplace(xml.substr(j + 1, close - j - 1), k++);
+      break;
+    }
+  }
   return order;
+}
+
+// The deepest element nesting of an XML document, counted without recursion: the XML parser
+// recurses once per level and a document nested 100,000 deep overflows the stack.
+int xml_nesting_depth(const std::string& xml) {
+  int depth = 0, deepest = 0;
+  size_t i = 0;
+  while ((i = xml.find('<', i)) != std::string::npos) {
+    if (xml.compare(i, 4, "<!--") == 0) {
+      i = xml.find("-->", i + 4);
+    } else if (xml.compare(i, 9, "<![CDATA[") == 0) {
+      i = xml.find("]]>", i + 9);
+    } else if (i + 1 < xml.size() && (xml[i + 1] == '?' || xml[i + 1] == '!')) {
+      i = xml.find('>', i + 1);
+    } else if (i + 1 < xml.size() && xml[i + 1] == '/') {
+      --depth;
+      i = xml.find('>', i + 1);
+    } else {
+      char quote = 0;  // a '>' inside a quoted attribute value does not end the tag
+      size_t j = i + 1;
+      for (; j < xml.size(); ++j) {
+        if (quote) {
+          if (xml[j] == quote) quote = 0;
+        } else if (xml[j] == '"' || xml[j] == '\'') {
+          quote = xml[j];
+        } else if (xml[j] == '>') {
+          break;
+        }
+      }
+      if (j >= xml.size()) break;
+      if (xml[j - 1] != '/') deepest = std::max(deepest, ++depth);
+      i = j;
+    }
+    if (i == std::string::npos) break;
+    ++i;
+  }
+  return deepest;
+}
+
+void require_positive(const std::string& source, const std::string& link, const char* what, double value) {
+  if (!(std::isfinite(value) && value > 0.0))
+    throw std::invalid_argument("URDF '" + source + "': link '" + link + "': collision " + what +
+                                " must be a finite number > 0, got " + std::to_string(value));
+}
+
+void require_finite_pose(const std::string& source, const std::string& what, const urdf::Pose& pose) {
+  double x, y, z, w;
+  pose.rotation.getQuaternion(x, y, z, w);
+  const double v[7] = {pose.position.x, pose.position.y, pose.position.z, x, y, z, w};
+  for (double e : v)
+    if (!std::isfinite(e)) throw std::invalid_argument("URDF '" + source + "': " + what + ": origin has NaN or infinity");
 }
 
 }  // namespace
@@ -90,6 +165,15 @@ void require_rigid(const char* what, const Eigen::Matrix4d& M, double tol) {
   }
 }
 
+Eigen::Matrix4d cleaned_rigid(const char* what, const Eigen::Matrix4d& M, double tol) {
+  require_rigid(what, M, tol);
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(M.topLeftCorner<3, 3>(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix4d out = M;
+  out.topLeftCorner<3, 3>() = svd.matrixU() * svd.matrixV().transpose();
+  out.row(3) << 0, 0, 0, 1;
+  return out;
+}
+
 RobotWorkspace::RobotWorkspace(const Robot& robot)
     : link_pose(robot.num_links()), axis_world(robot.num_links(), Eigen::Vector3d::Zero()) {}
 
@@ -100,6 +184,10 @@ Robot Robot::from_urdf_file(const std::string& path, const std::vector<std::stri
 
 Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_dir,
                               const std::vector<std::string>& package_dirs, const std::string& source) {
+  const int depth = xml_nesting_depth(xml);
+  if (depth > kMaxUrdfNesting)
+    throw std::invalid_argument("malformed URDF '" + source + "': elements nested " + std::to_string(depth) +
+                                " deep (at most " + std::to_string(kMaxUrdfNesting) + ")");
   urdf::ModelInterfaceSharedPtr model;
   try {
     model = urdf::parseURDF(xml);
@@ -129,6 +217,7 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
     link.parent = parent;
     if (const auto& j = ulink->parent_joint) {
       link.joint_name = j->name;
+      require_finite_pose(source, "joint '" + j->name + "'", j->parent_to_joint_origin_transform);
       link.joint_origin = to_transform(j->parent_to_joint_origin_transform);
       Eigen::Vector3d axis(j->axis.x, j->axis.y, j->axis.z);
       switch (j->type) {
@@ -142,8 +231,8 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
                                       "two prismatic joints and a revolute joint");
       }
       if (link.joint_type != JointType::Fixed) {
-        if (axis.norm() < 1e-12)
-          throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "' has a zero axis");
+        if (!axis.allFinite() || axis.norm() < 1e-12)
+          throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "' has a zero or non-finite axis");
         link.axis = axis.normalized();
         link.axis_is_z = (link.axis - Eigen::Vector3d::UnitZ()).norm() < 1e-15;
         link.q_index = static_cast<int>(robot.joint_names_.size());
@@ -154,6 +243,10 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
         if (j->limits && link.joint_type != JointType::Continuous) {
           lo = j->limits->lower;
           hi = j->limits->upper;
+          if (!(std::isfinite(lo) && std::isfinite(hi) && lo <= hi))
+            throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "' has limits lower " +
+                                        std::to_string(lo) + " > upper " + std::to_string(hi) +
+                                        " (or not finite); expected lower <= upper");
         }
         if (j->limits && j->limits->velocity > 0) vel = j->limits->velocity;
         robot.lower_.conservativeResize(link.q_index + 1);
@@ -163,6 +256,8 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
         robot.upper_[link.q_index] = hi;
         robot.velocity_[link.q_index] = vel;
         if (j->mimic) {
+          if (!std::isfinite(j->mimic->multiplier) || !std::isfinite(j->mimic->offset))
+            throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "': mimic multiplier and offset must be finite");
           link.mimic.multiplier = j->mimic->multiplier;
           link.mimic.offset = j->mimic->offset;
           link.mimic.source_q = -2;  // resolved below, once every joint has an index
@@ -172,6 +267,7 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
     for (const auto& col : ulink->collision_array) {
       if (!col || !col->geometry) continue;
       CollisionGeometry g;
+      require_finite_pose(source, "collision of link '" + ulink->name + "'", col->origin);
       g.origin = to_transform(col->origin);
       switch (col->geometry->type) {
         case urdf::Geometry::MESH: {
@@ -183,24 +279,32 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
                                ulink->name + "' not found (searched relative to '" + base_dir +
                                "' and the package directories)");
           g.scale = Eigen::Vector3d(mesh->scale.x, mesh->scale.y, mesh->scale.z);
+          for (int a = 0; a < 3; ++a)
+            if (!(std::isfinite(g.scale[a]) && g.scale[a] != 0.0))
+              throw std::invalid_argument("URDF '" + source + "': link '" + ulink->name +
+                                          "': mesh scale must be finite and non-zero");
           break;
         }
         case urdf::Geometry::BOX: {
           auto box = std::static_pointer_cast<const urdf::Box>(col->geometry);
           g.kind = CollisionGeometry::Kind::Box;
           g.size = Eigen::Vector3d(box->dim.x, box->dim.y, box->dim.z);
+          for (int a = 0; a < 3; ++a) require_positive(source, ulink->name, "box size", g.size[a]);
           break;
         }
         case urdf::Geometry::CYLINDER: {
           auto cyl = std::static_pointer_cast<const urdf::Cylinder>(col->geometry);
           g.kind = CollisionGeometry::Kind::Cylinder;
           g.size = Eigen::Vector3d(cyl->radius, cyl->length, 0.0);
+          require_positive(source, ulink->name, "cylinder radius", cyl->radius);
+          require_positive(source, ulink->name, "cylinder length", cyl->length);
           break;
         }
         case urdf::Geometry::SPHERE: {
           auto sph = std::static_pointer_cast<const urdf::Sphere>(col->geometry);
           g.kind = CollisionGeometry::Kind::Sphere;
           g.size = Eigen::Vector3d(sph->radius, 0.0, 0.0);
+          require_positive(source, ulink->name, "sphere radius", sph->radius);
           break;
         }
       }

@@ -16,6 +16,7 @@ import sys
 from typing import Dict, List, Optional, Sequence
 
 from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize)
+from pickplan.cli.exit_codes import run_command
 from pickplan.core.io import write_json, write_text
 
 # The paper's numbers (100 scenes, 30 grasps, 10 runs; Table II: 60 grasps, 30 refinement iterations).
@@ -218,10 +219,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan", description=__doc__.splitlines()[0])
     add_bench_commands(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    try:
-        return args.handler(args)
-    except (FileNotFoundError, ValueError, KeyError, ImportError) as exc:
-        parser.exit(2, f"pickplan bench: error: {exc}\n")
+    code = run_command("bench", args.handler, args)
+    if code:  # as argparse does for its own errors: the stand-alone entry exits
+        raise SystemExit(code)
+    return code
 
 
 if __name__ == "__main__":

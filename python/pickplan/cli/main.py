@@ -7,6 +7,8 @@
   pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
   pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
   pickplan view DIR [--html FILE]        a 3D view of a plan folder (live server, or a self-contained page)
+
+Exit codes (cli/exit_codes.py): 0 success, 1 ran but no plan, 2 bad input, 3 internal error.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ from typing import Optional, Sequence
 
 from pickplan.omg.grasps.sets import GraspKind
 from pickplan.omg.selection import Selection
+from pickplan.cli.exit_codes import ExitCode, run_command
 
 
 def _cmd_demo(args) -> int:
@@ -47,7 +50,7 @@ def _cmd_plan(args) -> int:
         scene.save(os.path.join(args.out, "scene.json"))  # beside the plan: `pickplan view` reads both
         write_json(os.path.join(args.out, "plan.json"),
                    plan_record(result, planner.world(), executed.to_dict() if executed else None))
-    return 0 if result.success else 1
+    return ExitCode.OK if result.success else ExitCode.NO_PLAN
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -88,11 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     args = build_parser().parse_args(argv)
     handler = getattr(args, "handler", None) or getattr(args, "func")
-    try:
-        return int(handler(args) or 0)
-    except (FileNotFoundError, ValueError, KeyError, ImportError) as exc:
-        print(f"pickplan {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    return run_command(args.command, handler, args)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from pickplan.cli.exit_codes import run_command
 from pickplan.core.io import write_text
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
 from pickplan.pickup.metamodel.parts import PARTS
@@ -149,7 +150,7 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     add_metamodel_commands(sub)
     args = parser.parse_args(argv)
-    return args.func(args)
+    return run_command(args.command, args.func, args)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,8 @@ import argparse
 import os
 
 from pickplan.core.io import atomic_open, write_text
+from pickplan.core.io import read_json
+from pickplan.pickup.metamodel.validate import validate_metamodel
 from pickplan.pickup.nlp import cases
 from pickplan.pickup.nlp import planner
 
@@ -151,8 +153,8 @@ def run_cases(args: argparse.Namespace) -> int:
     if metamodel is None:
         metamodel = cases.ensure_metamodel(os.path.join(args.out, f"metamodel_{cases.METAMODEL_PART}.json"),
                                            workers=args.workers)
-    elif metamodel != cases.STANDIN and not os.path.exists(metamodel):
-        raise FileNotFoundError(f"meta-model file not found: {metamodel}")
+    elif metamodel != cases.STANDIN:  # checked at the door: a NaN sigma_r must not reach the solver
+        validate_metamodel(read_json(metamodel, "meta-model file"), metamodel)
     cfg = cases.CaseRunConfig(quick=args.quick, shots=args.shots, workers=args.workers, metamodel=metamodel)
     main = cases.run_main_cases(cfg)
     t4 = cases.run_table4(cfg)

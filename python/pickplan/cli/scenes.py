@@ -8,6 +8,7 @@ import argparse
 import sys
 from typing import Optional, Sequence, Tuple
 
+from pickplan.cli.exit_codes import run_command
 from pickplan.sim.scene_sets import write_scene_set
 from pickplan.sim.scenes import ORIENTATIONS, SceneSettings
 
@@ -52,10 +53,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan", description=__doc__)
     add_scene_commands(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    try:
-        return args.handler(args)
-    except (FileNotFoundError, ValueError) as exc:
-        parser.exit(2, f"pickplan {args.command}: error: {exc}\n")
+    code = run_command(args.command, args.handler, args)
+    if code:  # as argparse does for its own errors: the stand-alone entry exits
+        raise SystemExit(code)
+    return code
 
 
 if __name__ == "__main__":

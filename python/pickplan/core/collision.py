@@ -23,6 +23,7 @@ from typing import List, NamedTuple, Optional, Sequence, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.meshes import check_mesh_arrays
 from pickplan.core.robots import Robot
 
 
@@ -88,7 +89,7 @@ class Contact:
 def _mesh_arrays(mesh, what: str):
     if mesh is None or not hasattr(mesh, "vertices") or not hasattr(mesh, "faces"):
         raise ValueError(f"{what}: expected a mesh with vertices and faces, got {type(mesh).__name__}")
-    return np.ascontiguousarray(mesh.vertices, dtype=float), np.ascontiguousarray(mesh.faces, dtype=np.int32)
+    return check_mesh_arrays(mesh.vertices, mesh.faces, what)
 
 
 class CollisionChecker:

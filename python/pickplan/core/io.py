@@ -7,6 +7,8 @@ import os
 import tempfile
 from typing import Any, Iterator
 
+from pickplan.core.errors import InputError
+
 
 @contextlib.contextmanager
 def atomic_open(path: str, mode: str = "w", **kwargs) -> Iterator[Any]:
@@ -43,3 +45,22 @@ def write_text(path: str, text: str) -> None:
 def write_bytes(path: str, data: bytes) -> None:
     with atomic_open(path, "wb") as f:
         f.write(data)
+
+
+def read_json(path: str, what: str = "JSON file") -> Any:
+    """The parsed JSON at ``path``; InputError naming the file for a missing file, a folder, bytes
+    that are not UTF-8, malformed JSON or nesting too deep for the decoder."""
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise InputError(f"expected a {what}, got a folder", path=path)
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"{what} not found: {path}")
+    try:
+        with open(path, "r", encoding="utf-8") as f:
+            return json.load(f)
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", path=path) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"malformed JSON: {exc}", path=path) from None
+    except RecursionError:  # the decoder recurses once per level of nesting
+        raise InputError("malformed JSON: nested too deeply", path=path) from None

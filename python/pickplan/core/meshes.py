@@ -23,3 +23,37 @@ def geometry_to_trimesh(geom: dict):
         raise ValueError(f"unknown collision geometry kind {kind!r}")
     mesh.apply_transform(np.asarray(geom["origin"], dtype=float))
     return mesh
+
+
+MIN_THICKNESS = 1e-6  # m: a mesh thinner than this along its thinnest principal axis encloses no volume
+
+
+def check_mesh_arrays(vertices, faces, what: str = "mesh"):
+    """(V float64 (N, 3), F int32 (M, 3)) of a triangle mesh that encloses some volume, or InputError
+    naming ``what``: empty, non-finite, out-of-range face indices, or degenerate (zero volume)."""
+    from pickplan.core.errors import InputError
+
+    try:
+        V = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64))
+        F_in = np.asarray(faces)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"vertices and faces must be numbers ({exc})", field=what) from exc
+    if V.ndim != 2 or V.shape[1] != 3 or len(V) == 0:
+        raise InputError(f"empty mesh or bad vertices: expected shape (N, 3) with N > 0, got {V.shape}", field=what)
+    if F_in.ndim != 2 or F_in.shape[1] != 3 or len(F_in) == 0:
+        raise InputError(f"empty mesh or bad faces: expected shape (M, 3) with M > 0, got {F_in.shape}", field=what)
+    if not np.all(np.isfinite(V)):
+        raise InputError("vertices contain NaN or infinity", field=what)
+    if F_in.dtype.kind not in "iu":
+        if F_in.dtype.kind != "f" or not np.all(np.isfinite(F_in)) or np.any(F_in != np.round(F_in)):
+            raise InputError(f"face indices must be integers, got dtype {F_in.dtype}", field=what)
+    if F_in.min() < 0 or F_in.max() >= len(V):  # checked before narrowing: 2**32 + 3 must not wrap to 3
+        raise InputError(f"face index out of range [0, {len(V)}): {int(F_in.min())}..{int(F_in.max())}", field=what)
+    F = np.ascontiguousarray(F_in, dtype=np.int32)
+    used = V[np.unique(F)]
+    centred = used - used.mean(axis=0)
+    thickness = np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2].T, axis=0).min() \
+        if len(used) >= 3 else 0.0
+    if thickness <= MIN_THICKNESS:
+        raise InputError(f"degenerate mesh: it encloses no volume (thinnest extent {thickness:.1e} m)", field=what)
+    return V, F

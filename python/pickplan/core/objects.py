@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import glob
 import hashlib
+import math
 import os
 import tempfile
 import warnings
@@ -234,7 +235,10 @@ def read_obj_parts(path: str) -> List[trimesh.Trimesh]:
                 continue
             try:
                 if tok[0] == "v":
-                    verts.append([float(x) for x in tok[1:4]])
+                    v = [float(x) for x in tok[1:4]]
+                    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+                        raise ValueError("expected 3 finite coordinates")
+                    verts.append(v)
                 elif tok[0] in ("o", "g"):
                     if parts[-1]:
                         parts.append([])
@@ -255,6 +259,23 @@ def read_obj_parts(path: str) -> List[trimesh.Trimesh]:
         used, inverse = np.unique(F, return_inverse=True)
         meshes.append(trimesh.Trimesh(V[used], inverse.reshape(-1, 3), process=True))
     return meshes
+
+
+def read_grasp_array(path: str) -> np.ndarray:
+    """A stored grasp array (``.npy``, float (N, 4, 4)); ValueError naming the file when it is damaged
+    or of the wrong kind (rigidity is checked where grasp sets are made: ``omg.grasps.check_grasps``)."""
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - numpy reports a damaged file as ValueError, EOFError,
+        # OSError, or (a broken header) SyntaxError / tokenize.TokenError: each means "damaged"
+        raise ValueError(f"{path}: not a readable .npy grasp array ({type(exc).__name__}: {exc})") from None
+    if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "fiu":
+        raise ValueError(f"{path}: expected a float array of grasps, got dtype {getattr(arr, 'dtype', type(arr))}")
+    if arr.ndim != 3 or arr.shape[1:] != (4, 4):
+        raise ValueError(f"{path}: expected an (N, 4, 4) array of grasps, got shape {arr.shape}")
+    return np.asarray(arr, dtype=float)
 
 
 def load_ycb_object(folder: Union[str, os.PathLike], density: float = DEFAULT_DENSITY) -> ObjectModel:
@@ -284,10 +305,7 @@ def load_ycb_object(folder: Union[str, os.PathLike], density: float = DEFAULT_DE
     grasps = {}
     for path in sorted(glob.glob(os.path.join(folder, "grasps_*.npy"))):
         key = os.path.basename(path)[len("grasps_"):-len(".npy")]
-        arr = np.load(path, allow_pickle=False)
-        if arr.ndim != 3 or arr.shape[1:] != (4, 4):
-            raise ValueError(f"{path}: expected an (N, 4, 4) array of grasps, got shape {arr.shape}")
-        grasps[key] = np.asarray(arr, dtype=float)
+        grasps[key] = read_grasp_array(path)
     return make_object(name, loaded, parts, source=folder, mass=KNOWN_MASSES.get(name), density=density,
                        grasps=grasps, collision_file=coll_file)
 

@@ -88,6 +88,8 @@ class Robot:
     def link_index(self, link: LinkRef) -> int:
         if isinstance(link, str):
             return self._native.link_index(link)
+        if isinstance(link, bool) or not isinstance(link, (int, np.integer)):
+            raise ValueError(f"link: expected a link name (str) or index (int), got {link!r:.40}")
         if not 0 <= int(link) < len(self.link_names):
             raise ValueError(f"link index {link} out of range [0, {len(self.link_names)})")
         return int(link)
@@ -123,7 +125,19 @@ class Robot:
 
     def transform_points(self, Q, body: BodyPoints) -> np.ndarray:
         """World positions (T, N, 3) of body points along a trajectory Q (T, dof)."""
-        return self._native.transform_points(Q, body.links, body.points)
+        return self._native.transform_points(Q, self.check_link_indices(body.links), body.points)
+
+    def check_link_indices(self, links, what: str = "body point links") -> np.ndarray:
+        """``links`` as int32 after checking every index is in range before narrowing (so 2**32 + 3
+        is refused, not wrapped to 3)."""
+        arr = np.asarray(links)
+        if arr.dtype.kind not in "iu":
+            raise ValueError(f"{what}: expected integer link indices, got dtype {arr.dtype}")
+        n = len(self.link_names)
+        if arr.size and (arr.min() < 0 or arr.max() >= n):
+            bad = arr[(arr < 0) | (arr >= n)].flat[0]
+            raise ValueError(f"{what}: link index {int(bad)} out of range [0, {n})")
+        return arr.astype(np.int32)
 
     def moving_links(self) -> list:
         """Indices of links moved by at least one joint (the fixed base chain is excluded)."""

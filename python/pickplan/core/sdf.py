@@ -11,9 +11,20 @@ from typing import Iterable, Optional, Sequence, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
+from pickplan.core.meshes import check_mesh_arrays
 
-SDF_FORMAT_VERSION = 1
+SDF_FORMAT_VERSION = 2  # 2: entries carry a checksum and the writer's code and format versions
+
+
+def _code_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("pickplan")
+    except Exception:  # running from a source tree without installed metadata
+        return "source"
 
 
 @dataclass(frozen=True)
@@ -31,13 +42,67 @@ def default_cache_dir() -> str:
 
 
 def _mesh_arrays(mesh) -> Tuple[np.ndarray, np.ndarray]:
-    V = np.ascontiguousarray(np.asarray(mesh.vertices, dtype=np.float64))
-    F = np.ascontiguousarray(np.asarray(mesh.faces, dtype=np.int32))
-    if V.ndim != 2 or V.shape[1] != 3 or len(V) == 0:
-        raise ValueError(f"mesh vertices: expected shape (N, 3) with N > 0, got {V.shape}")
-    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0:
-        raise ValueError(f"mesh faces: expected shape (M, 3) with M > 0, got {F.shape}")
-    return V, F
+    return check_mesh_arrays(mesh.vertices, mesh.faces, "mesh")
+
+
+MAX_GRID_CELLS = 30_000_000  # 240 MB of distances; a 30 cm object at 5 mm with a 20 cm margin is 2.7 million
+
+
+def _check_grid_size(V: np.ndarray, settings: SdfSettings) -> None:
+    """InputError before building a grid that would not fit: a mesh 43 km across (one corrupt vertex)
+    otherwise keeps the native builder busy for minutes or exhausts memory."""
+    if not (np.isfinite(settings.resolution) and settings.resolution > 0 and np.isfinite(settings.margin)
+            and settings.margin >= 0):
+        raise InputError(f"SDF resolution must be > 0 and margin >= 0, got {settings.resolution}, {settings.margin}")
+    cells = np.prod(np.ceil((np.ptp(V, axis=0) + 2 * settings.margin) / settings.resolution) + 1)
+    if cells > MAX_GRID_CELLS:
+        raise InputError(f"mesh is {np.round(np.ptp(V, axis=0), 3).tolist()} m across: its SDF grid at "
+                         f"{settings.resolution} m would have {cells:.2g} cells (at most {MAX_GRID_CELLS:.0e})",
+                         field="mesh")
+
+
+def _checksum(origin, resolution, values) -> str:
+    h = hashlib.sha256()
+    for a in (origin, resolution, values):
+        a = np.ascontiguousarray(a, dtype=np.float64)
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _read_cache(path: str):
+    """The grid stored at ``path``, or None (with a warning) when the entry is unreadable, written by
+    another code or format version, fails its checksum or holds NaN or infinity: never used then."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            origin, resolution, values = z["origin"], z["resolution"], z["values"]
+            written = (int(z["format_version"]), str(z["code_version"]), str(z["checksum"]))
+    except Exception as exc:  # noqa: BLE001 - any damage to a cache file means: rebuild it
+        warnings.warn(f"rebuilding SDF cache entry {path}: unreadable ({type(exc).__name__}: {exc})", stacklevel=3)
+        return None
+    problem = None
+    if written[:2] != (SDF_FORMAT_VERSION, _code_version()):
+        problem = f"written by format {written[0]} / pickplan {written[1]}"
+    elif written[2] != _checksum(origin, resolution, values):
+        problem = "checksum mismatch (corrupt)"
+    elif not (np.all(np.isfinite(values)) and np.all(np.isfinite(origin)) and np.isfinite(resolution)
+              and float(resolution) > 0):
+        problem = "NaN, infinite or non-positive values"
+    if problem:
+        warnings.warn(f"rebuilding SDF cache entry {path}: {problem}", stacklevel=3)
+        return None
+    try:
+        return _core.SdfGrid.from_values(origin, float(resolution), values)
+    except ValueError as exc:
+        warnings.warn(f"rebuilding SDF cache entry {path}: {exc}", stacklevel=3)
+        return None
+
+
+def _write_cache(path: str, grid) -> None:
+    origin, resolution, values = np.asarray(grid.origin), float(grid.resolution), np.asarray(grid.values)
+    with atomic_open(path, "wb") as f:
+        np.savez(f, origin=origin, resolution=resolution, values=values, format_version=SDF_FORMAT_VERSION,
+                 code_version=_code_version(), checksum=_checksum(origin, resolution, values))
 
 
 def mesh_key(vertices: np.ndarray, faces: np.ndarray, settings: SdfSettings) -> str:
@@ -57,15 +122,13 @@ def mesh_sdf(mesh, settings: SdfSettings = SdfSettings()) -> "_core.SdfGrid":
     cache = default_cache_dir() if settings.cache_dir is None else settings.cache_dir
     path = os.path.join(cache, "sdf", mesh_key(V, F, settings) + ".npz") if cache else None
     if path and os.path.isfile(path):
-        try:
-            with np.load(path) as z:
-                return _core.SdfGrid.from_values(z["origin"], float(z["resolution"]), z["values"])
-        except (OSError, ValueError, KeyError) as exc:  # a corrupt cache entry is rebuilt, not fatal
-            warnings.warn(f"ignoring unreadable SDF cache file {path}: {exc}", stacklevel=2)
+        cached = _read_cache(path)
+        if cached is not None:
+            return cached
+    _check_grid_size(V, settings)
     grid, _report = _core.SdfGrid.build(V, F, settings.resolution, settings.margin)
     if path:
-        with atomic_open(path, "wb") as f:
-            np.savez(f, origin=grid.origin, resolution=grid.resolution, values=grid.values)
+        _write_cache(path, grid)
     return grid
 
 

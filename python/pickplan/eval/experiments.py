@@ -194,15 +194,6 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
     return list(seen.values())
 
 
-def _orthonormalized(poses: np.ndarray) -> np.ndarray:
-    """Project rotations onto SO(3): stored float32 grasp sets (graspit) can be off by ~1e-6, more than the
-    native goal-set check accepts."""
-    poses = np.array(poses, dtype=float)
-    u, _, vt = np.linalg.svd(poses[:, :3, :3])
-    poses[:, :3, :3] = u @ vt
-    return poses
-
-
 def run_unit(unit: dict) -> dict:
     """Plan (and execute) one unit; returns its flat record. Deterministic for a given unit."""
     from pickplan.omg import grasps as grasps_mod
@@ -232,7 +223,6 @@ def run_unit(unit: dict) -> dict:
         record.update(status="no_grasps", reason=str(exc), valid=False, planning_success=False,
                       execution_success=False, unit_seconds=time.perf_counter() - t0)
         return record
-    grasps = _orthonormalized(grasps)
     chomp = ChompSettings(n=spec["n"], lambda_=spec["lambda"], duration=0.1 * 30)
     omg = OMGSettings(chomp=chomp, goals=GoalSetSettings(max_goals=unit["grasps"], seed=seed), ik=IkSettings(seed=seed),
                       selection=spec["selection"], refine=spec["refine"], iterations=unit["iterations"],

@@ -66,7 +66,12 @@ class OMGSettings:
     grasp_count: int = 100
     seed: int = 0
 
-    def __post_init__(self):  # the options' spellings ("MD", "antipodal") become their enums, once
+    def __post_init__(self):
+        for name, low in (("iterations", 1), ("check_every", 1), ("min_iterations", 0), ("isf_steps", 0),
+                          ("cost_time_stride", 1), ("cost_point_stride", 1), ("grasp_count", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise ValueError(f"OMGSettings.{name}: expected an integer >= {low}, got {value!r}")
         object.__setattr__(self, "selection", Selection.parse(self.selection, "selection policy"))
         object.__setattr__(self, "grasp_kind", GraspKind.parse(self.grasp_kind, "grasp set kind"))
 

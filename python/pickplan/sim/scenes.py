@@ -23,9 +23,11 @@ import numpy as np
 
 from pickplan.core import objects as objects_mod
 from pickplan.core import objects_builtin
+from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
 from pickplan.sim.bodies import (_inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat,  # noqa: F401
                                   add_object_body, add_robot, add_table, object_pose)  # (re-exported)
+from pickplan.sim.scene_checks import array as _array, check_placement, pose as _pose, seed as _seed
 
 ORIENTATIONS = ("upright", "stable", "resting")  # how objects are posed: see SceneSettings.orientation
 SCENE_FORMAT = "pickplan.scene"
@@ -149,11 +151,17 @@ class Scene:
         if d["target"] not in names:
             raise ValueError(f"target {d['target']!r} is not one of the objects {names}")
         size = _array(table["size"], (3,), "table.size")
+        if not np.all(size > 0):
+            raise ValueError(f"table.size: expected positive extents, got {size.tolist()}")
         q = d.get("robot_configuration", [])
-        return cls(robot_base=_pose(d["robot_base"], "robot_base"),
-                   table=Table(size=size, pose=_pose(table["pose"], "table.pose")),
-                   objects=objs, target=str(d["target"]), seed=d.get("seed"),
-                   robot_configuration=[float(x) for x in _array(q, (len(q),), "robot_configuration")])
+        if not isinstance(q, (list, tuple)):
+            raise ValueError(f"robot_configuration: expected a list of joint values, got {type(q).__name__} {q!r}")
+        scene = cls(robot_base=_pose(d["robot_base"], "robot_base"),
+                    table=Table(size=size, pose=_pose(table["pose"], "table.pose")),
+                    objects=objs, target=str(d["target"]), seed=_seed(d.get("seed")),
+                    robot_configuration=[float(x) for x in _array(q, (len(q),), "robot_configuration")])
+        check_placement(scene)
+        return scene
 
     @classmethod
     def from_json(cls, text: str) -> "Scene":
@@ -161,6 +169,8 @@ class Scene:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise ValueError(f"malformed scene JSON: {exc}") from exc
+        except RecursionError:  # the decoder recurses once per level of nesting
+            raise ValueError("malformed scene JSON: nested too deeply") from None
         return cls.from_dict(data)
 
     def save(self, path: str) -> None:
@@ -172,33 +182,12 @@ class Scene:
         path = os.fspath(path)
         if not os.path.isfile(path):
             raise FileNotFoundError(f"scene file not found: {path}")
-        with open(path, "r", encoding="utf-8") as f:
-            text = f.read()
         try:
+            with open(path, "r", encoding="utf-8") as f:
+                text = f.read()
             return cls.from_json(text)
-        except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from exc
-
-
-def _array(value, shape, what) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what}: expected numbers, got {value!r}") from exc
-    if arr.shape != shape:
-        raise ValueError(f"{what}: expected shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what}: contains NaN or infinity")
-    return arr
-
-
-def _pose(value, what) -> np.ndarray:
-    T = _array(value, (4, 4), what)
-    R = T[:3, :3]
-    if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6) \
-            or np.linalg.det(R) < 0:
-        raise ValueError(f"{what}: not a rigid transform")
-    return T
+        except (ValueError, FileNotFoundError) as exc:  # UnicodeDecodeError is a ValueError
+            raise InputError(str(exc), path=path) from exc
 
 
 def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None,

@@ -46,4 +46,12 @@ inline Eigen::Matrix3d axis_angle(const Eigen::Vector3d& axis, double angle) {
 // Throws std::invalid_argument when M is not a rigid transform (orthonormal, det +1, last row 0 0 0 1).
 void require_rigid(const char* what, const Eigen::Matrix4d& M, double tol = 1e-6);
 
+// How far from rigid a pose read from a file may be and still be cleaned: real data stored in
+// float32 (the YCB graspit sets) is off by ~1.6e-6; past this the pose is rejected, not repaired.
+constexpr double kRigidCleanTolerance = 1e-4;
+
+// M with its rotation projected onto SO(3) and its last row set to 0 0 0 1, when M is rigid within
+// `tol` (orthonormality, determinant, last row); std::invalid_argument naming `what` otherwise.
+Eigen::Matrix4d cleaned_rigid(const char* what, const Eigen::Matrix4d& M, double tol = kRigidCleanTolerance);
+
 }  // namespace pickplan

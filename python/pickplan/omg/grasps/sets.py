@@ -13,6 +13,7 @@ import numpy as np
 
 from pickplan.core.panda import YCB_TO_HAND
 from pickplan.core.settings import Option
+from pickplan.core.poses import RIGID_CLEAN_TOLERANCE, clean_poses
 
 
 class GraspKind(Option):
@@ -28,23 +29,10 @@ KINDS = tuple(GraspKind)
 
 
 # --- grasp sets ------------------------------------------------------------------------------------
-def check_grasps(poses, what: str = "grasps", tol: float = 1e-5) -> np.ndarray:
-    """``poses`` as a float (N, 4, 4) array of rigid transforms, or ValueError saying what is wrong."""
-    arr = np.asarray(poses, dtype=float)
-    if arr.ndim != 3 or arr.shape[1:] != (4, 4):
-        raise ValueError(f"{what}: expected shape (N, 4, 4), got {arr.shape}")
-    if len(arr) == 0:
-        return arr
-    R = arr[:, :3, :3]
-    bad = ~np.all(np.isfinite(arr), axis=(1, 2))
-    bad |= np.abs(arr[:, 3] - [0, 0, 0, 1]).max(axis=1) > tol
-    bad |= np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2)) > tol
-    bad |= np.linalg.det(R) < 0
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"{what}: pose {i} is not a rigid transform (rotation must be orthonormal with "
-                         f"det +1, last row [0, 0, 0, 1]); {int(bad.sum())} of {len(arr)} bad")
-    return arr
+def check_grasps(poses, what: str = "grasps", tol: float = RIGID_CLEAN_TOLERANCE) -> np.ndarray:
+    """``poses`` as a float (N, 4, 4) array of rigid transforms, cleaned to float precision
+    (``core.poses.clean_poses``), or ValueError saying what is wrong."""
+    return clean_poses(poses, what, tol)
 
 
 @dataclass(eq=False)
