@@ -18,6 +18,7 @@ import socket
 import sys
 import traceback
 from typing import Callable
+from pickplan.core.errors import InputError
 
 
 class ExitCode(enum.IntEnum):
@@ -59,7 +60,6 @@ def run_command(name: str, handler: Callable, args) -> int:
 
 def check_arguments(args) -> None:
     """Options that name files and folders, checked before any work starts."""
-    from pickplan.core.errors import InputError
 
     out = getattr(args, "out", None)
     if isinstance(out, str) and os.path.exists(out) and not os.path.isdir(out):
@@ -76,7 +76,6 @@ def check_arguments(args) -> None:
 def check_ray_address(address: str) -> None:
     """'local', 'auto', or HOST:PORT (optionally ray://HOST:PORT) that accepts a connection within
     ``RAY_CONNECT_SECONDS``: Ray itself retries for ~21 s before it gives up."""
-    from pickplan.core.errors import InputError
 
     if address in ("local", "auto"):
         return

@@ -20,21 +20,28 @@ from typing import Optional, Sequence
 from pickplan.omg.grasps.sets import GraspKind
 from pickplan.omg.selection import Selection
 from pickplan.cli.exit_codes import ExitCode, run_command
+from pickplan.eval.demo import DemoSettings, run_demo
+from pickplan.sim import execution
+from pickplan.eval.demo import metrics_table
+from pickplan.core.io import write_json, write_text
+from pickplan.omg.plan_file import plan_record
+from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
+from pickplan.sim.scenes import Scene
+from pickplan.cli.scenes import add_scene_commands
+from pickplan.cli.metamodel import add_metamodel_commands
+from pickplan.cli.pickup import add_pickup_commands
+from pickplan.cli.bench import add_bench_commands
+from pickplan.cli.robots import add_robot_commands
+from pickplan.cli.view import add_view_commands
+from pickplan.cli.observe import add_observe_commands
 
 
 def _cmd_demo(args) -> int:
-    from pickplan.eval.demo import DemoSettings, run_demo
 
     return run_demo(args.out, DemoSettings(seed=args.seed))
 
 
 def _cmd_plan(args) -> int:
-    from pickplan.sim import execution
-    from pickplan.eval.demo import metrics_table
-    from pickplan.core.io import write_json, write_text
-    from pickplan.omg.plan_file import plan_record
-    from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
-    from pickplan.sim.scenes import Scene
 
     scene = Scene.load(args.scene)
     settings = OMGSettings(selection=args.selection, refine=not args.no_refine, iterations=args.iterations,
@@ -70,13 +77,6 @@ def build_parser() -> argparse.ArgumentParser:
     plan.add_argument("--seed", type=int, default=0)
     plan.add_argument("--out", default=None, help="folder for metrics.md, plan.json and scene.json")
     plan.set_defaults(handler=_cmd_plan)
-    from pickplan.cli.scenes import add_scene_commands
-    from pickplan.cli.metamodel import add_metamodel_commands
-    from pickplan.cli.pickup import add_pickup_commands
-    from pickplan.cli.bench import add_bench_commands
-    from pickplan.cli.robots import add_robot_commands
-    from pickplan.cli.view import add_view_commands
-    from pickplan.cli.observe import add_observe_commands
 
     add_scene_commands(sub)
     add_bench_commands(sub)

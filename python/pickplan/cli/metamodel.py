@@ -22,6 +22,7 @@ from pickplan.cli.exit_codes import run_command
 from pickplan.core.io import write_text
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
 from pickplan.pickup.metamodel.parts import PARTS
+from pickplan.pickup.metamodel.compare import compare, plot_comparison, summarize, write_results
 
 DEFAULT_OUT = os.path.join("results", "metamodel")
 
@@ -119,7 +120,6 @@ def cmd_build(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from pickplan.pickup.metamodel.compare import compare, plot_comparison, summarize, write_results
 
     os.makedirs(args.out, exist_ok=True)
     n = args.samples if args.samples is not None else (100 if args.quick else 2000)

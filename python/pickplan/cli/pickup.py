@@ -15,6 +15,7 @@ from pickplan.core.io import read_json
 from pickplan.pickup.metamodel.validate import validate_metamodel
 from pickplan.pickup.nlp import cases
 from pickplan.pickup.nlp import planner
+from pickplan.pickup.nlp import replay
 
 
 def add_pickup_commands(subparsers) -> None:
@@ -132,7 +133,6 @@ def plot_fig5(fig5: dict, path) -> None:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from pickplan.pickup.nlp import replay
     path = os.path.join(args.out, "trajectories", f"{args.replay}.json")
     if not os.path.exists(path):
         raise FileNotFoundError(f"no trajectory {path} (names: caseN_sequential, caseN_single_shot_seedK, ...)")

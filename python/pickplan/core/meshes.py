@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+from pickplan.core.errors import InputError
 
 
 def geometry_to_trimesh(geom: dict):
@@ -31,7 +32,6 @@ MIN_THICKNESS = 1e-6  # m: a mesh thinner than this along its thinnest principal
 def check_mesh_arrays(vertices, faces, what: str = "mesh"):
     """(V float64 (N, 3), F int32 (M, 3)) of a triangle mesh that encloses some volume, or InputError
     naming ``what``: empty, non-finite, out-of-range face indices, or degenerate (zero volume)."""
-    from pickplan.core.errors import InputError
 
     try:
         V = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64))

@@ -16,6 +16,7 @@ import numpy as np
 from pickplan import _core
 from pickplan.core.panda import PANDA, PandaInfo, panda_urdf_path  # noqa: F401  (re-exported)
 from pickplan.core.paths import assets_dir  # noqa: F401  (re-exported: robots.assets_dir)
+from pickplan.core.meshes import geometry_to_trimesh
 
 LinkRef = Union[int, str]
 
@@ -177,7 +178,6 @@ class Robot:
     # --- geometry ------------------------------------------------------------------------
     def collision_meshes(self, link: LinkRef):
         """The collision geometry of a link as one trimesh in the link frame (None if it has none)."""
-        from pickplan.core.meshes import geometry_to_trimesh
 
         parts = [geometry_to_trimesh(g) for g in self._native.collision_geometries(self.link_index(link))]
         if not parts:

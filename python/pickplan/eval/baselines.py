@@ -30,6 +30,7 @@ from pickplan.omg.goals import build_goal_set
 from pickplan.omg.planner import OMGSettings, PlanResult, PlanStatus
 from pickplan.sim.scenes import Scene
 from pickplan.omg.world import World
+from pickplan.omg.planner import OMGPlanner
 
 BASELINES = ("CHOMP", "FMT", "RRT-C")
 
@@ -231,7 +232,6 @@ def plan_baseline(name: str, scene: Scene, settings: BaselineSettings = Baseline
     if name in ("FMT", "RRT-C"):
         return plan_ompl(scene, name, settings, world, grasps)
     if name == "CHOMP-C":
-        from pickplan.omg.planner import OMGPlanner
 
         return OMGPlanner(None, scene, chomp_c_settings(settings.omg), world=world).plan(grasps=grasps)
     raise ValueError(f"unknown baseline {name!r}; expected one of {list(BASELINES) + ['CHOMP-C']}")

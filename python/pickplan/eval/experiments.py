@@ -26,6 +26,19 @@ import numpy as np
 
 from pickplan.core.io import write_json
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
+from pickplan.core import objects as objects_mod
+from pickplan.sim.scenes import generate_scene
+from pickplan.sim.scene_sets import scene_seeds
+from pickplan.omg import grasps as grasps_mod
+from pickplan.core.objects import model_from_source
+from pickplan.eval.baselines import BaselineSettings, plan_baseline
+from pickplan.omg.chomp import ChompSettings
+from pickplan.omg.goals import GoalSetSettings, IkSettings
+from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
+from pickplan.sim.scenes import Scene
+from pickplan.omg.world import World
+from pickplan.core.timing import time_parameterize
+from pickplan.sim.execution import ExecutionSettings, execute_plan
 
 TABLES = ("selection", "refinement", "planners", "ablation")
 SELECTION_METHODS = ("Fixed", "Proj", "FTC", "FTL", "EXP", "MD")
@@ -118,8 +131,6 @@ def method_spec(table: str, method: str) -> dict:
 
 # --- scenes ----------------------------------------------------------------------------------------
 def _make_scene(job: dict) -> dict:
-    from pickplan.core import objects as objects_mod
-    from pickplan.sim.scenes import generate_scene
 
     path = job["path"]
     if not os.path.exists(path):
@@ -137,7 +148,6 @@ def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None,
         if not files:
             raise FileNotFoundError(f"no scene JSON files in {s.scene_dir}")
         return [os.path.join(s.scene_dir, f) for f in files]
-    from pickplan.sim.scene_sets import scene_seeds
 
     folder = os.path.join(s.out, "scenes")
     os.makedirs(folder, exist_ok=True)
@@ -173,8 +183,6 @@ def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
 
 def _grasps_job(job: dict) -> dict:
     """Generate (and cache on disk) an object's grasp set once, before the units need it."""
-    from pickplan.omg import grasps as grasps_mod
-    from pickplan.core.objects import model_from_source
 
     try:
         grasps_mod.grasp_set(model_from_source(job["name"], job["source"]), job["kind"], job["n"], seed=0,
@@ -196,15 +204,6 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
 
 def run_unit(unit: dict) -> dict:
     """Plan (and execute) one unit; returns its flat record. Deterministic for a given unit."""
-    from pickplan.omg import grasps as grasps_mod
-    from pickplan.eval.baselines import BaselineSettings, plan_baseline
-    from pickplan.omg.chomp import ChompSettings
-    from pickplan.omg.goals import GoalSetSettings, IkSettings
-    from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
-    from pickplan.sim.scenes import Scene
-    from pickplan.omg.world import World
-    from pickplan.core.timing import time_parameterize
-    from pickplan.sim.execution import ExecutionSettings, execute_plan
 
     t0 = time.perf_counter()
     spec = method_spec(unit["table"], unit["method"])

@@ -44,6 +44,8 @@ from pickplan.core.panda import PANDA
 from pickplan.core.timing import TimedTrajectory
 from pickplan.core.settings import Option
 from pickplan.sim import scenes as scenes_mod
+from pickplan.core import robots
+from pickplan.sim import render as viz
 
 
 class ExecutionStatus(Option):
@@ -233,7 +235,6 @@ class _Sim:
             self.capture()
 
     def capture(self) -> None:
-        from pickplan.sim import render as viz
 
         r = self.record
         if len(self.frames) >= r.max_frames:
@@ -324,7 +325,6 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     """
     import pybullet as pb
 
-    from pickplan.core import robots
 
     t_start = time.perf_counter()
     s = settings
@@ -462,7 +462,6 @@ def _colorize(pb, client, sim: _Sim) -> None:
 
 def save_frames(frames: Sequence[np.ndarray], path_png: str, columns: int = 4) -> None:
     """Write ``frames`` as one contact-sheet PNG (a grid, ``columns`` wide)."""
-    from pickplan.sim import render as viz
 
     if not frames:
         raise ValueError("save_frames: no frames to write")
@@ -473,6 +472,5 @@ def save_frames(frames: Sequence[np.ndarray], path_png: str, columns: int = 4) -
 
 def save_gif(frames: Sequence[np.ndarray], path: str, fps: float = 10.0) -> None:
     """Write ``frames`` as a looping animated GIF (Pillow)."""
-    from pickplan.sim import render as viz
 
     viz.write_gif(path, frames, fps)

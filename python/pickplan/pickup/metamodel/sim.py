@@ -25,6 +25,7 @@ import numpy as np
 import pybullet
 
 from pickplan.pickup.metamodel.parts import Part, get_part
+from pickplan.core.paths import assets_dir
 
 OPEN_WIDTH = 0.085  # distance between the pads when open (2F-85 stroke)
 FINGER_HALF_X = 0.011  # half the pad width along the approach axis
@@ -33,7 +34,6 @@ _LEFT, _RIGHT = 0, 1  # finger joint indices in the URDF
 
 def default_urdf_path() -> str:
     """assets/gripper_2f85.urdf, installed inside the package (or the source tree's assets/)."""
-    from pickplan.core.paths import assets_dir
 
     return os.path.join(assets_dir(), "gripper_2f85.urdf")
 

@@ -18,6 +18,8 @@ import numpy as np
 from pickplan import _core
 from pickplan.core.runner import run_jobs
 from pickplan.pickup.nlp import planner
+from pickplan.pickup.metamodel.model import BuildConfig
+from pickplan.pickup.metamodel.model import MetaModel, build_metamodel
 
 SIGMAS = {"low": (0.002, math.radians(5)), "medium": (0.007, math.radians(10)),
           "high": (0.012, math.radians(15))}
@@ -68,7 +70,6 @@ def cases_metamodel_config():
     the cases keep this one."""
     from dataclasses import replace
 
-    from pickplan.pickup.metamodel.model import BuildConfig
     cfg = BuildConfig(conservative_z=1.0, rho_model="svm")
     return replace(cfg, active=replace(cfg.active, rho_share=0.5, band_share=0.0))
 
@@ -76,7 +77,6 @@ def cases_metamodel_config():
 def ensure_metamodel(path, config=None, seed: int = 0, workers: int = 1, progress: bool = True) -> str:
     """The part-1 meta-model file at ``path``: reused when it exists and loads, else built for the
     box part from simulation (``metamodel.build_metamodel``, seeded) and written atomically."""
-    from pickplan.pickup.metamodel.model import MetaModel, build_metamodel
     path = os.fspath(path)
     if os.path.exists(path):
         mm = MetaModel.load(path)  # raises on a file that is not a readable meta-model
