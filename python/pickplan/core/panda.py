@@ -22,6 +22,7 @@ class PandaInfo:
     ready: tuple        # a comfortable start configuration above the table (fingers open)
     finger_open: float  # m per finger joint with the hand open
     pad_depth: float    # m along the hand's +z: centre of the finger pads (the YCB README's grasp point)
+    max_opening: float  # m between the pads, open
     # Joint-space limits of the arm (Franka Emika's datasheet, in panda.toml). Velocity limits are read
     # from the URDF instead (``Robot.velocity_limits``: the datasheet's values).
     arm_acceleration_limits: tuple       # rad/s^2
@@ -35,6 +36,7 @@ class PandaInfo:
         return cls(hand_link=g.hand_link, finger_links=tuple(g.finger_links),
                    finger_joints=tuple(f.name for f in g.finger_joints), arm_dof=len(desc.arm_joints),
                    ready=tuple(desc.start) + fingers, finger_open=fingers[0], pad_depth=float(g.grasp_frame[2, 3]),
+                   max_opening=float(g.max_opening),
                    arm_acceleration_limits=tuple(desc.acceleration_limits), arm_jerk_limits=tuple(desc.jerk_limits),
                    finger_acceleration_limit=float(desc.finger_acceleration_limit))
 

@@ -8,6 +8,7 @@ from typing import Optional
 import numpy as np
 import trimesh
 
+from pickplan.core.panda import PANDA
 from pickplan.omg.grasps.hand import PAD_DEPTH, HandObjectChecker
 from pickplan.omg.grasps.sets import GraspSet, _check_count, _frame, _perpendicular
 
@@ -61,7 +62,7 @@ def approach_grasps(model, n: int = 100, seed: int = 0,
 @dataclass(frozen=True)
 class AntipodalSettings:
     friction: float = 0.3        # Coulomb coefficient: friction cone half-angle atan(0.3) = 16.7 deg
-    max_width: float = 0.08      # the Panda's opening
+    max_width: float = PANDA.max_opening  # the Panda's opening (m)
     width_margin: float = 0.005  # pairs must be this much narrower than max_width
     min_width: float = 0.002
     clearance: float = 0.001     # m kept between the open hand and the object

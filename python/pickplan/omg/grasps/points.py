@@ -23,6 +23,7 @@ from typing import Callable, Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pickplan.core.panda import PANDA
 from pickplan.omg.grasps.hand import PAD_DEPTH
 from pickplan.omg.grasps.sets import GraspSet, _check_count, _perpendicular
 
@@ -30,7 +31,7 @@ from pickplan.omg.grasps.sets import GraspSet, _check_count, _perpendicular
 @dataclass(frozen=True)
 class PointGraspSettings:
     friction: float = 0.3            # Coulomb coefficient: the friction cone's half-angle atan(0.3)
-    max_width: float = 0.08          # the gripper's opening (m)
+    max_width: float = PANDA.max_opening  # the gripper's opening (m); the Panda's by default
     width_margin: float = 0.008      # widths must be this much below the opening (the cloud is noisy)
     min_width: float = 0.004
     pad_length: float = 0.018        # m of finger along the approach axis that grips
