@@ -18,6 +18,7 @@ from typing import Dict, List, Optional, Sequence
 from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize)
 from pickplan.cli.exit_codes import run_command
 from pickplan.core.io import write_json, write_text
+from pickplan.eval.plots import plot_table
 
 # The paper's numbers (100 scenes, 30 grasps, 10 runs; Table II: 60 grasps, 30 refinement iterations).
 PAPER: Dict[str, Dict[str, dict]] = {
@@ -139,7 +140,8 @@ def plot_ablation(path: str, summary: Dict[str, dict]) -> None:
 
 
 def write_report(settings: SweepSettings, records: List[dict]) -> str:
-    """table.md, runs.csv, runs.json, summary.json (and fig8.png for the ablation) in ``settings.out``."""
+    """table.md with table.png beside it, runs.csv, runs.json, summary.json (and fig8.png for the
+    ablation) in ``settings.out``."""
     s = settings.effective()
     methods = methods_for(s)
     summary = summarize(records, methods)
@@ -159,6 +161,7 @@ def write_report(settings: SweepSettings, records: List[dict]) -> str:
     write_json(os.path.join(s.out, "summary.json"), summary)
     if s.table == "ablation":
         plot_ablation(os.path.join(s.out, "fig8.png"), summary)
+    plot_table(os.path.join(s.out, "table.png"), records, methods, header.lstrip("# "))
     return text
 
 
@@ -177,7 +180,7 @@ def run_bench(args: argparse.Namespace) -> int:
     settings = settings_from_args(args)
     records = run_sweep(settings)
     print(write_report(settings, records))
-    print(f"wrote {settings.out}/table.md, runs.csv, runs.json, summary.json"
+    print(f"wrote {settings.out}/table.md, table.png, runs.csv, runs.json, summary.json"
           + (", fig8.png" if settings.table == "ablation" else ""))
     return 0
 

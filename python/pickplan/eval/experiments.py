@@ -25,6 +25,7 @@ from typing import Callable, Dict, Iterable, List, Optional, Sequence, TextIO, T
 import numpy as np
 
 from pickplan.core.io import write_json
+from pickplan.eval.plots import STAGES
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
 from pickplan.core import objects as objects_mod
 from pickplan.sim.scenes import generate_scene
@@ -241,7 +242,8 @@ def run_unit(unit: dict) -> dict:
                   smoothness=float(m["smoothness"]) if planned else None,
                   collision=float(m["collision"]) if planned else None,
                   min_clearance=float(m["min_clearance"]) if planned else None,
-                  grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None)
+                  grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None,
+                  stage_times={k: float(result.timings.get(k, 0.0)) for k in STAGES})
     # The duration a controller needs: the path timed within the Panda's velocity/acceleration limits.
     control_rate = 1.0 / ExecutionSettings.time_step  # samples at PyBullet's control rate: executed as they are
     timed = time_parameterize(result.trajectory, control_rate) if planned else None
