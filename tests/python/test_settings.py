@@ -23,7 +23,7 @@ ARM = [True] * 7 + [False] * 2
 PAIRS = {
     "chomp": (ChompSettings, _core.ChompSettings, lambda s: s.to_native(), {"exclude_mask", "active"}, set()),
     "metrics": (MetricSettings, _core.MetricSettings, lambda s: s.to_native(), {"exclude_mask"}, set()),
-    "ik": (IkSettings, _core.IkSettings, lambda s: s.to_native(ARM), {"active"}, set()),
+    "ik": (IkSettings, _core.IkSettings, lambda s: s.to_native(ARM), {"weights"}, set()),
     "goal_set": (GoalSetSettings, _core.GoalSetSettings, lambda s: s.to_native(), set(), {"approach_clearance"}),
     "isf": (IsfSettings, _core.IsfSettings, lambda s: s.to_native(ARM), {"active"}, set()),
     "collision": (CollisionSettings, _core.CollisionSettings, lambda s: s.to_native(), set(), set()),
@@ -40,7 +40,8 @@ OPTIONS = [ChompStatus, Initialization, GraspKind, PlanStatus, Selection, CostKi
 
 
 def native_fields(native_type) -> set:
-    return {name for name, v in vars(native_type).items() if isinstance(v, property)}
+    """The struct's fields, its bases' included (IkSettings extends DlsSettings)."""
+    return {name for klass in native_type.__mro__ for name, v in vars(klass).items() if isinstance(v, property)}
 
 
 def same(a, b) -> bool:

@@ -9,19 +9,51 @@ from typing import Optional
 import numpy as np
 
 from pickplan import _core
-from pickplan.core.settings import to_native
+from pickplan.core.settings import Option, to_native
 from pickplan.omg.world import CheckerKind, World
+
+
+class IkTask(Option):
+    pose = "pose"
+    position = "position"
+
+
+class IkRotationError(Option):
+    angle_axis = "angle_axis"
+    sine_axis = "sine_axis"
+
+
+class IkDamping(Option):
+    adaptive = "adaptive"
+    fixed = "fixed"
+
+
+class IkStepNorm(Option):
+    max_abs = "max_abs"
+    euclidean = "euclidean"
 
 
 @dataclass(frozen=True)
 class IkSettings:
-    """Mirror of the native ``IkSettings``."""
+    """Mirror of the native ``IkSettings`` (one damped-least-squares descent's settings, then the
+    spread of seeds); ``to_native`` sets the per-joint weights."""
 
+    task: IkTask = IkTask.pose
+    rotation_error: IkRotationError = IkRotationError.angle_axis
     max_iterations: int = 40
     position_tolerance: float = 1e-4
     rotation_tolerance: float = 1e-3
+    damping_schedule: IkDamping = IkDamping.adaptive
     damping: float = 1e-2
+    damping_decrease: float = 0.3
+    damping_increase: float = 10.0
+    min_damping: float = 1e-8
+    max_damping: float = 1e4
+    min_relative_decrease: float = 1e-3
+    max_stalled_iterations: int = 8
     max_step: float = 0.5
+    step_norm: IkStepNorm = IkStepNorm.max_abs
+    limit_margin: float = 0.0
     num_seeds: int = 24
     seed: int = 0
     duplicate_tolerance: float = 0.05
