@@ -232,3 +232,34 @@ def test_timed_execution_follows_the_timed_trajectory(scene_dir, tmp_path):
             assert r["execution_sim_time"] == pytest.approx(fixed + r["trajectory_duration"], abs=3 * x.time_step)
     if not executed:
         pytest.skip("no scene planned successfully")
+
+
+def test_a_damaged_unit_file_is_redone_on_resume_and_named(scene_dir, tmp_path):
+    """Regression (issue 26): a damaged unit file stopped a resume with a JSON error naming no file."""
+    base = dict(scene_dir=scene_dir, runs=1, methods=("Fixed", "MD"), quick=True, workers=0, execute=False,
+                progress=False)
+    s = E.SweepSettings("selection", out=str(tmp_path / "damaged"), **base)
+    calls = []
+
+    def fake(unit):  # a finished record without planning: the sweep's bookkeeping is what is tested
+        calls.append(unit)
+        return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
+                "seed": int(unit["seed"]), "status": "success", "valid": True, "planned": True,
+                "planning_success": True, "execution_success": False}
+
+    first = E.run_sweep(s, unit_fn=fake)
+    n = len(first)
+    assert n >= 4 and len(calls) == n
+    files = sorted((tmp_path / "damaged" / "units").iterdir())
+    truncated, foreign = files[0], files[1]
+    truncated.write_text(truncated.read_text()[: len(truncated.read_text()) // 2])  # cut mid-record
+    foreign.write_text(files[2].read_text())  # another unit's record under this unit's name
+    calls.clear()
+    with pytest.warns(UserWarning) as seen:
+        resumed = E.run_sweep(s, unit_fn=fake)
+    messages = " ".join(str(w.message) for w in seen)
+    assert truncated.name in messages and "damaged unit record" in messages
+    assert foreign.name in messages and "not the record of unit" in messages
+    assert len(calls) == 2 and len(resumed) == n  # only the two damaged units ran again
+    keyed = lambda rs: sorted((r["scene"], r["method"], r["run"]) for r in rs)  # noqa: E731
+    assert keyed(resumed) == keyed(first)

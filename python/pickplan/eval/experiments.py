@@ -19,12 +19,14 @@ import json
 import math
 import os
 import time
+import warnings
 from dataclasses import dataclass, replace
 from typing import Callable, Dict, Iterable, List, Optional, Sequence, TextIO, Tuple
 
 import numpy as np
 
-from pickplan.core.io import write_json
+from pickplan.core.errors import InputError
+from pickplan.core.io import read_json, write_json
 from pickplan.eval.plots import STAGES
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
 from pickplan.core import objects as objects_mod
@@ -285,7 +287,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
     with sweep_runner(s) as runner:
         files = scene_files(s, stream, runner)
         units = make_units(s, files)
-        todo = [u for u in units if not os.path.exists(unit_path(s, u))]
+        todo = [u for u in units if not _finished(s, u)]
         for _ in runner.map(_grasps_job, grasp_jobs(todo), Order.COMPLETION, progress=s.progress, label="grasps",
                             stream=stream):
             pass
@@ -327,12 +329,26 @@ def check_resumable(settings: SweepSettings) -> None:
     write_json(path, fp)
 
 
+def _finished(settings: SweepSettings, unit: dict) -> bool:
+    """Whether ``unit``'s file holds its finished record. Files are written atomically, but a damaged
+    one (a disk error, a hand edit, another unit's record) is redone with a warning naming it."""
+    path = unit_path(settings, unit)
+    if not os.path.exists(path):
+        return False
+    try:
+        record = read_json(path, "unit record")
+    except (InputError, OSError) as exc:
+        warnings.warn(f"{path}: damaged unit record, redone ({exc})", stacklevel=2)
+        return False
+    mine = {"scene": unit["scene_name"], "method": unit["method"], "run": unit["run"]}
+    if not isinstance(record, dict) or any(record.get(k) != v for k, v in mine.items()):
+        warnings.warn(f"{path}: not the record of unit {mine}, redone", stacklevel=2)
+        return False
+    return True
+
+
 def load_records(settings: SweepSettings, units: Sequence[dict]) -> List[dict]:
-    records = []
-    for u in units:
-        with open(unit_path(settings, u)) as f:
-            records.append(json.load(f))
-    return records
+    return [read_json(unit_path(settings, u), "unit record") for u in units]
 
 
 def _mean(xs: Iterable[Optional[float]]) -> float:
