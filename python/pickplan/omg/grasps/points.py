@@ -137,13 +137,14 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     keep = tips @ plane_n - plane_d > -s.table_contact
     # no observed target point inside the open hand (between the pads is outside the hand)
     local = np.einsum("kji,kmj->kmi", T[:, :3, :3], P[None, :, :] - T[:, None, :3, 3])
-    for k in np.flatnonzero(keep):
-        d, _ = hand_sdf.distance(local[k], cutoff=0.05)
-        keep[k] = d.min() > s.clearance
-    if scene_distance is not None and hand_points is not None:
-        for k in np.flatnonzero(keep):
-            world = hand_points @ T[k, :3, :3].T + T[k, :3, 3]
-            keep[k] = scene_distance(world).min() > s.obstacle_clearance
+    ks = np.flatnonzero(keep)
+    if len(ks):  # one batched query for every candidate's points (the distances are pointwise)
+        d, _ = hand_sdf.distance(local[ks].reshape(-1, 3), cutoff=0.05)
+        keep[ks] = d.reshape(len(ks), -1).min(axis=1) > s.clearance
+    ks = np.flatnonzero(keep)
+    if scene_distance is not None and hand_points is not None and len(ks):
+        world = np.einsum("kij,mj->kmi", T[ks, :3, :3], hand_points) + T[ks, None, :3, 3]
+        keep[ks] = scene_distance(world.reshape(-1, 3)).reshape(len(ks), -1).min(axis=1) > s.obstacle_clearance
     # how much of the pads the points fill: points within the pad rectangle between the fingers
     fill = np.zeros(len(T))
     for k in np.flatnonzero(keep):
