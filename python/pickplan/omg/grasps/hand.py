@@ -21,11 +21,12 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from pickplan.core.collision import CollisionChecker, CollisionSettings, SceneMesh
+from pickplan.core.description import pose_matrix
 from pickplan.core.io import atomic_open
 from pickplan.core.panda import PANDA, panda_urdf_path
 from pickplan.core.paths import assets_dir
 from pickplan.core.robots import Robot
-from pickplan.omg.grasps.sets import _rot_z, check_grasps
+from pickplan.omg.grasps.sets import check_grasps
 
 # The hand's facts, named as this package has always named them (their one source: core.panda).
 HAND_LINK = PANDA.hand_link
@@ -42,10 +43,7 @@ def _xyz(el, attr: str = "xyz") -> np.ndarray:
 
 
 def _rpy_matrix(rpy) -> np.ndarray:
-    r, p, y = rpy
-    Rx = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
-    Ry = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
-    return _rot_z(y) @ Ry @ Rx
+    return pose_matrix((0.0, 0.0, 0.0), rpy)[:3, :3]  # the URDF convention, as robot descriptions read it
 
 
 @functools.lru_cache(maxsize=2)
