@@ -35,3 +35,8 @@ def ycb_dir_or_skip():
 
 def rng(seed=0):
     return np.random.default_rng(seed)
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "ray: starts a local Ray cluster (slow to start); CI runs these, "
+                                       "`-m 'not ray'` leaves them out of a quick local run")

@@ -284,6 +284,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
     an "error" unit; interrupts stop the sweep); return all records in unit order."""
     s = settings.effective()
     check_resumable(s)
+    stamp = {FINGERPRINT_FIELD: sweep_fingerprint(s)}  # in every unit: a resume never mixes sweeps
     with sweep_runner(s) as runner:
         files = scene_files(s, stream, runner)
         units = make_units(s, files)
@@ -294,7 +295,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
         for unit, out in runner.map(unit_fn, todo, Order.COMPLETION, OnError.RECORD, progress=s.progress,
                                     label=f"{s.table} units", stream=stream, done=len(units) - len(todo),
                                     total=len(units)):
-            write_json(unit_path(s, unit), error_record(unit, out) if isinstance(out, JobFailure) else out)
+            write_json(unit_path(s, unit), {**(error_record(unit, out) if isinstance(out, JobFailure) else out), **stamp})
     return load_records(s, units)
 
 
@@ -312,12 +313,39 @@ def sweep_fingerprint(settings: SweepSettings) -> dict:
     return fp
 
 
+FINGERPRINT_FIELD = "sweep"  # the unit record's copy of its sweep's fingerprint
+
+
+def _fingerprint_diff(record: dict, fp: dict) -> List[str]:
+    """The fingerprint fields on which ``record`` (a unit's) differs from ``fp``."""
+    theirs = record.get(FINGERPRINT_FIELD)
+    if not isinstance(theirs, dict):
+        return [f"{FINGERPRINT_FIELD}: none in the unit (written by another sweep or an older pickplan)"]
+    return [f"{k}: {theirs.get(k)!r} there, {fp[k]!r} now" for k in RESUME_KEYS if theirs.get(k) != fp[k]]
+
+
+def _refuse_foreign_unit(settings: SweepSettings, path: str, diff: List[str]) -> None:
+    raise InputError(f"{os.path.basename(path)} was made by a sweep with other settings ({'; '.join(diff)}); "
+                     "use another --out or delete that folder", path=os.path.join(settings.out, "units"))
+
+
 def check_resumable(settings: SweepSettings) -> None:
     """OUT/sweep.json records the settings its units were made with. Resuming with other settings
-    would mix incomparable units (or reuse scenes of another seed or object set), so it is refused."""
+    would mix incomparable units (or reuse scenes of another seed or object set), so it is refused;
+    without sweep.json (deleted), the fingerprint in each unit record decides before any is written."""
     path = os.path.join(settings.out, "sweep.json")
     fp = sweep_fingerprint(settings)
-    if os.path.exists(path):
+    if not os.path.exists(path):
+        units = os.path.join(settings.out, "units")
+        for name in sorted(os.listdir(units)) if os.path.isdir(units) else ():
+            try:
+                record = read_json(os.path.join(units, name), "unit record")
+            except (InputError, OSError):
+                continue  # damaged: redone with a warning when its unit comes up
+            diff = _fingerprint_diff(record, fp) if isinstance(record, dict) else []
+            if diff:
+                _refuse_foreign_unit(settings, name, diff)
+    else:
         with open(path) as f:
             old = json.load(f)
         diff = [k for k in RESUME_KEYS if k in old and old[k] != fp[k]]
@@ -344,11 +372,16 @@ def _finished(settings: SweepSettings, unit: dict) -> bool:
     if not isinstance(record, dict) or any(record.get(k) != v for k, v in mine.items()):
         warnings.warn(f"{path}: not the record of unit {mine}, redone", stacklevel=2)
         return False
+    diff = _fingerprint_diff(record, sweep_fingerprint(settings))
+    if diff:
+        _refuse_foreign_unit(settings, path, diff)
     return True
 
 
 def load_records(settings: SweepSettings, units: Sequence[dict]) -> List[dict]:
-    return [read_json(unit_path(settings, u), "unit record") for u in units]
+    """The units' records, without their sweep fingerprint (sweep.json holds it once)."""
+    records = (read_json(unit_path(settings, u), "unit record") for u in units)
+    return [{k: v for k, v in r.items() if k != FINGERPRINT_FIELD} for r in records]
 
 
 def _mean(xs: Iterable[Optional[float]]) -> float:
