@@ -1,5 +1,6 @@
 #pragma once
 // Shared helpers for the pickplan._core bindings: numpy views with shape checks.
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -71,6 +72,33 @@ inline int index_arg(const char* what, const py::object& value, int size) {
     throw std::invalid_argument(std::string(what) + " " + std::to_string(i) + " out of range [0, " +
                                 std::to_string(size) + ")");
   return static_cast<int>(i);
+}
+
+// An integer array of indices into [0, size), checked at full width before narrowing to int: a
+// numpy int64 2**32 + 3 would otherwise wrap silently to 3. Returned C-contiguous as int32.
+// Mesh faces pass kMaxIndex: the core names a face's vertex out of range itself.
+constexpr py::ssize_t kMaxIndex = std::numeric_limits<int>::max();
+inline IntArray index_array(const char* what, const py::handle& value, py::ssize_t size) {
+  py::array a = py::array::ensure(value);
+  if (!a) throw std::invalid_argument(std::string(what) + ": expected an array of integer indices");
+  const char kind = a.dtype().kind();
+  if (a.size() > 0 && kind != 'i' && kind != 'u')
+    throw std::invalid_argument(std::string(what) + ": expected integer indices, got dtype " +
+                                py::str(a.dtype()).cast<std::string>());
+  auto bad = [&](const std::string& v, py::ssize_t j) {
+    return std::invalid_argument(std::string(what) + ": entry " + std::to_string(j) + " = " + v +
+                                 " out of range [0, " + std::to_string(size) + ")");
+  };
+  if (kind == 'u') {  // uint64 past 2**63 must not turn negative before the check
+    auto u = py::array_t<unsigned long long, py::array::c_style | py::array::forcecast>::ensure(a);
+    for (py::ssize_t j = 0; j < u.size(); ++j)
+      if (u.data()[j] >= static_cast<unsigned long long>(size)) throw bad(std::to_string(u.data()[j]), j);
+  } else if (a.size() > 0) {
+    auto w = py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure(a);
+    for (py::ssize_t j = 0; j < w.size(); ++j)
+      if (w.data()[j] < 0 || w.data()[j] >= size) throw bad(std::to_string(w.data()[j]), j);
+  }
+  return IntArray::ensure(a);  // every value fits now, so the cast to int is exact
 }
 
 // A rigid (4, 4) pose.

@@ -84,18 +84,16 @@ py::array_t<double> link_jacobians(const Robot& robot, const Array& q_in) {
 }
 
 // Points fixed on links (link index + local coordinates) at every configuration of Q.
-py::array_t<double> transform_points(const Robot& robot, const Array& Q_in, const IntArray& links, const Array& pts) {
+py::array_t<double> transform_points(const Robot& robot, const Array& Q_in, const py::object& link_values,
+                                     const Array& pts) {
   Array Q = configurations(robot, Q_in);
+  const IntArray links = index_array("links", link_values, robot.num_links());
   require_shape("points", pts, {-1, 3}, "(N, 3)");
   require_finite_array("points", pts);
   if (links.ndim() != 1 || links.shape(0) != pts.shape(0))
     throw std::invalid_argument("links: expected shape (" + std::to_string(pts.shape(0)) + ",) matching points, got " +
                                 shape_str(links));
   const py::ssize_t N = pts.shape(0), T = Q.shape(0);
-  for (py::ssize_t j = 0; j < N; ++j)
-    if (links.at(j) < 0 || links.at(j) >= robot.num_links())
-      throw std::invalid_argument("links: entry " + std::to_string(j) + " = " + std::to_string(links.at(j)) +
-                                  " is not a link index");
   py::array_t<double> out({T, N, py::ssize_t{3}});
   double* o = out.mutable_data();
   const double* q = Q.data();

@@ -6,8 +6,9 @@ namespace pickplan::bind {
 
 namespace {
 
-TriangleMesh mesh_arg(const Array& V, const IntArray& F, const std::string& what) {
+TriangleMesh mesh_arg(const Array& V, const py::object& face_values, const std::string& what) {
   require_shape((what + " vertices").c_str(), V, {-1, 3}, "(V, 3)");
+  const IntArray F = index_array((what + " faces").c_str(), face_values, kMaxIndex);
   require_shape((what + " faces").c_str(), F, {-1, 3}, "(F, 3)");
   TriangleMesh m;
   m.vertices = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(V.data(), V.shape(0), 3);
@@ -32,7 +33,7 @@ std::unique_ptr<CollisionChecker> make_checker(const Robot& robot, const py::lis
     auto t = item.cast<py::tuple>();
     if (t.size() != 3) throw std::invalid_argument("link_meshes: expected (link name, vertices, faces) tuples");
     auto name = t[0].cast<std::string>();
-    links.push_back({name, mesh_arg(t[1].cast<Array>(), t[2].cast<IntArray>(), "mesh of link '" + name + "'")});
+    links.push_back({name, mesh_arg(t[1].cast<Array>(), t[2], "mesh of link '" + name + "'")});
   }
   std::vector<SceneObject> objs;
   for (const auto& item : objects) {
@@ -40,7 +41,7 @@ std::unique_ptr<CollisionChecker> make_checker(const Robot& robot, const py::lis
     if (t.size() != 4) throw std::invalid_argument("objects: expected (name, vertices, faces, pose 4x4) tuples");
     auto name = t[0].cast<std::string>();
     const std::string what = "object '" + name + "'";
-    objs.push_back({name, mesh_arg(t[1].cast<Array>(), t[2].cast<IntArray>(), what),
+    objs.push_back({name, mesh_arg(t[1].cast<Array>(), t[2], what),
                     Transform::from_matrix(matrix4(t[3].cast<Array>(), ("pose of " + what).c_str()))});
   }
   TableBox table;

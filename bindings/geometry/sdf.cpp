@@ -5,8 +5,6 @@ namespace pickplan::bind {
 
 namespace {
 
-using FaceArray = py::array_t<int, py::array::c_style | py::array::forcecast>;
-
 std::uint64_t exclusion_mask(const SceneSdf& scene, const std::vector<int>& exclude, bool exclude_table) {
   std::uint64_t mask = exclude_table ? SceneSdf::kTableBit : 0;
   for (int i : exclude) {
@@ -30,8 +28,9 @@ void init_sdf(py::module_& m) {
   py::class_<SdfGrid, std::shared_ptr<SdfGrid>>(m, "SdfGrid", "Dense signed distance grid of one mesh (grid frame = mesh frame).")
       .def_static(
           "build",
-          [](const Array& V, const FaceArray& F, double resolution, double margin) {
+          [](const Array& V, const py::object& face_values, double resolution, double margin) {
             require_shape("vertices", V, {-1, 3}, "(N, 3)");
+            const IntArray F = index_array("faces", face_values, kMaxIndex);
             if (F.ndim() != 2 || F.shape(1) != 3)
               throw std::invalid_argument("faces: expected shape (M, 3), got " + shape_str(F));
             Vertices Vm = Eigen::Map<const Vertices>(V.data(), V.shape(0), 3);

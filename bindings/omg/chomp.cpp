@@ -79,9 +79,11 @@ void init_chomp(py::module_& m) {
   py::class_<ChompWorkspace>(m, "ChompWorkspace", "Reusable scratch for a ChompProblem (one per thread).");
 
   py::class_<ChompProblem, std::shared_ptr<ChompProblem>>(m, "ChompProblem")
-      .def(py::init([](std::shared_ptr<Robot> robot, std::shared_ptr<SceneSdf> scene, const IntArray& links,
+      .def(py::init([](std::shared_ptr<Robot> robot, std::shared_ptr<SceneSdf> scene, const py::object& link_values,
                        const Array& points, const ChompSettings& settings) {
              require_shape("body points", points, {-1, 3}, "(N, 3)");
+             if (!robot) throw std::invalid_argument("robot: expected a Robot, got None");
+             const IntArray links = index_array("links", link_values, robot->num_links());
              if (links.ndim() != 1 || links.shape(0) != points.shape(0))
                throw std::invalid_argument("body links: expected shape (" + std::to_string(points.shape(0)) + ",), got " +
                                            shape_str(links));

@@ -52,10 +52,12 @@ void init_isf(py::module_& m) {
   py::class_<Holder>(m, "GraspRefiner", "C-Space ISF (Algorithm 1) for one target object in one scene.")
       .def(py::init([](std::shared_ptr<Robot> robot, const py::object& hand_link, const Array& contacts,
                        const Array& normals, std::shared_ptr<SceneSdf> hand_sdf, const Array& object_points,
-                       const Array& object_normals, std::shared_ptr<SceneSdf> scene, const IntArray& body_links,
+                       const Array& object_normals, std::shared_ptr<SceneSdf> scene, const py::object& body_link_values,
                        const Array& body_points, std::uint64_t exclude_mask, const IsfSettings& settings) {
              BodyPoints body;
              body.points = points3(body_points, "body points");
+             if (!robot) throw std::invalid_argument("robot: expected a Robot, got None");
+             const IntArray body_links = index_array("body_links", body_link_values, robot->num_links());
              if (body_links.ndim() != 1 || body_links.shape(0) != body_points.shape(0))
                throw std::invalid_argument("body links: expected one link index per body point");
              body.link.assign(body_links.data(), body_links.data() + body_links.shape(0));

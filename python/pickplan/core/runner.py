@@ -163,6 +163,8 @@ class Runner:
             else:
                 ray.init(address=self.ray, log_to_driver=False)
             self._ray_started = True
+        # A task whose worker process dies (killed, out of memory) is re-run by Ray up to twice; the
+        # caller sees only the retry's result (tests/python/test_sweep_faults.py kills one).
         remote = ray.remote(num_cpus=1, max_retries=2)(_run_chunk)
         refs = [remote.remote(fn, chunk, errors) for chunk in chunks]
         pending = dict(zip(refs, chunks))

@@ -4,7 +4,9 @@ A sweep is a list of units, one per (scene, method, run). A unit plans one scene
 (OMG with some settings, or a baseline), executes successful plans in PyBullet (failed plans count
 as failed executions, as in the paper) and returns one flat record. Every finished unit is written
 at once to ``OUT/units/<scene>_<method>_r<run>.json`` (atomically), so an interrupted sweep resumes
-where it stopped with nothing counted twice. Units run through ``pickplan.core.runner``: serially
+where it stopped with nothing counted twice (also after a SIGKILL of the whole process group or a
+lost Ray worker, whose task Ray re-runs); each record carries its sweep's fingerprint, so units of
+another sweep are never mixed in. Units run through ``pickplan.core.runner``: serially
 (``workers`` <= 1), over a local process pool (default), or as Ray tasks (``ray="local"`` or a
 cluster address).
 
