@@ -33,17 +33,21 @@ class WorldSettings:
     sdf: sdf.SdfSettings = field(default_factory=sdf.SdfSettings)
     body_points_per_link: int = 20   # the paper samples 20 points per body part
     body_seed: int = 0
+    robot: str = "panda"             # the robot planned for: a shipped description's name or a .toml file
 
 
 class World:
     """Planning view of a ``Scene``: ``robot``, ``models``, ``sdf`` (SceneSdf), ``body`` points,
-    ``checker(kind)`` (FCL; "goal" lets the fingers touch the target, "strict" does not)."""
+    ``checker(kind)`` (FCL; "goal" lets the fingers touch the target, "strict" does not).
+    ``robot``: a ``robots.DescribedRobot`` or a description's name or file (default ``settings.robot``),
+    placed at the scene's robot base."""
 
     def __init__(self, scene: Scene, settings: WorldSettings = WorldSettings(),
-                 library: Optional[objects.ObjectLibrary] = None):
+                 library: Optional[objects.ObjectLibrary] = None, robot=None):
         self.scene = scene
         self.settings = settings
-        self.robot = robots.panda(np.asarray(scene.robot_base, dtype=float))
+        self.robot = robots.load_robot(settings.robot if robot is None else robot,
+                                       np.asarray(scene.robot_base, dtype=float))
         self.models = {}
         for o in scene.objects:
             self.models[o.name] = library.get(o.name) if library is not None and o.name in library \
@@ -74,8 +78,9 @@ class World:
 
     @property
     def start(self) -> np.ndarray:
-        q = self.scene.robot_configuration
-        return np.asarray(q, dtype=float) if len(q) else self.robot.ready_configuration
+        q = self.scene.robot_configuration  # stored for the robot scenes place (the Panda)
+        use_scene = len(q) and robots.is_scene_robot(self.robot.info)
+        return np.asarray(q, dtype=float) if use_scene else self.robot.ready_configuration
 
     def scene_meshes(self):
         return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
