@@ -6,7 +6,7 @@ import argparse
 from pickplan.core import objects as objects_mod
 from pickplan.core.description import robot_info, shipped, shipped_name
 from pickplan.core.description_check import check_description
-from pickplan.omg.grasps.sets import load_grasp_set
+from pickplan.omg.grasps import HandObjectChecker, load_grasp_set
 
 ROBOT_HELP = ("the robot: a shipped description (`pickplan robots list`; a short name such as 'iiwa' or 'ur5' "
               "is the part of one shipped name before its first '_') or a .toml description file; default panda")
@@ -59,7 +59,7 @@ def run_grasps(args: argparse.Namespace) -> int:
         model = library.get(name)
         if args.kind not in model.grasps:
             continue
-        n, k = len(model.grasps[args.kind]), len(load_grasp_set(model, args.kind, info))
+        n, k = len(model.grasps[args.kind]), len(load_grasp_set(model, args.kind, info, HandObjectChecker))
         total, kept = total + n, kept + k
         print(f"| {name} | {n} | {k} ({100.0 * k / max(n, 1):.0f} %) |")
     print(f"| all | {total} | {kept} ({100.0 * kept / max(total, 1):.0f} %) |")

@@ -48,10 +48,10 @@ def grasp_set(model, kind, n: int = 100, seed: int = 0, gripper: Optional[RobotI
     gripper = PANDA if gripper is None else gripper
     kind = GraspKind.parse(kind, "grasp set kind")  # a GraspKind or its spelling
     if kind is GraspKind.graspit:
-        return load_grasp_set(model, kind.value, gripper)
+        return load_grasp_set(model, kind.value, gripper, HandObjectChecker)
     if kind is GraspKind.simulated:
         if kwargs.pop("generate", False) or "simulated" not in model.grasps:
             return simulated_grasps(model, n, seed, gripper=gripper, **kwargs)
-        return load_grasp_set(model, kind.value, gripper)
+        return load_grasp_set(model, kind.value, gripper, HandObjectChecker)
     fn = approach_grasps if kind is GraspKind.approach else antipodal_grasps
     return fn(model, n, seed, gripper=gripper, **kwargs)
