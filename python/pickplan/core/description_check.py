@@ -110,6 +110,13 @@ def check_description(name_or_file: str) -> Tuple[Optional[RobotDescription], Li
     gripper_named = g.hand_link in links and all(l in links for l in g.finger_links) and len(g.finger_links) == 2
     if not gripper_named or not all(types.get(f.name) in FINGER_TYPES for f in g.finger_joints):
         return desc, problems  # no pads to measure the grasp frame against
+    if g.grasp_frame[:3, 2] @ np.array([0.0, 0.0, 1.0]) < 1.0 - 1e-6:
+        problems.append("gripper.grasp_frame: its z axis (the approach) must be the hand link's +z: the goal set's "
+                        "pre-grasp backs off along the hand's z (turn the hand link, or mount a frame that is)")
+    if [j for j in names if j in desc.arm_joints or j in {f.name for f in g.finger_joints}] != \
+            list(desc.arm_joints) + [f.name for f in g.finger_joints] and not others:
+        problems.append(f"arm_joints, gripper.finger_joints: configurations are the arm joints then the finger "
+                        f"joints, but the URDF orders its movable joints {names}")
     q = start_configuration(desc, robot) if all(j in names for j in desc.arm_joints) else np.zeros(robot.dof)
     centre, gap, (z_lo, z_hi) = _pad_gap(desc, robot, q)
     if abs(centre) > CENTRE_TOL:
