@@ -20,6 +20,7 @@ from pickplan.core.robots import Robot
 CENTRE_TOL = 0.003   # m: the grasp origin from the middle of the gap between the pads
 GAP_TOL = 0.006      # m: the measured gap from max_opening
 FINGER_TYPES = ("prismatic", "revolute")
+TABLE = "table"   # skip_collision may pair a link with the table the robot stands on
 
 
 def _joint_types(urdf: str) -> dict:
@@ -103,7 +104,7 @@ def check_description(name_or_file: str) -> Tuple[Optional[RobotDescription], Li
             problems.append(f"{what}: {link!r} is not a link of the URDF")
     for a, b in desc.skip_collision:
         for link in (a, b):
-            if link not in links:
+            if link not in links and link != TABLE:
                 problems.append(f"skip_collision: {link!r} is not a link of the URDF")
     if len(g.finger_links) != 2:
         problems.append(f"gripper.finger_links: a parallel gripper has 2 fingers, got {len(g.finger_links)}")

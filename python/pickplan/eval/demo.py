@@ -35,7 +35,7 @@ class DemoSettings:
 
 
 def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResult],
-                  timed: Optional[TimedTrajectory] = None) -> str:
+                  timed: Optional[TimedTrajectory] = None, robot: str = "Panda") -> str:
     m = result.metrics
     planning_time = result.timings["total"] - result.timings["goal_set"]
     lifted = "not run" if executed is None else ("yes" if executed.success else "no")
@@ -46,7 +46,7 @@ def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResu
         ("Collision (sum of c(x) within 5 cm, 200 steps)", f"{m.get('collision', float('nan')):.2f}", PAPER_OMG["collision"]),
         ("Grasp cost f_grasp", f"{result.grasp_cost:.2f}", PAPER_OMG["grasp"]),
         ("Planning time (s)", f"{planning_time:.3f}", PAPER_OMG["time"]),
-        ("Trajectory duration (s, timed within the robot's velocity and acceleration limits)",
+        (f"Trajectory duration (s, timed within the {robot}'s velocity and acceleration limits)",
          f"{timed.duration:.3f}" if timed is not None else "not timed", "not reported"),
     ]
     lines = ["| metric | this run | OMG paper (Table III, mean of 100 scenes) |", "|---|---|---|"]
@@ -88,7 +88,7 @@ def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
     if frames:
         pick = np.linspace(0, len(frames) - 1, min(settings.frames_in_sheet, len(frames))).round().astype(int)
         execution.save_frames([frames[i] for i in pick], os.path.join(out, "demo.png"), columns=4)
-    table = metrics_table(result, executed, timed)
+    table = metrics_table(result, executed, timed, "Panda" if settings.robot == "panda" else settings.robot)
     write_text(os.path.join(out, "metrics.md"), table)
     record = plan_record(result, planner.world(), executed.to_dict() if executed else None)
     record["trajectory_duration"] = timed.duration if timed is not None else None

@@ -36,6 +36,22 @@ class WorldSettings:
     robot: str = "panda"             # the robot planned for: a shipped description's name or a .toml file
 
 
+def _table_pairs(robot) -> tuple:
+    """(link, "table") pairs the description skips: links standing on the table (a housing that only
+    turns about the vertical) whose nearness to it the planner can neither change nor should pay for."""
+    return tuple((a, b) if b == "table" else (b, a) for a, b in robot.description.skip_collision if "table" in (a, b))
+
+
+def _without_table_links(body, robot):
+    """Body points without those of the links ``_table_pairs`` names (sampled first, so every other
+    link keeps the points it has without the pairs)."""
+    skip = [robot.link_index(a) for a, _ in _table_pairs(robot)]
+    if not skip:
+        return body
+    keep = ~np.isin(body.links, skip)
+    return robots.BodyPoints(body.links[keep], body.points[keep], body.normals[keep])
+
+
 class World:
     """Planning view of a ``Scene``: ``robot``, ``models``, ``sdf`` (SceneSdf), ``body`` points,
     ``checker(kind)`` (FCL; "goal" lets the fingers touch the target, "strict" does not).
@@ -54,7 +70,8 @@ class World:
                 else objects.model_from_source(o.name, o.source)
         grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf), o.pose) for o in scene.objects]
         self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
-        self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
+        self.body = _without_table_links(self.robot.sample_body_points(settings.body_points_per_link,
+                                                                       seed=settings.body_seed), self.robot)
         self._checkers: dict = {}
         self._refiners: dict = {}
         scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
@@ -98,7 +115,8 @@ class World:
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())
-        mounted = tuple((name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving)
+        mounted = tuple((name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving) + \
+            _table_pairs(self.robot)
         links = None
         if kind in (CheckerKind.goal, CheckerKind.hand):
             settings = collision.CollisionSettings(allowed_pairs=mounted + tuple((f, self.target) for f in fingers))
