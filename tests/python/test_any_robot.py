@@ -158,3 +158,24 @@ def test_the_validator_names_an_approach_axis_that_is_not_the_hands_z(tmp_path):
                     .replace('mount]\nurdf = "assets:', 'mount]\nurdf = "assets:'))
     _, problems = check_description(str(path))
     assert any("z axis (the approach) must be the hand link's +z" in p for p in problems), problems
+
+
+def test_a_sweep_plans_for_its_robot_and_will_not_resume_with_another(tmp_path):
+    from pickplan.eval.experiments import SweepSettings, check_resumable, make_units
+
+    scenes.generate_scene(seed=1).save(str(tmp_path / "scene_0000.json"))
+    s = SweepSettings("planners", out=str(tmp_path / "out"), scene_dir=str(tmp_path), runs=1, methods=("OMG",),
+                      robot="iiwa")
+    units = make_units(s, [str(tmp_path / "scene_0000.json")])
+    assert [u["robot"] for u in units] == ["iiwa"]
+    check_resumable(s)
+    with pytest.raises(ValueError, match="robot: 'iiwa' there, 'ur5' now"):
+        check_resumable(dataclasses.replace(s, robot="ur5"))
+
+
+def test_the_robots_grasps_command_counts_what_converts(capsys):
+    from pickplan.cli.main import main as cli_main
+
+    assert cli_main(["robots", "grasps", "ur5", "--objects", ycb_dir_or_skip()]) == 0
+    out = capsys.readouterr().out
+    assert "| 005_tomato_soup_can | 100 | 100 (100 %) |" in out and "kept for ur5_2f85" in out
