@@ -5,7 +5,9 @@ the names exist and the geometry is right: every joint named is in the URDF and 
 joints are prismatic or revolute, values lie within the joint limits, every movable joint is an arm or
 finger joint, and the grasp frame sits between the finger pads with the gripper open, its y axis
 across the gap the pads leave (within ``CENTRE_TOL`` of the middle, the gap within ``GAP_TOL`` of
-``max_opening``), its origin within the pads' extent along the approach axis.
+``max_opening``), its origin within the pads' extent along the approach axis, its z axis the hand
+link's +z (the goal set's pre-grasp backs off along it), and the URDF orders the arm joints before the
+finger joints (configurations are laid out so). ``skip_collision`` may pair a link with "table".
 """
 from __future__ import annotations
 
