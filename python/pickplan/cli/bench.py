@@ -17,6 +17,7 @@ from typing import Dict, List, Optional, Sequence
 
 from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize)
 from pickplan.cli.exit_codes import run_command
+from pickplan.cli.robots import ROBOT_HELP
 from pickplan.core.io import write_json, write_text
 from pickplan.eval.plots import plot_table
 
@@ -172,7 +173,7 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
                          methods=tuple(args.methods) if args.methods else None, quick=args.quick,
                          workers=args.workers, ray=args.ray, seed=args.seed, iterations=args.iterations,
                          execute=not args.no_execute, timed_execution=args.timed_execution, time_limit=args.time_limit,
-                         max_goals_tried=args.max_goals_tried,
+                         max_goals_tried=args.max_goals_tried, robot=args.robot,
                          progress=False if args.no_progress else None)
 
 
@@ -208,6 +209,7 @@ def add_bench_commands(subparsers) -> None:
         p.add_argument("--workers", type=int, default=2, help="local worker processes (<= 1: serial)")
         p.add_argument("--ray", default=None, help="Ray cluster address, or 'local' to start Ray here")
         p.add_argument("--seed", type=int, default=0)
+        p.add_argument("--robot", default="panda", help=ROBOT_HELP)
         p.add_argument("--iterations", type=int, default=50)
         p.add_argument("--time-limit", type=float, default=1.0, help="OMPL seconds per goal")
         p.add_argument("--max-goals-tried", type=int, default=5, help="ranked goals tried by the baselines")

@@ -31,14 +31,14 @@ from pickplan.cli.scenes import add_scene_commands
 from pickplan.cli.metamodel import add_metamodel_commands
 from pickplan.cli.pickup import add_pickup_commands
 from pickplan.cli.bench import add_bench_commands
-from pickplan.cli.robots import add_robot_commands
+from pickplan.cli.robots import ROBOT_HELP, add_robot_commands
 from pickplan.cli.view import add_view_commands
 from pickplan.cli.observe import add_observe_commands
 
 
 def _cmd_demo(args) -> int:
 
-    return run_demo(args.out, DemoSettings(seed=args.seed))
+    return run_demo(args.out, DemoSettings(seed=args.seed, robot=args.robot))
 
 
 def _cmd_plan(args) -> int:
@@ -46,9 +46,10 @@ def _cmd_plan(args) -> int:
     scene = Scene.load(args.scene)
     settings = OMGSettings(selection=args.selection, refine=not args.no_refine, iterations=args.iterations,
                            grasp_kind=args.grasps, seed=args.seed)
-    planner = OMGPlanner(None, scene, settings)
+    planner = OMGPlanner(args.robot, scene, settings)
     result = planner.plan()
-    executed = execution.execute_plan(scene, result.trajectory) if args.execute and result.status != PlanStatus.no_goals else None
+    executed = execution.execute_plan(scene, result.trajectory, execution.ExecutionSettings(robot=args.robot)) \
+        if args.execute and result.status != PlanStatus.no_goals else None
     table = metrics_table(result, executed)
     print(table)
     if args.out:
@@ -66,6 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="plan and execute a grasp in a generated cluttered scene")
     demo.add_argument("--out", default="out/demo", help="folder for the picture and the metrics table")
     demo.add_argument("--seed", type=int, default=1, help="scene seed")
+    demo.add_argument("--robot", default="panda", help=ROBOT_HELP)
     demo.set_defaults(handler=_cmd_demo)
     plan = sub.add_parser("plan", help="plan one scene (JSON from `pickplan scenes`)")
     plan.add_argument("--scene", required=True)
@@ -75,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     plan.add_argument("--no-refine", action="store_true", help="turn C-Space ISF off")
     plan.add_argument("--execute", action="store_true", help="also execute the plan in PyBullet")
     plan.add_argument("--seed", type=int, default=0)
+    plan.add_argument("--robot", default="panda", help=ROBOT_HELP)
     plan.add_argument("--out", default=None, help="folder for metrics.md, plan.json and scene.json")
     plan.set_defaults(handler=_cmd_plan)
 

@@ -84,6 +84,76 @@ class RobotDescription:
         return {f.name: f.open for f in self.gripper.finger_joints}
 
 
+@dataclass(frozen=True)
+class RobotInfo:
+    """A described robot's facts as the planner, grasps and execution read them (one per description)."""
+
+    name: str
+    urdf: str           # the robot's URDF (with the gripper where the description mounts one)
+    hand_link: str
+    finger_links: tuple
+    finger_joints: tuple
+    arm_joints: tuple
+    arm_dof: int
+    ready: tuple        # the start configuration: arm start, then every finger open (URDF joint order)
+    finger_open: float  # joint value of every finger joint with the gripper open
+    finger_closed: float  # ... and closed on nothing
+    pad_depth: float    # m from the hand link's origin to the grasp frame's (the pad centre)
+    max_opening: float  # m between the pads, open
+    pad_length: float   # m of finger along the approach axis that touches
+    pad_width: float    # m across the finger
+    grasp_frame: np.ndarray        # 4x4 in the hand link: z approach, y closing, origin between the pads
+    arm_velocity_limits: Optional[tuple]     # rad/s; None: the URDF's
+    arm_acceleration_limits: tuple           # rad/s^2
+    arm_jerk_limits: Optional[tuple]         # rad/s^3 (stated for controllers; not enforced)
+    finger_acceleration_limit: float         # m/s^2 or rad/s^2
+
+    @classmethod
+    def from_description(cls, desc: RobotDescription) -> "RobotInfo":
+        g = desc.gripper
+        opens = {f.open for f in g.finger_joints}
+        closes = {f.closed for f in g.finger_joints}
+        if len(opens) != 1 or len(closes) != 1:  # one command opens / closes every finger
+            raise DescriptionError(desc.source, ["gripper.finger_joints: every finger joint needs the same open and "
+                                                 f"the same closed value, got open {sorted(opens)}, closed {sorted(closes)}"])
+        acceleration = desc.acceleration_limits or (DEFAULT_ACCELERATION,) * len(desc.arm_joints)
+        return cls(name=desc.name, urdf=desc.urdf, hand_link=g.hand_link, finger_links=tuple(g.finger_links),
+                   finger_joints=tuple(f.name for f in g.finger_joints), arm_joints=tuple(desc.arm_joints),
+                   arm_dof=len(desc.arm_joints), ready=tuple(desc.start) + tuple(f.open for f in g.finger_joints),
+                   finger_open=opens.pop(), finger_closed=closes.pop(),
+                   pad_depth=float(np.linalg.norm(g.grasp_frame[:3, 3])), max_opening=float(g.max_opening),
+                   pad_length=float(g.pad_length), pad_width=float(g.pad_width), grasp_frame=np.array(g.grasp_frame),
+                   arm_velocity_limits=desc.velocity_limits, arm_acceleration_limits=tuple(acceleration),
+                   arm_jerk_limits=desc.jerk_limits,
+                   finger_acceleration_limit=float(desc.finger_acceleration_limit or DEFAULT_FINGER_ACCELERATION))
+
+    @property
+    def key(self) -> tuple:
+        """What identifies the gripper in caches (the dataclass holds an array, so it does not hash)."""
+        return (self.name, self.urdf, self.hand_link, self.finger_joints, self.finger_open, self.max_opening,
+                tuple(np.round(self.grasp_frame, 9).ravel()))
+
+    @property
+    def hand_from_grasp(self) -> np.ndarray:
+        """Grasp-frame pose -> hand-link pose: ``T_hand = T_grasp @ hand_from_grasp``."""
+        return np.linalg.inv(self.grasp_frame)
+
+    @property
+    def finger_travel(self) -> float:
+        """Joint travel of each finger from open to closed (signed)."""
+        return self.finger_closed - self.finger_open
+
+
+def robot_info(name_or_file: str) -> RobotInfo:
+    """The facts of a described robot (a shipped name, short name or .toml file), without its model."""
+    return RobotInfo.from_description(load_description(name_or_file))
+
+
+# Where a description states no acceleration limits: conservative values, said in the file's docs.
+DEFAULT_ACCELERATION = 3.0          # rad/s^2 per arm joint
+DEFAULT_FINGER_ACCELERATION = 1.0   # m/s^2 (or rad/s^2) per finger joint
+
+
 # --- small parsers that collect problems instead of raising at the first ------------------------------
 def pose_matrix(xyz, rpy) -> np.ndarray:
     """xyz + roll-pitch-yaw (URDF convention: R = Rz(yaw) Ry(pitch) Rx(roll)) -> 4x4."""
@@ -163,13 +233,23 @@ def shipped() -> List[str]:
     return sorted(f[:-5] for f in os.listdir(folder) if f.endswith(".toml"))
 
 
+def shipped_name(name: str) -> str:
+    """A shipped robot's full name from its name or a short name: the part before the first "_"
+    of exactly one shipped name ("iiwa" -> "iiwa_wsg50", "ur5" -> "ur5_2f85")."""
+    names = shipped()
+    if name in names:
+        return name
+    short = [n for n in names if n.split("_")[0] == name]
+    if len(short) != 1:
+        raise FileNotFoundError(f"no shipped robot {name!r}; shipped: {names} (short names: "
+                                f"{sorted(n.split('_')[0] for n in names)}; or give a .toml file)")
+    return short[0]
+
+
 def description_path(name_or_file: str) -> str:
-    """A shipped robot's file by name, or the file given."""
+    """A shipped robot's file by name (or short name, ``shipped_name``), or the file given."""
     if os.path.sep not in name_or_file and not name_or_file.endswith(".toml"):
-        path = os.path.join(assets_dir(), ROBOTS_FOLDER, name_or_file + ".toml")
-        if not os.path.isfile(path):
-            raise FileNotFoundError(f"no shipped robot {name_or_file!r}; shipped: {shipped()} (or give a .toml file)")
-        return path
+        return os.path.join(assets_dir(), ROBOTS_FOLDER, shipped_name(name_or_file) + ".toml")
     if not os.path.isfile(name_or_file):
         raise FileNotFoundError(f"robot description not found: {name_or_file}")
     return name_or_file

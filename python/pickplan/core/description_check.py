@@ -5,7 +5,9 @@ the names exist and the geometry is right: every joint named is in the URDF and 
 joints are prismatic or revolute, values lie within the joint limits, every movable joint is an arm or
 finger joint, and the grasp frame sits between the finger pads with the gripper open, its y axis
 across the gap the pads leave (within ``CENTRE_TOL`` of the middle, the gap within ``GAP_TOL`` of
-``max_opening``), its origin within the pads' extent along the approach axis.
+``max_opening``), its origin within the pads' extent along the approach axis, its z axis the hand
+link's +z (the goal set's pre-grasp backs off along it), and the URDF orders the arm joints before the
+finger joints (configurations are laid out so). ``skip_collision`` may pair a link with "table".
 """
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from pickplan.core.robots import Robot
 CENTRE_TOL = 0.003   # m: the grasp origin from the middle of the gap between the pads
 GAP_TOL = 0.006      # m: the measured gap from max_opening
 FINGER_TYPES = ("prismatic", "revolute")
+TABLE = "table"   # skip_collision may pair a link with the table the robot stands on
 
 
 def _joint_types(urdf: str) -> dict:
@@ -103,13 +106,20 @@ def check_description(name_or_file: str) -> Tuple[Optional[RobotDescription], Li
             problems.append(f"{what}: {link!r} is not a link of the URDF")
     for a, b in desc.skip_collision:
         for link in (a, b):
-            if link not in links:
+            if link not in links and link != TABLE:
                 problems.append(f"skip_collision: {link!r} is not a link of the URDF")
     if len(g.finger_links) != 2:
         problems.append(f"gripper.finger_links: a parallel gripper has 2 fingers, got {len(g.finger_links)}")
     gripper_named = g.hand_link in links and all(l in links for l in g.finger_links) and len(g.finger_links) == 2
     if not gripper_named or not all(types.get(f.name) in FINGER_TYPES for f in g.finger_joints):
         return desc, problems  # no pads to measure the grasp frame against
+    if g.grasp_frame[:3, 2] @ np.array([0.0, 0.0, 1.0]) < 1.0 - 1e-6:
+        problems.append("gripper.grasp_frame: its z axis (the approach) must be the hand link's +z: the goal set's "
+                        "pre-grasp backs off along the hand's z (turn the hand link, or mount a frame that is)")
+    if [j for j in names if j in desc.arm_joints or j in {f.name for f in g.finger_joints}] != \
+            list(desc.arm_joints) + [f.name for f in g.finger_joints] and not others:
+        problems.append(f"arm_joints, gripper.finger_joints: configurations are the arm joints then the finger "
+                        f"joints, but the URDF orders its movable joints {names}")
     q = start_configuration(desc, robot) if all(j in names for j in desc.arm_joints) else np.zeros(robot.dof)
     centre, gap, (z_lo, z_hi) = _pad_gap(desc, robot, q)
     if abs(centre) > CENTRE_TOL:

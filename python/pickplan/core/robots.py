@@ -14,7 +14,9 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from pickplan import _core
-from pickplan.core.panda import PANDA, PandaInfo, panda_urdf_path  # noqa: F401  (re-exported)
+from pickplan.core.description import DescriptionError, RobotDescription, RobotInfo, load_description
+from pickplan.core.panda import (PANDA, PANDA_DESCRIPTION, PandaInfo, is_scene_robot,  # noqa: F401  (re-exported)
+                                 panda_urdf_path)
 from pickplan.core.paths import assets_dir  # noqa: F401  (re-exported: robots.assets_dir)
 from pickplan.core.meshes import geometry_to_trimesh
 
@@ -213,10 +215,12 @@ class Robot:
         return BodyPoints(np.concatenate(all_links), np.concatenate(all_pts), np.concatenate(all_nrm))
 
 
-class Panda(Robot):
-    """The Franka Emika Panda from pybullet_data, with its hand and finger link names."""
+class DescribedRobot(Robot):
+    """A robot with a parallel gripper, built from its description (``core.description``): the hand
+    and finger links and joints, the grasp frame, the start configuration and the limits (``info``)."""
 
-    info = PANDA
+    info: RobotInfo = PANDA
+    description: RobotDescription = PANDA_DESCRIPTION
 
     @property
     def hand_link(self) -> str:
@@ -227,8 +231,54 @@ class Panda(Robot):
         return self.info.finger_links
 
     @property
+    def finger_joints(self) -> tuple:
+        return self.info.finger_joints
+
+    @property
+    def arm_dof(self) -> int:
+        return self.info.arm_dof
+
+    @property
+    def grasp_frame(self) -> np.ndarray:
+        """The grasp frame in the hand link (z approach, y closing, origin between the pads)."""
+        return np.array(self.info.grasp_frame)
+
+    @property
     def ready_configuration(self) -> np.ndarray:
         return np.array(self.info.ready, dtype=float)
+
+    def with_fingers(self, q, value: float) -> np.ndarray:
+        """``q`` (one configuration or a batch) with every finger joint at ``value``."""
+        q = np.array(q, dtype=float)
+        q[..., self.info.arm_dof:] = value
+        return q
+
+
+class Panda(DescribedRobot):
+    """The Franka Emika Panda from pybullet_data, with its hand and finger link names."""
+
+
+def _check_joint_order(robot: Robot, info: RobotInfo, source: str) -> None:
+    """The planner's configurations are the arm joints, then the finger joints: the URDF's order must be that."""
+    expected = list(info.arm_joints) + list(info.finger_joints)
+    if robot.joint_names != expected:
+        raise DescriptionError(source, [f"movable joints in URDF order are {robot.joint_names}; expected the arm "
+                                        f"joints, then the finger joints: {expected}"])
+
+
+def load_robot(name_or_file: str = "panda", base_pose: Optional[np.ndarray] = None) -> DescribedRobot:
+    """The robot a description names (a shipped name, a short name like "iiwa", or a .toml file),
+    placed at ``base_pose @ description.base_pose`` (``base_pose``: the scene's robot base)."""
+    if isinstance(name_or_file, DescribedRobot):
+        return name_or_file if base_pose is None else name_or_file.with_base(base_pose @ name_or_file.description.base_pose)
+    desc = load_description(str(name_or_file))
+    info = RobotInfo.from_description(desc)
+    cls = Panda if desc.name == PANDA.name else DescribedRobot
+    robot = cls(_core.Robot.from_urdf_file(desc.urdf, [os.fspath(p) for p in desc.package_dirs]), urdf_path=desc.urdf)
+    robot.info, robot.description = info, desc  # per instance: the class defaults are the Panda's
+    _check_joint_order(robot, info, desc.source)
+    base = np.eye(4) if base_pose is None else np.asarray(base_pose, dtype=float)
+    return robot.with_base(base @ desc.base_pose)
 
 
 def panda(base_pose: Optional[np.ndarray] = None) -> Panda:

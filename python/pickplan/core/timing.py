@@ -8,7 +8,8 @@ along it: with the default PCHIP interpolation each joint moves monotonically be
 so the path stays inside every segment's bounding box (and inside the joint limits).
 
 Jerk is not bounded: toppra's solution has piecewise constant path acceleration. The datasheet's
-jerk limits are stated in ``pickplan.core.panda`` for controllers that smooth the samples.
+jerk limits are stated in the robot's description (``assets/robots/*.toml``) for controllers that smooth
+the samples.
 
 >>> timed = time_parameterize(plan.trajectory, rate=1000.0)     # the Panda's limits by default
 >>> timed.duration, timed.q.shape, timed.qd[0]
@@ -27,7 +28,6 @@ import numpy as np
 
 from pickplan.core import robots
 from pickplan.core.io import atomic_open
-from pickplan.core.panda import PANDA
 
 FORMAT = "pickplan.timed_trajectory/1"
 _KNOT_EPS = 1e-6  # grid points this close on both sides of each waypoint: PCHIP's qdd jumps there
@@ -62,12 +62,21 @@ class KinematicLimits:
                              f"{len(self.acceleration)} acceleration limits")
 
 
+def robot_limits(robot) -> KinematicLimits:
+    """A described robot's limits (``robots.DescribedRobot``): arm velocity and acceleration from its
+    description (velocity: the URDF's where the description states none), finger velocity from the
+    URDF and finger acceleration from the description."""
+    info = robot.info
+    velocity = np.array(robot.velocity_limits, dtype=float)
+    if info.arm_velocity_limits is not None:
+        velocity[:info.arm_dof] = info.arm_velocity_limits
+    fingers = (info.finger_acceleration_limit,) * (robot.dof - info.arm_dof)
+    return KinematicLimits(velocity, np.array(tuple(info.arm_acceleration_limits) + fingers))
+
+
 def panda_limits(robot=None) -> KinematicLimits:
-    """The Panda's limits: velocity from the URDF (``robot``, default ``robots.panda()``), acceleration
-    from Franka's datasheet (``PANDA.arm_acceleration_limits``; the fingers: see ``PANDA``)."""
-    robot = robots.panda() if robot is None else robot
-    fingers = (PANDA.finger_acceleration_limit,) * (robot.dof - PANDA.arm_dof)
-    return KinematicLimits(robot.velocity_limits, np.array(PANDA.arm_acceleration_limits + fingers))
+    """The Panda's limits (``robot``, default ``robots.panda()``): ``robot_limits`` of its description."""
+    return robot_limits(robots.panda() if robot is None else robot)
 
 
 @dataclass
@@ -209,7 +218,7 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
         raise ValueError(f"interpolation: expected an Interpolation, got {interpolation!r}")
     if grid_per_segment < 1:
         raise ValueError(f"grid_per_segment must be >= 1, got {grid_per_segment}")
-    limits = panda_limits() if limits is None else limits
+    limits = panda_limits() if limits is None else limits  # callers with another robot pass robot_limits(robot)
     if len(limits.velocity) != Q.shape[1]:
         raise ValueError(f"limits: expected {Q.shape[1]} joints (the waypoints' dof), got {len(limits.velocity)}")
     keep = np.concatenate([[True], np.any(np.diff(Q, axis=0) != 0.0, axis=1)])  # a repeated waypoint adds no path

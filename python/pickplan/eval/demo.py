@@ -31,10 +31,11 @@ class DemoSettings:
     record_every: int = 24  # simulation steps between pictures (0.1 s)
     frames_in_sheet: int = 12
     timed_rate: float = 1000.0  # Hz of the exported timed trajectory (Franka's control rate)
+    robot: str = "panda"    # the robot: a shipped description's name (or short name) or a .toml file
 
 
 def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResult],
-                  timed: Optional[TimedTrajectory] = None) -> str:
+                  timed: Optional[TimedTrajectory] = None, robot: str = "Panda") -> str:
     m = result.metrics
     planning_time = result.timings["total"] - result.timings["goal_set"]
     lifted = "not run" if executed is None else ("yes" if executed.success else "no")
@@ -45,7 +46,7 @@ def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResu
         ("Collision (sum of c(x) within 5 cm, 200 steps)", f"{m.get('collision', float('nan')):.2f}", PAPER_OMG["collision"]),
         ("Grasp cost f_grasp", f"{result.grasp_cost:.2f}", PAPER_OMG["grasp"]),
         ("Planning time (s)", f"{planning_time:.3f}", PAPER_OMG["time"]),
-        ("Trajectory duration (s, timed within the Panda's velocity and acceleration limits)",
+        (f"Trajectory duration (s, timed within the {robot}'s velocity and acceleration limits)",
          f"{timed.duration:.3f}" if timed is not None else "not timed", "not reported"),
     ]
     lines = ["| metric | this run | OMG paper (Table III, mean of 100 scenes) |", "|---|---|---|"]
@@ -67,8 +68,8 @@ def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
     scene = scenes.generate_scene(settings.seed)
     scene.save(os.path.join(out, "scene.json"))
     print(f"      {len(scene.objects)} objects; target: {scene.target}")
-    print("[2/4] planning with the OMG planner (MD selection, C-Space ISF)")
-    planner = OMGPlanner(None, scene, settings.planner)
+    print(f"[2/4] planning for {settings.robot} with the OMG planner (MD selection, C-Space ISF)")
+    planner = OMGPlanner(settings.robot, scene, settings.planner)
     result = planner.plan()
     print(f"      {result.status} in {result.iterations} iterations")
     executed = timed = None
@@ -79,14 +80,15 @@ def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
         timed.save(os.path.join(out, "timed.npz"))
         print(f"[3/4] executing the timed plan ({timed.duration:.2f} s) in PyBullet: follow, close, lift")
         record = execution.RecordSettings(every=settings.record_every)
-        executed = execution.execute_plan(scene, timed, record=record)
+        executed = execution.execute_plan(scene, timed, execution.ExecutionSettings(robot=settings.robot),
+                                          record=record)
         frames = executed.frames or []
         print(f"      {executed.status}: target lifted {executed.target_lift * 100:.1f} cm")
     print("[4/4] writing the picture, the 3D view and the metrics table")
     if frames:
         pick = np.linspace(0, len(frames) - 1, min(settings.frames_in_sheet, len(frames))).round().astype(int)
         execution.save_frames([frames[i] for i in pick], os.path.join(out, "demo.png"), columns=4)
-    table = metrics_table(result, executed, timed)
+    table = metrics_table(result, executed, timed, "Panda" if settings.robot == "panda" else settings.robot)
     write_text(os.path.join(out, "metrics.md"), table)
     record = plan_record(result, planner.world(), executed.to_dict() if executed else None)
     record["trajectory_duration"] = timed.duration if timed is not None else None

@@ -41,8 +41,9 @@ from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.goals import GoalSetSettings, IkSettings
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
 from pickplan.sim.scenes import Scene
-from pickplan.omg.world import World
-from pickplan.core.timing import time_parameterize
+from pickplan.omg.world import World, WorldSettings
+from pickplan.core.description import robot_info
+from pickplan.core.timing import robot_limits, time_parameterize
 from pickplan.sim.execution import ExecutionSettings, execute_plan
 
 TABLES = ("selection", "refinement", "planners", "ablation")
@@ -73,7 +74,8 @@ class SweepSettings:
     seed: int = 0                      # scene set seed; run r of every scene uses seed + r
     iterations: int = 50               # OMG / CHOMP iterations N
     execute: bool = True               # execute successful plans in PyBullet
-    timed_execution: bool = False      # execute them timed within the Panda's limits (else 0.1 s per waypoint)
+    timed_execution: bool = False      # execute them timed within the robot's limits (else 0.1 s per waypoint)
+    robot: str = "panda"               # the robot planned for and executed (a shipped name, short name or .toml)
     time_limit: float = 1.0            # OMPL seconds per goal
     max_goals_tried: int = 5           # ranked goals tried by CHOMP / FMT / RRT-C
     progress: Optional[bool] = None     # None: a progress bar only on a terminal
@@ -173,7 +175,7 @@ def unit_key(unit: dict) -> str:
 def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
     s = settings.effective()
     knobs = {k: getattr(s, k) for k in ("grasps", "grasp_candidates", "iterations", "execute", "time_limit",
-                                         "max_goals_tried", "timed_execution")}
+                                         "max_goals_tried", "timed_execution", "robot")}
     units = []
     for path in files:
         with open(path) as f:
@@ -191,7 +193,8 @@ def _grasps_job(job: dict) -> dict:
 
     try:
         grasps_mod.grasp_set(model_from_source(job["name"], job["source"]), job["kind"], job["n"], seed=0,
-                             progress=False) if job["kind"] == "simulated" else None
+                             gripper=robot_info(job.get("robot", "panda")), progress=False) \
+            if job["kind"] == "simulated" else None
     except (ValueError, TypeError):
         pass  # no such set (e.g. graspit for the built-ins): the units report it
     return job
@@ -203,7 +206,9 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
         target = u["scene"]["target"]
         src = next(o["source"] for o in u["scene"]["objects"] if o["name"] == target)
         kind = method_spec(u["table"], u["method"])["grasp_kind"]
-        seen[(target, src, kind)] = {"name": target, "source": src, "kind": kind, "n": u["grasp_candidates"]}
+        robot = u.get("robot", "panda")
+        seen[(target, src, kind, robot)] = {"name": target, "source": src, "kind": kind, "n": u["grasp_candidates"],
+                                            "robot": robot}
     return list(seen.values())
 
 
@@ -216,13 +221,15 @@ def run_unit(unit: dict) -> dict:
     seed = int(unit["seed"])
     record = {"table": unit["table"], "scene": unit["scene_name"], "target": scene.target, "method": unit["method"],
               "run": unit["run"], "seed": seed, "grasp_kind": spec["grasp_kind"]}
-    world = World(scene)
+    world_settings = WorldSettings(robot=unit.get("robot", "panda"))
+    world = World(scene, world_settings)
     # Scene setup (FCL meshes), not goal-set or planning time; only the OMPL baselines validate
     # states with the "obstacles" checker.
     for kind in ("goal", "hand") + (("obstacles",) if spec["planner"] in ("FMT", "RRT-C") else ()):
         world.checker(kind)
     try:
-        grasps = grasps_mod.grasp_set(world.target_model, spec["grasp_kind"], unit["grasp_candidates"], seed=0).poses
+        grasps = grasps_mod.grasp_set(world.target_model, spec["grasp_kind"], unit["grasp_candidates"], seed=0,
+                                      gripper=world.robot.info).poses
     except ValueError as exc:  # e.g. no stored graspit set for a built-in object: not a planning failure
         record.update(status="no_grasps", reason=str(exc), valid=False, planning_success=False,
                       execution_success=False, unit_seconds=time.perf_counter() - t0)
@@ -230,7 +237,8 @@ def run_unit(unit: dict) -> dict:
     chomp = ChompSettings(n=spec["n"], lambda_=spec["lambda"], duration=0.1 * 30)
     omg = OMGSettings(chomp=chomp, goals=GoalSetSettings(max_goals=unit["grasps"], seed=seed), ik=IkSettings(seed=seed),
                       selection=spec["selection"], refine=spec["refine"], iterations=unit["iterations"],
-                      grasp_kind=spec["grasp_kind"], grasp_count=unit["grasp_candidates"], seed=seed)
+                      grasp_kind=spec["grasp_kind"], grasp_count=unit["grasp_candidates"], seed=seed,
+                      world=world_settings)
     if spec["planner"] == "omg":
         result = OMGPlanner(None, scene, omg, world=world).plan(grasps=grasps)
     else:
@@ -248,14 +256,14 @@ def run_unit(unit: dict) -> dict:
                   min_clearance=float(m["min_clearance"]) if planned else None,
                   grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None,
                   stage_times={k: float(result.timings.get(k, 0.0)) for k in STAGES})
-    # The duration a controller needs: the path timed within the Panda's velocity/acceleration limits.
+    # The duration a controller needs: the path timed within the robot's velocity/acceleration limits.
     control_rate = 1.0 / ExecutionSettings.time_step  # samples at PyBullet's control rate: executed as they are
-    timed = time_parameterize(result.trajectory, control_rate) if planned else None
+    timed = time_parameterize(result.trajectory, control_rate, robot_limits(world.robot)) if planned else None
     record["trajectory_duration"] = timed.duration if planned else None
     record.update(execution_success=False, execution_status="not_executed", execution_run=bool(unit["execute"]))
     if unit["execute"] and result.success:
         ex = execute_plan(scene, timed if unit.get("timed_execution") else result.trajectory,
-                          ExecutionSettings(waypoint_dt=chomp.duration / chomp.n))
+                          ExecutionSettings(robot=world_settings.robot, waypoint_dt=chomp.duration / chomp.n))
         record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds,
                       execution_sim_time=ex.sim_time)
     record["unit_seconds"] = time.perf_counter() - t0
@@ -304,7 +312,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
 # Settings a finished unit (or a generated scene) depends on; methods, runs and scene count only
 # add units, and workers / Ray / progress do not change results.
 RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
-               "time_limit", "max_goals_tried", "timed_execution")
+               "time_limit", "max_goals_tried", "timed_execution", "robot")
 
 
 def sweep_fingerprint(settings: SweepSettings) -> dict:

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Tuple
+from typing import TYPE_CHECKING, Optional, Tuple
 
 import numpy as np
 import trimesh
@@ -34,11 +34,10 @@ class IsfSettings:
         return to_native(self, _core.IsfSettings, active=[bool(a) for a in active])
 
 
-def hand_sdf(robot, opening: float = grasps.FINGER_OPEN, resolution: float = 0.002) -> sdf.SceneSdf:
-    """The hand and its open fingers as SDF parts in the hand-link frame (min over parts, so the
-    overlapping closed meshes need no boolean union)."""
-    q = robot.ready_configuration.copy()
-    q[robot.info.arm_dof:] = opening
+def hand_sdf(robot, opening: Optional[float] = None, resolution: float = 0.002) -> sdf.SceneSdf:
+    """The robot's hand and its fingers (at ``opening``, default open) as SDF parts in the hand-link
+    frame (min over parts, so the overlapping closed meshes need no boolean union)."""
+    q = robot.with_fingers(robot.ready_configuration, robot.info.finger_open if opening is None else opening)
     poses = robot.fk(q)
     H_inv = np.linalg.inv(poses[robot.link_index(robot.hand_link)])
     settings = sdf.SdfSettings(resolution=resolution, margin=0.03)
@@ -64,7 +63,7 @@ class GraspRefiner:
 
     def __init__(self, world: "World", settings: IsfSettings = IsfSettings(), object_points: int = 1000, seed: int = 0):
         robot = world.robot
-        contacts = grasps.hand_contacts()
+        contacts = grasps.hand_contacts(robot=robot)  # this gripper's pads
         pts, nrm = object_surface(world.target_model.mesh, world.target_pose, object_points, seed)
         active = [i < robot.info.arm_dof for i in range(robot.dof)]
         exclude = 1 << world.sdf.index(world.target)

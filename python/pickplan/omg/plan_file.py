@@ -31,6 +31,7 @@ def plan_record(result: PlanResult, world: Optional[World] = None, execution: Op
     """The JSON-ready content of ``plan.json``. ``world`` (the planner's) adds the collision points."""
     record = {
         "version": PLAN_FILE_VERSION,
+        "robot": world.robot.info.name if world is not None else "panda",  # the viewer loads this robot
         "status": result.status, "trajectory": result.trajectory.tolist(), "metrics": result.metrics,
         "grasp_cost": result.grasp_cost, "timings": result.timings, "iterations": result.iterations,
         "execution": execution,

@@ -13,7 +13,8 @@ from typing import Optional, Tuple, Union
 
 import numpy as np
 
-from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, time_parameterize
+from pickplan.core import robots
+from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, robot_limits, time_parameterize
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import Chomp, ChompSettings, MetricSettings, cubic_initialization
@@ -95,6 +96,7 @@ class PlanResult:
     goal_reasons: dict = field(default_factory=dict)
     goal_set: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (G, dof) the IK goal set
     goal_source: int = -1          # row of goal_set the final goal came from (refined or not; -1: none)
+    limits: Optional[KinematicLimits] = None  # the planned robot's limits (``timed``'s default)
 
     @property
     def success(self) -> bool:
@@ -102,32 +104,42 @@ class PlanResult:
 
     def timed(self, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
               interpolation: Interpolation = Interpolation.PCHIP) -> TimedTrajectory:
-        """The trajectory timed within ``limits`` (default: the Panda's), sampled at ``rate`` Hz, from rest
-        to rest along the same path (``pickplan.core.timing.time_parameterize``)."""
-        return time_parameterize(self.trajectory, rate, limits, interpolation)
+        """The trajectory timed within ``limits`` (default: the planned robot's), sampled at ``rate`` Hz, from
+        rest to rest along the same path (``pickplan.core.timing.time_parameterize``)."""
+        return time_parameterize(self.trajectory, rate, limits or self.limits, interpolation)
 
 
 class OMGPlanner:
-    """Joint motion and grasp planning for one scene (``robot`` None: the scene's Panda)."""
+    """Joint motion and grasp planning for one scene and one robot: ``robot`` is the robot planned for,
+    a ``robots.DescribedRobot`` (``robots.load_robot("ur5_2f85")``) or a description's name or file;
+    None: ``settings.world.robot`` (the Panda by default). Placed at the scene's robot base."""
 
     def __init__(self, robot, scene: Scene, settings: OMGSettings = OMGSettings(),
                  world: Optional[World] = None):
         self.settings = settings
         self.scene = scene
         self._world = world
-        if robot is not None and world is None and not hasattr(robot, "info"):
-            raise ValueError("OMGPlanner currently plans for the Panda (robots.panda()); got another robot")
+        if robot is not None and not isinstance(robot, (str, robots.DescribedRobot)):
+            raise ValueError(f"robot: expected a robots.DescribedRobot, a description name or file, or None; got "
+                             f"{type(robot).__name__} (a bare URDF Robot has no gripper: write a description)")
+        if robot is not None and world is not None and \
+                robots.load_robot(robot).info.name != world.robot.info.name:
+            raise ValueError(f"robot: {robots.load_robot(robot).info.name!r} but the world was built for "
+                             f"{world.robot.info.name!r}")
+        self.robot = robot
 
     def world(self, target: Optional[str] = None) -> World:
         target = target or self.scene.target
         if self._world is None or self._world.target != target:
             scene = self.scene if target == self.scene.target else replace(self.scene, target=target)
-            self._world = World(scene, self.settings.world)
+            robot = self.robot if self.robot is not None else (self._world.robot if self._world else None)
+            self._world = World(scene, self.settings.world, robot=robot)
         return self._world
 
     def default_grasps(self, world: World) -> np.ndarray:
         s = self.settings
-        return grasps_mod.grasp_set(world.target_model, s.grasp_kind, s.grasp_count, seed=s.seed).poses
+        return grasps_mod.grasp_set(world.target_model, s.grasp_kind, s.grasp_count, seed=s.seed,
+                                    gripper=world.robot.info).poses
 
     def _prepare(self, world: World, start, grasps) -> Tuple[np.ndarray, np.ndarray]:
         """The checked start and the grasps; builds what the scene caches (FCL models, ISF data)."""
@@ -136,7 +148,8 @@ class OMGPlanner:
         if grasps is None:
             grasps = self.default_grasps(world)
         elif isinstance(grasps, str):
-            grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed).poses
+            grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed,
+                                          gripper=world.robot.info).poses
         world.checker(CheckerKind.goal), world.checker(CheckerKind.hand)  # FCL models: built once per scene, cached
         if s.refine:
             world.grasp_refiner(s.isf, s.seed)  # hand SDF, object samples: cached likewise
@@ -166,6 +179,7 @@ class OMGPlanner:
         result = _Optimization(s, world, q0, GoalBook(gs, world.robot), timings).run()
         timings["total"] = time.perf_counter() - t_total
         result.goal_reasons = gs.reason_counts()
+        result.limits = robot_limits(world.robot)
         return result
 
 

@@ -33,24 +33,45 @@ class WorldSettings:
     sdf: sdf.SdfSettings = field(default_factory=sdf.SdfSettings)
     body_points_per_link: int = 20   # the paper samples 20 points per body part
     body_seed: int = 0
+    robot: str = "panda"             # the robot planned for: a shipped description's name or a .toml file
+
+
+def _table_pairs(robot) -> tuple:
+    """(link, "table") pairs the description skips: links standing on the table (a housing that only
+    turns about the vertical) whose nearness to it the planner can neither change nor should pay for."""
+    return tuple((a, b) if b == "table" else (b, a) for a, b in robot.description.skip_collision if "table" in (a, b))
+
+
+def _without_table_links(body, robot):
+    """Body points without those of the links ``_table_pairs`` names (sampled first, so every other
+    link keeps the points it has without the pairs)."""
+    skip = [robot.link_index(a) for a, _ in _table_pairs(robot)]
+    if not skip:
+        return body
+    keep = ~np.isin(body.links, skip)
+    return robots.BodyPoints(body.links[keep], body.points[keep], body.normals[keep])
 
 
 class World:
     """Planning view of a ``Scene``: ``robot``, ``models``, ``sdf`` (SceneSdf), ``body`` points,
-    ``checker(kind)`` (FCL; "goal" lets the fingers touch the target, "strict" does not)."""
+    ``checker(kind)`` (FCL; "goal" lets the fingers touch the target, "strict" does not).
+    ``robot``: a ``robots.DescribedRobot`` or a description's name or file (default ``settings.robot``),
+    placed at the scene's robot base."""
 
     def __init__(self, scene: Scene, settings: WorldSettings = WorldSettings(),
-                 library: Optional[objects.ObjectLibrary] = None):
+                 library: Optional[objects.ObjectLibrary] = None, robot=None):
         self.scene = scene
         self.settings = settings
-        self.robot = robots.panda(np.asarray(scene.robot_base, dtype=float))
+        self.robot = robots.load_robot(settings.robot if robot is None else robot,
+                                       np.asarray(scene.robot_base, dtype=float))
         self.models = {}
         for o in scene.objects:
             self.models[o.name] = library.get(o.name) if library is not None and o.name in library \
                 else objects.model_from_source(o.name, o.source)
         grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf), o.pose) for o in scene.objects]
         self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
-        self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
+        self.body = _without_table_links(self.robot.sample_body_points(settings.body_points_per_link,
+                                                                       seed=settings.body_seed), self.robot)
         self._checkers: dict = {}
         self._refiners: dict = {}
         scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
@@ -74,8 +95,9 @@ class World:
 
     @property
     def start(self) -> np.ndarray:
-        q = self.scene.robot_configuration
-        return np.asarray(q, dtype=float) if len(q) else self.robot.ready_configuration
+        q = self.scene.robot_configuration  # stored for the robot scenes place (the Panda)
+        use_scene = len(q) and robots.is_scene_robot(self.robot.info)
+        return np.asarray(q, dtype=float) if use_scene else self.robot.ready_configuration
 
     def scene_meshes(self):
         return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
@@ -93,7 +115,8 @@ class World:
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())
-        mounted = tuple((name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving)
+        mounted = tuple((name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving) + \
+            _table_pairs(self.robot)
         links = None
         if kind in (CheckerKind.goal, CheckerKind.hand):
             settings = collision.CollisionSettings(allowed_pairs=mounted + tuple((f, self.target) for f in fingers))

@@ -110,11 +110,15 @@ def add_table(client: int, table: Table, friction: float = 0.8) -> int:
     return body
 
 
-def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None) -> int:
-    """The Panda with a fixed base; ``q`` sets the movable joints in URDF order (7 arm + 2 fingers)."""
+def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None, urdf: Optional[str] = None) -> int:
+    """A robot with a fixed base (``urdf``; default the Panda); ``q`` sets the movable joints in URDF
+    order (the Panda's: 7 arm + 2 fingers; None or empty: its ready configuration, the Panda only)."""
     import pybullet as pb
 
-    urdf, ready = _panda_defaults()
+    panda_urdf, ready = _panda_defaults()
+    if urdf is not None and (q is None or len(q) == 0):
+        raise ValueError("robot configuration: give the joint values of a robot other than the Panda")
+    urdf = panda_urdf if urdf is None else urdf
     T = np.asarray(base, dtype=float)
     body = pb.loadURDF(urdf, basePosition=T[:3, 3].tolist(), baseOrientation=_mat_to_quat(T[:3, :3]),
                        useFixedBase=True, physicsClientId=client)

@@ -1,19 +1,20 @@
 """Executing a plan in PyBullet: follow the trajectory, close the gripper, lift, hold (OMG Sec. IV-A).
 
 One call, one fresh DIRECT client (always disconnected): the scene is loaded with
-``scenes.load_into_pybullet``, the Panda is reset to ``trajectory[0]`` and then
+``scenes.load_into_pybullet``, the robot (``ExecutionSettings.robot``: a described robot, the Panda by
+default, with its gripper) is loaded at the scene's base and reset to ``trajectory[0]`` and then
 
-1. **approach**: follows the (T, 9) joint trajectory at ``waypoint_dt`` per segment, densely
-   interpolated at the 240 Hz control rate, under joint position control with the Panda's torque
-   limits (87 Nm joints 1-4, 12 Nm joints 5-7) and velocity feed-forward; segments that would exceed
+1. **approach**: follows the (T, dof) joint trajectory at ``waypoint_dt`` per segment, densely
+   interpolated at the 240 Hz control rate, under joint position control with the URDF's effort
+   limits (the Panda's: 87 Nm joints 1-4, 12 Nm joints 5-7) and velocity feed-forward; segments that would exceed
    the joint speed limits are slowed down (a ``TimedTrajectory`` is followed at its own times, its
    velocities as the feed-forward, resampled to the control rate); contacts of the robot with every
    body but the target are recorded (max penetration per body);
-2. **close**: both finger joints are commanded together to closed, squeezing with ``finger_force`` N
+2. **close**: both finger joints are commanded together to their closed value, squeezing with ``finger_force`` N
    per finger; PyBullet ignores the URDF's ``<mimic>``, so a gear constraint makes the second finger
    follow the first (``couple_fingers``), as the real hand's mechanism does;
 3. **lift**: the hand moves straight up by ``lift_height`` with its orientation held: joint targets
-   come from the native damped-least-squares IK of ``panda_hand`` (7 arm joints),
+   come from the native damped-least-squares IK of the hand link (the arm joints),
    precomputed from the last waypoint (the arm's commanded pose while closing);
 4. **hold**: the final targets are held for ``hold_duration``.
 
@@ -40,11 +41,12 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core import objects as objects_mod
-from pickplan.core.panda import PANDA
 from pickplan.core.timing import TimedTrajectory
 from pickplan.core.settings import Option
 from pickplan.sim import scenes as scenes_mod
 from pickplan.core import robots
+from pickplan.core.description import load_description
+from pickplan.sim import bodies
 from pickplan.sim import render as viz
 
 
@@ -61,6 +63,7 @@ STATUSES = tuple(ExecutionStatus)
 class ExecutionSettings:
     """Simulation, controller, gripper and success-test settings; defaults model the real Panda."""
 
+    robot: str = "panda"                  # the robot executed: a shipped description's name or a .toml file
     # --- simulation
     time_step: float = 1.0 / 240.0        # s; also the control rate (a new target every step)
     solver_iterations: int = 100          # PyBullet constraint-solver iterations per step
@@ -71,7 +74,7 @@ class ExecutionSettings:
     joint_limit_tolerance: float = 1e-3   # rad (m for fingers) beyond the limits -> "invalid_trajectory"
     approach_settle: float = 0.25         # s holding the last waypoint so the tracking lag vanishes
     # --- joint position control (PyBullet's motor: v_cmd = kp * err / dt + v_ff, force-limited)
-    arm_forces: Tuple[float, ...] = (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)  # Nm, Franka datasheet
+    arm_forces: Optional[Tuple[float, ...]] = None  # Nm per arm joint; None: the URDF's effort limits
     position_gain: float = 0.1            # fraction of the position error corrected per step
     velocity_gain: float = 1.0            # weight of the velocity feed-forward term
     # --- gripper
@@ -104,8 +107,10 @@ class ExecutionSettings:
                      "hold_margin", "min_finger_gap", "collision_depth", "joint_limit_tolerance"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if len(self.arm_forces) != 7 or min(self.arm_forces) <= 0:
-            raise ValueError(f"arm_forces: expected 7 positive values, got {self.arm_forces}")
+        if self.arm_forces is not None:
+            arm = len(load_description(self.robot).arm_joints)
+            if len(self.arm_forces) != arm or min(self.arm_forces) <= 0:
+                raise ValueError(f"arm_forces: expected {arm} positive values ({self.robot}), got {self.arm_forces}")
         if not 0 < self.position_gain <= 1 or not 0 <= self.velocity_gain <= 1:
             raise ValueError("position_gain must be in (0, 1] and velocity_gain in [0, 1]")
         if not 0 < self.success_lift_fraction <= 1:
@@ -163,13 +168,15 @@ class ExecutionResult:
 
 
 # --- input checks --------------------------------------------------------------------------------
-def _check_trajectory(trajectory) -> np.ndarray:
+def _check_trajectory(trajectory, robot) -> np.ndarray:
+    dof, arm = robot.dof, robot.info.arm_dof
     try:
         Q = np.array(trajectory, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"trajectory: expected a (T, 9) array of numbers, got {type(trajectory).__name__}") from exc
-    if Q.ndim != 2 or Q.shape[1] != 9:
-        raise ValueError(f"trajectory: expected shape (T, 9) (7 arm + 2 finger joints), got {Q.shape}")
+        raise ValueError(f"trajectory: expected a (T, {dof}) array of numbers, got {type(trajectory).__name__}") from exc
+    if Q.ndim != 2 or Q.shape[1] != dof:
+        raise ValueError(f"trajectory: expected shape (T, {dof}) ({arm} arm + {dof - arm} finger joints of "
+                         f"{robot.info.name}), got {Q.shape}")
     if Q.shape[0] < 1:
         raise ValueError("trajectory: expected at least one waypoint, got 0")
     bad = np.argwhere(~np.isfinite(Q))
@@ -182,8 +189,8 @@ def _check_trajectory(trajectory) -> np.ndarray:
 class _Sim:
     """The PyBullet world of one execution: robot, bodies, models, frame recorder."""
 
-    def __init__(self, pb, client, ids, models, scene, settings, record):
-        self.pb, self.c, self.s, self.record = pb, client, settings, record
+    def __init__(self, pb, client, ids, models, scene, settings, record, info):
+        self.pb, self.c, self.s, self.record, self.info = pb, client, settings, record, info
         self.robot = ids["robot"]
         self.names = {bid: name for name, bid in ids.items() if name != "robot"}
         self.bodies = {name: bid for name, bid in ids.items() if name not in ("robot", "table")}
@@ -193,9 +200,11 @@ class _Sim:
                   for j in range(pb.getNumJoints(self.robot, physicsClientId=client))}
         links = {pb.getJointInfo(self.robot, j, physicsClientId=client)[12].decode(): j
                  for j in range(pb.getNumJoints(self.robot, physicsClientId=client))}
-        self.arm = [joints[f"panda_joint{i}"] for i in range(1, 8)]
-        self.fingers = [joints[name] for name in PANDA.finger_joints]
-        self.finger_links = [links["panda_leftfinger"], links["panda_rightfinger"]]
+        self.arm = [joints[name] for name in info.arm_joints]
+        self.fingers = [joints[name] for name in info.finger_joints]
+        self.finger_links = [links[name] for name in info.finger_links]
+        self.forces = list(settings.arm_forces) if settings.arm_forces is not None else \
+            [pb.getJointInfo(self.robot, j, physicsClientId=client)[10] for j in self.arm]
         self.steps = 0
         self.frames: List[np.ndarray] = []
         self.contacts: Dict[str, float] = {}
@@ -210,15 +219,16 @@ class _Sim:
         return np.array([st[0] for st in states])
 
     def command_arm(self, q, v) -> None:
-        s = self.s
+        s, n = self.s, len(self.arm)
         self.pb.setJointMotorControlArray(
-            self.robot, self.arm, self.pb.POSITION_CONTROL, targetPositions=[float(x) for x in q[:7]],
-            targetVelocities=[float(x) for x in v[:7]], forces=list(s.arm_forces),
-            positionGains=[s.position_gain] * 7, velocityGains=[s.velocity_gain] * 7, physicsClientId=self.c)
+            self.robot, self.arm, self.pb.POSITION_CONTROL, targetPositions=[float(x) for x in q[:n]],
+            targetVelocities=[float(x) for x in v[:n]], forces=self.forces,
+            positionGains=[s.position_gain] * n, velocityGains=[s.velocity_gain] * n, physicsClientId=self.c)
 
-    def command_fingers(self, width: float, force: float) -> None:
+    def command_fingers(self, value: float, force: float) -> None:
+        """Every finger joint to ``value`` (a joint value: open, closed or between)."""
         for j in self.fingers:  # one command for both (and the gear constraint couples them)
-            self.pb.setJointMotorControl2(self.robot, j, self.pb.POSITION_CONTROL, targetPosition=float(width),
+            self.pb.setJointMotorControl2(self.robot, j, self.pb.POSITION_CONTROL, targetPosition=float(value),
                                           force=float(force), maxVelocity=self.s.finger_speed,
                                           physicsClientId=self.c)
 
@@ -242,8 +252,10 @@ class _Sim:
         self.frames.append(viz.render(self.c, r.width, r.height, r.target, r.distance, r.yaw, r.pitch))
 
     def finger_gap(self) -> float:
-        """Opening between the pads: the sum of the two finger joint positions."""
-        return float(sum(st[0] for st in self.pb.getJointStates(self.robot, self.fingers, physicsClientId=self.c)))
+        """Opening between the pads: the open width less each finger's travel towards closed (the Panda:
+        the sum of its two finger joint positions)."""
+        states = self.pb.getJointStates(self.robot, self.fingers, physicsClientId=self.c)
+        return float(self.info.max_opening - sum(abs(st[0] - self.info.finger_open) for st in states))
 
     def held(self) -> bool:
         """The target touches (within hold_margin) both fingers, and the fingers are not shut."""
@@ -272,12 +284,12 @@ _LIFT_IK_STEPS = 3
 
 
 def _lift_path(robot, q0: np.ndarray, s: ExecutionSettings) -> np.ndarray:
-    """Arm configurations (lift_waypoints + 1, 9) moving the hand straight up, orientation held:
-    the native damped-least-squares IK (fixed damping ``ik_damping**2``, the 7 arm joints inside
+    """Arm configurations (lift_waypoints + 1, dof) moving the hand straight up, orientation held:
+    the native damped-least-squares IK (fixed damping ``ik_damping**2``, the arm joints inside
     their limits, fingers frozen), _LIFT_IK_STEPS steps per waypoint."""
-    hand = robot.link_index(PANDA.hand_link)
+    hand = robot.link_index(robot.info.hand_link)
     ik = _core.IkSettings()
-    ik.weights = [1.0] * PANDA.arm_dof + [0.0] * (robot.dof - PANDA.arm_dof)
+    ik.weights = [1.0] * robot.info.arm_dof + [0.0] * (robot.dof - robot.info.arm_dof)
     ik.rotation_error = _core.IkRotationError.sine_axis
     ik.damping_schedule = _core.IkDamping.fixed
     ik.damping = s.ik_damping ** 2
@@ -299,15 +311,16 @@ def _follow(sim: _Sim, Q: np.ndarray, segments, fingers_from_plan: bool, finger_
             q = Q[k] + (i / n) * (Q[k + 1] - Q[k])
             sim.command_arm(q, v)
             if fingers_from_plan:
-                sim.command_fingers(q[7], finger_force)
+                sim.command_fingers(q[len(sim.arm)], finger_force)
             sim.step(watch)
         if watch:  # tracking error of the arm at each waypoint of the plan
-            err = float(np.max(np.abs(sim.joint_positions()[:7] - Q[k + 1, :7])))
+            n = len(sim.arm)
+            err = float(np.max(np.abs(sim.joint_positions()[:n] - Q[k + 1, :n])))
             sim.tracking_error = max(sim.tracking_error, err)
 
 
 def _hold(sim: _Sim, q: np.ndarray, seconds: float, watch: bool) -> None:
-    zero = np.zeros(9)
+    zero = np.zeros(len(q))
     sim.command_arm(q, zero)
     for _ in range(int(round(seconds / sim.s.time_step))):
         sim.step(watch)
@@ -317,8 +330,8 @@ def _hold(sim: _Sim, q: np.ndarray, seconds: float, watch: bool) -> None:
 def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSettings = ExecutionSettings(),
                  library: Optional[objects_mod.ObjectLibrary] = None,
                  record: Optional[RecordSettings] = None) -> ExecutionResult:
-    """Run ``trajectory`` ((T, 9) waypoints or a ``TimedTrajectory``) in ``scene``, grasp ``scene.target``
-    and lift it; see the module doc.
+    """Run ``trajectory`` ((T, dof) waypoints or a ``TimedTrajectory``) in ``scene`` with ``settings.robot``,
+    grasp ``scene.target`` and lift it; see the module doc.
 
     Raises ValueError for a malformed trajectory (shape, NaN); a trajectory outside the joint limits
     is not run and reports status "invalid_trajectory". Deterministic for identical inputs.
@@ -331,10 +344,10 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     timed = trajectory if isinstance(trajectory, TimedTrajectory) else None
     if timed is not None and abs(timed.rate * s.time_step - 1.0) > 1e-9:
         timed = timed.resampled(1.0 / s.time_step)  # one sample per control step
-    Q = _check_trajectory(trajectory if timed is None else timed.q)
+    robot = robots.load_robot(s.robot, np.asarray(scene.robot_base, dtype=float))
+    Q = _check_trajectory(trajectory if timed is None else timed.q, robot)
     if scene.target not in [o.name for o in scene.objects]:
         raise ValueError(f"scene target {scene.target!r} is not one of its objects")
-    robot = robots.panda(np.asarray(scene.robot_base, dtype=float))
     lo, hi = robot.lower_limits, robot.upper_limits
     over = np.maximum(lo - Q, Q - hi)
     models = {o.name: library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
@@ -357,8 +370,6 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                     f"[{lo[j]:.4f}, {hi[j]:.4f}] by {over[k, j]:.4f}")
     Q = np.clip(Q, lo, hi)
 
-    start_scene = scenes_mod.Scene(robot_base=scene.robot_base, table=scene.table, objects=scene.objects,
-                                   target=scene.target, seed=scene.seed, robot_configuration=list(Q[0]))
     client = pb.connect(pb.DIRECT)
     try:
         pb.resetSimulation(physicsClientId=client)
@@ -366,8 +377,12 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                                      physicsClientId=client)
         pb.setGravity(0, 0, -9.81, physicsClientId=client)
         pb.setTimeStep(s.time_step, physicsClientId=client)
-        ids = scenes_mod.load_into_pybullet(start_scene, client, library, with_robot=True)
-        sim = _Sim(pb, client, ids, models, scene, s, record)
+        # the scene's bodies in load_into_pybullet's order, with this robot (at its base) for the Panda
+        ids = {"table": bodies.add_table(client, scene.table),
+               "robot": bodies.add_robot(client, robot.base_pose, Q[0], robot.description.urdf)}
+        for o in scene.objects:
+            ids[o.name] = bodies.add_object_body(client, models[o.name], o.pose)
+        sim = _Sim(pb, client, ids, models, scene, s, record, robot.info)
         for link in sim.finger_links:
             pb.changeDynamics(sim.robot, link, lateralFriction=s.finger_friction,
                               spinningFriction=s.finger_spinning_friction, frictionAnchor=1, physicsClientId=client)
@@ -387,9 +402,9 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
             sim.capture()
 
         # 1. approach
-        zero = np.zeros(9)
+        zero = np.zeros(robot.dof)
         sim.command_arm(Q[0], zero)
-        sim.command_fingers(Q[0, 7], s.finger_force)
+        sim.command_fingers(Q[0, robot.info.arm_dof], s.finger_force)
         for _ in range(int(round(s.start_settle / s.time_step))):
             sim.step(True)
         segments = ([(s.time_step, 1)] * (len(Q) - 1) if timed is not None
@@ -399,13 +414,13 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         target_pushed = float(np.linalg.norm(sim.com(scene.target) - com0[scene.target]))
 
         # 2. close (arm holds the last waypoint)
-        sim.command_fingers(0.0, s.finger_force)
+        sim.command_fingers(robot.info.finger_closed, s.finger_force)
         _hold(sim, Q[-1], s.close_duration, False)
         held_after_close = sim.held()
 
         # 3. lift, 4. hold
         q_lift = Q[-1].copy()  # continue from the commanded pose, so the arm target does not jump
-        q_lift[7:] = sim.joint_positions()[7:]
+        q_lift[robot.info.arm_dof:] = sim.joint_positions()[robot.info.arm_dof:]
         lift = _lift_path(robot, q_lift, s)
         seg = s.lift_duration / s.lift_waypoints
         _follow(sim, lift, [(seg, max(1, int(round(seg / s.time_step))))] * s.lift_waypoints, False,

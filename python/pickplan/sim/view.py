@@ -19,7 +19,7 @@ import trimesh
 from meshcat.animation import Animation
 
 from pickplan.core import objects
-from pickplan.core.robots import Panda, panda
+from pickplan.core.robots import DescribedRobot, load_robot
 from pickplan.sim.scenes import Scene
 
 # Colours (0xRRGGBB): what a person tells apart at a glance.
@@ -101,7 +101,7 @@ def _material(color: int, opacity: float = 1.0) -> mg.MeshLambertMaterial:
 class _RobotDrawing:
     """The robot's collision meshes per link (what the planner checks), posed by FK."""
 
-    def __init__(self, robot: Panda):
+    def __init__(self, robot: DescribedRobot):
         self.robot = robot
         self.meshes = {i: robot.collision_meshes(i) for i in range(len(robot.link_names))}
         self.meshes = {i: m for i, m in self.meshes.items() if m is not None}
@@ -197,8 +197,9 @@ def _set_camera(vis: meshcat.Visualizer, scene: Scene) -> None:
 
 
 def build_view(scene: Scene, plan: dict, settings: ViewSettings = ViewSettings(), title: str = "pickplan") -> PlanView:
-    """The meshcat commands that draw ``scene`` and the plan record ``plan`` (``plan.json``'s content)."""
-    robot = panda(np.asarray(scene.robot_base, dtype=float))
+    """The meshcat commands that draw ``scene`` and the plan record ``plan`` (``plan.json``'s content), for
+    the robot the plan names (``plan["robot"]``; the Panda for plans written before robots were named)."""
+    robot = load_robot(str(plan.get("robot", "panda")), np.asarray(scene.robot_base, dtype=float))
     trajectory = _configurations(plan.get("trajectory"), robot.dof, "trajectory")
     if len(trajectory) == 0:
         raise ValueError("trajectory: the plan has no waypoints")

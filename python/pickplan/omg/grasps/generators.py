@@ -8,8 +8,9 @@ from typing import Optional
 import numpy as np
 import trimesh
 
+from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
-from pickplan.omg.grasps.hand import PAD_DEPTH, HandObjectChecker
+from pickplan.omg.grasps.hand import HandObjectChecker
 from pickplan.omg.grasps.sets import GraspSet, _check_count, _frame, _perpendicular
 
 
@@ -20,13 +21,13 @@ class ApproachSettings:
     refine: int = 4            # bisection steps (0.3 mm with the default step)
 
 
-def approach_grasps(model, n: int = 100, seed: int = 0,
-                    settings: ApproachSettings = ApproachSettings()) -> GraspSet:
+def approach_grasps(model, n: int = 100, seed: int = 0, settings: ApproachSettings = ApproachSettings(),
+                    gripper: RobotInfo = PANDA) -> GraspSet:
     """The paper's naive "Approach" set: uniformly random approach directions towards the centre of
     the object's bounding box, random roll, the hand backed off along its approach axis until it
     and its open fingers stay clear of the object all the way out (so the approach is free too).
 
-    Starts with the pad centre at the object centre; a hand that fits there collision-free (inside
+    Poses of ``gripper``'s hand link. Starts with the pad centre at the object centre; a hand that fits there collision-free (inside
     a bowl) is kept where it is. ``scores`` are the back-off distances (smaller = closer).
     """
     _check_count(n, seed)
@@ -40,13 +41,13 @@ def approach_grasps(model, n: int = 100, seed: int = 0,
     R = np.stack([_frame(d[i], np.cos(roll[i]) * _perpendicular(d[i]) +
                          np.sin(roll[i]) * np.cross(d[i], _perpendicular(d[i]))) for i in range(n)])
 
-    def poses(R_, s_):  # hand poses with the pad centre at centre - s * approach
+    def poses(R_, s_):  # hand poses with the pad centre (the grasp frame) at centre - s * approach
         T = np.tile(np.eye(4), (len(s_), 1, 1))
         T[:, :3, :3] = R_
-        T[:, :3, 3] = centre - (np.asarray(s_) + PAD_DEPTH)[:, None] * R_[:, :, 2]
-        return T
+        T[:, :3, 3] = centre - np.asarray(s_)[:, None] * R_[:, :, 2]
+        return T @ gripper.hand_from_grasp
 
-    check = HandObjectChecker(model, settings.clearance)
+    check = HandObjectChecker(model, settings.clearance, gripper)
     hit = check.in_collision(poses(np.repeat(R, len(steps), 0), np.tile(steps, n))).reshape(n, len(steps))
     lo = np.where(hit.any(1), len(steps) - 1 - np.argmax(hit[:, ::-1], axis=1), -1)  # last colliding
     s_free = np.where(lo < 0, 0.0, steps[np.minimum(lo + 1, len(steps) - 1)])
@@ -62,7 +63,7 @@ def approach_grasps(model, n: int = 100, seed: int = 0,
 @dataclass(frozen=True)
 class AntipodalSettings:
     friction: float = 0.3        # Coulomb coefficient: friction cone half-angle atan(0.3) = 16.7 deg
-    max_width: float = PANDA.max_opening  # the Panda's opening (m)
+    max_width: Optional[float] = None  # m; None: the gripper's opening
     width_margin: float = 0.005  # pairs must be this much narrower than max_width
     min_width: float = 0.002
     clearance: float = 0.001     # m kept between the open hand and the object
@@ -73,13 +74,14 @@ class AntipodalSettings:
 
 
 def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[float] = None,
-                     max_width: Optional[float] = None,
-                     settings: AntipodalSettings = AntipodalSettings()) -> GraspSet:
+                     max_width: Optional[float] = None, settings: AntipodalSettings = AntipodalSettings(),
+                     gripper: RobotInfo = PANDA) -> GraspSet:
     """Antipodal grasps from the mesh: a surface point p (outward normal n_p), a ray from p into
     the object inside the friction cone around -n_p, its exit point q (normal n_q); kept when the
     axis lies in both friction cones and the width fits the opening. The hand closes along the
     axis with the pad centre at the pair midpoint, at ``approach_angles`` rotations about the axis
-    (random offset); those whose open hand hits the object are rejected.
+    (random offset); those whose open hand hits the object are rejected. Poses of ``gripper``'s hand link;
+    ``max_width`` None: its opening.
 
     ``info``: "contacts" (N, 2, 3) p and q, "normals" (N, 2, 3) outward object normals, "width".
     ``scores``: cone margin 1 - max angle / cone angle. Fewer than ``n`` (with a warning) if the
@@ -87,13 +89,15 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
     """
     _check_count(n, seed)
     s = replace(settings, **{k: v for k, v in (("friction", friction), ("max_width", max_width)) if v is not None})
+    s = s if s.max_width is not None else replace(s, max_width=gripper.max_opening)
     if s.friction <= 0 or s.max_width <= s.width_margin + s.min_width:
         raise ValueError(f"antipodal: need friction > 0 and max_width > {s.width_margin + s.min_width}, "
                          f"got friction={s.friction}, max_width={s.max_width}")
     mesh = model.mesh
     cone = np.arctan(s.friction)
     rng = np.random.default_rng(seed)
-    check = HandObjectChecker(model, s.clearance)
+    check = HandObjectChecker(model, s.clearance, gripper)
+    hand_from_grasp = gripper.hand_from_grasp
     out_T, out_c, out_n, out_w, out_s = [], [], [], [], []
     count = 0
     for _ in range(s.max_rounds):
@@ -129,7 +133,8 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
             for b in range(k):
                 z = np.cos(theta[a, b]) * z0 + np.sin(theta[a, b]) * np.cross(y, z0)
                 T[a, b, :3, :3] = np.column_stack([np.cross(y, z), y, z])
-                T[a, b, :3, 3] = 0.5 * (p[i] + q[i]) - PAD_DEPTH * z
+                T[a, b, :3, 3] = 0.5 * (p[i] + q[i])
+                T[a, b] = T[a, b] @ hand_from_grasp  # the grasp frame there -> the hand link
         free = ~check.in_collision(T.reshape(-1, 4, 4)).reshape(len(idx), k)
         for a, i in enumerate(idx):
             choices = np.flatnonzero(free[a])

@@ -1,8 +1,10 @@
-"""The Panda hand as the grasp generators see it: a URDF of the hand alone (fixed or floating), an
+"""A robot's hand as the grasp generators see it: a URDF of the hand alone (fixed or floating), an
 exact hand-vs-object collision check, and the finger-pad contact points C-Space ISF uses.
 
-The hand closes its fingers along its y axis (left finger at +y), approaches along +z, and the
-finger-pad centre sits ``PAD_DEPTH`` along +z with the fingers open (0.04 per finger joint).
+Each gripper is a ``RobotInfo`` (``core.description``; default: the Panda's, ``core.panda.PANDA``).
+Grasp poses are poses of the hand link; the gripper's grasp frame (z approach, y closing, origin
+between the pads) sits at ``info.grasp_frame`` in it. The Panda's hand closes along its y axis (left
+finger at +y), approaches along +z, and its pad centre sits ``PAD_DEPTH`` along +z.
 """
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ import os
 import tempfile
 import warnings
 import xml.etree.ElementTree as ET
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import Optional
 
 import numpy as np
@@ -21,14 +23,15 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from pickplan.core.collision import CollisionChecker, CollisionSettings, SceneMesh
-from pickplan.core.description import pose_matrix
+from pickplan.core.description import RobotInfo, pose_matrix
 from pickplan.core.io import atomic_open
 from pickplan.core.panda import PANDA, panda_urdf_path
 from pickplan.core.paths import assets_dir
 from pickplan.core.robots import Robot
+from pickplan.omg.grasps.pads import HandContacts, gripper_contacts
 from pickplan.omg.grasps.sets import check_grasps
 
-# The hand's facts, named as this package has always named them (their one source: core.panda).
+# The Panda hand's facts, named as this package has always named them (their one source: core.panda).
 HAND_LINK = PANDA.hand_link
 FINGER_LINKS = PANDA.finger_links
 FINGER_JOINTS = PANDA.finger_joints
@@ -37,7 +40,7 @@ PAD_DEPTH = PANDA.pad_depth
 CONTACTS_FORMAT = "pickplan.hand_contacts"
 
 
-# --- the hand model: URDF pieces of pybullet_data's Panda -------------------------------------------
+# --- the hand model: the hand link's subtree of the robot's URDF -------------------------------------
 def _xyz(el, attr: str = "xyz") -> np.ndarray:
     return np.array([float(v) for v in (el.get(attr) or "0 0 0").split()]) if el is not None else np.zeros(3)
 
@@ -46,25 +49,48 @@ def _rpy_matrix(rpy) -> np.ndarray:
     return pose_matrix((0.0, 0.0, 0.0), rpy)[:3, :3]  # the URDF convention, as robot descriptions read it
 
 
-@functools.lru_cache(maxsize=2)
-def hand_urdf_path(floating: bool = False) -> str:
-    """A URDF of the Panda hand + fingers cut out of pybullet_data's panda.urdf (same meshes,
-    joints and contact parameters; absolute mesh paths). ``floating=True`` prepends three
+def _hand_subtree(root: ET.Element, hand_link: str) -> tuple:
+    """Names of the links and joints under ``hand_link`` (itself included), leaving out leaves with no
+    collision geometry (markers such as the Panda's grasp target)."""
+    joints = [j for j in root.findall("joint")]
+    links = {hand_link}
+    grew = True
+    while grew:
+        grew = False
+        for j in joints:
+            if j.find("parent").get("link") in links and j.find("child").get("link") not in links:
+                links.add(j.find("child").get("link"))
+                grew = True
+    parents = {j.find("parent").get("link") for j in joints}
+    geometry = {l.get("name") for l in root.findall("link") if l.find("collision") is not None}
+    links = {l for l in links if l == hand_link or l in parents or l in geometry}
+    kept_joints = {j.get("name") for j in joints if j.find("child").get("link") in links
+                   and j.find("parent").get("link") in links}
+    return links, kept_joints
+
+
+def hand_urdf_path(floating: bool = False, gripper: RobotInfo = PANDA) -> str:
+    """A URDF of a robot's hand + fingers cut out of its URDF (``gripper.urdf``: the hand link's subtree,
+    same meshes, joints and contact parameters; absolute mesh paths). ``floating=True`` prepends three
     prismatic (x, y, z) and three revolute (z, y, x) joints so that a configuration
-    ``(x, y, z, a, b, c, f1, f2)`` places the hand anywhere: this is how the native FCL checker
+    ``(x, y, z, a, b, c, fingers...)`` places the hand anywhere: this is how the native FCL checker
     (a robot-vs-scene checker) sees a free hand. Written once per content to a temp folder."""
-    src = panda_urdf_path()
+    return _hand_urdf(bool(floating), gripper.urdf, gripper.hand_link, tuple(gripper.finger_links))
+
+
+@functools.lru_cache(maxsize=8)
+def _hand_urdf(floating: bool, src: str, hand_link: str, finger_links: tuple) -> str:
     root = ET.parse(src).getroot()
     mesh_dir = os.path.dirname(src)
-    keep_links, keep_joints = (HAND_LINK,) + FINGER_LINKS, FINGER_JOINTS
-    out = ET.Element("robot", name="panda_hand_floating" if floating else "panda_hand")
+    keep_links, keep_joints = _hand_subtree(root, hand_link)
+    out = ET.Element("robot", name=f"{hand_link}_floating" if floating else f"{hand_link}_hand")
     if floating:
         axes = ["1 0 0", "0 1 0", "0 0 1", "0 0 1", "0 1 0", "1 0 0"]
         names = ["tx", "ty", "tz", "rz", "ry", "rx"]
         ET.SubElement(out, "link", name="float_base")
         parent = "float_base"
         for k, (nm, ax) in enumerate(zip(names, axes)):
-            child = HAND_LINK if k == 5 else f"float_{nm}"
+            child = hand_link if k == 5 else f"float_{nm}"
             if k < 5:
                 ET.SubElement(out, "link", name=child)
             j = ET.SubElement(out, "joint", name=f"float_{nm}", type="prismatic" if k < 3 else "continuous")
@@ -79,12 +105,13 @@ def hand_urdf_path(floating: bool = False) -> str:
                 (el.tag == "joint" and el.get("name") in keep_joints):
             el = ET.fromstring(ET.tostring(el))
             for mesh in el.iter("mesh"):
-                mesh.set("filename", os.path.join(mesh_dir, mesh.get("filename").replace("package://", "")))
+                name = mesh.get("filename").replace("package://", "")
+                mesh.set("filename", name if os.path.isabs(name) else os.path.join(mesh_dir, name))
             for vis in el.findall("visual"):
                 el.remove(vis)  # DIRECT clients never render; skips loading the visual meshes
             inertia = el.find("inertial/inertia")
-            if inertia is not None:  # the URDF's 0.1 kg m^2 placeholders make the fingers sluggish
-                small = "0.002" if el.get("name") == HAND_LINK else "0.00002"
+            if inertia is not None:  # placeholder inertias (the Panda's 0.1 kg m^2) make the fingers sluggish
+                small = "0.002" if el.get("name") == hand_link else "0.00002"
                 for a in ("ixx", "iyy", "izz"):
                     inertia.set(a, small)
             out.append(el)
@@ -98,14 +125,16 @@ def hand_urdf_path(floating: bool = False) -> str:
     return path
 
 
-def hand_configurations(poses, opening: float = FINGER_OPEN) -> np.ndarray:
-    """Configurations (N, 8) of the floating hand (``hand_urdf_path(True)``) for hand poses."""
+def hand_configurations(poses, opening: Optional[float] = None, gripper: RobotInfo = PANDA) -> np.ndarray:
+    """Configurations (N, 6 + fingers) of the floating hand (``hand_urdf_path(True, gripper)``) for hand
+    poses, every finger joint at ``opening`` (default: open)."""
     P = check_grasps(poses, "hand poses")
     with warnings.catch_warnings():  # gimbal lock: scipy picks a valid solution and warns
         warnings.simplefilter("ignore")
         zyx = Rotation.from_matrix(P[:, :3, :3]).as_euler("ZYX")  # R = Rz(a) Ry(b) Rx(c)
-    Q = np.empty((len(P), 8))
-    Q[:, :3], Q[:, 3:6], Q[:, 6:] = P[:, :3, 3], zyx, opening
+    Q = np.empty((len(P), 6 + len(gripper.finger_joints)))
+    Q[:, :3], Q[:, 3:6] = P[:, :3, 3], zyx
+    Q[:, 6:] = gripper.finger_open if opening is None else opening
     return Q
 
 
@@ -118,34 +147,19 @@ class HandObjectChecker:
     its own target. PyBullet closest points would test convex hulls of the parts instead.
     """
 
-    def __init__(self, model, clearance: float = 0.0):
-        self.robot = Robot.from_urdf(hand_urdf_path(True))
+    def __init__(self, model, clearance: float = 0.0, gripper: RobotInfo = PANDA):
+        self.gripper = gripper
+        self.robot = Robot.from_urdf(hand_urdf_path(True, gripper))
         self.checker = CollisionChecker(self.robot, [SceneMesh("object", model.mesh, np.eye(4))], None,
                                         CollisionSettings(margin=float(clearance)))
 
-    def in_collision(self, poses, opening: float = FINGER_OPEN) -> np.ndarray:
+    def in_collision(self, poses, opening: Optional[float] = None) -> np.ndarray:
         if len(poses) == 0:
             return np.zeros(0, dtype=bool)
-        return self.checker.in_collision_batch(hand_configurations(poses, opening)).astype(bool)
+        return self.checker.in_collision_batch(hand_configurations(poses, opening, self.gripper)).astype(bool)
 
 
 # --- hand contact points (for C-Space ISF) ----------------------------------------------------------
-@dataclass(frozen=True)
-class HandContacts:
-    """Finger-pad points and inward normals (towards the other finger) in the ``panda_hand`` frame."""
-
-    points: np.ndarray   # (M, 3) at finger joints = ``opening``
-    normals: np.ndarray  # (M, 3) unit, pointing into the grasp (opposite the object's outward normal)
-    finger: np.ndarray   # (M,) 0 = panda_leftfinger (joint1), 1 = panda_rightfinger (joint2)
-    axes: np.ndarray     # (2, 3) direction each finger moves as its joint value grows (opening)
-    opening: float = FINGER_OPEN
-
-    def at(self, opening: float) -> "HandContacts":
-        """The same contacts with both finger joints at ``opening`` (0 closed .. 0.04 open)."""
-        pts = self.points + self.axes[self.finger] * (float(opening) - self.opening)
-        return replace(self, points=pts, opening=float(opening))
-
-
 @dataclass(frozen=True)
 class PadSettings:
     pad_length: float = 0.018   # m of the finger tip that forms the pad (along the approach axis)
@@ -239,8 +253,15 @@ def _load_contacts(path: str) -> HandContacts:
     return HandContacts(pts, nrm, fin, axes, float(d["finger_joint_value"]))
 
 
-def hand_contacts(opening: float = FINGER_OPEN, path: Optional[str] = None) -> HandContacts:
-    """The finger-pad contacts (``assets/panda_hand_contacts.json``) with finger joints at ``opening``."""
-    if not 0.0 <= opening <= FINGER_OPEN:
-        raise ValueError(f"opening: expected a finger joint value in [0, {FINGER_OPEN}], got {opening}")
-    return _load_contacts(os.path.abspath(path or hand_contacts_path())).at(opening)
+def hand_contacts(opening: Optional[float] = None, path: Optional[str] = None, robot=None) -> HandContacts:
+    """The finger-pad contacts in the hand-link frame with finger joints at ``opening`` (default open):
+    the Panda's from ``assets/panda_hand_contacts.json`` (or ``path``); another robot's
+    (``robot``: a ``robots.DescribedRobot``) from its finger collision geometry (``pads.gripper_contacts``)."""
+    info = PANDA if robot is None else robot.info
+    opening = info.finger_open if opening is None else float(opening)
+    lo, hi = sorted((info.finger_open, info.finger_closed))
+    if not lo <= opening <= hi:
+        raise ValueError(f"opening: expected a finger joint value in [{lo}, {hi}], got {opening}")
+    if info.name == PANDA.name or path is not None:
+        return _load_contacts(os.path.abspath(path or hand_contacts_path())).at(opening)
+    return gripper_contacts(robot).at(opening)

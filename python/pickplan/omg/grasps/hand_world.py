@@ -1,14 +1,16 @@
-"""The PyBullet world of the physics grasp tests (``physics``): a free-floating Panda hand carried by a
+"""The PyBullet world of the physics grasp tests (``physics``): a free-floating hand (any described
+gripper; the Panda's by default) carried by a
 constraint, its coupled fingers, the object (and optionally the table), in one DIRECT client per process;
 plus the in-hand motion measures and the motion profiles the tests use."""
 from __future__ import annotations
 
 import numpy as np
 
-from pickplan.omg.grasps.hand import FINGER_OPEN, hand_urdf_path
+from pickplan.core.description import RobotInfo
+from pickplan.core.panda import PANDA
+from pickplan.omg.grasps.hand import hand_urdf_path
 from pickplan.sim.scenes import _mat_to_quat, _quat_to_mat, add_object_body
 
-FINGER_JOINT_INDICES = (0, 1)  # joint indices of finger_joint1/2 in the hand URDF
 _CLIENT = {"id": None}  # one DIRECT client per process, reused by every test it runs
 
 
@@ -42,13 +44,13 @@ def _pose_of(cid: int, body: int) -> np.ndarray:
 
 
 class HandWorld:
-    """A reset world with the hand (base = panda_hand, carried by a fixed constraint) and the object."""
+    """A reset world with the hand (base = the hand link, carried by a fixed constraint) and the object."""
 
     def __init__(self, s, obj: SimObject, T_hand: np.ndarray, T_obj: np.ndarray, gravity: bool,
-                 table: bool = False, table_friction: float = 0.8):
+                 table: bool = False, table_friction: float = 0.8, gripper: RobotInfo = PANDA):
         import pybullet as pb
 
-        self.pb, self.s = pb, s
+        self.pb, self.s, self.gripper = pb, s, gripper
         cid = self.cid = _client()
         pb.resetSimulation(physicsClientId=cid)
         pb.setPhysicsEngineParameter(fixedTimeStep=s.time_step, numSolverIterations=s.solver_iterations,
@@ -59,19 +61,23 @@ class HandWorld:
             shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5, 0.5, 0.025], physicsClientId=cid)
             self.table = pb.createMultiBody(0.0, shape, basePosition=[0, 0, -0.025], physicsClientId=cid)
             pb.changeDynamics(self.table, -1, lateralFriction=table_friction, physicsClientId=cid)
-        self.hand = pb.loadURDF(hand_urdf_path(False), T_hand[:3, 3].tolist(), _mat_to_quat(T_hand[:3, :3]),
-                                useFixedBase=False, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
-        for j in FINGER_JOINT_INDICES:
+        self.hand = pb.loadURDF(hand_urdf_path(False, gripper), T_hand[:3, 3].tolist(),
+                                _mat_to_quat(T_hand[:3, :3]), useFixedBase=False,
+                                flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
+        names = [pb.getJointInfo(self.hand, j, physicsClientId=cid)[1].decode()
+                 for j in range(pb.getNumJoints(self.hand, physicsClientId=cid))]
+        self.fingers = [names.index(name) for name in gripper.finger_joints]
+        for j in self.fingers:
             pb.changeDynamics(self.hand, j, lateralFriction=s.pad_friction,
                               spinningFriction=s.pad_spinning_friction, physicsClientId=cid)
-            pb.resetJointState(self.hand, j, FINGER_OPEN, physicsClientId=cid)
-            pb.setJointMotorControl2(self.hand, j, pb.POSITION_CONTROL, targetPosition=FINGER_OPEN,
+            pb.resetJointState(self.hand, j, gripper.finger_open, physicsClientId=cid)
+            pb.setJointMotorControl2(self.hand, j, pb.POSITION_CONTROL, targetPosition=gripper.finger_open,
                                      force=s.finger_force, physicsClientId=cid)
         if getattr(s, "couple_fingers", False):
             # PyBullet ignores the URDF's <mimic>: without the gear two force-limited fingers let a
             # load along the closing axis push the object (and both fingers) sideways in the hand
             # (as execution.py, and the Franka hand's single motor).
-            gear = pb.createConstraint(self.hand, FINGER_JOINT_INDICES[0], self.hand, FINGER_JOINT_INDICES[1], pb.JOINT_GEAR, [1, 0, 0],
+            gear = pb.createConstraint(self.hand, self.fingers[0], self.hand, self.fingers[1], pb.JOINT_GEAR, [1, 0, 0],
                                        [0, 0, 0], [0, 0, 0], physicsClientId=cid)
             pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * s.finger_force, physicsClientId=cid)
         # the base pose PyBullet reports (and constrains) is the inertial frame: keep its offset
@@ -97,8 +103,8 @@ class HandWorld:
                                  physicsClientId=self.cid)
 
     def close(self) -> None:
-        for j in FINGER_JOINT_INDICES:
-            self.pb.setJointMotorControl2(self.hand, j, self.pb.POSITION_CONTROL, targetPosition=0.0,
+        for j in self.fingers:
+            self.pb.setJointMotorControl2(self.hand, j, self.pb.POSITION_CONTROL, targetPosition=self.gripper.finger_closed,
                                           force=self.s.finger_force, maxVelocity=self.s.finger_speed,
                                           physicsClientId=self.cid)
 
@@ -110,7 +116,10 @@ class HandWorld:
             self.pb.stepSimulation(physicsClientId=self.cid)
 
     def gap(self) -> float:
-        return sum(self.pb.getJointState(self.hand, j, physicsClientId=self.cid)[0] for j in FINGER_JOINT_INDICES)
+        """Opening between the pads: the open width less each finger's travel towards closed."""
+        travel = sum(abs(self.pb.getJointState(self.hand, j, physicsClientId=self.cid)[0] - self.gripper.finger_open)
+                     for j in self.fingers)
+        return self.gripper.max_opening - travel
 
     def hand_pose(self) -> np.ndarray:
         return _pose_of(self.cid, self.hand) @ np.linalg.inv(self.T_inertial)

@@ -45,8 +45,9 @@ import numpy as np
 from pickplan.core.io import atomic_open
 from pickplan.core.runner import Runner, run_jobs
 from pickplan.omg.grasps.generators import AntipodalSettings, antipodal_grasps
-from pickplan.omg.grasps.hand import PAD_DEPTH
-from pickplan.omg.grasps.hand_world import (FINGER_JOINT_INDICES, HandWorld, InHand, SimObject, quintic_step,
+from pickplan.core.description import RobotInfo
+from pickplan.core.panda import PANDA
+from pickplan.omg.grasps.hand_world import (HandWorld, InHand, SimObject, quintic_step,
                                             smooth_step, turned_about)
 from pickplan.omg.grasps.sets import GraspSet, _check_count, check_grasps
 
@@ -119,7 +120,8 @@ class TransportSettings(LiftSettings):
     max_slip: float = 0.02         # m its centre of mass may move in the hand after the lift
 
 
-def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSettings()) -> dict:
+def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSettings(),
+               gripper: RobotInfo = PANDA) -> dict:
     """One shake test of a hand pose ``grasp`` (object frame). Returns held, drift (m, the pad
     point), rotation (deg, the object in the hand), gap (m); drift and rotation are the worst
     over the checkpoints run (after the shake, at each turn, back at the start; the test stops
@@ -128,15 +130,16 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
     obj = obj if isinstance(obj, SimObject) else SimObject(obj)
     rng = np.random.default_rng(seed)
     T_hand = np.eye(4)
-    T_hand[:3, :3] = np.diag([1.0, -1.0, -1.0])  # approach pointing down: gravity pulls out of the hand
+    # approach (the grasp frame's z) pointing down: gravity pulls out of the hand
+    T_hand[:3, :3] = np.diag([1.0, -1.0, -1.0]) @ gripper.grasp_frame[:3, :3].T
     T_hand[2, 3] = 0.5
-    world = HandWorld(s, obj, T_hand, T_hand @ np.linalg.inv(grasp), gravity=False)
+    world = HandWorld(s, obj, T_hand, T_hand @ np.linalg.inv(grasp), gravity=False, gripper=gripper)
     world.close()
     world.step(s.close_time)
     world.gravity(True)
     world.step(s.settle_time)
     # the object point between the pads (in the body frame) and the settled grasp
-    pad = np.array([0.0, 0.0, PAD_DEPTH, 1.0])
+    pad = gripper.grasp_frame[:, 3]  # the point between the pads, in the hand link
     H0 = world.hand_pose()
     held = InHand(world)
     p_body = np.linalg.inv(held.ref) @ pad
@@ -164,7 +167,7 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
 
     ok = holds()
     if s.turn_angle:
-        closing = H0[:3, 1]
+        closing = H0[:3, :3] @ gripper.grasp_frame[:3, 1]
         for sign in (1.0, -1.0):
             if not ok:
                 break  # a failed checkpoint is final: skip the rest
@@ -179,22 +182,24 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
     return {"held": bool(ok), "drift": max(drift), "rotation": max(rotation), "gap": world.gap()}
 
 
-def close_on_object(model, grasp: np.ndarray, settings: SimSettings = SimSettings()) -> dict:
+def close_on_object(model, grasp: np.ndarray, settings: SimSettings = SimSettings(),
+                    gripper: RobotInfo = PANDA) -> dict:
     """Close the hand at ``grasp`` (object frame) on the free object with gravity off: the final
     pad gap (m) and whether each finger ends touching the object ("left", "right")."""
     obj = model if isinstance(model, SimObject) else SimObject(model)
-    world = HandWorld(settings, obj, np.eye(4), np.linalg.inv(check_grasps([grasp])[0]), gravity=False)
+    world = HandWorld(settings, obj, np.eye(4), np.linalg.inv(check_grasps([grasp])[0]), gravity=False,
+                      gripper=gripper)
     world.close()
     world.step(settings.close_time)
     touch = [bool(world.pb.getContactPoints(world.hand, world.body, j, physicsClientId=world.cid))
-             for j in FINGER_JOINT_INDICES]
+             for j in world.fingers]
     return {"gap": world.gap(), "left": touch[0], "right": touch[1]}
 
 
 def _shake_job(job) -> dict:
     """Worker entry point (module level so ``spawn`` can import it)."""
-    obj, T, seed, settings = job
-    return shake_test(obj, T, int(seed), settings)
+    obj, T, seed, settings, gripper = job
+    return shake_test(obj, T, int(seed), settings, gripper)
 
 
 def _chunksize(n: int, workers: int) -> int:
@@ -206,12 +211,13 @@ def _rests(model, s) -> list:
     return [model.resting_poses[s.rest_index]] if s.rest_index is not None else list(model.resting_poses[:3])
 
 
-def _table_world(obj: SimObject, rests, T: np.ndarray, s) -> Optional[HandWorld]:
+def _table_world(obj: SimObject, rests, T: np.ndarray, s, gripper: RobotInfo = PANDA) -> Optional[HandWorld]:
     """A world with the object resting on the table and the open hand at grasp ``T``, in the first
     resting pose where the hand clears the table; None when there is none (not applicable)."""
     for rest in rests:
         rest = np.asarray(rest, float)
-        world = HandWorld(s, obj, rest @ T, rest, gravity=True, table=True, table_friction=s.table_friction)
+        world = HandWorld(s, obj, rest @ T, rest, gravity=True, table=True, table_friction=s.table_friction,
+                          gripper=gripper)
         if not world.touches(world.table, s.table_clearance):
             return world
     return None
@@ -236,7 +242,7 @@ def _close_and_lift(world: HandWorld, s) -> Tuple[np.ndarray, bool]:
     return lift(1.0), bool(world.gap() > s.min_gap and rise >= s.min_rise * s.lift_height)
 
 
-def lift_test(model, poses, settings: LiftSettings = LiftSettings()) -> np.ndarray:
+def lift_test(model, poses, settings: LiftSettings = LiftSettings(), gripper: RobotInfo = PANDA) -> np.ndarray:
     """Table lift test of hand poses (object frame): (N,) int8, 1 lifted, 0 failed, -1 not
     applicable (the open hand touches the table at the grasp in every resting pose tried: the
     ``rest_index`` one, or by default the three most stable ones, first clear one used).
@@ -247,7 +253,7 @@ def lift_test(model, poses, settings: LiftSettings = LiftSettings()) -> np.ndarr
     rests = _rests(model, s)
     out = np.zeros(len(poses), dtype=np.int8)
     for i, T in enumerate(poses):
-        world = _table_world(obj, rests, T, s)
+        world = _table_world(obj, rests, T, s, gripper)
         out[i] = -1 if world is None else int(_close_and_lift(world, s)[1])
     return out
 
@@ -307,7 +313,7 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     world.step(0.1, lambda u: H3)
     if not check("carry"):
         return failed()
-    pivot = H3 @ np.array([0.0, 0.0, PAD_DEPTH, 1.0])
+    pivot = H3 @ PANDA.grasp_frame[:, 3]  # the transport test is the Panda hand's
     tilt = math.radians(s.tilt)
 
     def tilted(angle, phi):
@@ -384,7 +390,7 @@ def cache_dir() -> str:
     return os.path.join(root, "grasps")
 
 
-def _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds) -> str:
+def _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds, gripper: RobotInfo = PANDA) -> str:
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(model.mesh.vertices, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(model.mesh.faces, dtype=np.int64).tobytes())
@@ -393,17 +399,19 @@ def _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds) -> 
     h.update(json.dumps({"v": CACHE_VERSION, "mass": float(model.mass), "sim": asdict(settings),
                          "antipodal": asdict(antipodal), "n": int(n), "seed": int(seed),
                          "oversample": float(oversample), "rounds": int(max_rounds)}, sort_keys=True).encode())
+    if gripper.key != PANDA.key:  # the Panda's entries keep their names
+        h.update(repr(gripper.key).encode())
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in model.name)
     return os.path.join(cache_dir(), f"{safe}-simulated-{h.hexdigest()[:24]}.npz")
 
 
 def shake_candidates(model, m: int, seed: int = 0, round: int = 0,
-                     antipodal: AntipodalSettings = AntipodalSettings()):
+                     antipodal: AntipodalSettings = AntipodalSettings(), gripper: RobotInfo = PANDA):
     """Round ``round`` of ``simulated_grasps``: its ``m`` antipodal candidates and the shake-test
     seed of each. ``simulated_grasps(model, n, seed)`` keeps, round by round, the candidates whose
     ``shake_test(model, pose, seed_i)`` holds (first ``n``)."""
     rseed = int(np.random.SeedSequence([int(seed), int(round)]).generate_state(1)[0])
-    cand = antipodal_grasps(model, m, rseed, settings=antipodal)
+    cand = antipodal_grasps(model, m, rseed, settings=antipodal, gripper=gripper)
     seeds = [int(np.random.SeedSequence([int(seed), int(round), i]).generate_state(1)[0]) for i in range(len(cand))]
     return cand, seeds
 
@@ -411,17 +419,19 @@ def shake_candidates(model, m: int, seed: int = 0, round: int = 0,
 def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
                      settings: SimSettings = SimSettings(),
                      antipodal: AntipodalSettings = AntipodalSettings(), oversample: float = 3.0,
-                     max_rounds: int = 4, progress: Optional[bool] = None, cache: bool = True) -> GraspSet:
+                     max_rounds: int = 4, progress: Optional[bool] = None, cache: bool = True,
+                     gripper: RobotInfo = PANDA) -> GraspSet:
     """The "Simulated" set: antipodal candidates (``ceil(n * oversample)`` per round, seeded per
     round) that hold in the shake test, first ``n`` in candidate order; fewer (with a warning)
     when ``max_rounds`` rounds do not give ``n``. ``workers`` > 1 runs worker processes (spawn);
     the result does not depend on it. ``scores`` = 1 - drift / max_drift; ``info`` carries the
     antipodal contacts, normals, widths and drifts, plus "tested" (candidates simulated, 0-d).
-    Cached in ``$PICKPLAN_CACHE_DIR/grasps`` (default ``~/.cache/pickplan/grasps``)."""
+    Cached in ``$PICKPLAN_CACHE_DIR/grasps`` (default ``~/.cache/pickplan/grasps``). Poses of
+    ``gripper``'s hand link, simulated with that gripper."""
     _check_count(n, seed)
     if int(workers) < 1:
         raise ValueError(f"workers: expected >= 1, got {workers}")
-    path = _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds) if cache else None
+    path = _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds, gripper) if cache else None
     if path and os.path.isfile(path):
         with np.load(path) as z:
             info = {k[5:]: z[k] for k in z.files if k.startswith("info_")}
@@ -432,10 +442,10 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
     tested = 0
     with Runner(int(workers)) as runner:  # one pool for every round
         for rnd in range(max_rounds):
-            cand, seeds = shake_candidates(model, m, seed, rnd, antipodal)
+            cand, seeds = shake_candidates(model, m, seed, rnd, antipodal, gripper)
             if len(cand) == 0:
                 break
-            jobs = [(obj, T, sd, settings) for T, sd in zip(cand.poses, seeds)]
+            jobs = [(obj, T, sd, settings, gripper) for T, sd in zip(cand.poses, seeds)]
             results = [r for _, r in runner.map(_shake_job, jobs, chunksize=_chunksize(len(jobs), workers),
                                                 progress=progress, label=f"{model.name} shake round {rnd + 1}")]
             tested += len(cand)

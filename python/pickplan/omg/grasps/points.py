@@ -17,24 +17,24 @@ points: antipodal margin, how much of the pads the points fill, and the spare op
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
-from pickplan.omg.grasps.hand import PAD_DEPTH
 from pickplan.omg.grasps.sets import GraspSet, _check_count, _perpendicular
 
 
 @dataclass(frozen=True)
 class PointGraspSettings:
     friction: float = 0.3            # Coulomb coefficient: the friction cone's half-angle atan(0.3)
-    max_width: float = PANDA.max_opening  # the gripper's opening (m); the Panda's by default
+    max_width: Optional[float] = None  # m; None: the gripper's opening
     width_margin: float = 0.008      # widths must be this much below the opening (the cloud is noisy)
     min_width: float = 0.004
-    pad_length: float = 0.018        # m of finger along the approach axis that grips
+    pad_length: Optional[float] = None  # m of finger along the approach axis that grips; None: the gripper's
     table_contact: float = 0.003     # m the fingertips may press into the support plane
     clearance: float = 0.003         # m kept between the open hand and observed target points
     obstacle_clearance: float = 0.005  # m kept between hand sample points and the other obstacles
@@ -46,10 +46,10 @@ class PointGraspSettings:
 
 
 def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """Hand poses with closing axis y, approach z and the pad centre at ``centre``."""
+    """Grasp-frame poses: closing axis y, approach z, the pad centre at ``centre``."""
     T = np.eye(4)
     T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-    T[:3, 3] = centre - PAD_DEPTH * z
+    T[:3, 3] = centre
     return T
 
 
@@ -112,8 +112,10 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
 def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int = 0,
                        scene_distance: Optional[Callable[[np.ndarray], np.ndarray]] = None,
                        hand_points: Optional[np.ndarray] = None,
-                       settings: PointGraspSettings = PointGraspSettings()) -> GraspSet:
-    """Up to ``n`` grasps of the observed target (world frame), best scores first.
+                       settings: PointGraspSettings = PointGraspSettings(),
+                       gripper: RobotInfo = PANDA) -> GraspSet:
+    """Up to ``n`` grasps of the observed target (world frame; poses of ``gripper``'s hand link), best
+    scores first.
 
     ``hand_sdf``: the open hand as a ``core.sdf.SceneSdf`` in the hand frame; ``scene_distance`` maps
     world points (M, 3) to their distance from the obstacles (the fused field), checked at
@@ -123,17 +125,19 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     P, N = np.asarray(points, float), np.asarray(normals, float)
     if P.ndim != 2 or P.shape[1] != 3 or N.shape != P.shape or len(P) < 3:
         raise ValueError(f"points and normals: expected two (N, 3) arrays with N >= 3, got {P.shape}, {N.shape}")
-    s = settings
+    s = replace(settings, max_width=gripper.max_opening if settings.max_width is None else settings.max_width,
+                pad_length=gripper.pad_length if settings.pad_length is None else settings.pad_length)
     rng = np.random.default_rng(seed)
     cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s)
     if not cands:
         return GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0))
-    T = np.stack([c[0] for c in cands])
+    G = np.stack([c[0] for c in cands])   # grasp frames
+    T = G @ gripper.hand_from_grasp         # hand poses
     margin = np.array([c[1] for c in cands])
     width = np.array([c[2] for c in cands])
     plane_n, plane_d = plane
     # fingertips above the plane: the lowest point of the pads, half a pad beyond their centre
-    tips = T[:, :3, 3] + (PAD_DEPTH + s.pad_length / 2) * T[:, :3, 2]
+    tips = G[:, :3, 3] + (s.pad_length / 2) * G[:, :3, 2]
     keep = tips @ plane_n - plane_d > -s.table_contact
     # no observed target point inside the open hand (between the pads is outside the hand)
     local = np.einsum("kji,kmj->kmi", T[:, :3, :3], P[None, :, :] - T[:, None, :3, 3])
@@ -148,7 +152,7 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     # how much of the pads the points fill: points within the pad rectangle between the fingers
     fill = np.zeros(len(T))
     for k in np.flatnonzero(keep):
-        q = local[k] - [0.0, 0.0, PAD_DEPTH]
+        q = np.einsum("ji,mj->mi", G[k, :3, :3], P - G[k, :3, 3])  # in the grasp frame
         inside = (np.abs(q[:, 2]) < s.pad_length / 2) & (np.abs(q[:, 0]) < 0.01) & (np.abs(q[:, 1]) < width[k] / 2 + 0.005)
         fill[k] = min(1.0, inside.sum() / 30.0)
     score = margin + 0.5 * fill + 2.0 * (s.max_width - width) / s.max_width

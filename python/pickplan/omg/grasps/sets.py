@@ -11,7 +11,10 @@ from typing import Dict, Optional
 
 import numpy as np
 
-from pickplan.core.panda import YCB_TO_HAND
+import trimesh
+
+from pickplan.core.description import RobotInfo
+from pickplan.core.panda import PANDA, YCB_TO_HAND
 from pickplan.core.settings import Option
 from pickplan.core.poses import RIGID_CLEAN_TOLERANCE, clean_poses
 
@@ -79,14 +82,73 @@ def _perpendicular(v: np.ndarray) -> np.ndarray:
     return p / np.linalg.norm(p)
 
 
-def load_grasp_set(model, kind: str) -> GraspSet:
-    """A grasp set stored with the object (``grasps_<kind>.npy``), in the pickplan convention."""
+def load_grasp_set(model, kind: str, gripper: RobotInfo = PANDA, hand_checker=None) -> GraspSet:
+    """A grasp set stored with the object (``grasps_<kind>.npy``), in the pickplan convention, for
+    ``gripper`` (the stored Panda grasps converted by ``convert_grasps`` for another gripper)."""
     if kind not in model.grasps:
         have = sorted(model.grasps)
         raise ValueError(f"object {model.name!r} has no stored {kind!r} grasps; available: "
                          f"{have if have else 'none'} (generated kinds: 'approach', 'antipodal', 'simulated')")
     poses = check_grasps(model.grasps[kind], f"{model.name} grasps_{kind}.npy")
-    return GraspSet(kind, poses @ YCB_TO_HAND, model.name)
+    stored = GraspSet(kind, poses @ YCB_TO_HAND, model.name)
+    return stored if gripper.key == PANDA.key else convert_grasps(stored, model, gripper, hand_checker=hand_checker)
+
+
+@dataclass(frozen=True)
+class ConversionSettings:
+    width_margin: float = 0.005   # m the grasped width must stay below the new gripper's opening
+    backoff_step: float = 0.005   # m: a hand that hits the object is backed off along the approach by this ...
+    backoff_fraction: float = 0.5  # ... up to this fraction of its pad length (the pads still cover the grasp)
+    surface_samples: int = 4000   # object surface points the width is measured on (seeded)
+
+
+def grasp_widths(model, grasp_frames: np.ndarray, pad_length: float, pad_width: float, span: float,
+                 settings: ConversionSettings = ConversionSettings()) -> np.ndarray:
+    """Width of object material each grasp would close on: the extent along the closing axis (y) of the
+    object's surface points inside the pads' box (``pad_length`` along z, ``pad_width`` along x,
+    ``span`` along y, centred on the grasp frame). 0 where no point is inside."""
+    pts, _ = trimesh.sample.sample_surface(model.mesh, settings.surface_samples, seed=0)
+    pts = np.c_[np.asarray(pts), np.ones(len(pts))]
+    widths = np.zeros(len(grasp_frames))
+    for k, G in enumerate(grasp_frames):
+        local = (np.linalg.inv(G) @ pts.T).T
+        inside = (np.abs(local[:, 0]) <= pad_width / 2) & (np.abs(local[:, 2]) <= pad_length / 2) \
+            & (np.abs(local[:, 1]) <= span / 2)
+        if inside.any():
+            widths[k] = local[inside, 1].max() - local[inside, 1].min()
+    return widths
+
+
+def convert_grasps(grasps: GraspSet, model, gripper: RobotInfo, source: RobotInfo = PANDA,
+                   settings: ConversionSettings = ConversionSettings(), hand_checker=None) -> GraspSet:
+    """``source`` hand poses -> the same grasp frames (the point between the pads, the approach and
+    closing axes) -> ``gripper``'s hand poses, keeping the grasps whose width (``grasp_widths``,
+    measured between the source's open pads) fits ``gripper``'s opening. ``hand_checker(model, gripper)``
+    (``hand.HandObjectChecker``, given by ``load_grasp_set``'s callers above this module) backs a hand that
+    hits the object off along the approach axis, by at most ``backoff_fraction`` of the pad length. ``info``: "source_index" (row
+    in the input set), "width"; the count kept is ``len`` of the result (``grasps`` had ``len(grasps)``)."""
+    frames = grasps.poses @ source.grasp_frame
+    width = grasp_widths(model, frames, max(gripper.pad_length, 1e-3), max(gripper.pad_width, 1e-3),
+                         source.max_opening)
+    keep = np.flatnonzero(width <= gripper.max_opening - settings.width_margin)
+    poses = frames[keep] @ gripper.hand_from_grasp if len(keep) else np.zeros((0, 4, 4))
+    if hand_checker is not None and len(keep):
+        # A shallower palm than the source's: back the hand off along the approach until it clears the object.
+        check = hand_checker(model, gripper=gripper)
+        hits = check.in_collision(poses)
+        for back in np.arange(1, int(settings.backoff_fraction * gripper.pad_length / settings.backoff_step) + 1):
+            if not hits.any():
+                break
+            moved = poses[hits].copy()
+            moved[:, :3, 3] -= settings.backoff_step * (moved[:, :3, :3] @ gripper.grasp_frame[:3, 2])
+            free = ~check.in_collision(moved)
+            idx = np.flatnonzero(hits)[free]
+            poses[idx] = moved[free]
+            hits[idx] = False
+    scores = None if grasps.scores is None else grasps.scores[keep]
+    return GraspSet(grasps.name, poses, grasps.object_name, scores=scores,
+                    info={"source_index": keep, "width": width[keep]})
+
 
 
 def _check_count(n, seed) -> None:
