@@ -40,3 +40,19 @@ def rng(seed=0):
 def pytest_configure(config):
     config.addinivalue_line("markers", "ray: starts a local Ray cluster (slow to start); CI runs these, "
                                        "`-m 'not ray'` leaves them out of a quick local run")
+
+
+def known_scene():
+    """A sugar box (the target) standing in front of the robot and a soup can beside it (built-ins),
+    with the object library: the perception tests' known scene."""
+    from pickplan.core import objects
+    from pickplan.sim import scenes
+
+    lib = objects.library("builtin")
+    objs = []
+    for name, xy in (("004_sugar_box", (0.55, 0.0)), ("005_tomato_soup_can", (0.55, 0.2))):
+        m = lib.get(name)
+        T = m.resting_poses[int(np.argmax([p[2, 2] for p in m.resting_poses]))].copy()
+        T[:2, 3] += xy
+        objs.append(scenes.SceneObject(name, f"builtin:{name}", T))
+    return scenes.Scene(np.eye(4), scenes.default_table(), objs, "004_sugar_box", seed=0), lib

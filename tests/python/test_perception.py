@@ -4,26 +4,13 @@ import numpy as np
 import pytest
 import trimesh
 
+from conftest import known_scene as _known_scene
 from pickplan import _core
-from pickplan.core import objects
 from pickplan.core.observation import Observation, ObservationError, grow_target
 from pickplan.perception.field import FieldSettings, perceive, support_plane
-from pickplan.sim import scenes
 from pickplan.sim.observe import CameraRig, render_observation
 
 RES = 0.01
-
-
-def _known_scene():
-    """A box standing on the table in front of the robot (the target) and a can beside it."""
-    lib = objects.library("builtin")
-    objs = []
-    for name, xy in (("004_sugar_box", (0.55, 0.0)), ("005_tomato_soup_can", (0.55, 0.2))):
-        m = lib.get(name)
-        T = m.resting_poses[int(np.argmax([p[2, 2] for p in m.resting_poses]))].copy()
-        T[:2, 3] += xy
-        objs.append(scenes.SceneObject(name, f"builtin:{name}", T))
-    return scenes.Scene(np.eye(4), scenes.default_table(), objs, "004_sugar_box", seed=0), lib
 
 
 def _world_mesh(scene, lib, name):

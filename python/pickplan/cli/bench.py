@@ -20,6 +20,7 @@ from pickplan.cli.exit_codes import run_command
 from pickplan.cli.robots import ROBOT_HELP
 from pickplan.core.io import write_json, write_text
 from pickplan.eval.plots import plot_table
+from pickplan.eval.perception import PerceptionBenchSettings, run_perception_bench, write_report as perception_report
 
 # The paper's numbers (100 scenes, 30 grasps, 10 runs; Table II: 60 grasps, 30 refinement iterations).
 PAPER: Dict[str, Dict[str, dict]] = {
@@ -218,6 +219,35 @@ def add_bench_commands(subparsers) -> None:
                        help="execute the plans timed within the Panda's limits (default: 0.1 s per waypoint)")
         p.add_argument("--no-progress", action="store_true")
         p.set_defaults(handler=run_bench)
+    add_perception_command(sub)
+
+
+def run_perception(args: argparse.Namespace) -> int:
+    settings = PerceptionBenchSettings(out=args.out, scenes=args.scenes, objects=args.objects, views=tuple(args.views),
+                                       noises=tuple(n / 1000 for n in args.noise_mm), mesh=not args.no_mesh,
+                                       grasps=args.grasps, iterations=args.iterations, execute=not args.no_execute,
+                                       workers=args.workers, seed=args.seed,
+                                       progress=False if args.no_progress else None)
+    print(perception_report(settings, run_perception_bench(settings)))
+    print(f"wrote {settings.out}/table.md, summary.json, runs.json")
+    return 0
+
+
+def add_perception_command(sub) -> None:
+    p = sub.add_parser("perception", help="OMG from depth cameras (1 and 3 views, depth noise) beside known meshes")
+    p.add_argument("--scenes", type=int, default=100, help="generated scenes (default 100)")
+    p.add_argument("--objects", default=None, help="YCB object folder for generated scenes (default built-ins)")
+    p.add_argument("--views", type=int, nargs="+", default=[1, 3], help="camera counts (default 1 3)")
+    p.add_argument("--noise-mm", type=float, nargs="+", default=[0.0, 2.0, 5.0], help="depth sigmas (default 0 2 5)")
+    p.add_argument("--no-mesh", action="store_true", help="skip the known-mesh column")
+    p.add_argument("--grasps", type=int, default=30, help="goal-set size per scene (default 30)")
+    p.add_argument("--iterations", type=int, default=50)
+    p.add_argument("--out", default="out/bench/perception", help="output folder; resumes there")
+    p.add_argument("--workers", type=int, default=2, help="local worker processes (<= 1: serial)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-execute", action="store_true", help="skip PyBullet execution")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(handler=run_perception)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

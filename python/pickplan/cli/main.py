@@ -2,6 +2,7 @@
 
   pickplan demo                          the main job: plan + execute a grasp in clutter
   pickplan plan --scene SCENE.json       plan (and optionally execute) one scene
+  pickplan plan --observation OBS.npz    plan from depth images (--scene S --execute: run on the true objects)
   pickplan scenes --n 100 --out DIR      generate a benchmark set of scenes
   pickplan bench selection|refinement|planners|ablation   the paper's Tables I-III and Fig. 8
   pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
@@ -34,6 +35,8 @@ from pickplan.cli.bench import add_bench_commands
 from pickplan.cli.robots import ROBOT_HELP, add_robot_commands
 from pickplan.cli.view import add_view_commands
 from pickplan.cli.observe import add_observe_commands
+from pickplan.cli.plan_observation import run_plan_observation
+from pickplan.core.errors import InputError
 
 
 def _cmd_demo(args) -> int:
@@ -43,9 +46,13 @@ def _cmd_demo(args) -> int:
 
 def _cmd_plan(args) -> int:
 
-    scene = Scene.load(args.scene)
     settings = OMGSettings(selection=args.selection, refine=not args.no_refine, iterations=args.iterations,
                            grasp_kind=args.grasps, seed=args.seed)
+    if args.observation:  # the scene, if any, only for execution
+        return run_plan_observation(args, settings)
+    if not args.scene:
+        raise InputError("expected --scene SCENE.json or --observation OBS.npz", field="--scene")
+    scene = Scene.load(args.scene)
     planner = OMGPlanner(args.robot, scene, settings)
     result = planner.plan()
     executed = execution.execute_plan(scene, result.trajectory, execution.ExecutionSettings(robot=args.robot)) \
@@ -69,8 +76,10 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=1, help="scene seed")
     demo.add_argument("--robot", default="panda", help=ROBOT_HELP)
     demo.set_defaults(handler=_cmd_demo)
-    plan = sub.add_parser("plan", help="plan one scene (JSON from `pickplan scenes`)")
-    plan.add_argument("--scene", required=True)
+    plan = sub.add_parser("plan", help="plan one scene (JSON from `pickplan scenes`) or one depth observation")
+    plan.add_argument("--scene", default=None, help="scene JSON; with --observation only to --execute on")
+    plan.add_argument("--observation", default=None,
+                      help="plan from depth images (.npz from `pickplan observe`): no mesh or stored grasp is read")
     plan.add_argument("--selection", default=Selection.MD.value, choices=[s.value for s in Selection])
     plan.add_argument("--grasps", default=GraspKind.simulated.value, choices=[k.value for k in GraspKind])
     plan.add_argument("--iterations", type=int, default=50)

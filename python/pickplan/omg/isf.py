@@ -59,12 +59,21 @@ def object_surface(mesh: trimesh.Trimesh, pose: np.ndarray, n: int = 1000, seed:
 
 
 class GraspRefiner:
-    """f_grasp and C-Space ISF steps for the world's target (1000 object points, as the paper)."""
+    """f_grasp and C-Space ISF steps for the world's target (1000 object points, as the paper).
 
-    def __init__(self, world: "World", settings: IsfSettings = IsfSettings(), object_points: int = 1000, seed: int = 0):
+    ``surface``: the target's points and outward normals in the world, (N, 3) each, when they come
+    from elsewhere than its mesh (a depth camera's observed points); None samples the mesh."""
+
+    def __init__(self, world: "World", settings: IsfSettings = IsfSettings(), object_points: int = 1000, seed: int = 0,
+                 surface: Optional[Tuple[np.ndarray, np.ndarray]] = None):
         robot = world.robot
         contacts = grasps.hand_contacts(robot=robot)  # this gripper's pads
-        pts, nrm = object_surface(world.target_model.mesh, world.target_pose, object_points, seed)
+        if surface is None:
+            pts, nrm = object_surface(world.target_model.mesh, world.target_pose, object_points, seed)
+        else:
+            pts, nrm = (np.ascontiguousarray(a, dtype=float) for a in surface)
+            if pts.ndim != 2 or pts.shape[1] != 3 or nrm.shape != pts.shape or len(pts) == 0:
+                raise ValueError(f"surface: expected points and normals as two (N, 3) arrays, got {pts.shape}, {nrm.shape}")
         active = [i < robot.info.arm_dof for i in range(robot.dof)]
         exclude = 1 << world.sdf.index(world.target)
         self._hand_sdf = hand_sdf(robot)

@@ -1,0 +1,234 @@
+"""The planner's world from a depth observation: no object mesh and no stored grasp is read.
+
+``PerceivedWorld(observation)`` has the interface ``OMGPlanner`` uses of a ``World``:
+
+- ``sdf``: the fused depth field (``perception.field.perceive``: everything the cameras saw but the
+  target, unseen space behind a surface occupied) plus the support plane as the table, and the
+  observed target as an unsigned-distance grid (only ever excluded, as a mesh world's target is);
+- grasps from the target's observed points (``omg.grasps.points.grasps_from_points``), kept when the
+  open hand clears the fused field and the support plane: the fingers may touch the plane (less
+  ``PointGraspSettings.table_contact``), the palm may not, at the grasp and at the pre-grasp (the
+  height above a plane is linear along the standoff, so both ends bound it);
+- goal sets: IK as for any world; every configuration of the approach (pre-grasp to grasp) keeps the
+  approach clearance from the fused field, every body point (``clearance_problem``, checked natively);
+  there is no FCL model of a perceived scene (``checker`` says so), the table is the plane's slab in
+  the field, which the success test measures for every link;
+- C-Space ISF on the observed target points and normals (``grasp_refiner``).
+
+Camera poses are in the robot base frame (the robot stands at the origin, as in every ``Scene``).
+
+>>> world = PerceivedWorld(Observation.load("obs.npz"))
+>>> result = PerceivedPlanner(world).plan()
+"""
+from __future__ import annotations
+
+import functools
+import time
+from dataclasses import dataclass, field as dataclass_field
+from typing import Optional, Tuple
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from pickplan import _core
+from pickplan.core import robots
+from pickplan.core.observation import Observation
+from pickplan.core.sdf import SceneSdf
+from pickplan.omg import isf
+from pickplan.omg.chomp import Chomp
+from pickplan.omg.goals import GoalSetSettings
+from pickplan.omg.grasps.points import PointGraspSettings, grasps_from_points
+from pickplan.omg.grasps.sets import GraspSet
+from pickplan.omg.planner import OMGPlanner, OMGSettings
+from pickplan.omg.world import CheckerKind
+from pickplan.perception.field import FieldSettings, PerceivedScene, perceive
+
+TARGET = "observed target"  # the target's name in a perceived world's SDF
+
+
+@dataclass(frozen=True)
+class PerceivedWorldSettings:
+    field: FieldSettings = dataclass_field(default_factory=FieldSettings)
+    grasps: PointGraspSettings = dataclass_field(default_factory=PointGraspSettings)
+    body_points_per_link: int = 20    # as WorldSettings: the paper's 20 points per body part
+    body_seed: int = 0
+    hand_points_per_link: int = 60    # open-hand samples checked against the field and the plane
+    target_resolution: float = 0.005  # m, the target's (excluded) distance grid
+    isf_points: int = 1000            # observed target points C-Space ISF refines on (the paper: 1000)
+    seed: int = 0                     # plane RANSAC, hand samples, ISF subsample
+
+
+@dataclass(frozen=True)
+class ObservedScene:
+    """What ``OMGPlanner`` reads of its scene when it plans in a perceived world: the target's name."""
+
+    target: str = TARGET
+
+
+class FieldChecker:
+    """Collision test of a configuration against a perceived world: every body point outside the
+    fused field (the target excluded: the fingers close on it); above the support plane, the
+    fingers down to ``table_contact`` into it. ``native`` is None: a perceived scene has no FCL
+    model, so the native goal set checks approaches with the clearance problem instead."""
+
+    native = None
+
+    def __init__(self, world: "PerceivedWorld", table_contact: float):
+        self.world, self.table_contact = world, float(table_contact)
+
+    def penetration(self, q) -> Tuple[float, float]:
+        """(deepest body point in the field, deepest below the plane) in metres; >= 0 is clear."""
+        w = self.world
+        X = w.robot.transform_points(np.asarray(q, float)[None], w.body)[0]
+        d, _ = w.sdf.distance(X, cutoff=0.05, exclude=(TARGET,), exclude_table=True)
+        n, off = w.plane
+        height = X @ n - off
+        fingers = np.isin(w.body.links, [w.robot.link_index(f) for f in w.robot.finger_links])
+        height = np.where(fingers, height + self.table_contact, height)
+        return float(min(d.min(), 0.05)), float(min(height.min(), 0.05))
+
+    def in_collision(self, q) -> bool:
+        return min(self.penetration(q)) < 0.0
+
+
+def target_grid(points: np.ndarray, resolution: float, margin: float = 0.03) -> "_core.SdfGrid":
+    """Unsigned distance to the observed target points on a grid around them (world frame)."""
+    lo = points.min(axis=0) - margin
+    dims = np.ceil((points.max(axis=0) + margin - lo) / resolution).astype(int) + 1
+    zz, yy, xx = np.meshgrid(*(np.arange(k) for k in dims[::-1]), indexing="ij")
+    nodes = lo + resolution * np.stack([xx, yy, zz], axis=-1).reshape(-1, 3)
+    d, _ = cKDTree(points).query(nodes)
+    return _core.SdfGrid.from_values(lo, resolution, d.reshape(zz.shape).astype(np.float32))
+
+
+class PerceivedWorld:
+    """A ``World`` built from an ``Observation`` (see the module docstring). ``robot`` None: the Panda; any described robot
+    (``robots.load_robot``) otherwise."""
+
+    def __init__(self, observation: Observation, robot=None, settings: PerceivedWorldSettings = PerceivedWorldSettings(),
+                 perceived: Optional[PerceivedScene] = None):
+        if not isinstance(observation, Observation):
+            raise TypeError(f"observation: expected a pickplan Observation, got {type(observation).__name__}")
+        if robot is not None and not hasattr(robot, "info"):
+            raise ValueError("robot: expected a described robot (robots.load_robot(NAME or FILE)), "
+                             f"got {type(robot).__name__}")
+        self.observation, self.settings = observation, settings
+        self.scene = ObservedScene()
+        self.perceived = perceived or perceive(observation, settings.field, seed=settings.seed)
+        t0 = time.perf_counter()
+        self.robot = robot or robots.panda()
+        if len(self.perceived.target_points) < 3:
+            raise ValueError("observation: fewer than 3 target points with depth; the target is not seen")
+        self.sdf: SceneSdf = self.perceived.sdf
+        if TARGET not in self.sdf.names:  # a PerceivedScene handed to a second world has it already
+            self.sdf.add_object(TARGET, target_grid(self.perceived.target_points, settings.target_resolution), np.eye(4))
+        self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
+        self._refiners: dict = {}
+        self.seconds = dict(self.perceived.seconds, world=time.perf_counter() - t0, grasps=0.0)
+
+    @classmethod
+    def load(cls, path, robot=None, settings: PerceivedWorldSettings = PerceivedWorldSettings()) -> "PerceivedWorld":
+        return cls(Observation.load(path), robot, settings)
+
+    @property
+    def target(self) -> str:
+        return TARGET
+
+    @property
+    def target_pose(self) -> np.ndarray:
+        return np.eye(4)  # grasps from points are in the world frame
+
+    @property
+    def target_model(self):
+        raise ValueError("a perceived world has no object model: its grasps come from the observed points "
+                         "(PerceivedWorld.grasps; PerceivedPlanner plans with them)")
+
+    @property
+    def plane(self) -> Tuple[np.ndarray, float]:
+        return self.perceived.plane
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.robot.ready_configuration
+
+    def checker(self, kind=CheckerKind.goal) -> FieldChecker:
+        CheckerKind.parse(kind, "checker kind")
+        return FieldChecker(self, self.settings.grasps.table_contact)
+
+    @functools.cached_property
+    def clearance_problem(self):
+        """Body points in the fused field, target and table left out (as ``World.clearance_problem``)."""
+        return Chomp(self.robot, self.sdf, self.body, exclude=(TARGET,)).problem
+
+    @functools.cached_property
+    def hand_sdf(self) -> SceneSdf:
+        return isf.hand_sdf(self.robot)
+
+    @functools.cached_property
+    def hand_points(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Samples on the open hand and fingers in the hand frame, and whether each is on a finger."""
+        robot = self.robot
+        links = (robot.hand_link,) + tuple(robot.finger_links)
+        body = robot.sample_body_points(self.settings.hand_points_per_link, seed=self.settings.seed, links=links)
+        q = robot.ready_configuration.copy()
+        q[robot.info.arm_dof:] = robot.info.finger_open
+        poses = robot.fk(q)
+        H_inv = np.linalg.inv(poses[robot.link_index(robot.hand_link)])
+        rel = np.einsum("ij,njk->nik", H_inv, poses[body.links])
+        pts = np.einsum("nij,nj->ni", rel[:, :3, :3], body.points) + rel[:, :3, 3]
+        return pts, np.isin(body.links, [robot.link_index(f) for f in robot.finger_links])
+
+    def obstacle_distance(self, X: np.ndarray) -> np.ndarray:
+        """Distance of world points from the fused obstacles (target and table left out)."""
+        return self.sdf.distance(X, cutoff=0.1, exclude=(TARGET,), exclude_table=True)[0]
+
+    def clear_of_plane(self, poses: np.ndarray, standoff: float) -> np.ndarray:
+        """Per hand pose: the palm above the plane and the fingers above it less ``table_contact``, at
+        the grasp and at the pre-grasp ``standoff`` back along the approach."""
+        pts, fingers = self.hand_points
+        n, d = self.plane
+        allowance = np.where(fingers, self.settings.grasps.table_contact, 0.0)
+        ok = np.ones(len(poses), dtype=bool)
+        for back in (0.0, standoff):
+            X = np.einsum("kij,mj->kmi", poses[:, :3, :3], pts) + (poses[:, :3, 3] - back * poses[:, :3, 2])[:, None]
+            ok &= ((X @ n - d + allowance) >= 0.0).all(axis=1)
+        return ok
+
+    def grasps(self, n: int = 100, seed: int = 0, standoff: float = GoalSetSettings.standoff) -> GraspSet:
+        """Up to ``n`` grasps of the observed target (world frame) clear of the field and the plane."""
+        t0 = time.perf_counter()
+        gs = grasps_from_points(self.perceived.target_points, self.perceived.target_normals, self.plane,
+                                self.hand_sdf, n=n, seed=seed, scene_distance=self.obstacle_distance,
+                                hand_points=self.hand_points[0], settings=self.settings.grasps,
+                                gripper=self.robot.info)
+        keep = self.clear_of_plane(gs.poses, standoff) if len(gs) else np.zeros(0, dtype=bool)
+        out = GraspSet(gs.name, gs.poses[keep], gs.object_name, scores=gs.scores[keep],
+                       info={k: np.asarray(v)[keep] for k, v in gs.info.items()})
+        self.seconds["grasps"] += time.perf_counter() - t0
+        return out
+
+    def isf_surface(self, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+        """A seeded subsample of the observed target points and normals (what ISF refines on)."""
+        P, N = self.perceived.target_points, self.perceived.target_normals
+        k = min(self.settings.isf_points, len(P))
+        idx = np.sort(np.random.default_rng(seed).choice(len(P), k, replace=False))
+        return P[idx], N[idx]
+
+    def grasp_refiner(self, settings: Optional[isf.IsfSettings] = None, seed: int = 0) -> isf.GraspRefiner:
+        """C-Space ISF on the observed target points, built once per (settings, seed)."""
+        settings = settings or isf.IsfSettings()
+        key = (settings, int(seed))
+        if key not in self._refiners:
+            self._refiners[key] = isf.GraspRefiner(self, settings, seed=seed, surface=self.isf_surface(seed))
+        return self._refiners[key]
+
+
+class PerceivedPlanner(OMGPlanner):
+    """``OMGPlanner`` on a ``PerceivedWorld``: the same Algorithm 2; default grasps from points."""
+
+    def __init__(self, world: PerceivedWorld, settings: OMGSettings = OMGSettings()):
+        super().__init__(None, world.scene, settings, world=world)
+
+    def default_grasps(self, world: PerceivedWorld) -> np.ndarray:
+        s = self.settings
+        return world.grasps(s.grasp_count, s.seed, s.goals.standoff).poses
