@@ -50,8 +50,10 @@ class MetricSettings:
     tail_waypoints: int = 0        # last waypoints (standoff approach) held to tail_clearance only
     tail_clearance: float = 0.01
     smoothness_threshold: float = 30.0
-    # m the finger links may reach into the table (fingertips resting on it); None: the gripper's
-    # default (core.collision.SupportContact), the goal set's tolerance
+    # The finger links may reach this far into the table (fingertips resting on it), as the goal set
+    # lets them: None = the robot's finger links (bit = link index) and the gripper's default
+    # tolerance (core.collision.SupportContact); Chomp.metrics resolves them.
+    support_link_mask: Optional[int] = None
     support_tolerance: Optional[float] = None
 
     def to_native(self, exclude_mask: int = 0, support_link_mask: int = 0,
@@ -151,6 +153,8 @@ class Chomp:
 
     def metrics(self, xi, q0, settings: MetricSettings = MetricSettings()) -> dict:
         fingers = getattr(self.robot, "finger_links", ())
-        mask = sum(1 << self.robot.link_index(f) for f in fingers)
-        tolerance = collision.SupportContact(settings.support_tolerance).resolved(self.robot) if fingers else 0.0
+        mask = settings.support_link_mask
+        if mask is None:
+            mask = sum(1 << self.robot.link_index(f) for f in fingers)
+        tolerance = collision.SupportContact(settings.support_tolerance).resolved(self.robot) if mask else 0.0
         return self.problem.metrics(xi, q0, settings.to_native(self.exclude_mask, mask, tolerance))

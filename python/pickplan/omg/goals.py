@@ -100,10 +100,9 @@ class GoalSetSettings:
     max_goals: int = 30
     max_solutions: int = 4
     seed: int = 0
-    support: SupportSettings = field(default_factory=SupportSettings)
 
     def to_native(self) -> "_core.GoalSetSettings":
-        return to_native(self, _core.GoalSetSettings, skip=("approach_clearance", "support"))
+        return to_native(self, _core.GoalSetSettings, skip=("approach_clearance",))
 
 
 @dataclass
@@ -205,7 +204,7 @@ def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, st
 
 def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
                    settings: GoalSetSettings = GoalSetSettings(), ik: IkSettings = IkSettings(),
-                   collision_check: bool = True) -> GoalSet:
+                   collision_check: bool = True, support: SupportSettings = SupportSettings()) -> GoalSet:
     """Goal configurations for the world's target from grasps in its object frame.
 
     With ``collision_check``, grasps are first met with the support (``support_adjusted``): the
@@ -219,7 +218,7 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     adjusted = np.zeros(len(grasps), bool)
     blocked = np.zeros(len(grasps), bool)
     if collision_check and len(grasps):
-        hand_poses, adjusted, blocked = support_adjusted(world, hand_poses, start, settings.standoff, settings.support)
+        hand_poses, adjusted, blocked = support_adjusted(world, hand_poses, start, settings.standoff, support)
         grasps = np.einsum("ij,njk->nik", np.linalg.inv(target), hand_poses)
     checker = world.checker(CheckerKind.goal).native if collision_check else None
     hand_checker = world.checker(CheckerKind.hand).native if collision_check else None
