@@ -16,6 +16,7 @@ from pickplan.sim.execution import execute_plan
 
 NO_SUPPORT_MODEL = goals.SupportSettings(contact=collision.SupportContact(0.0), max_shift=0.0, max_level_deg=0.0,
                                          tilts_deg=())
+NO_SUPPORT_MODEL_BUT_TOLERANCE = goals.SupportSettings(max_shift=0.0, max_level_deg=0.0, tilts_deg=())
 
 
 def _lone_object_scene(name: str, xy=(0.5, 0.05)) -> scenes.Scene:
@@ -53,7 +54,7 @@ def test_default_tolerance_comes_from_the_gripper_pads(pen_world):
 def test_finger_penetration_is_exact_against_the_plane(pen_world):
     """A hand pointing straight down: the fingertips' depth moves one for one with the hand's height."""
     robot = pen_world.robot
-    fingers = collision.FingerGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
+    fingers = collision.HandGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
     normal, offset = _tables_plane(pen_world)
     H = np.eye(4)
     H[:3, :3] = np.diag([1.0, -1.0, -1.0])  # z (approach) down
@@ -73,7 +74,7 @@ def test_thin_object_grasp_is_accepted_and_lifted_in_pybullet(pen_world):
     assert modelled.adjusted.any()
     # the goals' fingers rest on the table within the tolerance, none deeper
     robot = pen_world.robot
-    fingers = collision.FingerGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
+    fingers = collision.HandGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
     hands = np.array([robot.link_pose(q, robot.hand_link) for q in modelled.goals])
     depth = fingers.penetration(hands, *_tables_plane(pen_world))
     assert depth.max() <= collision.SupportContact().resolved(robot) + 1e-3
@@ -93,10 +94,10 @@ def _at_depth(fingers, H, normal, offset, depth):
 
 
 def test_palm_on_the_table_is_still_rejected(pen_world):
-    """Fingertips pressing 1 mm into the table pass; a sideways hand whose fingertips clear the table
-    while its palm reaches into it does not."""
+    """Fingertips pressing 1 mm into the table pass (lifted to touch it, or as they are without the
+    variants); a sideways hand whose fingertips clear the table while its palm reaches into it does not."""
     robot = pen_world.robot
-    fingers = collision.FingerGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
+    fingers = collision.HandGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
     palm = np.asarray(robot.collision_meshes(robot.hand_link).convex_hull.vertices)
     normal, offset = _tables_plane(pen_world)
     to_object = np.linalg.inv(pen_world.target_pose)
@@ -106,7 +107,11 @@ def test_palm_on_the_table_is_still_rejected(pen_world):
     down[:3, 3] = [0.45, -0.2, 0.0]
     down = _at_depth(fingers, down, normal, offset, 0.001)
     gs = goals.build_goal_set(pen_world, (to_object @ down)[None])
-    assert gs.reasons == ["ok"] and not gs.adjusted[0]
+    assert gs.reasons == ["ok"] and gs.adjusted[0]  # lifted until the fingertips just touch
+    hand = robot.link_pose(gs.goals[0], robot.hand_link)
+    assert fingers.penetration(hand[None], normal, offset)[0] == pytest.approx(0.0, abs=2e-4)
+    kept = goals.build_goal_set(pen_world, (to_object @ down)[None], support=NO_SUPPORT_MODEL_BUT_TOLERANCE)
+    assert kept.reasons == ["ok"] and not kept.adjusted[0]  # 1 mm deep, within the tolerance, as it is
 
     side = np.eye(4)
     side[:3, :3] = np.column_stack([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # approach +x, x down

@@ -196,10 +196,10 @@ def support_plane(table: Table) -> Tuple[np.ndarray, float]:
     return normal, float(normal @ T[:3, 3] + 0.5 * float(table.size[2]))
 
 
-class FingerGeometry:
-    """The finger links' collision-hull vertices in the hand link's frame, with the fingers as in
-    ``q`` (open): how deep a hand pose pushes the fingers into a plane is exact from them (the
-    deepest point of a convex hull is a vertex)."""
+class HandGeometry:
+    """Collision-hull vertices of some links of the hand (the fingers, or the palm) in the hand
+    link's frame, with the fingers as in ``q`` (open): how deep a hand pose pushes them into a plane
+    is exact from them (the deepest point of a convex hull is a vertex)."""
 
     def __init__(self, robot, q, hand_link: str, finger_links: Sequence[str]):
         poses = robot.fk(q)
@@ -213,11 +213,11 @@ class FingerGeometry:
             T = inv @ poses[robot.link_index(name)]
             chunks.append(V @ T[:3, :3].T + T[:3, 3])
         if not chunks:
-            raise ValueError(f"finger links {list(finger_links)} have no collision geometry")
+            raise ValueError(f"links {list(finger_links)} have no collision geometry")
         self.vertices = np.concatenate(chunks)  # (V, 3) in the hand frame
 
     def penetration(self, hand_poses, normal: np.ndarray, offset: float) -> np.ndarray:
-        """(N,) how far the fingers reach below the plane (m; negative: above it) for (N, 4, 4) hand poses."""
+        """(N,) how far the links reach below the plane (m; negative: above it) for (N, 4, 4) hand poses."""
         H = np.asarray(hand_poses, dtype=float).reshape(-1, 4, 4)
         # height of every finger vertex above the plane, per pose: n . (R v + p) - offset
         Rn = np.einsum("nij,i->nj", H[:, :3, :3], normal)

@@ -68,13 +68,14 @@ class IkSettings:
 
 @dataclass(frozen=True)
 class SupportSettings:
-    """How grasps meet the support surface (the table top). The fingers may press into it up to
-    ``contact``'s tolerance (default from the gripper's pad length); a grasp pushing them deeper, at
+    """How grasps meet the support surface (the table top). A grasp pushing the fingers into it, at
     the grasp or at its pre-grasp, is moved back along its approach axis until they just touch, by at
     most ``max_shift`` (None: half the pad length, so the original contacts stay on the pads): first
     as it is, then with its closing axis rolled towards the support's plane (by at most
     ``max_level_deg``, about the pad centre), then that tilted about the closing axis by each of
-    ``tilts_deg``. Grasps no variant clears are rejected as "support_penetration"."""
+    ``tilts_deg``. Grasps no variant clears stay as they are when their fingers press in no deeper
+    than ``contact``'s tolerance (default from the gripper's pad length), else are rejected as
+    "support_penetration"."""
 
     contact: collision.SupportContact = collision.SupportContact()
     max_shift: Optional[float] = None
@@ -166,14 +167,14 @@ def _levelled(H: np.ndarray, normal: np.ndarray, pad_depth: float, max_angle: fl
 def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, standoff: float,
                      settings: SupportSettings = SupportSettings()) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World hand poses moved off the support where their fingers (at the grasp or at the pre-grasp
-    ``standoff`` back) press into it deeper than the tolerance (``SupportSettings``). Returns the
-    poses, a (N,) mask of those moved, and a (N,) mask of those no variant clears."""
+    ``standoff`` back) press into it (``SupportSettings``). Returns the poses, a (N,) mask of those
+    moved, and a (N,) mask of those no variant clears that press in deeper than the tolerance."""
     robot = world.robot
     gripper = collision.gripper_spec(robot)
     tolerance = settings.contact.resolved(robot)
     max_shift = 0.5 * gripper.pad_length if settings.max_shift is None else float(settings.max_shift)
     pad_depth = float(gripper.grasp_frame[2, 3])
-    fingers = collision.FingerGeometry(robot, start, robot.hand_link, robot.finger_links)
+    fingers = collision.HandGeometry(robot, start, robot.hand_link, robot.finger_links)
     table = world.scene.table
     normal, offset = collision.support_plane(collision.Table(tuple(np.asarray(table.size, float)),
                                                              np.asarray(table.pose, float)))
@@ -184,7 +185,8 @@ def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, st
         return np.maximum(fingers.penetration(H, normal, offset), fingers.penetration(back, normal, offset))
 
     poses = np.array(hand_poses, dtype=float).reshape(-1, 4, 4)
-    todo = depths(poses) > tolerance
+    depth = depths(poses)
+    todo = depth > 0.0  # pressing into the table at all: lifted when a variant can, else kept within the tolerance
     moved = np.zeros(len(poses), bool)
     level = np.radians(settings.max_level_deg)
     for levelled, tilt in [(False, 0.0)] + [(True, t) for t in (0.0,) + tuple(np.radians(settings.tilts_deg))]:
@@ -199,7 +201,7 @@ def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, st
         ok = shift <= max_shift
         H[:, :3, 3] -= shift[:, None].clip(max=max_shift) * H[:, :3, 2]
         poses[idx[ok]], moved[idx[ok]], todo[idx[ok]] = H[ok], True, False
-    return poses, moved, todo
+    return poses, moved, todo & (depth > tolerance)
 
 
 def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
