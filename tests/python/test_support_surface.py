@@ -121,3 +121,16 @@ def test_palm_on_the_table_is_still_rejected(pen_world):
     assert palm_low < offset - 0.005  # ... and the palm inside it
     gs = goals.build_goal_set(pen_world, (to_object @ side)[None])
     assert gs.reasons == ["in_collision"]
+
+
+def test_antipodal_grasps_aware_of_the_support_keep_the_hand_above_it(pen_world):
+    from pickplan.omg.grasps.generators import SupportFilter, antipodal_grasps
+
+    support = SupportFilter.under(pen_world.target_pose)
+    aware = antipodal_grasps(pen_world.target_model, 20, seed=1, support=support)
+    assert len(aware) == 20 and np.all(aware.info["seconds"] > 0)
+    hands = pen_world.target_pose @ aware.poses
+    normal, offset = _tables_plane(pen_world)
+    assert np.all(support.fingers.penetration(hands, normal, offset) <= support.tolerance + 1e-9)
+    assert np.all(support.palm.penetration(hands, normal, offset) <= 1e-9)
+    assert np.allclose(support.fan(5), np.radians([0, 15, -15, 30, -30]))

@@ -94,6 +94,12 @@ class SupportFilter:
         normal = inv[:3, :3] @ np.array([0.0, 0.0, 1.0])
         return cls(normal, float(normal @ inv[:3, 3]), tolerance)
 
+    @staticmethod
+    def fan(k: int) -> np.ndarray:
+        """k approach angles about a grasp axis, from the most top-down one outwards: 0, +-15, +-30 deg, ..."""
+        steps = (np.arange(k) + 1) // 2
+        return np.radians(15.0) * steps * np.where(np.arange(k) % 2 == 1, 1.0, -1.0)
+
     def allows(self, hand_poses) -> np.ndarray:
         return (self.fingers.penetration(hand_poses, self.normal, self.offset) <= self.tolerance) & \
             (self.palm.penetration(hand_poses, self.normal, self.offset) <= 0.0)
@@ -156,6 +162,9 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
         for a, i in enumerate(idx):
             y = -d[i] if flip[a] else d[i]  # +y points from the right finger to the left finger
             z0 = _perpendicular(y)
+            if support is not None:  # from the most top-down approach about this axis, fanning out
+                down = -support.normal
+                theta[a] = np.arctan2(np.cross(y, z0) @ down, z0 @ down) + support.fan(k)
             for b in range(k):
                 z = np.cos(theta[a, b]) * z0 + np.sin(theta[a, b]) * np.cross(y, z0)
                 T[a, b, :3, :3] = np.column_stack([np.cross(y, z), y, z])
