@@ -134,3 +134,30 @@ def test_antipodal_grasps_aware_of_the_support_keep_the_hand_above_it(pen_world)
     assert np.all(support.fingers.penetration(hands, normal, offset) <= support.tolerance + 1e-9)
     assert np.all(support.palm.penetration(hands, normal, offset) <= 1e-9)
     assert np.allclose(support.fan(5), np.radians([0, 15, -15, 30, -30]))
+
+
+def test_success_metric_lets_only_the_fingers_touch_the_table(pen_world):
+    """A plan ending with the fingertips 2 mm into the table (within the tolerance) is collision-free;
+    the same plan is not when the finger links get no allowance."""
+    from dataclasses import replace
+
+    from pickplan.omg.chomp import Chomp, MetricSettings, cubic_initialization
+
+    robot = pen_world.robot
+    fingers = collision.HandGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
+    normal, offset = _tables_plane(pen_world)
+    down = np.eye(4)
+    down[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    down[:3, 3] = [0.45, -0.2, 0.0]
+    down = _at_depth(fingers, down, normal, offset, 0.002)
+    gs = goals.build_goal_set(pen_world, (np.linalg.inv(pen_world.target_pose) @ down)[None],
+                              support=NO_SUPPORT_MODEL_BUT_TOLERANCE)
+    assert gs.reasons == ["ok"]
+    chomp = Chomp(robot, pen_world.sdf, pen_world.body, exclude=(pen_world.target,))
+    xi = cubic_initialization(pen_world.start, gs.goals[0], 30)
+    xi[-gs.tails.shape[1]:] = gs.tails[0]
+    settings = MetricSettings(tail_waypoints=gs.tails.shape[1])
+    allowed = chomp.metrics(xi, pen_world.start, settings)
+    strict = chomp.metrics(xi, pen_world.start, replace(settings, support_link_mask=0))
+    assert -collision.SupportContact().resolved(robot) <= allowed["min_table_clearance"] < 0
+    assert allowed["collision_free"] and not strict["collision_free"]
