@@ -77,13 +77,15 @@ class AntipodalSettings:
 
 class SupportFilter:
     """The support plane in the object's frame (the object as it lies): a hand whose palm reaches
-    below it, or whose fingers reach deeper than the gripper's support tolerance, cannot be used."""
+    below it, or whose fingers reach deeper than the gripper's support tolerance plus the half pad
+    length the goal set may lift a grasp by (``omg.goals.SupportSettings``), cannot be used."""
 
     def __init__(self, normal, offset: float, tolerance: Optional[float] = None):
         robot = panda()
         q = robot.ready_configuration
         self.normal, self.offset = np.asarray(normal, float) / np.linalg.norm(normal), float(offset)
-        self.tolerance = collision.SupportContact(tolerance).resolved(robot)
+        self.tolerance = collision.SupportContact(tolerance).resolved(robot) + \
+            0.5 * collision.gripper_spec(robot).pad_length
         self.fingers = collision.HandGeometry(robot, q, robot.hand_link, robot.finger_links)
         self.palm = collision.HandGeometry(robot, q, robot.hand_link, (robot.hand_link,))
 
