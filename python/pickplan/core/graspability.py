@@ -25,7 +25,7 @@ class GraspabilitySettings:
     samples: int = 600            # surface points, each casting one ray inwards
     seed: int = 0
     friction_cone_deg: float = 20.0   # exit normal within this of the ray: an antipodal pair
-    width_margin: float = 0.003   # m the pair must be narrower than the opening (fingers close onto it)
+    width_margin: float = 0.005   # m the pair must be narrower than the opening (as antipodal grasps are)
     max_slope_deg: float = 40.0   # closing axis at most this steep against the support plane
     # Fewer graspable pairs than this fraction of the rays: a seam or ridge of a scanned mesh (the YCB
     # master chef can's lid: 2 % of the rays), not a part a pad can hold.
