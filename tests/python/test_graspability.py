@@ -134,3 +134,12 @@ def test_sweep_scenes_follow_the_scene_settings(tmp_path):
     scene = scenes.Scene.load(path)
     assert 8 <= len(scene.objects) <= 9
     assert all(o.source.startswith("procedural:") for o in scene.objects)
+
+
+def test_an_upside_down_bowl_is_closed_off_and_an_upright_one_is_not():
+    bowl = objects.library("builtin").get("024_bowl")
+    upside_down, upright = (np.array(T) for T in bowl.resting_poses[:2])
+    assert upside_down[2, 2] < -0.99 and upright[2, 2] > 0.99
+    assert graspability(bowl, upright, 0.08).graspable
+    verdict = graspability(bowl, upside_down, 0.08)
+    assert not verdict.graspable and "closed off from above" in verdict.reason
