@@ -197,6 +197,7 @@ def write_report(settings: SweepSettings, records: List[dict]) -> str:
               "planners": "Table III: planners", "ablation": "Fig. 8: ablation of n and lambda"}
     objects = s.objects or (f"as in the scenes of {s.scene_dir}" if s.scene_dir else "built-in")
     poses = "" if s.scene_dir else f", poses: {s.poses}, {s.clutter[0]}-{s.clutter[1]} objects per scene"
+    poses += f", {s.grasp_kind} grasps" if s.grasp_kind else ""
     header = (f"## {titles[s.table]}: {scenes} scenes, {s.grasps} grasps each scene, {s.runs} runs"
               f" (objects: {objects}{poses})")
     by_object = summarize_by_object(records, methods)
@@ -225,6 +226,7 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
                          workers=args.workers, ray=args.ray, seed=args.seed, iterations=args.iterations,
                          execute=not args.no_execute, timed_execution=args.timed_execution, time_limit=args.time_limit,
                          max_goals_tried=args.max_goals_tried, poses=args.poses, clutter=tuple(args.clutter),
+                         grasp_kind=getattr(args, "grasp_kind", None),
                          progress=False if args.no_progress else None)
 
 
@@ -257,6 +259,10 @@ def add_bench_commands(subparsers) -> None:
                             "probability: lying bottles, boxes on any face) or resting")
         p.add_argument("--clutter", type=clutter_range, default=(3, 7), metavar="N-M",
                        help="objects per generated scene, fewest-most (default 3-7, the paper's)")
+        if table != "refinement":
+            p.add_argument("--grasp-kind", default=None, choices=("simulated", "graspit", "approach", "antipodal"),
+                           help="every method's grasp set (default: simulated, stored or physics-verified); "
+                                "antipodal: generated per scene, aware of the table under the target")
         p.add_argument("--grasps", type=int, default=30, help="goal-set size per scene (default 30)")
         p.add_argument("--grasp-candidates", type=int, default=100,
                        help="grasps generated per object without a stored set (default 100)")

@@ -38,6 +38,7 @@ from pickplan.core.objects import model_from_source
 from pickplan.eval.baselines import BaselineSettings, plan_baseline
 from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.goals import GoalSetSettings, IkSettings
+from pickplan.omg.grasps.generators import SupportFilter
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus, target_graspability
 from pickplan.sim.scenes import Scene
 from pickplan.omg.world import World
@@ -65,6 +66,9 @@ class SweepSettings:
                                        # folder (None: $PICKPLAN_YCB_DIR if set, else the built-ins)
     poses: str = "upright"             # generated scenes' object poses (sim.scenes.ORIENTATIONS)
     clutter: Tuple[int, int] = (3, 7)  # objects per generated scene, fewest-most (the paper's 3-7)
+    # The grasp set of every method (None: the table's, "simulated"); "antipodal" is generated per unit,
+    # aware of the table under the target as it lies (physics-verified sets take minutes per new object).
+    grasp_kind: Optional[str] = None
     grasps: int = 30                   # goal-set size (the paper's "30 grasps each scene")
     grasp_candidates: int = 100        # grasps generated per object when it has no stored set
     runs: int = 10
@@ -86,6 +90,10 @@ class SweepSettings:
         for name in ("scenes", "grasps", "grasp_candidates", "runs", "iterations"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.grasp_kind is not None and (self.table == "refinement" or self.grasp_kind not in GRASP_KINDS.values()
+                                            and self.grasp_kind != "antipodal"):
+            raise ValueError(f"grasp_kind: expected one of simulated, graspit, approach, antipodal (not with the "
+                             f"refinement table, whose methods are grasp sets), got {self.grasp_kind!r}")
         if self.poses not in ORIENTATIONS:
             raise ValueError(f"poses: expected one of {list(ORIENTATIONS)}, got {self.poses!r}")
         if len(self.clutter) != 2 or not 1 <= self.clutter[0] <= self.clutter[1]:
@@ -182,7 +190,7 @@ def unit_key(unit: dict) -> str:
 def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
     s = settings.effective()
     knobs = {k: getattr(s, k) for k in ("grasps", "grasp_candidates", "iterations", "execute", "time_limit",
-                                         "max_goals_tried", "timed_execution")}
+                                         "max_goals_tried", "timed_execution", "grasp_kind")}
     units = []
     for path in files:
         with open(path) as f:
@@ -211,7 +219,7 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
     for u in units:
         target = u["scene"]["target"]
         src = next(o["source"] for o in u["scene"]["objects"] if o["name"] == target)
-        kind = method_spec(u["table"], u["method"])["grasp_kind"]
+        kind = u.get("grasp_kind") or method_spec(u["table"], u["method"])["grasp_kind"]
         seen[(target, src, kind)] = {"name": target, "source": src, "kind": kind, "n": u["grasp_candidates"]}
     return list(seen.values())
 
@@ -221,6 +229,7 @@ def run_unit(unit: dict) -> dict:
 
     t0 = time.perf_counter()
     spec = method_spec(unit["table"], unit["method"])
+    spec["grasp_kind"] = unit.get("grasp_kind") or spec["grasp_kind"]
     scene = Scene.from_dict(unit["scene"])
     seed = int(unit["seed"])
     record = {"table": unit["table"], "scene": unit["scene_name"], "target": scene.target, "method": unit["method"],
@@ -237,7 +246,9 @@ def run_unit(unit: dict) -> dict:
     for kind in ("goal", "hand") + (("obstacles",) if spec["planner"] in ("FMT", "RRT-C") else ()):
         world.checker(kind)
     try:
-        grasps = grasps_mod.grasp_set(world.target_model, spec["grasp_kind"], unit["grasp_candidates"], seed=0).poses
+        aware = {"support": SupportFilter.under(world.target_pose)} if spec["grasp_kind"] == "antipodal" else {}
+        grasps = grasps_mod.grasp_set(world.target_model, spec["grasp_kind"], unit["grasp_candidates"], seed=0,
+                                      **aware).poses
     except ValueError as exc:  # e.g. no stored graspit set for a built-in object: not a planning failure
         record.update(status="no_grasps", reason=str(exc), valid=False, planning_success=False,
                       execution_success=False, unit_seconds=time.perf_counter() - t0)
@@ -319,7 +330,7 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
 # Settings a finished unit (or a generated scene) depends on; methods, runs and scene count only
 # add units, and workers / Ray / progress do not change results.
 RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
-               "time_limit", "max_goals_tried", "timed_execution", "poses", "clutter")
+               "time_limit", "max_goals_tried", "timed_execution", "poses", "clutter", "grasp_kind")
 
 
 def sweep_fingerprint(settings: SweepSettings) -> dict:
@@ -340,7 +351,7 @@ def check_resumable(settings: SweepSettings) -> None:
     if os.path.exists(path):
         with open(path) as f:
             old = json.load(f)
-        defaults = {"poses": "upright", "clutter": [3, 7]}  # sweeps made before these settings existed
+        defaults = {"poses": "upright", "clutter": [3, 7], "grasp_kind": None}  # sweeps made before these existed
         diff = [k for k in RESUME_KEYS if old.get(k, defaults.get(k)) != fp[k] and (k in old or k in defaults)]
         if diff:
             detail = ", ".join(f"{k}: {old[k]!r} there, {fp[k]!r} now" for k in diff)
