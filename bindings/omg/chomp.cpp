@@ -71,6 +71,8 @@ void init_chomp(py::module_& m) {
       .def_readwrite("epsilon", &MetricSettings::epsilon)
       .def_readwrite("clearance", &MetricSettings::clearance)
       .def_readwrite("table_clearance", &MetricSettings::table_clearance)
+      .def_readwrite("support_link_mask", &MetricSettings::support_link_mask)
+      .def_readwrite("support_tolerance", &MetricSettings::support_tolerance)
       .def_readwrite("tail_waypoints", &MetricSettings::tail_waypoints)
       .def_readwrite("tail_clearance", &MetricSettings::tail_clearance)
       .def_readwrite("smoothness_threshold", &MetricSettings::smoothness_threshold)

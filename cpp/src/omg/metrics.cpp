@@ -64,7 +64,7 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
   const int n = static_cast<int>(xi.rows());
   // Dense steps at or after this one lie on the approach tail (waypoints n - tail .. n).
   const double tail_start = s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints) / n * (s.steps - 1) : s.steps;
-  bool transit_free = true;
+  bool transit_free = true, table_free = true;
   for (int t = 0; t < dense.rows(); ++t) {
     robot.forward_kinematics(dense.row(t).data(), ws);
     const double need = t >= tail_start ? s.tail_clearance : s.clearance;
@@ -75,6 +75,8 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
       const SceneSdf::PartBounds b = scene.part_lower_bounds(T.apply(grp.center), s.exclude_mask);
       const bool objects_near = b.objects - grp.radius < cap, table_near = b.table - grp.radius < cap;
       if (!objects_near && !table_near) continue;
+      const bool support = grp.link < 64 && ((s.support_link_mask >> grp.link) & 1u);
+      const double table_need = support ? std::min(s.table_clearance, -s.support_tolerance) : s.table_clearance;
       for (int u = grp.begin; u < grp.end; ++u) {
         const Eigen::Vector3d x = T.apply(body.points.row(u).transpose());
         const double d_obj =
@@ -84,13 +86,14 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
         m.min_clearance = std::min(m.min_clearance, d_obj);
         step_min = std::min(step_min, d_obj);
         m.min_table_clearance = std::min(m.min_table_clearance, d_table);
+        table_free = table_free && d_table >= table_need;
         const double d = std::min(d_obj, d_table);
         if (d < s.collision_padding) m.collision += chomp_cost(d, s.epsilon, nullptr);
       }
     }
     transit_free = transit_free && step_min >= need;
   }
-  m.collision_free = transit_free && m.min_table_clearance >= s.table_clearance;
+  m.collision_free = transit_free && table_free;
   m.success = m.collision_free && m.smoothness < s.smoothness_threshold;
   return m;
 }

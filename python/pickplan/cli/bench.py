@@ -15,7 +15,10 @@ import os
 import sys
 from typing import Dict, List, Optional, Sequence
 
-from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize)
+from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize,
+                                       summarize_by_object)
+from pickplan.cli.scenes import clutter_range
+from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
 from pickplan.cli.robots import ROBOT_HELP
 from pickplan.core.io import write_json, write_text
@@ -97,7 +100,51 @@ def markdown(table: str, summary: Dict[str, dict], records: Sequence[dict], head
             for m in methods) + " |")
     lines.append("| Units (valid / planned) | " + " | ".join(
         f"{summary[m]['valid']}/{summary[m]['units']} ({summary[m]['planned']})" for m in methods) + " |")
+    lines.append("| No goals (units) | " + " | ".join(str(summary[m].get("no_goals", 0)) for m in methods) + " |")
+    lines.append("| Ungraspable targets (units, not in the rates) | " + " | ".join(
+        str(summary[m].get("ungraspable", 0)) for m in methods) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _reasons(counts: Dict[str, int], top: int = 3) -> str:
+    items = sorted(counts.items(), key=lambda kv: -kv[1])
+    return ", ".join(f"{k} {v}" for k, v in items[:top]) + (", ..." if len(items) > top else "")
+
+
+def object_markdown(by_object: Dict[str, Dict[str, dict]], methods: Sequence[str]) -> str:
+    """Per target object: planning / execution rates (over graspable units) per method, the no-goal
+    units with the grasps' rejection reasons, and the ungraspable units with the verdict."""
+    lines = ["### Per target object", "",
+             "Cells: planning / execution over the units whose target is graspable (units). No goals: units per "
+             "method, then the grasps' rejection reasons summed. Ungraspable: units, not counted in any rate.", "",
+             "| Object | " + " | ".join(methods) + " | No goals | Ungraspable |", "|---" * (len(methods) + 3) + "|"]
+    for obj, row in by_object.items():
+        cells = []
+        for m in methods:
+            c = row[m]
+            execution = "not run" if c["execution"] is None else _fmt("execution", c["execution"])
+            cells.append(f"{_fmt('planning', c['planning'])} / {execution} ({c['graspable']})" if c["graspable"]
+                         else "-")
+        no_goals = ", ".join(f"{m} {row[m]['no_goals']}" for m in methods if row[m]["no_goals"])
+        reasons: Dict[str, int] = {}
+        for m in methods:
+            for k, v in row[m]["no_goals_reasons"].items():
+                reasons[k] = reasons.get(k, 0) + v
+        if no_goals:
+            no_goals += f" ({_reasons(reasons)})"
+        ungraspable = sum(row[m]["ungraspable"] for m in methods)
+        why = next((r for m in methods for r in row[m]["ungraspable_reasons"]), "")
+        lines.append(f"| {obj} | " + " | ".join(cells) + f" | {no_goals or '0'} | "
+                     + (f"{ungraspable} ({why})" if ungraspable else "0") + " |")
+    return "\n".join(lines) + "\n"
+
+
+def object_rows(by_object: Dict[str, Dict[str, dict]]) -> List[dict]:
+    """objects.csv: one row per target object and method."""
+    return [{"object": obj, "method": m, **{k: v for k, v in c.items() if not k.endswith("_reasons")},
+             "no_goals_reasons": ";".join(f"{k}:{v}" for k, v in c["no_goals_reasons"].items()),
+             "ungraspable_reason": ";".join(c["ungraspable_reasons"])}
+            for obj, row in by_object.items() for m, c in row.items()]
 
 
 def write_csv(path: str, records: Sequence[dict]) -> None:
@@ -150,15 +197,21 @@ def write_report(settings: SweepSettings, records: List[dict]) -> str:
     scenes = len({r["scene"] for r in records})
     titles = {"selection": "Table I: grasp selection", "refinement": "Table II: grasp refinement",
               "planners": "Table III: planners", "ablation": "Fig. 8: ablation of n and lambda"}
+    objects = s.objects or (f"as in the scenes of {s.scene_dir}" if s.scene_dir else "built-in")
+    poses = "" if s.scene_dir else f", poses: {s.poses}, {s.clutter[0]}-{s.clutter[1]} objects per scene"
+    poses += f", {s.grasp_kind} grasps" if s.grasp_kind else ""
     header = (f"## {titles[s.table]}: {scenes} scenes, {s.grasps} grasps each scene, {s.runs} runs"
-              f" (objects: {s.objects or (f'as in the scenes of {s.scene_dir}' if s.scene_dir else 'built-in')})")
-    text = markdown(s.table, summary, records, header)
+              f" (objects: {objects}{poses})")
+    by_object = summarize_by_object(records, methods)
+    text = markdown(s.table, summary, records, header) + "\n" + object_markdown(by_object, methods)
     errors = {m: row["errors"] for m, row in summary.items() if row["errors"]}
     if errors:
         text += ("\nUnits that raised an error (counted as failed plans; reasons in runs.json): "
                  + ", ".join(f"{m} {n}" for m, n in errors.items()) + "\n")
     write_text(os.path.join(s.out, "table.md"), text)
     write_csv(os.path.join(s.out, "runs.csv"), records)
+    write_csv(os.path.join(s.out, "objects.csv"), object_rows(by_object))
+    write_json(os.path.join(s.out, "objects.json"), by_object)
     write_json(os.path.join(s.out, "runs.json"), records)
     write_json(os.path.join(s.out, "summary.json"), summary)
     if s.table == "ablation":
@@ -174,7 +227,8 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
                          methods=tuple(args.methods) if args.methods else None, quick=args.quick,
                          workers=args.workers, ray=args.ray, seed=args.seed, iterations=args.iterations,
                          execute=not args.no_execute, timed_execution=args.timed_execution, time_limit=args.time_limit,
-                         max_goals_tried=args.max_goals_tried, robot=args.robot,
+                         max_goals_tried=args.max_goals_tried, robot=args.robot, poses=args.poses,
+                         clutter=tuple(args.clutter), grasp_kind=getattr(args, "grasp_kind", None),
                          progress=False if args.no_progress else None)
 
 
@@ -182,7 +236,7 @@ def run_bench(args: argparse.Namespace) -> int:
     settings = settings_from_args(args)
     records = run_sweep(settings)
     print(write_report(settings, records))
-    print(f"wrote {settings.out}/table.md, table.png, runs.csv, runs.json, summary.json"
+    print(f"wrote {settings.out}/table.md, table.png, runs.csv, runs.json, summary.json, objects.csv, objects.json"
           + (", fig8.png" if settings.table == "ablation" else ""))
     return 0
 
@@ -199,7 +253,18 @@ def add_bench_commands(subparsers) -> None:
         p = sub.add_parser(table, help=helps[table])
         p.add_argument("--scenes", type=int, default=100, help="generated scenes (default 100)")
         p.add_argument("--scene-dir", default=None, help="load scene JSON files from here instead")
-        p.add_argument("--objects", default=None, help="YCB object folder for generated scenes (default built-ins)")
+        p.add_argument("--objects", default=None,
+                       help="generated scenes' objects: builtin, procedural or a YCB-layout folder "
+                            "(default: $PICKPLAN_YCB_DIR if set, else builtin)")
+        p.add_argument("--poses", choices=ORIENTATIONS, default="upright",
+                       help="generated scenes' object poses: upright (the paper's), stable (drawn by drop "
+                            "probability: lying bottles, boxes on any face) or resting")
+        p.add_argument("--clutter", type=clutter_range, default=(3, 7), metavar="N-M",
+                       help="objects per generated scene, fewest-most (default 3-7, the paper's)")
+        if table != "refinement":
+            p.add_argument("--grasp-kind", default=None, choices=("simulated", "graspit", "approach", "antipodal"),
+                           help="every method's grasp set (default: simulated, stored or physics-verified); "
+                                "antipodal: generated per scene, aware of the table under the target")
         p.add_argument("--grasps", type=int, default=30, help="goal-set size per scene (default 30)")
         p.add_argument("--grasp-candidates", type=int, default=100,
                        help="grasps generated per object without a stored set (default 100)")

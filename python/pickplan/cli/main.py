@@ -26,7 +26,7 @@ from pickplan.sim import execution
 from pickplan.eval.demo import metrics_table
 from pickplan.core.io import write_json, write_text
 from pickplan.omg.plan_file import plan_record
-from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
+from pickplan.omg.planner import OMGPlanner, OMGSettings
 from pickplan.sim.scenes import Scene
 from pickplan.cli.scenes import add_scene_commands
 from pickplan.cli.metamodel import add_metamodel_commands
@@ -56,9 +56,11 @@ def _cmd_plan(args) -> int:
     planner = OMGPlanner(args.robot, scene, settings)
     result = planner.plan()
     executed = execution.execute_plan(scene, result.trajectory, execution.ExecutionSettings(robot=args.robot)) \
-        if args.execute and result.status != PlanStatus.no_goals else None
+        if args.execute and result.planned else None
     table = metrics_table(result, executed)
     print(table)
+    if result.reason:
+        print(result.reason)
     if args.out:
         os.makedirs(args.out, exist_ok=True)
         write_text(os.path.join(args.out, "metrics.md"), table)

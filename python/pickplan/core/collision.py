@@ -24,6 +24,7 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core.meshes import check_mesh_arrays
+from pickplan.core.panda import PANDA_DESCRIPTION
 from pickplan.core.robots import Robot
 
 
@@ -157,3 +158,68 @@ class CollisionChecker:
         return [Contact(d["link"], d["other"], d["kind"], float(d["distance"]),
                         np.asarray(d["point_link"]), np.asarray(d["point_other"]))
                 for d in self._native.contacts(q, float(within))]
+
+
+# --- the support surface ----------------------------------------------------------------------------
+#: Default fingertip penetration allowed into the support, as a fraction of the gripper's pad length
+#: (Panda: 0.15 x 18 mm = 2.7 mm): fingertips resting on a table press slightly into it, and the
+#: sampled grasp geometry is no more exact than that.
+SUPPORT_TOLERANCE_FRACTION = 0.15
+
+
+def gripper_spec(robot):
+    """The robot's gripper spec (``description.GripperSpec``): from its description, else the Panda's."""
+    desc = getattr(robot, "description", None)
+    return (PANDA_DESCRIPTION if desc is None else desc).gripper
+
+
+@dataclass(frozen=True)
+class SupportContact:
+    """The table top as the fingers may touch it: the finger links (the gripper's ``finger_links``)
+    may press into the support plane up to ``tolerance`` (m; None: ``SUPPORT_TOLERANCE_FRACTION`` of
+    the gripper's pad length); palm, hand body, arm and other objects stay strict."""
+
+    tolerance: Optional[float] = None
+
+    def resolved(self, robot) -> float:
+        if self.tolerance is None:
+            return SUPPORT_TOLERANCE_FRACTION * float(gripper_spec(robot).pad_length)
+        if not 0.0 <= float(self.tolerance) <= 0.02:
+            raise ValueError(f"support tolerance: expected metres in [0, 0.02], got {self.tolerance}")
+        return float(self.tolerance)
+
+
+def support_plane(table: Table) -> Tuple[np.ndarray, float]:
+    """The table's top face as (unit normal, offset): points x on it satisfy normal . x = offset."""
+    T = table.pose_matrix()
+    normal = T[:3, 2]
+    return normal, float(normal @ T[:3, 3] + 0.5 * float(table.size[2]))
+
+
+class HandGeometry:
+    """Collision-hull vertices of some links of the hand (the fingers, or the palm) in the hand
+    link's frame, with the fingers as in ``q`` (open): how deep a hand pose pushes them into a plane
+    is exact from them (the deepest point of a convex hull is a vertex)."""
+
+    def __init__(self, robot, q, hand_link: str, finger_links: Sequence[str]):
+        poses = robot.fk(q)
+        inv = np.linalg.inv(poses[robot.link_index(hand_link)])
+        chunks = []
+        for name in finger_links:
+            mesh = robot.collision_meshes(name)
+            if mesh is None:
+                continue
+            V = np.asarray(mesh.convex_hull.vertices, dtype=float)
+            T = inv @ poses[robot.link_index(name)]
+            chunks.append(V @ T[:3, :3].T + T[:3, 3])
+        if not chunks:
+            raise ValueError(f"links {list(finger_links)} have no collision geometry")
+        self.vertices = np.concatenate(chunks)  # (V, 3) in the hand frame
+
+    def penetration(self, hand_poses, normal: np.ndarray, offset: float) -> np.ndarray:
+        """(N,) how far the links reach below the plane (m; negative: above it) for (N, 4, 4) hand poses."""
+        H = np.asarray(hand_poses, dtype=float).reshape(-1, 4, 4)
+        # height of every finger vertex above the plane, per pose: n . (R v + p) - offset
+        Rn = np.einsum("nij,i->nj", H[:, :3, :3], normal)
+        heights = Rn @ self.vertices.T + (H[:, :3, 3] @ normal - offset)[:, None]
+        return -heights.min(axis=1)

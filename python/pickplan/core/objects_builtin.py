@@ -204,7 +204,3 @@ def build(name: str) -> Tuple[trimesh.Trimesh, Parts, BuiltinSpec]:
     spec = BUILTIN_SPECS[name]
     mesh, parts = _BUILDERS[spec.kind](spec)
     return mesh, parts, spec
-
-
-# Too wide for the Panda's 8 cm opening with no handle in the built-in version: never a target.
-UNGRASPABLE = ("002_master_chef_can", "019_pitcher_base")

@@ -74,7 +74,7 @@ def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
     print(f"      {result.status} in {result.iterations} iterations")
     executed = timed = None
     frames = []
-    if result.status != "no_goals":
+    if result.planned:
         timed = result.timed(rate=settings.timed_rate)
         timed.save(os.path.join(out, "timed.json"))
         timed.save(os.path.join(out, "timed.npz"))

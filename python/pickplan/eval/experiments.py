@@ -17,6 +17,7 @@ cluster address).
 from __future__ import annotations
 
 import contextlib
+from collections import Counter
 import json
 import math
 import os
@@ -32,14 +33,15 @@ from pickplan.core.io import read_json, write_json
 from pickplan.eval.plots import STAGES
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
 from pickplan.core import objects as objects_mod
-from pickplan.sim.scenes import generate_scene
+from pickplan.sim.scenes import ORIENTATIONS, SceneSettings, generate_scene
 from pickplan.sim.scene_sets import scene_seeds
 from pickplan.omg import grasps as grasps_mod
 from pickplan.core.objects import model_from_source
 from pickplan.eval.baselines import BaselineSettings, plan_baseline
 from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.goals import GoalSetSettings, IkSettings
-from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
+from pickplan.omg.grasps.generators import SupportFilter
+from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus, target_graspability
 from pickplan.sim.scenes import Scene
 from pickplan.omg.world import World, WorldSettings
 from pickplan.core.description import robot_info
@@ -63,7 +65,13 @@ class SweepSettings:
     out: str = "out/bench"
     scenes: int = 100                  # generated scenes (ignored with scene_dir)
     scene_dir: Optional[str] = None    # load scene_*.json from here instead
-    objects: Optional[str] = None      # YCB folder for generated scenes (None: the built-ins)
+    objects: Optional[str] = None      # generated scenes' objects: "builtin", "procedural" or a YCB-layout
+                                       # folder (None: $PICKPLAN_YCB_DIR if set, else the built-ins)
+    poses: str = "upright"             # generated scenes' object poses (sim.scenes.ORIENTATIONS)
+    clutter: Tuple[int, int] = (3, 7)  # objects per generated scene, fewest-most (the paper's 3-7)
+    # The grasp set of every method (None: the table's, "simulated"); "antipodal" is generated per unit,
+    # aware of the table under the target as it lies (physics-verified sets take minutes per new object).
+    grasp_kind: Optional[str] = None
     grasps: int = 30                   # goal-set size (the paper's "30 grasps each scene")
     grasp_candidates: int = 100        # grasps generated per object when it has no stored set
     runs: int = 10
@@ -86,6 +94,14 @@ class SweepSettings:
         for name in ("scenes", "grasps", "grasp_candidates", "runs", "iterations"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.grasp_kind is not None and (self.table == "refinement" or self.grasp_kind not in GRASP_KINDS.values()
+                                            and self.grasp_kind != "antipodal"):
+            raise ValueError(f"grasp_kind: expected one of simulated, graspit, approach, antipodal (not with the "
+                             f"refinement table, whose methods are grasp sets), got {self.grasp_kind!r}")
+        if self.poses not in ORIENTATIONS:
+            raise ValueError(f"poses: expected one of {list(ORIENTATIONS)}, got {self.poses!r}")
+        if len(self.clutter) != 2 or not 1 <= self.clutter[0] <= self.clutter[1]:
+            raise ValueError(f"clutter: expected (fewest, most) with 1 <= fewest <= most, got {self.clutter!r}")
         if self.methods is not None:
             bad = [m for m in self.methods if m not in all_methods(self.table)]
             if bad:
@@ -141,7 +157,9 @@ def _make_scene(job: dict) -> dict:
 
     path = job["path"]
     if not os.path.exists(path):
-        generate_scene(job["seed"], objects_mod.library(job["objects"])).save(path)
+        (fewest, most), poses = job.get("clutter", (3, 7)), job.get("poses", "upright")
+        settings = SceneSettings(orientation=poses, min_objects=int(fewest), max_objects=int(most))
+        generate_scene(job["seed"], objects_mod.library(job["objects"]), settings).save(path)
     return {"path": path}
 
 
@@ -158,7 +176,8 @@ def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None,
 
     folder = os.path.join(s.out, "scenes")
     os.makedirs(folder, exist_ok=True)
-    jobs = [{"path": os.path.join(folder, f"scene_{i:04d}.json"), "seed": seed, "objects": s.objects}
+    jobs = [{"path": os.path.join(folder, f"scene_{i:04d}.json"), "seed": seed, "objects": s.objects,
+             "poses": s.poses, "clutter": tuple(s.clutter)}
             for i, seed in enumerate(scene_seeds(s.seed, s.scenes))]
     todo = [j for j in jobs if not os.path.exists(j["path"])]
     with sweep_runner(s) if runner is None else contextlib.nullcontext(runner) as backend:
@@ -175,7 +194,7 @@ def unit_key(unit: dict) -> str:
 def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
     s = settings.effective()
     knobs = {k: getattr(s, k) for k in ("grasps", "grasp_candidates", "iterations", "execute", "time_limit",
-                                         "max_goals_tried", "timed_execution", "robot")}
+                                         "max_goals_tried", "timed_execution", "robot", "grasp_kind")}
     units = []
     for path in files:
         with open(path) as f:
@@ -205,7 +224,7 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
     for u in units:
         target = u["scene"]["target"]
         src = next(o["source"] for o in u["scene"]["objects"] if o["name"] == target)
-        kind = method_spec(u["table"], u["method"])["grasp_kind"]
+        kind = u.get("grasp_kind") or method_spec(u["table"], u["method"])["grasp_kind"]
         robot = u.get("robot", "panda")
         seen[(target, src, kind, robot)] = {"name": target, "source": src, "kind": kind, "n": u["grasp_candidates"],
                                             "robot": robot}
@@ -217,19 +236,28 @@ def run_unit(unit: dict) -> dict:
 
     t0 = time.perf_counter()
     spec = method_spec(unit["table"], unit["method"])
+    spec["grasp_kind"] = unit.get("grasp_kind") or spec["grasp_kind"]
     scene = Scene.from_dict(unit["scene"])
     seed = int(unit["seed"])
     record = {"table": unit["table"], "scene": unit["scene_name"], "target": scene.target, "method": unit["method"],
               "run": unit["run"], "seed": seed, "grasp_kind": spec["grasp_kind"]}
     world_settings = WorldSettings(robot=unit.get("robot", "panda"))
     world = World(scene, world_settings)
+    verdict = target_graspability(world)  # geometry, whatever the method: ungraspable units are counted apart
+    if not verdict.graspable:
+        record.update(status=PlanStatus.ungraspable, reason=f"ungraspable: {verdict.reason}", valid=True,
+                      graspable=False, planned=False, planning_success=False, execution_success=False,
+                      execution_run=bool(unit["execute"]), unit_seconds=time.perf_counter() - t0)
+        return record
     # Scene setup (FCL meshes), not goal-set or planning time; only the OMPL baselines validate
     # states with the "obstacles" checker.
     for kind in ("goal", "hand") + (("obstacles",) if spec["planner"] in ("FMT", "RRT-C") else ()):
         world.checker(kind)
     try:
+        aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot)} \
+            if spec["grasp_kind"] == "antipodal" else {}
         grasps = grasps_mod.grasp_set(world.target_model, spec["grasp_kind"], unit["grasp_candidates"], seed=0,
-                                      gripper=world.robot.info).poses
+                                      gripper=world.robot.info, **aware).poses
     except ValueError as exc:  # e.g. no stored graspit set for a built-in object: not a planning failure
         record.update(status="no_grasps", reason=str(exc), valid=False, planning_success=False,
                       execution_success=False, unit_seconds=time.perf_counter() - t0)
@@ -245,9 +273,10 @@ def run_unit(unit: dict) -> dict:
         bs = BaselineSettings(omg=omg, max_goals_tried=unit["max_goals_tried"], chomp_iterations=unit["iterations"],
                               time_limit=unit["time_limit"])
         result = plan_baseline(spec["planner"], scene, bs, world=world, grasps=grasps)
-    planned = result.status != PlanStatus.no_goals
+    planned = result.planned
     m = result.metrics
-    record.update(status=result.status, valid=True, planned=planned, planning_success=bool(result.success),
+    record.update(status=result.status, valid=True, graspable=True, planned=planned,
+                  goal_reasons=dict(result.goal_reasons) if result.status == PlanStatus.no_goals else {}, planning_success=bool(result.success),
                   goal_set_size=result.goal_set_size, iterations=result.iterations, refined=bool(result.refined),
                   goal_set_time=float(result.timings.get("goal_set", 0.0)),
                   plan_time=float(result.timings["total"] - result.timings.get("goal_set", 0.0)),
@@ -312,14 +341,17 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
 # Settings a finished unit (or a generated scene) depends on; methods, runs and scene count only
 # add units, and workers / Ray / progress do not change results.
 RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
-               "time_limit", "max_goals_tried", "timed_execution", "robot")
+               "time_limit", "max_goals_tried", "timed_execution", "robot",
+               "poses", "clutter", "grasp_kind")
 
 
 def sweep_fingerprint(settings: SweepSettings) -> dict:
     s = settings.effective()
     fp = {k: getattr(s, k) for k in RESUME_KEYS}
+    fp["clutter"] = list(s.clutter)  # as JSON reads it back
     for k in ("objects", "scene_dir"):
-        fp[k] = os.path.realpath(fp[k]) if fp[k] else None
+        named = k == "objects" and fp[k] in ("builtin", "procedural")
+        fp[k] = fp[k] if named else os.path.realpath(fp[k]) if fp[k] else None
     return fp
 
 
@@ -358,7 +390,8 @@ def check_resumable(settings: SweepSettings) -> None:
     else:
         with open(path) as f:
             old = json.load(f)
-        diff = [k for k in RESUME_KEYS if k in old and old[k] != fp[k]]
+        defaults = {"poses": "upright", "clutter": [3, 7], "grasp_kind": None}  # sweeps made before these existed
+        diff = [k for k in RESUME_KEYS if old.get(k, defaults.get(k)) != fp[k] and (k in old or k in defaults)]
         if diff:
             detail = ", ".join(f"{k}: {old[k]!r} there, {fp[k]!r} now" for k in diff)
             raise ValueError(f"{settings.out} holds a sweep made with other settings ({detail}); "
@@ -399,18 +432,25 @@ def _mean(xs: Iterable[Optional[float]]) -> float:
     return float(np.mean(xs)) if xs else float("nan")
 
 
+def _graspable(r: dict) -> bool:
+    return r.get("graspable", True)  # records made before the verdict existed: graspable
+
+
 def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict]:
-    """Per method: units, valid units (grasp set available), plans (a goal set existed), rates over valid
-    units (no goals = failed plan = failed execution), means of the metrics over plans."""
+    """Per method: units, valid units (grasp set available, target graspable), plans (a goal set
+    existed), rates over valid units (no goals = failed plan = failed execution), means of the metrics
+    over plans; units whose target no grasp of the gripper can hold (``ungraspable``) are counted apart."""
     out = {}
     for m in methods:
         rs = [r for r in records if r["method"] == m]
-        valid = [r for r in rs if r.get("valid", True)]
+        valid = [r for r in rs if r.get("valid", True) and _graspable(r)]
         planned = [r for r in valid if r.get("planned")]
         n = len(valid)
         executed = any(r.get("execution_run", True) for r in valid)  # False: --no-execute, a column not run
         out[m] = {
             "units": len(rs), "valid": n, "planned": len(planned), "errors": sum(r["status"] == "error" for r in rs),
+            "no_goals": sum(r["status"] == PlanStatus.no_goals for r in valid),
+            "ungraspable": sum(not _graspable(r) for r in rs),
             "planning_successes": sum(r["planning_success"] for r in valid),
             "execution_successes": sum(r["execution_success"] for r in valid),
             "planning": sum(r["planning_success"] for r in valid) / n if n else float("nan"),
@@ -432,3 +472,30 @@ def grasp_costs_by_object(records: Sequence[dict], methods: Sequence[str]) -> Di
     objects = sorted({r["target"] for r in records if r.get("planned")})
     return {o: {m: _mean(r["grasp_cost"] for r in records if r["method"] == m and r["target"] == o and r.get("planned"))
                 for m in methods} for o in objects}
+
+
+def summarize_by_object(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, Dict[str, dict]]:
+    """Per target object and method: units, graspable units, planning and execution rates over those,
+    no_goals units with their grasps' rejection reasons summed, and ungraspable units with the verdict."""
+    out: Dict[str, Dict[str, dict]] = {}
+    for obj in sorted({r["target"] for r in records if r.get("target")}):
+        out[obj] = {}
+        for m in methods:
+            rs = [r for r in records if r["method"] == m and r.get("target") == obj and r.get("valid", True)]
+            ok = [r for r in rs if _graspable(r)]
+            reasons: Counter = Counter()
+            for r in ok:
+                if r["status"] == PlanStatus.no_goals:
+                    reasons.update(r.get("goal_reasons") or {})
+            n = len(ok)
+            executed = any(r.get("execution_run", True) for r in ok)
+            out[obj][m] = {
+                "units": len(rs), "graspable": n,
+                "planning": sum(r["planning_success"] for r in ok) / n if n else float("nan"),
+                "execution": (sum(r["execution_success"] for r in ok) / n if n else float("nan")) if executed else None,
+                "no_goals": sum(r["status"] == PlanStatus.no_goals for r in ok),
+                "no_goals_reasons": dict(reasons.most_common()),
+                "ungraspable": len(rs) - n,
+                "ungraspable_reasons": dict(Counter(r.get("reason", "") for r in rs if not _graspable(r))),
+            }
+    return out

@@ -11,6 +11,7 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from pickplan import _core
+from pickplan.core import collision
 from pickplan.core.settings import Option, to_native
 from pickplan.core.robots import BodyPoints, Robot
 from pickplan.core.sdf import SceneSdf
@@ -49,9 +50,16 @@ class MetricSettings:
     tail_waypoints: int = 0        # last waypoints (standoff approach) held to tail_clearance only
     tail_clearance: float = 0.01
     smoothness_threshold: float = 30.0
+    # The finger links may reach this far into the table (fingertips resting on it), as the goal set
+    # lets them: None = the robot's finger links (bit = link index) and the gripper's default
+    # tolerance (core.collision.SupportContact); Chomp.metrics resolves them.
+    support_link_mask: Optional[int] = None
+    support_tolerance: Optional[float] = None
 
-    def to_native(self, exclude_mask: int = 0) -> "_core.MetricSettings":
-        return to_native(self, _core.MetricSettings, exclude_mask=int(exclude_mask))
+    def to_native(self, exclude_mask: int = 0, support_link_mask: int = 0,
+                  support_tolerance: float = 0.0) -> "_core.MetricSettings":
+        return to_native(self, _core.MetricSettings, exclude_mask=int(exclude_mask),
+                         support_link_mask=int(support_link_mask), support_tolerance=float(support_tolerance))
 
 
 class ChompStatus(Option):
@@ -144,4 +152,9 @@ class Chomp:
         return result
 
     def metrics(self, xi, q0, settings: MetricSettings = MetricSettings()) -> dict:
-        return self.problem.metrics(xi, q0, settings.to_native(self.exclude_mask))
+        fingers = getattr(self.robot, "finger_links", ())
+        mask = settings.support_link_mask
+        if mask is None:
+            mask = sum(1 << self.robot.link_index(f) for f in fingers)
+        tolerance = collision.SupportContact(settings.support_tolerance).resolved(self.robot) if mask else 0.0
+        return self.problem.metrics(xi, q0, settings.to_native(self.exclude_mask, mask, tolerance))

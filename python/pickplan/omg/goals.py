@@ -1,14 +1,17 @@
-"""Goal sets: grasps (hand poses in the object frame) -> IK -> standoff approach -> FCL filter
-(approach clearance) -> diversity -> cap. Native; every rejected grasp records why."""
+"""Goal sets: grasps (hand poses in the object frame) -> the support surface (fingertips may rest on
+the table; grasps pushing them deeper are shifted up or tilted) -> IK -> standoff approach -> FCL
+filter (approach clearance) -> diversity -> cap. Native but the support step; every rejected grasp
+records why."""
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass
-from typing import Optional
+from dataclasses import dataclass, field
+from typing import Optional, Tuple
 
 import numpy as np
 
 from pickplan import _core
+from pickplan.core import collision
 from pickplan.core.settings import Option, to_native
 from pickplan.omg.world import CheckerKind, World
 
@@ -64,6 +67,23 @@ class IkSettings:
 
 
 @dataclass(frozen=True)
+class SupportSettings:
+    """How grasps meet the support surface (the table top). A grasp pushing the fingers into it, at
+    the grasp or at its pre-grasp, is moved back along its approach axis until they just touch, by at
+    most ``max_shift`` (None: half the pad length, so the original contacts stay on the pads): first
+    as it is, then with its closing axis rolled towards the support's plane (by at most
+    ``max_level_deg``, about the pad centre), then that tilted about the closing axis by each of
+    ``tilts_deg``. Grasps no variant clears stay as they are when their fingers press in no deeper
+    than ``contact``'s tolerance (default from the gripper's pad length), else are rejected as
+    "support_penetration"."""
+
+    contact: collision.SupportContact = collision.SupportContact()
+    max_shift: Optional[float] = None
+    max_level_deg: float = 30.0
+    tilts_deg: Tuple[float, ...] = (15.0, -15.0, 30.0, -30.0)
+
+
+@dataclass(frozen=True)
 class GoalSetSettings:
     """Mirror of the native ``GoalSetSettings`` (paper: 30 goals per scene, 8 cm standoff), plus
     ``approach_clearance``: every configuration of the standoff approach (pre-grasp to grasp) must
@@ -94,6 +114,7 @@ class GoalSet:
     grasps: np.ndarray       # (N, 4, 4) the input grasps (hand in the object frame)
     reasons: list            # per input grasp: "ok" or why it was rejected
     seconds: float
+    adjusted: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # (N,) moved off the support
 
     def __len__(self) -> int:
         return int(self.goals.shape[0])
@@ -115,20 +136,101 @@ def ik_solver(world: World, settings: IkSettings = IkSettings()) -> "_core.IkSol
     return _core.IkSolver(robot.native, robot.hand_link, settings.to_native(active))
 
 
+def _about_pad_centre(R: np.ndarray, pad_depth: float) -> np.ndarray:
+    """Hand-frame transforms (..., 4, 4) rotating the hand by ``R`` (..., 3, 3) about the pad centre."""
+    T = np.zeros(R.shape[:-2] + (4, 4))
+    T[..., :3, :3], T[..., 3, 3] = R, 1.0
+    centre = np.array([0.0, 0.0, pad_depth])
+    T[..., :3, 3] = centre - R @ centre
+    return T
+
+
+def _about_closing_axis(angle: float, pad_depth: float) -> np.ndarray:
+    """Tilt by ``angle`` about the closing axis (y) through the pad centre."""
+    c, si = np.cos(angle), np.sin(angle)
+    return _about_pad_centre(np.array([[c, 0.0, si], [0.0, 1.0, 0.0], [-si, 0.0, c]]), pad_depth)
+
+
+def _levelled(H: np.ndarray, normal: np.ndarray, pad_depth: float, max_angle: float) -> np.ndarray:
+    """The hand poses rolled about their x axis (through the pad centre) towards a closing axis
+    parallel to the support, by at most ``max_angle``: a closing axis sloping down puts one finger
+    into the table however far the hand moves back."""
+    yn, zn = H[:, :3, 1] @ normal, H[:, :3, 2] @ normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        phi = np.clip(np.arctan(np.where(np.abs(zn) > 1e-9, -yn / zn, 0.0)), -max_angle, max_angle)
+    c, si = np.cos(phi), np.sin(phi)
+    R = np.zeros((len(H), 3, 3))
+    R[:, 0, 0], R[:, 1, 1], R[:, 1, 2], R[:, 2, 1], R[:, 2, 2] = 1.0, c, -si, si, c
+    return H @ _about_pad_centre(R, pad_depth)
+
+
+def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, standoff: float,
+                     settings: SupportSettings = SupportSettings()) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World hand poses moved off the support where their fingers (at the grasp or at the pre-grasp
+    ``standoff`` back) press into it (``SupportSettings``). Returns the poses, a (N,) mask of those
+    moved, and a (N,) mask of those no variant clears that press in deeper than the tolerance."""
+    robot = world.robot
+    gripper = collision.gripper_spec(robot)
+    tolerance = settings.contact.resolved(robot)
+    max_shift = 0.5 * gripper.pad_length if settings.max_shift is None else float(settings.max_shift)
+    pad_depth = float(gripper.grasp_frame[2, 3])
+    fingers = collision.HandGeometry(robot, start, robot.hand_link, robot.finger_links)
+    table = world.scene.table
+    normal, offset = collision.support_plane(collision.Table(tuple(np.asarray(table.size, float)),
+                                                             np.asarray(table.pose, float)))
+
+    def depths(H):  # deepest finger point at the grasp and at the pre-grasp; moving back lifts both alike
+        back = H.copy()
+        back[:, :3, 3] -= standoff * H[:, :3, 2]
+        return np.maximum(fingers.penetration(H, normal, offset), fingers.penetration(back, normal, offset))
+
+    poses = np.array(hand_poses, dtype=float).reshape(-1, 4, 4)
+    depth = depths(poses)
+    todo = depth > 0.0  # pressing into the table at all: lifted when a variant can, else kept within the tolerance
+    moved = np.zeros(len(poses), bool)
+    level = np.radians(settings.max_level_deg)
+    for levelled, tilt in [(False, 0.0)] + [(True, t) for t in (0.0,) + tuple(np.radians(settings.tilts_deg))]:
+        idx = np.flatnonzero(todo)
+        if len(idx) == 0:
+            break
+        H = _levelled(poses[idx], normal, pad_depth, level) if levelled else poses[idx]
+        H = H @ _about_closing_axis(tilt, pad_depth)
+        lift = -H[:, :3, 2] @ normal  # finger rise per metre moved back along the approach axis
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shift = np.where(lift > 1e-3, np.maximum(depths(H), 0.0) / lift, np.inf)
+        ok = shift <= max_shift
+        H[:, :3, 3] -= shift[:, None].clip(max=max_shift) * H[:, :3, 2]
+        poses[idx[ok]], moved[idx[ok]], todo[idx[ok]] = H[ok], True, False
+    return poses, moved, todo & (depth > tolerance)
+
+
 def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
                    settings: GoalSetSettings = GoalSetSettings(), ik: IkSettings = IkSettings(),
-                   collision_check: bool = True) -> GoalSet:
+                   collision_check: bool = True, support: SupportSettings = SupportSettings()) -> GoalSet:
     """Goal configurations for the world's target from grasps in its object frame.
 
+    With ``collision_check``, grasps are first met with the support (``support_adjusted``): the
+    returned ``GoalSet.grasps`` are the grasps as used (moved ones flagged in ``adjusted``).
     An object with no reachable grasp gives an empty goal set (with reasons), not an exception.
     """
     grasps = check_grasps(grasps)
     start = world.start if start is None else np.asarray(start, dtype=float)
-    hand_poses = np.einsum("ij,njk->nik", world.target_pose, grasps) if len(grasps) else grasps
+    target = world.target_pose
+    hand_poses = np.einsum("ij,njk->nik", target, grasps) if len(grasps) else grasps
+    adjusted = np.zeros(len(grasps), bool)
+    blocked = np.zeros(len(grasps), bool)
+    if collision_check and len(grasps):
+        hand_poses, adjusted, blocked = support_adjusted(world, hand_poses, start, settings.standoff, support)
+        grasps = np.einsum("ij,njk->nik", np.linalg.inv(target), hand_poses)
     checker = world.checker(CheckerKind.goal).native if collision_check else None
     hand_checker = world.checker(CheckerKind.hand).native if collision_check else None
     problem = world.clearance_problem if collision_check and settings.approach_clearance > 0 else None
-    out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses, start, settings.to_native(),
-                               problem, float(settings.approach_clearance))
-    return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), np.asarray(out["grasp_index"], dtype=int),
-                   grasps, list(out["reasons"]), float(out["seconds"]))
+    tried = np.flatnonzero(~blocked)
+    out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses[tried], start,
+                               settings.to_native(), problem, float(settings.approach_clearance))
+    reasons = ["support_penetration"] * len(grasps)
+    for k, reason in zip(tried, out["reasons"]):
+        reasons[k] = reason
+    grasp_index = tried[np.asarray(out["grasp_index"], dtype=int)] if len(tried) else np.zeros(0, int)
+    return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), grasp_index.astype(int),
+                   grasps, reasons, float(out["seconds"]), adjusted)

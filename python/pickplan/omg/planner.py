@@ -14,6 +14,7 @@ from typing import Optional, Tuple, Union
 import numpy as np
 
 from pickplan.core import robots
+from pickplan.core.graspability import graspability
 from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, robot_limits, time_parameterize
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
@@ -33,6 +34,7 @@ class PlanStatus(Option):
     in_collision = "in_collision"
     not_smooth = "not_smooth"
     no_goals = "no_goals"          # no grasp gave a goal configuration (see PlanResult.goal_reasons)
+    ungraspable = "ungraspable"    # no grasp of this gripper can exist for the target as it lies (PlanResult.reason)
 
     @classmethod
     def of(cls, metrics: dict) -> "PlanStatus":
@@ -97,10 +99,16 @@ class PlanResult:
     goal_set: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (G, dof) the IK goal set
     goal_source: int = -1          # row of goal_set the final goal came from (refined or not; -1: none)
     limits: Optional[KinematicLimits] = None  # the planned robot's limits (``timed``'s default)
+    reason: str = ""               # why, for ungraspable ("ungraspable: wider than the 8 cm opening ...")
 
     @property
     def success(self) -> bool:
         return self.status == PlanStatus.success
+
+    @property
+    def planned(self) -> bool:
+        """A trajectory was optimized (there were goals to plan to)."""
+        return self.status not in (PlanStatus.no_goals, PlanStatus.ungraspable)
 
     def timed(self, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
               interpolation: Interpolation = Interpolation.PCHIP) -> TimedTrajectory:
@@ -165,22 +173,31 @@ class OMGPlanner:
         q0, grasps = self._prepare(world, start, grasps)
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
+        verdict = target_graspability(world)  # geometry, scene preparation: no goal set for what cannot be grasped
         timings["prepare"] = time.perf_counter() - t
         t_total = time.perf_counter()
 
         t = time.perf_counter()
-        gs = build_goal_set(world, grasps, q0, s.goals, s.ik)
+        gs = build_goal_set(world, grasps, q0, s.goals, s.ik) if verdict.graspable else None
         timings["goal_set"] = time.perf_counter() - t
-        if len(gs) == 0:
+        if gs is None or len(gs) == 0:
             timings["total"] = time.perf_counter() - t_total
             history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}
-            return PlanResult(PlanStatus.no_goals, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0,
-                              0, history, timings, gs.reason_counts())
+            status = PlanStatus.no_goals if verdict.graspable else PlanStatus.ungraspable
+            return PlanResult(status, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0, history,
+                              timings, gs.reason_counts() if gs is not None else {},
+                              reason="" if verdict.graspable else f"ungraspable: {verdict.reason}")
         result = _Optimization(s, world, q0, GoalBook(gs, world.robot), timings).run()
         timings["total"] = time.perf_counter() - t_total
         result.goal_reasons = gs.reason_counts()
         result.limits = robot_limits(world.robot)
         return result
+
+
+def target_graspability(world: World):
+    """Whether the world's gripper can grasp its target as it lies at all (``core.graspability``)."""
+    up = np.asarray(world.scene.table.pose, dtype=float)[:3, 2]
+    return graspability(world.target_model, world.target_pose, world.robot.info.max_opening, up)
 
 
 class GoalBook:

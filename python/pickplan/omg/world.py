@@ -22,7 +22,8 @@ from pickplan.omg.chomp import Chomp
 class CheckerKind(Option):
     """What a world's FCL checker lets touch (``World.checker``)."""
 
-    goal = "goal"            # the fingers may touch the target (grasp configurations close around it)
+    goal = "goal"            # the fingers may touch the target (grasp configurations close around it) and the
+                             # table (its depth is checked against the support plane apart)
     hand = "hand"            # the same, for the hand and fingers alone
     strict = "strict"        # nothing may touch anything
     obstacles = "obstacles"  # the target is ignored entirely (trajectory validation)
@@ -119,7 +120,10 @@ class World:
             _table_pairs(self.robot)
         links = None
         if kind in (CheckerKind.goal, CheckerKind.hand):
-            settings = collision.CollisionSettings(allowed_pairs=mounted + tuple((f, self.target) for f in fingers))
+            # The fingers may touch the target, and the table within a tolerance the goal set checks
+            # exactly against the support plane (goals.support_adjusted); the palm stays strict.
+            touching = tuple((f, self.target) for f in fingers) + tuple((f, "table") for f in fingers)
+            settings = collision.CollisionSettings(allowed_pairs=mounted + touching)
             if kind is CheckerKind.hand:  # only what the grasp pose places: hand and fingers
                 links = (self.robot.hand_link,) + tuple(fingers)
         elif kind is CheckerKind.strict:

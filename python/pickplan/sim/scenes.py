@@ -22,7 +22,8 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from pickplan.core import objects as objects_mod
-from pickplan.core import objects_builtin
+from pickplan.core.graspability import graspability
+from pickplan.core.panda import PANDA
 from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
 from pickplan.sim.bodies import (_inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat,  # noqa: F401
@@ -65,8 +66,9 @@ class SceneSettings:
     friction: float = 0.8
     max_attempts: int = 20
     robot_configuration: Optional[Tuple[float, ...]] = None  # None: core.panda.PANDA.ready
-    # Never the target: wider than the Panda's 8 cm opening (the paper's grasp data has none for it).
-    non_targets: Tuple[str, ...] = ("002_master_chef_can",)
+    # The target is drawn among the objects its gripper can grasp as they lie (core.graspability),
+    # of this opening (None: the scene robot's, the Panda's 8 cm); when none can be, among all.
+    gripper_opening: Optional[float] = None
 
     def __post_init__(self):
         if self.orientation not in ORIENTATIONS:
@@ -343,12 +345,10 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
         else:
             raise RuntimeError(f"seed {seed}: fewer than {settings.min_objects} objects came to rest in "
                                f"{settings.max_attempts} attempts")
-        # Built-in shapes the Panda cannot hold (no handle on the built-in pitcher) are never targets.
-        never = set(settings.non_targets) | {p.name for p in kept if p.model.source.startswith(
-            objects_mod.BUILTIN_PREFIX) and p.name in objects_builtin.UNGRASPABLE}
-        candidates = [p for p in kept if p.name not in never] or kept
-        target = candidates[int(rng.integers(len(candidates)))].name
         objs = [SceneObject(p.name, p.model.source, object_pose(client, p.body, p.model)) for p in kept]
+        opening = settings.gripper_opening or PANDA.max_opening
+        candidates = [o for o, p in zip(objs, kept) if graspability(p.model, o.pose, opening).graspable] or objs
+        target = candidates[int(rng.integers(len(candidates)))].name
     finally:
         pb.disconnect(client)
     return Scene(robot_base=np.eye(4), table=table, objects=objs, target=target,

@@ -12,6 +12,11 @@ struct MetricSettings {
   double epsilon = 0.2;                // padding of the cost c(d) summed by "collision"
   double clearance = 0.05;             // collision-free: every point at least this far from objects
   double table_clearance = 0.0;        // ... and this far from the table (grasps sit close to it)
+  // The support surface: the links in support_link_mask (bit = link index: the fingers) may touch
+  // the table down to support_tolerance inside it (a grasp of a thin object rests its fingertips on
+  // it); every other link keeps table_clearance.
+  std::uint64_t support_link_mask = 0;
+  double support_tolerance = 0.0;
   int tail_waypoints = 0;              // the last waypoints (the standoff approach into the clutter,
   double tail_clearance = 0.01;        //   the goal set checks it) need only this clearance
   double smoothness_threshold = 30.0;  // planning success needs smoothness below this

@@ -1,6 +1,7 @@
 """Grasp sets generated from an object's mesh: the paper's naive "Approach" set and antipodal grasps."""
 from __future__ import annotations
 
+import time
 import warnings
 from dataclasses import dataclass, replace
 from typing import Optional
@@ -8,8 +9,10 @@ from typing import Optional
 import numpy as np
 import trimesh
 
+from pickplan.core import collision
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
+from pickplan.core.robots import panda
 from pickplan.omg.grasps.hand import HandObjectChecker
 from pickplan.omg.grasps.sets import GraspSet, _check_count, _frame, _perpendicular
 
@@ -73,9 +76,41 @@ class AntipodalSettings:
     max_rounds: int = 25
 
 
+class SupportFilter:
+    """The support plane in the object's frame (the object as it lies): a hand whose palm reaches
+    below it, or whose fingers reach deeper than the gripper's support tolerance plus the half pad
+    length the goal set may lift a grasp by (``omg.goals.SupportSettings``), cannot be used."""
+
+    def __init__(self, normal, offset: float, tolerance: Optional[float] = None, robot=None):
+        robot = robot if robot is not None else panda()  # the gripper's hand and fingers
+        q = robot.ready_configuration
+        self.normal, self.offset = np.asarray(normal, float) / np.linalg.norm(normal), float(offset)
+        self.tolerance = collision.SupportContact(tolerance).resolved(robot) + \
+            0.5 * collision.gripper_spec(robot).pad_length
+        self.fingers = collision.HandGeometry(robot, q, robot.hand_link, robot.finger_links)
+        self.palm = collision.HandGeometry(robot, q, robot.hand_link, (robot.hand_link,))
+
+    @classmethod
+    def under(cls, object_pose, tolerance: Optional[float] = None, robot=None) -> "SupportFilter":
+        """The plane z = 0 of the world (the table top) for an object at ``object_pose``."""
+        inv = np.linalg.inv(np.asarray(object_pose, float))
+        normal = inv[:3, :3] @ np.array([0.0, 0.0, 1.0])
+        return cls(normal, float(normal @ inv[:3, 3]), tolerance, robot)
+
+    @staticmethod
+    def fan(k: int) -> np.ndarray:
+        """k approach angles about a grasp axis, from the most top-down one outwards: 0, +-15, +-30 deg, ..."""
+        steps = (np.arange(k) + 1) // 2
+        return np.radians(15.0) * steps * np.where(np.arange(k) % 2 == 1, 1.0, -1.0)
+
+    def allows(self, hand_poses) -> np.ndarray:
+        return (self.fingers.penetration(hand_poses, self.normal, self.offset) <= self.tolerance) & \
+            (self.palm.penetration(hand_poses, self.normal, self.offset) <= 0.0)
+
+
 def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[float] = None,
                      max_width: Optional[float] = None, settings: AntipodalSettings = AntipodalSettings(),
-                     gripper: RobotInfo = PANDA) -> GraspSet:
+                     gripper: RobotInfo = PANDA, support: Optional[SupportFilter] = None) -> GraspSet:
     """Antipodal grasps from the mesh: a surface point p (outward normal n_p), a ray from p into
     the object inside the friction cone around -n_p, its exit point q (normal n_q); kept when the
     axis lies in both friction cones and the width fits the opening. The hand closes along the
@@ -85,8 +120,10 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
 
     ``info``: "contacts" (N, 2, 3) p and q, "normals" (N, 2, 3) outward object normals, "width".
     ``scores``: cone margin 1 - max angle / cone angle. Fewer than ``n`` (with a warning) if the
-    object offers fewer after ``max_rounds`` rounds.
+    object offers fewer after ``max_rounds`` rounds. ``support``: only hands the support under the
+    object (as it lies) allows. ``info["seconds"]``: the generation time (one value per grasp).
     """
+    started = time.perf_counter()
     _check_count(n, seed)
     s = replace(settings, **{k: v for k, v in (("friction", friction), ("max_width", max_width)) if v is not None})
     s = s if s.max_width is not None else replace(s, max_width=gripper.max_opening)
@@ -130,12 +167,17 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
         for a, i in enumerate(idx):
             y = -d[i] if flip[a] else d[i]  # +y points from the right finger to the left finger
             z0 = _perpendicular(y)
+            if support is not None:  # from the most top-down approach about this axis, fanning out
+                down = -support.normal
+                theta[a] = np.arctan2(np.cross(y, z0) @ down, z0 @ down) + support.fan(k)
             for b in range(k):
                 z = np.cos(theta[a, b]) * z0 + np.sin(theta[a, b]) * np.cross(y, z0)
                 T[a, b, :3, :3] = np.column_stack([np.cross(y, z), y, z])
                 T[a, b, :3, 3] = 0.5 * (p[i] + q[i])
                 T[a, b] = T[a, b] @ hand_from_grasp  # the grasp frame there -> the hand link
         free = ~check.in_collision(T.reshape(-1, 4, 4)).reshape(len(idx), k)
+        if support is not None:
+            free &= support.allows(T.reshape(-1, 4, 4)).reshape(len(idx), k)
         for a, i in enumerate(idx):
             choices = np.flatnonzero(free[a])
             if len(choices) == 0:
@@ -155,6 +197,7 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
         warnings.warn(f"{model.name}: only {count} antipodal grasps found (asked for {n})", stacklevel=2)
     if count == 0:
         return GraspSet("antipodal", np.zeros((0, 4, 4)), model.name, scores=np.zeros(0))
+    seconds = np.full(min(count, n), time.perf_counter() - started)
     return GraspSet("antipodal", np.asarray(out_T)[:n], model.name, scores=np.asarray(out_s)[:n],
                     info={"contacts": np.asarray(out_c)[:n], "normals": np.asarray(out_n)[:n],
-                          "width": np.asarray(out_w)[:n]})
+                          "width": np.asarray(out_w)[:n], "seconds": seconds})
