@@ -171,7 +171,7 @@ def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
 
 @dataclass
 class BuildConfig:
-    sg_grid: tuple = (0.1, 0.2, 0.3, 0.4, 0.5)
+    sg_grid: tuple = (0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 0.9, 1.2)  # to 1.2 m/s: Table IV at low uncertainty is not capped
     sc_grid: tuple = (0.05, 0.1, 0.15)
     levels: tuple = DEFAULT_LEVELS
     active: ActiveConfig = field(default_factory=ActiveConfig)
