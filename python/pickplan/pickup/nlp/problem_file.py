@@ -78,10 +78,13 @@ class BoxObstacle:
     yaw: float = 0.0
 
     def spheres(self) -> list:
-        """Spheres covering the box: a grid of near-cubic cells, each inside its circumscribed
-        sphere (conservative by at most the cell's half diagonal)."""
+        """Spheres covering the box: a grid of cells no wider than the box's smallest side (coarser
+        when that takes more than MAX_BOX_SPHERES), each inside its circumscribed sphere
+        (conservative by at most the cell's half diagonal)."""
         size = np.asarray(self.size, float)
-        h = max(size.min(), size.max() / 4.0)
+        h = size.min()
+        while np.prod(np.maximum(1, np.ceil(size / h - 1e-9))) > MAX_BOX_SPHERES:
+            h *= 1.1
         n = np.maximum(1, np.ceil(size / h - 1e-9)).astype(int)
         cell = size / n
         radius = 0.5 * float(np.linalg.norm(cell))
@@ -214,8 +217,6 @@ def _obstacle(r: _Reader, o, where: str):
     box = BoxObstacle(r.vector(b["center"], f"{where}.box.center", 3),
                       r.vector(b["size"], f"{where}.box.size", 3, positive=True),
                       r.number(b.get("yaw", 0.0), f"{where}.box.yaw"))
-    if len(box.spheres()) > MAX_BOX_SPHERES:
-        r.fail(f"{where}.box.size", f"too elongated: more than {MAX_BOX_SPHERES} covering spheres; split the box")
     return box
 
 
@@ -296,6 +297,15 @@ def dump_problem(spec: PickupProblemSpec, path) -> None:
 def native_problem(robot, spec: PickupProblemSpec, rho) -> "_core.PickupProblem":
     """The native PickupProblem for the mobile UR5 (``robot``) with the surface ``rho``
     (a native RhoPoly); ValueError naming the file when the robot rejects it."""
+    lo, hi = np.asarray(robot.lower_limits), np.asarray(robot.upper_limits)
+    for i, v in enumerate(spec.arm_start):
+        if not lo[3 + i] <= v <= hi[3 + i]:
+            raise InputError(f"{v} outside the joint's limits [{lo[3 + i]:.4f}, {hi[3 + i]:.4f}]",
+                             path=spec.source, field=f"arm_start[{i}]")
+    for name, pose in (("base_start", spec.base_start), ("base_goal", spec.base_goal)):
+        if not all(lo[i] <= pose[i] <= hi[i] for i in range(2)):
+            raise InputError(f"({pose[0]}, {pose[1]}) outside the base's range [{lo[0]}, {hi[0]}] m",
+                             path=spec.source, field=name)
     pb = _core.PickupProblem()
     pb.start = np.asarray(spec.base_start, float)
     pb.goal = np.asarray(spec.base_goal, float)

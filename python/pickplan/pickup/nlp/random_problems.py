@@ -29,7 +29,7 @@ class Workspace:
     start_y: tuple = (-1.0, 1.0)
     goal_x: tuple = (7.0, 9.0)
     goal_y: tuple = (-1.0, 1.0)
-    heading_spread: float = math.pi / 3   # start and goal yaw: route direction +- this
+    heading_spread: float = math.pi / 4   # start yaw: towards the part +- this; goal yaw: from the part
     part_x: tuple = (2.0, 5.0)
     part_y: tuple = (3.0, 5.0)
     part_z: tuple = (0.4, 0.6)            # grasp height
@@ -40,10 +40,15 @@ class Workspace:
     gamma: float = 0.96
 
     def describe(self) -> str:
-        return (f"start x {self.start_x} y {self.start_y}, goal x {self.goal_x} y {self.goal_y} (yaw: route "
-                f"direction +- {math.degrees(self.heading_spread):.0f} deg), part x {self.part_x} y {self.part_y} "
+        return (f"start x {self.start_x} y {self.start_y} (yaw: towards the part +- "
+                f"{math.degrees(self.heading_spread):.0f} deg), goal x {self.goal_x} y {self.goal_y} (yaw: away "
+                f"from the part +- {math.degrees(self.heading_spread):.0f} deg), part x {self.part_x} y {self.part_y} "
                 f"z {self.part_z} any yaw, top or side grasp, on a pedestal; {self.pillars[0]}-{self.pillars[1]} "
                 f"pillars r {self.pillar_radius} between start and goal")
+
+
+def _heading(a, b) -> float:
+    return math.atan2(b[1] - a[1], b[0] - a[0])
 
 
 def _clear(xy, radius, obstacles, margin) -> bool:
@@ -72,7 +77,6 @@ def random_problem(rng: np.random.Generator, ws: Workspace = Workspace(), max_tr
     for _ in range(max_tries):
         start = np.array([u(ws.start_x), u(ws.start_y)])
         goal = np.array([u(ws.goal_x), u(ws.goal_y)])
-        route = math.atan2(*(goal - start)[::-1])
         part = (u(ws.part_x), u(ws.part_y), u(ws.part_z))
         obstacles = [SphereObstacle((part[0], part[1], 0.15), 0.15),                            # pedestal
                      SphereObstacle((part[0], part[1], part[2] - PEDESTAL_GAP), 0.06)]          # its top
@@ -90,8 +94,9 @@ def random_problem(rng: np.random.Generator, ws: Workspace = Workspace(), max_tr
         if not _grasp_ring_clear(part[:2], obstacles):
             continue
         return PickupProblemSpec(
-            base_start=(float(start[0]), float(start[1]), route + u((-ws.heading_spread, ws.heading_spread))),
-            base_goal=(float(goal[0]), float(goal[1]), route + u((-ws.heading_spread, ws.heading_spread))),
+            base_start=(float(start[0]), float(start[1]),
+                        _heading(start, part) + u((-ws.heading_spread, ws.heading_spread))),
+            base_goal=(float(goal[0]), float(goal[1]), _heading(part, goal) + u((-ws.heading_spread, ws.heading_spread))),
             part_position=part, part_yaw=u((-math.pi, math.pi)), metamodel=ws.metamodel,
             uncertainty=ws.uncertainty, sigma_r=sr, sigma_phi=sp, gamma=ws.gamma, obstacles=tuple(obstacles),
             grasp=GraspKind.top if rng.random() < 0.5 else GraspKind.side, arm_start=DEFAULT_ARM_START)
