@@ -62,6 +62,7 @@ def add_metamodel_commands(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--mass", type=float, default=None, help="the mesh part's mass (kg)")
     b.add_argument("--density", type=float, default=None, help="... or its density (kg/m^3)")
     b.add_argument("--friction", type=float, default=0.6, help="the mesh part's lateral friction")
+    b.add_argument("--smoke", action="store_true", help="tests: the smallest build that runs every step (rough rho)")
     b.set_defaults(func=cmd_build)
     c = sub.add_parser("compare", help="compare with extensive sampling (Fig. 3, table)")
     _common(c)
@@ -79,7 +80,7 @@ def add_metamodel_commands(subparsers) -> argparse.ArgumentParser:
 
 
 def _config(args) -> BuildConfig:
-    cfg = BuildConfig.quick() if args.quick else BuildConfig()
+    cfg = BuildConfig.smoke() if getattr(args, "smoke", False) else BuildConfig.quick() if args.quick else BuildConfig()
     if args.budget is not None:
         cfg = replace(cfg, active=replace(cfg.active, budget=args.budget))
     return replace(cfg, rho_model=args.rho_model, lapse_ceiling=not args.no_lapse)

@@ -197,6 +197,13 @@ class BuildConfig:
                    active=ActiveConfig(n_init=16, n_holdout=16, batch_size=12, budget=80),
                    n_queries=4000)
 
+    @classmethod
+    def smoke(cls) -> "BuildConfig":
+        """Tests: the smallest build that runs every step (2 x 2 grid, 30 simulations per boundary);
+        its rho is rough."""
+        return cls(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.15), n_queries=2000,
+                   active=ActiveConfig(n_init=12, n_holdout=12, batch_size=10, budget=30))
+
 
 class MetaModel:
     """The meta-model of one part and grasping strategy: GSBs on the speed grid, the

@@ -38,6 +38,7 @@ BUILTIN_PARTS = ("box", "cylinder", "l_bracket")
 DEFAULT_ARM_START = (0.0, -2.2, 2.0, -1.4, -1.5708, 0.0)
 ARM_DOF = 6
 MAX_BOX_SPHERES = 64                   # per box obstacle (each sphere adds collision rows)
+MAX_OBSTACLE_SIZE = 100.0              # m: a sphere's radius, a box's side
 # The mobile UR5's body spheres (link, centre in the link frame, radius), as in the paper's cases.
 BODY_SPHERES = (("base_link", (0.0, 0.0, 0.2), 0.3), ("upper_arm_link", (-0.2125, 0.0, 0.136), 0.08),
                 ("forearm_link", (-0.196, 0.0, 0.017), 0.07), ("wrist_2_link", (0.0, 0.0, 0.0), 0.06),
@@ -211,12 +212,12 @@ def _obstacle(r: _Reader, o, where: str):
     if len(o) != 1:
         r.fail(where, "expected exactly one of 'sphere' or 'box'")
     if "sphere" in o:
-        x, y, z, radius = r.vector(o["sphere"], f"{where}.sphere", 4)
-        return SphereObstacle((x, y, z), r.number(radius, f"{where}.sphere[3]", positive=True))
+        x, y, z, radius = r.vector(o["sphere"], f"{where}.sphere", 4, lo=-1e4, hi=1e4)
+        return SphereObstacle((x, y, z), r.number(radius, f"{where}.sphere[3]", hi=MAX_OBSTACLE_SIZE, positive=True))
     b = r.table(o["box"], f"{where}.box", ("center", "size"), ("yaw",))
-    box = BoxObstacle(r.vector(b["center"], f"{where}.box.center", 3),
-                      r.vector(b["size"], f"{where}.box.size", 3, positive=True),
-                      r.number(b.get("yaw", 0.0), f"{where}.box.yaw"))
+    box = BoxObstacle(r.vector(b["center"], f"{where}.box.center", 3, lo=-1e4, hi=1e4),
+                      r.vector(b["size"], f"{where}.box.size", 3, hi=MAX_OBSTACLE_SIZE, positive=True),
+                      r.number(b.get("yaw", 0.0), f"{where}.box.yaw", lo=-4 * math.pi, hi=4 * math.pi))
     return box
 
 
