@@ -17,6 +17,7 @@ median <= 0.7 s, worst <= 2 s.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
 from dataclasses import replace
@@ -24,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from pickplan.core.io import write_json, write_text
-from pickplan.core.runner import run_jobs
+from pickplan.core.runner import Order, Runner
 from pickplan.pickup.nlp import planner, problem_file, random_problems, solve_problem
 
 TIE = 1e-3  # relative: T within 0.1 % of the best shot counts as a tie, not as shorter
@@ -101,7 +102,12 @@ def main(argv=None) -> int:
                     help="meta-model JSON or 'standin' (default: the problems' built-in box, built on first use)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default="out/bench_pickup_problems")
+    ap.add_argument("--summarize", default=None, metavar="JSONL", help="only summarize the records of a (partial) run")
     args = ap.parse_args(argv)
+    if args.summarize:
+        with open(args.summarize, encoding="utf-8") as f:
+            print(summarize([json.loads(line) for line in f if line.strip()], 0.96))
+        return 0
     specs = random_problems.random_problems(args.n, args.seed)
     if args.metamodel:
         named = args.metamodel in (problem_file.STANDIN, *problem_file.BUILTIN_PARTS)
@@ -112,10 +118,17 @@ def main(argv=None) -> int:
     for s in specs:
         jobs.append((s, None, planner.Method.successive, 0))
         jobs += [(s, None, planner.Method.single_shot, k) for k in range(args.shots)]
-    out = run_jobs(_solve, jobs, args.workers)
-    k = 1 + args.shots
-    records = [{"problem": i, "successive": out[i * k], "shots": out[i * k + 1:(i + 1) * k]} for i in range(args.n)]
     os.makedirs(args.out, exist_ok=True)
+    partial = os.path.join(args.out, "records.jsonl")  # one line per finished problem (a run cut short still counts)
+    k, done, records = 1 + args.shots, [], []
+    with Runner(args.workers) as runner, open(partial, "w", encoding="utf-8") as log:
+        for _, result in runner.map(_solve, jobs, Order.JOBS):
+            done.append(result)
+            if len(done) == k:
+                records.append({"problem": len(records), "successive": done[0], "shots": done[1:]})
+                log.write(json.dumps(records[-1]) + "\n")
+                log.flush()
+                done = []
     write_json(os.path.join(args.out, "records.json"), records)
     md = summarize(records, specs[0].gamma)
     write_text(os.path.join(args.out, "summary.md"), md)
