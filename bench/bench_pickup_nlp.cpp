@@ -124,13 +124,13 @@ void bench_pickup(const Options& opt) {
   for (int c : cases) {
     PickupProblem pb = paper_case(robot, c, rho);
     PickupResult r = solve_successive(robot, pb, st);
-    std::printf("case %d: %-12s total %.3f s (cpu %.3f s) |", c, r.status.c_str(), r.total_seconds, r.total_cpu_seconds);
+    std::printf("case %d: %-12s total %.3f s (cpu %.3f s) |", c, to_string(r.status), r.total_seconds, r.total_cpu_seconds);
     for (const auto& s : r.stages)
       std::printf(" s%d %.3fs/%dit%s", s.stage, s.seconds, s.iterations,
                   s.rounds > 1 ? ("/" + std::to_string(s.rounds) + "r").c_str() : "");
-    if (r.direct.stage == 0 && !r.direct.status.empty())
+    if (r.direct.stage == 0 && r.direct.status != SolveStatus::not_run)
       std::printf(" direct %.3fs/%dit (cpu %.3f s) %s T %.2f%s", r.direct.seconds, r.direct.iterations, r.direct.cpu_seconds,
-                  r.direct.status.c_str(), r.direct.objective, r.direct_chosen ? " [chosen]" : "");
+                  to_string(r.direct.status), r.direct.objective, r.direct_chosen ? " [chosen]" : "");
     if (r.arm_seeds_tried > 1) {
       std::printf("   arm seeds (cpu %.3f s not kept), T:", r.search_cpu_seconds);
       for (int k = 0; k < r.arm_seeds_tried; ++k) std::printf(" %.2f%s", r.arm_seed_T[k], k == r.arm_seed_chosen ? "*" : "");
@@ -152,7 +152,7 @@ void bench_pickup(const Options& opt) {
       PickupSettings s1 = st;
       s1.seed = k;
       PickupResult b = solve_single_shot(robot, pb, s1);
-      std::printf("   single-shot seed %d: %-12s %.3f s (cpu %.3f s) %d it, T %.2f\n", k, b.status.c_str(), b.total_seconds,
+      std::printf("   single-shot seed %d: %-12s %.3f s (cpu %.3f s) %d it, T %.2f\n", k, to_string(b.status), b.total_seconds,
                   b.total_cpu_seconds, b.stages[0].iterations, b.stages[0].objective);
       if (b.success) best_single = std::min(best_single, b.T);
       if (b.success) dump("single shot", b);

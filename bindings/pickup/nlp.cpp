@@ -50,6 +50,7 @@ void init_pickup_nlp(py::module_& m) {
       .def("value", &RhoPoly::value, py::arg("s_g"), py::arg("s_c"))
       .def("gradient", &RhoPoly::gradient, py::arg("s_g"), py::arg("s_c"));
 
+  py::enum_<GraspKind>(m, "GraspKind").value("top", GraspKind::top).value("side", GraspKind::side);
   py::class_<PickupProblem>(m, "PickupProblem")
       .def(py::init<>())
       .def_readwrite("start", &PickupProblem::start)
@@ -92,6 +93,8 @@ void init_pickup_nlp(py::module_& m) {
                       p.body_spheres.clear();
                       for (const auto& [l, c, r] : v) p.body_spheres.push_back({l, c, r});
                     })
+      .def("set_part_grasp", &set_part_grasp, py::arg("kind"), py::arg("yaw"), py::arg("position"),
+           "grasp pose, approach direction and grasping-area centre of a part at `position` with `yaw`")
       .def("validate", &PickupProblem::validate, py::arg("robot"));
 
   py::enum_<HessianMode>(m, "HessianMode")
@@ -102,6 +105,15 @@ void init_pickup_nlp(py::module_& m) {
       .value("monomial", CoefficientBasis::monomial);
   py::enum_<MuStrategy>(m, "MuStrategy").value("monotone", MuStrategy::monotone).value("adaptive", MuStrategy::adaptive);
   py::enum_<RateRows>(m, "RateRows").value("hull", RateRows::hull).value("sampled", RateRows::sampled);
+  {
+    py::enum_<SolveStatus> status(m, "SolveStatus");
+    for (SolveStatus s : {SolveStatus::not_run, SolveStatus::solved, SolveStatus::solved_acceptable,
+                          SolveStatus::infeasible, SolveStatus::diverging, SolveStatus::max_iterations,
+                          SolveStatus::max_cpu_time, SolveStatus::restoration_failed, SolveStatus::step_too_small,
+                          SolveStatus::invalid_number, SolveStatus::solver_error, SolveStatus::bounded,
+                          SolveStatus::violation_between_samples, SolveStatus::constraint_violation})
+      status.value(to_string(s), s);
+  }
 
   py::class_<PickupSettings>(m, "PickupSettings")
       .def(py::init<>())

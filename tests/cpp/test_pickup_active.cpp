@@ -165,7 +165,7 @@ TEST(PickupActiveSet, SuccessProbabilityBoundsGripperSpeed) {
   PickupSettings st = fast_settings();
   StageResult res = solve_stage(r, pb, st, 4, heuristic_seed(r, pb, st));
   EXPECT_FALSE(res.success);
-  EXPECT_EQ(res.status, "infeasible");
+  EXPECT_EQ(res.status, SolveStatus::infeasible);
   EXPECT_NE(res.ipopt_status.find("success-probability"), std::string::npos) << res.ipopt_status;
 }
 
@@ -201,7 +201,7 @@ TEST(PickupActiveSet, DirectTrackReturnsTheShorterFeasibleSolution) {
   st.direct_track = false;
   const PickupResult staged = solve_successive(r, pb, st);
   ASSERT_TRUE(staged.success) << staged.status;
-  EXPECT_TRUE(staged.direct.status.empty());
+  EXPECT_EQ(staged.direct.status, SolveStatus::not_run);
   EXPECT_FALSE(staged.direct_chosen);
   st.direct_track = true;
   const PickupResult res = solve_successive(r, pb, st);

@@ -192,7 +192,7 @@ TEST(PickupNlp, UnreachablePartReturnsStatusNotException) {
   ASSERT_NO_THROW(res = solve_successive(r, pb, st));
   EXPECT_FALSE(res.success);
   EXPECT_EQ(res.stages_completed, 1);  // the base-only stage is feasible; the grasp pose is not
-  EXPECT_EQ(res.status, "infeasible") << res.stages.back().ipopt_status;
+  EXPECT_EQ(res.status, SolveStatus::infeasible) << res.stages.back().ipopt_status;
   EXPECT_EQ(res.x.size(), res.stages[0].x.size());
 }
 

@@ -15,6 +15,10 @@ TEST(PickupOptions, TextFormsRoundTrip) {
     EXPECT_EQ(parse_coefficient_basis(to_string(v)), v);
   for (auto v : {MuStrategy::monotone, MuStrategy::adaptive}) EXPECT_EQ(parse_mu_strategy(to_string(v)), v);
   for (auto v : {RateRows::hull, RateRows::sampled}) EXPECT_EQ(parse_rate_rows(to_string(v)), v);
+  for (int i = 0; i <= static_cast<int>(SolveStatus::constraint_violation); ++i) {
+    const auto v = static_cast<SolveStatus>(i);
+    EXPECT_EQ(parse_solve_status(to_string(v)), v);
+  }
   // Ipopt's own spelling of its option value, not the C++ identifier.
   EXPECT_STREQ(to_string(HessianMode::limited_memory), "limited-memory");
 }

@@ -206,6 +206,19 @@ def run_metamodel(text: str, work: str):
                 _finite(rho.value(float(sg), float(sc)))
 
 
+def run_problem(text: str, work: str):
+    """A pick-up problem file as `pickplan pickup plan` reads it, down to the native problem (the
+    stand-in surface: the meta-model file kind has its own fuzzing)."""
+    from pickplan.pickup.nlp import planner, problem_file
+
+    path = os.path.join(work, "problem.json")
+    with open(path, "w", encoding="utf-8", errors="surrogatepass") as f:
+        f.write(text)
+    spec = problem_file.load_problem(path)
+    pb = problem_file.native_problem(planner.mobile_ur5(), spec, planner.synthetic_rho(spec.sigma_r, spec.sigma_phi))
+    _finite(pb.start, pb.goal, pb.arm_start, pb.grasp_pose, [r for _, r in pb.obstacles])
+
+
 def run_urdf(text: str, work: str):
     import pickplan
 
@@ -243,8 +256,8 @@ def run_exec(code: str, work: str):  # the harness's own test: a case is any Pyt
     exec(code, {})
 
 
-RUNNERS = {"exec": run_exec, "scene": run_scene, "grasps": run_grasps, "metamodel": run_metamodel, "urdf": run_urdf,
-           "mesh": run_mesh}
+RUNNERS = {"exec": run_exec, "scene": run_scene, "grasps": run_grasps, "metamodel": run_metamodel,
+           "problem": run_problem, "urdf": run_urdf, "mesh": run_mesh}
 
 
 def run_case(kind: str, payload, work: str) -> dict:

@@ -1,5 +1,5 @@
 """Fuzz suite (issue 26): seeded random mutations of valid scene files, grasp arrays, meta-model
-files, URDFs and meshes, each case run in a child process (many per process, but a crash or a hang
+files, pick-up problem files, URDFs and meshes, each case run in a child process (many per process, but a crash or a hang
 is caught and pinned on its case) with a time limit. Every case must end in a valid result with
 finite numbers or a documented error with a message (fuzz_cases.ALLOWED_ERRORS): never a signal, a
 hang past the limit, NaN in a result, or another exception type.
@@ -80,7 +80,13 @@ def bases(tmp_path_factory):
     for lv in mm["levels"]:
         lv["surface"]["coeffs"] = (0.9 - 0.1 * np.add.outer(np.arange(4), np.arange(3))).tolist()
     cylinder = trimesh.creation.cylinder(radius=0.03, height=0.1, sections=12)
+    from pickplan.pickup.nlp import cases
+
+    problem = json.load(open(cases.case_path(5)))
+    problem["part"]["metamodel"] = "standin"
+    problem["obstacles"].append({"box": {"center": [5.0, -1.0, 0.3], "size": [0.4, 0.8, 0.6], "yaw": 0.4}})
     return {"scene": scenes.generate_scene(seed=2).to_dict(), "grasps": np.asarray(grasps, float), "metamodel": mm,
+            "problem": problem,
             "urdf": URDF.format(mesh=str(folder / "link.obj")),
             "mesh": {"mesh.stl": _stl_text(cylinder), "collision.obj": _obj_text(cylinder.convex_hull)}}
 
@@ -89,7 +95,7 @@ def make_cases(kind: str, base, n: int, seed: int) -> list:
     rng = random.Random(f"{kind}/{seed}")
     cases = []
     for _ in range(n):
-        if kind in ("scene", "metamodel"):
+        if kind in ("scene", "metamodel", "problem"):
             payload = fuzz_cases.mutate_json(base, rng)
         elif kind == "grasps":
             payload = base64.b64encode(fuzz_cases.mutate_array(base, rng)).decode()
@@ -153,8 +159,6 @@ KINDS = ("scene", "grasps", "metamodel", "problem", "urdf", "mesh")
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_fuzzed_inputs_end_in_a_clear_error_or_a_valid_result(kind, bases, tmp_path):
-    if kind == "problem":
-        pytest.skip("pick-up problem files do not exist yet (issue 26: skip that kind until they do)")
     cases = make_cases(kind, bases[kind], COUNT, SEED)
     results = run_cases(cases, str(tmp_path))
     assert sorted(results) == list(range(len(cases)))

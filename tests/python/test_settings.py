@@ -14,7 +14,7 @@ from pickplan.omg.isf import IsfSettings
 from pickplan.omg.planner import OMGSettings, PlanStatus
 from pickplan.omg.selection import CostKind, Selection
 from pickplan.omg.world import CheckerKind
-from pickplan.pickup.nlp import cases, planner as nlp
+from pickplan.pickup.nlp import cases, planner as nlp, problem_file
 from pickplan.sim.execution import ExecutionStatus
 
 ARM = [True] * 7 + [False] * 2
@@ -34,7 +34,8 @@ PAIRS = {
 # Python option/status enums with a native py::enum_ of the same member names.
 NATIVE_ENUMS = [(ChompStatus, _core.ChompStatus), (nlp.HessianMode, _core.HessianMode),
                 (nlp.CoefficientBasis, _core.CoefficientBasis), (nlp.MuStrategy, _core.MuStrategy),
-                (nlp.RateRows, _core.RateRows)]
+                (nlp.RateRows, _core.RateRows), (nlp.SolveStatus, _core.SolveStatus),
+                (problem_file.GraspKind, _core.GraspKind)]
 OPTIONS = [ChompStatus, Initialization, GraspKind, PlanStatus, Selection, CostKind, CheckerKind, nlp.HessianMode,
            nlp.CoefficientBasis, nlp.MuStrategy, nlp.RateRows, nlp.Method, ExecutionStatus]
 

@@ -25,38 +25,37 @@ RhoPoly example_rho(double shift) {
   return r;
 }
 
+void set_part_grasp(PickupProblem& pb, GraspKind kind, double yaw, const Eigen::Vector3d& position) {
+  if (!std::isfinite(yaw) || !position.allFinite()) throw std::invalid_argument("part grasp: yaw and position must be finite");
+  const Eigen::Vector3d px(std::cos(yaw), std::sin(yaw), 0.0), py(-std::sin(yaw), std::cos(yaw), 0.0);
+  Eigen::Matrix3d R;
+  const Eigen::Vector3d z = kind == GraspKind::top ? Eigen::Vector3d(0, 0, -1) : px;
+  R.col(2) = z;
+  R.col(1) = py;
+  R.col(0) = py.cross(z);
+  pb.grasp_pose.R = R;
+  pb.grasp_pose.p = position;
+  pb.approach_dir = px;
+  pb.part_xy = position.head<2>();
+}
+
 PickupProblem paper_case(const Robot& robot, int case_id, const RhoPoly& rho, const PaperCaseOptions& opt) {
   if (case_id < 1 || case_id > 6) throw std::invalid_argument("case_id must be 1..6, got " + std::to_string(case_id));
   if (robot.dof() != 9) throw std::invalid_argument("paper cases need the 9-DOF mobile_ur5, got " + std::to_string(robot.dof()) + " DOFs");
   const double yaws[6] = {0.0, M_PI / 4, M_PI / 2, 0.0, M_PI / 4, M_PI / 2};
-  const double th = yaws[case_id - 1];
-  const Eigen::Vector3d px(std::cos(th), std::sin(th), 0.0), py(-std::sin(th), std::cos(th), 0.0);
   PickupProblem pb;
   pb.start = Eigen::Vector3d(0.0, 0.0, M_PI / 6);
   pb.goal = Eigen::Vector3d(8.0, 0.0, 0.0);
   pb.goal_tol_pos = 0.5;
   pb.goal_tol_yaw = M_PI / 4;
-  pb.part_xy = Eigen::Vector2d(3.0, 4.0);
   pb.arm_start.resize(6);
   pb.arm_start << 0.0, -2.2, 2.0, -1.4, -1.5708, 0.0;
   pb.arm_rate_limits = Eigen::VectorXd::Constant(6, opt.arm_rate);
   pb.rho = rho;
   pb.gamma = opt.gamma;
   pb.tool_link = robot.link_index("tool");
-  pb.approach_dir = px;
-  Eigen::Matrix3d R;
-  if (case_id <= 3) {  // top grasp
-    const Eigen::Vector3d z(0, 0, -1);
-    R.col(1) = py;
-    R.col(2) = z;
-    R.col(0) = py.cross(z);
-  } else {  // side grasp
-    R.col(2) = px;
-    R.col(1) = py;
-    R.col(0) = py.cross(px);
-  }
-  pb.grasp_pose.R = R;
-  pb.grasp_pose.p = Eigen::Vector3d(3.0, 4.0, opt.part_z);
+  set_part_grasp(pb, case_id <= 3 ? GraspKind::top : GraspKind::side, yaws[case_id - 1],
+                 Eigen::Vector3d(3.0, 4.0, opt.part_z));
   pb.grasp_area_rmin = 0.35;
   pb.grasp_area_rmax = 0.8;
   if (opt.obstacles) {

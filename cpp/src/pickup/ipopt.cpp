@@ -227,18 +227,18 @@ const char* app_status_text(Ipopt::ApplicationReturnStatus s) {
   }
 }
 
-const char* short_status(Ipopt::ApplicationReturnStatus s) {
+SolveStatus short_status(Ipopt::ApplicationReturnStatus s) {
   switch (s) {
-    case Ipopt::Solve_Succeeded: return "solved";
-    case Ipopt::Solved_To_Acceptable_Level: return "solved_acceptable";
-    case Ipopt::Infeasible_Problem_Detected: return "infeasible";
-    case Ipopt::Diverging_Iterates: return "diverging";
-    case Ipopt::Maximum_Iterations_Exceeded: return "max_iterations";
-    case Ipopt::Maximum_CpuTime_Exceeded: return "max_cpu_time";
-    case Ipopt::Restoration_Failed: return "restoration_failed";
-    case Ipopt::Search_Direction_Becomes_Too_Small: return "step_too_small";
-    case Ipopt::Invalid_Number_Detected: return "invalid_number";
-    default: return "solver_error";
+    case Ipopt::Solve_Succeeded: return SolveStatus::solved;
+    case Ipopt::Solved_To_Acceptable_Level: return SolveStatus::solved_acceptable;
+    case Ipopt::Infeasible_Problem_Detected: return SolveStatus::infeasible;
+    case Ipopt::Diverging_Iterates: return SolveStatus::diverging;
+    case Ipopt::Maximum_Iterations_Exceeded: return SolveStatus::max_iterations;
+    case Ipopt::Maximum_CpuTime_Exceeded: return SolveStatus::max_cpu_time;
+    case Ipopt::Restoration_Failed: return SolveStatus::restoration_failed;
+    case Ipopt::Search_Direction_Becomes_Too_Small: return SolveStatus::step_too_small;
+    case Ipopt::Invalid_Number_Detected: return SolveStatus::invalid_number;
+    default: return SolveStatus::solver_error;
   }
 }
 

@@ -32,7 +32,8 @@ struct Multipliers {
 // One Ipopt run on a constraint system from x0 (Ipopt's errors are statuses, never exceptions;
 // bad options throw std::invalid_argument).
 struct IpoptRun {
-  std::string status, ipopt_status;  // short status ("solved", ...) and Ipopt's return code as text
+  SolveStatus status = SolveStatus::not_run;  // Ipopt's return code, shortened
+  std::string ipopt_status;                   // ... and in full, as text
   bool converged = false;            // Solve_Succeeded or Solved_To_Acceptable_Level
   int iterations = 0;
   double seconds = 0.0, cpu_seconds = 0.0;  // wall and thread CPU time

@@ -16,6 +16,15 @@ constexpr Names<CoefficientBasis> kBasis[] = {{CoefficientBasis::bernstein, "ber
                                               {CoefficientBasis::monomial, "monomial"}};
 constexpr Names<MuStrategy> kMu[] = {{MuStrategy::monotone, "monotone"}, {MuStrategy::adaptive, "adaptive"}};
 constexpr Names<RateRows> kRates[] = {{RateRows::hull, "hull"}, {RateRows::sampled, "sampled"}};
+constexpr Names<SolveStatus> kStatus[] = {
+    {SolveStatus::not_run, "not_run"}, {SolveStatus::solved, "solved"},
+    {SolveStatus::solved_acceptable, "solved_acceptable"}, {SolveStatus::infeasible, "infeasible"},
+    {SolveStatus::diverging, "diverging"}, {SolveStatus::max_iterations, "max_iterations"},
+    {SolveStatus::max_cpu_time, "max_cpu_time"}, {SolveStatus::restoration_failed, "restoration_failed"},
+    {SolveStatus::step_too_small, "step_too_small"}, {SolveStatus::invalid_number, "invalid_number"},
+    {SolveStatus::solver_error, "solver_error"}, {SolveStatus::bounded, "bounded"},
+    {SolveStatus::violation_between_samples, "violation_between_samples"},
+    {SolveStatus::constraint_violation, "constraint_violation"}};
 
 template <class E, std::size_t N>
 const char* name_of(const Names<E> (&names)[N], E value) {
@@ -40,10 +49,12 @@ const char* to_string(HessianMode mode) { return name_of(kHessian, mode); }
 const char* to_string(CoefficientBasis basis) { return name_of(kBasis, basis); }
 const char* to_string(MuStrategy strategy) { return name_of(kMu, strategy); }
 const char* to_string(RateRows rows) { return name_of(kRates, rows); }
+const char* to_string(SolveStatus status) { return name_of(kStatus, status); }
 
 HessianMode parse_hessian_mode(const std::string& text) { return parse(kHessian, text, "hessian"); }
 CoefficientBasis parse_coefficient_basis(const std::string& text) { return parse(kBasis, text, "basis"); }
 MuStrategy parse_mu_strategy(const std::string& text) { return parse(kMu, text, "mu_strategy"); }
 RateRows parse_rate_rows(const std::string& text) { return parse(kRates, text, "rate_rows"); }
+SolveStatus parse_solve_status(const std::string& text) { return parse(kStatus, text, "status"); }
 
 }  // namespace pickplan

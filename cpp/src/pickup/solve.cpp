@@ -88,7 +88,7 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
   res.stage = stage;
   std::string why;
   if ((stage == 0 || stage >= 2) && grasp_unreachable(robot, pb, why)) {
-    res.status = "infeasible";
+    res.status = SolveStatus::infeasible;
     res.ipopt_status = "Not_Solved (reachability pre-check: " + why + ")";
     res.x = x0;
     res.objective = x0[cons.idx_T()];
@@ -96,7 +96,7 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     return res;
   }
   if ((stage == 0 || stage >= 4) && std::isnan(cons.sg_cap())) {
-    res.status = "infeasible";
+    res.status = SolveStatus::infeasible;
     res.ipopt_status = "Not_Solved (success-probability pre-check: rho < gamma = " + std::to_string(pb.gamma) +
                        " over the whole (S_g, S_c) range)";
     res.x = x0;
@@ -145,14 +145,14 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     if (st.print_level > 0)
       std::fprintf(stderr, "pickup stage %d round %d: %d rows (optional: %d joint, %d collision), %s, %d iterations, %.3f s, T %.3f\n",
                    stage, round + 1, part.num_constraints(), static_cast<int>(subset.joints.size()),
-                   static_cast<int>(subset.collisions.size()), run.status.c_str(), run.iterations, run.seconds,
+                   static_cast<int>(subset.collisions.size()), to_string(run.status), run.iterations, run.seconds,
                    run.x[cons.idx_T()]);
     res.status = run.status;
     res.ipopt_status = run.ipopt_status;
     x = run.x;
     if (!run.converged) break;
     if (x[cons.idx_T()] >= bound) {
-      res.status = "bounded";
+      res.status = SolveStatus::bounded;
       res.ipopt_status += " (T " + std::to_string(x[cons.idx_T()]) + " s, not below the best known " + std::to_string(bound) + " s)";
       break;
     }
@@ -172,7 +172,7 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     }
     subset.merge(more);
     if (subset.size() == before || round + 1 >= st.active_max_rounds) {
-      res.status = feasible ? "violation_between_samples" : "constraint_violation";
+      res.status = feasible ? SolveStatus::violation_between_samples : SolveStatus::constraint_violation;
       res.ipopt_status += " (active set: " + std::to_string(round + 1) + " rounds, " +
                           (feasible ? "the dense check between samples still fails" : "rows still violated") + ")";
       run.converged = false;
@@ -186,10 +186,10 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
   res.cpu_seconds = thread_cpu_seconds() - cpu_start;
   res.objective = res.x[cons.idx_T()];
   res.max_violation = cons.max_violation(res.x);
-  const bool converged = res.status == "solved" || res.status == "solved_acceptable";
+  const bool converged = res.status == SolveStatus::solved || res.status == SolveStatus::solved_acceptable;
   res.success = converged && res.max_violation <= tol;
-  if (converged && !res.success) res.status = "constraint_violation";
-  if (warm_out && (res.success || res.status == "bounded")) {  // (bounded: its multipliers still price the rows)
+  if (converged && !res.success) res.status = SolveStatus::constraint_violation;
+  if (warm_out && (res.success || res.status == SolveStatus::bounded)) {  // (bounded: its multipliers still price the rows)
     *warm_out = prev;
     warm_out->subset = subset;
   }
@@ -227,7 +227,7 @@ double elapsed(std::chrono::steady_clock::time_point t0) {
 // (dT per unit of that joint's limits: how much time the limit costs).
 bool run_stages_2_to_5(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, const Eigen::VectorXd& x2,
                        double seed_wall, double seed_cpu, double bound, std::vector<StageResult>& stages,
-                       Eigen::VectorXd& x, std::string& status, Eigen::VectorXd& limit_price) {
+                       Eigen::VectorXd& x, SolveStatus& status, Eigen::VectorXd& limit_price) {
   StageMultipliers mult;
   limit_price = Eigen::VectorXd::Zero(robot.dof());
   auto price = [&]() {
@@ -251,7 +251,7 @@ bool run_stages_2_to_5(const Robot& robot, const PickupProblem& pb, const Pickup
     r.cpu_seconds += seed_cpu;
     seed_wall = seed_cpu = 0.0;
     stages.push_back(r);
-    if (r.success || r.status == "bounded") price();
+    if (r.success || r.status == SolveStatus::bounded) price();
     if (!r.success) {
       status = r.status;
       return false;
@@ -276,7 +276,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   r1.cpu_seconds += seed_cpu;
   out.stages.push_back(r1);
   out.success = r1.success;
-  out.status = r1.success ? "solved" : r1.status;
+  out.status = r1.success ? SolveStatus::solved : r1.status;
   if (r1.success) {
     out.x = r1.x;
     out.stages_completed = 1;
@@ -318,7 +318,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       }
       std::vector<StageResult> stages = {r1};
       Eigen::VectorXd x = r1.x, price;
-      std::string status;
+      SolveStatus status = SolveStatus::not_run;
       // Shorter than the best by more than Ipopt's tolerance, or it is not kept.
       const bool ok = run_stages_2_to_5(robot, pb, st, x2, ik_wall, ik_cpu, best * (1.0 - 1e-4), stages, x, status, price);
       ik_wall = ik_cpu = 0.0;
@@ -349,7 +349,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       out.stages = stages;
       out.x = x;
       out.success = ok;
-      out.status = ok ? "solved" : status;
+      out.status = ok ? SolveStatus::solved : status;
       out.stages_completed = static_cast<int>(stages.size()) - (ok ? 0 : 1);
       out.arm_seed_chosen = k;
       if (ok) best = out.arm_seed_T.back();
@@ -368,7 +368,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       out.x = out.direct.x;
       out.direct_chosen = true;
       out.success = true;
-      out.status = "solved";
+      out.status = SolveStatus::solved;
       out.stages_completed = 5;
     }
   }

@@ -7,6 +7,7 @@
   pickplan bench selection|refinement|planners|ablation   the paper's Tables I-III and Fig. 8
   pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
   pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
+  pickplan pickup plan|problems|replay   pick-up on the move: one problem file, random problems, replay
   pickplan view DIR [--html FILE]        a 3D view of a plan folder (live server, or a self-contained page)
 
 Exit codes (cli/exit_codes.py): 0 success, 1 ran but no plan, 2 bad input, 3 internal error.

@@ -1,5 +1,7 @@
 """`pickplan metamodel build|compare`.
 
+    pickplan metamodel build --part mesh.stl --density 800 --quick --out /tmp/mm   (a user's closed mesh)
+
     python -m pickplan.pickup.cli metamodel build --quick --out /tmp/mm
     python -m pickplan.pickup.cli metamodel compare --quick --out /tmp/mm
 
@@ -19,7 +21,9 @@ from dataclasses import replace
 import numpy as np
 
 from pickplan.cli.exit_codes import run_command
+from pickplan.core.errors import InputError
 from pickplan.core.io import write_text
+from pickplan.pickup.metamodel.mesh_part import part_from_mesh
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
 from pickplan.pickup.metamodel.parts import PARTS
 from pickplan.pickup.metamodel.compare import compare, plot_comparison, summarize, write_results
@@ -53,6 +57,12 @@ def add_metamodel_commands(subparsers) -> argparse.ArgumentParser:
     sub = mm.add_subparsers(dest="metamodel_command", required=True)
     b = sub.add_parser("build", help="learn the GSBs and fit rho_sigma(S_g, S_c)")
     _common(b)
+    b.add_argument("--part", default=None, metavar="MESH",
+                   help="a closed mesh (STL, OBJ, ...; metres) to model instead of the built-in parts")
+    b.add_argument("--mass", type=float, default=None, help="the mesh part's mass (kg)")
+    b.add_argument("--density", type=float, default=None, help="... or its density (kg/m^3)")
+    b.add_argument("--friction", type=float, default=0.6, help="the mesh part's lateral friction")
+    b.add_argument("--smoke", action="store_true", help="tests: the smallest build that runs every step (rough rho)")
     b.set_defaults(func=cmd_build)
     c = sub.add_parser("compare", help="compare with extensive sampling (Fig. 3, table)")
     _common(c)
@@ -70,7 +80,7 @@ def add_metamodel_commands(subparsers) -> argparse.ArgumentParser:
 
 
 def _config(args) -> BuildConfig:
-    cfg = BuildConfig.quick() if args.quick else BuildConfig()
+    cfg = BuildConfig.smoke() if getattr(args, "smoke", False) else BuildConfig.quick() if args.quick else BuildConfig()
     if args.budget is not None:
         cfg = replace(cfg, active=replace(cfg.active, budget=args.budget))
     return replace(cfg, rho_model=args.rho_model, lapse_ceiling=not args.no_lapse)
@@ -103,18 +113,22 @@ def rho_markdown(mm: MetaModel) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _build_one(args, part: str) -> MetaModel:
+def _build_one(args, part) -> MetaModel:
+    """Builds and writes the meta-model of a part (a built-in name or a Part)."""
     mm = build_metamodel(part, _config(args), seed=args.seed, workers=args.workers,
                          use_ray=args.ray, progress=not args.quiet)
-    mm.save(model_path(args.out, part))
-    write_text(os.path.join(args.out, f"{part}_rho.md"), rho_markdown(mm))
-    print(f"wrote {model_path(args.out, part)}")
+    mm.save(model_path(args.out, mm.part_name))
+    write_text(os.path.join(args.out, f"{mm.part_name}_rho.md"), rho_markdown(mm))
+    print(f"wrote {model_path(args.out, mm.part_name)}")
     return mm
 
 
 def cmd_build(args) -> int:
+    if args.part is None and (args.mass is not None or args.density is not None):
+        raise InputError("--mass and --density describe a mesh part: give --part MESH", field="--mass/--density")
+    parts = [part_from_mesh(args.part, args.mass, args.density, args.friction)] if args.part else args.parts
     os.makedirs(args.out, exist_ok=True)
-    for part in args.parts:
+    for part in parts:
         _build_one(args, part)
     return 0
 

@@ -1,4 +1,10 @@
-"""`pickplan pickup cases [--out DIR] [--quick] [--metamodel FILE|standin] [--workers N] [--replay NAME [--gui]]`:
+"""`pickplan pickup plan --problem P.json --out DIR`: solves one problem file (pickup/nlp/problem_file.py)
+and writes the trajectory, the metrics with their dense checks and a speed plot; exit 1 with the
+status and the best stage reached when there is no solution. `pickplan pickup problems --n N --seed S
+--out DIR` writes seeded random problem files; `pickplan pickup replay TRAJECTORY.json [--gui]`
+plays a written trajectory back in PyBullet.
+
+`pickplan pickup cases [--out DIR] [--quick] [--metamodel FILE|standin] [--workers N] [--replay NAME [--gui]]`:
 runs the Sec. VI experiments on the rho_sigma of a part-1 meta-model (by default the box model, built
 from simulation on the first run and cached as OUT/metamodel_box.json) and writes Tables I-IV (Markdown, the paper's numbers beside ours), the
 Fig. 5 speed plots and every trajectory as JSON + NPZ (atomic writes). `--replay NAME` plays one
@@ -10,12 +16,16 @@ from __future__ import annotations
 import argparse
 import os
 
+from pickplan.cli.exit_codes import ExitCode
 from pickplan.core.io import atomic_open, write_text
 from pickplan.core.io import read_json
 from pickplan.pickup.metamodel.validate import validate_metamodel
 from pickplan.pickup.nlp import cases
 from pickplan.pickup.nlp import planner
+from pickplan.pickup.nlp import problem_file
+from pickplan.pickup.nlp import random_problems
 from pickplan.pickup.nlp import replay
+from pickplan.pickup.nlp import solve_problem
 
 
 def add_pickup_commands(subparsers) -> None:
@@ -35,6 +45,64 @@ def add_pickup_commands(subparsers) -> None:
     c.add_argument("--replay-only", action="store_true", help="only replay (no solving); needs --replay")
     c.add_argument("--gui", action="store_true", help="replay in the PyBullet GUI, in real time")
     c.set_defaults(func=run_cases)
+    p = sub.add_parser("plan", help="solve one problem file")
+    p.add_argument("--problem", required=True, help="problem JSON (pickplan.pickup_problem)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--metamodel", default=None, help="meta-model JSON replacing the one the problem names")
+    p.add_argument("--method", default="successive", choices=[m.value for m in planner.Method])
+    p.add_argument("--seed", type=int, default=0, help="random seed (single shot)")
+    p.add_argument("--workers", type=int, default=1, help="simulation processes if a built-in meta-model is built")
+    p.set_defaults(func=run_plan)
+    g = sub.add_parser("problems", help="write seeded random problem files")
+    g.add_argument("--n", type=int, required=True, help="how many")
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--out", required=True, help="output folder (problem_0000.json, ...)")
+    g.add_argument("--metamodel", default="box", help="what the problems name: a built-in part, 'standin' or a file")
+    g.set_defaults(func=run_problems)
+    r = sub.add_parser("replay", help="replay a written trajectory in PyBullet")
+    r.add_argument("trajectory", help="trajectory JSON written by pickup plan or pickup cases")
+    r.add_argument("--gui", action="store_true", help="the PyBullet GUI, in real time")
+    r.set_defaults(func=run_replay)
+
+
+def run_plan(args: argparse.Namespace) -> int:
+    spec = problem_file.load_problem(args.problem)
+    rho = solve_problem.rho_for_spec(spec, args.metamodel, workers=args.workers)
+    robot = planner.mobile_ur5()
+    settings = planner.PlannerSettings(seed=args.seed)
+    sol = solve_problem.solve(robot, spec, rho, settings, args.method)
+    paths = solve_problem.write_solution(robot, sol, args.out)
+    p = sol.plan
+    if not p.success:
+        print(f"no solution: status {p.status}, best stage reached {p.stages_completed} of 5 "
+              f"(CPU {p.total_cpu_seconds:.2f} s); wrote {paths['metrics']}")
+        return ExitCode.NO_PLAN
+    failed = [k for k, ok in sol.checks.items() if not ok]
+    print(f"solved: T = {p.T:.2f} s, grasping [{p.T1:.2f}, {p.T2:.2f}] s at S_g = {p.S_g:.3f} m/s, "
+          f"rho = {sol.metrics['success_probability']:.4f} (gamma {spec.gamma}); CPU {p.total_cpu_seconds:.2f} s")
+    print(f"dense checks: {'all passed' if not failed else 'FAILED ' + ', '.join(failed)}")
+    print(f"wrote {', '.join(paths.values())}")
+    print(f"replay: pickplan pickup replay {paths['trajectory']} --gui")
+    return ExitCode.OK if not failed else ExitCode.NO_PLAN
+
+
+def run_problems(args: argparse.Namespace) -> int:
+    named = args.metamodel in (problem_file.STANDIN, *problem_file.BUILTIN_PARTS)
+    ws = random_problems.Workspace(metamodel=args.metamodel if named else os.path.abspath(args.metamodel))
+    specs = random_problems.random_problems(args.n, args.seed, ws)
+    os.makedirs(args.out, exist_ok=True)
+    for i, spec in enumerate(specs):
+        problem_file.dump_problem(spec, os.path.join(args.out, f"problem_{i:04d}.json"))
+    print(f"wrote {len(specs)} problems to {args.out} (seed {args.seed}; workspace: {ws.describe()})")
+    return 0
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    r = replay.replay_file(args.trajectory, gui=args.gui)
+    print(f"replayed {args.trajectory} in PyBullet ({r['frames']} frames): tool error at T2 "
+          f"{r['tool_error_T2'][0]:.2e} m / {r['tool_error_T2'][1]:.2e} rad, least link-obstacle distance "
+          f"{r['min_distance']:.3f} m at t = {r['min_distance_t']:.2f} s")
+    return 0
 
 
 def _f(x, fmt="{:.2f}"):

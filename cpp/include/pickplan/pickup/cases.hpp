@@ -17,6 +17,14 @@ struct PaperCaseOptions {
   double part_z = 0.5;    // grasp height (part centre), m
 };
 
+// How the part is grasped: top (tool z down, fingers closing across the part's x, n_g along it) or
+// side (tool z = n_g = the part's x axis, horizontal; fingers closing horizontally).
+enum class GraspKind { top, side };
+
+// Sets the grasp pose, approach direction n_g and grasping-area centre of a part at `position`
+// (grasp point, world) with yaw `yaw` about the world z axis.
+void set_part_grasp(PickupProblem& pb, GraspKind kind, double yaw, const Eigen::Vector3d& position);
+
 // The problem of case 1..6 (throws std::invalid_argument otherwise). The robot must be mobile_ur5.
 PickupProblem paper_case(const Robot& robot, int case_id, const RhoPoly& rho, const PaperCaseOptions& opt = {});
 // A monotone (non-increasing in S_g, non-decreasing in S_c) Bernstein surface on

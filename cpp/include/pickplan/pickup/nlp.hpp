@@ -239,7 +239,7 @@ class PickupConstraints {
 
 struct StageResult {
   int stage = 0;
-  std::string status;          // "solved", "solved_acceptable", "infeasible", ... (see status_name)
+  SolveStatus status = SolveStatus::not_run;
   std::string ipopt_status;    // Ipopt's ApplicationReturnStatus / SolverReturn as text
   bool success = false;
   double seconds = 0.0;         // wall time of the stage (Ipopt runs, checks, and in solve_successive its seed)
@@ -253,7 +253,7 @@ struct StageResult {
 };
 
 struct PickupResult {
-  std::string status;          // of the last attempted stage ("solved" when all succeeded)
+  SolveStatus status = SolveStatus::not_run;  // of the last attempted stage (solved when all succeeded)
   bool success = false;
   int stages_completed = 0;    // the returned x is the solution of this stage (0: the seed)
   std::vector<StageResult> stages;

@@ -1,6 +1,7 @@
 #pragma once
 // Option values of the pick-up NLP (PickupSettings) as enums. Their text forms are Ipopt's
 // spellings where Ipopt takes them, and the values Python and the JSON files use.
+#include <ostream>
 #include <string>
 
 namespace pickplan {
@@ -10,15 +11,28 @@ enum class CoefficientBasis { bernstein, monomial };  // Ipopt's coefficient var
 enum class MuStrategy { monotone, adaptive };         // Ipopt's barrier update
 enum class RateRows { hull, sampled };                // rate limits on Bernstein points | at the samples
 
+// How a stage (or the whole solve) ended. The first ones are Ipopt's return codes, shortened;
+// bounded: converged, but T is not below the best known (a search run stopped early);
+// violation_between_samples / constraint_violation: converged, but the dense check between the
+// samples or the full row set still fails after the active-set rounds; not_run: never attempted.
+enum class SolveStatus {
+  not_run, solved, solved_acceptable, infeasible, diverging, max_iterations, max_cpu_time,
+  restoration_failed, step_too_small, invalid_number, solver_error, bounded,
+  violation_between_samples, constraint_violation
+};
+
 const char* to_string(HessianMode mode);
 const char* to_string(CoefficientBasis basis);
 const char* to_string(MuStrategy strategy);
 const char* to_string(RateRows rows);
+const char* to_string(SolveStatus status);
 
 // The option named by its text form; std::invalid_argument listing the valid ones otherwise.
 HessianMode parse_hessian_mode(const std::string& text);
 CoefficientBasis parse_coefficient_basis(const std::string& text);
 MuStrategy parse_mu_strategy(const std::string& text);
 RateRows parse_rate_rows(const std::string& text);
+SolveStatus parse_solve_status(const std::string& text);
+inline std::ostream& operator<<(std::ostream& os, SolveStatus status) { return os << to_string(status); }
 
 }  // namespace pickplan

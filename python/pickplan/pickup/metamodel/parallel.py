@@ -23,8 +23,8 @@ def sample_seeds(seed: int, start: int, n: int) -> np.ndarray:
 
 def _simulate_one(job):
     """Worker entry point: (success, wall time) of one seeded simulation."""
-    part_name, offset, s_g, s_c, config, seed = job
-    out = simulate_grasp(part_name, offset, s_g, s_c, config, seed=int(seed))
+    part, offset, s_g, s_c, config, seed = job  # the Part itself: a mesh part has no registry name
+    out = simulate_grasp(part, offset, s_g, s_c, config, seed=int(seed))
     return out.success, out.wall_time
 
 
@@ -68,7 +68,7 @@ class SimRunner:
         n = len(offsets)
         if n == 0:
             return np.zeros(0, dtype=bool)
-        jobs = [(self.part.name, off, s_g, s_c, self.config, sd) for off, sd in zip(offsets, seeds)]
+        jobs = [(self.part, off, s_g, s_c, self.config, sd) for off, sd in zip(offsets, seeds)]
         results = [r for _, r in self._runner.map(
             _simulate_one, jobs, chunksize=self.chunk_size, progress=self.progress,
             label=desc or f"{self.part.name} S_g={s_g:.2f} S_c={s_c:.2f}")]

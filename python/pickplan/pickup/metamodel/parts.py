@@ -21,8 +21,9 @@ TCP_BELOW_PALM = 0.025
 
 @dataclass(frozen=True)
 class Shape:
-    """One primitive of a part. kind: 'box' (size = full extents x, y, z) or 'cylinder'
-    (size = (radius, height)); pos is the shape centre in the part frame."""
+    """One primitive of a part. kind: 'box' (size = full extents x, y, z), 'cylinder'
+    (size = (radius, height)) or 'mesh' (size = the convex hull's vertices, the only shape of its
+    part; see mesh_part.py); pos is the shape centre (a mesh: its centre of mass) in the part frame."""
 
     kind: str
     size: tuple
@@ -61,7 +62,8 @@ class Part:
     closing_monotone: bool = True
 
 
-def _grasp_z(height: float) -> float:
+def grasp_height(height: float) -> float:
+    """TCP height at t' for a part of this height (the palm just above its top)."""
     return height + PALM_CLEARANCE - TCP_BELOW_PALM
 
 
@@ -81,7 +83,7 @@ def _footprint_radius(shapes, center_xy) -> float:
 
 def _make_part(name, shapes, mass, height, tcp_xy, tcp_yaw, width, description,
                closing_monotone=True) -> Part:
-    strategy = GraspStrategy((tcp_xy[0], tcp_xy[1], _grasp_z(height)), tcp_yaw, width)
+    strategy = GraspStrategy((tcp_xy[0], tcp_xy[1], grasp_height(height)), tcp_yaw, width)
     return Part(
         name=name,
         shapes=tuple(shapes),

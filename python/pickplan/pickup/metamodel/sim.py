@@ -57,7 +57,7 @@ class SimConfig:
     drift_threshold: float = 0.005  # m
     min_lift_fraction: float = 0.5  # part must rise by this fraction of the gripper's lift
     clearance: float = 0.005  # m; the run starts this far before any possible contact
-    sg_range: tuple = (0.05, 0.5)  # m/s, modelled gripper speeds
+    sg_range: tuple = (0.05, 1.2)  # m/s, modelled gripper speeds (the paper reports up to 1.05)
     sc_range: tuple = (0.05, 0.15)  # m/s, modelled closing speeds (per finger)
     urdf_path: str = ""  # empty: default_urdf_path()
 
@@ -101,7 +101,24 @@ def nominal_part_pose(part: Part):
     return np.array([-(c * tx - sn * ty), -(sn * tx + c * ty)]), yaw
 
 
+def _create_mesh_part(cid: int, part: Part, xy, yaw, friction: float) -> int:
+    """A part from a mesh: its convex hull (PyBullet's dynamic meshes are convex) about the mesh's
+    own centre of mass (Shape.pos)."""
+    shape = part.shapes[0]
+    com = np.asarray(shape.pos, float)
+    col = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=[list(np.asarray(v) - com) for v in shape.size],
+                                        physicsClientId=cid)
+    c, sn = math.cos(yaw), math.sin(yaw)
+    world_com = [xy[0] + c * com[0] - sn * com[1], xy[1] + sn * com[0] + c * com[1], com[2]]
+    body = pybullet.createMultiBody(baseMass=part.mass, baseCollisionShapeIndex=col, basePosition=world_com,
+                                    baseOrientation=_yaw_quat(yaw), physicsClientId=cid)
+    pybullet.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=cid)
+    return body
+
+
 def _create_part(cid: int, part: Part, xy, yaw, friction: float) -> int:
+    if part.shapes[0].kind == "mesh":
+        return _create_mesh_part(cid, part, xy, yaw, friction)
     kinds = {"box": pybullet.GEOM_BOX, "cylinder": pybullet.GEOM_CYLINDER}
     shape_types, half_extents, radii, lengths, positions = [], [], [], [], []
     vols = []

@@ -63,6 +63,27 @@ class RateRows(Option):
     sampled = "sampled"
 
 
+class SolveStatus(Option):
+    """How a stage or a whole solve ended (native ``SolveStatus``): Ipopt's return codes shortened,
+    plus bounded (a search run not below the best T), violation_between_samples /
+    constraint_violation (rows still fail after the active-set rounds) and not_run."""
+
+    not_run = "not_run"
+    solved = "solved"
+    solved_acceptable = "solved_acceptable"
+    infeasible = "infeasible"
+    diverging = "diverging"
+    max_iterations = "max_iterations"
+    max_cpu_time = "max_cpu_time"
+    restoration_failed = "restoration_failed"
+    step_too_small = "step_too_small"
+    invalid_number = "invalid_number"
+    solver_error = "solver_error"
+    bounded = "bounded"
+    violation_between_samples = "violation_between_samples"
+    constraint_violation = "constraint_violation"
+
+
 class Method(Option):
     """How ``plan`` solves: the five stages of successive refinement, or all constraints at once."""
 
@@ -145,7 +166,7 @@ class StompSettings:
 @dataclass
 class StageInfo:
     stage: int
-    status: str
+    status: SolveStatus
     ipopt_status: str
     success: bool
     seconds: float
@@ -161,7 +182,7 @@ class StageInfo:
 class PickupPlan:
     """A planned pick-up: status, per-stage records and the polynomial trajectory."""
 
-    status: str
+    status: SolveStatus
     success: bool
     stages_completed: int
     stages: list
@@ -180,11 +201,11 @@ class PickupPlan:
 
     @classmethod
     def from_native(cls, r) -> "PickupPlan":
-        info = lambda s: StageInfo(s.stage, s.status, s.ipopt_status, s.success, s.seconds, s.iterations,  # noqa: E731
+        info = lambda s: StageInfo(s.stage, SolveStatus.from_native(s.status), s.ipopt_status, s.success, s.seconds, s.iterations,  # noqa: E731
                                    s.objective, s.max_violation, s.cpu_seconds, s.rounds, s.rows)
         stages = [info(s) for s in r.stages]
-        direct = info(r.direct) if r.direct.status else None
-        return cls(r.status, r.success, r.stages_completed, stages, r.T, r.T1, r.T2, r.S_g, r.S_c,
+        direct = info(r.direct) if r.direct.status != _core.SolveStatus.not_run else None
+        return cls(SolveStatus.from_native(r.status), r.success, r.stages_completed, stages, r.T, r.T1, r.T2, r.S_g, r.S_c,
                    r.total_seconds, r, r.total_cpu_seconds, direct, r.direct_chosen, list(r.arm_seed_T),
                    r.arm_seed_chosen)
 

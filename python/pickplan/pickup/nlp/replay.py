@@ -12,20 +12,22 @@ collision shapes, not the body spheres of the NLP, so the figures differ by that
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 from typing import Optional
 
 import numpy as np
 
+from pickplan.core.errors import InputError
+from pickplan.core.io import read_json
 from pickplan.pickup.nlp import cases
 from pickplan.pickup.nlp import planner
+from pickplan.pickup.nlp import problem_file
 
 
-def replay(plan_dict: dict, case_id: int, gui: bool = False, frames: int = 400,
-           realtime: bool = False, part_z: float = 0.5) -> dict:
-    """Plays the plan back in a private PyBullet client; returns {"frames", "tool_error_T2"
+def replay(plan_dict: dict, problem, gui: bool = False, frames: int = 400, realtime: bool = False) -> dict:
+    """Plays the plan back in a private PyBullet client against ``problem`` (a native
+    PickupProblem, or a paper case's number); returns {"frames", "tool_error_T2"
     (position m, angle rad by PyBullet's FK), "min_distance" (m, robot links vs obstacles),
     "min_distance_t" (s)}. Raises ValueError for a plan without a solution."""
     import pybullet as pb
@@ -35,7 +37,8 @@ def replay(plan_dict: dict, case_id: int, gui: bool = False, frames: int = 400,
     if frames < 2:
         raise ValueError("frames must be >= 2")
     robot = planner.mobile_ur5()
-    problem = cases.make_problem(robot, case_id, part_z=part_z)
+    if isinstance(problem, int):  # a paper case by its number
+        problem = cases.make_problem(robot, problem)
     cid = pb.connect(pb.GUI if gui else pb.DIRECT)
     try:
         body = pb.loadURDF(robot.urdf_path, [0, 0, 0], [0, 0, 0, 1], useFixedBase=True, physicsClientId=cid)
@@ -84,7 +87,15 @@ def replay(plan_dict: dict, case_id: int, gui: bool = False, frames: int = 400,
 
 
 def replay_file(path: str, gui: bool = False, realtime: Optional[bool] = None) -> dict:
-    """Replays a trajectory JSON written by `pickplan pickup cases` (its "case" field names the case)."""
-    with open(path, "r", encoding="utf-8") as f:
-        d = json.load(f)
-    return replay(d, int(d["case"]), gui=gui, realtime=gui if realtime is None else realtime)
+    """Replays a trajectory JSON written by `pickplan pickup cases` (its "case" field names the
+    case) or `pickplan pickup plan` (its "problem" field holds the problem)."""
+    d = read_json(path, "trajectory file")
+    robot = planner.mobile_ur5()
+    if "problem" in d:  # the replay needs the geometry only: any surface will do
+        spec = problem_file.problem_from_dict(d["problem"], path)
+        problem = problem_file.native_problem(robot, spec, planner.synthetic_rho(spec.sigma_r, spec.sigma_phi))
+    elif "case" in d:
+        problem = cases.make_problem(robot, int(d["case"]))
+    else:
+        raise InputError("expected a 'problem' or a 'case' key (a trajectory written by pickplan pickup)", path=path)
+    return replay(d, problem, gui=gui, realtime=gui if realtime is None else realtime)

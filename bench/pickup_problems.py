@@ -1,0 +1,140 @@
+"""Successive refinement vs seeded single shots on random pick-up problems (issue 23 targets).
+
+    PYTHONPATH=python nice python bench/pickup_problems.py --n 100 --seed 0 --shots 10 \
+        --metamodel out/metamodel_box.json --out out/bench_pickup_problems
+
+For each of N problems of `pickplan pickup problems --seed S` (random_problems.Workspace): one
+successive-refinement solve and SHOTS single shots (seeds 0..SHOTS-1), each in one worker process,
+timed with the process CPU clock (time.process_time; one thread: Ipopt/MUMPS and BLAS run
+single-threaded here). A solve counts as solved when Ipopt converged AND it passes the dense checks
+(solve_problem.dense_checks: pose error at T2, non-holonomic error, clearance, joint limits, grasp
+velocity, rho >= gamma). Writes OUT/records.json and OUT/summary.md; prints the summary.
+
+Targets: successive solves every problem any single shot solves and >= 95 % of all; its T is
+shorter than the best single shot's on >= 90 % of the problems both solve; CPU per problem
+median <= 0.7 s, worst <= 2 s.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from pickplan.core.io import write_json, write_text
+from pickplan.core.runner import Order, Runner
+from pickplan.pickup.nlp import planner, problem_file, random_problems, solve_problem
+
+TIE = 1e-3  # relative: T within 0.1 % of the best shot counts as a tie, not as shorter
+
+
+def _solve(job) -> dict:
+    spec, metamodel, method, seed = job
+    robot = planner.mobile_ur5()
+    rho = solve_problem.rho_for_spec(spec, metamodel, progress=False)
+    problem = problem_file.native_problem(robot, spec, rho)
+    t0 = time.process_time()  # the solve only (the dense checks below are the benchmark's, not the planner's)
+    p = planner.plan(robot, problem, planner.PlannerSettings(seed=seed), method)
+    cpu = time.process_time() - t0
+    metrics = planner.evaluate(robot, problem, p) if p.stages_completed > 0 else None
+    sol = solve_problem.ProblemSolution(spec, problem, p, metrics, solve_problem.dense_checks(problem, p, metrics))
+    return {"method": str(method), "seed": seed, "status": str(p.status), "best_stage": p.stages_completed,
+            "converged": bool(p.success), "solved": bool(sol.passed), "T": p.T if p.success else None,
+            "cpu": cpu, "native_cpu": p.total_cpu_seconds,
+            "failed_checks": [k for k, ok in sol.checks.items() if not ok],
+            "metrics": {k: sol.metrics[k] for k in ("pose_error_position", "pose_error_orientation",
+                                                    "nonholonomic_mean", "min_clearance", "success_probability")}
+            if sol.metrics else None}
+
+
+def summarize(records: list, gamma: float) -> str:
+    n = len(records)
+    succ = [r["successive"] for r in records]
+    best_shot = []
+    for r in records:
+        ok = [s["T"] for s in r["shots"] if s["solved"]]
+        best_shot.append(min(ok) if ok else None)
+    any_shot = [b is not None for b in best_shot]
+    solved = [s["solved"] for s in succ]
+    missed = [i for i in range(n) if any_shot[i] and not solved[i]]
+    both = [i for i in range(n) if any_shot[i] and solved[i]]
+    shorter = [i for i in both if succ[i]["T"] < best_shot[i] * (1 - TIE)]
+    ties = [i for i in both if abs(succ[i]["T"] - best_shot[i]) <= TIE * best_shot[i]]
+    cpu = np.array([s["cpu"] for s in succ])
+    shot_cpu = np.array([s["cpu"] for r in records for s in r["shots"]])
+    conv_fail = [i for i in range(n) if succ[i]["converged"] and not succ[i]["solved"]]
+    unsolved = [(i, succ[i]["status"], succ[i]["best_stage"]) for i in range(n) if not solved[i]]
+    ratio = np.array([succ[i]["T"] / best_shot[i] for i in both])
+    lines = [
+        f"problems: {n} (gamma {gamma}); single shots per problem: {len(records[0]['shots'])}",
+        "",
+        "| target | measured |", "|---|---|",
+        f"| successive solves every problem a single shot solves | {len(both)} of {sum(any_shot)}"
+        f"{' (missed: ' + ', '.join(map(str, missed)) + ')' if missed else ''} |",
+        f"| successive solves >= 95 % of all | {sum(solved)} of {n} ({sum(solved) / n:.0%}) |",
+        f"| T shorter than the best of the shots on >= 90 % of the problems both solve | {len(shorter)} of "
+        f"{len(both)} ({len(shorter) / max(len(both), 1):.0%}); ties within {TIE:.1%}: {len(ties)}; longer: "
+        f"{len(both) - len(shorter) - len(ties)} |",
+        f"| CPU per problem median <= 0.7 s, worst <= 2 s | median {np.median(cpu):.2f} s, p90 "
+        f"{np.percentile(cpu, 90):.2f} s, worst {cpu.max():.2f} s |",
+        f"| dense checks pass | {sum(solved)} of {sum(s['converged'] for s in succ)} converged solutions"
+        f"{' (failed: ' + str(conv_fail) + ')' if conv_fail else ''} |",
+        "",
+        f"T(successive) / T(best shot) on the problems both solve: median {np.median(ratio):.3f}, "
+        f"min {ratio.min():.3f}, max {ratio.max():.3f}." if len(ratio) else "",
+        f"Single shots: {sum(s['solved'] for r in records for s in r['shots'])} of {len(shot_cpu)} solved; "
+        f"CPU median {np.median(shot_cpu):.2f} s, worst {shot_cpu.max():.2f} s; problems solved by at least one: "
+        f"{sum(any_shot)}.",
+        f"Unsolved by successive refinement (problem, status, best stage): {unsolved or 'none'}.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--n", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--shots", type=int, default=10)
+    ap.add_argument("--metamodel", default=None,
+                    help="meta-model JSON or 'standin' (default: the problems' built-in box, built on first use)")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--out", default="out/bench_pickup_problems")
+    ap.add_argument("--summarize", default=None, metavar="JSONL", help="only summarize the records of a (partial) run")
+    args = ap.parse_args(argv)
+    if args.summarize:
+        with open(args.summarize, encoding="utf-8") as f:
+            print(summarize([json.loads(line) for line in f if line.strip()], 0.96))
+        return 0
+    specs = random_problems.random_problems(args.n, args.seed)
+    if args.metamodel:
+        named = args.metamodel in (problem_file.STANDIN, *problem_file.BUILTIN_PARTS)
+        specs = [replace(s, metamodel=args.metamodel if named else os.path.abspath(args.metamodel)) for s in specs]
+    else:  # built once here, not in every worker
+        solve_problem.rho_for_spec(specs[0], workers=args.workers)
+    jobs = []
+    for s in specs:
+        jobs.append((s, None, planner.Method.successive, 0))
+        jobs += [(s, None, planner.Method.single_shot, k) for k in range(args.shots)]
+    os.makedirs(args.out, exist_ok=True)
+    partial = os.path.join(args.out, "records.jsonl")  # one line per finished problem (a run cut short still counts)
+    k, done, records = 1 + args.shots, [], []
+    with Runner(args.workers) as runner, open(partial, "w", encoding="utf-8") as log:
+        for _, result in runner.map(_solve, jobs, Order.JOBS):
+            done.append(result)
+            if len(done) == k:
+                records.append({"problem": len(records), "successive": done[0], "shots": done[1:]})
+                log.write(json.dumps(records[-1]) + "\n")
+                log.flush()
+                done = []
+    write_json(os.path.join(args.out, "records.json"), records)
+    md = summarize(records, specs[0].gamma)
+    write_text(os.path.join(args.out, "summary.md"), md)
+    print(md)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,166 @@
+"""One problem file, solved and checked: the success surface it names, the solve (successive
+refinement or a single shot), the dense checks of the solution and the files `pickplan pickup plan`
+writes (trajectory JSON, metrics JSON, a speed plot like the paper's Fig. 5)."""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from pickplan.core.io import atomic_open, write_json
+from pickplan.core.sdf import default_cache_dir
+from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
+from pickplan.pickup.nlp import planner
+from pickplan.pickup.nlp.cases import METAMODEL_PART, cases_metamodel_config
+from pickplan.pickup.nlp.problem_file import STANDIN, PickupProblemSpec, native_problem
+
+# Dense checks of a solution (2001 instants over [0, T]; the NLP enforces its rows at samples, so
+# these leave room for what happens between them).
+POSE_POSITION_TOL = 1e-3        # m, tool position at T2
+POSE_ORIENTATION_TOL = 1e-2     # rad
+NONHOLONOMIC_MEAN_TOL = 0.02    # m/s, mean lateral base speed
+NONHOLONOMIC_DRIFT_TOL = 0.2    # m, its integral over [0, T]
+JOINT_OVERSHOOT_TOL = 0.03      # rad past a joint limit between samples
+VELOCITY_ERROR_TOL = 0.05       # m/s, |J q' - S_g n_g| during grasping
+
+
+def builtin_metamodel_path(part: str) -> str:
+    """Where the meta-model of a built-in part is cached ($PICKPLAN_CACHE_DIR or ~/.cache/pickplan)."""
+    return os.path.join(default_cache_dir(), f"metamodel_{part}.json")
+
+
+def ensure_builtin_metamodel(part: str, path: Optional[str] = None, config=None, workers: int = 1,
+                             progress: bool = True) -> str:
+    """The meta-model file of a built-in part: reused when it loads, else built from simulation
+    (seed 0; the box with the configuration the paper's cases are validated with)."""
+    path = os.fspath(path or builtin_metamodel_path(part))
+    if os.path.exists(path):
+        mm = MetaModel.load(path)
+        if mm.part_name != part:
+            raise ValueError(f"{path}: a meta-model of {mm.part_name!r}, expected {part!r}")
+        return path
+    if progress:
+        print(f"building the {part} meta-model from simulation ({workers} worker(s)) -> {path}", flush=True)
+    build_metamodel(part, config or BuildConfig(), seed=0, workers=workers, progress=progress).save(path)
+    return path
+
+
+def rho_for_spec(spec: PickupProblemSpec, metamodel: Optional[str] = None, workers: int = 1,
+                 progress: bool = True):
+    """The native rho surface of the problem at its sigmas: from ``metamodel`` when given, else
+    the file it names (a path, a built-in part built on first use, or the stand-in)."""
+    source = metamodel or spec.metamodel_path()
+    if source is None and spec.metamodel == STANDIN:
+        return planner.synthetic_rho(spec.sigma_r, spec.sigma_phi)
+    if source is None:
+        config = cases_metamodel_config() if spec.metamodel == METAMODEL_PART else None
+        source = ensure_builtin_metamodel(spec.metamodel, config=config, workers=workers, progress=progress)
+    if not os.path.isfile(source):
+        raise FileNotFoundError(f"meta-model file not found: {source} (part.metamodel of {spec.source or 'the problem'})")
+    return planner.load_rho(source, spec.sigma_r, spec.sigma_phi)
+
+
+@dataclass
+class ProblemSolution:
+    spec: PickupProblemSpec
+    problem: object               # the native PickupProblem
+    plan: planner.PickupPlan
+    metrics: Optional[dict]       # dense re-sampling metrics (None: no stage solved)
+    checks: dict                  # check name -> passed
+
+    @property
+    def passed(self) -> bool:
+        return self.plan.success and all(self.checks.values())
+
+
+def dense_checks(problem, plan: planner.PickupPlan, metrics: Optional[dict]) -> dict:
+    """The checks a solution must pass by dense re-sampling (names -> bool; empty: no solution)."""
+    if not plan.success or metrics is None:
+        return {}
+    return {"pose_error_at_T2": metrics["pose_error_position"] <= POSE_POSITION_TOL
+            and metrics["pose_error_orientation"] <= POSE_ORIENTATION_TOL,
+            "nonholonomic": metrics["nonholonomic_mean"] <= NONHOLONOMIC_MEAN_TOL
+            and metrics["nonholonomic_drift"] <= NONHOLONOMIC_DRIFT_TOL,
+            "clearance": metrics["min_clearance"] >= 0.0,
+            "joint_limits": metrics["joint_limit_violation"] <= JOINT_OVERSHOOT_TOL,
+            "grasp_velocity": metrics["velocity_error_max"] <= VELOCITY_ERROR_TOL,
+            "rho_at_least_gamma": metrics["success_probability"] >= problem.gamma - 1e-6}
+
+
+def solve(robot, spec: PickupProblemSpec, rho, settings: planner.PlannerSettings = planner.PlannerSettings(),
+          method=planner.Method.successive) -> ProblemSolution:
+    """Solves one problem and checks the solution densely (solver failures are statuses)."""
+    problem = native_problem(robot, spec, rho)
+    plan = planner.plan(robot, problem, settings, method)
+    metrics = planner.evaluate(robot, problem, plan) if plan.stages_completed > 0 else None
+    return ProblemSolution(spec, problem, plan, metrics, dense_checks(problem, plan, metrics))
+
+
+# ---- files ---------------------------------------------------------------------------------------
+def trajectory_dict(sol: ProblemSolution, n: int = 401) -> dict:
+    """Times, base (x, y, yaw) and arm states (positions and rates) over [0, T], the key times and
+    speeds, and the polynomial coefficients (normalised time) for an exact re-evaluation."""
+    d = sol.plan.to_dict(n)
+    q, qd = np.asarray(d["q"]), np.asarray(d["qd"])
+    d.update(base=q[:, :3].tolist(), base_rates=qd[:, :3].tolist(), arm=q[:, 3:].tolist(), arm_rates=qd[:, 3:].tolist(),
+             problem=sol.spec.to_dict(), problem_file=sol.spec.source)
+    return d
+
+
+def metrics_dict(sol: ProblemSolution) -> dict:
+    p = sol.plan
+    return {"status": p.status, "success": p.success, "best_stage": p.stages_completed,
+            "passed_dense_checks": sol.passed, "checks": sol.checks, "T": p.T, "T1": p.T1, "T2": p.T2,
+            "S_g": p.S_g, "S_c": p.S_c, "cpu_seconds": p.total_cpu_seconds, "wall_seconds": p.total_seconds,
+            "dense": {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in (sol.metrics or {}).items()},
+            "stages": [{"stage": s.stage, "status": s.status, "ipopt": s.ipopt_status, "T": s.objective}
+                       for s in p.stages]}
+
+
+def speed_profiles(robot, plan: planner.PickupPlan, n: int = 300):
+    """Base and gripper speeds over [0, T] (the curves of Fig. 5)."""
+    t = np.linspace(0.0, plan.T, n)
+    q, qd, _ = plan.sample(t)
+    tool = robot.link_index("tool")
+    grip = np.array([np.linalg.norm(robot.jacobian(q[k], tool)[:3] @ qd[k]) for k in range(n)])
+    return t, np.hypot(qd[:, 0], qd[:, 1]), grip
+
+
+def plot_speeds(robot, sol: ProblemSolution, path: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t, base, grip = speed_profiles(robot, sol.plan)
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    try:
+        ax.plot(t, base, label="mobile base")
+        ax.plot(t, grip, label="gripper")
+        ax.axvspan(sol.plan.T1, sol.plan.T2, color="0.85", label="grasping")
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel("speed (m/s)")
+        ax.set_title(f"{os.path.basename(sol.spec.source or 'problem')}: T = {sol.plan.T:.2f} s, "
+                     f"S_g = {sol.plan.S_g:.2f} m/s")
+        ax.legend()
+        fig.tight_layout()
+        with atomic_open(path, "wb") as f:
+            fig.savefig(f, format="png", dpi=120)
+    finally:
+        plt.close(fig)
+
+
+def write_solution(robot, sol: ProblemSolution, out: str) -> dict:
+    """OUT/metrics.json always; OUT/trajectory.json and OUT/speeds.png when a stage solved."""
+    os.makedirs(out, exist_ok=True)
+    paths = {"metrics": os.path.join(out, "metrics.json")}
+    write_json(paths["metrics"], metrics_dict(sol))
+    if sol.plan.stages_completed > 0:
+        paths["trajectory"] = os.path.join(out, "trajectory.json")
+        write_json(paths["trajectory"], trajectory_dict(sol))
+        paths["plot"] = os.path.join(out, "speeds.png")
+        plot_speeds(robot, sol, paths["plot"])
+    return paths
