@@ -4,7 +4,6 @@ in PyBullet for the UR5 + 2F-85 and the iiwa + WSG 50."""
 import dataclasses
 
 import numpy as np
-import pybullet as pb
 import pytest
 
 from conftest import ycb_dir_or_skip

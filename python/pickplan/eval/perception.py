@@ -21,7 +21,7 @@ import numpy as np
 from pickplan.core.io import read_json, write_json, write_text
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
 from pickplan.eval import experiments
-from pickplan.omg.chomp import Chomp, ChompSettings, MetricSettings
+from pickplan.omg.chomp import Chomp, ChompSettings
 from pickplan.omg.goals import GoalSetSettings, IkSettings
 from pickplan.omg.perceived_world import PerceivedPlanner, PerceivedWorld
 from pickplan.omg.planner import OMGSettings, PlanStatus

@@ -16,7 +16,6 @@ from typing import Optional
 
 import numpy as np
 
-from pickplan import _core
 from pickplan.core.runner import run_jobs
 from pickplan.pickup.nlp import planner
 from pickplan.pickup.nlp import problem_file
