@@ -13,8 +13,9 @@ A new scene: every scene's objects are seen once first (a warm-up pass: object m
 caches and whatever the world keeps per object), then per scene a fresh ``World`` and one
 ``OMGPlanner.plan`` (checkers, ISF data, goal set and plan) are timed together.
 
-The process is pinned to one core (``--core``); the load average is printed with the figures,
-since the machine may be shared.
+The process is pinned to one core (``--core``) but for the last part, ``plan_many`` scaling: the
+same plans (worlds built) on 1 and on 2 threads, unpinned. The load average is printed with the
+figures, since the machine may be shared.
 """
 from __future__ import annotations
 
@@ -67,6 +68,24 @@ def new_world(scene, settings, cache):
     return World(scene, settings.world) if cache is None else World(scene, settings.world, cache=cache)
 
 
+def thread_scaling(scene_list, worlds, grasps, settings, workers: int, rounds: int = 3):
+    """Wall time of planning every scene on 1 thread and on ``workers`` threads (best of ``rounds``)."""
+    try:
+        from pickplan.omg.batch import PlanJob, plan_many
+    except ImportError:
+        return None
+    jobs = [PlanJob(s, grasps=g, world=w) for s, g, w in zip(scene_list, grasps, worlds)]
+    out = {}
+    for n in (1, workers):
+        best = float("inf")
+        for _ in range(rounds):
+            t = time.perf_counter()
+            plan_many(jobs, settings, workers=n)
+            best = min(best, time.perf_counter() - t)
+        out[n] = best
+    return out
+
+
 def make_cache():
     """The per-object cache the world takes, when this version of pickplan has one."""
     try:
@@ -88,10 +107,17 @@ def main(argv=None):
     ap.add_argument("--scene-dir", default="out/bench_omg_speed/scenes")
     ap.add_argument("--core", type=int, default=None, help="pin to this CPU (default: the current one)")
     ap.add_argument("--no-rrt", action="store_true", help="OMG only")
+    ap.add_argument("--threads", type=int, default=2, help="plan_many threads for the scaling figure (0: skip)")
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="cpu: every timing in this process (the planners' stage timings too) reads this "
+                         "thread's CPU time, so other processes' load does not count (for a shared machine)")
     args = ap.parse_args(argv)
+    if args.clock == "cpu":
+        time.perf_counter = time.thread_time  # bench-only: the planners time their stages with perf_counter
+        args.threads = 0  # thread scaling is a wall-clock figure
     core = args.core if args.core is not None else os.sched_getaffinity(0).pop()
     os.sched_setaffinity(0, {core})
-    print(f"pinned to CPU {core}; load before: {os.getloadavg()}", flush=True)
+    print(f"pinned to CPU {core}; clock: {args.clock}; load before: {os.getloadavg()}", flush=True)
 
     settings = paper_settings()
     baseline = BaselineSettings(omg=settings)
@@ -109,10 +135,11 @@ def main(argv=None):
         OMGPlanner(None, scene, settings, world=world).plan(grasps=grasps[-1])
     print(f"warm-up pass {time.perf_counter() - t:.1f} s", flush=True)
 
-    rows = []
+    rows, worlds = [], []
     for i, scene in enumerate(scene_list):
         t = time.perf_counter()
         world = new_world(scene, settings, cache)
+        worlds.append(world)
         t_world = time.perf_counter() - t
         first = OMGPlanner(None, scene, settings, world=world).plan(grasps=grasps[i])
         t_new = time.perf_counter() - t
@@ -154,6 +181,13 @@ def main(argv=None):
           f"{1e3 * median([r['world'] for r in rows]):.1f}, checkers + ISF data "
           f"{1e3 * median([r['prepare'] for r in rows]):.1f}, goal set "
           f"{1e3 * median([r['goal_set'] for r in rows]):.1f}, plan {1e3 * median([r['first_plan'] for r in rows]):.1f})")
+    if args.threads > 1:
+        os.sched_setaffinity(0, range(os.cpu_count()))
+        scaling = thread_scaling(scene_list, worlds, grasps, settings, args.threads)
+        if scaling:
+            print(f"plan_many, {len(scene_list)} plans (worlds built): 1 thread {scaling[1]:.3f} s, {args.threads} "
+                  f"threads {scaling[args.threads]:.3f} s: {scaling[1] / scaling[args.threads]:.2f}x on "
+                  f"{os.cpu_count()} cores; load {os.getloadavg()}")
     return 0
 
 
