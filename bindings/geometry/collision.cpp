@@ -31,18 +31,28 @@ std::unique_ptr<CollisionChecker> make_checker(const Robot& robot, const py::lis
   std::vector<LinkMesh> links;
   for (const auto& item : link_meshes) {
     auto t = item.cast<py::tuple>();
-    if (t.size() != 3) throw std::invalid_argument("link_meshes: expected (link name, vertices, faces) tuples");
+    if (t.size() == 2 && py::isinstance<CollisionShape>(t[1])) {  // a prebuilt shape: shared, not rebuilt
+      links.push_back({t[0].cast<std::string>(), TriangleMesh{}, t[1].cast<std::shared_ptr<CollisionShape>>()});
+      continue;
+    }
+    if (t.size() != 3)
+      throw std::invalid_argument("link_meshes: expected (link name, vertices, faces) or (link name, shape) tuples");
     auto name = t[0].cast<std::string>();
     links.push_back({name, mesh_arg(t[1].cast<Array>(), t[2], "mesh of link '" + name + "'")});
   }
   std::vector<SceneObject> objs;
   for (const auto& item : objects) {
     auto t = item.cast<py::tuple>();
-    if (t.size() != 4) throw std::invalid_argument("objects: expected (name, vertices, faces, pose 4x4) tuples");
+    const bool prebuilt = t.size() == 3 && py::isinstance<CollisionShape>(t[1]);
+    if (t.size() != 4 && !prebuilt)
+      throw std::invalid_argument("objects: expected (name, vertices, faces, pose 4x4) or (name, shape, pose 4x4) tuples");
     auto name = t[0].cast<std::string>();
     const std::string what = "object '" + name + "'";
-    objs.push_back({name, mesh_arg(t[1].cast<Array>(), t[2], what),
-                    Transform::from_matrix(matrix4(t[3].cast<Array>(), ("pose of " + what).c_str()))});
+    const Transform pose = Transform::from_matrix(matrix4(t[prebuilt ? 2 : 3].cast<Array>(), ("pose of " + what).c_str()));
+    if (prebuilt)
+      objs.push_back({name, TriangleMesh{}, pose, t[1].cast<std::shared_ptr<CollisionShape>>()});
+    else
+      objs.push_back({name, mesh_arg(t[1].cast<Array>(), t[2], what), pose});
   }
   TableBox table;
   if (!table_size.is_none()) {
@@ -74,12 +84,24 @@ void init_collision(py::module_& m) {
       .def_readwrite("margin", &CollisionSettings::margin)
       .def_readwrite("detect_containment", &CollisionSettings::detect_containment);
 
+  py::class_<CollisionShape, std::shared_ptr<CollisionShape>>(
+      m, "CollisionShape", "A mesh with its FCL BVH, built once and shared by every checker that places it.")
+      .def(py::init([](const Array& V, const py::object& F, const std::string& what) {
+             TriangleMesh mesh = mesh_arg(V, F, what);
+             py::gil_scoped_release release;
+             return std::make_shared<CollisionShape>(std::move(mesh), what);
+           }),
+           py::arg("vertices"), py::arg("faces"), py::arg("what") = "mesh")
+      .def_property_readonly("num_vertices", [](const CollisionShape& s) { return s.mesh().num_vertices(); })
+      .def_property_readonly("num_faces", [](const CollisionShape& s) { return s.mesh().num_faces(); });
+
   py::class_<CollisionChecker>(m, "CollisionChecker",
                                "Immutable FCL collision checker: robot link meshes against scene meshes and a table box.")
       .def(py::init(&make_checker), py::arg("robot"), py::arg("link_meshes"), py::arg("objects"),
            py::arg("table_size") = py::none(), py::arg("table_pose") = py::none(),
            py::arg("settings") = CollisionSettings{},
-           "link_meshes: [(link, V (n,3), F (m,3))] in link frames; objects: [(name, V, F, pose 4x4)].")
+           "link_meshes: [(link, V (n,3), F (m,3))] in link frames; objects: [(name, V, F, pose 4x4)]; a "
+           "CollisionShape may stand for V, F.")
       .def_property_readonly("num_pairs", &CollisionChecker::num_pairs)
       .def_property_readonly("checked_pairs", &CollisionChecker::checked_pairs)
       .def_property_readonly("object_names", &CollisionChecker::object_names)

@@ -111,7 +111,8 @@ void init_sdf(py::module_& m) {
         const MergedSdf* m = s.merged();
         if (!m) return py::none();
         py::dict d;
-        d["bricks"] = m->num_bricks();
+        d["bricks"] = m->num_bricks();  // cells that may hold a brick; bricks fill on first lookup
+        d["filled"] = m->num_filled();
         d["cells"] = m->num_cells();
         d["bytes"] = m->bytes();
         d["resolution"] = m->settings().resolution;

@@ -363,3 +363,29 @@ TEST(Collision, BadInputsThrowClearErrors) {
     EXPECT_NE(std::string(e.what()).find("expected " + std::to_string(r.dof())), std::string::npos) << e.what();
   }
 }
+
+// A shape (mesh + BVH) built once and placed by several checkers answers as each checker's own
+// copy of the mesh does.
+TEST(Collision, SharedShapesAnswerAsOwnMeshes) {
+  Robot r = mixed_arm();
+  auto cube = std::make_shared<const CollisionShape>(TriangleMesh::box({0.1, 0.1, 0.1}), "cube");
+  std::vector<LinkMesh> shared_links;
+  for (const LinkMesh& lm : meshes_of(r))
+    shared_links.push_back({lm.link, TriangleMesh{}, std::make_shared<const CollisionShape>(lm.mesh, lm.link)});
+  int colliding = 0, free = 0;
+  for (const Transform& pose : {translation(0.35, 0.02, 0.0), rot_z(0.7, {0.3, -0.2, 0.1})}) {
+    CollisionChecker own(r, meshes_of(r), {{"cube", TriangleMesh::box({0.1, 0.1, 0.1}), pose}});
+    CollisionChecker shared(r, shared_links, {{"cube", TriangleMesh{}, pose, cube}});
+    std::mt19937 rng(3);
+    for (int k = 0; k < 200; ++k) {
+      const Eigen::VectorXd q = random_q(r, rng);
+      EXPECT_EQ(own.min_distance(q), shared.min_distance(q));
+      const bool hit = own.in_collision(q);
+      EXPECT_EQ(hit, shared.in_collision(q));
+      (hit ? colliding : free) += 1;
+    }
+  }
+  EXPECT_GT(colliding, 0);
+  EXPECT_GT(free, 0);
+  EXPECT_THROW(CollisionShape(TriangleMesh{}, "empty"), std::invalid_argument);
+}

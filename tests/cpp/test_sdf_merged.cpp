@@ -1,6 +1,8 @@
 // The merged scene grid and the cheap lower bounds against the per-object grids (the reference)
 // and exact box geometry.
 #include <random>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -142,4 +144,36 @@ TEST(MergedSdf, BadSettingsThrowAndAddingAnObjectDropsTheMergedGrid) {
   m.merge(0);
   Eigen::Vector3d g;
   m.distance(Eigen::Vector3d(nan, nan, nan), &g, 0.2, SceneSdf::kTableBit);
+}
+
+// Bricks fill on the first lookup that lands in them: lookups from several threads at once
+// (racing to fill the same bricks) give the very values one thread gives.
+TEST(MergedSdf, LazyBricksFilledByRacingThreadsEqualOneThread) {
+  SceneSdf one = three_boxes(), racing = three_boxes();
+  one.merge(0);
+  racing.merge(0);
+  EXPECT_EQ(racing.merged()->num_filled(), 0);
+  EXPECT_GT(racing.merged()->num_bricks(), 0);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> ux(0.2, 0.8), uy(-0.45, 0.35), uz(0.0, 0.35);
+  const int n = 4000;
+  std::vector<double> points(3 * n);
+  for (double& v : points) v = 0;
+  for (int i = 0; i < n; ++i) points[3 * i] = ux(rng), points[3 * i + 1] = uy(rng), points[3 * i + 2] = uz(rng);
+  std::vector<double> expected(n), expected_grad(3 * n);
+  one.distances(points.data(), n, expected.data(), expected_grad.data(), 0.2, 0, true, true);
+  const int threads = 4;
+  std::vector<std::vector<double>> got(threads, std::vector<double>(n)), got_grad(threads, std::vector<double>(3 * n));
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t)
+    pool.emplace_back([&, t] { racing.distances(points.data(), n, got[t].data(), got_grad[t].data(), 0.2, 0, true, true); });
+  for (auto& th : pool) th.join();
+  for (int t = 0; t < threads; ++t) {
+    EXPECT_EQ(got[t], expected);
+    EXPECT_EQ(got_grad[t], expected_grad);
+  }
+  const long filled = racing.merged()->num_filled();
+  EXPECT_GT(filled, 0);
+  EXPECT_EQ(filled, one.merged()->num_filled());
+  EXPECT_LE(filled, racing.merged()->num_bricks());
 }

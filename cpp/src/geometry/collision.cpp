@@ -15,16 +15,16 @@
 namespace pickplan {
 namespace {
 
-using Bvh = fcl::BVHModel<fcl::OBBRSSd>;
+using FclBvh = fcl::BVHModel<fcl::OBBRSSd>;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 const char* const kTable = "table";
 
-std::shared_ptr<Bvh> make_bvh(const TriangleMesh& m) {
+std::shared_ptr<FclBvh> make_bvh(const TriangleMesh& m) {
   std::vector<fcl::Vector3d> v(m.num_vertices());
   std::vector<fcl::Triangle> t(m.num_faces());
   for (int i = 0; i < m.num_vertices(); ++i) v[i] = m.vertices.row(i).transpose();
   for (int i = 0; i < m.num_faces(); ++i) t[i] = fcl::Triangle(m.faces(i, 0), m.faces(i, 1), m.faces(i, 2));
-  auto bvh = std::make_shared<Bvh>();
+  auto bvh = std::make_shared<FclBvh>();
   bvh->beginModel(static_cast<int>(t.size()), static_cast<int>(v.size()));
   bvh->addSubModel(v, t);
   bvh->endModel();
@@ -63,23 +63,50 @@ double winding_number(const TriangleMesh& m, const Eigen::Vector3d& p) {
 
 }  // namespace
 
+struct CollisionShape::Bvh {
+  std::shared_ptr<FclBvh> model;
+};
+
+CollisionShape::CollisionShape(TriangleMesh mesh, const std::string& what) : mesh_(std::move(mesh)) {
+  mesh_.validate(what);
+  bvh_ = std::make_unique<Bvh>(Bvh{make_bvh(mesh_)});
+  box_ = bounds(mesh_);
+  center_ = box_.center();
+  for (int i = 0; i < mesh_.num_vertices(); ++i)
+    radius_ = std::max(radius_, (mesh_.vertices.row(i).transpose() - center_).norm());
+}
+
+CollisionShape::~CollisionShape() = default;
+
+namespace {
+
+std::shared_ptr<const CollisionShape> shape_of(std::shared_ptr<const CollisionShape> shape, TriangleMesh& mesh,
+                                               const std::string& what) {
+  return shape ? shape : std::make_shared<const CollisionShape>(std::move(mesh), what);
+}
+
+}  // namespace
+
 struct CollisionChecker::Impl {
+  // Geometry in its own frame comes from a shared CollisionShape; only placement is per checker.
   struct LinkGeom {
     int link;
-    TriangleMesh mesh;
-    std::shared_ptr<Bvh> bvh;
+    std::shared_ptr<const CollisionShape> shape;
+    const FclBvh* bvh;            // shape's
     Eigen::AlignedBox3d box;   // link frame
     Eigen::Vector3d center;    // bounding sphere, link frame
     double radius;
+    const TriangleMesh& mesh() const { return shape->mesh(); }
   };
   struct ObjGeom {
     std::string name;
-    TriangleMesh mesh;
-    std::shared_ptr<Bvh> bvh;
+    std::shared_ptr<const CollisionShape> shape;
+    const FclBvh* bvh;
     Transform pose, inv_pose;
     fcl::Transform3d tf;
     Eigen::AlignedBox3d box, world_box;
     Eigen::Vector3d probe_world;  // a vertex, for the object-inside-link test
+    const TriangleMesh& mesh() const { return shape->mesh(); }
   };
   std::vector<LinkGeom> links;
   std::vector<ObjGeom> objects;
@@ -89,9 +116,9 @@ struct CollisionChecker::Impl {
   Eigen::AlignedBox3d table_world_box;
 
   const fcl::CollisionGeometryd* other_geom(OtherKind k, int i) const {
-    if (k == OtherKind::Object) return objects[i].bvh.get();
+    if (k == OtherKind::Object) return objects[i].bvh;
     if (k == OtherKind::Table) return table.get();
-    return links[i].bvh.get();
+    return links[i].bvh;
   }
 };
 
@@ -113,13 +140,9 @@ CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> lin
   for (auto& lm : link_meshes) {
     const int li = robot_.link_index(lm.link);
     if (geom_of_link[li] >= 0) throw std::invalid_argument("link mesh for '" + lm.link + "' given twice");
-    lm.mesh.validate("mesh of link '" + lm.link + "'");
-    Impl::LinkGeom g{li, std::move(lm.mesh), nullptr, {}, {}, 0.0};
-    g.bvh = make_bvh(g.mesh);
-    g.box = bounds(g.mesh);
-    g.center = g.box.center();
-    for (int i = 0; i < g.mesh.num_vertices(); ++i)
-      g.radius = std::max(g.radius, (g.mesh.vertices.row(i).transpose() - g.center).norm());
+    auto shape = shape_of(std::move(lm.shape), lm.mesh, "mesh of link '" + lm.link + "'");
+    const FclBvh* bvh = shape->bvh().model.get();
+    Impl::LinkGeom g{li, shape, bvh, shape->box(), shape->center(), shape->radius()};
     geom_of_link[li] = static_cast<int>(impl_->links.size());
     impl_->links.push_back(std::move(g));
   }
@@ -129,18 +152,17 @@ CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> lin
     if (o.name.empty() || o.name == kTable)
       throw std::invalid_argument("object name '" + o.name + "' is reserved or empty");
     if (!names.insert(o.name).second) throw std::invalid_argument("object name '" + o.name + "' given twice");
-    o.mesh.validate("mesh of object '" + o.name + "'");
     require_rigid(("pose of object '" + o.name + "'").c_str(), o.pose.matrix());
     Impl::ObjGeom g;
     g.name = o.name;
-    g.mesh = std::move(o.mesh);
-    g.bvh = make_bvh(g.mesh);
+    g.shape = shape_of(std::move(o.shape), o.mesh, "mesh of object '" + o.name + "'");
+    g.bvh = g.shape->bvh().model.get();
     g.pose = o.pose;
     g.inv_pose = o.pose.inverse();
     g.tf = to_fcl(o.pose);
-    g.box = bounds(g.mesh);
-    g.world_box = bounds(g.mesh, o.pose);
-    g.probe_world = o.pose.apply(g.mesh.vertices.row(0).transpose());
+    g.box = g.shape->box();
+    g.world_box = bounds(g.mesh(), o.pose);
+    g.probe_world = o.pose.apply(g.mesh().vertices.row(0).transpose());
     impl_->objects.push_back(std::move(g));
   }
   // Table.
@@ -265,23 +287,24 @@ bool CollisionChecker::pair_collides(const Pair& p, const CollisionWorkspace& ws
   fcl::CollisionRequestd req(1, false);
   fcl::CollisionResultd res;
   if (p.kind == OtherKind::Table) {
-    fcl::collide(lg.bvh.get(), tf_link, impl_->table.get(), impl_->table_tf, req, res);
+    fcl::collide(lg.bvh, tf_link, impl_->table.get(), impl_->table_tf, req, res);
     return res.isCollision();
   }
   if (p.kind == OtherKind::Object) {
     const auto& og = impl_->objects[p.other];
-    fcl::collide(lg.bvh.get(), tf_link, og.bvh.get(), og.tf, req, res);
+    fcl::collide(lg.bvh, tf_link, og.bvh, og.tf, req, res);
     if (res.isCollision()) return true;
     if (!settings_.detect_containment) return false;
-    return contained(lg.mesh, Tl, og.mesh, og.box, og.inv_pose) ||
-           contained(og.mesh, og.pose, lg.mesh, lg.box, Tl.inverse());
+    return contained(lg.mesh(), Tl, og.mesh(), og.box, og.inv_pose) ||
+           contained(og.mesh(), og.pose, lg.mesh(), lg.box, Tl.inverse());
   }
   const auto& og = impl_->links[p.other];
   const Transform& To = ws.robot.link_pose[og.link];
-  fcl::collide(lg.bvh.get(), tf_link, og.bvh.get(), to_fcl(To), req, res);
+  fcl::collide(lg.bvh, tf_link, og.bvh, to_fcl(To), req, res);
   if (res.isCollision()) return true;
   if (!settings_.detect_containment) return false;
-  return contained(lg.mesh, Tl, og.mesh, og.box, To.inverse()) || contained(og.mesh, To, lg.mesh, lg.box, Tl.inverse());
+  return contained(lg.mesh(), Tl, og.mesh(), og.box, To.inverse()) ||
+         contained(og.mesh(), To, lg.mesh(), lg.box, Tl.inverse());
 }
 
 double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& ws, bool want_points,
@@ -295,7 +318,7 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
                                                                  : to_fcl(ws.robot.link_pose[impl_->links[p.other].link]);
   fcl::DistanceRequestd dreq(want_points);
   fcl::DistanceResultd dres;
-  fcl::distance(lg.bvh.get(), tf_link, other, tf_other, dreq, dres);
+  fcl::distance(lg.bvh, tf_link, other, tf_other, dreq, dres);
   double d = dres.min_distance;
   Eigen::Vector3d pl = dres.nearest_points[0], po = dres.nearest_points[1];
   if (d <= 1e-12) {
@@ -305,7 +328,7 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
     const bool table = p.kind == OtherKind::Table;
     fcl::CollisionRequestd creq(table ? 64 : 1, true);
     fcl::CollisionResultd cres;
-    fcl::collide(lg.bvh.get(), tf_link, other, tf_other, creq, cres);
+    fcl::collide(lg.bvh, tf_link, other, tf_other, creq, cres);
     if (cres.isCollision()) {
       double depth = 0.0;
       for (size_t i = 0; i < cres.numContacts(); ++i) {
@@ -321,10 +344,10 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
     }
   } else if (settings_.detect_containment && p.kind != OtherKind::Table) {
     const bool self = p.kind == OtherKind::Link;
-    const TriangleMesh& om = self ? impl_->links[p.other].mesh : impl_->objects[p.other].mesh;
+    const TriangleMesh& om = self ? impl_->links[p.other].mesh() : impl_->objects[p.other].mesh();
     const Eigen::AlignedBox3d& ob = self ? impl_->links[p.other].box : impl_->objects[p.other].box;
     const Transform To = self ? ws.robot.link_pose[impl_->links[p.other].link] : impl_->objects[p.other].pose;
-    if (contained(lg.mesh, Tl, om, ob, To.inverse()) || contained(om, To, lg.mesh, lg.box, Tl.inverse())) d = -d;
+    if (contained(lg.mesh(), Tl, om, ob, To.inverse()) || contained(om, To, lg.mesh(), lg.box, Tl.inverse())) d = -d;
   }
   if (info) {
     info->link = robot_.link(lg.link).name;

@@ -151,35 +151,53 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
   std::vector<int> included;
   for (int i = 0; i < num_objects(); ++i)
     if (!(exclude_mask >> i & 1)) included.push_back(i);
-  // Objects that may be the nearest somewhere in the ball: within the cutoff by their box gap,
-  // and not dominated by another object's distance interval at the centre (a grid interpolant
-  // changes by at most sqrt(3) per unit; 2 leaves slack).
-  const auto near = [&](const Eigen::Vector3d& center, double radius, int* ids) {
-    int count = 0;
+  // The brick filler outlives this call (bricks fill on first lookup): it owns copies of the
+  // included bodies (their grids are shared, immutable).
+  std::vector<Body> bodies;
+  for (int i : included) bodies.push_back(bodies_[i]);
+  const MergedSdfSettings s = settings;
+  auto fill = [bodies, s](const Eigen::Vector3d& corner, const Eigen::Vector3d& center, double radius, float* out) {
+    // Objects that may be the nearest somewhere in the ball: within the cutoff by their box gap,
+    // and not dominated by another object's distance interval at the centre (a grid interpolant
+    // changes by at most sqrt(3) per unit; 2 leaves slack).
+    int ids[64];
     double at_center[64];
-    double best_upper = settings.cutoff;
-    for (int i : included) {
-      if (box_gap_bound(bodies_[i], center, radius) >= settings.cutoff) continue;
-      const Body& b = bodies_[i];
+    int count = 0;
+    double best_upper = s.cutoff;
+    for (int i = 0; i < static_cast<int>(bodies.size()); ++i) {
+      if (box_gap_bound(bodies[i], center, radius) >= s.cutoff) continue;
+      const Body& b = bodies[i];
       at_center[count] = b.grid->distance(b.inverse.apply(center));
       best_upper = std::min(best_upper, at_center[count] + 2 * radius);
       ids[count++] = i;
     }
-    int kept = 0;
+    int n_near = 0;
     for (int c = 0; c < count; ++c)
-      if (at_center[c] - 2 * radius < best_upper) ids[kept++] = ids[c];
-    return kept;
-  };
-  const auto object_distance = [&](int i, const Eigen::Vector3d& x) {
-    const Body& b = bodies_[i];
-    return b.grid->distance(b.inverse.apply(x));
+      if (at_center[c] - 2 * radius < best_upper) ids[n_near++] = ids[c];
+    if (n_near == 0) return false;
+    bool any_inside = false;
+    long k = 0;
+    const int B = s.brick;
+    for (int z = 0; z <= B; ++z)
+      for (int y = 0; y <= B; ++y)
+        for (int x = 0; x <= B; ++x, ++k) {
+          const Eigen::Vector3d node = corner + Eigen::Vector3d(x, y, z) * s.resolution;
+          double d = s.cutoff;
+          for (int c = 0; c < n_near; ++c) {
+            const Body& b = bodies[ids[c]];
+            d = std::min(d, b.grid->distance(b.inverse.apply(node)));
+          }
+          out[k] = static_cast<float>(d);
+          any_inside |= d < s.cutoff;
+        }
+    return any_inside;
   };
   const auto lower_bound = [&](const Eigen::Vector3d& center, double radius) {
     double best = std::numeric_limits<double>::infinity();
     for (int i : included) best = std::min(best, box_gap_bound(bodies_[i], center, radius));
     return best;
   };
-  merged_ = std::make_shared<const MergedSdf>(MergedSdf::build(lo, hi, settings, exclude_mask, near, object_distance, lower_bound));
+  merged_ = std::make_shared<const MergedSdf>(MergedSdf::build(lo, hi, settings, exclude_mask, fill, lower_bound));
 }
 
 

@@ -1,6 +1,8 @@
 // MergedSdf lookups: the CHOMP hot path (const, reentrant, no allocation).
 #include "pickplan/geometry/sdf_merged.hpp"
 
+#include <thread>
+
 namespace pickplan {
 
 double MergedSdf::distance(const double* x, double* gradient) const {
@@ -17,13 +19,18 @@ double MergedSdf::distance(const double* x, double* gradient) const {
   // The default brick (4) is a power of two: a shift instead of three integer divisions.
   const int cx = brick_shift_ >= 0 ? ix >> brick_shift_ : ix / B, cy = brick_shift_ >= 0 ? iy >> brick_shift_ : iy / B,
             cz = brick_shift_ >= 0 ? iz >> brick_shift_ : iz / B;
-  const std::int32_t brick = brick_of_cell_[(static_cast<long>(cz) * cells_.y() + cy) * cells_.x() + cx];
-  if (brick < 0) return empty();
+  const long cell = (static_cast<long>(cz) * cells_.y() + cy) * cells_.x() + cx;
+  std::int32_t brick = state_[cell].load(std::memory_order_acquire);
+  if (brick < 0) {
+    if (brick == kEmpty) return empty();
+    brick = fill_cell(cell);
+    if (brick < 0) return empty();
+  }
   // Local voxel inside the brick; the brick's last node layer is shared with its neighbour.
   const int i = ix - cx * B, j = iy - cy * B, k = iz - cz * B;
   const double tx = fx - ix, ty = fy - iy, tz = fz - iz;
   const long sy = B + 1, sz = sy * sy;
-  const float* c = values_.data() + brick * brick_nodes_ + (k * sz + j * sy + i);
+  const float* c = values_.get() + brick * brick_nodes_ + (k * sz + j * sy + i);
   const double c000 = c[0], c100 = c[1], c010 = c[sy], c110 = c[1 + sy];
   const double c001 = c[sz], c101 = c[1 + sz], c011 = c[sy + sz], c111 = c[1 + sy + sz];
   const double c00 = c000 + tx * (c100 - c000), c10 = c010 + tx * (c110 - c010);
@@ -38,6 +45,33 @@ double MergedSdf::distance(const double* x, double* gradient) const {
     gradient[2] = (c1 - c0) * inv_resolution_;
   }
   return d;
+}
+
+std::int32_t MergedSdf::fill_cell(long cell) const {
+  std::int32_t expected = kPending;
+  if (state_[cell].compare_exchange_strong(expected, kFilling, std::memory_order_acquire)) {
+    const long cx = cell % cells_.x(), cy = cell / cells_.x() % cells_.y(), cz = cell / (static_cast<long>(cells_.x()) * cells_.y());
+    const double edge = settings_.brick * settings_.resolution;
+    const Eigen::Vector3d corner = origin_ + Eigen::Vector3d(cx, cy, cz) * edge;
+    const Eigen::Vector3d center = corner.array() + 0.5 * edge;
+    const std::int32_t slot = slot_[cell];
+    const bool filled = fill_(corner, center, half_diagonal_, values_.get() + slot * brick_nodes_);
+    const std::int32_t state = filled ? slot : kEmpty;
+    state_[cell].store(state, std::memory_order_release);
+    return state;
+  }
+  // Another thread is filling this brick: wait for it (microseconds).
+  while (expected == kFilling) {
+    std::this_thread::yield();
+    expected = state_[cell].load(std::memory_order_acquire);
+  }
+  return expected;
+}
+
+long MergedSdf::num_filled() const {
+  long n = 0;
+  for (long c = 0; c < num_cells_; ++c) n += state_[c].load(std::memory_order_relaxed) >= 0;
+  return n;
 }
 
 double MergedSdf::lower_bound(const double* x) const {

@@ -23,6 +23,7 @@ from typing import List, NamedTuple, Optional, Sequence, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.caches import BoundedCache, mesh_content_key
 from pickplan.core.meshes import check_mesh_arrays
 from pickplan.core.panda import PANDA_DESCRIPTION
 from pickplan.core.robots import Robot
@@ -88,9 +89,26 @@ class Contact:
 
 
 def _mesh_arrays(mesh, what: str):
+    mesh = _checked_mesh(mesh, what)
+    return check_mesh_arrays(mesh.vertices, mesh.faces, what)
+
+
+class ShapeCache(BoundedCache):
+    """FCL shapes (a mesh and its BVH) by mesh content: built once per object or link and shared by
+    every checker of every scene that places it."""
+
+    def shape(self, mesh, what: str) -> "_core.CollisionShape":
+        def build():
+            V, F = _mesh_arrays(mesh, what)
+            return _core.CollisionShape(V, F, what)
+
+        return self.get(mesh_content_key(_checked_mesh(mesh, what)), build)
+
+
+def _checked_mesh(mesh, what: str):
     if mesh is None or not hasattr(mesh, "vertices") or not hasattr(mesh, "faces"):
         raise ValueError(f"{what}: expected a mesh with vertices and faces, got {type(mesh).__name__}")
-    return check_mesh_arrays(mesh.vertices, mesh.faces, what)
+    return mesh
 
 
 class CollisionChecker:
@@ -103,27 +121,33 @@ class CollisionChecker:
 
     def __init__(self, robot: Robot, objects: Sequence[SceneMesh] = (), table: Optional[Table] = None,
                  settings: CollisionSettings = CollisionSettings(), convex_links: bool = False,
-                 links: Optional[Sequence[str]] = None):
-        """``links``: check only these links (default: every link with collision geometry)."""
+                 links: Optional[Sequence[str]] = None, shapes: Optional[ShapeCache] = None,
+                 link_meshes: Optional[dict] = None):
+        """``links``: check only these links (default: every link with collision geometry).
+        ``shapes``: a cache of FCL shapes shared with other checkers (None: built for this one).
+        ``link_meshes``: link name -> mesh, the robot's collision meshes when the caller has them."""
         self.robot = robot
         self.settings = settings
-        link_meshes = []
+        native_links = []
         for name in (robot.link_names if links is None else links):
-            mesh = robot.collision_meshes(name)
+            mesh = link_meshes[name] if link_meshes is not None and name in link_meshes else robot.collision_meshes(name)
             if mesh is None:
                 continue
             if convex_links:
                 mesh = mesh.convex_hull
-            link_meshes.append((name, *_mesh_arrays(mesh, f"mesh of link '{name}'")))
+            what = f"mesh of link '{name}'"
+            native_links.append((name, shapes.shape(mesh, what)) if shapes is not None
+                                else (name, *_mesh_arrays(mesh, what)))
         native_objects = []
         for obj in objects:
             name, mesh, pose = obj
-            V, F = _mesh_arrays(mesh, f"object '{name}'")
-            native_objects.append((str(name), V, F, np.asarray(pose, dtype=float)))
+            what = f"object '{name}'"
+            geometry = (shapes.shape(mesh, what),) if shapes is not None else _mesh_arrays(mesh, what)
+            native_objects.append((str(name), *geometry, np.asarray(pose, dtype=float)))
         size = pose = None
         if table is not None:
             size, pose = np.asarray(table.size, dtype=float), table.pose_matrix()
-        self._native = _core.CollisionChecker(robot.native, link_meshes, native_objects, size, pose,
+        self._native = _core.CollisionChecker(robot.native, native_links, native_objects, size, pose,
                                               settings.to_native())
 
     @property

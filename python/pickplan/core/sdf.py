@@ -11,6 +11,7 @@ from typing import Iterable, Optional, Sequence, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.caches import BoundedCache, mesh_content_key
 from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
 from pickplan.core.meshes import check_mesh_arrays
@@ -113,8 +114,20 @@ def mesh_key(vertices: np.ndarray, faces: np.ndarray, settings: SdfSettings) -> 
     return h.hexdigest()[:32]
 
 
-def mesh_sdf(mesh, settings: SdfSettings = SdfSettings()) -> "_core.SdfGrid":
-    """The SDF grid of a trimesh (mesh frame). Loaded from the disk cache when built before."""
+class GridCache(BoundedCache):
+    """SDF grids by mesh content and grid settings, kept in memory: a scene of known objects reads
+    no file and hashes no grid. Grids are immutable, so scenes share them."""
+
+    def grid(self, mesh, settings: SdfSettings) -> "_core.SdfGrid":
+        key = (mesh_content_key(mesh), float(settings.resolution), float(settings.margin))
+        return self.get(key, lambda: mesh_sdf(mesh, settings))
+
+
+def mesh_sdf(mesh, settings: SdfSettings = SdfSettings(), cache: Optional[GridCache] = None) -> "_core.SdfGrid":
+    """The SDF grid of a trimesh (mesh frame): from ``cache`` when given and it holds it, else
+    loaded from the disk cache when built before, else built."""
+    if cache is not None:
+        return cache.grid(mesh, settings)
     V, F = _mesh_arrays(mesh)
     if not getattr(mesh, "is_watertight", True):
         warnings.warn("SDF of a mesh that is not watertight: inside/outside comes from a 3-axis ray vote",

@@ -6,7 +6,9 @@
 - ``goals``: goal sets by IK (Sec. III-B);
 - ``selection``: Fixed, Proj, FTC, FTL, EXP and Mirror Descent (Sec. III-C, Eq. 7-9);
 - ``isf``: C-Space ISF grasp refinement (Sec. III-D);
-- ``planner``: Algorithm 2, ``OMGPlanner``.
+- ``planner``: Algorithm 2, ``OMGPlanner``;
+- ``model_cache``: what depends only on objects and robot, shared by worlds (``ModelCache``);
+- ``batch``: many plans on parallel threads (``plan_many``).
 """
 import importlib
 

@@ -34,9 +34,11 @@ class IsfSettings:
         return to_native(self, _core.IsfSettings, active=[bool(a) for a in active])
 
 
-def hand_sdf(robot, opening: Optional[float] = None, resolution: float = 0.002) -> sdf.SceneSdf:
+def hand_sdf(robot, opening: Optional[float] = None, resolution: float = 0.002,
+             grids: "sdf.GridCache | None" = None) -> sdf.SceneSdf:
     """The robot's hand and its fingers (at ``opening``, default open) as SDF parts in the hand-link
-    frame (min over parts, so the overlapping closed meshes need no boolean union)."""
+    frame (min over parts, so the overlapping closed meshes need no boolean union); part grids from
+    ``grids`` when given."""
     q = robot.with_fingers(robot.ready_configuration, robot.info.finger_open if opening is None else opening)
     poses = robot.fk(q)
     H_inv = np.linalg.inv(poses[robot.link_index(robot.hand_link)])
@@ -44,18 +46,25 @@ def hand_sdf(robot, opening: Optional[float] = None, resolution: float = 0.002) 
     parts = []
     for name in (robot.hand_link,) + tuple(robot.finger_links):
         mesh = robot.collision_meshes(name)
-        parts.append((name, sdf.mesh_sdf(mesh, settings), H_inv @ poses[robot.link_index(name)]))
+        parts.append((name, sdf.mesh_sdf(mesh, settings, grids), H_inv @ poses[robot.link_index(name)]))
     hand = sdf.SceneSdf(parts)
     # One lookup instead of one per part, at the parts' own resolution (queries use a 1 cm cutoff).
     hand.merge(resolution=resolution, cutoff=settings.margin)
     return hand
 
 
-def object_surface(mesh: trimesh.Trimesh, pose: np.ndarray, n: int = 1000, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
-    """n seeded surface samples of the object with outward normals, in the world."""
+def object_surface_local(mesh: trimesh.Trimesh, n: int = 1000, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+    """n seeded surface samples of the object with outward normals, in the object frame."""
     pts, faces = trimesh.sample.sample_surface(mesh, n, seed=seed)
-    normals = mesh.face_normals[faces]
-    return (np.asarray(pts) @ pose[:3, :3].T + pose[:3, 3], np.asarray(normals) @ pose[:3, :3].T)
+    return np.asarray(pts), np.asarray(mesh.face_normals[faces])
+
+
+def object_surface(mesh: trimesh.Trimesh, pose: np.ndarray, n: int = 1000, seed: int = 0,
+                   local: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Tuple[np.ndarray, np.ndarray]:
+    """n seeded surface samples of the object with outward normals, in the world (placing
+    ``local``, the object-frame samples, when the caller has them)."""
+    pts, normals = object_surface_local(mesh, n, seed) if local is None else local
+    return (pts @ pose[:3, :3].T + pose[:3, 3], normals @ pose[:3, :3].T)
 
 
 class GraspRefiner:
@@ -66,17 +75,20 @@ class GraspRefiner:
 
     def __init__(self, world: "World", settings: IsfSettings = IsfSettings(), object_points: int = 1000, seed: int = 0,
                  surface: Optional[Tuple[np.ndarray, np.ndarray]] = None):
-        robot = world.robot
+        robot, cache = world.robot, world.cache
         contacts = grasps.hand_contacts(robot=robot)  # this gripper's pads
         if surface is None:
-            pts, nrm = object_surface(world.target_model.mesh, world.target_pose, object_points, seed)
+            # Object-frame samples and the hand SDF depend on the model and the robot only: from the cache.
+            mesh = world.target_model.mesh
+            local = cache.surface(mesh, object_points, seed, object_surface_local)
+            pts, nrm = object_surface(mesh, world.target_pose, object_points, seed, local=local)
         else:
             pts, nrm = (np.ascontiguousarray(a, dtype=float) for a in surface)
             if pts.ndim != 2 or pts.shape[1] != 3 or nrm.shape != pts.shape or len(pts) == 0:
                 raise ValueError(f"surface: expected points and normals as two (N, 3) arrays, got {pts.shape}, {nrm.shape}")
         active = [i < robot.info.arm_dof for i in range(robot.dof)]
         exclude = 1 << world.sdf.index(world.target)
-        self._hand_sdf = hand_sdf(robot)
+        self._hand_sdf = cache.robot_derived(robot, "hand_sdf", lambda: hand_sdf(robot, grids=cache.grids))
         self.settings = settings
         self._native = _core.GraspRefiner(robot.native, robot.hand_link, contacts.points, contacts.normals,
                                           self._hand_sdf.native, pts, nrm, world.sdf.native, world.body.links,

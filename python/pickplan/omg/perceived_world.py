@@ -31,7 +31,6 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pickplan import _core
-from pickplan.core import robots
 from pickplan.core.observation import Observation
 from pickplan.core.sdf import SceneSdf
 from pickplan.omg import isf
@@ -39,6 +38,7 @@ from pickplan.omg.chomp import Chomp
 from pickplan.omg.goals import GoalSetSettings
 from pickplan.omg.grasps.points import PointGraspSettings, grasps_from_points
 from pickplan.omg.grasps.sets import GraspSet
+from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.planner import OMGPlanner, OMGSettings
 from pickplan.omg.world import CheckerKind
 from pickplan.perception.field import FieldSettings, PerceivedScene, perceive
@@ -106,17 +106,18 @@ class PerceivedWorld:
     (``robots.load_robot``) otherwise."""
 
     def __init__(self, observation: Observation, robot=None, settings: PerceivedWorldSettings = PerceivedWorldSettings(),
-                 perceived: Optional[PerceivedScene] = None):
+                 perceived: Optional[PerceivedScene] = None, cache: Optional[ModelCache] = None):
         if not isinstance(observation, Observation):
             raise TypeError(f"observation: expected a pickplan Observation, got {type(observation).__name__}")
-        if robot is not None and not hasattr(robot, "info"):
-            raise ValueError("robot: expected a described robot (robots.load_robot(NAME or FILE)), "
+        if robot is not None and not isinstance(robot, str) and not hasattr(robot, "info"):
+            raise ValueError("robot: expected a description name or file or a described robot (robots.load_robot), "
                              f"got {type(robot).__name__}")
         self.observation, self.settings = observation, settings
         self.scene = ObservedScene()
         self.perceived = perceived or perceive(observation, settings.field, seed=settings.seed)
         t0 = time.perf_counter()
-        self.robot = robot or robots.panda()
+        self.cache = ModelCache() if cache is None else cache  # the robot's data, shared with other worlds
+        self.robot = self.cache.robot(robot if robot is not None else "panda", np.eye(4))
         if len(self.perceived.target_points) < 3:
             raise ValueError("observation: fewer than 3 target points with depth; the target is not seen")
         self.sdf: SceneSdf = self.perceived.sdf
@@ -162,7 +163,7 @@ class PerceivedWorld:
 
     @functools.cached_property
     def hand_sdf(self) -> SceneSdf:
-        return isf.hand_sdf(self.robot)
+        return self.cache.robot_derived(self.robot, "hand_sdf", lambda: isf.hand_sdf(self.robot, grids=self.cache.grids))
 
     @functools.cached_property
     def hand_points(self) -> Tuple[np.ndarray, np.ndarray]:

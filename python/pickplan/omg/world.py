@@ -17,6 +17,7 @@ from pickplan.core.settings import Option
 from pickplan.sim.scenes import Scene
 from pickplan.omg import isf
 from pickplan.omg.chomp import Chomp
+from pickplan.omg.model_cache import ModelCache
 
 
 class CheckerKind(Option):
@@ -57,22 +58,24 @@ class World:
     """Planning view of a ``Scene``: ``robot``, ``models``, ``sdf`` (SceneSdf), ``body`` points,
     ``checker(kind)`` (FCL; "goal" lets the fingers touch the target, "strict" does not).
     ``robot``: a ``robots.DescribedRobot`` or a description's name or file (default ``settings.robot``),
-    placed at the scene's robot base."""
+    placed at the scene's robot base. ``cache`` (a ``ModelCache``) holds what depends only on the
+    objects or the robot; worlds that share one build it once (None: this world's own)."""
 
     def __init__(self, scene: Scene, settings: WorldSettings = WorldSettings(),
-                 library: Optional[objects.ObjectLibrary] = None, robot=None):
+                 library: Optional[objects.ObjectLibrary] = None, robot=None, cache: Optional[ModelCache] = None):
         self.scene = scene
         self.settings = settings
-        self.robot = robots.load_robot(settings.robot if robot is None else robot,
-                                       np.asarray(scene.robot_base, dtype=float))
+        self.cache = cache = ModelCache() if cache is None else cache
+        self.robot = cache.robot(settings.robot if robot is None else robot, scene.robot_base)
         self.models = {}
         for o in scene.objects:
             self.models[o.name] = library.get(o.name) if library is not None and o.name in library \
                 else objects.model_from_source(o.name, o.source)
-        grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf), o.pose) for o in scene.objects]
+        grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf, cache.grids), o.pose)
+                 for o in scene.objects]
         self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
-        self.body = _without_table_links(self.robot.sample_body_points(settings.body_points_per_link,
-                                                                       seed=settings.body_seed), self.robot)
+        self.body = _without_table_links(cache.body_points(self.robot, settings.body_points_per_link,
+                                                           settings.body_seed), self.robot)
         self._checkers: dict = {}
         self._refiners: dict = {}
         scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
@@ -132,7 +135,8 @@ class World:
             settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
         table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
                                 pose=np.asarray(self.scene.table.pose, dtype=float))
-        return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links)
+        return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links,
+                                          shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
 
     @functools.cached_property
     def clearance_problem(self):

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "pickplan/geometry/mesh.hpp"
 #include "pickplan/core/robot.hpp"
@@ -28,15 +29,44 @@
 
 namespace pickplan {
 
+// A mesh with what depends only on it: its FCL bounding-volume hierarchy and bounds, in its own
+// frame. Built once per object or link and shared (immutable) by every checker that places it,
+// so a new scene of known objects builds no BVH.
+class CollisionShape {
+ public:
+  // Throws std::invalid_argument ("<what>: ...") for an empty, degenerate or non-finite mesh.
+  explicit CollisionShape(TriangleMesh mesh, const std::string& what = "mesh");
+  ~CollisionShape();
+  CollisionShape(const CollisionShape&) = delete;
+  CollisionShape& operator=(const CollisionShape&) = delete;
+
+  const TriangleMesh& mesh() const { return mesh_; }
+  const Eigen::AlignedBox3d& box() const { return box_; }
+  const Eigen::Vector3d& center() const { return center_; }  // of the bounding sphere
+  double radius() const { return radius_; }
+
+  struct Bvh;  // FCL's, kept out of this header
+  const Bvh& bvh() const { return *bvh_; }
+
+ private:
+  TriangleMesh mesh_;
+  Eigen::AlignedBox3d box_;
+  Eigen::Vector3d center_;
+  double radius_ = 0;
+  std::unique_ptr<Bvh> bvh_;
+};
+
 struct LinkMesh {
   std::string link;   // robot link name
-  TriangleMesh mesh;  // in the link frame
+  TriangleMesh mesh;  // in the link frame (ignored when shape is set)
+  std::shared_ptr<const CollisionShape> shape = nullptr;  // prebuilt: reused, not rebuilt
 };
 
 struct SceneObject {
   std::string name;   // unique, not "table"
-  TriangleMesh mesh;  // in the object frame
+  TriangleMesh mesh;  // in the object frame (ignored when shape is set)
   Transform pose;     // object frame in the world
+  std::shared_ptr<const CollisionShape> shape = nullptr;  // prebuilt: reused, not rebuilt
 };
 
 struct TableBox {

@@ -4,9 +4,12 @@
 // object, and points in empty bricks cost one array read: this is what makes the per-iteration
 // obstacle cost and the goal-cost estimates cheap.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -21,16 +24,19 @@ struct MergedSdfSettings {
 
 class MergedSdf {
  public:
-  // `near(center, radius, ids)` writes the ids of the objects that may come within the cutoff of
-  // the ball and returns their count; `object_distance(id, x)` is that object's distance at a
-  // world point; `lower_bound(center, radius)` bounds every object's distance over the ball.
-  template <class NearFn, class ObjectDistanceFn, class LowerBoundFn>
+  // `fill(corner, center, radius, out)` writes the (brick+1)^3 node values (clamped at the cutoff,
+  // x fastest) of the brick whose lowest node is `corner` and returns whether any is below the
+  // cutoff; `lower_bound(center, radius)` bounds every object's distance over the ball.
+  using BrickFill = std::function<bool(const Eigen::Vector3d& corner, const Eigen::Vector3d& center, double radius,
+                                       float* out)>;
+  // Bricks are filled lazily, on the first lookup that lands in them (the same values, computed
+  // the same way, as filling them all here): a new scene pays only for the bricks its plans touch.
+  template <class LowerBoundFn>
   static MergedSdf build(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const MergedSdfSettings& settings,
-                         std::uint64_t exclude_mask, NearFn&& near, ObjectDistanceFn&& object_distance,
-                         LowerBoundFn&& lower_bound);
+                         std::uint64_t exclude_mask, BrickFill fill, LowerBoundFn&& lower_bound);
 
   // Trilinear value (clamped at cutoff) and its exact gradient; `cutoff` with a zero gradient
-  // in empty bricks and outside the covered box.
+  // in empty bricks and outside the covered box. Reentrant: concurrent lookups may fill bricks.
   double distance(const double* x, double* gradient) const;
   // A lower bound of the object distance (unclamped, so it may exceed the cutoff) that holds
   // for the merged interpolant at x and for the exact distance alike.
@@ -39,35 +45,46 @@ class MergedSdf {
   std::uint64_t exclude_mask() const { return exclude_mask_; }
   double cutoff() const { return settings_.cutoff; }
   const MergedSdfSettings& settings() const { return settings_; }
-  long num_bricks() const { return static_cast<long>(values_.size() / brick_nodes_); }
-  long num_cells() const { return static_cast<long>(brick_of_cell_.size()); }
-  std::size_t bytes() const { return values_.size() * sizeof(float) + brick_of_cell_.size() * sizeof(std::int32_t); }
+  long num_bricks() const { return num_slots_; }  // cells that may hold a brick (filled or not yet)
+  long num_filled() const;                         // bricks filled so far with a value below the cutoff
+  long num_cells() const { return num_cells_; }
+  std::size_t bytes() const {
+    return num_slots_ * brick_nodes_ * sizeof(float) + num_cells_ * (2 * sizeof(std::int32_t) + sizeof(float));
+  }
   const Eigen::Vector3d& origin() const { return origin_; }
   const Eigen::Vector3i& cells() const { return cells_; }
 
  private:
+  // Per-cell state: a filled brick's slot (>= 0) or one of these.
+  static constexpr std::int32_t kEmpty = -1, kPending = -2, kFilling = -3;
+  std::int32_t fill_cell(long cell) const;  // the cell's final state, filling its brick if pending
+
   MergedSdfSettings settings_;
   std::uint64_t exclude_mask_ = 0;
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
   Eigen::Vector3i cells_ = Eigen::Vector3i::Zero();
   double inv_resolution_ = 0.0;
   long brick_nodes_ = 1;
+  long num_cells_ = 0, num_slots_ = 0;
   int brick_shift_ = -1;                     // log2(brick) when a power of two: shifts, not divisions
   double voxels_[3] = {0, 0, 0};             // covered box in voxels (cells * brick)
-  std::vector<std::int32_t> brick_of_cell_;  // -1: every node at or beyond the cutoff
-  std::vector<float> values_;                // brick after brick, x fastest inside a brick
-  std::vector<float> cell_lower_;            // per cell: lower bound of the distance anywhere in it
+  std::unique_ptr<std::atomic<std::int32_t>[]> state_;  // per cell
+  std::unique_ptr<std::int32_t[]> slot_;      // per cell: its reserved brick slot (-1: beyond the cutoff)
+  std::unique_ptr<float[]> values_;           // slot after slot, x fastest inside a brick; written once per slot
+  std::unique_ptr<float[]> cell_lower_;       // per cell: lower bound of the distance anywhere in it
+  BrickFill fill_;
+  double half_diagonal_ = 0;
 };
 
-template <class NearFn, class ObjectDistanceFn, class LowerBoundFn>
+template <class LowerBoundFn>
 MergedSdf MergedSdf::build(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const MergedSdfSettings& settings,
-                           std::uint64_t exclude_mask, NearFn&& near, ObjectDistanceFn&& object_distance,
-                           LowerBoundFn&& lower_bound) {
+                           std::uint64_t exclude_mask, BrickFill fill, LowerBoundFn&& lower_bound) {
   MergedSdf m;
   m.settings_ = settings;
   m.exclude_mask_ = exclude_mask;
   m.origin_ = lo;
   m.inv_resolution_ = 1.0 / settings.resolution;
+  m.fill_ = std::move(fill);
   const int B = settings.brick;
   const double edge = B * settings.resolution;
   for (int a = 0; a < 3; ++a) m.cells_[a] = std::max(1, static_cast<int>(std::ceil((hi[a] - lo[a]) / edge)));
@@ -76,41 +93,28 @@ MergedSdf MergedSdf::build(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
   for (int a = 0; a < 3; ++a) m.voxels_[a] = static_cast<double>(m.cells_[a]) * B;
   for (int shift = 0; shift < 7; ++shift)
     if ((1 << shift) == B) m.brick_shift_ = shift;
-  m.brick_of_cell_.assign(static_cast<std::size_t>(m.cells_.prod()), -1);
-  m.cell_lower_.assign(m.brick_of_cell_.size(), 0.0f);
+  m.num_cells_ = static_cast<long>(m.cells_.prod());
+  m.state_.reset(new std::atomic<std::int32_t>[m.num_cells_]);
+  m.slot_.reset(new std::int32_t[m.num_cells_]);
+  m.cell_lower_.reset(new float[m.num_cells_]);
   // The cell's half diagonal plus one voxel diagonal: the bound then also holds for the
   // interpolant, whose nodes may lie in the neighbouring cell.
-  const double half_diagonal = 0.5 * std::sqrt(3.0) * edge + std::sqrt(3.0) * settings.resolution;
-  std::vector<float> brick(m.brick_nodes_);
-  int ids[64];
+  m.half_diagonal_ = 0.5 * std::sqrt(3.0) * edge + std::sqrt(3.0) * settings.resolution;
   long cell = 0;
   for (int cz = 0; cz < m.cells_.z(); ++cz)
     for (int cy = 0; cy < m.cells_.y(); ++cy)
       for (int cx = 0; cx < m.cells_.x(); ++cx, ++cell) {
         const Eigen::Vector3d corner = lo + Eigen::Vector3d(cx, cy, cz) * edge;
         const Eigen::Vector3d center = corner.array() + 0.5 * edge;
-        const double bound = lower_bound(center, half_diagonal);
+        const double bound = lower_bound(center, m.half_diagonal_);
         // Rounded down so the float never exceeds the double bound.
         m.cell_lower_[cell] = std::nextafter(static_cast<float>(bound), -std::numeric_limits<float>::infinity());
-        if (bound >= settings.cutoff) continue;
-        const int n_near = near(center, half_diagonal, ids);
-        if (n_near == 0) continue;
-        bool any_inside = false;
-        long k = 0;
-        for (int z = 0; z <= B; ++z)
-          for (int y = 0; y <= B; ++y)
-            for (int x = 0; x <= B; ++x, ++k) {
-              const Eigen::Vector3d node = corner + Eigen::Vector3d(x, y, z) * settings.resolution;
-              double d = settings.cutoff;
-              for (int c = 0; c < n_near; ++c) d = std::min(d, object_distance(ids[c], node));
-              brick[k] = static_cast<float>(d);
-              any_inside |= d < settings.cutoff;
-            }
-        if (!any_inside) continue;
-        m.brick_of_cell_[cell] = static_cast<std::int32_t>(m.values_.size() / m.brick_nodes_);
-        m.values_.insert(m.values_.end(), brick.begin(), brick.end());
+        const bool candidate = bound < settings.cutoff;
+        m.slot_[cell] = candidate ? static_cast<std::int32_t>(m.num_slots_++) : -1;
+        m.state_[cell].store(candidate ? kPending : kEmpty, std::memory_order_relaxed);
       }
-  m.values_.shrink_to_fit();
+  // Uninitialized: the pages of bricks never filled are never touched.
+  m.values_.reset(new float[static_cast<std::size_t>(std::max(1L, m.num_slots_ * m.brick_nodes_))]);
   return m;
 }
 

@@ -1,0 +1,61 @@
+"""Bounded, explicit caches for what depends only on an object model or a robot (SDF grids, FCL
+shapes, surface samples): the caller owns one and passes it in; nothing here is module-level state."""
+from __future__ import annotations
+
+import hashlib
+import threading
+from collections import OrderedDict
+from typing import Callable, Hashable, TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
+
+
+class BoundedCache:
+    """Least-recently-used map of at most ``max_entries`` values, built on a miss by ``get``.
+    Thread-safe: two threads missing the same key may both build it (the first stored wins)."""
+
+    def __init__(self, max_entries: int = 64):
+        if isinstance(max_entries, bool) or not isinstance(max_entries, int) or max_entries < 1:
+            raise ValueError(f"max_entries: expected an integer >= 1, got {max_entries!r}")
+        self.max_entries = max_entries
+        self._entries: "OrderedDict[Hashable, object]" = OrderedDict()
+        self._lock = threading.Lock()
+        self.hits = 0
+        self.misses = 0
+
+    def get(self, key: Hashable, build: Callable[[], T]) -> T:
+        with self._lock:
+            if key in self._entries:
+                self._entries.move_to_end(key)
+                self.hits += 1
+                return self._entries[key]
+            self.misses += 1
+        value = build()  # outside the lock: builds may take long and release the GIL
+        with self._lock:
+            value = self._entries.setdefault(key, value)
+            self._entries.move_to_end(key)
+            while len(self._entries) > self.max_entries:
+                self._entries.popitem(last=False)
+        return value
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._entries.clear()
+
+
+def mesh_content_key(mesh) -> tuple:
+    """A key that changes when the mesh's vertices or faces do: trimesh keeps a content hash
+    that it recomputes only after an edit (microseconds when unchanged); any other mesh with
+    ``vertices`` and ``faces`` is hashed in full."""
+    V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    if type(mesh).__name__ == "Trimesh" and hasattr(mesh, "_data"):
+        return ("trimesh", V.shape, F.shape, hash(mesh))
+    h = hashlib.blake2b(digest_size=16)
+    h.update(np.ascontiguousarray(V, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(F, dtype=np.int64).tobytes())
+    return ("arrays", V.shape, F.shape, h.hexdigest())

@@ -1,0 +1,69 @@
+"""What a planning world needs that depends only on an object model or on the robot, built once
+and reused by every scene and every checker kind: SDF grids, FCL shapes (mesh + BVH), object
+surface samples, the robot model, its collision meshes and body points, the hand SDF. Per scene
+only placement remains.
+
+>>> cache = ModelCache()
+>>> worlds = [World(scene, cache=cache) for scene in scenes]   # objects seen before: no rebuild
+
+Explicit and bounded: the caller owns it and passes it in; a World made without one gets its own.
+"""
+from __future__ import annotations
+
+from typing import Callable, Hashable, Optional
+
+import numpy as np
+
+from pickplan.core import collision
+from pickplan.core import robots
+from pickplan.core import sdf
+from pickplan.core.caches import BoundedCache, mesh_content_key
+
+
+class ModelCache:
+    """Per-object and per-robot data shared by worlds; ``max_objects`` bounds each kind."""
+
+    def __init__(self, max_objects: int = 64):
+        self.grids = sdf.GridCache(max_objects + 8)             # + the hand's parts
+        self.shapes = collision.ShapeCache(max_objects + 32)    # + the robot's links
+        self._derived = BoundedCache(2 * max_objects + 16)      # surface samples, robot data
+
+    def derived(self, key: Hashable, build: Callable):
+        """Any other per-object or per-robot value, by a key naming what it is built from."""
+        return self._derived.get(key, build)
+
+    @staticmethod
+    def robot_key(robot) -> Optional[tuple]:
+        """What a robot's shape-only data is keyed by (its model file); None: not cacheable."""
+        path = getattr(robot, "urdf_path", None)
+        return (type(robot).__name__, path) if path else None
+
+    def robot(self, name_or_file, base_pose) -> robots.DescribedRobot:
+        """The described robot (``robots.load_robot``: a name, a file or a ``DescribedRobot``) at the
+        scene's ``base_pose``: a description and its URDF are parsed once, only the base changes."""
+        base = np.asarray(base_pose, dtype=float)
+        if isinstance(name_or_file, robots.DescribedRobot):
+            return robots.load_robot(name_or_file, base)
+        loaded = self.derived(("robot", str(name_or_file)), lambda: robots.load_robot(str(name_or_file)))
+        return robots.load_robot(loaded, base)
+
+    def panda(self, base_pose) -> robots.Panda:
+        """The Panda at ``base_pose``."""
+        return self.robot("panda", base_pose)
+
+    def robot_derived(self, robot, what: Hashable, build: Callable):
+        key = self.robot_key(robot)
+        return build() if key is None else self.derived((key, what), build)
+
+    def link_meshes(self, robot) -> dict:
+        """Link name -> collision mesh in the link frame (None without geometry)."""
+        return self.robot_derived(robot, "link_meshes",
+                                  lambda: {name: robot.collision_meshes(name) for name in robot.link_names})
+
+    def body_points(self, robot, per_link: int, seed: int):
+        return self.robot_derived(robot, ("body", int(per_link), int(seed)),
+                                  lambda: robot.sample_body_points(per_link, seed=seed))
+
+    def surface(self, mesh, n: int, seed: int, sample: Callable):
+        """``sample(mesh, n, seed)`` -> object-frame surface samples, kept per mesh content."""
+        return self.derived(("surface", mesh_content_key(mesh), int(n), int(seed)), lambda: sample(mesh, n, seed))
