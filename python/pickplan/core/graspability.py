@@ -82,9 +82,12 @@ def graspability(model, pose, max_opening: float, up=(0.0, 0.0, 1.0),
     if ok.sum() >= enough:
         # In sample order, a chunk at a time, until enough are open; after 8 chunks the open share of
         # the checked pairs, scaled to all of them, decides (a bounded cost for a negative verdict).
+        # A private mesh: trimesh builds its ray tree lazily and unlocked, so threads sharing a model's
+        # mesh would race on it (a double free in rtree); this copy's tree belongs to this call.
+        mesh = trimesh.Trimesh(model.mesh.vertices, model.mesh.faces, process=False)
         idx, found, checked = np.flatnonzero(ok), [], 0
         for chunk in np.array_split(idx, int(np.ceil(len(idx) / (2 * enough))))[:8]:
-            found += list(chunk[_fingers_see_the_sky(model.mesh, p[chunk], q[chunk], axes[chunk], up,
+            found += list(chunk[_fingers_see_the_sky(mesh, p[chunk], q[chunk], axes[chunk], up,
                                                      settings.finger_clearance)])
             checked += len(chunk)
             if len(found) >= enough:

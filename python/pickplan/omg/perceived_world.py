@@ -31,6 +31,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pickplan import _core
+from pickplan.core.graspability import Graspability
 from pickplan.core.observation import Observation
 from pickplan.core.sdf import SceneSdf
 from pickplan.omg import isf
@@ -143,6 +144,12 @@ class PerceivedWorld:
     def target_model(self):
         raise ValueError("a perceived world has no object model: its grasps come from the observed points "
                          "(PerceivedWorld.grasps; PerceivedPlanner plans with them)")
+
+    @property
+    def graspability(self) -> Graspability:
+        """Not judged from points (a partial view cannot show a width in every direction): a target
+        no grasp from points fits ends as ``no_goals``."""
+        return Graspability(True, "", float("nan"))
 
     @property
     def plane(self) -> Tuple[np.ndarray, float]:

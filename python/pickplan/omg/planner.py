@@ -14,7 +14,6 @@ from typing import Optional, Tuple, Union
 import numpy as np
 
 from pickplan.core import robots
-from pickplan.core.graspability import graspability
 from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, robot_limits, time_parameterize
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
@@ -195,9 +194,9 @@ class OMGPlanner:
 
 
 def target_graspability(world: World):
-    """Whether the world's gripper can grasp its target as it lies at all (``core.graspability``)."""
-    up = np.asarray(world.scene.table.pose, dtype=float)[:3, 2]
-    return graspability(world.target_model, world.target_pose, world.robot.info.max_opening, up)
+    """Whether the world's gripper can grasp its target as it lies at all (``core.graspability``;
+    computed once per world)."""
+    return world.graspability
 
 
 class GoalBook:

@@ -13,6 +13,7 @@ from pickplan.core import collision
 from pickplan.core import objects
 from pickplan.core import robots
 from pickplan.core import sdf
+from pickplan.core.graspability import Graspability, graspability
 from pickplan.core.settings import Option
 from pickplan.sim.scenes import Scene
 from pickplan.omg import isf
@@ -137,6 +138,13 @@ class World:
                                 pose=np.asarray(self.scene.table.pose, dtype=float))
         return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links,
                                           shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
+
+    @functools.cached_property
+    def graspability(self) -> Graspability:
+        """Whether this robot's gripper can grasp the target as it lies at all (``core.graspability``):
+        geometry of the target and the support, computed once per world."""
+        up = np.asarray(self.scene.table.pose, dtype=float)[:3, 2]
+        return graspability(self.target_model, self.target_pose, self.robot.info.max_opening, up)
 
     @functools.cached_property
     def clearance_problem(self):
