@@ -1,5 +1,5 @@
 """Writes omg_reference.npz: OMG plans made by the planner as it was before issue 24's speed work
-(main at 072e124), which test_omg_equivalence.py compares the current planner against.
+(main at 50b7e25: every other change of session 10 merged, issue 24 not yet; first made at 072e124 before the any-object goal set changed goal sets), which test_omg_equivalence.py compares the current planner against.
 
     PYTHONPATH=/work/main/python /work/main/.venv/bin/python tests/data/make_omg_reference.py
 

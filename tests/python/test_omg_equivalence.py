@@ -1,5 +1,5 @@
 """Issue 24: the faster planner plans what the planner before it planned. The reference plans in
-tests/data/omg_reference.npz were made by main at 072e124 (tests/data/make_omg_reference.py):
+tests/data/omg_reference.npz were made by main at 50b7e25 (before issue 24 was merged) (tests/data/make_omg_reference.py):
 the same goals chosen at every iteration and trajectories equal to 1e-9, on built-in scenes, with
 a world of its own and with worlds sharing one ModelCache (objects and robot data reused)."""
 import json

@@ -114,7 +114,7 @@ def test_a_perceived_world_refuses_what_it_cannot_plan_with(observed):
     obs = Observation.load(path)
     with pytest.raises(TypeError, match="expected a pickplan Observation"):
         PerceivedWorld(str(path))
-    with pytest.raises(ValueError, match="plans for the Panda"):
+    with pytest.raises(ValueError, match="expected a description name or file or a described robot"):
         PerceivedWorld(obs, robot=object())
     world = PerceivedWorld(obs)
     with pytest.raises(ValueError, match="no object model"):

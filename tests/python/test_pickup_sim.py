@@ -55,7 +55,7 @@ def test_nominal_pose_puts_grasp_point_at_origin():
 
 def test_bad_input():
     with pytest.raises(ValueError, match="S_g"):
-        simulate_grasp("box", (0, 0, 0), 0.9, 0.1)
+        simulate_grasp("box", (0, 0, 0), 1.5, 0.1)  # the modelled range ends at 1.2 m/s
     with pytest.raises(ValueError, match="S_c"):
         simulate_grasp("box", (0, 0, 0), 0.2, 0.01)
     with pytest.raises(ValueError, match="shape"):

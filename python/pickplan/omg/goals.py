@@ -175,9 +175,7 @@ def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, st
     max_shift = 0.5 * gripper.pad_length if settings.max_shift is None else float(settings.max_shift)
     pad_depth = float(gripper.grasp_frame[2, 3])
     fingers = collision.HandGeometry(robot, start, robot.hand_link, robot.finger_links)
-    table = world.scene.table
-    normal, offset = collision.support_plane(collision.Table(tuple(np.asarray(table.size, float)),
-                                                             np.asarray(table.pose, float)))
+    normal, offset = world.support_plane
 
     def depths(H):  # deepest finger point at the grasp and at the pre-grasp; moving back lifts both alike
         back = H.copy()

@@ -152,6 +152,11 @@ class PerceivedWorld:
         return Graspability(True, "", float("nan"))
 
     @property
+    def support_plane(self) -> Tuple[np.ndarray, float]:
+        """The observed support plane as (unit normal, offset), as ``World.support_plane``."""
+        return self.perceived.plane
+
+    @property
     def plane(self) -> Tuple[np.ndarray, float]:
         return self.perceived.plane
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 import time
 from dataclasses import dataclass, field
-from typing import Optional, Union
+from typing import Optional, Tuple, Union
 
 import numpy as np
 
@@ -138,6 +138,13 @@ class World:
                                 pose=np.asarray(self.scene.table.pose, dtype=float))
         return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links,
                                           shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
+
+    @property
+    def support_plane(self) -> Tuple[np.ndarray, float]:
+        """The table top the target rests on as (unit normal, offset): normal . x = offset on it."""
+        table = self.scene.table
+        return collision.support_plane(collision.Table(tuple(np.asarray(table.size, float)),
+                                                       np.asarray(table.pose, float)))
 
     @functools.cached_property
     def graspability(self) -> Graspability:
