@@ -11,6 +11,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.poses import RIGID_CLEAN_TOLERANCE, rigid_errors
 from pickplan.core import collision
 from pickplan.core.settings import Option, to_native
 from pickplan.omg.world import CheckerKind, World
@@ -127,6 +128,12 @@ def check_grasps(grasps) -> np.ndarray:
     g = np.asarray(grasps, dtype=float)
     if g.ndim != 3 or g.shape[1:] != (4, 4):
         raise ValueError(f"grasps: expected shape (N, 4, 4), got {g.shape}")
+    # Checked before the support may move a grasp: a moved grasp is rebuilt rigid, hiding a bad input.
+    err = rigid_errors(g) if len(g) else np.zeros(0)
+    bad = np.flatnonzero(~(err <= RIGID_CLEAN_TOLERANCE))
+    if len(bad):
+        raise ValueError(f"grasps [{bad[0]}]: not a rigid transform (error {err[bad[0]]:.1e} > "
+                         f"{RIGID_CLEAN_TOLERANCE:.0e}; {len(bad)} of {len(g)} bad)")
     return g
 
 
