@@ -191,7 +191,9 @@ def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, st
 
     poses = np.array(hand_poses, dtype=float).reshape(-1, 4, 4)
     depth = depths(poses)
-    todo = depth > 0.0  # pressing into the table at all: lifted when a variant can, else kept within the tolerance
+    # pressing into the table at all: lifted when a variant can, else kept within the tolerance; a hand
+    # beyond the table's edge is not over the support (its plane does not extend there)
+    todo = (depth > 0.0) & world.over_support(poses[:, :3, 3])
     moved = np.zeros(len(poses), bool)
     level = np.radians(settings.max_level_deg)
     for levelled, tilt in [(False, 0.0)] + [(True, t) for t in (0.0,) + tuple(np.radians(settings.tilts_deg))]:

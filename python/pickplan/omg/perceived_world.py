@@ -156,6 +156,10 @@ class PerceivedWorld:
         """The observed support plane as (unit normal, offset), as ``World.support_plane``."""
         return self.perceived.plane
 
+    def over_support(self, points: np.ndarray) -> np.ndarray:
+        """(N,) all True: the observed plane has no known edge."""
+        return np.ones(len(points), dtype=bool)
+
     @property
     def plane(self) -> Tuple[np.ndarray, float]:
         return self.perceived.plane

@@ -146,6 +146,13 @@ class World:
         return collision.support_plane(collision.Table(tuple(np.asarray(table.size, float)),
                                                        np.asarray(table.pose, float)))
 
+    def over_support(self, points: np.ndarray) -> np.ndarray:
+        """(N,) whether world points lie over the table top's footprint (where its plane is a support)."""
+        table = self.scene.table
+        T = collision.Table(tuple(np.asarray(table.size, float)), np.asarray(table.pose, float)).pose_matrix()
+        local = (np.asarray(points, float) - T[:3, 3]) @ T[:3, :3]
+        return np.all(np.abs(local[:, :2]) <= 0.5 * np.asarray(table.size, float)[:2], axis=1)
+
     @functools.cached_property
     def graspability(self) -> Graspability:
         """Whether this robot's gripper can grasp the target as it lies at all (``core.graspability``):
