@@ -161,3 +161,34 @@ def test_success_metric_lets_only_the_fingers_touch_the_table(pen_world):
     strict = chomp.metrics(xi, pen_world.start, replace(settings, support_link_mask=0))
     assert -collision.SupportContact().resolved(robot) <= allowed["min_table_clearance"] < 0
     assert allowed["collision_free"] and not strict["collision_free"]
+
+
+def test_sampling_planners_validity_follows_the_success_test(pen_world):
+    """OMPL's state validity (``SupportValidity``): fingertips 1 mm into the table pass, as the goal set
+    and the success test let them; 6 mm (beyond the tolerance) and a palm in the table do not; the
+    plain obstacle checker rejects all three (the premise)."""
+    from pickplan.eval.baselines import SupportValidity
+
+    robot = pen_world.robot
+    fingers = collision.HandGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
+    normal, offset = _tables_plane(pen_world)
+    to_object = np.linalg.inv(pen_world.target_pose)
+    down = np.eye(4)
+    down[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    down[:3, 3] = [0.45, -0.2, 0.0]
+    side = np.eye(4)
+    side[:3, :3] = np.column_stack([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    side[:3, 3] = [0.45, -0.2, 0.0]
+    hands = [_at_depth(fingers, down, normal, offset, 0.001), _at_depth(fingers, down, normal, offset, 0.006),
+             _at_depth(fingers, side, normal, offset, -0.0005)]
+    sets = [goals.build_goal_set(pen_world, (to_object @ H)[None], collision_check=False) for H in hands]
+    assert all(gs.reasons == ["ok"] for gs in sets)
+    qs = [gs.goals[0] for gs in sets]
+    depths = fingers.penetration(np.array([robot.link_pose(q, robot.hand_link) for q in qs]), normal, offset)
+    assert depths[0] == pytest.approx(0.001, abs=3e-4) and depths[1] == pytest.approx(0.006, abs=3e-4)
+
+    valid = SupportValidity(pen_world, pen_world.start)
+    strict = pen_world.checker("obstacles")
+    assert all(strict.in_collision(q) for q in qs)
+    assert [valid(q) for q in qs] == [True, False, False]
+    assert valid(pen_world.start)  # a free state

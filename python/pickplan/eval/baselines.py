@@ -8,7 +8,8 @@
 * ``FMT`` [21] and ``RRT-C`` [25]: OMPL (PyPI wheel ``ompl``) in the 7-D space of the arm joints
   within their limits; state validity is the native FCL checker ``world.checker("obstacles")``
   (the target ignored: the plan ends at the pre-grasp, the first row of the goal's standoff tail,
-  and the tail is appended); OMPL's standard simplification (shortcutting + smoothing); a time
+  and the tail is appended), with the fingers allowed on the table as far as the success test
+  allows them (``SupportValidity``); OMPL's standard simplification (shortcutting + smoothing); a time
   limit per goal; through the same ranked goal list; the path is resampled by arc length to the
   same n waypoints (tail included) so the paper's metrics apply unchanged.
 
@@ -24,12 +25,13 @@ from typing import Optional
 
 import numpy as np
 
+from pickplan.core import collision
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import Chomp, cubic_initialization
 from pickplan.omg.goals import build_goal_set
 from pickplan.omg.planner import OMGSettings, PlanResult, PlanStatus
 from pickplan.sim.scenes import Scene
-from pickplan.omg.world import World
+from pickplan.omg.world import CheckerKind, World
 from pickplan.omg.planner import OMGPlanner
 
 BASELINES = ("CHOMP", "FMT", "RRT-C")
@@ -55,6 +57,33 @@ def chomp_c_settings(settings: OMGSettings) -> OMGSettings:
 def _empty(q0, timings, gs) -> PlanResult:
     return PlanResult(PlanStatus.no_goals, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
                       {"objective": [], "goal": [], "p": [], "switches": 0}, timings, gs.reason_counts())
+
+
+class SupportValidity:
+    """Whether an arm configuration is valid for a sampling planner, by the success test's rule: nothing
+    may touch an obstacle but the fingers, which may rest on the table up to the support tolerance
+    (a pre-grasp of a thin object has its fingertips there). The exact finger depth is computed only
+    when the strict check fails, so free states cost one FCL query."""
+
+    def __init__(self, world: World, q0: np.ndarray, tolerance: Optional[float] = None):
+        self.world, self.robot = world, world.robot
+        self.strict = world.checker(CheckerKind.obstacles).native
+        fingers = tuple(self.robot.finger_links)
+        self.relaxed = world.checker(CheckerKind.transit).native if fingers else None
+        # the fingers keep q0's opening along a path: their hulls in the hand frame are fixed
+        self.fingers = collision.HandGeometry(self.robot, q0, self.robot.hand_link, fingers) if fingers else None
+        self.tolerance = collision.SupportContact(tolerance).resolved(self.robot) if fingers else 0.0
+        self.normal, self.offset = world.support_plane
+
+    def __call__(self, q: np.ndarray) -> bool:
+        if not self.strict.in_collision(q):
+            return True
+        if self.fingers is None or self.relaxed.in_collision(q):
+            return False  # something other than a finger on the table
+        H = self.robot.link_pose(q, self.robot.hand_link)
+        if not self.world.over_support(H[None, :3, 3])[0]:
+            return False
+        return bool(self.fingers.penetration(H, self.normal, self.offset)[0] <= self.tolerance)
 
 
 class _Problem:
@@ -172,7 +201,7 @@ def plan_ompl(scene: Scene, planner: str = "RRT-C", settings: BaselineSettings =
     robot = pb.world.robot
     arm = robot.info.arm_dof
     q0 = pb.q0
-    checker = pb.world.checker("obstacles").native
+    validity = SupportValidity(pb.world, q0, settings.omg.metrics.support_tolerance)
     _seed_ompl(ou, settings.omg.seed)
     space = ob.RealVectorStateSpace(arm)
     bounds = ob.RealVectorBounds(arm)
@@ -185,7 +214,7 @@ def plan_ompl(scene: Scene, planner: str = "RRT-C", settings: BaselineSettings =
 
     def valid(state) -> bool:
         q[:arm] = state[0:arm]
-        return not bool(checker.in_collision(q))  # a Python bool: OMPL's binding rejects numpy bools
+        return validity(q)  # a Python bool: OMPL's binding rejects numpy bools
 
     ss.setStateValidityChecker(valid)
     si = ss.getSpaceInformation()

@@ -29,6 +29,8 @@ class CheckerKind(Option):
     hand = "hand"            # the same, for the hand and fingers alone
     strict = "strict"        # nothing may touch anything
     obstacles = "obstacles"  # the target is ignored entirely (trajectory validation)
+    transit = "transit"      # the same, but the fingers may touch the table (their depth into the support
+                             # is checked apart, as the success test does): sampling planners' validity
 
 
 @dataclass(frozen=True)
@@ -132,6 +134,9 @@ class World:
                 links = (self.robot.hand_link,) + tuple(fingers)
         elif kind is CheckerKind.strict:
             settings = collision.CollisionSettings(allowed_pairs=mounted)
+        elif kind is CheckerKind.transit:
+            touching = tuple((f, "table") for f in fingers)
+            settings = collision.CollisionSettings(allowed_pairs=mounted + touching, excluded_objects=(self.target,))
         else:
             settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
         table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
