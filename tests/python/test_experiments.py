@@ -263,3 +263,30 @@ def test_a_damaged_unit_file_is_redone_on_resume_and_named(scene_dir, tmp_path):
     assert len(calls) == 2 and len(resumed) == n  # only the two damaged units ran again
     keyed = lambda rs: sorted((r["scene"], r["method"], r["run"]) for r in rs)  # noqa: E731
     assert keyed(resumed) == keyed(first)
+
+
+def test_a_workers_shared_models_do_not_change_records(scene_dir, tmp_path, monkeypatch):
+    """Units run one after another in a worker share its ModelCache (worlds, generated grasps); each
+    record equals the one a fresh cache gives (plans, metrics, statuses: everything but times)."""
+    from pickplan.omg.model_cache import ModelCache
+
+    s = E.SweepSettings("planners", out=str(tmp_path / "shared"), scene_dir=scene_dir, runs=1,
+                        methods=("CHOMP-C", "OMG"), quick=True, workers=0, progress=False, execute=False,
+                        grasp_kind="antipodal")
+    shared = E.run_sweep(s)
+    monkeypatch.setattr(E, "_WORKER_MODELS", ModelCache())
+    fresh_run = E.run_unit
+
+    calls = []
+
+    def fresh(unit):
+        monkeypatch.setattr(E, "_WORKER_MODELS", ModelCache())
+        calls.append(unit["method"])
+        return E.run_unit(unit)
+    alone = E.run_sweep(E.SweepSettings(**{**s.__dict__, "out": str(tmp_path / "fresh")}), unit_fn=fresh)
+
+    def comparable(r):
+        return {k: v for k, v in r.items() if "time" not in k and k not in ("unit_seconds", "sweep")}
+    assert len(shared) == len(alone) == len(calls) == 6
+    assert [comparable(r) for r in shared] == [comparable(r) for r in alone]
+    assert sum(r["planning_success"] for r in shared) >= 3  # plans, not a table of failures

@@ -24,6 +24,8 @@ import warnings
 from dataclasses import dataclass, replace
 from typing import Callable, List, Optional, Sequence, TextIO, Tuple
 
+import numpy as np
+
 
 from pickplan.core.errors import InputError
 from pickplan.core.io import read_json, write_json
@@ -40,6 +42,7 @@ from pickplan.omg.goals import GoalSetSettings, IkSettings
 from pickplan.omg.grasps.generators import SupportFilter
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus, target_graspability
 from pickplan.sim.scenes import Scene
+from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.world import World, WorldSettings
 from pickplan.core.description import robot_info
 from pickplan.core.timing import robot_limits, time_parameterize
@@ -228,6 +231,25 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
     return list(seen.values())
 
 
+# A sweep's worker plans scene after scene of the same objects, and every method of a scene plans with
+# the same generated grasps: one bounded ModelCache per worker process holds SDF grids, FCL shapes, the
+# robot, surface samples and generated grasp sets. Records do not depend on it (the same values are
+# built either way); it only spares rebuilding them.
+_WORKER_MODELS = ModelCache()
+
+
+def _unit_grasps(world: World, scene: Scene, kind: str, n: int, robot: str):
+    aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot)} if kind == "antipodal" else {}
+
+    def build():
+        return grasps_mod.grasp_set(world.target_model, kind, n, seed=0, gripper=world.robot.info, **aware).poses
+    if kind not in ("antipodal", "approach"):  # stored sets: read from disk
+        return build()
+    source = next(o.source for o in scene.objects if o.name == scene.target)
+    key = ("grasps", kind, scene.target, source, np.asarray(world.target_pose).tobytes(), robot, int(n))
+    return world.cache.derived(key, build).copy()  # a unit may not change what the next one reads
+
+
 def run_unit(unit: dict) -> dict:
     """Plan (and execute) one unit; returns its flat record. Deterministic for a given unit."""
 
@@ -239,7 +261,7 @@ def run_unit(unit: dict) -> dict:
     record = {"table": unit["table"], "scene": unit["scene_name"], "target": scene.target, "method": unit["method"],
               "run": unit["run"], "seed": seed, "grasp_kind": spec["grasp_kind"]}
     world_settings = WorldSettings(robot=unit.get("robot", "panda"))
-    world = World(scene, world_settings)
+    world = World(scene, world_settings, cache=_WORKER_MODELS)
     verdict = target_graspability(world)  # geometry, whatever the method: ungraspable units are counted apart
     if not verdict.graspable:
         record.update(status=PlanStatus.ungraspable, reason=f"ungraspable: {verdict.reason}", valid=True,
@@ -251,10 +273,7 @@ def run_unit(unit: dict) -> dict:
     for kind in ("goal", "hand") + (("obstacles",) if spec["planner"] in ("FMT", "RRT-C") else ()):
         world.checker(kind)
     try:
-        aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot)} \
-            if spec["grasp_kind"] == "antipodal" else {}
-        grasps = grasps_mod.grasp_set(world.target_model, spec["grasp_kind"], unit["grasp_candidates"], seed=0,
-                                      gripper=world.robot.info, **aware).poses
+        grasps = _unit_grasps(world, scene, spec["grasp_kind"], unit["grasp_candidates"], world_settings.robot)
     except ValueError as exc:  # e.g. no stored graspit set for a built-in object: not a planning failure
         record.update(status="no_grasps", reason=str(exc), valid=False, planning_success=False,
                       execution_success=False, unit_seconds=time.perf_counter() - t0)
