@@ -80,6 +80,19 @@ void init_isf(py::module_& m) {
         }
         return py::make_tuple(terms_dict(t), g);
       }, py::arg("q"), "f_grasp terms and the gradient with respect to q.")
+      .def("set_support", [](Holder& h, const Array& finger_vertices, const Array& normal, double offset) {
+        SupportPlane support;
+        support.finger_vertices = points3(finger_vertices, "finger vertices");
+        require_shape("normal", normal, {3}, "(3,)");
+        require_finite_array("normal", normal);
+        support.normal = Eigen::Map<const Eigen::Vector3d>(normal.data());
+        support.offset = offset;
+        h.refiner->set_support(std::move(support));
+      }, py::arg("finger_vertices"), py::arg("normal"), py::arg("offset"),
+         "The support plane ISF steps may not press the fingers deeper into (vertices in the hand frame).")
+      .def("support_depth", [](const Holder& h, const Array& q) {
+        return h.refiner->support_depth(q_of(*h.refiner, *h.robot, q));
+      }, py::arg("q"), "How far the fingers reach below the support plane at q (m; -inf without one).")
       .def("refine", [](const Holder& h, const Array& q, int iterations) {
         if (iterations < 0) throw std::invalid_argument("iterations must be >= 0");
         Eigen::VectorXd qq = q_of(*h.refiner, *h.robot, q), out;

@@ -192,3 +192,33 @@ def test_sampling_planners_validity_follows_the_success_test(pen_world):
     assert all(strict.in_collision(q) for q in qs)
     assert [valid(q) for q in qs] == [True, False, False]
     assert valid(pen_world.start)  # a free state
+
+
+def test_isf_steps_never_press_the_fingers_deeper_into_the_support(pen_world):
+    """f_pml pulls the pads towards a lying pen, i.e. down into the table: with the support, ISF stops
+    where the fingertips touch it (or stay as deep as they were); without it the same steps press in.
+    The refiner's depth is the exact hull-vertex depth (``HandGeometry``)."""
+    robot = pen_world.robot
+    fingers = collision.HandGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
+    normal, offset = _tables_plane(pen_world)
+    grasps = grasps_mod.grasp_set(pen_world.target_model, "antipodal", 100, seed=0).poses
+    gs = goals.build_goal_set(pen_world, grasps)
+    refiner = pen_world.grasp_refiner()
+    hands = np.array([robot.link_pose(q, robot.hand_link) for q in gs.goals])
+    exact = fingers.penetration(hands, normal, offset)
+    assert np.allclose([refiner.support_depth(q) for q in gs.goals], exact, atol=1e-9)
+
+    from pickplan.omg.isf import GraspRefiner
+    free = GraspRefiner(pen_world)
+    free._native.set_support(np.zeros((0, 3)), np.array([0.0, 0.0, 1.0]), 0.0)  # no support
+    pressed, kept = 0, 0
+    for q, d0 in zip(gs.goals, exact):
+        limit = max(0.0, d0) + 1e-6
+        q_ref, _ = refiner.refine(q, 10)
+        assert refiner.support_depth(q_ref) <= limit
+        kept += bool(np.abs(q_ref - q).max() > 0)
+        pressed += refiner.support_depth(free.refine(q, 10)[0]) > limit
+    assert pressed > 0   # the premise: unconstrained ISF presses some of these grasps into the table
+    assert kept > 0      # and the constrained one still refines grasps
+    with pytest.raises(ValueError, match="unit vector"):
+        free._native.set_support(fingers.vertices, np.array([0.0, 0.0, 2.0]), 0.0)

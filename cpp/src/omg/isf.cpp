@@ -1,6 +1,9 @@
 #include "pickplan/omg/isf.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
 #include <stdexcept>
 
 #include <nanoflann.hpp>
@@ -155,11 +158,13 @@ Eigen::VectorXd GraspRefiner::step(const Eigen::VectorXd& q, GraspTerms* terms) 
   const double m = dq.cwiseAbs().maxCoeff();
   if (m > settings_.max_joint_step) dq *= settings_.max_joint_step / m;
   const double slope = grad.dot(dq);
+  // a step may let the fingers touch the support, or keep them as deep as they were, not press deeper
+  const double allowed_depth = std::max(0.0, support_depth(q)) + 1e-9;
   double alpha = 1.0;
   for (int h = 0; h <= settings_.max_halvings; ++h) {
     const Eigen::VectorXd q1 = (q + alpha * dq).cwiseMax(robot_->lower_limits()).cwiseMin(robot_->upper_limits());
     const GraspTerms t1 = cost(q1, nullptr);
-    if (t1.total < t0.total) {
+    if (t1.total < t0.total && support_depth(q1) <= allowed_depth) {
       if (terms) *terms = t1;
       return q1;
     }
@@ -169,6 +174,30 @@ Eigen::VectorXd GraspRefiner::step(const Eigen::VectorXd& q, GraspTerms* terms) 
   }
   if (terms) *terms = t0;
   return q;  // no decrease found: a (local) minimum at this resolution
+}
+
+void GraspRefiner::set_support(SupportPlane support) {
+  if (support.finger_vertices.rows() > 0) {
+    if (!support.finger_vertices.allFinite() || !support.normal.allFinite() || !std::isfinite(support.offset))
+      throw std::invalid_argument("support plane: expected finite finger vertices, normal and offset");
+    const double n = support.normal.norm();
+    if (std::abs(n - 1.0) > 1e-6)
+      throw std::invalid_argument("support plane: the normal must be a unit vector, its norm is " + std::to_string(n));
+  }
+  support_ = std::move(support);
+}
+
+double GraspRefiner::support_depth(const Eigen::VectorXd& q) const {
+  if (support_.finger_vertices.rows() == 0) return -std::numeric_limits<double>::infinity();
+  RobotWorkspace ws(*robot_);
+  robot_->forward_kinematics(q.data(), ws);
+  const Transform& hand = ws.link_pose[hand_];
+  double lowest = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < support_.finger_vertices.rows(); ++i) {
+    const Eigen::Vector3d x = hand.apply(support_.finger_vertices.row(i).transpose());
+    lowest = std::min(lowest, support_.normal.dot(x) - support_.offset);
+  }
+  return -lowest;
 }
 
 Eigen::VectorXd GraspRefiner::refine(const Eigen::VectorXd& q, int iterations, GraspTerms* terms) const {

@@ -9,7 +9,7 @@ import trimesh
 
 from pickplan import _core
 from pickplan.omg import grasps
-from pickplan.core import sdf
+from pickplan.core import collision, sdf
 from pickplan.core.settings import to_native
 
 if TYPE_CHECKING:  # the world owns its refiner; isf only reads it
@@ -93,6 +93,13 @@ class GraspRefiner:
         self._native = _core.GraspRefiner(robot.native, robot.hand_link, contacts.points, contacts.normals,
                                           self._hand_sdf.native, pts, nrm, world.sdf.native, world.body.links,
                                           world.body.points, exclude, settings.to_native(active))
+        fingers = tuple(getattr(robot, "finger_links", ()))
+        if fingers:  # ISF steps may let the fingers touch the support, not press deeper into it
+            start = np.asarray(world.start, dtype=float)
+            vertices = cache.robot_derived(robot, ("finger_hull_vertices", start.tobytes()), lambda: collision.HandGeometry(
+                robot, start, robot.hand_link, fingers).vertices)
+            normal, offset = world.support_plane
+            self._native.set_support(vertices, np.asarray(normal, dtype=float), float(offset))
 
     def cost(self, q) -> Tuple[dict, np.ndarray]:
         """f_grasp terms (pml, align, isf, hand, obstacle, collision, total) and the gradient."""
@@ -100,3 +107,7 @@ class GraspRefiner:
 
     def refine(self, q, iterations: int = 1) -> Tuple[np.ndarray, dict]:
         return self._native.refine(q, iterations)
+
+    def support_depth(self, q) -> float:
+        """How far the fingers reach below the support plane at q (m; negative: above it)."""
+        return self._native.support_depth(q)

@@ -26,6 +26,17 @@ struct IsfSettings {
   std::vector<bool> active;   // joints ISF moves (empty = all)
 };
 
+// The support the target rests on (the table): the fingers may touch it, but an ISF step may not press
+// them deeper into it than they already were. f_pml pulls the pads towards the object's surface,
+// which for a thin object lying on a table is down into the table; the goal set lifts pressing
+// fingers until they just touch, and a refinement must not undo that (in PyBullet it jams the
+// fingertips against the table while they close).
+struct SupportPlane {
+  Vertices finger_vertices;  // finger collision-hull vertices in the hand-link frame (fingers as ISF leaves them)
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit normal; normal . x = offset on the plane
+  double offset = 0;
+};
+
 struct GraspTerms {
   double pml = 0, align = 0, isf = 0, hand = 0, obstacle = 0, collision = 0, total = 0;
   int matched = 0;  // contact points kept after the repeated-neighbour filter
@@ -47,6 +58,11 @@ class GraspRefiner {
   Eigen::VectorXd step(const Eigen::VectorXd& q, GraspTerms* terms = nullptr) const;
   Eigen::VectorXd refine(const Eigen::VectorXd& q, int iterations, GraspTerms* terms = nullptr) const;
 
+  // Set once, before the refiner is shared; an empty finger_vertices removes the support.
+  void set_support(SupportPlane support);
+  // How far the fingers reach below the support plane at q (m; negative: above it; -inf: no support).
+  double support_depth(const Eigen::VectorXd& q) const;
+
   const IsfSettings& settings() const { return settings_; }
 
  private:
@@ -60,6 +76,7 @@ class GraspRefiner {
   BodyPoints body_;
   std::uint64_t exclude_mask_;
   IsfSettings settings_;
+  SupportPlane support_;
   std::unique_ptr<Index> index_;
 };
 
