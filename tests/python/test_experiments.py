@@ -274,9 +274,6 @@ def test_a_workers_shared_models_do_not_change_records(scene_dir, tmp_path, monk
                         methods=("CHOMP-C", "OMG"), quick=True, workers=0, progress=False, execute=False,
                         grasp_kind="antipodal")
     shared = E.run_sweep(s)
-    monkeypatch.setattr(E, "_WORKER_MODELS", ModelCache())
-    fresh_run = E.run_unit
-
     calls = []
 
     def fresh(unit):
