@@ -189,3 +189,27 @@ TEST(Isf, BadInputThrowsNamingTheProblem) {
   s.active = {true, true};
   expect_invalid_argument([&] { c.refiner(s); }, "active joint mask: expected 6 entries, got 2");
 }
+
+TEST(Isf, StepsDoNotPressTheFingersDeeperIntoTheSupport) {
+  // The case above pulls the hand from x = 5 mm to x = 0. A support plane x = 5 mm whose free side is
+  // +x (a "finger" vertex at the hand origin touching it) forbids exactly that motion.
+  IsfCase c;
+  GraspRefiner r = c.refiner();
+  const Eigen::VectorXd q = config(0.005, 0, -0.02);
+  EXPECT_TRUE(std::isinf(r.support_depth(q)) && r.support_depth(q) < 0);  // no support yet
+  SupportPlane support;
+  support.finger_vertices = Vertices::Zero(1, 3);
+  support.normal = Eigen::Vector3d::UnitX();
+  support.offset = 0.005;
+  r.set_support(support);
+  EXPECT_NEAR(r.support_depth(q), 0.0, 1e-12);
+  EXPECT_NEAR(r.support_depth(config(0.002, 0.01, 0.0)), 0.003, 1e-12);  // exact: 3 mm past the plane
+  const Eigen::VectorXd out = r.refine(q, 30);
+  EXPECT_LE(r.support_depth(out), 1e-9);
+  EXPECT_GT(out[0], 0.005 - 1e-6);
+  support.offset = 0.006;  // starting 1 mm in: it may stay as deep, not go deeper
+  r.set_support(support);
+  EXPECT_LE(r.support_depth(r.refine(q, 30)), 0.001 + 1e-9);
+  support.normal = Eigen::Vector3d(0, 0, 2);
+  test::expect_invalid_argument([&] { r.set_support(support); }, "unit vector");
+}
