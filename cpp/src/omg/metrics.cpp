@@ -43,10 +43,11 @@ double object_clearance(const ChompProblem& problem, const double* q, std::uint6
 }
 
 TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
-                                      const MetricSettings& s) {
+                                      const MetricSettings& s, bool stop_at_failure) {
   problem.check_trajectory(xi, q0);
   TrajectoryMetrics m;
   m.smoothness = problem.prior(xi, q0, nullptr);
+  if (stop_at_failure && !(m.smoothness < s.smoothness_threshold)) return m;  // success needs both
   const Trajectory dense = interpolate(q0, xi, s.steps);
   const Robot& robot = problem.robot();
   const BodyPoints& body = problem.body();
@@ -92,6 +93,7 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
       }
     }
     transit_free = transit_free && step_min >= need;
+    if (stop_at_failure && !(transit_free && table_free)) return m;  // collision_free and success stay false
   }
   m.collision_free = transit_free && table_free;
   m.success = m.collision_free && m.smoothness < s.smoothness_threshold;

@@ -175,7 +175,8 @@ bool Loop::succeeds(Trajectory& xi, int g, int iterations, TrajectoryMetrics& me
   StageTimer timer(s_.clock, &seconds_.metrics);
   Trajectory cand = xi;
   if (!book_.on_goal(xi, g)) problem_.step(cand, q0_, &book_.tail(g), iterations, ws_);
-  metrics = evaluate_trajectory(problem_, q0_, cand, s_.metrics);
+  // A failing check's metrics are dropped (the returned trajectory is measured in full): stop early.
+  metrics = evaluate_trajectory(problem_, q0_, cand, s_.metrics, /*stop_at_failure=*/true);
   if (!metrics.success) return false;
   xi = std::move(cand);
   return true;
