@@ -8,6 +8,7 @@ C-Space ISF refinement of the selected goal, for N iterations with pre-terminati
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass, field, replace
 from typing import Optional, Tuple, Union
 
@@ -201,6 +202,18 @@ class OMGPlanner:
         return result
 
 
+_CHOMPS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # world -> {ChompSettings: Chomp}
+
+
+def _world_chomp(world, settings: ChompSettings) -> Chomp:
+    """The world's CHOMP problem with ``settings`` (its target excluded), built once per world and
+    settings: every plan in a world shares it (immutable; per-call scratch is the workspace)."""
+    per_world = _CHOMPS.setdefault(world, {})
+    if settings not in per_world:
+        per_world[settings] = Chomp(world.robot, world.sdf, world.body, settings, exclude=(world.target,))
+    return per_world[settings]
+
+
 def _clock(settings: OMGSettings):
     """The timer ``settings.clock`` names (looked up per call: a bench may replace perf_counter)."""
     return time.thread_time if settings.clock is StageClock.thread_cpu else time.perf_counter
@@ -275,10 +288,9 @@ class _Optimization:
         s = self.settings = settings
         self.world, self.q0, self.book, self.timings = world, q0, book, timings
         m = book.tail_length
-        self.chomp = Chomp(world.robot, world.sdf, world.body, replace(s.chomp, obstacle_tail=m),
-                           exclude=(world.target,))
+        self.chomp = _world_chomp(world, replace(s.chomp, obstacle_tail=m))
         self.metric_settings = replace(s.metrics, tail_waypoints=m)
-        self.ws = self.chomp.workspace()
+        self.ws = self.chomp.workspace() if s.loop is PlanLoop.python else None  # the native loop has its own
         self.refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
         self.policy = make_policy(s.selection)
 
