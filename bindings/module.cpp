@@ -9,6 +9,7 @@ void init_collision(py::module_& m);
 void init_ik(py::module_& m);
 void init_goal_set(py::module_& m);
 void init_isf(py::module_& m);
+void init_omg_loop(py::module_& m);
 void init_pickup_nlp(py::module_& m);
 void init_perception(py::module_& m);
 }
@@ -30,6 +31,7 @@ PYBIND11_MODULE(_core, m) {
   pickplan::bind::init_ik(m);
   pickplan::bind::init_goal_set(m);
   pickplan::bind::init_isf(m);
+  pickplan::bind::init_omg_loop(m);
   pickplan::bind::init_pickup_nlp(m);
   pickplan::bind::init_perception(m);
 }

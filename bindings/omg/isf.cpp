@@ -1,5 +1,6 @@
 #include "../common.hpp"
 #include "pickplan/omg/isf.hpp"
+#include "refiner_holder.hpp"
 
 namespace pickplan::bind {
 
@@ -45,10 +46,7 @@ void init_isf(py::module_& m) {
       .def_readwrite("max_joint_step", &IsfSettings::max_joint_step)
       .def_readwrite("active", &IsfSettings::active);
 
-  struct Holder {
-    std::shared_ptr<Robot> robot;
-    std::shared_ptr<GraspRefiner> refiner;
-  };
+  using Holder = RefinerHolder;
   py::class_<Holder>(m, "GraspRefiner", "C-Space ISF (Algorithm 1) for one target object in one scene.")
       .def(py::init([](std::shared_ptr<Robot> robot, const py::object& hand_link, const Array& contacts,
                        const Array& normals, std::shared_ptr<SceneSdf> hand_sdf, const Array& object_points,

@@ -1,8 +1,10 @@
 // The paper's trajectory metrics (OMG Sec. IV-A) against closed forms on hand-made trajectories of
 // a single body point: the floating hand's origin sits exactly at (q0, q1, q2), the table's distance
 // is analytic and a box face's SDF is exact (trilinear interpolation of a plane's distance).
+#include <algorithm>
 #include <cmath>
 #include <memory>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -153,4 +155,77 @@ TEST(Metrics, BadInputThrowsNamingTheProblem) {
                           "trajectory columns: expected 6 joint values (the size of q0), got 5");
   expect_invalid_argument([&] { interpolate(q0, xi, 1); }, "steps must be >= 2, got 1");
   expect_invalid_argument([&] { interpolate(q0, Trajectory(0, 6), 5); }, "no waypoints");
+}
+
+// The success test skips links by bounds and points beyond the running cutoff (issue 24); against a
+// brute force that measures every body point at every dense step up to the cap, the metrics are
+// equal (bit for bit: skipped points add exactly nothing), and stop_at_failure gives the same verdict.
+TEST(Metrics, CullingAndCutoffsEqualMeasuringEveryPoint) {
+  auto robot = test::mobile_two_link();
+  auto scene = std::make_shared<SceneSdf>();
+  add_table(*scene);
+  Vertices V;
+  Faces F;
+  test::box_mesh(Eigen::Vector3d(0.1, 0.1, 0.3), V, F);
+  const auto grid = std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.2}));
+  for (const Eigen::Vector3d& at : {Eigen::Vector3d(0.9, 0.3, 0.15), Eigen::Vector3d(-0.2, 0.8, 0.15),
+                                    Eigen::Vector3d(0.5, -0.6, 0.15)}) {
+    Transform pose;
+    pose.p = at;
+    scene->add_object(grid, pose);
+  }
+  BodyPoints body;
+  const int links[] = {robot->link_index("upper"), robot->link_index("fore"), robot->link_index("tool")};
+  for (int l : links)
+    for (int k = 0; k < 8; ++k) {
+      body.link.push_back(l);
+      body.points.conservativeResize(body.link.size(), 3);
+      body.points.row(body.link.size() - 1) = Eigen::RowVector3d(0.05 * k, 0.01 * (k % 2), -0.12 * (k % 3));
+    }
+  ChompSettings cs;
+  cs.n = kWaypoints;
+  const ChompProblem p(robot, scene, body, cs);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.5, 1.5);
+  int successes = 0, failures = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    Eigen::VectorXd q0(5), q1(5);
+    for (int j = 0; j < 5; ++j) q0[j] = 0.3 * u(rng), q1[j] = u(rng);
+    q0.head<2>() *= 0.2;
+    q1.head<2>() *= 0.2;
+    MetricSettings s;
+    s.steps = 60;
+    s.exclude_mask = trial % 4 == 0 ? 1 : 0;  // sometimes the first box is the target
+    s.tail_waypoints = trial % 3;
+    s.clearance = 0.05 + 0.01 * (trial % 5);
+    const Trajectory xi = line(q0, q1);
+    const TrajectoryMetrics m = evaluate_trajectory(p, q0, xi, s);
+    // brute force: every point, every step, both parts up to the cap
+    const double cap = std::max({s.epsilon, s.clearance, s.tail_clearance, s.collision_padding, s.table_clearance});
+    const Trajectory dense = interpolate(q0, xi, s.steps);
+    RobotWorkspace ws(*robot);
+    double min_obj = cap, min_table = cap, collision = 0;
+    bool free = true;
+    const double tail_start = s.tail_waypoints > 0 ? double(kWaypoints - s.tail_waypoints) / kWaypoints * (s.steps - 1) : s.steps;
+    for (int t = 0; t < dense.rows(); ++t) {
+      robot->forward_kinematics(dense.row(t).data(), ws);
+      for (int k = 0; k < body.size(); ++k) {
+        const Eigen::Vector3d x = ws.link_pose[body.link[k]].apply(body.points.row(k).transpose());
+        const double d_obj = scene->distance_unmerged(x, nullptr, cap, s.exclude_mask | SceneSdf::kTableBit);
+        const double d_table = scene->distance_unmerged(x, nullptr, cap, 7);
+        min_obj = std::min(min_obj, d_obj);
+        min_table = std::min(min_table, d_table);
+        free = free && d_obj >= (t >= tail_start ? s.tail_clearance : s.clearance) && d_table >= s.table_clearance;
+        if (std::min(d_obj, d_table) < s.collision_padding) collision += chomp_c(std::min(d_obj, d_table), s.epsilon);
+      }
+    }
+    EXPECT_EQ(m.min_clearance, min_obj) << trial;
+    EXPECT_EQ(m.min_table_clearance, min_table) << trial;
+    EXPECT_EQ(m.collision, collision) << trial;
+    EXPECT_EQ(m.collision_free, free) << trial;
+    EXPECT_EQ(evaluate_trajectory(p, q0, xi, s, /*stop_at_failure=*/true).success, m.success) << trial;
+    (m.success ? successes : failures)++;
+  }
+  EXPECT_GT(successes, 3);  // both verdicts occur
+  EXPECT_GT(failures, 3);
 }

@@ -143,3 +143,22 @@ def test_an_upside_down_bowl_is_closed_off_and_an_upright_one_is_not():
     assert graspability(bowl, upright, 0.08).graspable
     verdict = graspability(bowl, upside_down, 0.08)
     assert not verdict.graspable and "closed off from above" in verdict.reason
+
+
+def test_a_cached_ray_mesh_gives_the_verdicts_of_a_private_one_on_threads():
+    """Issue 24 (a new scene in 50 ms): the ray tree is built once per object (ModelCache.ray_mesh), not
+    per world; verdicts for many poses on two threads sharing it equal those of a fresh private mesh."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from pickplan.omg.model_cache import ModelCache
+
+    bowl = objects.library("builtin").get("024_bowl")
+    cache = ModelCache()
+    shared = cache.ray_mesh(bowl.mesh)
+    assert cache.ray_mesh(bowl.mesh) is shared and shared.mesh is not bowl.mesh
+    poses = [np.array(T) for T in bowl.resting_poses[:2]] + [_turned_about_x(a) for a in np.linspace(0, np.pi, 7)]
+    alone = [graspability(bowl, T, 0.08) for T in poses]
+    assert {v.graspable for v in alone} == {True, False}  # both verdicts occur: a wrong tree would show
+    with ThreadPoolExecutor(2) as pool:
+        together = list(pool.map(lambda T: graspability(bowl, T, 0.08, ray_mesh=shared), poses * 3))
+    assert together == alone * 3

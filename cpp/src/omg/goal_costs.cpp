@@ -24,13 +24,15 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
   const int last_t = L - settings_.obstacle_tail;  // the standoff approach is not charged, as in CHOMP
   RobotWorkspace& fk_prev = ws.fk[0];
   RobotWorkspace& fk_cur = ws.fk[1];
+  RobotWorkspace& fk_a = ws.fk[2];  // n >= 2: at least three
+  robot_->forward_kinematics(a.data(), fk_a);  // every goal's tail starts here
   Eigen::VectorXd q(robot_->dof());
   for (int g = 0; g < goals.rows(); ++g) {
     const Eigen::VectorXd delta = goals.row(g).transpose() - a;
     // Prior of a constant-velocity tail: L equal steps of delta / L.
     double f = lambda * 0.5 * delta.squaredNorm() / L * inv_dt * inv_dt;
     double obstacle = 0;
-    robot_->forward_kinematics(a.data(), fk_prev);
+    fk_prev.link_pose = fk_a.link_pose;
     for (int t = time_stride; t <= last_t; t += time_stride) {
       q = a + delta * (static_cast<double>(t) / L);
       robot_->forward_kinematics(q.data(), fk_cur);

@@ -202,7 +202,8 @@ double GraspRefiner::support_depth(const Eigen::VectorXd& q) const {
 
 Eigen::VectorXd GraspRefiner::refine(const Eigen::VectorXd& q, int iterations, GraspTerms* terms) const {
   Eigen::VectorXd cur = q;
-  GraspTerms t = cost(q, nullptr);
+  GraspTerms t;
+  if (iterations <= 0 && terms) t = cost(q, nullptr);  // every step reports its own terms
   for (int i = 0; i < iterations; ++i) cur = step(cur, &t);
   if (terms) *terms = t;
   return cur;

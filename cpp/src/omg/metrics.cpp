@@ -43,10 +43,11 @@ double object_clearance(const ChompProblem& problem, const double* q, std::uint6
 }
 
 TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
-                                      const MetricSettings& s) {
+                                      const MetricSettings& s, bool stop_at_failure) {
   problem.check_trajectory(xi, q0);
   TrajectoryMetrics m;
   m.smoothness = problem.prior(xi, q0, nullptr);
+  if (stop_at_failure && !(m.smoothness < s.smoothness_threshold)) return m;  // success needs both
   const Trajectory dense = interpolate(q0, xi, s.steps);
   const Robot& robot = problem.robot();
   const BodyPoints& body = problem.body();
@@ -71,16 +72,21 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
     double step_min = inf;
     for (const LinkGroup& grp : problem.groups()) {
       const Transform& T = ws.link_pose[grp.link];
-      // Objects and table bounded apart: a part beyond the cap for the whole group reads as the cap.
+      // A distance changes a metric only below its cutoff: the running minimum (min_clearance), the
+      // collision padding, or the clearance the test demands. Beyond it, a part reads as the cap
+      // (exact: the part's true distance is beyond the cutoff), for a whole group by its bound.
+      const double obj_cut = std::max({m.min_clearance, s.collision_padding, s.clearance, s.tail_clearance});
+      const double table_cut = std::max({m.min_table_clearance, s.collision_padding, s.table_clearance});
       const SceneSdf::PartBounds b = scene.part_lower_bounds(T.apply(grp.center), s.exclude_mask);
-      const bool objects_near = b.objects - grp.radius < cap, table_near = b.table - grp.radius < cap;
+      const bool objects_near = b.objects - grp.radius < obj_cut, table_near = b.table - grp.radius < table_cut;
       if (!objects_near && !table_near) continue;
       const bool support = grp.link < 64 && ((s.support_link_mask >> grp.link) & 1u);
       const double table_need = support ? std::min(s.table_clearance, -s.support_tolerance) : s.table_clearance;
       for (int u = grp.begin; u < grp.end; ++u) {
         const Eigen::Vector3d x = T.apply(body.points.row(u).transpose());
-        const double d_obj =
-            objects_near ? scene.distance_unmerged(x, nullptr, cap, s.exclude_mask | SceneSdf::kTableBit) : cap;
+        const double cut = std::max({m.min_clearance, s.collision_padding, s.clearance, s.tail_clearance});
+        double d_obj = objects_near ? scene.distance_unmerged(x, nullptr, cut, s.exclude_mask | SceneSdf::kTableBit) : cap;
+        if (d_obj >= cut) d_obj = cap;  // beyond the cutoff: as the cap would read (it changes nothing)
         const double d_table =
             !scene.has_table() ? inf : (table_near ? scene.distance_unmerged(x, nullptr, cap, all_objects) : cap);
         m.min_clearance = std::min(m.min_clearance, d_obj);
@@ -92,6 +98,7 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
       }
     }
     transit_free = transit_free && step_min >= need;
+    if (stop_at_failure && !(transit_free && table_free)) return m;  // collision_free and success stay false
   }
   m.collision_free = transit_free && table_free;
   m.success = m.collision_free && m.smoothness < s.smoothness_threshold;

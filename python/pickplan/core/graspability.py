@@ -13,6 +13,7 @@ find no exit). The object's own frame gives the pairs once; a pose only tilts th
 from __future__ import annotations
 
 import functools
+import threading
 from dataclasses import dataclass
 from typing import NamedTuple, Tuple
 
@@ -65,10 +66,24 @@ def antipodal_pairs(mesh, settings: GraspabilitySettings = GraspabilitySettings(
                   float(settings.friction_cone_deg))
 
 
+class RayMesh:
+    """A private copy of a mesh for ray queries, its ray tree built at construction, and the lock its
+    queries hold: trimesh builds the tree lazily and unlocked (threads sharing a model's mesh raced on
+    it: a double free in rtree), and rtree does not promise concurrent queries. Depends on the mesh
+    only, so a ``ModelCache`` keeps one per object for every scene (``ModelCache.ray_mesh``)."""
+
+    def __init__(self, mesh):
+        self.mesh = trimesh.Trimesh(np.array(mesh.vertices), np.array(mesh.faces), process=False)
+        self.lock = threading.Lock()
+        self.mesh.ray.intersects_any(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))  # builds the tree now
+
+
 def graspability(model, pose, max_opening: float, up=(0.0, 0.0, 1.0),
-                 settings: GraspabilitySettings = GraspabilitySettings()) -> Graspability:
+                 settings: GraspabilitySettings = GraspabilitySettings(),
+                 ray_mesh: "RayMesh | None" = None) -> Graspability:
     """The verdict for ``model`` at world ``pose`` on a support with normal ``up``, for a gripper
-    opening ``max_opening`` m between its pads."""
+    opening ``max_opening`` m between its pads. ``ray_mesh``: the model's mesh as a ``RayMesh``
+    (None: a private one for this call)."""
     if not 0 < max_opening < 1:
         raise ValueError(f"max_opening: expected metres in (0, 1), got {max_opening}")
     p, q, axes, widths = antipodal_pairs(model.mesh, settings)
@@ -82,16 +97,15 @@ def graspability(model, pose, max_opening: float, up=(0.0, 0.0, 1.0),
     if ok.sum() >= enough:
         # In sample order, a chunk at a time, until enough are open; after 8 chunks the open share of
         # the checked pairs, scaled to all of them, decides (a bounded cost for a negative verdict).
-        # A private mesh: trimesh builds its ray tree lazily and unlocked, so threads sharing a model's
-        # mesh would race on it (a double free in rtree); this copy's tree belongs to this call.
-        mesh = trimesh.Trimesh(model.mesh.vertices, model.mesh.faces, process=False)
+        ray_mesh = RayMesh(model.mesh) if ray_mesh is None else ray_mesh
         idx, found, checked = np.flatnonzero(ok), [], 0
-        for chunk in np.array_split(idx, int(np.ceil(len(idx) / (2 * enough))))[:8]:
-            found += list(chunk[_fingers_see_the_sky(mesh, p[chunk], q[chunk], axes[chunk], up,
-                                                     settings.finger_clearance)])
-            checked += len(chunk)
-            if len(found) >= enough:
-                break
+        with ray_mesh.lock:
+            for chunk in np.array_split(idx, int(np.ceil(len(idx) / (2 * enough))))[:8]:
+                found += list(chunk[_fingers_see_the_sky(ray_mesh.mesh, p[chunk], q[chunk], axes[chunk], up,
+                                                         settings.finger_clearance)])
+                checked += len(chunk)
+                if len(found) >= enough:
+                    break
         if found and len(found) * len(idx) >= enough * checked:
             return Graspability(True, "", float(widths[found].min()))
         return Graspability(False, "its narrow parts are closed off from above (a finger would have to go "

@@ -7,6 +7,7 @@
 - ``selection``: Fixed, Proj, FTC, FTL, EXP and Mirror Descent (Sec. III-C, Eq. 7-9);
 - ``isf``: C-Space ISF grasp refinement (Sec. III-D);
 - ``planner``: Algorithm 2, ``OMGPlanner``;
+- ``native_loop``: Algorithm 2's loop in C++ (the default; ``OMGSettings.loop``) and the native policies;
 - ``model_cache``: what depends only on objects and robot, shared by worlds (``ModelCache``);
 - ``batch``: many plans on parallel threads (``plan_many``).
 """

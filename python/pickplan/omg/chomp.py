@@ -86,11 +86,15 @@ class Initialization(Option):
     linear = "linear"
 
 
+def cubic_blend(n: int) -> np.ndarray:
+    """The cubic's fraction of the way from q0 to the goal at t = 1/n .. 1 (zero end velocities)."""
+    s = np.arange(1, n + 1) / n
+    return 3 * s**2 - 2 * s**3
+
+
 def cubic_initialization(q0: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
     """Cubic spline from q0 to goal with zero end velocities, sampled at t = 1/n .. 1 (paper Sec. IV)."""
-    s = np.arange(1, n + 1) / n
-    blend = 3 * s**2 - 2 * s**3
-    return np.asarray(q0)[None, :] + blend[:, None] * (np.asarray(goal) - np.asarray(q0))[None, :]
+    return np.asarray(q0)[None, :] + cubic_blend(n)[:, None] * (np.asarray(goal) - np.asarray(q0))[None, :]
 
 
 def linear_initialization(q0: np.ndarray, goal: np.ndarray, n: int) -> np.ndarray:
@@ -152,9 +156,13 @@ class Chomp:
         return result
 
     def metrics(self, xi, q0, settings: MetricSettings = MetricSettings()) -> dict:
+        return self.problem.metrics(xi, q0, self.native_metric_settings(settings))
+
+    def native_metric_settings(self, settings: MetricSettings = MetricSettings()) -> "_core.MetricSettings":
+        """``settings`` resolved for this robot and scene (support links and tolerance, excluded objects)."""
         fingers = getattr(self.robot, "finger_links", ())
         mask = settings.support_link_mask
         if mask is None:
             mask = sum(1 << self.robot.link_index(f) for f in fingers)
         tolerance = collision.SupportContact(settings.support_tolerance).resolved(self.robot) if mask else 0.0
-        return self.problem.metrics(xi, q0, settings.to_native(self.exclude_mask, mask, tolerance))
+        return settings.to_native(self.exclude_mask, mask, tolerance)

@@ -15,6 +15,7 @@ from typing import Callable, Hashable, Optional
 import numpy as np
 
 from pickplan.core import collision
+from pickplan.core.graspability import RayMesh
 from pickplan.core import robots
 from pickplan.core import sdf
 from pickplan.core.caches import BoundedCache, mesh_content_key
@@ -63,6 +64,10 @@ class ModelCache:
     def body_points(self, robot, per_link: int, seed: int):
         return self.robot_derived(robot, ("body", int(per_link), int(seed)),
                                   lambda: robot.sample_body_points(per_link, seed=seed))
+
+    def ray_mesh(self, mesh) -> RayMesh:
+        """The mesh's private copy with its ray tree built (graspability's rays), kept per mesh content."""
+        return self.derived(("ray_mesh", mesh_content_key(mesh)), lambda: RayMesh(mesh))
 
     def surface(self, mesh, n: int, seed: int, sample: Callable):
         """``sample(mesh, n, seed)`` -> object-frame surface samples, kept per mesh content."""

@@ -8,6 +8,7 @@ C-Space ISF refinement of the selected goal, for N iterations with pre-terminati
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass, field, replace
 from typing import Optional, Tuple, Union
 
@@ -21,6 +22,7 @@ from pickplan.omg.chomp import Chomp, ChompSettings, MetricSettings, cubic_initi
 from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, build_goal_set
 from pickplan.omg.grasps import GraspKind
 from pickplan.omg.isf import IsfSettings
+from pickplan.omg.native_loop import PlanLoop, StageClock, run_native
 from pickplan.sim.scenes import Scene
 from pickplan.omg.selection import CostKind, Selection, make_policy
 from pickplan.omg.world import CheckerKind, World, WorldSettings
@@ -67,6 +69,9 @@ class OMGSettings:
     grasp_kind: GraspKind = GraspKind.simulated  # default grasps when plan() gets none: stored, else generated
     grasp_count: int = 100
     seed: int = 0
+    loop: PlanLoop = PlanLoop.native  # Algorithm 2's loop in C++, or in Python (the reference; same plans)
+    clock: StageClock = StageClock.wall  # what PlanResult.timings read (thread_cpu: a loaded machine's
+                                         # other processes do not count)
 
     def __post_init__(self):
         for name, low in (("iterations", 1), ("check_every", 1), ("min_iterations", 0), ("isf_steps", 0),
@@ -76,6 +81,8 @@ class OMGSettings:
                 raise ValueError(f"OMGSettings.{name}: expected an integer >= {low}, got {value!r}")
         object.__setattr__(self, "selection", Selection.parse(self.selection, "selection policy"))
         object.__setattr__(self, "grasp_kind", GraspKind.parse(self.grasp_kind, "grasp set kind"))
+        object.__setattr__(self, "loop", PlanLoop.parse(self.loop, "planner loop"))
+        object.__setattr__(self, "clock", StageClock.parse(self.clock, "stage clock"))
 
 
 @dataclass
@@ -167,30 +174,49 @@ class OMGPlanner:
         """Algorithm 2 from ``start`` (default: the scene's) to one of ``grasps`` of ``target``
         (default: the scene's; grasps: poses, a grasp set kind, or None for ``default_grasps``)."""
         s = self.settings
-        t = time.perf_counter()
+        clock = _clock(s)
+        t = clock()
         world = self.world(target)
         q0, grasps = self._prepare(world, start, grasps)
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
         verdict = target_graspability(world)  # geometry, scene preparation: no goal set for what cannot be grasped
-        timings["prepare"] = time.perf_counter() - t
-        t_total = time.perf_counter()
+        timings["prepare"] = clock() - t
+        t_total = clock()
 
-        t = time.perf_counter()
+        t = clock()
         gs = build_goal_set(world, grasps, q0, s.goals, s.ik) if verdict.graspable else None
-        timings["goal_set"] = time.perf_counter() - t
+        timings["goal_set"] = clock() - t
         if gs is None or len(gs) == 0:
-            timings["total"] = time.perf_counter() - t_total
+            timings["total"] = clock() - t_total
             history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}
             status = PlanStatus.no_goals if verdict.graspable else PlanStatus.ungraspable
             return PlanResult(status, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0, history,
                               timings, gs.reason_counts() if gs is not None else {},
                               reason="" if verdict.graspable else f"ungraspable: {verdict.reason}")
-        result = _Optimization(s, world, q0, GoalBook(gs, world.robot), timings).run()
-        timings["total"] = time.perf_counter() - t_total
+        optimization = _Optimization(s, world, q0, GoalBook(gs, world.robot), timings)
+        result = optimization.run() if s.loop is PlanLoop.python else optimization.run_native()
+        timings["total"] = clock() - t_total
         result.goal_reasons = gs.reason_counts()
         result.limits = robot_limits(world.robot)
         return result
+
+
+_CHOMPS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # world -> {ChompSettings: Chomp}
+
+
+def _world_chomp(world, settings: ChompSettings) -> Chomp:
+    """The world's CHOMP problem with ``settings`` (its target excluded), built once per world and
+    settings: every plan in a world shares it (immutable; per-call scratch is the workspace)."""
+    per_world = _CHOMPS.setdefault(world, {})
+    if settings not in per_world:
+        per_world[settings] = Chomp(world.robot, world.sdf, world.body, settings, exclude=(world.target,))
+    return per_world[settings]
+
+
+def _clock(settings: OMGSettings):
+    """The timer ``settings.clock`` names (looked up per call: a bench may replace perf_counter)."""
+    return time.thread_time if settings.clock is StageClock.thread_cpu else time.perf_counter
 
 
 def target_graspability(world: World):
@@ -262,10 +288,9 @@ class _Optimization:
         s = self.settings = settings
         self.world, self.q0, self.book, self.timings = world, q0, book, timings
         m = book.tail_length
-        self.chomp = Chomp(world.robot, world.sdf, world.body, replace(s.chomp, obstacle_tail=m),
-                           exclude=(world.target,))
+        self.chomp = _world_chomp(world, replace(s.chomp, obstacle_tail=m))
         self.metric_settings = replace(s.metrics, tail_waypoints=m)
-        self.ws = self.chomp.workspace()
+        self.ws = self.chomp.workspace() if s.loop is PlanLoop.python else None  # the native loop has its own
         self.refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
         self.policy = make_policy(s.selection)
 
@@ -283,9 +308,10 @@ class _Optimization:
         return c / norm if norm > 0 else c
 
     def _timed(self, phase: str, fn, *args):
-        t = time.perf_counter()
+        clock = _clock(self.settings)
+        t = clock()
         out = fn(*args)
-        self.timings[phase] += time.perf_counter() - t
+        self.timings[phase] += clock() - t
         return out
 
     def _select(self, c) -> Tuple[int, np.ndarray]:
@@ -342,13 +368,29 @@ class _Optimization:
             xi, _ = chomp.step(xi, q0, book.tails[g], iterations, ws)
         return self._result(xi, g, iterations, metrics, history)
 
+    def run_native(self) -> PlanResult:
+        """The same loop as ``run``, in C++ (``native_loop``), with the GIL released."""
+        book = self.book
+        out = run_native(self.chomp, self.refiner, self.world.robot, self.q0, book, self.settings, self.policy,
+                         self.metric_settings)
+        for phase, seconds in out["seconds"].items():
+            self.timings[phase] += seconds
+        history = {"objective": list(out["objective"]), "goal": list(out["goals_chosen"]), "p": out["p"],
+                   "costs": out["costs"], "switches": out["switches"], "initial_grasp": out["initial_grasp"]}
+        xi, robot = out["xi"], self.world.robot
+        return PlanResult(PlanStatus.of(out["metrics"]), np.vstack([self.q0, xi]), xi[-1].copy(), out["grasp_index"],
+                          robot.link_pose(xi[-1], robot.hand_link), out["refined"], out["metrics"], out["grasp_cost"],
+                          out["goal_set_size"], out["iterations"], history, self.timings,
+                          goal_set=book.initial_goals.copy(), goal_source=out["goal_source"])
+
     def _result(self, xi, g: int, iterations: int, metrics: Optional[dict], history: dict) -> PlanResult:
-        t = time.perf_counter()
+        clock = _clock(self.settings)
+        t = clock()
         if metrics is None:
             metrics = self.chomp.metrics(xi, self.q0, self.metric_settings)
         refiner = self.refiner
         grasp_cost = float(refiner.cost(xi[-1])[0]["total"]) if refiner is not None else float("nan")
-        self.timings["metrics"] += time.perf_counter() - t
+        self.timings["metrics"] += clock() - t
         robot = self.world.robot
         return PlanResult(PlanStatus.of(metrics), np.vstack([self.q0, xi]), xi[-1].copy(), int(self.book.origin[g]),
                           robot.link_pose(xi[-1], robot.hand_link), self.book.is_refined(g), metrics, grasp_cost,

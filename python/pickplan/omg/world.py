@@ -163,7 +163,8 @@ class World:
         """Whether this robot's gripper can grasp the target as it lies at all (``core.graspability``):
         geometry of the target and the support, computed once per world."""
         up = np.asarray(self.scene.table.pose, dtype=float)[:3, 2]
-        return graspability(self.target_model, self.target_pose, self.robot.info.max_opening, up)
+        return graspability(self.target_model, self.target_pose, self.robot.info.max_opening, up,
+                            ray_mesh=self.cache.ray_mesh(self.target_model.mesh))
 
     @functools.cached_property
     def clearance_problem(self):

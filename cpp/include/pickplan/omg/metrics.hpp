@@ -40,7 +40,9 @@ Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int step
 double object_clearance(const ChompProblem& problem, const double* q, std::uint64_t exclude_mask, double cap,
                         RobotWorkspace& ws);
 
+// stop_at_failure: return at the first reason the trajectory cannot succeed (too rough, or a dense
+// step short of its clearance); success is then exact but the other metrics are partial.
 TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
-                                      const MetricSettings& settings);
+                                      const MetricSettings& settings, bool stop_at_failure = false);
 
 }  // namespace pickplan

@@ -1,0 +1,150 @@
+// Native goal selection policies and the Algorithm 2 loop (run with the GIL released).
+#include "../common.hpp"
+#include "pickplan/omg/omg_loop.hpp"
+#include "refiner_holder.hpp"
+
+namespace pickplan::bind {
+
+namespace {
+
+Eigen::VectorXd vector_arg(const Array& a, const char* what) {
+  if (a.ndim() != 1) throw std::invalid_argument(std::string(what) + ": expected a 1-D array, got shape " + shape_str(a));
+  return Eigen::Map<const Eigen::VectorXd>(a.data(), a.shape(0));
+}
+
+py::array_t<double> vec(const Eigen::VectorXd& v) {
+  py::array_t<double> out(v.size());
+  std::copy(v.data(), v.data() + v.size(), out.mutable_data());
+  return out;
+}
+
+py::array_t<double> mat(const Trajectory& t) {
+  py::array_t<double> out({t.rows(), t.cols()});
+  Eigen::Map<Trajectory>(out.mutable_data(), t.rows(), t.cols()) = t;
+  return out;
+}
+
+py::dict metrics_dict(const TrajectoryMetrics& mt) {
+  py::dict d;
+  d["smoothness"] = mt.smoothness;
+  d["collision"] = mt.collision;
+  d["min_clearance"] = mt.min_clearance;
+  d["min_table_clearance"] = mt.min_table_clearance;
+  d["collision_free"] = mt.collision_free;
+  d["success"] = mt.success;
+  return d;
+}
+
+py::dict result_dict(const OmgLoopResult& r) {
+  py::dict d;
+  d["xi"] = mat(r.xi);
+  d["goal"] = r.goal;
+  d["iterations"] = r.iterations;
+  d["metrics"] = metrics_dict(r.metrics);
+  d["grasp_cost"] = r.grasp_cost;
+  d["grasp_index"] = r.grasp_index;
+  d["goal_source"] = r.goal_source;
+  d["goal_set_size"] = r.goal_set_size;
+  d["refined"] = r.refined;
+  d["objective"] = r.objective;
+  d["goals_chosen"] = r.goals_chosen;
+  py::list p, costs;
+  for (const auto& v : r.p) p.append(vec(v));
+  for (const auto& v : r.costs) costs.append(vec(v));
+  d["p"] = p;
+  d["costs"] = costs;
+  d["switches"] = r.switches;
+  d["initial_grasp"] = r.initial_grasp;
+  py::dict s;
+  s["chomp"] = r.seconds.chomp;
+  s["costs"] = r.seconds.costs;
+  s["selection"] = r.seconds.selection;
+  s["isf"] = r.seconds.isf;
+  s["metrics"] = r.seconds.metrics;
+  d["seconds"] = s;
+  return d;
+}
+
+}  // namespace
+
+void init_omg_loop(py::module_& m) {
+  py::enum_<SelectionKind>(m, "SelectionKind")
+      .value("Fixed", SelectionKind::Fixed)
+      .value("Proj", SelectionKind::Proj)
+      .value("FTC", SelectionKind::FTC)
+      .value("FTL", SelectionKind::FTL)
+      .value("EXP", SelectionKind::EXP)
+      .value("MD", SelectionKind::MD);
+  py::enum_<CostKind>(m, "CostKind").value("objective", CostKind::objective).value("distance", CostKind::distance);
+  py::enum_<StageClock>(m, "StageClock").value("wall", StageClock::wall).value("thread_cpu", StageClock::thread_cpu);
+
+  py::class_<SelectionSettings>(m, "SelectionSettings")
+      .def(py::init<>())
+      .def_readwrite("kind", &SelectionSettings::kind)
+      .def_readwrite("exp_eta", &SelectionSettings::exp_eta)
+      .def_readwrite("md_exponents", &SelectionSettings::md_exponents)
+      .def_readwrite("md_shift", &SelectionSettings::md_shift);
+
+  py::class_<SelectionPolicy>(m, "SelectionPolicy", "A native goal selection policy (omg.selection's rules).")
+      .def(py::init<SelectionSettings>(), py::arg("settings"))
+      .def_property_readonly("kind", &SelectionPolicy::kind)
+      .def_property_readonly("cost_kind", &SelectionPolicy::cost_kind)
+      .def("reset", [](SelectionPolicy& s, int num_goals, int horizon, const py::object& initial) {
+        if (initial.is_none()) return s.reset(num_goals, horizon, nullptr);
+        const Eigen::VectorXd c = vector_arg(initial.cast<Array>(), "initial costs");
+        s.reset(num_goals, horizon, &c);
+      }, py::arg("num_goals"), py::arg("horizon"), py::arg("initial_costs") = py::none())
+      .def("add_goal", &SelectionPolicy::add_goal)
+      .def("update", [](SelectionPolicy& s, const Array& c) { return vec(s.update(vector_arg(c, "costs"))); },
+           py::arg("costs"))
+      .def("select", &SelectionPolicy::select)
+      .def_property_readonly("p", [](const SelectionPolicy& s) { return vec(s.p()); })
+      .def("regret", &SelectionPolicy::regret);
+
+  py::class_<OmgLoopSettings>(m, "OmgLoopSettings")
+      .def(py::init<>())
+      .def_readwrite("selection", &OmgLoopSettings::selection)
+      .def_readwrite("iterations", &OmgLoopSettings::iterations)
+      .def_readwrite("isf_steps", &OmgLoopSettings::isf_steps)
+      .def_readwrite("isf_max_shift", &OmgLoopSettings::isf_max_shift)
+      .def_readwrite("cost_time_stride", &OmgLoopSettings::cost_time_stride)
+      .def_readwrite("cost_point_stride", &OmgLoopSettings::cost_point_stride)
+      .def_readwrite("pre_terminate", &OmgLoopSettings::pre_terminate)
+      .def_readwrite("min_iterations", &OmgLoopSettings::min_iterations)
+      .def_readwrite("check_every", &OmgLoopSettings::check_every)
+      .def_readwrite("metrics", &OmgLoopSettings::metrics)
+      .def_readwrite("clock", &OmgLoopSettings::clock);
+
+  m.def("run_omg_loop", [](const ChompProblem& problem, const RefinerHolder* refiner, const py::object& hand_link,
+                           const Array& q0, const Array& goals, const Array& tails, const py::object& grasp_index,
+                           const Array& blend, const OmgLoopSettings& settings) {
+    const int dof = problem.robot().dof();
+    const int hand = link_arg(problem.robot(), hand_link);
+    Array q = configuration(problem.robot(), q0, "start configuration");
+    const std::string gdesc = "(G, " + std::to_string(dof) + ")", tdesc = "(G, m, " + std::to_string(dof) + ")";
+    require_shape("goals", goals, {-1, dof}, gdesc.c_str());
+    require_shape("tails", tails, {goals.shape(0), -1, dof}, tdesc.c_str());
+    require_finite_array("goals", goals);
+    require_finite_array("tails", tails);
+    const IntArray index = index_array("grasp_index", grasp_index, std::numeric_limits<int>::max());
+    if (index.ndim() != 1 || index.shape(0) != goals.shape(0))
+      throw std::invalid_argument("grasp_index: expected one entry per goal, got shape " + shape_str(index));
+    const Trajectory G = Eigen::Map<const Trajectory>(goals.data(), goals.shape(0), dof);
+    std::vector<Trajectory> T;
+    const long m_rows = tails.shape(1);
+    for (long g = 0; g < goals.shape(0); ++g)
+      T.push_back(Eigen::Map<const Trajectory>(tails.data() + g * m_rows * dof, m_rows, dof));
+    const std::vector<int> gi(index.data(), index.data() + index.shape(0));
+    const Eigen::VectorXd q0v = Eigen::Map<const Eigen::VectorXd>(q.data(), dof), b = vector_arg(blend, "blend");
+    OmgLoopResult r;
+    {
+      py::gil_scoped_release release;
+      r = run_omg_loop(problem, refiner ? refiner->refiner.get() : nullptr, hand, q0v, G, T, gi, b, settings);
+    }
+    return result_dict(r);
+  }, py::arg("problem"), py::arg("refiner"), py::arg("hand_link"), py::arg("q0"), py::arg("goals"), py::arg("tails"),
+     py::arg("grasp_index"), py::arg("blend"), py::arg("settings"),
+     "Algorithm 2's loop over a goal set (refiner None: no ISF); returns the plan, its metrics and history.");
+}
+
+}  // namespace pickplan::bind
