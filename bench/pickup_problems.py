@@ -9,6 +9,9 @@ timed with the process CPU clock (time.process_time; one thread: Ipopt/MUMPS and
 single-threaded here). A solve counts as solved when Ipopt converged AND it passes the dense checks
 (solve_problem.dense_checks: pose error at T2, non-holonomic error, clearance, joint limits, grasp
 velocity, rho >= gamma). Writes OUT/records.json and OUT/summary.md; prints the summary.
+``--shots-from OUT/records.jsonl`` reuses the single shots of an earlier run on the same problems
+(seeded and independent of the successive refinement's settings) and solves only the successive
+refinement: a change to it is then measured against the same baseline in a tenth of the time.
 
 Targets: successive solves every problem any single shot solves and >= 95 % of all; its T is
 shorter than the best single shot's on >= 90 % of the problems both solve; CPU per problem
@@ -41,9 +44,13 @@ def _solve(job) -> dict:
     cpu = time.process_time() - t0
     metrics = planner.evaluate(robot, problem, p) if p.stages_completed > 0 else None
     sol = solve_problem.ProblemSolution(spec, problem, p, metrics, solve_problem.dense_checks(problem, p, metrics))
+    stage = lambda s: {"stage": s.stage, "status": str(s.status), "iterations": s.iterations,  # noqa: E731
+                       "rounds": s.rounds, "cpu": s.cpu_seconds, "T": s.objective}
     return {"method": str(method), "seed": seed, "status": str(p.status), "best_stage": p.stages_completed,
             "converged": bool(p.success), "solved": bool(sol.passed), "T": p.T if p.success else None,
-            "cpu": cpu, "native_cpu": p.total_cpu_seconds,
+            "cpu": cpu, "native_cpu": p.total_cpu_seconds, "stages": [stage(s) for s in p.stages],
+            "direct": stage(p.direct) if p.direct else None, "direct_chosen": bool(p.direct_chosen),
+            "arm_seed_T": [None if np.isnan(t) else t for t in p.arm_seed_T],
             "failed_checks": [k for k, ok in sol.checks.items() if not ok],
             "metrics": {k: sol.metrics[k] for k in ("pose_error_position", "pose_error_orientation",
                                                     "nonholonomic_mean", "min_clearance", "success_probability")}
@@ -103,6 +110,9 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default="out/bench_pickup_problems")
     ap.add_argument("--summarize", default=None, metavar="JSONL", help="only summarize the records of a (partial) run")
+    ap.add_argument("--shots-from", default=None, metavar="JSONL",
+                    help="take the single shots from the records.jsonl of an earlier run on the same problems (they do "
+                         "not depend on the successive refinement's settings) and solve only the successive refinement")
     args = ap.parse_args(argv)
     if args.summarize:
         with open(args.summarize, encoding="utf-8") as f:
@@ -114,18 +124,26 @@ def main(argv=None) -> int:
         specs = [replace(s, metamodel=args.metamodel if named else os.path.abspath(args.metamodel)) for s in specs]
     else:  # built once here, not in every worker
         solve_problem.rho_for_spec(specs[0], workers=args.workers)
+    earlier = None
+    if args.shots_from:
+        with open(args.shots_from, encoding="utf-8") as f:
+            earlier = [json.loads(line)["shots"] for line in f if line.strip()]
+        if len(earlier) < len(specs) or any(len(e) != args.shots for e in earlier[:len(specs)]):
+            raise SystemExit(f"{args.shots_from}: expected {args.shots} single shots for each of {len(specs)} problems")
     jobs = []
     for s in specs:
         jobs.append((s, None, planner.Method.successive, 0))
-        jobs += [(s, None, planner.Method.single_shot, k) for k in range(args.shots)]
+        if earlier is None:
+            jobs += [(s, None, planner.Method.single_shot, k) for k in range(args.shots)]
     os.makedirs(args.out, exist_ok=True)
     partial = os.path.join(args.out, "records.jsonl")  # one line per finished problem (a run cut short still counts)
-    k, done, records = 1 + args.shots, [], []
+    k, done, records = 1 if earlier else 1 + args.shots, [], []
     with Runner(args.workers) as runner, open(partial, "w", encoding="utf-8") as log:
         for _, result in runner.map(_solve, jobs, Order.JOBS):
             done.append(result)
             if len(done) == k:
-                records.append({"problem": len(records), "successive": done[0], "shots": done[1:]})
+                i = len(records)
+                records.append({"problem": i, "successive": done[0], "shots": earlier[i] if earlier else done[1:]})
                 log.write(json.dumps(records[-1]) + "\n")
                 log.flush()
                 done = []

@@ -123,6 +123,17 @@ struct PickupSettings {
   // solution is kept. A later seed's run (and the direct track) stops after any Ipopt run whose T
   // is not below the best found so far: rows only join, its T would not fall below it again.
   int arm_seeds = 2;
+  // Caps on solve_successive's time (0: none, the default; neither applies to solve_single_shot):
+  // the runs beyond the first arm seed's (further arm seeds, the direct track) start only while
+  // the solve's Ipopt iterations so far are below iteration_budget, and stop when they reach it
+  // (the stage-1 run and the first arm seed's stages are never cut; iterations rather than seconds
+  // keep the result independent of the machine, about 2 ms of CPU each here); a stage's warm
+  // active-set re-solves (its rounds after the first) stop after resolve_max_iter iterations.
+  // Off by default: on the random problems of bench/PICKUP.md (issue 23) the slowest solves are
+  // the hard ones (stage 3 drives T far up, the first arm seed fails after hundreds of iterations
+  // and the second one solves), and a re-solve cap of 150 alone lost one that single shots solve.
+  int iteration_budget = 0;
+  int resolve_max_iter = 0;
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint

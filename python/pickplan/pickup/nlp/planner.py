@@ -137,6 +137,8 @@ class PlannerSettings:
     direct_track: bool = True             # also solve all constraints from the stage-1 solution, keep the shorter
     direct_max_iter: int = 200            # its Ipopt iterations
     arm_seeds: int = 2                    # stages 2-5 from up to this many arm configurations at T2, keep the shortest
+    iteration_budget: int = 0             # successive: later arm seeds and the direct track only below this many Ipopt iterations (0: none)
+    resolve_max_iter: int = 0             # successive: Ipopt iterations of a stage's warm active-set re-solves (0: max_iter)
     warm_start_stages: bool = True        # stages 4 and 5 start from the previous stage's multipliers
 
     def __post_init__(self):
