@@ -61,29 +61,36 @@ def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
 def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
     tree = cKDTree(P)
     cone = np.cos(np.arctan(s.friction))
-    pairs = []  # (i, j, margin, width) of the pairs that pass the width and friction-cone tests
-    for i in rng.choice(len(P), min(s.samples, len(P)), replace=False):
-        near = np.asarray(tree.query_ball_point(P[i], s.max_width - s.width_margin), dtype=int)
-        widths = np.linalg.norm(P[near] - P[i], axis=1)
-        near, widths = near[widths >= s.min_width], widths[widths >= s.min_width]
-        axes = (P[near] - P[i]) / widths[:, None]
-        margins = np.minimum(-(axes @ N[i]), np.einsum("ij,ij->i", N[near], axes))
-        ok = margins >= cone
-        pairs.append(np.column_stack([np.full(ok.sum(), i), near[ok], margins[ok], widths[ok]]))
-    pairs = np.vstack(pairs) if pairs else np.zeros((0, 4))
+    seeds = rng.choice(len(P), min(s.samples, len(P)), replace=False)
+    near = tree.query_ball_point(P[seeds], s.max_width - s.width_margin, return_sorted=False)
+    i = np.repeat(seeds, [len(k) for k in near])
+    j = np.concatenate([np.asarray(k, dtype=int) for k in near]) if len(near) else np.zeros(0, dtype=int)
+    widths = np.linalg.norm(P[j] - P[i], axis=1)
+    i, j, widths = i[widths >= s.min_width], j[widths >= s.min_width], widths[widths >= s.min_width]
+    axes = (P[j] - P[i]) / widths[:, None]
+    margins = np.minimum(-np.einsum("ij,ij->i", axes, N[i]), np.einsum("ij,ij->i", N[j], axes))
+    ok = margins >= cone
+    # (i, j, margin, width) of the pairs that pass the width and friction-cone tests
+    pairs = np.column_stack([i[ok], j[ok], margins[ok], widths[ok]])
     most = max(1, s.max_candidates // s.approach_angles)
     if len(pairs) > most:  # dense clouds (3 views) pass 10^4-10^5 pairs: a seeded subset
         pairs = pairs[np.sort(rng.choice(len(pairs), most, replace=False))]
-    out = []
-    for i, j, margin, w in pairs:
-        p, q = P[int(i)], P[int(j)]
-        axis = (q - p) / w
-        z0 = _perpendicular(axis)
-        theta = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(s.approach_angles) / s.approach_angles
-        for t in theta:
-            z = np.cos(t) * z0 + np.sin(t) * np.cross(axis, z0)
-            out.append((_frames(axis, z, 0.5 * (p + q)), margin, w))
-    return out
+    if len(pairs) == 0:
+        return []
+    i, j, margin, w = pairs[:, 0].astype(int), pairs[:, 1].astype(int), pairs[:, 2], pairs[:, 3]
+    axis = (P[j] - P[i]) / w[:, None]
+    ref = np.where((np.abs(axis[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    z0 = np.cross(axis, ref)  # as sets._perpendicular, for all pairs at once
+    z0 /= np.linalg.norm(z0, axis=1, keepdims=True)
+    z1 = np.cross(axis, z0)
+    theta = rng.uniform(0, 2 * np.pi, len(pairs))[:, None] + 2 * np.pi * np.arange(s.approach_angles) / s.approach_angles
+    z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * z1[:, None]  # (M, A, 3)
+    y = np.broadcast_to(axis[:, None], z.shape)
+    F = np.zeros(z.shape[:2] + (4, 4))
+    F[..., :3, 0], F[..., :3, 1], F[..., :3, 2] = np.cross(y, z), y, z
+    F[..., :3, 3], F[..., 3, 3] = (0.5 * (P[i] + P[j]))[:, None], 1.0
+    return [(f, m, wk) for f, m, wk in zip(F.reshape(-1, 4, 4), np.repeat(margin, s.approach_angles),
+                                           np.repeat(w, s.approach_angles))]
 
 
 def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
@@ -148,46 +155,77 @@ def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     return out
 
 
-def _open_hand_check(T, G, P, width, hand_sdf, s: PointGraspSettings):
-    """Per hand pose ``T`` (grasp frame ``G``): no observed target point inside the open hand (between
-    the pads is outside it), and how much of the pads the points fill (points in the pad rectangle
-    between the fingers)."""
-    if len(T) == 0:
-        return np.zeros(0, dtype=bool), np.zeros(0)
+def _pad_fill(G, P, tree, width, s: PointGraspSettings) -> np.ndarray:
+    """Per grasp frame ``G``: how much of the pads the points fill (points in the pad rectangle
+    between the fingers, 30 fill it), from the points a k-d tree finds near the pads' centre."""
+    half = np.column_stack([np.full(len(G), 0.01), width / 2 + 0.005, np.full(len(G), s.pad_length / 2)])
+    fill = np.zeros(len(G))
+    for k, near in enumerate(tree.query_ball_point(G[:, :3, 3], np.linalg.norm(half, axis=1))):
+        if near:
+            q = (P[near] - G[k, :3, 3]) @ G[k, :3, :3]
+            fill[k] = min(1.0, float((np.abs(q) < half[k]).all(axis=1).sum()) / 30.0)
+    return fill
+
+
+def _hand_clear(T, P, hand_sdf, s: PointGraspSettings) -> np.ndarray:
+    if len(T) == 0 or len(P) == 0:
+        return np.ones(len(T), dtype=bool)
     local = (P[None, :, :] - T[:, None, :3, 3]) @ T[:, :3, :3]  # hand-frame points (matmul: BLAS, not einsum)
     near = (local ** 2).sum(axis=2) < s.hand_reach ** 2  # only these can be inside the hand
     d = np.full(near.shape, np.inf)
     if near.any():  # one query for all: the distances are pointwise
         d[near] = hand_sdf.distance(local[near], cutoff=0.05)[0]
-    clear = d.min(axis=1) > s.clearance
-    q = (P[None, :, :] - G[:, None, :3, 3]) @ G[:, :3, :3]  # grasp-frame points
-    inside = (np.abs(q[..., 2]) < s.pad_length / 2) & (np.abs(q[..., 0]) < 0.01) & \
-        (np.abs(q[..., 1]) < width[:, None] / 2 + 0.005)
-    return clear, np.minimum(1.0, inside.sum(axis=1) / 30.0)
+    return d.min(axis=1) > s.clearance
+
+
+def _open_hand_clear(T, P, coarse, hand_sdf, s: PointGraspSettings) -> np.ndarray:
+    """Per hand pose ``T``: no point of ``P`` inside the open hand or within ``clearance`` of it
+    (between the pads is outside the hand). ``coarse``, a subset of ``P``, is checked first: most
+    rejected hands meet it, and only the rest are checked against all of ``P`` (the same verdict)."""
+    ok = _hand_clear(T, coarse, hand_sdf, s)
+    ok[ok] = _hand_clear(T[ok], P, hand_sdf, s)
+    return ok
+
+
+def thinned(P: np.ndarray, cell: float) -> np.ndarray:
+    """One point per ``cell``-sized voxel (the first), order kept: overlapping views' points once."""
+    if len(P) == 0 or cell <= 0:
+        return P
+    _, first = np.unique(np.floor(P / cell).astype(np.int64), axis=0, return_index=True)
+    return P[np.sort(first)]
 
 
 def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int = 0,
                        scene_distance: Optional[Callable[[np.ndarray], np.ndarray]] = None,
                        hand_points: Optional[np.ndarray] = None,
                        settings: PointGraspSettings = PointGraspSettings(),
-                       gripper: RobotInfo = PANDA) -> GraspSet:
+                       gripper: RobotInfo = PANDA, hull: Optional[np.ndarray] = None) -> GraspSet:
     """Up to ``n`` grasps of the observed target (world frame; poses of ``gripper``'s hand link), best
     scores first.
 
     ``hand_sdf``: the open hand as a ``core.sdf.SceneSdf`` in the hand frame; ``scene_distance`` maps
     world points (M, 3) to their distance from the obstacles (the fused field), checked at
-    ``hand_points`` (sample points on the open hand, hand frame) when both are given.
+    ``hand_points`` (sample points on the open hand, hand frame) when both are given. ``hull``: (K, 3)
+    samples of where the unseen rest of the target may be (``perception.hull.visibility_hull``): the
+    open hand must clear them as it clears the observed points.
+
+    Candidates are scored first (from the points alone) and checked in score order until ``n`` pass:
+    the same grasps as checking all of them, at a fraction of the cost.
     """
     _check_count(n, seed)
     P, N = np.asarray(points, float), np.asarray(normals, float)
     if P.ndim != 2 or P.shape[1] != 3 or N.shape != P.shape or len(P) < 3:
         raise ValueError(f"points and normals: expected two (N, 3) arrays with N >= 3, got {P.shape}, {N.shape}")
+    H = np.zeros((0, 3)) if hull is None else np.asarray(hull, float)
+    if H.ndim != 2 or H.shape[1] != 3:
+        raise ValueError(f"hull: expected an (K, 3) array, got {H.shape}")
     s = replace(settings, max_width=gripper.max_opening if settings.max_width is None else settings.max_width,
                 pad_length=gripper.pad_length if settings.pad_length is None else settings.pad_length)
     rng = np.random.default_rng(seed)
     cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng)
+    empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
-        return GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0))
+        return empty
     G = np.stack([c[0] for c in cands])   # grasp frames
     T = G @ gripper.hand_from_grasp         # hand poses
     margin = np.array([c[1] for c in cands])
@@ -195,16 +233,22 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     plane_n, plane_d = plane
     # fingertips above the plane: the lowest point of the pads, half a pad beyond their centre
     tips = G[:, :3, 3] + (s.pad_length / 2) * G[:, :3, 2]
-    keep = tips @ plane_n - plane_d > -s.table_contact
-    fill = np.zeros(len(T))
-    ks = np.flatnonzero(keep)
-    for chunk in np.array_split(ks, max(1, len(ks) // 256)):  # batched queries, bounded memory
-        keep[chunk], fill[chunk] = _open_hand_check(T[chunk], G[chunk], P, width[chunk], hand_sdf, s)
-    ks = np.flatnonzero(keep)
-    if scene_distance is not None and hand_points is not None and len(ks):
-        world = np.einsum("kij,mj->kmi", T[ks, :3, :3], hand_points) + T[ks, None, :3, 3]
-        keep[ks] = scene_distance(world.reshape(-1, 3)).reshape(len(ks), -1).min(axis=1) > s.obstacle_clearance
+    fill = _pad_fill(G, P, cKDTree(P), width, s)
     score = margin + 0.5 * fill + 2.0 * (s.max_width - width) / s.max_width
-    order = [k for k in np.argsort(-score, kind="stable") if keep[k]][:n]
-    return GraspSet("points", T[order] if order else np.zeros((0, 4, 4)), "observed target",
-                    scores=score[order], info={"width": width[order]})
+    order = np.argsort(-score, kind="stable")
+    order = order[(tips[order] @ plane_n - plane_d) > -s.table_contact]
+    check = np.vstack([P, H])  # the open hand clears the observed points and the hull
+    coarse = thinned(check, 0.015)
+    kept = []
+    for chunk in np.array_split(order, max(1, len(order) // 64)):  # score order, bounded memory
+        chunk = chunk[_open_hand_clear(T[chunk], check, coarse, hand_sdf, s)]
+        if scene_distance is not None and hand_points is not None and len(chunk):
+            world = np.einsum("kij,mj->kmi", T[chunk, :3, :3], hand_points) + T[chunk, None, :3, 3]
+            chunk = chunk[scene_distance(world.reshape(-1, 3)).reshape(len(chunk), -1).min(axis=1) > s.obstacle_clearance]
+        kept.extend(chunk.tolist())
+        if len(kept) >= n:
+            break
+    kept = kept[:n]
+    if not kept:
+        return empty
+    return GraspSet("points", T[kept], "observed target", scores=score[kept], info={"width": width[kept]})
