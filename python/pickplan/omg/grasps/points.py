@@ -32,7 +32,9 @@ from pickplan.omg.grasps.sets import GraspSet, _check_count, _perpendicular
 class PointGraspSettings:
     friction: float = 0.3            # Coulomb coefficient: the friction cone's half-angle atan(0.3)
     max_width: Optional[float] = None  # m; None: the gripper's opening
-    width_margin: float = 0.008      # widths must be this much below the opening (the cloud is noisy)
+    width_margin: Optional[float] = None  # m widths must stay below the opening; None: twice ``clearance``
+    #                                   (the open hand must clear the points by ``clearance`` on each side; the
+    #                                   open-hand check decides, and noise only widens observed extents)
     min_width: float = 0.004
     pad_length: Optional[float] = None  # m of finger along the approach axis that grips; None: the gripper's
     table_contact: float = 0.003     # m the fingertips may press into the support plane
@@ -48,6 +50,8 @@ class PointGraspSettings:
     rim_band: float = 0.01           # m below the target's top where rim pinches are tried
     rim_samples: int = 40            # rim points tried
     rim_wall: float = 0.01           # m, the wall thickness a rim pinch assumes (centred 5 mm inside)
+    spare_weight: float = 0.5        # score per spare opening (fraction of the opening)
+    lever_scale: float = 0.05        # m of gravity's lever arm about the closing axis that costs one score point
 
 
 def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -93,26 +97,35 @@ def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
                                            np.repeat(w, s.approach_angles))]
 
 
+def _section(rel, sel, y, x):
+    """The points ``rel[sel]`` (footprint-relative, flattened): their width across ``y`` and the
+    middle of their extents along ``y`` and ``x`` (None when fewer than 3)."""
+    if sel.sum() < 3:
+        return None, None
+    py, px = rel[sel] @ y, rel[sel] @ x
+    return float(np.ptp(py)), 0.5 * (py.max() + py.min()) * y + 0.5 * (px.max() + px.min()) * x
+
+
 def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
+    """Grasps from above (and from the side, ``_side_candidates``) across the target's cross-section:
+    at each pad depth, the points from the pads' lower edge up (what passes between the fingers)
+    give the width and the middle the pads are centred on (a bottle's cap, not its footprint)."""
     n, d = plane
     lo_h = P @ n - d  # heights above the plane
     top = float(lo_h.max())
     flat = P - np.outer(lo_h, n)
     centre_flat = flat.mean(axis=0)
+    rel = flat - centre_flat
     e1 = _perpendicular(n)
     e2 = np.cross(n, e1)
     out = []
     # the coarse steps miss the narrow side of an elongated footprint (a box 6 x 16 cm seen 7.5
     # degrees off is 8 cm wide), so the narrowest of 180 directions joins them
     fine = np.pi * np.arange(180) / 180
-    spans = np.ptp((flat - centre_flat) @ np.column_stack([e1, e2]) @ np.vstack([np.cos(fine), np.sin(fine)]), axis=0)
+    spans = np.ptp(rel @ np.column_stack([e1, e2]) @ np.vstack([np.cos(fine), np.sin(fine)]), axis=0)
+    fits = lambda w: w is not None and s.min_width <= w <= s.max_width - s.width_margin  # noqa: E731
     for a in np.append(np.pi * np.arange(s.yaw_steps) / s.yaw_steps, fine[np.argmin(spans)]):
         y = np.cos(a) * e1 + np.sin(a) * e2
-        proj = (flat - centre_flat) @ y
-        width = float(proj.max() - proj.min())
-        if not s.min_width <= width <= s.max_width - s.width_margin:
-            continue
-        mid = centre_flat + 0.5 * (proj.max() + proj.min()) * y
         x = np.cross(y, n)
         for tilt in (0.0, s.max_tilt / 2, -s.max_tilt / 2, s.max_tilt, -s.max_tilt):
             z = -np.cos(tilt) * n + np.sin(tilt) * x  # down, tilted about the closing axis
@@ -122,10 +135,31 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
             lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
             for depth in s.grasp_depths:
                 height = max(lowest, top - depth)
-                centre = mid + height * n  # mid lies on the plane
-                out.append((_frames(y, z, centre), 1.0 - abs(tilt) / (np.pi / 2), width))
+                width, mid = _section(rel, lo_h >= height - s.pad_length / 2, y, x)
+                if fits(width):
+                    centre = centre_flat + mid + height * n  # centre_flat lies on the plane
+                    out.append((_frames(y, z, centre), 1.0 - abs(tilt) / (np.pi / 2), width))
                 if height == lowest:
                     break
+        for height in sorted({max(s.pad_length / 2, h) for h in (top / 2, top - s.pad_length)}):
+            band = np.abs(lo_h - height) <= s.pad_length / 2
+            width, mid = _section(rel, band, y, x)
+            if fits(width):
+                out += _side_candidates(rel[band] - mid, centre_flat + mid + height * n, y, x, width, s)
+    return out
+
+
+def _side_candidates(rel, centre, y, x, width, s: PointGraspSettings) -> list:
+    """Grasps from the side across a cross-section at the pads' height (``rel``: its points relative
+    to its middle ``centre``): the approach horizontal (along +-x), the pads ``grasp_depths`` in from
+    the section's near edge (tall targets whose top alone leaves few grasps: an upright box, a
+    bottle's body under its cap). Scored below grasps from above (margin 0.3, not 1: the palm faces
+    the scene)."""
+    out = []
+    for z in (x, -x):
+        near = float((rel @ z).min())  # the first the hand meets moving along z
+        for depth in s.grasp_depths:
+            out.append((_frames(y, z, centre + (near + depth) * z), 0.3, width))
     return out
 
 
@@ -187,6 +221,27 @@ def _open_hand_clear(T, P, coarse, hand_sdf, s: PointGraspSettings) -> np.ndarra
     return ok
 
 
+def mass_centre(P: np.ndarray, plane) -> np.ndarray:
+    """Where the target's centre of mass is taken to be, from its observed points: over the middle of
+    their footprint's bounding box (in the plane's frame; the hidden side widens it less than the
+    mean of the points is biased towards the cameras), at half the top's height."""
+    n, d = plane
+    height = P @ n - d
+    e1 = _perpendicular(n)
+    E = np.column_stack([e1, np.cross(n, e1)])
+    flat = P @ E
+    return E @ (0.5 * (flat.min(axis=0) + flat.max(axis=0))) + (d + 0.5 * height.max()) * n
+
+
+def gravity_lever(G: np.ndarray, P: np.ndarray, plane) -> np.ndarray:
+    """Per grasp frame: the lever arm (m) of gravity at the estimated centre of mass about the closing
+    axis through the pads' centre. Lifted, the target turns about that axis unless the pads' friction
+    holds the torque: a pinch on a bottle's cap beside its body drops where one through the body holds."""
+    c = mass_centre(P, plane)
+    arm = np.cross(c - G[:, :3, 3], plane[0])
+    return np.abs(np.einsum("ij,ij->i", arm, G[:, :3, 1]))
+
+
 def thinned(P: np.ndarray, cell: float) -> np.ndarray:
     """One point per ``cell``-sized voxel (the first), order kept: overlapping views' points once."""
     if len(P) == 0 or cell <= 0:
@@ -220,7 +275,8 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     if H.ndim != 2 or H.shape[1] != 3:
         raise ValueError(f"hull: expected an (K, 3) array, got {H.shape}")
     s = replace(settings, max_width=gripper.max_opening if settings.max_width is None else settings.max_width,
-                pad_length=gripper.pad_length if settings.pad_length is None else settings.pad_length)
+                pad_length=gripper.pad_length if settings.pad_length is None else settings.pad_length,
+                width_margin=2 * settings.clearance if settings.width_margin is None else settings.width_margin)
     rng = np.random.default_rng(seed)
     cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng)
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
@@ -234,7 +290,8 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     # fingertips above the plane: the lowest point of the pads, half a pad beyond their centre
     tips = G[:, :3, 3] + (s.pad_length / 2) * G[:, :3, 2]
     fill = _pad_fill(G, P, cKDTree(P), width, s)
-    score = margin + 0.5 * fill + 2.0 * (s.max_width - width) / s.max_width
+    lever = gravity_lever(G, P, plane)
+    score = margin + 0.5 * fill + s.spare_weight * (s.max_width - width) / s.max_width - lever / s.lever_scale
     order = np.argsort(-score, kind="stable")
     order = order[(tips[order] @ plane_n - plane_d) > -s.table_contact]
     check = np.vstack([P, H])  # the open hand clears the observed points and the hull
