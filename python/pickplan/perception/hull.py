@@ -90,9 +90,10 @@ def _classify(obs: Observation, X: np.ndarray, margin: float):
     return free, behind_target
 
 
-def visibility_hull(obs: Observation, points: np.ndarray, plane: Tuple[np.ndarray, float],
-                    settings: HullSettings = HullSettings()) -> np.ndarray:
-    """Boundary voxel centres (K, 3), world frame, of the space the target may fill (module docstring)."""
+def hull_voxels(obs: Observation, points: np.ndarray, plane: Tuple[np.ndarray, float],
+                settings: HullSettings = HullSettings()) -> Tuple[np.ndarray, np.ndarray]:
+    """Centres (K, 3), world frame, of every voxel the target may fill (module docstring), and
+    whether each is on the hull's boundary (K,)."""
     if not isinstance(obs, Observation):
         raise TypeError(f"obs: expected a pickplan Observation, got {type(obs).__name__}")
     P = np.asarray(points, float)
@@ -102,5 +103,13 @@ def visibility_hull(obs: Observation, points: np.ndarray, plane: Tuple[np.ndarra
     centres, dims = _box(P, (n / np.linalg.norm(n), float(plane[1])), settings)
     free, behind = _classify(obs, centres, settings.surface_margin)
     hull = (behind & ~free).reshape(dims)
-    inner = ndimage.binary_erosion(hull, border_value=0)
-    return centres[(hull & ~inner).reshape(-1)]
+    boundary = (hull & ~ndimage.binary_erosion(hull, border_value=0)).reshape(-1)
+    inside = hull.reshape(-1)
+    return centres[inside], boundary[inside]
+
+
+def visibility_hull(obs: Observation, points: np.ndarray, plane: Tuple[np.ndarray, float],
+                    settings: HullSettings = HullSettings()) -> np.ndarray:
+    """Boundary voxel centres (K, 3), world frame, of the space the target may fill (module docstring)."""
+    centres, boundary = hull_voxels(obs, points, plane, settings)
+    return centres[boundary]
