@@ -1,22 +1,29 @@
 """Grasps from what a depth camera sees of the target: observed surface points with normals, the
 support plane, and the rest of the scene as a field. No mesh and no stored grasp is read.
 
-Two kinds of candidates, both in the world frame (a ``GraspSet`` whose object frame is the world):
+Three kinds of candidates, all in the world frame (a ``GraspSet`` whose object frame is the world):
 
 - antipodal pairs: a point p and a point q seen on the opposite side (q - p within the friction cone
   of -n_p and of n_q, the width within the opening), the pads centred on their midpoint, the hand
   turned about the closing axis;
 - footprint grasps: the target's points projected onto the support plane give its width across each
-  closing direction even when one side is hidden; the hand comes from above (tilted up to
-  ``max_tilt`` off vertical), centred on the footprint, its pads as low as the table allows.
+  closing direction even when one side is hidden. From above (tilted up to ``max_tilt`` off
+  vertical), the width and the pads' centre come from the cross-section the pads close on (the points
+  from the pads' lower edge up: a bottle's cap, not its body); from the side (approach horizontal),
+  from a section at half the height and one a pad under the top, the pads a depth in from its edge;
+- rim pinches of open containers (one pad inside the wall).
 
 Every candidate is kept only if its fingertips stay above the support plane (less a contact
-tolerance: resting on the table is fine), no observed target point lies inside the open hand
-(``hand_sdf``), and the hand is clear of the other obstacles (``scene_distance``). Scores from
-points: antipodal margin, how much of the pads the points fill, and the spare opening.
+tolerance: resting on the table is fine), no observed target point (and, if given, no sample of the
+target's visibility hull, ``perception.hull``) lies inside the open hand (``hand_sdf``), and the hand
+is clear of the other obstacles (``scene_distance``). Scores from points: antipodal margin, how much
+of the pads the points fill, the spare opening, and gravity's lever arm about the closing axis from a
+centre of mass estimated from the points (a pinch beside the mass turns the target out of the pads).
+Candidates are checked in score order until enough pass.
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
@@ -193,12 +200,16 @@ def _pad_fill(G, P, tree, width, s: PointGraspSettings) -> np.ndarray:
     """Per grasp frame ``G``: how much of the pads the points fill (points in the pad rectangle
     between the fingers, 30 fill it), from the points a k-d tree finds near the pads' centre."""
     half = np.column_stack([np.full(len(G), 0.01), width / 2 + 0.005, np.full(len(G), s.pad_length / 2)])
-    fill = np.zeros(len(G))
-    for k, near in enumerate(tree.query_ball_point(G[:, :3, 3], np.linalg.norm(half, axis=1))):
-        if near:
-            q = (P[near] - G[k, :3, 3]) @ G[k, :3, :3]
-            fill[k] = min(1.0, float((np.abs(q) < half[k]).all(axis=1).sum()) / 30.0)
-    return fill
+    near = tree.query_ball_point(G[:, :3, 3], np.linalg.norm(half, axis=1))
+    k = np.repeat(np.arange(len(G)), [len(a) for a in near])
+    if len(k) == 0:
+        return np.zeros(len(G))
+    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(k))
+    d = P[j] - np.ascontiguousarray(G[:, :3, 3])[k]
+    inside = np.ones(len(k), dtype=bool)
+    for axis in range(3):  # the grasp-frame coordinates one axis at a time, from contiguous copies
+        inside &= np.abs(np.einsum("ij,ij->i", d, np.ascontiguousarray(G[:, :3, axis])[k])) < half[k, axis]
+    return np.minimum(1.0, np.bincount(k[inside], minlength=len(G)) / 30.0)
 
 
 def _hand_clear(T, P, hand_sdf, s: PointGraspSettings) -> np.ndarray:
