@@ -57,6 +57,9 @@ class PointGraspSettings:
     rim_band: float = 0.01           # m below the target's top where rim pinches are tried
     rim_samples: int = 40            # rim points tried
     rim_wall: float = 0.01           # m, the wall thickness a rim pinch assumes (centred 5 mm inside)
+    patch_radius: float = 0.008      # m, an antipodal contact's patch (about half a pad)
+    patch_coherence: float = 0.9     # the patch's normals' mean length an antipodal contact needs
+    denoise: bool = True             # points moved onto their patch's mean plane first (``denoised``)
     spare_weight: float = 0.5        # score per spare opening (fraction of the opening)
     lever_scale: float = 0.05        # m of gravity's lever arm about the closing axis that costs one score point
 
@@ -69,9 +72,41 @@ def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
     return T
 
 
+def _patch_means(P, X, tree, radius: float) -> np.ndarray:
+    """Per point of ``P``: the mean of ``X`` (rows) over the points within ``radius``."""
+    near = tree.query_ball_point(P, radius)
+    k = np.repeat(np.arange(len(P)), [len(a) for a in near])
+    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(k))
+    mean = np.stack([np.bincount(k, X[j, a], minlength=len(P)) for a in range(X.shape[1])], axis=1)
+    return mean / np.bincount(k, minlength=len(P))[:, None]
+
+
+def patch_normals(P, N, tree, radius: float):
+    """Per point: the mean of the normals within ``radius`` (a pad's contact patch), unit, and how
+    coherent they are (the mean's length: 1 on a flat patch, about 0.7 across a box's edge)."""
+    mean = _patch_means(P, N, tree, radius)
+    length = np.linalg.norm(mean, axis=1)
+    return mean / np.maximum(length, 1e-12)[:, None], length
+
+
+def denoised(P, N, radius: float) -> np.ndarray:
+    """The points moved along their patch's normal onto the patch's mean plane (the centroid and mean
+    normal within ``radius``): depth noise, mostly along the surface normal, averaged over the patch
+    (about 20 points a patch: noise cut about 4x), where the extents and the open-hand check read it.
+    On a curved patch the move is the patch's sag, under a millimetre for radius 8 mm on a 3 cm radius."""
+    tree = cKDTree(P)
+    n, _ = patch_normals(P, N, tree, radius)
+    centre = _patch_means(P, P, tree, radius)
+    return P - np.einsum("ij,ij->i", P - centre, n)[:, None] * n
+
+
 def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
+    """Pairs whose contact patches (``patch_normals`` over ``patch_radius``) are coherent and within
+    each other's friction cone: a pair across a box's edges, whose noisy point normals lean towards
+    each other, is not a pinch."""
     tree = cKDTree(P)
     cone = np.cos(np.arctan(s.friction))
+    N, coherence = patch_normals(P, N, tree, s.patch_radius)
     seeds = rng.choice(len(P), min(s.samples, len(P)), replace=False)
     near = tree.query_ball_point(P[seeds], s.max_width - s.width_margin, return_sorted=False)
     i = np.repeat(seeds, [len(k) for k in near])
@@ -80,7 +115,7 @@ def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
     i, j, widths = i[widths >= s.min_width], j[widths >= s.min_width], widths[widths >= s.min_width]
     axes = (P[j] - P[i]) / widths[:, None]
     margins = np.minimum(-np.einsum("ij,ij->i", axes, N[i]), np.einsum("ij,ij->i", N[j], axes))
-    ok = margins >= cone
+    ok = (margins >= cone) & (coherence[i] >= s.patch_coherence) & (coherence[j] >= s.patch_coherence)
     # (i, j, margin, width) of the pairs that pass the width and friction-cone tests
     pairs = np.column_stack([i[ok], j[ok], margins[ok], widths[ok]])
     most = max(1, s.max_candidates // s.approach_angles)
@@ -289,6 +324,8 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
                 pad_length=gripper.pad_length if settings.pad_length is None else settings.pad_length,
                 width_margin=2 * settings.clearance if settings.width_margin is None else settings.width_margin)
     rng = np.random.default_rng(seed)
+    if s.denoise:
+        P = denoised(P, N, s.patch_radius)
     cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng)
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
