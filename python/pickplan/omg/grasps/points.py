@@ -110,7 +110,7 @@ def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
     seeds = rng.choice(len(P), min(s.samples, len(P)), replace=False)
     near = tree.query_ball_point(P[seeds], s.max_width - s.width_margin, return_sorted=False)
     i = np.repeat(seeds, [len(k) for k in near])
-    j = np.concatenate([np.asarray(k, dtype=int) for k in near]) if len(near) else np.zeros(0, dtype=int)
+    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(i))
     widths = np.linalg.norm(P[j] - P[i], axis=1)
     i, j, widths = i[widths >= s.min_width], j[widths >= s.min_width], widths[widths >= s.min_width]
     axes = (P[j] - P[i]) / widths[:, None]
@@ -233,18 +233,21 @@ def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
 
 def _pad_fill(G, P, tree, width, s: PointGraspSettings) -> np.ndarray:
     """Per grasp frame ``G``: how much of the pads the points fill (points in the pad rectangle
-    between the fingers, 30 fill it), from the points a k-d tree finds near the pads' centre."""
+    between the fingers, 30 fill it). Candidates sharing a centre and width (an antipodal pair's
+    turns about its closing axis) share one k-d tree query and one matrix product."""
     half = np.column_stack([np.full(len(G), 0.01), width / 2 + 0.005, np.full(len(G), s.pad_length / 2)])
-    near = tree.query_ball_point(G[:, :3, 3], np.linalg.norm(half, axis=1))
-    k = np.repeat(np.arange(len(G)), [len(a) for a in near])
-    if len(k) == 0:
-        return np.zeros(len(G))
-    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(k))
-    d = P[j] - np.ascontiguousarray(G[:, :3, 3])[k]
-    inside = np.ones(len(k), dtype=bool)
-    for axis in range(3):  # the grasp-frame coordinates one axis at a time, from contiguous copies
-        inside &= np.abs(np.einsum("ij,ij->i", d, np.ascontiguousarray(G[:, :3, axis])[k])) < half[k, axis]
-    return np.minimum(1.0, np.bincount(k[inside], minlength=len(G)) / 30.0)
+    key = np.column_stack([G[:, :3, 3], width])
+    _, first, group = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    group = group.reshape(-1)
+    members = np.split(np.argsort(group, kind="stable"), np.cumsum(np.bincount(group))[:-1])
+    fill = np.zeros(len(G))
+    for f, ks, near in zip(first, members, tree.query_ball_point(G[first, :3, 3], np.linalg.norm(half[first], axis=1))):
+        if not near:
+            continue
+        R = G[ks, :3, :3].transpose(1, 0, 2).reshape(3, -1)  # the group's frames side by side
+        q = ((P[near] - G[f, :3, 3]) @ R).reshape(len(near), len(ks), 3)  # grasp-frame points
+        fill[ks] = (np.abs(q) < half[f]).all(axis=2).sum(axis=0)
+    return np.minimum(1.0, fill / 30.0)
 
 
 def _hand_clear(T, P, hand_sdf, s: PointGraspSettings) -> np.ndarray:
