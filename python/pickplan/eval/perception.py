@@ -103,10 +103,9 @@ def run_perceived_unit(unit: dict) -> dict:
     scene = Scene.from_dict(unit["scene"])
     record = {"scene": unit["scene_name"], "method": unit["method"], "target": scene.target, "views": views,
               "noise": noise, "seed": int(unit["seed"]), "valid": True}
-    obs = render_observation(scene, views=views, noise=noise, seed=int(unit["seed"]))
     settings = _omg_settings(unit)
     try:
-        world = PerceivedWorld(obs)
+        world = PerceivedWorld(render_observation(scene, views=views, noise=noise, seed=int(unit["seed"])))
     except ValueError as exc:  # e.g. the target hidden from every camera: a failed plan, said why
         record.update(status="no_world", reason=str(exc), planned=False, planning_success=False,
                       execution_success=False, unit_seconds=time.perf_counter() - t0)

@@ -43,6 +43,7 @@ from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.planner import OMGPlanner, OMGSettings
 from pickplan.omg.world import CheckerKind
 from pickplan.perception.field import FieldSettings, PerceivedScene, perceive
+from pickplan.perception.hull import HullSettings, visibility_hull
 
 TARGET = "observed target"  # the target's name in a perceived world's SDF
 
@@ -57,6 +58,8 @@ class PerceivedWorldSettings:
     target_resolution: float = 0.005  # m, the target's (excluded) distance grid
     isf_points: int = 1000            # observed target points C-Space ISF refines on (the paper: 1000)
     seed: int = 0                     # plane RANSAC, hand samples, ISF subsample
+    hull: HullSettings = dataclass_field(default_factory=HullSettings)
+    use_hull: bool = False            # grasps clear the target's visibility hull, not only its observed points
 
 
 @dataclass(frozen=True)
@@ -178,6 +181,14 @@ class PerceivedWorld:
         return Chomp(self.robot, self.sdf, self.body, exclude=(TARGET,)).problem
 
     @functools.cached_property
+    def hull(self) -> np.ndarray:
+        """Samples of where the target's unseen rest may be (``perception.hull.visibility_hull``)."""
+        t0 = time.perf_counter()
+        out = visibility_hull(self.observation, self.perceived.target_points, self.plane, self.settings.hull)
+        self.seconds["grasps"] += time.perf_counter() - t0
+        return out
+
+    @functools.cached_property
     def hand_sdf(self) -> SceneSdf:
         return self.cache.robot_derived(self.robot, "hand_sdf", lambda: isf.hand_sdf(self.robot, grids=self.cache.grids))
 
@@ -217,7 +228,7 @@ class PerceivedWorld:
         gs = grasps_from_points(self.perceived.target_points, self.perceived.target_normals, self.plane,
                                 self.hand_sdf, n=n, seed=seed, scene_distance=self.obstacle_distance,
                                 hand_points=self.hand_points[0], settings=self.settings.grasps,
-                                gripper=self.robot.info)
+                                gripper=self.robot.info, hull=self.hull if self.settings.use_hull else None)
         keep = self.clear_of_plane(gs.poses, standoff) if len(gs) else np.zeros(0, dtype=bool)
         out = GraspSet(gs.name, gs.poses[keep], gs.object_name, scores=gs.scores[keep],
                        info={k: np.asarray(v)[keep] for k, v in gs.info.items()})

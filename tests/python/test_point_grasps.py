@@ -1,0 +1,115 @@
+"""Grasps from partial point clouds (issue 22): checked in score order, sized on the cross-section the
+pads close on, gravity's lever arm, and the target's visibility hull against the true object."""
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial import cKDTree
+
+from conftest import known_scene as _known_scene
+from pickplan.core import robots
+from pickplan.omg import isf
+from pickplan.omg.grasps.points import (PointGraspSettings, footprint_candidates, gravity_lever, grasps_from_points,
+                                        mass_centre)
+from pickplan.perception.field import perceive
+from pickplan.perception.hull import HullSettings, hull_voxels, visibility_hull
+from pickplan.sim.observe import render_observation
+
+PLANE = (np.array([0.0, 0.0, 1.0]), 0.0)
+
+
+def _box_surface(lo, hi, step=0.004):
+    """Points and outward normals on the faces of an axis-aligned box (no bottom face: it stands)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    P, N = [], []
+    for axis in range(3):
+        for side, bound in ((-1, lo), (1, hi)):
+            if axis == 2 and side == -1:
+                continue
+            u, v = [k for k in range(3) if k != axis]
+            gu, gv = np.meshgrid(np.arange(lo[u], hi[u] + 1e-9, step), np.arange(lo[v], hi[v] + 1e-9, step))
+            pts = np.zeros((gu.size, 3))
+            pts[:, u], pts[:, v], pts[:, axis] = gu.ravel(), gv.ravel(), bound[axis]
+            n = np.zeros(3)
+            n[axis] = side
+            P.append(pts)
+            N.append(np.tile(n, (len(pts), 1)))
+    return np.vstack(P), np.vstack(N)
+
+
+@pytest.fixture(scope="module")
+def hand():
+    return isf.hand_sdf(robots.panda())
+
+
+def test_checking_in_score_order_keeps_the_best_of_all(hand):
+    P, N = _box_surface([0.5, -0.03, 0.0], [0.56, 0.03, 0.12])
+    few = grasps_from_points(P, N, PLANE, hand, n=8, seed=3)
+    every = grasps_from_points(P, N, PLANE, hand, n=100000, seed=3)  # every candidate checked
+    assert len(few) == 8 and len(every) > 8
+    np.testing.assert_array_equal(few.poses, every.poses[:8])
+    assert np.all(np.diff(every.scores) <= 0)
+
+
+def test_grasps_from_above_close_on_the_section_under_the_pads(hand):
+    # a body 10 cm across (wider than the opening) under an off-centre cap 2.4 cm across
+    body, nb = _box_surface([0.45, -0.05, 0.0], [0.55, 0.05, 0.15])
+    cap, nc = _box_surface([0.51, 0.008, 0.15], [0.534, 0.032, 0.19])
+    P, N = np.vstack([body, cap]), np.vstack([nb, nc])
+    s = PointGraspSettings(max_width=0.08, pad_length=0.018, width_margin=0.006)
+    above = [(G, w) for G, _, w in footprint_candidates(P, PLANE, s) if G[2, 2] < -0.99]  # straight down
+    assert above  # (pads reaching the body's shoulder would close on 10 cm: none)
+    for G, w in above:  # the pads are the cap's width across their closing axis apart, around its middle
+        assert w == pytest.approx(0.024 * np.abs(G[:2, 1]).sum(), abs=1e-6)
+        np.testing.assert_allclose(G[:2, 3], [0.522, 0.02], atol=0.003)
+    gs = grasps_from_points(P, N, PLANE, hand, n=20, seed=0)
+    assert len(gs) > 0
+
+
+def test_gravity_lever_is_the_horizontal_arm_about_the_closing_axis():
+    P, _ = _box_surface([0.5, -0.03, 0.0], [0.56, 0.03, 0.12])
+    c = mass_centre(P, PLANE)
+    np.testing.assert_allclose(c, [0.53, 0.0, 0.06], atol=1e-9)
+    G = np.tile(np.eye(4), (3, 1, 1))
+    G[:, :3, 3] = [[0.53, 0.05, 0.11], [0.56, 0.0, 0.11], [0.53, 0.0, 0.02]]  # closing along y
+    np.testing.assert_allclose(gravity_lever(G, P, PLANE), [0.0, 0.03, 0.0], atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def box_views():
+    scene, lib = _known_scene()
+    o = next(o for o in scene.objects if o.name == scene.target)
+    mesh = lib.get(scene.target).mesh.copy()
+    mesh.apply_transform(o.pose)
+    return mesh, {v: render_observation(scene, views=v) for v in (1, 3)}
+
+
+def test_the_visibility_hull_bounds_the_hidden_target_and_shrinks_with_views(box_views):
+    mesh, obs = box_views
+    s = HullSettings()
+    extent = {}
+    for views, o in obs.items():
+        perceived = perceive(o)
+        voxels, boundary = hull_voxels(o, perceived.target_points, perceived.plane, s)
+        H = visibility_hull(o, perceived.target_points, perceived.plane, s)
+        np.testing.assert_array_equal(H, voxels[boundary])
+        # every point of the true surface (above the hull's floor) lies in a hull voxel or at an
+        # observed point: the hidden side too
+        true = mesh.sample(3000)
+        true = true[true[:, 2] > s.floor + s.resolution]
+        d, _ = cKDTree(np.vstack([perceived.target_points, voxels])).query(true)
+        assert d.max() < s.resolution * np.sqrt(3) / 2 + s.surface_margin, (views, d.max())
+        # and no hull sample lies in space a camera saw empty: outside the box by more than a voxel
+        # only where the box hides it (its shadow, away from the cameras)
+        outside = trimesh.proximity.signed_distance(mesh, H) < -2 * s.resolution
+        extent[views] = outside.sum()
+    assert extent[3] < extent[1]
+
+
+def test_hull_errors(box_views):
+    _, obs = box_views
+    with pytest.raises(TypeError, match="Observation"):
+        visibility_hull(np.zeros(3), np.zeros((3, 3)), PLANE)
+    with pytest.raises(ValueError, match=r"\(N, 3\)"):
+        visibility_hull(obs[1], np.zeros((0, 3)), PLANE)
+    with pytest.raises(ValueError, match="resolution"):
+        HullSettings(resolution=0.0)
