@@ -61,6 +61,7 @@ class OMGSettings:
                                    # local refinement; verified grasps moved farther were dropped in execution)
     cost_time_stride: int = 2      # goal-cost estimates on every k-th tail waypoint ...
     cost_point_stride: int = 2     # ... and every k-th body point (rescaled)
+    transit_avoids_target: bool = True  # the target is an obstacle to the transit (before the approach)
     pre_terminate: bool = True     # stop once the plan succeeds (checked every check_every iterations)
     min_iterations: int = 10
     check_every: int = 5
@@ -262,8 +263,10 @@ class _Optimization:
         s = self.settings = settings
         self.world, self.q0, self.book, self.timings = world, q0, book, timings
         m = book.tail_length
+        # The standoff approach (the last m waypoints) carries no obstacle cost, so the transit before it
+        # may keep away from the target too: the arm does not sweep through the object it will grasp.
         self.chomp = Chomp(world.robot, world.sdf, world.body, replace(s.chomp, obstacle_tail=m),
-                           exclude=(world.target,))
+                           exclude=(world.target,), obstacle_exclude=(world.target,) if m == 0 or not s.transit_avoids_target else ())
         self.metric_settings = replace(s.metrics, tail_waypoints=m)
         self.ws = self.chomp.workspace()
         self.refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
