@@ -165,10 +165,12 @@ def fingers_straddle(model, grasp_frames: np.ndarray, gripper: RobotInfo, reach,
     (``pad_width`` along x, from the pads' inner faces at the open width outwards by a pad width along
     y) from the pads' centre to ``reach`` (m, per grasp) beyond the finger tips along the approach;
     points between the inner faces (less ``width_margin / 2``) are the grasped material."""
+    out = np.ones(len(grasp_frames), dtype=bool)
+    if len(grasp_frames) == 0:
+        return out
     pts, _ = trimesh.sample.sample_surface(model.mesh, settings.surface_samples, seed=0)
     pts = np.c_[np.asarray(pts), np.ones(len(pts))]
     half, tip = gripper.max_opening / 2, gripper.pad_length / 2
-    out = np.ones(len(grasp_frames), dtype=bool)
     for k, (G, r) in enumerate(zip(grasp_frames, np.broadcast_to(reach, len(grasp_frames)))):
         local = (np.linalg.inv(G) @ pts.T).T
         under = (np.abs(local[:, 0]) <= gripper.pad_width / 2) & (local[:, 2] >= 0) & (local[:, 2] <= tip + r) \
