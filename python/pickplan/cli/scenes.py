@@ -39,11 +39,16 @@ def add_scene_commands(subparsers) -> None:
                         "drop ends on it (lying bottles, boxes on any face); resting: any stable pose, uniformly")
     p.add_argument("--clutter", type=clutter_range, default=(SceneSettings.min_objects, SceneSettings.max_objects),
                    metavar="N-M", help="objects per scene, fewest-most (default 3-7, the paper's)")
+    p.add_argument("--robot", default="panda",
+                   help="the robot the scenes are made for (a shipped description, a short name such as 'ur5', or a "
+                        ".toml file): it stands at its start while objects settle, and the target is one its "
+                        "gripper can grasp (default panda)")
     p.set_defaults(handler=run_scenes)
 
 
 def run_scenes(args: argparse.Namespace) -> int:
-    index = write_scene_set(args.n, args.seed, args.out, args.objects, orientation=args.poses, clutter=args.clutter)
+    index = write_scene_set(args.n, args.seed, args.out, args.objects, orientation=args.poses, clutter=args.clutter,
+                            robot=args.robot)
     per = index["seconds"] / max(index["count"], 1)
     print(f"wrote {index['count']} scenes to {args.out} ({per:.2f} s per scene, objects: {index['objects']})")
     return 0

@@ -25,9 +25,3 @@ YCB_TO_HAND = np.array([[0.0, -1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 
 def panda_urdf_path() -> str:
     """The Panda URDF shipped in pybullet_data."""
     return PANDA_DESCRIPTION.urdf
-
-
-def is_scene_robot(info: RobotInfo) -> bool:
-    """Scenes place the Panda (``sim.scenes``: its ready configuration is the scene's start): a scene's
-    stored start configuration applies to this robot only."""
-    return info.name == PANDA.name

@@ -15,7 +15,7 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core.description import DescriptionError, RobotDescription, RobotInfo, load_description
-from pickplan.core.panda import (PANDA, PANDA_DESCRIPTION, PandaInfo, is_scene_robot,  # noqa: F401  (re-exported)
+from pickplan.core.panda import (PANDA, PANDA_DESCRIPTION, PandaInfo,  # noqa: F401  (re-exported)
                                  panda_urdf_path)
 from pickplan.core.paths import assets_dir  # noqa: F401  (re-exported: robots.assets_dir)
 from pickplan.core.meshes import geometry_to_trimesh

@@ -158,7 +158,8 @@ def _make_scene(job: dict) -> dict:
     path = job["path"]
     if not os.path.exists(path):
         (fewest, most), poses = job.get("clutter", (3, 7)), job.get("poses", "upright")
-        settings = SceneSettings(orientation=poses, min_objects=int(fewest), max_objects=int(most))
+        settings = SceneSettings(orientation=poses, min_objects=int(fewest), max_objects=int(most),
+                                 robot=job.get("robot", "panda"))
         generate_scene(job["seed"], objects_mod.library(job["objects"]), settings).save(path)
     return {"path": path}
 
@@ -177,7 +178,7 @@ def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None,
     folder = os.path.join(s.out, "scenes")
     os.makedirs(folder, exist_ok=True)
     jobs = [{"path": os.path.join(folder, f"scene_{i:04d}.json"), "seed": seed, "objects": s.objects,
-             "poses": s.poses, "clutter": tuple(s.clutter)}
+             "poses": s.poses, "clutter": tuple(s.clutter), "robot": s.robot}
             for i, seed in enumerate(scene_seeds(s.seed, s.scenes))]
     todo = [j for j in jobs if not os.path.exists(j["path"])]
     with sweep_runner(s) if runner is None else contextlib.nullcontext(runner) as backend:

@@ -105,19 +105,24 @@ def linear_initialization(q0: np.ndarray, goal: np.ndarray, n: int) -> np.ndarra
 class Chomp:
     """A CHOMP problem: robot + scene SDF + body points + settings.
 
-    ``exclude`` names SDF objects the obstacle cost ignores (the grasp target); ``active``
+    ``exclude`` names SDF objects the obstacle cost and the metrics ignore (the grasp target);
+    ``obstacle_exclude``, when given, replaces it for the obstacle cost only; ``active``
     marks the joints the optimizer moves (default: all; for the Panda, the 7 arm joints).
     """
 
     def __init__(self, robot: Robot, scene: SceneSdf, body: BodyPoints, settings: ChompSettings = ChompSettings(),
-                 exclude: Sequence[str] = (), active: Optional[Sequence[bool]] = None):
+                 exclude: Sequence[str] = (), active: Optional[Sequence[bool]] = None,
+                 obstacle_exclude: Optional[Sequence[str]] = None):
         self.robot, self.scene, self.body, self.settings = robot, scene, body, settings
         self.exclude_mask = sum(1 << scene.index(name) for name in exclude)
+        # the optimizer's obstacle cost may leave out fewer objects than the metrics (default: the same)
+        obstacle_mask = self.exclude_mask if obstacle_exclude is None else \
+            sum(1 << scene.index(name) for name in obstacle_exclude)
         if active is None and hasattr(robot, "info"):
             active = [i < robot.info.arm_dof for i in range(robot.dof)]
         self.active = None if active is None else list(active)
         self.problem = _core.ChompProblem(robot.native, scene.native, body.links, body.points,
-                                          settings.to_native(self.exclude_mask, self.active))
+                                          settings.to_native(obstacle_mask, self.active))
 
     @property
     def dt(self) -> float:

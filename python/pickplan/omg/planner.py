@@ -63,6 +63,7 @@ class OMGSettings:
                                    # local refinement; verified grasps moved farther were dropped in execution)
     cost_time_stride: int = 2      # goal-cost estimates on every k-th tail waypoint ...
     cost_point_stride: int = 2     # ... and every k-th body point (rescaled)
+    transit_avoids_target: bool = True  # the target is an obstacle to the transit (before the approach)
     pre_terminate: bool = True     # stop once the plan succeeds (checked every check_every iterations)
     min_iterations: int = 10
     check_every: int = 5
@@ -205,13 +206,16 @@ class OMGPlanner:
 _CHOMPS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # world -> {ChompSettings: Chomp}
 
 
-def _world_chomp(world, settings: ChompSettings) -> Chomp:
-    """The world's CHOMP problem with ``settings`` (its target excluded), built once per world and
-    settings: every plan in a world shares it (immutable; per-call scratch is the workspace)."""
+def _world_chomp(world, settings: ChompSettings, avoid_target: bool = False) -> Chomp:
+    """The world's CHOMP problem with ``settings`` (its target excluded from the metrics, and from the
+    obstacle cost unless ``avoid_target``), built once per world and settings: every plan in a world
+    shares it (immutable; per-call scratch is the workspace)."""
     per_world = _CHOMPS.setdefault(world, {})
-    if settings not in per_world:
-        per_world[settings] = Chomp(world.robot, world.sdf, world.body, settings, exclude=(world.target,))
-    return per_world[settings]
+    key = (settings, bool(avoid_target))
+    if key not in per_world:
+        per_world[key] = Chomp(world.robot, world.sdf, world.body, settings, exclude=(world.target,),
+                               obstacle_exclude=() if avoid_target else (world.target,))
+    return per_world[key]
 
 
 def _clock(settings: OMGSettings):
@@ -288,7 +292,10 @@ class _Optimization:
         s = self.settings = settings
         self.world, self.q0, self.book, self.timings = world, q0, book, timings
         m = book.tail_length
-        self.chomp = _world_chomp(world, replace(s.chomp, obstacle_tail=m))
+        # The standoff approach (the last m waypoints) carries no obstacle cost, so the transit before it
+        # may keep away from the target too: the arm does not sweep through the object it will grasp.
+        avoid = m > 0 and s.transit_avoids_target
+        self.chomp = _world_chomp(world, replace(s.chomp, obstacle_tail=m), avoid_target=avoid)
         self.metric_settings = replace(s.metrics, tail_waypoints=m)
         self.ws = self.chomp.workspace() if s.loop is PlanLoop.python else None  # the native loop has its own
         self.refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None

@@ -102,8 +102,8 @@ class World:
 
     @property
     def start(self) -> np.ndarray:
-        q = self.scene.robot_configuration  # stored for the robot scenes place (the Panda)
-        use_scene = len(q) and robots.is_scene_robot(self.robot.info)
+        q = self.scene.robot_configuration  # stored for the robot the scene was made for (Scene.robot)
+        use_scene = len(q) and self.scene.robot == self.robot.info.name
         return np.asarray(q, dtype=float) if use_scene else self.robot.ready_configuration
 
     def scene_meshes(self):

@@ -20,16 +20,18 @@ def scene_seeds(seed: int, n: int) -> List[int]:
 
 def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
                     progress: Optional[bool] = True, stream: Optional[TextIO] = None, orientation: str = "upright",
-                    clutter: Tuple[int, int] = (SceneSettings.min_objects, SceneSettings.max_objects)) -> dict:
+                    clutter: Tuple[int, int] = (SceneSettings.min_objects, SceneSettings.max_objects),
+                    robot: str = "panda") -> dict:
     """Generate ``n`` scenes into ``out`` (scene_0000.json, ...) and return the index it writes.
 
-    ``clutter`` = (fewest, most) objects per scene. The progress bar goes to ``stream`` (default: the
+    ``clutter`` = (fewest, most) objects per scene; ``robot``: the robot they are made for (SceneSettings.robot). The progress bar goes to ``stream`` (default: the
     current ``sys.stderr``); ``progress`` None shows it only when that is a terminal, False never.
     """
     if n < 1:
         raise ValueError(f"--n must be >= 1, got {n}")
     lib = objects_mod.library(objects)  # None: $PICKPLAN_YCB_DIR, else the built-ins
-    settings = SceneSettings(orientation=orientation, min_objects=int(clutter[0]), max_objects=int(clutter[1]))
+    settings = SceneSettings(orientation=orientation, min_objects=int(clutter[0]), max_objects=int(clutter[1]),
+                             robot=robot)
     os.makedirs(out, exist_ok=True)
     started = time.perf_counter()
     entries = []
@@ -44,6 +46,7 @@ def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
             bar.update()
     index = {"count": n, "seed": seed, "objects": lib.source, "orientation": orientation,
              "clutter": [settings.min_objects, settings.max_objects], "scenes": entries,
+             **({} if robot == "panda" else {"robot": robot}),
              "seconds": round(time.perf_counter() - started, 3)}
     write_json(os.path.join(out, "index.json"), index)
     return index

@@ -2,7 +2,8 @@
 
 Conventions (other modules rely on them):
 
-* world frame = Panda base frame; the Panda base sits at the origin (``robot_base`` = identity);
+* world frame = the scene's robot base frame (``robot_base`` = identity); the robot (``Scene.robot``:
+  a description's name, the Panda by default) stands at its description's base pose in it;
 * the table is a box whose top surface is the plane z = 0, spanning x in [-0.2, 1.1], y in
   [-0.8, 0.8], 0.05 m thick (``Table.pose`` is the pose of the box centre);
 * objects are dropped in the reachable area x in [0.35, 0.75], y in [-0.35, 0.35];
@@ -23,6 +24,7 @@ import numpy as np
 
 from pickplan.core import objects as objects_mod
 from pickplan.core.graspability import graspability
+from pickplan.core.description import RobotInfo, load_description
 from pickplan.core.panda import PANDA
 from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
@@ -65,9 +67,13 @@ class SceneSettings:
     robot_clearance: float = 0.01      # objects closer than this to the robot are discarded
     friction: float = 0.8
     max_attempts: int = 20
-    robot_configuration: Optional[Tuple[float, ...]] = None  # None: core.panda.PANDA.ready
+    # The robot the scene is made for (a shipped description's name, a short name or a .toml file):
+    # it stands at its start while objects settle (objects touching it are discarded) and its gripper's
+    # opening decides which objects can be the target.
+    robot: str = "panda"
+    robot_configuration: Optional[Tuple[float, ...]] = None  # None: the robot's start (description)
     # The target is drawn among the objects its gripper can grasp as they lie (core.graspability),
-    # of this opening (None: the scene robot's, the Panda's 8 cm); when none can be, among all.
+    # of this opening (None: the scene robot's, its description's max_opening); when none can be, among all.
     gripper_opening: Optional[float] = None
 
     def __post_init__(self):
@@ -101,7 +107,8 @@ class Scene:
     objects: List[SceneObject]
     target: str
     seed: Optional[int] = None
-    robot_configuration: List[float] = field(default_factory=list)  # the start configuration
+    robot_configuration: List[float] = field(default_factory=list)  # the start configuration (of ``robot``)
+    robot: str = PANDA.name        # the description the scene was made for (its robot_configuration's robot)
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:
@@ -120,6 +127,7 @@ class Scene:
             "objects": [{"name": o.name, "source": o.source, "pose": np.asarray(o.pose, dtype=float).tolist()}
                         for o in self.objects],
             "target": self.target,
+            **({} if self.robot == PANDA.name else {"robot": self.robot}),  # the Panda's files: as before
         }
 
     def to_json(self) -> str:
@@ -156,12 +164,16 @@ class Scene:
         if not np.all(size > 0):
             raise ValueError(f"table.size: expected positive extents, got {size.tolist()}")
         q = d.get("robot_configuration", [])
+        robot = d.get("robot", PANDA.name)
+        if not isinstance(robot, str) or not robot:
+            raise ValueError(f"robot: expected a robot description's name, got {robot!r}")
         if not isinstance(q, (list, tuple)):
             raise ValueError(f"robot_configuration: expected a list of joint values, got {type(q).__name__} {q!r}")
         scene = cls(robot_base=_pose(d["robot_base"], "robot_base"),
                     table=Table(size=size, pose=_pose(table["pose"], "table.pose")),
                     objects=objs, target=str(d["target"]), seed=_seed(d.get("seed")),
-                    robot_configuration=[float(x) for x in _array(q, (len(q),), "robot_configuration")])
+                    robot_configuration=[float(x) for x in _array(q, (len(q),), "robot_configuration")],
+                    robot=robot)
         check_placement(scene)
         return scene
 
@@ -197,7 +209,12 @@ def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.
     """Recreate ``scene`` in ``client``: body ids by object name, plus "table" and "robot"."""
     ids = {"table": add_table(client, scene.table)}
     if with_robot:
-        ids["robot"] = add_robot(client, scene.robot_base, scene.robot_configuration)
+        if scene.robot == PANDA.name:
+            ids["robot"] = add_robot(client, scene.robot_base, scene.robot_configuration)
+        else:
+            desc = load_description(scene.robot)
+            ids["robot"] = add_robot(client, np.asarray(scene.robot_base, dtype=float) @ desc.base_pose,
+                                     scene.robot_configuration or RobotInfo.from_description(desc).ready, desc.urdf)
     for o in scene.objects:
         model = library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
         ids[o.name] = add_object_body(client, model, o.pose)
@@ -290,7 +307,8 @@ def _resting_ok(client: int, p: _Placed, robot: int, table: Table, settings: Sce
 
 
 def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSettings()) -> Scene:
-    """Drop 3-7 sampled objects in front of the Panda, let them settle, keep those resting upright.
+    """Drop 3-7 sampled objects in front of ``settings.robot`` (the Panda by default), let them settle,
+    keep those resting upright; the target is one its gripper can grasp.
 
     ``library``: an ``ObjectLibrary``, a YCB-layout folder, or None (``objects.library()``: the
     built-ins or $PICKPLAN_YCB_DIR). Same seed, library and settings -> the identical scene: every
@@ -303,7 +321,11 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
         raise ValueError(f"library {lib.source} has {len(lib)} objects, fewer than min_objects={settings.min_objects}")
     rng = np.random.default_rng(seed)
     table = default_table(settings)
-    q = settings.robot_configuration or _panda_defaults()[1]
+    desc = load_description(settings.robot)
+    info = RobotInfo.from_description(desc)
+    q = settings.robot_configuration or info.ready
+    if len(q) != len(info.ready):
+        raise ValueError(f"robot_configuration: expected {len(info.ready)} joint values ({info.name}), got {len(q)}")
     (x0, x1), (y0, y1) = settings.region_x, settings.region_y
     client = pb.connect(pb.DIRECT)
     try:
@@ -311,7 +333,7 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
         pb.setGravity(0, 0, -9.81, physicsClientId=client)
         pb.setTimeStep(settings.time_step, physicsClientId=client)
         add_table(client, table, settings.friction)
-        robot = add_robot(client, np.eye(4), q)
+        robot = add_robot(client, desc.base_pose, q, None if info.name == PANDA.name else desc.urdf)
         kept: List[_Placed] = []
         for _attempt in range(settings.max_attempts):
             n = min(int(rng.integers(settings.min_objects, settings.max_objects + 1)), len(lib))
@@ -346,13 +368,13 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
             raise RuntimeError(f"seed {seed}: fewer than {settings.min_objects} objects came to rest in "
                                f"{settings.max_attempts} attempts")
         objs = [SceneObject(p.name, p.model.source, object_pose(client, p.body, p.model)) for p in kept]
-        opening = settings.gripper_opening or PANDA.max_opening
+        opening = settings.gripper_opening or info.max_opening
         candidates = [o for o, p in zip(objs, kept) if graspability(p.model, o.pose, opening).graspable] or objs
         target = candidates[int(rng.integers(len(candidates)))].name
     finally:
         pb.disconnect(client)
     return Scene(robot_base=np.eye(4), table=table, objects=objs, target=target,
-                 seed=None if seed is None else int(seed), robot_configuration=[float(v) for v in q])
+                 seed=None if seed is None else int(seed), robot_configuration=[float(v) for v in q], robot=info.name)
 
 
 def _settle_and_filter(client: int, placed: List[_Placed], robot: int, table: Table,

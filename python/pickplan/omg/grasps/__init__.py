@@ -26,13 +26,14 @@ from pickplan.omg.grasps.hand import (CONTACTS_FORMAT, FINGER_JOINTS, FINGER_LIN
                                       hand_contacts_path, hand_urdf_path, write_hand_contacts)
 from pickplan.omg.grasps.physics import simulated_grasps
 from pickplan.omg.grasps.pads import gripper_contacts
-from pickplan.omg.grasps.sets import KINDS, GraspKind, GraspSet, check_grasps, convert_grasps, load_grasp_set
+from pickplan.omg.grasps.sets import (KINDS, GraspKind, GraspSet, check_grasps, convert_grasps, fingers_straddle,
+                                     load_grasp_set)
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA, YCB_TO_HAND
 
 __all__ = ["AntipodalSettings", "ApproachSettings", "CONTACTS_FORMAT", "FINGER_JOINTS", "FINGER_LINKS",
            "FINGER_OPEN", "GraspKind", "GraspSet", "HAND_LINK", "HandContacts", "HandObjectChecker", "KINDS", "PAD_DEPTH",
-           "PadSettings", "YCB_TO_HAND", "antipodal_grasps", "approach_grasps", "check_grasps", "convert_grasps", "gripper_contacts",
+           "PadSettings", "YCB_TO_HAND", "antipodal_grasps", "approach_grasps", "check_grasps", "convert_grasps", "fingers_straddle", "gripper_contacts",
            "derive_hand_contacts", "grasp_set", "hand_configurations", "hand_contacts", "hand_contacts_path",
            "hand_urdf_path", "load_grasp_set", "simulated_grasps", "write_hand_contacts"]
 

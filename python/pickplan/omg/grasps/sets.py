@@ -136,6 +136,7 @@ def convert_grasps(grasps: GraspSet, model, gripper: RobotInfo, source: RobotInf
         # A shallower palm than the source's: back the hand off along the approach until it clears the object.
         check = hand_checker(model, gripper=gripper)
         hits = check.in_collision(poses)
+        backed = np.zeros(len(poses))
         for back in np.arange(1, int(settings.backoff_fraction * gripper.pad_length / settings.backoff_step) + 1):
             if not hits.any():
                 break
@@ -144,10 +145,38 @@ def convert_grasps(grasps: GraspSet, model, gripper: RobotInfo, source: RobotInf
             free = ~check.in_collision(moved)
             idx = np.flatnonzero(hits)[free]
             poses[idx] = moved[free]
+            backed[idx] = back * settings.backoff_step
             hits[idx] = False
+        # A hand backed off because a finger hit the object now holds that finger over the object (it
+        # lands on it and never closes): keep a backed-off grasp only if its fingers still straddle it.
+        moved = np.flatnonzero(backed > 0)
+        ok = np.ones(len(poses), dtype=bool)
+        ok[moved] = fingers_straddle(model, poses[moved] @ gripper.grasp_frame, gripper, backed[moved], settings)
+        ok &= ~hits  # never cleared the object within the back-off allowed
+        keep, poses = keep[ok], poses[ok]
     scores = None if grasps.scores is None else grasps.scores[keep]
     return GraspSet(grasps.name, poses, grasps.object_name, scores=scores,
                     info={"source_index": keep, "width": width[keep]})
+
+
+def fingers_straddle(model, grasp_frames: np.ndarray, gripper: RobotInfo, reach,
+                     settings: ConversionSettings = ConversionSettings()) -> np.ndarray:
+    """Per grasp frame: no object surface point lies under a finger, i.e. in the pads' footprint
+    (``pad_width`` along x, from the pads' inner faces at the open width outwards by a pad width along
+    y) from the pads' centre to ``reach`` (m, per grasp) beyond the finger tips along the approach;
+    points between the inner faces (less ``width_margin / 2``) are the grasped material."""
+    out = np.ones(len(grasp_frames), dtype=bool)
+    if len(grasp_frames) == 0:
+        return out
+    pts, _ = trimesh.sample.sample_surface(model.mesh, settings.surface_samples, seed=0)
+    pts = np.c_[np.asarray(pts), np.ones(len(pts))]
+    half, tip = gripper.max_opening / 2, gripper.pad_length / 2
+    for k, (G, r) in enumerate(zip(grasp_frames, np.broadcast_to(reach, len(grasp_frames)))):
+        local = (np.linalg.inv(G) @ pts.T).T
+        under = (np.abs(local[:, 0]) <= gripper.pad_width / 2) & (local[:, 2] >= 0) & (local[:, 2] <= tip + r) \
+            & (np.abs(local[:, 1]) > half - settings.width_margin / 2) & (np.abs(local[:, 1]) <= half + gripper.pad_width)
+        out[k] = not under.any()
+    return out
 
 
 
