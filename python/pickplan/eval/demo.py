@@ -65,7 +65,7 @@ def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
     t0 = time.perf_counter()
     os.makedirs(out, exist_ok=True)
     print(f"[1/4] generating a cluttered scene (seed {settings.seed}, built-in objects)")
-    scene = scenes.generate_scene(settings.seed)
+    scene = scenes.generate_scene(settings.seed, settings=scenes.SceneSettings(robot=settings.robot))  # made for it
     scene.save(os.path.join(out, "scene.json"))
     print(f"      {len(scene.objects)} objects; target: {scene.target}")
     print(f"[2/4] planning for {settings.robot} with the OMG planner (MD selection, C-Space ISF)")
