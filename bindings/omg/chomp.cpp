@@ -1,6 +1,7 @@
 #include "../common.hpp"
 #include "pickplan/omg/chomp.hpp"
 #include "pickplan/omg/metrics.hpp"
+#include "trajectory_results.hpp"
 
 namespace pickplan::bind {
 
@@ -36,12 +37,6 @@ py::dict terms_dict(const ObjectiveTerms& t) {
   d["total"] = t.total;
   d["colliding_points"] = t.colliding_points;
   return d;
-}
-
-py::array_t<double> to_array(const Trajectory& t) {
-  py::array_t<double> out({t.rows(), t.cols()});
-  Eigen::Map<Trajectory>(out.mutable_data(), t.rows(), t.cols()) = t;
-  return out;
 }
 
 }  // namespace
@@ -199,14 +194,7 @@ void init_chomp(py::module_& m) {
           py::gil_scoped_release release;
           mt = evaluate_trajectory(p, q, X, s);
         }
-        py::dict d;
-        d["smoothness"] = mt.smoothness;
-        d["collision"] = mt.collision;
-        d["min_clearance"] = mt.min_clearance;
-        d["min_table_clearance"] = mt.min_table_clearance;
-        d["collision_free"] = mt.collision_free;
-        d["success"] = mt.success;
-        return d;
+        return metrics_dict(mt);
       }, py::arg("xi"), py::arg("q0"), py::arg("settings"));
 
   m.def("interpolate", [](const Array& q0, const Array& xi, int steps) {

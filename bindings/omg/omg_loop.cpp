@@ -2,6 +2,7 @@
 #include "../common.hpp"
 #include "pickplan/omg/omg_loop.hpp"
 #include "refiner_holder.hpp"
+#include "trajectory_results.hpp"
 
 namespace pickplan::bind {
 
@@ -18,26 +19,9 @@ py::array_t<double> vec(const Eigen::VectorXd& v) {
   return out;
 }
 
-py::array_t<double> mat(const Trajectory& t) {
-  py::array_t<double> out({t.rows(), t.cols()});
-  Eigen::Map<Trajectory>(out.mutable_data(), t.rows(), t.cols()) = t;
-  return out;
-}
-
-py::dict metrics_dict(const TrajectoryMetrics& mt) {
-  py::dict d;
-  d["smoothness"] = mt.smoothness;
-  d["collision"] = mt.collision;
-  d["min_clearance"] = mt.min_clearance;
-  d["min_table_clearance"] = mt.min_table_clearance;
-  d["collision_free"] = mt.collision_free;
-  d["success"] = mt.success;
-  return d;
-}
-
 py::dict result_dict(const OmgLoopResult& r) {
   py::dict d;
-  d["xi"] = mat(r.xi);
+  d["xi"] = to_array(r.xi);
   d["goal"] = r.goal;
   d["iterations"] = r.iterations;
   d["metrics"] = metrics_dict(r.metrics);
