@@ -48,6 +48,9 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
   TrajectoryMetrics m;
   m.smoothness = problem.prior(xi, q0, nullptr);
   if (stop_at_failure && !(m.smoothness < s.smoothness_threshold)) return m;  // success needs both
+  // An object distance changes a metric only below this: the running minimum (min_clearance), the
+  // collision padding, or the clearance the test demands.
+  auto object_cutoff = [&m, &s] { return std::max({m.min_clearance, s.collision_padding, s.clearance, s.tail_clearance}); };
   const Trajectory dense = interpolate(q0, xi, s.steps);
   const Robot& robot = problem.robot();
   const BodyPoints& body = problem.body();
@@ -72,10 +75,9 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
     double step_min = inf;
     for (const LinkGroup& grp : problem.groups()) {
       const Transform& T = ws.link_pose[grp.link];
-      // A distance changes a metric only below its cutoff: the running minimum (min_clearance), the
-      // collision padding, or the clearance the test demands. Beyond it, a part reads as the cap
-      // (exact: the part's true distance is beyond the cutoff), for a whole group by its bound.
-      const double obj_cut = std::max({m.min_clearance, s.collision_padding, s.clearance, s.tail_clearance});
+      // Beyond its cutoff a part reads as the cap (exact: its true distance is beyond the cutoff), for a
+      // whole group by its bound.
+      const double obj_cut = object_cutoff();
       const double table_cut = std::max({m.min_table_clearance, s.collision_padding, s.table_clearance});
       const SceneSdf::PartBounds b = scene.part_lower_bounds(T.apply(grp.center), s.exclude_mask);
       const bool objects_near = b.objects - grp.radius < obj_cut, table_near = b.table - grp.radius < table_cut;
@@ -84,7 +86,7 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
       const double table_need = support ? std::min(s.table_clearance, -s.support_tolerance) : s.table_clearance;
       for (int u = grp.begin; u < grp.end; ++u) {
         const Eigen::Vector3d x = T.apply(body.points.row(u).transpose());
-        const double cut = std::max({m.min_clearance, s.collision_padding, s.clearance, s.tail_clearance});
+        const double cut = object_cutoff();  // the running minimum may have dropped within the group
         double d_obj = objects_near ? scene.distance_unmerged(x, nullptr, cut, s.exclude_mask | SceneSdf::kTableBit) : cap;
         if (d_obj >= cut) d_obj = cap;  // beyond the cutoff: as the cap would read (it changes nothing)
         const double d_table =
