@@ -41,7 +41,7 @@ from pickplan.omg.grasps.points import PointGraspSettings, grasps_from_points
 from pickplan.omg.grasps.sets import GraspSet
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.planner import OMGPlanner, OMGSettings
-from pickplan.omg.world import CheckerKind
+from pickplan.omg.world import CheckerKind, World
 from pickplan.perception.field import FieldSettings, PerceivedScene, perceive
 from pickplan.perception.hull import HullSettings, visibility_hull
 
@@ -129,6 +129,7 @@ class PerceivedWorld:
             self.sdf.add_object(TARGET, target_grid(self.perceived.target_points, settings.target_resolution), np.eye(4))
         self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
         self._refiners: dict = {}
+        self._chomps: dict = {}
         self.seconds = dict(self.perceived.seconds, world=time.perf_counter() - t0, grasps=0.0)
 
     @classmethod
@@ -241,6 +242,8 @@ class PerceivedWorld:
         k = min(self.settings.isf_points, len(P))
         idx = np.sort(np.random.default_rng(seed).choice(len(P), k, replace=False))
         return P[idx], N[idx]
+
+    chomp = World.chomp  # the same per-world CHOMP problems, on the fused field
 
     def grasp_refiner(self, settings: Optional[isf.IsfSettings] = None, seed: int = 0) -> isf.GraspRefiner:
         """C-Space ISF on the observed target points, built once per (settings, seed)."""

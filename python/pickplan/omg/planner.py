@@ -8,7 +8,6 @@ C-Space ISF refinement of the selected goal, for N iterations with pre-terminati
 from __future__ import annotations
 
 import time
-import weakref
 from dataclasses import dataclass, field, replace
 from typing import Optional, Tuple, Union
 
@@ -18,7 +17,7 @@ from pickplan.core import robots
 from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, robot_limits, time_parameterize
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
-from pickplan.omg.chomp import Chomp, ChompSettings, MetricSettings, cubic_initialization
+from pickplan.omg.chomp import ChompSettings, MetricSettings, cubic_initialization
 from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, build_goal_set
 from pickplan.omg.grasps import GraspKind
 from pickplan.omg.isf import IsfSettings
@@ -203,21 +202,6 @@ class OMGPlanner:
         return result
 
 
-_CHOMPS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # world -> {ChompSettings: Chomp}
-
-
-def _world_chomp(world, settings: ChompSettings, avoid_target: bool = False) -> Chomp:
-    """The world's CHOMP problem with ``settings`` (its target excluded from the metrics, and from the
-    obstacle cost unless ``avoid_target``), built once per world and settings: every plan in a world
-    shares it (immutable; per-call scratch is the workspace)."""
-    per_world = _CHOMPS.setdefault(world, {})
-    key = (settings, bool(avoid_target))
-    if key not in per_world:
-        per_world[key] = Chomp(world.robot, world.sdf, world.body, settings, exclude=(world.target,),
-                               obstacle_exclude=() if avoid_target else (world.target,))
-    return per_world[key]
-
-
 def _clock(settings: OMGSettings):
     """The timer ``settings.clock`` names (looked up per call: a bench may replace perf_counter)."""
     return time.thread_time if settings.clock is StageClock.thread_cpu else time.perf_counter
@@ -295,7 +279,7 @@ class _Optimization:
         # The standoff approach (the last m waypoints) carries no obstacle cost, so the transit before it
         # may keep away from the target too: the arm does not sweep through the object it will grasp.
         avoid = m > 0 and s.transit_avoids_target
-        self.chomp = _world_chomp(world, replace(s.chomp, obstacle_tail=m), avoid_target=avoid)
+        self.chomp = world.chomp(replace(s.chomp, obstacle_tail=m), avoid_target=avoid)
         self.metric_settings = replace(s.metrics, tail_waypoints=m)
         self.ws = self.chomp.workspace() if s.loop is PlanLoop.python else None  # the native loop has its own
         self.refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None

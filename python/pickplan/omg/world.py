@@ -81,6 +81,7 @@ class World:
                                                            settings.body_seed), self.robot)
         self._checkers: dict = {}
         self._refiners: dict = {}
+        self._chomps: dict = {}
         scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
         t0 = time.perf_counter()
         if settings.sdf.merged:  # the planners' obstacle costs all leave the target out
@@ -171,6 +172,17 @@ class World:
         """A CHOMP problem on this scene with the target excluded: what the success test measures
         clearances with (body points in the scene SDF); the goal set checks approaches with it."""
         return Chomp(self.robot, self.sdf, self.body, exclude=(self.target,)).problem
+
+    def chomp(self, settings, avoid_target: bool = False) -> Chomp:
+        """The CHOMP problem on this scene with ``settings`` (a ``ChompSettings``; the target left out of
+        the metrics, and of the obstacle cost unless ``avoid_target``), built once per (settings,
+        avoid_target) and kept by this world: every plan in it shares the problem (immutable; per-call
+        scratch is the workspace)."""
+        key = (settings, bool(avoid_target))
+        if key not in self._chomps:
+            self._chomps[key] = Chomp(self.robot, self.sdf, self.body, settings, exclude=(self.target,),
+                                      obstacle_exclude=() if avoid_target else (self.target,))
+        return self._chomps[key]
 
     def grasp_refiner(self, settings=None, seed: int = 0):
         """C-Space ISF for this scene's target (``isf.GraspRefiner``), built once per (settings,
