@@ -14,6 +14,7 @@ import pytest
 from pickplan import _core
 from pickplan.omg import planner as omg
 from pickplan.omg import selection
+from pickplan.omg.chomp import Chomp
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.native_loop import PlanLoop, native_policy
 from pickplan.omg.world import World
@@ -150,7 +151,7 @@ def test_native_loop_rejects_bad_input(reference_cases):
     _, scene, world, grasps = reference_cases[0]
     with pytest.raises(ValueError, match="unknown planner loop"):
         omg.OMGSettings(loop="fortran")
-    chomp = omg.Chomp(world.robot, world.sdf, world.body)
+    chomp = Chomp(world.robot, world.sdf, world.body)
     q0 = world.start
     goals = np.tile(q0, (2, 1))
     tails = np.tile(q0, (2, 5, 1))
