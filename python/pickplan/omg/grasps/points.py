@@ -59,7 +59,7 @@ class PointGraspSettings:
     rim_wall: float = 0.01           # m, the wall thickness a rim pinch assumes (centred 5 mm inside)
     patch_radius: float = 0.008      # m, an antipodal contact's patch (about half a pad)
     patch_coherence: float = 0.9     # the patch's normals' mean length an antipodal contact needs
-    denoise: bool = True             # points moved onto their patch's mean plane first (``denoised``)
+    denoise: bool = True             # points moved onto their patch's mean plane, normals fitted (``denoised``)
     spare_weight: float = 0.5        # score per spare opening (fraction of the opening)
     lever_scale: float = 0.05        # m of gravity's lever arm about the closing axis that costs one score point
 
@@ -98,6 +98,26 @@ def denoised(P, N, radius: float) -> np.ndarray:
     n, _ = patch_normals(P, N, tree, radius)
     centre = _patch_means(P, P, tree, radius)
     return P - np.einsum("ij,ij->i", P - centre, n)[:, None] * n
+
+
+def fitted_normals(P, N, radius: float) -> np.ndarray:
+    """Per point: the normal of the plane fitted to the points within ``radius`` (the covariance's
+    least eigenvector), turned to the side of ``N``. Normals from neighbouring pixels carry the depth
+    noise divided by a pixel's spacing (tens of degrees at 2 mm); a fit over a few dozen points does
+    not, so patches of a noisy flat face stay coherent. The side is the sum of ``N`` over the same points. Points with fewer than 8 neighbours keep ``N``."""
+    tree = cKDTree(P)
+    near = tree.query_ball_point(P, radius)
+    count = np.array([len(a) for a in near])
+    k = np.repeat(np.arange(len(P)), count)
+    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(k))
+    mean = np.stack([np.bincount(k, P[j, a], minlength=len(P)) for a in range(3)], axis=1) / count[:, None]
+    D = P[j] - mean[k]
+    C = np.stack([np.bincount(k, D[:, a] * D[:, b], minlength=len(P)) for a in range(3) for b in range(3)],
+                 axis=1).reshape(-1, 3, 3)
+    normal = np.linalg.eigh(C)[1][:, :, 0]  # eigenvalues ascending: the least one's vector
+    side = np.stack([np.bincount(k, N[j, a], minlength=len(P)) for a in range(3)], axis=1)  # a noisy normal
+    normal *= np.where(np.einsum("ij,ij->i", normal, side) < 0, -1.0, 1.0)[:, None]  # may be sideways; their sum is not
+    return np.where((count >= 8)[:, None], normal, N)  # a fit needs a few points more than a plane
 
 
 def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
@@ -329,6 +349,7 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     rng = np.random.default_rng(seed)
     if s.denoise:
         P = denoised(P, N, s.patch_radius)
+        N = fitted_normals(P, N, s.patch_radius / 2)
     cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng)
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
