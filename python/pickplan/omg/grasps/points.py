@@ -349,7 +349,7 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     rng = np.random.default_rng(seed)
     if s.denoise:
         P = denoised(P, N, s.patch_radius)
-        N = fitted_normals(P, N, s.patch_radius / 2)
+        N = fitted_normals(P, N, s.patch_radius)
     cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng)
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
