@@ -60,6 +60,7 @@ class PointGraspSettings:
     patch_radius: float = 0.008      # m, an antipodal contact's patch (about half a pad)
     patch_coherence: float = 0.9     # the patch's normals' mean length an antipodal contact needs
     denoise: bool = True             # points moved onto their patch's mean plane, normals fitted (``denoised``)
+    section_trim: float = 0.01       # fraction of a cross-section's points beyond each end of its width (noise)
     spare_weight: float = 0.5        # score per spare opening (fraction of the opening)
     lever_scale: float = 0.05        # m of gravity's lever arm about the closing axis that costs one score point
 
@@ -159,13 +160,17 @@ def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
                                            np.repeat(w, s.approach_angles))]
 
 
-def _section(rel, sel, y, x):
+def _section(rel, sel, y, x, trim: float):
     """The points ``rel[sel]`` (footprint-relative, flattened): their width across ``y`` and the
-    middle of their extents along ``y`` and ``x`` (None when fewer than 3)."""
+    middle of their extents along ``y`` and ``x`` (None when fewer than 3). The width runs between
+    the ``trim`` and ``1 - trim`` quantiles: the extremes of noisy points overstate it by a few
+    standard deviations, while a face the pads close on holds far more than ``trim`` of the points
+    (and a curved side's ``trim`` quantile lies microns inside it)."""
     if sel.sum() < 3:
         return None, None
     py, px = rel[sel] @ y, rel[sel] @ x
-    return float(np.ptp(py)), 0.5 * (py.max() + py.min()) * y + 0.5 * (px.max() + px.min()) * x
+    lo, hi = np.quantile(py, [trim, 1.0 - trim])
+    return float(hi - lo), 0.5 * (hi + lo) * y + 0.5 * (px.max() + px.min()) * x
 
 
 def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
@@ -197,7 +202,7 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
             lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
             for depth in s.grasp_depths:
                 height = max(lowest, top - depth)
-                width, mid = _section(rel, lo_h >= height - s.pad_length / 2, y, x)
+                width, mid = _section(rel, lo_h >= height - s.pad_length / 2, y, x, s.section_trim)
                 if fits(width):
                     centre = centre_flat + mid + height * n  # centre_flat lies on the plane
                     out.append((_frames(y, z, centre), 1.0 - abs(tilt) / (np.pi / 2), width))
@@ -205,7 +210,7 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
                     break
         for height in sorted({max(s.pad_length / 2, h) for h in (top / 2, top - s.pad_length)}):
             band = np.abs(lo_h - height) <= s.pad_length / 2
-            width, mid = _section(rel, band, y, x)
+            width, mid = _section(rel, band, y, x, s.section_trim)
             if fits(width):
                 out += _side_candidates(rel[band] - mid, centre_flat + mid + height * n, y, x, width, s)
     return out
