@@ -333,7 +333,8 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     const int max_seeds = std::max(1, st.arm_seeds);
     const GraspArmSeeds g = grasp_arm_seeds(robot, pb, st, r1.x, max_seeds > 2);
     // Run order: the IK solution; its configuration with the joint whose limits cost the most time
-    // turned by 2 pi; the shoulder flip; then the other turns, in the order found.
+    // turned by 2 pi; the other IK branches (shoulder, elbow, wrist flips, then combinations); then
+    // the other turns, in the order found.
     std::vector<Eigen::VectorXd> arms = {g.arms.front()}, later(g.arms.begin() + 1, g.arms.end());
     double ik_wall = elapsed(t_ik), ik_cpu = thread_cpu_seconds() - cpu_ik;
     double best = std::numeric_limits<double>::infinity();

@@ -119,7 +119,8 @@ struct PickupSettings {
   // Stages 2-5 run from up to this many arm configurations at T2 (1: the single IK seed of the
   // paper's scheme), in this order: the IK solution (grasp_ik_seed); the same with the arm joint
   // whose limit rows carry the largest multipliers in that run (the limit that costs the most
-  // time) turned by 2 pi away from that limit; the shoulder flip; further turns. The shortest
+  // time) turned by 2 pi away from that limit; the other IK branches (grasp_arm_seeds: shoulder,
+  // elbow, wrist flips, then their combinations); further turns. The shortest
   // solution is kept. A later seed's run (and the direct track) stops after any Ipopt run whose T
   // is not below the best found so far: rows only join, its T would not fall below it again.
   int arm_seeds = 2;
