@@ -9,7 +9,9 @@ timed with the process CPU clock (time.process_time; one thread: Ipopt/MUMPS and
 single-threaded here). A solve counts as solved when Ipopt converged AND it passes the dense checks
 (solve_problem.dense_checks: pose error at T2, non-holonomic error, clearance, joint limits, grasp
 velocity, rho >= gamma). Writes OUT/records.json and OUT/summary.md; prints the summary.
-``--shots-from OUT/records.jsonl`` reuses the single shots of an earlier run on the same problems
+``--set '{"arm_seeds": 4}'`` overrides PlannerSettings fields of the successive refinement only (the
+single shots keep the defaults: what a single shot is does not change). ``--shots-from
+OUT/records.jsonl`` reuses the single shots of an earlier run on the same problems
 (seeded and independent of the successive refinement's settings) and solves only the successive
 refinement: a change to it is then measured against the same baseline in a tenth of the time.
 
@@ -35,12 +37,12 @@ TIE = 1e-3  # relative: T within 0.1 % of the best shot counts as a tie, not as 
 
 
 def _solve(job) -> dict:
-    spec, metamodel, method, seed = job
+    spec, metamodel, method, seed, overrides = job
     robot = planner.mobile_ur5()
     rho = solve_problem.rho_for_spec(spec, metamodel, progress=False)
     problem = problem_file.native_problem(robot, spec, rho)
     t0 = time.process_time()  # the solve only (the dense checks below are the benchmark's, not the planner's)
-    p = planner.plan(robot, problem, planner.PlannerSettings(seed=seed), method)
+    p = planner.plan(robot, problem, planner.PlannerSettings(seed=seed, **overrides), method)
     cpu = time.process_time() - t0
     metrics = planner.evaluate(robot, problem, p) if p.stages_completed > 0 else None
     sol = solve_problem.ProblemSolution(spec, problem, p, metrics, solve_problem.dense_checks(problem, p, metrics))
@@ -113,7 +115,16 @@ def main(argv=None) -> int:
     ap.add_argument("--shots-from", default=None, metavar="JSONL",
                     help="take the single shots from the records.jsonl of an earlier run on the same problems (they do "
                          "not depend on the successive refinement's settings) and solve only the successive refinement")
+    ap.add_argument("--set", default="{}", metavar="JSON",
+                    help="PlannerSettings overrides (a JSON object) for the successive refinement only")
     args = ap.parse_args(argv)
+    overrides = json.loads(args.set)
+    if not isinstance(overrides, dict):
+        raise SystemExit(f"--set: expected a JSON object, got {args.set!r}")
+    try:
+        planner.PlannerSettings(**overrides)  # unknown fields or bad option values fail here, not in a worker
+    except (TypeError, ValueError) as e:
+        raise SystemExit(f"--set: {e}") from None
     if args.summarize:
         with open(args.summarize, encoding="utf-8") as f:
             print(summarize([json.loads(line) for line in f if line.strip()], 0.96))
@@ -132,9 +143,9 @@ def main(argv=None) -> int:
             raise SystemExit(f"{args.shots_from}: expected {args.shots} single shots for each of {len(specs)} problems")
     jobs = []
     for s in specs:
-        jobs.append((s, None, planner.Method.successive, 0))
+        jobs.append((s, None, planner.Method.successive, 0, overrides))
         if earlier is None:
-            jobs += [(s, None, planner.Method.single_shot, k) for k in range(args.shots)]
+            jobs += [(s, None, planner.Method.single_shot, k, {}) for k in range(args.shots)]
     os.makedirs(args.out, exist_ok=True)
     partial = os.path.join(args.out, "records.jsonl")  # one line per finished problem (a run cut short still counts)
     k, done, records = 1 if earlier else 1 + args.shots, [], []

@@ -157,6 +157,7 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("timing_seed", &PickupSettings::timing_seed)
       .def_readwrite("direct_max_iter", &PickupSettings::direct_max_iter)
       .def_readwrite("warm_start_stages", &PickupSettings::warm_start_stages)
+      .def_readwrite("refine_max_iter", &PickupSettings::refine_max_iter)
       .def_readwrite("seed_speed", &PickupSettings::seed_speed);
 
   py::class_<StageResult>(m, "StageResult")

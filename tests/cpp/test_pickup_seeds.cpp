@@ -1,4 +1,4 @@
-// Pick-up NLP, arm seeds of stages 2-5: the configurations at T2 (IK solution, shoulder flip, joints
+// Pick-up NLP, arm seeds of stages 2-5: the configurations at T2 (IK solution, its IK branches, joints
 // turned by 2 pi) reach the same grasp pose, and the successive refinement keeps the shortest run.
 #include <cmath>
 #include <limits>
@@ -43,8 +43,20 @@ TEST(PickupArmSeeds, ConfigurationsReachTheGraspPose) {
   const StageResult s1 = solve_stage(r, pb, st, 1, heuristic_seed(r, pb, st));
   ASSERT_TRUE(s1.success) << s1.status;
   const GraspArmSeeds g = grasp_arm_seeds(r, pb, st, s1.x, true);
-  ASSERT_EQ(g.arms.size(), 2u);  // the IK solution and its shoulder flip
-  EXPECT_GT(std::abs(g.arms[1][3] - g.arms[0][3]), 2.0);  // the pan turned by about pi
+  // The IK solution and its other branches: the shoulder flip first (pan turned by about pi), and
+  // among the rest an elbow flip (same pan, elbow of the opposite sign); all distinct. (Case 1's
+  // wrist flip is not offered: DLS from its closed-form start does not reach the grasp pose.)
+  ASSERT_GE(g.arms.size(), 3u);
+  EXPECT_GT(std::abs(g.arms[1][3] - g.arms[0][3]), 2.0);
+  const Eigen::VectorXd& q0 = g.arms[0];
+  bool elbow = false;
+  for (size_t i = 1; i < g.arms.size(); ++i) {
+    const Eigen::VectorXd& q = g.arms[i];
+    const bool same_pan = std::abs(std::remainder(q[3] - q0[3], 2 * M_PI)) < 0.5;
+    elbow = elbow || (same_pan && q[5] * q0[5] < 0.0);
+    for (size_t k = 0; k < i; ++k) EXPECT_GT((q - g.arms[k]).norm(), 1e-3) << i << " " << k;
+  }
+  EXPECT_TRUE(elbow);
   for (const auto& q : g.arms) {
     const auto [dp, dr] = grasp_error(r, pb, q);
     EXPECT_LT(dp, 1e-6);

@@ -67,3 +67,19 @@ def test_resolve_cap_bounds_each_warm_round(robot, case1):
     assert s_one.stage == 3 and s_one.rounds >= 2
     assert s_ref.iterations < s_one.iterations <= s_ref.iterations + (s_one.rounds - 1)
     assert s_one.status == planner.SolveStatus.max_iterations and not one.success
+
+
+def test_refine_cap_bounds_stages_4_and_5(robot, case1):
+    """refine_max_iter caps stage 4 and stage 5 each (all their rounds together); stages 1-3 are
+    untouched, and a cap above what they need changes nothing."""
+    st = dict(samples_per_interval=6, arm_seeds=1, direct_track=False)
+    free = planner.plan(robot, case1, planner.PlannerSettings(**st))
+    assert free.success and free.stages[3].iterations > 1
+    one = planner.plan(robot, case1, planner.PlannerSettings(refine_max_iter=1, **st))
+    assert [s.iterations for s in one.stages[:3]] == [s.iterations for s in free.stages[:3]]
+    assert one.stages[3].stage == 4 and one.stages[3].iterations <= 1 and not one.success
+    assert one.stages[3].status == planner.SolveStatus.max_iterations
+    need = max(s.iterations for s in free.stages[3:])
+    roomy = planner.plan(robot, case1, planner.PlannerSettings(refine_max_iter=need, **st))
+    assert np.array_equal(np.asarray(roomy.native.x), np.asarray(free.native.x))
+

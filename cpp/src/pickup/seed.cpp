@@ -184,7 +184,7 @@ double body_ik(const Robot& robot, const PickupProblem& pb, const PickupSettings
 }  // namespace
 
 GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
-                              const Eigen::VectorXd& x, bool shoulder_flip) {
+                              const Eigen::VectorXd& x, bool flips) {
   pb.validate(robot);
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
@@ -248,22 +248,46 @@ GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const
       best = q;
     }
   }
-  // The same grasp with the shoulder flipped (UR-type 6-joint arm): pan + pi, the planar chain
-  // and the wrist mirrored, then DLS. It leads the stages to a different local optimum.
+  // The same grasp on the arm's other IK branches (UR-type 6-joint arm: shoulder, elbow and wrist
+  // flips and their combinations), each from its closed-form approximation refined by DLS: they
+  // lead the stages to different local optima. The shoulder flip: pan + pi, the planar chain and
+  // the wrist mirrored. The elbow flip: elbow -> -elbow, its angle moved to the shoulder lift and
+  // wrist 1 (exact for equal upper arm and forearm; DLS corrects the rest). The wrist flip: wrist 1
+  // and 3 + pi, wrist 2 mirrored.
   GraspArmSeeds g;
   g.path = out;
   g.arms = {best};
   const int na = n - 3;
-  if (shoulder_flip && na == 6) {
-    Eigen::VectorXd f = best;
-    double* a = f.data() + 3;
-    a[0] += M_PI;
-    a[1] = -M_PI - a[1];
-    a[2] = -a[2];
-    a[3] = -M_PI - a[3];
-    a[4] = -a[4];
-    for (int j : {0, 3, 5}) a[j] = pb.arm_start[j] + std::remainder(a[j] - pb.arm_start[j], 2 * M_PI);
-    if (grasp_ik(robot, pb, st, f) < kReachTolerance && (f - best).norm() > 1e-3) g.arms.push_back(f);
+  if (flips && na == 6) {
+    const Eigen::VectorXd& lo = robot.lower_limits();
+    const Eigen::VectorXd& hi = robot.upper_limits();
+    for (int mask : {1, 2, 4, 3, 5, 6, 7}) {  // bit 0 shoulder, 1 elbow, 2 wrist: single flips first
+      Eigen::VectorXd f = best;
+      double* a = f.data() + 3;
+      if (mask & 1) {
+        a[0] += M_PI;
+        a[1] = -M_PI - a[1];
+        a[2] = -a[2];
+        a[3] = -M_PI - a[3];
+        a[4] = -a[4];
+      }
+      if (mask & 2) {
+        a[1] += a[2];
+        a[3] += a[2];
+        a[2] = -a[2];
+      }
+      if (mask & 4) {
+        a[3] += M_PI;
+        a[4] = -a[4];
+        a[5] += M_PI;
+      }
+      for (int j : {0, 1, 3, 5}) a[j] = pb.arm_start[j] + std::remainder(a[j] - pb.arm_start[j], 2 * M_PI);
+      if (grasp_ik(robot, pb, st, f) >= kReachTolerance) continue;
+      bool inside = true, fresh = true;
+      for (int j = 3; j < n; ++j) inside = inside && f[j] >= lo[j] + st.joint_limit_margin && f[j] <= hi[j] - st.joint_limit_margin;
+      for (const auto& h : g.arms) fresh = fresh && (f - h).norm() > 1e-3;
+      if (inside && fresh) g.arms.push_back(f);
+    }
   }
   return g;
 }

@@ -67,6 +67,7 @@ struct RunLimits {
   int* used = nullptr;
   int budget = std::numeric_limits<int>::max();
   int resolve_max_iter = std::numeric_limits<int>::max();
+  int stage_budget = std::numeric_limits<int>::max();  // all Ipopt runs of this one stage together
 };
 
 // bound: a run whose T ends at or above it stops the stage ("bounded"; a better solution is known).
@@ -144,6 +145,15 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     }
     PickupSettings sr = st;  // this run's iteration cap
     if (round > 0) sr.max_iter = std::min(sr.max_iter, limits.resolve_max_iter);
+    if (limits.stage_budget < std::numeric_limits<int>::max()) {
+      const int left = limits.stage_budget - res.iterations;
+      if (left <= 0) {
+        res.status = SolveStatus::max_iterations;
+        res.ipopt_status = "Not_Solved (the stage's iteration budget is spent)";
+        break;
+      }
+      sr.max_iter = std::min(sr.max_iter, left);
+    }
     if (limits.used && limits.budget < std::numeric_limits<int>::max()) {
       const int left = limits.budget - *limits.used;
       if (left <= 0) {
@@ -269,7 +279,9 @@ bool run_stages_2_to_5(const Robot& robot, const PickupProblem& pb, const Pickup
     if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, x, st.timing_fraction);
     seed_wall += elapsed(t_seed);
     seed_cpu += thread_cpu_seconds() - cpu_seed;
-    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult, bound, limits);
+    RunLimits lim = limits;  // stages 4 and 5 from a solved stage 3: a long run is a failing one
+    if (stage >= 4 && st.refine_max_iter > 0) lim.stage_budget = st.refine_max_iter;
+    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult, bound, lim);
     r.seconds += seed_wall;  // the stage's warm start (IK, timing) counts as the stage's time
     r.cpu_seconds += seed_cpu;
     seed_wall = seed_cpu = 0.0;
@@ -321,7 +333,8 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     const int max_seeds = std::max(1, st.arm_seeds);
     const GraspArmSeeds g = grasp_arm_seeds(robot, pb, st, r1.x, max_seeds > 2);
     // Run order: the IK solution; its configuration with the joint whose limits cost the most time
-    // turned by 2 pi; the shoulder flip; then the other turns, in the order found.
+    // turned by 2 pi; the other IK branches (shoulder, elbow, wrist flips, then combinations); then
+    // the other turns, in the order found.
     std::vector<Eigen::VectorXd> arms = {g.arms.front()}, later(g.arms.begin() + 1, g.arms.end());
     double ik_wall = elapsed(t_ik), ik_cpu = thread_cpu_seconds() - cpu_ik;
     double best = std::numeric_limits<double>::infinity();

@@ -119,7 +119,8 @@ struct PickupSettings {
   // Stages 2-5 run from up to this many arm configurations at T2 (1: the single IK seed of the
   // paper's scheme), in this order: the IK solution (grasp_ik_seed); the same with the arm joint
   // whose limit rows carry the largest multipliers in that run (the limit that costs the most
-  // time) turned by 2 pi away from that limit; the shoulder flip; further turns. The shortest
+  // time) turned by 2 pi away from that limit; the other IK branches (grasp_arm_seeds: shoulder,
+  // elbow, wrist flips, then their combinations); further turns. The shortest
   // solution is kept. A later seed's run (and the direct track) stops after any Ipopt run whose T
   // is not below the best found so far: rows only join, its T would not fall below it again.
   int arm_seeds = 2;
@@ -135,6 +136,11 @@ struct PickupSettings {
   int iteration_budget = 0;
   int resolve_max_iter = 0;
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers
+  // Successive: Ipopt iterations of stage 4 and of stage 5 (each, all rounds together; 0: max_iter
+  // per run). They start from stage 3's solution and multipliers and add few rows; a run that needs
+  // hundreds of iterations there usually fails (issue 23's benchmark: 86's stage 5 ran 400 to
+  // max_iterations), but solved ones needed up to 274 (problem 88): off by default (bench/PICKUP.md).
+  int refine_max_iter = 0;
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
   // closer than joint_limit_margin / 2 to its limit, a row at that instant joins and the stage is
@@ -294,14 +300,15 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem,
 Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x);
 // The arm configurations at T2 of the stage-2 seeds: `path` is x with its base path (bent through
-// a reachable base pose if needed), arms[0] the configuration of grasp_ik_seed; with shoulder_flip
-// (6-joint UR-type arm) also the same grasp with the shoulder flipped when DLS IK reaches it.
+// a reachable base pose if needed), arms[0] the configuration of grasp_ik_seed; with flips (6-joint
+// UR-type arm) also the same grasp on the other IK branches DLS reaches within the joint limits:
+// shoulder, elbow, wrist flipped, then shoulder+elbow, shoulder+wrist, elbow+wrist, all three.
 struct GraspArmSeeds {
   Eigen::VectorXd path;
   std::vector<Eigen::VectorXd> arms;  // full configurations q(T2), dof entries
 };
 GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
-                              const Eigen::VectorXd& x, bool shoulder_flip);
+                              const Eigen::VectorXd& x, bool flips);
 // The stage-2 seed: `path` with the arm polynomials blended from arm_start to q2 at s2 (then held).
 Eigen::VectorXd arm_blend_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                                const Eigen::VectorXd& path, const Eigen::VectorXd& q2);

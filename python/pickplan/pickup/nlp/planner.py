@@ -140,6 +140,7 @@ class PlannerSettings:
     iteration_budget: int = 0             # successive: later arm seeds and the direct track only below this many Ipopt iterations (0: none)
     resolve_max_iter: int = 0             # successive: Ipopt iterations of a stage's warm active-set re-solves (0: max_iter)
     warm_start_stages: bool = True        # stages 4 and 5 start from the previous stage's multipliers
+    refine_max_iter: int = 0              # successive: Ipopt iterations of stage 4 and of stage 5, each (0: max_iter per run)
 
     def __post_init__(self):
         for name, option in _OPTIONS.items():
