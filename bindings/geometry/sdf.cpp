@@ -107,6 +107,8 @@ void init_sdf(py::module_& m) {
           py::arg("cutoff") = MergedSdfSettings{}.cutoff, py::arg("brick") = MergedSdfSettings{}.brick,
           "Resample the objects not in `exclude` into one world-frame bricked grid, clamped at cutoff: queries "
           "with that exclusion and a cutoff <= this one then take one lookup.")
+      .def_property_readonly("merged_masks", &SceneSdf::merged_masks,
+                             "Object exclusion masks with a merged grid, in the order they were merged.")
       .def_property_readonly("merged_info", [](const SceneSdf& s) -> py::object {
         const MergedSdf* m = s.merged();
         if (!m) return py::none();

@@ -238,6 +238,77 @@ TEST(Chomp, GoalCostIsTheObjectiveOfTheStraightTail) {
   }
 }
 
+TEST(Chomp, StridedGoalCostsEqualABruteForceSumOverEveryStridedPoint) {
+  // The estimates with time and point strides at a later iteration (the tail starts at xi(k - 1)),
+  // with and without a merged grid and link culling, against the formula summed over every strided
+  // point at every strided step, each point's speed from its own previous strided position: culled
+  // links and reused point buffers change nothing.
+  ChompCase c = make_case();
+  const Robot& r = *c.robot;
+  const int n = 30, d = r.dof(), iteration = 7, horizon = 20;
+  const Trajectory xi = wiggly_path(c, n, 0.05);
+  // Goals around q1 and far from it: links come within reach of the box and leave it along a tail.
+  const int G = 100;
+  Trajectory goals(G, d);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  goals.row(0) = c.q1.transpose();
+  for (int g = 1; g < G; ++g)
+    for (int j = 0; j < d; ++j) goals(g, j) = c.q1[j] + u(rng) * (g < 4 ? 0.1 : 1.0);
+  int total_reentries = 0;  // a culled link back within reach with a point inside the padding
+  for (const bool merged : {false, true}) {
+    auto scene = std::make_shared<SceneSdf>(*c.scene);
+    if (merged) scene->merge(0);
+    for (const bool culling : {false, true})
+      for (const auto& [ts, ps] : {std::pair<int, int>{1, 1}, {2, 2}, {3, 2}, {2, 5}, {4, 1}}) {
+        ChompSettings s = exact_settings();
+        s.link_culling = culling;
+        s.obstacle_tail = 1;
+        s.n = n;
+        s.epsilon = 0.03;  // small padding: links leave and re-enter reach, so culling skips some steps
+        ChompProblem p(c.robot, scene, c.body, s);
+        ChompWorkspace ws(p);
+        double out[G];
+        p.goal_costs(xi, c.q0, iteration, horizon, goals, ts, ps, out, ws);
+        const int k = std::min(n - 1, n * iteration / horizon), L = n - k, last_t = L - s.obstacle_tail;
+        const Eigen::VectorXd a = k == 0 ? c.q0 : Eigen::VectorXd(xi.row(k - 1).transpose());
+        const double lambda = s.lambda * std::pow(s.lambda_growth, iteration), inv_dt = n / s.duration;
+        double total_obstacle = 0;
+        int reentries = 0;
+        for (int g = 0; g < G; ++g) {
+          const Eigen::VectorXd delta = goals.row(g).transpose() - a;
+          double obstacle = 0;
+          RobotWorkspace prev(r), cur(r);
+          r.forward_kinematics(a.data(), prev);
+          for (int t = ts; t <= last_t; t += ts) {
+            const Eigen::VectorXd q = a + delta * (double(t) / L);
+            r.forward_kinematics(q.data(), cur);
+            for (const LinkGroup& grp : p.groups()) {
+              const bool was = p.group_reach(prev, grp).any(), now = p.group_reach(cur, grp).any();
+              if (culling && !was && now) {
+                for (int u = grp.begin; u < grp.end; ++u)
+                  if (scene->distance(cur.link_pose[grp.link].apply(c.body.points.row(u).transpose()), nullptr, s.epsilon) < s.epsilon) ++reentries;
+              }
+            }
+            for (int u = 0; u < c.body.size(); u += ps) {
+              const Eigen::Vector3d x = cur.link_pose[c.body.link[u]].apply(c.body.points.row(u).transpose());
+              const Eigen::Vector3d xp = prev.link_pose[c.body.link[u]].apply(c.body.points.row(u).transpose());
+              obstacle += chomp_cost(scene->distance(x, nullptr, s.epsilon), s.epsilon, nullptr) * (x - xp).norm() * inv_dt;
+            }
+            prev = cur;
+          }
+          total_obstacle += obstacle;
+          const double expected = lambda * 0.5 * delta.squaredNorm() / L * inv_dt * inv_dt + obstacle * ps;
+          EXPECT_NEAR(out[g], expected, 1e-12 * (1 + expected))
+              << "goal " << g << " merged " << merged << " culling " << culling << " strides " << ts << "," << ps;
+        }
+        EXPECT_GT(total_obstacle, 0.0);  // the tails pass the box: the obstacle term is exercised
+        if (culling) total_reentries += reentries;
+      }
+  }
+  EXPECT_GT(total_reentries, 0);  // so reusing a step's points for the next step's speed is exercised
+}
+
 TEST(Chomp, BadInputThrowsNamingTheProblem) {
   using test::expect_invalid_argument;
   ChompCase c = make_case();

@@ -188,7 +188,13 @@ TEST(Metrics, CullingAndCutoffsEqualMeasuringEveryPoint) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-1.5, 1.5);
   int successes = 0, failures = 0;
-  for (int trial = 0; trial < 40; ++trial) {
+  // Per-object bounds first; then with merged grids for both target masks (the bounds read from them).
+  for (int trial = 0; trial < 80; ++trial) {
+    if (trial == 40) {
+      scene->merge(0);
+      scene->merge(1);
+      rng.seed(3);  // the same trajectories again
+    }
     Eigen::VectorXd q0(5), q1(5);
     for (int j = 0; j < 5; ++j) q0[j] = 0.3 * u(rng), q1[j] = u(rng);
     q0.head<2>() *= 0.2;

@@ -124,6 +124,45 @@ TEST(MergedSdf, LowerBoundNeverExceedsTheDistance) {
   }
 }
 
+TEST(MergedSdf, OneGridPerMaskEachEqualToMergingThatMaskAlone) {
+  // A planning scene keeps the target out (grasping, metrics) and in (the transit's obstacle cost):
+  // with both merged, each query reads its own grid, bit-equal to a scene merged with its mask only.
+  SceneSdf both = three_boxes(), only_out = three_boxes(), only_in = three_boxes(), reference = three_boxes();
+  both.merge(0b010);
+  both.merge(0);
+  only_out.merge(0b010);
+  only_in.merge(0);
+  ASSERT_EQ(both.num_merged(), 2);
+  EXPECT_EQ(both.merged()->exclude_mask(), 0b010u);  // the first merged
+  EXPECT_EQ(both.merged(0)->exclude_mask(), 0u);
+  EXPECT_EQ(both.merged(SceneSdf::kTableBit | 0b010)->exclude_mask(), 0b010u);  // the table bit is not an object
+  EXPECT_EQ(both.merged(0b001), nullptr);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> ux(0.2, 0.8), uy(-0.45, 0.35), uz(0.0, 0.35);
+  std::vector<double> X(3 * 4000), d_both(4000), d_one(4000), g_both(3 * 4000), g_one(3 * 4000);
+  for (double& v : X) v = 0;
+  for (int i = 0; i < 4000; ++i) X[3 * i] = ux(rng), X[3 * i + 1] = uy(rng), X[3 * i + 2] = uz(rng);
+  for (const auto& [mask, one] : {std::pair<std::uint64_t, const SceneSdf*>{0b010, &only_out}, {0, &only_in}}) {
+    both.distances(X.data(), 4000, d_both.data(), g_both.data(), 0.2, mask);
+    one->distances(X.data(), 4000, d_one.data(), g_one.data(), 0.2, mask);
+    EXPECT_EQ(d_both, d_one);
+    EXPECT_EQ(g_both, g_one);
+    for (int i = 0; i < 4000; ++i) {  // and each within the resampling error of the per-object grids
+      const Eigen::Map<const Eigen::Vector3d> x(X.data() + 3 * i);
+      EXPECT_NEAR(d_both[i], reference.distance(x, nullptr, 0.2, mask), MergedSdfSettings{}.resolution * std::sqrt(3.0) / 2);
+      EXPECT_EQ(both.lower_bound(x, mask), one->lower_bound(x, mask));
+    }
+  }
+  // Merging a mask again replaces its grid; more masks than kMaxMerged is an error, not a silent drop.
+  both.merge(0, {0.02, 0.2, 4});
+  EXPECT_EQ(both.num_merged(), 2);
+  EXPECT_EQ(both.merged(0)->settings().resolution, 0.02);
+  both.merge(0b001);
+  both.merge(0b100);
+  EXPECT_THROW(both.merge(0b011), std::invalid_argument);
+  EXPECT_EQ(both.num_merged(), SceneSdf::kMaxMerged);
+}
+
 TEST(MergedSdf, BadSettingsThrowAndAddingAnObjectDropsTheMergedGrid) {
   SceneSdf scene = three_boxes();
   EXPECT_THROW(scene.merge(0, {0.0, 0.2, 8}), std::invalid_argument);

@@ -1,5 +1,6 @@
 """The OMG planner end to end, and C-Space ISF, checked against independent truth."""
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -124,3 +125,22 @@ def test_isf_pushes_a_penetrating_hand_out(scene):
     assert before["hand"] > 0.5
     q2, after = refiner.refine(q, 40)
     assert after["hand"] < 0.2 * before["hand"]
+
+
+def test_world_merges_the_target_out_and_in(scene):
+    """Grasping and the success test leave the target out; the transit that avoids it keeps it in: each
+    reads a merged grid of its own, within the resampling error of the per-object grids."""
+    w = result_world(scene)
+    assert w.sdf.merged_excludes == [(scene.target,), ()]
+    center = w.target_pose[:3, 3]
+    rng = np.random.default_rng(0)
+    pts = center + rng.uniform(-0.15, 0.15, (3000, 3))
+    tol = w.sdf.merged_info["resolution"] * np.sqrt(3) / 2
+    unmerged = world.World(scene, world.WorldSettings(sdf=replace(world.WorldSettings().sdf, merged=False)))
+    assert unmerged.sdf.merged_excludes == []
+    for exclude in ((scene.target,), ()):
+        d, _ = w.sdf.distance(pts, 0.2, exclude=exclude)
+        d_ref, _ = unmerged.sdf.distance(pts, 0.2, exclude=exclude)
+        assert np.max(np.abs(d - d_ref)) <= tol
+    near_target = w.sdf.distance(pts, 0.2, exclude=())[0] < w.sdf.distance(pts, 0.2, exclude=(scene.target,))[0] - 0.02
+    assert near_target.sum() > 100  # the target is in one and out of the other

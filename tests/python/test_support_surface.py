@@ -222,3 +222,23 @@ def test_isf_steps_never_press_the_fingers_deeper_into_the_support(pen_world):
     assert kept > 0      # and the constrained one still refines grasps
     with pytest.raises(ValueError, match="unit vector"):
         free._native.set_support(fingers.vertices, np.array([0.0, 0.0, 2.0]), 0.0)
+
+
+def test_cached_finger_geometry_is_the_fresh_one_built_once_per_opening(pen_world):
+    """``ModelCache.finger_geometry`` (what plans use): the same hull vertices as building them from the
+    meshes, shared by worlds of the same robot, and rebuilt for another finger opening."""
+    robot, cache = pen_world.robot, pen_world.cache
+    fresh = collision.HandGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
+    cached = cache.finger_geometry(robot, pen_world.start)
+    assert np.array_equal(cached.vertices, fresh.vertices)
+    other_world = World(pen_world.scene, cache=cache)
+    assert cache.finger_geometry(other_world.robot, other_world.start).vertices is cached.vertices
+    assert not cached.vertices.flags.writeable
+    closed = np.array(pen_world.start, dtype=float)
+    closed[robot.info.arm_dof:] = robot.lower_limits[robot.info.arm_dof:]
+    narrow = cache.finger_geometry(robot, closed)
+    assert np.array_equal(narrow.vertices, collision.HandGeometry(robot, closed, robot.hand_link,
+                                                                  robot.finger_links).vertices)
+    assert not np.allclose(narrow.vertices, fresh.vertices)  # the fingers moved
+    with pytest.raises(ValueError, match="vertices"):
+        collision.HandGeometry.from_vertices(np.zeros((0, 3)))

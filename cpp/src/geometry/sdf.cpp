@@ -77,7 +77,7 @@ int SceneSdf::add_object(std::shared_ptr<const SdfGrid> grid, const Transform& p
   b.lo = b.grid->surface_lo();
   b.hi = b.grid->surface_hi();
   bodies_.push_back(std::move(b));
-  merged_.reset();
+  merged_.clear();
   return static_cast<int>(bodies_.size()) - 1;
 }
 
@@ -116,8 +116,9 @@ double SceneSdf::table_distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradi
 
 double SceneSdf::distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, double cutoff,
                           std::uint64_t exclude_mask) const {
-  if (!use_merged(exclude_mask, cutoff)) return distance_unmerged(x, gradient, cutoff, exclude_mask);
-  return merged_distance(x.data(), gradient ? gradient->data() : nullptr, cutoff,
+  const MergedSdf* merged = use_merged(exclude_mask, cutoff);
+  if (!merged) return distance_unmerged(x, gradient, cutoff, exclude_mask);
+  return merged_distance(*merged, x.data(), gradient ? gradient->data() : nullptr, cutoff,
                          has_table_ && !(exclude_mask & kTableBit));
 }
 
@@ -126,6 +127,8 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
       !std::isfinite(settings.cutoff) || settings.brick < 1 || settings.brick > 64)
     throw std::invalid_argument("merged SDF: resolution and cutoff must be finite and > 0, brick in [1, 64]");
   exclude_mask &= ~kTableBit;
+  if (!merged(exclude_mask) && num_merged() >= kMaxMerged)
+    throw std::invalid_argument("merged SDF: at most " + std::to_string(kMaxMerged) + " object masks per scene");
   // Beyond `pad` from every surface box, each object is beyond the cutoff (grid slack included).
   double pad = settings.cutoff + settings.resolution;
   for (const Body& b : bodies_) pad = std::max(pad, settings.cutoff + b.grid->resolution());
@@ -197,14 +200,20 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
     for (int i : included) best = std::min(best, box_gap_bound(bodies_[i], center, radius));
     return best;
   };
-  merged_ = std::make_shared<const MergedSdf>(MergedSdf::build(lo, hi, settings, exclude_mask, fill, lower_bound));
+  auto grid = std::make_shared<const MergedSdf>(MergedSdf::build(lo, hi, settings, exclude_mask, fill, lower_bound));
+  for (auto& m : merged_)
+    if (m->exclude_mask() == grid->exclude_mask()) {
+      m = std::move(grid);
+      return;
+    }
+  merged_.push_back(std::move(grid));
 }
 
 
 SceneSdf::PartBounds SceneSdf::part_lower_bounds(const Eigen::Vector3d& x, std::uint64_t exclude_mask) const {
   PartBounds b{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
-  if (use_merged(exclude_mask, 0.0)) {
-    b.objects = merged_->lower_bound(x.data());
+  if (const MergedSdf* merged = use_merged(exclude_mask, 0.0)) {
+    b.objects = merged->lower_bound(x.data());
   } else {
     for (int i = 0; i < num_objects(); ++i) {
       if (!(exclude_mask >> i & 1)) b.objects = std::min(b.objects, box_gap_bound(bodies_[i], x, 0.0));
@@ -280,9 +289,9 @@ void SceneSdf::distances(const double* points, long n, double* dist, double* gra
     }
     return;
   }
-  if (use_merged(exclude_mask, cutoff)) {
+  if (const MergedSdf* merged = use_merged(exclude_mask, cutoff)) {
     // The hot path, with the per-point dispatch hoisted out of the loop.
-    for (long i = 0; i < n; ++i) dist[i] = merged_distance(points + 3 * i, grad ? grad + 3 * i : nullptr, cutoff, table);
+    for (long i = 0; i < n; ++i) dist[i] = merged_distance(*merged, points + 3 * i, grad ? grad + 3 * i : nullptr, cutoff, table);
     return;
   }
   const std::uint64_t mask = table ? exclude_mask : exclude_mask | kTableBit;

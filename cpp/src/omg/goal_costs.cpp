@@ -22,43 +22,77 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
   const double lambda = settings_.lambda * std::pow(settings_.lambda_growth, iteration);
   const double eps = settings_.epsilon, inv_dt = 1.0 / dt_;
   const int last_t = L - settings_.obstacle_tail;  // the standoff approach is not charged, as in CHOMP
-  RobotWorkspace& fk_prev = ws.fk[0];
   RobotWorkspace& fk_cur = ws.fk[1];
   RobotWorkspace& fk_a = ws.fk[2];  // n >= 2: at least three
   robot_->forward_kinematics(a.data(), fk_a);  // every goal's tail starts here
-  Eigen::VectorXd q(robot_->dof());
+  // Every point_stride-th body point overall, as before the grouping, per group: its first index,
+  // count and offset in a buffer of the strided points. ws.x holds three such buffers (it has
+  // (n + 1) N >= 3 N rows): the points at the tail start (the same for every goal, transformed once
+  // per call), at the current and at the previous tail step; a group's previous points are reused
+  // for the speed when that step transformed them (the same expression: bit-equal), else recomputed.
+  const int G = static_cast<int>(groups_.size());
+  std::vector<int> first(G), count(G), offset(G);
+  int S = 0;
+  for (int gi = 0; gi < G; ++gi) {
+    const LinkGroup& grp = groups_[gi];
+    first[gi] = grp.begin + (point_stride - grp.begin % point_stride) % point_stride;
+    count[gi] = first[gi] < grp.end ? (grp.end - 1 - first[gi]) / point_stride + 1 : 0;
+    offset[gi] = S;
+    S += count[gi];
+  }
+  double* const x_a = ws.x.data() + 6L * S;
+  for (int gi = 0; gi < G; ++gi) {
+    const Transform& T = fk_a.link_pose[groups_[gi].link];
+    for (int j = 0; j < count[gi]; ++j)
+      Eigen::Map<Eigen::Vector3d>(x_a + 3L * (offset[gi] + j)) =
+          T.apply(body_.points.row(first[gi] + j * point_stride).transpose());
+  }
+  std::vector<char> valid_prev(G), valid_cur(G);
+  Eigen::VectorXd q(robot_->dof()), delta(robot_->dof());
+  const Transform* prev_pose = nullptr;  // link poses of the previous tail step
+  RobotWorkspace& fk_prev = ws.fk[0];
   for (int g = 0; g < goals.rows(); ++g) {
-    const Eigen::VectorXd delta = goals.row(g).transpose() - a;
+    delta = goals.row(g).transpose() - a;
     // Prior of a constant-velocity tail: L equal steps of delta / L.
     double f = lambda * 0.5 * delta.squaredNorm() / L * inv_dt * inv_dt;
     double obstacle = 0;
-    fk_prev.link_pose = fk_a.link_pose;
+    double* x_cur = ws.x.data();
+    double* x_prev = x_a;
+    std::fill(valid_prev.begin(), valid_prev.end(), 1);
+    prev_pose = fk_a.link_pose.data();
     for (int t = time_stride; t <= last_t; t += time_stride) {
       q = a + delta * (static_cast<double>(t) / L);
       robot_->forward_kinematics(q.data(), fk_cur);
-      for (const LinkGroup& grp : groups_) {
+      for (int gi = 0; gi < G; ++gi) {
+        valid_cur[gi] = 0;
+        const LinkGroup& grp = groups_[gi];
         const GroupReach reach = group_reach(fk_cur, grp);
         if (!reach.any()) continue;  // every point beyond epsilon: no cost
         const Transform& T = fk_cur.link_pose[grp.link];
-        // Every point_stride-th body point overall, as before the grouping: transformed into
-        // ws.x and looked up in one batch (ws.x, ws.d are scratch here).
-        const int first = grp.begin + (point_stride - grp.begin % point_stride) % point_stride;
-        long count = 0;
-        for (int u = first; u < grp.end; u += point_stride, ++count)
-          Eigen::Map<Eigen::Vector3d>(ws.x.data() + 3 * count) = T.apply(body_.points.row(u).transpose());
-        scene_->distances(ws.x.data(), count, ws.d.data(), nullptr, eps, settings_.exclude_mask, reach.objects,
-                          reach.table);
-        const Transform& Tp = fk_prev.link_pose[grp.link];
-        for (long j = 0; j < count; ++j) {
+        double* xg = x_cur + 3L * offset[gi];
+        const int c = count[gi];
+        for (int j = 0; j < c; ++j)
+          Eigen::Map<Eigen::Vector3d>(xg + 3L * j) = T.apply(body_.points.row(first[gi] + j * point_stride).transpose());
+        valid_cur[gi] = 1;
+        scene_->distances(xg, c, ws.d.data(), nullptr, eps, settings_.exclude_mask, reach.objects, reach.table);
+        const Transform& Tp = prev_pose[grp.link];
+        const double* xpg = x_prev + 3L * offset[gi];
+        for (int j = 0; j < c; ++j) {
           const double d = ws.d[j];
           if (d >= eps) continue;
-          const Eigen::Vector3d x = Eigen::Map<const Eigen::Vector3d>(ws.x.data() + 3 * j);
-          const Eigen::Vector3d xp = Tp.apply(body_.points.row(first + j * point_stride).transpose());
+          const Eigen::Vector3d x = Eigen::Map<const Eigen::Vector3d>(xg + 3L * j);
+          const Eigen::Vector3d xp = valid_prev[gi] ? Eigen::Vector3d(Eigen::Map<const Eigen::Vector3d>(xpg + 3L * j))
+                                                    : Tp.apply(body_.points.row(first[gi] + j * point_stride).transpose());
           // Speed over the strided step, times the step count it stands for.
           obstacle += chomp_cost(d, eps, nullptr) * (x - xp).norm() * inv_dt;
         }
       }
+      // The current step becomes the previous one (its poses kept, its point buffer swapped in).
       std::swap(fk_prev.link_pose, fk_cur.link_pose);
+      prev_pose = fk_prev.link_pose.data();
+      x_prev = x_cur;
+      x_cur = (x_cur == ws.x.data()) ? ws.x.data() + 3L * S : ws.x.data();
+      std::swap(valid_prev, valid_cur);
     }
     out[g] = f + obstacle * point_stride;
   }

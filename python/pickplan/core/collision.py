@@ -240,6 +240,16 @@ class HandGeometry:
             raise ValueError(f"links {list(finger_links)} have no collision geometry")
         self.vertices = np.concatenate(chunks)  # (V, 3) in the hand frame
 
+    @classmethod
+    def from_vertices(cls, vertices) -> "HandGeometry":
+        """The same from hull vertices already in the hand frame (e.g. kept by a ``ModelCache``)."""
+        V = np.asarray(vertices, dtype=float)
+        if V.ndim != 2 or V.shape[1] != 3 or len(V) == 0:
+            raise ValueError(f"hand geometry: expected (V, 3) vertices, got shape {V.shape}")
+        out = cls.__new__(cls)
+        out.vertices = V
+        return out
+
     def penetration(self, hand_poses, normal: np.ndarray, offset: float) -> np.ndarray:
         """(N,) how far the links reach below the plane (m; negative: above it) for (N, 4, 4) hand poses."""
         H = np.asarray(hand_poses, dtype=float).reshape(-1, 4, 4)

@@ -185,8 +185,15 @@ class SceneSdf:
     def merge(self, exclude: Sequence[str] = (), resolution: float = 0.01, cutoff: float = 0.2,
               brick: int = 4) -> None:
         """Resample every object but ``exclude`` into one world-frame grid clamped at ``cutoff``:
-        queries with the same exclusion and a cutoff no larger take a single lookup."""
+        queries with the same exclusion and a cutoff no larger take a single lookup. A scene keeps one
+        merged grid per exclusion (at most 4; merging an exclusion again replaces its grid);
+        ``merged_info`` describes the first."""
         self._native.merge([self.index(n) for n in exclude], float(resolution), float(cutoff), int(brick))
+
+    @property
+    def merged_excludes(self) -> list:
+        """The object names each merged grid leaves out, one tuple per grid, in the order merged."""
+        return [tuple(n for i, n in enumerate(self._names) if mask >> i & 1) for mask in self._native.merged_masks]
 
     @property
     def merged_info(self) -> Optional[dict]:

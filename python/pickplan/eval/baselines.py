@@ -27,7 +27,7 @@ import numpy as np
 
 from pickplan.core import collision
 from pickplan.omg import grasps as grasps_mod
-from pickplan.omg.chomp import Chomp, cubic_initialization
+from pickplan.omg.chomp import cubic_initialization
 from pickplan.omg.goals import build_goal_set
 from pickplan.omg.planner import OMGSettings, PlanResult, PlanStatus
 from pickplan.sim.scenes import Scene
@@ -71,7 +71,7 @@ class SupportValidity:
         fingers = tuple(self.robot.finger_links)
         self.relaxed = world.checker(CheckerKind.transit).native if fingers else None
         # the fingers keep q0's opening along a path: their hulls in the hand frame are fixed
-        self.fingers = collision.HandGeometry(self.robot, q0, self.robot.hand_link, fingers) if fingers else None
+        self.fingers = world.cache.finger_geometry(self.robot, q0) if fingers else None
         self.tolerance = collision.SupportContact(tolerance).resolved(self.robot) if fingers else 0.0
         self.normal, self.offset = world.support_plane
 
@@ -104,8 +104,8 @@ class _Problem:
         if len(self.gs) == 0:
             return
         self.m = self.gs.tails.shape[1]
-        self.chomp = Chomp(self.world.robot, self.world.sdf, self.world.body, replace(s.chomp, obstacle_tail=self.m),
-                           exclude=(self.world.target,))
+        # the world's problem (built once per settings): the target left out of the obstacle cost and the metrics
+        self.chomp = self.world.chomp(replace(s.chomp, obstacle_tail=self.m))
         self.metric_settings = replace(s.metrics, tail_waypoints=self.m)
         t = time.perf_counter()
         xi = cubic_initialization(self.q0, self.gs.goals[0], s.chomp.n)

@@ -123,6 +123,7 @@ class Chomp:
         self.active = None if active is None else list(active)
         self.problem = _core.ChompProblem(robot.native, scene.native, body.links, body.points,
                                           settings.to_native(obstacle_mask, self.active))
+        self._native_metrics: dict = {}  # MetricSettings -> its native struct (native_metric_settings)
 
     @property
     def dt(self) -> float:
@@ -164,7 +165,15 @@ class Chomp:
         return self.problem.metrics(xi, q0, self.native_metric_settings(settings))
 
     def native_metric_settings(self, settings: MetricSettings = MetricSettings()) -> "_core.MetricSettings":
-        """``settings`` resolved for this robot and scene (support links and tolerance, excluded objects)."""
+        """``settings`` resolved for this robot and scene (support links and tolerance, excluded objects),
+        converted once per settings value and kept (every plan's success test reads them; the native
+        struct is shared: read it, do not modify it)."""
+        cached = self._native_metrics.get(settings)
+        if cached is None:
+            cached = self._native_metrics[settings] = self._resolve_metric_settings(settings)
+        return cached
+
+    def _resolve_metric_settings(self, settings: MetricSettings) -> "_core.MetricSettings":
         fingers = getattr(self.robot, "finger_links", ())
         mask = settings.support_link_mask
         if mask is None:

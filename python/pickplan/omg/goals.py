@@ -181,7 +181,9 @@ def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, st
     tolerance = settings.contact.resolved(robot)
     max_shift = 0.5 * gripper.pad_length if settings.max_shift is None else float(settings.max_shift)
     pad_depth = float(gripper.grasp_frame[2, 3])
-    fingers = collision.HandGeometry(robot, start, robot.hand_link, robot.finger_links)
+    fingers = world.cache.finger_geometry(robot, start)
+    if fingers is None:
+        raise ValueError("support adjustment: the robot's hand has no finger links")
     normal, offset = world.support_plane
 
     def depths(H):  # deepest finger point at the grasp and at the pre-grasp; moving back lifts both alike

@@ -9,7 +9,7 @@ import trimesh
 
 from pickplan import _core
 from pickplan.omg import grasps
-from pickplan.core import collision, sdf
+from pickplan.core import sdf
 from pickplan.core.settings import to_native
 
 if TYPE_CHECKING:  # the world owns its refiner; isf only reads it
@@ -95,9 +95,7 @@ class GraspRefiner:
                                           world.body.points, exclude, settings.to_native(active))
         fingers = tuple(getattr(robot, "finger_links", ()))
         if fingers:  # ISF steps may let the fingers touch the support, not press deeper into it
-            start = np.asarray(world.start, dtype=float)
-            vertices = cache.robot_derived(robot, ("finger_hull_vertices", start.tobytes()), lambda: collision.HandGeometry(
-                robot, start, robot.hand_link, fingers).vertices)
+            vertices = cache.finger_geometry(robot, world.start).vertices
             normal, offset = world.support_plane
             self._native.set_support(vertices, np.asarray(normal, dtype=float), float(offset))
 

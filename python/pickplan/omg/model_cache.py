@@ -61,6 +61,22 @@ class ModelCache:
         return self.robot_derived(robot, "link_meshes",
                                   lambda: {name: robot.collision_meshes(name) for name in robot.link_names})
 
+    def finger_geometry(self, robot, q) -> Optional[collision.HandGeometry]:
+        """The fingers' collision hulls in the hand frame with the fingers as in ``q`` (None for a hand
+        without finger links), kept per robot model and opening: a plan does not load the finger meshes
+        and build their hulls again."""
+        fingers = tuple(getattr(robot, "finger_links", ()))
+        if not fingers:
+            return None
+        q = np.asarray(q, dtype=float)
+        def build():
+            vertices = collision.HandGeometry(robot, q, robot.hand_link, fingers).vertices
+            vertices.setflags(write=False)  # shared by every world of this robot
+            return vertices
+
+        vertices = self.robot_derived(robot, ("finger_hull_vertices", q.tobytes()), build)
+        return collision.HandGeometry.from_vertices(vertices)
+
     def body_points(self, robot, per_link: int, seed: int):
         return self.robot_derived(robot, ("body", int(per_link), int(seed)),
                                   lambda: robot.sample_body_points(per_link, seed=seed))

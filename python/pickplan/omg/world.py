@@ -84,9 +84,13 @@ class World:
         self._chomps: dict = {}
         scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
         t0 = time.perf_counter()
-        if settings.sdf.merged:  # the planners' obstacle costs all leave the target out
-            self.sdf.merge(exclude=(scene.target,), resolution=settings.sdf.merged_resolution,
-                           cutoff=settings.sdf.merged_cutoff)
+        if settings.sdf.merged:
+            # Two object masks, one merged grid each (bricks fill lazily, on first lookup): the target
+            # left out (grasping, the success test, the approach) and the target in (the transit's
+            # obstacle cost when it avoids the target, ``World.chomp(avoid_target=True)``).
+            for exclude in ((scene.target,), ()):
+                self.sdf.merge(exclude=exclude, resolution=settings.sdf.merged_resolution,
+                               cutoff=settings.sdf.merged_cutoff)
         self.merge_seconds = time.perf_counter() - t0
 
     @property

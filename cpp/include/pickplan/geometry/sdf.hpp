@@ -84,9 +84,24 @@ class SceneSdf {
   // Resamples the minimum over the objects not in `exclude_mask` into one world-frame bricked
   // grid (see MergedSdf). Afterwards, queries with that object mask and a cutoff no larger than
   // settings.cutoff take one lookup (plus the analytic table); others use the per-object path.
-  // Adding an object drops the merged grid. Throws std::invalid_argument on bad settings.
+  // A scene keeps one merged grid per object mask (at most kMaxMerged; merging a mask again
+  // replaces its grid): e.g. the target left out (grasping) and the target in (the transit).
+  // Adding an object drops the merged grids. Throws std::invalid_argument on bad settings.
   void merge(std::uint64_t exclude_mask, const MergedSdfSettings& settings = {});
-  const MergedSdf* merged() const { return merged_.get(); }
+  static constexpr int kMaxMerged = 4;
+  // The first grid merged (nullptr if none), or the one for an object mask (table bit ignored).
+  const MergedSdf* merged() const { return merged_.empty() ? nullptr : merged_.front().get(); }
+  const MergedSdf* merged(std::uint64_t exclude_mask) const {
+    for (const auto& m : merged_)
+      if ((exclude_mask & ~kTableBit) == m->exclude_mask()) return m.get();
+    return nullptr;
+  }
+  int num_merged() const { return static_cast<int>(merged_.size()); }
+  std::vector<std::uint64_t> merged_masks() const {
+    std::vector<std::uint64_t> out;
+    for (const auto& m : merged_) out.push_back(m->exclude_mask());
+    return out;
+  }
 
   int num_objects() const { return static_cast<int>(bodies_.size()); }
   bool has_table() const { return has_table_; }
@@ -123,22 +138,25 @@ class SceneSdf {
   double table_distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient) const;
   // The merged grid (objects) and optionally the table, for a query use_merged() accepts
   // (inline: it is the per-point body of the batched hot loop).
-  double merged_distance(const double* x, double* gradient, double cutoff, bool table) const;
-  bool use_merged(std::uint64_t exclude_mask, double cutoff) const {
-    return merged_ && (exclude_mask & ~kTableBit) == merged_->exclude_mask() && cutoff <= merged_->cutoff();
+  double merged_distance(const MergedSdf& merged, const double* x, double* gradient, double cutoff, bool table) const;
+  // The merged grid that answers this query exactly as built (nullptr: the per-object path).
+  const MergedSdf* use_merged(std::uint64_t exclude_mask, double cutoff) const {
+    const MergedSdf* m = merged(exclude_mask);
+    return m && cutoff <= m->cutoff() ? m : nullptr;
   }
 
   std::vector<Body> bodies_;
-  std::shared_ptr<const MergedSdf> merged_;
+  std::vector<std::shared_ptr<const MergedSdf>> merged_;
   bool has_table_ = false;
   bool table_axis_aligned_ = false;
   Eigen::Vector3d table_half_ = Eigen::Vector3d::Zero();
   Transform table_pose_, table_inverse_;
 };
 
-inline double SceneSdf::merged_distance(const double* x, double* gradient, double cutoff, bool table) const {
+inline double SceneSdf::merged_distance(const MergedSdf& merged, const double* x, double* gradient, double cutoff,
+                                        bool table) const {
   double g[3];
-  double best = merged_->distance(x, gradient ? g : nullptr);
+  double best = merged.distance(x, gradient ? g : nullptr);
   if (best >= cutoff) {
     best = cutoff;
     g[0] = g[1] = g[2] = 0.0;
