@@ -145,24 +145,20 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     }
     PickupSettings sr = st;  // this run's iteration cap
     if (round > 0) sr.max_iter = std::min(sr.max_iter, limits.resolve_max_iter);
-    if (limits.stage_budget < std::numeric_limits<int>::max()) {
-      const int left = limits.stage_budget - res.iterations;
+    // Caps the run at `left` iterations; false (the stage stops, said why) when none are left.
+    const auto cap = [&](int left, const char* budget) {
       if (left <= 0) {
         res.status = SolveStatus::max_iterations;
-        res.ipopt_status = "Not_Solved (the stage's iteration budget is spent)";
-        break;
+        res.ipopt_status = std::string("Not_Solved (") + budget + " iteration budget is spent)";
+        return false;
       }
       sr.max_iter = std::min(sr.max_iter, left);
-    }
-    if (limits.used && limits.budget < std::numeric_limits<int>::max()) {
-      const int left = limits.budget - *limits.used;
-      if (left <= 0) {
-        res.status = SolveStatus::max_iterations;
-        res.ipopt_status = "Not_Solved (the successive refinement's iteration budget is spent)";
-        break;
-      }
-      sr.max_iter = std::min(sr.max_iter, left);
-    }
+      return true;
+    };
+    constexpr int kNoCap = std::numeric_limits<int>::max();
+    if (limits.stage_budget < kNoCap && !cap(limits.stage_budget - res.iterations, "the stage's")) break;
+    if (limits.used && limits.budget < kNoCap && !cap(limits.budget - *limits.used, "the successive refinement's"))
+      break;
     IpoptRun run = run_ipopt(part, sr, x, mu, warm.lambda.size() ? &warm : nullptr);
     if (limits.used) *limits.used += run.iterations;
     if (run.mult.lambda.size() == part.num_constraints()) {

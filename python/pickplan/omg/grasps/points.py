@@ -73,21 +73,31 @@ def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
     return T
 
 
-def _patch_means(P, X, tree, radius: float) -> np.ndarray:
-    """Per point of ``P``: the mean of ``X`` (rows) over the points within ``radius``."""
+def _neighbourhoods(P, tree, radius: float):
+    """The points within ``radius`` of each point of ``P``, flattened: owner indices k, neighbour indices j."""
     near = tree.query_ball_point(P, radius)
     k = np.repeat(np.arange(len(P)), [len(a) for a in near])
     j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(k))
-    mean = np.stack([np.bincount(k, X[j, a], minlength=len(P)) for a in range(X.shape[1])], axis=1)
-    return mean / np.bincount(k, minlength=len(P))[:, None]
+    return k, j
+
+
+def _means(k, j, X, n: int) -> np.ndarray:
+    """Per owner 0..n-1 of the pairs (k, j): the mean of the rows ``X[j]``."""
+    total = np.stack([np.bincount(k, X[j, a], minlength=n) for a in range(X.shape[1])], axis=1)
+    return total / np.bincount(k, minlength=n)[:, None]
+
+
+def _unit_means(k, j, N, n: int):
+    """The unit mean of the normals ``N`` per owner, and how coherent they are (the mean's length)."""
+    mean = _means(k, j, N, n)
+    length = np.linalg.norm(mean, axis=1)
+    return mean / np.maximum(length, 1e-12)[:, None], length
 
 
 def patch_normals(P, N, tree, radius: float):
     """Per point: the mean of the normals within ``radius`` (a pad's contact patch), unit, and how
     coherent they are (the mean's length: 1 on a flat patch, about 0.7 across a box's edge)."""
-    mean = _patch_means(P, N, tree, radius)
-    length = np.linalg.norm(mean, axis=1)
-    return mean / np.maximum(length, 1e-12)[:, None], length
+    return _unit_means(*_neighbourhoods(P, tree, radius), N, len(P))
 
 
 def denoised(P, N, radius: float) -> np.ndarray:
@@ -95,9 +105,9 @@ def denoised(P, N, radius: float) -> np.ndarray:
     normal within ``radius``): depth noise, mostly along the surface normal, averaged over the patch
     (about 20 points a patch: noise cut about 4x), where the extents and the open-hand check read it.
     On a curved patch the move is the patch's sag, under a millimetre for radius 8 mm on a 3 cm radius."""
-    tree = cKDTree(P)
-    n, _ = patch_normals(P, N, tree, radius)
-    centre = _patch_means(P, P, tree, radius)
+    k, j = _neighbourhoods(P, cKDTree(P), radius)
+    n, _ = _unit_means(k, j, N, len(P))
+    centre = _means(k, j, P, len(P))
     return P - np.einsum("ij,ij->i", P - centre, n)[:, None] * n
 
 
@@ -105,19 +115,16 @@ def fitted_normals(P, N, radius: float) -> np.ndarray:
     """Per point: the normal of the plane fitted to the points within ``radius`` (the covariance's
     least eigenvector), turned to the side of ``N``. Normals from neighbouring pixels carry the depth
     noise divided by a pixel's spacing (tens of degrees at 2 mm); a fit over a few dozen points does
-    not, so patches of a noisy flat face stay coherent. The side is the sum of ``N`` over the same points. Points with fewer than 8 neighbours keep ``N``."""
-    tree = cKDTree(P)
-    near = tree.query_ball_point(P, radius)
-    count = np.array([len(a) for a in near])
-    k = np.repeat(np.arange(len(P)), count)
-    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(k))
-    mean = np.stack([np.bincount(k, P[j, a], minlength=len(P)) for a in range(3)], axis=1) / count[:, None]
-    D = P[j] - mean[k]
+    not, so patches of a noisy flat face stay coherent. The side is the mean of ``N`` over the same
+    points. Points with fewer than 8 neighbours keep ``N``."""
+    k, j = _neighbourhoods(P, cKDTree(P), radius)
+    count = np.bincount(k, minlength=len(P))
+    D = P[j] - _means(k, j, P, len(P))[k]
     C = np.stack([np.bincount(k, D[:, a] * D[:, b], minlength=len(P)) for a in range(3) for b in range(3)],
                  axis=1).reshape(-1, 3, 3)
     normal = np.linalg.eigh(C)[1][:, :, 0]  # eigenvalues ascending: the least one's vector
-    side = np.stack([np.bincount(k, N[j, a], minlength=len(P)) for a in range(3)], axis=1)  # a noisy normal
-    normal *= np.where(np.einsum("ij,ij->i", normal, side) < 0, -1.0, 1.0)[:, None]  # may be sideways; their sum is not
+    side = _means(k, j, N, len(P))  # one noisy normal may be sideways; their mean is not
+    normal *= np.where(np.einsum("ij,ij->i", normal, side) < 0, -1.0, 1.0)[:, None]
     return np.where((count >= 8)[:, None], normal, N)  # a fit needs a few points more than a plane
 
 
