@@ -8,6 +8,7 @@ import os
 import numpy as np
 import pytest
 
+from pickplan.core.description import robot_info
 from pickplan.eval import experiments as E
 from pickplan.cli import bench as C
 
@@ -228,7 +229,7 @@ def test_timed_execution_follows_the_timed_trajectory(scene_dir, tmp_path):
             executed.append(r)
             assert r["execution_run"] and r["execution_status"] != "not_executed"
             x = ExecutionSettings()  # sim time = the timed approach + the fixed settle, close, lift and hold phases
-            fixed = x.start_settle + x.approach_settle + x.close_duration + x.lift_duration + x.hold_duration
+            fixed = x.start_settle + x.approach_settle + x.closing_time(robot_info('panda')) + x.lift_duration + x.hold_duration
             assert r["execution_sim_time"] == pytest.approx(fixed + r["trajectory_duration"], abs=3 * x.time_step)
     if not executed:
         pytest.skip("no scene planned successfully")

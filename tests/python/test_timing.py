@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from pickplan.core.description import robot_info
 from pickplan.core.panda import PANDA
 from pickplan.core.timing import (Interpolation, KinematicLimits, TimedTrajectory, panda_limits,
                                   time_parameterize)
@@ -196,7 +197,7 @@ def test_executing_the_timed_plan_lifts_on_its_schedule(demo_plan):
     assert by_waypoints.success
     assert by_time.success and by_time.status == "lifted" and by_time.target_lift > 0.8 * s.lift_height
     assert not by_time.collided and by_time.tracking_error < 0.05
-    fixed = s.start_settle + s.approach_settle + s.close_duration + s.lift_duration + s.hold_duration
+    fixed = s.start_settle + s.approach_settle + s.closing_time(robot_info('panda')) + s.lift_duration + s.hold_duration
     assert by_time.sim_time == pytest.approx(fixed + timed.duration, abs=3 * s.time_step)
     assert by_time.sim_time < by_waypoints.sim_time  # the limits allow a faster approach than 0.1 s per waypoint
 

@@ -32,6 +32,11 @@ else:  # pragma: no cover - Python < 3.11 reads TOML with the tomli backport
     import tomli as tomllib
 
 ROBOTS_FOLDER = "robots"   # under assets/
+# Where a description states no gripper force, speed or pad friction: a small electric parallel
+# gripper's (the Franka Hand's 70 N continuous grasp force, 0.1 m/s), rubber-like pads.
+DEFAULT_GRIP_FORCE = 70.0    # N each pad presses an object with
+DEFAULT_GRIP_SPEED = 0.1     # m/s per finger
+DEFAULT_PAD_FRICTION = 1.0   # Coulomb coefficient (times the object's own, as the simulator combines them)
 
 
 class DescriptionError(ValueError):
@@ -58,6 +63,9 @@ class GripperSpec:
     pad_length: float          # m of finger along the approach axis that touches
     pad_width: float           # m across the finger
     grasp_frame: np.ndarray    # 4x4 in the hand link: z approach, y closing, origin between the pads
+    force: float = DEFAULT_GRIP_FORCE        # N each pad presses an object with when the gripper squeezes
+    speed: float = DEFAULT_GRIP_SPEED        # m/s each finger closes at
+    pad_friction: float = DEFAULT_PAD_FRICTION  # Coulomb coefficient of the pads (times an object's own)
 
 
 @dataclass(frozen=True)
@@ -107,6 +115,9 @@ class RobotInfo:
     arm_acceleration_limits: tuple           # rad/s^2
     arm_jerk_limits: Optional[tuple]         # rad/s^3 (stated for controllers; not enforced)
     finger_acceleration_limit: float         # m/s^2 or rad/s^2
+    grip_force: float = 0.0       # N each pad presses with when the gripper squeezes (description's gripper.force)
+    grip_speed: float = 0.0       # m/s each finger closes at (gripper.speed)
+    pad_friction: float = 0.0     # Coulomb coefficient of the pads (gripper.pad.friction)
 
     @classmethod
     def from_description(cls, desc: RobotDescription) -> "RobotInfo":
@@ -125,7 +136,8 @@ class RobotInfo:
                    pad_length=float(g.pad_length), pad_width=float(g.pad_width), grasp_frame=np.array(g.grasp_frame),
                    arm_velocity_limits=desc.velocity_limits, arm_acceleration_limits=tuple(acceleration),
                    arm_jerk_limits=desc.jerk_limits,
-                   finger_acceleration_limit=float(desc.finger_acceleration_limit or DEFAULT_FINGER_ACCELERATION))
+                   finger_acceleration_limit=float(desc.finger_acceleration_limit or DEFAULT_FINGER_ACCELERATION),
+                   grip_force=float(g.force), grip_speed=float(g.speed), pad_friction=float(g.pad_friction))
 
     @property
     def key(self) -> tuple:
@@ -321,7 +333,7 @@ def parse_description(name_or_file: str) -> Tuple[Optional[RobotDescription], Li
 
 def _gripper(r: _Reader, g: dict) -> Optional[GripperSpec]:
     w = "gripper."
-    r.unknown(g, ("hand_link", "finger_links", "finger_joints", "max_opening", "pad", "grasp_frame"), w)
+    r.unknown(g, ("hand_link", "finger_links", "finger_joints", "max_opening", "pad", "grasp_frame", "force", "speed"), w)
     hand = r.get(g, "hand_link", str, w, default="")
     links = r.get(g, "finger_links", list, w, default=[])
     joints = []
@@ -339,12 +351,19 @@ def _gripper(r: _Reader, g: dict) -> Optional[GripperSpec]:
     if not 0 < opening <= 0.5:
         r.problems.append(f"{w}max_opening: expected metres in (0, 0.5], got {opening}")
     pad = r.get(g, "pad", dict, w, default={}, required=False)
-    r.unknown(pad, ("length", "width"), f"{w}pad.")
+    r.unknown(pad, ("length", "width", "friction"), f"{w}pad.")
+    grip = {k: r.get(t, key, float, where, default=d, required=False)
+            for k, t, key, where, d in (("force", g, "force", w, DEFAULT_GRIP_FORCE),
+                                        ("speed", g, "speed", w, DEFAULT_GRIP_SPEED),
+                                        ("pad_friction", pad, "friction", f"{w}pad.", DEFAULT_PAD_FRICTION))}
+    for k, v in grip.items():
+        if not v > 0:
+            r.problems.append(f"{w}{'pad.friction' if k == 'pad_friction' else k}: expected a positive value, got {v}")
     frame = r.pose(g, "grasp_frame", w)
     frame = np.eye(4) if frame is None else frame
     return GripperSpec(hand, tuple(links), tuple(joints), opening,
                        r.get(pad, "length", float, f"{w}pad.", default=0.0, required=bool(pad)),
-                       r.get(pad, "width", float, f"{w}pad.", default=0.0, required=bool(pad)), frame)
+                       r.get(pad, "width", float, f"{w}pad.", default=0.0, required=bool(pad)), frame, **grip)
 
 
 def _absolute_meshes(root: ET.Element, urdf: str) -> None:

@@ -3,7 +3,8 @@
 Beside the built-in YCB stand-ins (``objects_builtin``), these families cover what a user puts on a
 table and the paper's objects do not: thin and flat things (pens, dishes, flat boxes, scissor- and
 clamp-like tools), small things (under 3 cm), things wider than a parallel gripper in some
-directions (long boxes, pots) and non-convex things (handles, loops, lids).
+directions (long boxes, pots, bowls held by the wall, short cans), non-convex things (handles, loops,
+lids) and tools whose mass sits at one end (hammers).
 
 Every object is a union of simple solids: its mesh is that union (watertight, by manifold3d through
 trimesh) and its collision parts are the solids themselves (convex), so no decomposition is needed.
@@ -165,9 +166,43 @@ def _jar(rng) -> Generated:
     return Generated(parts, rng.uniform(0.15, 0.45), rng.uniform(0.4, 0.8), "jar")
 
 
+def _bowl(rng) -> Generated:
+    """An open bowl wider than the gripper opens: a thin wall flaring out in steps (a ledge between
+    tiers) from a foot, so only its wall or rim can be pinched, one pad inside."""
+    R, wall, tiers = rng.uniform(0.045, 0.06), rng.uniform(0.004, 0.006), int(rng.integers(2, 4))
+    tier_h, flare = rng.uniform(0.018, 0.025), rng.uniform(0.008, 0.014)
+    parts = [_cylinder(R - wall * 0.5, 0.005, (0.0, 0.0, 0.0025))]
+    for k in range(tiers):
+        r = R + k * flare
+        parts += _ring_segments((0.0, 0.0, (k + 0.5) * tier_h), r - wall, r, tier_h, segments=16)
+        if k:  # the ledge from the tier under it out to this one
+            parts += _ring_segments((0.0, 0.0, k * tier_h + wall / 2), r - flare - wall, r, wall, segments=16)
+    return Generated(parts, rng.uniform(0.12, 0.4), rng.uniform(0.4, 0.8), "bowl")
+
+
+def _tin(rng) -> Generated:
+    """A short can (tuna, polish): wider than tall, a rolled rim at each end; lying on its side, its
+    flat ends are the only pair a gripper can close on."""
+    r, h, rim = rng.uniform(0.03, 0.045), rng.uniform(0.025, 0.045), rng.uniform(0.001, 0.002)
+    parts = [_cylinder(r, h, (0.0, 0.0, h / 2)), _cylinder(r + rim, 0.004, (0.0, 0.0, 0.002)),
+             _cylinder(r + rim, 0.004, (0.0, 0.0, h - 0.002))]
+    return Generated(parts, rng.uniform(0.08, 0.25), rng.uniform(0.3, 0.6), "tin")
+
+
+def _hammer(rng) -> Generated:
+    """A hammer-like tool lying flat: a long handle and a bulky head at one end, so its centre of mass
+    sits far from the handle's middle; heavy for its size."""
+    length, width, thick = rng.uniform(0.2, 0.3), rng.uniform(0.022, 0.03), rng.uniform(0.016, 0.022)
+    head = (rng.uniform(0.025, 0.035), rng.uniform(0.085, 0.11), rng.uniform(0.024, 0.03))
+    parts = [_box((length, width, thick), (0.0, 0.0, head[2] / 2)),
+             _box(head, (length / 2 - head[0] / 2, 0.0, head[2] / 2))]
+    return Generated(parts, rng.uniform(0.35, 0.7), rng.uniform(0.3, 0.6), "hammer")
+
+
 FAMILIES: Dict[str, Callable[[np.random.Generator], Generated]] = {
     "pen": _pen, "dish": _dish, "flat_box": _flat_box, "scissors": _scissors, "clamp": _clamp,
-    "small": _small, "long_box": _long_box, "pot": _pot, "jar": _jar,
+    "small": _small, "long_box": _long_box, "pot": _pot, "jar": _jar, "bowl": _bowl, "tin": _tin,
+    "hammer": _hammer,
 }
 
 

@@ -1,5 +1,6 @@
 """Summaries of sweep records: the paper tables' rows per method, and per target object (planning,
-execution, no_goals with their reasons, ungraspable targets counted apart)."""
+execution, the slip of lifted targets in the hand and the failed executions by status, no_goals with
+their reasons, ungraspable targets counted apart)."""
 from __future__ import annotations
 
 import math
@@ -18,6 +19,23 @@ def _mean(xs: Iterable[Optional[float]]) -> float:
 
 def _graspable(r: dict) -> bool:
     return r.get("graspable", True)  # records made before the verdict existed: graspable
+
+
+SLIPPED = (0.01, 10.0)  # m, deg: a lifted target that moved or turned this much in the hand slipped
+OUTCOMES = ("dropped", "missed", "collision")  # failed executions of successful plans, by status
+
+
+def execution_outcomes(rs: Sequence[dict]) -> dict:
+    """Of units' records: the slip of the targets in the hand (median over lifted units, m and deg),
+    how many lifted targets slipped (``SLIPPED``), and the failed executions by status."""
+    lifted = [r for r in rs if r.get("execution_success")]
+    slips = [r.get("slip") for r in lifted]
+    turns = [r.get("slip_rotation") for r in lifted]
+    known = [(a, b) for a, b in zip(slips, turns) if a is not None and b is not None and math.isfinite(a)]
+    return {"slip": float(np.median([a for a, _ in known])) if known else float("nan"),
+            "slip_rotation": float(np.median([b for _, b in known])) if known else float("nan"),
+            "slipped": sum(a > SLIPPED[0] or b > SLIPPED[1] for a, b in known),
+            **{k: sum(r.get("execution_status") == k for r in rs) for k in OUTCOMES}}
 
 
 def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict]:
@@ -47,6 +65,7 @@ def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict
             "duration": _mean(r.get("trajectory_duration") for r in planned),
             "goal_set_time": _mean(r["goal_set_time"] for r in planned),
             "goal_set_size": _mean(r["goal_set_size"] for r in planned),
+            **execution_outcomes(valid),
         }
     return out
 
@@ -81,5 +100,6 @@ def summarize_by_object(records: Sequence[dict], methods: Sequence[str]) -> Dict
                 "no_goals_reasons": dict(reasons.most_common()),
                 "ungraspable": len(rs) - n,
                 "ungraspable_reasons": dict(Counter(r.get("reason", "") for r in rs if not _graspable(r))),
+                **execution_outcomes(ok),
             }
     return out

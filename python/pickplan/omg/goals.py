@@ -14,6 +14,7 @@ from pickplan import _core
 from pickplan.core.poses import RIGID_CLEAN_TOLERANCE, rigid_errors
 from pickplan.core import collision
 from pickplan.core.settings import Option, to_native
+from pickplan.omg.grasps.quality import QualitySettings
 from pickplan.omg.world import CheckerKind, World
 
 
@@ -95,6 +96,10 @@ class GoalSetSettings:
     0 disables the check."""
 
     approach_clearance: float = 0.01
+    # Grasps whose pads cannot hold the target as it lies against gravity and the carry
+    # (``grasps.quality``) are rejected ("slips", "misses") and the rest tried best margin first;
+    # None: every grasp, in the order given.
+    quality: Optional[QualitySettings] = QualitySettings()
     standoff: float = 0.08
     standoff_steps: int = 4
     max_joint_jump: float = 0.5
@@ -104,7 +109,7 @@ class GoalSetSettings:
     seed: int = 0
 
     def to_native(self) -> "_core.GoalSetSettings":
-        return to_native(self, _core.GoalSetSettings, skip=("approach_clearance",))
+        return to_native(self, _core.GoalSetSettings, skip=("approach_clearance", "quality"))
 
 
 @dataclass
@@ -116,12 +121,14 @@ class GoalSet:
     reasons: list            # per input grasp: "ok" or why it was rejected
     seconds: float
     adjusted: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # (N,) moved off the support
+    margin: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (N,) grasp quality margin (nan: not judged)
 
     def __len__(self) -> int:
         return int(self.goals.shape[0])
 
     def reason_counts(self) -> dict:
-        return dict(Counter(self.reasons))
+        """Rejections by reason; no grasps at all is "no_candidates" (counted, so a table says why)."""
+        return dict(Counter(self.reasons)) if len(self.grasps) else {"no_candidates": 1}
 
 
 def check_grasps(grasps) -> np.ndarray:
@@ -219,8 +226,10 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     """Goal configurations for the world's target from grasps in its object frame.
 
     With ``collision_check``, grasps are first met with the support (``support_adjusted``): the
-    returned ``GoalSet.grasps`` are the grasps as used (moved ones flagged in ``adjusted``).
-    An object with no reachable grasp gives an empty goal set (with reasons), not an exception.
+    returned ``GoalSet.grasps`` are the grasps as used (moved ones flagged in ``adjusted``); then
+    judged by ``settings.quality`` (``World.grasp_quality``): those that do not hold are rejected and the
+    rest tried best margin first. An object with no reachable grasp gives an empty goal set (with
+    reasons), not an exception.
     """
     grasps = check_grasps(grasps)
     start = world.start if start is None else np.asarray(start, dtype=float)
@@ -235,11 +244,19 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     hand_checker = world.checker(CheckerKind.hand).native if collision_check else None
     problem = world.clearance_problem if collision_check and settings.approach_clearance > 0 else None
     tried = np.flatnonzero(~blocked)
+    reasons = ["support_penetration"] * len(grasps)
+    margin = np.full(len(grasps), np.nan)
+    if collision_check and settings.quality is not None and len(tried):
+        quality = world.grasp_quality(grasps[tried], settings.quality)
+        margin[tried] = quality.margin
+        for k, fit in zip(tried, quality.fit):
+            reasons[k] = fit.value
+        tried = tried[quality.order()]
+        tried = tried[np.asarray([reasons[k] == "holds" for k in tried], dtype=bool)]
     out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses[tried], start,
                                settings.to_native(), problem, float(settings.approach_clearance))
-    reasons = ["support_penetration"] * len(grasps)
     for k, reason in zip(tried, out["reasons"]):
         reasons[k] = reason
     grasp_index = tried[np.asarray(out["grasp_index"], dtype=int)] if len(tried) else np.zeros(0, int)
     return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), grasp_index.astype(int),
-                   grasps, reasons, float(out["seconds"]), adjusted)
+                   grasps, reasons, float(out["seconds"]), adjusted, margin)

@@ -37,7 +37,9 @@ from pickplan.core.sdf import SceneSdf
 from pickplan.omg import isf
 from pickplan.omg.chomp import Chomp
 from pickplan.omg.goals import GoalSetSettings
-from pickplan.omg.grasps.points import PointGraspSettings, grasps_from_points
+from pickplan.omg.grasps import quality
+from pickplan.omg.grasps.points import (PointGraspSettings, denoised, fitted_normals, grasps_from_points,
+                                        points_load)
 from pickplan.omg.grasps.sets import GraspSet
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.planner import OMGPlanner, OMGSettings
@@ -235,6 +237,27 @@ class PerceivedWorld:
                        info={k: np.asarray(v)[keep] for k, v in gs.info.items()})
         self.seconds["grasps"] += time.perf_counter() - t0
         return out
+
+    @functools.cached_property
+    def _quality_points(self):
+        """The observed target points and normals denoised as grasps from points read them, and the
+        points' k-d tree."""
+        P, N = self.perceived.target_points, self.perceived.target_normals
+        if self.settings.grasps.denoise:
+            P = denoised(P, N, self.settings.grasps.patch_radius)
+            N = fitted_normals(P, N, self.settings.grasps.patch_radius)
+        return P, N, cKDTree(P)
+
+    def grasp_quality(self, grasps: np.ndarray, settings: quality.QualitySettings) -> quality.Quality:
+        """The quality (``grasps.quality``) of hand poses (world frame) on the observed target: patches
+        on its denoised points (an unseen side mirrors the seen one), its load from the points
+        (``points.points_load``: ``settings.point_density`` over their hull down to the plane)."""
+        P, N, tree = self._quality_points
+        load = points_load(P, self.plane, settings.point_density)
+        frames = np.asarray(grasps, float).reshape(-1, 4, 4) @ self.robot.info.grasp_frame
+        grip = quality.Grip.of(self.robot.info, settings.object_friction)
+        return quality.grasp_quality(P, frames, load, grip, settings, tree, mirror=True,
+                                     compliance=settings.point_compliance, normals=N)
 
     def isf_surface(self, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
         """A seeded subsample of the observed target points and normals (what ISF refines on)."""

@@ -18,6 +18,7 @@ from pickplan.core.settings import Option
 from pickplan.sim.scenes import Scene
 from pickplan.omg import isf
 from pickplan.omg.chomp import Chomp
+from pickplan.omg.grasps import quality
 from pickplan.omg.model_cache import ModelCache
 
 
@@ -170,6 +171,14 @@ class World:
         up = np.asarray(self.scene.table.pose, dtype=float)[:3, 2]
         return graspability(self.target_model, self.target_pose, self.robot.info.max_opening, up,
                             ray_mesh=self.cache.ray_mesh(self.target_model.mesh))
+
+    def grasp_quality(self, grasps: np.ndarray, settings: quality.QualitySettings) -> quality.Quality:
+        """The quality (``grasps.quality``) of hand poses in the target's frame, the target as it lies,
+        for this robot's gripper; the target's surface samples and their k-d tree are kept by the cache."""
+        model = self.target_model
+        key = ("pad_points", quality.mesh_key(model.mesh), settings.spacing, settings.max_samples, settings.seed)
+        surface = self.cache.derived(key, lambda: quality.surface_tree(model.mesh, settings))
+        return quality.model_quality(model, grasps, self.target_pose, self.robot.info, settings, surface)
 
     @functools.cached_property
     def clearance_problem(self):

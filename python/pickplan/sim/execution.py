@@ -10,9 +10,11 @@ default, with its gripper) is loaded at the scene's base and reset to ``trajecto
    the joint speed limits are slowed down (a ``TimedTrajectory`` is followed at its own times, its
    velocities as the feed-forward, resampled to the control rate); contacts of the robot with every
    body but the target are recorded (max penetration per body);
-2. **close**: both finger joints are commanded together to their closed value, squeezing with ``finger_force`` N
-   per finger; PyBullet ignores the URDF's ``<mimic>``, so a gear constraint makes the second finger
-   follow the first (``couple_fingers``), as the real hand's mechanism does;
+2. **close**: both finger joints are commanded together to their closed value at ``finger_speed``, squeezing
+   with ``finger_force`` N per finger (both by default the robot description's gripper ``speed`` and
+   ``force``) for ``close_duration`` (by default: the fingers' travel at that speed, plus
+   ``close_settle``); PyBullet ignores the URDF's ``<mimic>``, so a gear constraint makes the second
+   finger follow the first (``couple_fingers``), as the real hand's mechanism does;
 3. **lift**: the hand moves straight up by ``lift_height`` with its orientation held: joint targets
    come from the native damped-least-squares IK of the hand link (the arm joints),
    precomputed from the last waypoint (the arm's commanded pose while closing);
@@ -20,6 +22,10 @@ default, with its gripper) is loaded at the scene's base and reset to ``trajecto
 
 "Execution success" (the paper's metric) = the target's centre of mass rose by at least
 ``success_lift_fraction * lift_height`` and the target is still between the fingers at the end.
+
+Beside the status, ``ExecutionResult.slip`` / ``slip_rotation``: how far the target's centre of mass
+moved and how far it turned in the hand from the closed grasp to the end of the hold (the grasp's own
+test: a lifted target that slid 2 cm held by luck).
 
 ``ExecutionResult.status``: "lifted" (success); otherwise "collision" (the robot penetrated a
 non-target object or the table deeper than ``collision_depth`` while following the plan),
@@ -48,6 +54,7 @@ from pickplan.core import robots
 from pickplan.core.description import load_description
 from pickplan.sim import bodies
 from pickplan.sim import render as viz
+from pickplan.sim.render import RecordSettings, save_frames, save_gif  # noqa: F401 - where callers find them
 
 
 class ExecutionStatus(Option):
@@ -79,9 +86,11 @@ class ExecutionSettings:
     velocity_gain: float = 1.0            # weight of the velocity feed-forward term
     # --- gripper
     couple_fingers: bool = True           # a gear constraint keeps finger 2 = finger 1, like the real hand
-    finger_force: float = 40.0            # N per finger when squeezing (Franka Hand: 70 N continuous)
-    finger_speed: float = 0.1             # m/s per finger while closing
-    close_duration: float = 0.5           # s from the close command to the lift
+    finger_force: Optional[float] = None  # N per finger when squeezing; None: the description's gripper.force
+    finger_speed: Optional[float] = None  # m/s per finger while closing; None: the description's gripper.speed
+    close_duration: Optional[float] = None  # s from the close command to the lift; None: the time the fingers
+    #                                       take from open to closed at finger_speed, plus close_settle
+    close_settle: float = 0.25            # s the squeeze settles for after the fingers could have closed
     finger_friction: float = 1.0          # lateral friction of the finger pads (the URDF's value)
     finger_spinning_friction: float = 0.1 # torsional friction of the pads (the URDF's value)
     object_friction: float = 0.8          # lateral friction of the objects (and the table)
@@ -101,11 +110,11 @@ class ExecutionSettings:
     def __post_init__(self):
         for name in ("time_step", "waypoint_dt", "finger_force", "finger_speed", "lift_duration",
                      "ik_damping"):
-            if not getattr(self, name) > 0:
+            if getattr(self, name) is not None and not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("start_settle", "approach_settle", "close_duration", "hold_duration", "lift_height",
-                     "hold_margin", "min_finger_gap", "collision_depth", "joint_limit_tolerance"):
-            if not getattr(self, name) >= 0:
+        for name in ("start_settle", "approach_settle", "close_duration", "close_settle", "hold_duration",
+                     "lift_height", "hold_margin", "min_finger_gap", "collision_depth", "joint_limit_tolerance"):
+            if getattr(self, name) is not None and not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.arm_forces is not None:
             arm = len(load_description(self.robot).arm_joints)
@@ -118,24 +127,13 @@ class ExecutionSettings:
         if self.lift_waypoints < 1 or self.solver_iterations < 1:
             raise ValueError("lift_waypoints and solver_iterations must be >= 1")
 
-
-@dataclass(frozen=True)
-class RecordSettings:
-    """Frames rendered headless (TinyRenderer) every ``every`` simulation steps, first and last included."""
-
-    every: int = 24                       # steps between frames (0.1 s at 240 Hz)
-    width: int = 320
-    height: int = 240
-    max_frames: int = 300                 # later frames are dropped (the last one is always kept)
-    target: Tuple[float, float, float] = (0.4, 0.0, 0.3)   # orbit camera (viz.render)
-    distance: float = 1.5
-    yaw: float = 45.0
-    pitch: float = -25.0
-    colorize: bool = True                 # paint the objects (target red); visuals only, physics unchanged
-
-    def __post_init__(self):
-        if self.every < 1 or self.width < 8 or self.height < 8 or self.max_frames < 2:
-            raise ValueError("RecordSettings: need every >= 1, width/height >= 8, max_frames >= 2")
+    def closing_time(self, info) -> float:
+        """Seconds from the close command to the lift for a robot (``RobotInfo``): ``close_duration``, else
+        the fingers' travel from open to closed at the closing speed, plus ``close_settle``."""
+        if self.close_duration is not None:
+            return float(self.close_duration)
+        speed = self.finger_speed if self.finger_speed is not None else info.grip_speed
+        return abs(info.finger_travel) / float(speed) + self.close_settle
 
 
 @dataclass
@@ -158,6 +156,10 @@ class ExecutionResult:
     seconds: float                         # wall time of the whole call
     message: str = ""
     frames: List[np.ndarray] = field(default_factory=list, repr=False)
+    slip: float = float("nan")             # m the target's centre of mass moved in the hand from the closed grasp
+                                           # to the end of the hold (nan: not between the fingers after closing)
+    slip_rotation: float = float("nan")    # deg the target turned in the hand over the same time
+    grip_force: float = 0.0                # N per finger the gripper squeezed with (settings or description)
 
     def to_dict(self) -> dict:
         """JSON-ready (frames left out)."""
@@ -191,6 +193,9 @@ class _Sim:
 
     def __init__(self, pb, client, ids, models, scene, settings, record, info):
         self.pb, self.c, self.s, self.record, self.info = pb, client, settings, record, info
+        # the gripper's squeeze and closing speed: the settings', else the robot description's
+        self.grip_force = float(settings.finger_force if settings.finger_force is not None else info.grip_force)
+        self.grip_speed = float(settings.finger_speed if settings.finger_speed is not None else info.grip_speed)
         self.robot = ids["robot"]
         self.names = {bid: name for name, bid in ids.items() if name != "robot"}
         self.bodies = {name: bid for name, bid in ids.items() if name not in ("robot", "table")}
@@ -203,6 +208,7 @@ class _Sim:
         self.arm = [joints[name] for name in info.arm_joints]
         self.fingers = [joints[name] for name in info.finger_joints]
         self.finger_links = [links[name] for name in info.finger_links]
+        self.hand = links[info.hand_link]
         self.forces = list(settings.arm_forces) if settings.arm_forces is not None else \
             [pb.getJointInfo(self.robot, j, physicsClientId=client)[10] for j in self.arm]
         self.steps = 0
@@ -229,7 +235,7 @@ class _Sim:
         """Every finger joint to ``value`` (a joint value: open, closed or between)."""
         for j in self.fingers:  # one command for both (and the gear constraint couples them)
             self.pb.setJointMotorControl2(self.robot, j, self.pb.POSITION_CONTROL, targetPosition=float(value),
-                                          force=float(force), maxVelocity=self.s.finger_speed,
+                                          force=float(force), maxVelocity=self.grip_speed,
                                           physicsClientId=self.c)
 
     def step(self, watch_contacts: bool = False) -> None:
@@ -256,6 +262,13 @@ class _Sim:
         the sum of its two finger joint positions)."""
         states = self.pb.getJointStates(self.robot, self.fingers, physicsClientId=self.c)
         return float(self.info.max_opening - sum(abs(st[0] - self.info.finger_open) for st in states))
+
+    def in_hand(self) -> np.ndarray:
+        """The target's pose (its model frame) in the hand link's frame."""
+        state = self.pb.getLinkState(self.robot, self.hand, computeForwardKinematics=True, physicsClientId=self.c)
+        H = np.eye(4)
+        H[:3, :3], H[:3, 3] = scenes_mod._quat_to_mat(state[5]), state[4]
+        return np.linalg.inv(H) @ scenes_mod.object_pose(self.c, self.bodies[self.target], self.models[self.target])
 
     def held(self) -> bool:
         """The target touches (within hold_margin) both fingers, and the fingers are not shut."""
@@ -394,29 +407,30 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         if s.couple_fingers:  # PyBullet ignores <mimic>: couple the fingers' motion with a gear constraint
             gear = pb.createConstraint(sim.robot, sim.fingers[0], sim.robot, sim.fingers[1], pb.JOINT_GEAR,
                                        [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=client)
-            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * s.finger_force, physicsClientId=client)
+            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * sim.grip_force, physicsClientId=client)
         com0 = {name: scene_com(name) for name in sim.bodies}
         if record is not None:
             if record.colorize:
-                _colorize(pb, client, sim)
+                viz.colorize(client, sim.bodies, sim.target)
             sim.capture()
 
         # 1. approach
         zero = np.zeros(robot.dof)
         sim.command_arm(Q[0], zero)
-        sim.command_fingers(Q[0, robot.info.arm_dof], s.finger_force)
+        sim.command_fingers(Q[0, robot.info.arm_dof], sim.grip_force)
         for _ in range(int(round(s.start_settle / s.time_step))):
             sim.step(True)
         segments = ([(s.time_step, 1)] * (len(Q) - 1) if timed is not None
                     else _segment_steps(Q, robot.velocity_limits, s))
-        _follow(sim, Q, segments, True, s.finger_force, True, None if timed is None else timed.qd)
+        _follow(sim, Q, segments, True, sim.grip_force, True, None if timed is None else timed.qd)
         _hold(sim, Q[-1], s.approach_settle, True)
         target_pushed = float(np.linalg.norm(sim.com(scene.target) - com0[scene.target]))
 
         # 2. close (arm holds the last waypoint)
-        sim.command_fingers(robot.info.finger_closed, s.finger_force)
-        _hold(sim, Q[-1], s.close_duration, False)
+        sim.command_fingers(robot.info.finger_closed, sim.grip_force)
+        _hold(sim, Q[-1], s.closing_time(robot.info), False)
         held_after_close = sim.held()
+        grasped = sim.in_hand()  # the target in the hand as the lift starts: slip is measured from here
 
         # 3. lift, 4. hold
         q_lift = Q[-1].copy()  # continue from the commanded pose, so the arm target does not jump
@@ -424,7 +438,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         lift = _lift_path(robot, q_lift, s)
         seg = s.lift_duration / s.lift_waypoints
         _follow(sim, lift, [(seg, max(1, int(round(seg / s.time_step))))] * s.lift_waypoints, False,
-                s.finger_force, False)
+                sim.grip_force, False)
         _hold(sim, lift[-1], s.hold_duration, False)
 
         # outcome
@@ -432,6 +446,8 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         com_final = {name: sim.com(name) for name in sim.bodies}
         held = sim.held()
         gap = sim.finger_gap()
+        slip, slip_rotation = _slip(grasped, sim.in_hand(), models[scene.target].com) if held_after_close \
+            else (float("nan"), float("nan"))
         if record is not None and sim.steps % record.every != 0:
             sim.capture()
         finite = np.all(np.isfinite(sim.joint_positions())) and all(np.all(np.isfinite(c)) for c in com_final.values())
@@ -462,30 +478,13 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                               if n != scene.target},
         target_pushed=target_pushed, held=bool(held), finger_gap=gap, tracking_error=sim.tracking_error,
         sim_time=sim.steps * s.time_step, steps=sim.steps, seconds=time.perf_counter() - t_start, message=msg,
-        frames=sim.frames)
+        frames=sim.frames, slip=slip, slip_rotation=slip_rotation, grip_force=sim.grip_force)
 
 
-_PALETTE = ((0.20, 0.45, 0.80), (0.25, 0.65, 0.35), (0.85, 0.65, 0.15), (0.55, 0.35, 0.70),
-            (0.20, 0.65, 0.70), (0.60, 0.60, 0.60), (0.80, 0.45, 0.60))
-
-
-def _colorize(pb, client, sim: _Sim) -> None:
-    for i, name in enumerate(sorted(sim.bodies)):
-        rgb = (0.85, 0.15, 0.10) if name == sim.target else _PALETTE[i % len(_PALETTE)]
-        pb.changeVisualShape(sim.bodies[name], -1, rgbaColor=[*rgb, 1.0], physicsClientId=client)
-
-
-def save_frames(frames: Sequence[np.ndarray], path_png: str, columns: int = 4) -> None:
-    """Write ``frames`` as one contact-sheet PNG (a grid, ``columns`` wide)."""
-
-    if not frames:
-        raise ValueError("save_frames: no frames to write")
-    if columns < 1:
-        raise ValueError(f"columns must be >= 1, got {columns}")
-    viz.write_png(path_png, viz.tile(list(frames), columns))
-
-
-def save_gif(frames: Sequence[np.ndarray], path: str, fps: float = 10.0) -> None:
-    """Write ``frames`` as a looping animated GIF (Pillow)."""
-
-    viz.write_gif(path, frames, fps)
+def _slip(before: np.ndarray, after: np.ndarray, com: np.ndarray) -> Tuple[float, float]:
+    """How far (m) the centre of mass ``com`` (object frame) moved and how far (deg) the object turned
+    between two of its poses in the hand."""
+    c = np.append(np.asarray(com, float), 1.0)
+    moved = float(np.linalg.norm((after @ c - before @ c)[:3]))
+    cos = (np.trace(before[:3, :3].T @ after[:3, :3]) - 1.0) / 2.0
+    return moved, float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))

@@ -1,12 +1,32 @@
 """Headless pictures: PyBullet's TinyRenderer (no display) into PNG files and animated GIFs (Pillow)."""
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass
+from typing import Sequence, Tuple
 
 import numpy as np
 from PIL import GifImagePlugin, Image
 
 from pickplan.core.io import atomic_open
+
+
+@dataclass(frozen=True)
+class RecordSettings:
+    """Frames rendered headless (TinyRenderer) every ``every`` simulation steps, first and last included."""
+
+    every: int = 24                       # steps between frames (0.1 s at 240 Hz)
+    width: int = 320
+    height: int = 240
+    max_frames: int = 300                 # later frames are dropped (the last one is always kept)
+    target: Tuple[float, float, float] = (0.4, 0.0, 0.3)   # orbit camera (``render``)
+    distance: float = 1.5
+    yaw: float = 45.0
+    pitch: float = -25.0
+    colorize: bool = True                 # paint the objects (target red); visuals only, physics unchanged
+
+    def __post_init__(self):
+        if self.every < 1 or self.width < 8 or self.height < 8 or self.max_frames < 2:
+            raise ValueError("RecordSettings: need every >= 1, width/height >= 8, max_frames >= 2")
 
 
 def _rgb_image(rgb: np.ndarray) -> Image.Image:
@@ -73,3 +93,30 @@ def tile(images: Sequence[np.ndarray], columns: int) -> np.ndarray:
         r, c = divmod(i, columns)
         out[r * h:(r + 1) * h, c * w:(c + 1) * w] = im[..., :3]
     return out
+
+
+_PALETTE = ((0.20, 0.45, 0.80), (0.25, 0.65, 0.35), (0.85, 0.65, 0.15), (0.55, 0.35, 0.70),
+            (0.20, 0.65, 0.70), (0.60, 0.60, 0.60), (0.80, 0.45, 0.60))
+
+
+def colorize(client: int, bodies: dict, target: str) -> None:
+    """Paint the bodies (name -> body id) of a PyBullet scene, the target red (visuals only)."""
+    import pybullet as pb
+
+    for i, name in enumerate(sorted(bodies)):
+        rgb = (0.85, 0.15, 0.10) if name == target else _PALETTE[i % len(_PALETTE)]
+        pb.changeVisualShape(bodies[name], -1, rgbaColor=[*rgb, 1.0], physicsClientId=client)
+
+
+def save_frames(frames: Sequence[np.ndarray], path_png: str, columns: int = 4) -> None:
+    """Write ``frames`` as one contact-sheet PNG (a grid, ``columns`` wide)."""
+    if not frames:
+        raise ValueError("save_frames: no frames to write")
+    if columns < 1:
+        raise ValueError(f"columns must be >= 1, got {columns}")
+    write_png(path_png, tile(list(frames), columns))
+
+
+def save_gif(frames: Sequence[np.ndarray], path: str, fps: float = 10.0) -> None:
+    """Write ``frames`` as a looping animated GIF (Pillow)."""
+    write_gif(path, frames, fps)

@@ -51,6 +51,9 @@ class HandWorld:
         import pybullet as pb
 
         self.pb, self.s, self.gripper = pb, s, gripper
+        # the squeeze and the closing speed: the settings', else the gripper description's
+        self.force = float(s.finger_force if s.finger_force is not None else gripper.grip_force)
+        self.speed = float(s.finger_speed if s.finger_speed is not None else gripper.grip_speed)
         cid = self.cid = _client()
         pb.resetSimulation(physicsClientId=cid)
         pb.setPhysicsEngineParameter(fixedTimeStep=s.time_step, numSolverIterations=s.solver_iterations,
@@ -72,14 +75,14 @@ class HandWorld:
                               spinningFriction=s.pad_spinning_friction, physicsClientId=cid)
             pb.resetJointState(self.hand, j, gripper.finger_open, physicsClientId=cid)
             pb.setJointMotorControl2(self.hand, j, pb.POSITION_CONTROL, targetPosition=gripper.finger_open,
-                                     force=s.finger_force, physicsClientId=cid)
+                                     force=self.force, physicsClientId=cid)
         if getattr(s, "couple_fingers", False):
             # PyBullet ignores the URDF's <mimic>: without the gear two force-limited fingers let a
             # load along the closing axis push the object (and both fingers) sideways in the hand
             # (as execution.py, and the Franka hand's single motor).
             gear = pb.createConstraint(self.hand, self.fingers[0], self.hand, self.fingers[1], pb.JOINT_GEAR, [1, 0, 0],
                                        [0, 0, 0], [0, 0, 0], physicsClientId=cid)
-            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * s.finger_force, physicsClientId=cid)
+            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * self.force, physicsClientId=cid)
         # the base pose PyBullet reports (and constrains) is the inertial frame: keep its offset
         T_in = np.eye(4)
         info = pb.getDynamicsInfo(self.hand, -1, physicsClientId=cid)
@@ -105,7 +108,7 @@ class HandWorld:
     def close(self) -> None:
         for j in self.fingers:
             self.pb.setJointMotorControl2(self.hand, j, self.pb.POSITION_CONTROL, targetPosition=self.gripper.finger_closed,
-                                          force=self.s.finger_force, maxVelocity=self.s.finger_speed,
+                                          force=self.force, maxVelocity=self.speed,
                                           physicsClientId=self.cid)
 
     def step(self, seconds: float, hand_path=None) -> None:

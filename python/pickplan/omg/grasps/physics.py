@@ -61,8 +61,8 @@ class SimSettings:
 
     time_step: float = 1.0 / 240.0
     solver_iterations: int = 50
-    finger_force: float = 35.0     # N per finger (the Franka hand: 70 N continuous in total)
-    finger_speed: float = 0.1      # m/s per finger
+    finger_force: Optional[float] = None  # N per finger; None: the gripper description's force
+    finger_speed: Optional[float] = None  # m/s per finger; None: the gripper description's speed
     close_time: float = 0.5        # s, gravity off
     settle_time: float = 0.25      # s with gravity on before shaking
     shake_time: float = 1.0        # s: first half translation, second half rotation
@@ -86,8 +86,8 @@ class SimSettings:
 class LiftSettings:
     time_step: float = 1.0 / 240.0
     solver_iterations: int = 50
-    finger_force: float = 35.0
-    finger_speed: float = 0.1
+    finger_force: Optional[float] = None  # as SimSettings
+    finger_speed: Optional[float] = None
     close_time: float = 0.5
     lift_height: float = 0.1       # m
     lift_time: float = 1.0         # s (smooth-step profile)
@@ -223,13 +223,15 @@ def _table_world(obj: SimObject, rests, T: np.ndarray, s, gripper: RobotInfo = P
     return None
 
 
-def _close_and_lift(world: HandWorld, s) -> Tuple[np.ndarray, bool]:
+def _close_and_lift(world: HandWorld, s, closed=None) -> Tuple[np.ndarray, bool]:
     """Close on the resting object, lift ``lift_height`` and hold; the lifted hand pose and whether
-    the object rose with it (the lift test's success)."""
+    the object rose with it (the lift test's success). ``closed()`` is called before the lift."""
     z0 = world.body_pose()[2, 3]
     H0 = world.hand_pose()
     world.close()
     world.step(s.close_time, lambda u: H0)
+    if closed is not None:
+        closed()
 
     def lift(u):
         T_ = H0.copy()
@@ -242,20 +244,38 @@ def _close_and_lift(world: HandWorld, s) -> Tuple[np.ndarray, bool]:
     return lift(1.0), bool(world.gap() > s.min_gap and rise >= s.min_rise * s.lift_height)
 
 
-def lift_test(model, poses, settings: LiftSettings = LiftSettings(), gripper: RobotInfo = PANDA) -> np.ndarray:
+def lift_trial(obj, rests, grasp: np.ndarray, settings: LiftSettings = LiftSettings(),
+               gripper: RobotInfo = PANDA) -> dict:
+    """One table lift (``lift_test``) with what it did to the object in the hand: applicable, lifted,
+    and slip (m, its centre of mass) and rotation (deg) in the hand from the closed grasp to the end of
+    the hold (nan when not applicable)."""
+    obj = obj if isinstance(obj, SimObject) else SimObject(obj)
+    world = _table_world(obj, rests, np.asarray(grasp, float), settings, gripper)
+    if world is None:
+        return {"applicable": False, "lifted": False, "slip": float("nan"), "rotation": float("nan")}
+    held = {}
+
+    def closed():  # the object in the hand once the fingers have closed, before the lift
+        held["ref"] = InHand(world)
+
+    lifted = _close_and_lift(world, settings, closed)[1]
+    return {"applicable": True, "lifted": lifted, "slip": held["ref"].moved(np.array([0.0, 0.0, 0.0, 1.0])),
+            "rotation": held["ref"].rotation()}
+
+
+def lift_test(model, poses, settings: LiftSettings = LiftSettings(), gripper: RobotInfo = PANDA,
+              details: bool = False):
     """Table lift test of hand poses (object frame): (N,) int8, 1 lifted, 0 failed, -1 not
     applicable (the open hand touches the table at the grasp in every resting pose tried: the
-    ``rest_index`` one, or by default the three most stable ones, first clear one used).
+    ``rest_index`` one, or by default the three most stable ones, first clear one used); with
+    ``details=True`` also the per-grasp dicts of ``lift_trial`` (slip and rotation in the hand).
     Independent of the shake test: table, gravity throughout, lift instead of shaking."""
-    s = settings
     poses = check_grasps(poses)
     obj = SimObject(model)
-    rests = _rests(model, s)
-    out = np.zeros(len(poses), dtype=np.int8)
-    for i, T in enumerate(poses):
-        world = _table_world(obj, rests, T, s, gripper)
-        out[i] = -1 if world is None else int(_close_and_lift(world, s)[1])
-    return out
+    rests = _rests(model, settings)
+    trials = [lift_trial(obj, rests, T, settings, gripper) for T in poses]
+    out = np.array([int(t["lifted"]) if t["applicable"] else -1 for t in trials], dtype=np.int8)
+    return (out, trials) if details else out
 
 
 def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings = TransportSettings()) -> dict:

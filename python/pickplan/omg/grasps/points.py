@@ -28,10 +28,11 @@ from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 import numpy as np
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
+from pickplan.omg.grasps.quality import Load
 from pickplan.omg.grasps.sets import GraspSet, _check_count, _perpendicular
 
 
@@ -312,6 +313,20 @@ def mass_centre(P: np.ndarray, plane) -> np.ndarray:
     E = np.column_stack([e1, np.cross(n, e1)])
     flat = P @ E
     return E @ (0.5 * (flat.min(axis=0) + flat.max(axis=0))) + (d + 0.5 * height.max()) * n
+
+
+def points_load(P: np.ndarray, plane, density: float) -> Load:
+    """The load (``quality.Load``, world frame) of a target known only by its observed points: its
+    centre of mass where ``mass_centre`` puts it, its mass ``density`` times the volume of the points'
+    hull down to the support plane (the hidden side below what is seen is taken as solid)."""
+    n, d = plane
+    height = P @ n - d
+    base = P - np.outer(height, n)
+    try:
+        volume = float(ConvexHull(np.vstack([P, base])).volume)
+    except (QhullError, ValueError):  # flat or too few points: a sliver
+        volume = 0.0
+    return Load(density * volume, mass_centre(P, plane), -np.asarray(n, float))
 
 
 def gravity_lever(G: np.ndarray, P: np.ndarray, plane) -> np.ndarray:
