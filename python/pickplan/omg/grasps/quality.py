@@ -213,8 +213,8 @@ def pad_patches(points: np.ndarray, frames: np.ndarray, grip: Grip, settings: Qu
             turns = sign * face[:, 1] >= np.cos(np.radians(settings.align_deg))
             h = np.einsum("ij,ij->i", local, face[k])         # height along the face's normal
             top = np.full(n, -np.inf)
-            np.maximum.at(top, k, np.where(sign * local[:, 1] > 0, h, -np.inf))  # on the pad's side only
-            flush = (h >= top[k] - compliance) & (sign * local[:, 1] > 0)
+            np.maximum.at(top, k, h)
+            flush = h >= top[k] - compliance
             member = np.where(turns[k], flush, static[side])
             _describe(out, side, k, local, member, n)
             # A patch that stays turned (a pad's edge on a slope, a rim's lip) is pressed along the
