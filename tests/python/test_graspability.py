@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from pickplan.cli.bench import object_markdown, object_rows, settings_from_args
-from pickplan.core import objects
+from pickplan.core import objects, robots
 from pickplan.core.graspability import graspability
 from pickplan.eval.experiments import SweepSettings, summarize, summarize_by_object, sweep_fingerprint
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
@@ -163,3 +163,47 @@ def test_a_cached_ray_mesh_gives_the_verdicts_of_a_private_one_on_threads():
     with ThreadPoolExecutor(2) as pool:
         together = list(pool.map(lambda T: graspability(bowl, T, 0.08, ray_mesh=shared), poses * 3))
     assert together == alone * 3
+
+
+def test_the_verdict_and_the_generator_agree_on_every_procedural_family_and_pose():
+    """Issue 33: a target the verdict calls graspable gets antipodal candidates that the support under it
+    allows, in every resting pose of every procedural family (short cans lying flat among them); where
+    the generator finds none, it says what it rejected (a reason the tables count, never silence)."""
+    from pickplan.core import procedural
+    from pickplan.omg.grasps import AntipodalSettings, antipodal_grasps
+    from pickplan.omg.grasps.generators import SupportFilter
+
+    quick = AntipodalSettings(samples_per_round=100, approach_angles=4)
+    lib, hand = objects.library("procedural"), robots.panda()
+    disagree, judged = [], 0
+    for family in procedural.FAMILIES:
+        model = lib.get(f"{family}_00")
+        for i, pose in enumerate(model.resting_poses):
+            if not graspability(model, pose, 0.08).graspable:
+                continue
+            judged += 1
+            gs = antipodal_grasps(model, 1, seed=0, settings=quick, support=SupportFilter.under(pose, robot=hand))
+            if len(gs) == 0:
+                disagree.append((family, i, gs.rejected))
+    assert judged >= 2 * len(procedural.FAMILIES) and not disagree, disagree
+
+
+def test_a_graspable_target_without_candidates_is_counted_with_the_generators_reasons():
+    """No grasp of the generator: the goal set says "no_candidates" and the generator's rejections
+    name why (here a 20 x 15 x 3 cm slab lying flat: pairs only across its height, which the support
+    under it leaves no finger room for)."""
+    from pickplan.omg.goals import build_goal_set
+    from pickplan.omg.grasps import AntipodalSettings, antipodal_grasps
+    from pickplan.omg.grasps.generators import SupportFilter
+    from pickplan.omg.world import World
+
+    slab = objects.make_object("slab", trimesh.creation.box(extents=(0.20, 0.15, 0.03)), [], "test")
+    gs = antipodal_grasps(slab, 5, seed=0, settings=AntipodalSettings(max_rounds=2, samples_per_round=100),
+                          support=SupportFilter.under(slab.resting_poses[0]))
+    assert len(gs) == 0 and gs.rejected["support"] > 0 and sum(gs.rejected.values()) >= 200
+    model = objects.library("builtin").get("005_tomato_soup_can")
+    pose = np.array(model.resting_poses[0])
+    pose[:2, 3] += [0.5, 0.0]
+    scene = scenes.Scene(robot_base=np.eye(4), table=scenes.default_table(scenes.SceneSettings()),
+                         objects=[scenes.SceneObject(model.name, model.source, pose)], target=model.name)
+    assert build_goal_set(World(scene), np.zeros((0, 4, 4))).reason_counts() == {"no_candidates": 1}

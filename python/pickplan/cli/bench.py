@@ -304,7 +304,8 @@ def add_bench_commands(subparsers) -> None:
 
 
 def run_perception(args: argparse.Namespace) -> int:
-    settings = PerceptionBenchSettings(out=args.out, scenes=args.scenes, objects=args.objects, views=tuple(args.views),
+    settings = PerceptionBenchSettings(out=args.out, scenes=args.scenes, objects=args.objects, poses=args.poses,
+                                       clutter=tuple(args.clutter), mesh_grasps=args.mesh_grasps, views=tuple(args.views),
                                        noises=tuple(n / 1000 for n in args.noise_mm), mesh=not args.no_mesh,
                                        grasps=args.grasps, iterations=args.iterations, execute=not args.no_execute,
                                        workers=args.workers, seed=args.seed,
@@ -317,7 +318,11 @@ def run_perception(args: argparse.Namespace) -> int:
 def add_perception_command(sub) -> None:
     p = sub.add_parser("perception", help="OMG from depth cameras (1 and 3 views, depth noise) beside known meshes")
     p.add_argument("--scenes", type=int, default=100, help="generated scenes (default 100)")
-    p.add_argument("--objects", default=None, help="YCB object folder for generated scenes (default built-ins)")
+    p.add_argument("--objects", default=None, help="generated scenes' objects: builtin, procedural or a YCB folder")
+    p.add_argument("--poses", choices=ORIENTATIONS, default="upright", help="generated scenes' object poses")
+    p.add_argument("--clutter", type=clutter_range, default=(3, 7), metavar="N-M", help="objects per scene")
+    p.add_argument("--mesh-grasps", default=None, choices=("simulated", "antipodal"),
+                   help="the known-mesh column's grasps (default: stored or simulated; antipodal: generated per scene)")
     p.add_argument("--views", type=int, nargs="+", default=[1, 3], help="camera counts (default 1 3)")
     p.add_argument("--noise-mm", type=float, nargs="+", default=[0.0, 2.0, 5.0], help="depth sigmas (default 0 2 5)")
     p.add_argument("--no-mesh", action="store_true", help="skip the known-mesh column")

@@ -243,12 +243,13 @@ def _unit_grasps(world: World, scene: Scene, kind: str, n: int, robot: str):
     aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot)} if kind == "antipodal" else {}
 
     def build():
-        return grasps_mod.grasp_set(world.target_model, kind, n, seed=0, gripper=world.robot.info, **aware).poses
+        return grasps_mod.grasp_set(world.target_model, kind, n, seed=0, gripper=world.robot.info, **aware)
     if kind not in ("antipodal", "approach"):  # stored sets: read from disk
         return build()
     source = next(o.source for o in scene.objects if o.name == scene.target)
     key = ("grasps", kind, scene.target, source, np.asarray(world.target_pose).tobytes(), robot, int(n))
-    return world.cache.derived(key, build).copy()  # a unit may not change what the next one reads
+    gs = world.cache.derived(key, build)
+    return replace(gs, poses=gs.poses.copy())  # a unit may not change what the next one reads
 
 
 def _finite(x: float) -> Optional[float]:
@@ -290,11 +291,13 @@ def run_unit(unit: dict) -> dict:
                       grasp_kind=spec["grasp_kind"], grasp_count=unit["grasp_candidates"], seed=seed,
                       world=world_settings)
     if spec["planner"] == "omg":
-        result = OMGPlanner(None, scene, omg, world=world).plan(grasps=grasps)
+        result = OMGPlanner(None, scene, omg, world=world).plan(grasps=grasps.poses)
     else:
         bs = BaselineSettings(omg=omg, max_goals_tried=unit["max_goals_tried"], chomp_iterations=unit["iterations"],
                               time_limit=unit["time_limit"])
-        result = plan_baseline(spec["planner"], scene, bs, world=world, grasps=grasps)
+        result = plan_baseline(spec["planner"], scene, bs, world=world, grasps=grasps.poses)
+    if len(grasps) == 0:  # a graspable target the generator found nothing for: say what it rejected
+        result.goal_reasons = {"no_candidates": 1, **{f"candidates {k}": v for k, v in grasps.rejected.items() if v}}
     planned = result.planned
     m = result.metrics
     record.update(status=result.status, valid=True, graspable=True, planned=planned,

@@ -47,10 +47,14 @@ def parse_setting(name: str) -> Tuple[int, float]:
 class PerceptionBenchSettings:
     out: str = "out/bench/perception"
     scenes: int = 100
-    objects: Optional[str] = None          # YCB folder for generated scenes (None: the built-ins)
+    objects: Optional[str] = None          # generated scenes' objects: "builtin", "procedural" or a YCB folder
+    poses: str = "upright"                 # generated scenes' object poses (as the sweeps': upright, stable, resting)
+    clutter: Tuple[int, int] = (3, 7)      # objects per generated scene, fewest-most
     views: Tuple[int, ...] = (1, 3)
     noises: Tuple[float, ...] = (0.0, 0.002, 0.005)  # depth sigma, m
     mesh: bool = True                      # also plan every scene with known meshes
+    mesh_grasps: Optional[str] = None      # the known-mesh column's grasps (None: Table III's, stored or simulated;
+    #                                        "antipodal": generated per scene, for objects with no stored set)
     grasps: int = 30                       # goal-set size
     grasp_candidates: int = 100
     iterations: int = 50
@@ -74,6 +78,7 @@ class PerceptionBenchSettings:
     def sweep(self) -> experiments.SweepSettings:
         """The Table III sweep whose scenes (and mesh-based OMG units) this bench shares."""
         return experiments.SweepSettings("planners", out=self.out, scenes=self.scenes, objects=self.objects,
+                                         poses=self.poses, clutter=tuple(self.clutter), grasp_kind=self.mesh_grasps,
                                          grasps=self.grasps, grasp_candidates=self.grasp_candidates, runs=1,
                                          methods=("OMG",), workers=self.workers, seed=self.seed,
                                          iterations=self.iterations, execute=self.execute, progress=self.progress)
@@ -213,7 +218,8 @@ ROWS = (("execution", "Execution (lifted in PyBullet)", "{:.0%}"), ("planning", 
 def markdown(summary: Dict[str, dict], scenes: int, settings: PerceptionBenchSettings) -> str:
     methods = list(summary)
     lines = [f"## Planning from depth vs known meshes: {scenes} scenes "
-             f"(objects: {settings.objects or 'built-in'}), {settings.grasps} goals, OMG (MD + C-Space ISF)", "",
+             f"(objects: {settings.objects or 'built-in'}, poses: {settings.poses}), {settings.grasps} goals, "
+             "OMG (MD + C-Space ISF)", "",
              "Columns: `mesh` = known meshes and stored grasps; `Vv/Smm` = V camera views with depth noise",
              "sigma S, no mesh and no stored grasp. Rates over all units; collisions measured on the true",
              "meshes. The mesh column's field and grasp times are 0: its SDFs and grasps are cached per object.", "",

@@ -38,8 +38,7 @@ from pickplan.omg import isf
 from pickplan.omg.chomp import Chomp
 from pickplan.omg.goals import GoalSetSettings
 from pickplan.omg.grasps import quality
-from pickplan.omg.grasps.points import (PointGraspSettings, denoised, fitted_normals, grasps_from_points,
-                                        points_load)
+from pickplan.omg.grasps.points import PointGraspSettings, denoised, grasps_from_points, points_load
 from pickplan.omg.grasps.sets import GraspSet
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.planner import OMGPlanner, OMGSettings
@@ -240,24 +239,24 @@ class PerceivedWorld:
 
     @functools.cached_property
     def _quality_points(self):
-        """The observed target points and normals denoised as grasps from points read them, and the
-        points' k-d tree."""
-        P, N = self.perceived.target_points, self.perceived.target_normals
+        """The observed target points denoised as grasps from points read them, and their k-d tree."""
+        P = self.perceived.target_points
         if self.settings.grasps.denoise:
-            P = denoised(P, N, self.settings.grasps.patch_radius)
-            N = fitted_normals(P, N, self.settings.grasps.patch_radius)
-        return P, N, cKDTree(P)
+            P = denoised(P, self.perceived.target_normals, self.settings.grasps.patch_radius)
+        return P, cKDTree(P)
 
     def grasp_quality(self, grasps: np.ndarray, settings: quality.QualitySettings) -> quality.Quality:
         """The quality (``grasps.quality``) of hand poses (world frame) on the observed target: patches
         on its denoised points (an unseen side mirrors the seen one), its load from the points
         (``points.points_load``: ``settings.point_density`` over their hull down to the plane)."""
-        P, N, tree = self._quality_points
+        P, tree = self._quality_points
         load = points_load(P, self.plane, settings.point_density)
         frames = np.asarray(grasps, float).reshape(-1, 4, 4) @ self.robot.info.grasp_frame
         grip = quality.Grip.of(self.robot.info, settings.object_friction)
+        # no normals: fitted on a few noisy points of a pen or an edge they are too rough to tilt a
+        # friction cone by (the patches come from the points' positions alone)
         return quality.grasp_quality(P, frames, load, grip, settings, tree, mirror=True,
-                                     compliance=settings.point_compliance, normals=N)
+                                     compliance=settings.point_compliance)
 
     def isf_surface(self, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
         """A seeded subsample of the observed target points and normals (what ISF refines on)."""

@@ -122,6 +122,8 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
     ``scores``: cone margin 1 - max angle / cone angle. Fewer than ``n`` (with a warning) if the
     object offers fewer after ``max_rounds`` rounds. ``support``: only hands the support under the
     object (as it lies) allows. ``info["seconds"]``: the generation time (one value per grasp).
+    ``rejected``: surface samples with no pair ("no_pair"), pairs whose every turn of the open hand hits
+    the object ("hand_hits_object") or that the support allows none of ("support").
     """
     started = time.perf_counter()
     _check_count(n, seed)
@@ -137,6 +139,7 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
     hand_from_grasp = gripper.hand_from_grasp
     out_T, out_c, out_n, out_w, out_s = [], [], [], [], []
     count = 0
+    rejected = {"no_pair": 0, "hand_hits_object": 0, "support": 0}  # surface samples, then pairs
     for _ in range(s.max_rounds):
         m = s.samples_per_round
         p, face = trimesh.sample.sample_surface(mesh, m, seed=int(rng.integers(2**31)))
@@ -158,26 +161,30 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
             ang_p = np.arccos(np.clip(-np.einsum("ij,ij->i", n_p, d), -1, 1))
             ok = (ang_q <= cone) & (w >= s.min_width) & (w <= s.max_width - s.width_margin)
         idx = np.flatnonzero(ok)
+        rejected["no_pair"] += m - len(idx)
         if len(idx) == 0:
             continue
         k = s.approach_angles
         theta = rng.uniform(0, 2 * np.pi, len(idx))[:, None] + 2 * np.pi * np.arange(k) / k
         flip = rng.random(len(idx)) < 0.5  # which finger takes p
+        y = np.where(flip[:, None], -d[idx], d[idx])  # +y points from the right finger to the left finger
+        z0 = np.array([_perpendicular(v) for v in y])
+        w0 = np.cross(y, z0)
+        if support is not None:  # from the most top-down approach about each axis, fanning out
+            down = -support.normal
+            theta = np.arctan2(w0 @ down, z0 @ down)[:, None] + support.fan(k)
+        z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * w0[:, None]   # (pairs, k, 3)
+        yk = np.broadcast_to(y[:, None], z.shape)
         T = np.tile(np.eye(4), (len(idx), k, 1, 1))
-        for a, i in enumerate(idx):
-            y = -d[i] if flip[a] else d[i]  # +y points from the right finger to the left finger
-            z0 = _perpendicular(y)
-            if support is not None:  # from the most top-down approach about this axis, fanning out
-                down = -support.normal
-                theta[a] = np.arctan2(np.cross(y, z0) @ down, z0 @ down) + support.fan(k)
-            for b in range(k):
-                z = np.cos(theta[a, b]) * z0 + np.sin(theta[a, b]) * np.cross(y, z0)
-                T[a, b, :3, :3] = np.column_stack([np.cross(y, z), y, z])
-                T[a, b, :3, 3] = 0.5 * (p[i] + q[i])
-                T[a, b] = T[a, b] @ hand_from_grasp  # the grasp frame there -> the hand link
+        T[..., :3, 0], T[..., :3, 1], T[..., :3, 2] = np.cross(yk, z), yk, z
+        T[..., :3, 3] = (0.5 * (p[idx] + q[idx]))[:, None]
+        T = T @ hand_from_grasp  # the grasp frames there -> the hand link
         free = ~check.in_collision(T.reshape(-1, 4, 4)).reshape(len(idx), k)
+        rejected["hand_hits_object"] += int((~free.any(axis=1)).sum())
         if support is not None:
-            free &= support.allows(T.reshape(-1, 4, 4)).reshape(len(idx), k)
+            allowed = free & support.allows(T.reshape(-1, 4, 4)).reshape(len(idx), k)
+            rejected["support"] += int((free.any(axis=1) & ~allowed.any(axis=1)).sum())
+            free = allowed
         for a, i in enumerate(idx):
             choices = np.flatnonzero(free[a])
             if len(choices) == 0:
@@ -196,8 +203,8 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
     if count < n:
         warnings.warn(f"{model.name}: only {count} antipodal grasps found (asked for {n})", stacklevel=2)
     if count == 0:
-        return GraspSet("antipodal", np.zeros((0, 4, 4)), model.name, scores=np.zeros(0))
+        return GraspSet("antipodal", np.zeros((0, 4, 4)), model.name, scores=np.zeros(0), rejected=rejected)
     seconds = np.full(min(count, n), time.perf_counter() - started)
     return GraspSet("antipodal", np.asarray(out_T)[:n], model.name, scores=np.asarray(out_s)[:n],
                     info={"contacts": np.asarray(out_c)[:n], "normals": np.asarray(out_n)[:n],
-                          "width": np.asarray(out_w)[:n], "seconds": seconds})
+                          "width": np.asarray(out_w)[:n], "seconds": seconds}, rejected=rejected)

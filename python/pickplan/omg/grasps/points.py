@@ -11,7 +11,9 @@ Three kinds of candidates, all in the world frame (a ``GraspSet`` whose object f
   vertical), the width and the pads' centre come from the cross-section the pads close on (the points
   from the pads' lower edge up: a bottle's cap, not its body); from the side (approach horizontal),
   from a section at half the height and one a pad under the top, the pads a depth in from its edge;
-- rim pinches of open containers (one pad inside the wall).
+- rim pinches of open containers (one pad inside the wall);
+- local grasps from above across a part of the footprint (a blade, a handle, a loop: thin targets
+  whose whole footprint is wider than the opening), the fingertips resting on the support.
 
 Every candidate is kept only if its fingertips stay above the support plane (less a contact
 tolerance: resting on the table is fine), no observed target point (and, if given, no sample of the
@@ -45,6 +47,7 @@ class PointGraspSettings:
     #                                   open-hand check decides, and noise only widens observed extents)
     min_width: float = 0.004
     pad_length: Optional[float] = None  # m of finger along the approach axis that grips; None: the gripper's
+    pad_width: Optional[float] = None   # m across the finger; None: the gripper's
     table_contact: float = 0.003     # m the fingertips may press into the support plane
     clearance: float = 0.003         # m kept between the open hand and observed target points
     obstacle_clearance: float = 0.005  # m kept between hand sample points and the other obstacles
@@ -64,6 +67,7 @@ class PointGraspSettings:
     section_trim: float = 0.01       # fraction of a cross-section's points beyond each end of its width (noise)
     spare_weight: float = 0.5        # score per spare opening (fraction of the opening)
     lever_scale: float = 0.05        # m of gravity's lever arm about the closing axis that costs one score point
+    local_samples: int = 40          # footprint points local grasps from above are centred at (``local_candidates``)
 
 
 def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -224,6 +228,43 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
     return out
 
 
+def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
+    """Grasps from above across a part of the target: at seeded points of its footprint and for each
+    closing direction, the points in the band the pads sweep (a pad's width across, the open pads'
+    span along) give the width and the middle of the part between them: a blade or a loop of
+    scissors, a hammer's handle, a long box anywhere along it (a thin target's whole footprint is
+    often wider than the opening in every direction). The pads' centre ``grasp_depths[0]`` under the
+    part's top, as low as fingertips resting on the support allow (a thin target's points stand a few
+    noise widths above the plane: the fingers go down to it); upright and tilted about the closing axis."""
+    n, d = plane
+    height = P @ n - d
+    flat = P - np.outer(height, n)
+    e1 = _perpendicular(n)
+    E = np.column_stack([e1, np.cross(n, e1)])
+    angles = np.pi * np.arange(s.yaw_steps) / s.yaw_steps
+    Y2 = np.column_stack([np.cos(angles), np.sin(angles)])
+    X2 = np.column_stack([-Y2[:, 1], Y2[:, 0]])
+    F2 = flat @ E
+    out = []
+    for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
+        rel = F2 - F2[i]
+        ry, rx = rel @ Y2.T, rel @ X2.T                                  # (N, yaws)
+        band = (np.abs(rx) <= s.pad_width / 2) & (np.abs(ry) <= s.max_width / 2)
+        for a in np.flatnonzero(band.sum(axis=0) >= 3):
+            sel = band[:, a]
+            lo, hi = np.quantile(ry[sel, a], [s.section_trim, 1.0 - s.section_trim])
+            if not s.min_width <= hi - lo <= s.max_width - s.width_margin:
+                continue
+            y, x = E @ Y2[a], E @ X2[a]
+            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (rx[sel, a].max() + rx[sel, a].min()) * x
+            for tilt in (0.0, s.max_tilt / 2, -s.max_tilt / 2):
+                lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
+                centre = mid + max(lowest, height[sel].max() - s.grasp_depths[0]) * n
+                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, centre),
+                            0.9 - abs(tilt) / (np.pi / 2), float(hi - lo)))
+    return out
+
+
 def _side_candidates(rel, centre, y, x, width, s: PointGraspSettings) -> list:
     """Grasps from the side across a cross-section at the pads' height (``rel``: its points relative
     to its middle ``centre``): the approach horizontal (along +-x), the pads ``grasp_depths`` in from
@@ -258,8 +299,9 @@ def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
         x = np.cross(y, -n)
         for tilt in (0.0, s.max_tilt / 2):
             z = -np.cos(tilt) * n + np.sin(tilt) * x
-            for depth in s.grasp_depths[:2]:
-                pad = P[i] - s.rim_wall / 2 * y + (top - height[i] - depth) * n
+            lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact  # fingertips on the support
+            for depth in s.grasp_depths[:2]:  # a low rim (a plate's): as deep as the support lets the pads go
+                pad = P[i] - s.rim_wall / 2 * y + (max(lowest, top - depth) - height[i]) * n
                 out.append((_frames(y, z, pad), 0.5, s.rim_wall))
     return out
 
@@ -372,12 +414,14 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
         raise ValueError(f"hull: expected an (K, 3) array, got {H.shape}")
     s = replace(settings, max_width=gripper.max_opening if settings.max_width is None else settings.max_width,
                 pad_length=gripper.pad_length if settings.pad_length is None else settings.pad_length,
+                pad_width=gripper.pad_width if settings.pad_width is None else settings.pad_width,
                 width_margin=2 * settings.clearance if settings.width_margin is None else settings.width_margin)
     rng = np.random.default_rng(seed)
     if s.denoise:
         P = denoised(P, N, s.patch_radius)
         N = fitted_normals(P, N, s.patch_radius)
-    cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng)
+    cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng) \
+        + local_candidates(P, plane, s, rng)
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
         return empty
@@ -392,7 +436,9 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     lever = gravity_lever(G, P, plane)
     score = margin + 0.5 * fill + s.spare_weight * (s.max_width - width) / s.max_width - lever / s.lever_scale
     order = np.argsort(-score, kind="stable")
-    order = order[(tips[order] @ plane_n - plane_d) > -s.table_contact]
+    # fingertips resting on the support up to table_contact (footprint grasps of a thin target are
+    # placed exactly there: a strict test would drop every one of them)
+    order = order[(tips[order] @ plane_n - plane_d) >= -s.table_contact - 1e-9]
     check = np.vstack([P, H])  # the open hand clears the observed points and the hull
     coarse = thinned(check, 0.015)
     kept = []

@@ -47,6 +47,7 @@ class GraspSet:
     object_name: str
     scores: Optional[np.ndarray] = None       # (N,) higher is better, where the source has one
     info: Dict[str, np.ndarray] = field(default_factory=dict)  # per-grasp extras (contacts, widths...)
+    rejected: Dict[str, int] = field(default_factory=dict)     # a generator's rejected candidates by reason
 
     def __post_init__(self):
         self.poses = check_grasps(self.poses, f"grasp set {self.name!r}")
