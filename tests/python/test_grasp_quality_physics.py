@@ -99,3 +99,50 @@ def test_a_thin_walled_bowl_nobody_prepared_is_lifted_by_its_rim():
     by_wall = np.linalg.norm(centre, axis=1) > 0.5 * np.sort(model.extents)[1] - 0.03  # not across the foot
     assert keep.sum() >= 10 and by_wall[keep].all() and _near_rim(model, pose, poses)[keep].any()
     assert held[keep].mean() >= 0.9
+
+
+def test_physics_verifies_what_the_quality_is_unsure_of_and_caches_it(tmp_path, monkeypatch):
+    """``verify.verify_grasps`` on a hammer with a weak gripper: the grasps the quality is unsure of are
+    lifted in PyBullet (at most the budget), clear ones are not; the grasps it keeps hold through a
+    lift more often than those it drops; a second call reads the cache (0 s, the same verdicts)."""
+    from pickplan.omg.grasps.verify import VerifySettings, verify_grasps
+
+    monkeypatch.setenv("PICKPLAN_CACHE_DIR", str(tmp_path))
+    model = objects.library("procedural").get("hammer_00")
+    pose = model.resting_poses[0]
+    poses = antipodal_grasps(model, 20, seed=1, support=SupportFilter.under(pose)).poses
+    weak = dataclasses.replace(PANDA, grip_force=25.0)
+    settings = VerifySettings(budget=12, lift=LiftSettings(table_clearance=-0.002, finger_force=25.0))
+    v = verify_grasps(model, poses, pose, weak, settings)
+    unsure = (v.margin >= settings.band[0]) & (v.margin < settings.band[1])
+    assert 0 < v.simulated.sum() <= settings.budget and not (v.simulated & ~unsure).any()
+    assert not (v.keep & ~v.simulated & (v.margin < settings.band[1])).any()   # kept unsimulated: clear ones only
+    again = verify_grasps(model, poses, pose, weak, settings)
+    assert again.cached and again.seconds == 0.0 and np.array_equal(again.keep, v.keep)
+    held = _held(model, poses, 0, 25.0)
+    ok = held >= 0
+    assert (v.keep & ok).any() and (~v.keep & ok).any()
+    assert held[v.keep & ok].mean() > held[~v.keep & ok].mean()
+
+
+def test_a_goal_set_the_quality_leaves_empty_takes_what_holds_in_physics(tmp_path, monkeypatch):
+    """The known sugar box with a quality that asks for a carry no grasp can hold (100 m/s^2): every
+    grasp slips by the model and the goal set is empty without verification; with it, the reachable
+    grasps are lifted in PyBullet (at most the budget) and exactly those that held become goals."""
+    from conftest import known_scene
+    from pickplan.omg.goals import GoalSetSettings, build_goal_set
+    from pickplan.omg.grasps.verify import VerifySettings
+    from pickplan.omg.world import World
+
+    monkeypatch.setenv("PICKPLAN_CACHE_DIR", str(tmp_path))
+    world = World(known_scene()[0])
+    poses = antipodal_grasps(world.target_model, 30, seed=0, support=SupportFilter.under(world.target_pose)).poses
+    harsh = q.QualitySettings(acceleration=100.0)
+    verify = VerifySettings(budget=4, band=(-100.0, 0.0), quality=harsh)
+    alone = build_goal_set(world, poses, settings=GoalSetSettings(quality=harsh, verify=None))
+    assert len(alone) == 0 and alone.reason_counts().get("slips", 0) > 0
+    gs = build_goal_set(world, poses, settings=GoalSetSettings(quality=harsh, verify=verify))
+    used = np.unique(gs.grasp_index)
+    v = world.verify_grasps(gs.grasps[used], verify)  # lifted again on their own: they hold
+    assert len(gs) > 0 and 0 < len(used) <= verify.budget and v.simulated.all() and v.held.all()
+    assert all(gs.reasons[k] != "slips" for k in used)

@@ -1,5 +1,7 @@
 """Grasps from partial point clouds (issue 22): checked in score order, sized on the cross-section the
 pads close on, gravity's lever arm, and the target's visibility hull against the true object."""
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -9,7 +11,7 @@ from conftest import known_scene as _known_scene
 from pickplan.core import robots
 from pickplan.omg import isf
 from pickplan.omg.grasps.points import (PointGraspSettings, denoised, fitted_normals, footprint_candidates, gravity_lever,
-                                        grasps_from_points, mass_centre, patch_normals)
+                                        grasps_from_points, local_candidates, mass_centre, patch_normals)
 from pickplan.perception.field import perceive
 from pickplan.perception.hull import HullSettings, hull_voxels, visibility_hull
 from pickplan.sim.observe import render_observation
@@ -63,6 +65,24 @@ def test_grasps_from_above_close_on_the_section_under_the_pads(hand):
         np.testing.assert_allclose(G[:2, 3], [0.522, 0.02], atol=0.003)
     gs = grasps_from_points(P, N, PLANE, hand, n=20, seed=0)
     assert len(gs) > 0
+
+
+def test_local_grasps_close_across_a_part_not_over_its_corners():
+    """Local grasps from above on a flat box 5 x 10 cm, 1.5 cm high: the pads close on two faces turned
+    at most max_face_turn from them (across the box, near an axis), never across a corner's chord
+    (the planned corner grasp of a standing sugar box from depth slid out of the pads); the same
+    candidates without the rule do include corner chords."""
+    P, _ = _box_surface([0.50, -0.05, 0.0], [0.55, 0.05, 0.015], step=0.003)
+    s = PointGraspSettings(max_width=0.08, pad_length=0.018, pad_width=0.02, width_margin=0.006)
+
+    def off_axis(settings):
+        cands = local_candidates(P, PLANE, settings, np.random.default_rng(0))
+        y = np.array([G[:2, 1] for G, _, _ in cands])
+        return np.degrees(np.arccos(np.clip(np.abs(y).max(axis=1), 0.0, 1.0)))  # from the nearest box axis
+
+    kept = off_axis(s)
+    assert len(kept) > 0 and kept.max() <= np.degrees(s.max_face_turn) + 1e-6
+    assert off_axis(dataclasses.replace(s, max_face_turn=np.pi / 2 - 1e-3)).max() > 40.0
 
 
 def test_gravity_lever_is_the_horizontal_arm_about_the_closing_axis():

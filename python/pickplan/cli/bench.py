@@ -17,7 +17,7 @@ from typing import Dict, List, Optional, Sequence
 
 from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize,
                                        summarize_by_object)
-from pickplan.eval.summaries import OUTCOMES
+from pickplan.eval.summaries import OUTCOMES, object_markdown, slip_cell
 from pickplan.cli.scenes import clutter_range
 from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
@@ -102,56 +102,12 @@ def markdown(table: str, summary: Dict[str, dict], records: Sequence[dict], head
     lines.append("| Units (valid / planned) | " + " | ".join(
         f"{summary[m]['valid']}/{summary[m]['units']} ({summary[m]['planned']})" for m in methods) + " |")
     lines.append("| Slip in the hand (mm / deg, median of lifted; slipped > 1 cm or 10 deg) | " + " | ".join(
-        _slip_cell(summary[m]) for m in methods) + " |")
+        slip_cell(summary[m]) for m in methods) + " |")
     lines.append("| Failed executions: dropped / missed / collision | " + " | ".join(
         " / ".join(str(summary[m].get(k, 0)) for k in OUTCOMES) for m in methods) + " |")
     lines.append("| No goals (units) | " + " | ".join(str(summary[m].get("no_goals", 0)) for m in methods) + " |")
     lines.append("| Ungraspable targets (units, not in the rates) | " + " | ".join(
         str(summary[m].get("ungraspable", 0)) for m in methods) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def _slip_cell(c: dict) -> str:
-    if not math.isfinite(c.get("slip", float("nan"))):
-        return "n/a"
-    return f"{1000 * c['slip']:.1f} / {c['slip_rotation']:.1f} ({c['slipped']})"
-
-
-def _reasons(counts: Dict[str, int], top: int = 3) -> str:
-    items = sorted(counts.items(), key=lambda kv: -kv[1])
-    return ", ".join(f"{k} {v}" for k, v in items[:top]) + (", ..." if len(items) > top else "")
-
-
-def object_markdown(by_object: Dict[str, Dict[str, dict]], methods: Sequence[str]) -> str:
-    """Per target object: planning / execution rates (over graspable units) per method, the no-goal
-    units with the grasps' rejection reasons, and the ungraspable units with the verdict."""
-    lines = ["### Per target object", "",
-             "Cells: planning / execution over the units whose target is graspable (units). Slip: mm / deg the "
-             "lifted targets moved in the hand (median), per method. Failed: dropped / missed / collision, summed "
-             "over methods. No goals: units per method, then the grasps' rejection reasons summed. Ungraspable: "
-             "units, not counted in any rate.", "",
-             "| Object | " + " | ".join(methods) + " | Slip | Failed | No goals | Ungraspable |",
-             "|---" * (len(methods) + 5) + "|"]
-    for obj, row in by_object.items():
-        cells = []
-        for m in methods:
-            c = row[m]
-            execution = "not run" if c["execution"] is None else _fmt("execution", c["execution"])
-            cells.append(f"{_fmt('planning', c['planning'])} / {execution} ({c['graspable']})" if c["graspable"]
-                         else "-")
-        no_goals = ", ".join(f"{m} {row[m]['no_goals']}" for m in methods if row[m]["no_goals"])
-        reasons: Dict[str, int] = {}
-        for m in methods:
-            for k, v in row[m]["no_goals_reasons"].items():
-                reasons[k] = reasons.get(k, 0) + v
-        if no_goals:
-            no_goals += f" ({_reasons(reasons)})"
-        ungraspable = sum(row[m]["ungraspable"] for m in methods)
-        why = next((r for m in methods for r in row[m]["ungraspable_reasons"]), "")
-        slip = ", ".join(_slip_cell(row[m]).split(" (")[0] for m in methods)
-        failed = " / ".join(str(sum(row[m].get(k, 0) for m in methods)) for k in OUTCOMES)
-        lines.append(f"| {obj} | " + " | ".join(cells) + f" | {slip} | {failed} | {no_goals or '0'} | "
-                     + (f"{ungraspable} ({why})" if ungraspable else "0") + " |")
     return "\n".join(lines) + "\n"
 
 

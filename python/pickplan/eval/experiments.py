@@ -252,7 +252,7 @@ def _unit_grasps(world: World, scene: Scene, kind: str, n: int, robot: str):
     return replace(gs, poses=gs.poses.copy())  # a unit may not change what the next one reads
 
 
-def _finite(x: float) -> Optional[float]:
+def finite(x: float) -> Optional[float]:
     """A float for a JSON record: None for nan (not measured)."""
     return float(x) if np.isfinite(x) else None
 
@@ -312,7 +312,7 @@ def run_unit(unit: dict) -> dict:
                   stage_times={k: float(result.timings.get(k, 0.0)) for k in STAGES})
     if planned and omg.goals.quality is not None:  # how well the executed (maybe refined) grasp holds, by the model
         hand = np.linalg.inv(world.target_pose) @ result.hand_pose
-        record["grasp_margin"] = _finite(float(world.grasp_quality(hand[None], omg.goals.quality).margin[0]))
+        record["grasp_margin"] = finite(float(world.grasp_quality(hand[None], omg.goals.quality).margin[0]))
     # The duration a controller needs: the path timed within the robot's velocity/acceleration limits.
     control_rate = 1.0 / ExecutionSettings.time_step  # samples at PyBullet's control rate: executed as they are
     timed = time_parameterize(result.trajectory, control_rate, robot_limits(world.robot)) if planned else None
@@ -322,7 +322,7 @@ def run_unit(unit: dict) -> dict:
         ex = execute_plan(scene, timed if unit.get("timed_execution") else result.trajectory,
                           ExecutionSettings(robot=world_settings.robot, waypoint_dt=chomp.duration / chomp.n))
         record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds,
-                      execution_sim_time=ex.sim_time, slip=_finite(ex.slip), slip_rotation=_finite(ex.slip_rotation),
+                      execution_sim_time=ex.sim_time, slip=finite(ex.slip), slip_rotation=finite(ex.slip_rotation),
                       grip_force=ex.grip_force)
     record["unit_seconds"] = time.perf_counter() - t0
     return record

@@ -21,6 +21,7 @@ import numpy as np
 from pickplan.core.io import read_json, write_json, write_text
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
 from pickplan.eval import experiments
+from pickplan.eval.summaries import OUTCOMES, execution_outcomes, object_markdown, slip_cell, summarize_by_object
 from pickplan.omg.chomp import Chomp, ChompSettings
 from pickplan.omg.goals import GoalSetSettings, IkSettings
 from pickplan.omg.perceived_world import PerceivedPlanner, PerceivedWorld
@@ -119,6 +120,7 @@ def run_perceived_unit(unit: dict) -> dict:
     result = PerceivedPlanner(world, settings).plan()
     planned = result.status != PlanStatus.no_goals
     record.update(status=result.status, planned=planned, planning_success=bool(result.success),
+                  goal_reasons=dict(result.goal_reasons) if not planned else {},
                   goal_set_size=result.goal_set_size, target_points=len(world.perceived.target_points),
                   field_time=sum(world.seconds[k] for k in ("plane", "field", "scene", "world")),
                   grasp_time=world.seconds["grasps"], goal_set_time=float(result.timings["goal_set"]),
@@ -130,7 +132,8 @@ def run_perceived_unit(unit: dict) -> dict:
     record.update(execution_success=False, execution_status="not_executed")
     if unit["execute"] and result.success:
         ex = execute_plan(scene, result.trajectory, ExecutionSettings(waypoint_dt=settings.chomp.duration / settings.chomp.n))
-        record.update(execution_success=bool(ex.success), execution_status=ex.status)
+        record.update(execution_success=bool(ex.success), execution_status=ex.status,
+                      slip=experiments.finite(ex.slip), slip_rotation=experiments.finite(ex.slip_rotation))
     record["unit_seconds"] = time.perf_counter() - t0
     return record
 
@@ -190,20 +193,24 @@ def _mean(values) -> float:
 
 
 def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict]:
+    # a target the known mesh shows no grasp of the gripper can hold is counted apart in every column
+    # (as in the sweeps' tables): the observation cannot tell it, the truth can
+    ungraspable = {r["scene"] for r in records if r.get("graspable") is False}
     out = {}
     for m in methods:
-        rs = [r for r in records if r["method"] == m]
+        rs = [r for r in records if r["method"] == m and r["scene"] not in ungraspable]
         n = len(rs)
         planned = [r for r in rs if r.get("planned")]
         ok = [r for r in rs if r.get("planning_success")]
         out[m] = {"units": n, "errors": sum(r.get("status") == "error" for r in rs),
+                  "ungraspable": sum(r["method"] == m and r["scene"] in ungraspable for r in records),
                   "planning": sum(r["planning_success"] for r in rs) / n if n else float("nan"),
                   "execution": sum(r["execution_success"] for r in rs) / n if n else float("nan"),
                   "true_collision_free": (sum(r.get("true_collision_free", False) for r in ok) / len(ok)
                                           if ok else float("nan")),
                   "collision": _mean(r.get("collision") for r in planned),
                   "min_clearance": _mean(r.get("min_clearance") for r in ok),
-                  **{k: _mean(r.get(k) for r in planned) for k in TIMES}}
+                  **{k: _mean(r.get(k) for r in planned) for k in TIMES}, **execution_outcomes(rs)}
     return out
 
 
@@ -221,20 +228,28 @@ def markdown(summary: Dict[str, dict], scenes: int, settings: PerceptionBenchSet
              f"(objects: {settings.objects or 'built-in'}, poses: {settings.poses}), {settings.grasps} goals, "
              "OMG (MD + C-Space ISF)", "",
              "Columns: `mesh` = known meshes and stored grasps; `Vv/Smm` = V camera views with depth noise",
-             "sigma S, no mesh and no stored grasp. Rates over all units; collisions measured on the true",
+             "sigma S, no mesh and no stored grasp. Rates over all units but those whose target the mesh",
+             "column's verdict calls ungraspable (counted apart); collisions measured on the true",
              "meshes. The mesh column's field and grasp times are 0: its SDFs and grasps are cached per object.", "",
              "| | " + " | ".join(methods) + " |", "|---" * (len(methods) + 1) + "|"]
     for key, label, fmt in ROWS:
         cells = ["n/a" if not np.isfinite(summary[m][key]) else fmt.format(summary[m][key]) for m in methods]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    lines.append("| Slip in the hand (mm / deg, median of lifted; slipped > 1 cm or 10 deg) | " + " | ".join(
+        slip_cell(summary[m]) for m in methods) + " |")
+    lines.append("| Failed executions: dropped / missed / collision | " + " | ".join(
+        " / ".join(str(summary[m][k]) for k in OUTCOMES) for m in methods) + " |")
     lines.append("| Units (errors) | " + " | ".join(f"{summary[m]['units']} ({summary[m]['errors']})"
                                                      for m in methods) + " |")
+    lines.append("| Ungraspable targets (units, by the known mesh; not in the rates) | " + " | ".join(
+        str(summary[m]["ungraspable"]) for m in methods) + " |")
     return "\n".join(lines) + "\n"
 
 
 def write_report(settings: PerceptionBenchSettings, records: List[dict]) -> str:
     summary = summarize(records, settings.methods())
     text = markdown(summary, len({r["scene"] for r in records}), settings)
+    text += "\n" + object_markdown(summarize_by_object(records, settings.methods()), settings.methods())
     write_text(os.path.join(settings.out, "table.md"), text)
     write_json(os.path.join(settings.out, "summary.json"), summary)
     write_json(os.path.join(settings.out, "runs.json"), records)

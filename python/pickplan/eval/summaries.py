@@ -103,3 +103,52 @@ def summarize_by_object(records: Sequence[dict], methods: Sequence[str]) -> Dict
                 **execution_outcomes(ok),
             }
     return out
+
+
+def slip_cell(c: dict) -> str:
+    """A table cell of ``execution_outcomes``' slip: "mm / deg (slipped units)", n/a with no lifted unit."""
+    if not math.isfinite(c.get("slip", float("nan"))):
+        return "n/a"
+    return f"{1000 * c['slip']:.1f} / {c['slip_rotation']:.1f} ({c['slipped']})"
+
+
+def _percent(x: Optional[float]) -> str:
+    return "n/a" if x is None or not math.isfinite(x) else f"{100 * x:.0f}%"
+
+
+def _reasons(counts: Dict[str, int], top: int = 3) -> str:
+    items = sorted(counts.items(), key=lambda kv: -kv[1])
+    return ", ".join(f"{k} {v}" for k, v in items[:top]) + (", ..." if len(items) > top else "")
+
+
+def object_markdown(by_object: Dict[str, Dict[str, dict]], methods: Sequence[str]) -> str:
+    """Per target object: planning / execution rates (over graspable units) per method, the no-goal
+    units with the grasps' rejection reasons, and the ungraspable units with the verdict."""
+    lines = ["### Per target object", "",
+             "Cells: planning / execution over the units whose target is graspable (units). Slip: mm / deg the "
+             "lifted targets moved in the hand (median), per method. Failed: dropped / missed / collision, summed "
+             "over methods. No goals: units per method, then the grasps' rejection reasons summed. Ungraspable: "
+             "units, not counted in any rate.", "",
+             "| Object | " + " | ".join(methods) + " | Slip | Failed | No goals | Ungraspable |",
+             "|---" * (len(methods) + 5) + "|"]
+    for obj, row in by_object.items():
+        cells = []
+        for m in methods:
+            c = row[m]
+            execution = "not run" if c["execution"] is None else _percent(c["execution"])
+            cells.append(f"{_percent(c['planning'])} / {execution} ({c['graspable']})" if c["graspable"]
+                         else "-")
+        no_goals = ", ".join(f"{m} {row[m]['no_goals']}" for m in methods if row[m]["no_goals"])
+        reasons: Dict[str, int] = {}
+        for m in methods:
+            for k, v in row[m]["no_goals_reasons"].items():
+                reasons[k] = reasons.get(k, 0) + v
+        if no_goals:
+            no_goals += f" ({_reasons(reasons)})"
+        ungraspable = sum(row[m]["ungraspable"] for m in methods)
+        why = next((r for m in methods for r in row[m]["ungraspable_reasons"]), "")
+        slip = ", ".join(slip_cell(row[m]).split(" (")[0] for m in methods)
+        failed = " / ".join(str(sum(row[m].get(k, 0) for m in methods)) for k in OUTCOMES)
+        lines.append(f"| {obj} | " + " | ".join(cells) + f" | {slip} | {failed} | {no_goals or '0'} | "
+                     + (f"{ungraspable} ({why})" if ungraspable else "0") + " |")
+    return "\n".join(lines) + "\n"

@@ -14,7 +14,8 @@ from pickplan import _core
 from pickplan.core.poses import RIGID_CLEAN_TOLERANCE, rigid_errors
 from pickplan.core import collision
 from pickplan.core.settings import Option, to_native
-from pickplan.omg.grasps.quality import QualitySettings
+from pickplan.omg.grasps.quality import GraspFit, QualitySettings
+from pickplan.omg.grasps.verify import VerifySettings
 from pickplan.omg.world import CheckerKind, World
 
 
@@ -100,6 +101,10 @@ class GoalSetSettings:
     # (``grasps.quality``) are rejected ("slips", "misses") and the rest tried best margin first;
     # None: every grasp, in the order given.
     quality: Optional[QualitySettings] = QualitySettings()
+    # Where the quality leaves no reachable grasp, the grasps it is unsure of are lifted in PyBullet
+    # (``grasps.verify``, cached; worlds with the target's model only) and those that hold are tried:
+    # what the model cannot judge (a pad's pressure over its patch, the simulator's contacts). None: never.
+    verify: Optional[VerifySettings] = VerifySettings(budget=12)
     standoff: float = 0.08
     standoff_steps: int = 4
     max_joint_jump: float = 0.5
@@ -109,7 +114,7 @@ class GoalSetSettings:
     seed: int = 0
 
     def to_native(self) -> "_core.GoalSetSettings":
-        return to_native(self, _core.GoalSetSettings, skip=("approach_clearance", "quality"))
+        return to_native(self, _core.GoalSetSettings, skip=("approach_clearance", "quality", "verify"))
 
 
 @dataclass
@@ -228,7 +233,8 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     With ``collision_check``, grasps are first met with the support (``support_adjusted``): the
     returned ``GoalSet.grasps`` are the grasps as used (moved ones flagged in ``adjusted``); then
     judged by ``settings.quality`` (``World.grasp_quality``): those that do not hold are rejected and the
-    rest tried best margin first. An object with no reachable grasp gives an empty goal set (with
+    rest tried best margin first; if none of them gives a goal, those it is unsure of that hold in PyBullet
+    (``settings.verify``, ``World.verify_grasps``) are tried. An object with no reachable grasp gives an empty goal set (with
     reasons), not an exception.
     """
     grasps = check_grasps(grasps)
@@ -253,10 +259,24 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
             reasons[k] = fit.value
         tried = tried[quality.order()]
         tried = tried[np.asarray([reasons[k] == "holds" for k in tried], dtype=bool)]
-    out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses[tried], start,
-                               settings.to_native(), problem, float(settings.approach_clearance))
-    for k, reason in zip(tried, out["reasons"]):
-        reasons[k] = reason
+
+    def goals(tried):
+        out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses[tried], start,
+                                   settings.to_native(), problem, float(settings.approach_clearance))
+        for k, reason in zip(tried, out["reasons"]):
+            reasons[k] = reason
+        return out
+    out = goals(tried)
+    unsure = np.flatnonzero([r == GraspFit.slips.value for r in reasons])
+    if not len(out["goals"]) and len(unsure) and settings.verify is not None and hasattr(world, "verify_grasps"):
+        # the reachable ones only (the budget goes to grasps that can become goals), best margin first
+        tried = unsure[np.argsort(-margin[unsure], kind="stable")]
+        reachable = np.unique(tried[np.asarray(goals(tried)["grasp_index"], dtype=int)])
+        held = world.verify_grasps(grasps[reachable], settings.verify).keep
+        for k in np.union1d(reachable[~held], [k for k in unsure if reasons[k] == "over_cap"]).astype(int):
+            reasons[k] = GraspFit.slips.value  # failed in physics, or not looked at: the quality's verdict
+        tried = reachable[held][np.argsort(-margin[reachable[held]], kind="stable")]
+        out = goals(tried)
     grasp_index = tried[np.asarray(out["grasp_index"], dtype=int)] if len(tried) else np.zeros(0, int)
     return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), grasp_index.astype(int),
                    grasps, reasons, float(out["seconds"]), adjusted, margin)

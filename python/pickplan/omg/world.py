@@ -18,7 +18,7 @@ from pickplan.core.settings import Option
 from pickplan.sim.scenes import Scene
 from pickplan.omg import isf
 from pickplan.omg.chomp import Chomp
-from pickplan.omg.grasps import quality
+from pickplan.omg.grasps import quality, verify
 from pickplan.omg.model_cache import ModelCache
 
 
@@ -179,6 +179,14 @@ class World:
         key = ("pad_points", quality.mesh_key(model.mesh), settings.spacing, settings.max_samples, settings.seed)
         surface = self.cache.derived(key, lambda: quality.surface_tree(model.mesh, settings))
         return quality.model_quality(model, grasps, self.target_pose, self.robot.info, settings, surface)
+
+    def verify_grasps(self, grasps: np.ndarray, settings: verify.VerifySettings) -> verify.Verified:
+        """``grasps.verify.verify_grasps`` of hand poses in the target's frame, the target lying as it
+        does on the scene's table, for this robot's gripper (``settings``: a ``VerifySettings``)."""
+        table = self.scene.table
+        rest = np.array(self.target_pose, dtype=float)
+        rest[2, 3] -= table.pose[2, 3] + table.size[2] / 2  # on a table top at z = 0
+        return verify.verify_grasps(self.target_model, grasps, rest, self.robot.info, settings)
 
     @functools.cached_property
     def clearance_problem(self):

@@ -68,6 +68,7 @@ class PointGraspSettings:
     spare_weight: float = 0.5        # score per spare opening (fraction of the opening)
     lever_scale: float = 0.05        # m of gravity's lever arm about the closing axis that costs one score point
     local_samples: int = 40          # footprint points local grasps from above are centred at (``local_candidates``)
+    max_face_turn: float = 0.35      # rad a section's end may turn from the pads (``quality``'s align_deg, 20 deg)
 
 
 def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -228,6 +229,31 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
     return out
 
 
+def _part_run(ry: np.ndarray, band: np.ndarray, gap: float) -> np.ndarray:
+    """(N,) bool: the points of ``band`` in the run along ``ry`` that holds ry = 0 (the sampled point)
+    with no gap wider than ``gap`` in it: the part the pads close on, not a neighbouring one beyond a
+    gap (whether a finger fits in that gap is the open-hand check's to say)."""
+    v = np.sort(ry[band])
+    cuts = np.flatnonzero(np.diff(v) > gap)
+    k = np.searchsorted(v, 0.0)
+    lo = v[cuts[cuts < k][-1] + 1] if (cuts < k).any() else v[0]
+    hi = v[cuts[cuts >= k][0]] if (cuts >= k).any() else v[-1]
+    return band & (ry >= lo) & (ry <= hi)
+
+
+def _faces_the_pads(ry: np.ndarray, rx: np.ndarray, s: PointGraspSettings) -> bool:
+    """Whether both ends of a section (points across the pads ``ry``, along the pads' width ``rx``)
+    turn at most ``max_face_turn`` from the pads: each end, found in the two halves of the pad's width,
+    moves by at most tan(max_face_turn) times the halves' distance. Across a part, not diagonally over
+    a corner of it (the pads would close on the corner's two faces, out of their friction cones, and
+    squeeze it out, or the end of a part under half a pad (one half empty: a corner cut off)."""
+    halves = [ry[rx < 0], ry[rx >= 0]]
+    if min(len(h) for h in halves) < 2:
+        return False
+    ends = np.array([np.quantile(h, [s.section_trim, 1.0 - s.section_trim]) for h in halves])
+    return bool(np.abs(ends[0] - ends[1]).max() <= np.tan(s.max_face_turn) * s.pad_width / 2)
+
+
 def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     """Grasps from above across a part of the target: at seeded points of its footprint and for each
     closing direction, the points in the band the pads sweep (a pad's width across, the open pads'
@@ -249,11 +275,16 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
         rel = F2 - F2[i]
         ry, rx = rel @ Y2.T, rel @ X2.T                                  # (N, yaws)
-        band = (np.abs(rx) <= s.pad_width / 2) & (np.abs(ry) <= s.max_width / 2)
+        # a part's section through this point spans at most the opening on either side of it
+        band = (np.abs(rx) <= s.pad_width / 2) & (np.abs(ry) <= s.max_width)
         for a in np.flatnonzero(band.sum(axis=0) >= 3):
-            sel = band[:, a]
+            sel = band[:, a] & _part_run(ry[:, a], band[:, a], 2 * s.clearance)
+            if sel.sum() < 3:
+                continue
             lo, hi = np.quantile(ry[sel, a], [s.section_trim, 1.0 - s.section_trim])
             if not s.min_width <= hi - lo <= s.max_width - s.width_margin:
+                continue
+            if not _faces_the_pads(ry[sel, a], rx[sel, a], s):
                 continue
             y, x = E @ Y2[a], E @ X2[a]
             mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (rx[sel, a].max() + rx[sel, a].min()) * x
