@@ -43,8 +43,15 @@ $(VENV)/.stamp: pyproject.toml
 
 venv: $(VENV)/.stamp
 
+# The ros extra (rclpy, Fast DDS and the message packages as wheels) for the ROS 2 node and its
+# tests: with pickplan installed, `pip install "pickplan[ros]"` adds only the extra's requirements.
+$(VENV)/.stamp-ros: pyproject.toml
+	$(PIP) install -q "pickplan[ros]"
+	touch $@
+
 install: system-deps venv
 	$(PIP) install -q --no-build-isolation --no-deps .
+	@$(MAKE) --no-print-directory $(VENV)/.stamp-ros
 
 test-cpp: system-deps venv
 	$(VENV)/bin/cmake -S . -B $(NATIVE_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV))/bin/ninja \

@@ -10,8 +10,9 @@ import pickplan
 
 PACKAGE_DIR = os.path.dirname(pickplan.__file__)
 # rank of each layer; a module imports only from its own layer or a lower rank. Layers of one rank sit
-# side by side and neither imports the other: sim and perception; omg and pickup (two applications).
-LAYERS = {"core": 0, "sim": 1, "perception": 1, "omg": 2, "pickup": 2, "eval": 3, "cli": 4}
+# side by side and neither imports the other: sim and perception; omg and pickup (two applications);
+# eval and ros (the ROS 2 node: its modules that import rclpy are imported only when it runs).
+LAYERS = {"core": 0, "sim": 1, "perception": 1, "omg": 2, "pickup": 2, "eval": 3, "ros": 3, "cli": 4}
 
 
 def _modules():

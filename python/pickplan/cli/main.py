@@ -9,6 +9,7 @@
   pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
   pickplan pickup plan|problems|replay   pick-up on the move: one problem file, random problems, replay
   pickplan view DIR [--html FILE]        a 3D view of a plan folder (live server, or a self-contained page)
+  pickplan ros serve|call                the ROS 2 node (pip install 'pickplan[ros]')
 
 Exit codes (cli/exit_codes.py): 0 success, 1 ran but no plan, 2 bad input, 3 internal error.
 """
@@ -36,6 +37,7 @@ from pickplan.cli.bench import add_bench_commands
 from pickplan.cli.robots import ROBOT_HELP, add_robot_commands
 from pickplan.cli.view import add_view_commands
 from pickplan.cli.observe import add_observe_commands
+from pickplan.cli.ros import add_ros_commands
 from pickplan.cli.plan_observation import run_plan_observation
 from pickplan.core.errors import InputError
 
@@ -100,6 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_robot_commands(sub)
     add_view_commands(sub)
     add_observe_commands(sub)
+    add_ros_commands(sub)
     return parser
 
 

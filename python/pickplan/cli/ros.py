@@ -1,0 +1,67 @@
+"""``pickplan ros serve | call``: the ROS 2 node (``pickplan.ros``; needs the ``ros`` extra).
+
+  pickplan ros serve --robot panda [--transport shm] [--ros-args -p cameras:=[cam0] -p cam0.pose:=[...]]
+  pickplan ros call [--point X Y Z] [--out timed.json]      plan once, print the status, save the trajectory
+
+The ROS modules are imported when a command runs, so the CLI works without the extra; a missing
+extra is a one-line error naming it (exit code 2).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+
+from pickplan.cli.exit_codes import ExitCode
+from pickplan.cli.robots import ROBOT_HELP
+from pickplan.core.errors import InputError
+from pickplan.ros.extra import configure_transport, require_ros
+
+TRANSPORT_HELP = "default: ROS's (UDP); shm: shared memory only, one machine (both ends must use it)"
+
+
+def _ros(module: str):
+    """``pickplan.ros.<module>``, imported when a command runs: it needs the optional ros extra."""
+    require_ros()
+    return importlib.import_module(f"pickplan.ros.{module}")
+
+
+def add_ros_commands(subparsers) -> None:
+    ros = subparsers.add_parser("ros", help="the ROS 2 node: plan picks from depth cameras (pip install 'pickplan[ros]')")
+    sub = ros.add_subparsers(dest="ros_command", required=True)
+    serve = sub.add_parser("serve", help="start the node (Ctrl-C stops it); ROS parameters after --ros-args")
+    serve.add_argument("--robot", default="panda", help=ROBOT_HELP)
+    serve.add_argument("--transport", default="default", choices=("default", "shm"), help=TRANSPORT_HELP)
+    serve.add_argument("ros_args", nargs=argparse.REMAINDER, help="--ros-args -p NAME:=VALUE ... (ROS's syntax)")
+    serve.set_defaults(handler=run_serve)
+    call = sub.add_parser("call", help="ask a running node to plan; prints its status (exit 1: no plan)")
+    call.add_argument("--point", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
+                      help="target: the object nearest this point (base frame, m); default: the node's current target")
+    call.add_argument("--server", default="/pickplan", help="the node's name (default /pickplan)")
+    call.add_argument("--transport", default="default", choices=("default", "shm"), help=TRANSPORT_HELP)
+    call.add_argument("--timeout", type=float, default=120.0, help="seconds to wait for the node and its answer")
+    call.add_argument("--out", default=None, help="save the trajectory as a timed trajectory (.json or .npz)")
+    call.set_defaults(handler=run_call)
+
+
+def run_serve(args: argparse.Namespace) -> int:
+    configure_transport(args.transport, os.environ)
+    ros_args = list(args.ros_args)
+    if ros_args and ros_args[0] != "--ros-args":
+        raise InputError(f"unexpected {' '.join(ros_args)}; ROS parameters follow --ros-args", field="ros_args")
+    return _ros("node").run(args.robot, ["pickplan"] + ros_args)
+
+
+def run_call(args: argparse.Namespace) -> int:
+    configure_transport(args.transport, os.environ)
+    client_mod = _ros("client")
+    with client_mod.PickClient(args.server) as client:
+        if not client.wait_for_server(args.timeout):
+            raise InputError(f"no pickplan node answers at {args.server} within {args.timeout} s", field="--server")
+        reply = client.plan(args.point, timeout=args.timeout)
+    print(reply.message)
+    if reply.success and args.out and reply.trajectory is not None:
+        msg = reply.trajectory
+        _ros("convert").timed_trajectory(msg, list(msg.joint_names)).save(args.out)
+        print(f"wrote {args.out}: {len(msg.points)} points of {', '.join(msg.joint_names)}")
+    return ExitCode.OK if reply.success else ExitCode.NO_PLAN
