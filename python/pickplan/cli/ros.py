@@ -2,6 +2,7 @@
 
   pickplan ros serve --robot panda [--transport shm] [--ros-args -p cameras:=[cam0] -p cam0.pose:=[...]]
   pickplan ros call [--point X Y Z] [--out timed.json]      plan once, print the status, save the trajectory
+  pickplan ros replay --observation obs.npz                 an observation as cameras + joint states (no robot)
 
 The ROS modules are imported when a command runs, so the CLI works without the extra; a missing
 extra is a one-line error naming it (exit code 2).
@@ -42,6 +43,14 @@ def add_ros_commands(subparsers) -> None:
     call.add_argument("--timeout", type=float, default=120.0, help="seconds to wait for the node and its answer")
     call.add_argument("--out", default=None, help="save the trajectory as a timed trajectory (.json or .npz)")
     call.set_defaults(handler=run_call)
+    replay = sub.add_parser("replay", help="publish an observation (.npz) as depth cameras and the robot at its start, "
+                                           "to try the node without a robot; prints the node's camera parameters")
+    replay.add_argument("--observation", required=True, help="observation .npz (pickplan observe)")
+    replay.add_argument("--robot", default="panda", help=ROBOT_HELP)
+    replay.add_argument("--encoding", default="32FC1", choices=("32FC1", "16UC1"), help="depth encoding")
+    replay.add_argument("--rate", type=float, default=5.0, help="frames per second")
+    replay.add_argument("--transport", default="default", choices=("default", "shm"), help=TRANSPORT_HELP)
+    replay.set_defaults(handler=run_replay)
 
 
 def run_serve(args: argparse.Namespace) -> int:
@@ -65,3 +74,26 @@ def run_call(args: argparse.Namespace) -> int:
         _ros("convert").timed_trajectory(msg, list(msg.joint_names)).save(args.out)
         print(f"wrote {args.out}: {len(msg.points)} points of {', '.join(msg.joint_names)}")
     return ExitCode.OK if reply.success else ExitCode.NO_PLAN
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    from pickplan.core import robots
+    from pickplan.core.observation import Observation
+
+    if not args.rate > 0:
+        raise InputError(f"expected frames per second > 0, got {args.rate}", field="--rate")
+    observation = Observation.load(args.observation)
+    robot = robots.load_robot(args.robot)
+    configure_transport(args.transport, os.environ)
+    client_mod, replay_mod = _ros("client"), _ros("replay")
+    with client_mod.PickClient(name="pickplan_replay") as client:
+        replay = replay_mod.ObservationReplay(client.node, observation, robot, robot.ready_configuration,
+                                              [args.encoding] * observation.views)
+        print("start the node with: pickplan ros serve --robot", args.robot, "--ros-args", " ".join(
+            a if a == "-p" else f"'{a}'" for a in replay.node_arguments()), flush=True)
+        client.node.create_timer(1.0 / args.rate, replay.publish)
+        try:
+            client.spin(float("inf"))
+        except KeyboardInterrupt:
+            pass
+    return ExitCode.OK

@@ -200,6 +200,9 @@ class PickNode(Node):
                 if len(values) != 3 or not all(np.isfinite(values)):
                     return SetParametersResult(successful=False, reason=f"target_point: expected x y z, got {values}")
                 self.latest[TARGET] = ("target_point", values)
+            elif param.name != "use_sim_time":  # the clock's own
+                return SetParametersResult(successful=False, reason=f"{param.name}: read at start only; restart the "
+                                                                    "node to change it")
         return SetParametersResult(successful=True)
 
     def _target_point(self) -> np.ndarray:

@@ -63,7 +63,7 @@ class ObservationReplay:
         """``--ros-args`` entries that tell the pickplan node where these cameras are."""
         args = ["-p", f"cameras:=[{','.join(self.names)}]", "-p", f"base_frame:={self.base_frame}"]
         for name, T in zip(self.names, self.observation.camera_pose):
-            args += ["-p", f"{name}.pose:=[{','.join(f'{v:.9g}' for v in convert.pose_values(T))}]"]
+            args += ["-p", f"{name}.pose:=[{','.join(repr(float(v)) for v in convert.pose_values(T))}]"]
         return args
 
     def publish(self) -> None:
