@@ -107,7 +107,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # ROS's own arguments (`pickplan ros serve ... --ros-args -p a:=1`) pass through unparsed
+    ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
+    args = build_parser().parse_args(argv[:len(argv) - len(ros_args)])
+    args.ros_args = ros_args
     handler = getattr(args, "handler", None) or getattr(args, "func")
     return run_command(args.command, handler, args)
 

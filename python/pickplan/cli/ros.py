@@ -30,10 +30,10 @@ def _ros(module: str):
 def add_ros_commands(subparsers) -> None:
     ros = subparsers.add_parser("ros", help="the ROS 2 node: plan picks from depth cameras (pip install 'pickplan[ros]')")
     sub = ros.add_subparsers(dest="ros_command", required=True)
-    serve = sub.add_parser("serve", help="start the node (Ctrl-C stops it); ROS parameters after --ros-args")
+    serve = sub.add_parser("serve", help="start the node (Ctrl-C stops it); ROS parameters follow --ros-args "
+                                         "(-p NAME:=VALUE, --params-file FILE)")
     serve.add_argument("--robot", default="panda", help=ROBOT_HELP)
     serve.add_argument("--transport", default="default", choices=("default", "shm"), help=TRANSPORT_HELP)
-    serve.add_argument("ros_args", nargs=argparse.REMAINDER, help="--ros-args -p NAME:=VALUE ... (ROS's syntax)")
     serve.set_defaults(handler=run_serve)
     call = sub.add_parser("call", help="ask a running node to plan; prints its status (exit 1: no plan)")
     call.add_argument("--point", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
@@ -55,10 +55,7 @@ def add_ros_commands(subparsers) -> None:
 
 def run_serve(args: argparse.Namespace) -> int:
     configure_transport(args.transport, os.environ)
-    ros_args = list(args.ros_args)
-    if ros_args and ros_args[0] != "--ros-args":
-        raise InputError(f"unexpected {' '.join(ros_args)}; ROS parameters follow --ros-args", field="ros_args")
-    return _ros("node").run(args.robot, ["pickplan"] + ros_args)
+    return _ros("node").run(args.robot, ["pickplan"] + list(args.ros_args))
 
 
 def run_call(args: argparse.Namespace) -> int:

@@ -247,8 +247,10 @@ class PickNode(Node):
             self._send_to_controller(msg)
         outcome.seconds["request"] = time.perf_counter() - t0
         self.status_pub.publish(self._status(outcome))
-        log = self.get_logger().info if outcome.success else self.get_logger().error
-        log(f"plan: {outcome.summary()}")
+        if outcome.success:  # rclpy ties a severity to each call site: one call per severity
+            self.get_logger().info(f"plan: {outcome.summary()}")
+        else:
+            self.get_logger().error(f"plan: {outcome.summary()}")
         return outcome
 
     def _status(self, outcome: PickOutcome) -> DiagnosticStatus:
@@ -268,7 +270,10 @@ class PickNode(Node):
         client.send_goal_async(action.Goal(trajectory=msg))
 
     def _on_plan(self, request, response):
-        outcome = self.plan_once()
+        try:
+            outcome = self.plan_once()
+        except Exception as exc:  # noqa: BLE001 - publishing or logging failed: still an answer, never a dead node
+            outcome = PickOutcome(PickStatus.internal_error, f"{type(exc).__name__}: {exc}")
         response.success, response.message = outcome.success, outcome.summary()
         if self.markers_pub.get_subscription_count() > 0:
             self._drawn = outcome
