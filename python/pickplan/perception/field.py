@@ -40,14 +40,19 @@ class PerceivedScene:
     obstacles: Optional["_core.SdfGrid"] = None  # the fused field alone (world frame), for drawing it
 
 
+def pixel_points(d: np.ndarray, rows: np.ndarray, cols: np.ndarray, K: np.ndarray, camera_pose: np.ndarray) -> np.ndarray:
+    """(N, 3) world points of pixels (rows, cols) at depths d (``Observation``'s conventions: pixel
+    (r, c) centred at (c + 0.5, r + 0.5))."""
+    P = np.column_stack([(cols + 0.5 - K[0, 2]) / K[0, 0] * d, (rows + 0.5 - K[1, 2]) / K[1, 1] * d, d])
+    return P @ camera_pose[:3, :3].T + camera_pose[:3, 3]
+
+
 def backproject(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray, stride: int = 1) -> np.ndarray:
-    """(H', W', 3) world points of every stride-th pixel of one view (``Observation``'s conventions:
-    pixel (r, c) centred at (c + 0.5, r + 0.5)); NaN where there is no depth."""
+    """(H', W', 3) world points of every stride-th pixel of one view; NaN where there is no depth."""
     d = np.asarray(depth[::stride, ::stride], float)
     rows, cols = np.mgrid[0:depth.shape[0]:stride, 0:depth.shape[1]:stride]
     d = np.where(np.isfinite(d) & (d > 0), d, np.nan)
-    P = np.stack([(cols + 0.5 - K[0, 2]) / K[0, 0] * d, (rows + 0.5 - K[1, 2]) / K[1, 1] * d, d], axis=-1)
-    return (P.reshape(-1, 3) @ camera_pose[:3, :3].T + camera_pose[:3, 3]).reshape(P.shape)
+    return pixel_points(d.ravel(), rows.ravel(), cols.ravel(), K, camera_pose).reshape(*d.shape, 3)
 
 
 def view_points(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray, stride: int) -> np.ndarray:

@@ -19,7 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from pickplan.core.observation import ObservationError
-from pickplan.perception.field import backproject
+from pickplan.perception.field import pixel_points
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,17 @@ def _segments(depth: np.ndarray, above: np.ndarray, max_step: float) -> np.ndarr
     return labels
 
 
+def _heights(d: np.ndarray, K: np.ndarray, pose: np.ndarray, n: np.ndarray, off: float) -> np.ndarray:
+    """(H, W) height of each pixel's point above the plane n . x = off (NaN without depth): linear in
+    the depth along each pixel's ray, so no point is formed (``backproject``'s pixel convention)."""
+    H, W = d.shape
+    m = pose[:3, :3].T @ n                                   # the plane's normal in the camera frame
+    x = (np.arange(W) + 0.5 - K[0, 2]) / K[0, 0]
+    y = (np.arange(H) + 0.5 - K[1, 2]) / K[1, 1]
+    with np.errstate(invalid="ignore"):
+        return d * (m[0] * x[None, :] + m[1] * y[:, None] + m[2]) + (pose[:3, 3] @ n - off)
+
+
 def target_near_point(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray, point: Sequence[float],
                       plane: Tuple[np.ndarray, float], settings: TargetSettings = TargetSettings(),
                       source: str = "<memory>") -> np.ndarray:
@@ -62,18 +73,17 @@ def target_near_point(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray,
     masks = np.zeros(depth.shape, dtype=bool)
     nearest = np.inf
     for v in range(len(depth)):
-        X = backproject(depth[v], K[v], poses[v])
-        with np.errstate(invalid="ignore"):
-            above = np.isfinite(X[..., 2]) & (X @ n - off > settings.min_height)
-        labels = _segments(depth[v], above, settings.max_step)
+        d = np.where(np.isfinite(depth[v]) & (depth[v] > 0), depth[v], np.nan)
+        above = _heights(d, K[v], poses[v], n, off) > settings.min_height  # NaN: False
         if not above.any():
             continue
+        labels = _segments(d, above, settings.max_step)
         sizes = np.bincount(labels[above])
-        usable = above & (sizes[np.maximum(labels, 0)] >= settings.min_pixels)
-        if not usable.any():
+        rows, cols = np.nonzero(above & (sizes[np.maximum(labels, 0)] >= settings.min_pixels))
+        if len(rows) == 0:
             continue
-        rows, cols = np.nonzero(usable)
-        dist = np.linalg.norm(X[rows, cols] - p, axis=1)
+        X = pixel_points(d[rows, cols], rows, cols, K[v], poses[v])
+        dist = np.linalg.norm(X - p, axis=1)
         k = int(np.argmin(dist))
         nearest = min(nearest, float(dist[k]))
         if dist[k] <= settings.max_distance:
