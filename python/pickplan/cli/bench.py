@@ -15,8 +15,9 @@ import os
 import sys
 from typing import Dict, List, Optional, Sequence
 
-from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize,
-                                       summarize_by_object)
+from pickplan.eval.experiments import SweepSettings, methods_for, run_sweep
+from pickplan.eval.methods import TABLES
+from pickplan.eval.summaries import grasp_costs_by_object, summarize, summarize_by_object
 from pickplan.cli.scenes import clutter_range
 from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
