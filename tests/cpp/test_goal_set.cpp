@@ -117,8 +117,8 @@ TEST(GoalSet, CapKeepsASeededSubsetInInputOrder) {
   for (unsigned seed : {0u, 1u, 2u}) {
     s.seed = seed;
     const GoalSet set = build_goal_set(c.ik, nullptr, nullptr, poses, c.start, s);
-    EXPECT_EQ(std::count(set.reasons.begin(), set.reasons.end(), "ok"), 2) << "seed " << seed;
-    EXPECT_EQ(std::count(set.reasons.begin(), set.reasons.end(), "over_cap"), 3) << "seed " << seed;
+    EXPECT_EQ(std::count(set.reasons.begin(), set.reasons.end(), GoalReason::ok), 2) << "seed " << seed;
+    EXPECT_EQ(std::count(set.reasons.begin(), set.reasons.end(), GoalReason::over_cap), 3) << "seed " << seed;
     ASSERT_EQ(set.grasp_index.size(), 2u);
     EXPECT_LT(set.grasp_index[0], set.grasp_index[1]);
     for (int g = 0; g < 2; ++g) EXPECT_NEAR(set.goals(g, 1), -0.3 + 0.15 * set.grasp_index[g], 1e-3);
