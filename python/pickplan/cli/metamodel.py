@@ -23,6 +23,7 @@ import numpy as np
 from pickplan.cli.exit_codes import run_command
 from pickplan.core.errors import InputError
 from pickplan.core.io import write_text
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
 from pickplan.pickup.metamodel.active import RhoModel
 from pickplan.pickup.metamodel.mesh_part import part_from_mesh
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
@@ -163,7 +164,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan")
     sub = parser.add_subparsers(dest="command", required=True)
     add_metamodel_commands(sub)
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_logging(level_of(args))
     return run_command(args.command, args.func, args)
 
 
