@@ -127,8 +127,6 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("timing_fraction", &PickupSettings::timing_fraction)
       .def_readwrite("direct_track", &PickupSettings::direct_track)
       .def_readwrite("arm_seeds", &PickupSettings::arm_seeds)
-      .def_readwrite("iteration_budget", &PickupSettings::iteration_budget)
-      .def_readwrite("resolve_max_iter", &PickupSettings::resolve_max_iter)
       .def_readwrite("t_min", &PickupSettings::t_min)
       .def_readwrite("t_max", &PickupSettings::t_max)
       .def_readwrite("tol", &PickupSettings::tol)
@@ -157,7 +155,6 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("timing_seed", &PickupSettings::timing_seed)
       .def_readwrite("direct_max_iter", &PickupSettings::direct_max_iter)
       .def_readwrite("warm_start_stages", &PickupSettings::warm_start_stages)
-      .def_readwrite("refine_max_iter", &PickupSettings::refine_max_iter)
       .def_readwrite("seed_speed", &PickupSettings::seed_speed);
 
   py::class_<StageResult>(m, "StageResult")

@@ -182,9 +182,9 @@ _PANDA = []
 
 def _panda():
     if not _PANDA:
-        import pickplan
+        from pickplan.core import robots
 
-        _PANDA.append(pickplan.robots.panda())
+        _PANDA.append(robots.panda())
     return _PANDA[0]
 
 
@@ -220,12 +220,12 @@ def run_problem(text: str, work: str):
 
 
 def run_urdf(text: str, work: str):
-    import pickplan
+    from pickplan.core import robots
 
     path = os.path.join(work, "robot.urdf")
     with open(path, "w", encoding="utf-8", errors="surrogatepass") as f:
         f.write(text)
-    robot = pickplan.robots.Robot.from_urdf(path)
+    robot = robots.Robot.from_urdf(path)
     q = robot.random_configurations(2, seed=0)
     _finite(robot.lower_limits[np.isfinite(robot.lower_limits)], robot.fk_batch(q))
     if robot.dof:

@@ -117,11 +117,11 @@ def test_every_public_name_imports():
             assert getattr(module, name) is not None, f"pickplan.{package}.{name}"
 
 
-def test_old_flat_names_are_the_layered_modules():
-    import pickplan.execution
-    import pickplan.scenes
-    from pickplan.sim import execution, scenes
-
-    assert pickplan.scenes is scenes and pickplan.execution is execution
-    assert pickplan.robots.panda is importlib.import_module("pickplan.core.robots").panda
-    assert pickplan.OMGPlanner is importlib.import_module("pickplan.omg.planner").OMGPlanner
+def test_the_layered_modules_are_the_one_public_surface():
+    """The flat module names of earlier releases are gone: one way to reach each module."""
+    for flat in ("scenes", "robots", "execution", "omg.planner_old"):
+        with pytest.raises(ModuleNotFoundError):
+            importlib.import_module(f"pickplan.{flat}")
+    assert not hasattr(pickplan, "OMGPlanner")
+    from pickplan.omg import OMGPlanner
+    assert OMGPlanner is importlib.import_module("pickplan.omg.planner").OMGPlanner

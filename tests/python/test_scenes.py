@@ -1,4 +1,4 @@
-"""pickplan.scenes: seeded generation, resting objects, JSON round trip, reloading, the CLI."""
+"""pickplan.sim.scenes: seeded generation, resting objects, JSON round trip, reloading, the CLI."""
 import json
 import math
 import os

@@ -55,6 +55,5 @@ HessianMode parse_hessian_mode(const std::string& text) { return parse(kHessian,
 CoefficientBasis parse_coefficient_basis(const std::string& text) { return parse(kBasis, text, "basis"); }
 MuStrategy parse_mu_strategy(const std::string& text) { return parse(kMu, text, "mu_strategy"); }
 RateRows parse_rate_rows(const std::string& text) { return parse(kRates, text, "rate_rows"); }
-SolveStatus parse_solve_status(const std::string& text) { return parse(kStatus, text, "status"); }
 
 }  // namespace pickplan

@@ -15,8 +15,10 @@ import os
 import sys
 from typing import Dict, List, Optional, Sequence
 
-from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize,
-                                       summarize_by_object)
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
+from pickplan.eval.experiments import SweepSettings, methods_for, run_sweep
+from pickplan.eval.methods import TABLES
+from pickplan.eval.summaries import grasp_costs_by_object, summarize, summarize_by_object
 from pickplan.cli.scenes import clutter_range
 from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
@@ -318,7 +320,9 @@ def add_perception_command(sub) -> None:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan", description=__doc__.splitlines()[0])
     add_bench_commands(parser.add_subparsers(dest="command", required=True))
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_logging(level_of(args))
     code = run_command("bench", args.handler, args)
     if code:  # as argparse does for its own errors: the stand-alone entry exits
         raise SystemExit(code)

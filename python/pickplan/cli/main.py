@@ -23,6 +23,7 @@ from typing import Optional, Sequence
 from pickplan.omg.grasps.sets import GraspKind
 from pickplan.omg.selection import Selection
 from pickplan.cli.exit_codes import ExitCode, run_command
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
 from pickplan.eval.demo import DemoSettings, run_demo
 from pickplan.sim import execution
 from pickplan.eval.demo import metrics_table
@@ -43,8 +44,11 @@ from pickplan.core.errors import InputError
 
 
 def _cmd_demo(args) -> int:
-
-    return run_demo(args.out, DemoSettings(seed=args.seed, robot=args.robot))
+    run = run_demo(args.out, DemoSettings(seed=args.seed, robot=args.robot))
+    print()
+    print(run.table)
+    print(f"wrote {args.out}/{', '.join(run.files)} ({run.seconds:.1f} s)")
+    return ExitCode.OK if run.lifted else ExitCode.NO_PLAN
 
 
 def _cmd_plan(args) -> int:
@@ -103,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_view_commands(sub)
     add_observe_commands(sub)
     add_ros_commands(sub)
+    add_verbosity_options(parser)  # last: on every command registered above
     return parser
 
 
@@ -112,6 +117,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
     args = build_parser().parse_args(argv[:len(argv) - len(ros_args)])
     args.ros_args = ros_args
+    configure_logging(level_of(args))
     handler = getattr(args, "handler", None) or getattr(args, "func")
     return run_command(args.command, handler, args)
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import os
 
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
 from pickplan.cli.exit_codes import ExitCode
 from pickplan.core.io import atomic_open, write_text
 from pickplan.core.io import read_json
@@ -251,7 +252,9 @@ def main(argv=None) -> int:
     in add_pickup_commands."""
     parser = argparse.ArgumentParser(prog="pickplan")
     add_pickup_commands(parser.add_subparsers(dest="command", required=True))
+    add_verbosity_options(parser)
     args = parser.parse_args(["pickup"] + list(argv) if argv is not None else None)
+    configure_logging(level_of(args))
     return args.func(args)
 
 

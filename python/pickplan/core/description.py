@@ -13,17 +13,15 @@ description does not need the native module; checking it against the robot model
 """
 from __future__ import annotations
 
-import hashlib
 import os
 import sys
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from pickplan.core.io import atomic_open
+from pickplan.core.io import content_file
 from pickplan.core.paths import assets_dir
 
 if sys.version_info >= (3, 11):
@@ -388,14 +386,8 @@ def _compose(r: _Reader, mount: dict, arm_urdf: str, source: str) -> str:
     ET.SubElement(joint, "child", link=roots[0])
     rpy = _rpy_of(T[:3, :3])
     ET.SubElement(joint, "origin", xyz=" ".join(f"{v:.12g}" for v in T[:3, 3]), rpy=" ".join(f"{v:.12g}" for v in rpy))
-    text = ET.tostring(arm, encoding="unicode")
-    digest = hashlib.sha1(text.encode()).hexdigest()[:16]
-    out = os.path.join(tempfile.gettempdir(), f"pickplan-{os.getuid() if hasattr(os, 'getuid') else 0}", "robots",
-                       f"{os.path.splitext(os.path.basename(source))[0]}-{digest}.urdf")
-    if not os.path.isfile(out):
-        with atomic_open(out, "w") as f:
-            f.write('<?xml version="1.0"?>\n' + text)
-    return out
+    return content_file(ET.tostring(arm, encoding="unicode"), "robots", ".urdf",
+                        stem=os.path.splitext(os.path.basename(source))[0], header='<?xml version="1.0"?>\n')
 
 
 def _rpy_of(R: np.ndarray) -> Tuple[float, float, float]:

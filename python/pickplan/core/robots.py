@@ -1,7 +1,7 @@
 """Robot models: URDF kinematics (native), body points sampled on collision meshes.
 
->>> import pickplan
->>> r = pickplan.robots.panda()
+>>> from pickplan.core import robots
+>>> r = robots.panda()
 >>> r.dof, r.link_names[:2]
 (9, ['panda_link0', 'panda_link1'])
 """
@@ -15,9 +15,7 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core.description import DescriptionError, RobotDescription, RobotInfo, load_description
-from pickplan.core.panda import (PANDA, PANDA_DESCRIPTION, PandaInfo,  # noqa: F401  (re-exported)
-                                 panda_urdf_path)
-from pickplan.core.paths import assets_dir  # noqa: F401  (re-exported: robots.assets_dir)
+from pickplan.core.panda import PANDA, PANDA_DESCRIPTION
 from pickplan.core.meshes import geometry_to_trimesh
 
 LinkRef = Union[int, str]
@@ -254,10 +252,6 @@ class DescribedRobot(Robot):
         return q
 
 
-class Panda(DescribedRobot):
-    """The Franka Emika Panda from pybullet_data, with its hand and finger link names."""
-
-
 def _check_joint_order(robot: Robot, info: RobotInfo, source: str) -> None:
     """The planner's configurations are the arm joints, then the finger joints: the URDF's order must be that."""
     expected = list(info.arm_joints) + list(info.finger_joints)
@@ -273,16 +267,14 @@ def load_robot(name_or_file: str = "panda", base_pose: Optional[np.ndarray] = No
         return name_or_file if base_pose is None else name_or_file.with_base(base_pose @ name_or_file.description.base_pose)
     desc = load_description(str(name_or_file))
     info = RobotInfo.from_description(desc)
-    cls = Panda if desc.name == PANDA.name else DescribedRobot
-    robot = cls(_core.Robot.from_urdf_file(desc.urdf, [os.fspath(p) for p in desc.package_dirs]), urdf_path=desc.urdf)
+    robot = DescribedRobot(_core.Robot.from_urdf_file(desc.urdf, [os.fspath(p) for p in desc.package_dirs]), urdf_path=desc.urdf)
     robot.info, robot.description = info, desc  # per instance: the class defaults are the Panda's
     _check_joint_order(robot, info, desc.source)
     base = np.eye(4) if base_pose is None else np.asarray(base_pose, dtype=float)
     return robot.with_base(base @ desc.base_pose)
 
 
-def panda(base_pose: Optional[np.ndarray] = None) -> Panda:
-    """The Panda shipped in pybullet_data (7 arm joints + 2 finger joints, real limits)."""
-    path = panda_urdf_path()
-    robot = Panda(_core.Robot.from_urdf_file(path, []), urdf_path=path)
-    return robot if base_pose is None else robot.with_base(base_pose)
+def panda(base_pose: Optional[np.ndarray] = None) -> DescribedRobot:
+    """The Panda shipped in pybullet_data (7 arm joints + 2 finger joints, real limits):
+    ``load_robot("panda", base_pose)``."""
+    return load_robot("panda", base_pose)

@@ -4,7 +4,9 @@ server on this machine."""
 from __future__ import annotations
 
 import base64
+import contextlib
 import html
+import io
 import os
 import shutil
 import signal
@@ -92,7 +94,8 @@ def serve(view: PlanView, open_browser: bool = False, keep_running: Optional[Cal
           announce: Callable[[str], None] = print) -> str:
     """Start meshcat's server (a subprocess on 127.0.0.1), send the view to it and announce its URL.
     Runs until ``keep_running()`` is false (default: until Ctrl-C); returns the URL."""
-    vis = meshcat.Visualizer()
+    with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL itself; ``announce`` does
+        vis = meshcat.Visualizer()
     for command in view.commands:
         vis.window.send(command)
     url = vis.url()

@@ -32,7 +32,6 @@ HessianMode parse_hessian_mode(const std::string& text);
 CoefficientBasis parse_coefficient_basis(const std::string& text);
 MuStrategy parse_mu_strategy(const std::string& text);
 RateRows parse_rate_rows(const std::string& text);
-SolveStatus parse_solve_status(const std::string& text);
 inline std::ostream& operator<<(std::ostream& os, SolveStatus status) { return os << to_string(status); }
 
 }  // namespace pickplan

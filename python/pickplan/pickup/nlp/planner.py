@@ -22,7 +22,8 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core.io import write_bytes
-from pickplan.core.robots import Robot, assets_dir
+from pickplan.core.paths import assets_dir
+from pickplan.core.robots import Robot
 from pickplan.core.settings import Option, to_native
 from pickplan.pickup.metamodel.model import FORMAT as METAMODEL_FORMAT, load_surface  # noqa: F401 - the format, re-exported
 
@@ -137,10 +138,7 @@ class PlannerSettings:
     direct_track: bool = True             # also solve all constraints from the stage-1 solution, keep the shorter
     direct_max_iter: int = 200            # its Ipopt iterations
     arm_seeds: int = 2                    # stages 2-5 from up to this many arm configurations at T2, keep the shortest
-    iteration_budget: int = 0             # successive: later arm seeds and the direct track only below this many Ipopt iterations (0: none)
-    resolve_max_iter: int = 0             # successive: Ipopt iterations of a stage's warm active-set re-solves (0: max_iter)
     warm_start_stages: bool = True        # stages 4 and 5 start from the previous stage's multipliers
-    refine_max_iter: int = 0              # successive: Ipopt iterations of stage 4 and of stage 5, each (0: max_iter per run)
 
     def __post_init__(self):
         for name, option in _OPTIONS.items():

@@ -3,6 +3,7 @@ refinement or a single shot), the dense checks of the solution and the files `pi
 writes (trajectory JSON, metrics JSON, a speed plot like the paper's Fig. 5)."""
 from __future__ import annotations
 
+import logging
 import math
 import os
 from dataclasses import dataclass
@@ -10,12 +11,13 @@ from typing import Optional
 
 import numpy as np
 
-from pickplan.core.io import atomic_open, write_json
-from pickplan.core.sdf import default_cache_dir
+from pickplan.core.io import atomic_open, cache_dir, write_json
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
 from pickplan.pickup.nlp import planner
 from pickplan.pickup.nlp.cases import METAMODEL_PART, cases_metamodel_config
 from pickplan.pickup.nlp.problem_file import STANDIN, PickupProblemSpec, native_problem
+
+log = logging.getLogger(__name__)
 
 # Dense checks of a solution (2001 instants over [0, T]; the NLP enforces its rows at samples, so
 # these leave room for what happens between them).
@@ -29,7 +31,7 @@ VELOCITY_ERROR_TOL = 0.05       # m/s, |J q' - S_g n_g| during grasping
 
 def builtin_metamodel_path(part: str) -> str:
     """Where the meta-model of a built-in part is cached ($PICKPLAN_CACHE_DIR or ~/.cache/pickplan)."""
-    return os.path.join(default_cache_dir(), f"metamodel_{part}.json")
+    return cache_dir(f"metamodel_{part}.json")
 
 
 def ensure_builtin_metamodel(part: str, path: Optional[str] = None, config=None, workers: int = 1,
@@ -43,7 +45,7 @@ def ensure_builtin_metamodel(part: str, path: Optional[str] = None, config=None,
             raise ValueError(f"{path}: a meta-model of {mm.part_name!r}, expected {part!r}")
         return path
     if progress:
-        print(f"building the {part} meta-model from simulation ({workers} worker(s)) -> {path}", flush=True)
+        log.info(f"building the {part} meta-model from simulation ({workers} worker(s)) -> {path}")
     build_metamodel(part, config or BuildConfig(), seed=0, workers=workers, progress=progress).save(path)
     return path
 
