@@ -3,12 +3,13 @@ segmentation of the rendered views; the shared back-projection against the close
 import numpy as np
 import pytest
 
-from conftest import known_scene
 from pickplan.core.observation import ObservationError
 from pickplan.perception.field import backproject, support_plane, view_points
 from pickplan.perception.target import TargetSettings, target_near_point
 from pickplan.sim import scenes as scenes_mod
 from pickplan.sim.observe import render_observation
+
+from conftest import known_scene
 
 
 @pytest.fixture(scope="module")

@@ -13,11 +13,12 @@ import time
 import numpy as np
 import pytest
 
-from conftest import known_scene
 from pickplan.core import robots
 from pickplan.core.timing import robot_limits
 from pickplan.sim.execution import execute_plan
 from pickplan.sim.observe import render_observation
+
+from conftest import known_scene
 
 pytest.importorskip("rclpy", reason="the ros extra is not installed (make install installs it)")
 

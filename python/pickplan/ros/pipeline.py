@@ -21,7 +21,6 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-from pickplan.core import robots
 from pickplan.core.observation import Observation, ObservationError
 from pickplan.core.settings import Option
 from pickplan.core.timing import KinematicLimits, TimedTrajectory, TimingError, robot_limits
