@@ -7,6 +7,7 @@ error (ValueError, of which InputError, FileNotFoundError): anything else is a f
 from __future__ import annotations
 
 import base64
+import copy
 import json
 import os
 import random
@@ -59,8 +60,8 @@ def mutate_json(data, rng: random.Random) -> str:
         path = rng.choice(paths)
         op = rng.random()
         parent = _get(data, path[:-1])
-        if op < 0.45:
-            _set(data, path, rng.choice(WEIRD_VALUES))
+        if op < 0.45:  # a copy: the shared list must not end up inside itself, nor change for later cases
+            _set(data, path, copy.deepcopy(rng.choice(WEIRD_VALUES)))
         elif op < 0.6:
             if isinstance(parent, dict):
                 del parent[path[-1]]
@@ -71,7 +72,7 @@ def mutate_json(data, rng: random.Random) -> str:
             if isinstance(value, (int, float)) and not isinstance(value, bool):
                 _set(data, path, value * rng.choice([-1, 1e-9, 1e9, 1 + 1e-6, 1.5]))
         elif op < 0.8:
-            _set(data, path, [_get(data, path)] * rng.randint(0, 3))
+            _set(data, path, [copy.deepcopy(_get(data, path)) for _ in range(rng.randint(0, 3))])
         elif op < 0.9:  # deep nesting, spliced in as text (json.dumps itself recurses)
             _set(data, path, f"__NEST_{rng.choice([10, 1000, 50_000])}__")
         else:
@@ -135,7 +136,8 @@ def mutate_observation(fields: dict, rng: random.Random) -> bytes:
                 a = a.astype(float)
                 a[idx] = value
         elif op < 0.5:
-            a = a.astype(rng.choice([np.float32, np.int64, np.bool_, np.complex128, np.uint8, str]))
+            dtype = rng.choice([np.float32, np.int64, np.bool_, np.complex128, np.uint8, str])
+            a = a.astype(str if a.dtype.kind == "U" else dtype)  # a string array converts only to strings
         elif op < 0.6:
             a = a.reshape(-1) if rng.random() < 0.5 else a[..., : max(1, a.shape[-1] // 2)] if a.ndim else a
         elif op < 0.7:

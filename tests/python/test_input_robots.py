@@ -35,9 +35,7 @@ def _with_urdf(tmp_path, urdf_text, name="arm.urdf"):
 def _panda_urdf(tmp_path, old, new, count=1):
     text = open(PANDA_URDF).read()
     assert old in text
-    text = text.replace(old, new, count)
-    text = text.replace('filename="', f'filename="{os.path.dirname(PANDA_URDF)}/')  # meshes beside the original
-    return _with_urdf(tmp_path, text)
+    return _with_urdf(tmp_path, text.replace(old, new, count))  # package:// meshes from package_dirs
 
 
 def _refused(path, field, words):

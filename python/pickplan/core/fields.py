@@ -176,7 +176,9 @@ class FieldReader:
     def choice(self, value, where: str, options: Iterable[str]) -> str:
         options = list(options)
         if not isinstance(value, str) or value not in options:
-            self.fail(where, f"expected one of {options}, got {shown(value)}")
+            spelled = ", ".join(repr(o) for o in options[:-1]) + f" or {options[-1]!r}" if len(options) > 1 else \
+                repr(options[0])
+            self.fail(where, f"expected {spelled}, got {shown(value)}")
         return value
 
     def vector(self, value, where: str, n: Optional[int] = None, **bounds) -> tuple:

@@ -22,6 +22,7 @@ import io
 import math
 import os
 import struct
+import tokenize
 import zipfile
 import zlib
 from collections import deque
@@ -46,9 +47,10 @@ MAX_CAMERA_DISTANCE = 100.0        # m from the robot base
 MAX_VIEWS, MAX_PIXELS = 64, 50_000_000  # per file, per view
 MAX_FILE_BYTES = 8_000_000_000     # uncompressed, every array together
 
-# What reading a truncated, bit-flipped or foreign archive raises (RuntimeError: an encrypted member).
+# What reading a truncated, bit-flipped or foreign archive raises (RuntimeError: an encrypted member;
+# TokenError and SyntaxError: numpy parses a damaged array header as Python text).
 CORRUPT_ARCHIVE = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, struct.error, ValueError, OSError,
-                   EOFError, NotImplementedError, KeyError, RuntimeError)
+                   EOFError, NotImplementedError, KeyError, RuntimeError, tokenize.TokenError, SyntaxError)
 
 #: The error an unusable observation raises (an ``InputError``: file and field named).
 ObservationError = InputError
@@ -254,10 +256,10 @@ def grow_target(depth: np.ndarray, pixels, source: str = "<memory>", max_step: f
     r = FieldReader(None if source == "<memory>" else source)
     with r:
         V, H, W = _depth(r, depth).shape
-        pixels = _numeric(r, pixels, "target_pixel", "iu")
-        pixels = pixels[None] if pixels.ndim == 1 else pixels
+        given = _numeric(r, pixels, "target_pixel", "iu")
+        pixels = given[None] if given.ndim == 1 else given
         if pixels.shape != (V, 2):
-            r.fail("target_pixel", f"expected one (row, col) pair per view: shape ({V}, 2), got {pixels.shape}")
+            r.fail("target_pixel", f"expected one (row, col) pair per view: shape ({V}, 2), got {given.shape}")
     depth = np.asarray(depth, float)
     depth = depth[None] if depth.ndim == 2 else depth
     mask = np.zeros(depth.shape, dtype=bool)

@@ -49,13 +49,14 @@ def read_scene(d, path: Optional[str] = None) -> dict:
         if out["size"] is not None and not np.all(out["size"] > 0):
             r.note("table.size", f"expected positive extents, got {out['size'].tolist()}")
         out["table_pose"] = r.get(table, "pose", "table", lambda v, w: _pose(r, v, w))
-        out["objects"] = [r.attempt(_object, r, o, f) for f, o in r.get(d, "objects", "", r.items, default=[])]
+        items = r.get(d, "objects", "", r.items)
+        out["objects"] = [r.attempt(_object, r, o, f) for f, o in items or []]
         names = [o[0] for o in out["objects"] if o is not None]
         if len(set(names)) != len(names):
             r.note("objects", f"object names must be unique, got {names}")
         out["target"] = r.get(d, "target", "", r.text)
-        if out["target"] is not None and None not in out["objects"] and out["target"] not in names:
-            r.note("target", f"{shown(out['target'])} is not one of the objects {names}")
+        if out["target"] is not None and items is not None and None not in out["objects"] and out["target"] not in names:
+            r.note("target", f"{out['target'][:60]!r} is not one of the objects {names}")
         out["robot"] = r.get(d, "robot", "", r.text, default="panda", required=False)
         q = d.get("robot_configuration", [])
         if not isinstance(q, (list, tuple)):
