@@ -383,6 +383,11 @@ RUNNERS = {"exec": run_exec, "scene": run_scene, "grasps": run_grasps, "metamode
            "observation": run_observation}
 
 
+# Kinds whose every error must name the file read (issue 39: the README's exit-code contract).
+NAMED_FILES = {"robot": "robot.toml", "observation": "obs.npz", "problem": "problem.json",
+               "metamodel": "metamodel.json"}
+
+
 def run_case(kind: str, payload, work: str) -> dict:
     import warnings
 
@@ -395,6 +400,8 @@ def run_case(kind: str, payload, work: str) -> dict:
         message = str(exc)
         if not message.strip():
             return {"outcome": "unclear", "error": f"{type(exc).__name__} without a message"}
+        if kind in NAMED_FILES and os.path.join(work, NAMED_FILES[kind]) not in message:
+            return {"outcome": "unnamed", "error": f"{type(exc).__name__} naming no file: {message[:200]}"}
         return {"outcome": "error", "error": f"{type(exc).__name__}: {message[:200]}"}
     except AssertionError as exc:  # NaN in a result, or two readers of one file that disagree
         return {"outcome": "bad result", "error": str(exc)}

@@ -2,8 +2,9 @@
 files, pick-up problem files, URDFs, meshes, robot descriptions (TOML; `robots check` and
 `load_robot` must agree on each) and depth observations (.npz), each case run in a child process (many per process, but a crash or a hang
 is caught and pinned on its case) with a time limit. Every case must end in a valid result with
-finite numbers or a documented error with a message (fuzz_cases.ALLOWED_ERRORS): never a signal, a
-hang past the limit, NaN in a result, or another exception type.
+finite numbers or a documented error with a message (fuzz_cases.ALLOWED_ERRORS) that, for the file
+kinds of fuzz_cases.NAMED_FILES, names the file: never a signal, a hang past the limit, NaN in a
+result, two readers that disagree, or another exception type (in the CLI: exit 2, never 3).
 
 PICKPLAN_FUZZ_COUNT cases per kind (default 300; `make fuzz FUZZ_COUNT=5000` runs more),
 PICKPLAN_FUZZ_SEED the seed (default 0)."""

@@ -56,6 +56,10 @@ def test_a_urdf_that_is_malformed_xml_or_not_xml_is_named(tmp_path):
              "arm.urdf is not well-formed XML")
     _refused(_with_urdf(tmp_path, "\x00\x01binary \xff garbage"), "urdf", "arm.urdf is not well-formed XML")
     _refused(_with_urdf(tmp_path, '<?xml version="1.0"?>\n<html><body/></html>'), "urdf", "not a URDF: .*<html>")
+    gripper = tmp_path / "gripper.urdf"  # a mounted gripper's URDF: was parsed as XML unchecked (ParseError)
+    gripper.write_text('<robot name="g"><link name="palm"></robot>')
+    _refused(_toml(tmp_path, UR5_TEXT.replace('urdf = "assets:robots/robotiq_2f85.urdf"', f'urdf = "{gripper}"')),
+             "mount.urdf", "gripper.urdf is not well-formed XML")
 
 
 def test_a_mesh_file_or_a_link_given_twice_is_named(tmp_path):
@@ -69,6 +73,13 @@ def test_joint_limits_of_1e308_are_refused_before_an_ik_seed_overflows(tmp_path)
     """Limits of +-1e308 made the IK seed (uniform in the limits) infinite, named nowhere."""
     path = _panda_urdf(tmp_path, 'lower="-2.9671" upper="2.9671"', 'lower="-1e308" upper="1e308"')
     _refused(path, "urdf", r"joint panda_joint1's limits \[-1e\+308, 1e\+308\] are not within")
+
+
+def test_arm_motor_forces_outside_a_real_joints_are_refused(tmp_path):
+    """Execution drives the arm with the URDF's effort limits: 0 N m or 1e308 N m is not a motor."""
+    for effort in ("0", "1e308"):
+        path = _panda_urdf(tmp_path, '<limit effort="87" lower="-2.9671"', f'<limit effort="{effort}" lower="-2.9671"')
+        _refused(path, "urdf", f"joint panda_joint1's effort limit '{effort}' is not within")
 
 
 @pytest.mark.parametrize("old, new, field, words", [
@@ -104,14 +115,16 @@ def test_a_description_without_pads_is_refused(tmp_path):
     ('{ name = "panda_finger_joint2", open = 0.04', '{ name = "panda_finger_joint2", open = 0.03', "gripper.finger_joints"),
 ])
 def test_robots_check_and_demo_agree_by_construction(tmp_path, capsys, old, new, field):
-    """`robots check` named links that do not exist while `demo --robot` planned with the file."""
+    """`robots check` named links that do not exist while `demo --robot` planned with the file (and
+    finger joints of two open values the other way round)."""
     path = _toml(tmp_path, PANDA_TEXT.replace(old, new, 1))
     _refused(path, field, ".")
     assert cli_main(["robots", "check", path]) == 2
-    assert cli_main(["demo", "--robot", path, "--out", str(tmp_path / "demo")]) == 2
-    err = capsys.readouterr().err
-    assert f"{path}: " in err and f"{field}: " in err and "internal error" not in err
-    assert not os.path.exists(tmp_path / "demo" / "metrics.md")
+    for command in (["demo"], ["scenes", "--n", "1"]):  # refused at the door, before a scene is made for it
+        assert cli_main(command + ["--robot", path, "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert f"{path}: " in err and f"{field}: " in err and "internal error" not in err
+        assert not os.path.exists(tmp_path / "out")
 
 
 def test_errors_name_the_users_files_not_the_composed_urdf(tmp_path):

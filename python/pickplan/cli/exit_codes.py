@@ -20,6 +20,7 @@ import tempfile
 import traceback
 from typing import Callable
 from pickplan.core.errors import InputError
+from pickplan.core.robots import check_description
 
 
 class OutputKind(enum.Enum):
@@ -68,7 +69,8 @@ def run_command(name: str, handler: Callable, args) -> int:
 
 
 def check_arguments(args) -> None:
-    """Options that name files and folders, checked before any work starts."""
+    """Options that name files and folders (and ``--robot``: the description, as ``robots check``
+    does), checked before any work starts."""
 
     out = getattr(args, "out", None)
     if isinstance(out, str):
@@ -76,6 +78,11 @@ def check_arguments(args) -> None:
     html = getattr(args, "html", None)
     if isinstance(html, str):
         check_output(html, "html", OutputKind.file)
+    robot = getattr(args, "robot", None)
+    if isinstance(robot, str):  # every problem `pickplan robots check` names, before a scene is made for it
+        _, problems = check_description(robot)
+        if problems:
+            raise InputError(problems=problems)
     for option in ("scene", "metamodel"):
         value = getattr(args, option, None)
         if isinstance(value, str) and os.path.isdir(value):

@@ -21,12 +21,13 @@ import numpy as np
 
 from pickplan.core.description import MAX_ANGLE, VELOCITY, RobotDescription
 from pickplan.core.fields import FieldReader
-from pickplan.core.urdf_xml import joint_types
+from pickplan.core.urdf_xml import joint_efforts, joint_types
 
 CENTRE_TOL = 0.003   # m: the grasp origin from the middle of the gap between the pads
 GAP_TOL = 0.006      # m: the measured gap from max_opening
 FINGER_TYPES = ("prismatic", "revolute")
 MAX_TRAVEL = {"revolute": MAX_ANGLE, "prismatic": 10.0}   # rad, m: a joint limit beyond is not a real joint
+EFFORT = (0.1, 1e5)   # N m (N): the arm's motors in execution take the URDF's effort limits
 TABLE = "table"   # skip_collision may pair a link with the table the robot stands on
 
 
@@ -66,9 +67,14 @@ def _pad_gap(desc: RobotDescription, robot, q: np.ndarray) -> Tuple[float, float
 def model_problems(r: FieldReader, desc: RobotDescription, robot) -> None:
     """Record in ``r`` every problem of ``desc`` against ``robot`` (its kinematic model, a
     ``robots.Robot`` built from ``desc.urdf``)."""
-    names, links, types = robot.joint_names, set(robot.link_names), joint_types(ET.parse(desc.urdf).getroot())
+    root = ET.parse(desc.urdf).getroot()
+    names, links, types = robot.joint_names, set(robot.link_names), joint_types(root)
     g = desc.gripper
     _joint_problems(r, desc, robot, types)
+    for name, effort in joint_efforts(root).items():
+        if name in desc.arm_joints and not EFFORT[0] <= _float(effort) <= EFFORT[1]:
+            r.note("urdf", f"joint {name}'s effort limit {effort!r} is not within [{EFFORT[0]:g}, {EFFORT[1]:g}] "
+                           f"(N m or N; execution drives the arm with it)")
     others = set(names) - set(desc.arm_joints) - {f.name for f in g.finger_joints}
     if others:
         r.note("arm_joints", f"movable joints that are neither arm_joints nor gripper.finger_joints: {sorted(others)}")
@@ -93,6 +99,13 @@ def model_problems(r: FieldReader, desc: RobotDescription, robot) -> None:
                              f"but the URDF orders its movable joints {names}")
     with r.part():
         _grasp_frame_problems(r, desc, robot)
+
+
+def _float(text) -> float:
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return float("nan")
 
 
 def _joint_problems(r: FieldReader, desc: RobotDescription, robot, types: dict) -> None:

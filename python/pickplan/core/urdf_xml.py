@@ -66,6 +66,15 @@ def joint_types(root: ET.Element) -> dict:
     return {j.get("name"): j.get("type") for j in root.iter("joint")}
 
 
+def joint_efforts(root: ET.Element) -> dict:
+    """Joint name -> its ``<limit effort=...>`` as text (None where the URDF states none)."""
+    out = {}
+    for j in root.iter("joint"):
+        limit = j.find("limit")
+        out[j.get("name")] = None if limit is None else limit.get("effort")
+    return out
+
+
 def _absolute_meshes(root: ET.Element, urdf: str) -> None:
     folder = os.path.dirname(os.path.abspath(urdf))
     for mesh in root.iter("mesh"):
