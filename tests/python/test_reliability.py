@@ -309,7 +309,7 @@ def test_nan_sigma_r_in_a_metamodel_is_refused():
 
 
 @pytest.mark.parametrize("mutate, message", [
-    (lambda d: [d], r"\(top level\): expected a JSON object, got list"),
+    (lambda d: [d], r"\(top level\): expected an object \(a table of keys\), got list"),
     (lambda d: {**d, "n_queries": "100"}, r"n_queries: expected an integer, got str"),
     (lambda d: {**d, "sg_grid": [0.1, "1.0"]}, r"sg_grid: expected numbers, got str"),
     (lambda d: {**d, "lapse": 1.5}, r"lapse: 1\.5 is outside \[0\.0, 1\.0\]"),

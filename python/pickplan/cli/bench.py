@@ -273,7 +273,8 @@ def add_bench_commands(subparsers) -> None:
         p.add_argument("--runs", type=int, default=10, help="runs per scene and method (default 10)")
         p.add_argument("--methods", nargs="+", default=None, help="subset of the table's methods")
         p.add_argument("--quick", action="store_true", help="CI setting: <= 4 scenes, 1 run, 10 goals")
-        p.add_argument("--out", default=None, help="output folder (default out/bench/TABLE); resumes there")
+        p.add_argument("--out", default=os.path.join("out", "bench", table),
+                       help="output folder (default out/bench/TABLE); resumes there")
         p.add_argument("--workers", type=int, default=2, help="local worker processes (<= 1: serial)")
         p.add_argument("--ray", default=None, help="Ray cluster address, or 'local' to start Ray here")
         p.add_argument("--seed", type=int, default=0)

@@ -81,7 +81,8 @@ def write_bytes(path: str, data: bytes) -> None:
 
 def read_json(path: str, what: str = "JSON file") -> Any:
     """The parsed JSON at ``path``; InputError naming the file for a missing file, a folder, bytes
-    that are not UTF-8, malformed JSON or nesting too deep for the decoder."""
+    that are not UTF-8, malformed JSON, an integer too long to convert or nesting too deep for the
+    decoder."""
     path = os.fspath(path)
     if os.path.isdir(path):
         raise InputError(f"expected a {what}, got a folder", path=path)
@@ -92,7 +93,7 @@ def read_json(path: str, what: str = "JSON file") -> Any:
             return json.load(f)
     except UnicodeDecodeError as exc:
         raise InputError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", path=path) from None
-    except json.JSONDecodeError as exc:
+    except ValueError as exc:  # JSONDecodeError, or an integer of more digits than Python converts
         raise InputError(f"malformed JSON: {exc}", path=path) from None
     except RecursionError:  # the decoder recurses once per level of nesting
         raise InputError("malformed JSON: nested too deeply", path=path) from None

@@ -11,6 +11,7 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.errors import InputError
 from pickplan.core.observation import Observation
 from pickplan.core.sdf import SceneSdf
 
@@ -101,7 +102,11 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     """The planner's world from ``obs``: fused field, support plane (detected unless given), target."""
     t0 = time.perf_counter()
     if settings.plane is None:
-        n, d = support_plane(_points(obs, 4), settings.plane_tolerance, seed=seed)
+        try:
+            n, d = support_plane(_points(obs, 4), settings.plane_tolerance, seed=seed)
+        except ValueError as exc:  # the observation's, named: no table in view
+            raise InputError(f"{exc} (the table the objects stand on must be in view)",
+                             path=None if obs.source == "<memory>" else obs.source, field="depth") from None
     else:
         n = np.asarray(settings.plane[0], float)
         n, d = n / np.linalg.norm(n), float(settings.plane[1])

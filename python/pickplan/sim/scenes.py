@@ -31,7 +31,7 @@ from pickplan.core.io import atomic_open
 from pickplan.core.settings import Option
 from pickplan.sim.bodies import (_inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat,  # noqa: F401
                                   add_object_body, add_robot, add_table, object_pose)  # (re-exported)
-from pickplan.sim.scene_checks import array as _array, check_placement, pose as _pose, seed as _seed
+from pickplan.sim.scene_checks import SCENE_FORMAT, SCENE_VERSION, check_placement, read_scene  # noqa: F401
 
 
 class Orientation(Option):
@@ -43,8 +43,6 @@ class Orientation(Option):
 
 
 ORIENTATIONS = tuple(o.value for o in Orientation)
-SCENE_FORMAT = "pickplan.scene"
-SCENE_VERSION = 1
 
 
 @dataclass(frozen=True)
@@ -146,57 +144,24 @@ class Scene:
         return json.dumps(self.to_dict(), indent=1)
 
     @classmethod
-    def from_dict(cls, d) -> "Scene":
-        if not isinstance(d, dict):
-            raise ValueError(f"expected a JSON object, got {type(d).__name__}")
-        if d.get("format") != SCENE_FORMAT:
-            raise ValueError(f"not a scene: 'format' is {d.get('format')!r}, expected {SCENE_FORMAT!r}")
-        if d.get("version") != SCENE_VERSION:
-            raise ValueError(f"unsupported scene version {d.get('version')!r} (this pickplan reads {SCENE_VERSION})")
-        for key in ("robot_base", "table", "objects", "target"):
-            if key not in d:
-                raise ValueError(f"missing key {key!r}")
-        table = d["table"]
-        if not isinstance(table, dict) or "size" not in table or "pose" not in table:
-            raise ValueError("'table' needs 'size' and 'pose'")
-        if not isinstance(d["objects"], list):
-            raise ValueError("'objects' must be a list")
-        objs = []
-        for i, o in enumerate(d["objects"]):
-            if not isinstance(o, dict) or not {"name", "source", "pose"} <= set(o):
-                raise ValueError(f"objects[{i}] needs 'name', 'source' and 'pose'")
-            objs.append(SceneObject(str(o["name"]), str(o["source"]), _pose(o["pose"], f"objects[{i}].pose")))
-        names = [o.name for o in objs]
-        if len(set(names)) != len(names):
-            raise ValueError(f"object names must be unique, got {names}")
-        if d["target"] not in names:
-            raise ValueError(f"target {d['target']!r} is not one of the objects {names}")
-        size = _array(table["size"], (3,), "table.size")
-        if not np.all(size > 0):
-            raise ValueError(f"table.size: expected positive extents, got {size.tolist()}")
-        q = d.get("robot_configuration", [])
-        robot = d.get("robot", PANDA.name)
-        if not isinstance(robot, str) or not robot:
-            raise ValueError(f"robot: expected a robot description's name, got {robot!r}")
-        if not isinstance(q, (list, tuple)):
-            raise ValueError(f"robot_configuration: expected a list of joint values, got {type(q).__name__} {q!r}")
-        scene = cls(robot_base=_pose(d["robot_base"], "robot_base"),
-                    table=Table(size=size, pose=_pose(table["pose"], "table.pose")),
-                    objects=objs, target=str(d["target"]), seed=_seed(d.get("seed")),
-                    robot_configuration=[float(x) for x in _array(q, (len(q),), "robot_configuration")],
-                    robot=robot)
-        check_placement(scene)
+    def from_dict(cls, d, path: Optional[str] = None) -> "Scene":
+        """The scene of a parsed scene file; InputError naming ``path`` and every field at fault."""
+        v = read_scene(d, path)
+        scene = cls(robot_base=v["robot_base"], table=Table(size=v["size"], pose=v["table_pose"]),
+                    objects=[SceneObject(*o) for o in v["objects"]], target=v["target"], seed=v["seed"],
+                    robot_configuration=v["robot_configuration"], robot=v["robot"])
+        check_placement(scene, path=path)
         return scene
 
     @classmethod
-    def from_json(cls, text: str) -> "Scene":
+    def from_json(cls, text: str, path: Optional[str] = None) -> "Scene":
         try:
             data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"malformed scene JSON: {exc}") from exc
+        except ValueError as exc:  # JSONDecodeError, or an integer of more digits than Python converts
+            raise InputError(f"malformed scene JSON: {exc}", path=path) from None
         except RecursionError:  # the decoder recurses once per level of nesting
-            raise ValueError("malformed scene JSON: nested too deeply") from None
-        return cls.from_dict(data)
+            raise InputError("malformed scene JSON: nested too deeply", path=path) from None
+        return cls.from_dict(data, path)
 
     def save(self, path: str) -> None:
         with atomic_open(path, "w") as f:
@@ -210,9 +175,9 @@ class Scene:
         try:
             with open(path, "r", encoding="utf-8") as f:
                 text = f.read()
-            return cls.from_json(text)
-        except (ValueError, FileNotFoundError) as exc:  # UnicodeDecodeError is a ValueError
-            raise InputError(str(exc), path=path) from exc
+        except UnicodeDecodeError as exc:
+            raise InputError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", path=path) from None
+        return cls.from_json(text, path)
 
 
 def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None,
