@@ -69,8 +69,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description="meshcat's server with its web server on one address")
     parser.add_argument("--host", default=LOOPBACK)
     bridge = _Bridge(parser.parse_args().host)
-    print(f"zmq_url={bridge.zmq_url}")
-    print(f"web_url={bridge.web_url}")
+    # the protocol to start_server, which reads these two lines from the pipe (not output for a person)
+    sys.stdout.write(f"zmq_url={bridge.zmq_url}\nweb_url={bridge.web_url}\n")
+    sys.stdout.flush()
     try:
         bridge.run()
     except KeyboardInterrupt:
