@@ -68,7 +68,22 @@ struct RunLimits {
   int budget = std::numeric_limits<int>::max();
   int resolve_max_iter = std::numeric_limits<int>::max();
   int stage_budget = std::numeric_limits<int>::max();  // all Ipopt runs of this one stage together
+  // Wall-clock deadline (PickupSettings::time_limit; max: none): no run starts after it, and each
+  // run is told the time left.
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+  bool expired() const { return std::chrono::steady_clock::now() >= deadline; }
+  double seconds_left() const {
+    if (deadline == std::chrono::steady_clock::time_point::max()) return 0.0;  // 0: no limit
+    return std::max(1e-3, std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count());
+  }
 };
+
+// The deadline of a call that starts now with settings.time_limit (none when it is 0).
+std::chrono::steady_clock::time_point deadline_of(const PickupSettings& st) {
+  if (!(st.time_limit > 0)) return std::chrono::steady_clock::time_point::max();
+  return std::chrono::steady_clock::now() +
+         std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(st.time_limit));
+}
 
 // bound: a run whose T ends at or above it stops the stage ("bounded"; a better solution is known).
 StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
@@ -78,7 +93,9 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
 
 StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
                         const Eigen::VectorXd& x0) {
-  return solve_stage_warm(robot, pb, st, stage, x0, nullptr, nullptr);
+  RunLimits limits;
+  limits.deadline = deadline_of(st);
+  return solve_stage_warm(robot, pb, st, stage, x0, nullptr, nullptr, std::numeric_limits<double>::infinity(), limits);
 }
 
 namespace {
@@ -155,6 +172,12 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
       sr.max_iter = std::min(sr.max_iter, left);
       return true;
     };
+    if (limits.expired()) {
+      res.status = SolveStatus::time_limit;
+      res.ipopt_status = "Not_Solved (the time limit ran out)";
+      break;
+    }
+    sr.time_limit = limits.seconds_left();
     constexpr int kNoCap = std::numeric_limits<int>::max();
     if (limits.stage_budget < kNoCap && !cap(limits.stage_budget - res.iterations, "the stage's")) break;
     if (limits.used && limits.budget < kNoCap && !cap(limits.budget - *limits.used, "the successive refinement's"))
@@ -305,7 +328,12 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   first.used = later_runs.used = &used;
   if (st.resolve_max_iter > 0) first.resolve_max_iter = later_runs.resolve_max_iter = st.resolve_max_iter;
   if (st.iteration_budget > 0) later_runs.budget = st.iteration_budget;
-  auto budget_left = [&]() { return used < later_runs.budget; };
+  first.deadline = later_runs.deadline = deadline_of(st);
+  bool timed_out = false;  // a run was cut or skipped by the time limit
+  auto budget_left = [&]() {
+    if (later_runs.expired()) timed_out = true;
+    return used < later_runs.budget && !timed_out;
+  };
   out.x = x0.size() ? x0 : heuristic_seed(robot, pb, st);
   const double seed_wall = elapsed(t_h), seed_cpu = thread_cpu_seconds() - cpu_h;  // counted in stage 1
   if (out.x.size() != num_vars(robot, st))
@@ -314,6 +342,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   r1.seconds += seed_wall;
   r1.cpu_seconds += seed_cpu;
   out.stages.push_back(r1);
+  timed_out = r1.status == SolveStatus::time_limit;
   out.success = r1.success;
   out.status = r1.success ? SolveStatus::solved : r1.status;
   if (r1.success) {
@@ -364,6 +393,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       const bool ok = run_stages_2_to_5(robot, pb, st, x2, ik_wall, ik_cpu, best * (1.0 - 1e-4), k == 0 ? first : later_runs,
                                         stages, x, status, price);
       ik_wall = ik_cpu = 0.0;
+      if (status == SolveStatus::time_limit) timed_out = true;
       if (stages.size() >= 3 && max_seeds > 1) {  // a trajectory with the grasp velocity: where it meets limits
         std::vector<Eigen::VectorXd> turns;
         for (const Eigen::VectorXd& w : wound_arm_configurations(robot, pb, st, arms[k], stages.back().x, price))
@@ -406,6 +436,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
     const double staged = out.success ? out.stages.back().objective : std::numeric_limits<double>::infinity();
     // Shorter by more than Ipopt's tolerance (a tie keeps the successive solution).
     out.direct = solve_stage_warm(robot, pb, sd, 0, out.stages.front().x, nullptr, nullptr, staged * (1.0 - 1e-4), later_runs);
+    if (out.direct.status == SolveStatus::time_limit) timed_out = true;
     if (out.direct.success && out.direct.objective < staged * (1.0 - 1e-4)) {
       out.x = out.direct.x;
       out.direct_chosen = true;
@@ -414,6 +445,8 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       out.stages_completed = 5;
     }
   }
+  // The budget ran out somewhere: say so; success still tells whether x is a feasible solution.
+  if (timed_out) out.status = SolveStatus::time_limit;
   fill_result(out, robot, st);
   return out;
 }

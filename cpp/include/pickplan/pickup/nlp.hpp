@@ -141,6 +141,11 @@ struct PickupSettings {
   // hundreds of iterations there usually fails (issue 23's benchmark: 86's stage 5 ran 400 to
   // max_iterations), but solved ones needed up to 274 (problem 88): off by default (bench/PICKUP.md).
   int refine_max_iter = 0;
+  // Wall-clock budget of one solve_successive / solve_single_shot call (s; 0: none). Each Ipopt run
+  // stops at the deadline (its intermediate callback), no stage, arm seed or direct track starts
+  // after it, and the result keeps the best feasible solution found before it (status time_limit).
+  // Wall time, not CPU: it is what a caller waits for (on a loaded machine the two differ).
+  double time_limit = 0.0;
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
   // closer than joint_limit_margin / 2 to its limit, a row at that instant joins and the stage is

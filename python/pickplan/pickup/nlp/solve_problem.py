@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
@@ -13,7 +13,7 @@ import numpy as np
 from pickplan.core.io import atomic_open, write_json
 from pickplan.core.sdf import default_cache_dir
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
-from pickplan.pickup.nlp import planner
+from pickplan.pickup.nlp import planner, routed
 from pickplan.pickup.nlp.cases import METAMODEL_PART, cases_metamodel_config
 from pickplan.pickup.nlp.problem_file import STANDIN, PickupProblemSpec, native_problem
 
@@ -91,10 +91,15 @@ def dense_checks(problem, plan: planner.PickupPlan, metrics: Optional[dict]) -> 
 
 
 def solve(robot, spec: PickupProblemSpec, rho, settings: planner.PlannerSettings = planner.PlannerSettings(),
-          method=planner.Method.successive) -> ProblemSolution:
-    """Solves one problem and checks the solution densely (solver failures are statuses)."""
+          method=planner.Method.successive, time_limit: float = 0.0) -> ProblemSolution:
+    """Solves one problem and checks the solution densely (solver failures are statuses; method
+    routed: ``routed.plan_routed`` with its certificate, lower bound and ``time_limit``)."""
     problem = native_problem(robot, spec, rho)
-    plan = planner.plan(robot, problem, settings, method)
+    if planner.Method.parse(method, "method") is planner.Method.routed:
+        plan = routed.plan_routed(robot, problem, settings, time_limit=time_limit)
+    else:
+        plan = planner.plan(robot, problem, settings if not time_limit else replace(settings, time_limit=time_limit),
+                            method)
     metrics = planner.evaluate(robot, problem, plan) if plan.stages_completed > 0 else None
     return ProblemSolution(spec, problem, plan, metrics, dense_checks(problem, plan, metrics))
 
@@ -110,11 +115,17 @@ def trajectory_dict(sol: ProblemSolution, n: int = 401) -> dict:
     return d
 
 
+def _finite(v):
+    return v if math.isfinite(v) else None  # JSON has no NaN or inf
+
+
 def metrics_dict(sol: ProblemSolution) -> dict:
     p = sol.plan
     return {"status": p.status, "success": p.success, "best_stage": p.stages_completed,
-            "passed_dense_checks": sol.passed, "checks": sol.checks, "T": p.T, "T1": p.T1, "T2": p.T2,
-            "S_g": p.S_g, "S_c": p.S_c, "cpu_seconds": p.total_cpu_seconds, "wall_seconds": p.total_seconds,
+            "passed_dense_checks": sol.passed, "checks": sol.checks, "T": _finite(p.T), "T1": _finite(p.T1),
+            "T2": _finite(p.T2), "S_g": _finite(p.S_g), "S_c": _finite(p.S_c), "cpu_seconds": p.total_cpu_seconds,
+            "wall_seconds": p.total_seconds, "lower_bound": _finite(p.lower_bound), "reason": p.reason,
+            "detail": p.detail, "seed": p.seed,
             "dense": {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in (sol.metrics or {}).items()},
             "stages": [{"stage": s.stage, "status": s.status, "ipopt": s.ipopt_status, "T": s.objective}
                        for s in p.stages]}

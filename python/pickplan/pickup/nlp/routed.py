@@ -1,0 +1,111 @@
+"""Pick-up on the move for any layout (issue 37): the certificate and lower bound of
+``feasibility``, stage-1 runs from the heuristic seed and from the car-like route seeds of ``route``,
+successive refinement from the fastest base path, and a wall-clock budget.
+
+1. ``feasibility.certify``: a problem the geometry rules out (gamma unattainable, the part out of
+   reach from every free base position, T's bound above the horizon) gets its reason, no solve.
+2. Stage 1 (the base path: non-holonomic, limits, grasping area, goal, base collisions) from the
+   heuristic seed and from up to ``routes`` route seeds; the solved ones are ranked by their T.
+3. The five stages (native ``solve_successive``: arm seeds, direct track) from the best stage-1
+   solution; on failure from the next, while the budget lasts. The first success is returned.
+4. No success: the reason is ``solver_failed`` (the certificate found nothing against the problem)
+   and the plan that went furthest is returned as the closest; ``time_limit`` when the budget ran
+   out first. With a budget the native runs get the time left (``PlannerSettings.time_limit``), and
+   a plan found before the deadline is returned with status ``time_limit`` when later runs were cut.
+
+Ipopt 3.11 with MUMPS is not thread-safe (``planner``), so the stage-1 runs and the candidates run
+one after another in this thread (the GIL is released in each native solve); the route geometry is
+milliseconds.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+from typing import Optional
+
+import numpy as np
+
+from pickplan import _core
+from pickplan.pickup.nlp import planner, route
+from pickplan.pickup.nlp.feasibility import Certificate, Reason, base_geometry, certify
+
+ROUTES = 3   # route seeds tried in stage 1 beside the heuristic seed
+
+
+def _left(deadline: Optional[float]) -> float:
+    return math.inf if deadline is None else deadline - time.monotonic()
+
+
+def _with_budget(settings: planner.PlannerSettings, deadline: Optional[float]) -> planner.PlannerSettings:
+    return settings if deadline is None else replace(settings, time_limit=max(1e-3, _left(deadline)))
+
+
+def _stage1(robot, problem, settings, deadline, seeds) -> tuple:
+    """Stage 1 from each (label, x0) while time is left: ([(T, label, x)] solved, by T; CPU seconds)."""
+    solved, cpu = [], 0.0
+    for label, x0 in seeds:
+        if _left(deadline) <= 0:
+            break
+        r = planner.solve_stage(robot, problem, x0, 1, _with_budget(settings, deadline))
+        cpu += r.cpu_seconds
+        if r.success:
+            solved.append((r.objective, label, np.asarray(r.x)))
+    return sorted(solved, key=lambda s: s[0]), cpu
+
+
+def _no_solve(cert: Certificate, status: planner.SolveStatus) -> planner.PickupPlan:
+    return planner.PickupPlan(status=status, success=False, stages_completed=0, stages=[], T=math.nan, T1=math.nan,
+                              T2=math.nan, S_g=math.nan, S_c=math.nan, total_seconds=0.0, lower_bound=cert.lower_bound,
+                              reason=cert.reason, detail=cert.detail, seed="none")
+
+
+def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTES) -> list:
+    """(label, x0) stage-1 seeds: the native heuristic seed, then the route seeds, shortest first."""
+    template = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.native()))
+    geo = base_geometry(robot, problem, settings)
+    out = [("heuristic", template)]
+    for r in route.candidate_routes(geo, routes):
+        out.append((f"route {r.label}", route.route_seed(r, geo, template, settings, robot.dof, problem.stroke)))
+    return out
+
+
+def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.PlannerSettings(),
+                time_limit: float = 0.0, routes: int = ROUTES) -> planner.PickupPlan:
+    """Plans any layout (module doc). ``time_limit`` > 0: wall-clock seconds for the whole call."""
+    if not (time_limit >= 0 and math.isfinite(time_limit)):
+        raise ValueError(f"time_limit: expected a finite number >= 0 (0: none), got {time_limit}")
+    t0, c0 = time.monotonic(), time.thread_time()
+    deadline = t0 + time_limit if time_limit > 0 else None
+    problem.validate(robot.native)
+    cert = certify(robot, problem, settings)
+    if not cert.feasible:
+        p = _no_solve(cert, planner.SolveStatus.infeasible)
+        p.total_seconds, p.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0
+        return p
+    ranked, _ = _stage1(robot, problem, settings, deadline, seeds(robot, problem, settings, routes))
+    best, closest = None, None
+    for _, label, x1 in ranked:
+        if _left(deadline) <= 0:
+            break
+        p = planner.plan(robot, problem, _with_budget(settings, deadline), planner.Method.successive, x0=x1)
+        p.seed = label
+        if p.success:
+            best = p
+            break
+        if closest is None or p.stages_completed > closest.stages_completed:
+            closest = p
+    out = best or closest
+    timed_out = deadline is not None and _left(deadline) <= 0
+    if out is None:  # no stage-1 solution (or no time for one)
+        out = _no_solve(cert, planner.SolveStatus.time_limit if timed_out else planner.SolveStatus.infeasible)
+    out.lower_bound = cert.lower_bound
+    if not out.success:
+        out.reason = Reason.time_limit if timed_out else Reason.solver_failed
+        out.detail = (f"the time limit of {time_limit:g} s ran out before a feasible plan" if timed_out else
+                      f"no solver run succeeded although the geometry allows T >= {cert.lower_bound:.2f} s; "
+                      f"the closest plan reached stage {out.stages_completed} of 5")
+        if timed_out:
+            out.status = planner.SolveStatus.time_limit
+    out.total_seconds, out.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0
+    return out
