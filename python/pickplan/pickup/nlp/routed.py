@@ -31,6 +31,10 @@ from pickplan.pickup.nlp import planner, route
 from pickplan.pickup.nlp.feasibility import Certificate, Reason, base_geometry, certify
 
 ROUTES = 3   # route seeds tried in stage 1 beside the heuristic seed
+# Base polynomial degrees tried in stage 1 (when the settings leave the degrees to the default): a
+# quintic base path cannot hold a detour with a turn back (issue 37: side and behind layouts, stage 1
+# at T = 50-100 s); degree 7 can, at 6 more variables. Each seed runs at each; the fastest path wins.
+BASE_DEGREES = (5, 7)
 
 
 def _left(deadline: Optional[float]) -> float:
@@ -41,17 +45,27 @@ def _with_budget(settings: planner.PlannerSettings, deadline: Optional[float]) -
     return settings if deadline is None else replace(settings, time_limit=max(1e-3, _left(deadline)))
 
 
-def _stage1(robot, problem, settings, deadline, seeds) -> tuple:
-    """Stage 1 from each (label, x0) while time is left: ([(T, label, x)] solved, by T; CPU seconds)."""
-    solved, cpu = [], 0.0
-    for label, x0 in seeds:
-        if _left(deadline) <= 0:
-            break
-        r = planner.solve_stage(robot, problem, x0, 1, _with_budget(settings, deadline))
-        cpu += r.cpu_seconds
-        if r.success:
-            solved.append((r.objective, label, np.asarray(r.x)))
-    return sorted(solved, key=lambda s: s[0]), cpu
+def _variants(robot, settings: planner.PlannerSettings) -> list:
+    """The settings stage 1 is tried with: one per base degree (BASE_DEGREES), or the caller's degrees."""
+    if len(settings.degrees):
+        return [settings]
+    arm = [5 if i < 6 else 3 for i in range(3, robot.dof)]  # native default_degrees
+    return [replace(settings, degrees=[d, d, d] + arm) for d in BASE_DEGREES]
+
+
+def _stage1(robot, problem, settings, deadline, routes) -> list:
+    """Stage 1 from every seed at every base degree while time is left: [(T, label, settings, x)]
+    of the solved runs, fastest first (the lower degree first among equal T)."""
+    solved = []
+    for k, variant in enumerate(_variants(robot, settings)):
+        for label, x0 in seeds(robot, problem, variant, routes):
+            if _left(deadline) <= 0:
+                return sorted(solved, key=lambda s: s[0])
+            r = planner.solve_stage(robot, problem, x0, 1, _with_budget(variant, deadline))
+            if r.success:
+                name = label if len(variant.degrees) == 0 or k == 0 else f"{label}, base degree {variant.degrees[0]}"
+                solved.append((r.objective * (1 + 1e-3 * k), name, variant, np.asarray(r.x)))
+    return sorted(solved, key=lambda s: s[0])
 
 
 def _no_solve(cert: Certificate, status: planner.SolveStatus) -> planner.PickupPlan:
@@ -83,12 +97,12 @@ def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.Plan
         p = _no_solve(cert, planner.SolveStatus.infeasible)
         p.total_seconds, p.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0
         return p
-    ranked, _ = _stage1(robot, problem, settings, deadline, seeds(robot, problem, settings, routes))
+    ranked = _stage1(robot, problem, settings, deadline, routes)
     best, closest = None, None
-    for _, label, x1 in ranked:
+    for _, label, variant, x1 in ranked:
         if _left(deadline) <= 0:
             break
-        p = planner.plan(robot, problem, _with_budget(settings, deadline), planner.Method.successive, x0=x1)
+        p = planner.plan(robot, problem, _with_budget(variant, deadline), planner.Method.successive, x0=x1)
         p.seed = label
         if p.success:
             best = p
