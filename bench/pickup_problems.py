@@ -129,6 +129,13 @@ def summarize(records: list, gamma: float) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _count(values) -> dict:
+    out = {}
+    for v in values:
+        out[v] = out.get(v, 0) + 1
+    return dict(sorted(out.items()))
+
+
 def summarize_layout(records: list, layout: str) -> str:
     """Issue 37's figures of one layout (records of a --shots 0 run)."""
     succ = [r["successive"] for r in records]
@@ -142,7 +149,7 @@ def summarize_layout(records: list, layout: str) -> str:
     feasible = n - len(declared)
     lines = [f"### layout {layout}: {n} problems", "", "| target | measured |", "|---|---|",
              f"| solved or declared infeasible with a verified reason | {len(solved)} solved, {len(declared)} declared "
-             f"infeasible ({', '.join(f'{i}: {succ[i]['reason']}' for i in declared) or 'none'}), {len(failed)} failed |",
+             f"infeasible ({', '.join(str(i) + ': ' + succ[i]['reason'] for i in declared) or 'none'}), {len(failed)} failed |",
              f"| >= 95 % of the problems with a feasible certificate solved | {len(solved)} of {feasible} "
              f"({len(solved) / max(feasible, 1):.0%}) |"]
     if len(ratio):
@@ -158,7 +165,7 @@ def summarize_layout(records: list, layout: str) -> str:
                      f"still feasible | worst wall {bw.max():.2f} s (over the limit: {int((bw > budget[0]['limit']).sum())}); "
                      f"{len(kept)} of {len(solved)} solved ones feasible with the budget |")
     lines += ["", f"Not solved (problem, status, reason): {failed or 'none'}.",
-              f"Seeds the solutions came from: { {k: sum(succ[i]['seed_used'] == k for i in solved) for k in sorted({succ[i]['seed_used'] for i in solved})} }."]
+              f"Seeds the solutions came from: {_count(succ[i]['seed_used'] for i in solved)}."]
     return "\n".join(lines) + "\n"
 
 

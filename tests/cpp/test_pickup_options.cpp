@@ -15,7 +15,7 @@ TEST(PickupOptions, TextFormsRoundTrip) {
     EXPECT_EQ(parse_coefficient_basis(to_string(v)), v);
   for (auto v : {MuStrategy::monotone, MuStrategy::adaptive}) EXPECT_EQ(parse_mu_strategy(to_string(v)), v);
   for (auto v : {RateRows::hull, RateRows::sampled}) EXPECT_EQ(parse_rate_rows(to_string(v)), v);
-  for (int i = 0; i <= static_cast<int>(SolveStatus::constraint_violation); ++i) {
+  for (int i = 0; i <= static_cast<int>(SolveStatus::time_limit); ++i) {
     const auto v = static_cast<SolveStatus>(i);
     EXPECT_EQ(parse_solve_status(to_string(v)), v);
   }

@@ -31,9 +31,10 @@ from pickplan.pickup.nlp import planner, route
 from pickplan.pickup.nlp.feasibility import Certificate, Reason, base_geometry, certify
 
 ROUTES = 3   # route seeds tried in stage 1 beside the heuristic seed
-# Base polynomial degrees tried in stage 1 (when the settings leave the degrees to the default): a
-# quintic base path cannot hold a detour with a turn back (issue 37: side and behind layouts, stage 1
-# at T = 50-100 s); degree 7 can, at 6 more variables. Each seed runs at each; the fastest path wins.
+# Base polynomial degrees tried in stage 1 (when the settings leave the degrees to the default): the
+# paper's quintic from the heuristic seed, then degree 7 from every seed. A quintic base path cannot
+# hold a detour with a turn back (issue 37: side and behind layouts, stage 1 at T = 50-100 s); degree
+# 7 can, at 6 more variables. The fastest stage-1 path wins.
 BASE_DEGREES = (5, 7)
 
 
@@ -57,8 +58,9 @@ def _stage1(robot, problem, settings, deadline, routes) -> list:
     """Stage 1 from every seed at every base degree while time is left: [(T, label, settings, x)]
     of the solved runs, fastest first (the lower degree first among equal T)."""
     solved = []
-    for k, variant in enumerate(_variants(robot, settings)):
-        for label, x0 in seeds(robot, problem, variant, routes):
+    variants = _variants(robot, settings)
+    for k, variant in enumerate(variants):
+        for label, x0 in seeds(robot, problem, variant, routes if k == len(variants) - 1 else 0):
             if _left(deadline) <= 0:
                 return sorted(solved, key=lambda s: s[0])
             r = planner.solve_stage(robot, problem, x0, 1, _with_budget(variant, deadline))
@@ -79,7 +81,7 @@ def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTE
     template = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.native()))
     geo = base_geometry(robot, problem, settings)
     out = [("heuristic", template)]
-    for r in route.candidate_routes(geo, routes):
+    for r in (route.candidate_routes(geo, routes) if routes else []):
         out.append((f"route {r.label}", route.route_seed(r, geo, template, settings, robot.dof, problem.stroke)))
     return out
 
