@@ -79,20 +79,20 @@ def dubins_shortest(q0, q1, rho: float) -> tuple:
 
 def sample_dubins(q0, word: str, seg, rho: float, step: float = STEP) -> np.ndarray:
     """Poses (n, 3) along a Dubins path every ``step`` metres or less, both ends included."""
-    out = [np.asarray(q0, float)]
+    out = [np.asarray(q0, float)[None, :]]
     x, y, h = (float(v) for v in q0)
     for kind, length in zip(word, seg):
         n = max(1, int(math.ceil(length * rho / step)))
-        for i in range(1, n + 1):
-            u = length * i / n
-            if kind == "S":
-                out.append(np.array([x + rho * u * math.cos(h), y + rho * u * math.sin(h), h]))
-            elif kind == "L":
-                out.append(np.array([x + rho * (math.sin(h + u) - math.sin(h)), y + rho * (math.cos(h) - math.cos(h + u)), h + u]))
-            else:
-                out.append(np.array([x + rho * (math.sin(h) - math.sin(h - u)), y + rho * (math.cos(h - u) - math.cos(h)), h - u]))
-        x, y, h = out[-1]
-    return np.array(out)
+        u = length * np.arange(1, n + 1) / n
+        if kind == "S":
+            p = np.stack([x + rho * u * math.cos(h), y + rho * u * math.sin(h), np.full(n, h)], axis=1)
+        elif kind == "L":
+            p = np.stack([x + rho * (np.sin(h + u) - math.sin(h)), y + rho * (math.cos(h) - np.cos(h + u)), h + u], axis=1)
+        else:
+            p = np.stack([x + rho * (math.sin(h) - np.sin(h - u)), y + rho * (np.cos(h - u) - math.cos(h)), h - u], axis=1)
+        out.append(p)
+        x, y, h = p[-1]
+    return np.concatenate(out)
 
 
 @dataclass(frozen=True)
@@ -158,10 +158,11 @@ def candidate_routes(geo: BaseGeometry, count: int = 3, margin: float = 0.05) ->
     per_class = {}
     for gx, gy, h, side, sense in grasp_poses(geo, margin):
         g = np.array([gx, gy, h])
-        for s1 in (1, -1):
-            for s2 in (1, -1):
-                l1, l2 = _leg(geo.start, g, rho, s1), _leg(g, geo.goal, rho, s2)
-                per_class.setdefault((side, sense), []).append((l1[0] + l2[0], g, ((*l1, s1), (*l2, s2))))
+        firsts = [(*_leg(geo.start, g, rho, d), d) for d in (1, -1)]
+        seconds = [(*_leg(g, geo.goal, rho, d), d) for d in (1, -1)]
+        for a in firsts:
+            for b in seconds:
+                per_class.setdefault((side, sense), []).append((a[0] + b[0], g, (a, b)))
     best = []
     for key, options in per_class.items():
         for length, g, legs in sorted(options, key=lambda o: o[0]):

@@ -76,14 +76,15 @@ def _no_solve(cert: Certificate, status: planner.SolveStatus) -> planner.PickupP
                               reason=cert.reason, detail=cert.detail, seed="none")
 
 
-def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTES) -> list:
-    """(label, x0) stage-1 seeds: the native heuristic seed, then the route seeds, shortest first."""
+def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTES):
+    """(label, x0) stage-1 seeds, one at a time (the caller checks its deadline between them): the
+    native heuristic seed, then the route seeds, shortest first."""
     template = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.native()))
-    geo = base_geometry(robot, problem, settings)
-    out = [("heuristic", template)]
-    for r in (route.candidate_routes(geo, routes) if routes else []):
-        out.append((f"route {r.label}", route.route_seed(r, geo, template, settings, robot.dof, problem.stroke)))
-    return out
+    yield "heuristic", template
+    if routes:
+        geo = base_geometry(robot, problem, settings)
+        for r in route.candidate_routes(geo, routes):
+            yield f"route {r.label}", route.route_seed(r, geo, template, settings, robot.dof, problem.stroke)
 
 
 def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.PlannerSettings(),
