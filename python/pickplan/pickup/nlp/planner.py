@@ -314,6 +314,37 @@ def evaluate(robot: Robot, problem, result: PickupPlan, n: int = 2001) -> dict:
     return dict(_core.pickup_evaluate(robot.native, problem, result.native, int(n)))
 
 
+# ---- dense checks ------------------------------------------------------------------------------
+# Dense checks of a solution (2001 instants over [0, T]; the NLP enforces its rows at samples, so
+# these leave room for what happens between them).
+POSE_POSITION_TOL = 1e-3        # m, tool position at T2
+POSE_ORIENTATION_TOL = 1e-2     # rad
+NONHOLONOMIC_MEAN_TOL = 0.02    # m/s, mean lateral base speed
+NONHOLONOMIC_DRIFT_TOL = 0.2    # m, its integral over [0, T]
+JOINT_OVERSHOOT_TOL = 0.03      # rad past a joint limit between samples
+VELOCITY_ERROR_TOL = 0.05       # m/s, |J q' - S_g n_g| during grasping
+
+
+def dense_checks(problem, plan: PickupPlan, metrics: Optional[dict]) -> dict:
+    """The checks a solution must pass by dense re-sampling (names -> bool; empty: no solution)."""
+    if not plan.success or metrics is None:
+        return {}
+    return {"pose_error_at_T2": metrics["pose_error_position"] <= POSE_POSITION_TOL
+            and metrics["pose_error_orientation"] <= POSE_ORIENTATION_TOL,
+            "nonholonomic": metrics["nonholonomic_mean"] <= NONHOLONOMIC_MEAN_TOL
+            and metrics["nonholonomic_drift"] <= NONHOLONOMIC_DRIFT_TOL,
+            "clearance": metrics["min_clearance"] >= 0.0,
+            "joint_limits": metrics["joint_limit_violation"] <= JOINT_OVERSHOOT_TOL,
+            "grasp_velocity": metrics["velocity_error_max"] <= VELOCITY_ERROR_TOL,
+            "rho_at_least_gamma": metrics["success_probability"] >= problem.gamma - 1e-6}
+
+
+def passes_dense_checks(robot: Robot, problem, plan: PickupPlan) -> bool:
+    """A converged plan that also passes every dense check (what counts as a feasible plan)."""
+    checks = dense_checks(problem, plan, evaluate(robot, problem, plan) if plan.success else None)
+    return bool(checks) and all(checks.values())
+
+
 # ---- STOMP -------------------------------------------------------------------------------------
 def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterations: int = 40,
                  seed: int = 0) -> dict:

@@ -6,8 +6,9 @@ successive refinement from the fastest base path, and a wall-clock budget.
    reach from every free base position, T's bound above the horizon) gets its reason, no solve.
 2. Stage 1 (the base path: non-holonomic, limits, grasping area, goal, base collisions) from the
    heuristic seed and from up to ``routes`` route seeds; the solved ones are ranked by their T.
-3. The five stages (native ``solve_successive``: arm seeds, direct track) from the best stage-1
-   solution; on failure from the next, while the budget lasts. The first success is returned.
+3. The five stages (native ``solve_successive``: arm seeds) from the best stage-1 solution; on
+   failure (or a plan that fails the dense checks, ``planner.dense_checks``) from the next, while
+   the budget lasts. The first plan that passes is returned.
 4. No success: the reason is ``solver_failed`` (the certificate found nothing against the problem)
    and the plan that went furthest is returned as the closest; ``time_limit`` when the budget ran
    out first. With a budget the native runs get the time left (``PlannerSettings.time_limit``), and
@@ -88,8 +89,12 @@ def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTE
 
 
 def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.PlannerSettings(),
-                time_limit: float = 0.0, routes: int = ROUTES) -> planner.PickupPlan:
-    """Plans any layout (module doc). ``time_limit`` > 0: wall-clock seconds for the whole call."""
+                time_limit: float = 0.0, routes: int = ROUTES, direct_track: bool = False) -> planner.PickupPlan:
+    """Plans any layout (module doc). ``time_limit`` > 0: wall-clock seconds for the whole call.
+    ``direct_track`` (settings.direct_track is replaced by it): the native all-constraint hedge after
+    the five stages; off here, where the next stage-1 solution is the hedge (issue 37's benchmark,
+    paper and side layouts: the direct track won 1 of 20 problems each, at 0.2-1.2 s of CPU each)."""
+    settings = replace(settings, direct_track=direct_track)
     if not (time_limit >= 0 and math.isfinite(time_limit)):
         raise ValueError(f"time_limit: expected a finite number >= 0 (0: none), got {time_limit}")
     t0, c0 = time.monotonic(), time.thread_time()
@@ -107,17 +112,19 @@ def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.Plan
             break
         p = planner.plan(robot, problem, _with_budget(variant, deadline), planner.Method.successive, x0=x1)
         p.seed = label
-        if p.success:
+        if p.success and planner.passes_dense_checks(robot, problem, p):
             best = p
             break
         if closest is None or p.stages_completed > closest.stages_completed:
             closest = p
     out = best or closest
-    timed_out = deadline is not None and _left(deadline) <= 0
+    timed_out = deadline is not None and _left(deadline) <= 0 and best is None
     if out is None:  # no stage-1 solution (or no time for one)
         out = _no_solve(cert, planner.SolveStatus.time_limit if timed_out else planner.SolveStatus.infeasible)
     out.lower_bound = cert.lower_bound
-    if not out.success:
+    if best is None:
+        if out.success:  # converged, but failed the dense checks between the samples: not a feasible plan
+            out.success, out.status = False, planner.SolveStatus.violation_between_samples
         out.reason = Reason.time_limit if timed_out else Reason.solver_failed
         out.detail = (f"the time limit of {time_limit:g} s ran out before a feasible plan" if timed_out else
                       f"no solver run succeeded although the geometry allows T >= {cert.lower_bound:.2f} s; "

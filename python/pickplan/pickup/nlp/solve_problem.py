@@ -14,18 +14,9 @@ from pickplan.core.io import atomic_open, write_json
 from pickplan.core.sdf import default_cache_dir
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
 from pickplan.pickup.nlp import planner, routed
+from pickplan.pickup.nlp.planner import dense_checks  # noqa: F401 - part of this module's API since issue 23
 from pickplan.pickup.nlp.cases import METAMODEL_PART, cases_metamodel_config
 from pickplan.pickup.nlp.problem_file import STANDIN, PickupProblemSpec, native_problem
-
-# Dense checks of a solution (2001 instants over [0, T]; the NLP enforces its rows at samples, so
-# these leave room for what happens between them).
-POSE_POSITION_TOL = 1e-3        # m, tool position at T2
-POSE_ORIENTATION_TOL = 1e-2     # rad
-NONHOLONOMIC_MEAN_TOL = 0.02    # m/s, mean lateral base speed
-NONHOLONOMIC_DRIFT_TOL = 0.2    # m, its integral over [0, T]
-JOINT_OVERSHOOT_TOL = 0.03      # rad past a joint limit between samples
-VELOCITY_ERROR_TOL = 0.05       # m/s, |J q' - S_g n_g| during grasping
-
 
 def builtin_metamodel_path(part: str) -> str:
     """Where the meta-model of a built-in part is cached ($PICKPLAN_CACHE_DIR or ~/.cache/pickplan)."""
@@ -74,20 +65,6 @@ class ProblemSolution:
     @property
     def passed(self) -> bool:
         return self.plan.success and all(self.checks.values())
-
-
-def dense_checks(problem, plan: planner.PickupPlan, metrics: Optional[dict]) -> dict:
-    """The checks a solution must pass by dense re-sampling (names -> bool; empty: no solution)."""
-    if not plan.success or metrics is None:
-        return {}
-    return {"pose_error_at_T2": metrics["pose_error_position"] <= POSE_POSITION_TOL
-            and metrics["pose_error_orientation"] <= POSE_ORIENTATION_TOL,
-            "nonholonomic": metrics["nonholonomic_mean"] <= NONHOLONOMIC_MEAN_TOL
-            and metrics["nonholonomic_drift"] <= NONHOLONOMIC_DRIFT_TOL,
-            "clearance": metrics["min_clearance"] >= 0.0,
-            "joint_limits": metrics["joint_limit_violation"] <= JOINT_OVERSHOOT_TOL,
-            "grasp_velocity": metrics["velocity_error_max"] <= VELOCITY_ERROR_TOL,
-            "rho_at_least_gamma": metrics["success_probability"] >= problem.gamma - 1e-6}
 
 
 def solve(robot, spec: PickupProblemSpec, rho, settings: planner.PlannerSettings = planner.PlannerSettings(),
