@@ -17,9 +17,9 @@ TEST(PickupOptions, TextFormsRoundTrip) {
   for (auto v : {MuStrategy::monotone, MuStrategy::adaptive}) EXPECT_EQ(parse_mu_strategy(to_string(v)), v);
   for (auto v : {RateRows::hull, RateRows::sampled}) EXPECT_EQ(parse_rate_rows(to_string(v)), v);
   std::set<std::string> statuses;  // one text form per status (results are written, never read back)
-  for (int i = 0; i <= static_cast<int>(SolveStatus::constraint_violation); ++i)
+  for (int i = 0; i <= static_cast<int>(SolveStatus::time_limit); ++i)
     statuses.insert(to_string(static_cast<SolveStatus>(i)));
-  EXPECT_EQ(statuses.size(), static_cast<size_t>(SolveStatus::constraint_violation) + 1);
+  EXPECT_EQ(statuses.size(), static_cast<size_t>(SolveStatus::time_limit) + 1);
   // Ipopt's own spelling of its option value, not the C++ identifier.
   EXPECT_STREQ(to_string(HessianMode::limited_memory), "limited-memory");
 }

@@ -24,7 +24,7 @@ constexpr Names<SolveStatus> kStatus[] = {
     {SolveStatus::step_too_small, "step_too_small"}, {SolveStatus::invalid_number, "invalid_number"},
     {SolveStatus::solver_error, "solver_error"}, {SolveStatus::bounded, "bounded"},
     {SolveStatus::violation_between_samples, "violation_between_samples"},
-    {SolveStatus::constraint_violation, "constraint_violation"}};
+    {SolveStatus::constraint_violation, "constraint_violation"}, {SolveStatus::time_limit, "time_limit"}};
 
 template <class E, std::size_t N>
 const char* name_of(const Names<E> (&names)[N], E value) {

@@ -59,21 +59,42 @@ struct StageMultipliers {
   PickupRowSubset subset;
 };
 
+// The wall-clock limit of solve_successive's and solve_single_shot's runs (PickupSettings::time_limit).
+struct RunLimits {
+  // Wall-clock deadline (PickupSettings::time_limit; max: none): no run starts after it, and each
+  // run is told the time left.
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+  bool expired() const { return std::chrono::steady_clock::now() >= deadline; }
+  double seconds_left() const {
+    if (deadline == std::chrono::steady_clock::time_point::max()) return 0.0;  // 0: no limit
+    return std::max(1e-3, std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count());
+  }
+};
+
+// The deadline of a call that starts now with settings.time_limit (none when it is 0).
+std::chrono::steady_clock::time_point deadline_of(const PickupSettings& st) {
+  if (!(st.time_limit > 0)) return std::chrono::steady_clock::time_point::max();
+  return std::chrono::steady_clock::now() +
+         std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(st.time_limit));
+}
+
 // bound: a run whose T ends at or above it stops the stage ("bounded"; a better solution is known).
 StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
                              const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out,
-                             double bound = std::numeric_limits<double>::infinity());
+                             double bound = std::numeric_limits<double>::infinity(), const RunLimits& limits = RunLimits());
 }  // namespace
 
 StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
                         const Eigen::VectorXd& x0) {
-  return solve_stage_warm(robot, pb, st, stage, x0, nullptr, nullptr);
+  RunLimits limits;
+  limits.deadline = deadline_of(st);
+  return solve_stage_warm(robot, pb, st, stage, x0, nullptr, nullptr, std::numeric_limits<double>::infinity(), limits);
 }
 
 namespace {
 StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
                              const Eigen::VectorXd& x0, const StageMultipliers* warm_in, StageMultipliers* warm_out,
-                             double bound) {
+                             double bound, const RunLimits& limits) {
   PickupConstraints cons(robot, pb, st, stage);  // validates (throws std::invalid_argument)
   if (x0.size() != cons.num_vars())
     throw std::invalid_argument("seed: expected " + std::to_string(cons.num_vars()) + " variables, got " + std::to_string(x0.size()));
@@ -132,7 +153,14 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
         if (it != prev.lambda.end()) warm.lambda[r] = it->second;
       }
     }
-    IpoptRun run = run_ipopt(part, st, x, mu, warm.lambda.size() ? &warm : nullptr);
+    PickupSettings sr = st;  // this run's time left
+    if (limits.expired()) {
+      res.status = SolveStatus::time_limit;
+      res.ipopt_status = "Not_Solved (the time limit ran out)";
+      break;
+    }
+    sr.time_limit = limits.seconds_left();
+    IpoptRun run = run_ipopt(part, sr, x, mu, warm.lambda.size() ? &warm : nullptr);
     if (run.mult.lambda.size() == part.num_constraints()) {
       prev.zl = run.mult.zl;
       prev.zu = run.mult.zu;
@@ -226,7 +254,7 @@ double elapsed(std::chrono::steady_clock::time_point t0) {
 // limit_price: per DOF, the sum of |multiplier| of its joint-position rows in the last Ipopt run
 // (dT per unit of that joint's limits: how much time the limit costs).
 bool run_stages_2_to_5(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, const Eigen::VectorXd& x2,
-                       double seed_wall, double seed_cpu, double bound,
+                       double seed_wall, double seed_cpu, double bound, const RunLimits& limits,
                        std::vector<StageResult>& stages, Eigen::VectorXd& x, SolveStatus& status,
                        Eigen::VectorXd& limit_price) {
   StageMultipliers mult;
@@ -247,7 +275,7 @@ bool run_stages_2_to_5(const Robot& robot, const PickupProblem& pb, const Pickup
     if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, x, st.timing_fraction);
     seed_wall += elapsed(t_seed);
     seed_cpu += thread_cpu_seconds() - cpu_seed;
-    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult, bound);
+    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult, bound, limits);
     r.seconds += seed_wall;  // the stage's warm start (IK, timing) counts as the stage's time
     r.cpu_seconds += seed_cpu;
     seed_wall = seed_cpu = 0.0;
@@ -268,14 +296,22 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   PickupResult out;
   const auto t_h = std::chrono::steady_clock::now();
   const double cpu_h = thread_cpu_seconds();
+  RunLimits limits;
+  limits.deadline = deadline_of(st);
+  bool timed_out = false;  // a run was cut or skipped by the time limit
+  auto time_left = [&]() {
+    if (limits.expired()) timed_out = true;
+    return !timed_out;
+  };
   out.x = x0.size() ? x0 : heuristic_seed(robot, pb, st);
   const double seed_wall = elapsed(t_h), seed_cpu = thread_cpu_seconds() - cpu_h;  // counted in stage 1
   if (out.x.size() != num_vars(robot, st))
     throw std::invalid_argument("seed: expected " + std::to_string(num_vars(robot, st)) + " variables, got " + std::to_string(out.x.size()));
-  StageResult r1 = solve_stage_warm(robot, pb, st, 1, out.x, nullptr, nullptr);
+  StageResult r1 = solve_stage_warm(robot, pb, st, 1, out.x, nullptr, nullptr, std::numeric_limits<double>::infinity(), limits);
   r1.seconds += seed_wall;
   r1.cpu_seconds += seed_cpu;
   out.stages.push_back(r1);
+  timed_out = r1.status == SolveStatus::time_limit;
   out.success = r1.success;
   out.status = r1.success ? SolveStatus::solved : r1.status;
   if (r1.success) {
@@ -303,6 +339,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       return false;
     };
     for (int k = 0; k < max_seeds; ++k) {
+      if (k > 0 && !time_left()) break;
       if (k >= static_cast<int>(arms.size())) {
         if (later.empty()) break;
         arms.push_back(later.front());
@@ -322,8 +359,10 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       Eigen::VectorXd x = r1.x, price;
       SolveStatus status = SolveStatus::not_run;
       // Shorter than the best by more than Ipopt's tolerance, or it is not kept.
-      const bool ok = run_stages_2_to_5(robot, pb, st, x2, ik_wall, ik_cpu, best * (1.0 - 1e-4), stages, x, status, price);
+      const bool ok = run_stages_2_to_5(robot, pb, st, x2, ik_wall, ik_cpu, best * (1.0 - 1e-4), limits,
+                                        stages, x, status, price);
       ik_wall = ik_cpu = 0.0;
+      if (status == SolveStatus::time_limit) timed_out = true;
       if (stages.size() >= 3 && max_seeds > 1) {  // a trajectory with the grasp velocity: where it meets limits
         std::vector<Eigen::VectorXd> turns;
         for (const Eigen::VectorXd& w : wound_arm_configurations(robot, pb, st, arms[k], stages.back().x, price))
@@ -360,12 +399,13 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   // The direct track: all constraints at once from the stage-1 solution (a feasible base path with
   // the arm at rest). Stages 2 and 3 commit the arm to one IK branch and grasp timing; this solve
   // is free to choose both, and the shorter of the two solutions is returned.
-  if (st.direct_track && out.stages_completed >= 1) {
+  if (st.direct_track && out.stages_completed >= 1 && time_left()) {
     PickupSettings sd = st;
     sd.max_iter = std::min(st.max_iter, st.direct_max_iter);
     const double staged = out.success ? out.stages.back().objective : std::numeric_limits<double>::infinity();
     // Shorter by more than Ipopt's tolerance (a tie keeps the successive solution).
-    out.direct = solve_stage_warm(robot, pb, sd, 0, out.stages.front().x, nullptr, nullptr, staged * (1.0 - 1e-4));
+    out.direct = solve_stage_warm(robot, pb, sd, 0, out.stages.front().x, nullptr, nullptr, staged * (1.0 - 1e-4), limits);
+    if (out.direct.status == SolveStatus::time_limit) timed_out = true;
     if (out.direct.success && out.direct.objective < staged * (1.0 - 1e-4)) {
       out.x = out.direct.x;
       out.direct_chosen = true;
@@ -374,6 +414,8 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       out.stages_completed = 5;
     }
   }
+  // The budget ran out somewhere: say so; success still tells whether x is a feasible solution.
+  if (timed_out) out.status = SolveStatus::time_limit;
   fill_result(out, robot, st);
   return out;
 }

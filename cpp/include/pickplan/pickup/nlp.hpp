@@ -127,6 +127,11 @@ struct PickupSettings {
   // (Iteration caps on the successive refinement, its re-solves and stages 4-5 were measured and
   // dropped: the slowest solves are the hard ones, and every cap lost problems; bench/PICKUP.md.)
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers
+  // Wall-clock budget of one solve_successive / solve_single_shot call (s; 0: none). Each Ipopt run
+  // stops at the deadline (its intermediate callback), no stage, arm seed or direct track starts
+  // after it, and the result keeps the best feasible solution found before it (status time_limit).
+  // Wall time, not CPU: it is what a caller waits for (on a loaded machine the two differ).
+  double time_limit = 0.0;
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
   // closer than joint_limit_margin / 2 to its limit, a row at that instant joins and the stage is
