@@ -5,13 +5,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from conftest import ycb_dir_or_skip
 from pickplan.core import objects
 from pickplan.core.panda import PANDA
 from pickplan.omg.grasps import antipodal_grasps, grasp_set
 from pickplan.omg.grasps import quality as q
 from pickplan.omg.grasps.generators import SupportFilter
 from pickplan.omg.grasps.physics import LiftSettings, lift_test
+
+from conftest import ycb_dir_or_skip
 
 HELD = (15.0, 0.02)  # deg, m: a lifted object that turned or slid more than this in the hand did not hold
 
@@ -129,10 +130,11 @@ def test_a_goal_set_the_quality_leaves_empty_takes_what_holds_in_physics(tmp_pat
     """The known sugar box with a quality that asks for a carry no grasp can hold (100 m/s^2): every
     grasp slips by the model and the goal set is empty without verification; with it, the reachable
     grasps are lifted in PyBullet (at most the budget) and exactly those that held become goals."""
-    from conftest import known_scene
     from pickplan.omg.goals import GoalSetSettings, build_goal_set
     from pickplan.omg.grasps.verify import VerifySettings
     from pickplan.omg.world import World
+
+    from conftest import known_scene
 
     monkeypatch.setenv("PICKPLAN_CACHE_DIR", str(tmp_path))
     world = World(known_scene()[0])

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -349,7 +349,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     Raises ValueError for a malformed trajectory (shape, NaN); a trajectory outside the joint limits
     is not run and reports status "invalid_trajectory". Deterministic for identical inputs.
     """
-    import pybullet as pb
+    from pickplan.sim.bullet import connect, pb
 
 
     t_start = time.perf_counter()
@@ -383,7 +383,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                     f"[{lo[j]:.4f}, {hi[j]:.4f}] by {over[k, j]:.4f}")
     Q = np.clip(Q, lo, hi)
 
-    client = pb.connect(pb.DIRECT)
+    client = connect()
     try:
         pb.resetSimulation(physicsClientId=client)
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, numSolverIterations=s.solver_iterations,

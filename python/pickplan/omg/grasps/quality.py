@@ -37,7 +37,6 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from pickplan.core.caches import mesh_content_key as mesh_key
 from pickplan.core.description import RobotInfo
 from pickplan.core.settings import Option
 
