@@ -13,6 +13,7 @@ from pickplan.core import collision
 from pickplan.core import objects
 from pickplan.core import robots
 from pickplan.core import sdf
+from pickplan.core.caches import mesh_content_key
 from pickplan.core.graspability import Graspability, graspability
 from pickplan.core.settings import Option
 from pickplan.sim.scenes import Scene
@@ -176,7 +177,7 @@ class World:
         """The quality (``grasps.quality``) of hand poses in the target's frame, the target as it lies,
         for this robot's gripper; the target's surface samples and their k-d tree are kept by the cache."""
         model = self.target_model
-        key = ("pad_points", quality.mesh_key(model.mesh), settings.spacing, settings.max_samples, settings.seed)
+        key = ("pad_points", mesh_content_key(model.mesh), settings.spacing, settings.max_samples, settings.seed)
         surface = self.cache.derived(key, lambda: quality.surface_tree(model.mesh, settings))
         return quality.model_quality(model, grasps, self.target_pose, self.robot.info, settings, surface)
 
