@@ -88,7 +88,11 @@ def test_arm_motor_forces_outside_a_real_joints_are_refused(tmp_path):
     ("jerk = [7500.0,", "jerk = [1e308,", "limits.jerk[0]", "is outside"),
     ("finger_acceleration = 1.0", "finger_acceleration = 1e308", "limits.finger_acceleration", "is outside"),
     ("pad = { length = 0.018,", "pad = { length = -0.018,", "gripper.pad.length", r"-0.018 m is outside"),
-    ("width = 0.02 }", "width = 0.0 }", "gripper.pad.width", r"0.0 m is outside \[0.001, 0.2\]"),
+    ("width = 0.02,", "width = 0.0,", "gripper.pad.width", r"0.0 m is outside \[0.001, 0.2\]"),
+    ("friction = 1.0 }", "friction = -1.0 }", "gripper.pad.friction", "expected a positive number"),
+    ("force = 70.0", "force = 0.0", "gripper.force", "expected a positive number"),
+    ("force = 70.0", "force = 1e9", "gripper.force", "is outside"),
+    ("speed = 0.1 ", "speed = -0.1 ", "gripper.speed", "expected a positive number"),
     ("max_opening = 0.08", "max_opening = 1e9", "gripper.max_opening", "is outside"),
     ("body_points_per_link = 20", "body_points_per_link = 1000000000", "body_points_per_link",
      r"expected an integer in \[1, 1000\]"),
@@ -105,7 +109,7 @@ def test_values_outside_a_real_robots_ranges_are_refused(tmp_path, old, new, fie
 
 
 def test_a_description_without_pads_is_refused(tmp_path):
-    _refused(_toml(tmp_path, PANDA_TEXT.replace("pad = { length = 0.018, width = 0.02 }", "")), "gripper.pad",
+    _refused(_toml(tmp_path, PANDA_TEXT.replace("pad = { length = 0.018, width = 0.02, friction = 1.0 }", "")), "gripper.pad",
              "missing")
 
 
