@@ -99,8 +99,22 @@ class _Problem:
             grasps = grasps_mod.grasp_set(self.world.target_model, kind, s.grasp_count, seed=s.seed).poses
         self.timings = dict.fromkeys(("goal_set", "ranking", "planning", "metrics"), 0.0)
         t = time.perf_counter()
-        self.gs = build_goal_set(self.world, grasps, self.q0, s.goals, s.ik)
-        self.timings["goal_set"] = time.perf_counter() - t
+        gs = build_goal_set(self.world, grasps, self.q0, s.goals, s.ik)
+        self._rank(gs, time.perf_counter() - t)
+
+    @classmethod
+    def on_goal_set(cls, world, q0: np.ndarray, gs, settings: BaselineSettings) -> "_Problem":
+        """The problem of a goal set already built in ``world`` (a place goal set in an ``attach.HeldWorld``)."""
+        pb = cls.__new__(cls)
+        pb.settings, pb.world, pb.q0 = settings, world, np.asarray(q0, dtype=float)
+        pb.timings = dict.fromkeys(("goal_set", "ranking", "planning", "metrics"), 0.0)
+        pb._rank(gs, gs.seconds)
+        return pb
+
+    def _rank(self, gs, seconds: float) -> None:
+        s = self.settings.omg
+        self.gs = gs
+        self.timings["goal_set"] = seconds
         if len(self.gs) == 0:
             return
         self.m = self.gs.tails.shape[1]
@@ -136,7 +150,10 @@ def plan_chomp(scene: Scene, settings: BaselineSettings = BaselineSettings(), wo
                grasps=None) -> PlanResult:
     """Plain CHOMP through the ranked goal list (first feasible plan; else the top goal's plan)."""
     t_total = time.perf_counter()
-    pb = _Problem(scene, settings, world, grasps)
+    return _chomp_over(_Problem(scene, settings, world, grasps), settings, t_total)
+
+
+def _chomp_over(pb: _Problem, settings: BaselineSettings, t_total: float) -> PlanResult:
     if len(pb.gs) == 0:
         pb.timings["total"] = time.perf_counter() - t_total
         return _empty(pb.q0, pb.timings, pb.gs)
@@ -190,11 +207,15 @@ def _seed_ompl(ou, seed: int) -> None:
 def plan_ompl(scene: Scene, planner: str = "RRT-C", settings: BaselineSettings = BaselineSettings(),
               world: Optional[World] = None, grasps=None) -> PlanResult:
     """FMT* or RRT-Connect to the pre-grasp of each ranked goal, then the goal's standoff tail."""
-    ob, og, ou = _ompl()
+    _ompl()  # a clear ImportError before any work
     if planner not in ("FMT", "RRT-C"):
         raise ValueError(f"unknown OMPL planner {planner!r}; use 'FMT' or 'RRT-C'")
     t_total = time.perf_counter()
-    pb = _Problem(scene, settings, world, grasps)
+    return _ompl_over(_Problem(scene, settings, world, grasps), planner, settings, t_total)
+
+
+def _ompl_over(pb: _Problem, planner: str, settings: BaselineSettings, t_total: float) -> PlanResult:
+    ob, og, ou = _ompl()
     if len(pb.gs) == 0:
         pb.timings["total"] = time.perf_counter() - t_total
         return _empty(pb.q0, pb.timings, pb.gs)
@@ -251,6 +272,19 @@ def plan_ompl(scene: Scene, planner: str = "RRT-C", settings: BaselineSettings =
         if exact and metrics["success"]:
             return pb.result(xi, g, metrics, attempts, t_total)
     return pb.result(*first, attempts, t_total)
+
+
+def plan_baseline_to_goal_set(name: str, world, q0: np.ndarray, goal_set,
+                              settings: BaselineSettings = BaselineSettings()) -> PlanResult:
+    """``CHOMP``, ``FMT`` or ``RRT-C`` from ``q0`` to a goal set already built in ``world`` (a place goal
+    set in an ``attach.HeldWorld``): the same ranking, tries and success test as for grasps."""
+    t_total = time.perf_counter()
+    pb = _Problem.on_goal_set(world, q0, goal_set, settings)
+    if name == "CHOMP":
+        return _chomp_over(pb, settings, t_total)
+    if name in ("FMT", "RRT-C"):
+        return _ompl_over(pb, name, settings, t_total)
+    raise ValueError(f"unknown baseline {name!r} for a goal set; expected one of {list(BASELINES)}")
 
 
 def plan_baseline(name: str, scene: Scene, settings: BaselineSettings = BaselineSettings(),

@@ -48,10 +48,12 @@ from pickplan.core.description import robot_info
 from pickplan.core.timing import robot_limits, time_parameterize
 from pickplan.sim.execution import ExecutionSettings, execute_plan
 
-TABLES = ("selection", "refinement", "planners", "ablation")
+TABLES = ("selection", "refinement", "planners", "ablation", "pickplace")
 SELECTION_METHODS = ("Fixed", "Proj", "FTC", "FTL", "EXP", "MD")
 REFINEMENT_METHODS = ("S", "S+ISF", "G", "G+ISF", "A", "A+ISF")
 PLANNER_METHODS = ("CHOMP", "CHOMP-C", "FMT", "RRT-C", "OMG")
+PICKPLACE_METHODS = ("OMG", "Fixed", "CHOMP", "RRT-C")  # on the place segment (eval.pickplace)
+OPTIONAL_METHODS = {"pickplace": ("OMG-3v",)}  # run only when --methods names them (depth: 3 rendered views)
 ABLATION_N = (10, 20, 30, 40, 50)
 ABLATION_LAMBDA = (0.01, 0.05, 0.1, 0.5, 1.0)
 GRASP_KINDS = {"S": "simulated", "G": "graspit", "A": "approach"}
@@ -103,10 +105,11 @@ class SweepSettings:
         if len(self.clutter) != 2 or not 1 <= self.clutter[0] <= self.clutter[1]:
             raise ValueError(f"clutter: expected (fewest, most) with 1 <= fewest <= most, got {self.clutter!r}")
         if self.methods is not None:
-            bad = [m for m in self.methods if m not in all_methods(self.table)]
+            known = all_methods(self.table) + OPTIONAL_METHODS.get(self.table, ())
+            bad = [m for m in self.methods if m not in known]
             if bad:
                 raise ValueError(f"unknown methods {bad} for table {self.table!r}; "
-                                 f"expected some of {list(all_methods(self.table))}")
+                                 f"expected some of {list(known)}")
 
     def effective(self) -> "SweepSettings":
         """``quick`` shrinks the sweep for CI: <= 4 scenes, 1 run, 10 goals, 30 candidates, 0.5 s OMPL."""
@@ -123,6 +126,8 @@ def all_methods(table: str, quick: bool = False) -> Tuple[str, ...]:
         return REFINEMENT_METHODS
     if table == "planners":
         return PLANNER_METHODS
+    if table == "pickplace":
+        return PICKPLACE_METHODS
     ns, lams = ((20, 30), (0.1, 1.0)) if quick else (ABLATION_N, ABLATION_LAMBDA)
     return tuple(f"n={n}" for n in ns) + tuple(f"lambda={x:g}" for x in lams)
 
@@ -143,6 +148,8 @@ def method_spec(table: str, method: str) -> dict:
     elif table == "planners":
         if method != "OMG":
             spec.update(planner=method)
+    elif table == "pickplace":  # every method picks with OMG; they differ on the place (eval.pickplace)
+        spec.update(place=method)
     elif method.startswith("n="):
         spec.update(n=int(method[2:]))
     elif method.startswith("lambda="):

@@ -1,0 +1,85 @@
+"""Place regions for generated scenes: a free area of the table beside the clutter, a partly cluttered
+area among the objects, or the inside of a bin (four walls on the table, ``core.containers``) beside
+the clutter. Seeded: a scene and a seed give one region (and one bin).
+
+>>> scene2, request = place_task(scene, RegionKind.bin, seed=3)   # scene2 holds the bin
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Tuple
+
+import numpy as np
+
+from pickplan.core import objects as objects_mod
+from pickplan.core.containers import WALL, bin_source
+from pickplan.core.settings import Option
+from pickplan.omg.place import Orientation, PlaceRequest
+from pickplan.sim.scenes import Scene, SceneObject
+
+BIN_NAME = "bin"
+
+
+class RegionKind(Option):
+    free = "free"            # beside the clutter: nothing in it
+    cluttered = "cluttered"  # among the objects: some of them in it
+    bin = "bin"              # inside a bin's walls, beside the clutter
+
+
+@dataclass(frozen=True)
+class RegionSettings:
+    size: Tuple[float, float] = (0.24, 0.20)       # m, a table region's x, y
+    x_range: Tuple[float, float] = (0.40, 0.55)    # region centres' x (reachable by every shipped robot)
+    side_y: Tuple[float, float] = (0.50, 0.56)     # |y| of a region beside the clutter (objects reach ~0.42)
+    clutter_x: Tuple[float, float] = (0.45, 0.60)  # a cluttered region's centre
+    clutter_y: Tuple[float, float] = (-0.2, 0.2)
+    bin_inner: Tuple[float, float] = (0.24, 0.20)  # m inside the walls
+    bin_height: float = 0.08
+    height: float = 0.40                           # m of the region above its floor
+    orientation: Orientation = Orientation.upright
+
+
+def _hulls_xy(scene: Scene) -> list:
+    out = []
+    for o in scene.objects:
+        V = np.asarray(objects_mod.model_from_source(o.name, o.source).mesh.convex_hull.vertices)
+        T = np.asarray(o.pose, float)
+        out.append((o.name, (V @ T[:3, :3].T + T[:3, 3])[:, :2]))
+    return out
+
+
+def _box_clear(scene: Scene, lo: np.ndarray, hi: np.ndarray) -> bool:
+    """No object's hull reaches into the xy box [lo, hi]."""
+    for _, xy in _hulls_xy(scene):
+        if np.all(xy.max(axis=0) > lo) and np.all(xy.min(axis=0) < hi):
+            return False
+    return True
+
+
+def place_task(scene: Scene, kind: RegionKind, seed: int, settings: RegionSettings = RegionSettings()
+               ) -> Tuple[Scene, PlaceRequest]:
+    """A scene (with a bin for ``RegionKind.bin``) and a place request of that kind, seeded."""
+    kind = RegionKind.parse(kind, "region kind")
+    rng = np.random.default_rng([int(seed), 34])
+    half = np.asarray(settings.bin_inner if kind is RegionKind.bin else settings.size) / 2
+    if kind is RegionKind.cluttered:
+        centre = np.array([rng.uniform(*settings.clutter_x), rng.uniform(*settings.clutter_y)])
+    else:  # beside the clutter, on the side farther from the target, moved out until it is clear
+        target_y = float(np.asarray(scene.object(scene.target).pose)[1, 3])
+        sign = -1.0 if target_y > 0 else 1.0
+        centre = np.array([rng.uniform(*settings.x_range), sign * rng.uniform(*settings.side_y)])
+        outer = half + (WALL if kind is RegionKind.bin else 0.0)
+        for _ in range(10):
+            if _box_clear(scene, centre - outer - 0.01, centre + outer + 0.01):
+                break
+            centre[1] += sign * 0.02
+    floor = float(np.asarray(scene.table.pose)[2, 3] + 0.5 * np.asarray(scene.table.size)[2])
+    lo = np.array([*(centre - half), floor])
+    hi = np.array([*(centre + half), floor + settings.height])
+    request = PlaceRequest(tuple(lo), tuple(hi), settings.orientation)
+    if kind is not RegionKind.bin:
+        return scene, request
+    pose = np.eye(4)
+    pose[:3, 3] = [centre[0], centre[1], floor]
+    wall = SceneObject(BIN_NAME, bin_source(2 * half[0], 2 * half[1], settings.bin_height), pose)
+    return replace(scene, objects=list(scene.objects) + [wall]), request

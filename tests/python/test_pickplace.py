@@ -1,0 +1,102 @@
+"""Pick and place end to end: the one call and its steps agree, the plan file holds both segments
+timed within the robot's limits, the 3D view carries the object with the hand and leaves it at its
+place, and the whole task executes in PyBullet (the object at rest in the region, upright, nothing
+else moved, no collision)."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from conftest import standing_scene
+from pickplan.cli.main import main
+from pickplan.core.timing import robot_limits
+from pickplan.eval.pickplace import execute_in_sim
+from pickplan.omg.pickplace import PickPlacePlanner, PickPlaceSettings, PickPlaceStatus, pick_and_place
+from pickplan.omg.place import PlaceRequest
+from pickplan.omg.planner import OMGPlanner, OMGSettings
+from pickplan.sim.pickplace_exec import PlaceOutcome
+from pickplan.sim.view import view_folder
+
+SETTINGS = PickPlaceSettings(pick=OMGSettings(grasp_kind="antipodal"))
+REQUEST = PlaceRequest((0.35, -0.5, 0.0), (0.6, -0.25, 0.4))
+
+
+def _scene():
+    return standing_scene((("005_tomato_soup_can", (0.5, 0.0)), ("004_sugar_box", (0.6, 0.2))),
+                          "005_tomato_soup_can")[0]
+
+
+@pytest.fixture(scope="module")
+def planned():
+    scene = _scene()
+    planner = PickPlacePlanner(OMGPlanner(None, scene, SETTINGS.pick), REQUEST, SETTINGS)
+    return scene, planner, planner.plan()
+
+
+def test_the_one_call_and_the_steps_plan_the_same(planned):
+    scene, planner, plan = planned
+    assert plan.status is PickPlaceStatus.success, plan.reason
+    assert [n for n, _ in plan.segments()] == ["approach", "lift", "transfer", "retract"]
+    whole = pick_and_place(scene, REQUEST, settings=SETTINGS)
+    np.testing.assert_array_equal(whole.trajectory, plan.trajectory)
+    # the steps on their own: plan a pick, attach, lift, plan a place
+    pick = planner.plan_pick()
+    carrying = planner.attach(pick.goal)
+    lift, ok = planner.plan_lift(carrying, pick.goal)
+    goals, place = planner.plan_place(carrying, lift[-1])
+    assert ok and place.success
+    np.testing.assert_array_equal(place.trajectory, plan.place.trajectory)
+    # the segments join: each starts where the previous ended
+    segs = [Q for _, Q in plan.segments()]
+    for a, b in zip(segs, segs[1:]):
+        np.testing.assert_allclose(a[-1], b[0], atol=1e-12)
+    # the planned place puts the object in the region, lowest point just above the floor
+    model = planner.world.target_model
+    V = model.mesh.vertices @ plan.place_pose[:3, :3].T + plan.place_pose[:3, 3]
+    assert np.all(V >= np.array(REQUEST.region_min)) and np.all(V <= np.array(REQUEST.region_max))
+    assert V[:, 2].min() == pytest.approx(SETTINGS.goals.gap, abs=1e-9)
+
+
+def test_pickplace_command_writes_both_segments_timed_and_the_view(planned, tmp_path):
+    scene, _, plan = planned
+    scene.save(str(tmp_path / "scene.json"))
+    (tmp_path / "region.json").write_text(json.dumps(REQUEST.to_dict()))
+    out = tmp_path / "out"
+    code = main(["pickplace", "--scene", str(tmp_path / "scene.json"), "--place", str(tmp_path / "region.json"),
+                 "--grasps", "antipodal", "--out", str(out)])
+    assert code == 0
+    record = json.loads((out / "pickplace.json").read_text())
+    assert [s["name"] for s in record["timed"]] == ["approach", "lift", "transfer", "retract"]
+    limits = robot_limits(planned[1].world.robot)
+    for seg, timed in zip(record["segments"], record["timed"]):
+        q, qd, qdd = (np.asarray(timed[k]) for k in ("q", "qd", "qdd"))
+        np.testing.assert_allclose(q[[0, -1]], np.asarray(seg["waypoints"])[[0, -1]], atol=1e-9)
+        assert np.all(np.abs(qd) <= limits.velocity * (1 + 1e-6)) and np.all(np.abs(qdd) <= limits.acceleration * (1 + 1e-6))
+        assert np.all(qd[[0, -1]] == 0)  # rest to rest: the hand stops to close, release and between segments
+    assert (out / "view.html").stat().st_size > 10000
+    # the view: the object rides with the hand between the grasp and the release, then rests at its place
+    view = view_folder(str(out))
+    (animation,) = [c for c in (c.lower() for c in view.commands) if c["type"] == "set_animation"]
+    clip = {a["path"]: a["clip"] for a in animation["animations"]}[f"/meshcat/pickplan/objects/{scene.target}"]
+    positions = [k["value"] for t in clip["tracks"] if t["name"] == ".position" for k in t["keys"]]
+    held = json.loads((out / "plan.json").read_text())["held"]
+    np.testing.assert_allclose(positions[0], np.asarray(scene.object(scene.target).pose)[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(positions[-1], np.asarray(held["place_pose"])[:3, 3], atol=1e-9)
+    robot = planned[1].world.robot
+    mid = (held["from"] + held["to"]) // 2
+    hand = robot.link_pose(np.asarray(json.loads((out / "plan.json").read_text())["trajectory"][mid]), robot.hand_link)
+    substeps = 4
+    np.testing.assert_allclose(positions[mid * substeps], (hand @ np.asarray(held["hand_T_object"]))[:3, 3], atol=1e-9)
+
+
+def test_pick_and_place_executes_in_pybullet(planned):
+    scene, planner, plan = planned
+    info = {}
+    ex = execute_in_sim(scene, planner, plan, REQUEST, "panda", info=info)
+    assert ex.status is PlaceOutcome.placed, ex.message
+    assert ex.held_after_close and ex.held_before_release and ex.in_region and ex.at_rest
+    assert ex.tilt_deg < REQUEST.tolerance_deg
+    assert max(ex.object_displacements.values()) <= 0.02
+    assert not ex.robot_contacts or max(ex.robot_contacts.values()) <= 0.002
+    assert "grasp_shift" in info  # the grasp as executed was measured (and planned for when it moved)
