@@ -236,7 +236,7 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
 def run_bench(args: argparse.Namespace) -> int:
     settings = settings_from_args(args)
     if settings.table == "pickplace":
-        return run_pickplace_bench(settings)
+        return run_pickplace_bench(settings, write_csv)
     records = run_sweep(settings)
     print(write_report(settings, records))
     print(f"wrote {settings.out}/table.md, table.png, runs.csv, runs.json, summary.json, objects.csv, objects.json"

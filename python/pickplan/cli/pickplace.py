@@ -41,15 +41,17 @@ def summary(plan: PickPlacePlan) -> str:
 
 
 def write_outputs(out: str, scene: Optional[Scene], request: PlaceRequest, plan: PickPlacePlan, robot: str,
-                  execution: Optional[dict] = None) -> None:
-    """pickplace.json, region.json; with a scene also scene.json, plan.json and view.html."""
+                  execution: Optional[dict] = None, observed: bool = False) -> None:
+    """pickplace.json, region.json; with a scene also scene.json, plan.json and view.html (``observed``: the
+    plan is from depth; the view draws the scene's true target carried)."""
     os.makedirs(out, exist_ok=True)
     timed = plan.timed(1000.0) if plan.success else None
     write_json(os.path.join(out, "pickplace.json"), pickplace_record(plan, request, robot, timed, execution))
     write_json(os.path.join(out, "region.json"), request.to_dict())
     if scene is not None:
         scene.save(os.path.join(out, "scene.json"))
-        write_json(os.path.join(out, "plan.json"), view_record(plan, robot))
+        frame = scene.object(scene.target).pose if observed else None
+        write_json(os.path.join(out, "plan.json"), view_record(plan, robot, scene.target, frame))
         write_html(view_folder(out), os.path.join(out, "view.html"))
 
 
@@ -77,7 +79,8 @@ def run_pickplace(args) -> int:
         executed = ex.to_dict()
         print(f"  executed: {ex.status.value}" + (f" ({ex.message})" if ex.message else ""))
     if args.out:
-        write_outputs(args.out, scene, request, plan, planner.world.robot.info.name, executed)
+        write_outputs(args.out, scene, request, plan, planner.world.robot.info.name, executed,
+                      observed=bool(args.observation))
         print(f"wrote {args.out}/pickplace.json, region.json" + (", scene.json, plan.json, view.html" if scene else ""))
     ok = plan.success and (executed is None or executed["success"])
     return ExitCode.OK if ok else ExitCode.NO_PLAN

@@ -98,9 +98,10 @@ def unit_settings(unit: dict, method: str, world_settings: WorldSettings) -> Pic
     seed = int(unit["seed"])
     pick = OMGSettings(chomp=ChompSettings(), goals=GoalSetSettings(max_goals=unit["grasps"], seed=seed),
                        ik=IkSettings(seed=seed), iterations=unit["iterations"], grasp_kind=unit.get("grasp_kind") or
-                       "simulated", grasp_count=unit["grasp_candidates"], seed=seed, world=world_settings)
+                       "simulated", grasp_count=unit["grasp_candidates"], seed=seed, world=world_settings,
+                       clock="thread_cpu")
     place = OMGSettings(refine=False, transit_avoids_target=False, iterations=unit["iterations"], seed=seed,
-                        selection="Fixed" if method == "Fixed" else "MD", world=world_settings)
+                        selection="Fixed" if method == "Fixed" else "MD", world=world_settings, clock="thread_cpu")
     return PickPlaceSettings(pick=pick, place=place)
 
 
@@ -187,7 +188,8 @@ def run_pickplace_unit(unit: dict) -> dict:
 
 def plan_fields(plan: PickPlacePlan) -> dict:
     out = {"status": plan.status.value, "reason": plan.reason, "pick_status": plan.pick.status.value,
-           "pick_success": plan.pick.success, "pick_time": float(plan.pick.timings.get("total", 0.0))}
+           "pick_success": plan.pick.success, "pick_time": float(plan.pick.timings.get("total", 0.0)),
+           "attach_time": plan.timings.get("attach"), "lift_time": plan.timings.get("lift")}
     if plan.place_goals is not None:
         out.update(place_goals=len(plan.place_goals), place_goal_set_time=float(plan.place_goals.seconds),
                    place_verdict=plan.place_goals.verdict.value)

@@ -29,6 +29,7 @@ from pickplan.core.timing import TimedTrajectory, robot_limits, time_parameteriz
 from pickplan.omg.attach import (HELD_LINK, AttachSettings, HeldCheck, HeldObject, HeldWorld, held_from_plan,
                                  straight_path, straight_path_steps)
 from pickplan.omg.place import PlaceGoalSet, PlaceRequest, PlaceSettings, build_place_goal_set, reason_summary
+from pickplan.omg.native_loop import StageClock
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanResult, plan_to_goal_set
 
 
@@ -160,6 +161,8 @@ class PickPlacePlanner:
         None: Algorithm 2 (``planner.plan_to_goal_set`` with ``settings.place``)."""
         self.planner, self.request, self.settings = planner, request, settings
         self.transfer = transfer
+        # what the timings read: the place's StageClock (thread_cpu: a loaded machine's other processes do not count)
+        self.clock = time.thread_time if settings.place.clock is StageClock.thread_cpu else time.perf_counter
 
     @property
     def world(self):
@@ -173,6 +176,15 @@ class PickPlacePlanner:
         grasp actually executed)."""
         world = self.world
         return HeldWorld(world, held if held is not None else held_from_plan(world, q_grasp, self.settings.attach))
+
+    def prepare(self, carrying: HeldWorld) -> None:
+        """What the place planning of ``carrying`` reads that depends on the grasp only (the robot with
+        the held object: FCL models, the CHOMP problem, the clearance problem), built before it is timed."""
+        for kind in (HeldCheck.carry, HeldCheck.hand, HeldCheck.support):
+            carrying.checker(kind)
+        carrying.clearance_problem
+        tail = self.settings.goals.goals.standoff_steps + 1
+        carrying.chomp(replace(self.settings.place.chomp, obstacle_tail=tail))
 
     def plan_lift(self, carrying: HeldWorld, q_grasp: np.ndarray) -> Tuple[np.ndarray, bool]:
         """The straight lift (see ``PickPlaceSettings``) and whether it is reachable and clear."""
@@ -193,7 +205,7 @@ class PickPlacePlanner:
         """The place goal set from ``start`` (the lifted configuration) and the transfer to it (None
         when the set is empty)."""
         model = getattr(carrying.base, "models", {}).get(carrying.target)
-        goals = build_place_goal_set(carrying, self.request, start, self.settings.goals, model)
+        goals = build_place_goal_set(carrying, self.request, start, self.settings.goals, model, clock=self.clock)
         if len(goals) == 0:
             return goals, None
         if self.transfer is not None:
@@ -208,7 +220,7 @@ class PickPlacePlanner:
         return path, ok and (checker is None or not any(checker.in_collision(q) for q in path[1:]))
 
     def plan(self, start=None, grasps=None) -> PickPlacePlan:
-        t0 = time.perf_counter()
+        t0 = self.clock()
         pick = self.plan_pick(start, grasps)
         timings = {"pick": pick.timings.get("total", 0.0)}
         if not pick.success:
@@ -221,20 +233,23 @@ class PickPlacePlanner:
         """Lift, place and retract after ``pick`` (the grasp as planned, or ``held``: as executed). With
         ``start`` (the configuration after a lift already executed) no lift is planned: the place starts there."""
         timings = dict(timings or {})
-        t = time.perf_counter()
+        t = self.clock()
         carrying = self.attach(pick.goal, held)
+        self.prepare(carrying)
+        timings["attach"] = self.clock() - t
+        t = self.clock()
         if start is None:
             lift, ok = self.plan_lift(carrying, pick.goal)
         else:
             lift, ok = np.asarray(start, dtype=float)[None], True
-        timings["lift"] = time.perf_counter() - t
+        timings["lift"] = self.clock() - t
         plan = PickPlacePlan(PickPlaceStatus.lift_blocked, "lift: unreachable or in collision", pick, lift,
                              carrying.held, timings=timings)
         if not ok:
             return plan
-        t = time.perf_counter()
+        t = self.clock()
         goals, place = self.plan_place(carrying, lift[-1])
-        timings["place"] = time.perf_counter() - t
+        timings["place"] = self.clock() - t
         plan.place_goals, plan.place = goals, place
         if place is None:
             plan.status, plan.reason = PickPlaceStatus.no_place_goals, reason_summary(goals)
@@ -243,11 +258,11 @@ class PickPlacePlanner:
             plan.status, plan.reason = PickPlaceStatus.place_failed, f"transfer: {place.status.value}"
             return plan
         plan.place_pose = goals.object_poses[place.grasp_index]
-        t = time.perf_counter()
+        t = self.clock()
         plan.retract, ok = self.plan_retract(place.goal, plan.place_pose)
-        timings["retract"] = time.perf_counter() - t
+        timings["retract"] = self.clock() - t
         if t0 is not None:
-            timings["total"] = time.perf_counter() - t0
+            timings["total"] = self.clock() - t0
         plan.status, plan.reason = (PickPlaceStatus.success, "") if ok else \
             (PickPlaceStatus.retract_blocked, "retract: unreachable or in collision")
         return plan

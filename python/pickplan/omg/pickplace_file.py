@@ -28,9 +28,13 @@ def pickplace_record(plan: PickPlacePlan, request: PlaceRequest, robot: str,
     return d
 
 
-def view_record(plan: PickPlacePlan, robot: str) -> dict:
+def view_record(plan: PickPlacePlan, robot: str, target: Optional[str] = None,
+                frame: Optional[np.ndarray] = None) -> dict:
     """``plan.json`` for ``pickplan view``: the segments as one trajectory and the held object's
-    interval (from the grasp to the release), its grasp and its place; the place goal set as hands."""
+    interval (from the grasp to the release), its grasp and its place; the place goal set as hands.
+    A plan from depth names the scene's ``target`` and its true pose ``frame`` (its object frame in
+    the observed object's: the view draws the true mesh)."""
+    frame = np.eye(4) if frame is None else np.asarray(frame, dtype=float)
     segments = plan.segments()
     lengths = [len(Q) - 1 for _, Q in segments]
     record = {"version": 2, "robot": robot, "status": plan.status.value, "trajectory": plan.trajectory.tolist(),
@@ -38,9 +42,10 @@ def view_record(plan: PickPlacePlan, robot: str) -> dict:
     if plan.held is not None:
         first = lengths[0]
         carried = sum(n for (name, _), n in zip(segments, lengths) if name in ("lift", "transfer"))
-        record["held"] = {**plan.held.to_dict(), "from": first, "to": first + carried}
+        record["held"] = {"name": target or plan.held.name, "hand_T_object": (plan.held.hand_T_object @ frame).tolist(),
+                          "from": first, "to": first + carried}
         if plan.place_pose is not None:
-            record["held"]["place_pose"] = np.asarray(plan.place_pose).tolist()
+            record["held"]["place_pose"] = (np.asarray(plan.place_pose) @ frame).tolist()
     if plan.place_goals is not None and len(plan.place_goals):
         record["goal_set"] = np.asarray(plan.place_goals.goal_set.goals).tolist()
         if plan.place is not None and plan.place.goal_source >= 0:

@@ -21,11 +21,13 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from typing import List, Optional, Tuple
 
 import numpy as np
+import trimesh
 
 from pickplan import _core
 from pickplan.core.errors import InputError
@@ -203,26 +205,26 @@ def candidate_poses(request: PlaceRequest, vertices: np.ndarray, rotations: List
     """(C, 4, 4) object poses: every rotation x yaw x grid position on the region's floor with the
     object's ``vertices`` (object frame) all inside the box, the lowest ``gap`` above the floor."""
     lo, hi = np.asarray(request.region_min), np.asarray(request.region_max)
+    V = np.asarray(vertices, float)
+    if len(V) > 64:  # the hull's vertices bound the same extents
+        V = np.asarray(trimesh.PointCloud(V).convex_hull.vertices, float)
     out = []
     for R0 in rotations:
         for yaw in _yaws(request, settings):
             R = _yaw(yaw) @ R0
-            V = np.asarray(vertices, float) @ R.T
-            vmin, vmax = V.min(axis=0), V.max(axis=0)
+            W = V @ R.T
+            vmin, vmax = W.min(axis=0), W.max(axis=0)
             z = lo[2] + settings.gap - vmin[2]
-            if z + vmax[2] > hi[2]:
-                continue
-            xlo, xhi = lo[:2] - vmin[:2], hi[:2] - vmax[:2]  # the origin's range keeping V inside
-            if np.any(xhi < xlo):
+            xlo, xhi = lo[:2] - vmin[:2], hi[:2] - vmax[:2]  # the origin's range keeping the object inside
+            if z + vmax[2] > hi[2] or np.any(xhi < xlo):
                 continue
             axes = [np.arange(a, b + 1e-9, settings.position_step) if b - a >= settings.position_step
                     else np.array([(a + b) / 2]) for a, b in zip(xlo, xhi)]
-            for x in axes[0]:
-                for y in axes[1]:
-                    T = np.eye(4)
-                    T[:3, :3], T[:3, 3] = R, (x, y, z)
-                    out.append(T)
-    poses = np.array(out).reshape(-1, 4, 4)
+            xy = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+            T = np.repeat(np.eye(4)[None], len(xy), axis=0)
+            T[:, :3, :3], T[:, :2, 3], T[:, 2, 3] = R, xy, z
+            out.append(T)
+    poses = np.concatenate(out) if out else np.zeros((0, 4, 4))
     if len(poses) > settings.max_candidates:
         keep = np.sort(np.random.default_rng(settings.seed).choice(len(poses), settings.max_candidates, replace=False))
         poses = poses[keep]
@@ -241,12 +243,11 @@ def _verdict(candidates: int, reasons: list, kept: int) -> PlaceVerdict:
 
 
 def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.ndarray,
-                         settings: PlaceSettings = PlaceSettings(), model=None) -> PlaceGoalSet:
+                         settings: PlaceSettings = PlaceSettings(), model=None, clock=time.perf_counter) -> PlaceGoalSet:
     """The place goal set of ``request`` for the object ``carrying`` holds, from ``start`` (the lifted
-    configuration); ``model`` (the object's ``ObjectModel``) gives the stable resting poses."""
-    import time
-
-    t0 = time.perf_counter()
+    configuration); ``model`` (the object's ``ObjectModel``) gives the stable resting poses; ``clock``
+    times it."""
+    t0 = clock()
     held: HeldObject = carrying.held
     current = carrying.base.target_pose
     vertices = held.mesh.vertices if held.mesh is not None else held.points
@@ -264,7 +265,7 @@ def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.n
     gs = _preplace_clear(carrying, GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]),
                                            np.asarray(out["grasp_index"], int), hands, reasons, float(out["seconds"])),
                          settings.preplace_clearance)
-    return PlaceGoalSet(gs, poses, _verdict(len(poses), gs.reasons, len(gs)), time.perf_counter() - t0)
+    return PlaceGoalSet(gs, poses, _verdict(len(poses), gs.reasons, len(gs)), clock() - t0)
 
 
 def _preplace_clear(carrying: HeldWorld, gs: GoalSet, clearance: float) -> GoalSet:
