@@ -27,7 +27,6 @@ from typing import Optional
 import numpy as np
 
 from pickplan.core.objects import model_from_source
-from pickplan.core.timing import robot_limits, time_parameterize
 from pickplan.eval.baselines import BaselineSettings, plan_baseline_to_goal_set
 from pickplan.eval.experiments import _WORKER_MODELS, _unit_grasps
 from pickplan.eval.place_regions import RegionKind, place_task
@@ -46,6 +45,8 @@ PICKPLACE_METHODS = ("OMG", "Fixed", "CHOMP", "RRT-C")
 PERCEPTION_METHOD = "OMG-3v"
 REPLAN_SHIFT = 0.003     # m: an executed grasp this far from the planned one is planned for again
 REPLAN_ANGLE_DEG = 2.0
+FALLBACK_SHIFT = 0.02    # m: a grasp changed by less, for which no place plan is found, keeps the planned place
+FALLBACK_ANGLE_DEG = 15.0
 
 
 def region_kind(scene_name: str) -> RegionKind:
@@ -111,13 +112,12 @@ def execute_in_sim(scene, planner: PickPlacePlanner, plan: PickPlacePlan, reques
     planned one (``REPLAN_SHIFT``, ``REPLAN_ANGLE_DEG``); ``info`` receives the grasp change and whether
     it replanned. ``frame``: the true object frame in the planner's object frame (a perceived object's
     frame is the world at the observation: the true pose then). ``record``: frames to render."""
-    limits = robot_limits(planner.world.robot)
     rate = 1.0 / ExecutionSettings.time_step
     to_planner = np.linalg.inv(frame)
     info = {} if info is None else info
 
     def timed(p, names):
-        return [(n, time_parameterize(Q, rate, limits)) for n, Q in p.segments() if n in names]
+        return p.timed(rate, names)
 
     def replan(q_now, executed):
         executed = executed @ to_planner
@@ -129,7 +129,11 @@ def execute_in_sim(scene, planner: PickPlacePlanner, plan: PickPlacePlan, reques
         again = planner.plan_after_pick(plan.pick, held=replace(plan.held, hand_T_object=executed), start=q_now)
         if not again.success:
             info["replan_status"] = again.status.value
-            return None
+            if shift > FALLBACK_SHIFT or angle > FALLBACK_ANGLE_DEG:
+                return None
+            # a small change the place cannot be planned for again (a clearance lost by millimetres):
+            # the planned place, as the planned grasp would have it
+            return timed(plan, ("transfer", "retract")), plan.place_pose @ frame
         return timed(again, ("transfer", "retract")), again.place_pose @ frame
 
     return execute_pick_and_place(scene, timed(plan, ("approach", "lift")), place_check(request, plan.place_pose @ frame),

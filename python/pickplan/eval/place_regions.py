@@ -31,9 +31,9 @@ class RegionSettings:
     size: Tuple[float, float] = (0.24, 0.20)       # m, a table region's x, y
     x_range: Tuple[float, float] = (0.40, 0.55)    # region centres' x (reachable by every shipped robot)
     side_y: Tuple[float, float] = (0.50, 0.56)     # |y| of a region beside the clutter (objects reach ~0.42)
-    clutter_x: Tuple[float, float] = (0.45, 0.60)  # a cluttered region's centre
-    clutter_y: Tuple[float, float] = (-0.2, 0.2)
-    bin_inner: Tuple[float, float] = (0.24, 0.20)  # m inside the walls
+    clutter_x: Tuple[float, float] = (0.45, 0.60)  # a partly cluttered region's centre: across the clutter's
+    clutter_y: Tuple[float, float] = (0.24, 0.32)  # edge (|y|; objects stand at |y| <= 0.35), either side
+    bin_inner: Tuple[float, float] = (0.26, 0.22)  # m inside the walls
     bin_height: float = 0.08
     height: float = 0.40                           # m of the region above its floor
     orientation: Orientation = Orientation.upright
@@ -63,7 +63,8 @@ def place_task(scene: Scene, kind: RegionKind, seed: int, settings: RegionSettin
     rng = np.random.default_rng([int(seed), 34])
     half = np.asarray(settings.bin_inner if kind is RegionKind.bin else settings.size) / 2
     if kind is RegionKind.cluttered:
-        centre = np.array([rng.uniform(*settings.clutter_x), rng.uniform(*settings.clutter_y)])
+        side = 1.0 if rng.uniform() < 0.5 else -1.0
+        centre = np.array([rng.uniform(*settings.clutter_x), side * rng.uniform(*settings.clutter_y)])
     else:  # beside the clutter, on the side farther from the target, moved out until it is clear
         target_y = float(np.asarray(scene.object(scene.target).pose)[1, 3])
         sign = -1.0 if target_y > 0 else 1.0

@@ -38,7 +38,7 @@ HELD_LINK = "held_object"
 class AttachSettings:
     """How the held object becomes part of the robot."""
 
-    points: int = 80        # body points on the held object's surface (a link of the paper has 20; an
+    points: int = 60        # body points on the held object's surface (a link of the paper has 20; an
                             # object spans several links' worth of space)
     seed: int = 0
 

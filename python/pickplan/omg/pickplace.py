@@ -25,7 +25,7 @@ import numpy as np
 
 from pickplan.core import collision
 from pickplan.core.settings import Option
-from pickplan.core.timing import TimedTrajectory, robot_limits, time_parameterize
+from pickplan.core.timing import KinematicLimits, TimedTrajectory, time_parameterize
 from pickplan.omg.attach import (HELD_LINK, AttachSettings, HeldCheck, HeldObject, HeldWorld, held_from_plan,
                                  straight_path, straight_path_steps)
 from pickplan.omg.place import PlaceGoalSet, PlaceRequest, PlaceSettings, build_place_goal_set, reason_summary
@@ -60,6 +60,9 @@ class PickPlaceSettings:
     lift_contact: float = 0.01    # m of the lift in which the held object may touch its support
     retract: float = 0.10         # m straight up after the release
     retract_steps: int = 10
+    # The carry (lift, transfer) is timed within this share of the velocity limits (its square of the
+    # acceleration limits): an object held by friction alone slips when the hand jerks it about.
+    carry_speed: float = 0.5
 
 
 @dataclass
@@ -76,6 +79,7 @@ class PickPlacePlan:
     place_pose: Optional[np.ndarray] = None   # (4, 4) the object's planned pose at release
     retract: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     timings: dict = field(default_factory=dict)
+    carry_speed: float = 1.0                  # the carry's share of the limits (``PickPlaceSettings``)
 
     @property
     def success(self) -> bool:
@@ -98,11 +102,14 @@ class PickPlacePlan:
         segs = [Q for _, Q in self.segments()]
         return np.vstack([segs[0]] + [Q[1:] for Q in segs[1:]])
 
-    def timed(self, rate: float = 1000.0) -> List[Tuple[str, TimedTrajectory]]:
-        """Each segment timed within the robot's limits (rest to rest: the hand stops to close, to
-        release and between straight segments)."""
-        limits = self.pick.limits
-        return [(name, time_parameterize(Q, rate, limits)) for name, Q in self.segments()]
+    def timed(self, rate: float = 1000.0, names: Optional[Tuple[str, ...]] = None) -> List[Tuple[str, TimedTrajectory]]:
+        """Each segment (of ``names``, default all) timed within the robot's limits, rest to rest (the hand
+        stops to close, to release and between straight segments); the carry (lift, transfer) within
+        ``carry_speed`` of the velocity limits and its square of the acceleration limits."""
+        limits, k = self.pick.limits, self.carry_speed
+        carry = KinematicLimits(limits.velocity * k, limits.acceleration * k * k)
+        return [(name, time_parameterize(Q, rate, carry if name in ("lift", "transfer") else limits))
+                for name, Q in self.segments() if names is None or name in names]
 
     def to_dict(self) -> dict:
         """JSON-ready: status, reason, segments, held object, place pose, timings (seconds)."""
@@ -244,7 +251,7 @@ class PickPlacePlanner:
             lift, ok = np.asarray(start, dtype=float)[None], True
         timings["lift"] = self.clock() - t
         plan = PickPlacePlan(PickPlaceStatus.lift_blocked, "lift: unreachable or in collision", pick, lift,
-                             carrying.held, timings=timings)
+                             carrying.held, timings=timings, carry_speed=self.settings.carry_speed)
         if not ok:
             return plan
         t = self.clock()

@@ -138,10 +138,12 @@ class PlaceSettings:
     # The set-down: straight down from standoff above the place. Its first configuration (the pre-place)
     # must keep the transit's clearance (the success test's ``MetricSettings.clearance``, ``preplace_clearance``):
     # the transit arrives there, so a pre-place closer to an object would fail every plan.
+    # 20 goals (a grasp's 30): places are many and alike, and the goal-cost estimates scale with the goals
     goals: GoalSetSettings = field(default_factory=lambda: GoalSetSettings(standoff=0.15, standoff_steps=5,
-                                                                            approach_clearance=0.01))
+                                                                            approach_clearance=0.01, max_goals=20))
     preplace_clearance: float = 0.05
-    ik: IkSettings = field(default_factory=IkSettings)
+    # 8 IK seeds (a grasp's 24): a place out of reach from 8 seeds has neighbours in the grid to try
+    ik: IkSettings = field(default_factory=lambda: IkSettings(num_seeds=8))
 
 
 @dataclass

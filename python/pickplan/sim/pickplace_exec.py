@@ -29,7 +29,7 @@ from pickplan.core import robots
 from pickplan.core.settings import Option
 from pickplan.core.timing import TimedTrajectory
 from pickplan.sim import scenes as scenes_mod
-from pickplan.sim.execution import ExecutionSettings, RecordSettings, _follow, _hold, _Sim, open_sim
+from pickplan.sim.execution import ExecutionSettings, RecordSettings, _colorize, _follow, _hold, _Sim, open_sim
 
 
 class PlaceOutcome(Option):
@@ -167,6 +167,10 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
     arm = robot.info.arm_dof
     try:
         com0 = {name: sim.com(name) for name in sim.bodies}
+        if record is not None:
+            if record.colorize:
+                _colorize(sim.pb, sim.c, sim)
+            sim.capture()
         sim.command_arm(parts["approach"].q[0], np.zeros(robot.dof))
         sim.command_fingers(parts["approach"].q[0, arm], s.finger_force)
         for _ in range(int(round(s.start_settle / s.time_step))):
@@ -181,7 +185,8 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
         _hold(sim, parts["lift"].q[-1], s.hold_duration, True)
         grasp = hand_T_object(sim, robot)
         place_pose, planned = check.place_pose, True
-        if replan is not None:
+        held_after_lift = held_after_close and sim.held()  # lost on the lift: dropped, nothing to plan for
+        if replan is not None and held_after_lift:
             out = replan(sim.joint_positions(), grasp)
             if out is None:
                 planned = False
@@ -189,7 +194,7 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
                 parts.update(dict(out[0]))
                 place_pose = out[1]
         held_before_release = False
-        if planned and held_after_close:
+        if planned and held_after_lift:
             _follow_timed(sim, parts["transfer"], False, True)
             _hold(sim, parts["transfer"].q[-1], s.approach_settle, True)
             held_before_release = sim.held()
@@ -215,29 +220,32 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
     held_contacts = sim.held_contacts
     collided = max(sim.contacts.values(), default=0.0) > s.collision_depth or \
         max(held_contacts.values(), default=0.0) > settings.held_penetration
-    status, message = _outcome(finite, held_after_close, planned, held_before_release, collided, in_region, at_rest,
-                               tilt, yaw, moved, check, sim, held_contacts)
+    stages = {"close": held_after_close, "lift": held_after_lift, "planned": planned, "release": held_before_release}
+    contacts = {**{f"robot-{k}": v for k, v in sim.contacts.items()}, **{f"held-{k}": v for k, v in held_contacts.items()}}
+    status, message = _outcome(finite, stages, contacts if collided else {}, in_region, at_rest, tilt, yaw, moved, check)
     return PickPlaceExecution(status is PlaceOutcome.placed, status, message, held_after_close, held_before_release,
                               grasp, final, tilt, yaw, in_region, at_rest, dict(sorted(sim.contacts.items())),
                               dict(sorted(held_contacts.items())), moved, sim.steps * s.time_step,
                               time.perf_counter() - t_start, sim.frames)
 
 
-def _outcome(finite, held_after_close, planned, held_before_release, collided, in_region, at_rest, tilt, yaw,
-             moved, check: PlaceCheck, sim, held_contacts) -> Tuple[PlaceOutcome, str]:
-    """The first test failed, in the order of the task, with its message."""
+def _outcome(finite: bool, stages: dict, collisions: dict, in_region: bool, at_rest: bool, tilt: float, yaw: float,
+             moved: dict, check: PlaceCheck) -> Tuple[PlaceOutcome, str]:
+    """The first test failed, in the order of the task, with its message (``collisions``: the
+    penetrations when one was too deep, else empty)."""
     if not finite:
         return PlaceOutcome.unstable, "the simulation produced non-finite states"
-    if not held_after_close:
+    if not stages["close"]:
         return PlaceOutcome.missed, "the fingers closed without the object between them"
-    if not planned:
+    if not stages["lift"]:
+        return PlaceOutcome.dropped, "the object left the hand on the lift"
+    if not stages["planned"]:
         return PlaceOutcome.not_planned, "no place plan for the grasp as executed"
-    if not held_before_release:
+    if not stages["release"]:
         return PlaceOutcome.dropped, "the object left the hand before the release"
-    if collided:
-        worst = {**{f"robot-{k}": v for k, v in sim.contacts.items()}, **{f"held-{k}": v for k, v in held_contacts.items()}}
-        name = max(worst, key=worst.get)
-        return PlaceOutcome.collision, f"{name} penetration {worst[name] * 1000:.1f} mm"
+    if collisions:
+        name = max(collisions, key=collisions.get)
+        return PlaceOutcome.collision, f"{name} penetration {collisions[name] * 1000:.1f} mm"
     if not at_rest:
         return PlaceOutcome.moving, "the object is still moving"
     if not in_region:
