@@ -127,3 +127,20 @@ def test_pick_and_place_from_a_depth_observation(tmp_path):
     assert np.all(V[:, :2] >= np.array(REQUEST.region_min[:2]) - 0.01)
     assert np.all(V[:, :2] <= np.array(REQUEST.region_max[:2]) + 0.01)
     assert abs(V[:, 2].min()) < 0.01  # on the table (the observed points' feet are on the plane)
+
+
+def test_pickplace_command_exit_codes(planned, tmp_path, capsys):
+    """A wrong region file is bad input (2, naming the file and the field); a region out of reach is
+    no plan (1, saying why)."""
+    scene = planned[0]
+    scene.save(str(tmp_path / "scene.json"))
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"region": {"min": [0.4, 0.2, 0.0], "max": [0.3, 0.4, 0.4]}}))
+    args = ["pickplace", "--scene", str(tmp_path / "scene.json"), "--grasps", "antipodal", "--place"]
+    assert main(args + [str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "region_max" in err
+    far = tmp_path / "far.json"
+    far.write_text(json.dumps({"region": {"min": [1.0, 0.65, 0.0], "max": [1.09, 0.78, 0.4]}}))
+    assert main(args + [str(far)]) == 1
+    assert "no_place_goals: region out of reach" in capsys.readouterr().out
