@@ -121,8 +121,9 @@ def test_an_empty_place_goal_set_says_why(held_case):
     far = PlaceRequest((1.0, 0.65, 0.0), (1.09, 0.78, 0.4))                     # beyond the arm's reach
     can = carrying.base.scene.object(CAN).pose                                   # only the can's own footprint
     blocked = PlaceRequest((can[0, 3] - 0.07, can[1, 3] - 0.07, 0.0), (can[0, 3] + 0.07, can[1, 3] + 0.07, 0.4))
+    shelf = PlaceRequest((0.4, -0.4, 0.2), (0.6, -0.2, 0.5))                    # a floor in mid-air
     for request, verdict in ((small, PlaceVerdict.too_small), (far, PlaceVerdict.out_of_reach),
-                             (blocked, PlaceVerdict.blocked)):
+                             (blocked, PlaceVerdict.blocked), (shelf, PlaceVerdict.no_support)):
         goals = build_place_goal_set(carrying, request, start, model=box)
         assert len(goals) == 0 and goals.verdict is verdict, goals.reason_counts()
         assert goals.reason == f"no_place_goals: {verdict.value}"

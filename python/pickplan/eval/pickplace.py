@@ -26,16 +26,15 @@ from typing import Optional
 
 import numpy as np
 
-from pickplan.core.objects import model_from_source
 from pickplan.eval.baselines import BaselineSettings, plan_baseline_to_goal_set
 from pickplan.eval.experiments import _WORKER_MODELS, _unit_grasps
 from pickplan.eval.place_regions import RegionKind, place_task
-from pickplan.omg.attach import HeldCheck, HeldWorld, held_from_poses
+from pickplan.omg.attach import HeldCheck, HeldWorld
 from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.goals import GoalSetSettings, IkSettings
 from pickplan.omg.pickplace import PickPlacePlan, PickPlacePlanner, PickPlaceSettings
 from pickplan.omg.place import PlaceRequest
-from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus, target_graspability
+from pickplan.omg.planner import OMGPlanner, OMGSettings, target_graspability
 from pickplan.omg.world import World, WorldSettings
 from pickplan.sim.execution import ExecutionSettings
 from pickplan.sim.pickplace_exec import PickPlaceExecSettings, PickPlaceExecution, PlaceCheck, execute_pick_and_place

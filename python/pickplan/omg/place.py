@@ -32,7 +32,7 @@ import trimesh
 from pickplan import _core
 from pickplan.core.errors import InputError
 from pickplan.core.settings import Option
-from pickplan.omg.attach import HELD_LINK, HeldCheck, HeldObject, HeldWorld
+from pickplan.omg.attach import HeldCheck, HeldObject, HeldWorld
 from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, ik_solver
 
 
@@ -48,6 +48,7 @@ class PlaceVerdict(Option):
     """Why a place goal set is empty (``PlaceGoalSet.verdict``)."""
 
     ok = "ok"
+    no_support = "region floor not on the support (the table top)"
     too_small = "region too small for the object"
     out_of_reach = "region out of reach"
     blocked = "region blocked"
@@ -135,6 +136,7 @@ class PlaceSettings:
     gap: float = 0.004               # m: the object's lowest point above the floor at release
     max_rests: int = 3               # stable resting poses tried (most likely first)
     seed: int = 0
+    floor_tolerance: float = 0.01    # m between the region's floor and the support plane
     # The set-down: straight down from standoff above the place. Its first configuration (the pre-place)
     # must keep the transit's clearance (the success test's ``MetricSettings.clearance``, ``preplace_clearance``):
     # the transit arrives there, so a pre-place closer to an object would fail every plan.
@@ -251,6 +253,12 @@ def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.n
     times it."""
     t0 = clock()
     held: HeldObject = carrying.held
+    normal, offset = carrying.support_plane
+    centre = 0.5 * (np.asarray(request.region_min) + np.asarray(request.region_max))
+    if abs(normal @ np.array([centre[0], centre[1], request.floor]) - offset) > settings.floor_tolerance:
+        empty = GoalSet(np.zeros((0, carrying.robot.dof)), np.zeros((0, 0, carrying.robot.dof)), np.zeros(0, int),
+                        np.zeros((0, 4, 4)), [], 0.0)
+        return PlaceGoalSet(empty, np.zeros((0, 4, 4)), PlaceVerdict.no_support, clock() - t0)
     current = carrying.base.target_pose
     vertices = held.mesh.vertices if held.mesh is not None else held.points
     rotations = resting_rotations(request, current, model, settings.max_rests)
