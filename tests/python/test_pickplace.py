@@ -4,6 +4,7 @@ place, and the whole task executes in PyBullet (the object at rest in the region
 else moved, no collision)."""
 import json
 import os
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -144,3 +145,25 @@ def test_pickplace_command_exit_codes(planned, tmp_path, capsys):
     far.write_text(json.dumps({"region": {"min": [1.0, 0.65, 0.0], "max": [1.09, 0.78, 0.4]}}))
     assert main(args + [str(far)]) == 1
     assert "no_place_goals: region out of reach" in capsys.readouterr().out
+
+
+def test_the_carry_check_sees_the_held_object_on_the_true_meshes(planned):
+    """``carry_collides`` (the bench's measure): clear for the plan as planned; another can put where the
+    held can's bottom passes mid-transfer (1.5 cm into it) is a collision."""
+    from pickplan.eval.pickplace import carry_collides
+    from pickplan.sim import scenes
+
+    scene, planner, plan = planned
+    assert not carry_collides(plan, planner.attach(plan.pick.goal, plan.held))
+    robot, lib = planner.world.robot, objects.library("builtin")
+    q = plan.place.trajectory[len(plan.place.trajectory) // 2]
+    held_pose = robot.link_pose(q, robot.hand_link) @ plan.held.hand_T_object
+    can = lib.get(scene.target).mesh.vertices @ held_pose[:3, :3].T + held_pose[:3, 3]
+    box = lib.get("010_potted_meat_can")
+    pose = np.eye(4)
+    pose[:2, 3] = can[:, :2].mean(axis=0)
+    pose[2, 3] = can[:, 2].min() + 0.015 - box.mesh.vertices[:, 2].max()
+    blocked = replace(scene, objects=list(scene.objects) + [
+        scenes.SceneObject("010_potted_meat_can", "builtin:010_potted_meat_can", pose)])
+    other = PickPlacePlanner(OMGPlanner(None, blocked, SETTINGS.pick), REQUEST, SETTINGS)
+    assert carry_collides(plan, other.attach(plan.pick.goal, plan.held))
