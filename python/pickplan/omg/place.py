@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 from typing import List, Optional, Tuple
 
 import numpy as np
-import trimesh
+from scipy.spatial import ConvexHull
 
 from pickplan import _core
 from pickplan.core.errors import InputError
@@ -210,8 +210,8 @@ def candidate_poses(request: PlaceRequest, vertices: np.ndarray, rotations: List
     object's ``vertices`` (object frame) all inside the box, the lowest ``gap`` above the floor."""
     lo, hi = np.asarray(request.region_min), np.asarray(request.region_max)
     V = np.asarray(vertices, float)
-    if len(V) > 64:  # the hull's vertices bound the same extents
-        V = np.asarray(trimesh.PointCloud(V).convex_hull.vertices, float)
+    if len(V) > 64:  # the hull's vertices bound the same extents (qhull alone: trimesh's hull also repairs a mesh)
+        V = V[ConvexHull(V).vertices]
     out = []
     for R0 in rotations:
         for yaw in _yaws(request, settings):
