@@ -4,14 +4,14 @@ and by the success test."""
 import numpy as np
 import pytest
 
-from conftest import standing_pose
-
 from pickplan.core import objects
+from pickplan.core.containers import bin_source
 from pickplan.omg.attach import HELD_LINK, HeldCheck, HeldWorld, held_from_poses, straight_path
 from pickplan.omg.chomp import ChompSettings, MetricSettings
 from pickplan.omg.world import World
 from pickplan.sim import scenes
-from pickplan.core.containers import bin_source
+
+from conftest import standing_pose
 
 BOX = "004_sugar_box"
 

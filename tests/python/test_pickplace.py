@@ -3,15 +3,13 @@ timed within the robot's limits, the 3D view carries the object with the hand an
 place, and the whole task executes in PyBullet (the object at rest in the region, upright, nothing
 else moved, no collision)."""
 import json
-import os
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from conftest import standing_scene
-from pickplan.core import objects
 from pickplan.cli.main import main
+from pickplan.core import objects
 from pickplan.core.timing import robot_limits
 from pickplan.eval.pickplace import execute_in_sim
 from pickplan.omg.pickplace import PickPlacePlanner, PickPlaceSettings, PickPlaceStatus, pick_and_place
@@ -19,6 +17,8 @@ from pickplan.omg.place import PlaceRequest
 from pickplan.omg.planner import OMGPlanner, OMGSettings
 from pickplan.sim.pickplace_exec import PlaceOutcome
 from pickplan.sim.view import view_folder
+
+from conftest import standing_scene
 
 SETTINGS = PickPlaceSettings(pick=OMGSettings(grasp_kind="antipodal"))
 REQUEST = PlaceRequest((0.35, -0.5, 0.0), (0.6, -0.25, 0.4))
@@ -140,7 +140,7 @@ def test_pickplace_command_exit_codes(planned, tmp_path, capsys):
     args = ["pickplace", "--scene", str(tmp_path / "scene.json"), "--grasps", "antipodal", "--place"]
     assert main(args + [str(bad)]) == 2
     err = capsys.readouterr().err
-    assert str(bad) in err and "region_max" in err
+    assert str(bad) in err and "region.max" in err
     far = tmp_path / "far.json"
     far.write_text(json.dumps({"region": {"min": [1.0, 0.65, 0.0], "max": [1.09, 0.78, 0.4]}}))
     assert main(args + [str(far)]) == 1

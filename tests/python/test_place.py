@@ -11,13 +11,20 @@ from pickplan.core import objects
 from pickplan.core.errors import InputError
 from pickplan.omg.attach import HeldWorld, held_from_poses, straight_path
 from pickplan.omg.goals import GoalSetSettings
-from pickplan.omg.place import (Orientation, PlaceRequest, PlaceSettings, PlaceVerdict, build_place_goal_set,
-                                candidate_poses, resting_rotations)
+from pickplan.omg.place import (
+    Orientation,
+    PlaceRequest,
+    PlaceSettings,
+    PlaceVerdict,
+    build_place_goal_set,
+    candidate_poses,
+    resting_rotations,
+)
 from pickplan.omg.world import World
 from pickplan.sim import bodies, scenes
+from test_attach import BOX, _ik
 
 from conftest import standing_pose
-from test_attach import BOX, _ik
 
 CAN = "005_tomato_soup_can"
 
@@ -54,8 +61,10 @@ def test_request_files_are_checked_at_the_door(tmp_path):
     request = PlaceRequest.load(str(path))
     assert request.orientation is Orientation.stable and request.floor == 0.0
     assert PlaceRequest.from_dict(request.to_dict()) == request
-    for bad, field in (({"region": {"min": [0, 0, 0], "max": [0.1, -0.1, 0.2]}}, "region_max"),
-                       ({"region": {"min": [0, 0]}}, "region"),
+    for bad, field in (({"region": {"min": [0, 0, 0], "max": [0.1, -0.1, 0.2]}}, "region.max"),
+                       ({"region": {"min": [0, 0]}}, "region.min"),
+                       ({**good, "tolerance_deg": 0}, "tolerance_deg"),
+                       ({**good, "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 2]]}, "rotation"),
                        ({**good, "orientation": "sideways"}, "orientation"),
                        ({**good, "orientation": "pose"}, "rotation"),
                        ({**good, "colour": "red"}, "colour")):
@@ -63,6 +72,10 @@ def test_request_files_are_checked_at_the_door(tmp_path):
         with pytest.raises(InputError) as err:
             PlaceRequest.load(str(path))
         assert str(path) in str(err.value) and field in str(err.value)
+    path.write_text(json.dumps({"region": {"min": [0, 0, 0], "max": [1, 1, -1]}, "yaw_deg": "north"}))
+    with pytest.raises(InputError) as err:  # every problem at once
+        PlaceRequest.load(str(path))
+    assert {p.field for p in err.value.problems} == {"region.max", "yaw_deg"}
     path.write_text("{not json")
     with pytest.raises(InputError):
         PlaceRequest.load(str(path))

@@ -33,7 +33,7 @@ def parse_bin(source: str) -> Tuple[float, float, float]:
 
 def bin_parts(inner_x: float, inner_y: float, height: float) -> list:
     """The four walls (object frame: the inside centred on the origin, bottom at z = 0)."""
-    ox, oy = inner_x + 2 * WALL, inner_y + 2 * WALL
+    ox = inner_x + 2 * WALL  # the long walls span the short ones' ends
     walls = [((ox, WALL), (0.0, (inner_y + WALL) / 2)), ((ox, WALL), (0.0, -(inner_y + WALL) / 2)),
              ((WALL, inner_y), ((inner_x + WALL) / 2, 0.0)), ((WALL, inner_y), (-(inner_x + WALL) / 2, 0.0))]
     out = []

@@ -3,13 +3,14 @@ table beside the clutter (``place_regions``), executed in PyBullet; a picture of
 plan with both segments timed, a metrics table and the 3D view of the object carried and placed."""
 from __future__ import annotations
 
+import logging
 import os
 import time
 
 import numpy as np
 
 from pickplan.core.io import write_json, write_text
-from pickplan.eval.demo import DemoSettings
+from pickplan.eval.demo import DemoRun, DemoSettings
 from pickplan.eval.pickplace import execute_in_sim
 from pickplan.eval.place_regions import RegionKind, place_task
 from pickplan.omg.pickplace import PickPlacePlan, PickPlacePlanner, PickPlaceSettings
@@ -18,6 +19,8 @@ from pickplan.omg.planner import OMGPlanner
 from pickplan.sim import execution, scenes
 from pickplan.sim.view import view_folder
 from pickplan.sim.view_page import write_html
+
+log = logging.getLogger(__name__)
 
 
 def metrics_table(plan: PickPlacePlan, executed) -> str:
@@ -38,30 +41,32 @@ def metrics_table(plan: PickPlacePlan, executed) -> str:
     return "\n".join(["| | this run |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]) + "\n"
 
 
-def run_demo_place(out: str, settings: DemoSettings = DemoSettings()) -> int:
+def run_demo_place(out: str, settings: DemoSettings = DemoSettings()) -> DemoRun:
+    """The pick-and-place demo into folder ``out`` (``DemoRun.lifted``: placed as asked); progress goes
+    to the ``pickplan.eval.demo_place`` logger."""
     t0 = time.perf_counter()
     os.makedirs(out, exist_ok=True)
-    print(f"[1/4] generating a cluttered scene (seed {settings.seed}) and a free place region beside it")
+    log.info(f"[1/4] generating a cluttered scene (seed {settings.seed}) and a free place region beside it")
     scene = scenes.generate_scene(settings.seed, settings=scenes.SceneSettings(robot=settings.robot))
     scene, request = place_task(scene, RegionKind.free, settings.seed)
-    print(f"      target: {scene.target}; region x {request.region_min[0]:.2f}-{request.region_max[0]:.2f}, "
+    log.info(f"      target: {scene.target}; region x {request.region_min[0]:.2f}-{request.region_max[0]:.2f}, "
           f"y {request.region_min[1]:.2f}-{request.region_max[1]:.2f} m")
-    print(f"[2/4] planning the pick and the place for {settings.robot} (OMG: MD selection over grasps, then places)")
+    log.info(f"[2/4] planning the pick and the place for {settings.robot} (OMG: MD selection over grasps, then places)")
     planner = PickPlacePlanner(OMGPlanner(settings.robot, scene, settings.planner), request, PickPlaceSettings(
         pick=settings.planner))
     plan = planner.plan()
-    print(f"      {plan.status.value} {plan.reason}")
+    log.info(f"      {plan.status.value} {plan.reason}")
     executed = None
     if plan.success:
-        print("[3/4] executing in PyBullet: approach, close, lift, transfer, set down, release, retract")
+        log.info("[3/4] executing in PyBullet: approach, close, lift, transfer, set down, release, retract")
         executed = execute_in_sim(scene, planner, plan, request, planner.world.robot.info.name,
                                   record=execution.RecordSettings(every=settings.record_every))
-        print(f"      {executed.status.value} {executed.message}")
+        log.info(f"      {executed.status.value} {executed.message}")
         frames = executed.frames
         if frames:
             pick = np.linspace(0, len(frames) - 1, min(settings.frames_in_sheet, len(frames))).round().astype(int)
             execution.save_frames([frames[i] for i in pick], os.path.join(out, "demo.png"), columns=4)
-    print("[4/4] writing the plan, the 3D view and the metrics table")
+    log.info("[4/4] writing the plan, the 3D view and the metrics table")
     robot = planner.world.robot.info.name
     timed = plan.timed(settings.timed_rate) if plan.success else None
     write_json(os.path.join(out, "pickplace.json"),
@@ -72,8 +77,6 @@ def run_demo_place(out: str, settings: DemoSettings = DemoSettings()) -> int:
     write_html(view_folder(out), os.path.join(out, "view.html"))
     table = metrics_table(plan, executed)
     write_text(os.path.join(out, "metrics.md"), table)
-    print()
-    print(table)
-    print(f"wrote {out}/demo.png, view.html, metrics.md, pickplace.json, plan.json, scene.json, region.json "
-          f"({time.perf_counter() - t0:.1f} s)")
-    return 0 if executed is not None and executed.success else 1
+    files = ["demo.png"] * bool(executed is not None and executed.frames) + \
+        ["view.html", "metrics.md", "pickplace.json", "plan.json", "scene.json", "region.json"]
+    return DemoRun(table, files, executed is not None and executed.success, time.perf_counter() - t0)

@@ -15,7 +15,8 @@ def run_unit(unit: dict) -> dict:
     return run_perceived_pickplace_unit(unit) if unit["method"] == PERCEPTION_METHOD else run_pickplace_unit(unit)
 
 
-def run_pickplace_bench(settings: experiments.SweepSettings, write_csv: Callable) -> int:
+def run_pickplace_bench(settings: experiments.SweepSettings, write_csv: Callable) -> str:
+    """Run (or resume) the sweep and write its report; the table and the files written, as text."""
     t0 = time.perf_counter()
     s = settings.effective()
     records: List[dict] = experiments.run_sweep(s, unit_fn=run_unit)
@@ -23,7 +24,5 @@ def run_pickplace_bench(settings: experiments.SweepSettings, write_csv: Callable
     header = (f"## Pick and place: {len({r['scene'] for r in records})} scenes, {s.runs} run(s), robot {s.robot} "
               f"(objects: {objects}, poses: {s.poses}, {s.clutter[0]}-{s.clutter[1]} objects per scene; "
               f"regions free / cluttered / bin in turn)")
-    print(write_report(s.out, records, experiments.methods_for(s), header, write_csv))
-    print(f"wrote {s.out}/table.md, runs.csv, runs.json, summary.json, objects.json "
-          f"({time.perf_counter() - t0:.0f} s)")
-    return 0
+    return (write_report(s.out, records, experiments.methods_for(s), header, write_csv) +
+            f"wrote {s.out}/table.md, runs.csv, runs.json, summary.json, objects.json ({time.perf_counter() - t0:.0f} s)")

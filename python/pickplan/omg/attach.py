@@ -21,8 +21,7 @@ import numpy as np
 import trimesh
 
 from pickplan import _core
-from pickplan.core import collision
-from pickplan.core import robots
+from pickplan.core import collision, robots
 from pickplan.core.poses import rigid_errors
 from pickplan.core.settings import Option
 from pickplan.omg.chomp import Chomp

@@ -26,10 +26,17 @@ import numpy as np
 from pickplan.core import collision
 from pickplan.core.settings import Option
 from pickplan.core.timing import KinematicLimits, TimedTrajectory, time_parameterize
-from pickplan.omg.attach import (AttachSettings, HeldCheck, HeldObject, HeldWorld, held_from_plan,
-                                 straight_path, straight_path_steps)
-from pickplan.omg.place import PlaceGoalSet, PlaceRequest, PlaceSettings, build_place_goal_set, reason_summary
+from pickplan.omg.attach import (
+    AttachSettings,
+    HeldCheck,
+    HeldObject,
+    HeldWorld,
+    held_from_plan,
+    straight_path,
+    straight_path_steps,
+)
 from pickplan.omg.native_loop import StageClock
+from pickplan.omg.place import PlaceGoalSet, PlaceRequest, PlaceSettings, build_place_goal_set, reason_summary
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanResult, plan_to_goal_set
 
 

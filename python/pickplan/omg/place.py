@@ -19,7 +19,6 @@ region too small for the object``, ``... region blocked``).
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections import Counter
@@ -30,7 +29,8 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from pickplan import _core
-from pickplan.core.errors import InputError
+from pickplan.core.fields import FieldReader
+from pickplan.core.io import read_json
 from pickplan.core.settings import Option
 from pickplan.omg.attach import HeldCheck, HeldObject, HeldWorld
 from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, ik_solver
@@ -99,31 +99,39 @@ class PlaceRequest:
                 "yaw_tolerance_deg": self.yaw_tolerance_deg}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "PlaceRequest":
-        if not isinstance(d, dict):
-            raise ValueError(f"expected a JSON object, got {type(d).__name__}")
-        region = d.get("region")
-        if not isinstance(region, dict) or "min" not in region or "max" not in region:
-            raise ValueError("region: expected {\"min\": [x, y, z], \"max\": [x, y, z]}")
-        unknown = set(d) - {"region", "orientation", "rotation", "tolerance_deg", "yaw_deg", "yaw_tolerance_deg"}
-        if unknown:
-            raise ValueError(f"unknown field(s) {sorted(unknown)}")
-        try:
-            return cls(tuple(region["min"]), tuple(region["max"]), d.get("orientation", "upright"),
-                       d.get("rotation"), float(d.get("tolerance_deg", 10.0)),
-                       None if d.get("yaw_deg") is None else float(d["yaw_deg"]),
-                       float(d.get("yaw_tolerance_deg", 15.0)))
-        except TypeError as exc:
-            raise ValueError(f"region: {exc}") from exc
+    def from_dict(cls, d: dict, path: Optional[str] = None) -> "PlaceRequest":
+        """A request from its JSON form; ``InputError`` naming (the file ``path`` and) every wrong field."""
+        r = FieldReader(path)
+        with r:
+            d = r.table(d, "", known=("region", "orientation", "rotation", "tolerance_deg", "yaw_deg",
+                                      "yaw_tolerance_deg"))
+            lo = hi = rotation = yaw = None
+            with r.part():
+                region = r.table(r.key(d, "region"), "region", known=("min", "max"))
+                lo = r.get(region, "min", "region", r.vector, n=3)
+                hi = r.get(region, "max", "region", r.vector, n=3)
+                if lo is not None and hi is not None and not all(b > a for a, b in zip(lo, hi)):
+                    r.note("region.max", f"must exceed region.min {list(lo)} on every axis, got {list(hi)}")
+            orientation = r.get(d, "orientation", "", r.choice, default="upright", required=False,
+                                options=[o.value for o in Orientation])
+            if d.get("rotation") is not None:
+                rotation = r.get(d, "rotation", "", r.array, shape=(3, 3))
+                if rotation is not None and (not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-4)
+                                             or np.linalg.det(rotation) < 0):
+                    r.note("rotation", "not a rotation matrix (orthonormal, determinant 1)")
+            elif orientation == Orientation.pose.value:
+                r.note("rotation", "missing: orientation 'pose' needs a (3, 3) rotation matrix")
+            angle = {"lo": 0.0, "hi": 180.0, "low_open": True, "unit": "deg"}
+            tolerance = r.get(d, "tolerance_deg", "", r.number, default=10.0, required=False, **angle)
+            if d.get("yaw_deg") is not None:
+                yaw = r.get(d, "yaw_deg", "", r.number, unit="deg")
+            yaw_tolerance = r.get(d, "yaw_tolerance_deg", "", r.number, default=15.0, required=False, **angle)
+        return cls(lo, hi, orientation, None if rotation is None else rotation.tolist(), tolerance, yaw, yaw_tolerance)
 
     @classmethod
     def load(cls, path: str) -> "PlaceRequest":
         """A request from a JSON file; ``InputError`` naming the file and the field when it is wrong."""
-        try:
-            with open(path, "r", encoding="utf-8") as f:
-                return cls.from_dict(json.load(f))
-        except (ValueError, FileNotFoundError) as exc:  # JSONDecodeError is a ValueError
-            raise InputError(str(exc), path=path) from exc
+        return cls.from_dict(read_json(path, "place request file"), path=str(path))
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ class CheckerKind(Option):
 @dataclass(frozen=True)
 class WorldSettings:
     sdf: sdf.SdfSettings = field(default_factory=sdf.SdfSettings)
-    body_points_per_link: int = 20   # the paper samples 20 points per body part
+    body_points_per_link: Optional[int] = None  # None: the robot description's (the shipped ones: the paper's 20)
     body_seed: int = 0
     robot: str = "panda"             # the robot planned for: a shipped description's name or a .toml file
 
@@ -77,8 +77,8 @@ class World:
         grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf, cache.grids), o.pose)
                  for o in scene.objects]
         self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
-        self.body = _without_table_links(cache.body_points(self.robot, settings.body_points_per_link,
-                                                           settings.body_seed), self.robot)
+        per_link = settings.body_points_per_link or self.robot.description.body_points_per_link
+        self.body = _without_table_links(cache.body_points(self.robot, per_link, settings.body_seed), self.robot)
         self._checkers: dict = {}
         self._refiners: dict = {}
         self._chomps: dict = {}

@@ -330,7 +330,7 @@ def open_sim(scene: scenes_mod.Scene, robot, q0: np.ndarray, s: ExecutionSetting
              record: Optional[RecordSettings] = None, sim_class=None) -> "_Sim":
     """A fresh DIRECT client with the scene's table and objects and ``robot`` at ``q0``, frictions and
     the finger coupling set (the caller disconnects ``sim.c``). ``sim_class``: a ``_Sim`` subclass."""
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     client, ids = bodies.open_world(scene, robot, q0, models, s.time_step, s.solver_iterations)
     try:
@@ -363,8 +363,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     Raises ValueError for a malformed trajectory (shape, NaN); a trajectory outside the joint limits
     is not run and reports status "invalid_trajectory". Deterministic for identical inputs.
     """
-    import pybullet as pb
-
+    from pickplan.sim.bullet import pb
 
     t_start = time.perf_counter()
     s = settings
