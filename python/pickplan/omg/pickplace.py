@@ -35,6 +35,7 @@ from pickplan.omg.attach import (
     straight_path,
     straight_path_steps,
 )
+from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.native_loop import StageClock
 from pickplan.omg.place import PlaceGoalSet, PlaceRequest, PlaceSettings, build_place_goal_set, reason_summary
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanResult, plan_to_goal_set
@@ -51,12 +52,20 @@ class PickPlaceStatus(Option):
     retract_blocked = "retract_blocked"  # the straight retract is unreachable or collides
 
 
+# The transfer's CHOMP: its waypoints 0.2 s apart (a pick's 0.1 s). The success test's smoothness is a
+# bound on the mean squared joint speed (the prior sums (dq/dt)^2); a transfer crosses the workspace,
+# about twice a pick's reach, and over 3 s even its straight line fails that bound (the timed
+# trajectory's duration comes from toppra, not from this).
+TRANSFER_CHOMP = ChompSettings(duration=6.0)
+
+
 @dataclass(frozen=True)
 class PickPlaceSettings:
     pick: OMGSettings = field(default_factory=OMGSettings)
     # The transfer's Algorithm 2: no C-Space ISF (it refines grasps, not places); the old place of the
     # held object is never an obstacle.
-    place: OMGSettings = field(default_factory=lambda: OMGSettings(refine=False, transit_avoids_target=False))
+    place: OMGSettings = field(default_factory=lambda: OMGSettings(chomp=TRANSFER_CHOMP, refine=False,
+                                                                   transit_avoids_target=False))
     goals: PlaceSettings = field(default_factory=PlaceSettings)
     attach: AttachSettings = field(default_factory=AttachSettings)
     # The lift rises until the robot and the held object keep the success test's clearance from every
