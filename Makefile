@@ -35,10 +35,10 @@ system-deps:
 	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing; \
 	else echo "Debian packages: all present"; fi
 
-$(VENV)/.stamp: pyproject.toml
+$(VENV)/.stamp: pyproject.toml Makefile  # the package list below lives here
 	[ -x $(PY) ] || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest ompl ray manifold3d toppra meshcat u-msgpack-python ruff
+	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest pytest-xdist ompl ray manifold3d toppra meshcat u-msgpack-python ruff
 	touch $@
 
 venv: $(VENV)/.stamp
@@ -59,8 +59,11 @@ test-cpp: system-deps venv
 	$(VENV)/bin/cmake --build $(NATIVE_BUILD) -j $(JOBS)
 	$(VENV)/bin/ctest --test-dir $(NATIVE_BUILD) --output-on-failure -j $(JOBS)
 
+# Test files run on JOBS processes (pytest-xdist), a whole file to a process: module fixtures are
+# built once, and tests within a file keep their order. PYTEST_WORKERS=0 runs them in this process.
+PYTEST_WORKERS ?= $(JOBS)
 test-python: install
-	$(PY) -m pytest tests/python -q
+	$(PY) -m pytest tests/python -q -n $(PYTEST_WORKERS) --dist loadfile
 
 # Lint rules as code ([tool.ruff] in pyproject.toml: pyflakes and import order; .clang-format for C++,
 # not enforced yet). Quick: CI runs it before the tests.

@@ -133,7 +133,7 @@ sys.exit(main(['ros', 'serve', '--robot', 'panda']))
 def test_an_observation_from_messages_is_the_observation():
     """Depth and intrinsics through Image/CameraInfo and back give the observation's own arrays."""
     obs_depth = _depth(3)
-    K = np.array([[500.0, 0, 4.5], [0, 500.0, 3.0], [0, 0, 1]])
+    K = np.array([[5.0, 0, 4.5], [0, 5.0, 3.0], [0, 0, 1]])  # a real field of view over 9 x 6 px (84 x 62 deg)
     info = CameraInfo(height=6, width=9, k=convert.camera_info_k(K))
     depth = convert.depth_image(Image(**convert.image_fields(obs_depth)))
     mask = np.zeros((6, 9), bool)
