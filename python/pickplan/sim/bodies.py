@@ -14,7 +14,7 @@ from pickplan.core import objects as objects_mod
 from pickplan.core.panda import PANDA, panda_urdf_path
 
 if TYPE_CHECKING:  # a table is read for its size and pose only
-    from pickplan.sim.scenes import Table
+    from pickplan.sim.scenes import Scene, Table
 
 
 def _panda_defaults() -> Tuple[str, Tuple[float, ...]]:
@@ -133,3 +133,26 @@ def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None, urdf:
         pb.setJointMotorControl2(body, j, pb.POSITION_CONTROL, targetPosition=float(v), force=500.0,
                                  physicsClientId=client)
     return body
+
+
+def open_world(scene: "Scene", robot, q0, models: dict, time_step: float, solver_iterations: int) -> Tuple[int, dict]:
+    """A fresh DIRECT client with gravity, the time step and the solver's iterations, holding the scene's
+    table, ``robot`` (a described robot, at its base) at ``q0`` and the scene's objects (``models`` by
+    name), in ``scenes.load_into_pybullet``'s order: (client, body ids by name, "table" and "robot")."""
+    from pickplan.sim.bullet import connect, pb
+
+    client = connect()
+    try:
+        pb.resetSimulation(physicsClientId=client)
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, numSolverIterations=solver_iterations,
+                                     physicsClientId=client)
+        pb.setGravity(0, 0, -9.81, physicsClientId=client)
+        pb.setTimeStep(time_step, physicsClientId=client)
+        ids = {"table": add_table(client, scene.table),
+               "robot": add_robot(client, robot.base_pose, q0, robot.description.urdf)}
+        for o in scene.objects:
+            ids[o.name] = add_object_body(client, models[o.name], o.pose)
+    except BaseException:
+        pb.disconnect(client)
+        raise
+    return client, ids
