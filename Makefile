@@ -38,7 +38,7 @@ system-deps:
 $(VENV)/.stamp: pyproject.toml
 	[ -x $(PY) ] || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest ompl ray manifold3d toppra meshcat u-msgpack-python
+	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest ompl ray manifold3d toppra meshcat u-msgpack-python pyyaml
 	touch $@
 
 venv: $(VENV)/.stamp

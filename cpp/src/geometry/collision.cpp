@@ -64,7 +64,7 @@ double winding_number(const TriangleMesh& m, const Eigen::Vector3d& p) {
 }  // namespace
 
 struct CollisionShape::Bvh {
-  std::shared_ptr<FclBvh> model;
+  std::shared_ptr<fcl::CollisionGeometryd> model;  // a BVH, or a solid primitive
 };
 
 CollisionShape::CollisionShape(TriangleMesh mesh, const std::string& what) : mesh_(std::move(mesh)) {
@@ -74,6 +74,22 @@ CollisionShape::CollisionShape(TriangleMesh mesh, const std::string& what) : mes
   center_ = box_.center();
   for (int i = 0; i < mesh_.num_vertices(); ++i)
     radius_ = std::max(radius_, (mesh_.vertices.row(i).transpose() - center_).norm());
+}
+
+CollisionShape::CollisionShape(const Primitive& primitive, const std::string& what) : solid_(true) {
+  primitive.validate(what);
+  mesh_ = primitive.enclosing_mesh();
+  std::shared_ptr<fcl::CollisionGeometryd> geometry;
+  switch (primitive.kind) {
+    case PrimitiveKind::Box: geometry = std::make_shared<fcl::Boxd>(primitive.size); break;
+    case PrimitiveKind::Cylinder: geometry = std::make_shared<fcl::Cylinderd>(primitive.size.x(), primitive.size.y()); break;
+    case PrimitiveKind::Sphere: geometry = std::make_shared<fcl::Sphered>(primitive.size.x()); break;
+  }
+  geometry->computeLocalAABB();
+  bvh_ = std::make_unique<Bvh>(Bvh{geometry});
+  box_ = primitive.bounds();
+  center_ = Eigen::Vector3d::Zero();
+  radius_ = box_.max().norm();
 }
 
 CollisionShape::~CollisionShape() = default;
@@ -92,7 +108,7 @@ struct CollisionChecker::Impl {
   struct LinkGeom {
     int link;
     std::shared_ptr<const CollisionShape> shape;
-    const FclBvh* bvh;            // shape's
+    const fcl::CollisionGeometryd* bvh;  // shape's
     Eigen::AlignedBox3d box;   // link frame
     Eigen::Vector3d center;    // bounding sphere, link frame
     double radius;
@@ -101,7 +117,7 @@ struct CollisionChecker::Impl {
   struct ObjGeom {
     std::string name;
     std::shared_ptr<const CollisionShape> shape;
-    const FclBvh* bvh;
+    const fcl::CollisionGeometryd* bvh;  // a BVH, or a solid primitive (shape->solid())
     Transform pose, inv_pose;
     fcl::Transform3d tf;
     Eigen::AlignedBox3d box, world_box;
@@ -141,7 +157,8 @@ CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> lin
     const int li = robot_.link_index(lm.link);
     if (geom_of_link[li] >= 0) throw std::invalid_argument("link mesh for '" + lm.link + "' given twice");
     auto shape = shape_of(std::move(lm.shape), lm.mesh, "mesh of link '" + lm.link + "'");
-    const FclBvh* bvh = shape->bvh().model.get();
+    if (shape->solid()) throw std::invalid_argument("link '" + lm.link + "': a link's geometry must be a mesh");
+    const fcl::CollisionGeometryd* bvh = shape->bvh().model.get();
     Impl::LinkGeom g{li, shape, bvh, shape->box(), shape->center(), shape->radius()};
     geom_of_link[li] = static_cast<int>(impl_->links.size());
     impl_->links.push_back(std::move(g));
@@ -251,6 +268,12 @@ std::vector<std::string> CollisionChecker::object_names() const {
   return out;
 }
 
+std::vector<double> CollisionChecker::link_reach() const {
+  std::vector<double> out(robot_.num_links(), 0.0);
+  for (const auto& g : impl_->links) out[g.link] = std::max(out[g.link], g.center.norm() + g.radius);
+  return out;
+}
+
 void CollisionChecker::check_q(const double* q) const { robot_.check_configuration(q, robot_.dof()); }
 
 double CollisionChecker::pair_lower_bound(const Pair& p, const CollisionWorkspace& ws) const {
@@ -295,7 +318,8 @@ bool CollisionChecker::pair_collides(const Pair& p, const CollisionWorkspace& ws
     fcl::collide(lg.bvh, tf_link, og.bvh, og.tf, req, res);
     if (res.isCollision()) return true;
     if (!settings_.detect_containment) return false;
-    return contained(lg.mesh(), Tl, og.mesh(), og.box, og.inv_pose) ||
+    // A link inside a solid primitive already collides (its triangles meet the solid).
+    return (!og.shape->solid() && contained(lg.mesh(), Tl, og.mesh(), og.box, og.inv_pose)) ||
            contained(og.mesh(), og.pose, lg.mesh(), lg.box, Tl.inverse());
   }
   const auto& og = impl_->links[p.other];
@@ -325,7 +349,9 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
     // Touching or intersecting. FCL's contacts carry a usable depth only against the solid
     // table box (per triangle, by MPR); for two triangle surfaces the per-triangle-pair
     // "depths" say nothing about the bodies, so the value stays 0 (touching or intersecting).
-    const bool table = p.kind == OtherKind::Table;
+    // Solids (the table, primitives) give FCL's per-triangle depths a meaning.
+    const bool table = p.kind == OtherKind::Table ||
+                       (p.kind == OtherKind::Object && impl_->objects[p.other].shape->solid());
     fcl::CollisionRequestd creq(table ? 64 : 1, true);
     fcl::CollisionResultd cres;
     fcl::collide(lg.bvh, tf_link, other, tf_other, creq, cres);
@@ -347,7 +373,9 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
     const TriangleMesh& om = self ? impl_->links[p.other].mesh() : impl_->objects[p.other].mesh();
     const Eigen::AlignedBox3d& ob = self ? impl_->links[p.other].box : impl_->objects[p.other].box;
     const Transform To = self ? ws.robot.link_pose[impl_->links[p.other].link] : impl_->objects[p.other].pose;
-    if (contained(lg.mesh(), Tl, om, ob, To.inverse()) || contained(om, To, lg.mesh(), lg.box, Tl.inverse())) d = -d;
+    const bool solid = !self && impl_->objects[p.other].shape->solid();  // apart: the link is outside it
+    if ((!solid && contained(lg.mesh(), Tl, om, ob, To.inverse())) || contained(om, To, lg.mesh(), lg.box, Tl.inverse()))
+      d = -d;
   }
   if (info) {
     info->link = robot_.link(lg.link).name;

@@ -27,11 +27,13 @@ from pickplan.core.caches import BoundedCache, mesh_content_key
 from pickplan.core.meshes import check_mesh_arrays
 from pickplan.core.panda import PANDA_DESCRIPTION
 from pickplan.core.robots import Robot
+from pickplan.core.shapes import Shape
 
 
 class SceneMesh(NamedTuple):
-    """A scene object: unique name, mesh (anything with ``vertices`` and ``faces``) in the
-    object frame, and its 4x4 pose in the world."""
+    """A scene object: unique name, mesh (anything with ``vertices`` and ``faces``, or a
+    ``shapes.Shape``: a primitive is checked as FCL's exact solid) in the object frame, and its
+    4x4 pose in the world."""
 
     name: str
     mesh: object
@@ -98,6 +100,12 @@ class ShapeCache(BoundedCache):
     every checker of every scene that places it."""
 
     def shape(self, mesh, what: str) -> "_core.CollisionShape":
+        if isinstance(mesh, Shape):
+            if mesh.primitive:
+                return self.get(("primitive", mesh.kind.value, mesh.size),
+                                lambda: _core.CollisionShape.from_primitive(mesh.native(), what))
+            mesh = mesh.trimesh()
+
         def build():
             V, F = _mesh_arrays(mesh, what)
             return _core.CollisionShape(V, F, what)
@@ -142,6 +150,8 @@ class CollisionChecker:
         for obj in objects:
             name, mesh, pose = obj
             what = f"object '{name}'"
+            if isinstance(mesh, Shape) and shapes is None:
+                shapes = ShapeCache()  # primitives always go as prebuilt shapes
             geometry = (shapes.shape(mesh, what),) if shapes is not None else _mesh_arrays(mesh, what)
             native_objects.append((str(name), *geometry, np.asarray(pose, dtype=float)))
         size = pose = None

@@ -193,7 +193,7 @@ class _Sim:
         self.pb, self.c, self.s, self.record, self.info = pb, client, settings, record, info
         self.robot = ids["robot"]
         self.names = {bid: name for name, bid in ids.items() if name != "robot"}
-        self.bodies = {name: bid for name, bid in ids.items() if name not in ("robot", "table")}
+        self.bodies = {name: bid for name, bid in ids.items() if name in models}  # the objects (not obstacles)
         self.models = models
         self.target = scene.target
         joints = {pb.getJointInfo(self.robot, j, physicsClientId=client)[1].decode(): j
@@ -378,8 +378,9 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         pb.setGravity(0, 0, -9.81, physicsClientId=client)
         pb.setTimeStep(s.time_step, physicsClientId=client)
         # the scene's bodies in load_into_pybullet's order, with this robot (at its base) for the Panda
-        ids = {"table": bodies.add_table(client, scene.table),
-               "robot": bodies.add_robot(client, robot.base_pose, Q[0], robot.description.urdf)}
+        ids = {} if scene.table is None else {"table": bodies.add_table(client, scene.table)}
+        ids.update({o.name: bodies.add_obstacle_body(client, o) for o in scene.obstacles})
+        ids["robot"] = bodies.add_robot(client, robot.base_pose, Q[0], robot.description.urdf)
         for o in scene.objects:
             ids[o.name] = bodies.add_object_body(client, models[o.name], o.pose)
         sim = _Sim(pb, client, ids, models, scene, s, record, robot.info)

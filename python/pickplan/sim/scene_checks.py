@@ -52,6 +52,8 @@ MAX_TABLE_PENETRATION = 0.01  # m: settled objects sink a few mm into the table 
 def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None) -> None:
     """ValueError naming the object when one over the table reaches more than
     ``MAX_TABLE_PENETRATION`` below its top face (into it, or under it)."""
+    if scene.table is None:
+        return  # nothing to rest on or pass through
     T_table = np.asarray(scene.table.pose, dtype=float)
     half = 0.5 * np.asarray(scene.table.size, dtype=float)
     to_table = np.linalg.inv(T_table)

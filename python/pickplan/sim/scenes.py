@@ -28,8 +28,10 @@ from pickplan.core.description import RobotInfo, load_description
 from pickplan.core.panda import PANDA
 from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
+from pickplan.core.shapes import Obstacle, read_obstacles
 from pickplan.sim.bodies import (_inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat,  # noqa: F401
-                                  add_object_body, add_robot, add_table, object_pose)  # (re-exported)
+                                  add_object_body, add_obstacle_body, add_robot, add_table,  # (re-exported)
+                                  object_pose)
 from pickplan.sim.scene_checks import array as _array, check_placement, pose as _pose, seed as _seed
 
 ORIENTATIONS = ("upright", "stable", "resting")  # how objects are posed: see SceneSettings.orientation
@@ -103,12 +105,13 @@ class SceneObject:
 @dataclass(eq=False)
 class Scene:
     robot_base: np.ndarray
-    table: Table
+    table: Optional[Table]         # None: no table (a MoveIt scene of obstacles only)
     objects: List[SceneObject]
-    target: str
+    target: Optional[str]          # None: no target (nothing to grasp, e.g. a motion problem)
     seed: Optional[int] = None
     robot_configuration: List[float] = field(default_factory=list)  # the start configuration (of ``robot``)
     robot: str = PANDA.name        # the description the scene was made for (its robot_configuration's robot)
+    obstacles: List[Obstacle] = field(default_factory=list)  # static shapes: shelves, bins, MoveIt's objects
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:
@@ -122,12 +125,13 @@ class Scene:
             "format": SCENE_FORMAT, "version": SCENE_VERSION, "seed": self.seed,
             "robot_base": np.asarray(self.robot_base, dtype=float).tolist(),
             "robot_configuration": [float(x) for x in self.robot_configuration],
-            "table": {"size": np.asarray(self.table.size, dtype=float).tolist(),
-                      "pose": np.asarray(self.table.pose, dtype=float).tolist()},
+            "table": None if self.table is None else {"size": np.asarray(self.table.size, dtype=float).tolist(),
+                                                      "pose": np.asarray(self.table.pose, dtype=float).tolist()},
             "objects": [{"name": o.name, "source": o.source, "pose": np.asarray(o.pose, dtype=float).tolist()}
                         for o in self.objects],
             "target": self.target,
             **({} if self.robot == PANDA.name else {"robot": self.robot}),  # the Panda's files: as before
+            **({"obstacles": [o.to_dict() for o in self.obstacles]} if self.obstacles else {}),
         }
 
     def to_json(self) -> str:
@@ -146,8 +150,8 @@ class Scene:
             if key not in d:
                 raise ValueError(f"missing key {key!r}")
         table = d["table"]
-        if not isinstance(table, dict) or "size" not in table or "pose" not in table:
-            raise ValueError("'table' needs 'size' and 'pose'")
+        if table is not None and (not isinstance(table, dict) or "size" not in table or "pose" not in table):
+            raise ValueError("'table' needs 'size' and 'pose' (or null: no table)")
         if not isinstance(d["objects"], list):
             raise ValueError("'objects' must be a list")
         objs = []
@@ -158,22 +162,24 @@ class Scene:
         names = [o.name for o in objs]
         if len(set(names)) != len(names):
             raise ValueError(f"object names must be unique, got {names}")
-        if d["target"] not in names:
+        if d["target"] is not None and d["target"] not in names:
             raise ValueError(f"target {d['target']!r} is not one of the objects {names}")
-        size = _array(table["size"], (3,), "table.size")
-        if not np.all(size > 0):
-            raise ValueError(f"table.size: expected positive extents, got {size.tolist()}")
+        obstacles = read_obstacles(d.get("obstacles", []), names)
+        if table is not None:
+            size = _array(table["size"], (3,), "table.size")
+            if not np.all(size > 0):
+                raise ValueError(f"table.size: expected positive extents, got {size.tolist()}")
+            table = Table(size=size, pose=_pose(table["pose"], "table.pose"))
         q = d.get("robot_configuration", [])
         robot = d.get("robot", PANDA.name)
         if not isinstance(robot, str) or not robot:
             raise ValueError(f"robot: expected a robot description's name, got {robot!r}")
         if not isinstance(q, (list, tuple)):
             raise ValueError(f"robot_configuration: expected a list of joint values, got {type(q).__name__} {q!r}")
-        scene = cls(robot_base=_pose(d["robot_base"], "robot_base"),
-                    table=Table(size=size, pose=_pose(table["pose"], "table.pose")),
-                    objects=objs, target=str(d["target"]), seed=_seed(d.get("seed")),
+        scene = cls(robot_base=_pose(d["robot_base"], "robot_base"), table=table,
+                    objects=objs, target=None if d["target"] is None else str(d["target"]), seed=_seed(d.get("seed")),
                     robot_configuration=[float(x) for x in _array(q, (len(q),), "robot_configuration")],
-                    robot=robot)
+                    robot=robot, obstacles=obstacles)
         check_placement(scene)
         return scene
 
@@ -207,7 +213,9 @@ class Scene:
 def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None,
                        with_robot: bool = True) -> Dict[str, int]:
     """Recreate ``scene`` in ``client``: body ids by object name, plus "table" and "robot"."""
-    ids = {"table": add_table(client, scene.table)}
+    ids = {} if scene.table is None else {"table": add_table(client, scene.table)}
+    for o in scene.obstacles:
+        ids[o.name] = add_obstacle_body(client, o)
     if with_robot:
         if scene.robot == PANDA.name:
             ids["robot"] = add_robot(client, scene.robot_base, scene.robot_configuration)
