@@ -56,6 +56,16 @@ double Primitive::signed_distance(const Eigen::Vector3d& p, Eigen::Vector3d* gra
   return 0.0;
 }
 
+std::pair<double, int> Primitive::deepest(const std::vector<Eigen::Vector3d>& points,
+                                          const Transform& world_to_frame) const {
+  std::pair<double, int> out{0.0, -1};
+  for (size_t i = 0; i < points.size(); ++i) {
+    const double depth = -signed_distance(world_to_frame.apply(points[i]));
+    if (depth > out.first) out = {depth, static_cast<int>(i)};
+  }
+  return out;
+}
+
 Eigen::AlignedBox3d Primitive::bounds() const {
   Eigen::Vector3d h;
   switch (kind) {

@@ -112,6 +112,14 @@ class ShapeCache(BoundedCache):
 
         return self.get(mesh_content_key(_checked_mesh(mesh, what)), build)
 
+    def convex(self, mesh, what: str) -> "_core.CollisionShape":
+        """The convex hull of ``mesh`` as FCL's convex solid."""
+        def build():
+            V, F = _mesh_arrays(_checked_mesh(mesh, what).convex_hull, what)
+            return _core.CollisionShape.convex(V, F, what)
+
+        return self.get(("convex",) + tuple(mesh_content_key(_checked_mesh(mesh, what))), build)
+
 
 def _checked_mesh(mesh, what: str):
     if mesh is None or not hasattr(mesh, "vertices") or not hasattr(mesh, "faces"):
@@ -122,9 +130,9 @@ def _checked_mesh(mesh, what: str):
 class CollisionChecker:
     """Robot-vs-scene collision checker, built once per scene; immutable and thread-safe.
 
-    ``convex_links=True`` hands the convex hull of each link mesh to FCL instead of the mesh
-    itself (what PyBullet does with URDF meshes): conservative, and identical geometry when
-    comparing with PyBullet.
+    ``convex_links=True`` hands the convex hull of each link mesh to FCL as a convex solid instead
+    of the mesh itself (what PyBullet does with URDF meshes): conservative, identical geometry
+    when comparing with PyBullet, and fast (a GJK query per pair instead of a BVH walk).
     """
 
     def __init__(self, robot: Robot, objects: Sequence[SceneMesh] = (), table: Optional[Table] = None,
@@ -141,9 +149,10 @@ class CollisionChecker:
             mesh = link_meshes[name] if link_meshes is not None and name in link_meshes else robot.collision_meshes(name)
             if mesh is None:
                 continue
-            if convex_links:
-                mesh = mesh.convex_hull
             what = f"mesh of link '{name}'"
+            if convex_links:  # FCL's convex solid: one GJK query per pair, no BVH walk
+                native_links.append((name, (shapes or ShapeCache()).convex(mesh, what)))
+                continue
             native_links.append((name, shapes.shape(mesh, what)) if shapes is not None
                                 else (name, *_mesh_arrays(mesh, what)))
         native_objects = []

@@ -156,7 +156,7 @@ def run_problem(ctx: _Context, problem: Problem) -> List[dict]:
     goal = np.array([problem.request.goal[j] for j in joints])
     pairs = tuple(ctx.srdf) + tuple(problem.scene.allowed_collisions)
     world = MotionWorld(robot, problem.scene.obstacles, allowed_pairs=pairs, cache=ctx.cache)
-    checker = TrajectoryChecker(robot, problem.scene.obstacles, pairs)
+    checker = TrajectoryChecker(robot, problem.scene.obstacles, pairs, cache=ctx.cache)
     rows = []
     for name, plan in ctx.planners.items():
         out = plan(world, problem, start, goal)

@@ -14,13 +14,14 @@ resolution; a planner's resolution, step rule and checker settings play no part.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence, Tuple
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
 from pickplan.core import collision
 from pickplan.core.robots import Robot
 from pickplan.core.shapes import Obstacle
+from pickplan.omg.model_cache import ModelCache
 
 MAX_STATES = 200_000  # per trajectory: a path that needs more is refused (reported), not checked for hours
 
@@ -37,47 +38,53 @@ class TrajectoryChecker:
     """FCL collision checks of a joint path, densely interpolated (see the module doc)."""
 
     def __init__(self, robot: Robot, obstacles: Sequence[Obstacle], allowed_pairs: Sequence[Tuple[str, str]] = (),
-                 resolution: float = 0.002, clearance_resolution: float = 0.02, limit_tolerance: float = 1e-6):
+                 resolution: float = 0.002, clearance_resolution: float = 0.02, limit_tolerance: float = 1e-6,
+                 cache: Optional[ModelCache] = None):
         if not (resolution > 0 and clearance_resolution >= resolution):
             raise ValueError("resolution must be > 0 and clearance_resolution >= resolution")
         self.robot, self.resolution = robot, float(resolution)
         self.clearance_resolution, self.limit_tolerance = float(clearance_resolution), float(limit_tolerance)
+        cache = ModelCache() if cache is None else cache  # the URDF's meshes, loaded once per robot
+        link_meshes = cache.link_meshes(robot)
         links = set(robot.link_names)
         pairs = tuple((a, b) for a, b in allowed_pairs if a in links and b in links)
         meshes = [collision.SceneMesh(o.name, o.shape, o.pose) for o in obstacles]
         self._collide = collision.CollisionChecker(
-            robot, meshes, None, collision.CollisionSettings(allowed_pairs=pairs, self_collision=True))
-        self._clearance = collision.CollisionChecker(robot, meshes, None) if meshes else None
+            robot, meshes, None, collision.CollisionSettings(allowed_pairs=pairs, self_collision=True),
+            shapes=cache.shapes, link_meshes=link_meshes)
+        self._clearance = collision.CollisionChecker(robot, meshes, None, shapes=cache.shapes,
+                                                     link_meshes=link_meshes) if meshes else None
         # The convex hull of every link's geometry, in the link frame: its vertices bound the link's motion.
-        self._hulls = []
-        for i in range(len(robot.link_names)):
-            mesh = robot.collision_meshes(i)
-            if mesh is not None:
-                self._hulls.append((i, np.asarray(mesh.convex_hull.vertices, dtype=float)))
+        self._hulls = cache.robot_derived(robot, "trajectory_check_hulls", lambda: [
+            (i, np.ascontiguousarray(np.asarray(link_meshes[name].convex_hull.vertices, dtype=float).T))
+            for i, name in enumerate(robot.link_names) if link_meshes[name] is not None])
 
     def _points(self, Q: np.ndarray) -> np.ndarray:
         """(B, P, 3) world positions of every hull vertex at each of the (B, dof) states."""
         poses = self.robot.fk_batch(Q)  # (B, links, 4, 4)
-        return np.concatenate([np.einsum("bij,pj->bpi", poses[:, i, :3, :3], V) + poses[:, i, None, :3, 3]
-                               for i, V in self._hulls], axis=1)
+        return np.concatenate([np.swapaxes(poses[:, i, :3, :3] @ Vt, 1, 2) + poses[:, i, None, :3, 3]
+                               for i, Vt in self._hulls], axis=1)
+
+    def _segment(self, a: np.ndarray, b: np.ndarray, resolution: float) -> np.ndarray:
+        """States from ``a`` to ``b`` (both included), halving every step that moves a hull vertex more
+        than ``resolution``; only the new states' points are computed each round."""
+        t = np.array([0.0, 1.0])
+        X = self._points(a + t[:, None] * (b - a))
+        while True:
+            far = np.linalg.norm(X[1:] - X[:-1], axis=2).max(axis=1) > resolution
+            if not far.any():
+                return a + t[:, None] * (b - a)
+            if len(t) > MAX_STATES:
+                raise ValueError(f"the path needs more than {MAX_STATES} states at {resolution} m")
+            mid = 0.5 * (t[:-1][far] + t[1:][far])
+            order = np.argsort(np.concatenate([t, mid]), kind="stable")
+            t = np.concatenate([t, mid])[order]
+            X = np.concatenate([X, self._points(a + mid[:, None] * (b - a))])[order]
 
     def dense(self, path: np.ndarray, resolution: float) -> np.ndarray:
         """The path's states with every step moving no hull vertex more than ``resolution`` (m)."""
         P = np.asarray(path, dtype=float)
-        out = [P[:1]]
-        for a, b in zip(P[:-1], P[1:]):
-            t = np.linspace(0.0, 1.0, 2)
-            while True:
-                Q = a + t[:, None] * (b - a)
-                step = np.linalg.norm(np.diff(self._points(Q), axis=0), axis=2).max(axis=1)
-                far = step > resolution
-                if not far.any():
-                    break
-                if len(t) > MAX_STATES:
-                    raise ValueError(f"the path needs more than {MAX_STATES} states at {resolution} m")
-                t = np.sort(np.concatenate([t, 0.5 * (t[:-1][far] + t[1:][far])]))
-            out.append(Q[1:])
-        return np.concatenate(out)
+        return np.concatenate([P[:1]] + [self._segment(a, b, resolution)[1:] for a, b in zip(P[:-1], P[1:])])
 
     def check(self, path) -> CheckReport:
         P = np.asarray(path, dtype=float)

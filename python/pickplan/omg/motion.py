@@ -7,12 +7,13 @@ between checked states) before it is returned.
 >>> world = MotionWorld(robot, obstacles, allowed_pairs=srdf_pairs)
 >>> result = plan_motion(world, q_start, q_goals, MotionSettings())
 >>> result.status, result.path          # (k, dof) joint waypoints, start first
+>>> plan_motion(world, q_start, PoseGoal(T_hand, free_axis=Axis.z))   # a pose goal: IK's goal set
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Optional, Sequence, Tuple
+from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -23,12 +24,14 @@ from pickplan.core.settings import Option, to_native
 from pickplan.core.shapes import Obstacle, add_to_sdf
 from pickplan.omg.chomp import Chomp, ChompSettings
 from pickplan.omg.model_cache import ModelCache
+from pickplan.omg.pose_goal import PoseGoal, pose_goal_configurations
 
 
 class MotionStatus(Option):
     solved = "solved"
     invalid_start = "invalid_start"    # the start collides
     invalid_goals = "invalid_goals"    # every goal collides
+    unreachable = "unreachable"        # a pose goal without an IK solution
     not_found = "not_found"            # no path within the time and sample budget
 
 
@@ -76,6 +79,7 @@ class MotionResult:
     source: str                      # "straight", "rrt" (shortcut) or "chomp" (smoothed)
     timings: dict                    # seconds: check (ends), straight, rrt, shortcut, chomp, total
     stats: dict = field(default_factory=dict)   # rrt iterations, checks, attempts
+    goals: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (G, dof) the goal set planned to
 
     @property
     def solved(self) -> bool:
@@ -97,12 +101,14 @@ class MotionWorld:
         # Pairs naming something absent (an ACM entry for an object of another scene) are moot.
         pairs = tuple((a, b) for a, b in allowed_pairs if a in links and (b in links or b in names))
         settings = collision.CollisionSettings(allowed_pairs=pairs, self_collision=self_collision)
+        # The links as their convex hulls (FCL's convex solids): conservative, and a GJK query per pair.
         self.checker = collision.CollisionChecker(
             robot, [collision.SceneMesh(o.name, o.shape, o.pose) for o in self.obstacles], None, settings,
-            shapes=cache.shapes, link_meshes=cache.link_meshes(robot))
+            convex_links=True, shapes=cache.shapes, link_meshes=cache.link_meshes(robot))
         self.sdf = sdf.SceneSdf()
         add_to_sdf(self.sdf, self.obstacles, sdf_settings, cache.grids)
-        if self.obstacles and sdf_settings.merged:
+        # Primitives answer in closed form, cheaper than filling a merged grid; meshes gain from one.
+        if any(not o.shape.primitive for o in self.obstacles) and sdf_settings.merged:
             self.sdf.merge(resolution=sdf_settings.merged_resolution, cutoff=sdf_settings.merged_cutoff)
         self.body = cache.body_points(robot, body_points_per_link, body_seed)
         # A described robot's fingers keep the start's opening; a bare URDF's joints all move.
@@ -143,20 +149,30 @@ def resample(path: np.ndarray, count: int) -> np.ndarray:
     return np.stack([np.interp(t, s, P[:, j]) for j in range(P.shape[1])], axis=1)
 
 
-def plan_motion(world: MotionWorld, start, goals, settings: MotionSettings = MotionSettings()) -> MotionResult:
-    """A collision-free joint path from ``start`` to one row of ``goals`` ((G, dof), or one (dof,))."""
+def plan_motion(world: MotionWorld, start, goals: Union[np.ndarray, PoseGoal],
+                settings: MotionSettings = MotionSettings()) -> MotionResult:
+    """A collision-free joint path from ``start`` to one row of ``goals`` ((G, dof), or one (dof,)),
+    or to a ``PoseGoal`` (its IK solutions are the goal set; ``result.goal`` indexes ``result.goals``)."""
     t_total = time.perf_counter()
     robot = world.robot
     q0 = robot.check_within_limits(start, "start")
+    timings = dict.fromkeys(("ik", "check", "straight", "rrt", "shortcut", "chomp"), 0.0)
+    if isinstance(goals, PoseGoal):
+        t = time.perf_counter()
+        goals = pose_goal_configurations(robot, world.active, q0, goals)
+        timings["ik"] = time.perf_counter() - t
     G = np.atleast_2d(np.asarray(goals, dtype=float))
     for g in G:
         robot.check_within_limits(g, "goal")
-    timings = dict.fromkeys(("check", "straight", "rrt", "shortcut", "chomp"), 0.0)
     stats = {"attempts": 0, "iterations": 0, "checks": 0}
 
     def done(status, path, goal, source):
         timings["total"] = time.perf_counter() - t_total
-        return MotionResult(status, np.asarray(path, dtype=float).reshape(-1, robot.dof), goal, source, timings, stats)
+        return MotionResult(status, np.asarray(path, dtype=float).reshape(-1, robot.dof), goal, source, timings, stats,
+                            G.reshape(-1, robot.dof))
+
+    if G.size == 0:
+        return done(MotionStatus.unreachable, np.zeros((0, robot.dof)), -1, "")
 
     t = time.perf_counter()
     checker = world.checker.native

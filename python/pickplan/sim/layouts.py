@@ -126,12 +126,15 @@ def _bin(rng) -> Tuple[_Furniture, Table, np.ndarray]:
 
 
 def _place(rng, lib, n: int, surface: np.ndarray, half: Tuple[float, float], clearance: float,
-           taken: List[Tuple[np.ndarray, float]], gap: float, prefix: int) -> List[SceneObject]:
+           taken: List[Tuple[np.ndarray, float]], gap: float, used: set) -> List[SceneObject]:
     """Up to ``n`` objects on resting poses within the surface's rectangle (its frame: z up from the top
-    face; x in [-half[0], half[0]], y likewise), no taller than ``clearance``, apart from ``taken``."""
+    face; x in [-half[0], half[0]], y likewise), no taller than ``clearance``, apart from ``taken``; none
+    of the models in ``used`` (a scene names each object once), which gains those placed."""
     out = []
     for _ in range(n):
         name = lib.names[int(rng.integers(len(lib)))]
+        if name in used:
+            continue
         model = lib.get(name)
         rest = model.resting_poses[int(np.argmax([p[2, 2] for p in model.resting_poses]))]  # upright
         T = _pose(_rz(rng.uniform(-math.pi, math.pi)), (0, 0, 0)) @ rest
@@ -146,8 +149,9 @@ def _place(rng, lib, n: int, surface: np.ndarray, half: Tuple[float, float], cle
         else:
             continue
         taken.append((xy, radius))
+        used.add(name)
         T[:2, 3] += xy
-        out.append(SceneObject(f"{name}#{prefix + len(out)}" if name in () else name, model.source, surface @ T))
+        out.append(SceneObject(name, model.source, surface @ T))
     return out
 
 
@@ -191,14 +195,14 @@ def _attempt_layout(kind: Layout, rng, lib, settings: LayoutSettings, info: Robo
             # objects stand in the front part of a board (reached from the front)
             top = top @ _pose(np.eye(3), (-d / 2 + 0.3 * d, 0, 0))
             supports.append((top, (0.28 * d, w / 2 - 0.02), room, b is target_board))
-    objs, taken = [], []
+    objs, taken, used = [], [], set()
     for surface, half, clearance, main in supports:
         n = int(rng.integers(settings.min_objects, settings.max_objects + 1)) if main else \
             int(rng.integers(0, settings.other_objects + 1))
-        placed = _place(rng, lib, n, surface, half, clearance, [] if not main else taken, settings.gap, len(objs))
-        objs += [o for o in placed if o.name not in {p.name for p in objs}]
+        placed = _place(rng, lib, n, surface, half, clearance, [] if not main else taken, settings.gap, used)
+        objs += placed
         if main:
-            main_objs = [o for o in objs if o in placed]
+            main_objs = placed
     candidates = [o for o in main_objs
                   if graspability(lib.get(o.name), o.pose, info.max_opening, np.asarray(table.pose)[:3, 2]).graspable]
     if len(main_objs) < settings.min_objects or not candidates:

@@ -41,7 +41,12 @@ class CollisionShape {
   explicit CollisionShape(TriangleMesh mesh, const std::string& what = "mesh");
   // Throws std::invalid_argument for non-positive or non-finite dimensions.
   explicit CollisionShape(const Primitive& primitive, const std::string& what = "primitive");
+  // A convex solid (FCL's Convex: one GJK query per pair instead of a walk down a BVH). `hull`
+  // must be convex (a convex hull); the caller vouches for it.
+  static std::shared_ptr<CollisionShape> convex(TriangleMesh hull, const std::string& what = "convex");
   bool solid() const { return solid_; }
+  // The primitive, when the shape is one (exact distance bounds for culling).
+  const Primitive* primitive() const { return has_primitive_ ? &primitive_ : nullptr; }
   ~CollisionShape();
   CollisionShape(const CollisionShape&) = delete;
   CollisionShape& operator=(const CollisionShape&) = delete;
@@ -60,7 +65,10 @@ class CollisionShape {
   Eigen::Vector3d center_;
   double radius_ = 0;
   bool solid_ = false;
+  bool has_primitive_ = false;
+  Primitive primitive_;
   std::unique_ptr<Bvh> bvh_;
+  CollisionShape() = default;
 };
 
 struct LinkMesh {

@@ -4,6 +4,8 @@
 // encloses them (for containment probes and display). Frames: centred at the origin, a
 // cylinder's axis along z (MoveIt's and URDF's convention).
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -28,6 +30,9 @@ struct Primitive {
   // Exact signed distance (negative inside) of a point in the primitive's frame; the gradient
   // (unit length wherever it is defined) is written when given.
   double signed_distance(const Eigen::Vector3d& p, Eigen::Vector3d* gradient = nullptr) const;
+  // The deepest of `points` (world frame; `world_to_frame` maps them into the primitive's) inside
+  // it: (depth >= 0, index), index -1 when none is inside.
+  std::pair<double, int> deepest(const std::vector<Eigen::Vector3d>& points, const Transform& world_to_frame) const;
   // Axis-aligned bounds in the primitive's frame.
   Eigen::AlignedBox3d bounds() const;
   // A closed, outward-oriented mesh that contains the primitive (circumscribed polygons).
