@@ -68,12 +68,13 @@ class MbmSettings:
         object.__setattr__(self, "planners", tuple(MbmPlanner.parse(p, "planner") for p in self.planners))
 
 
-def read_problems(source: str, sets: Sequence[str] = SETS) -> Iterator[Problem]:
-    """The problems of ``sets`` from an archive (read in place) or a folder, in set and index order."""
+def read_problems(source: str, sets: Sequence[str] = SETS, limit: int = 0) -> Iterator[Problem]:
+    """The problems of ``sets`` from an archive (read in place) or a folder, in set and index order;
+    only those with an index below ``limit`` when it is > 0."""
     texts: Dict[Tuple[str, str, int], Tuple[str, str]] = {}
     for name, text in _members(source):
         m = _NAME.search(name)
-        if m and m.group(1) in sets:
+        if m and m.group(1) in sets and (limit <= 0 or int(m.group(3)) < limit):
             texts[(m.group(1), m.group(2), int(m.group(3)))] = (name, text)
     found = {s for s, _, _ in texts}
     missing = [s for s in sets if s not in found]
@@ -181,9 +182,7 @@ FIELDS = ("set", "problem", "planner", "solved", "valid", "success", "time_ms", 
 
 def run_mbm(settings: MbmSettings) -> List[dict]:
     """Every planner on every problem (``--workers`` processes); writes runs.csv and summary.md."""
-    problems = list(read_problems(settings.problems, settings.sets))
-    if settings.limit:
-        problems = [p for p in problems if p.index < settings.limit]
+    problems = list(read_problems(settings.problems, settings.sets, settings.limit))
     robot_dir_for(settings)  # a clear error before any worker starts
     rows: List[dict] = []
     chunks = [problems[i:i + CHUNK] for i in range(0, len(problems), CHUNK)]
