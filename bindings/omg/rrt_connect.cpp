@@ -31,6 +31,7 @@ void init_rrt_connect(py::module_& m) {
       .def_readwrite("time_limit", &RrtSettings::time_limit)
       .def_readwrite("seed", &RrtSettings::seed)
       .def_readwrite("goal_bias", &RrtSettings::goal_bias)
+      .def_readwrite("certified", &RrtSettings::certified)
       .def_readwrite("active", &RrtSettings::active);
   py::class_<MotionPlanner>(m, "MotionPlanner", "RRT-Connect, shortcutting and the motion check on an FCL checker.")
       .def(py::init<const CollisionChecker&, RrtSettings>(), py::arg("checker"), py::arg("settings") = RrtSettings{},

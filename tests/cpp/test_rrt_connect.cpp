@@ -144,3 +144,23 @@ TEST(MotionCheck, ThinBoardBetweenWaypointsIsCaught) {
   path.row(1) = hand_at(-0.1, 0, 0.2).transpose();  // stops short of it
   EXPECT_EQ(planner.first_invalid_segment(path), -1);
 }
+
+TEST(MotionCheck, CertifiedCheckCatchesAGrazeSamplingMisses) {
+  auto r = floating_hand();
+  // A 1 mm board that the hand crosses; sampled every 30 cm (at x = -0.3, 0, 0.3) the check steps
+  // over it, proved it cannot.
+  CollisionChecker c = hand_checker(*r, {solid("board", {0.001, 2.0, 2.0}, {0.15, 0, 0})});
+  Trajectory path(2, 6);
+  path.row(0) = hand_at(-0.3, 0, 0.2).transpose();
+  path.row(1) = hand_at(0.3, 0, 0.2).transpose();
+  RrtSettings s;
+  s.resolution = 0.3;
+  s.certified = false;
+  const int sampled = MotionPlanner(c, s).first_invalid_segment(path);
+  s.certified = true;
+  EXPECT_EQ(MotionPlanner(c, s).first_invalid_segment(path), 0);
+  // Free motions are proved free, whatever the resolution; the sampled check missed the board.
+  path.row(1) = hand_at(-0.1, 0, 0.2).transpose();
+  EXPECT_EQ(MotionPlanner(c, s).first_invalid_segment(path), -1);
+  EXPECT_EQ(sampled, -1);
+}

@@ -104,7 +104,30 @@ MotionPlanner::MotionPlanner(const CollisionChecker& checker, RrtSettings settin
     throw std::invalid_argument("goal_bias: expected a fraction in [0, 1]");
 }
 
+bool MotionPlanner::motion_certified(const double* a, const double* b, CollisionWorkspace& ws, long* checks) const {
+  constexpr double kMinClearance = 1e-5;  // m: closer is no proof (and would take ever smaller steps)
+  constexpr int kMaxSteps = 20000;
+  const int dof = checker_.robot().dof();
+  const double total = bound_.bound(a, b);
+  Eigen::VectorXd x(dof);
+  double t = 0.0;
+  for (int step = 0; step < kMaxSteps; ++step) {
+    for (int j = 0; j < dof; ++j) x[j] = a[j] + t * (b[j] - a[j]);
+    if (checks) ++*checks;
+    const double d = checker_.min_distance(x.data(), ws);
+    if (!(d > kMinClearance)) return false;
+    if ((1.0 - t) * total <= d) return true;  // no point moves as far as the nearest obstacle on the rest
+    t += d / total;
+  }
+  return false;
+}
+
 bool MotionPlanner::motion_valid(const double* a, const double* b, CollisionWorkspace& ws, long* checks) const {
+  if (settings_.certified) {
+    if (checks) ++*checks;
+    if (checker_.in_collision(b, ws)) return false;  // the end first: most rejected edges end in an obstacle
+    return motion_certified(a, b, ws, checks);
+  }
   const int n = bound_.steps(a, b, settings_.resolution);
   const int dof = checker_.robot().dof();
   Eigen::VectorXd x(dof);

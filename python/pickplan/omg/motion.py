@@ -1,8 +1,10 @@
 """Motion planning to joint-space goals among obstacles (shelves, bins, MoveIt scenes): a straight
 line when it is free, else RRT-Connect (native, to the whole goal set) shortened by shortcuts, then
 CHOMP smooths it (the sampling-based path is CHOMP's initialization, where a straight line is none);
-every candidate passes the motion check (FCL, no robot point moving more than ``resolution``
-between checked states) before it is returned.
+every candidate passes the motion check before it is returned: each segment proved free by
+conservative advancement (FCL distances; from a state with clearance d the next is where no robot point
+can have moved d), or, ``certified=False``, sampled so that no point moves more than ``resolution``
+between checked states (which lets a finger graze an obstacle between samples).
 
 >>> world = MotionWorld(robot, obstacles, allowed_pairs=srdf_pairs)
 >>> result = plan_motion(world, q_start, q_goals, MotionSettings())
@@ -47,11 +49,12 @@ class RrtSettings:
     """Mirror of the native ``RrtSettings``."""
 
     range: float = 0.5             # rad: largest extension
-    resolution: float = 0.01       # m: largest motion of a robot point between checked states
+    resolution: float = 0.01       # m: largest motion of a robot point between sampled states (not certified)
     max_iterations: int = 200000
     time_limit: float = 1.0        # s
     seed: int = 0
     goal_bias: float = 0.05
+    certified: bool = True         # prove each segment free (conservative advancement), not sample it
 
     def to_native(self, active=None) -> "_core.RrtSettings":
         return to_native(self, _core.RrtSettings, active=[] if active is None else [bool(a) for a in active])
@@ -127,9 +130,10 @@ class MotionWorld:
             self._planners[settings] = _core.MotionPlanner(self.checker.native, settings.to_native(self.active))
         return self._planners[settings]
 
-    def valid(self, path: np.ndarray, resolution: float) -> bool:
-        """Every state along the path's segments free, at most ``resolution`` m of robot motion apart."""
-        planner = self.planner(RrtSettings(resolution=resolution))
+    def valid(self, path: np.ndarray, resolution: float, certified: bool = True) -> bool:
+        """The path's segments proved free (``certified``), or free at states at most ``resolution`` m of
+        robot motion apart."""
+        planner = self.planner(RrtSettings(resolution=resolution, certified=certified))
         return planner.first_invalid_segment(np.asarray(path, dtype=float)) < 0
 
 
@@ -226,7 +230,7 @@ def smooth_path(world: MotionWorld, path: np.ndarray, settings: MotionSettings) 
     xi0 = resample(path, n + 1)[1:]
     out = chomp.optimize(path[0], path[-1], settings.chomp_iterations, xi0=xi0, metric_settings=None)
     smooth = np.vstack([path[:1], out.xi])
-    return smooth if world.valid(smooth, settings.rrt.resolution) else None
+    return smooth if world.valid(smooth, settings.rrt.resolution, settings.rrt.certified) else None
 
 
 def plan_chomp(world: MotionWorld, start, goal, settings: MotionSettings = MotionSettings(),
@@ -246,7 +250,7 @@ def plan_chomp(world: MotionWorld, start, goal, settings: MotionSettings = Motio
         xi0 = resample(np.vstack([q0] + via + [g]), n + 1)[1:]
         out = chomp.optimize(q0, g, settings.chomp_iterations, xi0=xi0, metric_settings=None)
         path = np.vstack([q0[None], out.xi])
-        if world.valid(path, settings.rrt.resolution):
+        if world.valid(path, settings.rrt.resolution, settings.rrt.certified):
             timings["total"] = time.perf_counter() - t_total
             return MotionResult(MotionStatus.solved, path, 0, "chomp", timings, {"initializations": k + 1})
     timings["total"] = time.perf_counter() - t_total

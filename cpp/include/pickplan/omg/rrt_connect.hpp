@@ -36,6 +36,10 @@ struct RrtSettings {
   double time_limit = 1.0;      // s (wall clock) before giving up
   std::uint64_t seed = 0;
   double goal_bias = 0.05;      // fraction of samples drawn at a goal (the start tree's extensions)
+  // The motion check proves a segment free by conservative advancement (from a state whose
+  // clearance is d, the next is where the bound says no point has moved d) instead of sampling it
+  // every `resolution` m, which lets a finger graze an obstacle between samples.
+  bool certified = true;
   std::vector<bool> active;     // joints that move (empty: all); the others keep the start's value
 };
 
@@ -62,8 +66,10 @@ class MotionPlanner {
   // Random shortcuts between points on the path (then dropping vertices a straight segment
   // skips); every new segment passes the motion check. Deterministic for a seed.
   Trajectory shortcut(const Trajectory& path, int attempts, std::uint64_t seed) const;
-  // The motion check: true when every checked state of a -> b is free (a itself is not checked).
+  // The motion check: true when every checked state of a -> b is free (a itself is not checked),
+  // or, `certified`, when the whole continuous motion is proved free.
   bool motion_valid(const double* a, const double* b, CollisionWorkspace& ws, long* checks = nullptr) const;
+  bool motion_certified(const double* a, const double* b, CollisionWorkspace& ws, long* checks = nullptr) const;
   // The first segment (row i -> i + 1) that fails the motion check, or -1; the first row is checked too.
   int first_invalid_segment(const Trajectory& path) const;
 
