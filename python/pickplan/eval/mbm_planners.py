@@ -19,6 +19,7 @@ from pickplan.omg.motion import MotionSettings, RrtSettings, Smoothing, plan_cho
 class MbmPlanner(Option):
     pickplan = "pickplan"         # straight line, else RRT-Connect + shortcuts, then CHOMP (the default)
     pickplan_rrt = "pickplan-rrt"  # the same without CHOMP smoothing
+    pickplan_sampled = "pickplan-sampled"  # the default with the sampled motion check (1 cm), not the proof
     chomp = "chomp"               # CHOMP from the straight line only (no sampling)
     chomp_multi = "chomp-multi"   # CHOMP from several initializations (no sampling)
     ompl = "ompl"                 # OMPL RRT-Connect + its simplification, our FCL checker
@@ -68,8 +69,8 @@ def adapters(planners: Sequence[MbmPlanner], time_limit: float, seed: int) -> Di
     return out
 
 
-def _ours(time_limit: float, seed: int, smoothing: Smoothing) -> Plan:
-    base = MotionSettings(rrt=RrtSettings(time_limit=time_limit), smoothing=smoothing)
+def _ours(time_limit: float, seed: int, smoothing: Smoothing, certified: bool = True) -> Plan:
+    base = MotionSettings(rrt=RrtSettings(time_limit=time_limit, certified=certified), smoothing=smoothing)
 
     def plan(world, problem, start, goal) -> PlanOutcome:
         s = replace(base, rrt=replace(base.rrt, seed=seed + problem.index))
@@ -177,6 +178,7 @@ def vamp_environment(vamp, obstacles, cylinders_as_boxes: bool = False):
 _ADAPTERS = {
     MbmPlanner.pickplan: lambda t, s: _ours(t, s, Smoothing.chomp),
     MbmPlanner.pickplan_rrt: lambda t, s: _ours(t, s, Smoothing.none),
+    MbmPlanner.pickplan_sampled: lambda t, s: _ours(t, s, Smoothing.chomp, certified=False),
     MbmPlanner.chomp: lambda t, s: _chomp(t, s, 1),
     MbmPlanner.chomp_multi: lambda t, s: _chomp(t, s, 8),
     MbmPlanner.ompl: _ompl,
