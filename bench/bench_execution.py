@@ -1,4 +1,4 @@
-"""Wall and CPU time of ``pickplan.execution.execute_plan`` on fixed inputs.
+"""Wall and CPU time of ``pickplan.sim.execution.execute_plan`` on fixed inputs.
 
 Inputs: generated scenes (seeds 0..N-1, built-in objects); in each, every object narrow enough for
 the open Panda hand (< 75 mm across) is grasped top-down with the hand-made trajectories of

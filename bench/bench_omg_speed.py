@@ -109,8 +109,6 @@ def main(argv=None):
     ap.add_argument("--core", type=int, default=None, help="pin to this CPU (default: the current one)")
     ap.add_argument("--no-rrt", action="store_true", help="OMG only")
     ap.add_argument("--threads", type=int, default=2, help="plan_many threads for the scaling figure (0: skip)")
-    ap.add_argument("--loop", choices=("native", "python"), default="native",
-                    help="Algorithm 2's loop: native (the default) or python (the reference)")
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                     help="cpu: every timing in this process (the planners' stage timings too) reads this "
                          "thread's CPU time, so other processes' load does not count (for a shared machine)")
@@ -120,9 +118,9 @@ def main(argv=None):
         args.threads = 0  # thread scaling is a wall-clock figure
     core = args.core if args.core is not None else os.sched_getaffinity(0).pop()
     os.sched_setaffinity(0, {core})
-    print(f"pinned to CPU {core}; clock: {args.clock}; loop: {args.loop}; load before: {os.getloadavg()}", flush=True)
+    print(f"pinned to CPU {core}; clock: {args.clock}; load before: {os.getloadavg()}", flush=True)
 
-    settings = replace(paper_settings(), loop=args.loop, clock="thread_cpu" if args.clock == "cpu" else "wall")
+    settings = replace(paper_settings(), clock="thread_cpu" if args.clock == "cpu" else "wall")
     baseline = BaselineSettings(omg=settings)
     scene_list = load_scenes(args.scenes, args.ycb, args.scene_dir)
     cache = make_cache()

@@ -163,7 +163,7 @@ void bench_planning(const Options& opt) {
            gs = build_goal_set(ik, &checker, &hand_checker, grasps, q0, {});
          })), "[target <= 50 ms]");
   std::map<std::string, int> reasons;
-  for (const auto& r : gs.reasons) ++reasons[r];
+  for (const auto& r : gs.reasons) ++reasons[to_string(r)];
   std::printf("    -> %zu goals after the cap; grasps by outcome:", static_cast<size_t>(gs.goals.rows()));
   for (const auto& [r, count] : reasons) std::printf(" %s %d", r.c_str(), count);
   std::printf("\n");

@@ -53,7 +53,9 @@ void init_goal_set(py::module_& m) {
       Eigen::Map<Trajectory>(tails.mutable_data() + g * m * dof, m, dof) = gs.tails[g];
     d["tails"] = tails;
     d["grasp_index"] = gs.grasp_index;
-    d["reasons"] = gs.reasons;
+    std::vector<std::string> reasons;  // their text forms: what plan files and Python read
+    for (GoalReason r : gs.reasons) reasons.emplace_back(to_string(r));
+    d["reasons"] = reasons;
     d["seconds"] = gs.seconds;
     return d;
   }, py::arg("ik"), py::arg("checker"), py::arg("hand_checker"), py::arg("hand_poses"), py::arg("start"),

@@ -48,7 +48,9 @@ void init_pickup_nlp(py::module_& m) {
       .def_property_readonly("sg_range", [](const RhoPoly& r) { return std::make_pair(r.sg_lo, r.sg_hi); })
       .def_property_readonly("sc_range", [](const RhoPoly& r) { return std::make_pair(r.sc_lo, r.sc_hi); })
       .def("value", &RhoPoly::value, py::arg("s_g"), py::arg("s_c"))
-      .def("gradient", &RhoPoly::gradient, py::arg("s_g"), py::arg("s_c"));
+      .def("gradient", &RhoPoly::gradient, py::arg("s_g"), py::arg("s_c"))
+      .def("sg_upper_bound", &RhoPoly::sg_upper_bound, py::arg("gamma"), py::arg("sc_a"), py::arg("sc_b"),
+           "the largest S_g with rho >= gamma for some S_c in [sc_a, sc_b] (NaN: none)");
 
   py::enum_<GraspKind>(m, "GraspKind").value("top", GraspKind::top).value("side", GraspKind::side);
   py::class_<PickupProblem>(m, "PickupProblem")
@@ -111,7 +113,8 @@ void init_pickup_nlp(py::module_& m) {
                           SolveStatus::infeasible, SolveStatus::diverging, SolveStatus::max_iterations,
                           SolveStatus::max_cpu_time, SolveStatus::restoration_failed, SolveStatus::step_too_small,
                           SolveStatus::invalid_number, SolveStatus::solver_error, SolveStatus::bounded,
-                          SolveStatus::violation_between_samples, SolveStatus::constraint_violation})
+                          SolveStatus::violation_between_samples, SolveStatus::constraint_violation,
+                          SolveStatus::time_limit})
       status.value(to_string(s), s);
   }
 
@@ -127,8 +130,6 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("timing_fraction", &PickupSettings::timing_fraction)
       .def_readwrite("direct_track", &PickupSettings::direct_track)
       .def_readwrite("arm_seeds", &PickupSettings::arm_seeds)
-      .def_readwrite("iteration_budget", &PickupSettings::iteration_budget)
-      .def_readwrite("resolve_max_iter", &PickupSettings::resolve_max_iter)
       .def_readwrite("t_min", &PickupSettings::t_min)
       .def_readwrite("t_max", &PickupSettings::t_max)
       .def_readwrite("tol", &PickupSettings::tol)
@@ -157,7 +158,7 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("timing_seed", &PickupSettings::timing_seed)
       .def_readwrite("direct_max_iter", &PickupSettings::direct_max_iter)
       .def_readwrite("warm_start_stages", &PickupSettings::warm_start_stages)
-      .def_readwrite("refine_max_iter", &PickupSettings::refine_max_iter)
+      .def_readwrite("time_limit", &PickupSettings::time_limit)
       .def_readwrite("seed_speed", &PickupSettings::seed_speed);
 
   py::class_<StageResult>(m, "StageResult")
@@ -218,10 +219,10 @@ void init_pickup_nlp(py::module_& m) {
   m.def("pickup_random_seed", &random_seed, py::arg("robot"), py::arg("problem"), py::arg("settings"));
   m.def("pickup_solve_stage", &solve_stage, py::arg("robot"), py::arg("problem"), py::arg("settings"), py::arg("stage"),
         py::arg("x0"), py::call_guard<py::gil_scoped_release>());
-  m.def("pickup_solve_successive", [](const Robot& r, const PickupProblem& p, const PickupSettings& s) {
-          return solve_successive(r, p, s);
-        },
-        py::arg("robot"), py::arg("problem"), py::arg("settings"), py::call_guard<py::gil_scoped_release>());
+  m.def("pickup_solve_successive", [](const Robot& r, const PickupProblem& p, const PickupSettings& s,
+                                      const Eigen::VectorXd& x0) { return solve_successive(r, p, s, x0); },
+        py::arg("robot"), py::arg("problem"), py::arg("settings"), py::arg("x0") = Eigen::VectorXd(),
+        py::call_guard<py::gil_scoped_release>());
   m.def("pickup_solve_single_shot", &solve_single_shot, py::arg("robot"), py::arg("problem"), py::arg("settings"),
         py::call_guard<py::gil_scoped_release>());
   py::class_<StompSettings>(m, "StompSettings")

@@ -64,13 +64,13 @@ TEST(GoalSet, EachGraspGetsItsReason) {
   const CollisionChecker checker(*c.robot, c.hand_mesh, blocks());
   const GoalSet set = build_goal_set(c.ik, &checker, nullptr, grasps(), c.start, {}, within_reach);
   ASSERT_EQ(set.reasons.size(), size_t(kGrasps));
-  EXPECT_EQ(set.reasons[kUnreachable], "unreachable");
-  EXPECT_EQ(set.reasons[kInBlock], "in_collision");
-  EXPECT_EQ(set.reasons[kPreGraspInShelf], "standoff_in_collision");
-  EXPECT_EQ(set.reasons[kBelowTheLift], "standoff_unreachable");
-  EXPECT_EQ(set.reasons[kTooFar], "approach_clearance");
+  EXPECT_EQ(set.reasons[kUnreachable], GoalReason::unreachable);
+  EXPECT_EQ(set.reasons[kInBlock], GoalReason::in_collision);
+  EXPECT_EQ(set.reasons[kPreGraspInShelf], GoalReason::standoff_in_collision);
+  EXPECT_EQ(set.reasons[kBelowTheLift], GoalReason::standoff_unreachable);
+  EXPECT_EQ(set.reasons[kTooFar], GoalReason::approach_clearance);
   // The two identical grasps: whichever is tried first is kept, the other is its duplicate.
-  std::vector<std::string> pair = {set.reasons[kFree], set.reasons[kSameAsFree]};
+  std::vector<std::string> pair = {to_string(set.reasons[kFree]), to_string(set.reasons[kSameAsFree])};
   std::sort(pair.begin(), pair.end());
   EXPECT_EQ(pair, (std::vector<std::string>{"duplicate", "ok"}));
   ASSERT_EQ(set.goals.rows(), 1);
@@ -102,9 +102,9 @@ TEST(GoalSet, HandCheckerRejectsEarlyWithTheSameReasons) {
   EXPECT_EQ(early.goals, full.goals);
   // Without any checker nothing collides: the block and the shelf grasps become goals.
   const GoalSet blind = build_goal_set(c.ik, nullptr, nullptr, grasps(), c.start);
-  EXPECT_EQ(blind.reasons[kInBlock], "ok");
-  EXPECT_EQ(blind.reasons[kPreGraspInShelf], "ok");
-  EXPECT_EQ(blind.reasons[kTooFar], "ok");
+  EXPECT_EQ(blind.reasons[kInBlock], GoalReason::ok);
+  EXPECT_EQ(blind.reasons[kPreGraspInShelf], GoalReason::ok);
+  EXPECT_EQ(blind.reasons[kTooFar], GoalReason::ok);
   EXPECT_EQ(blind.goals.rows(), 4);
 }
 
@@ -117,8 +117,8 @@ TEST(GoalSet, CapKeepsASeededSubsetInInputOrder) {
   for (unsigned seed : {0u, 1u, 2u}) {
     s.seed = seed;
     const GoalSet set = build_goal_set(c.ik, nullptr, nullptr, poses, c.start, s);
-    EXPECT_EQ(std::count(set.reasons.begin(), set.reasons.end(), "ok"), 2) << "seed " << seed;
-    EXPECT_EQ(std::count(set.reasons.begin(), set.reasons.end(), "over_cap"), 3) << "seed " << seed;
+    EXPECT_EQ(std::count(set.reasons.begin(), set.reasons.end(), GoalReason::ok), 2) << "seed " << seed;
+    EXPECT_EQ(std::count(set.reasons.begin(), set.reasons.end(), GoalReason::over_cap), 3) << "seed " << seed;
     ASSERT_EQ(set.grasp_index.size(), 2u);
     EXPECT_LT(set.grasp_index[0], set.grasp_index[1]);
     for (int g = 0; g < 2; ++g) EXPECT_NEAR(set.goals(g, 1), -0.3 + 0.15 * set.grasp_index[g], 1e-3);

@@ -196,6 +196,24 @@ TEST(PickupNlp, UnreachablePartReturnsStatusNotException) {
   EXPECT_EQ(res.x.size(), res.stages[0].x.size());
 }
 
+TEST(PickupNlp, TimeLimitStopsTheSolveWithItsStatus) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 1, example_rho());
+  PickupSettings st = fast_settings();
+  st.time_limit = 1e-6;  // spent before the first Ipopt iteration ends
+  PickupResult res = solve_successive(r, pb, st);
+  EXPECT_EQ(res.status, SolveStatus::time_limit) << res.stages.back().ipopt_status;
+  EXPECT_FALSE(res.success);
+  EXPECT_EQ(solve_stage(r, pb, st, 1, heuristic_seed(r, pb, st)).status, SolveStatus::time_limit);
+  // A limit that is never reached changes nothing: the same solution, bit for bit.
+  PickupSettings loose = fast_settings();
+  loose.time_limit = 1e5;
+  const PickupResult a = solve_successive(r, pb, fast_settings()), b = solve_successive(r, pb, loose);
+  ASSERT_TRUE(a.success);
+  EXPECT_EQ(b.status, SolveStatus::solved);
+  EXPECT_EQ(a.x, b.x);
+}
+
 TEST(PickupNlp, BadInputThrowsClearErrors) {
   Robot r = load();
   PickupProblem pb = paper_case(r, 1, example_rho());

@@ -1,5 +1,6 @@
 // Pick-up NLP option enums: every value's text form parses back to it (the spellings Ipopt and the
 // JSON files use), and a misspelt option is an error that lists the valid ones.
+#include <set>
 #include <stdexcept>
 #include <string>
 
@@ -15,10 +16,10 @@ TEST(PickupOptions, TextFormsRoundTrip) {
     EXPECT_EQ(parse_coefficient_basis(to_string(v)), v);
   for (auto v : {MuStrategy::monotone, MuStrategy::adaptive}) EXPECT_EQ(parse_mu_strategy(to_string(v)), v);
   for (auto v : {RateRows::hull, RateRows::sampled}) EXPECT_EQ(parse_rate_rows(to_string(v)), v);
-  for (int i = 0; i <= static_cast<int>(SolveStatus::constraint_violation); ++i) {
-    const auto v = static_cast<SolveStatus>(i);
-    EXPECT_EQ(parse_solve_status(to_string(v)), v);
-  }
+  std::set<std::string> statuses;  // one text form per status (results are written, never read back)
+  for (int i = 0; i <= static_cast<int>(SolveStatus::time_limit); ++i)
+    statuses.insert(to_string(static_cast<SolveStatus>(i)));
+  EXPECT_EQ(statuses.size(), static_cast<size_t>(SolveStatus::time_limit) + 1);
   // Ipopt's own spelling of its option value, not the C++ identifier.
   EXPECT_STREQ(to_string(HessianMode::limited_memory), "limited-memory");
 }

@@ -12,9 +12,9 @@ MBM_DIR = os.environ.get("PICKPLAN_MBM_DIR",
 
 @pytest.fixture(scope="session")
 def panda():
-    import pickplan.core.robots
+    from pickplan.core import robots
 
-    return pickplan.robots.panda()
+    return robots.panda()
 
 
 @pytest.fixture
@@ -29,10 +29,26 @@ def bullet():
         pb.disconnect(cid)
 
 
-def ycb_dir_or_skip():
+def in_ci() -> bool:
+    """CI (``CI=true``) has the shared data: there, a missing folder is a failure, not a skip."""
+    return os.environ.get("CI", "").strip().lower() in ("true", "1", "yes")
+
+
+def ycb_dir_or_none():
+    """The YCB data folder; None where it is absent (a user's machine); absent in CI: the test fails."""
     path = os.path.abspath(YCB_DIR)
-    if not os.path.isdir(path):
-        pytest.skip(f"YCB data folder not found at {path} (set PICKPLAN_YCB_DIR); real-object checks skipped")
+    if os.path.isdir(path):
+        return path
+    if in_ci():
+        pytest.fail(f"YCB data folder not found at {path}: CI must have it (set PICKPLAN_YCB_DIR)")
+    return None
+
+
+def ycb_dir_or_skip():
+    path = ycb_dir_or_none()
+    if path is None:
+        pytest.skip(f"YCB data folder not found at {os.path.abspath(YCB_DIR)} (set PICKPLAN_YCB_DIR); "
+                    "real-object checks skipped")
     return path
 
 

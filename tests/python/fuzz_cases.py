@@ -7,6 +7,7 @@ error (ValueError, of which InputError, FileNotFoundError): anything else is a f
 from __future__ import annotations
 
 import base64
+import copy
 import json
 import os
 import random
@@ -17,6 +18,9 @@ import numpy as np
 
 ALLOWED_ERRORS = (ValueError, FileNotFoundError)
 WEIRD_NUMBERS = ["NaN", "Infinity", "-Infinity", "-1", "0", "1e308", "-1e308", "4294967299", "1e-320", "3"]
+TOML_NUMBERS = ["nan", "inf", "-inf", "1e308", "-1e308", "1e-300", "0", "-1", "0.0", "9" * 5000, '"x"', "[]", "{}",
+                "true", "[1e308, 1e308]"]
+HUGE_INTEGER = "9" * 5000   # more digits than Python converts to int from text (4,300)
 WEIRD_VALUES = [float("nan"), float("inf"), -1.0, 0.0, 1e308, 2**32 + 3, -(2**63), "1.0", "", None, True, [], {},
                 [[1, 2], [3]], "\u0000"]
 
@@ -56,8 +60,8 @@ def mutate_json(data, rng: random.Random) -> str:
         path = rng.choice(paths)
         op = rng.random()
         parent = _get(data, path[:-1])
-        if op < 0.45:
-            _set(data, path, rng.choice(WEIRD_VALUES))
+        if op < 0.45:  # a copy: the shared list must not end up inside itself, nor change for later cases
+            _set(data, path, copy.deepcopy(rng.choice(WEIRD_VALUES)))
         elif op < 0.6:
             if isinstance(parent, dict):
                 del parent[path[-1]]
@@ -68,7 +72,7 @@ def mutate_json(data, rng: random.Random) -> str:
             if isinstance(value, (int, float)) and not isinstance(value, bool):
                 _set(data, path, value * rng.choice([-1, 1e-9, 1e9, 1 + 1e-6, 1.5]))
         elif op < 0.8:
-            _set(data, path, [_get(data, path)] * rng.randint(0, 3))
+            _set(data, path, [copy.deepcopy(_get(data, path)) for _ in range(rng.randint(0, 3))])
         elif op < 0.9:  # deep nesting, spliced in as text (json.dumps itself recurses)
             _set(data, path, f"__NEST_{rng.choice([10, 1000, 50_000])}__")
         else:
@@ -78,6 +82,85 @@ def mutate_json(data, rng: random.Random) -> str:
     for depth in (10, 1000, 50_000):
         text = text.replace(f'"__NEST_{depth}__"', "[" * depth + "0" + "]" * depth)
     return text if rng.random() < 0.95 else text[:-rng.randint(1, 20)]
+
+
+def replace_numbers(text: str, rng: random.Random, choices, times: int = 1) -> str:
+    """``times`` numbers of ``text`` replaced by values drawn from ``choices``."""
+    import re
+
+    for _ in range(times):
+        spans = [m.span() for m in re.finditer(r"-?\d+(\.\d+)?(e-?\d+)?", text)]
+        if not spans:
+            break
+        a, b = rng.choice(spans)
+        text = text[:a] + rng.choice(choices) + text[b:]
+    return text
+
+
+def mutate_toml(text: str, rng: random.Random) -> str:
+    """A robot description with weird numbers, names swapped for others of the file, or text damage."""
+    import re
+
+    op = rng.random()
+    if op < 0.45:
+        return replace_numbers(text, rng, TOML_NUMBERS, rng.randint(1, 3))
+    if op < 0.7:
+        names = re.findall(r'"([A-Za-z0-9_]+)"', text)
+        for _ in range(rng.randint(1, 2)):
+            a, b = rng.choice(names), rng.choice(names + ["nothing", "", "table"])
+            text = text.replace(f'"{a}"', f'"{b}"', 1)
+        return text
+    if op < 0.8:  # a line dropped: a missing key or table
+        lines = text.splitlines()
+        del lines[rng.randrange(len(lines))]
+        return "\n".join(lines)
+    return mutate_text(text, rng)
+
+
+def mutate_observation(fields: dict, rng: random.Random) -> bytes:
+    """An observation archive (.npz bytes) with one to three arrays changed, or its bytes damaged."""
+    import io
+
+    arrays = {k: np.array(v, copy=True) for k, v in fields.items()}
+    for _ in range(rng.randint(1, 3)):
+        key = rng.choice(sorted(arrays))
+        a = arrays[key]
+        op = rng.random()
+        if op < 0.35 and a.size and a.dtype.kind in "fiub":
+            a = a.astype(float) if rng.random() < 0.5 else a
+            idx = tuple(rng.randrange(n) for n in a.shape)
+            value = rng.choice([np.nan, np.inf, -1.0, 0.0, 1e-300, 1e308, -1e308, 2.0, 1e9])
+            try:
+                a[idx] = value
+            except (OverflowError, ValueError):
+                a = a.astype(float)
+                a[idx] = value
+        elif op < 0.5:
+            dtype = rng.choice([np.float32, np.int64, np.bool_, np.complex128, np.uint8, str])
+            a = a.astype(str if a.dtype.kind == "U" else dtype)  # a string array converts only to strings
+        elif op < 0.6:
+            a = a.reshape(-1) if rng.random() < 0.5 else a[..., : max(1, a.shape[-1] // 2)] if a.ndim else a
+        elif op < 0.7:
+            del arrays[key]
+            continue
+        elif op < 0.8:
+            arrays["target_pixel"] = np.array(rng.choice([[60, 80], [[3, 4, 5]], [[-1, -1]], [[10**6, 2]], [1.5, 2]]))
+            arrays.pop("target_mask", None)
+            continue
+        elif op < 0.9 and key in ("K", "camera_pose"):
+            a = a * rng.choice([1e-300, -1.0, 1e9, 0.0])
+        else:
+            a = np.array(rng.choice([0, "x", 1e308]))
+        arrays[key] = a
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    data = buf.getvalue()
+    if rng.random() < 0.25:
+        b = bytearray(data)
+        for _ in range(rng.randint(1, 8)):
+            b[rng.randrange(len(b))] = rng.randrange(256)
+        data = bytes(b[: rng.randint(0, len(b))] if rng.random() < 0.4 else b)
+    return data
 
 
 def mutate_text(text: str, rng: random.Random) -> str:
@@ -182,9 +265,9 @@ _PANDA = []
 
 def _panda():
     if not _PANDA:
-        import pickplan
+        from pickplan.core import robots
 
-        _PANDA.append(pickplan.robots.panda())
+        _PANDA.append(robots.panda())
     return _PANDA[0]
 
 
@@ -220,12 +303,12 @@ def run_problem(text: str, work: str):
 
 
 def run_urdf(text: str, work: str):
-    import pickplan
+    from pickplan.core import robots
 
     path = os.path.join(work, "robot.urdf")
     with open(path, "w", encoding="utf-8", errors="surrogatepass") as f:
         f.write(text)
-    robot = pickplan.robots.Robot.from_urdf(path)
+    robot = robots.Robot.from_urdf(path)
     q = robot.random_configurations(2, seed=0)
     _finite(robot.lower_limits[np.isfinite(robot.lower_limits)], robot.fk_batch(q))
     if robot.dof:
@@ -252,12 +335,57 @@ def run_mesh(files: dict, work: str):
     _finite(grid.values)
 
 
+def run_robot(text: str, work: str):
+    """A robot description as every command reads it: `robots check` and `load_robot` must agree
+    (one path), and a robot that loads must time a motion within its limits to finite numbers."""
+    from pickplan.core.robots import check_description, load_robot
+    from pickplan.core.timing import robot_limits, time_parameterize
+
+    path = os.path.join(work, "robot.toml")
+    with open(path, "w", encoding="utf-8", errors="surrogatepass") as f:
+        f.write(text)
+    _, problems = check_description(path)
+    try:
+        robot = load_robot(path)
+    except ValueError:
+        if not problems:
+            raise AssertionError("load_robot refused a file `robots check` accepts")
+        raise
+    if problems:
+        raise AssertionError(f"load_robot accepted a file `robots check` refuses: {problems[0]}")
+    q0 = robot.ready_configuration
+    q1 = robot.clip_to_limits(q0 + 0.1)
+    _finite(robot.fk(q0), robot.random_configurations(2, seed=0))
+    timed = time_parameterize(np.stack([q0, q1]), rate=100.0, limits=robot_limits(robot))
+    _finite(timed.t, timed.q, timed.qd, timed.qdd)
+
+
+def run_observation(data_b64: str, work: str):
+    """An observation file as `pickplan plan --observation` reads it, down to the perceived world's
+    field and target points."""
+    from pickplan.core.observation import Observation
+    from pickplan.perception.field import FieldSettings, perceive
+
+    path = os.path.join(work, "obs.npz")
+    with open(path, "wb") as f:
+        f.write(base64.b64decode(data_b64))
+    obs = Observation.load(path)
+    perceived = perceive(obs, FieldSettings(resolution=0.02))
+    _finite(perceived.target_points, perceived.target_normals, perceived.plane[0], perceived.plane[1])
+
+
 def run_exec(code: str, work: str):  # the harness's own test: a case is any Python statement
     exec(code, {})
 
 
 RUNNERS = {"exec": run_exec, "scene": run_scene, "grasps": run_grasps, "metamodel": run_metamodel,
-           "problem": run_problem, "urdf": run_urdf, "mesh": run_mesh}
+           "problem": run_problem, "urdf": run_urdf, "mesh": run_mesh, "robot": run_robot,
+           "observation": run_observation}
+
+
+# Kinds whose every error must name the file read (issue 39: the README's exit-code contract).
+NAMED_FILES = {"robot": "robot.toml", "observation": "obs.npz", "problem": "problem.json",
+               "metamodel": "metamodel.json"}
 
 
 def run_case(kind: str, payload, work: str) -> dict:
@@ -272,9 +400,11 @@ def run_case(kind: str, payload, work: str) -> dict:
         message = str(exc)
         if not message.strip():
             return {"outcome": "unclear", "error": f"{type(exc).__name__} without a message"}
+        if kind in NAMED_FILES and os.path.join(work, NAMED_FILES[kind]) not in message:
+            return {"outcome": "unnamed", "error": f"{type(exc).__name__} naming no file: {message[:200]}"}
         return {"outcome": "error", "error": f"{type(exc).__name__}: {message[:200]}"}
-    except AssertionError as exc:
-        return {"outcome": "nan", "error": str(exc)}
+    except AssertionError as exc:  # NaN in a result, or two readers of one file that disagree
+        return {"outcome": "bad result", "error": str(exc)}
     except Exception as exc:  # noqa: BLE001 - the finding: an undocumented exception type
         return {"outcome": "unclear", "error": f"{type(exc).__name__}: {str(exc)[:300]}"}
 

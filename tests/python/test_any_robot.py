@@ -9,7 +9,7 @@ import pytest
 from conftest import ycb_dir_or_skip
 from pickplan.core import objects, robots
 from pickplan.core.description import load_description, robot_info, shipped_name
-from pickplan.core.description_check import check_description
+from pickplan.core.robots import check_description
 from pickplan.core.panda import PANDA
 from pickplan.core.timing import robot_limits
 from pickplan.omg import grasps as G
@@ -157,7 +157,7 @@ def test_the_validator_names_an_approach_axis_that_is_not_the_hands_z(tmp_path):
                                  'grasp_frame = { xyz = [0.0, 0.0, 0.11], rpy = [0.0, 0.3, 0.0] }')
                     .replace('mount]\nurdf = "assets:', 'mount]\nurdf = "assets:'))
     _, problems = check_description(str(path))
-    assert any("z axis (the approach) must be the hand link's +z" in p for p in problems), problems
+    assert any("z axis (the approach) must be the hand link's +z" in str(p) for p in problems), problems
 
 
 def test_a_sweep_plans_for_its_robot_and_will_not_resume_with_another(tmp_path):

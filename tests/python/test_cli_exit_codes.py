@@ -84,11 +84,18 @@ def test_bad_ray_address_exits_bad_input_without_waiting_for_ray(capsys, tmp_pat
 
 
 def test_plan_exits_ok_on_success_and_no_plan_otherwise(capsys, scene_file, tmp_path):
-    for iterations, out in ((20, tmp_path / "full"), (1, tmp_path / "one")):
-        code, _ = _run(capsys, ["plan", "--scene", str(scene_file), "--grasps", "antipodal",
-                                "--iterations", str(iterations), "--out", str(out)])
-        status = json.loads((out / "plan.json").read_text())["status"]
-        assert code == (ExitCode.OK if status == "success" else ExitCode.NO_PLAN), (iterations, status)
+    """Each exit code is asked for, not whichever came: the seeded scene plans (exit 0); with its
+    target moved to the table's far corner, out of the arm's reach, no grasp gives a goal (exit 1)."""
+    far = json.loads(scene_file.read_text())
+    target = next(o for o in far["objects"] if o["name"] == far["target"])
+    target["pose"][0][3], target["pose"][1][3] = 1.02, 0.72  # 1.25 m from the base; the Panda reaches 0.85 m
+    (tmp_path / "far.json").write_text(json.dumps(far))
+    for scene, out, code_wanted, status_wanted in ((scene_file, tmp_path / "ok", ExitCode.OK, "success"),
+                                                   (tmp_path / "far.json", tmp_path / "far", ExitCode.NO_PLAN,
+                                                    "no_goals")):
+        code, _ = _run(capsys, ["plan", "--scene", str(scene), "--grasps", "antipodal", "--out", str(out)])
+        assert code == code_wanted
+        assert json.loads((out / "plan.json").read_text())["status"] == status_wanted
 
 
 def test_internal_errors_exit_3_with_one_line_not_a_traceback(capsys, monkeypatch):

@@ -1,4 +1,4 @@
-"""FCL collision checker (pickplan.collision) against PyBullet's closest points, plus the
+"""FCL collision checker (pickplan.core.collision) against PyBullet's closest points, plus the
 Python layer: settings, contacts, batches, errors."""
 from concurrent.futures import ThreadPoolExecutor
 

@@ -6,8 +6,9 @@ import pytest
 
 from pickplan.cli.main import main as cli_main
 from pickplan.core import description as D
-from pickplan.core.description_check import _pad_gap, check_description, robot_for, start_configuration
+from pickplan.core.description_check import _pad_gap, start_configuration
 from pickplan.core.panda import PANDA
+from pickplan.core.robots import check_description, robot_for
 
 SHIPPED = ("iiwa_wsg50", "panda", "ur5_2f85")
 
@@ -92,18 +93,19 @@ PANDA_TEXT = open(D.description_path("panda")).read()
     (("xyz = [0.0, 0.0, 0.1034]", "xyz = [0.0, 0.0, 0.3]"), "not level with the pads"),
     (("max_opening = 0.08", "max_opening = 0.12"), "pads are 0.0797 m apart"),
     (("body_points_per_link = 20", "body_points_per_link = 20\ncolour = \"red\""), "colour: unknown key"),
-    (("start = [0.0, -1.285", "start = [nan, -1.285"), "start: expected finite numbers"),
-    (("start = [0.0, -1.285, 0.0, -2.356, 0.0, 1.571, 0.785]", "start = [0.0, -1.285]"), "expected 7 values"),
+    (("start = [0.0, -1.285", "start = [nan, -1.285"), "start[0]: expected a finite number, got nan"),
+    (("start = [0.0, -1.285, 0.0, -2.356, 0.0, 1.571, 0.785]", "start = [0.0, -1.285]"),
+     "start: expected a list of 7 numbers, got 2 values"),
     (("start = [0.0, -1.285", "start = [9.0, -1.285"), "panda_joint1 = 9.0 outside its limits"),
     (("urdf = \"pybullet_data:franka_panda/panda.urdf\"", "urdf = \"missing.urdf\""), "urdf: file not found"),
-    (("max_opening = 0.08", "max_opening = \"wide\""), "max_opening: expected float"),
+    (("max_opening = 0.08", "max_opening = \"wide\""), "max_opening: expected a number, got str 'wide'"),
     (("[gripper]", "[gripper\n"), "not valid TOML"),
 ])
 def test_a_wrong_file_names_its_problem(tmp_path, change, expected):
     old, new = change
     assert old in PANDA_TEXT
     desc, problems = check_description(_write(tmp_path, PANDA_TEXT.replace(old, new, 1)))
-    assert any(expected in p for p in problems), problems
+    assert any(expected in str(p) for p in problems), [str(p) for p in problems]
 
 
 def test_a_fixed_finger_joint_is_named(tmp_path):
@@ -115,7 +117,7 @@ def test_a_fixed_finger_joint_is_named(tmp_path):
     path = _write(tmp_path, PANDA_TEXT.replace('urdf = "pybullet_data:franka_panda/panda.urdf"',
                                                f'urdf = "{urdf}"\npackage_dirs = ["pybullet_data:franka_panda"]'))
     _, problems = check_description(path)
-    assert any("'panda_finger_joint2' is fixed, expected prismatic or revolute" in p for p in problems), problems
+    assert any("'panda_finger_joint2' is fixed, expected prismatic or revolute" in str(p) for p in problems), problems
 
 
 def test_the_robots_command_lists_and_checks(tmp_path, capsys):
@@ -126,5 +128,5 @@ def test_the_robots_command_lists_and_checks(tmp_path, capsys):
                  .replace("max_opening = 0.08", "max_opening = -1.0"))
     assert cli_main(["robots", "check", bad]) == 2
     out = capsys.readouterr().out
-    assert "'nothing' is not a link" in out and "max_opening: expected metres" in out
+    assert "'nothing' is not a link" in out and "gripper.max_opening: -1.0 m is outside (0.0, 0.5] m" in out
     assert cli_main(["robots", "check", "ur5_2f85"]) == 0

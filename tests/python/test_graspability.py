@@ -9,7 +9,8 @@ import trimesh
 from pickplan.cli.bench import object_markdown, object_rows, settings_from_args
 from pickplan.core import objects
 from pickplan.core.graspability import graspability
-from pickplan.eval.experiments import SweepSettings, summarize, summarize_by_object, sweep_fingerprint
+from pickplan.eval.experiments import SweepSettings, sweep_fingerprint
+from pickplan.eval.summaries import summarize, summarize_by_object
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
 from pickplan.sim import scenes
 

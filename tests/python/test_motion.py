@@ -7,8 +7,8 @@ import pytest
 from pickplan.core import robots
 from pickplan.core.shapes import Obstacle, Shape
 from pickplan.eval.trajectory_check import TrajectoryChecker
-from pickplan.omg.motion import MotionSettings, MotionStatus, MotionWorld, Smoothing, plan_chomp, plan_motion
 from pickplan.omg.model_cache import ModelCache
+from pickplan.omg.motion import MotionSettings, MotionStatus, MotionWorld, Smoothing, plan_chomp, plan_motion
 from pickplan.omg.pose_goal import Axis, PoseGoal
 
 

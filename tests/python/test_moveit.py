@@ -5,11 +5,12 @@ import os
 import numpy as np
 import pytest
 
-from conftest import mbm_dir_or_skip
 from pickplan.core.errors import InputError
 from pickplan.core.shapes import ShapeKind
 from pickplan.sim import moveit
 from pickplan.sim.scenes import Scene
+
+from conftest import mbm_dir_or_skip
 
 S = float(np.sqrt(0.5))
 
@@ -153,7 +154,7 @@ def test_scene_text_in_both_formats(tmp_path):
     (YAML.replace("orientation: {x: 0, y: 0, z: 0, w: 1}", "orientation: {x: 0, y: 0, z: 0, w: 3}"),
      "world.collision_objects[1].primitive_poses[0].orientation"),
     (YAML.replace("position: [0.0, 0.0, 0.2]", "position: [0.0, zero, 0.2]"),
-     "world.collision_objects[1].primitive_poses[1].position"),
+     "world.collision_objects[1].primitive_poses[1].position[1]"),
     (YAML.replace("    - id: can\n", "    - name: can\n"), "world.collision_objects[1].id"),
     (YAML.replace("    - [false, false, false]\n", ""), "allowed_collision_matrix.entry_values"),
 ])

@@ -1,4 +1,4 @@
-"""pickplan.objects: built-in shapes, mass properties, resting poses, the YCB-layout loader, errors."""
+"""pickplan.core.objects: built-in shapes, mass properties, resting poses, the YCB-layout loader, errors."""
 import os
 
 import numpy as np

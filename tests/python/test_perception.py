@@ -87,11 +87,25 @@ def test_target_points_lie_on_the_target_with_outward_normals(known):
 
 
 def test_noise_moves_the_field_by_about_the_noise(known):
-    scene, _, obs = known
-    noisy = render_observation(scene, views=3, noise=0.002, seed=3)
+    """2 mm of depth noise moves the fused field by about that (a voxel at most where a surface
+    estimate crosses a voxel boundary), not more, and the support plane by less than 4 mm."""
+    scene, lib, obs = known
+    noise = 0.002
+    noisy = render_observation(scene, views=3, noise=noise, seed=3)
     assert not np.array_equal(noisy.depth, obs.depth)
-    n, d = perceive(noisy).plane
-    assert abs(d) < 0.004
+    clean_field, noisy_field = perceive(obs, FieldSettings(resolution=RES)), perceive(noisy, FieldSettings(resolution=RES))
+    can = _world_mesh(scene, lib, "005_tomato_soup_can")
+    rng = np.random.default_rng(2)
+    lo, hi = can.bounds[0] - [0.08, 0.08, 0.0], can.bounds[1] + [0.08, 0.08, 0.08]
+    pts = rng.uniform(lo, hi, (2000, 3))
+    pts = pts[trimesh.proximity.signed_distance(can, pts) < -0.01]  # outside the can, by 1 cm at least
+    d_clean, _ = clean_field.sdf.distance(pts, exclude_table=True)
+    d_noisy, _ = noisy_field.sdf.distance(pts, exclude_table=True)
+    moved = np.abs(d_noisy - d_clean)
+    assert moved.max() > 0  # the noise does reach the field
+    assert np.median(moved) <= 2 * noise and np.percentile(moved, 99) <= RES + 3 * noise
+    n, d = noisy_field.plane
+    assert n @ [0, 0, 1] > 0.999 and abs(d) < 0.004
 
 
 def test_observations_round_trip_and_refuse_bad_input(tmp_path, known):
@@ -129,7 +143,18 @@ def test_a_target_pixel_grows_to_its_surface(known):
     r, c = np.argwhere(obs.target_mask[0])[len(np.argwhere(obs.target_mask[0])) // 2]
     grown = grow_target(obs.depth[:1], [[r, c]])
     inter = (grown[0] & obs.target_mask[0]).sum()
-    assert inter > 0.5 * obs.target_mask[0].sum()
+    assert inter > 0.5 * obs.target_mask[0].sum()  # recall: most of the target's pixels
+
+
+@pytest.mark.xfail(strict=True, reason="found by issue 32: grow_target leaks from the box's foot onto the table "
+                                       "(depth is continuous where an object stands on it): 2,438 of 226,900 grown "
+                                       "pixels are the target's; fix grow_target, then drop this mark")
+def test_a_grown_target_stays_on_the_target(known):
+    _, _, obs = known
+    r, c = np.argwhere(obs.target_mask[0])[len(np.argwhere(obs.target_mask[0])) // 2]
+    grown = grow_target(obs.depth[:1], [[r, c]])
+    inter = (grown[0] & obs.target_mask[0]).sum()
+    assert inter > 0.95 * grown[0].sum()  # precision: it does not leak onto the table or the can
 
 
 def test_cameras_look_at_the_table_from_a_mountable_distance():

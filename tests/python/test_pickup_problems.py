@@ -262,10 +262,18 @@ def test_pickup_plan_without_a_solution_reports_status_and_stage(tmp_path, capsy
     d = copy.deepcopy(CASE)
     d["part"]["metamodel"] = "standin"
     d["part"]["position"][2] = 2.5  # out of the arm's reach
-    assert cli_main(["pickup", "plan", "--problem", write(tmp_path, d), "--out", str(tmp_path / "o")]) == 1
-    assert "no solution: status infeasible, best stage reached 1 of 5" in capsys.readouterr().out
+    path = write(tmp_path, d)
+    assert cli_main(["pickup", "plan", "--problem", path, "--out", str(tmp_path / "o"), "--method", "successive"]) == 1
+    assert "no solution: status infeasible; best stage reached 1 of 5" in capsys.readouterr().out
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert m["status"] == "infeasible" and m["best_stage"] == 1 and not m["success"]
+    # The default (routed) says why before any solve (issue 37).
+    assert cli_main(["pickup", "plan", "--problem", path, "--out", str(tmp_path / "r")]) == 1
+    assert "no solution: status infeasible, reason out_of_reach: the grasp point" in capsys.readouterr().out
+    m = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert m["reason"] == "out_of_reach" and m["best_stage"] == 0 and m["T"] is None and m["lower_bound"] is None
+    assert cli_main(["pickup", "plan", "--problem", path, "--out", str(tmp_path / "r"), "--time-limit", "-1"]) == 2
+    assert "--time-limit: expected a finite number >= 0" in capsys.readouterr().err
     d["gamma"] = "high"
     assert cli_main(["pickup", "plan", "--problem", write(tmp_path, d), "--out", str(tmp_path / "o")]) == 2
     assert "p.json: gamma: expected a number" in capsys.readouterr().err

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-import pickplan
-from pickplan.core import sdf
+from pickplan.core import robots, sdf
 from pickplan.core.collision import CollisionChecker, SceneMesh
 from pickplan.core.errors import InputError
 from pickplan.core.io import read_json
@@ -50,9 +49,9 @@ def test_urdf_nested_100000_deep_is_an_error_not_a_crash(tmp_path):
     path.write_text('<robot name="r"><link name="base"/>' + "<a>" * depth + "</a>" * depth + "</robot>")
     # In a child process: before the fix the XML parser's recursion killed the interpreter (SIGSEGV).
     code = textwrap.dedent(f"""
-        import pickplan
+        from pickplan.core import robots
         try:
-            pickplan.robots.Robot.from_urdf({str(path)!r})
+            robots.Robot.from_urdf({str(path)!r})
         except ValueError as exc:
             print("ValueError:", exc)
     """)
@@ -62,25 +61,25 @@ def test_urdf_nested_100000_deep_is_an_error_not_a_crash(tmp_path):
 
 
 def test_urdf_nesting_within_the_bound_still_loads(tmp_path):
-    robot = pickplan.robots.Robot.from_urdf(_urdf(tmp_path))
+    robot = robots.Robot.from_urdf(_urdf(tmp_path))
     assert robot.dof == 1 and robot.link_names == ["base", "arm"]
 
 
 def test_urdf_sphere_of_radius_minus_one_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"link 'base': collision sphere radius must be a finite number > 0, got -1"):
-        pickplan.robots.Robot.from_urdf(_urdf(tmp_path, '<sphere radius="-1"/>'))
+        robots.Robot.from_urdf(_urdf(tmp_path, '<sphere radius="-1"/>'))
     with pytest.raises(ValueError, match="box size must be a finite number > 0"):
-        pickplan.robots.Robot.from_urdf(_urdf(tmp_path, '<box size="0.1 0 0.1"/>'))
+        robots.Robot.from_urdf(_urdf(tmp_path, '<box size="0.1 0 0.1"/>'))
     with pytest.raises(ValueError, match="cylinder length must be"):
-        pickplan.robots.Robot.from_urdf(_urdf(tmp_path, '<cylinder radius="0.1" length="-0.2"/>'))
-    robot = pickplan.robots.Robot.from_urdf(_urdf(tmp_path, '<sphere radius="0.05"/>'))
+        robots.Robot.from_urdf(_urdf(tmp_path, '<cylinder radius="0.1" length="-0.2"/>'))
+    robot = robots.Robot.from_urdf(_urdf(tmp_path, '<sphere radius="0.05"/>'))
     assert robot.collision_meshes("base").bounding_sphere.primitive.radius == pytest.approx(0.05, rel=0.05)
 
 
 def test_urdf_inverted_joint_limits_are_refused(tmp_path):
     with pytest.raises(ValueError, match=r"joint 'j' has limits lower 1\.0+ > upper -1\.0+"):
-        pickplan.robots.Robot.from_urdf(_urdf(tmp_path, lower=1.0, upper=-1.0))
-    locked = pickplan.robots.Robot.from_urdf(_urdf(tmp_path, lower=0.5, upper=0.5))  # equal: a locked joint
+        robots.Robot.from_urdf(_urdf(tmp_path, lower=1.0, upper=-1.0))
+    locked = robots.Robot.from_urdf(_urdf(tmp_path, lower=0.5, upper=0.5))  # equal: a locked joint
     assert locked.lower_limits[0] == locked.upper_limits[0] == 0.5
 
 
@@ -93,7 +92,7 @@ def test_link_index_2_pow_32_plus_3_is_out_of_range_not_link_3(panda):
         panda.native.jacobian(q, huge, None)
     with pytest.raises(ValueError, match=r"link index 4294967299 out of range"):
         panda.link_pose(q, huge)
-    body = pickplan.robots.BodyPoints(np.array([huge], np.int64), np.zeros((1, 3)), np.array([[0, 0, 1.0]]))
+    body = robots.BodyPoints(np.array([huge], np.int64), np.zeros((1, 3)), np.array([[0, 0, 1.0]]))
     with pytest.raises(ValueError, match=r"link index 4294967299 out of range \[0, 13\)"):
         panda.transform_points(q[None], body)
     np.testing.assert_allclose(panda.jacobian(q, 3), panda.jacobian(q, "panda_link3"))
@@ -310,7 +309,7 @@ def test_nan_sigma_r_in_a_metamodel_is_refused():
 
 
 @pytest.mark.parametrize("mutate, message", [
-    (lambda d: [d], r"\(top level\): expected a JSON object, got list"),
+    (lambda d: [d], r"\(top level\): expected an object \(a table of keys\), got list"),
     (lambda d: {**d, "n_queries": "100"}, r"n_queries: expected an integer, got str"),
     (lambda d: {**d, "sg_grid": [0.1, "1.0"]}, r"sg_grid: expected numbers, got str"),
     (lambda d: {**d, "lapse": 1.5}, r"lapse: 1\.5 is outside \[0\.0, 1\.0\]"),

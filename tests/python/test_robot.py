@@ -268,6 +268,6 @@ def test_import_panda_from_fresh_interpreter():
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-c", "import pickplan; r = pickplan.robots.panda(); print(r.dof, r.link_names)"],
+    out = subprocess.run([sys.executable, "-c", "from pickplan.core import robots; r = robots.panda(); print(r.dof, r.link_names)"],
                          capture_output=True, text=True, check=True, cwd=os.path.dirname(__file__))
     assert out.stdout.startswith("9 ['panda_link0'")

@@ -57,7 +57,7 @@ def test_a_panda_scene_file_is_as_before_and_a_bad_robot_entry_is_refused():
     d = scene.to_dict()
     assert scene.robot == "panda" and "robot" not in d  # the Panda's scene files do not change
     d["robot"] = 7
-    with pytest.raises(ValueError, match="robot: expected a robot description's name"):
+    with pytest.raises(ValueError, match="robot: expected a non-empty string, got int 7"):
         scenes.Scene.from_dict(d)
 
 

@@ -15,6 +15,7 @@ import pytest
 
 from pickplan.core.errors import InputError
 from pickplan.eval import experiments as E
+from pickplan.eval.summaries import summarize
 
 METHODS = ("Fixed", "MD")
 KILL_AFTER_UNITS = 1  # unit files on disk before the kill; a run has len(METHODS) * scenes units
@@ -103,7 +104,7 @@ def _check_same_as_reference(out, reference):
         assert len(list(csv.DictReader(f))) == len(reference)
     assert _outcome(records) == _outcome(reference)
     without_times = lambda rs: {m: {k: v for k, v in row.items() if "time" not in k}  # noqa: E731
-                                for m, row in E.summarize(rs, METHODS).items()}
+                                for m, row in summarize(rs, METHODS).items()}
     assert without_times(records) == without_times(reference)
 
 

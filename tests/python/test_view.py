@@ -1,5 +1,6 @@
 """The 3D view of a plan (``pickplan view``): what plan.json holds for it, the drawing against forward
 kinematics and exact geometry, the self-contained page, and the page rendered in headless Chromium."""
+import ipaddress
 import json
 import os
 import urllib.request
@@ -198,6 +199,81 @@ def test_serve_starts_a_local_viewer_and_stops(planned):
 
     serve(view_folder(folder), keep_running=fetch_once, announce=announced.append)
     assert "MeshCat" in pages[0]
+
+
+def _server_pids() -> list:
+    """This process's children running the viewer's server."""
+    pids = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = open(f"/proc/{entry}/stat").read()
+                cmdline = open(f"/proc/{entry}/cmdline").read()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == os.getpid() and "view_server" in cmdline:
+                pids.append(int(entry))
+    return pids
+
+
+def _address(hex_address: str) -> str:
+    """/proc/net/tcp{,6}'s local address (little-endian 32-bit words) as text."""
+    raw = bytes.fromhex(hex_address)
+    return str(ipaddress.ip_address(b"".join(raw[i:i + 4][::-1] for i in range(0, len(raw), 4))))
+
+
+def _listening(pid: int) -> list:
+    """(address, port) of every TCP socket process ``pid`` listens on, from /proc (IPv4 and IPv6)."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if link.startswith("socket:["):
+            inodes.add(link[8:-1])
+    out = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        for line in open(table).read().splitlines()[1:]:
+            cols = line.split()
+            if cols[3] == "0A" and cols[9] in inodes:  # 0A: LISTEN
+                address, port = cols[1].split(":")
+                out.append((_address(address), int(port, 16)))
+    return out
+
+
+def test_the_live_viewer_listens_on_loopback_only(planned):
+    """meshcat's own server listened on 0.0.0.0 and [::] whatever URL it printed (issue 39)."""
+    folder, _, _ = planned
+    announced, sockets = [], []
+
+    def inspect():
+        pids = _server_pids()
+        assert len(pids) == 1, pids
+        sockets.extend(_listening(pids[0]))
+        return False
+
+    serve(view_folder(folder), keep_running=inspect, announce=announced.append)
+    port = int(announced[0].split()[2].split(":")[2].split("/")[0])
+    assert port in [p for _, p in sockets] and len(sockets) >= 2, sockets  # the web page and the command port
+    assert all(ipaddress.ip_address(a).is_loopback for a, _ in sockets), sockets
+    assert not _server_pids()  # stopped
+
+
+def test_another_address_is_asked_for_and_said_loudly(planned, capsys, monkeypatch):
+    import pickplan.cli.view as view_cli
+
+    folder, _, _ = planned
+    hosts = []
+    monkeypatch.setattr(view_cli, "serve", lambda view, open_browser, host: hosts.append(host))
+    assert main(["view", folder]) == 0 and hosts == ["127.0.0.1"]
+    assert "WARNING" not in capsys.readouterr().err
+    assert main(["view", folder, "--host", "0.0.0.0"]) == 0 and hosts[-1] == "0.0.0.0"
+    assert "WARNING: the viewer listens on 0.0.0.0, not only on this machine" in capsys.readouterr().err
+    assert main(["view", folder, "--host", "example.org"]) == 2
+    assert "--host: expected an IP address" in capsys.readouterr().err
+    assert main(["view", folder, "--host", "192.0.2.1"]) == 2  # TEST-NET-1: no interface of this machine
+    assert "--host: cannot listen on 192.0.2.1" in capsys.readouterr().err
 
 
 def _pixels(png):

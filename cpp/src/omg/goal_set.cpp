@@ -10,6 +10,20 @@
 
 namespace pickplan {
 
+const char* to_string(GoalReason reason) {
+  switch (reason) {
+    case GoalReason::ok: return "ok";
+    case GoalReason::unreachable: return "unreachable";
+    case GoalReason::in_collision: return "in_collision";
+    case GoalReason::standoff_unreachable: return "standoff_unreachable";
+    case GoalReason::standoff_in_collision: return "standoff_in_collision";
+    case GoalReason::approach_clearance: return "approach_clearance";
+    case GoalReason::duplicate: return "duplicate";
+    case GoalReason::over_cap: return "over_cap";
+  }
+  throw std::invalid_argument("invalid goal reason " + std::to_string(static_cast<int>(reason)));
+}
+
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& s,
@@ -24,7 +38,7 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
   if (hand_checker) require_size("goal set: hand checker robot", robot.dof(), hand_checker->robot().dof(), "joints");
   const int d = robot.dof(), m = s.standoff_steps + 1;
   GoalSet out;
-  out.reasons.assign(hand_poses.size(), "");
+  out.reasons.assign(hand_poses.size(), GoalReason::over_cap);
   std::vector<Trajectory> tails;
   std::vector<int> index;
   std::unique_ptr<CollisionWorkspace> cws = checker ? std::make_unique<CollisionWorkspace>(*checker) : nullptr;
@@ -64,17 +78,16 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
   for (; tried_grasps < order.size() && static_cast<int>(tails.size()) < s.max_goals; ++tried_grasps) {
     const size_t g = order[tried_grasps];
     if (hand_checker) {
-      std::string hand_reason;
-      for (int k = m - 1; k >= 0 && hand_reason.empty(); --k)
-        if (free_hand_collides(approach_pose(g, k))) hand_reason = k == m - 1 ? "in_collision" : "standoff_in_collision";
-      if (!hand_reason.empty()) {
-        out.reasons[g] = hand_reason;
+      int k = m - 1;
+      while (k >= 0 && !free_hand_collides(approach_pose(g, k))) --k;
+      if (k >= 0) {
+        out.reasons[g] = k == m - 1 ? GoalReason::in_collision : GoalReason::standoff_in_collision;
         continue;
       }
     }
     // Seeds in order (start first): the first solution that is collision-free and has a
     // feasible approach chain wins. Lazy, so reachable grasps cost one or two descents.
-    std::string reason = "unreachable";
+    GoalReason reason = GoalReason::unreachable;
     std::vector<Eigen::VectorXd> tried;
     for (int k = 0; k < ik.settings().num_seeds; ++k) {
       const IkSolution sol = ik.solve(hand_poses[g], ik.seed_configuration(k, start));
@@ -85,12 +98,12 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
       tried.push_back(sol.q);
       if (static_cast<int>(tried.size()) > s.max_solutions) break;
       if (collides(sol.q)) {
-        reason = "in_collision";
+        reason = GoalReason::in_collision;
         if (hand_collides(sol.q)) break;
         continue;
       }
       if (too_close(sol.q)) {
-        reason = "approach_clearance";
+        reason = GoalReason::approach_clearance;
         continue;
       }
       Trajectory tail(m, d);
@@ -100,23 +113,23 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
         const IkSolution step = ik.solve(approach_pose(g, k2), tail.row(k2 + 1).transpose());  // backed off along z
         if (!step.converged || (step.q.transpose() - tail.row(k2 + 1)).cwiseAbs().maxCoeff() > s.max_joint_jump) {
           ok = false;
-          reason = "standoff_unreachable";
+          reason = GoalReason::standoff_unreachable;
         } else if (collides(step.q)) {
           ok = false;
-          reason = "standoff_in_collision";
+          reason = GoalReason::standoff_in_collision;
         } else if (too_close(step.q)) {
           ok = false;
-          reason = "approach_clearance";
+          reason = GoalReason::approach_clearance;
         } else {
           tail.row(k2) = step.q.transpose();
         }
       }
       if (ok) {
         // Diversity: a goal too close to one already kept is a duplicate.
-        reason = "ok";
+        reason = GoalReason::ok;
         for (const Trajectory& kept : tails)
-          if ((tail.row(m - 1) - kept.row(m - 1)).cwiseAbs().maxCoeff() < s.diversity) reason = "duplicate";
-        if (reason == "ok") {
+          if ((tail.row(m - 1) - kept.row(m - 1)).cwiseAbs().maxCoeff() < s.diversity) reason = GoalReason::duplicate;
+        if (reason == GoalReason::ok) {
           tails.push_back(std::move(tail));
           index.push_back(static_cast<int>(g));
         }
@@ -125,7 +138,7 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
     }
     out.reasons[g] = reason;
   }
-  for (size_t i = tried_grasps; i < order.size(); ++i) out.reasons[order[i]] = "over_cap";  // never tried
+  for (size_t i = tried_grasps; i < order.size(); ++i) out.reasons[order[i]] = GoalReason::over_cap;  // never tried
   // Goals in input order (deterministic, independent of the trial order).
   std::vector<int> kept(tails.size());
   std::iota(kept.begin(), kept.end(), 0);

@@ -99,6 +99,18 @@ class PickupTNLP : public Ipopt::TNLP {
   Multipliers mult;    // at the solution
   int iterations = 0;
   Ipopt::SolverReturn solver_status = Ipopt::UNASSIGNED;
+  // Wall-clock deadline of the run (PickupSettings::time_limit): Ipopt 3.11 has no wall-time
+  // option, so the callback after each iteration stops it (User_Requested_Stop).
+  bool has_deadline = false;
+  std::chrono::steady_clock::time_point deadline;
+  bool deadline_hit = false;
+
+  bool intermediate_callback(Ipopt::AlgorithmMode, Ipopt::Index, Ipopt::Number, Ipopt::Number, Ipopt::Number,
+                             Ipopt::Number, Ipopt::Number, Ipopt::Number, Ipopt::Number, Ipopt::Number, Ipopt::Index,
+                             const Ipopt::IpoptData*, Ipopt::IpoptCalculatedQuantities*) override {
+    if (has_deadline && std::chrono::steady_clock::now() >= deadline) deadline_hit = true;
+    return !deadline_hit;
+  }
 
   bool get_nlp_info(Ipopt::Index& n, Ipopt::Index& m, Ipopt::Index& nnz_jac, Ipopt::Index& nnz_h,
                     IndexStyleEnum& style) override {
@@ -259,6 +271,11 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
   const double c0 = thread_cpu_seconds();
   Ipopt::SmartPtr<PickupTNLP> nlp = new PickupTNLP(cons, x0, st.hessian == HessianMode::exact,
                                                    st.basis == CoefficientBasis::bernstein, warm);
+  if (st.time_limit > 0) {
+    nlp->has_deadline = true;
+    nlp->deadline = t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                             std::chrono::duration<double>(st.time_limit));
+  }
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
   app->Options()->SetIntegerValue("print_level", st.print_level);
   app->Options()->SetStringValue("sb", "yes");
@@ -304,7 +321,7 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   res.cpu_seconds = thread_cpu_seconds() - c0;
   res.ipopt_status = app_status_text(status);
-  res.status = short_status(status);
+  res.status = nlp->deadline_hit && status == Ipopt::User_Requested_Stop ? SolveStatus::time_limit : short_status(status);
   res.converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level;
   res.iterations = nlp->iterations;
   res.mult = nlp->mult;

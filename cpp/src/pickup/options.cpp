@@ -24,7 +24,7 @@ constexpr Names<SolveStatus> kStatus[] = {
     {SolveStatus::step_too_small, "step_too_small"}, {SolveStatus::invalid_number, "invalid_number"},
     {SolveStatus::solver_error, "solver_error"}, {SolveStatus::bounded, "bounded"},
     {SolveStatus::violation_between_samples, "violation_between_samples"},
-    {SolveStatus::constraint_violation, "constraint_violation"}};
+    {SolveStatus::constraint_violation, "constraint_violation"}, {SolveStatus::time_limit, "time_limit"}};
 
 template <class E, std::size_t N>
 const char* name_of(const Names<E> (&names)[N], E value) {
@@ -55,6 +55,5 @@ HessianMode parse_hessian_mode(const std::string& text) { return parse(kHessian,
 CoefficientBasis parse_coefficient_basis(const std::string& text) { return parse(kBasis, text, "basis"); }
 MuStrategy parse_mu_strategy(const std::string& text) { return parse(kMu, text, "mu_strategy"); }
 RateRows parse_rate_rows(const std::string& text) { return parse(kRates, text, "rate_rows"); }
-SolveStatus parse_solve_status(const std::string& text) { return parse(kStatus, text, "status"); }
 
 }  // namespace pickplan

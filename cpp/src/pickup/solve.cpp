@@ -59,16 +59,24 @@ struct StageMultipliers {
   PickupRowSubset subset;
 };
 
-// Limits of solve_successive's runs (PickupSettings::iteration_budget, resolve_max_iter): every
-// Ipopt run adds its iterations to *used (when given), and no run goes past `budget` of them; the
-// re-solve rounds stop after resolve_max_iter. Iterations, not seconds: the result does not depend
-// on the machine's speed or load.
+// The wall-clock limit of solve_successive's and solve_single_shot's runs (PickupSettings::time_limit).
 struct RunLimits {
-  int* used = nullptr;
-  int budget = std::numeric_limits<int>::max();
-  int resolve_max_iter = std::numeric_limits<int>::max();
-  int stage_budget = std::numeric_limits<int>::max();  // all Ipopt runs of this one stage together
+  // Wall-clock deadline (PickupSettings::time_limit; max: none): no run starts after it, and each
+  // run is told the time left.
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+  bool expired() const { return std::chrono::steady_clock::now() >= deadline; }
+  double seconds_left() const {
+    if (deadline == std::chrono::steady_clock::time_point::max()) return 0.0;  // 0: no limit
+    return std::max(1e-3, std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count());
+  }
 };
+
+// The deadline of a call that starts now with settings.time_limit (none when it is 0).
+std::chrono::steady_clock::time_point deadline_of(const PickupSettings& st) {
+  if (!(st.time_limit > 0)) return std::chrono::steady_clock::time_point::max();
+  return std::chrono::steady_clock::now() +
+         std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(st.time_limit));
+}
 
 // bound: a run whose T ends at or above it stops the stage ("bounded"; a better solution is known).
 StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
@@ -78,7 +86,9 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
 
 StageResult solve_stage(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, int stage,
                         const Eigen::VectorXd& x0) {
-  return solve_stage_warm(robot, pb, st, stage, x0, nullptr, nullptr);
+  RunLimits limits;
+  limits.deadline = deadline_of(st);
+  return solve_stage_warm(robot, pb, st, stage, x0, nullptr, nullptr, std::numeric_limits<double>::infinity(), limits);
 }
 
 namespace {
@@ -143,24 +153,14 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
         if (it != prev.lambda.end()) warm.lambda[r] = it->second;
       }
     }
-    PickupSettings sr = st;  // this run's iteration cap
-    if (round > 0) sr.max_iter = std::min(sr.max_iter, limits.resolve_max_iter);
-    // Caps the run at `left` iterations; false (the stage stops, said why) when none are left.
-    const auto cap = [&](int left, const char* budget) {
-      if (left <= 0) {
-        res.status = SolveStatus::max_iterations;
-        res.ipopt_status = std::string("Not_Solved (") + budget + " iteration budget is spent)";
-        return false;
-      }
-      sr.max_iter = std::min(sr.max_iter, left);
-      return true;
-    };
-    constexpr int kNoCap = std::numeric_limits<int>::max();
-    if (limits.stage_budget < kNoCap && !cap(limits.stage_budget - res.iterations, "the stage's")) break;
-    if (limits.used && limits.budget < kNoCap && !cap(limits.budget - *limits.used, "the successive refinement's"))
+    PickupSettings sr = st;  // this run's time left
+    if (limits.expired()) {
+      res.status = SolveStatus::time_limit;
+      res.ipopt_status = "Not_Solved (the time limit ran out)";
       break;
+    }
+    sr.time_limit = limits.seconds_left();
     IpoptRun run = run_ipopt(part, sr, x, mu, warm.lambda.size() ? &warm : nullptr);
-    if (limits.used) *limits.used += run.iterations;
     if (run.mult.lambda.size() == part.num_constraints()) {
       prev.zl = run.mult.zl;
       prev.zu = run.mult.zu;
@@ -275,9 +275,7 @@ bool run_stages_2_to_5(const Robot& robot, const PickupProblem& pb, const Pickup
     if (stage == 3 && st.timing_seed) seed = grasp_timing_seed(robot, pb, st, x, st.timing_fraction);
     seed_wall += elapsed(t_seed);
     seed_cpu += thread_cpu_seconds() - cpu_seed;
-    RunLimits lim = limits;  // stages 4 and 5 from a solved stage 3: a long run is a failing one
-    if (stage >= 4 && st.refine_max_iter > 0) lim.stage_budget = st.refine_max_iter;
-    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult, bound, lim);
+    StageResult r = solve_stage_warm(robot, pb, st, stage, seed, &mult, &mult, bound, limits);
     r.seconds += seed_wall;  // the stage's warm start (IK, timing) counts as the stage's time
     r.cpu_seconds += seed_cpu;
     seed_wall = seed_cpu = 0.0;
@@ -298,22 +296,22 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   PickupResult out;
   const auto t_h = std::chrono::steady_clock::now();
   const double cpu_h = thread_cpu_seconds();
-  // The first arm seed's path counts its iterations; the runs after it stop at the budget
-  // (PickupSettings::iteration_budget).
-  int used = 0;
-  RunLimits first, later_runs;
-  first.used = later_runs.used = &used;
-  if (st.resolve_max_iter > 0) first.resolve_max_iter = later_runs.resolve_max_iter = st.resolve_max_iter;
-  if (st.iteration_budget > 0) later_runs.budget = st.iteration_budget;
-  auto budget_left = [&]() { return used < later_runs.budget; };
+  RunLimits limits;
+  limits.deadline = deadline_of(st);
+  bool timed_out = false;  // a run was cut or skipped by the time limit
+  auto time_left = [&]() {
+    if (limits.expired()) timed_out = true;
+    return !timed_out;
+  };
   out.x = x0.size() ? x0 : heuristic_seed(robot, pb, st);
   const double seed_wall = elapsed(t_h), seed_cpu = thread_cpu_seconds() - cpu_h;  // counted in stage 1
   if (out.x.size() != num_vars(robot, st))
     throw std::invalid_argument("seed: expected " + std::to_string(num_vars(robot, st)) + " variables, got " + std::to_string(out.x.size()));
-  StageResult r1 = solve_stage_warm(robot, pb, st, 1, out.x, nullptr, nullptr, std::numeric_limits<double>::infinity(), first);
+  StageResult r1 = solve_stage_warm(robot, pb, st, 1, out.x, nullptr, nullptr, std::numeric_limits<double>::infinity(), limits);
   r1.seconds += seed_wall;
   r1.cpu_seconds += seed_cpu;
   out.stages.push_back(r1);
+  timed_out = r1.status == SolveStatus::time_limit;
   out.success = r1.success;
   out.status = r1.success ? SolveStatus::solved : r1.status;
   if (r1.success) {
@@ -341,7 +339,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       return false;
     };
     for (int k = 0; k < max_seeds; ++k) {
-      if (k > 0 && !budget_left()) break;
+      if (k > 0 && !time_left()) break;
       if (k >= static_cast<int>(arms.size())) {
         if (later.empty()) break;
         arms.push_back(later.front());
@@ -361,9 +359,10 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       Eigen::VectorXd x = r1.x, price;
       SolveStatus status = SolveStatus::not_run;
       // Shorter than the best by more than Ipopt's tolerance, or it is not kept.
-      const bool ok = run_stages_2_to_5(robot, pb, st, x2, ik_wall, ik_cpu, best * (1.0 - 1e-4), k == 0 ? first : later_runs,
+      const bool ok = run_stages_2_to_5(robot, pb, st, x2, ik_wall, ik_cpu, best * (1.0 - 1e-4), limits,
                                         stages, x, status, price);
       ik_wall = ik_cpu = 0.0;
+      if (status == SolveStatus::time_limit) timed_out = true;
       if (stages.size() >= 3 && max_seeds > 1) {  // a trajectory with the grasp velocity: where it meets limits
         std::vector<Eigen::VectorXd> turns;
         for (const Eigen::VectorXd& w : wound_arm_configurations(robot, pb, st, arms[k], stages.back().x, price))
@@ -400,12 +399,13 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   // The direct track: all constraints at once from the stage-1 solution (a feasible base path with
   // the arm at rest). Stages 2 and 3 commit the arm to one IK branch and grasp timing; this solve
   // is free to choose both, and the shorter of the two solutions is returned.
-  if (st.direct_track && out.stages_completed >= 1 && budget_left()) {
+  if (st.direct_track && out.stages_completed >= 1 && time_left()) {
     PickupSettings sd = st;
     sd.max_iter = std::min(st.max_iter, st.direct_max_iter);
     const double staged = out.success ? out.stages.back().objective : std::numeric_limits<double>::infinity();
     // Shorter by more than Ipopt's tolerance (a tie keeps the successive solution).
-    out.direct = solve_stage_warm(robot, pb, sd, 0, out.stages.front().x, nullptr, nullptr, staged * (1.0 - 1e-4), later_runs);
+    out.direct = solve_stage_warm(robot, pb, sd, 0, out.stages.front().x, nullptr, nullptr, staged * (1.0 - 1e-4), limits);
+    if (out.direct.status == SolveStatus::time_limit) timed_out = true;
     if (out.direct.success && out.direct.objective < staged * (1.0 - 1e-4)) {
       out.x = out.direct.x;
       out.direct_chosen = true;
@@ -414,6 +414,8 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
       out.stages_completed = 5;
     }
   }
+  // The budget ran out somewhere: say so; success still tells whether x is a feasible solution.
+  if (timed_out) out.status = SolveStatus::time_limit;
   fill_result(out, robot, st);
   return out;
 }

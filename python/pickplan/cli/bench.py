@@ -15,8 +15,10 @@ import os
 import sys
 from typing import Dict, List, Optional, Sequence
 
-from pickplan.eval.experiments import (SweepSettings, TABLES, grasp_costs_by_object, methods_for, run_sweep, summarize,
-                                       summarize_by_object)
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
+from pickplan.eval.experiments import SweepSettings, methods_for, run_sweep
+from pickplan.eval.methods import TABLES
+from pickplan.eval.summaries import grasp_costs_by_object, summarize, summarize_by_object
 from pickplan.cli.scenes import clutter_range
 from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
@@ -272,7 +274,8 @@ def add_bench_commands(subparsers) -> None:
         p.add_argument("--runs", type=int, default=10, help="runs per scene and method (default 10)")
         p.add_argument("--methods", nargs="+", default=None, help="subset of the table's methods")
         p.add_argument("--quick", action="store_true", help="CI setting: <= 4 scenes, 1 run, 10 goals")
-        p.add_argument("--out", default=None, help="output folder (default out/bench/TABLE); resumes there")
+        p.add_argument("--out", default=os.path.join("out", "bench", table),
+                       help="output folder (default out/bench/TABLE); resumes there")
         p.add_argument("--workers", type=int, default=2, help="local worker processes (<= 1: serial)")
         p.add_argument("--ray", default=None, help="Ray cluster address, or 'local' to start Ray here")
         p.add_argument("--seed", type=int, default=0)
@@ -320,7 +323,9 @@ def add_perception_command(sub) -> None:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan", description=__doc__.splitlines()[0])
     add_bench_commands(parser.add_subparsers(dest="command", required=True))
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_logging(level_of(args))
     code = run_command("bench", args.handler, args)
     if code:  # as argparse does for its own errors: the stand-alone entry exits
         raise SystemExit(code)

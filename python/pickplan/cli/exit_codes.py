@@ -16,9 +16,19 @@ import os
 import re
 import socket
 import sys
+import tempfile
 import traceback
 from typing import Callable
 from pickplan.core.errors import InputError
+from pickplan.core.robots import check_description
+
+
+class OutputKind(enum.Enum):
+    """What an output option names: a folder (created when missing) or one file (``out_kind`` in a
+    command's parser defaults; ``--out`` is a folder unless a command says otherwise)."""
+
+    folder = "folder"
+    file = "file"
 
 
 class ExitCode(enum.IntEnum):
@@ -59,11 +69,20 @@ def run_command(name: str, handler: Callable, args) -> int:
 
 
 def check_arguments(args) -> None:
-    """Options that name files and folders, checked before any work starts."""
+    """Options that name files and folders (and ``--robot``: the description, as ``robots check``
+    does), checked before any work starts."""
 
     out = getattr(args, "out", None)
-    if isinstance(out, str) and os.path.exists(out) and not os.path.isdir(out):
-        raise InputError(f"'{out}' is a file; expected a folder (it is created when missing)", field="--out")
+    if isinstance(out, str):
+        check_output(out, "out", getattr(args, "out_kind", OutputKind.folder))
+    html = getattr(args, "html", None)
+    if isinstance(html, str):
+        check_output(html, "html", OutputKind.file)
+    robot = getattr(args, "robot", None)
+    if isinstance(robot, str):  # every problem `pickplan robots check` names, before a scene is made for it
+        _, problems = check_description(robot)
+        if problems:
+            raise InputError(problems=problems)
     for option in ("scene", "metamodel"):
         value = getattr(args, option, None)
         if isinstance(value, str) and os.path.isdir(value):
@@ -71,6 +90,33 @@ def check_arguments(args) -> None:
     ray = getattr(args, "ray", None)
     if isinstance(ray, str):
         check_ray_address(ray)
+
+
+def check_output(path: str, option: str, kind: OutputKind) -> None:
+    """InputError naming ``--option`` unless ``path`` can be written as a ``kind``: not a dangling
+    symbolic link, not a file where a folder goes (or the reverse), and the nearest folder of it
+    that exists takes a new file (tried, not guessed from permission bits: root ignores those, a
+    read-only file system does not)."""
+    field = f"--{option}"
+    if os.path.islink(path) and not os.path.exists(path):
+        raise InputError(f"'{path}' is a symbolic link to '{os.readlink(path)}', which does not exist", field=field)
+    if kind is OutputKind.folder and os.path.exists(path) and not os.path.isdir(path):
+        raise InputError(f"'{path}' is a file; expected a folder (it is created when missing)", field=field)
+    if kind is OutputKind.file and os.path.isdir(path):
+        raise InputError(f"'{path}' is a folder; expected a file", field=field)
+    folder = os.path.abspath(path if kind is OutputKind.folder else os.path.dirname(os.path.abspath(path)))
+    while not os.path.lexists(folder):
+        folder = os.path.dirname(folder)
+    if not os.path.isdir(folder):
+        what = "a symbolic link that leads nowhere" if not os.path.exists(folder) else "a file"
+        raise InputError(f"cannot create '{path}': '{folder}' is {what}", field=field)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".pickplan-write-check-", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"cannot write '{path}': the folder '{folder}' does not take new files ({exc.strerror})",
+                         field=field) from None
 
 
 def check_ray_address(address: str) -> None:

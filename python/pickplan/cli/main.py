@@ -9,6 +9,7 @@
   pickplan pickup cases                  pick-up on the move: the paper's six cases, Tables I-IV
   pickplan pickup plan|problems|replay   pick-up on the move: one problem file, random problems, replay
   pickplan view DIR [--html FILE]        a 3D view of a plan folder (live server, or a self-contained page)
+  pickplan ros serve|call                the ROS 2 node (pip install 'pickplan[ros]')
 
 Exit codes (cli/exit_codes.py): 0 success, 1 ran but no plan, 2 bad input, 3 internal error.
 """
@@ -22,6 +23,7 @@ from typing import Optional, Sequence
 from pickplan.omg.grasps.sets import GraspKind
 from pickplan.omg.selection import Selection
 from pickplan.cli.exit_codes import ExitCode, run_command
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
 from pickplan.eval.demo import DemoSettings, run_demo
 from pickplan.sim import execution
 from pickplan.eval.demo import metrics_table
@@ -36,13 +38,17 @@ from pickplan.cli.bench import add_bench_commands
 from pickplan.cli.robots import ROBOT_HELP, add_robot_commands
 from pickplan.cli.view import add_view_commands
 from pickplan.cli.observe import add_observe_commands
+from pickplan.cli.ros import add_ros_commands
 from pickplan.cli.plan_observation import run_plan_observation
 from pickplan.core.errors import InputError
 
 
 def _cmd_demo(args) -> int:
-
-    return run_demo(args.out, DemoSettings(seed=args.seed, robot=args.robot))
+    run = run_demo(args.out, DemoSettings(seed=args.seed, robot=args.robot))
+    print()
+    print(run.table)
+    print(f"wrote {args.out}/{', '.join(run.files)} ({run.seconds:.1f} s)")
+    return ExitCode.OK if run.lifted else ExitCode.NO_PLAN
 
 
 def _cmd_plan(args) -> int:
@@ -100,11 +106,18 @@ def build_parser() -> argparse.ArgumentParser:
     add_robot_commands(sub)
     add_view_commands(sub)
     add_observe_commands(sub)
+    add_ros_commands(sub)
+    add_verbosity_options(parser)  # last: on every command registered above
     return parser
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # ROS's own arguments (`pickplan ros serve ... --ros-args -p a:=1`) pass through unparsed
+    ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
+    args = build_parser().parse_args(argv[:len(argv) - len(ros_args)])
+    args.ros_args = ros_args
+    configure_logging(level_of(args))
     handler = getattr(args, "handler", None) or getattr(args, "func")
     return run_command(args.command, handler, args)
 

@@ -23,6 +23,8 @@ import numpy as np
 from pickplan.cli.exit_codes import run_command
 from pickplan.core.errors import InputError
 from pickplan.core.io import write_text
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
+from pickplan.pickup.metamodel.active import RhoModel
 from pickplan.pickup.metamodel.mesh_part import part_from_mesh
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
 from pickplan.pickup.metamodel.parts import PARTS
@@ -42,13 +44,12 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ray", action="store_true", help="run simulations on Ray (needs ray)")
     p.add_argument("--budget", type=int, default=None,
                    help="simulations per boundary (default 300, quick 80)")
-    p.add_argument("--rho-model", choices=("gp", "svm"), default="gp",
+    p.add_argument("--rho-model", choices=[m.value for m in RhoModel], default=RhoModel.gp.value,
                    help="rho per boundary: GP classification of the samples (default) or "
                         "the calibrated SVM success depth")
     p.add_argument("--no-lapse", action="store_true",
                    help="GP rho: do not cap each pose's probability at 1 - the part's lapse "
                         "rate (the failures no pose explains)")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
 
 
 def add_metamodel_commands(subparsers) -> argparse.ArgumentParser:
@@ -163,7 +164,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan")
     sub = parser.add_subparsers(dest="command", required=True)
     add_metamodel_commands(sub)
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_logging(level_of(args))
     return run_command(args.command, args.func, args)
 
 

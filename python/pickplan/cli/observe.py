@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from pickplan.cli.exit_codes import OutputKind
 from pickplan.sim.observe import CameraRig, render_observation
 from pickplan.sim.scenes import Scene
 
@@ -14,7 +15,7 @@ def add_observe_commands(subparsers) -> None:
     p.add_argument("--noise", type=float, default=0.0, help="depth noise sigma in metres (e.g. 0.002)")
     p.add_argument("--seed", type=int, default=0, help="seed of the depth noise")
     p.add_argument("--out", required=True, help="observation file (.npz)")
-    p.set_defaults(handler=run_observe)
+    p.set_defaults(handler=run_observe, out_kind=OutputKind.file)
 
 
 def run_observe(args: argparse.Namespace) -> int:

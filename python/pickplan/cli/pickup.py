@@ -14,13 +14,17 @@ prints PyBullet's independent tool-pose error at T2 and least link-obstacle dist
 from __future__ import annotations
 
 import argparse
+import math
 import os
 
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
 from pickplan.cli.exit_codes import ExitCode
+from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open, write_text
 from pickplan.core.io import read_json
 from pickplan.pickup.metamodel.validate import validate_metamodel
 from pickplan.pickup.nlp import cases
+from pickplan.pickup.nlp.feasibility import Reason
 from pickplan.pickup.nlp import planner
 from pickplan.pickup.nlp import problem_file
 from pickplan.pickup.nlp import random_problems
@@ -49,8 +53,11 @@ def add_pickup_commands(subparsers) -> None:
     p.add_argument("--problem", required=True, help="problem JSON (pickplan.pickup_problem)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--metamodel", default=None, help="meta-model JSON replacing the one the problem names")
-    p.add_argument("--method", default="successive", choices=[m.value for m in planner.Method])
+    p.add_argument("--method", default="routed", choices=[m.value for m in planner.Method],
+                   help="routed (default): route seeds, lower bound, reasons; successive: the paper's five stages")
     p.add_argument("--seed", type=int, default=0, help="random seed (single shot)")
+    p.add_argument("--time-limit", type=float, default=0.0,
+                   help="wall-clock seconds for the solve (0: none); the best feasible plan so far is kept")
     p.add_argument("--workers", type=int, default=1, help="simulation processes if a built-in meta-model is built")
     p.set_defaults(func=run_plan)
     g = sub.add_parser("problems", help="write seeded random problem files")
@@ -58,6 +65,8 @@ def add_pickup_commands(subparsers) -> None:
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True, help="output folder (problem_0000.json, ...)")
     g.add_argument("--metamodel", default="box", help="what the problems name: a built-in part, 'standin' or a file")
+    g.add_argument("--layout", default="paper", choices=[x.value for x in random_problems.Layout],
+                   help="where the part stands relative to the route (random_problems.Layout)")
     g.set_defaults(func=run_problems)
     r = sub.add_parser("replay", help="replay a written trajectory in PyBullet")
     r.add_argument("trajectory", help="trajectory JSON written by pickup plan or pickup cases")
@@ -69,16 +78,21 @@ def run_plan(args: argparse.Namespace) -> int:
     spec = problem_file.load_problem(args.problem)
     rho = solve_problem.rho_for_spec(spec, args.metamodel, workers=args.workers)
     robot = planner.mobile_ur5()
+    if not (args.time_limit >= 0 and math.isfinite(args.time_limit)):
+        raise InputError(f"expected a finite number >= 0, got {args.time_limit}", field="--time-limit")
     settings = planner.PlannerSettings(seed=args.seed)
-    sol = solve_problem.solve(robot, spec, rho, settings, args.method)
+    sol = solve_problem.solve(robot, spec, rho, settings, args.method, time_limit=args.time_limit)
     paths = solve_problem.write_solution(robot, sol, args.out)
     p = sol.plan
+    bound = f"; lower bound on T {p.lower_bound:.2f} s" if math.isfinite(p.lower_bound) else ""
     if not p.success:
-        print(f"no solution: status {p.status}, best stage reached {p.stages_completed} of 5 "
-              f"(CPU {p.total_cpu_seconds:.2f} s); wrote {paths['metrics']}")
+        why = f", reason {p.reason}: {p.detail}" if p.reason is not Reason.none else ""
+        print(f"no solution: status {p.status}{why}; best stage reached {p.stages_completed} of 5 "
+              f"(CPU {p.total_cpu_seconds:.2f} s){bound}; wrote {paths['metrics']}")
         return ExitCode.NO_PLAN
     failed = [k for k, ok in sol.checks.items() if not ok]
-    print(f"solved: T = {p.T:.2f} s, grasping [{p.T1:.2f}, {p.T2:.2f}] s at S_g = {p.S_g:.3f} m/s, "
+    cut = " (the time limit cut later runs: the best plan found before it)" if p.status is planner.SolveStatus.time_limit else ""
+    print(f"solved{cut}: T = {p.T:.2f} s{bound}, grasping [{p.T1:.2f}, {p.T2:.2f}] s at S_g = {p.S_g:.3f} m/s, "
           f"rho = {sol.metrics['success_probability']:.4f} (gamma {spec.gamma}); CPU {p.total_cpu_seconds:.2f} s")
     print(f"dense checks: {'all passed' if not failed else 'FAILED ' + ', '.join(failed)}")
     print(f"wrote {', '.join(paths.values())}")
@@ -88,7 +102,8 @@ def run_plan(args: argparse.Namespace) -> int:
 
 def run_problems(args: argparse.Namespace) -> int:
     named = args.metamodel in (problem_file.STANDIN, *problem_file.BUILTIN_PARTS)
-    ws = random_problems.Workspace(metamodel=args.metamodel if named else os.path.abspath(args.metamodel))
+    ws = random_problems.Workspace(metamodel=args.metamodel if named else os.path.abspath(args.metamodel),
+                                   layout=random_problems.Layout(args.layout))
     specs = random_problems.random_problems(args.n, args.seed, ws)
     os.makedirs(args.out, exist_ok=True)
     for i, spec in enumerate(specs):
@@ -251,7 +266,9 @@ def main(argv=None) -> int:
     in add_pickup_commands."""
     parser = argparse.ArgumentParser(prog="pickplan")
     add_pickup_commands(parser.add_subparsers(dest="command", required=True))
+    add_verbosity_options(parser)
     args = parser.parse_args(["pickup"] + list(argv) if argv is not None else None)
+    configure_logging(level_of(args))
     return args.func(args)
 
 

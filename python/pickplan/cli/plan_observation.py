@@ -22,7 +22,7 @@ from pickplan.sim.scenes import Scene
 def run_plan_observation(args: argparse.Namespace, settings: OMGSettings) -> int:
     if args.execute and not args.scene:
         raise InputError("--execute needs --scene: the true objects the plan is executed on", field="--execute")
-    observation = Observation.load(args.observation)  # an ObservationError names the bad field
+    observation = Observation.load(args.observation)  # an InputError names the file and the bad field
     scene = Scene.load(args.scene) if args.scene else None  # loaded up front: a bad file fails before planning
     world = PerceivedWorld(observation, robots.load_robot(args.robot))
     result = PerceivedPlanner(world, settings).plan()

@@ -5,7 +5,7 @@ import argparse
 
 from pickplan.core import objects as objects_mod
 from pickplan.core.description import robot_info, shipped, shipped_name
-from pickplan.core.description_check import check_description
+from pickplan.core.robots import check_description
 from pickplan.omg.grasps import HandObjectChecker, load_grasp_set
 
 ROBOT_HELP = ("the robot: a shipped description (`pickplan robots list`; a short name such as 'iiwa' or 'ur5' "
@@ -35,7 +35,8 @@ def run_list(args: argparse.Namespace) -> int:
 
 
 def run_check(args: argparse.Namespace) -> int:
-    """0 when usable; 2 (bad input) with every problem listed otherwise."""
+    """0 when usable; 2 (bad input) with every problem listed otherwise: exactly the problems that
+    make every other command (``--robot FILE``) refuse the file (one path: ``robots.load_robot``)."""
     desc, problems = check_description(args.file)
     if problems:
         print(f"{args.file}: {len(problems)} problem(s):")

@@ -9,6 +9,7 @@ import sys
 from typing import Optional, Sequence, Tuple
 
 from pickplan.cli.exit_codes import run_command
+from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
 from pickplan.sim.layouts import Layout
 from pickplan.sim.scene_sets import write_scene_set
 from pickplan.sim.scenes import ORIENTATIONS, SceneSettings
@@ -61,7 +62,9 @@ def run_scenes(args: argparse.Namespace) -> int:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="pickplan", description=__doc__)
     add_scene_commands(parser.add_subparsers(dest="command", required=True))
+    add_verbosity_options(parser)
     args = parser.parse_args(argv)
+    configure_logging(level_of(args))
     code = run_command(args.command, args.handler, args)
     if code:  # as argparse does for its own errors: the stand-alone entry exits
         raise SystemExit(code)

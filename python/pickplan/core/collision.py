@@ -1,8 +1,9 @@
 """Exact collision checking (native, FCL): a robot against scene meshes and a table box.
 
->>> import numpy as np, trimesh, pickplan
->>> from pickplan.collision import CollisionChecker, SceneMesh, Table
->>> panda = pickplan.robots.panda()
+>>> import numpy as np, trimesh
+>>> from pickplan.core import robots
+>>> from pickplan.core.collision import CollisionChecker, SceneMesh, Table
+>>> panda = robots.panda()
 >>> box = trimesh.creation.box(extents=[0.1, 0.1, 0.2])
 >>> pose = np.eye(4); pose[:3, 3] = [0.5, 0.0, 0.1]
 >>> checker = CollisionChecker(panda, [SceneMesh("box", box, pose)], Table(size=(1.0, 1.4, 0.05)))

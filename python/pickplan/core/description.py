@@ -5,7 +5,9 @@ the arm joints and start configuration, the gripper (hand link, finger links and
 open and closed values, the largest opening, the pads, and the grasp frame: z the approach axis, y
 the closing axis, the origin between the pads), body-point density, link pairs whose collisions are
 ignored, and joint velocity / acceleration / jerk limits. ``assets/robots/*.toml`` are the shipped
-ones; ``pickplan robots check FILE`` validates a user's (``description_check``).
+ones. This module reads a file's form (types, physical ranges: ``parse_description``, every problem
+as a ``Problem``); ``description_check`` checks it against the robot model, and
+``robots.check_description`` / ``robots.load_robot`` run both, the one path every command takes.
 
 Paths in a file: ``pybullet_data:REL`` (pybullet_data's folder), ``assets:REL`` (pickplan's assets),
 an absolute path, or a path relative to the description file. This module is pure Python: loading a
@@ -13,18 +15,17 @@ description does not need the native module; checking it against the robot model
 """
 from __future__ import annotations
 
-import hashlib
 import os
 import sys
-import tempfile
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from pickplan.core.io import atomic_open
+from pickplan.core.errors import InputError, Problem
+from pickplan.core.fields import FieldReader
 from pickplan.core.paths import assets_dir
+from pickplan.core.urdf_xml import compose_mount, pose_matrix, read_urdf  # noqa: F401  (pose_matrix re-exported)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -32,14 +33,6 @@ else:  # pragma: no cover - Python < 3.11 reads TOML with the tomli backport
     import tomli as tomllib
 
 ROBOTS_FOLDER = "robots"   # under assets/
-
-
-class DescriptionError(ValueError):
-    """A robot description that cannot be used; ``problems`` lists every one found."""
-
-    def __init__(self, source: str, problems: List[str]):
-        self.source, self.problems = source, list(problems)
-        super().__init__(f"{source}: " + "; ".join(self.problems))
 
 
 @dataclass(frozen=True)
@@ -77,6 +70,7 @@ class RobotDescription:
     jerk_limits: Optional[Tuple[float, ...]]
     finger_acceleration_limit: Optional[float]        # per finger joint (m/s^2 or rad/s^2)
     gripper: GripperSpec
+    urdf_files: Tuple[str, ...] = ()  # the user's URDF files ``urdf`` was composed from (messages name them)
 
     @property
     def opening_configuration(self) -> Dict[str, float]:
@@ -111,16 +105,11 @@ class RobotInfo:
     @classmethod
     def from_description(cls, desc: RobotDescription) -> "RobotInfo":
         g = desc.gripper
-        opens = {f.open for f in g.finger_joints}
-        closes = {f.closed for f in g.finger_joints}
-        if len(opens) != 1 or len(closes) != 1:  # one command opens / closes every finger
-            raise DescriptionError(desc.source, ["gripper.finger_joints: every finger joint needs the same open and "
-                                                 f"the same closed value, got open {sorted(opens)}, closed {sorted(closes)}"])
         acceleration = desc.acceleration_limits or (DEFAULT_ACCELERATION,) * len(desc.arm_joints)
         return cls(name=desc.name, urdf=desc.urdf, hand_link=g.hand_link, finger_links=tuple(g.finger_links),
                    finger_joints=tuple(f.name for f in g.finger_joints), arm_joints=tuple(desc.arm_joints),
                    arm_dof=len(desc.arm_joints), ready=tuple(desc.start) + tuple(f.open for f in g.finger_joints),
-                   finger_open=opens.pop(), finger_closed=closes.pop(),
+                   finger_open=g.finger_joints[0].open, finger_closed=g.finger_joints[0].closed,
                    pad_depth=float(np.linalg.norm(g.grasp_frame[:3, 3])), max_opening=float(g.max_opening),
                    pad_length=float(g.pad_length), pad_width=float(g.pad_width), grasp_frame=np.array(g.grasp_frame),
                    arm_velocity_limits=desc.velocity_limits, arm_acceleration_limits=tuple(acceleration),
@@ -154,61 +143,28 @@ DEFAULT_ACCELERATION = 3.0          # rad/s^2 per arm joint
 DEFAULT_FINGER_ACCELERATION = 1.0   # m/s^2 (or rad/s^2) per finger joint
 
 
-# --- small parsers that collect problems instead of raising at the first ------------------------------
-def pose_matrix(xyz, rpy) -> np.ndarray:
-    """xyz + roll-pitch-yaw (URDF convention: R = Rz(yaw) Ry(pitch) Rx(roll)) -> 4x4."""
-    r, p, y = (float(v) for v in rpy)
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    T = np.eye(4)
-    T[:3, :3] = [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                 [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                 [-sp, cp * sr, cp * cr]]
-    T[:3, 3] = [float(v) for v in xyz]
-    return T
+# --- physical ranges a description's values must lie in (beyond them a value is a typo or garbage) -----
+VELOCITY = (0.01, 50.0)               # rad/s (m/s for a prismatic joint)
+ACCELERATION = (0.01, 1000.0)         # rad/s^2
+JERK = (0.1, 1e6)                     # rad/s^3
+FINGER_ACCELERATION = (0.001, 100.0)  # m/s^2 (or rad/s^2)
+PAD = (0.001, 0.2)                    # m: a pad's length and its width
+MAX_OPENING = 0.5                     # m between the pads, open
+BODY_POINTS = (1, 1000)               # per link
+MAX_OFFSET = 100.0                    # m: a position in a description (base, mount, grasp frame)
+MAX_ANGLE = 4 * np.pi                 # rad: roll, pitch, yaw
+MAX_JOINT_VALUE = 100.0               # rad or m: start and finger values (the URDF's limits bound them further)
+LIMITS = {"velocity": VELOCITY, "acceleration": ACCELERATION, "jerk": JERK}
 
 
-class _Reader:
-    def __init__(self, data: dict, problems: List[str]):
-        self.data, self.problems = data, problems
-
-    def get(self, table: dict, key: str, kind, where: str, default=None, required: bool = True):
-        if key not in table:
-            if required:
-                self.problems.append(f"{where}{key}: missing")
-            return default
-        value = table[key]
-        ok = isinstance(value, kind) and not isinstance(value, bool) if kind is not bool else isinstance(value, bool)
-        if kind is float:
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
-        if not ok:
-            self.problems.append(f"{where}{key}: expected {getattr(kind, '__name__', kind)}, got {value!r}")
-            return default
-        return float(value) if kind is float else value
-
-    def numbers(self, table: dict, key: str, where: str, n: Optional[int] = None, required: bool = True):
-        value = self.get(table, key, list, where, required=required)
-        if value is None:
-            return None
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in value):
-            self.problems.append(f"{where}{key}: expected finite numbers, got {value!r}")
-            return None
-        if n is not None and len(value) != n:
-            self.problems.append(f"{where}{key}: expected {n} values, got {len(value)}")
-            return None
-        return tuple(float(v) for v in value)
-
-    def pose(self, table: dict, key: str, where: str, required: bool = True) -> Optional[np.ndarray]:
-        sub = self.get(table, key, dict, where, required=required)
-        if sub is None:
-            return None if required else np.eye(4)
-        xyz = self.numbers(sub, "xyz", f"{where}{key}.", 3)
-        rpy = self.numbers(sub, "rpy", f"{where}{key}.", 3)
-        self.unknown(sub, ("xyz", "rpy"), f"{where}{key}.")
-        return None if xyz is None or rpy is None else pose_matrix(xyz, rpy)
-
-    def unknown(self, table: dict, known, where: str) -> None:
-        for key in sorted(set(table) - set(known)):
-            self.problems.append(f"{where}{key}: unknown key (expected one of {sorted(known)})")
+def read_pose(r: FieldReader, value, where: str) -> np.ndarray:
+    """A ``{xyz, rpy}`` table as a 4x4 pose."""
+    t = r.table(value, where, known=("xyz", "rpy"))
+    xyz = r.get(t, "xyz", where, r.vector, n=3, lo=-MAX_OFFSET, hi=MAX_OFFSET)
+    rpy = r.get(t, "rpy", where, r.vector, n=3, lo=-MAX_ANGLE, hi=MAX_ANGLE)
+    if xyz is None or rpy is None:
+        r.skip()
+    return pose_matrix(xyz, rpy)
 
 
 def resolve_path(text: str, relative_to: str) -> str:
@@ -256,151 +212,138 @@ def description_path(name_or_file: str) -> str:
 
 
 def load_description(name_or_file: str) -> RobotDescription:
-    """Read and check the form of a description (every problem at once, as ``DescriptionError``)."""
+    """Read and check the form of a description (every problem at once, as one ``InputError``)."""
     desc, problems = parse_description(name_or_file)
     if problems:
-        raise DescriptionError(desc.source if desc else name_or_file, problems)
+        raise InputError(problems=problems)
     return desc
 
 
-def parse_description(name_or_file: str) -> Tuple[Optional[RobotDescription], List[str]]:
+def _read_toml(path: str) -> Tuple[Optional[dict], List[Problem]]:
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f), []
+    except tomllib.TOMLDecodeError as exc:
+        return None, [Problem("", f"not valid TOML: {exc}", path)]
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:  # e.g. an integer of 5,000 digits
+        return None, [Problem("", f"not readable TOML: {type(exc).__name__}: {str(exc)[:200]}", path)]
+    except IsADirectoryError:
+        return None, [Problem("", "expected a robot description (.toml), got a folder", path)]
+
+
+def parse_description(name_or_file: str) -> Tuple[Optional[RobotDescription], List[Problem]]:
     """The description as far as it can be read (defaults where a value is wrong) and every problem
     of its form; None when the file is not TOML at all."""
     path = description_path(name_or_file)
-    try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:
-        return None, [f"not valid TOML: {exc}"]
-    problems: List[str] = []
-    r = _Reader(data, problems)
-    r.unknown(data, TOP_KEYS, "")
-    name = r.get(data, "name", str, "", default="?")
-    if not isinstance(data.get("description", ""), str):
-        problems.append(f"description: expected str, got {data['description']!r}")
-    urdf_text = r.get(data, "urdf", str, "", default="")
-    urdf = resolve_path(urdf_text, path) if urdf_text else ""
-    if urdf and not os.path.isfile(urdf):
-        problems.append(f"urdf: file not found: {urdf}")
-    package_dirs = r.get(data, "package_dirs", list, "", default=[], required=False)
-    package_dirs = tuple(resolve_path(p, path) for p in package_dirs if isinstance(p, str))
-    base = r.pose(data, "base", "", required=False)
-    base = np.eye(4) if base is None else base
-    arm = r.get(data, "arm_joints", list, "", default=[])
-    if not all(isinstance(j, str) for j in arm):
-        problems.append(f"arm_joints: expected joint names, got {arm!r}")
-        arm = []
-    start = r.numbers(data, "start", "", len(arm) if arm else None) or (0.0,) * len(arm)
-    per_link = r.get(data, "body_points_per_link", int, "", default=20, required=False)
-    if per_link is not None and per_link < 1:
-        problems.append(f"body_points_per_link: expected a positive count, got {per_link}")
-    skip = r.get(data, "skip_collision", list, "", default=[], required=False)
-    if not all(isinstance(p, list) and len(p) == 2 and all(isinstance(s, str) for s in p) for p in skip):
-        problems.append(f"skip_collision: expected pairs of link names, got {skip!r}")
-        skip = []
-    limits = r.get(data, "limits", dict, "", default={}, required=False)
-    r.unknown(limits, ("velocity", "acceleration", "jerk", "finger_acceleration"), "limits.")
-    finger_acc = r.get(limits, "finger_acceleration", float, "limits.", required=False)
-    if finger_acc is not None and finger_acc <= 0:
-        problems.append(f"limits.finger_acceleration: expected a positive value, got {finger_acc}")
-    lim = {k: r.numbers(limits, k, "limits.", len(arm) if arm else None, required=False)
-           for k in ("velocity", "acceleration", "jerk")}
-    for k, v in lim.items():
-        if v is not None and min(v) <= 0:
-            problems.append(f"limits.{k}: expected positive values, got {list(v)}")
-    gripper = _gripper(r, r.get(data, "gripper", dict, "", default={}))
-    mount = r.get(data, "mount", dict, "", required=False)
-    if mount is not None and urdf and os.path.isfile(urdf):
-        urdf = _compose(r, mount, urdf, path)
-    return RobotDescription(name=name, description=str(data.get("description", "")), source=path, urdf=urdf,
-                            package_dirs=package_dirs, base_pose=base, arm_joints=tuple(arm), start=start,
-                            body_points_per_link=int(per_link or 20), skip_collision=tuple(tuple(p) for p in skip),
-                            velocity_limits=lim["velocity"], acceleration_limits=lim["acceleration"],
-                            jerk_limits=lim["jerk"], finger_acceleration_limit=finger_acc, gripper=gripper), problems
+    data, problems = _read_toml(path)
+    if data is None:
+        return None, problems
+    r = FieldReader(path)
+    r.table(data, "", known=TOP_KEYS)
+    name = r.get(data, "name", "", r.text, default="?")
+    description = r.get(data, "description", "", r.text, default="", required=False, allow_empty=True)
+    package_dirs = r.get(data, "package_dirs", "", _paths, default=(), required=False, r=r, source=path)
+    base = r.get(data, "base", "", lambda v, w: read_pose(r, v, w), default=np.eye(4), required=False)
+    arm = r.get(data, "arm_joints", "", _names, default=(), r=r)
+    start = r.get(data, "start", "", r.vector, n=len(arm) if arm else None, lo=-MAX_JOINT_VALUE, hi=MAX_JOINT_VALUE)
+    per_link = r.get(data, "body_points_per_link", "", r.integer, default=20, required=False,
+                     lo=BODY_POINTS[0], hi=BODY_POINTS[1])
+    skip = r.get(data, "skip_collision", "", _pairs, default=(), required=False, r=r)
+    limits = _limits(r, r.get(data, "limits", "", r.table, default={}, required=False), len(arm))
+    gripper = _gripper(r, r.get(data, "gripper", "", r.table, default={}))
+    urdf, urdf_files = _urdf(r, data, path)
+    desc = RobotDescription(name=name, description=description, source=path, urdf=urdf, package_dirs=package_dirs,
+                            base_pose=base, arm_joints=tuple(arm), start=start or (0.0,) * len(arm),
+                            body_points_per_link=per_link, skip_collision=skip, gripper=gripper,
+                            urdf_files=urdf_files, **limits)
+    return desc, r.problems
 
 
-def _gripper(r: _Reader, g: dict) -> Optional[GripperSpec]:
-    w = "gripper."
-    r.unknown(g, ("hand_link", "finger_links", "finger_joints", "max_opening", "pad", "grasp_frame"), w)
-    hand = r.get(g, "hand_link", str, w, default="")
-    links = r.get(g, "finger_links", list, w, default=[])
-    joints = []
-    for k, j in enumerate(r.get(g, "finger_joints", list, w, default=[])):
-        where = f"{w}finger_joints[{k}]."
-        if not isinstance(j, dict):
-            r.problems.append(f"{where[:-1]}: expected {{name, open, closed}}, got {j!r}")
-            continue
-        r.unknown(j, ("name", "open", "closed"), where)
-        joints.append(FingerJoint(r.get(j, "name", str, where, default=""), r.get(j, "open", float, where, default=0.0),
-                                  r.get(j, "closed", float, where, default=0.0)))
-    if not joints:
-        r.problems.append(f"{w}finger_joints: at least one finger joint is needed")
-    opening = r.get(g, "max_opening", float, w, default=0.0)
-    if not 0 < opening <= 0.5:
-        r.problems.append(f"{w}max_opening: expected metres in (0, 0.5], got {opening}")
-    pad = r.get(g, "pad", dict, w, default={}, required=False)
-    r.unknown(pad, ("length", "width"), f"{w}pad.")
-    frame = r.pose(g, "grasp_frame", w)
-    frame = np.eye(4) if frame is None else frame
-    return GripperSpec(hand, tuple(links), tuple(joints), opening,
-                       r.get(pad, "length", float, f"{w}pad.", default=0.0, required=bool(pad)),
-                       r.get(pad, "width", float, f"{w}pad.", default=0.0, required=bool(pad)), frame)
+def _paths(value, where: str, r: FieldReader, source: str) -> Tuple[str, ...]:
+    return tuple(resolve_path(r.text(p, f), source) for f, p in r.items(value, where))
 
 
-def _absolute_meshes(root: ET.Element, urdf: str) -> None:
-    folder = os.path.dirname(os.path.abspath(urdf))
-    for mesh in root.iter("mesh"):
-        name = mesh.get("filename", "")
-        if name.startswith("package://"):
-            name = name[len("package://"):]
-        if not os.path.isabs(name):
-            mesh.set("filename", os.path.join(folder, name))
+def _names(value, where: str, r: FieldReader) -> Tuple[str, ...]:
+    names = tuple(r.text(v, f) for f, v in r.items(value, where))
+    if len(set(names)) != len(names):
+        r.fail(where, f"a joint named more than once: {list(names)}")
+    return names
 
 
-def _compose(r: _Reader, mount: dict, arm_urdf: str, source: str) -> str:
-    """The arm's URDF with the gripper's fixed to ``parent_link``: written once per content."""
-    w = "mount."
-    r.unknown(mount, ("urdf", "parent_link", "xyz", "rpy"), w)
-    gripper_text = r.get(mount, "urdf", str, w, default="")
-    parent = r.get(mount, "parent_link", str, w, default="")
-    T = pose_matrix(r.numbers(mount, "xyz", w, 3) or (0, 0, 0), r.numbers(mount, "rpy", w, 3) or (0, 0, 0))
-    gripper_urdf = resolve_path(gripper_text, source) if gripper_text else ""
-    if not os.path.isfile(gripper_urdf):
-        r.problems.append(f"{w}urdf: file not found: {gripper_urdf or '(none given)'}")
-        return arm_urdf
-    arm, hand = ET.parse(arm_urdf).getroot(), ET.parse(gripper_urdf).getroot()
-    _absolute_meshes(arm, arm_urdf)
-    _absolute_meshes(hand, gripper_urdf)
-    arm_links = {l.get("name") for l in arm.iter("link")}
-    if parent not in arm_links:
-        r.problems.append(f"{w}parent_link: {parent!r} is not a link of {arm_urdf}")
-        return arm_urdf
-    children = {j.find("child").get("link") for j in hand.iter("joint") if j.find("child") is not None}
-    roots = [l.get("name") for l in hand.iter("link") if l.get("name") not in children]
-    if len(roots) != 1:
-        r.problems.append(f"{w}urdf: expected one root link in {gripper_urdf}, found {roots}")
-        return arm_urdf
-    for el in list(hand):
-        if el.tag in ("link", "joint"):
-            arm.append(el)
-    joint = ET.SubElement(arm, "joint", name=f"{parent}_to_{roots[0]}", type="fixed")
-    ET.SubElement(joint, "parent", link=parent)
-    ET.SubElement(joint, "child", link=roots[0])
-    rpy = _rpy_of(T[:3, :3])
-    ET.SubElement(joint, "origin", xyz=" ".join(f"{v:.12g}" for v in T[:3, 3]), rpy=" ".join(f"{v:.12g}" for v in rpy))
-    text = ET.tostring(arm, encoding="unicode")
-    digest = hashlib.sha1(text.encode()).hexdigest()[:16]
-    out = os.path.join(tempfile.gettempdir(), f"pickplan-{os.getuid() if hasattr(os, 'getuid') else 0}", "robots",
-                       f"{os.path.splitext(os.path.basename(source))[0]}-{digest}.urdf")
-    if not os.path.isfile(out):
-        with atomic_open(out, "w") as f:
-            f.write('<?xml version="1.0"?>\n' + text)
+def _pairs(value, where: str, r: FieldReader) -> Tuple[Tuple[str, str], ...]:
+    pairs = []
+    for f, p in r.items(value, where):
+        if not isinstance(p, list) or len(p) != 2:
+            r.fail(f, f"expected a pair of link names, got {p!r:.60}")
+        pairs.append((r.text(p[0], f"{f}[0]"), r.text(p[1], f"{f}[1]")))
+    return tuple(pairs)
+
+
+def _limits(r: FieldReader, limits: dict, arm_dof: int) -> dict:
+    r.table(limits, "limits", known=("velocity", "acceleration", "jerk", "finger_acceleration"))
+    out = {f"{k}_limits": r.get(limits, k, "limits", r.vector, required=False, n=arm_dof or None,
+                                lo=lo, hi=hi, unit="rad/s" if k == "velocity" else "")
+           for k, (lo, hi) in LIMITS.items()}
+    out["finger_acceleration_limit"] = r.get(limits, "finger_acceleration", "limits", r.number, required=False,
+                                             lo=FINGER_ACCELERATION[0], hi=FINGER_ACCELERATION[1])
     return out
 
 
-def _rpy_of(R: np.ndarray) -> Tuple[float, float, float]:
-    """Roll, pitch, yaw of R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    pitch = float(np.arcsin(np.clip(-R[2, 0], -1, 1)))
-    if abs(R[2, 0]) < 1 - 1e-9:
-        return float(np.arctan2(R[2, 1], R[2, 2])), pitch, float(np.arctan2(R[1, 0], R[0, 0]))
-    return float(np.arctan2(-R[1, 2], R[1, 1])), pitch, 0.0
+def _urdf(r: FieldReader, data: dict, path: str) -> Tuple[str, Tuple[str, ...]]:
+    """(the URDF to load, the user's URDF files it comes from); the gripper's composed on where
+    the description mounts one. Each file must be a well-formed URDF."""
+    text = r.get(data, "urdf", "", r.text, default="")
+    if not text:
+        return "", ()
+    urdf = resolve_path(text, path)
+    if not os.path.isfile(urdf):
+        r.note("urdf", f"file not found: {urdf}")
+        return urdf, (urdf,)
+    arm = r.attempt(read_urdf, r, urdf, "urdf")
+    mount = r.get(data, "mount", "", r.table, required=False, known=("urdf", "parent_link", "xyz", "rpy"))
+    if mount is None or arm is None:
+        return urdf, (urdf,)
+    with r.part():
+        gripper_text = r.get(mount, "urdf", "mount", r.text, default="")
+        parent = r.get(mount, "parent_link", "mount", r.text, default="")
+        xyz = r.get(mount, "xyz", "mount", r.vector, default=(0.0, 0.0, 0.0), required=False, n=3,
+                    lo=-MAX_OFFSET, hi=MAX_OFFSET)
+        rpy = r.get(mount, "rpy", "mount", r.vector, default=(0.0, 0.0, 0.0), required=False, n=3,
+                    lo=-MAX_ANGLE, hi=MAX_ANGLE)
+        gripper_urdf = resolve_path(gripper_text, path) if gripper_text else ""
+        if not os.path.isfile(gripper_urdf):
+            r.fail("mount.urdf", f"file not found: {gripper_urdf or '(none given)'}")
+        hand = read_urdf(r, gripper_urdf, "mount.urdf")
+        return compose_mount(r, arm, urdf, hand, gripper_urdf, parent, pose_matrix(xyz, rpy), path), \
+            (urdf, gripper_urdf)
+    return urdf, (urdf,)
+
+
+def _gripper(r: FieldReader, g: dict) -> GripperSpec:
+    w = "gripper"
+    r.table(g, w, known=("hand_link", "finger_links", "finger_joints", "max_opening", "pad", "grasp_frame"))
+    hand = r.get(g, "hand_link", w, r.text, default="")
+    links = r.get(g, "finger_links", w, lambda v, f: tuple(r.text(x, fx) for fx, x in r.items(v, f)), default=())
+    joints = []
+    for f, j in r.get(g, "finger_joints", w, r.items, default=[]):
+        joints.append(r.attempt(_finger_joint, r, j, f))
+    joints = tuple(j for j in joints if j is not None)
+    if not joints:
+        r.note(f"{w}.finger_joints", "at least one finger joint is needed")
+    elif len({f.open for f in joints}) != 1 or len({f.closed for f in joints}) != 1:  # one command moves every finger
+        r.note(f"{w}.finger_joints", "every finger joint needs the same open and the same closed value, got open "
+                                     f"{sorted({f.open for f in joints})}, closed {sorted({f.closed for f in joints})}")
+    opening = r.get(g, "max_opening", w, r.number, default=0.0, lo=0.0, hi=MAX_OPENING, low_open=True, unit="m")
+    pad = r.get(g, "pad", w, r.table, default={}, known=("length", "width"))
+    pad_length = r.get(pad, "length", f"{w}.pad", r.number, default=0.0, lo=PAD[0], hi=PAD[1], unit="m") if pad else 0.0
+    pad_width = r.get(pad, "width", f"{w}.pad", r.number, default=0.0, lo=PAD[0], hi=PAD[1], unit="m") if pad else 0.0
+    frame = r.get(g, "grasp_frame", w, lambda v, f: read_pose(r, v, f), default=np.eye(4))
+    return GripperSpec(hand, links, joints, opening, pad_length, pad_width, frame)
+
+
+def _finger_joint(r: FieldReader, j, where: str) -> FingerJoint:
+    t = r.table(j, where, known=("name", "open", "closed"))
+    bounds = dict(lo=-MAX_JOINT_VALUE, hi=MAX_JOINT_VALUE)
+    return FingerJoint(r.get(t, "name", where, r.text, default=""), r.get(t, "open", where, r.number, default=0.0,
+                                                                          **bounds),
+                       r.get(t, "closed", where, r.number, default=0.0, **bounds))

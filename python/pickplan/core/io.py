@@ -1,7 +1,16 @@
-"""Atomic file output: a result file is either complete or absent, never half-written."""
+"""Files: atomic output (a result file is either complete or absent, never half-written), the
+cache folder, and derived files named by their content.
+
+- ``atomic_open`` / ``write_json`` / ``write_text`` / ``write_bytes``: results and cache entries;
+- ``cache_dir``: ``$PICKPLAN_CACHE_DIR`` or ``~/.cache/pickplan`` (SDF grids, simulated grasps,
+  meta-models);
+- ``content_file``: a file made from text (a URDF cut from another, an OBJ of collision parts) in
+  the per-user temp folder, named by the hash of its content and written once.
+"""
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import tempfile
@@ -31,6 +40,29 @@ def atomic_open(path: str, mode: str = "w", **kwargs) -> Iterator[Any]:
         raise
 
 
+CACHE_ENV = "PICKPLAN_CACHE_DIR"
+
+
+def cache_dir(*parts: str) -> str:
+    """``$PICKPLAN_CACHE_DIR`` (default ``~/.cache/pickplan``), joined with ``parts``."""
+    root = os.environ.get(CACHE_ENV) or os.path.join(os.path.expanduser("~"), ".cache", "pickplan")
+    return os.path.join(root, *parts)
+
+
+def content_file(text: str, folder: str, suffix: str, stem: str = "", header: str = "") -> str:
+    """The path of a file holding ``header + text`` in the per-user temp folder
+    ``pickplan-UID/folder``, named ``STEM-HASH.SUFFIX`` (``HASH``: 16 hex digits of the SHA-1 of
+    ``text``); written atomically when it is not there yet, so equal content is written once."""
+    digest = hashlib.sha1(text.encode()).hexdigest()[:16]
+    user = os.getuid() if hasattr(os, "getuid") else 0
+    path = os.path.join(tempfile.gettempdir(), f"pickplan-{user}", folder,
+                        f"{stem}-{digest}{suffix}" if stem else f"{digest}{suffix}")
+    if not os.path.isfile(path):
+        with atomic_open(path, "w") as f:
+            f.write(header + text)
+    return path
+
+
 def write_json(path: str, data: Any) -> None:
     """Indented, key-sorted JSON (results people read and diff)."""
     with atomic_open(path, "w", encoding="utf-8") as f:
@@ -49,7 +81,8 @@ def write_bytes(path: str, data: bytes) -> None:
 
 def read_json(path: str, what: str = "JSON file") -> Any:
     """The parsed JSON at ``path``; InputError naming the file for a missing file, a folder, bytes
-    that are not UTF-8, malformed JSON or nesting too deep for the decoder."""
+    that are not UTF-8, malformed JSON, an integer too long to convert or nesting too deep for the
+    decoder."""
     path = os.fspath(path)
     if os.path.isdir(path):
         raise InputError(f"expected a {what}, got a folder", path=path)
@@ -60,7 +93,7 @@ def read_json(path: str, what: str = "JSON file") -> Any:
             return json.load(f)
     except UnicodeDecodeError as exc:
         raise InputError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", path=path) from None
-    except json.JSONDecodeError as exc:
+    except ValueError as exc:  # JSONDecodeError, or an integer of more digits than Python converts
         raise InputError(f"malformed JSON: {exc}", path=path) from None
     except RecursionError:  # the decoder recurses once per level of nesting
         raise InputError("malformed JSON: nested too deeply", path=path) from None

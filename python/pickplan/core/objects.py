@@ -14,10 +14,8 @@ Two sources give the same ``ObjectModel`` record:
 from __future__ import annotations
 
 import glob
-import hashlib
 import math
 import os
-import tempfile
 import warnings
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Tuple, Union
@@ -26,7 +24,7 @@ import numpy as np
 import trimesh
 
 from pickplan.core import objects_builtin, procedural, stability
-from pickplan.core.io import atomic_open
+from pickplan.core.io import content_file
 
 YCB_ENV = "PICKPLAN_YCB_DIR"
 BUILTIN_PREFIX = "builtin:"
@@ -317,15 +315,7 @@ def _write_parts_obj(parts: Sequence[trimesh.Trimesh]) -> str:
         lines += ["v %.9f %.9f %.9f" % tuple(v) for v in np.asarray(p.vertices, dtype=float)]
         lines += ["f %d %d %d" % tuple(t) for t in (np.asarray(p.faces) + offset)]
         offset += len(p.vertices)
-    text = "\n".join(lines) + "\n"
-    digest = hashlib.sha1(text.encode()).hexdigest()[:16]
-    folder = os.path.join(tempfile.gettempdir(), f"pickplan-{os.getuid() if hasattr(os, 'getuid') else 0}",
-                          "collision")
-    path = os.path.join(folder, f"{digest}.obj")
-    if not os.path.isfile(path):
-        with atomic_open(path, "w") as f:
-            f.write(text)
-    return path
+    return content_file("\n".join(lines) + "\n", "collision", ".obj")
 
 
 # --- libraries -----------------------------------------------------------------------------------

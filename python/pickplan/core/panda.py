@@ -10,10 +10,6 @@ import numpy as np
 
 from pickplan.core.description import RobotInfo, load_description
 
-
-#: The Panda's facts: a ``RobotInfo`` like any described robot's (the name kept for older callers).
-PandaInfo = RobotInfo
-
 PANDA_DESCRIPTION = load_description("panda")
 PANDA = RobotInfo.from_description(PANDA_DESCRIPTION)
 

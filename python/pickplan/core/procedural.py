@@ -10,7 +10,8 @@ trimesh) and its collision parts are the solids themselves (convex), so no decom
 Dimensions are drawn from each family's ranges with a seed derived from the library seed, the family
 and the variant index, so ``procedural:scissors_01`` is the same object in every process.
 
->>> lib = pickplan.objects.library("procedural")
+>>> from pickplan.core import objects
+>>> lib = objects.library("procedural")
 >>> model = lib.get("pen_00")        # an ObjectModel, like the built-ins
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Robot models: URDF kinematics (native), body points sampled on collision meshes.
 
->>> import pickplan
->>> r = pickplan.robots.panda()
+>>> from pickplan.core import robots
+>>> r = robots.panda()
 >>> r.dof, r.link_names[:2]
 (9, ['panda_link0', 'panda_link1'])
 """
@@ -9,15 +9,16 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Optional, Sequence, Union
+from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from pickplan import _core
-from pickplan.core.description import DescriptionError, RobotDescription, RobotInfo, load_description
-from pickplan.core.panda import (PANDA, PANDA_DESCRIPTION, PandaInfo,  # noqa: F401  (re-exported)
-                                 panda_urdf_path)
-from pickplan.core.paths import assets_dir  # noqa: F401  (re-exported: robots.assets_dir)
+from pickplan.core.description import RobotDescription, RobotInfo, parse_description
+from pickplan.core.description_check import model_problems
+from pickplan.core.errors import InputError, Problem
+from pickplan.core.fields import FieldReader
+from pickplan.core.panda import PANDA, PANDA_DESCRIPTION
 from pickplan.core.meshes import geometry_to_trimesh
 
 LinkRef = Union[int, str]
@@ -254,35 +255,55 @@ class DescribedRobot(Robot):
         return q
 
 
-class Panda(DescribedRobot):
-    """The Franka Emika Panda from pybullet_data, with its hand and finger link names."""
+def robot_for(desc: RobotDescription) -> Robot:
+    """The kinematic model a description names, at its base pose (no check of the description)."""
+    return Robot.from_urdf(desc.urdf, desc.package_dirs).with_base(desc.base_pose)
 
 
-def _check_joint_order(robot: Robot, info: RobotInfo, source: str) -> None:
-    """The planner's configurations are the arm joints, then the finger joints: the URDF's order must be that."""
-    expected = list(info.arm_joints) + list(info.finger_joints)
-    if robot.joint_names != expected:
-        raise DescriptionError(source, [f"movable joints in URDF order are {robot.joint_names}; expected the arm "
-                                        f"joints, then the finger joints: {expected}"])
+def _described(name_or_file: str) -> Tuple[Optional[RobotDescription], Optional[DescribedRobot], List[Problem]]:
+    """(the description, its robot at the identity base, every problem of the file's form and of the
+    description against the model): the one path ``check_description`` and ``load_robot`` share."""
+    desc, problems = parse_description(name_or_file)
+    if desc is None or not desc.urdf or any(p.field.startswith(("urdf", "mount")) for p in problems):
+        return desc, None, problems  # no robot to check the rest against
+    r = FieldReader(desc.source)
+    r.problems = list(problems)
+    try:
+        robot = DescribedRobot(_core.Robot.from_urdf_file(desc.urdf, [os.fspath(p) for p in desc.package_dirs]),
+                    urdf_path=desc.urdf)
+    except (ValueError, RuntimeError, OSError) as exc:
+        message = str(exc)
+        if len(desc.urdf_files) > 1:  # a composed file of pickplan's: name the user's files instead
+            message = message.replace(desc.urdf, f"the arm's URDF {desc.urdf_files[0]} with the gripper's "
+                                                 f"{desc.urdf_files[1]} mounted")
+        r.note("mount.urdf" if len(desc.urdf_files) > 1 else "urdf", message)
+        return desc, None, r.problems
+    model_problems(r, desc, robot)
+    return desc, robot, r.problems
+
+
+def check_description(name_or_file: str) -> Tuple[Optional[RobotDescription], List[Problem]]:
+    """(the description, []) when it is usable, else (None or the description, every problem found):
+    what ``pickplan robots check`` prints, and exactly what makes ``load_robot`` refuse a file."""
+    desc, _, problems = _described(name_or_file)
+    return desc, problems
 
 
 def load_robot(name_or_file: str = "panda", base_pose: Optional[np.ndarray] = None) -> DescribedRobot:
     """The robot a description names (a shipped name, a short name like "iiwa", or a .toml file),
-    placed at ``base_pose @ description.base_pose`` (``base_pose``: the scene's robot base)."""
+    placed at ``base_pose @ description.base_pose`` (``base_pose``: the scene's robot base);
+    InputError with every problem ``check_description`` finds."""
     if isinstance(name_or_file, DescribedRobot):
         return name_or_file if base_pose is None else name_or_file.with_base(base_pose @ name_or_file.description.base_pose)
-    desc = load_description(str(name_or_file))
-    info = RobotInfo.from_description(desc)
-    cls = Panda if desc.name == PANDA.name else DescribedRobot
-    robot = cls(_core.Robot.from_urdf_file(desc.urdf, [os.fspath(p) for p in desc.package_dirs]), urdf_path=desc.urdf)
-    robot.info, robot.description = info, desc  # per instance: the class defaults are the Panda's
-    _check_joint_order(robot, info, desc.source)
+    desc, robot, problems = _described(str(name_or_file))
+    if problems:
+        raise InputError(problems=problems)
+    robot.info, robot.description = RobotInfo.from_description(desc), desc  # per instance: the class defaults are the Panda's
     base = np.eye(4) if base_pose is None else np.asarray(base_pose, dtype=float)
     return robot.with_base(base @ desc.base_pose)
 
 
-def panda(base_pose: Optional[np.ndarray] = None) -> Panda:
-    """The Panda shipped in pybullet_data (7 arm joints + 2 finger joints, real limits)."""
-    path = panda_urdf_path()
-    robot = Panda(_core.Robot.from_urdf_file(path, []), urdf_path=path)
-    return robot if base_pose is None else robot.with_base(base_pose)
+def panda(base_pose: Optional[np.ndarray] = None) -> DescribedRobot:
+    """The Panda shipped in pybullet_data (7 arm joints + 2 finger joints, real limits):
+    ``load_robot("panda", base_pose)``."""
+    return load_robot("panda", base_pose)

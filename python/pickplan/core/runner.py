@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import enum
+import logging
 import sys
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
@@ -49,7 +50,10 @@ class JobFailure:
 def progress_bar(total: int, label: str = "", enabled: Optional[bool] = None, stream: Optional[TextIO] = None,
                  done: int = 0, unit: str = "it") -> tqdm:
     """A tqdm bar on ``stream`` (default: the current stderr) with elapsed and remaining time.
-    ``enabled``: True shows it, False hides it, None shows it only when the stream is a terminal."""
+    ``enabled``: True shows it, False hides it, None shows it only when the stream is a terminal and
+    the ``pickplan`` logger is not set above INFO (``pickplan --quiet`` sets it to WARNING)."""
+    if enabled is None and logging.getLogger("pickplan").level > logging.INFO:
+        enabled = False
     return tqdm(total=total, initial=done, desc=label, unit=unit, file=stream if stream is not None else sys.stderr,
                 disable=None if enabled is None else not enabled, dynamic_ncols=True, mininterval=0.25)
 

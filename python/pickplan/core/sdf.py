@@ -13,7 +13,7 @@ import numpy as np
 from pickplan import _core
 from pickplan.core.caches import BoundedCache, mesh_content_key
 from pickplan.core.errors import InputError
-from pickplan.core.io import atomic_open
+from pickplan.core.io import atomic_open, cache_dir
 from pickplan.core.meshes import check_mesh_arrays
 
 SDF_FORMAT_VERSION = 2  # 2: entries carry a checksum and the writer's code and format versions
@@ -36,10 +36,6 @@ class SdfSettings:
     merged: bool = True         # resample the scene (less the target) into one grid for the planners
     merged_resolution: float = 0.01  # resampling the 5 mm grids: < 1 mm off outside thin walls, 5x faster to build
     merged_cutoff: float = 0.2  # >= the CHOMP padding, or the planners fall back to per-object grids
-
-
-def default_cache_dir() -> str:
-    return os.environ.get("PICKPLAN_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "pickplan")
 
 
 def _mesh_arrays(mesh) -> Tuple[np.ndarray, np.ndarray]:
@@ -132,7 +128,7 @@ def mesh_sdf(mesh, settings: SdfSettings = SdfSettings(), cache: Optional[GridCa
     if not getattr(mesh, "is_watertight", True):
         warnings.warn("SDF of a mesh that is not watertight: inside/outside comes from a 3-axis ray vote",
                       stacklevel=2)
-    cache = default_cache_dir() if settings.cache_dir is None else settings.cache_dir
+    cache = cache_dir() if settings.cache_dir is None else settings.cache_dir
     path = os.path.join(cache, "sdf", mesh_key(V, F, settings) + ".npz") if cache else None
     if path and os.path.isfile(path):
         cached = _read_cache(path)

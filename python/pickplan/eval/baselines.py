@@ -21,11 +21,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Optional
+from typing import Optional, Union
 
 import numpy as np
 
 from pickplan.core import collision
+from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import cubic_initialization
 from pickplan.omg.goals import build_goal_set
@@ -33,8 +34,18 @@ from pickplan.omg.planner import OMGSettings, PlanResult, PlanStatus
 from pickplan.sim.scenes import Scene
 from pickplan.omg.world import CheckerKind, World
 from pickplan.omg.planner import OMGPlanner
+from pickplan.omg.selection import Selection
 
-BASELINES = ("CHOMP", "FMT", "RRT-C")
+class Baseline(Option):
+    """Table III's baseline planners."""
+
+    CHOMP = "CHOMP"        # goal-set CHOMP towards the ranked goals, one at a time
+    CHOMP_C = "CHOMP-C"    # OMG with the projection rule and no refinement [11]
+    FMT = "FMT"            # OMPL's FMT* to the pre-grasp, then the standoff tail
+    RRT_C = "RRT-C"        # OMPL's RRT-Connect likewise
+
+
+OMPL_PLANNERS = (Baseline.FMT, Baseline.RRT_C)
 
 
 @dataclass(frozen=True)
@@ -51,7 +62,7 @@ class BaselineSettings:
 
 def chomp_c_settings(settings: OMGSettings) -> OMGSettings:
     """CHOMP-C [11] is OMG's goal-set CHOMP with the projection rule and no refinement."""
-    return replace(settings, selection="Proj", refine=False)
+    return replace(settings, selection=Selection.Proj, refine=False)
 
 
 def _empty(q0, timings, gs) -> PlanResult:
@@ -198,12 +209,13 @@ def ompl_setup(ob, og, robot, joints: int):
     return space, og.SimpleSetup(space)
 
 
-def plan_ompl(scene: Scene, planner: str = "RRT-C", settings: BaselineSettings = BaselineSettings(),
-              world: Optional[World] = None, grasps=None) -> PlanResult:
+def plan_ompl(scene: Scene, planner: Union[Baseline, str] = Baseline.RRT_C,
+              settings: BaselineSettings = BaselineSettings(), world: Optional[World] = None, grasps=None) -> PlanResult:
     """FMT* or RRT-Connect to the pre-grasp of each ranked goal, then the goal's standoff tail."""
     ob, og, ou = _ompl()
-    if planner not in ("FMT", "RRT-C"):
-        raise ValueError(f"unknown OMPL planner {planner!r}; use 'FMT' or 'RRT-C'")
+    planner = Baseline.parse(planner, "baseline")
+    if planner not in OMPL_PLANNERS:
+        raise ValueError(f"unknown OMPL planner {planner.value!r}; use 'FMT' or 'RRT-C'")
     t_total = time.perf_counter()
     pb = _Problem(scene, settings, world, grasps)
     if len(pb.gs) == 0:
@@ -235,7 +247,7 @@ def plan_ompl(scene: Scene, planner: str = "RRT-C", settings: BaselineSettings =
             start[j], goal[j] = float(q0[j]), float(tail[0][j])
         ss.clear()
         ss.setStartAndGoalStates(start, goal)
-        ss.setPlanner(og.RRTConnect(si) if planner == "RRT-C" else og.FMT(si))
+        ss.setPlanner(og.RRTConnect(si) if planner is Baseline.RRT_C else og.FMT(si))
         t = time.perf_counter()
         solved = ss.solve(settings.time_limit) if valid(goal) and valid(start) else None
         exact = solved is not None and bool(ss.haveExactSolutionPath())
@@ -258,14 +270,13 @@ def plan_ompl(scene: Scene, planner: str = "RRT-C", settings: BaselineSettings =
     return pb.result(*first, attempts, t_total)
 
 
-def plan_baseline(name: str, scene: Scene, settings: BaselineSettings = BaselineSettings(),
+def plan_baseline(name: Union[Baseline, str], scene: Scene, settings: BaselineSettings = BaselineSettings(),
                   world: Optional[World] = None, grasps=None) -> PlanResult:
-    """One of ``CHOMP``, ``CHOMP-C``, ``FMT``, ``RRT-C`` on ``scene`` (its target, its start)."""
-    if name == "CHOMP":
+    """A ``Baseline`` (or its name: ``CHOMP``, ``CHOMP-C``, ``FMT``, ``RRT-C``) on ``scene`` (its
+    target, its start)."""
+    name = Baseline.parse(name, "baseline")
+    if name is Baseline.CHOMP:
         return plan_chomp(scene, settings, world, grasps)
-    if name in ("FMT", "RRT-C"):
+    if name in OMPL_PLANNERS:
         return plan_ompl(scene, name, settings, world, grasps)
-    if name == "CHOMP-C":
-
-        return OMGPlanner(None, scene, chomp_c_settings(settings.omg), world=world).plan(grasps=grasps)
-    raise ValueError(f"unknown baseline {name!r}; expected one of {list(BASELINES) + ['CHOMP-C']}")
+    return OMGPlanner(None, scene, chomp_c_settings(settings.omg), world=world).plan(grasps=grasps)

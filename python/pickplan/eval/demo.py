@@ -3,10 +3,11 @@ OMG planner, executed in PyBullet (close, lift), a picture of the execution and 
 beside the paper's."""
 from __future__ import annotations
 
+import logging
 import os
 import time
 from dataclasses import dataclass
-from typing import Optional
+from typing import List, Optional
 
 import numpy as np
 
@@ -18,6 +19,8 @@ from pickplan.core.io import write_json, write_text
 from pickplan.core.timing import TimedTrajectory
 from pickplan.omg.plan_file import plan_record
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanResult
+
+log = logging.getLogger(__name__)
 
 # OMG paper, Table III (100 scenes, 30 grasps, 10 runs), the OMG column.
 PAPER_OMG = {"execution": "84%", "planning": "93%", "smoothness": 15.43, "collision": 3.92, "grasp": 3.04,
@@ -61,30 +64,42 @@ def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResu
     return "\n".join(lines) + "\n"
 
 
-def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
+@dataclass(frozen=True)
+class DemoRun:
+    """What ``run_demo`` did: the metrics table, the files it wrote (names in ``out``), whether the
+    target was lifted, and the wall time."""
+
+    table: str
+    files: List[str]
+    lifted: bool
+    seconds: float
+
+
+def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> DemoRun:
+    """The demo into folder ``out``; progress goes to the ``pickplan.eval.demo`` logger."""
     t0 = time.perf_counter()
     os.makedirs(out, exist_ok=True)
-    print(f"[1/4] generating a cluttered scene (seed {settings.seed}, built-in objects)")
+    log.info(f"[1/4] generating a cluttered scene (seed {settings.seed}, built-in objects)")
     scene = scenes.generate_scene(settings.seed, settings=scenes.SceneSettings(robot=settings.robot))  # made for it
     scene.save(os.path.join(out, "scene.json"))
-    print(f"      {len(scene.objects)} objects; target: {scene.target}")
-    print(f"[2/4] planning for {settings.robot} with the OMG planner (MD selection, C-Space ISF)")
+    log.info(f"      {len(scene.objects)} objects; target: {scene.target}")
+    log.info(f"[2/4] planning for {settings.robot} with the OMG planner (MD selection, C-Space ISF)")
     planner = OMGPlanner(settings.robot, scene, settings.planner)
     result = planner.plan()
-    print(f"      {result.status} in {result.iterations} iterations")
+    log.info(f"      {result.status} in {result.iterations} iterations")
     executed = timed = None
     frames = []
     if result.planned:
         timed = result.timed(rate=settings.timed_rate)
         timed.save(os.path.join(out, "timed.json"))
         timed.save(os.path.join(out, "timed.npz"))
-        print(f"[3/4] executing the timed plan ({timed.duration:.2f} s) in PyBullet: follow, close, lift")
+        log.info(f"[3/4] executing the timed plan ({timed.duration:.2f} s) in PyBullet: follow, close, lift")
         record = execution.RecordSettings(every=settings.record_every)
         executed = execution.execute_plan(scene, timed, execution.ExecutionSettings(robot=settings.robot),
                                           record=record)
         frames = executed.frames or []
-        print(f"      {executed.status}: target lifted {executed.target_lift * 100:.1f} cm")
-    print("[4/4] writing the picture, the 3D view and the metrics table")
+        log.info(f"      {executed.status}: target lifted {executed.target_lift * 100:.1f} cm")
+    log.info("[4/4] writing the picture, the 3D view and the metrics table")
     if frames:
         pick = np.linspace(0, len(frames) - 1, min(settings.frames_in_sheet, len(frames))).round().astype(int)
         execution.save_frames([frames[i] for i in pick], os.path.join(out, "demo.png"), columns=4)
@@ -94,8 +109,6 @@ def run_demo(out: str, settings: DemoSettings = DemoSettings()) -> int:
     record["trajectory_duration"] = timed.duration if timed is not None else None
     write_json(os.path.join(out, "plan.json"), record)
     write_html(view_folder(out), os.path.join(out, "view.html"))
-    print()
-    print(table)
-    print(f"wrote {out}/demo.png, view.html, metrics.md, plan.json, scene.json"
-          f"{', timed.json, timed.npz' if timed is not None else ''} ({time.perf_counter() - t0:.1f} s)")
-    return 0 if executed is not None and executed.success else 1
+    files = ["demo.png"] * bool(frames) + ["view.html", "metrics.md", "plan.json", "scene.json"] + \
+        ["timed.json", "timed.npz"] * (timed is not None)
+    return DemoRun(table, files, executed is not None and executed.success, time.perf_counter() - t0)

@@ -26,52 +26,43 @@ from typing import Callable, List, Optional, Sequence, TextIO, Tuple
 
 import numpy as np
 
-
+from pickplan.core import objects as objects_mod
+from pickplan.core.description import robot_info
 from pickplan.core.errors import InputError
 from pickplan.core.io import read_json, write_json
-from pickplan.eval.plots import STAGES
-from pickplan.core.runner import JobFailure, OnError, Order, Runner
-from pickplan.core import objects as objects_mod
-from pickplan.sim.scenes import ORIENTATIONS, SceneSettings, generate_scene
-from pickplan.sim.scene_sets import scene_seeds
-from pickplan.omg import grasps as grasps_mod
 from pickplan.core.objects import model_from_source
-from pickplan.eval.baselines import BaselineSettings, plan_baseline
-from pickplan.omg.chomp import ChompSettings
-from pickplan.omg.goals import GoalSetSettings, IkSettings
-from pickplan.omg.grasps.generators import SupportFilter
-from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus, target_graspability
-from pickplan.sim.scenes import Scene
-from pickplan.omg.model_cache import ModelCache
-from pickplan.omg.world import World, WorldSettings
-from pickplan.core.description import robot_info
+from pickplan.core.runner import JobFailure, OnError, Order, Runner
 from pickplan.core.timing import robot_limits, time_parameterize
+from pickplan.eval.baselines import OMPL_PLANNERS, BaselineSettings, plan_baseline
+from pickplan.eval.methods import Table, all_methods, method_spec
+from pickplan.eval.plots import STAGES
+from pickplan.eval.summaries import UNIT_ERROR
+from pickplan.omg import grasps as grasps_mod
+from pickplan.omg.grasps import KINDS, GraspKind
+from pickplan.omg.grasps.generators import SupportFilter
+from pickplan.omg.model_cache import ModelCache
+from pickplan.omg.planner import OMGPlanner, PlanStatus, target_graspability
+from pickplan.omg.world import CheckerKind, World, WorldSettings
 from pickplan.sim.execution import ExecutionSettings, execute_plan
-
-TABLES = ("selection", "refinement", "planners", "ablation")
-SELECTION_METHODS = ("Fixed", "Proj", "FTC", "FTL", "EXP", "MD")
-REFINEMENT_METHODS = ("S", "S+ISF", "G", "G+ISF", "A", "A+ISF")
-PLANNER_METHODS = ("CHOMP", "CHOMP-C", "FMT", "RRT-C", "OMG")
-ABLATION_N = (10, 20, 30, 40, 50)
-ABLATION_LAMBDA = (0.01, 0.05, 0.1, 0.5, 1.0)
-GRASP_KINDS = {"S": "simulated", "G": "graspit", "A": "approach"}
+from pickplan.sim.scene_sets import scene_seeds
+from pickplan.sim.scenes import Orientation, Scene, SceneSettings, generate_scene
 
 
 @dataclass(frozen=True)
 class SweepSettings:
     """One sweep; defaults are the paper's (100 scenes, 30 grasps, 10 runs)."""
 
-    table: str                         # selection | refinement | planners | ablation
+    table: Table                       # selection | refinement | planners | ablation (a spelling converts)
     out: str = "out/bench"
     scenes: int = 100                  # generated scenes (ignored with scene_dir)
     scene_dir: Optional[str] = None    # load scene_*.json from here instead
     objects: Optional[str] = None      # generated scenes' objects: "builtin", "procedural" or a YCB-layout
                                        # folder (None: $PICKPLAN_YCB_DIR if set, else the built-ins)
-    poses: str = "upright"             # generated scenes' object poses (sim.scenes.ORIENTATIONS)
+    poses: Orientation = Orientation.upright  # generated scenes' object poses
     clutter: Tuple[int, int] = (3, 7)  # objects per generated scene, fewest-most (the paper's 3-7)
     # The grasp set of every method (None: the table's, "simulated"); "antipodal" is generated per unit,
     # aware of the table under the target as it lies (physics-verified sets take minutes per new object).
-    grasp_kind: Optional[str] = None
+    grasp_kind: Optional[GraspKind] = None
     grasps: int = 30                   # goal-set size (the paper's "30 grasps each scene")
     grasp_candidates: int = 100        # grasps generated per object when it has no stored set
     runs: int = 10
@@ -89,17 +80,16 @@ class SweepSettings:
     progress: Optional[bool] = None     # None: a progress bar only on a terminal
 
     def __post_init__(self):
-        if self.table not in TABLES:
-            raise ValueError(f"unknown table {self.table!r}; expected one of {list(TABLES)}")
+        object.__setattr__(self, "table", Table.parse(self.table, "table"))
         for name in ("scenes", "grasps", "grasp_candidates", "runs", "iterations"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
-        if self.grasp_kind is not None and (self.table == "refinement" or self.grasp_kind not in GRASP_KINDS.values()
-                                            and self.grasp_kind != "antipodal"):
+        if self.grasp_kind is not None and (self.table is Table.refinement or self.grasp_kind not in KINDS):
             raise ValueError(f"grasp_kind: expected one of simulated, graspit, approach, antipodal (not with the "
                              f"refinement table, whose methods are grasp sets), got {self.grasp_kind!r}")
-        if self.poses not in ORIENTATIONS:
-            raise ValueError(f"poses: expected one of {list(ORIENTATIONS)}, got {self.poses!r}")
+        if self.grasp_kind is not None:
+            object.__setattr__(self, "grasp_kind", GraspKind(self.grasp_kind))
+        object.__setattr__(self, "poses", Orientation.parse(self.poses, "poses"))
         if len(self.clutter) != 2 or not 1 <= self.clutter[0] <= self.clutter[1]:
             raise ValueError(f"clutter: expected (fewest, most) with 1 <= fewest <= most, got {self.clutter!r}")
         if self.methods is not None:
@@ -116,40 +106,10 @@ class SweepSettings:
                        grasp_candidates=min(self.grasp_candidates, 30), time_limit=min(self.time_limit, 0.5))
 
 
-def all_methods(table: str, quick: bool = False) -> Tuple[str, ...]:
-    if table == "selection":
-        return SELECTION_METHODS
-    if table == "refinement":
-        return REFINEMENT_METHODS
-    if table == "planners":
-        return PLANNER_METHODS
-    ns, lams = ((20, 30), (0.1, 1.0)) if quick else (ABLATION_N, ABLATION_LAMBDA)
-    return tuple(f"n={n}" for n in ns) + tuple(f"lambda={x:g}" for x in lams)
-
-
 def methods_for(settings: SweepSettings) -> Tuple[str, ...]:
     if settings.methods:
         return tuple(settings.methods)
     return all_methods(settings.table, settings.quick)
-
-
-def method_spec(table: str, method: str) -> dict:
-    """What a method means: planner ("omg" or a baseline name), selection, refine, grasp kind, n, lambda."""
-    spec = {"planner": "omg", "selection": "MD", "refine": True, "grasp_kind": "simulated", "n": 30, "lambda": 0.1}
-    if table == "selection":
-        spec.update(selection=method, refine=False)
-    elif table == "refinement":
-        spec.update(grasp_kind=GRASP_KINDS[method[0]], refine=method.endswith("+ISF"))
-    elif table == "planners":
-        if method != "OMG":
-            spec.update(planner=method)
-    elif method.startswith("n="):
-        spec.update(n=int(method[2:]))
-    elif method.startswith("lambda="):
-        spec.update({"lambda": float(method[7:])})
-    else:
-        raise ValueError(f"unknown method {method!r} for table {table!r}")
-    return spec
 
 
 # --- scenes ----------------------------------------------------------------------------------------
@@ -225,7 +185,7 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
     for u in units:
         target = u["scene"]["target"]
         src = next(o["source"] for o in u["scene"]["objects"] if o["name"] == target)
-        kind = u.get("grasp_kind") or method_spec(u["table"], u["method"])["grasp_kind"]
+        kind = u.get("grasp_kind") or method_spec(u["table"], u["method"]).grasp_kind
         robot = u.get("robot", "panda")
         seen[(target, src, kind, robot)] = {"name": target, "source": src, "kind": kind, "n": u["grasp_candidates"],
                                             "robot": robot}
@@ -256,11 +216,12 @@ def run_unit(unit: dict) -> dict:
 
     t0 = time.perf_counter()
     spec = method_spec(unit["table"], unit["method"])
-    spec["grasp_kind"] = unit.get("grasp_kind") or spec["grasp_kind"]
+    if unit.get("grasp_kind"):
+        spec = replace(spec, grasp_kind=GraspKind.parse(unit["grasp_kind"], "grasp set kind"))
     scene = Scene.from_dict(unit["scene"])
     seed = int(unit["seed"])
     record = {"table": unit["table"], "scene": unit["scene_name"], "target": scene.target, "method": unit["method"],
-              "run": unit["run"], "seed": seed, "grasp_kind": spec["grasp_kind"]}
+              "run": unit["run"], "seed": seed, "grasp_kind": spec.grasp_kind}
     world_settings = WorldSettings(robot=unit.get("robot", "panda"))
     world = World(scene, world_settings, cache=_WORKER_MODELS)
     verdict = target_graspability(world)  # geometry, whatever the method: ungraspable units are counted apart
@@ -271,25 +232,23 @@ def run_unit(unit: dict) -> dict:
         return record
     # Scene setup (FCL meshes), not goal-set or planning time; only the OMPL baselines validate
     # states with the "obstacles" checker.
-    for kind in ("goal", "hand") + (("obstacles",) if spec["planner"] in ("FMT", "RRT-C") else ()):
+    for kind in (CheckerKind.goal, CheckerKind.hand) + ((CheckerKind.obstacles,) if spec.baseline in OMPL_PLANNERS
+                                                          else ()):
         world.checker(kind)
     try:
-        grasps = _unit_grasps(world, scene, spec["grasp_kind"], unit["grasp_candidates"], world_settings.robot)
+        grasps = _unit_grasps(world, scene, spec.grasp_kind, unit["grasp_candidates"], world_settings.robot)
     except ValueError as exc:  # e.g. no stored graspit set for a built-in object: not a planning failure
-        record.update(status="no_grasps", reason=str(exc), valid=False, planning_success=False,
+        record.update(status=PlanStatus.no_grasps, reason=str(exc), valid=False, planning_success=False,
                       execution_success=False, unit_seconds=time.perf_counter() - t0)
         return record
-    chomp = ChompSettings(n=spec["n"], lambda_=spec["lambda"], duration=0.1 * 30)
-    omg = OMGSettings(chomp=chomp, goals=GoalSetSettings(max_goals=unit["grasps"], seed=seed), ik=IkSettings(seed=seed),
-                      selection=spec["selection"], refine=spec["refine"], iterations=unit["iterations"],
-                      grasp_kind=spec["grasp_kind"], grasp_count=unit["grasp_candidates"], seed=seed,
-                      world=world_settings)
-    if spec["planner"] == "omg":
+    omg = spec.omg_settings(unit["grasps"], unit["grasp_candidates"], unit["iterations"], seed, world_settings)
+    chomp = omg.chomp
+    if spec.baseline is None:
         result = OMGPlanner(None, scene, omg, world=world).plan(grasps=grasps)
     else:
         bs = BaselineSettings(omg=omg, max_goals_tried=unit["max_goals_tried"], chomp_iterations=unit["iterations"],
                               time_limit=unit["time_limit"])
-        result = plan_baseline(spec["planner"], scene, bs, world=world, grasps=grasps)
+        result = plan_baseline(spec.baseline, scene, bs, world=world, grasps=grasps)
     planned = result.planned
     m = result.metrics
     record.update(status=result.status, valid=True, graspable=True, planned=planned,
@@ -324,7 +283,7 @@ def unit_path(settings: SweepSettings, unit: dict) -> str:
 def error_record(unit: dict, failure: JobFailure) -> dict:
     """The record of a unit whose function raised: status "error", counted as a failed plan."""
     return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
-            "seed": int(unit["seed"]), "status": "error", "error": failure.error,
+            "seed": int(unit["seed"]), "status": UNIT_ERROR, "error": failure.error,
             "valid": True, "planned": False, "planning_success": False, "execution_success": False,
             "execution_run": bool(unit.get("execute", True))}
 
@@ -442,7 +401,3 @@ def load_records(settings: SweepSettings, units: Sequence[dict]) -> List[dict]:
     """The units' records, without their sweep fingerprint (sweep.json holds it once)."""
     records = (read_json(unit_path(settings, u), "unit record") for u in units)
     return [{k: v for k, v in r.items() if k != FINGERPRINT_FIELD} for r in records]
-
-
-# the tables' summaries live in eval/summaries.py; re-exported here, where sweeps were always read from
-from pickplan.eval.summaries import grasp_costs_by_object, summarize, summarize_by_object  # noqa: E402,F401

@@ -12,7 +12,8 @@ import numpy as np
 
 from pickplan.core.settings import Option
 from pickplan.core.shapes import ShapeKind
-from pickplan.eval.baselines import _ompl as load_ompl, _seed_ompl, ompl_setup
+from pickplan.eval.baselines import _ompl as load_ompl
+from pickplan.eval.baselines import _seed_ompl, ompl_setup
 from pickplan.omg.motion import MotionSettings, RrtSettings, Smoothing, plan_chomp, plan_motion
 
 

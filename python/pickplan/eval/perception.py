@@ -21,8 +21,8 @@ import numpy as np
 from pickplan.core.io import read_json, write_json, write_text
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
 from pickplan.eval import experiments
-from pickplan.omg.chomp import Chomp, ChompSettings
-from pickplan.omg.goals import GoalSetSettings, IkSettings
+from pickplan.eval.methods import Table, method_spec
+from pickplan.omg.chomp import Chomp
 from pickplan.omg.perceived_world import PerceivedPlanner, PerceivedWorld
 from pickplan.omg.planner import OMGSettings, PlanStatus
 from pickplan.omg.world import World
@@ -81,12 +81,8 @@ class PerceptionBenchSettings:
 
 def _omg_settings(unit: dict) -> OMGSettings:
     """Table III's OMG settings (``experiments.run_unit``), so the two sides differ only in the world."""
-    spec = experiments.method_spec("planners", "OMG")
-    seed = int(unit["seed"])
-    chomp = ChompSettings(n=spec["n"], lambda_=spec["lambda"], duration=0.1 * 30)
-    return OMGSettings(chomp=chomp, goals=GoalSetSettings(max_goals=unit["grasps"], seed=seed), ik=IkSettings(seed=seed),
-                       selection=spec["selection"], refine=spec["refine"], iterations=unit["iterations"],
-                       grasp_count=unit["grasp_candidates"], seed=seed)
+    return method_spec(Table.planners, "OMG").omg_settings(unit["grasps"], unit["grasp_candidates"], unit["iterations"],
+                                                           int(unit["seed"]))
 
 
 def true_metrics(true_world: World, trajectory: np.ndarray, settings: OMGSettings) -> dict:

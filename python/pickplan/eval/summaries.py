@@ -10,6 +10,8 @@ import numpy as np
 
 from pickplan.omg.planner import PlanStatus
 
+UNIT_ERROR = "error"  # the status of a sweep unit whose function raised (experiments.error_record)
+
 
 def _mean(xs: Iterable[Optional[float]]) -> float:
     xs = [x for x in xs if x is not None and math.isfinite(x)]
@@ -32,7 +34,7 @@ def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict
         n = len(valid)
         executed = any(r.get("execution_run", True) for r in valid)  # False: --no-execute, a column not run
         out[m] = {
-            "units": len(rs), "valid": n, "planned": len(planned), "errors": sum(r["status"] == "error" for r in rs),
+            "units": len(rs), "valid": n, "planned": len(planned), "errors": sum(r["status"] == UNIT_ERROR for r in rs),
             "no_goals": sum(r["status"] == PlanStatus.no_goals for r in valid),
             "ungraspable": sum(not _graspable(r) for r in rs),
             "planning_successes": sum(r["planning_success"] for r in valid),

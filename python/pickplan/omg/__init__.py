@@ -7,7 +7,8 @@
 - ``selection``: Fixed, Proj, FTC, FTL, EXP and Mirror Descent (Sec. III-C, Eq. 7-9);
 - ``isf``: C-Space ISF grasp refinement (Sec. III-D);
 - ``planner``: Algorithm 2, ``OMGPlanner``;
-- ``native_loop``: Algorithm 2's loop in C++ (the default; ``OMGSettings.loop``) and the native policies;
+- ``native_loop``: Algorithm 2's loop in C++ and the native policies (the loop in Python, its test
+  oracle, is tests/python/omg_reference_loop.py);
 - ``model_cache``: what depends only on objects and robot, shared by worlds (``ModelCache``);
 - ``batch``: many plans on parallel threads (``plan_many``).
 """

@@ -48,7 +48,7 @@ class ModelCache:
         loaded = self.derived(("robot", str(name_or_file)), lambda: robots.load_robot(str(name_or_file)))
         return robots.load_robot(loaded, base)
 
-    def panda(self, base_pose) -> robots.Panda:
+    def panda(self, base_pose) -> robots.DescribedRobot:
         """The Panda at ``base_pose``."""
         return self.robot("panda", base_pose)
 

@@ -2,7 +2,8 @@
 estimates, the selection policy's update (``_core.SelectionPolicy``: the rules of ``omg.selection``,
 which stays the research reference the native policies are tested against), C-Space ISF on the
 selected goal, pre-termination and the dense success test, all with the GIL released and no round
-trip through Python per iteration. ``OMGSettings.loop`` picks it (the default) or the Python loop.
+trip through Python per iteration. The same loop in Python, the oracle the native one is tested
+against, is tests/python/omg_reference_loop.py.
 """
 from __future__ import annotations
 
@@ -12,13 +13,6 @@ from pickplan import _core
 from pickplan.core.settings import Option
 from pickplan.omg.chomp import cubic_blend
 from pickplan.omg.selection import EXP, MirrorDescent, Selection, SelectionPolicy
-
-
-class PlanLoop(Option):
-    """Where Algorithm 2's loop runs."""
-
-    native = "native"  # C++ (_core.run_omg_loop): the default
-    python = "python"  # planner._Optimization.run: the reference, with the policies of omg.selection
 
 
 class StageClock(Option):
@@ -64,11 +58,11 @@ def loop_settings(settings, policy, metrics: "_core.MetricSettings") -> "_core.O
     return out
 
 
-def run_native(chomp, refiner, robot, q0, book, settings, policy, metric_settings) -> dict:
-    """Algorithm 2's loop over the goal book's goals (``planner.GoalBook``, as built: none refined)
-    with ``chomp`` (its problem), ``refiner`` (a ``GraspRefiner`` or None) for ``robot``; returns
-    ``_core.run_omg_loop``'s dict (xi, goal, metrics, history, seconds per stage, ...)."""
+def run_native(chomp, refiner, robot, q0, goals, tails, grasp_index, settings, policy, metric_settings) -> dict:
+    """Algorithm 2's loop over a goal set (``goals``, their approach ``tails`` and the input grasp
+    each came from) with ``chomp`` (its problem), ``refiner`` (a ``GraspRefiner`` or None) for
+    ``robot``; returns ``_core.run_omg_loop``'s dict (xi, goal, metrics, history, seconds per stage, ...)."""
     native = loop_settings(settings, policy, chomp.native_metric_settings(metric_settings))
     return _core.run_omg_loop(chomp.problem, None if refiner is None else refiner._native, robot.hand_link,
-                              np.asarray(q0, dtype=float), np.asarray(book.goals), np.asarray(book.tails),
-                              np.asarray(book.origin), cubic_blend(chomp.settings.n), native)
+                              np.asarray(q0, dtype=float), np.asarray(goals), np.asarray(tails),
+                              np.asarray(grasp_index), cubic_blend(chomp.settings.n), native)

@@ -31,6 +31,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pickplan import _core
+from pickplan.core.errors import InputError
 from pickplan.core.graspability import Graspability
 from pickplan.core.observation import Observation
 from pickplan.core.sdf import SceneSdf
@@ -52,7 +53,7 @@ TARGET = "observed target"  # the target's name in a perceived world's SDF
 class PerceivedWorldSettings:
     field: FieldSettings = dataclass_field(default_factory=FieldSettings)
     grasps: PointGraspSettings = dataclass_field(default_factory=PointGraspSettings)
-    body_points_per_link: int = 20    # as WorldSettings: the paper's 20 points per body part
+    body_points_per_link: Optional[int] = None  # as WorldSettings: None, the robot description's
     body_seed: int = 0
     hand_points_per_link: int = 60    # open-hand samples checked against the field and the plane
     target_resolution: float = 0.005  # m, the target's (excluded) distance grid
@@ -123,11 +124,13 @@ class PerceivedWorld:
         self.cache = ModelCache() if cache is None else cache  # the robot's data, shared with other worlds
         self.robot = self.cache.robot(robot if robot is not None else "panda", np.eye(4))
         if len(self.perceived.target_points) < 3:
-            raise ValueError("observation: fewer than 3 target points with depth; the target is not seen")
+            raise InputError("fewer than 3 target points with depth inside the workspace; the target is not seen",
+                             path=None if observation.source == "<memory>" else observation.source, field="target_mask")
         self.sdf: SceneSdf = self.perceived.sdf
         if TARGET not in self.sdf.names:  # a PerceivedScene handed to a second world has it already
             self.sdf.add_object(TARGET, target_grid(self.perceived.target_points, settings.target_resolution), np.eye(4))
-        self.body = self.robot.sample_body_points(settings.body_points_per_link, seed=settings.body_seed)
+        self.body = self.robot.sample_body_points(settings.body_points_per_link
+                                                  or self.robot.description.body_points_per_link, seed=settings.body_seed)
         self._refiners: dict = {}
         self._chomps: dict = {}
         self.seconds = dict(self.perceived.seconds, world=time.perf_counter() - t0, grasps=0.0)

@@ -17,13 +17,13 @@ from pickplan.core import robots
 from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, robot_limits, time_parameterize
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
-from pickplan.omg.chomp import ChompSettings, MetricSettings, cubic_initialization
+from pickplan.omg.chomp import ChompSettings, MetricSettings
 from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, build_goal_set
 from pickplan.omg.grasps import GraspKind
 from pickplan.omg.isf import IsfSettings
-from pickplan.omg.native_loop import PlanLoop, StageClock, run_native
+from pickplan.omg.native_loop import StageClock, run_native
 from pickplan.sim.scenes import Scene
-from pickplan.omg.selection import CostKind, Selection, make_policy
+from pickplan.omg.selection import Selection, make_policy
 from pickplan.omg.world import CheckerKind, World, WorldSettings
 
 
@@ -35,6 +35,8 @@ class PlanStatus(Option):
     not_smooth = "not_smooth"
     no_goals = "no_goals"          # no grasp gave a goal configuration (see PlanResult.goal_reasons)
     ungraspable = "ungraspable"    # no grasp of this gripper can exist for the target as it lies (PlanResult.reason)
+    no_grasps = "no_grasps"        # no grasp set of the kind asked for exists for the target (a sweep's unit
+                                   # with a stored set the object lacks; not a planning failure)
 
     @classmethod
     def of(cls, metrics: dict) -> "PlanStatus":
@@ -69,7 +71,6 @@ class OMGSettings:
     grasp_kind: GraspKind = GraspKind.simulated  # default grasps when plan() gets none: stored, else generated
     grasp_count: int = 100
     seed: int = 0
-    loop: PlanLoop = PlanLoop.native  # Algorithm 2's loop in C++, or in Python (the reference; same plans)
     clock: StageClock = StageClock.wall  # what PlanResult.timings read (thread_cpu: a loaded machine's
                                          # other processes do not count)
 
@@ -81,7 +82,6 @@ class OMGSettings:
                 raise ValueError(f"OMGSettings.{name}: expected an integer >= {low}, got {value!r}")
         object.__setattr__(self, "selection", Selection.parse(self.selection, "selection policy"))
         object.__setattr__(self, "grasp_kind", GraspKind.parse(self.grasp_kind, "grasp set kind"))
-        object.__setattr__(self, "loop", PlanLoop.parse(self.loop, "planner loop"))
         object.__setattr__(self, "clock", StageClock.parse(self.clock, "stage clock"))
 
 
@@ -194,12 +194,15 @@ class OMGPlanner:
             return PlanResult(status, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0, history,
                               timings, gs.reason_counts() if gs is not None else {},
                               reason="" if verdict.graspable else f"ungraspable: {verdict.reason}")
-        optimization = _Optimization(s, world, q0, GoalBook(gs, world.robot), timings)
-        result = optimization.run() if s.loop is PlanLoop.python else optimization.run_native()
+        result = self._optimize(world, q0, gs, timings)
         timings["total"] = clock() - t_total
         result.goal_reasons = gs.reason_counts()
         result.limits = robot_limits(world.robot)
         return result
+
+    def _optimize(self, world: World, q0: np.ndarray, gs: GoalSet, timings: dict) -> PlanResult:
+        """Algorithm 2's loop over a non-empty goal set (the test oracle overrides it)."""
+        return run_loop(self.settings, world, q0, gs, timings)
 
 
 def _clock(settings: OMGSettings):
@@ -213,177 +216,41 @@ def target_graspability(world: World):
     return world.graspability
 
 
-class GoalBook:
-    """The goal set as the planner changes it: the first time C-Space ISF moves a goal, its refined
-    copy joins the set; later refinements update that copy in place. Goals ISF cannot improve (no
-    decrease found, or beyond ``isf_max_shift`` from their input grasp) are left alone."""
+@dataclass(frozen=True)
+class LoopInputs:
+    """What Algorithm 2's loop runs with, built from the settings and the world: the CHOMP problem
+    (the approach tail free of obstacle cost), the success test's settings, C-Space ISF (None without
+    refinement) and a fresh selection policy."""
 
-    def __init__(self, gs: GoalSet, robot):
-        self.robot = robot
-        self.initial_goals = np.array(gs.goals)  # the IK goal set as built, before any refinement
-        self.goals = list(gs.goals)
-        self.tails = list(gs.tails)
-        self.origin = list(gs.grasp_index)         # input grasp of each goal
-        self.origin_goal = list(range(len(gs)))    # goal-set goal each goal came from (refined copies: their source)
-        self.refined_copy: dict = {}               # goal index -> index of its refined copy
-        self.stalled: set = set()                  # goals ISF leaves alone
-        self.grasp_hand: dict = {}                 # hand position at an input goal, made when ISF first refines it
-        self.tail_length = gs.tails.shape[1]
+    chomp: object
+    metric_settings: MetricSettings
+    refiner: object
+    policy: object
 
-    def __len__(self) -> int:
-        return len(self.goals)
-
-    def on_goal(self, xi, g: int) -> bool:
-        """The tail sits on goal g's tail (after a projection step: to round-off)."""
-        # np.allclose(rtol=0, atol=1e-9) without its ~0.1 ms of overhead; NaN is never on a goal.
-        return bool(np.abs(xi[-self.tail_length:] - self.tails[g]).max() <= 1e-9)
-
-    def is_refined(self, g: int) -> bool:
-        return g in self.refined_copy.values()
-
-    def refine(self, g: int, refiner, steps: int, max_shift: float) -> Tuple[int, bool]:
-        """ISF steps on goal g; returns the goal to follow (g or its refined copy) and whether that
-        copy is new (a selection policy then grows by one goal)."""
-        q_ref, _ = refiner.refine(self.goals[g], steps)
-        hand_link = self.robot.hand_link
-        source = self.origin_goal[g]
-        if source not in self.grasp_hand:
-            self.grasp_hand[source] = self.robot.link_pose(self.goals[source], hand_link)[:3, 3]
-        shift = np.linalg.norm(self.robot.link_pose(q_ref, hand_link)[:3, 3] - self.grasp_hand[source])
-        if np.abs(q_ref - self.goals[g]).max() == 0 or shift > max_shift:
-            self.stalled.add(g)  # deterministic: refine would give the same again
-            return g, False
-        shifted = self.tails[g] + (q_ref - self.goals[g])  # keep the approach's shape
-        if self.is_refined(g):  # already a refined goal: update in place
-            self.goals[g], self.tails[g] = q_ref, shifted
-            return g, False
-        if g in self.refined_copy:
-            k = self.refined_copy[g]
-            self.goals[k], self.tails[k] = q_ref, shifted
-            return k, False
-        self.goals.append(q_ref)
-        self.tails.append(shifted)
-        self.origin.append(self.origin[g])
-        self.origin_goal.append(g)
-        self.refined_copy[g] = len(self.goals) - 1
-        return len(self.goals) - 1, True
-
-
-class _Optimization:
-    """The loop of Algorithm 2 over a non-empty goal set; ``timings`` accumulates its phases."""
-
-    def __init__(self, settings: OMGSettings, world: World, q0: np.ndarray, book: GoalBook, timings: dict):
-        s = self.settings = settings
-        self.world, self.q0, self.book, self.timings = world, q0, book, timings
-        m = book.tail_length
+    @classmethod
+    def of(cls, settings: OMGSettings, world: World, tail_length: int) -> "LoopInputs":
         # The standoff approach (the last m waypoints) carries no obstacle cost, so the transit before it
         # may keep away from the target too: the arm does not sweep through the object it will grasp.
-        avoid = m > 0 and s.transit_avoids_target
-        self.chomp = world.chomp(replace(s.chomp, obstacle_tail=m), avoid_target=avoid)
-        self.metric_settings = replace(s.metrics, tail_waypoints=m)
-        self.ws = self.chomp.workspace() if s.loop is PlanLoop.python else None  # the native loop has its own
-        self.refiner = world.grasp_refiner(s.isf, s.seed) if s.refine else None
-        self.policy = make_policy(s.selection)
+        avoid = tail_length > 0 and settings.transit_avoids_target
+        return cls(world.chomp(replace(settings.chomp, obstacle_tail=tail_length), avoid_target=avoid),
+                   replace(settings.metrics, tail_waypoints=tail_length),
+                   world.grasp_refiner(settings.isf, settings.seed) if settings.refine else None,
+                   make_policy(settings.selection))
 
-    def estimates(self, xi, i: int) -> np.ndarray:
-        """Normalized cost of each goal for the trajectory xi at iteration i."""
-        s, goals = self.settings, np.array(self.book.goals)
-        if self.policy.cost_kind is CostKind.distance:  # Proj: distance of the free end point to each goal
-            _, grad = self.chomp.problem.objective(xi, self.q0, i)
-            free_end = xi[-1] - s.chomp.step_size * self.chomp.problem.solve_A(grad)[-1]
-            c = np.linalg.norm(goals - free_end, axis=1)
-        else:
-            c = self.chomp.problem.goal_costs(xi, self.q0, i, s.iterations, goals, s.cost_time_stride,
-                                              s.cost_point_stride, self.ws)
-        norm = np.linalg.norm(c)
-        return c / norm if norm > 0 else c
 
-    def _timed(self, phase: str, fn, *args):
-        clock = _clock(self.settings)
-        t = clock()
-        out = fn(*args)
-        self.timings[phase] += clock() - t
-        return out
-
-    def _select(self, c) -> Tuple[int, np.ndarray]:
-        """The policy's update and its choice: (goal, p)."""
-        p = self.policy.update(c)
-        return self.policy.select(), p
-
-    def _refine(self, g: int) -> int:
-        g, added = self.book.refine(g, self.refiner, self.settings.isf_steps, self.settings.isf_max_shift)
-        if added:
-            self.policy.add_goal()
-        return g
-
-    def _succeeds(self, xi, g: int, iterations: int):
-        """The trajectory that would be returned (its tail on goal g) and its metrics when it succeeds."""
-        book, q0 = self.book, self.q0
-        cand = xi if book.on_goal(xi, g) else self.chomp.step(xi.copy(), q0, book.tails[g], iterations, self.ws)[0]
-        metrics = self.chomp.metrics(cand, q0, self.metric_settings)
-        return (cand, metrics) if metrics["success"] else (None, None)
-
-    def run(self) -> PlanResult:
-        s, book, q0, chomp, ws = self.settings, self.book, self.q0, self.chomp, self.ws
-        xi = cubic_initialization(q0, book.goals[0], s.chomp.n)
-        c0 = self._timed("costs", self.estimates, xi, 0)
-        self.policy.reset(len(book), s.iterations, c0)
-        g = int(np.argmin(c0))  # the initial goal: best by the initial estimate (as Fixed)
-        xi = cubic_initialization(q0, book.goals[g], s.chomp.n)
-        xi[-book.tail_length:] = book.tails[g]
-        history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0,
-                   "initial_grasp": int(book.origin[g])}
-        iterations, metrics = 0, None
-        for i in range(s.iterations):
-            iterations = i + 1
-            xi, info = self._timed("chomp", chomp.step, xi, q0, book.tails[g], i, ws)
-            history["objective"].append(info["before"]["total"])
-            c = self._timed("costs", self.estimates, xi, i + 1)
-            history["costs"].append(c)
-            g_next, p = self._timed("selection", self._select, c)
-            if self.refiner is not None and g_next not in book.stalled:
-                g_next = self._timed("isf", self._refine, g_next)
-            history["switches"] += int(g_next != g)
-            history["goal"].append(g_next)
-            history["p"].append(p.copy())
-            # On a switch the tail is left where it is: the next CHOMP-Proj step's offset term
-            # (eq. 7, -A^-1 C^T (C A^-1 C^T)^-1 b) moves the whole trajectory smoothly onto the new
-            # goal; overwriting the tail instead would leave a jump before it for CHOMP to undo.
-            g = g_next
-            if s.pre_terminate and iterations >= s.min_iterations and iterations % s.check_every == 0:
-                cand, metrics = self._timed("metrics", self._succeeds, xi, g, iterations)
-                if cand is not None:
-                    xi = cand
-                    break
-        if not book.on_goal(xi, g):  # the last selection (a switch or a refined goal): project onto it
-            xi, _ = chomp.step(xi, q0, book.tails[g], iterations, ws)
-        return self._result(xi, g, iterations, metrics, history)
-
-    def run_native(self) -> PlanResult:
-        """The same loop as ``run``, in C++ (``native_loop``), with the GIL released."""
-        book = self.book
-        out = run_native(self.chomp, self.refiner, self.world.robot, self.q0, book, self.settings, self.policy,
-                         self.metric_settings)
-        for phase, seconds in out["seconds"].items():
-            self.timings[phase] += seconds
-        history = {"objective": list(out["objective"]), "goal": list(out["goals_chosen"]), "p": out["p"],
-                   "costs": out["costs"], "switches": out["switches"], "initial_grasp": out["initial_grasp"]}
-        xi, robot = out["xi"], self.world.robot
-        return PlanResult(PlanStatus.of(out["metrics"]), np.vstack([self.q0, xi]), xi[-1].copy(), out["grasp_index"],
-                          robot.link_pose(xi[-1], robot.hand_link), out["refined"], out["metrics"], out["grasp_cost"],
-                          out["goal_set_size"], out["iterations"], history, self.timings,
-                          goal_set=book.initial_goals.copy(), goal_source=out["goal_source"])
-
-    def _result(self, xi, g: int, iterations: int, metrics: Optional[dict], history: dict) -> PlanResult:
-        clock = _clock(self.settings)
-        t = clock()
-        if metrics is None:
-            metrics = self.chomp.metrics(xi, self.q0, self.metric_settings)
-        refiner = self.refiner
-        grasp_cost = float(refiner.cost(xi[-1])[0]["total"]) if refiner is not None else float("nan")
-        self.timings["metrics"] += clock() - t
-        robot = self.world.robot
-        return PlanResult(PlanStatus.of(metrics), np.vstack([self.q0, xi]), xi[-1].copy(), int(self.book.origin[g]),
-                          robot.link_pose(xi[-1], robot.hand_link), self.book.is_refined(g), metrics, grasp_cost,
-                          len(self.book), iterations, history, self.timings,
-                          goal_set=self.book.initial_goals.copy(), goal_source=int(self.book.origin_goal[g]))
+def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, timings: dict) -> PlanResult:
+    """Algorithm 2's loop over the non-empty goal set ``gs`` in C++ (``native_loop``, the GIL
+    released); ``timings`` gains the seconds of each stage. (tests/python/omg_reference_loop.py
+    keeps the loop in Python, the oracle the native loop is tested against.)"""
+    parts = LoopInputs.of(settings, world, gs.tails.shape[1])
+    out = run_native(parts.chomp, parts.refiner, world.robot, q0, gs.goals, gs.tails, gs.grasp_index, settings,
+                     parts.policy, parts.metric_settings)
+    for phase, seconds in out["seconds"].items():
+        timings[phase] += seconds
+    history = {"objective": list(out["objective"]), "goal": list(out["goals_chosen"]), "p": out["p"],
+               "costs": out["costs"], "switches": out["switches"], "initial_grasp": out["initial_grasp"]}
+    xi, robot = out["xi"], world.robot
+    return PlanResult(PlanStatus.of(out["metrics"]), np.vstack([q0, xi]), xi[-1].copy(), out["grasp_index"],
+                      robot.link_pose(xi[-1], robot.hand_link), out["refined"], out["metrics"], out["grasp_cost"],
+                      out["goal_set_size"], out["iterations"], history, timings,
+                      goal_set=np.array(gs.goals), goal_source=out["goal_source"])

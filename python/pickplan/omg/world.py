@@ -37,7 +37,7 @@ class CheckerKind(Option):
 @dataclass(frozen=True)
 class WorldSettings:
     sdf: sdf.SdfSettings = field(default_factory=sdf.SdfSettings)
-    body_points_per_link: int = 20   # the paper samples 20 points per body part
+    body_points_per_link: Optional[int] = None  # None: the robot description's (the shipped ones: the paper's 20)
     body_seed: int = 0
     robot: str = "panda"             # the robot planned for: a shipped description's name or a .toml file
 
@@ -80,8 +80,8 @@ class World:
         table = None if scene.table is None else (np.asarray(scene.table.size), np.asarray(scene.table.pose))
         self.sdf = sdf.SceneSdf(grids, table=table)
         shapes.add_to_sdf(self.sdf, scene.obstacles, settings.sdf, cache.grids)  # shelves, bins: closed forms
-        self.body = _without_table_links(cache.body_points(self.robot, settings.body_points_per_link,
-                                                           settings.body_seed), self.robot)
+        per_link = settings.body_points_per_link or self.robot.description.body_points_per_link
+        self.body = _without_table_links(cache.body_points(self.robot, per_link, settings.body_seed), self.robot)
         self._checkers: dict = {}
         self._refiners: dict = {}
         self._chomps: dict = {}

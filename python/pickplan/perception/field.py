@@ -11,6 +11,7 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.errors import InputError
 from pickplan.core.observation import Observation
 from pickplan.core.sdf import SceneSdf
 
@@ -37,21 +38,34 @@ class PerceivedScene:
     plane: Tuple[np.ndarray, float]     # support plane n . x = d, n up
     counts: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
+    obstacles: Optional["_core.SdfGrid"] = None  # the fused field alone (world frame), for drawing it
+
+
+def pixel_points(d: np.ndarray, rows: np.ndarray, cols: np.ndarray, K: np.ndarray, camera_pose: np.ndarray) -> np.ndarray:
+    """(N, 3) world points of pixels (rows, cols) at depths d (``Observation``'s conventions: pixel
+    (r, c) centred at (c + 0.5, r + 0.5))."""
+    P = np.column_stack([(cols + 0.5 - K[0, 2]) / K[0, 0] * d, (rows + 0.5 - K[1, 2]) / K[1, 1] * d, d])
+    return P @ camera_pose[:3, :3].T + camera_pose[:3, 3]
+
+
+def backproject(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray, stride: int = 1) -> np.ndarray:
+    """(H', W', 3) world points of every stride-th pixel of one view; NaN where there is no depth."""
+    d = np.asarray(depth[::stride, ::stride], float)
+    rows, cols = np.mgrid[0:depth.shape[0]:stride, 0:depth.shape[1]:stride]
+    d = np.where(np.isfinite(d) & (d > 0), d, np.nan)
+    return pixel_points(d.ravel(), rows.ravel(), cols.ravel(), K, camera_pose).reshape(*d.shape, 3)
+
+
+def view_points(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray, stride: int) -> np.ndarray:
+    """(N, 3) world points of every stride-th pixel with depth, over all views ((V, H, W) depth)."""
+    out = [backproject(depth[v], K[v], camera_pose[v], stride).reshape(-1, 3) for v in range(len(depth))]
+    P = np.vstack(out)
+    return P[np.isfinite(P[:, 2])]
 
 
 def _points(obs: Observation, stride: int) -> np.ndarray:
     """World points of every stride-th pixel with depth, over all views."""
-    out = []
-    for v in range(obs.views):
-        d = obs.depth[v, ::stride, ::stride].astype(float)
-        rows, cols = np.mgrid[0:obs.depth.shape[1]:stride, 0:obs.depth.shape[2]:stride]
-        ok = np.isfinite(d) & (d > 0)
-        K = obs.K[v]
-        x = (cols[ok] + 0.5 - K[0, 2]) / K[0, 0] * d[ok]
-        y = (rows[ok] + 0.5 - K[1, 2]) / K[1, 1] * d[ok]
-        P = np.column_stack([x, y, d[ok]])
-        out.append(P @ obs.camera_pose[v, :3, :3].T + obs.camera_pose[v, :3, 3])
-    return np.vstack(out)
+    return view_points(obs.depth, obs.K, obs.camera_pose, stride)
 
 
 def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int = 200, seed: int = 0,
@@ -88,7 +102,11 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     """The planner's world from ``obs``: fused field, support plane (detected unless given), target."""
     t0 = time.perf_counter()
     if settings.plane is None:
-        n, d = support_plane(_points(obs, 4), settings.plane_tolerance, seed=seed)
+        try:
+            n, d = support_plane(_points(obs, 4), settings.plane_tolerance, seed=seed)
+        except ValueError as exc:  # the observation's, named: no table in view
+            raise InputError(f"{exc} (the table the objects stand on must be in view)",
+                             path=None if obs.source == "<memory>" else obs.source, field="depth") from None
     else:
         n = np.asarray(settings.plane[0], float)
         n, d = n / np.linalg.norm(n), float(settings.plane[1])
@@ -122,4 +140,5 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     t3 = time.perf_counter()
     return PerceivedScene(sdf, np.asarray(built["target_points"]), np.asarray(built["target_normals"]), (n, d),
                           counts={k: int(built[k]) for k in ("occupied", "target", "free")},
-                          seconds={"plane": t1 - t0, "field": t2 - t1, "scene": t3 - t2})
+                          seconds={"plane": t1 - t0, "field": t2 - t1, "scene": t3 - t2},
+                          obstacles=built["obstacles"])

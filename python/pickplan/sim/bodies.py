@@ -66,7 +66,7 @@ def add_object_body(client: int, model: objects_mod.ObjectModel, pose: np.ndarra
     it always reports for the inertial frame) needs no further correction; ``object_pose`` converts
     back to the object frame.
     """
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     T_in, moments = _inertial_frame(model)
     T_shape = np.linalg.inv(T_in)  # the object (mesh) frame seen from the inertial frame
@@ -88,7 +88,7 @@ def add_object_body(client: int, model: objects_mod.ObjectModel, pose: np.ndarra
 
 def object_pose(client: int, body: int, model: objects_mod.ObjectModel) -> np.ndarray:
     """The object-frame pose (4x4) of a body created by ``add_object_body``."""
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     pos, quat = pb.getBasePositionAndOrientation(body, physicsClientId=client)
     T_base = np.eye(4)
@@ -97,7 +97,7 @@ def object_pose(client: int, body: int, model: objects_mod.ObjectModel) -> np.nd
 
 
 def add_table(client: int, table: Table, friction: float = 0.8) -> int:
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     half = (np.asarray(table.size, dtype=float) / 2).tolist()
     shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=client)
@@ -141,7 +141,7 @@ def add_obstacle_body(client: int, obstacle, friction: float = 0.8) -> int:
 def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None, urdf: Optional[str] = None) -> int:
     """A robot with a fixed base (``urdf``; default the Panda); ``q`` sets the movable joints in URDF
     order (the Panda's: 7 arm + 2 fingers; None or empty: its ready configuration, the Panda only)."""
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     panda_urdf, ready = _panda_defaults()
     if urdf is not None and (q is None or len(q) == 0):

@@ -336,7 +336,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     Raises ValueError for a malformed trajectory (shape, NaN); a trajectory outside the joint limits
     is not run and reports status "invalid_trajectory". Deterministic for identical inputs.
     """
-    import pybullet as pb
+    from pickplan.sim.bullet import connect, pb
 
 
     t_start = time.perf_counter()
@@ -370,7 +370,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                     f"[{lo[j]:.4f}, {hi[j]:.4f}] by {over[k, j]:.4f}")
     Q = np.clip(Q, lo, hi)
 
-    client = pb.connect(pb.DIRECT)
+    client = connect()
     try:
         pb.resetSimulation(physicsClientId=client)
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, numSolverIterations=s.solver_iterations,

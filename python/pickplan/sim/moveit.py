@@ -21,6 +21,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from pickplan.core.errors import InputError
+from pickplan.core.fields import FieldReader, shown
 from pickplan.core.shapes import Obstacle, Shape, check_unique
 from pickplan.sim.scenes import Scene
 
@@ -73,13 +74,13 @@ def read_motion_request(path: str, text: Optional[str] = None) -> MotionRequest:
     r = _Fields(path)
     start = r.joint_state(r.mapping(r.mapping(data, "start_state", ""), "joint_state", "start_state."),
                           "start_state.joint_state")
-    goals = r.items(data, "goal_constraints", "")
+    goals = r.listed(data, "goal_constraints", "")
     if not goals:
         raise InputError("no goal constraints", path=path, field="goal_constraints")
     goal = {}
-    for k, c in enumerate(r.items(goals[0], "joint_constraints", "goal_constraints[0].")):
+    for k, c in enumerate(r.listed(goals[0], "joint_constraints", "goal_constraints[0].")):
         where = f"goal_constraints[0].joint_constraints[{k}]"
-        goal[r.text(c, "joint_name", where + ".")] = r.number(c, "position", where + ".")
+        goal[r.name(c, "joint_name", where + ".")] = r.number_at(c, "position", where + ".")
     if not goal:
         raise InputError("only joint constraints are read, and there are none", path=path,
                          field="goal_constraints[0].joint_constraints")
@@ -94,7 +95,7 @@ def parse_planning_scene(data, path: str = "scene.yaml") -> MoveItScene:
         raise InputError(f"expected a PlanningScene mapping, got {type(data).__name__}", path=path)
     world = r.mapping(data, "world", "", required=False)
     obstacles: List[Obstacle] = []
-    for i, obj in enumerate(r.items(world, "collision_objects", "world.", required=False)):
+    for i, obj in enumerate(r.listed(world, "collision_objects", "world.", required=False)):
         obstacles.extend(_collision_object(r, obj, f"world.collision_objects[{i}]"))
     _unique(obstacles, path)
     state = r.mapping(data, "robot_state", "", required=False)
@@ -107,14 +108,14 @@ def parse_planning_scene(data, path: str = "scene.yaml") -> MoveItScene:
 def _collision_object(r: "_Fields", obj, where: str) -> List[Obstacle]:
     if not isinstance(obj, dict):
         raise InputError(f"expected a collision object mapping, got {type(obj).__name__}", path=r.path, field=where)
-    name = r.text(obj, "id", where + ".")
+    name = r.name(obj, "id", where + ".")
     operation = obj.get("operation", 0)
     if operation not in (0, "0", "add", "ADD", b"\x00"):
         raise InputError(f"only ADD (0) objects are read, got {operation!r}", path=r.path, field=where + ".operation")
     base = r.pose(obj["pose"], where + ".pose") if "pose" in obj else np.eye(4)
     parts = _posed(r, obj, where, base, "primitives", "primitive_poses", _primitive) + \
         _posed(r, obj, where, base, "meshes", "mesh_poses", _mesh_msg)
-    if r.items(obj, "planes", where + ".", required=False):
+    if r.listed(obj, "planes", where + ".", required=False):
         raise InputError("planes (infinite) have no pickplan shape", path=r.path, field=where + ".planes")
     if not parts:
         raise InputError("a collision object without primitives or meshes", path=r.path, field=where)
@@ -123,8 +124,8 @@ def _collision_object(r: "_Fields", obj, where: str) -> List[Obstacle]:
 
 def _posed(r: "_Fields", obj: dict, where: str, base: np.ndarray, key: str, poses_key: str, make) -> list:
     """(shape, world pose) of each of an object's ``key`` items (primitives, meshes) and their poses."""
-    items = r.items(obj, key, where + ".", required=False)
-    poses = r.items(obj, poses_key, where + ".", required=bool(items))
+    items = r.listed(obj, key, where + ".", required=False)
+    poses = r.listed(obj, poses_key, where + ".", required=bool(items))
     if len(poses) != len(items):
         raise InputError(f"{len(items)} {key} but {len(poses)} {poses_key}", path=r.path, field=f"{where}.{poses_key}")
     return [(make(r, item, f"{where}.{key}[{k}]"), base @ r.pose(T, f"{where}.{poses_key}[{k}]"))
@@ -154,10 +155,10 @@ def _shape(kind: str, dims, path: str, where: str) -> Shape:
 
 
 def _mesh_msg(r: "_Fields", m, where: str) -> Shape:
-    vertices = [[r.number(v, a, f"{where}.vertices[{i}].") for a in "xyz"] if isinstance(v, dict)
-                else r.vector(v, 3, f"{where}.vertices[{i}]") for i, v in enumerate(r.items(m, "vertices", where + "."))]
-    faces = [r.vector(t.get("vertex_indices") if isinstance(t, dict) else t, 3, f"{where}.triangles[{i}]")
-             for i, t in enumerate(r.items(m, "triangles", where + "."))]
+    vertices = [[r.number_at(v, a, f"{where}.vertices[{i}].") for a in "xyz"] if isinstance(v, dict)
+                else r.numbers_of(v, 3, f"{where}.vertices[{i}]") for i, v in enumerate(r.listed(m, "vertices", where + "."))]
+    faces = [r.numbers_of(t.get("vertex_indices") if isinstance(t, dict) else t, 3, f"{where}.triangles[{i}]")
+             for i, t in enumerate(r.listed(m, "triangles", where + "."))]
     return _inline_mesh(vertices, faces, r.path, where)
 
 
@@ -172,8 +173,8 @@ def _inline_mesh(vertices, faces, path: str, where: str) -> Shape:
 
 
 def _allowed(r: "_Fields", acm, where: str = "allowed_collision_matrix") -> Tuple[Tuple[str, str], ...]:
-    names = [str(n) for n in r.items(acm, "entry_names", where + ".")]
-    rows = r.items(acm, "entry_values", where + ".")
+    names = [str(n) for n in r.listed(acm, "entry_names", where + ".")]
+    rows = r.listed(acm, "entry_values", where + ".")
     if len(rows) != len(names):
         raise InputError(f"{len(names)} entry_names but {len(rows)} rows", path=r.path, field=where + ".entry_values")
     out = []
@@ -321,74 +322,59 @@ def _pose_from(position, quaternion, path: str, where: str) -> np.ndarray:
     return T
 
 
-class _Fields:
-    """Typed reads of a YAML mapping, each naming the file and field when it fails."""
+class _Fields(FieldReader):
+    """``core.fields``' checks over MoveIt's YAML (keyed reads), failing at the first problem: an
+    InputError naming the file and the field."""
 
-    def __init__(self, path: str):
-        self.path = path
-
-    def _fail(self, message: str, where: str):
-        raise InputError(message, path=self.path, field=where)
+    def note(self, field: str, message: str) -> None:
+        raise InputError(message, path=self.path, field=field)
 
     def mapping(self, d, key: str, where: str, required: bool = True) -> dict:
         v = d.get(key) if isinstance(d, dict) else None
         if v is None:
             if required:
-                self._fail("missing", where + key)
+                self.note(where + key, "missing")
             return {}
-        if not isinstance(v, dict):
-            self._fail(f"expected a mapping, got {type(v).__name__}", where + key)
-        return v
+        return self.table(v, where + key)
 
-    def items(self, d, key: str, where: str, required: bool = True) -> list:
+    def listed(self, d, key: str, where: str, required: bool = True) -> list:
         v = d.get(key) if isinstance(d, dict) else None
         if v is None:
             if required:
-                self._fail("missing", where + key)
+                self.note(where + key, "missing")
             return []
-        if not isinstance(v, list):
-            self._fail(f"expected a list, got {type(v).__name__}", where + key)
-        return v
+        return [item for _, item in self.items(v, where + key)]
 
-    def text(self, d, key: str, where: str) -> str:
-        v = d.get(key) if isinstance(d, dict) else None
-        if not isinstance(v, str) or not v:
-            self._fail(f"expected a non-empty name, got {v!r}", where + key)
-        return v
+    def name(self, d, key: str, where: str) -> str:
+        return self.text(d.get(key) if isinstance(d, dict) else None, where + key)
 
-    def number(self, d, key: str, where: str) -> float:
-        v = d.get(key) if isinstance(d, dict) else None
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-            self._fail(f"expected a finite number, got {v!r}", where + key)
-        return float(v)
+    def number_at(self, d, key: str, where: str) -> float:
+        return self.number(d.get(key) if isinstance(d, dict) else None, where + key)
 
-    def vector(self, v, n: int, where: str) -> List[float]:
-        if not isinstance(v, list) or len(v) != n or \
-                not all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in v):
-            self._fail(f"expected {n} finite numbers, got {v!r:.80}", where)
-        return [float(x) for x in v]
+    def numbers_of(self, v, n: int, where: str) -> List[float]:
+        return list(self.vector(v, where, n))
 
     def numbers(self, d, key: str, where: str, n: int) -> List[float]:
         if not isinstance(d, dict) or key not in d:
-            self._fail("missing", where + key)
-        return self.vector(d[key], n, where + key)
+            self.note(where + key, "missing")
+        return self.numbers_of(d[key], n, where + key)
 
     def pose(self, p, where: str) -> np.ndarray:
         """A geometry_msgs/Pose: position and orientation as lists ([x, y, z], [x, y, z, w]) or mappings."""
         if not isinstance(p, dict):
-            self._fail(f"expected a pose with position and orientation, got {type(p).__name__}", where)
+            self.note(where, f"expected a pose with position and orientation, got {shown(p)}")
         out = []
         for key, axes in (("position", "xyz"), ("orientation", "xyzw")):
             v = p.get(key)
-            out.append([self.number(v, a, f"{where}.{key}.") for a in axes] if isinstance(v, dict)
-                       else self.vector(v, len(axes), f"{where}.{key}"))
+            out.append([self.number_at(v, a, f"{where}.{key}.") for a in axes] if isinstance(v, dict)
+                       else self.numbers_of(v, len(axes), f"{where}.{key}"))
         return _pose_from(out[0], out[1], self.path, where + ".orientation")
 
     def joint_state(self, js, where: str) -> Dict[str, float]:
-        names, values = self.items(js, "name", where + "."), self.items(js, "position", where + ".")
+        names, values = self.listed(js, "name", where + "."), self.listed(js, "position", where + ".")
         if len(names) != len(values):
-            self._fail(f"{len(names)} names but {len(values)} positions", where + ".position")
-        self.vector(values, len(values), where + ".position")
+            self.note(where + ".position", f"{len(names)} names but {len(values)} positions")
+        self.numbers_of(values, len(values), where + ".position")
         return {str(n): float(v) for n, v in zip(names, values)}
 
 

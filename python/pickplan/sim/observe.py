@@ -57,12 +57,12 @@ class CameraRig:
 def render_observation(scene: scenes_mod.Scene, views: int = 3, noise: float = 0.0, seed: int = 0,
                        rig: CameraRig = CameraRig()) -> Observation:
     """Depth images of ``scene`` from ``views`` cameras of ``rig`` (noise: depth sigma in metres)."""
-    import pybullet as pb
+    from pickplan.sim.bullet import connect, pb
 
     if not (np.isfinite(noise) and noise >= 0):
         raise ValueError(f"noise: expected a depth sigma >= 0 (m), got {noise}")
     rng = np.random.default_rng(seed)
-    client = pb.connect(pb.DIRECT)
+    client = connect()
     try:
         ids = scenes_mod.load_into_pybullet(scene, client, with_robot=False)
         K = rig.intrinsics()

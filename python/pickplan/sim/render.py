@@ -55,7 +55,7 @@ def write_gif(path: str, frames: Sequence[np.ndarray], fps: float = 10.0) -> Non
 def render(client: int, width: int = 640, height: int = 480, target: Sequence[float] = (0.45, 0.0, 0.35),
            distance: float = 1.6, yaw: float = 50.0, pitch: float = -30.0) -> np.ndarray:
     """An RGB image of the current PyBullet scene from an orbit camera (TinyRenderer)."""
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     view = pb.computeViewMatrixFromYawPitchRoll(target, distance, yaw, pitch, 0.0, 2, physicsClientId=client)
     proj = pb.computeProjectionMatrixFOV(50.0, width / height, 0.02, 10.0, physicsClientId=client)

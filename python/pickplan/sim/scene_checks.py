@@ -1,5 +1,5 @@
-"""Checks of scene files at the door: numbers (not strings) everywhere, rigid poses, and objects
-that rest on the table rather than inside or under it."""
+"""Checks of scene files at the door (``core.fields.FieldReader``): numbers (not strings)
+everywhere, rigid poses, and objects that rest on the table rather than inside or under it."""
 from __future__ import annotations
 
 from typing import Optional
@@ -7,50 +7,86 @@ from typing import Optional
 import numpy as np
 
 from pickplan.core import objects as objects_mod
+from pickplan.core.errors import InputError
+from pickplan.core.fields import FieldReader, shown
 from pickplan.core.poses import clean_pose
+from pickplan.core.shapes import read_obstacles
+
+SCENE_FORMAT = "pickplan.scene"
+SCENE_VERSION = 1
+MAX_COORDINATE = 1e3     # m: any position in a scene
+MAX_JOINT_VALUE = 100.0  # rad or m: the robot's configuration (its limits bound it further)
 
 
-def numbers_only(value, what) -> None:
-    """Strings ("1.0") and booleans convert to floats silently in numpy: refuse them."""
-    stack = [value]
-    while stack:  # iterative: a deeply nested list must not exhaust the stack
-        v = stack.pop()
-        if isinstance(v, (list, tuple)):
-            stack.extend(v)
-        elif isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-            raise ValueError(f"{what}: expected numbers, got {type(v).__name__} {v!r:.40}")
-
-
-def array(value, shape, what) -> np.ndarray:
-    numbers_only(value, what)
+def _pose(r: FieldReader, value, where: str) -> np.ndarray:
+    arr = r.array(value, where, shape=(4, 4))
+    if np.abs(arr[:3, 3]).max() > MAX_COORDINATE:
+        r.fail(where, f"position {arr[:3, 3].tolist()} is more than {MAX_COORDINATE:g} m from the robot")
     try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise ValueError(f"{what}: expected numbers, got {value!r:.80}") from exc
-    if arr.shape != shape:
-        raise ValueError(f"{what}: expected shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what}: contains NaN or infinity")
-    return arr
+        return clean_pose(arr, where)
+    except InputError as exc:
+        r.fail(where, exc.detail)
 
 
-def pose(value, what) -> np.ndarray:
-    return clean_pose(array(value, (4, 4), what), what)
+def _seed(r: FieldReader, value) -> Optional[int]:
+    return None if value is None else r.integer(value, "seed")
 
 
-def seed(value) -> Optional[int]:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ValueError(f"seed: expected an integer or null, got {value!r:.40}")
-    return value
+def read_scene(d, path: Optional[str] = None) -> dict:
+    """The validated values of a parsed scene file: robot_base, table (size, pose; None for "table":
+    null), objects (name, source, pose), obstacles, target, seed, robot_configuration, robot;
+    InputError naming every problem."""
+    r = FieldReader(path)
+    with r:
+        r.table(d, "")
+        if d.get("format") != SCENE_FORMAT:
+            r.fail("format", f"not a scene: expected {SCENE_FORMAT!r}, got {shown(d.get('format'))}")
+        if d.get("version") != SCENE_VERSION:
+            r.fail("version", f"unsupported scene version {shown(d.get('version'))} (this pickplan reads "
+                              f"{SCENE_VERSION})")
+        out = {"robot_base": r.get(d, "robot_base", "", lambda v, w: _pose(r, v, w)),
+               "seed": r.attempt(_seed, r, d.get("seed"))}
+        out["size"] = out["table_pose"] = None
+        if "table" not in d or d["table"] is not None:  # null: no table (shelves, bins, MoveIt scenes)
+            table = r.get(d, "table", "", r.table, default={}, known=("size", "pose"))
+            out["size"] = r.get(table, "size", "table", r.array, shape=(3,), lo=0.0)
+            if out["size"] is not None and not np.all(out["size"] > 0):
+                r.note("table.size", f"expected positive extents, got {out['size'].tolist()}")
+            out["table_pose"] = r.get(table, "pose", "table", lambda v, w: _pose(r, v, w))
+        items = r.get(d, "objects", "", r.items)
+        out["objects"] = [r.attempt(_object, r, o, f) for f, o in items or []]
+        names = [o[0] for o in out["objects"] if o is not None]
+        if len(set(names)) != len(names):
+            r.note("objects", f"object names must be unique, got {names}")
+        out["target"] = r.get(d, "target", "", r.text)
+        if out["target"] is not None and items is not None and None not in out["objects"] and out["target"] not in names:
+            r.note("target", f"{out['target'][:60]!r} is not one of the objects {names}")
+        out["obstacles"] = []
+        try:
+            out["obstacles"] = read_obstacles(d.get("obstacles", []), names)
+        except InputError as exc:
+            for problem in exc.problems:
+                r.note(problem.field, problem.message)
+        out["robot"] = r.get(d, "robot", "", r.text, default="panda", required=False)
+        q = d.get("robot_configuration", [])
+        if not isinstance(q, (list, tuple)):
+            r.fail("robot_configuration", f"expected a list of joint values, got {shown(q)}")
+        out["robot_configuration"] = [float(x) for x in r.array(q, "robot_configuration", shape=(len(q),),
+                                                                 lo=-MAX_JOINT_VALUE, hi=MAX_JOINT_VALUE)]
+    return out
+
+
+def _object(r: FieldReader, o, where: str) -> tuple:
+    r.table(o, where)
+    name, source, pose = (r.key(o, k, where) for k in ("name", "source", "pose"))
+    return str(name), str(source), _pose(r, pose, f"{where}.pose")
 
 
 MAX_TABLE_PENETRATION = 0.01  # m: settled objects sink a few mm into the table in PyBullet; more is a bad pose
 
 
-def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None) -> None:
-    """ValueError naming the object when one over the table reaches more than
+def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None, path: Optional[str] = None) -> None:
+    """InputError naming the object when one over the table reaches more than
     ``MAX_TABLE_PENETRATION`` below its top face (into it, or under it)."""
     if scene.table is None:
         return  # nothing to rest on or pass through
@@ -61,7 +97,7 @@ def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None) 
         try:
             model = library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
         except KeyError as exc:  # not an object of that library: bad input, named
-            raise ValueError(f"objects[{i}].source: {exc.args[0] if exc.args else exc}") from None
+            raise InputError(str(exc.args[0] if exc.args else exc), path=path, field=f"objects[{i}].source") from None
         V = np.asarray(model.mesh.vertices, dtype=float)
         local = (to_table @ np.asarray(o.pose, dtype=float))
         P = V @ local[:3, :3].T + local[:3, 3]
@@ -70,5 +106,5 @@ def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None) 
             continue  # beside the table: nothing to pass through
         depth = half[2] - P[:, 2].min()
         if depth > MAX_TABLE_PENETRATION:
-            raise ValueError(f"objects[{i}].pose: object {o.name!r} reaches {100 * depth:.1f} cm below the "
-                             f"table top (into or under the table; at most {100 * MAX_TABLE_PENETRATION:.0f} cm)")
+            raise InputError(f"object {o.name!r} reaches {100 * depth:.1f} cm below the table top (into or under the "
+                             f"table; at most {100 * MAX_TABLE_PENETRATION:.0f} cm)", path=path, field=f"objects[{i}].pose")

@@ -28,15 +28,23 @@ from pickplan.core.description import RobotInfo, load_description
 from pickplan.core.panda import PANDA
 from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
-from pickplan.core.shapes import Obstacle, read_obstacles
+from pickplan.core.settings import Option
+from pickplan.core.shapes import Obstacle
 from pickplan.sim.bodies import (_inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat,  # noqa: F401
                                   add_object_body, add_obstacle_body, add_robot, add_table,  # (re-exported)
                                   object_pose)
-from pickplan.sim.scene_checks import array as _array, check_placement, pose as _pose, seed as _seed
+from pickplan.sim.scene_checks import SCENE_FORMAT, SCENE_VERSION, check_placement, read_scene  # noqa: F401
 
-ORIENTATIONS = ("upright", "stable", "resting")  # how objects are posed: see SceneSettings.orientation
-SCENE_FORMAT = "pickplan.scene"
-SCENE_VERSION = 1
+
+class Orientation(Option):
+    """How generated scenes pose their objects (``SceneSettings.orientation``)."""
+
+    upright = "upright"  # the paper's "random upright poses": the resting pose with model +z closest to up
+    stable = "stable"    # a resting pose drawn with the probability a random drop ends on it
+    resting = "resting"  # any sufficiently stable resting pose, drawn uniformly
+
+
+ORIENTATIONS = tuple(o.value for o in Orientation)
 
 
 @dataclass(frozen=True)
@@ -57,7 +65,7 @@ class SceneSettings:
     # drop ends on it (core.stability), among those that tip with at least min_barrier of COM rise;
     # "resting": any sufficiently stable resting pose (lying boxes, upside-down bowls), drawn uniformly
     # among those passing both settings below.
-    orientation: str = "upright"
+    orientation: Orientation = Orientation.upright
     min_barrier: float = 0.002         # resting poses that tip with less COM rise (m) are not sampled
     barrier_fraction: float = 0.1      # ... nor those below this fraction of the most stable one's
     time_step: float = 1.0 / 240.0
@@ -79,8 +87,9 @@ class SceneSettings:
     gripper_opening: Optional[float] = None
 
     def __post_init__(self):
-        if self.orientation not in ORIENTATIONS:
+        if self.orientation not in ORIENTATIONS:  # a spelling converts; the message keeps its old words
             raise ValueError(f"orientation: expected one of {list(ORIENTATIONS)}, got {self.orientation!r}")
+        object.__setattr__(self, "orientation", Orientation(self.orientation))
         if not 1 <= self.min_objects <= self.max_objects:
             raise ValueError(f"need 1 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
         for name in ("region_x", "region_y", "table_x", "table_y"):
@@ -139,59 +148,25 @@ class Scene:
         return json.dumps(self.to_dict(), indent=1)
 
     @classmethod
-    def from_dict(cls, d) -> "Scene":
-        if not isinstance(d, dict):
-            raise ValueError(f"expected a JSON object, got {type(d).__name__}")
-        if d.get("format") != SCENE_FORMAT:
-            raise ValueError(f"not a scene: 'format' is {d.get('format')!r}, expected {SCENE_FORMAT!r}")
-        if d.get("version") != SCENE_VERSION:
-            raise ValueError(f"unsupported scene version {d.get('version')!r} (this pickplan reads {SCENE_VERSION})")
-        for key in ("robot_base", "table", "objects", "target"):
-            if key not in d:
-                raise ValueError(f"missing key {key!r}")
-        table = d["table"]
-        if table is not None and (not isinstance(table, dict) or "size" not in table or "pose" not in table):
-            raise ValueError("'table' needs 'size' and 'pose' (or null: no table)")
-        if not isinstance(d["objects"], list):
-            raise ValueError("'objects' must be a list")
-        objs = []
-        for i, o in enumerate(d["objects"]):
-            if not isinstance(o, dict) or not {"name", "source", "pose"} <= set(o):
-                raise ValueError(f"objects[{i}] needs 'name', 'source' and 'pose'")
-            objs.append(SceneObject(str(o["name"]), str(o["source"]), _pose(o["pose"], f"objects[{i}].pose")))
-        names = [o.name for o in objs]
-        if len(set(names)) != len(names):
-            raise ValueError(f"object names must be unique, got {names}")
-        if d["target"] is not None and d["target"] not in names:
-            raise ValueError(f"target {d['target']!r} is not one of the objects {names}")
-        obstacles = read_obstacles(d.get("obstacles", []), names)
-        if table is not None:
-            size = _array(table["size"], (3,), "table.size")
-            if not np.all(size > 0):
-                raise ValueError(f"table.size: expected positive extents, got {size.tolist()}")
-            table = Table(size=size, pose=_pose(table["pose"], "table.pose"))
-        q = d.get("robot_configuration", [])
-        robot = d.get("robot", PANDA.name)
-        if not isinstance(robot, str) or not robot:
-            raise ValueError(f"robot: expected a robot description's name, got {robot!r}")
-        if not isinstance(q, (list, tuple)):
-            raise ValueError(f"robot_configuration: expected a list of joint values, got {type(q).__name__} {q!r}")
-        scene = cls(robot_base=_pose(d["robot_base"], "robot_base"), table=table,
-                    objects=objs, target=None if d["target"] is None else str(d["target"]), seed=_seed(d.get("seed")),
-                    robot_configuration=[float(x) for x in _array(q, (len(q),), "robot_configuration")],
-                    robot=robot, obstacles=obstacles)
-        check_placement(scene)
+    def from_dict(cls, d, path: Optional[str] = None) -> "Scene":
+        """The scene of a parsed scene file; InputError naming ``path`` and every field at fault."""
+        v = read_scene(d, path)
+        table = None if v["size"] is None else Table(size=v["size"], pose=v["table_pose"])
+        scene = cls(robot_base=v["robot_base"], table=table, objects=[SceneObject(*o) for o in v["objects"]],
+                    target=v["target"], seed=v["seed"], robot_configuration=v["robot_configuration"],
+                    robot=v["robot"], obstacles=v["obstacles"])
+        check_placement(scene, path=path)
         return scene
 
     @classmethod
-    def from_json(cls, text: str) -> "Scene":
+    def from_json(cls, text: str, path: Optional[str] = None) -> "Scene":
         try:
             data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"malformed scene JSON: {exc}") from exc
+        except ValueError as exc:  # JSONDecodeError, or an integer of more digits than Python converts
+            raise InputError(f"malformed scene JSON: {exc}", path=path) from None
         except RecursionError:  # the decoder recurses once per level of nesting
-            raise ValueError("malformed scene JSON: nested too deeply") from None
-        return cls.from_dict(data)
+            raise InputError("malformed scene JSON: nested too deeply", path=path) from None
+        return cls.from_dict(data, path)
 
     def save(self, path: str) -> None:
         with atomic_open(path, "w") as f:
@@ -205,9 +180,9 @@ class Scene:
         try:
             with open(path, "r", encoding="utf-8") as f:
                 text = f.read()
-            return cls.from_json(text)
-        except (ValueError, FileNotFoundError) as exc:  # UnicodeDecodeError is a ValueError
-            raise InputError(str(exc), path=path) from exc
+        except UnicodeDecodeError as exc:
+            raise InputError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", path=path) from None
+        return cls.from_json(text, path)
 
 
 def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None,
@@ -240,9 +215,9 @@ def default_table(settings: SceneSettings = SceneSettings()) -> Table:
 def _allowed_poses(model: objects_mod.ObjectModel, settings: SceneSettings) -> List[int]:
     """Indices of the resting poses to sample from. "upright": the one whose model +z points most
     nearly up; "stable" and "resting": those stable enough (the most stable one always qualifies)."""
-    if settings.orientation == "upright":
+    if settings.orientation is Orientation.upright:
         return [int(np.argmax([pose[2, 2] for pose in model.resting_poses]))]
-    if settings.orientation == "stable":
+    if settings.orientation is Orientation.stable:
         b = model.resting_barriers or [1.0]
         return [i for i in range(min(len(b), len(model.resting_poses))) if i == 0 or b[i] >= settings.min_barrier]
     b = np.asarray(model.resting_barriers if model.resting_barriers else [1.0], dtype=float)
@@ -254,7 +229,7 @@ def _sample_pose(rng: np.random.Generator, model: objects_mod.ObjectModel, setti
     """One resting pose index: uniform over the allowed ones, or by drop probability for "stable"."""
     allowed = _allowed_poses(model, settings)
     probabilities = model.resting_probabilities
-    if settings.orientation != "stable" or len(probabilities) < len(model.resting_poses):
+    if settings.orientation is not Orientation.stable or len(probabilities) < len(model.resting_poses):
         return allowed[int(rng.integers(len(allowed)))]
     p = np.asarray([probabilities[i] for i in allowed], dtype=float)
     if p.sum() <= 0:
@@ -275,7 +250,7 @@ class _Placed:
 
 
 def _settle(client: int, bodies: Sequence[int], settings: SceneSettings) -> None:
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     chunk = max(1, int(round(0.1 / settings.time_step)))
     for i in range(max(2, int(math.ceil(settings.max_settle_time / 0.1)))):
@@ -295,7 +270,7 @@ def _settle(client: int, bodies: Sequence[int], settings: SceneSettings) -> None
 
 def _resting_ok(client: int, p: _Placed, robot: int, table: Table, settings: SceneSettings) -> bool:
     """On the table, upright as dropped, touching the table and clear of the robot."""
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     T = object_pose(client, p.body, p.model)
     up_now = T[:3, :3] @ p.up
@@ -322,7 +297,7 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
     built-ins or $PICKPLAN_YCB_DIR). Same seed, library and settings -> the identical scene: every
     random draw comes from one ``default_rng(seed)`` and PyBullet runs in a fresh DIRECT client.
     """
-    import pybullet as pb
+    from pickplan.sim.bullet import connect, pb
 
     lib = library if isinstance(library, objects_mod.ObjectLibrary) else objects_mod.library(library)
     if len(lib) < settings.min_objects:
@@ -335,7 +310,7 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
     if len(q) != len(info.ready):
         raise ValueError(f"robot_configuration: expected {len(info.ready)} joint values ({info.name}), got {len(q)}")
     (x0, x1), (y0, y1) = settings.region_x, settings.region_y
-    client = pb.connect(pb.DIRECT)
+    client = connect()
     try:
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=client)
         pb.setGravity(0, 0, -9.81, physicsClientId=client)
@@ -391,7 +366,7 @@ def _settle_and_filter(client: int, placed: List[_Placed], robot: int, table: Ta
 
     Returns [] when the survivors still do not come to rest (the caller then re-samples).
     """
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     kept = list(placed)
     for _round in range(3):

@@ -19,6 +19,7 @@ import umsgpack
 
 from pickplan.core.io import write_text
 from pickplan.sim.view import PlanView, legend_entries
+from pickplan.sim.view_server import LOOPBACK, start_server
 
 VIEWER_SCRIPT = os.path.join(meshcat.viewer_assets_path(), "dist", "main.min.js")
 
@@ -89,24 +90,25 @@ def write_html(view: PlanView, path: str) -> str:
 
 
 def serve(view: PlanView, open_browser: bool = False, keep_running: Optional[Callable[[], bool]] = None,
-          announce: Callable[[str], None] = print) -> str:
-    """Start meshcat's server (a subprocess on 127.0.0.1), send the view to it and announce its URL.
-    Runs until ``keep_running()`` is false (default: until Ctrl-C); returns the URL."""
-    vis = meshcat.Visualizer()
-    for command in view.commands:
-        vis.window.send(command)
-    url = vis.url()
-    announce(f"viewer at {url} (Ctrl-C to stop)")
-    if open_browser:
-        webbrowser.open(url, new=2)
+          announce: Callable[[str], None] = print, host: str = LOOPBACK) -> str:
+    """Start meshcat's server (a subprocess; its web server on ``host`` only, loopback by default:
+    ``sim.view_server``), send the view to it and announce its URL. Runs until ``keep_running()``
+    is false (default: until Ctrl-C); returns the URL."""
+    proc, zmq_url, url = start_server(host)
     try:
+        vis = meshcat.Visualizer(zmq_url=zmq_url)
+        for command in view.commands:
+            vis.window.send(command)
+        announce(f"viewer at {url} (Ctrl-C to stop)")
+        if open_browser:
+            webbrowser.open(url, new=2)
         while keep_running is None or keep_running():
             time.sleep(0.2)
     except KeyboardInterrupt:
         pass
     finally:
-        vis.window.server_proc.kill()
-        vis.window.server_proc.wait()
+        proc.kill()
+        proc.wait()
     return url
 
 

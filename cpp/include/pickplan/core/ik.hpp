@@ -3,7 +3,7 @@
 // pick-up NLP's seeds, the lift in execution). One descent (solve_ik) takes per-joint weights,
 // joint limits with a margin, a full pose or a position target, and a fixed or adaptive
 // (Levenberg-Marquardt) damping; IkSolver adds a fixed, seeded spread of start configurations.
-// Chosen over NLopt for speed: a converging solve takes ~10-20 iterations of one FK + one 6x6
+// Written by hand rather than with a general NLP library for speed: a converging solve takes ~10-20 iterations of one FK + one 6x6
 // solve (see pickplan-bench).
 #include <memory>
 #include <utility>

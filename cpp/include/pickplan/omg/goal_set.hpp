@@ -11,6 +11,14 @@
 
 namespace pickplan {
 
+// Why a grasp gave no goal (or ok: it did). The text forms are what Python and the plan files read.
+enum class GoalReason {
+  ok, unreachable, in_collision, standoff_unreachable, standoff_in_collision, approach_clearance,
+  duplicate,  // closer than `diversity` to a goal already kept
+  over_cap    // not tried: the cap was reached first
+};
+const char* to_string(GoalReason reason);
+
 struct GoalSetSettings {
   double standoff = 0.08;    // m, pre-grasp distance back along the approach axis (hand +z)
   int standoff_steps = 4;    // waypoints from the pre-grasp to the grasp (the tail has steps + 1 rows)
@@ -26,16 +34,14 @@ struct GoalSet {
   Trajectory goals;                 // G x dof grasp configurations
   std::vector<Trajectory> tails;    // per goal: (steps + 1) x dof, pre-grasp first, grasp last
   std::vector<int> grasp_index;     // input grasp of each goal
-  std::vector<std::string> reasons; // per input grasp: "ok", "unreachable", "in_collision",
-                                    // "standoff_unreachable", "standoff_in_collision", "approach_clearance",
-                                    // "duplicate", "over_cap" (not tried: the cap was reached first)
+  std::vector<GoalReason> reasons;  // per input grasp
   double seconds = 0;
 };
 
 // hand_poses: world poses of the IK link for each grasp. `checker` may be null (no collision
 // filter); `hand_checker` (optional) holds only the hand and finger links, for early rejection.
 // `approach_ok` (optional): every tail configuration (pre-grasp .. grasp) must pass it (e.g. keep
-// the clearance the success test demands of a plan's approach); failing grasps: "approach_clearance".
+// the clearance the success test demands of a plan's approach); failing grasps: approach_clearance.
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& settings = {},

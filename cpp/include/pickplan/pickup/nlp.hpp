@@ -1,8 +1,8 @@
 #pragma once
 // Time-optimal pick-up on the move (Thakar et al., Sec. III and V): a 9-DOF mobile manipulator
 // whose DOFs are polynomials in time picks up a part while driving from a start to a goal.
-// The NLP is solved by Ipopt (C++ TNLP interface, exact first derivatives, limited-memory
-// quasi-Newton Hessian) in five stages of successive refinement, each seeded by the previous.
+// The NLP is solved by Ipopt (C++ TNLP interface, exact first and second derivatives:
+// PickupSettings::hessian) in five stages of successive refinement, each seeded by the previous.
 //
 // THREAD SAFETY: Ipopt 3.11 with MUMPS is NOT thread-safe. Never run two solves at once in one
 // process; run independent solves in separate processes (the Python layer does).
@@ -124,23 +124,14 @@ struct PickupSettings {
   // solution is kept. A later seed's run (and the direct track) stops after any Ipopt run whose T
   // is not below the best found so far: rows only join, its T would not fall below it again.
   int arm_seeds = 2;
-  // Caps on solve_successive's time (0: none, the default; neither applies to solve_single_shot):
-  // the runs beyond the first arm seed's (further arm seeds, the direct track) start only while
-  // the solve's Ipopt iterations so far are below iteration_budget, and stop when they reach it
-  // (the stage-1 run and the first arm seed's stages are never cut; iterations rather than seconds
-  // keep the result independent of the machine, about 2 ms of CPU each here); a stage's warm
-  // active-set re-solves (its rounds after the first) stop after resolve_max_iter iterations.
-  // Off by default: on the random problems of bench/PICKUP.md (issue 23) the slowest solves are
-  // the hard ones (stage 3 drives T far up, the first arm seed fails after hundreds of iterations
-  // and the second one solves), and a re-solve cap of 150 alone lost one that single shots solve.
-  int iteration_budget = 0;
-  int resolve_max_iter = 0;
+  // (Iteration caps on the successive refinement, its re-solves and stages 4-5 were measured and
+  // dropped: the slowest solves are the hard ones, and every cap lost problems; bench/PICKUP.md.)
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers
-  // Successive: Ipopt iterations of stage 4 and of stage 5 (each, all rounds together; 0: max_iter
-  // per run). They start from stage 3's solution and multipliers and add few rows; a run that needs
-  // hundreds of iterations there usually fails (issue 23's benchmark: 86's stage 5 ran 400 to
-  // max_iterations), but solved ones needed up to 274 (problem 88): off by default (bench/PICKUP.md).
-  int refine_max_iter = 0;
+  // Wall-clock budget of one solve_successive / solve_single_shot call (s; 0: none). Each Ipopt run
+  // stops at the deadline (its intermediate callback), no stage, arm seed or direct track starts
+  // after it, and the result keeps the best feasible solution found before it (status time_limit).
+  // Wall time, not CPU: it is what a caller waits for (on a loaded machine the two differ).
+  double time_limit = 0.0;
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
   // where a body comes closer than collision_margin / 2 (stages with collision rows) or an arm joint
   // closer than joint_limit_margin / 2 to its limit, a row at that instant joins and the stage is

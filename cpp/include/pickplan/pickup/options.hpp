@@ -14,11 +14,13 @@ enum class RateRows { hull, sampled };                // rate limits on Bernstei
 // How a stage (or the whole solve) ended. The first ones are Ipopt's return codes, shortened;
 // bounded: converged, but T is not below the best known (a search run stopped early);
 // violation_between_samples / constraint_violation: converged, but the dense check between the
-// samples or the full row set still fails after the active-set rounds; not_run: never attempted.
+// samples or the full row set still fails after the active-set rounds; not_run: never attempted;
+// time_limit: the wall-clock budget (PickupSettings::time_limit) ran out (the result holds the best
+// feasible solution found before, if any: PickupResult::success).
 enum class SolveStatus {
   not_run, solved, solved_acceptable, infeasible, diverging, max_iterations, max_cpu_time,
   restoration_failed, step_too_small, invalid_number, solver_error, bounded,
-  violation_between_samples, constraint_violation
+  violation_between_samples, constraint_violation, time_limit
 };
 
 const char* to_string(HessianMode mode);
@@ -32,7 +34,6 @@ HessianMode parse_hessian_mode(const std::string& text);
 CoefficientBasis parse_coefficient_basis(const std::string& text);
 MuStrategy parse_mu_strategy(const std::string& text);
 RateRows parse_rate_rows(const std::string& text);
-SolveStatus parse_solve_status(const std::string& text);
 inline std::ostream& operator<<(std::ostream& os, SolveStatus status) { return os << to_string(status); }
 
 }  // namespace pickplan

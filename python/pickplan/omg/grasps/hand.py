@@ -9,10 +9,8 @@ finger at +y), approaches along +z, and its pad centre sits ``PAD_DEPTH`` along 
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import os
-import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import asdict, dataclass
@@ -24,7 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from pickplan.core.collision import CollisionChecker, CollisionSettings, SceneMesh
 from pickplan.core.description import RobotInfo, pose_matrix
-from pickplan.core.io import atomic_open
+from pickplan.core.io import atomic_open, content_file
 from pickplan.core.panda import PANDA, panda_urdf_path
 from pickplan.core.paths import assets_dir
 from pickplan.core.robots import Robot
@@ -115,14 +113,8 @@ def _hand_urdf(floating: bool, src: str, hand_link: str, finger_links: tuple) ->
                 for a in ("ixx", "iyy", "izz"):
                     inertia.set(a, small)
             out.append(el)
-    text = ET.tostring(out, encoding="unicode")
-    digest = hashlib.sha1(text.encode()).hexdigest()[:16]
-    path = os.path.join(tempfile.gettempdir(), f"pickplan-{os.getuid() if hasattr(os, 'getuid') else 0}",
-                        "hand", f"{'floating' if floating else 'hand'}-{digest}.urdf")
-    if not os.path.isfile(path):
-        with atomic_open(path, "w") as f:
-            f.write('<?xml version="1.0"?>\n' + text)
-    return path
+    return content_file(ET.tostring(out, encoding="unicode"), "hand", ".urdf",
+                        stem="floating" if floating else "hand", header='<?xml version="1.0"?>\n')
 
 
 def hand_configurations(poses, opening: Optional[float] = None, gripper: RobotInfo = PANDA) -> np.ndarray:

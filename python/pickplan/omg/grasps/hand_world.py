@@ -27,15 +27,15 @@ class SimObject:
 
 
 def _client() -> int:
-    import pybullet as pb
+    from pickplan.sim.bullet import connect, pb
 
     if _CLIENT["id"] is None or not pb.isConnected(_CLIENT["id"]):
-        _CLIENT["id"] = pb.connect(pb.DIRECT)
+        _CLIENT["id"] = connect()
     return _CLIENT["id"]
 
 
 def _pose_of(cid: int, body: int) -> np.ndarray:
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     pos, quat = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
     T = np.eye(4)
@@ -48,7 +48,7 @@ class HandWorld:
 
     def __init__(self, s, obj: SimObject, T_hand: np.ndarray, T_obj: np.ndarray, gravity: bool,
                  table: bool = False, table_friction: float = 0.8, gripper: RobotInfo = PANDA):
-        import pybullet as pb
+        from pickplan.sim.bullet import pb
 
         self.pb, self.s, self.gripper = pb, s, gripper
         cid = self.cid = _client()

@@ -15,6 +15,7 @@ JSON with all samples.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 from dataclasses import asdict, dataclass, field, replace
@@ -23,13 +24,16 @@ from typing import Optional
 import numpy as np
 
 from pickplan.core.io import write_text
-from pickplan.pickup.metamodel.active import ActiveConfig, PoseDomain, fit_svm, known_from_lower_sc, learn_boundary
+from pickplan.pickup.metamodel.active import (ActiveConfig, PoseDomain, RhoModel, fit_svm, known_from_lower_sc,
+                                              learn_boundary)
 from pickplan.pickup.metamodel.calibration import calibrate, gaussian_queries, svm_depth
 from pickplan.pickup.metamodel.gpc import GPConfig, GPSuccessModel, lapse_rate
 from pickplan.pickup.metamodel.parallel import SimRunner, sample_seeds
 from pickplan.pickup.metamodel.parts import get_part
 from pickplan.pickup.metamodel.sim import SimConfig
 from pickplan.pickup.metamodel.surface import RhoSurface, fit_rho_surface
+
+log = logging.getLogger(__name__)
 
 FORMAT = "pickplan.pickup.metamodel"
 VERSION = 5  # 2: calibrated probability (D_FT, width, jackknife), conservative_z;
@@ -66,7 +70,7 @@ class BoundaryModel:
 
     def __init__(self, s_g, s_c, X, y, simulated, svm_c, svm_gamma, history=None,
                  converged=False, calib_folds=5, calib_seed=0, svm_metric=None,
-                 local_kappa=3.0, local_floor=1.0, rho_model="svm", gp_theta=None):
+                 local_kappa=3.0, local_floor=1.0, rho_model=RhoModel.svm, gp_theta=None):
         self.s_g, self.s_c = float(s_g), float(s_c)
         self.X = np.asarray(X, float).reshape(-1, 3)
         self.y = np.asarray(y, bool)
@@ -84,14 +88,12 @@ class BoundaryModel:
             self.calib_folds, self.calib_seed, local_kappa=self.local_kappa,
             local_floor=self.local_floor)
         self.model = self.calibration.model
-        if rho_model not in ("svm", "gp"):
-            raise ValueError(f"rho_model must be 'svm' or 'gp', got {rho_model!r}")
-        self.rho_model = rho_model
+        self.rho_model = rho_model = RhoModel.parse(rho_model, "rho_model")
         # rho_model "gp": P(success) and rho from GP classification of the same samples
         # (gpc.py); gp_theta reuses saved hyperparameters instead of optimizing them.
         self.gp = (GPSuccessModel(self.X, self.y, theta=gp_theta, seed=self.calib_seed,
                                   config=GPConfig(restarts=0))
-                   if rho_model == "gp" else None)
+                   if rho_model is RhoModel.gp else None)
 
     @property
     def n_simulations(self) -> int:
@@ -145,7 +147,7 @@ class BoundaryModel:
                    converged=d.get("converged", False), calib_folds=d.get("calib_folds", 5),
                    calib_seed=d.get("calib_seed", 0), svm_metric=d.get("svm_metric"),
                    local_kappa=d.get("local_kappa", 0.0), local_floor=d.get("local_floor", 1.0),
-                   rho_model=d.get("rho_model", "svm"), gp_theta=d.get("gp_theta"))
+                   rho_model=d.get("rho_model", RhoModel.svm), gp_theta=d.get("gp_theta"))
 
 
 def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
@@ -180,10 +182,9 @@ class BuildConfig:
     n_queries: int = 20000
     use_sc_monotonicity: Optional[bool] = None  # None: the part's closing_monotone
     conservative_z: float = 0.0  # rho = rho_hat - z * se (the surface is a lower bound anyway)
-    # rho per boundary: "gp" (GP classification of the samples, gpc.py) or "svm" (the
-    # calibrated SVM success depth, calibration.py). Against 2,000 direct simulations per
-    # pair the GP is the more accurate (bench/README.md).
-    rho_model: str = "gp"
+    # rho per boundary (``RhoModel``). Against 2,000 direct simulations per pair the GP is the
+    # more accurate (bench/README.md).
+    rho_model: RhoModel = RhoModel.gp
     # rho_model "gp": cap each pose's probability at 1 - the part's lapse rate, the failures
     # no pose explains (gpc.lapse_rate). Without it the cylinder's rho is 1.000 where 2,000
     # direct simulations give 0.973.
@@ -381,17 +382,15 @@ def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, wo
                 boundaries[(i, j)] = bm
                 prev = bm
                 if progress:
-                    import sys
-                    sys.stderr.write(f"{part.name}: S_g={s_g:.2f} S_c={s_c:.2f} "
-                                     f"{bm.n_simulations} sims, {res.n_free} free, "
-                                     f"D_FT={bm.d_ft:.3f}, converged={res.converged}\n")
+                    log.info(f"{part.name}: S_g={s_g:.2f} S_c={s_c:.2f} {bm.n_simulations} sims, "
+                             f"{res.n_free} free, D_FT={bm.d_ft:.3f}, converged={res.converged}")
     mm = MetaModel(part.name, sg_grid, sc_grid, boundaries, [], {}, {}, config.domain,
                    config.n_queries, config.surface_degree, conservative_z=config.conservative_z,
                    monotone_sc=sc_monotone,
                    info={"seed": seed, "sim": asdict(config.sim), "active": asdict(config.active),
                          "use_sc_monotonicity": sc_monotone, "rho_model": config.rho_model,
                          "lapse_ceiling": config.lapse_ceiling})
-    if config.rho_model == "gp" and config.lapse_ceiling:
+    if RhoModel.parse(config.rho_model, "rho_model") is RhoModel.gp and config.lapse_ceiling:
         mm.lapse = lapse_rate((bm.gp, bm.simulated) for bm in boundaries.values())
     for lv in config.levels:
         mm.rho_grids[lv.name] = mm.probability_grid(lv.sigma_r, lv.sigma_phi)

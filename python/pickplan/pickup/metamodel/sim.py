@@ -22,9 +22,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet
 
 from pickplan.pickup.metamodel.parts import Part, get_part
+from pickplan.sim.bullet import connect, pb as pybullet
 from pickplan.core.paths import assets_dir
 
 OPEN_WIDTH = 0.085  # distance between the pads when open (2F-85 stroke)
@@ -190,7 +190,7 @@ def simulate_grasp(part, offset, s_g: float, s_c: float, config: SimConfig = Sim
     t0 = -d_start / s_g  # t' = 0
     n_steps = int(math.ceil((config.hold_time - t0) / dt))
 
-    cid = pybullet.connect(pybullet.DIRECT)
+    cid = connect()
     try:
         pybullet.setGravity(0, 0, -9.81, physicsClientId=cid)
         pybullet.setPhysicsEngineParameter(

@@ -9,6 +9,7 @@ clearly labelled stand-in ``planner.synthetic_rho`` only when asked for ("standi
 """
 from __future__ import annotations
 
+import logging
 import math
 import os
 from dataclasses import dataclass, replace
@@ -20,8 +21,11 @@ from pickplan.core.runner import run_jobs
 from pickplan.pickup.nlp import planner
 from pickplan.pickup.nlp import problem_file
 from pickplan.pickup.nlp.problem_file import SIGMAS
+from pickplan.pickup.metamodel.active import RhoModel
 from pickplan.pickup.metamodel.model import BuildConfig
 from pickplan.pickup.metamodel.model import MetaModel, build_metamodel
+
+log = logging.getLogger(__name__)
 
 CASES_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "problems")
 # The paper does not state gamma for Table IV; its reported probabilities (~98 % low, ~86 % high)
@@ -71,7 +75,7 @@ def cases_metamodel_config():
     the cases keep this one."""
     from dataclasses import replace
 
-    cfg = BuildConfig(conservative_z=1.0, rho_model="svm")
+    cfg = BuildConfig(conservative_z=1.0, rho_model=RhoModel.svm)
     return replace(cfg, active=replace(cfg.active, rho_share=0.5, band_share=0.0))
 
 
@@ -84,11 +88,11 @@ def ensure_metamodel(path, config=None, seed: int = 0, workers: int = 1, progres
         if mm.part_name != METAMODEL_PART:
             raise ValueError(f"{path}: a meta-model of {mm.part_name!r}, expected {METAMODEL_PART!r}")
         if progress:
-            print(f"using the meta-model {path} (delete it to rebuild)", flush=True)
+            log.info(f"using the meta-model {path} (delete it to rebuild)")
         return path
     if progress:
-        print(f"building the {METAMODEL_PART} meta-model from simulation (seed {seed}, {workers} worker(s)) "
-              f"-> {path}", flush=True)
+        log.info(f"building the {METAMODEL_PART} meta-model from simulation (seed {seed}, {workers} worker(s)) "
+                 f"-> {path}")
     mm = build_metamodel(METAMODEL_PART, config or cases_metamodel_config(), seed=seed, workers=workers,
                          progress=progress)
     mm.save(path)  # atomic, creates the folder

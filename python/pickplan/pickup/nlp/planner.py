@@ -22,8 +22,10 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core.io import write_bytes
-from pickplan.core.robots import Robot, assets_dir
+from pickplan.core.paths import assets_dir
+from pickplan.core.robots import Robot
 from pickplan.core.settings import Option, to_native
+from pickplan.pickup.nlp.feasibility import Reason
 from pickplan.pickup.metamodel.model import FORMAT as METAMODEL_FORMAT, load_surface  # noqa: F401 - the format, re-exported
 
 
@@ -82,13 +84,17 @@ class SolveStatus(Option):
     bounded = "bounded"
     violation_between_samples = "violation_between_samples"
     constraint_violation = "constraint_violation"
+    time_limit = "time_limit"             # the wall-clock budget ran out (success: a feasible plan is still held)
 
 
 class Method(Option):
-    """How ``plan`` solves: the five stages of successive refinement, or all constraints at once."""
+    """How a problem is solved: the five stages of successive refinement from the heuristic seed
+    (the paper's scheme), all constraints at once from a random seed, or the layout-aware scheme
+    of ``routed.plan_routed`` (route seeds, certificate and lower bound, time budget)."""
 
     successive = "successive"
     single_shot = "single_shot"
+    routed = "routed"
 
 
 _OPTIONS = {"hessian": HessianMode, "basis": CoefficientBasis, "mu_strategy": MuStrategy, "rate_rows": RateRows}
@@ -137,10 +143,8 @@ class PlannerSettings:
     direct_track: bool = True             # also solve all constraints from the stage-1 solution, keep the shorter
     direct_max_iter: int = 200            # its Ipopt iterations
     arm_seeds: int = 2                    # stages 2-5 from up to this many arm configurations at T2, keep the shortest
-    iteration_budget: int = 0             # successive: later arm seeds and the direct track only below this many Ipopt iterations (0: none)
-    resolve_max_iter: int = 0             # successive: Ipopt iterations of a stage's warm active-set re-solves (0: max_iter)
     warm_start_stages: bool = True        # stages 4 and 5 start from the previous stage's multipliers
-    refine_max_iter: int = 0              # successive: Ipopt iterations of stage 4 and of stage 5, each (0: max_iter per run)
+    time_limit: float = 0.0               # wall-clock budget of one native solve (s; 0: none)
 
     def __post_init__(self):
         for name, option in _OPTIONS.items():
@@ -201,6 +205,10 @@ class PickupPlan:
     direct_chosen: bool = False           # its solution is the one returned
     arm_seed_T: list = field(default_factory=list)  # final T of each arm seed's run (nan: failed or bounded)
     arm_seed_chosen: int = 0              # the run the stage records come from
+    lower_bound: float = math.nan         # T >= this by the geometry (routed; feasibility.lower_bound)
+    reason: Reason = Reason.none          # why there is no plan (routed; none when solved)
+    detail: str = ""                      # the reason in words (numbers included)
+    seed: str = "heuristic"               # the stage-1 seed the plan comes from (routed: a route's label)
 
     @classmethod
     def from_native(cls, r) -> "PickupPlan":
@@ -225,6 +233,8 @@ class PickupPlan:
                 "direct": asdict(self.direct) if self.direct else None, "direct_chosen": self.direct_chosen,
                 "arm_seed_T": [None if math.isnan(t) else t for t in self.arm_seed_T],
                 "arm_seed_chosen": self.arm_seed_chosen,
+                "lower_bound": None if math.isnan(self.lower_bound) or math.isinf(self.lower_bound) else self.lower_bound,
+                "reason": self.reason, "detail": self.detail, "seed": self.seed,
                 "degrees": list(self.native.degrees), "x": np.asarray(self.native.x).tolist(),
                 "t": t.tolist(), "q": q.tolist(), "qd": qd.tolist()}
 
@@ -265,13 +275,18 @@ def _check(problem, robot: Robot):
 
 
 def plan(robot: Robot, problem, settings: PlannerSettings = PlannerSettings(),
-         method: Union[Method, str] = Method.successive) -> PickupPlan:
-    """Solve: method "successive" (the five stages) or "single_shot" (all constraints at once from
-    a random seed, settings.seed). Solver failures are statuses; bad input raises ValueError."""
+         method: Union[Method, str] = Method.successive, x0=None) -> PickupPlan:
+    """Solve: method "successive" (the five stages, from ``x0`` when given, else the heuristic seed)
+    or "single_shot" (all constraints at once from a random seed, settings.seed); "routed" is
+    ``routed.plan_routed``. Solver failures are statuses; bad input raises ValueError."""
     method = Method.parse(method, "method")
+    if method is Method.routed:
+        raise ValueError("method routed: call pickplan.pickup.nlp.routed.plan_routed")
     _check(problem, robot)
-    solve = _core.pickup_solve_successive if method is Method.successive else _core.pickup_solve_single_shot
-    return PickupPlan.from_native(solve(robot.native, problem, settings.native()))
+    if method is Method.single_shot:
+        return PickupPlan.from_native(_core.pickup_solve_single_shot(robot.native, problem, settings.native()))
+    x0 = np.zeros(0) if x0 is None else np.asarray(x0, dtype=float)
+    return PickupPlan.from_native(_core.pickup_solve_successive(robot.native, problem, settings.native(), x0))
 
 
 def solve_stage(robot: Robot, problem, x0, stage: int, settings: PlannerSettings = PlannerSettings()):
@@ -295,6 +310,37 @@ def seed_from_times(robot: Robot, problem, T: float, T1: float, T2: float,
 def evaluate(robot: Robot, problem, result: PickupPlan, n: int = 2001) -> dict:
     """Native dense re-sampling metrics (pose error at T2, non-holonomic error, limits, clearance)."""
     return dict(_core.pickup_evaluate(robot.native, problem, result.native, int(n)))
+
+
+# ---- dense checks ------------------------------------------------------------------------------
+# Dense checks of a solution (2001 instants over [0, T]; the NLP enforces its rows at samples, so
+# these leave room for what happens between them).
+POSE_POSITION_TOL = 1e-3        # m, tool position at T2
+POSE_ORIENTATION_TOL = 1e-2     # rad
+NONHOLONOMIC_MEAN_TOL = 0.02    # m/s, mean lateral base speed
+NONHOLONOMIC_DRIFT_TOL = 0.2    # m, its integral over [0, T]
+JOINT_OVERSHOOT_TOL = 0.03      # rad past a joint limit between samples
+VELOCITY_ERROR_TOL = 0.05       # m/s, |J q' - S_g n_g| during grasping
+
+
+def dense_checks(problem, plan: PickupPlan, metrics: Optional[dict]) -> dict:
+    """The checks a solution must pass by dense re-sampling (names -> bool; empty: no solution)."""
+    if not plan.success or metrics is None:
+        return {}
+    return {"pose_error_at_T2": metrics["pose_error_position"] <= POSE_POSITION_TOL
+            and metrics["pose_error_orientation"] <= POSE_ORIENTATION_TOL,
+            "nonholonomic": metrics["nonholonomic_mean"] <= NONHOLONOMIC_MEAN_TOL
+            and metrics["nonholonomic_drift"] <= NONHOLONOMIC_DRIFT_TOL,
+            "clearance": metrics["min_clearance"] >= 0.0,
+            "joint_limits": metrics["joint_limit_violation"] <= JOINT_OVERSHOOT_TOL,
+            "grasp_velocity": metrics["velocity_error_max"] <= VELOCITY_ERROR_TOL,
+            "rho_at_least_gamma": metrics["success_probability"] >= problem.gamma - 1e-6}
+
+
+def passes_dense_checks(robot: Robot, problem, plan: PickupPlan) -> bool:
+    """A converged plan that also passes every dense check (what counts as a feasible plan)."""
+    checks = dense_checks(problem, plan, evaluate(robot, problem, plan) if plan.success else None)
+    return bool(checks) and all(checks.values())
 
 
 # ---- STOMP -------------------------------------------------------------------------------------

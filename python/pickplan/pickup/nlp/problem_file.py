@@ -28,6 +28,7 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core.errors import InputError
+from pickplan.core.fields import FieldReader, shown
 from pickplan.core.io import read_json, write_json
 from pickplan.core.settings import Option
 
@@ -154,133 +155,103 @@ class PickupProblemSpec:
 
 
 # ---- validation ----------------------------------------------------------------------------------
-class _Reader:
-    """Reads fields of one file, raising InputError(path=file, field=dotted key) on any problem."""
-
-    def __init__(self, path: Optional[str]):
-        self.path = path
-
-    def fail(self, where: str, message: str):
-        raise InputError(message, path=self.path, field=where)
-
-    def table(self, d, where: str, required=(), optional=()) -> dict:
-        if not isinstance(d, dict):
-            self.fail(where or "(top level)", f"expected an object, got {type(d).__name__}")
-        missing = [k for k in required if k not in d]
-        if missing:
-            self.fail(self._key(where, missing[0]), "missing")
-        unknown = sorted(set(d) - set(required) - set(optional))
-        if unknown:
-            self.fail(self._key(where, unknown[0]), f"unknown key; expected one of {sorted({*required, *optional})}")
-        return d
-
-    @staticmethod
-    def _key(where: str, key) -> str:
-        return f"{where}.{key}" if where else str(key)
-
-    def number(self, value, where: str, lo=-math.inf, hi=math.inf, positive=False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(where, f"expected a number, got {type(value).__name__} {value!r}"[:200])
-        v = float(value)
-        if not math.isfinite(v):
-            self.fail(where, f"expected a finite number, got {v}")
-        if positive and not v > 0:
-            self.fail(where, f"expected a positive number, got {v}")
-        if not lo <= v <= hi:
-            self.fail(where, f"expected a number in [{lo}, {hi}], got {v}")
-        return v
-
-    def vector(self, value, where: str, n: int, **bounds) -> tuple:
-        if not isinstance(value, list) or len(value) != n:
-            got = f"{len(value)} values" if isinstance(value, list) else type(value).__name__
-            self.fail(where, f"expected a list of {n} numbers, got {got}")
-        return tuple(self.number(v, f"{where}[{i}]", **bounds) for i, v in enumerate(value))
-
-    def text(self, value, where: str) -> str:
-        if not isinstance(value, str) or not value or "\x00" in value:
-            self.fail(where, f"expected a non-empty string, got {value!r}"[:200])
-        return value
-
-
 _TOP = ("base_start", "base_goal", "part", "gamma", "obstacles")
 _OPTIONAL = ("format", "version", "arm_start", "goal_tolerance", "limits", "grasp_area")
+_PART = ("position", "yaw", "metamodel", "uncertainty", "grasp")
 _DEFAULTS = PickupProblemSpec((0, 0, 0), (0, 0, 0), (0, 0, 0), 0.0, STANDIN, Uncertainty.medium, 0.0, 0.0, 0.96)
+POSITION = dict(lo=-1e4, hi=1e4)           # m: world coordinates
+ANGLE = dict(lo=-4 * math.pi, hi=4 * math.pi)
+RATE = dict(hi=20.0, positive=True)        # m/s or rad/s
 
 
-def _obstacle(r: _Reader, o, where: str):
-    r.table(o, where, optional=("sphere", "box"))
+def _obstacle(r: FieldReader, o, where: str):
+    r.table(o, where, known=("sphere", "box"))
     if len(o) != 1:
         r.fail(where, "expected exactly one of 'sphere' or 'box'")
     if "sphere" in o:
-        x, y, z, radius = r.vector(o["sphere"], f"{where}.sphere", 4, lo=-1e4, hi=1e4)
+        x, y, z, radius = r.vector(o["sphere"], f"{where}.sphere", 4, **POSITION)
         return SphereObstacle((x, y, z), r.number(radius, f"{where}.sphere[3]", hi=MAX_OBSTACLE_SIZE, positive=True))
-    b = r.table(o["box"], f"{where}.box", ("center", "size"), ("yaw",))
-    box = BoxObstacle(r.vector(b["center"], f"{where}.box.center", 3, lo=-1e4, hi=1e4),
-                      r.vector(b["size"], f"{where}.box.size", 3, hi=MAX_OBSTACLE_SIZE, positive=True),
-                      r.number(b.get("yaw", 0.0), f"{where}.box.yaw", lo=-4 * math.pi, hi=4 * math.pi))
-    return box
+    w = f"{where}.box"
+    b = r.table(o.get("box"), w, known=("center", "size", "yaw"))
+    center = r.get(b, "center", w, r.vector, n=3, **POSITION)
+    size = r.get(b, "size", w, r.vector, n=3, hi=MAX_OBSTACLE_SIZE, positive=True)
+    yaw = r.get(b, "yaw", w, r.number, default=0.0, required=False, **ANGLE)
+    if center is None or size is None or yaw is None:
+        r.skip()
+    return BoxObstacle(center, size, yaw)
 
 
-def _uncertainty(r: _Reader, u):
+def _uncertainty(r: FieldReader, u, where: str):
     if isinstance(u, dict):
-        r.table(u, "part.uncertainty", ("sigma_r", "sigma_phi"))
-        return (Uncertainty.custom, r.number(u["sigma_r"], "part.uncertainty.sigma_r", hi=0.1, positive=True),
-                r.number(u["sigma_phi"], "part.uncertainty.sigma_phi", hi=math.pi, positive=True))
+        r.table(u, where, known=("sigma_r", "sigma_phi"))
+        sigmas = (r.get(u, "sigma_r", where, r.number, hi=0.1, positive=True),
+                  r.get(u, "sigma_phi", where, r.number, hi=math.pi, positive=True))
+        if None in sigmas:
+            r.skip()
+        return (Uncertainty.custom, *sigmas)
     if not isinstance(u, str) or u not in ("low", "medium", "high"):
-        r.fail("part.uncertainty", f"expected 'low', 'medium', 'high' or {{'sigma_r', 'sigma_phi'}}, got {u!r}"[:200])
+        r.fail(where, f"expected 'low', 'medium', 'high' or {{'sigma_r', 'sigma_phi'}}, got {shown(u)}")
     level = Uncertainty(u)
     return (level, *SIGMAS[level])
 
 
-def problem_from_dict(d, path: Optional[str] = None) -> PickupProblemSpec:
-    """The validated problem of a parsed problem file (``path`` names it in errors and resolves a
-    relative meta-model path)."""
-    r = _Reader(path)
-    r.table(d, "", _TOP, _OPTIONAL)
-    if "format" in d and d["format"] != FORMAT:
-        r.fail("format", f"expected {FORMAT!r}, got {d['format']!r}"[:200])
-    if "version" in d and (isinstance(d["version"], bool) or d["version"] != VERSION):
-        r.fail("version", f"expected {VERSION}, got {d['version']!r}"[:200])
-    p = r.table(d["part"], "part", ("position", "yaw", "metamodel", "uncertainty"), ("grasp",))
-    grasp = p.get("grasp", "top")
-    if grasp not in ("top", "side"):
-        r.fail("part.grasp", f"expected 'top' or 'side', got {grasp!r}"[:200])
-    if not isinstance(d["obstacles"], list):
-        r.fail("obstacles", f"expected a list, got {type(d['obstacles']).__name__}")
-    level, sigma_r, sigma_phi = _uncertainty(r, p["uncertainty"])
+def _options(r: FieldReader, d: dict) -> dict:
+    """The optional keys' values (defaults: the paper's cases)."""
     kw = {}
     if "arm_start" in d:
-        kw["arm_start"] = r.vector(d["arm_start"], "arm_start", ARM_DOF, lo=-4 * math.pi, hi=4 * math.pi)
-    if "goal_tolerance" in d:
-        g = r.table(d["goal_tolerance"], "goal_tolerance", optional=("position", "yaw"))
-        kw["goal_tol_pos"] = r.number(g.get("position", _DEFAULTS.goal_tol_pos), "goal_tolerance.position", positive=True)
-        kw["goal_tol_yaw"] = r.number(g.get("yaw", _DEFAULTS.goal_tol_yaw), "goal_tolerance.yaw", hi=math.pi,
-                                      positive=True)
-    if "limits" in d:
-        lim = r.table(d["limits"], "limits", optional=("base_speed", "base_yaw_rate", "arm_rates"))
-        kw["base_speed_limit"] = r.number(lim.get("base_speed", _DEFAULTS.base_speed_limit), "limits.base_speed",
-                                          hi=20.0, positive=True)
-        kw["base_yaw_rate_limit"] = r.number(lim.get("base_yaw_rate", _DEFAULTS.base_yaw_rate_limit),
-                                             "limits.base_yaw_rate", hi=20.0, positive=True)
-        if "arm_rates" in lim:
-            kw["arm_rate_limits"] = r.vector(lim["arm_rates"], "limits.arm_rates", ARM_DOF, hi=20.0, positive=True)
+        kw["arm_start"] = r.attempt(r.vector, d["arm_start"], "arm_start", ARM_DOF, **ANGLE)
+    g = r.get(d, "goal_tolerance", "", r.table, default={}, required=False, known=("position", "yaw"))
+    kw["goal_tol_pos"] = r.get(g, "position", "goal_tolerance", r.number, default=_DEFAULTS.goal_tol_pos,
+                               required=False, positive=True)
+    kw["goal_tol_yaw"] = r.get(g, "yaw", "goal_tolerance", r.number, default=_DEFAULTS.goal_tol_yaw, required=False,
+                               hi=math.pi, positive=True)
+    lim = r.get(d, "limits", "", r.table, default={}, required=False, known=("base_speed", "base_yaw_rate", "arm_rates"))
+    kw["base_speed_limit"] = r.get(lim, "base_speed", "limits", r.number, default=_DEFAULTS.base_speed_limit,
+                                   required=False, **RATE)
+    kw["base_yaw_rate_limit"] = r.get(lim, "base_yaw_rate", "limits", r.number,
+                                      default=_DEFAULTS.base_yaw_rate_limit, required=False, **RATE)
+    kw["arm_rate_limits"] = r.get(lim, "arm_rates", "limits", r.vector, default=_DEFAULTS.arm_rate_limits,
+                                  required=False, n=ARM_DOF, **RATE)
     if "grasp_area" in d:
-        a = r.table(d["grasp_area"], "grasp_area", ("r_min", "r_max"))
-        lo = r.number(a["r_min"], "grasp_area.r_min", positive=True)
-        hi = r.number(a["r_max"], "grasp_area.r_max", hi=5.0, positive=True)
-        if not lo < hi:
-            r.fail("grasp_area", f"expected r_min < r_max, got {lo} >= {hi}")
+        a = r.attempt(r.table, d["grasp_area"], "grasp_area", default={}, known=("r_min", "r_max"))
+        lo = r.get(a, "r_min", "grasp_area", r.number, positive=True)
+        hi = r.get(a, "r_max", "grasp_area", r.number, hi=5.0, positive=True)
+        if lo is not None and hi is not None and not lo < hi:
+            r.note("grasp_area", f"expected r_min < r_max, got {lo} >= {hi}")
         kw["grasp_area"] = (lo, hi)
-    metamodel = r.text(p["metamodel"], "part.metamodel")
-    return PickupProblemSpec(
-        base_start=r.vector(d["base_start"], "base_start", 3, lo=-1e4, hi=1e4),
-        base_goal=r.vector(d["base_goal"], "base_goal", 3, lo=-1e4, hi=1e4),
-        part_position=r.vector(p["position"], "part.position", 3, lo=-1e4, hi=1e4),
-        part_yaw=r.number(p["yaw"], "part.yaw", lo=-4 * math.pi, hi=4 * math.pi),
-        metamodel=metamodel, uncertainty=level, sigma_r=sigma_r, sigma_phi=sigma_phi,
-        gamma=r.number(d["gamma"], "gamma", hi=1.0, positive=True),
-        obstacles=tuple(_obstacle(r, o, f"obstacles[{i}]") for i, o in enumerate(d["obstacles"])),
-        grasp=GraspKind(grasp), source=os.fspath(path) if path else None, **kw)
+    return kw
+
+
+def problem_from_dict(d, path: Optional[str] = None) -> PickupProblemSpec:
+    """The validated problem of a parsed problem file (``path`` names it in errors and resolves a
+    relative meta-model path); InputError naming every problem found."""
+    r = FieldReader(path)
+    with r:
+        r.table(d, "", known=_TOP + _OPTIONAL)
+        for key in _TOP:
+            if key not in d:
+                r.note(key, "missing")
+        if "format" in d and d["format"] != FORMAT:
+            r.note("format", f"expected {FORMAT!r}, got {shown(d['format'])}")
+        if "version" in d and (isinstance(d["version"], bool) or d["version"] != VERSION):
+            r.note("version", f"expected {VERSION}, got {shown(d['version'])}")
+        p = r.attempt(r.table, d.get("part", {}), "part", default={}, known=_PART)
+        grasp = r.get(p, "grasp", "part", r.choice, default="top", required=False, options=("top", "side"))
+        level, sigma_r, sigma_phi = r.get(p, "uncertainty", "part", lambda u, w: _uncertainty(r, u, w),
+                                          default=(None,) * 3, required="part" in d)
+        obstacles = [r.attempt(_obstacle, r, o, f) for f, o in r.attempt(r.items, d.get("obstacles", []), "obstacles",
+                                                                          default=[])]
+        kw = _options(r, d)
+        spec = dict(
+            base_start=r.get(d, "base_start", "", r.vector, required=False, n=3, **POSITION),
+            base_goal=r.get(d, "base_goal", "", r.vector, required=False, n=3, **POSITION),
+            part_position=r.get(p, "position", "part", r.vector, required="part" in d, n=3, **POSITION),
+            part_yaw=r.get(p, "yaw", "part", r.number, required="part" in d, **ANGLE),
+            metamodel=r.get(p, "metamodel", "part", r.text, required="part" in d),
+            gamma=r.get(d, "gamma", "", r.number, required=False, hi=1.0, positive=True))
+        r.check()
+        return PickupProblemSpec(uncertainty=level, sigma_r=sigma_r, sigma_phi=sigma_phi, obstacles=tuple(obstacles),
+                                 grasp=GraspKind(grasp), source=os.fspath(path) if path else None, **spec, **kw)
 
 
 def load_problem(path) -> PickupProblemSpec:

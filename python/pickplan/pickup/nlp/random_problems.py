@@ -14,6 +14,7 @@ from typing import Optional
 
 import numpy as np
 
+from pickplan.core.settings import Option
 from pickplan.pickup.nlp.problem_file import (DEFAULT_ARM_START, GraspKind, PickupProblemSpec, SIGMAS,
                                               SphereObstacle, Uncertainty)
 
@@ -21,9 +22,20 @@ BASE_RADIUS = 0.3           # the base's body sphere (problem_file.BODY_SPHERES)
 PEDESTAL_GAP = 0.17         # m from the grasp point down to the pedestal top sphere's centre
 
 
+class Layout(Option):
+    """Where the part stands relative to the base's route (issue 37's benchmark layouts)."""
+
+    paper = "paper"            # beside the path, start facing the part, goal facing away (the paper's cases moved about)
+    side = "side"              # 2-5 m to either side of the start-goal line, start and goal headings along the line
+    behind = "behind"          # behind the start (2-5 m back along the line, +-2 m across), start heading along the line
+    cluttered = "cluttered"    # the paper's geometry with 3-6 pillars between start, part and goal
+    headings = "headings"      # the paper's geometry with uniformly random start and goal headings
+
+
 @dataclass(frozen=True)
 class Workspace:
-    """Where problems are drawn (metres, radians, world frame)."""
+    """Where problems are drawn (metres, radians, world frame); ``layout`` other than paper
+    changes where the part stands and how the base heads (``Layout``)."""
 
     start_x: tuple = (-1.0, 1.0)
     start_y: tuple = (-1.0, 1.0)
@@ -38,8 +50,11 @@ class Workspace:
     metamodel: str = "box"
     uncertainty: Uncertainty = Uncertainty.medium
     gamma: float = 0.96
+    layout: Layout = Layout.paper
 
     def describe(self) -> str:
+        if self.layout is not Layout.paper:
+            return f"layout {self.layout.value}: {Layout.__doc__.splitlines()[0]} ({_LAYOUT_TEXT[self.layout]})"
         return (f"start x {self.start_x} y {self.start_y} (yaw: towards the part +- "
                 f"{math.degrees(self.heading_spread):.0f} deg), goal x {self.goal_x} y {self.goal_y} (yaw: away "
                 f"from the part +- {math.degrees(self.heading_spread):.0f} deg), part x {self.part_x} y {self.part_y} "
@@ -70,6 +85,48 @@ def _grasp_ring_clear(part_xy, obstacles, r_min=0.35, r_max=0.8) -> bool:
     return False
 
 
+_LAYOUT_TEXT = {Layout.side: "part 2-5 m off the line at 20-80 % of the way, headings along the line +- 45 deg",
+                Layout.behind: "part 2-5 m behind the start, +-2 m across, headings along the line +- 45 deg",
+                Layout.cluttered: "the paper's geometry, 3-6 pillars on the legs start-part and part-goal",
+                Layout.headings: "the paper's geometry, start and goal headings uniform in [-pi, pi)"}
+
+
+def _part_and_headings(rng, ws: Workspace, start, goal, u) -> tuple:
+    """(part x, y, z; start yaw; goal yaw) of the layout (paper: the Workspace's ranges)."""
+    line = _heading(start, goal)
+    spread = lambda: u((-ws.heading_spread, ws.heading_spread))  # noqa: E731
+    if ws.layout is Layout.side:
+        w, off = u((0.2, 0.8)), u((2.0, 5.0)) * (1 if rng.random() < 0.5 else -1)
+        p = start + w * (goal - start) + off * np.array([-math.sin(line), math.cos(line)])
+        return (float(p[0]), float(p[1]), u(ws.part_z)), line + spread(), line + spread()
+    if ws.layout is Layout.behind:
+        back, across = u((2.0, 5.0)), u((-2.0, 2.0))
+        p = start - back * np.array([math.cos(line), math.sin(line)]) + across * np.array([-math.sin(line), math.cos(line)])
+        return (float(p[0]), float(p[1]), u(ws.part_z)), line + spread(), line + spread()
+    part = (u(ws.part_x), u(ws.part_y), u(ws.part_z))
+    if ws.layout is Layout.headings:
+        return part, u((-math.pi, math.pi)), u((-math.pi, math.pi))
+    return part, _heading(start, part) + spread(), _heading(part, goal) + spread()
+
+
+def _pillars(rng, ws: Workspace, start, goal, part, u) -> list:
+    """Pillars: beside the route (paper and the others), or on the two legs (cluttered)."""
+    out = []
+    if ws.layout is Layout.cluttered:
+        for _ in range(int(rng.integers(3, 7))):
+            r = u(ws.pillar_radius)
+            a, b = (start, np.asarray(part[:2])) if rng.random() < 0.5 else (np.asarray(part[:2]), goal)
+            c = a + float(rng.uniform(0.25, 0.75)) * (b - a) + rng.normal(0.0, 0.5, 2)
+            out.append(SphereObstacle((float(c[0]), float(c[1]), r), r))
+        return out
+    for _ in range(int(rng.integers(ws.pillars[0], ws.pillars[1] + 1))):
+        r = u(ws.pillar_radius)
+        w = float(rng.uniform(0.25, 0.75))
+        c = start + w * (goal - start) + rng.normal(0.0, 0.8, 2)
+        out.append(SphereObstacle((float(c[0]), float(c[1]), r), r))
+    return out
+
+
 def random_problem(rng: np.random.Generator, ws: Workspace = Workspace(), max_tries: int = 100) -> PickupProblemSpec:
     """One problem that passes the cheap checks (RuntimeError after max_tries draws)."""
     u = lambda lo_hi: float(rng.uniform(*lo_hi))  # noqa: E731
@@ -77,14 +134,14 @@ def random_problem(rng: np.random.Generator, ws: Workspace = Workspace(), max_tr
     for _ in range(max_tries):
         start = np.array([u(ws.start_x), u(ws.start_y)])
         goal = np.array([u(ws.goal_x), u(ws.goal_y)])
-        part = (u(ws.part_x), u(ws.part_y), u(ws.part_z))
+        if ws.layout is Layout.paper:  # the draws in the order of the first release (same problems per seed)
+            part = (u(ws.part_x), u(ws.part_y), u(ws.part_z))
+            yaw0 = yaw1 = None
+        else:
+            part, yaw0, yaw1 = _part_and_headings(rng, ws, start, goal, u)
         obstacles = [SphereObstacle((part[0], part[1], 0.15), 0.15),                            # pedestal
                      SphereObstacle((part[0], part[1], part[2] - PEDESTAL_GAP), 0.06)]          # its top
-        for _ in range(int(rng.integers(ws.pillars[0], ws.pillars[1] + 1))):
-            r = u(ws.pillar_radius)
-            w = float(rng.uniform(0.25, 0.75))
-            c = start + w * (goal - start) + rng.normal(0.0, 0.8, 2)
-            obstacles.append(SphereObstacle((float(c[0]), float(c[1]), r), r))
+        obstacles += _pillars(rng, ws, start, goal, part, u)
         pillars = obstacles[2:]
         if not (_clear(start, BASE_RADIUS, obstacles, 0.2) and _clear(goal, BASE_RADIUS, obstacles, 0.2)):
             continue
@@ -93,10 +150,12 @@ def random_problem(rng: np.random.Generator, ws: Workspace = Workspace(), max_tr
             continue
         if not _grasp_ring_clear(part[:2], obstacles):
             continue
+        if yaw0 is None:
+            yaw0 = _heading(start, part) + u((-ws.heading_spread, ws.heading_spread))
+            yaw1 = _heading(part, goal) + u((-ws.heading_spread, ws.heading_spread))
         return PickupProblemSpec(
-            base_start=(float(start[0]), float(start[1]),
-                        _heading(start, part) + u((-ws.heading_spread, ws.heading_spread))),
-            base_goal=(float(goal[0]), float(goal[1]), _heading(part, goal) + u((-ws.heading_spread, ws.heading_spread))),
+            base_start=(float(start[0]), float(start[1]), float(yaw0)),
+            base_goal=(float(goal[0]), float(goal[1]), float(yaw1)),
             part_position=part, part_yaw=u((-math.pi, math.pi)), metamodel=ws.metamodel,
             uncertainty=ws.uncertainty, sigma_r=sr, sigma_phi=sp, gamma=ws.gamma, obstacles=tuple(obstacles),
             grasp=GraspKind.top if rng.random() < 0.5 else GraspKind.side, arm_start=DEFAULT_ARM_START)

@@ -30,7 +30,7 @@ def replay(plan_dict: dict, problem, gui: bool = False, frames: int = 400, realt
     PickupProblem, or a paper case's number); returns {"frames", "tool_error_T2"
     (position m, angle rad by PyBullet's FK), "min_distance" (m, robot links vs obstacles),
     "min_distance_t" (s)}. Raises ValueError for a plan without a solution."""
-    import pybullet as pb
+    from pickplan.sim.bullet import connect, pb
 
     if not plan_dict.get("stages_completed"):
         raise ValueError(f"plan has no solution to replay (status {plan_dict.get('status')!r})")
@@ -39,7 +39,7 @@ def replay(plan_dict: dict, problem, gui: bool = False, frames: int = 400, realt
     robot = planner.mobile_ur5()
     if isinstance(problem, int):  # a paper case by its number
         problem = cases.make_problem(robot, problem)
-    cid = pb.connect(pb.GUI if gui else pb.DIRECT)
+    cid = connect(gui)
     try:
         body = pb.loadURDF(robot.urdf_path, [0, 0, 0], [0, 0, 0, 1], useFixedBase=True, physicsClientId=cid)
         info = [pb.getJointInfo(body, j, physicsClientId=cid) for j in range(pb.getNumJoints(body, physicsClientId=cid))]

@@ -3,33 +3,27 @@ refinement or a single shot), the dense checks of the solution and the files `pi
 writes (trajectory JSON, metrics JSON, a speed plot like the paper's Fig. 5)."""
 from __future__ import annotations
 
+import logging
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
 
-from pickplan.core.io import atomic_open, write_json
-from pickplan.core.sdf import default_cache_dir
+from pickplan.core.io import atomic_open, cache_dir, write_json
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
-from pickplan.pickup.nlp import planner
+from pickplan.pickup.nlp import planner, routed
 from pickplan.pickup.nlp.cases import METAMODEL_PART, cases_metamodel_config
+from pickplan.pickup.nlp.planner import dense_checks  # noqa: F401 - part of this module's API since issue 23
 from pickplan.pickup.nlp.problem_file import STANDIN, PickupProblemSpec, native_problem
 
-# Dense checks of a solution (2001 instants over [0, T]; the NLP enforces its rows at samples, so
-# these leave room for what happens between them).
-POSE_POSITION_TOL = 1e-3        # m, tool position at T2
-POSE_ORIENTATION_TOL = 1e-2     # rad
-NONHOLONOMIC_MEAN_TOL = 0.02    # m/s, mean lateral base speed
-NONHOLONOMIC_DRIFT_TOL = 0.2    # m, its integral over [0, T]
-JOINT_OVERSHOOT_TOL = 0.03      # rad past a joint limit between samples
-VELOCITY_ERROR_TOL = 0.05       # m/s, |J q' - S_g n_g| during grasping
+log = logging.getLogger(__name__)
 
 
 def builtin_metamodel_path(part: str) -> str:
     """Where the meta-model of a built-in part is cached ($PICKPLAN_CACHE_DIR or ~/.cache/pickplan)."""
-    return os.path.join(default_cache_dir(), f"metamodel_{part}.json")
+    return cache_dir(f"metamodel_{part}.json")
 
 
 def ensure_builtin_metamodel(part: str, path: Optional[str] = None, config=None, workers: int = 1,
@@ -43,7 +37,7 @@ def ensure_builtin_metamodel(part: str, path: Optional[str] = None, config=None,
             raise ValueError(f"{path}: a meta-model of {mm.part_name!r}, expected {part!r}")
         return path
     if progress:
-        print(f"building the {part} meta-model from simulation ({workers} worker(s)) -> {path}", flush=True)
+        log.info(f"building the {part} meta-model from simulation ({workers} worker(s)) -> {path}")
     build_metamodel(part, config or BuildConfig(), seed=0, workers=workers, progress=progress).save(path)
     return path
 
@@ -76,25 +70,16 @@ class ProblemSolution:
         return self.plan.success and all(self.checks.values())
 
 
-def dense_checks(problem, plan: planner.PickupPlan, metrics: Optional[dict]) -> dict:
-    """The checks a solution must pass by dense re-sampling (names -> bool; empty: no solution)."""
-    if not plan.success or metrics is None:
-        return {}
-    return {"pose_error_at_T2": metrics["pose_error_position"] <= POSE_POSITION_TOL
-            and metrics["pose_error_orientation"] <= POSE_ORIENTATION_TOL,
-            "nonholonomic": metrics["nonholonomic_mean"] <= NONHOLONOMIC_MEAN_TOL
-            and metrics["nonholonomic_drift"] <= NONHOLONOMIC_DRIFT_TOL,
-            "clearance": metrics["min_clearance"] >= 0.0,
-            "joint_limits": metrics["joint_limit_violation"] <= JOINT_OVERSHOOT_TOL,
-            "grasp_velocity": metrics["velocity_error_max"] <= VELOCITY_ERROR_TOL,
-            "rho_at_least_gamma": metrics["success_probability"] >= problem.gamma - 1e-6}
-
-
 def solve(robot, spec: PickupProblemSpec, rho, settings: planner.PlannerSettings = planner.PlannerSettings(),
-          method=planner.Method.successive) -> ProblemSolution:
-    """Solves one problem and checks the solution densely (solver failures are statuses)."""
+          method=planner.Method.successive, time_limit: float = 0.0) -> ProblemSolution:
+    """Solves one problem and checks the solution densely (solver failures are statuses; method
+    routed: ``routed.plan_routed`` with its certificate, lower bound and ``time_limit``)."""
     problem = native_problem(robot, spec, rho)
-    plan = planner.plan(robot, problem, settings, method)
+    if planner.Method.parse(method, "method") is planner.Method.routed:
+        plan = routed.plan_routed(robot, problem, settings, time_limit=time_limit)
+    else:
+        plan = planner.plan(robot, problem, settings if not time_limit else replace(settings, time_limit=time_limit),
+                            method)
     metrics = planner.evaluate(robot, problem, plan) if plan.stages_completed > 0 else None
     return ProblemSolution(spec, problem, plan, metrics, dense_checks(problem, plan, metrics))
 
@@ -110,11 +95,17 @@ def trajectory_dict(sol: ProblemSolution, n: int = 401) -> dict:
     return d
 
 
+def _finite(v):
+    return v if math.isfinite(v) else None  # JSON has no NaN or inf
+
+
 def metrics_dict(sol: ProblemSolution) -> dict:
     p = sol.plan
     return {"status": p.status, "success": p.success, "best_stage": p.stages_completed,
-            "passed_dense_checks": sol.passed, "checks": sol.checks, "T": p.T, "T1": p.T1, "T2": p.T2,
-            "S_g": p.S_g, "S_c": p.S_c, "cpu_seconds": p.total_cpu_seconds, "wall_seconds": p.total_seconds,
+            "passed_dense_checks": sol.passed, "checks": sol.checks, "T": _finite(p.T), "T1": _finite(p.T1),
+            "T2": _finite(p.T2), "S_g": _finite(p.S_g), "S_c": _finite(p.S_c), "cpu_seconds": p.total_cpu_seconds,
+            "wall_seconds": p.total_seconds, "lower_bound": _finite(p.lower_bound), "reason": p.reason,
+            "detail": p.detail, "seed": p.seed,
             "dense": {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in (sol.metrics or {}).items()},
             "stages": [{"stage": s.stage, "status": s.status, "ipopt": s.ipopt_status, "T": s.objective}
                        for s in p.stages]}

@@ -1,0 +1,193 @@
+"""Pick-up on the move for any layout (issue 37): car-like route seeds (Dubins geometry, continuity,
+curvature, the seed's speed and yaw-rate limits), the lower bound on T (closed form on a straight
+line, never above a solved T), every infeasibility reason on a constructed problem, the time budget,
+and the benchmark layouts."""
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pickplan import _core
+from pickplan.pickup.nlp import planner, problem_file, random_problems, route, routed, solve_problem
+from pickplan.pickup.nlp.feasibility import Reason, base_geometry, certify, lower_bound
+
+FAST = planner.PlannerSettings(samples_per_interval=6)
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return planner.mobile_ur5()
+
+
+def _spec(**kw):
+    base = dict(base_start=(0.0, 0.0, 0.0), base_goal=(8.0, 0.0, 0.0), part_position=(4.0, 1.0, 0.5), part_yaw=0.0,
+                metamodel="standin", uncertainty=problem_file.Uncertainty.medium, sigma_r=0.007,
+                sigma_phi=math.radians(10), gamma=0.96,
+                obstacles=(problem_file.SphereObstacle((4.0, 1.0, 0.15), 0.15),
+                           problem_file.SphereObstacle((4.0, 1.0, 0.33), 0.06)))
+    base.update(kw)
+    return problem_file.PickupProblemSpec(**base)
+
+
+def _native(robot, spec):
+    return problem_file.native_problem(robot, spec, solve_problem.rho_for_spec(spec))
+
+
+# ---- Dubins and the routes ------------------------------------------------------------------------
+def _end(q0, word, seg, rho):
+    return route.sample_dubins(q0, word, seg, rho)[-1]
+
+
+@pytest.mark.parametrize("q1", [(5.0, 0.0, 0.0), (0.0, 2.0, math.pi), (-3.0, 1.0, 2.0), (1.0, -4.0, -1.0), (0.3, 0.2, 3.0)])
+def test_every_dubins_word_ends_at_the_goal_pose_and_the_shortest_is_known_in_closed_form(q1):
+    rho, q0 = 1.0, (0.0, 0.0, 0.0)
+    words = route.dubins_words(q0, q1, rho)
+    assert words
+    for word, seg in words:
+        e = _end(q0, word, seg, rho)
+        assert np.allclose(e[:2], q1[:2], atol=1e-9) and abs(math.remainder(e[2] - q1[2], 2 * math.pi)) < 1e-9, word
+    length = route.dubins_shortest(q0, q1, rho)[2]
+    if q1 == (5.0, 0.0, 0.0):
+        assert length == pytest.approx(5.0)                 # straight ahead
+    if q1 == (0.0, 2.0, math.pi):
+        assert length == pytest.approx(math.pi)             # a half circle of radius 1
+    assert length >= math.hypot(q1[0], q1[1]) - 1e-12       # never shorter than the straight line
+
+
+def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limits(robot):
+    spec = _spec(base_start=(0.0, 0.0, math.pi / 2), part_position=(4.0, 3.5, 0.5),
+                 obstacles=_spec().obstacles[:0] + (problem_file.SphereObstacle((4.0, 3.5, 0.15), 0.15),
+                                                    problem_file.SphereObstacle((2.0, 1.5, 0.3), 0.3)))
+    problem = _native(robot, spec)
+    geo = base_geometry(robot, problem, FAST)
+    routes = route.candidate_routes(geo, count=4)
+    assert len(routes) >= 2 and len({r.label for r in routes}) == len(routes)
+    rho = geo.v_max / geo.w_max
+    template = np.array(_core.pickup_heuristic_seed(robot.native, problem, FAST.native()))
+    for r in routes:
+        P = r.poses
+        step = np.linalg.norm(np.diff(P[:, :2], axis=0), axis=1)
+        assert step.max() <= route.STEP + 1e-9                                 # continuous
+        assert np.allclose(P[0], geo.start) and np.allclose(P[-1, :2], geo.goal[:2], atol=1e-9)
+        assert abs(math.remainder(P[-1, 2] - geo.goal[2], 2 * math.pi)) < 1e-9
+        turn = np.abs(np.diff(P[:, 2]))
+        assert np.all(2 * rho * np.sin(turn / 2) <= step + 1e-9)               # curvature <= 1 / rho (chords)
+        motion = np.arctan2(np.diff(P[:, 1]), np.diff(P[:, 0]))               # no lateral motion
+        lateral = np.abs(np.sin(motion - P[1:, 2]))[step > 1e-6]
+        assert lateral.max() < 0.05
+        assert geo.free(P[:, :2], 0.05).all()
+        g = P[r.grasp_index, :2]
+        assert geo.r_min <= np.linalg.norm(g - geo.part_xy) <= geo.r_max
+        x = route.route_seed(r, geo, template, FAST, robot.dof, problem.stroke)
+        nc = len(x) - 5
+        T, s1, s2 = x[nc + 2], x[nc], x[nc + 1]
+        assert 0 <= s1 < s2 <= 1 and (s2 - s1) * T == pytest.approx(problem.stroke / x[nc + 4])
+        coeff = [x[o:o + 6] for o in (0, 6, 12)]
+        u = np.linspace(0, 1, 2001)
+        v = [np.polynomial.polynomial.polyval(u, np.polynomial.polynomial.polyder(c)) / T for c in coeff]
+        assert np.hypot(v[0], v[1]).max() <= geo.v_max * (1 + 1e-9)          # the speed limit
+        assert np.abs(v[2]).max() <= geo.w_max * (1 + 1e-9)                   # the yaw-rate limit
+        assert np.allclose([c[0] for c in coeff], geo.start)
+
+
+# ---- the lower bound --------------------------------------------------------------------------------
+def test_the_bound_equals_the_closed_form_on_a_straight_line(robot):
+    # Start, grasp and goal on one line, no obstacle on it: the base drives straight at its limit,
+    # through the grasping annulus (its chord is longer than v W), and stops goal_tol short of the goal.
+    for v, D in ((2.0, 8.0), (0.5, 6.0), (1.2, 10.0)):
+        spec = _spec(base_goal=(D, 0.0, 0.0), part_position=(D / 2, 0.5, 0.5),
+                     obstacles=(problem_file.SphereObstacle((D / 2, 0.5, 0.15), 0.15),),
+                     base_speed_limit=v)
+        problem = _native(robot, spec)
+        geo = base_geometry(robot, problem, FAST)
+        W = geo.window
+        assert W * v < 2 * math.sqrt(geo.r_max ** 2 - 0.5 ** 2)  # the chord holds the window
+        closed = (D - spec.goal_tol_pos) / v
+        # Any route start -> p -> q -> goal ball is at least D - tol long (triangle inequality), so
+        # the grid minimum is >= closed; the bound lowers it by the grid's 4 h / v only.
+        slack = 4 * geo.spacing() / v
+        assert closed - slack - 1e-9 <= lower_bound(geo) <= closed + 1e-9 and slack < 0.04 * closed
+
+
+def test_the_bound_is_below_the_T_of_solved_problems(robot):
+    specs = [_spec()] + [replace(s, metamodel="standin") for s in random_problems.random_problems(2, 0)]
+    for spec in specs:
+        problem = _native(robot, spec)
+        p = routed.plan_routed(robot, problem, FAST)
+        assert p.success and p.reason is Reason.none, (p.status, p.detail)
+        assert 0 < p.lower_bound <= p.T, (p.lower_bound, p.T)
+
+
+# ---- the reasons --------------------------------------------------------------------------------------
+def test_each_infeasibility_reason_on_a_constructed_problem(robot):
+    cases = {
+        # a meta-model whose rho is at most 0.9 at every speed (below)
+        Reason.gamma_unattainable: (_spec(), FAST),
+        # the grasp point 3 m up: beyond the arm's reach from any base pose
+        Reason.out_of_reach: (_spec(part_position=(4.0, 1.0, 3.0), obstacles=()), FAST),
+        # a low dome round the part blocks every base position of the grasping annulus
+        Reason.horizon_too_short: (_spec(), replace(FAST, t_max=3.0)),
+    }
+    dome = _spec(obstacles=(problem_file.SphereObstacle((4.0, 1.0, -0.8), 1.2),))
+    for reason, (spec, settings) in list(cases.items()) + [(Reason.out_of_reach, (dome, FAST))]:
+        problem = _native(robot, spec)
+        if reason is Reason.gamma_unattainable:
+            problem.rho = _core.RhoPoly(np.array([[0.9, 0.8, 0.9], [0.5, 0.6, 0.7], [0.2, 0.3, 0.3]]), (0.05, 1.2), (0.05, 0.15))
+        cert = certify(robot, problem, settings)
+        assert cert.reason is reason and cert.detail, (reason, cert)
+        p = routed.plan_routed(robot, problem, settings)
+        assert not p.success and p.reason is reason and p.stages == [] and p.status is planner.SolveStatus.infeasible
+    # Verified independently: the dome's blocked radius
+    # sqrt((0.3 + 1.2)^2 - 1.0^2) = 1.118 m exceeds the annulus' 0.8 m; the straight line at 2 m/s
+    # takes 7.5 s / 2 > 3 s.
+    # (A Bernstein surface lies within the hull of its coefficients: at most 0.9 < 0.96.)
+    assert math.sqrt(1.5 ** 2 - 1.0 ** 2) > 0.8 and (8.0 - 0.5) / 2.0 > 3.0
+    # The solver fails (one Ipopt iteration per run) on a problem the bound calls feasible.
+    problem = _native(robot, _spec())
+    p = routed.plan_routed(robot, problem, replace(FAST, max_iter=1))
+    assert not p.success and p.reason is Reason.solver_failed and "closest plan" in p.detail
+    assert math.isfinite(p.lower_bound) and p.stages_completed >= 0
+
+
+# ---- the time budget -------------------------------------------------------------------------------
+def test_the_time_budget(robot):
+    problem = _native(robot, _spec())
+    full = routed.plan_routed(robot, problem, FAST)
+    assert full.success and full.status is planner.SolveStatus.solved
+    tiny = routed.plan_routed(robot, problem, FAST, time_limit=1e-3)
+    assert tiny.status is planner.SolveStatus.time_limit and not tiny.success and tiny.reason is Reason.time_limit
+    # Whatever the budget cuts, a plan returned as a success is a feasible one (dense checks).
+    for share in (0.3, 0.6, 0.9):
+        p = routed.plan_routed(robot, problem, FAST, time_limit=share * full.total_seconds)
+        assert p.status in (planner.SolveStatus.solved, planner.SolveStatus.time_limit)
+        if p.success:
+            metrics = planner.evaluate(robot, problem, p)
+            assert all(solve_problem.dense_checks(problem, p, metrics).values())
+        else:
+            assert p.reason is Reason.time_limit
+    # A budget that is not reached changes nothing.
+    same = routed.plan_routed(robot, problem, FAST, time_limit=1e4)
+    assert same.status is planner.SolveStatus.solved and np.array_equal(same.native.x, full.native.x)
+    with pytest.raises(ValueError, match="time_limit"):
+        routed.plan_routed(robot, problem, FAST, time_limit=-1.0)
+
+
+# ---- the layouts --------------------------------------------------------------------------------------
+@pytest.mark.parametrize("layout", list(random_problems.Layout))
+def test_layouts_draw_seeded_problems_of_their_kind(layout):
+    ws = random_problems.Workspace(layout=layout, metamodel="standin")
+    a = random_problems.random_problems(6, 1, ws)
+    assert a == random_problems.random_problems(6, 1, ws)
+    for s in a:
+        start, goal, part = np.array(s.base_start[:2]), np.array(s.base_goal[:2]), np.array(s.part_position[:2])
+        line = (goal - start) / np.linalg.norm(goal - start)
+        along, across = line @ (part - start), line[0] * (part - start)[1] - line[1] * (part - start)[0]
+        if layout is random_problems.Layout.side:
+            assert 2.0 - 1e-9 <= abs(across) <= 5.0 + 1e-9
+        if layout is random_problems.Layout.behind:
+            assert along < -1.9
+        if layout is random_problems.Layout.cluttered:
+            assert 3 <= len(s.obstacles) - 2 <= 6
+    if layout is random_problems.Layout.paper:  # the first release's problems, unchanged
+        assert a == random_problems.random_problems(6, 1, random_problems.Workspace(metamodel="standin"))
