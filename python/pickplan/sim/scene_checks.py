@@ -58,7 +58,8 @@ def read_scene(d, path: Optional[str] = None) -> dict:
         names = [o[0] for o in out["objects"] if o is not None]
         if len(set(names)) != len(names):
             r.note("objects", f"object names must be unique, got {names}")
-        out["target"] = r.get(d, "target", "", r.text)
+        # null: no target (a scene of obstacles to move among, e.g. from MoveIt)
+        out["target"] = None if "target" in d and d["target"] is None else r.get(d, "target", "", r.text)
         if out["target"] is not None and items is not None and None not in out["objects"] and out["target"] not in names:
             r.note("target", f"{out['target'][:60]!r} is not one of the objects {names}")
         out["obstacles"] = []
