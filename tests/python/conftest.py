@@ -6,6 +6,9 @@ import pytest
 YCB_DIR = os.environ.get("PICKPLAN_YCB_DIR",
                          os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "ycb"))
 
+MBM_DIR = os.environ.get("PICKPLAN_MBM_DIR",
+                         os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "mbm"))
+
 
 @pytest.fixture(scope="session")
 def panda():
@@ -46,6 +49,13 @@ def ycb_dir_or_skip():
     if path is None:
         pytest.skip(f"YCB data folder not found at {os.path.abspath(YCB_DIR)} (set PICKPLAN_YCB_DIR); "
                     "real-object checks skipped")
+    return path
+
+
+def mbm_dir_or_skip():
+    path = os.path.abspath(MBM_DIR)
+    if not os.path.isfile(os.path.join(path, "problems_panda.tar.bz2")):
+        pytest.skip(f"MotionBenchMaker data not found at {path} (set PICKPLAN_MBM_DIR); MBM checks skipped")
     return path
 
 

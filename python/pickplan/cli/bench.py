@@ -22,6 +22,7 @@ from pickplan.eval.summaries import grasp_costs_by_object, summarize, summarize_
 from pickplan.cli.scenes import clutter_range
 from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
+from pickplan.cli.bench_mbm import add_mbm_command
 from pickplan.cli.robots import ROBOT_HELP
 from pickplan.core.io import write_json, write_text
 from pickplan.eval.plots import plot_table
@@ -293,6 +294,7 @@ def add_bench_commands(subparsers) -> None:
         p.add_argument("--no-progress", action="store_true")
         p.set_defaults(handler=run_bench)
     add_perception_command(sub)
+    add_mbm_command(sub)
 
 
 def run_perception(args: argparse.Namespace) -> int:

@@ -215,6 +215,17 @@ def _seed_ompl(ou, seed: int) -> None:
         _OMPL_SEEDED.append(int(seed) + 1)
 
 
+def ompl_setup(ob, og, robot, joints: int):
+    """OMPL's space of the robot's first ``joints`` joints within their limits, and a SimpleSetup on it."""
+    space = ob.RealVectorStateSpace(joints)
+    bounds = ob.RealVectorBounds(joints)
+    for j in range(joints):
+        bounds.setLow(j, float(robot.lower_limits[j]))
+        bounds.setHigh(j, float(robot.upper_limits[j]))
+    space.setBounds(bounds)
+    return space, og.SimpleSetup(space)
+
+
 def plan_ompl(scene: Scene, planner: Union[Baseline, str] = Baseline.RRT_C,
               settings: BaselineSettings = BaselineSettings(), world: Optional[World] = None, grasps=None) -> PlanResult:
     """FMT* or RRT-Connect to the pre-grasp of each ranked goal, then the goal's standoff tail."""
@@ -236,13 +247,7 @@ def _ompl_over(pb: _Problem, planner: Baseline, settings: BaselineSettings, t_to
     q0 = pb.q0
     validity = SupportValidity(pb.world, q0, settings.omg.metrics.support_tolerance)
     _seed_ompl(ou, settings.omg.seed)
-    space = ob.RealVectorStateSpace(arm)
-    bounds = ob.RealVectorBounds(arm)
-    for j in range(arm):
-        bounds.setLow(j, float(robot.lower_limits[j]))
-        bounds.setHigh(j, float(robot.upper_limits[j]))
-    space.setBounds(bounds)
-    ss = og.SimpleSetup(space)
+    space, ss = ompl_setup(ob, og, robot, arm)
     q = q0.copy()
 
     def valid(state) -> bool:

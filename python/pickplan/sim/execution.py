@@ -193,7 +193,7 @@ class _Sim:
         self.pb, self.c, self.s, self.record, self.info = pb, client, settings, record, info
         self.robot = ids["robot"]
         self.names = {bid: name for name, bid in ids.items() if name != "robot"}
-        self.bodies = {name: bid for name, bid in ids.items() if name not in ("robot", "table")}
+        self.bodies = {name: bid for name, bid in ids.items() if name in models}  # the objects (not obstacles)
         self.models = models
         self.target = scene.target
         joints = {pb.getJointInfo(self.robot, j, physicsClientId=client)[1].decode(): j

@@ -131,8 +131,12 @@ def _densify(Q: np.ndarray, substeps: int) -> np.ndarray:
 
 
 def _draw_scene(vis: meshcat.Visualizer, scene: Scene) -> None:
-    vis["table"].set_object(mg.Box(np.asarray(scene.table.size, dtype=float)), _material(TABLE_COLOR))
-    vis["table"].set_transform(np.asarray(scene.table.pose, dtype=float))
+    if scene.table is not None:
+        vis["table"].set_object(mg.Box(np.asarray(scene.table.size, dtype=float)), _material(TABLE_COLOR))
+        vis["table"].set_transform(np.asarray(scene.table.pose, dtype=float))
+    for o in scene.obstacles:  # shelves, bins, MoveIt's objects: the shape's own mesh
+        vis["obstacles"][o.name].set_object(_mesh_geometry(o.shape.trimesh()), _material(TABLE_COLOR))
+        vis["obstacles"][o.name].set_transform(np.asarray(o.pose, dtype=float))
     others = iter(OBJECT_COLORS * (1 + len(scene.objects) // len(OBJECT_COLORS)))
     for o in scene.objects:
         model = objects.model_from_source(o.name, o.source)
