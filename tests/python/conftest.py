@@ -89,3 +89,16 @@ def known_scene():
     """A sugar box (the target) standing in front of the robot and a soup can beside it (built-ins),
     with the object library: the perception tests' known scene."""
     return standing_scene((("004_sugar_box", (0.55, 0.0)), ("005_tomato_soup_can", (0.55, 0.2))), "004_sugar_box")
+
+
+def socket_inodes(pid: int) -> set:
+    """The inodes of process ``pid``'s sockets (its /proc fd links), to find them in /proc/net's tables."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if link.startswith("socket:["):
+            inodes.add(link[8:-1])
+    return inodes

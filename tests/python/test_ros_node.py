@@ -18,7 +18,7 @@ from pickplan.core.timing import robot_limits
 from pickplan.sim.execution import execute_plan
 from pickplan.sim.observe import render_observation
 
-from conftest import known_scene
+from conftest import known_scene, socket_inodes
 
 pytest.importorskip("rclpy", reason="the ros extra is not installed (make install installs it)")
 
@@ -30,14 +30,7 @@ ENCODINGS = ("32FC1", "16UC1")
 
 def inet_sockets(pid: int) -> list:
     """The process's UDP and TCP sockets (/proc: its socket inodes in the net tables)."""
-    inodes = set()
-    for fd in os.listdir(f"/proc/{pid}/fd"):
-        try:
-            link = os.readlink(f"/proc/{pid}/fd/{fd}")
-        except OSError:
-            continue
-        if link.startswith("socket:["):
-            inodes.add(link[8:-1])
+    inodes = socket_inodes(pid)
     found = []
     for proto in ("udp", "udp6", "tcp", "tcp6"):
         with open(f"/proc/{pid}/net/{proto}") as f:
