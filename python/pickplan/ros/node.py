@@ -33,7 +33,9 @@ topic and field named, and the node goes on; it keeps only the latest message of
 """
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import time
 import traceback
 from typing import Dict, List, Optional
@@ -52,6 +54,7 @@ from rcl_interfaces.msg import SetParametersResult  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: E402
+from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from sensor_msgs.msg import CameraInfo, Image, JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
@@ -66,6 +69,7 @@ from pickplan.ros.pipeline import CameraView, PickOutcome, PickPipeline, PickReq
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 RELIABLE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 TARGET = "target"  # the key of the last target given in PickNode.latest
+STOP_POLL_S = 0.1  # how soon a stop signal is seen while nothing arrives
 
 
 def trajectory_message(timed, robot, joints: List[str], frame: str) -> JointTrajectory:
@@ -287,17 +291,27 @@ class PickNode(Node):
 
 
 def run(robot: Optional[str] = None, args: Optional[List[str]] = None) -> int:
-    """Start the node and spin until Ctrl-C or shutdown; ``args``: ROS arguments (``--ros-args ...``)."""
-    rclpy.init(args=args)
+    """Start the node and spin until Ctrl-C (SIGINT), SIGTERM or shutdown; ``args``: ROS arguments.
+
+    rclpy's own handler raises ``KeyboardInterrupt`` wherever the signal lands, and inside its
+    message conversion that surfaces as a ``RuntimeError`` (a stop reported as a crash). So the node
+    takes the signals itself: the handler only asks to stop, and the loop stops between callbacks.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     node = None
     try:
         node = PickNode(robot)
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
+        executor = rclpy.executors.SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=STOP_POLL_S)
     except rclpy.executors.ExternalShutdownException:
         pass
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         if node is not None:
             node.destroy_node()
         if rclpy.ok():
