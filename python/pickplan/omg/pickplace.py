@@ -25,7 +25,7 @@ import numpy as np
 
 from pickplan.core import collision
 from pickplan.core.settings import Option
-from pickplan.core.timing import KinematicLimits, TimedTrajectory, time_parameterize
+from pickplan.core.timing import KinematicLimits, TimedTrajectory, concatenate, joint_move, time_parameterize
 from pickplan.omg.attach import (
     AttachSettings,
     HeldCheck,
@@ -118,14 +118,35 @@ class PickPlacePlan:
         segs = [Q for _, Q in self.segments()]
         return np.vstack([segs[0]] + [Q[1:] for Q in segs[1:]])
 
-    def timed(self, rate: float = 1000.0, names: Optional[Tuple[str, ...]] = None) -> List[Tuple[str, TimedTrajectory]]:
-        """Each segment (of ``names``, default all) timed within the robot's limits, rest to rest (the hand
-        stops to close, to release and between straight segments); the carry (lift, transfer) within
-        ``carry_speed`` of the velocity limits and its square of the acceleration limits."""
-        limits, k = self.pick.limits, self.carry_speed
+    def timed(self, rate: float = 1000.0, names: Optional[Tuple[str, ...]] = None,
+              limits: Optional[KinematicLimits] = None) -> List[Tuple[str, TimedTrajectory]]:
+        """Each segment (of ``names``, default all) timed within ``limits`` (default: the robot's), rest to
+        rest (the hand stops to close, to release and between straight segments); the carry (lift,
+        transfer) within ``carry_speed`` of the velocity limits and its square of the acceleration limits."""
+        limits, k = limits or self.pick.limits, self.carry_speed
         carry = KinematicLimits(limits.velocity * k, limits.acceleration * k * k)
         return [(name, time_parameterize(Q, rate, carry if name in ("lift", "transfer") else limits))
                 for name, Q in self.segments() if names is None or name in names]
+
+    def timed_task(self, robot, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
+                   gripper_seconds: float = 0.5) -> Tuple[TimedTrajectory, List[Tuple[str, float, float]]]:
+        """The whole task as one trajectory for a controller: approach, **close** (the arm still, the
+        fingers to ``finger_closed``: they stop on the object), lift and transfer with the fingers
+        commanded closed, **release** (to the open hand), retract; and each part's (name, start, end) in
+        seconds, for a gripper driven apart from the arm. A successful plan only."""
+        if not self.success:
+            raise ValueError(f"timed_task: the plan did not succeed ({self.status.value})")
+        limits = limits or self.pick.limits
+        parts = dict(self.timed(rate, limits=limits))
+        closed = float(robot.info.finger_closed)
+        for name in ("lift", "transfer"):
+            parts[name].q = robot.with_fingers(parts[name].q, closed)
+        q_grasp, q_place = parts["approach"].q[-1], parts["transfer"].q[-1]
+        parts["close"] = joint_move(q_grasp, robot.with_fingers(q_grasp, closed), limits, rate, gripper_seconds)
+        parts["release"] = joint_move(q_place, parts["retract"].q[0], limits, rate, gripper_seconds)
+        order = [n for n in ("approach", "close", "lift", "transfer", "release", "retract") if n in parts]
+        whole, spans = concatenate([parts[n] for n in order])
+        return whole, [(n, t0, t1) for n, (t0, t1) in zip(order, spans)]
 
     def to_dict(self) -> dict:
         """JSON-ready: status, reason, segments, held object, place pose, timings (seconds)."""

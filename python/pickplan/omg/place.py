@@ -142,6 +142,9 @@ class PlaceSettings:
     position_step: float = 0.02      # m between candidate positions on the region's floor
     max_candidates: int = 600        # a seeded subset when the grid is larger
     gap: float = 0.004               # m: the object's lowest point above the floor at release
+    # m kept between the object and the region's sides where the region is wide enough (less where it is
+    # not): an object set down at the very edge leaves the region when it shifts in the hand by a little
+    margin: float = 0.02
     max_rests: int = 3               # stable resting poses tried (most likely first)
     seed: int = 0
     floor_tolerance: float = 0.01    # m between the region's floor and the support plane
@@ -230,6 +233,8 @@ def candidate_poses(request: PlaceRequest, vertices: np.ndarray, rotations: List
             xlo, xhi = lo[:2] - vmin[:2], hi[:2] - vmax[:2]  # the origin's range keeping the object inside
             if z + vmax[2] > hi[2] or np.any(xhi < xlo):
                 continue
+            keep = np.clip((xhi - xlo) / 2, 0.0, settings.margin)
+            xlo, xhi = xlo + keep, xhi - keep
             axes = [np.arange(a, b + 1e-9, settings.position_step) if b - a >= settings.position_step
                     else np.array([(a + b) / 2]) for a, b in zip(xlo, xhi)]
             xy = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
