@@ -38,7 +38,7 @@ system-deps:
 $(VENV)/.stamp: pyproject.toml Makefile  # the package list below lives here
 	[ -x $(PY) ] || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest pytest-xdist ompl ray manifold3d toppra meshcat u-msgpack-python ruff
+	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest pytest-xdist ompl ray manifold3d toppra meshcat u-msgpack-python ruff pyyaml
 	touch $@
 
 venv: $(VENV)/.stamp

@@ -140,6 +140,9 @@ void init_robot(py::module_& m) {
                   py::call_guard<py::gil_scoped_release>())
       .def("with_base", [](const Robot& r, const Array& T) { return r.with_base(Transform::from_matrix(matrix4(T, "base pose"))); },
            py::arg("base_pose"))
+      .def("with_attached_link", [](const Robot& r, const std::string& name, const std::string& parent, const Array& T) {
+        return r.with_attached_link(name, parent, Transform::from_matrix(matrix4(T, "attached link origin")));
+      }, py::arg("name"), py::arg("parent"), py::arg("origin"))
       .def_property_readonly("name", &Robot::name)
       .def_property_readonly("dof", &Robot::dof)
       .def_property_readonly("num_links", &Robot::num_links)

@@ -23,7 +23,8 @@ void init_goal_set(py::module_& m) {
       .def_readwrite("diversity", &GoalSetSettings::diversity)
       .def_readwrite("max_goals", &GoalSetSettings::max_goals)
       .def_readwrite("max_solutions", &GoalSetSettings::max_solutions)
-      .def_readwrite("seed", &GoalSetSettings::seed);
+      .def_readwrite("seed", &GoalSetSettings::seed)
+      .def_readwrite("approach", &GoalSetSettings::approach);
 
   m.def("build_goal_set", [](const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                              const Array& hand_poses,

@@ -127,6 +127,26 @@ TEST(GoalSet, CapKeepsASeededSubsetInInputOrder) {
   }
 }
 
+TEST(GoalSet, AWorldApproachBacksOffAlongItWhateverTheHandsAxis) {
+  // A place comes down along gravity: the hand, tilted 0.6 rad about x, backs off straight up.
+  GoalCase c;
+  Transform tilted = hand_at(0.4, 0.1, 0.2);
+  tilted.R = axis_angle(Eigen::Vector3d::UnitX(), 0.6);
+  GoalSetSettings s;
+  s.approach = Eigen::Vector3d(0, 0, -1);
+  const GoalSet set = build_goal_set(c.ik, nullptr, nullptr, {tilted}, c.start, s);
+  ASSERT_EQ(set.goals.rows(), 1);
+  RobotWorkspace ws(*c.robot);
+  for (int k = 0; k < 5; ++k) {
+    const Eigen::VectorXd q = set.tails[0].row(k).transpose();
+    c.robot->forward_kinematics(q.data(), ws);
+    EXPECT_LT((ws.link_pose[c.hand].p - Eigen::Vector3d(0.4, 0.1, 0.2 + 0.02 * (4 - k))).norm(), 1e-3) << "row " << k;
+    EXPECT_LT((ws.link_pose[c.hand].R - tilted.R).cwiseAbs().maxCoeff(), 1e-2);
+  }
+  s.approach = Eigen::Vector3d(0, 0, -2);  // not a unit vector
+  EXPECT_THROW(build_goal_set(c.ik, nullptr, nullptr, {tilted}, c.start, s), std::invalid_argument);
+}
+
 TEST(GoalSet, BadInputThrowsNamingTheProblem) {
   using test::expect_invalid_argument;
   GoalCase c;

@@ -6,6 +6,9 @@ import pytest
 YCB_DIR = os.environ.get("PICKPLAN_YCB_DIR",
                          os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "ycb"))
 
+MBM_DIR = os.environ.get("PICKPLAN_MBM_DIR",
+                         os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "mbm"))
+
 
 @pytest.fixture(scope="session")
 def panda():
@@ -49,6 +52,13 @@ def ycb_dir_or_skip():
     return path
 
 
+def mbm_dir_or_skip():
+    path = os.path.abspath(MBM_DIR)
+    if not os.path.isfile(os.path.join(path, "problems_panda.tar.bz2")):
+        pytest.skip(f"MotionBenchMaker data not found at {path} (set PICKPLAN_MBM_DIR); MBM checks skipped")
+    return path
+
+
 def rng(seed=0):
     return np.random.default_rng(seed)
 
@@ -58,17 +68,37 @@ def pytest_configure(config):
                                        "`-m 'not ray'` leaves them out of a quick local run")
 
 
-def known_scene():
-    """A sugar box (the target) standing in front of the robot and a soup can beside it (built-ins),
-    with the object library: the perception tests' known scene."""
+def standing_pose(model, xy):
+    """``model``'s most upright resting pose, moved to ``xy`` on the table."""
+    T = model.resting_poses[int(np.argmax([p[2, 2] for p in model.resting_poses]))].copy()
+    T[:2, 3] += xy
+    return T
+
+
+def standing_scene(placements, target):
+    """A scene of built-in objects standing upright at (name, xy) placements, and the library."""
     from pickplan.core import objects
     from pickplan.sim import scenes
 
     lib = objects.library("builtin")
-    objs = []
-    for name, xy in (("004_sugar_box", (0.55, 0.0)), ("005_tomato_soup_can", (0.55, 0.2))):
-        m = lib.get(name)
-        T = m.resting_poses[int(np.argmax([p[2, 2] for p in m.resting_poses]))].copy()
-        T[:2, 3] += xy
-        objs.append(scenes.SceneObject(name, f"builtin:{name}", T))
-    return scenes.Scene(np.eye(4), scenes.default_table(), objs, "004_sugar_box", seed=0), lib
+    objs = [scenes.SceneObject(name, f"builtin:{name}", standing_pose(lib.get(name), xy)) for name, xy in placements]
+    return scenes.Scene(np.eye(4), scenes.default_table(), objs, target, seed=0), lib
+
+
+def known_scene():
+    """A sugar box (the target) standing in front of the robot and a soup can beside it (built-ins),
+    with the object library: the perception tests' known scene."""
+    return standing_scene((("004_sugar_box", (0.55, 0.0)), ("005_tomato_soup_can", (0.55, 0.2))), "004_sugar_box")
+
+
+def socket_inodes(pid: int) -> set:
+    """The inodes of process ``pid``'s sockets (its /proc fd links), to find them in /proc/net's tables."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if link.startswith("socket:["):
+            inodes.add(link[8:-1])
+    return inodes

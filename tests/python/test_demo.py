@@ -43,3 +43,24 @@ def test_demo_writes_the_plan_its_timing_execution_picture_and_view(tmp_path, ca
         assert picture.format == "PNG" and picture.width >= 4 * 160
     page = (out / "view.html").read_text()
     assert len(page) > 500_000 and "<html" in page.lower()
+
+
+def test_demo_place_carries_the_target_to_its_region(tmp_path, capsys):
+    """``pickplan demo --place``: the table printed is the one written, the plan file holds the four
+    segments timed, the view's plan carries the object, and the exit code is the execution's."""
+    out = tmp_path / "place"
+    code = main(["demo", "--place", "--out", str(out), "--quiet"])
+    record = json.loads((out / "pickplace.json").read_text())
+    assert record["status"] == "success"  # the demo's seeded scene plans
+    placed = record["execution"]["status"] == "placed"
+    assert code == (0 if placed else 1)
+    assert [s["name"] for s in record["timed"]] == ["approach", "lift", "transfer", "retract"]
+    table = (out / "metrics.md").read_text()
+    assert table in capsys.readouterr().out
+    assert f"| Executed in PyBullet | {record['execution']['status']}" in table
+    held = json.loads((out / "plan.json").read_text())["held"]
+    assert 0 < held["from"] < held["to"] and np.asarray(held["place_pose"]).shape == (4, 4)
+    region = json.loads((out / "region.json").read_text())["region"]
+    assert np.all(np.asarray(held["place_pose"])[:2, 3] >= np.asarray(region["min"][:2]))
+    assert np.all(np.asarray(held["place_pose"])[:2, 3] <= np.asarray(region["max"][:2]))
+    assert (out / "view.html").stat().st_size > 500_000

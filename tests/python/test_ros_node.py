@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 from pickplan.core import robots
-from pickplan.core.timing import robot_limits
+from pickplan.core.timing import TimedTrajectory, robot_limits
 from pickplan.sim.execution import execute_plan
 from pickplan.sim.observe import render_observation
+from pickplan.sim.pickplace_exec import PlaceCheck, execute_pick_and_place
 
-from conftest import known_scene
+from conftest import known_scene, socket_inodes
 
 pytest.importorskip("rclpy", reason="the ros extra is not installed (make install installs it)")
 
@@ -30,14 +31,7 @@ ENCODINGS = ("32FC1", "16UC1")
 
 def inet_sockets(pid: int) -> list:
     """The process's UDP and TCP sockets (/proc: its socket inodes in the net tables)."""
-    inodes = set()
-    for fd in os.listdir(f"/proc/{pid}/fd"):
-        try:
-            link = os.readlink(f"/proc/{pid}/fd/{fd}")
-        except OSError:
-            continue
-        if link.startswith("socket:["):
-            inodes.add(link[8:-1])
+    inodes = socket_inodes(pid)
     found = []
     for proto in ("udp", "udp6", "tcp", "tcp6"):
         with open(f"/proc/{pid}/net/{proto}") as f:
@@ -235,6 +229,73 @@ def test_every_bad_message_fails_its_request_and_the_next_good_one_is_answered(r
         client.set_target((0.5, 0.0))
     reply = client.plan(point=point)
     assert reply.success and reply.trajectory is not None, reply.message
+
+
+PLACE_REGION = (0.35, -0.5, 0.0, 0.6, -0.25, 0.4)  # an empty area of the table, right of the target
+
+
+def _cut(timed, segments) -> dict:
+    """The node's one trajectory cut at the parts' times (the status's segment.<name>)."""
+    out = {}
+    for name, t0, t1 in segments:
+        k0, k1 = (int(round(t * timed.rate)) for t in (t0, t1))
+        out[name] = TimedTrajectory(timed.t[k0:k1 + 1] - timed.t[k0], timed.q[k0:k1 + 1], timed.qd[k0:k1 + 1],
+                                    timed.qdd[k0:k1 + 1], timed.rate)
+    return out
+
+
+def test_pick_and_place_puts_the_target_in_the_region_in_physics(ready):
+    from visualization_msgs.msg import MarkerArray
+
+    from pickplan.ros.node import LATCHED
+
+    scene, lib, obs, robot, client, replay = ready
+    arrays = []
+    client.node.create_subscription(MarkerArray, "/pickplan/markers", arrays.append, LATCHED)
+    client.spin(0.5)
+    arrays.clear()
+    reply = client.pick_and_place(point=_target_point(scene, lib), region=PLACE_REGION)
+    assert reply.success and reply.message.startswith("success: pick and place"), reply.message
+    end = time.monotonic() + 10
+    while not arrays and time.monotonic() < end:
+        client.spin(0.05)
+    markers = {m.ns: m for m in arrays[-1].markers if m.ns}
+    edges = np.array([[p.x, p.y, p.z] for p in markers["place_region"].points])
+    assert len(edges) == 24
+    np.testing.assert_allclose([edges.min(axis=0), edges.max(axis=0)], [PLACE_REGION[:3], PLACE_REGION[3:]])
+    hand = np.array([[p.x, p.y, p.z] for p in markers["place"].points]).mean(axis=0)
+    assert np.all(hand[:2] > np.array(PLACE_REGION[:2]) - 0.05) and np.all(hand[:2] < np.array(PLACE_REGION[3:5]) + 0.05)
+    assert [n for n, *_ in reply.segments] == ["approach", "close", "lift", "transfer", "release", "retract"]
+    timed = convert.timed_trajectory(reply.trajectory, robot.joint_names)
+    assert reply.segments[0][1] == 0.0 and reply.segments[-1][2] == pytest.approx(timed.duration, abs=1e-3)
+    assert all(a[2] == pytest.approx(b[1], abs=1e-9) for a, b in zip(reply.segments, reply.segments[1:]))
+    limits = robot_limits(robot)
+    assert np.all(np.abs(timed.qd) <= limits.velocity * (1 + 1e-3))
+    assert np.all(np.abs(timed.qdd) <= limits.acceleration * (1 + 1e-2))
+    parts = _cut(timed, reply.segments)
+    arm, info = robot.info.arm_dof, robot.info
+    for name, fingers in (("approach", info.finger_open), ("lift", info.finger_closed),
+                          ("transfer", info.finger_closed), ("retract", info.finger_open)):
+        np.testing.assert_allclose(parts[name].q[:, arm:], fingers, atol=1e-9, err_msg=name)
+    for name in ("close", "release"):  # the gripper moves, the arm stands still
+        assert np.ptp(parts[name].q[:, :arm], axis=0).max() < 1e-12, name
+        np.testing.assert_allclose(parts[name].qd[[0, -1]], 0.0, atol=1e-9)
+    target = next(o for o in scene.objects if o.name == scene.target)
+    check = PlaceCheck(PLACE_REGION[:3], PLACE_REGION[3:], target.pose)  # upright: the up axis it stood with
+    executed = execute_pick_and_place(scene, [(n, parts[n]) for n in ("approach", "lift", "transfer", "retract")],
+                                      check, library=lib)
+    assert executed.success, (executed.status, executed.message)
+
+
+def test_place_parameters_are_checked_and_an_unreachable_region_is_a_reason(ready):
+    scene, lib, obs, robot, client, replay = ready
+    with pytest.raises(ValueError, match="place_region.*must exceed"):
+        client.pick_and_place(region=(0.6, -0.5, 0.0, 0.35, -0.25, 0.4))
+    with pytest.raises(ValueError, match="place_orientation.*upright or stable"):
+        client.pick_and_place(orientation="sideways")
+    reply = client.pick_and_place(point=_target_point(scene, lib), region=(1.6, 1.0, 0.0, 1.9, 1.3, 0.4))
+    assert not reply.success and reply.trajectory is None
+    assert reply.message.startswith("no_place_goals") and "reach" in reply.message, reply.message
 
 
 def test_memory_stays_flat_over_repeated_requests(ready, server):

@@ -3,6 +3,7 @@ struct has its fields and defaults, and options and statuses are enums that keep
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 from pickplan import _core
@@ -48,6 +49,8 @@ def native_fields(native_type) -> set:
 def same(a, b) -> bool:
     if hasattr(a, "name") and hasattr(b, "name"):  # two enums: the native counterpart shares the names
         return a.name == b.name
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):  # an Eigen vector field (GoalSetSettings.approach)
+        return np.shape(a) == np.shape(b) and np.array_equal(np.asarray(a, float), np.asarray(b, float))
     if isinstance(a, (list, tuple)) or isinstance(b, (list, tuple)):
         return [tuple(x) if isinstance(x, (list, tuple)) else x for x in a] == \
             [tuple(x) if isinstance(x, (list, tuple)) else x for x in b]

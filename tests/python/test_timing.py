@@ -8,8 +8,8 @@ import pytest
 
 from pickplan.core.description import robot_info
 from pickplan.core.panda import PANDA
-from pickplan.core.timing import (Interpolation, KinematicLimits, TimedTrajectory, panda_limits,
-                                  time_parameterize)
+from pickplan.core.timing import (Interpolation, KinematicLimits, TimedTrajectory, concatenate, joint_move,
+                                  panda_limits, time_parameterize)
 
 RATE = 1000.0
 
@@ -212,3 +212,44 @@ def test_demo_table_reports_duration_and_a_run_that_did_not_happen(demo_plan):
     assert rows["Execution (target lifted)"] == "not run"
     duration = rows["Trajectory duration (s, timed within the Panda's velocity and acceleration limits)"]
     assert float(duration) == pytest.approx(timed.duration, abs=1e-3)
+
+
+@pytest.mark.parametrize("delta, min_duration", [(0.04, 0.0), (0.04, 0.5), (1.2, 0.0), (0.0, 0.2)])
+def test_joint_move_is_a_rest_to_rest_quintic_at_the_limits(delta, min_duration):
+    limits = panda_limits()
+    a = np.array(PANDA.ready, float)
+    b = a.copy()
+    b[3] += delta
+    m = joint_move(a, b, limits, RATE, min_duration)
+    np.testing.assert_allclose(m.q[[0, -1]], [a, b], atol=1e-12)
+    np.testing.assert_allclose(m.qd[[0, -1]], 0.0, atol=1e-12)
+    assert np.all(np.abs(m.qd) <= limits.velocity * (1 + 1e-9)) and np.all(np.abs(m.qdd) <= limits.acceleration * (1 + 1e-9))
+    # the closed form's shortest duration (peak speed 15/8 d/T, peak acceleration 10/sqrt(3) d/T^2), whole samples
+    need = max(min_duration, 1.875 * delta / limits.velocity[3], math.sqrt(10 / math.sqrt(3) * delta / limits.acceleration[3]),
+               1 / RATE)
+    assert need <= m.duration < need + 1.0 / RATE
+    # the velocities and accelerations are the positions' derivatives (central differences)
+    np.testing.assert_allclose(np.gradient(m.q[:, 3], m.t)[1:-1], m.qd[1:-1, 3], atol=1e-12 + 1e-3 * np.abs(m.qd).max())
+    np.testing.assert_allclose(np.gradient(m.qd[:, 3], m.t)[1:-1], m.qdd[1:-1, 3], atol=1e-12 + 1e-2 * np.abs(m.qdd).max())
+    others = np.delete(np.arange(len(a)), 3)
+    assert np.all(m.q[:, others] == a[others])
+
+
+def test_concatenate_joins_at_rest_and_reports_each_part():
+    limits = panda_limits()
+    paths = list(random_paths(count=2, waypoints=6, seed=3))
+    first = time_parameterize(paths[0], RATE, limits)
+    hold = joint_move(first.q[-1], first.q[-1] + np.r_[np.zeros(7), -0.02, -0.02], limits, RATE, 0.3)
+    second = time_parameterize(np.vstack([hold.q[-1], paths[1][1:] + (hold.q[-1] - paths[1][0])]), RATE, limits)
+    whole, spans = concatenate([first, hold, second])
+    assert len(whole.t) == len(first.t) + len(hold.t) + len(second.t) - 2
+    np.testing.assert_allclose(np.diff(whole.t), 1.0 / RATE, atol=1e-9)
+    np.testing.assert_allclose(spans, [(0, first.duration), (first.duration, first.duration + hold.duration),
+                                       (first.duration + hold.duration, whole.duration)], atol=1e-9)
+    for part, (t0, t1) in zip((first, hold, second), spans):
+        k0 = int(round(t0 * RATE))
+        np.testing.assert_array_equal(whole.q[k0:k0 + len(part.t)], part.q)
+    with pytest.raises(ValueError, match="starts .* away"):
+        concatenate([first, second])
+    with pytest.raises(ValueError, match="Hz"):
+        concatenate([first, hold.resampled(500.0)])

@@ -20,6 +20,8 @@ from pickplan.sim import scenes
 from pickplan.sim.view import PlanView, ViewSettings, build_view, read_plan, view_folder
 from pickplan.sim.view_page import find_chromium, screenshot, serve, write_html
 
+from conftest import socket_inodes
+
 SETTINGS = omg.OMGSettings(grasp_kind="antipodal")
 
 
@@ -224,14 +226,7 @@ def _address(hex_address: str) -> str:
 
 def _listening(pid: int) -> list:
     """(address, port) of every TCP socket process ``pid`` listens on, from /proc (IPv4 and IPv6)."""
-    inodes = set()
-    for fd in os.listdir(f"/proc/{pid}/fd"):
-        try:
-            link = os.readlink(f"/proc/{pid}/fd/{fd}")
-        except OSError:
-            continue
-        if link.startswith("socket:["):
-            inodes.add(link[8:-1])
+    inodes = socket_inodes(pid)
     out = []
     for table in ("/proc/net/tcp", "/proc/net/tcp6"):
         for line in open(table).read().splitlines()[1:]:

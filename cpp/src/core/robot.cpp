@@ -353,6 +353,23 @@ Robot Robot::with_base(const Transform& base) const {
   return copy;
 }
 
+Robot Robot::with_attached_link(const std::string& name, const std::string& parent, const Transform& origin) const {
+  if (name.empty()) throw std::invalid_argument("attached link: the name must not be empty");
+  for (const auto& l : links_)
+    if (l.name == name) throw std::invalid_argument("attached link: a link named '" + name + "' exists already");
+  require_rigid("attached link origin", origin.matrix(), 1e-6);
+  Link link;
+  link.name = name;
+  link.parent = link_index(parent);  // throws, naming the links
+  link.joint_name = name + "_attachment";
+  link.joint_type = JointType::Fixed;
+  link.joint_origin = origin;
+  Robot copy = *this;
+  copy.links_.push_back(std::move(link));
+  copy.finalize();
+  return copy;
+}
+
 int Robot::link_index(const std::string& name) const {
   for (int i = 0; i < num_links(); ++i)
     if (links_[i].name == name) return i;

@@ -5,12 +5,12 @@
 #include <limits>
 #include <set>
 #include <stdexcept>
-#include <thread>
 
 #include <Eigen/Geometry>
 #include <fcl/fcl.h>
 
 #include "pickplan/core/errors.hpp"
+#include "pickplan/geometry/sdf.hpp"
 
 namespace pickplan {
 namespace {
@@ -45,26 +45,10 @@ Eigen::AlignedBox3d bounds(const TriangleMesh& m, const Transform& T = Transform
   return box;
 }
 
-// Generalized winding number of a closed (possibly not watertight) surface around p:
-// ~1 inside, ~0 outside (Jacobson et al. 2013, solid angles by Van Oosterom & Strackee).
-double winding_number(const TriangleMesh& m, const Eigen::Vector3d& p) {
-  double sum = 0.0;
-  for (int f = 0; f < m.num_faces(); ++f) {
-    const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0)).transpose() - p;
-    const Eigen::Vector3d b = m.vertices.row(m.faces(f, 1)).transpose() - p;
-    const Eigen::Vector3d c = m.vertices.row(m.faces(f, 2)).transpose() - p;
-    const double la = a.norm(), lb = b.norm(), lc = c.norm();
-    const double num = a.dot(b.cross(c));
-    const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
-    sum += 2.0 * std::atan2(num, den);
-  }
-  return sum / (4.0 * M_PI);
-}
-
 }  // namespace
 
 struct CollisionShape::Bvh {
-  std::shared_ptr<FclBvh> model;
+  std::shared_ptr<fcl::CollisionGeometryd> model;  // a BVH, or a solid primitive
 };
 
 CollisionShape::CollisionShape(TriangleMesh mesh, const std::string& what) : mesh_(std::move(mesh)) {
@@ -74,6 +58,43 @@ CollisionShape::CollisionShape(TriangleMesh mesh, const std::string& what) : mes
   center_ = box_.center();
   for (int i = 0; i < mesh_.num_vertices(); ++i)
     radius_ = std::max(radius_, (mesh_.vertices.row(i).transpose() - center_).norm());
+}
+
+std::shared_ptr<CollisionShape> CollisionShape::convex(TriangleMesh hull, const std::string& what) {
+  hull.validate(what);
+  std::shared_ptr<CollisionShape> s(new CollisionShape());
+  s->mesh_ = std::move(hull);
+  s->solid_ = true;
+  auto vertices = std::make_shared<std::vector<fcl::Vector3d>>();
+  for (int i = 0; i < s->mesh_.num_vertices(); ++i) vertices->push_back(s->mesh_.vertices.row(i).transpose());
+  auto faces = std::make_shared<std::vector<int>>();
+  for (int f = 0; f < s->mesh_.num_faces(); ++f)
+    faces->insert(faces->end(), {3, s->mesh_.faces(f, 0), s->mesh_.faces(f, 1), s->mesh_.faces(f, 2)});
+  auto geometry = std::make_shared<fcl::Convexd>(vertices, s->mesh_.num_faces(), faces);
+  geometry->computeLocalAABB();
+  s->bvh_ = std::make_unique<Bvh>(Bvh{geometry});
+  s->box_ = bounds(s->mesh_);
+  s->center_ = s->box_.center();
+  for (int i = 0; i < s->mesh_.num_vertices(); ++i)
+    s->radius_ = std::max(s->radius_, (s->mesh_.vertices.row(i).transpose() - s->center_).norm());
+  return s;
+}
+
+CollisionShape::CollisionShape(const Primitive& primitive, const std::string& what)
+    : solid_(true), has_primitive_(true), primitive_(primitive) {
+  primitive.validate(what);
+  mesh_ = primitive.enclosing_mesh();
+  std::shared_ptr<fcl::CollisionGeometryd> geometry;
+  switch (primitive.kind) {
+    case PrimitiveKind::Box: geometry = std::make_shared<fcl::Boxd>(primitive.size); break;
+    case PrimitiveKind::Cylinder: geometry = std::make_shared<fcl::Cylinderd>(primitive.size.x(), primitive.size.y()); break;
+    case PrimitiveKind::Sphere: geometry = std::make_shared<fcl::Sphered>(primitive.size.x()); break;
+  }
+  geometry->computeLocalAABB();
+  bvh_ = std::make_unique<Bvh>(Bvh{geometry});
+  box_ = primitive.bounds();
+  center_ = Eigen::Vector3d::Zero();
+  radius_ = box_.max().norm();
 }
 
 CollisionShape::~CollisionShape() = default;
@@ -92,7 +113,7 @@ struct CollisionChecker::Impl {
   struct LinkGeom {
     int link;
     std::shared_ptr<const CollisionShape> shape;
-    const FclBvh* bvh;            // shape's
+    const fcl::CollisionGeometryd* bvh;  // shape's
     Eigen::AlignedBox3d box;   // link frame
     Eigen::Vector3d center;    // bounding sphere, link frame
     double radius;
@@ -101,7 +122,7 @@ struct CollisionChecker::Impl {
   struct ObjGeom {
     std::string name;
     std::shared_ptr<const CollisionShape> shape;
-    const FclBvh* bvh;
+    const fcl::CollisionGeometryd* bvh;  // a BVH, or a solid primitive (shape->solid())
     Transform pose, inv_pose;
     fcl::Transform3d tf;
     Eigen::AlignedBox3d box, world_box;
@@ -114,6 +135,8 @@ struct CollisionChecker::Impl {
   std::shared_ptr<fcl::Boxd> table;
   fcl::Transform3d table_tf;
   Eigen::AlignedBox3d table_world_box;
+  Transform table_inv;
+  Eigen::Vector3d table_half = Eigen::Vector3d::Zero();
 
   const fcl::CollisionGeometryd* other_geom(OtherKind k, int i) const {
     if (k == OtherKind::Object) return objects[i].bvh;
@@ -141,7 +164,8 @@ CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> lin
     const int li = robot_.link_index(lm.link);
     if (geom_of_link[li] >= 0) throw std::invalid_argument("link mesh for '" + lm.link + "' given twice");
     auto shape = shape_of(std::move(lm.shape), lm.mesh, "mesh of link '" + lm.link + "'");
-    const FclBvh* bvh = shape->bvh().model.get();
+    if (shape->primitive()) throw std::invalid_argument("link '" + lm.link + "': a link's geometry must be a mesh");
+    const fcl::CollisionGeometryd* bvh = shape->bvh().model.get();
     Impl::LinkGeom g{li, shape, bvh, shape->box(), shape->center(), shape->radius()};
     geom_of_link[li] = static_cast<int>(impl_->links.size());
     impl_->links.push_back(std::move(g));
@@ -174,6 +198,8 @@ CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> lin
     impl_->has_table = true;
     impl_->table = std::make_shared<fcl::Boxd>(table.size);
     impl_->table_tf = to_fcl(table.pose);
+    impl_->table_inv = table.pose.inverse();
+    impl_->table_half = 0.5 * table.size;
     for (int c = 0; c < 8; ++c)
       impl_->table_world_box.extend(table.pose.apply(
           0.5 * Eigen::Vector3d((c & 1 ? 1 : -1) * table.size.x(), (c & 2 ? 1 : -1) * table.size.y(), (c & 4 ? 1 : -1) * table.size.z())));
@@ -251,6 +277,12 @@ std::vector<std::string> CollisionChecker::object_names() const {
   return out;
 }
 
+std::vector<double> CollisionChecker::link_reach() const {
+  std::vector<double> out(robot_.num_links(), 0.0);
+  for (const auto& g : impl_->links) out[g.link] = std::max(out[g.link], g.center.norm() + g.radius);
+  return out;
+}
+
 void CollisionChecker::check_q(const double* q) const { robot_.check_configuration(q, robot_.dof()); }
 
 double CollisionChecker::pair_lower_bound(const Pair& p, const CollisionWorkspace& ws) const {
@@ -260,9 +292,12 @@ double CollisionChecker::pair_lower_bound(const Pair& p, const CollisionWorkspac
   if (p.kind == OtherKind::Link) {
     const auto& og = impl_->links[p.other];
     d = (c - ws.robot.link_pose[og.link].apply(og.center)).norm() - og.radius;
+  } else if (p.kind == OtherKind::Table) {
+    d = box_signed_distance(impl_->table_inv.apply(c), impl_->table_half, nullptr);  // exact, not its world box
   } else {
-    const auto& box = p.kind == OtherKind::Table ? impl_->table_world_box : impl_->objects[p.other].world_box;
-    d = box.exteriorDistance(c);
+    const auto& og = impl_->objects[p.other];
+    const Primitive* prim = og.shape->primitive();
+    d = prim ? prim->signed_distance(og.inv_pose.apply(c)) : og.world_box.exteriorDistance(c);
   }
   d -= lg.radius;
   return d > 0.0 ? d : -kInf;  // only separated bounding volumes give a usable bound
@@ -275,7 +310,7 @@ namespace {
 bool contained(const TriangleMesh& inner_mesh, const Transform& T_inner, const TriangleMesh& outer,
                const Eigen::AlignedBox3d& outer_box, const Transform& T_outer_inv) {
   const Eigen::Vector3d p = T_outer_inv.apply(T_inner.apply(inner_mesh.vertices.row(0).transpose()));
-  return outer_box.contains(p) && winding_number(outer, p) > 0.5;
+  return outer_box.contains(p) && outer.winding_number(p) > 0.5;
 }
 
 }  // namespace
@@ -295,16 +330,17 @@ bool CollisionChecker::pair_collides(const Pair& p, const CollisionWorkspace& ws
     fcl::collide(lg.bvh, tf_link, og.bvh, og.tf, req, res);
     if (res.isCollision()) return true;
     if (!settings_.detect_containment) return false;
-    return contained(lg.mesh(), Tl, og.mesh(), og.box, og.inv_pose) ||
-           contained(og.mesh(), og.pose, lg.mesh(), lg.box, Tl.inverse());
+    // Whatever lies inside a solid already collides with it (FCL meets its triangles or its solid).
+    return (!og.shape->solid() && contained(lg.mesh(), Tl, og.mesh(), og.box, og.inv_pose)) ||
+           (!lg.shape->solid() && contained(og.mesh(), og.pose, lg.mesh(), lg.box, Tl.inverse()));
   }
   const auto& og = impl_->links[p.other];
   const Transform& To = ws.robot.link_pose[og.link];
   fcl::collide(lg.bvh, tf_link, og.bvh, to_fcl(To), req, res);
   if (res.isCollision()) return true;
   if (!settings_.detect_containment) return false;
-  return contained(lg.mesh(), Tl, og.mesh(), og.box, To.inverse()) ||
-         contained(og.mesh(), To, lg.mesh(), lg.box, Tl.inverse());
+  return (!og.shape->solid() && contained(lg.mesh(), Tl, og.mesh(), og.box, To.inverse())) ||
+         (!lg.shape->solid() && contained(og.mesh(), To, lg.mesh(), lg.box, Tl.inverse()));
 }
 
 double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& ws, bool want_points,
@@ -325,11 +361,24 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
     // Touching or intersecting. FCL's contacts carry a usable depth only against the solid
     // table box (per triangle, by MPR); for two triangle surfaces the per-triangle-pair
     // "depths" say nothing about the bodies, so the value stays 0 (touching or intersecting).
-    const bool table = p.kind == OtherKind::Table;
+    // Solids (the table, primitives) give FCL's per-triangle depths a meaning.
+    const bool table = p.kind == OtherKind::Table || lg.shape->solid() ||
+                       (p.kind == OtherKind::Object && impl_->objects[p.other].shape->solid()) ||
+                       (p.kind == OtherKind::Link && impl_->links[p.other].shape->solid());
     fcl::CollisionRequestd creq(table ? 64 : 1, true);
     fcl::CollisionResultd cres;
     fcl::collide(lg.bvh, tf_link, other, tf_other, creq, cres);
-    if (cres.isCollision()) {
+    const Primitive* prim = p.kind == OtherKind::Object ? impl_->objects[p.other].shape->primitive() : nullptr;
+    if (cres.isCollision() && prim && !lg.shape->solid()) {
+      // FCL's per-triangle depths are no body's (a triangle lying inside a thin board gets one to the
+      // board's far corner): the deepest link vertex or contact point inside the solid, in closed form.
+      std::vector<Eigen::Vector3d> x;
+      for (int i = 0; i < lg.mesh().num_vertices(); ++i) x.push_back(Tl.apply(lg.mesh().vertices.row(i).transpose()));
+      for (size_t i = 0; i < cres.numContacts(); ++i) x.push_back(cres.getContact(i).pos);
+      const auto [depth, k] = prim->deepest(x, impl_->objects[p.other].inv_pose);
+      d = -depth;
+      if (k >= 0) pl = po = x[k];
+    } else if (cres.isCollision()) {
       double depth = 0.0;
       for (size_t i = 0; i < cres.numContacts(); ++i) {
         const auto& c = cres.getContact(i);
@@ -347,7 +396,11 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
     const TriangleMesh& om = self ? impl_->links[p.other].mesh() : impl_->objects[p.other].mesh();
     const Eigen::AlignedBox3d& ob = self ? impl_->links[p.other].box : impl_->objects[p.other].box;
     const Transform To = self ? ws.robot.link_pose[impl_->links[p.other].link] : impl_->objects[p.other].pose;
-    if (contained(lg.mesh(), Tl, om, ob, To.inverse()) || contained(om, To, lg.mesh(), lg.box, Tl.inverse())) d = -d;
+    // Apart from a solid, nothing is inside it.
+    const bool solid = self ? impl_->links[p.other].shape->solid() : impl_->objects[p.other].shape->solid();
+    if ((!solid && contained(lg.mesh(), Tl, om, ob, To.inverse())) ||
+        (!lg.shape->solid() && contained(om, To, lg.mesh(), lg.box, Tl.inverse())))
+      d = -d;
   }
   if (info) {
     info->link = robot_.link(lg.link).name;
@@ -421,45 +474,6 @@ std::vector<ContactInfo> CollisionChecker::contacts(const Eigen::VectorXd& q, do
   }
   std::sort(out.begin(), out.end(), [](const ContactInfo& a, const ContactInfo& b) { return a.distance < b.distance; });
   return out;
-}
-
-namespace {
-
-template <class Fn>
-void parallel_rows(long B, int threads, const Fn& fn) {
-  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  threads = static_cast<int>(std::min<long>(threads, std::max(1L, B)));
-  if (threads == 1) {
-    fn(0L, B);
-    return;
-  }
-  std::vector<std::thread> pool;
-  const long chunk = (B + threads - 1) / threads;
-  for (int t = 0; t < threads; ++t) {
-    const long lo = t * chunk, hi = std::min(B, lo + chunk);
-    if (lo < hi) pool.emplace_back([&fn, lo, hi] { fn(lo, hi); });
-  }
-  for (auto& th : pool) th.join();
-}
-
-}  // namespace
-
-void CollisionChecker::in_collision_batch(const double* Q, long B, bool* out, int threads) const {
-  const int d = robot_.dof();
-  for (long b = 0; b < B; ++b) check_q(Q + b * d);  // validate before any thread starts
-  parallel_rows(B, threads, [&](long lo, long hi) {
-    CollisionWorkspace ws(*this);
-    for (long b = lo; b < hi; ++b) out[b] = in_collision(Q + b * d, ws);
-  });
-}
-
-void CollisionChecker::min_distance_batch(const double* Q, long B, double* out, int threads) const {
-  const int d = robot_.dof();
-  for (long b = 0; b < B; ++b) check_q(Q + b * d);
-  parallel_rows(B, threads, [&](long lo, long hi) {
-    CollisionWorkspace ws(*this);
-    for (long b = lo; b < hi; ++b) out[b] = min_distance(Q + b * d, ws);
-  });
 }
 
 }  // namespace pickplan

@@ -35,6 +35,22 @@ TriangleMesh TriangleMesh::transformed(const Transform& T) const {
   return out;
 }
 
+// Solid angles by Van Oosterom & Strackee.
+double TriangleMesh::winding_number(const Eigen::Vector3d& p) const {
+  const TriangleMesh& m = *this;
+  double sum = 0.0;
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0)).transpose() - p;
+    const Eigen::Vector3d b = m.vertices.row(m.faces(f, 1)).transpose() - p;
+    const Eigen::Vector3d c = m.vertices.row(m.faces(f, 2)).transpose() - p;
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    const double num = a.dot(b.cross(c));
+    const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+    sum += 2.0 * std::atan2(num, den);
+  }
+  return sum / (4.0 * M_PI);
+}
+
 void TriangleMesh::append(const TriangleMesh& other) {
   const int nv = num_vertices(), nf = num_faces();
   vertices.conservativeResize(nv + other.num_vertices(), 3);

@@ -76,6 +76,22 @@ int SceneSdf::add_object(std::shared_ptr<const SdfGrid> grid, const Transform& p
   b.inverse = pose.inverse();
   b.lo = b.grid->surface_lo();
   b.hi = b.grid->surface_hi();
+  b.slack = b.grid->resolution();
+  bodies_.push_back(std::move(b));
+  merged_.clear();
+  return static_cast<int>(bodies_.size()) - 1;
+}
+
+int SceneSdf::add_primitive(const Primitive& primitive, const Transform& pose) {
+  primitive.validate("SceneSdf primitive");
+  if (bodies_.size() >= 63) throw std::invalid_argument("SceneSdf: at most 63 objects (exclusion masks are 64-bit)");
+  Body b;
+  b.primitive = primitive;
+  b.pose = pose;
+  b.inverse = pose.inverse();
+  const Eigen::AlignedBox3d box = primitive.bounds();
+  b.lo = box.min();
+  b.hi = box.max();
   bodies_.push_back(std::move(b));
   merged_.clear();
   return static_cast<int>(bodies_.size()) - 1;
@@ -97,7 +113,7 @@ namespace {
 double box_gap_bound(const SceneSdf::Body& b, const Eigen::Vector3d& x, double radius) {
   const Eigen::Vector3d xl = b.inverse.apply(x);
   const double gap = (xl - xl.cwiseMax(b.lo).cwiseMin(b.hi)).norm() - radius;
-  return gap > 0 ? gap - b.grid->resolution() : -std::numeric_limits<double>::infinity();
+  return gap > 0 ? gap - b.slack : -std::numeric_limits<double>::infinity();
 }
 }  // namespace
 
@@ -131,7 +147,7 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
     throw std::invalid_argument("merged SDF: at most " + std::to_string(kMaxMerged) + " object masks per scene");
   // Beyond `pad` from every surface box, each object is beyond the cutoff (grid slack included).
   double pad = settings.cutoff + settings.resolution;
-  for (const Body& b : bodies_) pad = std::max(pad, settings.cutoff + b.grid->resolution());
+  for (const Body& b : bodies_) pad = std::max(pad, settings.cutoff + b.slack);
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (int i = 0; i < num_objects(); ++i) {
     if (exclude_mask >> i & 1) continue;
@@ -170,7 +186,7 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
     for (int i = 0; i < static_cast<int>(bodies.size()); ++i) {
       if (box_gap_bound(bodies[i], center, radius) >= s.cutoff) continue;
       const Body& b = bodies[i];
-      at_center[count] = b.grid->distance(b.inverse.apply(center));
+      at_center[count] = b.local_distance(b.inverse.apply(center));
       best_upper = std::min(best_upper, at_center[count] + 2 * radius);
       ids[count++] = i;
     }
@@ -188,7 +204,7 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
           double d = s.cutoff;
           for (int c = 0; c < n_near; ++c) {
             const Body& b = bodies[ids[c]];
-            d = std::min(d, b.grid->distance(b.inverse.apply(node)));
+            d = std::min(d, b.local_distance(b.inverse.apply(node)));
           }
           out[k] = static_cast<float>(d);
           any_inside |= d < s.cutoff;
@@ -254,7 +270,7 @@ double SceneSdf::distance_unmerged(const Eigen::Vector3d& x, Eigen::Vector3d* gr
     const int i = order[j];
     if (gap2[i] > 0 && (best <= 0 || gap2[i] >= best * best)) break;  // sorted: the rest are farther
     const Body& b = bodies_[i];
-    const double d = b.grid->distance(b.inverse.apply(x), gradient ? &g : nullptr);
+    const double d = b.local_distance(b.inverse.apply(x), gradient ? &g : nullptr);
     if (d < best) {
       best = d;
       if (gradient) best_grad.noalias() = b.pose.R * g;

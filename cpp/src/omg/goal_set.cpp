@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <numeric>
 #include <random>
 #include <stdexcept>
@@ -31,6 +32,10 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
   const auto t0 = std::chrono::steady_clock::now();
   if (s.standoff_steps < 0 || s.standoff < 0 || s.max_goals < 1 || s.diversity < 0)
     throw std::invalid_argument("goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1 required");
+  require_finite("goal set settings: approach", s.approach.data(), 3);
+  const bool world_approach = !s.approach.isZero();
+  if (world_approach && std::abs(s.approach.norm() - 1.0) > 1e-6)
+    throw std::invalid_argument("goal set settings: approach must be a unit vector or zero");
   const Robot& robot = ik.robot();
   robot.check_configuration(start.data(), start.size());
   // The checkers read the IK robot's configurations: they must describe a robot of the same size.
@@ -65,7 +70,8 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
   };
   auto approach_pose = [&](size_t g, int k) {  // k = m - 1: the grasp; 0: the pre-grasp
     Transform pre = hand_poses[g];
-    pre.p -= s.standoff * static_cast<double>(m - 1 - k) / std::max(1, m - 1) * pre.R.col(2);
+    const Eigen::Vector3d axis = world_approach ? s.approach : Eigen::Vector3d(pre.R.col(2));
+    pre.p -= s.standoff * static_cast<double>(m - 1 - k) / std::max(1, m - 1) * axis;
     return pre;
   };
   // Grasps are tried in a seeded random order until max_goals goals are kept: the kept set is a

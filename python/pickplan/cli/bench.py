@@ -23,9 +23,11 @@ from pickplan.eval.summaries import (OUTCOMES, grasp_costs_by_object, object_mar
 from pickplan.cli.scenes import clutter_range
 from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
+from pickplan.cli.bench_mbm import add_mbm_command
 from pickplan.cli.robots import ROBOT_HELP
 from pickplan.core.io import write_json, write_text
 from pickplan.eval.plots import plot_table
+from pickplan.eval.pickplace_bench import run_pickplace_bench
 from pickplan.eval.perception import PerceptionBenchSettings, run_perception_bench, write_report as perception_report
 
 # The paper's numbers (100 scenes, 30 grasps, 10 runs; Table II: 60 grasps, 30 refinement iterations).
@@ -208,6 +210,9 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
 
 def run_bench(args: argparse.Namespace) -> int:
     settings = settings_from_args(args)
+    if settings.table == "pickplace":
+        print(run_pickplace_bench(settings, write_csv))
+        return 0
     records = run_sweep(settings)
     print(write_report(settings, records))
     print(f"wrote {settings.out}/table.md, table.png, runs.csv, runs.json, summary.json, objects.csv, objects.json"
@@ -222,7 +227,8 @@ def add_bench_commands(subparsers) -> None:
     helps = {"selection": "Table I: goal selection (Fixed, Proj, FTC, FTL, EXP, MD; no refinement)",
              "refinement": "Table II: grasp sets S/G/A with and without C-Space ISF",
              "planners": "Table III: CHOMP, CHOMP-C, FMT, RRT-C, OMG",
-             "ablation": "Fig. 8: OMG over the discretization n and the smoothness weight lambda"}
+             "ablation": "Fig. 8: OMG over the discretization n and the smoothness weight lambda",
+             "pickplace": "pick and place: OMG's pick, then OMG / Fixed / CHOMP / RRT-C on the place (issue 34)"}
     for table in TABLES:
         p = sub.add_parser(table, help=helps[table])
         p.add_argument("--scenes", type=int, default=100, help="generated scenes (default 100)")
@@ -260,6 +266,7 @@ def add_bench_commands(subparsers) -> None:
         p.add_argument("--no-progress", action="store_true")
         p.set_defaults(handler=run_bench)
     add_perception_command(sub)
+    add_mbm_command(sub)
 
 
 def run_perception(args: argparse.Namespace) -> int:

@@ -3,6 +3,7 @@
   pickplan demo                          the main job: plan + execute a grasp in clutter
   pickplan plan --scene SCENE.json       plan (and optionally execute) one scene
   pickplan plan --observation OBS.npz    plan from depth images (--scene S --execute: run on the true objects)
+  pickplan pickplace --scene S --place REGION.json   pick the target and put it down in a region (--execute)
   pickplan scenes --n 100 --out DIR      generate a benchmark set of scenes
   pickplan bench selection|refinement|planners|ablation   the paper's Tables I-III and Fig. 8
   pickplan metamodel build|compare       pick-up on the move: grasp-success meta-model
@@ -25,6 +26,8 @@ from pickplan.omg.selection import Selection
 from pickplan.cli.exit_codes import ExitCode, run_command
 from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
 from pickplan.eval.demo import DemoSettings, run_demo
+from pickplan.eval.demo_place import run_demo_place
+from pickplan.cli.pickplace import add_pickplace_command
 from pickplan.sim import execution
 from pickplan.eval.demo import metrics_table
 from pickplan.core.io import write_json, write_text
@@ -44,7 +47,7 @@ from pickplan.core.errors import InputError
 
 
 def _cmd_demo(args) -> int:
-    run = run_demo(args.out, DemoSettings(seed=args.seed, robot=args.robot))
+    run = (run_demo_place if args.place else run_demo)(args.out, DemoSettings(seed=args.seed, robot=args.robot))
     print()
     print(run.table)
     print(f"wrote {args.out}/{', '.join(run.files)} ({run.seconds:.1f} s)")
@@ -84,6 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", default="out/demo", help="folder for the picture and the metrics table")
     demo.add_argument("--seed", type=int, default=1, help="scene seed")
     demo.add_argument("--robot", default="panda", help=ROBOT_HELP)
+    demo.add_argument("--place", action="store_true",
+                      help="pick and place: put the target down in a free region beside the clutter")
     demo.set_defaults(handler=_cmd_demo)
     plan = sub.add_parser("plan", help="plan one scene (JSON from `pickplan scenes`) or one depth observation")
     plan.add_argument("--scene", default=None, help="scene JSON; with --observation only to --execute on")
@@ -106,6 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_robot_commands(sub)
     add_view_commands(sub)
     add_observe_commands(sub)
+    add_pickplace_command(sub)
     add_ros_commands(sub)
     add_verbosity_options(parser)  # last: on every command registered above
     return parser

@@ -2,6 +2,7 @@
 
   pickplan ros serve --robot panda [--transport shm] [--ros-args -p cameras:=[cam0] -p cam0.pose:=[...]]
   pickplan ros call [--point X Y Z] [--out timed.json]      plan once, print the status, save the trajectory
+  pickplan ros call --place X0 Y0 Z0 X1 Y1 Z1               pick and place in that box (base frame)
   pickplan ros replay --observation obs.npz                 an observation as cameras + joint states (no robot)
 
 The ROS modules are imported when a command runs, so the CLI works without the extra; a missing
@@ -38,6 +39,10 @@ def add_ros_commands(subparsers) -> None:
     call = sub.add_parser("call", help="ask a running node to plan; prints its status (exit 1: no plan)")
     call.add_argument("--point", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
                       help="target: the object nearest this point (base frame, m); default: the node's current target")
+    call.add_argument("--place", type=float, nargs=6, default=None, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+                      help="pick and place: put the object in this box (base frame, m; its floor on a support)")
+    call.add_argument("--orientation", default=None, choices=("upright", "stable"),
+                      help="with --place: upright (as it stood; the node's default) or any stable resting pose")
     call.add_argument("--server", default="/pickplan", help="the node's name (default /pickplan)")
     call.add_argument("--transport", default="default", choices=("default", "shm"), help=TRANSPORT_HELP)
     call.add_argument("--timeout", type=float, default=120.0, help="seconds to wait for the node and its answer")
@@ -64,8 +69,13 @@ def run_call(args: argparse.Namespace) -> int:
     with client_mod.PickClient(args.server) as client:
         if not client.wait_for_server(args.timeout):
             raise InputError(f"no pickplan node answers at {args.server} within {args.timeout} s", field="--server")
-        reply = client.plan(args.point, timeout=args.timeout)
+        if args.place is not None or args.orientation is not None:
+            reply = client.pick_and_place(args.point, args.place, args.orientation, timeout=args.timeout)
+        else:
+            reply = client.plan(args.point, timeout=args.timeout)
     print(reply.message)
+    for name, t0, t1 in reply.segments:
+        print(f"  {name:<9} {t0:7.3f} - {t1:7.3f} s")
     if reply.success and args.out and reply.trajectory is not None:
         msg = reply.trajectory
         _ros("convert").timed_trajectory(msg, list(msg.joint_names)).save(args.out)

@@ -10,6 +10,7 @@ from typing import Optional, Sequence, Tuple
 
 from pickplan.cli.exit_codes import run_command
 from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
+from pickplan.sim.layouts import Layout
 from pickplan.sim.scene_sets import write_scene_set
 from pickplan.sim.scenes import ORIENTATIONS, SceneSettings
 
@@ -44,12 +45,15 @@ def add_scene_commands(subparsers) -> None:
                    help="the robot the scenes are made for (a shipped description, a short name such as 'ur5', or a "
                         ".toml file): it stands at its start while objects settle, and the target is one its "
                         "gripper can grasp (default panda)")
+    p.add_argument("--layout", choices=[k.value for k in Layout], default=Layout.table.value,
+                   help="table (the default), shelf (boards at several heights, reached from the front), bin (walls "
+                        "on the table, reached from above) or cabinet (an open door and a drawer)")
     p.set_defaults(handler=run_scenes)
 
 
 def run_scenes(args: argparse.Namespace) -> int:
     index = write_scene_set(args.n, args.seed, args.out, args.objects, orientation=args.poses, clutter=args.clutter,
-                            robot=args.robot)
+                            robot=args.robot, layout=args.layout)
     per = index["seconds"] / max(index["count"], 1)
     print(f"wrote {index['count']} scenes to {args.out} ({per:.2f} s per scene, objects: {index['objects']})")
     return 0

@@ -13,6 +13,7 @@ Two sources give the same ``ObjectModel`` record:
 """
 from __future__ import annotations
 
+import functools
 import glob
 import math
 import os
@@ -23,7 +24,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 import trimesh
 
-from pickplan.core import objects_builtin, procedural, stability
+from pickplan.core import containers, objects_builtin, procedural, stability
 from pickplan.core.io import content_file
 
 YCB_ENV = "PICKPLAN_YCB_DIR"
@@ -388,8 +389,18 @@ def library(source: Optional[Union[str, os.PathLike]] = None) -> ObjectLibrary:
     return lib
 
 
+@functools.lru_cache(maxsize=16)
+def container_object(source: str) -> ObjectModel:
+    """A container a scene names by its size (``core.containers``: ``bin:<x>x<y>x<height>``)."""
+    mesh, parts = containers.bin_geometry(source)
+    return make_object(source.replace(":", "_"), mesh, parts, source=source, mass=containers.BIN_MASS)
+
+
 def model_from_source(name: str, source: str) -> ObjectModel:
-    """The model a scene refers to: ``builtin:NAME`` or an object folder (through the cached libraries)."""
+    """The model a scene refers to: ``builtin:NAME``, ``procedural:NAME``, a container (``bin:...``) or an
+    object folder (through the cached libraries)."""
+    if source.startswith(containers.BIN_PREFIX):
+        return container_object(source)
     if source.startswith(BUILTIN_PREFIX):
         return library("builtin").get(source[len(BUILTIN_PREFIX):])
     if source.startswith(procedural.PROCEDURAL_PREFIX):

@@ -164,6 +164,15 @@ class SceneSdf:
         self._names.append(name)
         return index
 
+    def add_primitive(self, name: str, shape, pose: np.ndarray) -> int:
+        """A solid primitive (a ``shapes.Shape`` or ``_core.Primitive``) at ``pose``, queried in closed form."""
+        if name in self._names:
+            raise ValueError(f"object name {name!r} is already in the scene SDF")
+        native = shape if isinstance(shape, _core.Primitive) else shape.native()
+        index = self._native.add_primitive(native, np.asarray(pose, dtype=float))
+        self._names.append(name)
+        return index
+
     @property
     def native(self) -> "_core.SceneSdf":
         return self._native

@@ -22,7 +22,7 @@ import json
 import math
 import os
 from dataclasses import dataclass
-from typing import Optional
+from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -255,3 +255,48 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
     qd[0], qd[-1] = 0.0, 0.0  # rest to rest (toppra's end velocity is zero to round-off)
     q[0], q[-1] = Q[0], Q[-1]
     return TimedTrajectory(t, q, qd, qdd, rate, scale)
+
+
+def joint_move(q_from, q_to, limits: KinematicLimits, rate: float, min_duration: float = 0.0) -> TimedTrajectory:
+    """A rest-to-rest quintic move from ``q_from`` to ``q_to`` (a gripper closing, the arm still), as short
+    as ``limits`` allow but at least ``min_duration`` s: the quintic's peak speed is 15/8 and its peak
+    acceleration 10/sqrt(3) of the distance over the duration (to the first and second power)."""
+    a, b = np.asarray(q_from, float), np.asarray(q_to, float)
+    rate = _check_rate(rate)
+    d = np.abs(b - a)
+    need = max(min_duration, float(np.max(1.875 * d / limits.velocity)),
+               float(np.sqrt(np.max(10.0 / math.sqrt(3.0) * d / limits.acceleration))), 1.0 / rate)
+    k = int(math.ceil(need * rate - 1e-9))
+    T = k / rate
+    s = np.arange(k + 1) / k
+    p = 10 * s ** 3 - 15 * s ** 4 + 6 * s ** 5
+    dp = (30 * s ** 2 - 60 * s ** 3 + 30 * s ** 4) / T
+    ddp = (60 * s - 180 * s ** 2 + 120 * s ** 3) / T ** 2
+    delta = b - a
+    return TimedTrajectory(np.arange(k + 1) / rate, a + np.outer(p, delta), np.outer(dp, delta),
+                           np.outer(ddp, delta), rate)
+
+
+def concatenate(parts: Sequence[TimedTrajectory]) -> Tuple[TimedTrajectory, List[Tuple[float, float]]]:
+    """Rest-to-rest trajectories at one rate, one after another (each junction sample once), and each
+    part's start and end time in the whole. Raises ``ValueError`` when rates differ or a part does not
+    start where the one before it ended."""
+    if not parts:
+        raise ValueError("concatenate: no trajectory")
+    rate = parts[0].rate
+    t, q, qd, qdd, spans = [parts[0].t], [parts[0].q], [parts[0].qd], [parts[0].qdd], [(0.0, parts[0].duration)]
+    for k, part in enumerate(parts[1:], 1):
+        if part.rate != rate:
+            raise ValueError(f"concatenate: part {k} at {part.rate} Hz, expected {rate} Hz")
+        if not np.allclose(part.q[0], q[-1][-1], atol=1e-9):
+            raise ValueError(f"concatenate: part {k} starts {np.max(np.abs(part.q[0] - q[-1][-1])):.3g} away from "
+                             "where the one before it ends")
+        offset = spans[-1][1]
+        t.append(part.t[1:] + offset)
+        q.append(part.q[1:])
+        qd.append(part.qd[1:])
+        qdd.append(part.qdd[1:])
+        spans.append((offset, offset + part.duration))
+    whole = TimedTrajectory(np.concatenate(t), np.vstack(q), np.vstack(qd), np.vstack(qdd), rate,
+                            max(p.slowdown for p in parts))
+    return whole, spans

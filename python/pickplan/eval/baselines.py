@@ -110,8 +110,22 @@ class _Problem:
             grasps = grasps_mod.grasp_set(self.world.target_model, kind, s.grasp_count, seed=s.seed).poses
         self.timings = dict.fromkeys(("goal_set", "ranking", "planning", "metrics"), 0.0)
         t = time.perf_counter()
-        self.gs = build_goal_set(self.world, grasps, self.q0, s.goals, s.ik)
-        self.timings["goal_set"] = time.perf_counter() - t
+        gs = build_goal_set(self.world, grasps, self.q0, s.goals, s.ik)
+        self._rank(gs, time.perf_counter() - t)
+
+    @classmethod
+    def on_goal_set(cls, world, q0: np.ndarray, gs, settings: BaselineSettings) -> "_Problem":
+        """The problem of a goal set already built in ``world`` (a place goal set in an ``attach.HeldWorld``)."""
+        pb = cls.__new__(cls)
+        pb.settings, pb.world, pb.q0 = settings, world, np.asarray(q0, dtype=float)
+        pb.timings = dict.fromkeys(("goal_set", "ranking", "planning", "metrics"), 0.0)
+        pb._rank(gs, gs.seconds)
+        return pb
+
+    def _rank(self, gs, seconds: float) -> None:
+        s = self.settings.omg
+        self.gs = gs
+        self.timings["goal_set"] = seconds
         if len(self.gs) == 0:
             return
         self.m = self.gs.tails.shape[1]
@@ -147,7 +161,10 @@ def plan_chomp(scene: Scene, settings: BaselineSettings = BaselineSettings(), wo
                grasps=None) -> PlanResult:
     """Plain CHOMP through the ranked goal list (first feasible plan; else the top goal's plan)."""
     t_total = time.perf_counter()
-    pb = _Problem(scene, settings, world, grasps)
+    return _chomp_over(_Problem(scene, settings, world, grasps), settings, t_total)
+
+
+def _chomp_over(pb: _Problem, settings: BaselineSettings, t_total: float) -> PlanResult:
     if len(pb.gs) == 0:
         pb.timings["total"] = time.perf_counter() - t_total
         return _empty(pb.q0, pb.timings, pb.gs)
@@ -198,15 +215,30 @@ def _seed_ompl(ou, seed: int) -> None:
         _OMPL_SEEDED.append(int(seed) + 1)
 
 
+def ompl_setup(ob, og, robot, joints: int):
+    """OMPL's space of the robot's first ``joints`` joints within their limits, and a SimpleSetup on it."""
+    space = ob.RealVectorStateSpace(joints)
+    bounds = ob.RealVectorBounds(joints)
+    for j in range(joints):
+        bounds.setLow(j, float(robot.lower_limits[j]))
+        bounds.setHigh(j, float(robot.upper_limits[j]))
+    space.setBounds(bounds)
+    return space, og.SimpleSetup(space)
+
+
 def plan_ompl(scene: Scene, planner: Union[Baseline, str] = Baseline.RRT_C,
               settings: BaselineSettings = BaselineSettings(), world: Optional[World] = None, grasps=None) -> PlanResult:
     """FMT* or RRT-Connect to the pre-grasp of each ranked goal, then the goal's standoff tail."""
-    ob, og, ou = _ompl()
+    _ompl()  # a clear ImportError before any work
     planner = Baseline.parse(planner, "baseline")
     if planner not in OMPL_PLANNERS:
         raise ValueError(f"unknown OMPL planner {planner.value!r}; use 'FMT' or 'RRT-C'")
     t_total = time.perf_counter()
-    pb = _Problem(scene, settings, world, grasps)
+    return _ompl_over(_Problem(scene, settings, world, grasps), planner, settings, t_total)
+
+
+def _ompl_over(pb: _Problem, planner: Baseline, settings: BaselineSettings, t_total: float) -> PlanResult:
+    ob, og, ou = _ompl()
     if len(pb.gs) == 0:
         pb.timings["total"] = time.perf_counter() - t_total
         return _empty(pb.q0, pb.timings, pb.gs)
@@ -215,13 +247,7 @@ def plan_ompl(scene: Scene, planner: Union[Baseline, str] = Baseline.RRT_C,
     q0 = pb.q0
     validity = SupportValidity(pb.world, q0, settings.omg.metrics.support_tolerance)
     _seed_ompl(ou, settings.omg.seed)
-    space = ob.RealVectorStateSpace(arm)
-    bounds = ob.RealVectorBounds(arm)
-    for j in range(arm):
-        bounds.setLow(j, float(robot.lower_limits[j]))
-        bounds.setHigh(j, float(robot.upper_limits[j]))
-    space.setBounds(bounds)
-    ss = og.SimpleSetup(space)
+    space, ss = ompl_setup(ob, og, robot, arm)
     q = q0.copy()
 
     def valid(state) -> bool:
@@ -263,6 +289,20 @@ def plan_ompl(scene: Scene, planner: Union[Baseline, str] = Baseline.RRT_C,
         if exact and metrics["success"]:
             return pb.result(xi, g, metrics, attempts, t_total)
     return pb.result(*first, attempts, t_total)
+
+
+def plan_baseline_to_goal_set(name: Union[Baseline, str], world, q0: np.ndarray, goal_set,
+                              settings: BaselineSettings = BaselineSettings()) -> PlanResult:
+    """``CHOMP``, ``FMT`` or ``RRT-C`` from ``q0`` to a goal set already built in ``world`` (a place goal
+    set in an ``attach.HeldWorld``): the same ranking, tries and success test as for grasps."""
+    name = Baseline.parse(name, "baseline")
+    t_total = time.perf_counter()
+    if name is Baseline.CHOMP_C:
+        raise ValueError("baseline CHOMP-C plans over grasps (OMG's loop), not to a goal set")
+    pb = _Problem.on_goal_set(world, q0, goal_set, settings)
+    if name is Baseline.CHOMP:
+        return _chomp_over(pb, settings, t_total)
+    return _ompl_over(pb, name, settings, t_total)
 
 
 def plan_baseline(name: Union[Baseline, str], scene: Scene, settings: BaselineSettings = BaselineSettings(),

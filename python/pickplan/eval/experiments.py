@@ -34,7 +34,7 @@ from pickplan.core.objects import model_from_source
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
 from pickplan.core.timing import robot_limits, time_parameterize
 from pickplan.eval.baselines import OMPL_PLANNERS, BaselineSettings, plan_baseline
-from pickplan.eval.methods import Table, all_methods, method_spec
+from pickplan.eval.methods import OPTIONAL_METHODS, Table, all_methods, method_spec
 from pickplan.eval.plots import STAGES
 from pickplan.eval.summaries import UNIT_ERROR
 from pickplan.omg import grasps as grasps_mod
@@ -93,10 +93,11 @@ class SweepSettings:
         if len(self.clutter) != 2 or not 1 <= self.clutter[0] <= self.clutter[1]:
             raise ValueError(f"clutter: expected (fewest, most) with 1 <= fewest <= most, got {self.clutter!r}")
         if self.methods is not None:
-            bad = [m for m in self.methods if m not in all_methods(self.table)]
+            known = all_methods(self.table) + OPTIONAL_METHODS.get(self.table, ())
+            bad = [m for m in self.methods if m not in known]
             if bad:
                 raise ValueError(f"unknown methods {bad} for table {self.table!r}; "
-                                 f"expected some of {list(all_methods(self.table))}")
+                                 f"expected some of {list(known)}")
 
     def effective(self) -> "SweepSettings":
         """``quick`` shrinks the sweep for CI: <= 4 scenes, 1 run, 10 goals, 30 candidates, 0.5 s OMPL."""

@@ -29,12 +29,16 @@ class Table(Option):
     refinement = "refinement"   # Table II
     planners = "planners"       # Table III
     ablation = "ablation"       # Fig. 8
+    pickplace = "pickplace"     # pick and place (issue 34): OMG's pick, the methods on the place (eval.pickplace)
 
 
 TABLES = tuple(t.value for t in Table)
 SELECTION_METHODS = tuple(s.value for s in Selection)
 REFINEMENT_METHODS = ("S", "S+ISF", "G", "G+ISF", "A", "A+ISF")
 PLANNER_METHODS = (Baseline.CHOMP.value, Baseline.CHOMP_C.value, Baseline.FMT.value, Baseline.RRT_C.value, "OMG")
+PICKPLACE_METHODS = ("OMG", "Fixed", Baseline.CHOMP.value, Baseline.RRT_C.value)
+#: Methods a table runs only when ``--methods`` names them (depth: three rendered views).
+OPTIONAL_METHODS = {Table.pickplace: ("OMG-3v",)}
 ABLATION_N = (10, 20, 30, 40, 50)
 ABLATION_LAMBDA = (0.01, 0.05, 0.1, 0.5, 1.0)
 #: Table II's grasp sets by the first letter of their method.
@@ -71,6 +75,8 @@ def all_methods(table: Union[Table, str], quick: bool = False) -> Tuple[str, ...
         return REFINEMENT_METHODS
     if table is Table.planners:
         return PLANNER_METHODS
+    if table is Table.pickplace:
+        return PICKPLACE_METHODS
     ns, lams = ((20, 30), (0.1, 1.0)) if quick else (ABLATION_N, ABLATION_LAMBDA)
     return tuple(f"n={n}" for n in ns) + tuple(f"lambda={x:g}" for x in lams)
 
@@ -78,7 +84,7 @@ def all_methods(table: Union[Table, str], quick: bool = False) -> Tuple[str, ...
 def method_spec(table: Union[Table, str], method: str) -> MethodSpec:
     """The ``MethodSpec`` of ``method`` (a column of ``table``); ValueError for an unknown one."""
     table = Table.parse(table, "table")
-    if method not in all_methods(table) and not (table is Table.ablation and method.startswith(("n=", "lambda="))):
+    if method not in all_methods(table) + OPTIONAL_METHODS.get(table, ()) and not (table is Table.ablation and method.startswith(("n=", "lambda="))):
         raise ValueError(f"unknown method {method!r} for table {table.value!r}")
     if table is Table.selection:
         return MethodSpec(selection=Selection.parse(method), refine=False)
@@ -86,6 +92,8 @@ def method_spec(table: Union[Table, str], method: str) -> MethodSpec:
         return MethodSpec(grasp_kind=GRASP_KINDS[method[0]], refine=method.endswith("+ISF"))
     if table is Table.planners:
         return MethodSpec(baseline=None if method == "OMG" else Baseline.parse(method))
+    if table is Table.pickplace:  # every method picks with OMG; they differ on the place (eval.pickplace)
+        return MethodSpec()
     if method.startswith("n="):
         return MethodSpec(n=int(method[2:]))
     return MethodSpec(lambda_=float(method[7:]))

@@ -112,6 +112,8 @@ class GoalSetSettings:
     max_goals: int = 30
     max_solutions: int = 4
     seed: int = 0
+    approach: Tuple[float, float, float] = (0.0, 0.0, 0.0)  # world direction of the standoff approach (unit;
+                                                            # zero: the hand's +z; a place: gravity)
 
     def to_native(self) -> "_core.GoalSetSettings":
         return to_native(self, _core.GoalSetSettings, skip=("approach_clearance", "quality", "verify"))

@@ -205,6 +205,23 @@ class OMGPlanner:
         return run_loop(self.settings, world, q0, gs, timings)
 
 
+def plan_to_goal_set(settings: OMGSettings, world, q0: np.ndarray, goal_set: GoalSet) -> PlanResult:
+    """Algorithm 2 from ``q0`` to a built, non-empty ``goal_set`` in any world with ``chomp`` (and
+    ``grasp_refiner`` when ``settings.refine``): how a place goal set is planned (``omg.place``), with
+    the same CHOMP-Proj steps, online selection and success test as a grasp."""
+    if len(goal_set) == 0:
+        raise ValueError("plan_to_goal_set: the goal set is empty")
+    clock = _clock(settings)
+    t = clock()
+    timings = dict.fromkeys(("chomp", "costs", "selection", "isf", "metrics"), 0.0)
+    timings["goal_set"] = goal_set.seconds
+    result = run_loop(settings, world, np.asarray(q0, dtype=float), goal_set, timings)
+    timings["total"] = clock() - t + goal_set.seconds
+    result.goal_reasons = goal_set.reason_counts()
+    result.limits = robot_limits(world.robot)
+    return result
+
+
 def _clock(settings: OMGSettings):
     """The timer ``settings.clock`` names (looked up per call: a bench may replace perf_counter)."""
     return time.thread_time if settings.clock is StageClock.thread_cpu else time.perf_counter

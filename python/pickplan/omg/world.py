@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional, Tuple, Union
 
 import numpy as np
@@ -13,6 +13,7 @@ from pickplan.core import collision
 from pickplan.core import objects
 from pickplan.core import robots
 from pickplan.core import sdf
+from pickplan.core import shapes
 from pickplan.core.caches import mesh_content_key
 from pickplan.core.graspability import Graspability, graspability
 from pickplan.core.settings import Option
@@ -78,12 +79,16 @@ class World:
                 else objects.model_from_source(o.name, o.source)
         grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf, cache.grids), o.pose)
                  for o in scene.objects]
-        self.sdf = sdf.SceneSdf(grids, table=(np.asarray(scene.table.size), np.asarray(scene.table.pose)))
+        table = None if scene.table is None else (np.asarray(scene.table.size), np.asarray(scene.table.pose))
+        self.sdf = sdf.SceneSdf(grids, table=table)
+        shapes.add_to_sdf(self.sdf, scene.obstacles, settings.sdf, cache.grids)  # shelves, bins: closed forms
         per_link = settings.body_points_per_link or self.robot.description.body_points_per_link
         self.body = _without_table_links(cache.body_points(self.robot, per_link, settings.body_seed), self.robot)
         self._checkers: dict = {}
         self._refiners: dict = {}
         self._chomps: dict = {}
+        if scene.target is None:
+            raise ValueError("scene has no target: a world plans a grasp of one (omg.motion plans motions alone)")
         scene.object(scene.target)  # a clear KeyError now rather than deep inside a planner
         t0 = time.perf_counter()
         if settings.sdf.merged:
@@ -114,7 +119,9 @@ class World:
         return np.asarray(q, dtype=float) if use_scene else self.robot.ready_configuration
 
     def scene_meshes(self):
-        return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects]
+        """Objects (meshes) and obstacles (primitives and meshes) as the FCL checkers take them."""
+        return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects] + \
+            [collision.SceneMesh(o.name, o.shape, o.pose) for o in self.scene.obstacles]
 
     def checker(self, kind: Union[CheckerKind, str] = CheckerKind.goal) -> collision.CollisionChecker:
         """FCL checker against objects and table, of a ``CheckerKind`` (or its spelling: "goal").
@@ -146,8 +153,12 @@ class World:
             settings = collision.CollisionSettings(allowed_pairs=mounted + touching, excluded_objects=(self.target,))
         else:
             settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
-        table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
-                                pose=np.asarray(self.scene.table.pose, dtype=float))
+        table = None
+        if self.scene.table is not None:
+            table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
+                                    pose=np.asarray(self.scene.table.pose, dtype=float))
+        else:  # no table: nothing is mounted on it or may touch it
+            settings = replace(settings, allowed_pairs=tuple(p for p in settings.allowed_pairs if p[1] != "table"))
         return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links,
                                           shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
 
@@ -155,12 +166,16 @@ class World:
     def support_plane(self) -> Tuple[np.ndarray, float]:
         """The table top the target rests on as (unit normal, offset): normal . x = offset on it."""
         table = self.scene.table
+        if table is None:  # nothing to rest on: a plane no point reaches below
+            return np.array([0.0, 0.0, 1.0]), -np.inf
         return collision.support_plane(collision.Table(tuple(np.asarray(table.size, float)),
                                                        np.asarray(table.pose, float)))
 
     def over_support(self, points: np.ndarray) -> np.ndarray:
         """(N,) whether world points lie over the table top's footprint (where its plane is a support)."""
         table = self.scene.table
+        if table is None:
+            return np.zeros(len(np.asarray(points).reshape(-1, 3)), dtype=bool)
         T = collision.Table(tuple(np.asarray(table.size, float)), np.asarray(table.pose, float)).pose_matrix()
         local = (np.asarray(points, float) - T[:3, 3]) @ T[:3, :3]
         return np.all(np.abs(local[:, :2]) <= 0.5 * np.asarray(table.size, float)[:2], axis=1)
@@ -169,7 +184,7 @@ class World:
     def graspability(self) -> Graspability:
         """Whether this robot's gripper can grasp the target as it lies at all (``core.graspability``):
         geometry of the target and the support, computed once per world."""
-        up = np.asarray(self.scene.table.pose, dtype=float)[:3, 2]
+        up = np.array([0.0, 0.0, 1.0]) if self.scene.table is None else np.asarray(self.scene.table.pose, float)[:3, 2]
         return graspability(self.target_model, self.target_pose, self.robot.info.max_opening, up,
                             ray_mesh=self.cache.ray_mesh(self.target_model.mesh))
 

@@ -3,7 +3,8 @@
 Namespaces (colours as in ``pickplan view``): ``field`` the fused depth field's surface (grey
 cubes), ``target`` the observed target points (yellow), ``goal_set`` the open hand at every goal
 (blue points, thinned to ``max_goal_hands``), ``chosen_grasp`` the hand at the goal the planner
-chose (orange), ``refined_grasp`` where C-Space ISF moved it (green). The array starts with a
+chose (orange), ``refined_grasp`` where C-Space ISF moved it (green); for a pick and place also
+``place_region`` (the box's edges, purple) and ``place`` (the hand at the set-down, purple). The array starts with a
 DELETEALL, so each request's markers replace the last's.
 """
 from __future__ import annotations
@@ -22,6 +23,14 @@ TARGET_COLOR = (1.0, 0.85, 0.1, 1.0)
 GOAL_COLOR = (0.3, 0.5, 1.0, 0.5)
 CHOSEN_COLOR = (1.0, 0.5, 0.0, 1.0)
 REFINED_COLOR = (0.1, 0.8, 0.2, 1.0)
+PLACE_COLOR = (0.7, 0.2, 0.9, 1.0)
+
+
+def box_edges(lo: Sequence[float], hi: Sequence[float]) -> np.ndarray:
+    """The 12 edges of the box [lo, hi] as 24 points (a LINE_LIST)."""
+    corners = np.array([[(lo, hi)[i][0], (lo, hi)[j][1], (lo, hi)[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    pairs = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
+    return corners[np.array(pairs).ravel()]
 
 
 def field_surface(grid, max_points: int = 20000) -> np.ndarray:
@@ -92,4 +101,11 @@ def pick_markers(outcome: PickOutcome, frame: str, stamp, max_goal_hands: int = 
     if result.refined:
         out.markers.append(_marker("refined_grasp", Marker.POINTS, hand_points(robot, samples, result.goal),
                                    REFINED_COLOR, 0.005, frame, stamp))
+    task = outcome.task
+    if task is not None and outcome.place is not None:
+        out.markers.append(_marker("place_region", Marker.LINE_LIST, box_edges(outcome.place.region_min, outcome.place.region_max),
+                                   PLACE_COLOR, 0.004, frame, stamp))
+        if task.place is not None and task.place.success:
+            out.markers.append(_marker("place", Marker.POINTS, hand_points(robot, samples, task.place.goal),
+                                       PLACE_COLOR, 0.005, frame, stamp))
     return out

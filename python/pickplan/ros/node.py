@@ -17,6 +17,10 @@ through). Parameters (read once at start):
                                  point is the target
 ``target_point``                 x y z in ``base_frame``: the target until a point is clicked; the
                                  ``pickplan ros call --point`` command sets it (SetParameters) per request
+``place_region``                 x0 y0 z0 x1 y1 z1 in ``base_frame``: the box the held object is put in by
+                                 ``~/pick_and_place`` (its floor on a support: a table area, a shelf
+                                 board, a bin's floor); ``pickplan ros call --place`` sets it per request
+``place_orientation``            ``upright`` (as it stood) or ``stable`` (any stable resting pose)
 ``rate``, ``speed_scaling``      samples per second of the trajectory; fraction of the joint limits
 ``trajectory_joints``            joints in the trajectory (default: every joint of the robot)
 ``seed``                         the planner's seed
@@ -24,7 +28,10 @@ through). Parameters (read once at start):
                                  each trajectory is also sent there
 ================================ ========================================================================
 
-Interface: service ``~/plan`` (``std_srvs/Trigger``: success and a one-line status or reason),
+Interface: services ``~/plan`` (the pick) and ``~/pick_and_place`` (the pick, the carry and the place
+in ``place_region``; one trajectory whose finger joints close after the approach and open after the
+set-down; the parts' times are in the status: ``segment.<name>`` = "start end" seconds, for a gripper
+driven apart from the arm), both ``std_srvs/Trigger``: success and a one-line status or reason;
 topics ``~/trajectory`` (``trajectory_msgs/JointTrajectory``, timed within the limits),
 ``~/markers`` (``visualization_msgs/MarkerArray``, published after the response when subscribed)
 and ``~/status`` (``diagnostic_msgs/DiagnosticStatus``: level, the status, the reason, timings), the
@@ -33,7 +40,9 @@ topic and field named, and the node goes on; it keeps only the latest message of
 """
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import time
 import traceback
 from typing import Dict, List, Optional
@@ -52,12 +61,14 @@ from rcl_interfaces.msg import SetParametersResult  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: E402
+from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from sensor_msgs.msg import CameraInfo, Image, JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from pickplan.core.errors import InputError  # noqa: E402
+from pickplan.omg.place import Orientation, PlaceRequest  # noqa: E402
 from pickplan.omg.planner import OMGSettings  # noqa: E402
 from pickplan.ros import convert  # noqa: E402
 from pickplan.ros.markers import pick_markers  # noqa: E402
@@ -66,6 +77,7 @@ from pickplan.ros.pipeline import CameraView, PickOutcome, PickPipeline, PickReq
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 RELIABLE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 TARGET = "target"  # the key of the last target given in PickNode.latest
+STOP_POLL_S = 0.1  # how soon a stop signal is seen while nothing arrives
 
 
 def trajectory_message(timed, robot, joints: List[str], frame: str) -> JointTrajectory:
@@ -113,6 +125,7 @@ class PickNode(Node):
         self.markers_pub = self.create_publisher(MarkerArray, "~/markers", LATCHED)
         self.status_pub = self.create_publisher(DiagnosticStatus, "~/status", LATCHED)
         self.create_service(Trigger, "~/plan", self._on_plan)
+        self.create_service(Trigger, "~/pick_and_place", self._on_pick_and_place)
         self._drawn: Optional[PickOutcome] = None
         self._draw = self.create_guard_condition(self._publish_markers)  # after the response is sent
         self._tf = self._tf_buffer() if any(c["pose"] is None for c in self.cameras) else None
@@ -133,6 +146,10 @@ class PickNode(Node):
         point = self.declare_parameter("target_point", Parameter.Type.DOUBLE_ARRAY).value
         if point:
             self.latest[TARGET] = ("target_point", list(point))
+        self.place_parameters = {"place_region": list(self.declare_parameter(
+            "place_region", Parameter.Type.DOUBLE_ARRAY).value or []), "place_orientation": self.declare_parameter(
+            "place_orientation", Orientation.upright.value).value}
+        self.place = _place_request(**self.place_parameters)
         return out
 
     def _camera_parameters(self, names) -> List[dict]:
@@ -200,6 +217,14 @@ class PickNode(Node):
                 if len(values) != 3 or not all(np.isfinite(values)):
                     return SetParametersResult(successful=False, reason=f"target_point: expected x y z, got {values}")
                 self.latest[TARGET] = ("target_point", values)
+            elif param.name in self.place_parameters:
+                asked = dict(self.place_parameters, **{param.name: param.value if isinstance(param.value, str)
+                                                       else list(param.value or [])})
+                try:
+                    self.place = _place_request(**asked)
+                except InputError as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
+                self.place_parameters = asked
             elif param.name != "use_sim_time":  # the clock's own
                 return SetParametersResult(successful=False, reason=f"{param.name}: read at start only; restart the "
                                                                     "node to change it")
@@ -232,10 +257,14 @@ class PickNode(Node):
         start = convert.joint_positions(joints, self.pipeline.robot.joint_names, self.finger_defaults, self.joint_topic)
         return PickRequest(views, start, self._target_point())
 
-    def plan_once(self) -> PickOutcome:
+    def plan_once(self, place: bool = False) -> PickOutcome:
+        """Plan the pick (``place``: and its place in ``place_region``) from the latest messages."""
         t0 = time.perf_counter()
         try:
-            outcome = self.pipeline.plan(self.request())
+            if place and self.place is None:
+                raise InputError("no place region: set the place_region parameter (x0 y0 z0 x1 y1 z1)",
+                                 field="place_region")
+            outcome = self.pipeline.plan(self.request(), self.place if place else None)
         except (InputError, ValueError) as exc:
             outcome = PickOutcome(PickStatus.bad_input, str(exc))
         except Exception as exc:  # noqa: BLE001 - a bug must fail the request, not end the node
@@ -257,6 +286,7 @@ class PickNode(Node):
         level = DiagnosticStatus.OK if outcome.success else DiagnosticStatus.ERROR
         values = [KeyValue(key="status", value=str(outcome.status))]
         values += [KeyValue(key=f"seconds.{k}", value=f"{v:.4f}") for k, v in sorted(outcome.seconds.items())]
+        values += [KeyValue(key=f"segment.{name}", value=f"{t0:.4f} {t1:.4f}") for name, t0, t1 in outcome.segments]
         return DiagnosticStatus(level=level, name=self.get_fully_qualified_name(), message=outcome.summary(),
                                 hardware_id=self.pipeline.robot.info.name, values=values)
 
@@ -269,9 +299,9 @@ class PickNode(Node):
             return
         client.send_goal_async(action.Goal(trajectory=msg))
 
-    def _on_plan(self, request, response):
+    def _on_plan(self, request, response, place: bool = False):
         try:
-            outcome = self.plan_once()
+            outcome = self.plan_once(place)
         except Exception as exc:  # noqa: BLE001 - publishing or logging failed: still an answer, never a dead node
             outcome = PickOutcome(PickStatus.internal_error, f"{type(exc).__name__}: {exc}")
         response.success, response.message = outcome.success, outcome.summary()
@@ -280,24 +310,52 @@ class PickNode(Node):
             self._draw.trigger()
         return response
 
+    def _on_pick_and_place(self, request, response):
+        return self._on_plan(request, response, place=True)
+
     def _publish_markers(self) -> None:
         outcome, self._drawn = self._drawn, None
         if outcome is not None:
             self.markers_pub.publish(pick_markers(outcome, self.frame, self.get_clock().now().to_msg()))
 
 
+def _place_request(place_region: list, place_orientation: str) -> Optional[PlaceRequest]:
+    """The place request of the parameters (None: no region); ``InputError`` naming the parameter."""
+    region, orientation = place_region, place_orientation
+    if orientation not in (Orientation.upright.value, Orientation.stable.value):
+        raise InputError(f"expected upright or stable, got {orientation!r}", field="place_orientation")
+    if not region:
+        return None
+    if len(region) != 6 or not all(np.isfinite(region)):
+        raise InputError(f"expected 6 finite numbers x0 y0 z0 x1 y1 z1, got {region}", field="place_region")
+    try:
+        return PlaceRequest(tuple(region[:3]), tuple(region[3:]), Orientation(orientation))
+    except ValueError as exc:
+        raise InputError(str(exc), field="place_region") from None
+
+
 def run(robot: Optional[str] = None, args: Optional[List[str]] = None) -> int:
-    """Start the node and spin until Ctrl-C or shutdown; ``args``: ROS arguments (``--ros-args ...``)."""
-    rclpy.init(args=args)
+    """Start the node and spin until Ctrl-C (SIGINT), SIGTERM or shutdown; ``args``: ROS arguments.
+
+    rclpy's own handler raises ``KeyboardInterrupt`` wherever the signal lands, and inside its
+    message conversion that surfaces as a ``RuntimeError`` (a stop reported as a crash). So the node
+    takes the signals itself: the handler only asks to stop, and the loop stops between callbacks.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     node = None
     try:
         node = PickNode(robot)
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
+        executor = rclpy.executors.SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=STOP_POLL_S)
     except rclpy.executors.ExternalShutdownException:
         pass
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         if node is not None:
             node.destroy_node()
         if rclpy.ok():

@@ -26,6 +26,8 @@ from pickplan.core.settings import Option
 from pickplan.core.timing import KinematicLimits, TimedTrajectory, TimingError, robot_limits
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.perceived_world import PerceivedPlanner, PerceivedWorld, PerceivedWorldSettings
+from pickplan.omg.pickplace import PickPlacePlan, PickPlacePlanner, PickPlaceSettings, PickPlaceStatus
+from pickplan.omg.place import PlaceRequest
 from pickplan.omg.planner import OMGSettings, PlanResult, PlanStatus
 from pickplan.perception.field import support_plane, view_points
 from pickplan.perception.target import TargetSettings, target_near_point
@@ -41,6 +43,10 @@ class PickStatus(Option):
     ungraspable = "ungraspable"
     in_collision = "in_collision"
     not_smooth = "not_smooth"
+    lift_blocked = "lift_blocked"      # pick and place (omg.pickplace.PickPlaceStatus)
+    no_place_goals = "no_place_goals"
+    place_failed = "place_failed"
+    retract_blocked = "retract_blocked"
     internal_error = "internal_error"  # a bug: the reason names the exception
 
 
@@ -52,12 +58,16 @@ class PickSettings:
     target: TargetSettings = field(default_factory=TargetSettings)
     rate: float = 100.0                   # Hz of the timed trajectory's samples
     speed_scaling: float = 1.0            # fraction of the robot's velocity and acceleration limits
+    pickplace: PickPlaceSettings = field(default_factory=PickPlaceSettings)  # its ``pick``: ``planner``
+    gripper_seconds: float = 0.5          # the shortest close and release in a pick and place
 
     def __post_init__(self):
         if not 0 < self.speed_scaling <= 1:
             raise ValueError(f"speed_scaling: expected a fraction in (0, 1], got {self.speed_scaling}")
         if not 0 < self.rate <= 10000:
             raise ValueError(f"rate: expected Hz in (0, 10000], got {self.rate}")
+        if not 0 <= self.gripper_seconds <= 60:
+            raise ValueError(f"gripper_seconds: expected seconds in [0, 60], got {self.gripper_seconds}")
 
 
 @dataclass
@@ -83,6 +93,9 @@ class PickOutcome:
     timed: Optional[TimedTrajectory] = None
     world: Optional[PerceivedWorld] = None
     seconds: dict = field(default_factory=dict)   # target, plan, timing, total
+    task: Optional[PickPlacePlan] = None          # a pick and place: the whole plan
+    place: Optional[PlaceRequest] = None          # ... and where it was asked to put the object
+    segments: List[Tuple[str, float, float]] = field(default_factory=list)  # its parts in ``timed``: name, start, end
 
     @property
     def success(self) -> bool:
@@ -93,8 +106,9 @@ class PickOutcome:
         if not self.success:
             return f"{self.status}: {self.reason}"
         r, t = self.result, self.timed
-        return (f"success: {len(t.t)} points over {t.duration:.2f} s, goal {r.goal_source + 1} of {r.goal_set_size}"
-                f"{' (refined)' if r.refined else ''}, planned in {self.seconds.get('total', 0.0):.3f} s")
+        what = "pick and place" if self.task is not None else "pick"
+        return (f"success: {what}, {len(t.t)} points over {t.duration:.2f} s, grasp {r.goal_source + 1} of "
+                f"{r.goal_set_size}{' (refined)' if r.refined else ''}, planned in {self.seconds.get('total', 0.0):.3f} s")
 
 
 class PickPipeline:
@@ -125,23 +139,33 @@ class PickPipeline:
         obs = Observation(depth, K, poses, mask, source="request " + ", ".join(v.name for v in request.views))
         return obs, replace(self.settings.world, field=replace(field_settings, plane=plane))
 
-    def plan(self, request: PickRequest) -> PickOutcome:
+    def _world(self, request: PickRequest, seconds: dict) -> Tuple[Optional[np.ndarray], object]:
+        """(start, world) of a request, or (None, the failed ``PickOutcome``); ``seconds['target']`` filled."""
         t0 = time.perf_counter()
-        seconds = {}
         try:
             start = self.robot.check_within_limits(np.asarray(request.start, float), "joint_states")
             obs, world_settings = self.observation(request)
         except ObservationError as exc:
             status = PickStatus.no_target if "target point" in str(exc) else PickStatus.bad_input
-            return PickOutcome(status, str(exc), seconds={"total": time.perf_counter() - t0})
+            return None, PickOutcome(status, str(exc))
         except ValueError as exc:
-            return PickOutcome(PickStatus.bad_input, str(exc), seconds={"total": time.perf_counter() - t0})
-        t1 = time.perf_counter()
-        seconds["target"] = t1 - t0
+            return None, PickOutcome(PickStatus.bad_input, str(exc))
+        seconds["target"] = time.perf_counter() - t0
         try:
-            world = PerceivedWorld(obs, self.robot, world_settings, cache=self.cache)
+            return start, PerceivedWorld(obs, self.robot, world_settings, cache=self.cache)
         except ValueError as exc:
-            return PickOutcome(PickStatus.no_target, str(exc), seconds=dict(seconds, total=time.perf_counter() - t0))
+            return None, PickOutcome(PickStatus.no_target, str(exc))
+
+    def plan(self, request: PickRequest, place: Optional[PlaceRequest] = None) -> PickOutcome:
+        """The pick of the target near ``request.point``; with ``place``, the pick and its place."""
+        t0 = time.perf_counter()
+        seconds = {}
+        start, world = self._world(request, seconds)
+        if start is None:  # world: the failed outcome
+            return replace(world, seconds=dict(seconds, total=time.perf_counter() - t0))
+        t1 = time.perf_counter()
+        if place is not None:
+            return self._pick_and_place(world, start, place, seconds, t0)
         result = PerceivedPlanner(world, self.settings.planner).plan(start=start)
         t2 = time.perf_counter()
         seconds["plan"] = t2 - t1
@@ -157,6 +181,28 @@ class PickPipeline:
         seconds["timing"] = time.perf_counter() - t2
         seconds["total"] = time.perf_counter() - t0
         return PickOutcome(PickStatus.success, "", result, timed, world, seconds)
+
+    def _pick_and_place(self, world: PerceivedWorld, start: np.ndarray, place: PlaceRequest, seconds: dict,
+                        t0: float) -> PickOutcome:
+        t1 = time.perf_counter()
+        settings = replace(self.settings.pickplace, pick=self.settings.planner)
+        task = PickPlacePlanner(PerceivedPlanner(world, settings.pick), place, settings).plan(start=start)
+        t2 = time.perf_counter()
+        seconds["plan"] = t2 - t1
+        if not task.success:
+            status = PickStatus(str(task.pick.status)) if task.status is PickPlaceStatus.pick_failed else \
+                PickStatus(task.status.value)
+            reason = task.reason if task.pick.success else (task.pick.reason or _plan_failure(task.pick))
+            return PickOutcome(status, reason, task.pick, None, world, dict(seconds, total=t2 - t0), task=task, place=place)
+        try:
+            timed, segments = task.timed_task(self.robot, self.settings.rate, self.limits, self.settings.gripper_seconds)
+        except TimingError as exc:
+            return PickOutcome(PickStatus.internal_error, f"timing: {exc}", task.pick, None, world,
+                               dict(seconds, total=time.perf_counter() - t0), task=task, place=place)
+        seconds["timing"] = time.perf_counter() - t2
+        seconds["total"] = time.perf_counter() - t0
+        return PickOutcome(PickStatus.success, "", task.pick, timed, world, seconds, task=task, place=place,
+                           segments=segments)
 
 
 def _plan_failure(result: PlanResult) -> str:

@@ -14,7 +14,7 @@ from pickplan.core import objects as objects_mod
 from pickplan.core.panda import PANDA, panda_urdf_path
 
 if TYPE_CHECKING:  # a table is read for its size and pose only
-    from pickplan.sim.scenes import Table
+    from pickplan.sim.scenes import Scene, Table
 
 
 def _panda_defaults() -> Tuple[str, Tuple[float, ...]]:
@@ -110,6 +110,34 @@ def add_table(client: int, table: Table, friction: float = 0.8) -> int:
     return body
 
 
+def add_obstacle_body(client: int, obstacle, friction: float = 0.8) -> int:
+    """A static body for a ``shapes.Obstacle``: PyBullet's own box, cylinder or sphere for a
+    primitive (exact, as the planner's), the mesh file for a mesh (convex parts as PyBullet reads it)."""
+    import pybullet as pb
+
+    shape = obstacle.shape
+    kind = shape.kind.value
+    if kind == "box":
+        geometry = dict(shapeType=pb.GEOM_BOX, halfExtents=[0.5 * v for v in shape.size])
+    elif kind == "cylinder":
+        geometry = dict(shapeType=pb.GEOM_CYLINDER, radius=shape.size[0])
+    elif kind == "sphere":
+        geometry = dict(shapeType=pb.GEOM_SPHERE, radius=shape.size[0])
+    else:
+        geometry = dict(shapeType=pb.GEOM_MESH, fileName=shape.file, meshScale=list(shape.size))
+    collision = pb.createCollisionShape(**geometry, **({"height": shape.size[1]} if kind == "cylinder" else {}),
+                                        physicsClientId=client)
+    visual = pb.createVisualShape(**geometry, **({"length": shape.size[1]} if kind == "cylinder" else {}),
+                                  rgbaColor=[0.6, 0.55, 0.5, 1], physicsClientId=client)
+    if collision < 0:
+        raise RuntimeError(f"PyBullet could not create the collision shape of obstacle {obstacle.name!r}")
+    T = np.asarray(obstacle.pose, dtype=float)
+    body = pb.createMultiBody(0.0, collision, visual, basePosition=T[:3, 3].tolist(),
+                              baseOrientation=_mat_to_quat(T[:3, :3]), physicsClientId=client)
+    pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=client)
+    return body
+
+
 def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None, urdf: Optional[str] = None) -> int:
     """A robot with a fixed base (``urdf``; default the Panda); ``q`` sets the movable joints in URDF
     order (the Panda's: 7 arm + 2 fingers; None or empty: its ready configuration, the Panda only)."""
@@ -133,3 +161,27 @@ def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None, urdf:
         pb.setJointMotorControl2(body, j, pb.POSITION_CONTROL, targetPosition=float(v), force=500.0,
                                  physicsClientId=client)
     return body
+
+
+def open_world(scene: "Scene", robot, q0, models: dict, time_step: float, solver_iterations: int) -> Tuple[int, dict]:
+    """A fresh DIRECT client with gravity, the time step and the solver's iterations, holding the scene's
+    table (if any) and obstacles, ``robot`` (a described robot, at its base) at ``q0`` and the scene's objects (``models`` by
+    name), in ``scenes.load_into_pybullet``'s order: (client, body ids by name, "table" and "robot")."""
+    from pickplan.sim.bullet import connect, pb
+
+    client = connect()
+    try:
+        pb.resetSimulation(physicsClientId=client)
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, numSolverIterations=solver_iterations,
+                                     physicsClientId=client)
+        pb.setGravity(0, 0, -9.81, physicsClientId=client)
+        pb.setTimeStep(time_step, physicsClientId=client)
+        ids = {} if scene.table is None else {"table": add_table(client, scene.table)}
+        ids.update({o.name: add_obstacle_body(client, o) for o in scene.obstacles})
+        ids["robot"] = add_robot(client, robot.base_pose, q0, robot.description.urdf)
+        for o in scene.objects:
+            ids[o.name] = add_object_body(client, models[o.name], o.pose)
+    except BaseException:
+        pb.disconnect(client)
+        raise
+    return client, ids

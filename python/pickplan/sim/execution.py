@@ -198,7 +198,7 @@ class _Sim:
         self.grip_speed = float(settings.finger_speed if settings.finger_speed is not None else info.grip_speed)
         self.robot = ids["robot"]
         self.names = {bid: name for name, bid in ids.items() if name != "robot"}
-        self.bodies = {name: bid for name, bid in ids.items() if name not in ("robot", "table")}
+        self.bodies = {name: bid for name, bid in ids.items() if name in models}  # the objects (not obstacles)
         self.models = models
         self.target = scene.target
         joints = {pb.getJointInfo(self.robot, j, physicsClientId=client)[1].decode(): j
@@ -339,6 +339,33 @@ def _hold(sim: _Sim, q: np.ndarray, seconds: float, watch: bool) -> None:
         sim.step(watch)
 
 
+def open_sim(scene: scenes_mod.Scene, robot, q0: np.ndarray, s: ExecutionSettings, models: dict,
+             record: Optional[RecordSettings] = None, sim_class=None) -> "_Sim":
+    """A fresh DIRECT client with the scene's table and objects and ``robot`` at ``q0``, frictions and
+    the finger coupling set (the caller disconnects ``sim.c``). ``sim_class``: a ``_Sim`` subclass."""
+    from pickplan.sim.bullet import pb
+
+    client, ids = bodies.open_world(scene, robot, q0, models, s.time_step, s.solver_iterations)
+    try:
+        sim = (sim_class or _Sim)(pb, client, ids, models, scene, s, record, robot.info)
+        for link in sim.finger_links:
+            pb.changeDynamics(sim.robot, link, lateralFriction=s.finger_friction,
+                              spinningFriction=s.finger_spinning_friction, frictionAnchor=1, physicsClientId=client)
+        for name, bid in ids.items():
+            if name != "robot":
+                own = getattr(models.get(name), "friction", None)  # an object's own friction, where it has one
+                pb.changeDynamics(bid, -1, lateralFriction=s.object_friction if own is None else own,
+                                  spinningFriction=s.object_spinning_friction, physicsClientId=client)
+        if s.couple_fingers:  # PyBullet ignores <mimic>: couple the fingers' motion with a gear constraint
+            gear = pb.createConstraint(sim.robot, sim.fingers[0], sim.robot, sim.fingers[1], pb.JOINT_GEAR,
+                                       [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=client)
+            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * sim.grip_force, physicsClientId=client)
+    except BaseException:
+        pb.disconnect(client)
+        raise
+    return sim
+
+
 # --- the entry point -----------------------------------------------------------------------------
 def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSettings = ExecutionSettings(),
                  library: Optional[objects_mod.ObjectLibrary] = None,
@@ -349,8 +376,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     Raises ValueError for a malformed trajectory (shape, NaN); a trajectory outside the joint limits
     is not run and reports status "invalid_trajectory". Deterministic for identical inputs.
     """
-    from pickplan.sim.bullet import connect, pb
-
+    from pickplan.sim.bullet import pb
 
     t_start = time.perf_counter()
     s = settings
@@ -383,31 +409,9 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                     f"[{lo[j]:.4f}, {hi[j]:.4f}] by {over[k, j]:.4f}")
     Q = np.clip(Q, lo, hi)
 
-    client = connect()
+    sim = open_sim(scene, robot, Q[0], s, models, record)
+    client = sim.c
     try:
-        pb.resetSimulation(physicsClientId=client)
-        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, numSolverIterations=s.solver_iterations,
-                                     physicsClientId=client)
-        pb.setGravity(0, 0, -9.81, physicsClientId=client)
-        pb.setTimeStep(s.time_step, physicsClientId=client)
-        # the scene's bodies in load_into_pybullet's order, with this robot (at its base) for the Panda
-        ids = {"table": bodies.add_table(client, scene.table),
-               "robot": bodies.add_robot(client, robot.base_pose, Q[0], robot.description.urdf)}
-        for o in scene.objects:
-            ids[o.name] = bodies.add_object_body(client, models[o.name], o.pose)
-        sim = _Sim(pb, client, ids, models, scene, s, record, robot.info)
-        for link in sim.finger_links:
-            pb.changeDynamics(sim.robot, link, lateralFriction=s.finger_friction,
-                              spinningFriction=s.finger_spinning_friction, frictionAnchor=1, physicsClientId=client)
-        for name, bid in ids.items():
-            if name != "robot":
-                own = getattr(models.get(name), "friction", None)  # an object's own friction, where it has one
-                pb.changeDynamics(bid, -1, lateralFriction=s.object_friction if own is None else own,
-                                  spinningFriction=s.object_spinning_friction, physicsClientId=client)
-        if s.couple_fingers:  # PyBullet ignores <mimic>: couple the fingers' motion with a gear constraint
-            gear = pb.createConstraint(sim.robot, sim.fingers[0], sim.robot, sim.fingers[1], pb.JOINT_GEAR,
-                                       [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=client)
-            pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * sim.grip_force, physicsClientId=client)
         com0 = {name: scene_com(name) for name in sim.bodies}
         if record is not None:
             if record.colorize:

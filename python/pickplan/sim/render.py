@@ -101,7 +101,7 @@ _PALETTE = ((0.20, 0.45, 0.80), (0.25, 0.65, 0.35), (0.85, 0.65, 0.15), (0.55, 0
 
 def colorize(client: int, bodies: dict, target: str) -> None:
     """Paint the bodies (name -> body id) of a PyBullet scene, the target red (visuals only)."""
-    import pybullet as pb
+    from pickplan.sim.bullet import pb
 
     for i, name in enumerate(sorted(bodies)):
         rgb = (0.85, 0.15, 0.10) if name == target else _PALETTE[i % len(_PALETTE)]

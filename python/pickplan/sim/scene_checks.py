@@ -10,6 +10,7 @@ from pickplan.core import objects as objects_mod
 from pickplan.core.errors import InputError
 from pickplan.core.fields import FieldReader, shown
 from pickplan.core.poses import clean_pose
+from pickplan.core.shapes import read_obstacles
 
 SCENE_FORMAT = "pickplan.scene"
 SCENE_VERSION = 1
@@ -32,8 +33,9 @@ def _seed(r: FieldReader, value) -> Optional[int]:
 
 
 def read_scene(d, path: Optional[str] = None) -> dict:
-    """The validated values of a parsed scene file: robot_base, table (size, pose), objects (name,
-    source, pose), target, seed, robot_configuration, robot; InputError naming every problem."""
+    """The validated values of a parsed scene file: robot_base, table (size, pose; None for "table":
+    null), objects (name, source, pose), obstacles, target, seed, robot_configuration, robot;
+    InputError naming every problem."""
     r = FieldReader(path)
     with r:
         r.table(d, "")
@@ -44,19 +46,28 @@ def read_scene(d, path: Optional[str] = None) -> dict:
                               f"{SCENE_VERSION})")
         out = {"robot_base": r.get(d, "robot_base", "", lambda v, w: _pose(r, v, w)),
                "seed": r.attempt(_seed, r, d.get("seed"))}
-        table = r.get(d, "table", "", r.table, default={}, known=("size", "pose"))
-        out["size"] = r.get(table, "size", "table", r.array, shape=(3,), lo=0.0)
-        if out["size"] is not None and not np.all(out["size"] > 0):
-            r.note("table.size", f"expected positive extents, got {out['size'].tolist()}")
-        out["table_pose"] = r.get(table, "pose", "table", lambda v, w: _pose(r, v, w))
+        out["size"] = out["table_pose"] = None
+        if "table" not in d or d["table"] is not None:  # null: no table (shelves, bins, MoveIt scenes)
+            table = r.get(d, "table", "", r.table, default={}, known=("size", "pose"))
+            out["size"] = r.get(table, "size", "table", r.array, shape=(3,), lo=0.0)
+            if out["size"] is not None and not np.all(out["size"] > 0):
+                r.note("table.size", f"expected positive extents, got {out['size'].tolist()}")
+            out["table_pose"] = r.get(table, "pose", "table", lambda v, w: _pose(r, v, w))
         items = r.get(d, "objects", "", r.items)
         out["objects"] = [r.attempt(_object, r, o, f) for f, o in items or []]
         names = [o[0] for o in out["objects"] if o is not None]
         if len(set(names)) != len(names):
             r.note("objects", f"object names must be unique, got {names}")
-        out["target"] = r.get(d, "target", "", r.text)
+        # null: no target (a scene of obstacles to move among, e.g. from MoveIt)
+        out["target"] = None if "target" in d and d["target"] is None else r.get(d, "target", "", r.text)
         if out["target"] is not None and items is not None and None not in out["objects"] and out["target"] not in names:
             r.note("target", f"{out['target'][:60]!r} is not one of the objects {names}")
+        out["obstacles"] = []
+        try:
+            out["obstacles"] = read_obstacles(d.get("obstacles", []), names)
+        except InputError as exc:
+            for problem in exc.problems:
+                r.note(problem.field, problem.message)
         out["robot"] = r.get(d, "robot", "", r.text, default="panda", required=False)
         q = d.get("robot_configuration", [])
         if not isinstance(q, (list, tuple)):
@@ -78,6 +89,8 @@ MAX_TABLE_PENETRATION = 0.01  # m: settled objects sink a few mm into the table 
 def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None, path: Optional[str] = None) -> None:
     """InputError naming the object when one over the table reaches more than
     ``MAX_TABLE_PENETRATION`` below its top face (into it, or under it)."""
+    if scene.table is None:
+        return  # nothing to rest on or pass through
     T_table = np.asarray(scene.table.pose, dtype=float)
     half = 0.5 * np.asarray(scene.table.size, dtype=float)
     to_table = np.linalg.inv(T_table)

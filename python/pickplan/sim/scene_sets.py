@@ -10,6 +10,7 @@ import numpy as np
 from pickplan.core import objects as objects_mod
 from pickplan.core.io import write_json
 from pickplan.core.runner import progress_bar
+from pickplan.sim.layouts import Layout, LayoutSettings, generate_layout
 from pickplan.sim.scenes import SceneSettings, generate_scene
 
 
@@ -21,12 +22,15 @@ def scene_seeds(seed: int, n: int) -> List[int]:
 def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
                     progress: Optional[bool] = True, stream: Optional[TextIO] = None, orientation: str = "upright",
                     clutter: Tuple[int, int] = (SceneSettings.min_objects, SceneSettings.max_objects),
-                    robot: str = "panda") -> dict:
+                    robot: str = "panda", layout: Layout = Layout.table) -> dict:
     """Generate ``n`` scenes into ``out`` (scene_0000.json, ...) and return the index it writes.
 
-    ``clutter`` = (fewest, most) objects per scene; ``robot``: the robot they are made for (SceneSettings.robot). The progress bar goes to ``stream`` (default: the
-    current ``sys.stderr``); ``progress`` None shows it only when that is a terminal, False never.
+    ``clutter`` = (fewest, most) objects per scene; ``robot``: the robot they are made for (SceneSettings.robot).
+    ``layout``: the tabletop, or a shelf, bin or cabinet (``sim.layouts``; clutter and orientation are the
+    tabletop's). The progress bar goes to ``stream`` (default: the current ``sys.stderr``); ``progress``
+    None shows it only when that is a terminal, False never.
     """
+    layout = Layout.parse(layout, "layout")
     if n < 1:
         raise ValueError(f"--n must be >= 1, got {n}")
     lib = objects_mod.library(objects)  # None: $PICKPLAN_YCB_DIR, else the built-ins
@@ -38,7 +42,8 @@ def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
     with progress_bar(n, "scenes", progress, stream, unit="scene") as bar:
         for i, s in enumerate(scene_seeds(seed, n)):
             t0 = time.perf_counter()
-            scene = generate_scene(s, lib, settings)
+            scene = generate_scene(s, lib, settings) if layout is Layout.table else \
+                generate_layout(layout, s, lib, LayoutSettings(robot=robot))
             fname = f"scene_{i:04d}.json"
             scene.save(os.path.join(out, fname))
             entries.append({"file": fname, "seed": s, "target": scene.target, "objects": [o.name for o in scene.objects],
@@ -47,6 +52,7 @@ def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
     index = {"count": n, "seed": seed, "objects": lib.source, "orientation": orientation,
              "clutter": [settings.min_objects, settings.max_objects], "scenes": entries,
              **({} if robot == "panda" else {"robot": robot}),
+             **({} if layout is Layout.table else {"layout": layout.value}),
              "seconds": round(time.perf_counter() - started, 3)}
     write_json(os.path.join(out, "index.json"), index)
     return index

@@ -29,8 +29,10 @@ from pickplan.core.panda import PANDA
 from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
 from pickplan.core.settings import Option
+from pickplan.core.shapes import Obstacle
 from pickplan.sim.bodies import (_inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat,  # noqa: F401
-                                  add_object_body, add_robot, add_table, object_pose)  # (re-exported)
+                                  add_object_body, add_obstacle_body, add_robot, add_table,  # (re-exported)
+                                  object_pose)
 from pickplan.sim.scene_checks import SCENE_FORMAT, SCENE_VERSION, check_placement, read_scene  # noqa: F401
 
 
@@ -112,12 +114,13 @@ class SceneObject:
 @dataclass(eq=False)
 class Scene:
     robot_base: np.ndarray
-    table: Table
+    table: Optional[Table]         # None: no table (a MoveIt scene of obstacles only)
     objects: List[SceneObject]
-    target: str
+    target: Optional[str]          # None: no target (nothing to grasp, e.g. a motion problem)
     seed: Optional[int] = None
     robot_configuration: List[float] = field(default_factory=list)  # the start configuration (of ``robot``)
     robot: str = PANDA.name        # the description the scene was made for (its robot_configuration's robot)
+    obstacles: List[Obstacle] = field(default_factory=list)  # static shapes: shelves, bins, MoveIt's objects
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:
@@ -131,12 +134,13 @@ class Scene:
             "format": SCENE_FORMAT, "version": SCENE_VERSION, "seed": self.seed,
             "robot_base": np.asarray(self.robot_base, dtype=float).tolist(),
             "robot_configuration": [float(x) for x in self.robot_configuration],
-            "table": {"size": np.asarray(self.table.size, dtype=float).tolist(),
-                      "pose": np.asarray(self.table.pose, dtype=float).tolist()},
+            "table": None if self.table is None else {"size": np.asarray(self.table.size, dtype=float).tolist(),
+                                                      "pose": np.asarray(self.table.pose, dtype=float).tolist()},
             "objects": [{"name": o.name, "source": o.source, "pose": np.asarray(o.pose, dtype=float).tolist()}
                         for o in self.objects],
             "target": self.target,
             **({} if self.robot == PANDA.name else {"robot": self.robot}),  # the Panda's files: as before
+            **({"obstacles": [o.to_dict() for o in self.obstacles]} if self.obstacles else {}),
         }
 
     def to_json(self) -> str:
@@ -147,9 +151,10 @@ class Scene:
     def from_dict(cls, d, path: Optional[str] = None) -> "Scene":
         """The scene of a parsed scene file; InputError naming ``path`` and every field at fault."""
         v = read_scene(d, path)
-        scene = cls(robot_base=v["robot_base"], table=Table(size=v["size"], pose=v["table_pose"]),
-                    objects=[SceneObject(*o) for o in v["objects"]], target=v["target"], seed=v["seed"],
-                    robot_configuration=v["robot_configuration"], robot=v["robot"])
+        table = None if v["size"] is None else Table(size=v["size"], pose=v["table_pose"])
+        scene = cls(robot_base=v["robot_base"], table=table, objects=[SceneObject(*o) for o in v["objects"]],
+                    target=v["target"], seed=v["seed"], robot_configuration=v["robot_configuration"],
+                    robot=v["robot"], obstacles=v["obstacles"])
         check_placement(scene, path=path)
         return scene
 
@@ -183,7 +188,9 @@ class Scene:
 def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None,
                        with_robot: bool = True) -> Dict[str, int]:
     """Recreate ``scene`` in ``client``: body ids by object name, plus "table" and "robot"."""
-    ids = {"table": add_table(client, scene.table)}
+    ids = {} if scene.table is None else {"table": add_table(client, scene.table)}
+    for o in scene.obstacles:
+        ids[o.name] = add_obstacle_body(client, o)
     if with_robot:
         if scene.robot == PANDA.name:
             ids["robot"] = add_robot(client, scene.robot_base, scene.robot_configuration)

@@ -131,8 +131,12 @@ def _densify(Q: np.ndarray, substeps: int) -> np.ndarray:
 
 
 def _draw_scene(vis: meshcat.Visualizer, scene: Scene) -> None:
-    vis["table"].set_object(mg.Box(np.asarray(scene.table.size, dtype=float)), _material(TABLE_COLOR))
-    vis["table"].set_transform(np.asarray(scene.table.pose, dtype=float))
+    if scene.table is not None:
+        vis["table"].set_object(mg.Box(np.asarray(scene.table.size, dtype=float)), _material(TABLE_COLOR))
+        vis["table"].set_transform(np.asarray(scene.table.pose, dtype=float))
+    for o in scene.obstacles:  # shelves, bins, MoveIt's objects: the shape's own mesh
+        vis["obstacles"][o.name].set_object(_mesh_geometry(o.shape.trimesh()), _material(TABLE_COLOR))
+        vis["obstacles"][o.name].set_transform(np.asarray(o.pose, dtype=float))
     others = iter(OBJECT_COLORS * (1 + len(scene.objects) // len(OBJECT_COLORS)))
     for o in scene.objects:
         model = objects.model_from_source(o.name, o.source)
@@ -186,6 +190,27 @@ def _draw_robot(vis: meshcat.Visualizer, drawing: _RobotDrawing, trajectory: np.
     return animation, (len(Q) - 1) / fps
 
 
+def _animate_held(vis: meshcat.Visualizer, animation: Animation, robot: DescribedRobot, trajectory: np.ndarray,
+                  scene: Scene, held: dict, settings: ViewSettings) -> None:
+    """The held object moves with the hand from waypoint ``held["from"]`` (the grasp) to ``held["to"]``
+    (the release) and rests at ``held["place_pose"]`` after it (a pick-and-place plan's ``held``)."""
+    name = str(held.get("name", scene.target))
+    T = np.asarray(held.get("hand_T_object"), dtype=float)
+    first, last = int(held.get("from", 0)), int(held.get("to", len(trajectory) - 1))
+    if T.shape != (4, 4) or not 0 <= first <= last < len(trajectory):
+        raise ValueError(f"held: expected hand_T_object (4, 4) and 0 <= from <= to < {len(trajectory)}")
+    start = np.asarray(scene.object(name).pose, dtype=float)
+    placed = np.asarray(held.get("place_pose", np.nan * np.eye(4)), dtype=float)
+    Q = _densify(trajectory, settings.substeps)
+    hands = robot.fk_batch(Q)[:, robot.link_index(robot.hand_link)]
+    for k in range(len(Q)):
+        waypoint = k / max(1, settings.substeps)
+        pose = start if waypoint < first else (hands[k] @ T if waypoint <= last or not np.all(np.isfinite(placed))
+                                                else placed)
+        with animation.at_frame(vis, k) as frame:
+            frame["objects"][name].set_transform(pose)
+
+
 def _set_camera(vis: meshcat.Visualizer, scene: Scene) -> None:
     """Look at the middle of the objects from the front right, above the table."""
     centres = np.array([np.asarray(o.pose, dtype=float)[:3, 3] for o in scene.objects])
@@ -212,6 +237,8 @@ def build_view(scene: Scene, plan: dict, settings: ViewSettings = ViewSettings()
     drawing = _RobotDrawing(robot)
     _draw_grasps(vis, drawing, plan, settings)
     animation, duration = _draw_robot(vis, drawing, trajectory, settings)
+    if plan.get("held"):  # a pick and place: the object carried and put down
+        _animate_held(vis, animation, robot, trajectory, scene, plan["held"], settings)
     _set_camera(root, scene)
     # Not played on opening: a playing animation redraws every frame, which a software renderer
     # (a headless browser, a remote desktop) cannot keep up with; play and the time slider are in view.

@@ -60,6 +60,12 @@ class Robot {
 
   // A copy of this robot whose root link sits at `base` in the world.
   Robot with_base(const Transform& base) const;
+  // A copy with one more link, `name`, fixed to `parent` at `origin` (its frame in the parent's):
+  // what the robot holds (a grasped object) moves with the hand as part of the robot, so body
+  // points, Jacobians and collision meshes on it need nothing new. Appended last (parents come
+  // first), so the existing links keep their indices. Throws for a taken name, an unknown parent
+  // or a non-rigid origin.
+  Robot with_attached_link(const std::string& name, const std::string& parent, const Transform& origin) const;
 
   int dof() const { return static_cast<int>(joint_names_.size()); }
   int num_links() const { return static_cast<int>(links_.size()); }

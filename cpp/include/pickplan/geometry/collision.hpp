@@ -6,8 +6,8 @@
 // It is immutable afterwards: every query takes a CollisionWorkspace (or makes one), so
 // queries are reentrant and may run in parallel threads.
 //
-// Semantics. Link meshes and object meshes are triangle surfaces (FCL BVH); the table is a
-// solid box. Two surfaces collide when triangles intersect; with `detect_containment` a mesh
+// Semantics. Link meshes and object meshes are triangle surfaces (FCL BVH); the table and
+// primitive objects (CollisionShape from a Primitive) are solids. Two surfaces collide when triangles intersect; with `detect_containment` a mesh
 // lying entirely inside a closed mesh (no triangle crossing) also counts, found by a
 // generalized-winding-number test. Distances are exact separations between the surfaces
 // when apart. In collision they are <= 0 but not a full penetration depth (which would be
@@ -24,6 +24,7 @@
 #include <Eigen/Geometry>
 
 #include "pickplan/geometry/mesh.hpp"
+#include "pickplan/geometry/primitives.hpp"
 #include "pickplan/core/robot.hpp"
 #include "pickplan/core/transform.hpp"
 
@@ -31,11 +32,21 @@ namespace pickplan {
 
 // A mesh with what depends only on it: its FCL bounding-volume hierarchy and bounds, in its own
 // frame. Built once per object or link and shared (immutable) by every checker that places it,
-// so a new scene of known objects builds no BVH.
+// so a new scene of known objects builds no BVH. Or a solid primitive (FCL's box, cylinder,
+// sphere: exact, and solid like the table, so a link inside it collides and a penetration
+// depth is reported); its mesh() then encloses it (containment probes, bounds of the mesh).
 class CollisionShape {
  public:
   // Throws std::invalid_argument ("<what>: ...") for an empty, degenerate or non-finite mesh.
   explicit CollisionShape(TriangleMesh mesh, const std::string& what = "mesh");
+  // Throws std::invalid_argument for non-positive or non-finite dimensions.
+  explicit CollisionShape(const Primitive& primitive, const std::string& what = "primitive");
+  // A convex solid (FCL's Convex: one GJK query per pair instead of a walk down a BVH). `hull`
+  // must be convex (a convex hull); the caller vouches for it.
+  static std::shared_ptr<CollisionShape> convex(TriangleMesh hull, const std::string& what = "convex");
+  bool solid() const { return solid_; }
+  // The primitive, when the shape is one (exact distance bounds for culling).
+  const Primitive* primitive() const { return has_primitive_ ? &primitive_ : nullptr; }
   ~CollisionShape();
   CollisionShape(const CollisionShape&) = delete;
   CollisionShape& operator=(const CollisionShape&) = delete;
@@ -53,7 +64,11 @@ class CollisionShape {
   Eigen::AlignedBox3d box_;
   Eigen::Vector3d center_;
   double radius_ = 0;
+  bool solid_ = false;
+  bool has_primitive_ = false;
+  Primitive primitive_;
   std::unique_ptr<Bvh> bvh_;
+  CollisionShape() = default;
 };
 
 struct LinkMesh {
@@ -122,6 +137,8 @@ class CollisionChecker {
   int num_pairs() const { return static_cast<int>(pairs_.size()); }  // pairs actually checked
   std::vector<std::pair<std::string, std::string>> checked_pairs() const;
   std::vector<std::string> object_names() const;
+  // Per robot link: how far its checked geometry reaches from the link frame's origin (0 without any).
+  std::vector<double> link_reach() const;
 
   // q: dof finite values (validated). The workspace overloads do not allocate.
   bool in_collision(const double* q, CollisionWorkspace& ws) const;

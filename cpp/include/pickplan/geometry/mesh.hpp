@@ -27,6 +27,9 @@ struct TriangleMesh {
   TriangleMesh transformed(const Transform& T) const;
   // Concatenation (indices of `other` shifted).
   void append(const TriangleMesh& other);
+  // Generalized winding number of the (closed, possibly not watertight) surface around p:
+  // ~1 inside, ~0 outside (Jacobson et al. 2013).
+  double winding_number(const Eigen::Vector3d& p) const;
 
   // Closed, outward-oriented primitives centred at the origin (cylinder and its axis along z).
   static TriangleMesh box(const Eigen::Vector3d& size);

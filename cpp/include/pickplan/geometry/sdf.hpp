@@ -1,13 +1,15 @@
 #pragma once
 // Signed distance fields: a dense grid per object mesh (exact distance to the triangles near
 // the surface, closest-triangle propagation elsewhere, sign by 3-axis ray-parity vote so small
-// holes do not flip it), and a SceneSdf of posed grids plus an analytic table box.
+// holes do not flip it), and a SceneSdf of posed grids and analytic primitives (boxes,
+// cylinders, spheres: closed forms, no grid) plus an analytic table box.
 #include <cstdint>
 #include <memory>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "pickplan/geometry/primitives.hpp"
 #include "pickplan/geometry/sdf_merged.hpp"
 #include "pickplan/core/transform.hpp"
 
@@ -69,15 +71,23 @@ struct SdfQuery {
 class SceneSdf {
  public:
   struct Body {
-    std::shared_ptr<const SdfGrid> grid;
-    Transform pose;          // grid frame in the world
+    std::shared_ptr<const SdfGrid> grid;  // null for an analytic primitive
+    Primitive primitive;     // used when grid is null
+    Transform pose;          // grid (primitive) frame in the world
     Transform inverse;       // world into grid frame
     Eigen::Vector3d lo, hi;  // surface box (see SdfGrid::surface_lo) in the grid frame
+    double slack = 0;        // how far the interpolated value may sit below the true distance
+    // Signed distance at a point in the body's frame (gradient in that frame).
+    double local_distance(const Eigen::Vector3d& p, Eigen::Vector3d* gradient = nullptr) const {
+      return grid ? grid->distance(p, gradient) : primitive.signed_distance(p, gradient);
+    }
   };
 
   SceneSdf() = default;
   // Adds an object; returns its index (used by exclusion masks; at most 64 objects).
   int add_object(std::shared_ptr<const SdfGrid> grid, const Transform& pose);
+  // Adds a solid primitive, queried in closed form; same index space and limits as add_object.
+  int add_primitive(const Primitive& primitive, const Transform& pose);
   void set_table(const Eigen::Vector3d& size, const Transform& pose);
   void clear_table() { has_table_ = false; }
 

@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "pickplan/omg/chomp.hpp"
 #include "pickplan/geometry/collision.hpp"
 #include "pickplan/core/ik.hpp"
@@ -28,6 +30,9 @@ struct GoalSetSettings {
                              // in a seeded random order until this many goals are kept
   int max_solutions = 4;     // distinct IK solutions tried per grasp before giving up on it
   unsigned seed = 0;         // the trial order (so which goals are kept: a seeded, uniform subset)
+  // World direction the hand moves in along the standoff (unit, or zero: the hand's own +z, a
+  // grasp's approach). A place sets gravity: the held object comes down onto its support.
+  Eigen::Vector3d approach = Eigen::Vector3d::Zero();
 };
 
 struct GoalSet {

@@ -1,0 +1,81 @@
+// Bindings of RRT-Connect and the motion check (pickplan/omg/rrt_connect.hpp).
+#include "../common.hpp"
+#include "pickplan/omg/rrt_connect.hpp"
+
+namespace pickplan::bind {
+
+namespace {
+
+Trajectory path_arg(const MotionPlanner& p, const Array& a, const char* what) {
+  const int dof = p.checker().robot().dof();
+  const std::string desc = "(k, " + std::to_string(dof) + ")";
+  require_shape(what, a, {-1, dof}, desc.c_str());
+  require_finite_array(what, a);
+  return Eigen::Map<const Trajectory>(a.data(), a.shape(0), a.shape(1));
+}
+
+}  // namespace
+
+void init_rrt_connect(py::module_& m) {
+  py::enum_<RrtStatus>(m, "RrtStatus")
+      .value("solved", RrtStatus::solved)
+      .value("timeout", RrtStatus::timeout)
+      .value("iterations", RrtStatus::iterations)
+      .value("invalid_start", RrtStatus::invalid_start)
+      .value("invalid_goals", RrtStatus::invalid_goals);
+  py::class_<RrtSettings>(m, "RrtSettings")
+      .def(py::init<>())
+      .def_readwrite("range", &RrtSettings::range)
+      .def_readwrite("resolution", &RrtSettings::resolution)
+      .def_readwrite("max_iterations", &RrtSettings::max_iterations)
+      .def_readwrite("time_limit", &RrtSettings::time_limit)
+      .def_readwrite("seed", &RrtSettings::seed)
+      .def_readwrite("goal_bias", &RrtSettings::goal_bias)
+      .def_readwrite("certified", &RrtSettings::certified)
+      .def_readwrite("active", &RrtSettings::active);
+  py::class_<MotionPlanner>(m, "MotionPlanner", "RRT-Connect, shortcutting and the motion check on an FCL checker.")
+      .def(py::init<const CollisionChecker&, RrtSettings>(), py::arg("checker"), py::arg("settings") = RrtSettings{},
+           py::keep_alive<1, 2>())
+      .def_property_readonly("motion_factors", [](const MotionPlanner& p) { return p.bound().factors(); })
+      .def(
+          "rrt_connect",
+          [](const MotionPlanner& p, const Array& start, const Array& goals) {
+            Array s = configuration(p.checker().robot(), start, "start");
+            const Eigen::VectorXd q0 = Eigen::Map<const Eigen::VectorXd>(s.data(), s.shape(0));
+            const Trajectory G = path_arg(p, goals, "goals");
+            RrtResult r;
+            {
+              py::gil_scoped_release release;
+              r = p.rrt_connect(q0, G);
+            }
+            py::dict d;
+            d["status"] = r.status;
+            d["path"] = r.path;
+            d["goal"] = r.goal;
+            d["iterations"] = r.iterations;
+            d["checks"] = r.checks;
+            d["nodes"] = r.nodes;
+            d["seconds"] = r.seconds;
+            return d;
+          },
+          py::arg("start"), py::arg("goals"), "RRT-Connect from start to any row of goals: a dict (status, path, ...).")
+      .def(
+          "shortcut",
+          [](const MotionPlanner& p, const Array& path, int attempts, std::uint64_t seed) {
+            const Trajectory P = path_arg(p, path, "path");
+            if (attempts < 0) throw std::invalid_argument("attempts: expected >= 0");
+            py::gil_scoped_release release;
+            return p.shortcut(P, attempts, seed);
+          },
+          py::arg("path"), py::arg("attempts") = 100, py::arg("seed") = 0)
+      .def(
+          "first_invalid_segment",
+          [](const MotionPlanner& p, const Array& path) {
+            const Trajectory P = path_arg(p, path, "path");
+            py::gil_scoped_release release;
+            return p.first_invalid_segment(P);
+          },
+          py::arg("path"), "The first segment (row i -> i + 1) failing the motion check, or -1.");
+}
+
+}  // namespace pickplan::bind

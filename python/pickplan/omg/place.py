@@ -1,0 +1,311 @@
+"""Place requests and place goal sets: where the held object should go, as a goal set.
+
+A ``PlaceRequest`` names a region, an axis-aligned box whose floor lies on a support surface (an area
+of the table, the inside of a bin), and an orientation rule: ``upright`` (the pose the object was in,
+yaw free), ``stable`` (any stable resting pose of the object, ``ObjectModel.resting_poses``, most
+likely first) or ``pose`` (a given rotation, within ``tolerance_deg``). Yaw is free unless
+``yaw_deg`` is given.
+
+The place goal set is the OMG goal set of a place: resting rotations x yaws x positions in the region
+(the object's whole mesh inside the box, its lowest point ``gap`` above the floor), mapped through the
+grasp in hand (``HeldObject.hand_pose``) to hand poses, then the native goal-set builder: IK, a
+set-down approach straight along gravity (``GoalSetSettings.approach``), FCL for the robot and the
+held object, the approach clearance of the held object's and the robot's body points. Every
+candidate keeps its reason; an empty set says why (``no_place_goals: region out of reach``, ``...
+region too small for the object``, ``... region blocked``).
+
+>>> request = PlaceRequest.load("region.json")
+>>> goals = build_place_goal_set(carrying, request, q_lift)   # carrying: attach.HeldWorld
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from typing import List, Optional, Tuple
+
+import numpy as np
+from scipy.spatial import ConvexHull
+
+from pickplan import _core
+from pickplan.core.fields import FieldReader
+from pickplan.core.io import read_json
+from pickplan.core.settings import Option
+from pickplan.omg.attach import HeldCheck, HeldObject, HeldWorld
+from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, ik_solver
+
+
+class Orientation(Option):
+    """How the placed object must be turned."""
+
+    upright = "upright"  # as it stood before the pick (yaw free unless asked)
+    stable = "stable"    # any stable resting pose of the object
+    pose = "pose"        # a given rotation, within tolerance_deg
+
+
+class PlaceVerdict(Option):
+    """Why a place goal set is empty (``PlaceGoalSet.verdict``)."""
+
+    ok = "ok"
+    no_support = "region floor not on the support (the table top)"
+    too_small = "region too small for the object"
+    out_of_reach = "region out of reach"
+    blocked = "region blocked"
+
+
+@dataclass(frozen=True)
+class PlaceRequest:
+    """Where to put the held object: the box [``region_min``, ``region_max``] (world, metres) the whole
+    object must end inside, its floor on a support (the table top); the orientation rule; yaw."""
+
+    region_min: Tuple[float, float, float]
+    region_max: Tuple[float, float, float]
+    orientation: Orientation = Orientation.upright
+    rotation: Optional[Tuple[Tuple[float, ...], ...]] = None  # (3, 3) object -> world, for Orientation.pose
+    tolerance_deg: float = 10.0      # the placed object's up axis within this of the planned one
+    yaw_deg: Optional[float] = None  # a fixed yaw about the world's z (None: free)
+    yaw_tolerance_deg: float = 15.0
+
+    def __post_init__(self):
+        lo, hi = np.asarray(self.region_min, float), np.asarray(self.region_max, float)
+        if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
+            raise ValueError("place region: region_min and region_max must be 3 finite numbers each")
+        if not np.all(hi > lo):
+            raise ValueError(f"place region: region_max {hi.tolist()} must exceed region_min {lo.tolist()} on every axis")
+        object.__setattr__(self, "region_min", tuple(float(v) for v in lo))
+        object.__setattr__(self, "region_max", tuple(float(v) for v in hi))
+        object.__setattr__(self, "orientation", Orientation.parse(self.orientation, "place orientation"))
+        if self.orientation is Orientation.pose:
+            R = np.asarray(self.rotation if self.rotation is not None else np.zeros((0,)), float)
+            if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-4) or np.linalg.det(R) < 0:
+                raise ValueError("place rotation: orientation 'pose' needs a (3, 3) rotation matrix")
+            object.__setattr__(self, "rotation", tuple(tuple(float(v) for v in row) for row in R))
+        for name in ("tolerance_deg", "yaw_tolerance_deg"):
+            if not 0 < getattr(self, name) <= 180:
+                raise ValueError(f"{name}: expected degrees in (0, 180], got {getattr(self, name)}")
+        if self.yaw_deg is not None and not math.isfinite(self.yaw_deg):
+            raise ValueError(f"yaw_deg: expected a number or null, got {self.yaw_deg}")
+
+    @property
+    def floor(self) -> float:
+        return self.region_min[2]
+
+    def to_dict(self) -> dict:
+        return {"region": {"min": list(self.region_min), "max": list(self.region_max)},
+                "orientation": self.orientation.value,
+                **({"rotation": [list(r) for r in self.rotation]} if self.rotation is not None else {}),
+                "tolerance_deg": self.tolerance_deg, "yaw_deg": self.yaw_deg,
+                "yaw_tolerance_deg": self.yaw_tolerance_deg}
+
+    @classmethod
+    def from_dict(cls, d: dict, path: Optional[str] = None) -> "PlaceRequest":
+        """A request from its JSON form; ``InputError`` naming (the file ``path`` and) every wrong field."""
+        r = FieldReader(path)
+        with r:
+            d = r.table(d, "", known=("region", "orientation", "rotation", "tolerance_deg", "yaw_deg",
+                                      "yaw_tolerance_deg"))
+            lo = hi = rotation = yaw = None
+            with r.part():
+                region = r.table(r.key(d, "region"), "region", known=("min", "max"))
+                lo = r.get(region, "min", "region", r.vector, n=3)
+                hi = r.get(region, "max", "region", r.vector, n=3)
+                if lo is not None and hi is not None and not all(b > a for a, b in zip(lo, hi)):
+                    r.note("region.max", f"must exceed region.min {list(lo)} on every axis, got {list(hi)}")
+            orientation = r.get(d, "orientation", "", r.choice, default="upright", required=False,
+                                options=[o.value for o in Orientation])
+            if d.get("rotation") is not None:
+                rotation = r.get(d, "rotation", "", r.array, shape=(3, 3))
+                if rotation is not None and (not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-4)
+                                             or np.linalg.det(rotation) < 0):
+                    r.note("rotation", "not a rotation matrix (orthonormal, determinant 1)")
+            elif orientation == Orientation.pose.value:
+                r.note("rotation", "missing: orientation 'pose' needs a (3, 3) rotation matrix")
+            angle = {"lo": 0.0, "hi": 180.0, "low_open": True, "unit": "deg"}
+            tolerance = r.get(d, "tolerance_deg", "", r.number, default=10.0, required=False, **angle)
+            if d.get("yaw_deg") is not None:
+                yaw = r.get(d, "yaw_deg", "", r.number, unit="deg")
+            yaw_tolerance = r.get(d, "yaw_tolerance_deg", "", r.number, default=15.0, required=False, **angle)
+        return cls(lo, hi, orientation, None if rotation is None else rotation.tolist(), tolerance, yaw, yaw_tolerance)
+
+    @classmethod
+    def load(cls, path: str) -> "PlaceRequest":
+        """A request from a JSON file; ``InputError`` naming the file and the field when it is wrong."""
+        return cls.from_dict(read_json(path, "place request file"), path=str(path))
+
+
+@dataclass(frozen=True)
+class PlaceSettings:
+    """How place goal sets are built (the goal set's own settings: ``goals``)."""
+
+    yaws: int = 8                    # yaw samples over a full turn when the yaw is free
+    position_step: float = 0.02      # m between candidate positions on the region's floor
+    max_candidates: int = 600        # a seeded subset when the grid is larger
+    gap: float = 0.004               # m: the object's lowest point above the floor at release
+    # m kept between the object and the region's sides where the region is wide enough (less where it is
+    # not): an object set down at the very edge leaves the region when it shifts in the hand by a little
+    margin: float = 0.02
+    max_rests: int = 3               # stable resting poses tried (most likely first)
+    seed: int = 0
+    floor_tolerance: float = 0.01    # m between the region's floor and the support plane
+    # The set-down: straight down from standoff above the place. Its first configuration (the pre-place)
+    # must keep the transit's clearance (the success test's ``MetricSettings.clearance``, ``preplace_clearance``):
+    # the transit arrives there, so a pre-place closer to an object would fail every plan.
+    # 20 goals (a grasp's 30): places are many and alike, and the goal-cost estimates scale with the goals
+    goals: GoalSetSettings = field(default_factory=lambda: GoalSetSettings(standoff=0.15, standoff_steps=5,
+                                                                            approach_clearance=0.01, max_goals=20))
+    preplace_clearance: float = 0.05
+    # 8 IK seeds (a grasp's 24): a place out of reach from 8 seeds has neighbours in the grid to try
+    ik: IkSettings = field(default_factory=lambda: IkSettings(num_seeds=8))
+
+
+@dataclass
+class PlaceGoalSet:
+    """A place goal set: the goal set (its ``grasps`` are the hand poses in the world) and, per
+    candidate, the object's world pose; ``verdict`` says why it is empty."""
+
+    goal_set: GoalSet
+    object_poses: np.ndarray    # (C, 4, 4) candidate object poses
+    verdict: PlaceVerdict
+    seconds: float
+
+    def __len__(self) -> int:
+        return len(self.goal_set)
+
+    @property
+    def reason(self) -> str:
+        """"" for a non-empty set, else ``no_place_goals: <why>``."""
+        return "" if self.verdict is PlaceVerdict.ok else f"no_place_goals: {self.verdict.value}"
+
+    def reason_counts(self) -> dict:
+        return self.goal_set.reason_counts()
+
+
+def _yaw(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _tilt(rotation: np.ndarray) -> np.ndarray:
+    """The rotation with its yaw removed: only how the object is tilted (its up axis in the object)."""
+    R = np.asarray(rotation, float)
+    x = R[:, 0] - R[2, 0] * np.array([0, 0, 1.0])
+    if np.linalg.norm(x) < 1e-6:  # the object's x points up: use y for the heading
+        x = R[:, 1] - R[2, 1] * np.array([0, 0, 1.0])
+        return _yaw(-math.atan2(x[1], x[0]) + math.pi / 2) @ R
+    return _yaw(-math.atan2(x[1], x[0])) @ R
+
+
+def resting_rotations(request: PlaceRequest, current_pose: np.ndarray, model=None, max_rests: int = 3) -> List[np.ndarray]:
+    """The object's rotations to place it in, yaw not yet applied: upright = as it stands now; stable =
+    its resting poses, most likely first; pose = the given rotation."""
+    if request.orientation is Orientation.pose:
+        return [np.asarray(request.rotation, float)]
+    if request.orientation is Orientation.upright or model is None:
+        return [_tilt(np.asarray(current_pose, float)[:3, :3])]
+    poses = list(model.resting_poses)
+    p = list(model.resting_probabilities) if len(model.resting_probabilities) == len(poses) else [1.0] * len(poses)
+    order = sorted(range(len(poses)), key=lambda i: -p[i])[:max_rests]
+    return [np.asarray(poses[i], float)[:3, :3] for i in order]
+
+
+def _yaws(request: PlaceRequest, settings: PlaceSettings) -> np.ndarray:
+    if request.yaw_deg is not None:
+        return np.array([math.radians(request.yaw_deg)])
+    return 2 * np.pi * np.arange(settings.yaws) / settings.yaws
+
+
+def candidate_poses(request: PlaceRequest, vertices: np.ndarray, rotations: List[np.ndarray],
+                    settings: PlaceSettings) -> np.ndarray:
+    """(C, 4, 4) object poses: every rotation x yaw x grid position on the region's floor with the
+    object's ``vertices`` (object frame) all inside the box, the lowest ``gap`` above the floor."""
+    lo, hi = np.asarray(request.region_min), np.asarray(request.region_max)
+    V = np.asarray(vertices, float)
+    if len(V) > 64:  # the hull's vertices bound the same extents (qhull alone: trimesh's hull also repairs a mesh)
+        V = V[ConvexHull(V).vertices]
+    out = []
+    for R0 in rotations:
+        for yaw in _yaws(request, settings):
+            R = _yaw(yaw) @ R0
+            W = V @ R.T
+            vmin, vmax = W.min(axis=0), W.max(axis=0)
+            z = lo[2] + settings.gap - vmin[2]
+            xlo, xhi = lo[:2] - vmin[:2], hi[:2] - vmax[:2]  # the origin's range keeping the object inside
+            if z + vmax[2] > hi[2] or np.any(xhi < xlo):
+                continue
+            keep = np.clip((xhi - xlo) / 2, 0.0, settings.margin)
+            xlo, xhi = xlo + keep, xhi - keep
+            axes = [np.arange(a, b + 1e-9, settings.position_step) if b - a >= settings.position_step
+                    else np.array([(a + b) / 2]) for a, b in zip(xlo, xhi)]
+            xy = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+            T = np.repeat(np.eye(4)[None], len(xy), axis=0)
+            T[:, :3, :3], T[:, :2, 3], T[:, 2, 3] = R, xy, z
+            out.append(T)
+    poses = np.concatenate(out) if out else np.zeros((0, 4, 4))
+    if len(poses) > settings.max_candidates:
+        keep = np.sort(np.random.default_rng(settings.seed).choice(len(poses), settings.max_candidates, replace=False))
+        poses = poses[keep]
+    return poses
+
+
+_REACH = ("unreachable", "standoff_unreachable")
+
+
+def _verdict(candidates: int, reasons: list, kept: int) -> PlaceVerdict:
+    if kept:
+        return PlaceVerdict.ok
+    if candidates == 0:
+        return PlaceVerdict.too_small
+    return PlaceVerdict.out_of_reach if all(r in _REACH for r in reasons) else PlaceVerdict.blocked
+
+
+def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.ndarray,
+                         settings: PlaceSettings = PlaceSettings(), model=None, clock=time.perf_counter) -> PlaceGoalSet:
+    """The place goal set of ``request`` for the object ``carrying`` holds, from ``start`` (the lifted
+    configuration); ``model`` (the object's ``ObjectModel``) gives the stable resting poses; ``clock``
+    times it."""
+    t0 = clock()
+    held: HeldObject = carrying.held
+    normal, offset = carrying.support_plane
+    centre = 0.5 * (np.asarray(request.region_min) + np.asarray(request.region_max))
+    if abs(normal @ np.array([centre[0], centre[1], request.floor]) - offset) > settings.floor_tolerance:
+        empty = GoalSet(np.zeros((0, carrying.robot.dof)), np.zeros((0, 0, carrying.robot.dof)), np.zeros(0, int),
+                        np.zeros((0, 4, 4)), [], 0.0)
+        return PlaceGoalSet(empty, np.zeros((0, 4, 4)), PlaceVerdict.no_support, clock() - t0)
+    current = carrying.base.target_pose
+    vertices = held.mesh.vertices if held.mesh is not None else held.points
+    rotations = resting_rotations(request, current, model, settings.max_rests)
+    poses = candidate_poses(request, np.asarray(vertices), rotations, settings)
+    hands = held.hand_pose(poses) if len(poses) else np.zeros((0, 4, 4))
+    checker = carrying.checker(HeldCheck.carry)
+    hand_checker = carrying.checker(HeldCheck.hand)
+    gs_settings = replace(settings.goals, approach=(0.0, 0.0, -1.0))
+    out = _core.build_goal_set(ik_solver(carrying, settings.ik), None if checker is None else checker.native,
+                               None if hand_checker is None else hand_checker.native, hands,
+                               np.asarray(start, float), gs_settings.to_native(), carrying.clearance_problem,
+                               float(settings.goals.approach_clearance))
+    reasons = list(out["reasons"])
+    gs = _preplace_clear(carrying, GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]),
+                                           np.asarray(out["grasp_index"], int), hands, reasons, float(out["seconds"])),
+                         settings.preplace_clearance)
+    return PlaceGoalSet(gs, poses, _verdict(len(poses), gs.reasons, len(gs)), clock() - t0)
+
+
+def _preplace_clear(carrying: HeldWorld, gs: GoalSet, clearance: float) -> GoalSet:
+    """The goals whose pre-place keeps ``clearance`` (robot and held object from every object, the
+    target's old place and the table left out); the others' reason: "preplace_clearance"."""
+    if len(gs) == 0 or clearance <= 0:
+        return gs
+    X = carrying.robot.transform_points(gs.tails[:, 0], carrying.body)
+    d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=clearance, exclude=(carrying.target,), exclude_table=True)
+    keep = d.reshape(len(X), -1).min(axis=1) >= clearance
+    for g in np.flatnonzero(~keep):
+        gs.reasons[gs.grasp_index[g]] = "preplace_clearance"
+    return GoalSet(gs.goals[keep], gs.tails[keep], gs.grasp_index[keep], gs.grasps, gs.reasons, gs.seconds)
+
+
+def reason_summary(place: PlaceGoalSet) -> str:
+    """``no_place_goals: <verdict>`` with the candidates' reasons counted."""
+    counts = Counter(place.goal_set.reasons)
+    detail = ", ".join(f"{k} {v}" for k, v in counts.most_common())
+    return place.reason + (f" ({len(place.object_poses)} candidates: {detail})" if detail else "")

@@ -1,0 +1,142 @@
+"""Place requests and place goal sets (omg.place): requests checked at the door, candidates inside the
+region by exact geometry, every goal of a set puts the object at rest in the region (dropped in
+PyBullet), and an empty set says why."""
+import json
+
+import numpy as np
+import pybullet as pb
+import pytest
+
+from pickplan.core import objects
+from pickplan.core.errors import InputError
+from pickplan.omg.attach import HeldWorld, held_from_poses, straight_path
+from pickplan.omg.goals import GoalSetSettings
+from pickplan.omg.place import (
+    Orientation,
+    PlaceRequest,
+    PlaceSettings,
+    PlaceVerdict,
+    build_place_goal_set,
+    candidate_poses,
+    resting_rotations,
+)
+from pickplan.omg.world import World
+from pickplan.sim import bodies, scenes
+from test_attach import BOX, _ik
+
+from conftest import standing_pose
+
+CAN = "005_tomato_soup_can"
+
+
+@pytest.fixture(scope="module")
+def held_case():
+    """The sugar box held from above by its top, lifted 10 cm; a soup can beside it."""
+    lib = objects.library("builtin")
+    box, can = lib.get(BOX), lib.get(CAN)
+    box_pose, can_pose = standing_pose(box, (0.5, 0.0)), standing_pose(can, (0.5, 0.25))
+    scene = scenes.Scene(np.eye(4), scenes.default_table(),
+                         [scenes.SceneObject(BOX, f"builtin:{BOX}", box_pose),
+                          scenes.SceneObject(CAN, f"builtin:{CAN}", can_pose)], BOX, seed=0)
+    world = World(scene)
+    robot = world.robot
+    top = float((box.mesh.vertices @ box_pose[:3, :3].T + box_pose[:3, 3])[:, 2].max())
+    hand = np.eye(4)
+    thin = box_pose[:3, int(np.argmin(box.extents))]
+    hand[:3, 2] = [0.0, 0.0, -1.0]
+    hand[:3, 1] = thin if thin[1] >= 0 else -thin
+    hand[:3, 0] = np.cross(hand[:3, 1], hand[:3, 2])
+    hand[:3, 3] = [0.5, 0.0, top - 0.03 + robot.grasp_frame[2, 3]]
+    carrying = HeldWorld(world, held_from_poses(BOX, hand, box_pose, box.mesh))
+    q_grasp = _ik(robot, hand, robot.ready_configuration)
+    lift, ok = straight_path(carrying.robot, q_grasp, (0, 0, 1), 0.1, 5)
+    assert ok
+    return world, carrying, lift[-1], box
+
+
+def test_request_files_are_checked_at_the_door(tmp_path):
+    good = {"region": {"min": [0.4, -0.4, 0.0], "max": [0.6, -0.2, 0.4]}, "orientation": "stable"}
+    path = tmp_path / "region.json"
+    path.write_text(json.dumps(good))
+    request = PlaceRequest.load(str(path))
+    assert request.orientation is Orientation.stable and request.floor == 0.0
+    assert PlaceRequest.from_dict(request.to_dict()) == request
+    for bad, field in (({"region": {"min": [0, 0, 0], "max": [0.1, -0.1, 0.2]}}, "region.max"),
+                       ({"region": {"min": [0, 0]}}, "region.min"),
+                       ({**good, "tolerance_deg": 0}, "tolerance_deg"),
+                       ({**good, "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 2]]}, "rotation"),
+                       ({**good, "orientation": "sideways"}, "orientation"),
+                       ({**good, "orientation": "pose"}, "rotation"),
+                       ({**good, "colour": "red"}, "colour")):
+        path.write_text(json.dumps(bad))
+        with pytest.raises(InputError) as err:
+            PlaceRequest.load(str(path))
+        assert str(path) in str(err.value) and field in str(err.value)
+    path.write_text(json.dumps({"region": {"min": [0, 0, 0], "max": [1, 1, -1]}, "yaw_deg": "north"}))
+    with pytest.raises(InputError) as err:  # every problem at once
+        PlaceRequest.load(str(path))
+    assert {p.field for p in err.value.problems} == {"region.max", "yaw_deg"}
+    path.write_text("{not json")
+    with pytest.raises(InputError):
+        PlaceRequest.load(str(path))
+
+
+def test_candidates_keep_the_whole_object_inside_the_region(held_case):
+    _, carrying, _, box = held_case
+    request = PlaceRequest((0.35, -0.45, 0.0), (0.65, -0.2, 0.4), "stable")
+    settings = PlaceSettings()
+    rotations = resting_rotations(request, carrying.base.target_pose, box, settings.max_rests)
+    assert len(rotations) == min(settings.max_rests, len(box.resting_poses))
+    poses = candidate_poses(request, box.mesh.vertices, rotations, settings)
+    assert len(poses) > 50
+    V = np.einsum("nij,vj->nvi", poses[:, :3, :3], box.mesh.vertices) + poses[:, None, :3, 3]
+    assert V[..., :2].min() >= -0.45 - 1e-12 and V[..., 0].min() >= 0.35 - 1e-12
+    assert V[..., 0].max() <= 0.65 + 1e-12 and V[..., 1].max() <= -0.2 + 1e-12
+    np.testing.assert_allclose(V[..., 2].min(axis=1), settings.gap, atol=1e-12)  # lowest point: gap above the floor
+
+
+def _rest(client, body, model, seconds=1.5):
+    for _ in range(int(seconds * 240)):
+        pb.stepSimulation(physicsClientId=client)
+    v, w = pb.getBaseVelocity(body, physicsClientId=client)
+    return scenes.object_pose(client, body, model), float(np.linalg.norm(v)), float(np.linalg.norm(w))
+
+
+@pytest.mark.parametrize("orientation", ["upright", "stable"])
+def test_every_place_goal_puts_the_object_at_rest_in_the_region(held_case, orientation):
+    world, carrying, start, box = held_case
+    request = PlaceRequest((0.35, -0.45, 0.0), (0.65, -0.2, 0.4), orientation)
+    goals = build_place_goal_set(carrying, request, start, PlaceSettings(goals=GoalSetSettings(max_goals=12, standoff=0.1)), model=box)
+    assert goals.verdict is PlaceVerdict.ok and len(goals) >= 5, goals.reason_counts()
+    robot = carrying.robot
+    for g, q in enumerate(goals.goal_set.goals):
+        hand = robot.link_pose(q, robot.hand_link)
+        planned = carrying.held.object_pose(hand)
+        np.testing.assert_allclose(planned, goals.object_poses[goals.goal_set.grasp_index[g]], atol=2e-3)
+        client = pb.connect(pb.DIRECT)
+        try:
+            pb.setGravity(0, 0, -9.81, physicsClientId=client)
+            bodies.add_table(client, world.scene.table)
+            body = bodies.add_object_body(client, box, planned)
+            final, v, w = _rest(client, body, box)
+        finally:
+            pb.disconnect(client)
+        hull = box.mesh.convex_hull.vertices @ final[:3, :3].T + final[:3, 3]
+        assert v < 0.01 and w < 0.1
+        assert np.all(hull >= np.array(request.region_min) - 0.005) and np.all(hull <= np.array(request.region_max) + 0.005)
+        up = np.clip((final[:3, :3].T @ [0, 0, 1]) @ (planned[:3, :3].T @ [0, 0, 1]), -1, 1)
+        assert np.degrees(np.arccos(up)) < 5.0  # it lands as planned, not toppled
+
+
+def test_an_empty_place_goal_set_says_why(held_case):
+    _, carrying, start, box = held_case
+    small = PlaceRequest((0.5, -0.3, 0.0), (0.53, -0.27, 0.4))                  # 3 x 3 cm: the box does not fit
+    far = PlaceRequest((1.0, 0.65, 0.0), (1.09, 0.78, 0.4))                     # beyond the arm's reach
+    can = carrying.base.scene.object(CAN).pose                                   # only the can's own footprint
+    blocked = PlaceRequest((can[0, 3] - 0.07, can[1, 3] - 0.07, 0.0), (can[0, 3] + 0.07, can[1, 3] + 0.07, 0.4))
+    shelf = PlaceRequest((0.4, -0.4, 0.2), (0.6, -0.2, 0.5))                    # a floor in mid-air
+    for request, verdict in ((small, PlaceVerdict.too_small), (far, PlaceVerdict.out_of_reach),
+                             (blocked, PlaceVerdict.blocked), (shelf, PlaceVerdict.no_support)):
+        goals = build_place_goal_set(carrying, request, start, model=box)
+        assert len(goals) == 0 and goals.verdict is verdict, goals.reason_counts()
+        assert goals.reason == f"no_place_goals: {verdict.value}"
