@@ -38,7 +38,7 @@ from pickplan.eval.methods import OPTIONAL_METHODS, Table, all_methods, method_s
 from pickplan.eval.plots import STAGES
 from pickplan.eval.summaries import UNIT_ERROR
 from pickplan.omg import grasps as grasps_mod
-from pickplan.omg.grasps import KINDS, GraspKind
+from pickplan.omg.grasps import KINDS, GraspKind, GraspSet
 from pickplan.omg.grasps.generators import SupportFilter
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.planner import OMGPlanner, PlanStatus, target_graspability
@@ -200,7 +200,8 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
 _WORKER_MODELS = ModelCache()
 
 
-def _unit_grasps(world: World, scene: Scene, kind: str, n: int, robot: str):
+def _unit_grasps(world: World, scene: Scene, kind: str, n: int, robot: str) -> GraspSet:
+    """The unit's grasp set of the target (its poses, and what the generator rejected)."""
     aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot)} if kind == "antipodal" else {}
 
     def build():

@@ -176,7 +176,7 @@ def run_pickplace_unit(unit: dict) -> dict:
         return record
     world_settings = world.settings
     settings = unit_settings(unit, method, world_settings)
-    grasps = _unit_grasps(world, scene, settings.pick.grasp_kind, unit["grasp_candidates"], world_settings.robot)
+    grasps = _unit_grasps(world, scene, settings.pick.grasp_kind, unit["grasp_candidates"], world_settings.robot).poses
     planner = PickPlacePlanner(OMGPlanner(None, scene, settings.pick, world=world), request, settings,
                                transfer=transfer_planner(method, settings, unit["max_goals_tried"], unit["time_limit"]))
     plan = planner.plan(grasps=grasps)
