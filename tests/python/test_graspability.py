@@ -10,7 +10,7 @@ from pickplan.cli.bench import object_markdown, object_rows, settings_from_args
 from pickplan.core import objects, robots
 from pickplan.core.graspability import graspability
 from pickplan.eval.experiments import SweepSettings, sweep_fingerprint
-from pickplan.eval.summaries import summarize, summarize_by_object
+from pickplan.eval.summaries import slip_cell, summarize, summarize_by_object
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
 from pickplan.sim import scenes
 
@@ -105,6 +105,26 @@ def test_sweep_summaries_count_ungraspable_apart_with_per_object_rows():
     assert {r["object"] for r in csv_rows} == {"pen_00", "dish_00", "flat_box_02"}
     assert next(r for r in csv_rows if r["object"] == "pen_00")["no_goals_reasons"] == \
         "support_penetration:7;unreachable:2"
+
+
+def test_slip_is_the_median_over_lifted_units_and_undefined_without_one():
+    """Slip in the hand: the median over lifted units only (a dropped unit's slip does not count), a
+    unit slipped beyond 1 cm or 10 degrees counted; with nothing lifted (e.g. not executed) it is None,
+    so two summaries of the same records are equal and the table cell reads n/a."""
+    records = [_record("pen_00", "OMG", "success", True, True, slip=0.002, slip_rotation=1.0),
+               _record("pen_00", "OMG", "success", True, True, slip=0.004, slip_rotation=12.0),
+               _record("pen_00", "OMG", "success", True, True, slip=0.030, slip_rotation=2.0),
+               _record("pen_00", "OMG", "success", True, False, slip=0.5, slip_rotation=90.0,
+                       execution_status="dropped")]
+    row = summarize(records, ["OMG"])["OMG"]
+    assert row["slip"] == pytest.approx(0.004) and row["slip_rotation"] == pytest.approx(2.0)
+    assert row["slipped"] == 2 and row["dropped"] == 1
+    assert slip_cell(row) == "4.0 / 2.0 (2)"
+    unexecuted = [{**r, "execution_success": False, "execution_run": False, "slip": None, "slip_rotation": None,
+                   "trajectory_duration": 2.0} for r in records]
+    first, second = summarize(unexecuted, ["OMG"]), summarize([dict(r) for r in unexecuted], ["OMG"])
+    assert first["OMG"]["slip"] is None and first == second
+    assert slip_cell(first["OMG"]) == "n/a"
 
 
 def test_bench_takes_the_scene_settings():

@@ -28,14 +28,15 @@ OUTCOMES = ("dropped", "missed", "collision")  # failed executions of successful
 
 
 def execution_outcomes(rs: Sequence[dict]) -> dict:
-    """Of units' records: the slip of the targets in the hand (median over lifted units, m and deg),
-    how many lifted targets slipped (``SLIPPED``), and the failed executions by status."""
+    """Of units' records: the slip of the targets in the hand (median over lifted units, m and deg;
+    None with no lifted unit, as for a column not run: nan would make two equal tables compare
+    unequal), how many lifted targets slipped (``SLIPPED``), and the failed executions by status."""
     lifted = [r for r in rs if r.get("execution_success")]
     slips = [r.get("slip") for r in lifted]
     turns = [r.get("slip_rotation") for r in lifted]
     known = [(a, b) for a, b in zip(slips, turns) if a is not None and b is not None and math.isfinite(a)]
-    return {"slip": float(np.median([a for a, _ in known])) if known else float("nan"),
-            "slip_rotation": float(np.median([b for _, b in known])) if known else float("nan"),
+    return {"slip": float(np.median([a for a, _ in known])) if known else None,
+            "slip_rotation": float(np.median([b for _, b in known])) if known else None,
             "slipped": sum(a > SLIPPED[0] or b > SLIPPED[1] for a, b in known),
             **{k: sum(r.get("execution_status") == k for r in rs) for k in OUTCOMES}}
 
@@ -109,7 +110,7 @@ def summarize_by_object(records: Sequence[dict], methods: Sequence[str]) -> Dict
 
 def slip_cell(c: dict) -> str:
     """A table cell of ``execution_outcomes``' slip: "mm / deg (slipped units)", n/a with no lifted unit."""
-    if not math.isfinite(c.get("slip", float("nan"))):
+    if c.get("slip") is None or not math.isfinite(c["slip"]):
         return "n/a"
     return f"{1000 * c['slip']:.1f} / {c['slip_rotation']:.1f} ({c['slipped']})"
 

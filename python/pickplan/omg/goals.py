@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Optional, Tuple
+from typing import ClassVar, Optional, Tuple
 
 import numpy as np
 
@@ -115,8 +115,11 @@ class GoalSetSettings:
     approach: Tuple[float, float, float] = (0.0, 0.0, 0.0)  # world direction of the standoff approach (unit;
                                                             # zero: the hand's +z; a place: gravity)
 
+    # What the Python side applies itself (the native struct has no such fields; the drift test reads this)
+    PYTHON_ONLY: ClassVar[Tuple[str, ...]] = ("approach_clearance", "quality", "verify")
+
     def to_native(self) -> "_core.GoalSetSettings":
-        return to_native(self, _core.GoalSetSettings, skip=("approach_clearance", "quality", "verify"))
+        return to_native(self, _core.GoalSetSettings, skip=self.PYTHON_ONLY)
 
 
 @dataclass
