@@ -1,5 +1,6 @@
 """The paper-table runner: a quick sweep gives complete, consistent tables; an interrupted sweep
 resumes to the same table; the baselines give valid trajectories; Ray started locally runs units."""
+import functools
 import io
 import json
 import math
@@ -186,15 +187,17 @@ def test_resuming_with_other_settings_is_refused(scene_dir, tmp_path):
 
     base = dict(out=str(tmp_path / "sweep"), scene_dir=scene_dir, runs=1, methods=("Fixed",), grasps=10,
                 workers=0, execute=False, progress=False)
-    assert len(E.run_sweep(E.SweepSettings("selection", **base), unit_fn=counting)) == 3
+    # the counting units plan nothing: no simulated grasp sets built for them (100 per target, minutes cold)
+    sweep = functools.partial(E.run_sweep, unit_fn=counting, warm_grasps=False)
+    assert len(sweep(E.SweepSettings("selection", **base))) == 3
     # More runs and another method only add units; the finished ones are reused.
     more = {**base, "runs": 2, "methods": ("Fixed", "MD")}
-    assert len(E.run_sweep(E.SweepSettings("selection", **more), unit_fn=counting)) == 12 and len(calls) == 12
+    assert len(sweep(E.SweepSettings("selection", **more))) == 12 and len(calls) == 12
     # A setting the units depend on may not change under the same folder: nothing is run or written.
     with pytest.raises(ValueError, match=r"other settings \(grasps: 10 there, 5 now"):
-        E.run_sweep(E.SweepSettings("selection", **{**base, "grasps": 5}), unit_fn=counting)
+        sweep(E.SweepSettings("selection", **{**base, "grasps": 5}))
     with pytest.raises(ValueError, match="seed: 0 there, 3 now"):
-        E.run_sweep(E.SweepSettings("selection", **{**base, "seed": 3}), unit_fn=counting)
+        sweep(E.SweepSettings("selection", **{**base, "seed": 3}))
     assert len(calls) == 12 and len(os.listdir(tmp_path / "sweep" / "units")) == 12
 
 

@@ -308,9 +308,11 @@ def sweep_runner(settings: SweepSettings) -> Runner:
 
 
 def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
-              unit_fn: Callable[[dict], dict] = run_unit) -> List[dict]:
+              unit_fn: Callable[[dict], dict] = run_unit, warm_grasps: bool = True) -> List[dict]:
     """Run every unit not yet on disk (each written as soon as it finishes, an exception recorded as
-    an "error" unit; interrupts stop the sweep); return all records in unit order."""
+    an "error" unit; interrupts stop the sweep); return all records in unit order. ``warm_grasps``:
+    first build the targets' simulated grasp sets on the runner (one job per object, not one race per
+    unit); a ``unit_fn`` that plans nothing (a test's stand-in) has no use for them."""
     s = settings.effective()
     check_resumable(s)
     stamp = {FINGERPRINT_FIELD: sweep_fingerprint(s)}  # in every unit: a resume never mixes sweeps
@@ -318,8 +320,8 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
         files = scene_files(s, stream, runner)
         units = make_units(s, files)
         todo = [u for u in units if not _finished(s, u)]
-        for _ in runner.map(_grasps_job, grasp_jobs(todo), Order.COMPLETION, progress=s.progress, label="grasps",
-                            stream=stream):
+        for _ in runner.map(_grasps_job, grasp_jobs(todo) if warm_grasps else [], Order.COMPLETION,
+                            progress=s.progress, label="grasps", stream=stream):
             pass
         for unit, out in runner.map(unit_fn, todo, Order.COMPLETION, OnError.RECORD, progress=s.progress,
                                     label=f"{s.table} units", stream=stream, done=len(units) - len(todo),

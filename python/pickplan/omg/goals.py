@@ -263,7 +263,7 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
         for k, fit in zip(tried, quality.fit):
             reasons[k] = fit.value
         tried = tried[quality.order()]
-        tried = tried[np.asarray([reasons[k] == "holds" for k in tried], dtype=bool)]
+        tried = tried[np.asarray([reasons[k] == GraspFit.holds.value for k in tried], dtype=bool)]
 
     def goals(tried):
         out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses[tried], start,
