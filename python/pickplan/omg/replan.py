@@ -9,7 +9,8 @@
    IK seeded with its last goal; a target that did not move keeps its goal set as it was, with the
    goal C-Space ISF refined last time;
 3. Algorithm 2 starts from the last trajectory moved to the new start, on the last goal, with the
-   loop of ``ReplanSettings``; a start that still passes the success test is returned as it is.
+   loop of ``ReplanSettings``; a start that still passes the success test is returned as it is, and
+   a warm loop that fails it is followed by a plan from scratch (never worse than planning anew).
 
 When fewer than ``min_goals`` goals follow (the target turned so far that they collide or leave the
 arm's reach), the goal set is built from every grasp again and the loop starts on the best goal.
@@ -40,6 +41,7 @@ class ReplanSettings:
     # The goals that follow a moved target: the last plan's and those its last cost estimates ranked best
     # (each goal's estimate is most of a replan's time, and far goals rarely win after a small move)
     max_goals: int = 10
+    fresh_on_failure: bool = True  # a warm loop that fails the success test is followed by a plan from scratch
 
     def __post_init__(self):
         if min(self.iterations, self.min_iterations, self.check_every, self.min_goals, self.max_goals) < 1:
@@ -115,6 +117,12 @@ class Replanner:
         loop = replace(s, iterations=r.iterations, min_iterations=min(r.min_iterations, r.iterations),
                        check_every=r.check_every)
         result = run_loop(loop, world, q0, goals, timings, warm=(warm_trajectory(self.last.trajectory, q0), goal))
+        if not result.success and self.settings.fresh_on_failure:
+            warm_seconds = clock() - t_total
+            fresh = self.plan(q0)
+            fresh.timings["total"] += warm_seconds
+            fresh.timings["warm"] = warm_seconds
+            return fresh
         timings["total"] = clock() - t_total
         result.goal_reasons = goals.reason_counts()
         result.limits = robot_limits(world.robot)
