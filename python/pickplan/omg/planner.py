@@ -173,6 +173,12 @@ class OMGPlanner:
              grasps: Optional[Union[np.ndarray, str]] = None) -> PlanResult:
         """Algorithm 2 from ``start`` (default: the scene's) to one of ``grasps`` of ``target``
         (default: the scene's; grasps: poses, a grasp set kind, or None for ``default_grasps``)."""
+        return self.plan_with_goals(start, target, grasps)[0]
+
+    def plan_with_goals(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
+                        grasps: Optional[Union[np.ndarray, str]] = None) -> Tuple[PlanResult, Optional[GoalSet]]:
+        """``plan`` and the goal set it planned over (None when the target cannot be grasped at all):
+        what a replan starts from (``omg.replan``)."""
         s = self.settings
         clock = _clock(s)
         t = clock()
@@ -193,12 +199,12 @@ class OMGPlanner:
             status = PlanStatus.no_goals if verdict.graspable else PlanStatus.ungraspable
             return PlanResult(status, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0, history,
                               timings, gs.reason_counts() if gs is not None else {},
-                              reason="" if verdict.graspable else f"ungraspable: {verdict.reason}")
+                              reason="" if verdict.graspable else f"ungraspable: {verdict.reason}"), gs
         result = self._optimize(world, q0, gs, timings)
         timings["total"] = clock() - t_total
         result.goal_reasons = gs.reason_counts()
         result.limits = robot_limits(world.robot)
-        return result
+        return result, gs
 
     def _optimize(self, world: World, q0: np.ndarray, gs: GoalSet, timings: dict) -> PlanResult:
         """Algorithm 2's loop over a non-empty goal set (the test oracle overrides it)."""
@@ -255,13 +261,15 @@ class LoopInputs:
                    make_policy(settings.selection))
 
 
-def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, timings: dict) -> PlanResult:
+def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, timings: dict,
+             warm=None) -> PlanResult:
     """Algorithm 2's loop over the non-empty goal set ``gs`` in C++ (``native_loop``, the GIL
     released); ``timings`` gains the seconds of each stage. (tests/python/omg_reference_loop.py
-    keeps the loop in Python, the oracle the native loop is tested against.)"""
+    keeps the loop in Python, the oracle the native loop is tested against.) ``warm``: (the initial
+    trajectory after ``q0``, its goal in ``gs`` or -1), a replan's start (``omg.replan``)."""
     parts = LoopInputs.of(settings, world, gs.tails.shape[1])
     out = run_native(parts.chomp, parts.refiner, world.robot, q0, gs.goals, gs.tails, gs.grasp_index, settings,
-                     parts.policy, parts.metric_settings)
+                     parts.policy, parts.metric_settings, warm)
     for phase, seconds in out["seconds"].items():
         timings[phase] += seconds
     history = {"objective": list(out["objective"]), "goal": list(out["goals_chosen"]), "p": out["p"],
