@@ -105,6 +105,9 @@ void init_collision(py::module_& m) {
       .def_property_readonly("num_pairs", &CollisionChecker::num_pairs)
       .def_property_readonly("checked_pairs", &CollisionChecker::checked_pairs)
       .def_property_readonly("object_names", &CollisionChecker::object_names)
+      .def("set_object_pose", [](CollisionChecker& c, const std::string& name, const Array& pose) {
+        c.set_object_pose(name, Transform::from_matrix(matrix4(pose, "object pose")));
+      }, py::arg("name"), py::arg("pose"), "Move the object `name` (a 4x4 rigid pose).")
       .def_property_readonly("settings", &CollisionChecker::settings)
       .def("in_collision",
            [](const CollisionChecker& c, const Array& q) {

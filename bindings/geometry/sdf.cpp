@@ -96,6 +96,9 @@ void init_sdf(py::module_& m) {
       .def("set_table", [](SceneSdf& s, const Eigen::Vector3d& size, const Array& pose) {
         s.set_table(size, Transform::from_matrix(matrix4(pose, "table pose")));
       }, py::arg("size"), py::arg("pose"))
+      .def("set_pose", [](SceneSdf& s, int index, const Array& pose) {
+        s.set_pose(index, Transform::from_matrix(matrix4(pose, "object pose")));
+      }, py::arg("index"), py::arg("pose"), "Move object `index`; merged grids that hold it are merged again.")
       .def(
           "merge",
           [](SceneSdf& s, const std::vector<int>& exclude, double resolution, double cutoff, int brick) {

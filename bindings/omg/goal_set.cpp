@@ -29,10 +29,18 @@ void init_goal_set(py::module_& m) {
   m.def("build_goal_set", [](const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                              const Array& hand_poses,
                              const Array& start, const GoalSetSettings& s, const ChompProblem* problem,
-                             double clearance) {
+                             double clearance, const py::object& seeds) {
     std::vector<Transform> poses = poses_arg(hand_poses, "grasps");
     Array q = configuration(ik.robot(), start, "start");
     Eigen::VectorXd qs = Eigen::Map<const Eigen::VectorXd>(q.data(), q.shape(0));
+    Trajectory seed_rows;
+    if (!seeds.is_none()) {
+      Array Q = configurations(ik.robot(), seeds.cast<Array>(), "seeds");
+      seed_rows = Eigen::Map<const Trajectory>(Q.data(), Q.shape(0), Q.shape(1));
+      if (seed_rows.rows() != static_cast<long>(poses.size()))
+        throw py::value_error("seeds: expected one configuration per grasp (" + std::to_string(poses.size()) +
+                              "), got " + std::to_string(seed_rows.rows()));
+    }
     GoalSet gs;
     {
       py::gil_scoped_release release;
@@ -44,7 +52,7 @@ void init_goal_set(py::module_& m) {
         ok = [&](const Eigen::VectorXd& q) {
           return object_clearance(*problem, q.data(), problem->settings().exclude_mask, clearance, rws) >= clearance;
         };
-      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok);
+      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok, seeds.is_none() ? nullptr : &seed_rows);
     }
     py::dict d;
     d["goals"] = traj_array(gs.goals);
@@ -61,7 +69,7 @@ void init_goal_set(py::module_& m) {
     return d;
   }, py::arg("ik"), py::arg("checker"), py::arg("hand_checker"), py::arg("hand_poses"), py::arg("start"),
      py::arg("settings") = GoalSetSettings(), py::arg("clearance_problem") = nullptr,
-     py::arg("approach_clearance") = 0.0);
+     py::arg("approach_clearance") = 0.0, py::arg("seeds") = py::none());
 }
 
 }  // namespace pickplan::bind

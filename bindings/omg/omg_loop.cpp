@@ -101,7 +101,8 @@ void init_omg_loop(py::module_& m) {
 
   m.def("run_omg_loop", [](const ChompProblem& problem, const RefinerHolder* refiner, const py::object& hand_link,
                            const Array& q0, const Array& goals, const Array& tails, const py::object& grasp_index,
-                           const Array& blend, const OmgLoopSettings& settings) {
+                           const Array& blend, const OmgLoopSettings& settings, const py::object& initial,
+                           int initial_goal) {
     const int dof = problem.robot().dof();
     const int hand = link_arg(problem.robot(), hand_link);
     Array q = configuration(problem.robot(), q0, "start configuration");
@@ -120,15 +121,26 @@ void init_omg_loop(py::module_& m) {
       T.push_back(Eigen::Map<const Trajectory>(tails.data() + g * m_rows * dof, m_rows, dof));
     const std::vector<int> gi(index.data(), index.data() + index.shape(0));
     const Eigen::VectorXd q0v = Eigen::Map<const Eigen::VectorXd>(q.data(), dof), b = vector_arg(blend, "blend");
+    WarmStart warm;
+    if (!initial.is_none()) {
+      const Array Q = configurations(problem.robot(), initial.cast<Array>(), "initial");
+      warm.initial = Eigen::Map<const Trajectory>(Q.data(), Q.shape(0), dof);
+      warm.initial_goal = initial_goal;
+    } else if (initial_goal != -1) {
+      throw std::invalid_argument("initial_goal: given without an initial trajectory");
+    }
     OmgLoopResult r;
     {
       py::gil_scoped_release release;
-      r = run_omg_loop(problem, refiner ? refiner->refiner.get() : nullptr, hand, q0v, G, T, gi, b, settings);
+      r = run_omg_loop(problem, refiner ? refiner->refiner.get() : nullptr, hand, q0v, G, T, gi, b, settings,
+                       initial.is_none() ? nullptr : &warm);
     }
     return result_dict(r);
   }, py::arg("problem"), py::arg("refiner"), py::arg("hand_link"), py::arg("q0"), py::arg("goals"), py::arg("tails"),
-     py::arg("grasp_index"), py::arg("blend"), py::arg("settings"),
-     "Algorithm 2's loop over a goal set (refiner None: no ISF); returns the plan, its metrics and history.");
+     py::arg("grasp_index"), py::arg("blend"), py::arg("settings"), py::arg("initial") = py::none(),
+     py::arg("initial_goal") = -1,
+     "Algorithm 2's loop over a goal set (refiner None: no ISF); returns the plan, its metrics and history. "
+     "initial (n, dof) and initial_goal: a warm start from a previous plan (replanning).");
 }
 
 }  // namespace pickplan::bind

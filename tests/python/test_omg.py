@@ -149,3 +149,24 @@ def test_world_merges_the_target_out_and_in(scene):
         assert np.max(np.abs(d - d_ref)) <= tol
     near_target = w.sdf.distance(pts, 0.2, exclude=())[0] < w.sdf.distance(pts, 0.2, exclude=(scene.target,))[0] - 0.02
     assert near_target.sum() > 100  # the target is in one and out of the other
+
+
+def test_one_planner_plans_scene_after_scene_as_new_planners_do(monkeypatch):
+    """A long-lived planner (``plan(scene=...)``) gives each scene the plan a new planner gives it, and
+    builds an object's grasp set once for every scene that holds it."""
+    settings = omg.OMGSettings(grasp_kind="antipodal")
+    sequence = [scenes.generate_scene(s) for s in (4, 5, 4)]
+    planner = omg.OMGPlanner(None, settings=settings)
+    with pytest.raises(ValueError, match="no scene"):
+        planner.plan()
+    for scene in sequence:
+        ours = planner.plan(scene=scene)
+        theirs = omg.OMGPlanner(None, scene, settings).plan()
+        assert ours.status == theirs.status
+        np.testing.assert_array_equal(ours.trajectory, theirs.trajectory)
+    generated, original = [], grasps.grasp_set
+    monkeypatch.setattr(omg.grasps_mod, "grasp_set", lambda *a, **k: generated.append(a) or original(*a, **k))
+    planner.plan(scene=sequence[1])
+    assert generated == []  # known objects: no grasp set generated again
+    omg.OMGPlanner(None, settings=settings).plan(scene=sequence[1])
+    assert len(generated) == 1  # a new planner's cache knows nothing: generated once

@@ -271,6 +271,20 @@ std::vector<std::pair<std::string, std::string>> CollisionChecker::checked_pairs
   return out;
 }
 
+void CollisionChecker::set_object_pose(const std::string& name, const Transform& pose) {
+  require_rigid(("pose of object '" + name + "'").c_str(), pose.matrix());
+  for (auto& g : impl_->objects) {
+    if (g.name != name) continue;
+    g.pose = pose;
+    g.inv_pose = pose.inverse();
+    g.tf = to_fcl(pose);
+    g.world_box = bounds(g.mesh(), pose);
+    g.probe_world = pose.apply(g.mesh().vertices.row(0).transpose());
+    return;
+  }
+  throw std::invalid_argument("set_object_pose: unknown object '" + name + "'");
+}
+
 std::vector<std::string> CollisionChecker::object_names() const {
   std::vector<std::string> out;
   for (const auto& o : impl_->objects) out.push_back(o.name);

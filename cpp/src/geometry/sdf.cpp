@@ -82,6 +82,19 @@ int SceneSdf::add_object(std::shared_ptr<const SdfGrid> grid, const Transform& p
   return static_cast<int>(bodies_.size()) - 1;
 }
 
+void SceneSdf::set_pose(int index, const Transform& pose) {
+  if (index < 0 || index >= num_objects())
+    throw std::out_of_range("SceneSdf: no object " + std::to_string(index) + " (" + std::to_string(num_objects()) +
+                            " objects)");
+  require_rigid("SceneSdf: object pose", pose.matrix());
+  bodies_[index].pose = pose;
+  bodies_[index].inverse = pose.inverse();
+  std::vector<std::pair<std::uint64_t, MergedSdfSettings>> stale;
+  for (const auto& m : merged_)
+    if (!(m->exclude_mask() >> index & 1)) stale.emplace_back(m->exclude_mask(), m->settings());
+  for (const auto& [mask, settings] : stale) merge(mask, settings);
+}
+
 int SceneSdf::add_primitive(const Primitive& primitive, const Transform& pose) {
   primitive.validate("SceneSdf primitive");
   if (bodies_.size() >= 63) throw std::invalid_argument("SceneSdf: at most 63 objects (exclusion masks are 64-bit)");

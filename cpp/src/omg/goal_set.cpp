@@ -28,7 +28,7 @@ const char* to_string(GoalReason reason) {
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& s,
-                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok) {
+                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok, const Trajectory* seeds) {
   const auto t0 = std::chrono::steady_clock::now();
   if (s.standoff_steps < 0 || s.standoff < 0 || s.max_goals < 1 || s.diversity < 0)
     throw std::invalid_argument("goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1 required");
@@ -95,8 +95,9 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
     // feasible approach chain wins. Lazy, so reachable grasps cost one or two descents.
     GoalReason reason = GoalReason::unreachable;
     std::vector<Eigen::VectorXd> tried;
-    for (int k = 0; k < ik.settings().num_seeds; ++k) {
-      const IkSolution sol = ik.solve(hand_poses[g], ik.seed_configuration(k, start));
+    for (int k = seeds ? -1 : 0; k < ik.settings().num_seeds; ++k) {
+      const IkSolution sol = ik.solve(hand_poses[g], k < 0 ? Eigen::VectorXd(seeds->row(static_cast<long>(g)).transpose())
+                                                            : ik.seed_configuration(k, start));
       if (!sol.converged) continue;
       bool seen = false;
       for (const auto& q : tried) seen = seen || (q - sol.q).cwiseAbs().maxCoeff() < ik.settings().duplicate_tolerance;

@@ -120,8 +120,8 @@ namespace {
 class Loop {
  public:
   Loop(const ChompProblem& problem, const GraspRefiner* refiner, GoalBook& book, const Eigen::VectorXd& q0,
-       const Eigen::VectorXd& blend, const OmgLoopSettings& s)
-      : problem_(problem), refiner_(refiner), book_(book), q0_(q0), blend_(blend), s_(s), ws_(problem),
+       const Eigen::VectorXd& blend, const OmgLoopSettings& s, const WarmStart* warm)
+      : problem_(problem), refiner_(refiner), book_(book), q0_(q0), blend_(blend), s_(s), warm_(warm), ws_(problem),
         policy_(s.selection) {}
 
   OmgLoopResult run();
@@ -143,6 +143,7 @@ class Loop {
   const Eigen::VectorXd& q0_;
   const Eigen::VectorXd& blend_;
   const OmgLoopSettings& s_;
+  const WarmStart* warm_;
   ChompWorkspace ws_;
   SelectionPolicy policy_;
   OmgStageSeconds seconds_;
@@ -185,17 +186,26 @@ bool Loop::succeeds(Trajectory& xi, int g, int iterations, TrajectoryMetrics& me
 OmgLoopResult Loop::run() {
   OmgLoopResult r;
   const int m = book_.tail_length();
-  Trajectory xi = initial(0);
+  Trajectory xi = warm_ ? warm_->initial : initial(0);
   const Eigen::VectorXd c0 = estimates(xi, 0);
   policy_.reset(book_.size(), s_.iterations, &c0);
   int g = 0;
   for (int j = 1; j < c0.size(); ++j)  // the initial goal: best by the initial estimate (np.argmin)
     if (c0[j] < c0[g]) g = j;
-  xi = initial(g);
+  if (warm_ && warm_->initial_goal >= 0) g = warm_->initial_goal;
+  if (!warm_) xi = initial(g);
+  // A warm start already on its goal's approach (nothing moved there) may stand as it is; one whose
+  // goal moved gets the new approach and is optimized (a jump onto it may pass the test, but is a jump).
+  const bool unchanged = warm_ && book_.on_goal(xi, g);
   xi.bottomRows(m) = book_.tail(g);
   r.initial_grasp = book_.origin(g);
   bool have_metrics = false;
-  for (int i = 0; i < s_.iterations; ++i) {
+  if (unchanged && s_.pre_terminate) {  // still good: kept as it is
+    StageTimer timer(s_.clock, &seconds_.metrics);
+    r.metrics = evaluate_trajectory(problem_, q0_, xi, s_.metrics, /*stop_at_failure=*/true);
+    have_metrics = r.metrics.success;
+  }
+  for (int i = 0; i < s_.iterations && !have_metrics; ++i) {
     r.iterations = i + 1;
     {
       StageTimer timer(s_.clock, &seconds_.chomp);
@@ -249,7 +259,7 @@ OmgLoopResult Loop::run() {
 OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refiner, int hand_link,
                            const Eigen::VectorXd& q0, const Trajectory& goals, const std::vector<Trajectory>& tails,
                            const std::vector<int>& grasp_index, const Eigen::VectorXd& blend,
-                           const OmgLoopSettings& settings) {
+                           const OmgLoopSettings& settings, const WarmStart* warm) {
   check_settings(settings);
   require_size("OMG loop: initialization blend", problem.settings().n, blend.size(), "entries (one per waypoint)");
   require_finite("OMG loop: initialization blend", blend.data(), blend.size());
@@ -257,7 +267,15 @@ OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refi
   GoalBook book(problem.robot(), hand_link, goals, tails, grasp_index);
   if (book.tail_length() > problem.settings().n)
     throw std::invalid_argument("OMG loop: tails longer than the trajectory");
-  return Loop(problem, refiner, book, q0, blend, settings).run();
+  if (warm) {
+    require_size("OMG loop: warm start", problem.settings().n, warm->initial.rows(), "waypoints");
+    require_size("OMG loop: warm start", q0.size(), warm->initial.cols(), "joints per waypoint");
+    require_finite("OMG loop: warm start", warm->initial.data(), warm->initial.size());
+    if (warm->initial_goal < -1 || warm->initial_goal >= book.size())
+      throw std::invalid_argument("OMG loop: warm start goal " + std::to_string(warm->initial_goal) + " is not one of the " +
+                                  std::to_string(book.size()) + " goals");
+  }
+  return Loop(problem, refiner, book, q0, blend, settings, warm).run();
 }
 
 }  // namespace pickplan

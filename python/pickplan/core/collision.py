@@ -183,6 +183,10 @@ class CollisionChecker:
         """(link, other) pairs actually checked, after exclusions and self-collision filtering."""
         return [tuple(p) for p in self._native.checked_pairs]
 
+    def set_object_pose(self, name: str, pose) -> None:
+        """Move the object ``name`` to ``pose`` (4x4 rigid): a world that moves, checked again."""
+        self._native.set_object_pose(str(name), np.asarray(pose, dtype=float))
+
     def in_collision(self, q) -> bool:
         return bool(self._native.in_collision(q))
 

@@ -173,6 +173,10 @@ class SceneSdf:
         self._names.append(name)
         return index
 
+    def set_pose(self, name: str, pose: np.ndarray) -> None:
+        """Move object ``name`` to ``pose``; the merged grids that hold it are merged again (lazily filled)."""
+        self._native.set_pose(self.index(name), np.asarray(pose, dtype=float))
+
     @property
     def native(self) -> "_core.SceneSdf":
         return self._native

@@ -232,17 +232,23 @@ def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, st
 
 def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
                    settings: GoalSetSettings = GoalSetSettings(), ik: IkSettings = IkSettings(),
-                   collision_check: bool = True, support: SupportSettings = SupportSettings()) -> GoalSet:
+                   collision_check: bool = True, support: SupportSettings = SupportSettings(),
+                   seeds: Optional[np.ndarray] = None) -> GoalSet:
     """Goal configurations for the world's target from grasps in its object frame.
 
     With ``collision_check``, grasps are first met with the support (``support_adjusted``): the
     returned ``GoalSet.grasps`` are the grasps as used (moved ones flagged in ``adjusted``); then
     judged by ``settings.quality`` (``World.grasp_quality``): those that do not hold are rejected and the
-    rest tried best margin first; if none of them gives a goal, those it is unsure of that hold in PyBullet
-    (``settings.verify``, ``World.verify_grasps``) are tried. An object with no reachable grasp gives an empty goal set (with
-    reasons), not an exception.
+    rest tried best margin first; if none of them gives a goal, those it is unsure of that hold in
+    PyBullet (``settings.verify``, ``World.verify_grasps``) are tried. An object with no reachable grasp
+    gives an empty goal set (with reasons), not an exception.
+    ``seeds`` (N, dof): each grasp's first IK seed (a replan: its goal before the target moved).
     """
     grasps = check_grasps(grasps)
+    if seeds is not None:
+        seeds = np.asarray(seeds, dtype=float)
+        if seeds.shape != (len(grasps), world.robot.dof):
+            raise ValueError(f"seeds: expected ({len(grasps)}, {world.robot.dof}), one per grasp, got {seeds.shape}")
     start = world.start if start is None else np.asarray(start, dtype=float)
     target = world.target_pose
     hand_poses = np.einsum("ij,njk->nik", target, grasps) if len(grasps) else grasps
@@ -267,7 +273,8 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
 
     def goals(tried):
         out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses[tried], start,
-                                   settings.to_native(), problem, float(settings.approach_clearance))
+                                   settings.to_native(), problem, float(settings.approach_clearance),
+                                   None if seeds is None else seeds[tried])  # the seeds follow the order tried
         for k, reason in zip(tried, out["reasons"]):
             reasons[k] = reason
         return out

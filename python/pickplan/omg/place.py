@@ -143,7 +143,8 @@ class PlaceSettings:
     max_candidates: int = 600        # a seeded subset when the grid is larger
     gap: float = 0.004               # m: the object's lowest point above the floor at release
     # m kept between the object and the region's sides where the region is wide enough (less where it is
-    # not): an object set down at the very edge leaves the region when it shifts in the hand by a little
+    # not; none when no place keeps it): an object set down at the very edge leaves the region when it
+    # shifts in the hand by a little
     margin: float = 0.02
     max_rests: int = 3               # stable resting poses tried (most likely first)
     seed: int = 0
@@ -276,7 +277,16 @@ def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.n
     vertices = held.mesh.vertices if held.mesh is not None else held.points
     rotations = resting_rotations(request, current, model, settings.max_rests)
     poses = candidate_poses(request, np.asarray(vertices), rotations, settings)
-    hands = held.hand_pose(poses) if len(poses) else np.zeros((0, 4, 4))
+    gs = _place_goals(carrying, poses, start, settings)
+    if len(gs) == 0 and settings.margin > 0:  # no place keeps the margin (a crowded region): its edges too
+        poses = candidate_poses(request, np.asarray(vertices), rotations, replace(settings, margin=0.0))
+        gs = _place_goals(carrying, poses, start, settings)
+    return PlaceGoalSet(gs, poses, _verdict(len(poses), gs.reasons, len(gs)), clock() - t0)
+
+
+def _place_goals(carrying: HeldWorld, poses: np.ndarray, start: np.ndarray, settings: PlaceSettings) -> GoalSet:
+    """The goal set of the held object's candidate ``poses`` (IK, set-down approach, collisions, pre-place)."""
+    hands = carrying.held.hand_pose(poses) if len(poses) else np.zeros((0, 4, 4))
     checker = carrying.checker(HeldCheck.carry)
     hand_checker = carrying.checker(HeldCheck.hand)
     gs_settings = replace(settings.goals, approach=(0.0, 0.0, -1.0))
@@ -285,10 +295,9 @@ def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.n
                                np.asarray(start, float), gs_settings.to_native(), carrying.clearance_problem,
                                float(settings.goals.approach_clearance))
     reasons = list(out["reasons"])
-    gs = _preplace_clear(carrying, GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]),
-                                           np.asarray(out["grasp_index"], int), hands, reasons, float(out["seconds"])),
-                         settings.preplace_clearance)
-    return PlaceGoalSet(gs, poses, _verdict(len(poses), gs.reasons, len(gs)), clock() - t0)
+    return _preplace_clear(carrying, GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]),
+                                             np.asarray(out["grasp_index"], int), hands, reasons, float(out["seconds"])),
+                           settings.preplace_clearance)
 
 
 def _preplace_clear(carrying: HeldWorld, gs: GoalSet, clearance: float) -> GoalSet:

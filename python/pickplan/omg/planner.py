@@ -14,6 +14,7 @@ from typing import Optional, Tuple, Union
 import numpy as np
 
 from pickplan.core import robots
+from pickplan.core.caches import mesh_content_key
 from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, robot_limits, time_parameterize
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
@@ -21,6 +22,7 @@ from pickplan.omg.chomp import ChompSettings, MetricSettings
 from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, build_goal_set
 from pickplan.omg.grasps import GraspKind
 from pickplan.omg.isf import IsfSettings
+from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.native_loop import StageClock, run_native
 from pickplan.sim.scenes import Scene
 from pickplan.omg.selection import Selection, make_policy
@@ -124,15 +126,20 @@ class PlanResult:
 
 
 class OMGPlanner:
-    """Joint motion and grasp planning for one scene and one robot: ``robot`` is the robot planned for,
-    a ``robots.DescribedRobot`` (``robots.load_robot("ur5_2f85")``) or a description's name or file;
-    None: ``settings.world.robot`` (the Panda by default). Placed at the scene's robot base."""
+    """Joint motion and grasp planning for one robot: ``robot`` is the robot planned for, a
+    ``robots.DescribedRobot`` (``robots.load_robot("ur5_2f85")``) or a description's name or file;
+    None: ``settings.world.robot`` (the Panda by default). Placed at the scene's robot base.
 
-    def __init__(self, robot, scene: Scene, settings: OMGSettings = OMGSettings(),
-                 world: Optional[World] = None):
+    Made once and asked again and again: ``plan(scene=...)`` plans in another scene, and what depends
+    only on the objects or the robot (SDFs, FCL shapes, the robot's data: ``cache``, a ``ModelCache``
+    the planner owns unless one is given) is built once for all of them."""
+
+    def __init__(self, robot=None, scene: Optional[Scene] = None, settings: OMGSettings = OMGSettings(),
+                 world: Optional[World] = None, cache: Optional[ModelCache] = None):
         self.settings = settings
-        self.scene = scene
+        self.scene = world.scene if scene is None and world is not None else scene
         self._world = world
+        self.cache = cache if cache is not None else world.cache if world is not None else ModelCache()
         if robot is not None and not isinstance(robot, (str, robots.DescribedRobot)):
             raise ValueError(f"robot: expected a robots.DescribedRobot, a description name or file, or None; got "
                              f"{type(robot).__name__} (a bare URDF Robot has no gripper: write a description)")
@@ -142,18 +149,30 @@ class OMGPlanner:
                              f"{world.robot.info.name!r}")
         self.robot = robot
 
+    def use_scene(self, scene: Scene) -> None:
+        """Plan in ``scene`` from now on (its world is built on the next plan, from the planner's cache)."""
+        if scene is not self.scene:
+            self.scene, self._world = scene, None
+
     def world(self, target: Optional[str] = None) -> World:
+        if self.scene is None:
+            raise ValueError("no scene: give one (OMGPlanner(robot, scene) or plan(scene=...))")
         target = target or self.scene.target
         if self._world is None or self._world.target != target:
             scene = self.scene if target == self.scene.target else replace(self.scene, target=target)
             robot = self.robot if self.robot is not None else (self._world.robot if self._world else None)
-            self._world = World(scene, self.settings.world, robot=robot)
+            self._world = World(scene, self.settings.world, robot=robot, cache=self.cache)
         return self._world
 
     def default_grasps(self, world: World) -> np.ndarray:
-        s = self.settings
-        return grasps_mod.grasp_set(world.target_model, s.grasp_kind, s.grasp_count, seed=s.seed,
-                                    gripper=world.robot.info).poses
+        """The settings' grasp set of the target for this robot's gripper: it depends on the object and
+        the gripper only, so it is built once per planner cache (a copy is returned)."""
+        s, model, gripper = self.settings, world.target_model, world.robot.info
+        key = ("grasp_set", mesh_content_key(model.mesh), model.name, str(s.grasp_kind), s.grasp_count, s.seed,
+               gripper.key)
+        poses = self.cache.derived(key, lambda: grasps_mod.grasp_set(model, s.grasp_kind, s.grasp_count, seed=s.seed,
+                                                                     gripper=gripper).poses)
+        return np.array(poses)
 
     def _prepare(self, world: World, start, grasps) -> Tuple[np.ndarray, np.ndarray]:
         """The checked start and the grasps; builds what the scene caches (FCL models, ISF data)."""
@@ -170,9 +189,18 @@ class OMGPlanner:
         return q0, grasps
 
     def plan(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
-             grasps: Optional[Union[np.ndarray, str]] = None) -> PlanResult:
+             grasps: Optional[Union[np.ndarray, str]] = None, scene: Optional[Scene] = None) -> PlanResult:
         """Algorithm 2 from ``start`` (default: the scene's) to one of ``grasps`` of ``target``
-        (default: the scene's; grasps: poses, a grasp set kind, or None for ``default_grasps``)."""
+        (default: the scene's; grasps: poses, a grasp set kind, or None for ``default_grasps``);
+        ``scene``: plan in this scene from now on (``use_scene``)."""
+        if scene is not None:
+            self.use_scene(scene)
+        return self.plan_with_goals(start, target, grasps)[0]
+
+    def plan_with_goals(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
+                        grasps: Optional[Union[np.ndarray, str]] = None) -> Tuple[PlanResult, Optional[GoalSet]]:
+        """``plan`` and the goal set it planned over (None when the target cannot be grasped at all):
+        what a replan starts from (``omg.replan``)."""
         s = self.settings
         clock = _clock(s)
         t = clock()
@@ -193,12 +221,12 @@ class OMGPlanner:
             status = PlanStatus.no_goals if verdict.graspable else PlanStatus.ungraspable
             return PlanResult(status, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0, history,
                               timings, gs.reason_counts() if gs is not None else {},
-                              reason="" if verdict.graspable else f"ungraspable: {verdict.reason}")
+                              reason="" if verdict.graspable else f"ungraspable: {verdict.reason}"), gs
         result = self._optimize(world, q0, gs, timings)
         timings["total"] = clock() - t_total
         result.goal_reasons = gs.reason_counts()
         result.limits = robot_limits(world.robot)
-        return result
+        return result, gs
 
     def _optimize(self, world: World, q0: np.ndarray, gs: GoalSet, timings: dict) -> PlanResult:
         """Algorithm 2's loop over a non-empty goal set (the test oracle overrides it)."""
@@ -255,13 +283,15 @@ class LoopInputs:
                    make_policy(settings.selection))
 
 
-def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, timings: dict) -> PlanResult:
+def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, timings: dict,
+             warm=None) -> PlanResult:
     """Algorithm 2's loop over the non-empty goal set ``gs`` in C++ (``native_loop``, the GIL
     released); ``timings`` gains the seconds of each stage. (tests/python/omg_reference_loop.py
-    keeps the loop in Python, the oracle the native loop is tested against.)"""
+    keeps the loop in Python, the oracle the native loop is tested against.) ``warm``: (the initial
+    trajectory after ``q0``, its goal in ``gs`` or -1), a replan's start (``omg.replan``)."""
     parts = LoopInputs.of(settings, world, gs.tails.shape[1])
     out = run_native(parts.chomp, parts.refiner, world.robot, q0, gs.goals, gs.tails, gs.grasp_index, settings,
-                     parts.policy, parts.metric_settings)
+                     parts.policy, parts.metric_settings, warm)
     for phase, seconds in out["seconds"].items():
         timings[phase] += seconds
     history = {"objective": list(out["objective"]), "goal": list(out["goals_chosen"]), "p": out["p"],

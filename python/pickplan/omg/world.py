@@ -118,6 +118,24 @@ class World:
         use_scene = len(q) and self.scene.robot == self.robot.info.name
         return np.asarray(q, dtype=float) if use_scene else self.robot.ready_configuration
 
+    def move_object(self, name: str, pose) -> None:
+        """Move object ``name`` to ``pose`` in place, for replanning as the world moves (``omg.replan``):
+        the scene, the SDF (merged grids that hold it are merged again, filled lazily) and every FCL
+        checker built so far follow; what depends on the target's pose (its graspability, C-Space
+        ISF's object samples) is built again on next use. The CHOMP problems read the moved SDF."""
+        T = np.asarray(pose, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError(f"pose of {name!r}: expected a finite 4x4 matrix, got shape {T.shape}")
+        self.scene.object(name)  # a KeyError naming the objects
+        self.sdf.set_pose(name, T)  # checks rigidity before anything changed
+        for checker in self._checkers.values():
+            checker.set_object_pose(name, T)
+        self.scene = replace(self.scene, objects=[replace(o, pose=T.copy()) if o.name == name else o
+                                                  for o in self.scene.objects])
+        if name == self.target:
+            self._refiners.clear()
+            self.__dict__.pop("graspability", None)
+
     def scene_meshes(self):
         """Objects (meshes) and obstacles (primitives and meshes) as the FCL checkers take them."""
         return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects] + \

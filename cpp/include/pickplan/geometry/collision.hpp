@@ -137,6 +137,9 @@ class CollisionChecker {
   int num_pairs() const { return static_cast<int>(pairs_.size()); }  // pairs actually checked
   std::vector<std::pair<std::string, std::string>> checked_pairs() const;
   std::vector<std::string> object_names() const;
+  // Moves the object `name` (replanning as the world moves); throws for an unknown name or a pose
+  // that is not rigid. Not while another thread checks with this checker.
+  void set_object_pose(const std::string& name, const Transform& pose);
   // Per robot link: how far its checked geometry reaches from the link frame's origin (0 without any).
   std::vector<double> link_reach() const;
 

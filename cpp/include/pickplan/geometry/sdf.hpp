@@ -89,6 +89,9 @@ class SceneSdf {
   // Adds a solid primitive, queried in closed form; same index space and limits as add_object.
   int add_primitive(const Primitive& primitive, const Transform& pose);
   void set_table(const Eigen::Vector3d& size, const Transform& pose);
+  // Moves object `index` (an object that moves: replanning); merged grids that hold it are merged
+  // again with their settings (their bricks fill again on first lookup), the others are kept.
+  void set_pose(int index, const Transform& pose);
   void clear_table() { has_table_ = false; }
 
   // Resamples the minimum over the objects not in `exclude_mask` into one world-frame bricked

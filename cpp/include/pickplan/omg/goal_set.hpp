@@ -47,9 +47,12 @@ struct GoalSet {
 // filter); `hand_checker` (optional) holds only the hand and finger links, for early rejection.
 // `approach_ok` (optional): every tail configuration (pre-grasp .. grasp) must pass it (e.g. keep
 // the clearance the success test demands of a plan's approach); failing grasps: approach_clearance.
+// `seeds` (optional, one row per grasp): the first IK seed of each grasp, before the start and the
+// spread (a replan seeds each grasp with its goal before the target moved).
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& settings = {},
-                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok = {});
+                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok = {},
+                       const Trajectory* seeds = nullptr);
 
 }  // namespace pickplan

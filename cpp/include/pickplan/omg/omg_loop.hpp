@@ -86,9 +86,17 @@ struct OmgLoopResult {
 // Algorithm 2 from q0 over the goal set (goals G x dof, tails per goal m x dof with m the same for
 // all, grasp_index per goal). blend: n initialization fractions (waypoint t = q0 + blend[t] (g - q0),
 // the cubic's from Python so both loops start bit-equal). refiner: null = no ISF.
+// A warm start (replanning) gives `initial` (n x dof, after the start: the last plan moved to the new
+// start) and `initial_goal` (its goal in this goal set, or -1: the best by the first estimate): the
+// loop starts there with that goal's tail, and a start that already passes the success test on its
+// goal is returned with no iteration.
+struct WarmStart {
+  Trajectory initial;
+  int initial_goal = -1;
+};
 OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refiner, int hand_link,
                            const Eigen::VectorXd& q0, const Trajectory& goals, const std::vector<Trajectory>& tails,
                            const std::vector<int>& grasp_index, const Eigen::VectorXd& blend,
-                           const OmgLoopSettings& settings);
+                           const OmgLoopSettings& settings, const WarmStart* warm = nullptr);
 
 }  // namespace pickplan
