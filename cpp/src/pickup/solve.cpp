@@ -420,9 +420,10 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   return out;
 }
 
-PickupResult solve_single_shot(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
+PickupResult solve_single_shot(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+                               const Eigen::VectorXd& x0) {
   PickupResult out;
-  const Eigen::VectorXd seed = random_seed(robot, pb, st);
+  const Eigen::VectorXd seed = x0.size() ? x0 : random_seed(robot, pb, st);
   StageResult r = solve_stage(robot, pb, st, 0, seed);
   out.stages.push_back(r);
   out.status = r.status;
