@@ -46,29 +46,34 @@ SECOND_OPINION = 3.0
 
 
 class _Budget:
-    """The call's wall-clock budget: spent when its deadline passed or a native run stopped for it
-    (a native run stops before an iteration that would end past the deadline, so it may stop a
-    little early: no run starts after that either)."""
+    """The call's wall-clock budget: spent when a native run stopped for it (a native run stops
+    before an iteration that would end past the deadline, so it may stop a little early) or when
+    less time is left than the quickest native call so far took (a call started then would end
+    past the deadline: its start-up alone takes about that long)."""
 
     def __init__(self, time_limit: float):
         self.deadline = time.monotonic() + time_limit if time_limit > 0 else None
         self.cut = False
+        self.quickest = 0.0
 
     def left(self) -> float:
         return math.inf if self.deadline is None else self.deadline - time.monotonic()
 
     def spent(self) -> bool:
-        return self.cut or self.left() <= 0
+        return self.cut or self.left() <= self.quickest
 
     def settings(self, settings: planner.PlannerSettings) -> planner.PlannerSettings:
         return settings if self.deadline is None else replace(settings, time_limit=max(1e-3, self.left()))
 
-    def note(self, status) -> None:
-        """A run's status (SolveStatus or the native enum): time_limit spends the budget."""
+    def note(self, status, seconds: float) -> None:
+        """A native call's status (SolveStatus or the native enum; time_limit spends the budget)
+        and wall time."""
         if not isinstance(status, planner.SolveStatus):
             status = planner.SolveStatus.from_native(status)
         if status is planner.SolveStatus.time_limit:
             self.cut = True
+        else:
+            self.quickest = min(self.quickest, seconds) if self.quickest > 0 else seconds
 
 
 def _variants(robot, settings: planner.PlannerSettings) -> list:
@@ -90,8 +95,9 @@ def _stage1(robot, problem, settings, budget: _Budget, routes) -> list:
             label, x0 = next(pending, (None, None))
             if label is None or budget.spent():
                 break
+            t = time.monotonic()
             r = planner.solve_stage(robot, problem, x0, 1, budget.settings(variant))
-            budget.note(r.status)
+            budget.note(r.status, time.monotonic() - t)
             if r.success:
                 name = label if len(variant.degrees) == 0 or k == 0 else f"{label}, base degree {variant.degrees[0]}"
                 solved.append((r.objective * (1 + 1e-3 * k), name, variant, np.asarray(r.x)))
@@ -123,9 +129,10 @@ def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Me
     _, label, variant, x1 = entry
     if method is planner.Method.single_shot:
         variant, label = replace(variant, max_iter=min(variant.max_iter, variant.direct_max_iter)), f"{label}, direct"
+    t = time.monotonic()
     p = planner.plan(robot, problem, budget.settings(variant), method, x0=x1)
     p.seed = label
-    budget.note(p.status)
+    budget.note(p.status, time.monotonic() - t)
     return p, bool(p.success and planner.passes_dense_checks(robot, problem, p))
 
 
