@@ -154,7 +154,8 @@ def summarize_layout(records: list, layout: str) -> str:
              f"({len(solved) / max(feasible, 1):.0%}) |"]
     if len(ratio):
         lines.append(f"| T / lower bound: median <= 1.5, max <= 3 | median {np.median(ratio):.2f}, p90 "
-                     f"{np.percentile(ratio, 90):.2f}, max {ratio.max():.2f} |")
+                     f"{np.percentile(ratio, 90):.2f}, max {ratio.max():.2f}; above 3: {int((ratio > 3).sum())}; "
+                     f"bound above a solved T (a bug): {int((ratio < 1).sum())} |")
     lines.append(f"| CPU median <= 1 s | median {np.median(cpu):.2f} s, p90 {np.percentile(cpu, 90):.2f} s, worst "
                  f"{cpu.max():.2f} s (wall median {np.median(wall):.2f} s, worst {wall.max():.2f} s) |")
     budget = [r["successive"].get("budget") for r in records]

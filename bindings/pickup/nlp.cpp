@@ -145,6 +145,7 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("active_max_rounds", &PickupSettings::active_max_rounds)
       .def_readwrite("mu_resolve", &PickupSettings::mu_resolve)
       .def_readwrite("dense_subdivisions", &PickupSettings::dense_subdivisions)
+      .def_readwrite("dense_nonholonomic", &PickupSettings::dense_nonholonomic)
       .def_readwrite("mu_strategy", &PickupSettings::mu_strategy)
       .def_readwrite("mu_init", &PickupSettings::mu_init)
       .def_readwrite("seed", &PickupSettings::seed)
@@ -224,7 +225,7 @@ void init_pickup_nlp(py::module_& m) {
         py::arg("robot"), py::arg("problem"), py::arg("settings"), py::arg("x0") = Eigen::VectorXd(),
         py::call_guard<py::gil_scoped_release>());
   m.def("pickup_solve_single_shot", &solve_single_shot, py::arg("robot"), py::arg("problem"), py::arg("settings"),
-        py::call_guard<py::gil_scoped_release>());
+        py::arg("x0") = Eigen::VectorXd(), py::call_guard<py::gil_scoped_release>());
   py::class_<StompSettings>(m, "StompSettings")
       .def(py::init<>())
       .def_readwrite("iterations", &StompSettings::iterations)

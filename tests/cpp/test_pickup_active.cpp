@@ -59,6 +59,8 @@ TEST(PickupActiveSet, SubsetRowsHaveExactDerivatives) {
   sub.collisions.push_back({-1, {0.55, 0.0, 0.0}, 12});   // same instant, another pair
   sub.collisions.push_back({-1, {0.3, 0.7, 0.0}, 2});     // inside [T1, T2]
   sub.collisions.push_back({-1, {0.0, 0.45, 0.55}, 14});  // inside (T2, T]
+  sub.nonholonomic.push_back({{0.55, 0.0, 0.0}});         // with the collision rows there
+  sub.nonholonomic.push_back({{0.0, 0.2, 0.8}});          // an instant of its own
   PickupConstraints c(r, pb, st, 5, &sub);
   PickupConstraints full(r, pb, st, 5);
   EXPECT_LT(c.num_constraints(), full.num_constraints());
@@ -97,6 +99,19 @@ TEST(PickupActiveSet, SubsetRowsHaveExactDerivatives) {
       found = true;
     }
   EXPECT_TRUE(found);
+  // A non-holonomic row between samples is the lateral motion x_s sin phi - y_s cos phi there.
+  const double s_nh = 0.2 * x[c.idx_s2()] + 0.8;
+  Eigen::VectorXd qs(r.dof());
+  c.traj().eval(x.data(), s_nh, qm.data(), qs.data(), nullptr);
+  int nh_between = 0;
+  bool nh_matched = false;  // one of the two rows is the one at s_nh
+  for (int i = 0; i < m; ++i)
+    if (names[i].rfind("nonholonomic[0]@", 0) == 0 && std::stoi(names[i].substr(16)) >= c.num_regular_samples()) {
+      ++nh_between;
+      nh_matched |= std::abs(g[i] - (qs[0] * std::sin(qm[2]) - qs[1] * std::cos(qm[2]))) < 1e-12;
+    }
+  EXPECT_EQ(nh_between, 2);
+  EXPECT_TRUE(nh_matched);
   PickupRowSubset bad;
   bad.collisions.push_back({-1, {0.5, 0.5, 0.0}, 99});
   EXPECT_THROW(PickupConstraints(r, pb, st, 5, &bad), std::invalid_argument);
@@ -142,6 +157,57 @@ TEST(PickupActiveSet, DenseCheckFindsCollisionsBetweenSamples) {
   EXPECT_TRUE(s1.pair_in_stage(pair));        // base sphere: a base path constraint
   EXPECT_FALSE(s1.pair_in_stage(no * 4));     // flange sphere: stage 5 only
   EXPECT_TRUE(c.pair_in_stage(no * 4));
+}
+
+// A base path that slides sideways between two samples (heading 0, y_s zero at both samples and
+// large between them): the sampled non-holonomic rows there read zero, the dense check reports an
+// instant inside that gap.
+TEST(PickupActiveSet, DenseCheckFindsLateralMotionBetweenSamples) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 1, example_rho());
+  PickupSettings st = fast_settings();
+  st.dense_nonholonomic = 0.02;  // m/s
+  PickupConstraints c(r, pb, st, 1);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(c.num_vars());
+  const int m = st.samples_per_interval;
+  x[c.idx_s1()] = 0.4;
+  x[c.idx_s2()] = 0.5;
+  x[c.idx_T()] = 10.0;
+  const double a = 2.0 / m * 0.4, b = 3.0 / m * 0.4;  // regular samples 2 and 3, in [0, T1)
+  // x = s, y = k (s - a)^2 (s - b)^2 (a quartic; monomial coefficients): y_s = 0 at a and b.
+  x[c.traj().offset(0) + 1] = 1.0;
+  const double k = 1e5, p[5] = {a * a * b * b, -2 * a * b * (a + b), a * a + 4 * a * b + b * b, -2 * (a + b), 1.0};
+  for (int i = 0; i < 5; ++i) x[c.traj().offset(1) + i] = k * p[i];
+  Eigen::VectorXd q(r.dof()), qs(r.dof());
+  for (double s : {a, b}) {
+    c.traj().eval(x.data(), s, q.data(), qs.data(), nullptr);
+    EXPECT_NEAR(qs[1], 0.0, 1e-9);
+  }
+  c.traj().eval(x.data(), 0.5 * (a + b) - 0.25 * (b - a), q.data(), qs.data(), nullptr);
+  const double nh_bound = st.nonholonomic_tol * ((pb.part_xy - pb.start.head<2>()).norm() + (pb.goal.head<2>() - pb.part_xy).norm());
+  ASSERT_GT(std::abs(qs[1]) / x[c.idx_T()], 4 * st.dense_nonholonomic);  // m/s: the slide is well above the threshold
+  ASSERT_GT(std::abs(qs[1]), 4 * nh_bound);                               // and the rows' bound
+  const PickupRowSubset pts = c.dense_points(x, 16, -1.0, 1e9);
+  bool inside = false;
+  for (const auto& n : pts.nonholonomic) {
+    const double s = n.w[0] * x[c.idx_s1()] + n.w[1] * x[c.idx_s2()] + n.w[2];
+    inside |= s > a && s < b;
+  }
+  EXPECT_TRUE(inside);
+  st.dense_nonholonomic = 0.0;  // off: nothing reported
+  EXPECT_TRUE(PickupConstraints(r, pb, st, 1).dense_points(x, 16, -1.0, 1e9).nonholonomic.empty());
+  st.dense_nonholonomic = 0.02;
+  // Joined as rows, they read the lateral motion there, beyond the bound.
+  PickupConstraints with(r, pb, st, 1, &pts);
+  Eigen::VectorXd g(with.num_constraints()), lo, hi, gl, gu;
+  with.eval_g(x.data(), g.data());
+  with.bounds(lo, hi, gl, gu);
+  const auto names = with.row_names();
+  int violated = 0;
+  for (int i = 0; i < with.num_constraints(); ++i)
+    if (names[i].rfind("nonholonomic", 0) == 0 && std::stoi(names[i].substr(16)) >= with.num_regular_samples())
+      violated += g[i] > gu[i];
+  EXPECT_GE(violated, 1);
 }
 
 // rho >= gamma bounds S_g: nothing above the bound reaches gamma, just below it some S_c does; an unattainable gamma is

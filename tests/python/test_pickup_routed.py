@@ -3,6 +3,7 @@ curvature, the seed's speed and yaw-rate limits), the lower bound on T (closed f
 line, never above a solved T), every infeasibility reason on a constructed problem, the time budget,
 and the benchmark layouts."""
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -166,11 +167,65 @@ def test_the_time_budget(robot):
             assert all(solve_problem.dense_checks(problem, p, metrics).values())
         else:
             assert p.reason is Reason.time_limit
+    # The budget bounds the wall time: a native run stops before an iteration that would end past
+    # the deadline (the allowance is for the scheduler, not for the planner: the route search and
+    # the seeds stop at the deadline too).
+    for share in (0.3, 0.6):
+        limit = share * full.total_seconds
+        p = routed.plan_routed(robot, problem, FAST, time_limit=limit)
+        assert p.total_seconds <= limit + 0.05, (p.total_seconds, limit)
     # A budget that is not reached changes nothing.
     same = routed.plan_routed(robot, problem, FAST, time_limit=1e4)
     assert same.status is planner.SolveStatus.solved and np.array_equal(same.native.x, full.native.x)
     with pytest.raises(ValueError, match="time_limit"):
         routed.plan_routed(robot, problem, FAST, time_limit=-1.0)
+
+
+def test_the_route_search_and_the_seeds_stop_at_the_deadline(robot):
+    spec = _spec(base_start=(0.0, 0.0, math.pi / 2), part_position=(4.0, 3.5, 0.5),
+                 obstacles=(problem_file.SphereObstacle((4.0, 3.5, 0.15), 0.15),))
+    problem = _native(robot, spec)
+    geo = base_geometry(robot, problem, FAST)
+    assert route.candidate_routes(geo, 3) and route.candidate_routes(geo, 3, deadline=time.monotonic() - 1.0) == []
+    labels = [label for label, _ in routed.seeds(robot, problem, FAST, 3, deadline=time.monotonic() - 1.0)]
+    assert labels == ["heuristic"]  # the native seed; no route is searched after the deadline
+    assert len(list(routed.seeds(robot, problem, FAST, 3))) > 1
+
+
+def test_single_shot_from_a_given_seed(robot):
+    problem = _native(robot, _spec())
+    x1 = next(routed.seeds(robot, problem, FAST))[1]
+    r1 = planner.solve_stage(robot, problem, x1, 1, FAST)
+    assert r1.success
+    p = planner.plan(robot, problem, FAST, planner.Method.single_shot, x0=np.asarray(r1.x))
+    assert p.success and planner.passes_dense_checks(robot, problem, p)
+    # From the stage-1 solution, not from the random seed: the two runs differ.
+    q = planner.plan(robot, problem, FAST, planner.Method.single_shot)
+    assert not np.array_equal(np.asarray(p.native.x), np.asarray(q.native.x))
+    with pytest.raises(ValueError, match="seed"):
+        planner.plan(robot, problem, FAST, planner.Method.single_shot, x0=np.asarray(r1.x)[:-1])
+
+
+def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robot, monkeypatch):
+    problem = _native(robot, _spec())
+    real = planner.plan
+    calls = []
+
+    def five_stages_fail(robot_, problem_, settings, method=planner.Method.successive, x0=None):
+        calls.append(planner.Method.parse(method, "method"))
+        p = real(robot_, problem_, settings, method, x0)
+        if calls[-1] is planner.Method.successive:  # as if it failed: the fallback must take over
+            p.success, p.status = False, planner.SolveStatus.infeasible
+        return p
+
+    monkeypatch.setattr(planner, "plan", five_stages_fail)
+    p = routed.plan_routed(robot, problem, FAST, routes=0)  # the heuristic seed's base paths (quintic, degree 7)
+    assert p.success and p.seed.endswith(", direct") and p.reason is Reason.none
+    assert planner.passes_dense_checks(robot, problem, p) and p.T >= p.lower_bound
+    assert planner.Method.single_shot in calls and calls[0] is planner.Method.successive
+    calls.clear()
+    off = routed.plan_routed(robot, problem, FAST, routes=0, fallback=False)
+    assert not off.success and off.reason is Reason.solver_failed and planner.Method.single_shot not in calls
 
 
 # ---- the layouts --------------------------------------------------------------------------------------

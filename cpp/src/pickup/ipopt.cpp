@@ -100,15 +100,20 @@ class PickupTNLP : public Ipopt::TNLP {
   int iterations = 0;
   Ipopt::SolverReturn solver_status = Ipopt::UNASSIGNED;
   // Wall-clock deadline of the run (PickupSettings::time_limit): Ipopt 3.11 has no wall-time
-  // option, so the callback after each iteration stops it (User_Requested_Stop).
+  // option, so the callback after each iteration stops it (User_Requested_Stop). It stops when the
+  // next iteration, as long as the last one (the first: as long as the start-up), would end after
+  // the deadline: the budget is a bound on the wall time, not a point at which to start stopping.
   bool has_deadline = false;
-  std::chrono::steady_clock::time_point deadline;
+  std::chrono::steady_clock::time_point deadline, last_callback;
   bool deadline_hit = false;
 
   bool intermediate_callback(Ipopt::AlgorithmMode, Ipopt::Index, Ipopt::Number, Ipopt::Number, Ipopt::Number,
                              Ipopt::Number, Ipopt::Number, Ipopt::Number, Ipopt::Number, Ipopt::Number, Ipopt::Index,
                              const Ipopt::IpoptData*, Ipopt::IpoptCalculatedQuantities*) override {
-    if (has_deadline && std::chrono::steady_clock::now() >= deadline) deadline_hit = true;
+    if (!has_deadline) return true;
+    const auto now = std::chrono::steady_clock::now();
+    if (now + (now - last_callback) >= deadline) deadline_hit = true;
+    last_callback = now;
     return !deadline_hit;
   }
 
@@ -273,6 +278,7 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
                                                    st.basis == CoefficientBasis::bernstein, warm);
   if (st.time_limit > 0) {
     nlp->has_deadline = true;
+    nlp->last_callback = t0;
     nlp->deadline = t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                              std::chrono::duration<double>(st.time_limit));
   }

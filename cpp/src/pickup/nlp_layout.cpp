@@ -26,6 +26,8 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   problem.validate(robot);
   if (settings.samples_per_interval < 2)
     throw std::invalid_argument("samples_per_interval must be >= 2, got " + std::to_string(settings.samples_per_interval));
+  if (!(settings.dense_nonholonomic >= 0 && std::isfinite(settings.dense_nonholonomic)))
+    throw std::invalid_argument("dense_nonholonomic must be a finite number >= 0, got " + std::to_string(settings.dense_nonholonomic));
   dof_ = robot.dof();
   if (dof_ > 31) throw std::invalid_argument("at most 31 DOFs supported");
   const std::vector<int> deg = resolved_degrees(settings, dof_);
@@ -80,14 +82,14 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   // get extra samples (one per distinct instant), after the regular ones.
   std::vector<char> jsel(nreg_ * na, subset ? 0 : 1);
   std::vector<std::vector<int>> csel(nreg_);
-  struct Extra { Sample at; std::vector<int> joints, pairs; };
+  struct Extra { Sample at; std::vector<int> joints, pairs; bool nonholonomic; };
   std::vector<Extra> extra;
   auto extra_at = [&](const double* w) -> Extra& {
     auto it = std::find_if(extra.begin(), extra.end(), [&](const Extra& e) {
       return e.at.w[0] == w[0] && e.at.w[1] == w[1] && e.at.w[2] == w[2];
     });
     if (it != extra.end()) return *it;
-    extra.push_back({{{w[0], w[1], w[2]}}, {}, {}});
+    extra.push_back({{{w[0], w[1], w[2]}}, {}, {}, false});
     return extra.back();
   };
   const int no = static_cast<int>(problem.obstacles.size()), npairs = no * static_cast<int>(problem.body_spheres.size());
@@ -106,6 +108,7 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
       if (c.sample >= 0) csel[c.sample].push_back(c.pair);
       else extra_at(c.w).pairs.push_back(c.pair);
     }
+    for (const auto& n : subset->nonholonomic) extra_at(n.w).nonholonomic = true;
   } else {
     for (auto& v : csel)
       for (int p = 0; p < npairs; ++p) v.push_back(p);
@@ -172,6 +175,7 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
   }
   for (int e = 0; e < static_cast<int>(extra.size()); ++e) {
     sample_row_begin_.push_back(static_cast<int>(rows_.size()));
+    if (extra[e].nonholonomic) add_row(K_NH, nreg_ + e, 0, base, false, false, -nh_bound, nh_bound);
     for (int j : extra[e].joints) joint_row(nreg_ + e, j);
     collision_rows(nreg_ + e, extra[e].pairs);
   }

@@ -1,5 +1,6 @@
 // Active-set support of the pick-up NLP: which optional rows (joint-position, collision) a stage
-// needs near a point, and the dense collision check between the regular samples.
+// needs near a point, and the dense check (collisions, joint limits, lateral base motion) between
+// the regular samples.
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -25,6 +26,11 @@ void PickupRowSubset::merge(const PickupRowSubset& o) {
                  (c.sample >= 0 || (a.w[0] == c.w[0] && a.w[1] == c.w[1] && a.w[2] == c.w[2]));
         }))
       collisions.push_back(c);
+  for (const auto& n : o.nonholonomic)
+    if (std::none_of(nonholonomic.begin(), nonholonomic.end(), [&](const Instant& a) {
+          return a.w[0] == n.w[0] && a.w[1] == n.w[1] && a.w[2] == n.w[2];
+        }))
+      nonholonomic.push_back(n);
 }
 
 namespace {
@@ -69,7 +75,7 @@ PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int su
   const int na = dof_ - 3, npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());
   const bool coll = has_collision_rows();
   const double s1 = x[idx_s1()], s2 = x[idx_s2()];
-  Eigen::VectorXd q(dof_);
+  Eigen::VectorXd q(dof_), qs(dof_);
   RobotWorkspace ws(robot_);
   std::vector<double> best(npairs), jbest(na);
   std::vector<PickupRowSubset::Collision> at(npairs);
@@ -78,10 +84,19 @@ PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int su
     const Sample &A = samples_[g], &B = samples_[g + 1];
     std::fill(best.begin(), best.end(), std::numeric_limits<double>::infinity());
     std::fill(jbest.begin(), jbest.end(), std::numeric_limits<double>::infinity());
+    double lateral = st_.dense_nonholonomic * x[idx_T()];  // the largest lateral motion (d/ds) above it, and where
+    PickupRowSubset::Instant nh_at;
+    bool nh = false;
     for (int k = 1; k < subdivisions; ++k) {  // interior instants
       const double f = double(k) / subdivisions;
       const double w[3] = {A.w[0] + f * (B.w[0] - A.w[0]), A.w[1] + f * (B.w[1] - A.w[1]), A.w[2] + f * (B.w[2] - A.w[2])};
-      traj_.eval(x.data(), w[0] * s1 + w[1] * s2 + w[2], q.data(), nullptr, nullptr);
+      traj_.eval(x.data(), w[0] * s1 + w[1] * s2 + w[2], q.data(), qs.data(), nullptr);  // qs: d/ds (traj_ has T = 1)
+      const double lat = std::abs(qs[0] * std::sin(q[2]) - qs[1] * std::cos(q[2]));  // the row K_NH's value
+      if (st_.dense_nonholonomic > 0 && lat > lateral) {
+        lateral = lat;
+        nh_at = {{w[0], w[1], w[2]}};
+        nh = true;
+      }
       for (int j = 0; j < na; ++j) {  // slack to the real limit
         const double slack = std::min(q[3 + j] - robot_.lower_limits()[3 + j], robot_.upper_limits()[3 + j] - q[3 + j]);
         if (slack < jbest[j]) {
@@ -105,6 +120,7 @@ PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int su
       if (best[p] < threshold) out.collisions.push_back(at[p]);
     for (int j = 0; j < na; ++j)
       if (jbest[j] < st_.joint_limit_margin - joint_slack) out.joints.push_back(jat[j]);
+    if (nh) out.nonholonomic.push_back(nh_at);
   }
   if (min_clearance) {
     if (coll)  // the regular samples too

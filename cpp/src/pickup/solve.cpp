@@ -61,10 +61,23 @@ struct StageMultipliers {
 
 // The wall-clock limit of solve_successive's and solve_single_shot's runs (PickupSettings::time_limit).
 struct RunLimits {
-  // Wall-clock deadline (PickupSettings::time_limit; max: none): no run starts after it, and each
-  // run is told the time left.
+  // Wall-clock deadline (PickupSettings::time_limit; max: none): no run starts when it is nearer
+  // than the shortest run so far, and each run is told the time left.
   std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
-  bool expired() const { return std::chrono::steady_clock::now() >= deadline; }
+  // The shortest Ipopt run of this call that the deadline did not cut (s): a run started with less
+  // time left would end past the deadline (its start-up and first iteration alone take that long).
+  // Mutable: a statistic of the call, kept where its runs are counted.
+  mutable double shortest_run = 0.0;
+  bool expired() const {
+    return deadline != std::chrono::steady_clock::time_point::max() &&
+           std::chrono::steady_clock::now() + seconds(shortest_run) >= deadline;
+  }
+  void count(double run_seconds, bool cut) const {
+    if (!cut) shortest_run = shortest_run > 0.0 ? std::min(shortest_run, run_seconds) : run_seconds;
+  }
+  static std::chrono::steady_clock::duration seconds(double s) {
+    return std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(s));
+  }
   double seconds_left() const {
     if (deadline == std::chrono::steady_clock::time_point::max()) return 0.0;  // 0: no limit
     return std::max(1e-3, std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count());
@@ -161,6 +174,7 @@ StageResult solve_stage_warm(const Robot& robot, const PickupProblem& pb, const 
     }
     sr.time_limit = limits.seconds_left();
     IpoptRun run = run_ipopt(part, sr, x, mu, warm.lambda.size() ? &warm : nullptr);
+    limits.count(run.seconds, run.status == SolveStatus::time_limit);
     if (run.mult.lambda.size() == part.num_constraints()) {
       prev.zl = run.mult.zl;
       prev.zu = run.mult.zu;
@@ -420,9 +434,10 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   return out;
 }
 
-PickupResult solve_single_shot(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
+PickupResult solve_single_shot(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+                               const Eigen::VectorXd& x0) {
   PickupResult out;
-  const Eigen::VectorXd seed = random_seed(robot, pb, st);
+  const Eigen::VectorXd seed = x0.size() ? x0 : random_seed(robot, pb, st);
   StageResult r = solve_stage(robot, pb, st, 0, seed);
   out.stages.push_back(r);
   out.status = r.status;

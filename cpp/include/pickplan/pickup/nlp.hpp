@@ -128,8 +128,9 @@ struct PickupSettings {
   // dropped: the slowest solves are the hard ones, and every cap lost problems; bench/PICKUP.md.)
   bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers
   // Wall-clock budget of one solve_successive / solve_single_shot call (s; 0: none). Each Ipopt run
-  // stops at the deadline (its intermediate callback), no stage, arm seed or direct track starts
-  // after it, and the result keeps the best feasible solution found before it (status time_limit).
+  // stops before an iteration that would end past the deadline (its intermediate callback, the
+  // next iteration taken as long as the last), no stage, arm seed or direct track starts after a
+  // run was stopped so, and the result keeps the best feasible solution found before (status time_limit).
   // Wall time, not CPU: it is what a caller waits for (on a loaded machine the two differ).
   double time_limit = 0.0;
   // The trajectory between the regular samples is checked at this many subdivisions of each gap;
@@ -137,6 +138,11 @@ struct PickupSettings {
   // closer than joint_limit_margin / 2 to its limit, a row at that instant joins and the stage is
   // re-solved (0: samples only, as the paper).
   int dense_subdivisions = 16;
+  // ... and where the base's lateral speed exceeds this (m/s; > 0), a non-holonomic row at that
+  // instant joins (0: not checked between the samples). Off by default: at 0.02 m/s (the mean
+  // Python's dense check accepts) it cost CPU and lost problems on the paper's and the side
+  // layouts, and traded shorter T for solved problems on the behind layout (bench/PICKUP.md, issue 37).
+  double dense_nonholonomic = 0.0;
   double seed_speed = 1.0;              // heuristic seed: T = path length / seed_speed
   unsigned seed = 0;                    // random seeds (arm perturbation, single-shot baseline)
   double arm_seed_noise = 0.05;         // rad, heuristic seed arm perturbation
@@ -144,7 +150,8 @@ struct PickupSettings {
 
 // A subset of a stage's optional rows (joint-position and collision rows), for the active-set
 // solve: a joint or collision row at a regular sample or at any instant s = w0 s1 + w1 s2 + w2
-// (e.g. between samples, where the dense check found the trajectory too close to a limit).
+// (e.g. between samples, where the dense check found the trajectory too close to a limit); and
+// non-holonomic rows at instants between the samples (every regular sample has one anyway).
 struct PickupRowSubset {
   struct Joint {
     int sample = 0;    // >= 0: a regular sample (w unused); -1: the instant given by w
@@ -156,10 +163,14 @@ struct PickupRowSubset {
     double w[3] = {0.0, 0.0, 0.0};
     int pair = 0;      // body_sphere * num_obstacles + obstacle
   };
+  struct Instant {
+    double w[3] = {0.0, 0.0, 0.0};
+  };
   std::vector<Joint> joints;
   std::vector<Collision> collisions;
+  std::vector<Instant> nonholonomic;
   void merge(const PickupRowSubset& other);  // union, without duplicates
-  int size() const { return static_cast<int>(joints.size() + collisions.size()); }
+  int size() const { return static_cast<int>(joints.size() + collisions.size() + nonholonomic.size()); }
 };
 
 // The constraint system of one stage, evaluated natively (exposed for tests and the checker).
@@ -212,7 +223,9 @@ class PickupConstraints {
   // Dense check between the regular samples (each gap split into `subdivisions`): per gap and
   // body/obstacle pair, the instant of least clearance when that clearance is below `threshold`;
   // per gap and arm joint, the instant of largest excursion when the joint comes closer than
-  // joint_limit_margin - joint_slack to its limit. min_clearance (optional) receives the least
+  // joint_limit_margin - joint_slack to its limit; per gap, the instant of largest lateral base
+  // speed when it exceeds settings.dense_nonholonomic (a long T leaves seconds between samples,
+  // where a polynomial base path may slide sideways). min_clearance (optional) receives the least
   // clearance over the dense instants and the samples.
   PickupRowSubset dense_points(const Eigen::VectorXd& x, int subdivisions, double threshold, double joint_slack,
                                double* min_clearance = nullptr) const;
@@ -327,7 +340,10 @@ StageResult solve_stage(const Robot& robot, const PickupProblem& problem, const 
 PickupResult solve_successive(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x0 = Eigen::VectorXd());
 // The baseline "without sequencing": all constraints at once from random_seed().
-PickupResult solve_single_shot(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
+// All constraints at once (stage 0) from the random seed (random_seed, settings.seed), or from x0
+// when it is given (non-empty; e.g. a stage-1 solution: the direct track on its own).
+PickupResult solve_single_shot(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                               const Eigen::VectorXd& x0 = Eigen::VectorXd());
 // Default polynomial degrees for a robot with `dof` DOFs (3 base + arm).
 std::vector<int> default_degrees(int dof);
 // The degrees a solve uses: settings.degrees, or default_degrees(dof) when empty.

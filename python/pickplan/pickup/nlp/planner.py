@@ -133,6 +133,7 @@ class PlannerSettings:
     mu_resolve: float = 1e-4
     warm_start_push: float = 1e-6
     dense_subdivisions: int = 16          # collision check between samples (0: samples only)
+    dense_nonholonomic: float = 0.0       # ... and lateral base speed above this (m/s; 0: not)
     mu_strategy: MuStrategy = MuStrategy.monotone
     mu_init: float = 1e-2
     seed: int = 0
@@ -277,15 +278,16 @@ def _check(problem, robot: Robot):
 def plan(robot: Robot, problem, settings: PlannerSettings = PlannerSettings(),
          method: Union[Method, str] = Method.successive, x0=None) -> PickupPlan:
     """Solve: method "successive" (the five stages, from ``x0`` when given, else the heuristic seed)
-    or "single_shot" (all constraints at once from a random seed, settings.seed); "routed" is
-    ``routed.plan_routed``. Solver failures are statuses; bad input raises ValueError."""
+    or "single_shot" (all constraints at once, from ``x0`` when given, else from a random seed,
+    settings.seed); "routed" is ``routed.plan_routed``. Solver failures are statuses; bad input
+    raises ValueError."""
     method = Method.parse(method, "method")
     if method is Method.routed:
         raise ValueError("method routed: call pickplan.pickup.nlp.routed.plan_routed")
     _check(problem, robot)
-    if method is Method.single_shot:
-        return PickupPlan.from_native(_core.pickup_solve_single_shot(robot.native, problem, settings.native()))
     x0 = np.zeros(0) if x0 is None else np.asarray(x0, dtype=float)
+    if method is Method.single_shot:
+        return PickupPlan.from_native(_core.pickup_solve_single_shot(robot.native, problem, settings.native(), x0))
     return PickupPlan.from_native(_core.pickup_solve_successive(robot.native, problem, settings.native(), x0))
 
 

@@ -14,7 +14,9 @@ it (left / right, clockwise / anticlockwise), ranked by length.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -151,9 +153,11 @@ def grasp_poses(geo: BaseGeometry, margin: float) -> list:
     return out
 
 
-def candidate_routes(geo: BaseGeometry, count: int = 3, margin: float = 0.05) -> list:
+def candidate_routes(geo: BaseGeometry, count: int = 3, margin: float = 0.05, deadline: Optional[float] = None) -> list:
     """Up to ``count`` routes, shortest first: per (side, sense) the shortest route whose samples
-    clear the obstacles by ``margin``; the best per class, then the classes by length."""
+    clear the obstacles by ``margin``; the best per class, then the classes by length. The search
+    (up to 0.2 s in clutter, where many routes collide) stops at ``deadline`` (time.monotonic())
+    with the routes found by then."""
     rho = geo.v_max / geo.w_max
     per_class = {}
     for gx, gy, h, side, sense in grasp_poses(geo, margin):
@@ -166,6 +170,8 @@ def candidate_routes(geo: BaseGeometry, count: int = 3, margin: float = 0.05) ->
     best = []
     for key, options in per_class.items():
         for length, g, legs in sorted(options, key=lambda o: o[0]):
+            if deadline is not None and time.monotonic() >= deadline:
+                return sorted(best, key=lambda r: r.length)[:count]
             label = f"{'left' if key[0] > 0 else 'right'}/{'anticlockwise' if key[1] > 0 else 'clockwise'}"
             route = _build(geo, g, legs, rho, label)
             if geo.free(route.poses[:, :2], margin).all():

@@ -8,7 +8,8 @@ successive refinement from the fastest base path, and a wall-clock budget.
    heuristic seed and from up to ``routes`` route seeds; the solved ones are ranked by their T.
 3. The five stages (native ``solve_successive``: arm seeds) from the best stage-1 solution; on
    failure (or a plan that fails the dense checks, ``planner.dense_checks``) from the next, while
-   the budget lasts. The first plan that passes is returned.
+   the budget lasts. The first plan that passes is returned. When none does: all constraints at
+   once (the native direct track, on its own) from each stage-1 solution in the same order.
 4. No success: the reason is ``solver_failed`` (the certificate found nothing against the problem)
    and the plan that went furthest is returned as the closest; ``time_limit`` when the budget ran
    out first. With a budget the native runs get the time left (``PlannerSettings.time_limit``), and
@@ -16,7 +17,7 @@ successive refinement from the fastest base path, and a wall-clock budget.
 
 Ipopt 3.11 with MUMPS is not thread-safe (``planner``), so the stage-1 runs and the candidates run
 one after another in this thread (the GIL is released in each native solve); the route geometry is
-milliseconds.
+milliseconds (up to 0.2 s in clutter, where many routes collide).
 """
 from __future__ import annotations
 
@@ -37,14 +38,42 @@ ROUTES = 3   # route seeds tried in stage 1 beside the heuristic seed
 # hold a detour with a turn back (issue 37: side and behind layouts, stage 1 at T = 50-100 s); degree
 # 7 can, at 6 more variables. The fastest stage-1 path wins.
 BASE_DEGREES = (5, 7)
+# A five-stage plan whose T exceeds this multiple of the lower bound (issue 37's worst-case target)
+# gets a second opinion: all constraints at once from the same stage-1 solution, kept when shorter.
+# The five stages commit the arm to one IK branch and grasp timing; far from the bound that is
+# where the time went (behind layout: 23 s -> 11 s against a bound of 6 s).
+SECOND_OPINION = 3.0
 
 
-def _left(deadline: Optional[float]) -> float:
-    return math.inf if deadline is None else deadline - time.monotonic()
+class _Budget:
+    """The call's wall-clock budget: spent when a native run stopped for it (a native run stops
+    before an iteration that would end past the deadline, so it may stop a little early) or when
+    less time is left than the quickest native call so far took (a call started then would end
+    past the deadline: its start-up alone takes about that long)."""
 
+    def __init__(self, time_limit: float):
+        self.deadline = time.monotonic() + time_limit if time_limit > 0 else None
+        self.cut = False
+        self.quickest = 0.0
 
-def _with_budget(settings: planner.PlannerSettings, deadline: Optional[float]) -> planner.PlannerSettings:
-    return settings if deadline is None else replace(settings, time_limit=max(1e-3, _left(deadline)))
+    def left(self) -> float:
+        return math.inf if self.deadline is None else self.deadline - time.monotonic()
+
+    def spent(self) -> bool:
+        return self.cut or self.left() <= self.quickest
+
+    def settings(self, settings: planner.PlannerSettings) -> planner.PlannerSettings:
+        return settings if self.deadline is None else replace(settings, time_limit=max(1e-3, self.left()))
+
+    def note(self, status, seconds: float) -> None:
+        """A native call's status (SolveStatus or the native enum; time_limit spends the budget)
+        and wall time."""
+        if not isinstance(status, planner.SolveStatus):
+            status = planner.SolveStatus.from_native(status)
+        if status is planner.SolveStatus.time_limit:
+            self.cut = True
+        else:
+            self.quickest = min(self.quickest, seconds) if self.quickest > 0 else seconds
 
 
 def _variants(robot, settings: planner.PlannerSettings) -> list:
@@ -55,16 +84,20 @@ def _variants(robot, settings: planner.PlannerSettings) -> list:
     return [replace(settings, degrees=[d, d, d] + arm) for d in BASE_DEGREES]
 
 
-def _stage1(robot, problem, settings, deadline, routes) -> list:
+def _stage1(robot, problem, settings, budget: _Budget, routes) -> list:
     """Stage 1 from every seed at every base degree while time is left: [(T, label, settings, x)]
     of the solved runs, fastest first (the lower degree first among equal T)."""
     solved = []
     variants = _variants(robot, settings)
     for k, variant in enumerate(variants):
-        for label, x0 in seeds(robot, problem, variant, routes if k == len(variants) - 1 else 0):
-            if _left(deadline) <= 0:
-                return sorted(solved, key=lambda s: s[0])
-            r = planner.solve_stage(robot, problem, x0, 1, _with_budget(variant, deadline))
+        pending = seeds(robot, problem, variant, routes if k == len(variants) - 1 else 0, budget.deadline)
+        while not budget.spent():  # checked before the next seed's geometry is computed, not only after
+            label, x0 = next(pending, (None, None))
+            if label is None or budget.spent():
+                break
+            t = time.monotonic()
+            r = planner.solve_stage(robot, problem, x0, 1, budget.settings(variant))
+            budget.note(r.status, time.monotonic() - t)
             if r.success:
                 name = label if len(variant.degrees) == 0 or k == 0 else f"{label}, base degree {variant.degrees[0]}"
                 solved.append((r.objective * (1 + 1e-3 * k), name, variant, np.asarray(r.x)))
@@ -77,48 +110,81 @@ def _no_solve(cert: Certificate, status: planner.SolveStatus) -> planner.PickupP
                               reason=cert.reason, detail=cert.detail, seed="none")
 
 
-def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTES):
+def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTES, deadline: Optional[float] = None):
     """(label, x0) stage-1 seeds, one at a time (the caller checks its deadline between them): the
-    native heuristic seed, then the route seeds, shortest first."""
+    native heuristic seed, then the route seeds, shortest first (their search stops at ``deadline``,
+    a time.monotonic() instant)."""
     template = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.native()))
     yield "heuristic", template
     if routes:
         geo = base_geometry(robot, problem, settings)
-        for r in route.candidate_routes(geo, routes):
+        for r in route.candidate_routes(geo, routes, deadline=deadline):
             yield f"route {r.label}", route.route_seed(r, geo, template, settings, robot.dof, problem.stroke)
 
 
+def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Method) -> tuple:
+    """(plan, whether it passes the dense checks) of ``method`` from one stage-1 solution. single_shot:
+    the all-constraint NLP from it (the native direct track on its own, with its iteration cap
+    ``direct_max_iter``)."""
+    _, label, variant, x1 = entry
+    if method is planner.Method.single_shot:
+        variant, label = replace(variant, max_iter=min(variant.max_iter, variant.direct_max_iter)), f"{label}, direct"
+    t = time.monotonic()
+    p = planner.plan(robot, problem, budget.settings(variant), method, x0=x1)
+    p.seed = label
+    budget.note(p.status, time.monotonic() - t)
+    return p, bool(p.success and planner.passes_dense_checks(robot, problem, p))
+
+
+def _solve_ranked(robot, problem, ranked: list, budget: _Budget, method: planner.Method) -> tuple:
+    """(the first plan that passes the dense checks or None, the stage-1 solution it came from, the
+    plan that went furthest) of ``method`` from the stage-1 solutions in their order, while the
+    budget lasts."""
+    closest = None
+    for entry in ranked:
+        if budget.spent():
+            break
+        p, ok = _solve_one(robot, problem, entry, budget, method)
+        if ok:
+            return p, entry, closest
+        if closest is None or p.stages_completed > closest.stages_completed:
+            closest = p
+    return None, None, closest
+
+
 def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.PlannerSettings(),
-                time_limit: float = 0.0, routes: int = ROUTES, direct_track: bool = False) -> planner.PickupPlan:
+                time_limit: float = 0.0, routes: int = ROUTES, direct_track: bool = False,
+                fallback: bool = True) -> planner.PickupPlan:
     """Plans any layout (module doc). ``time_limit`` > 0: wall-clock seconds for the whole call.
     ``direct_track`` (settings.direct_track is replaced by it): the native all-constraint hedge after
     the five stages; off here, where the next stage-1 solution is the hedge (issue 37's benchmark,
-    paper and side layouts: the direct track won 1 of 20 problems each, at 0.2-1.2 s of CPU each)."""
+    paper and side layouts: the direct track won 1 of 20 problems each, at 0.2-1.2 s of CPU each).
+    ``fallback``: when no five-stage plan passes, the all-constraint NLP from each stage-1 solution
+    in turn (issue 37, behind layout: it found feasible plans where the five stages ended with the
+    base sliding sideways between the samples or past the horizon); and from the plan's own
+    stage-1 solution when its T is above SECOND_OPINION times the lower bound."""
     settings = replace(settings, direct_track=direct_track)
     if not (time_limit >= 0 and math.isfinite(time_limit)):
         raise ValueError(f"time_limit: expected a finite number >= 0 (0: none), got {time_limit}")
     t0, c0 = time.monotonic(), time.thread_time()
-    deadline = t0 + time_limit if time_limit > 0 else None
+    budget = _Budget(time_limit)
     problem.validate(robot.native)
     cert = certify(robot, problem, settings)
     if not cert.feasible:
         p = _no_solve(cert, planner.SolveStatus.infeasible)
         p.total_seconds, p.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0
         return p
-    ranked = _stage1(robot, problem, settings, deadline, routes)
-    best, closest = None, None
-    for _, label, variant, x1 in ranked:
-        if _left(deadline) <= 0:
-            break
-        p = planner.plan(robot, problem, _with_budget(variant, deadline), planner.Method.successive, x0=x1)
-        p.seed = label
-        if p.success and planner.passes_dense_checks(robot, problem, p):
-            best = p
-            break
-        if closest is None or p.stages_completed > closest.stages_completed:
-            closest = p
+    ranked = _stage1(robot, problem, settings, budget, routes)
+    best, entry, closest = _solve_ranked(robot, problem, ranked, budget, planner.Method.successive)
+    if best is None and fallback:  # all constraints at once from the same base paths
+        best, entry, direct = _solve_ranked(robot, problem, ranked, budget, planner.Method.single_shot)
+        closest = closest or direct
+    elif best is not None and fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent():
+        other, ok = _solve_one(robot, problem, entry, budget, planner.Method.single_shot)
+        if ok and other.T < best.T:
+            best = other
     out = best or closest
-    timed_out = deadline is not None and _left(deadline) <= 0 and best is None
+    timed_out = budget.deadline is not None and budget.spent() and best is None
     if out is None:  # no stage-1 solution (or no time for one)
         out = _no_solve(cert, planner.SolveStatus.time_limit if timed_out else planner.SolveStatus.infeasible)
     out.lower_bound = cert.lower_bound
