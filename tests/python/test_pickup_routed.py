@@ -149,6 +149,8 @@ def test_each_infeasibility_reason_on_a_constructed_problem(robot):
     p = routed.plan_routed(robot, problem, replace(FAST, max_iter=1))
     assert not p.success and p.reason is Reason.solver_failed and "closest plan" in p.detail
     assert math.isfinite(p.lower_bound) and p.stages_completed >= 0
+    # No stage-1 run converges in one iteration: the detail says there is no plan at all.
+    assert p.stages == [] and "no base path (stage 1) converged" in p.detail
 
 
 # ---- the time budget -------------------------------------------------------------------------------

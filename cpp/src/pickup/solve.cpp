@@ -279,6 +279,16 @@ bool run_stages_2_to_5(const Robot& robot, const PickupProblem& pb, const Pickup
       if (static_cast<int>(key[0]) == K_JPOS) limit_price[3 + static_cast<int>(key[4])] += std::abs(lambda);
   };
   for (int stage = 2; stage <= 5; ++stage) {
+    if (limits.expired()) {  // before the stage's seed (IK, grasp timing): no step starts after the deadline
+      StageResult r;
+      r.stage = stage;
+      r.status = status = SolveStatus::time_limit;
+      r.ipopt_status = "Not_Solved (the time limit ran out)";
+      r.x = stage == 2 ? x2 : x;
+      r.objective = r.x[r.x.size() - 3];  // T
+      stages.push_back(r);
+      return false;
+    }
     // Stages 2 and 3 start cold (stage 2 from an IK seed, stage 3's new velocity rows are far
     // from satisfied); stages 4 and 5 from the previous stage's multipliers.
     const bool warm = st.warm_start_stages && stage > 3;
@@ -331,6 +341,9 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
   if (r1.success) {
     out.x = r1.x;
     out.stages_completed = 1;
+  }
+  if (r1.success && !time_left()) out.success = false;  // stage 1 only: not a plan (status time_limit below)
+  if (r1.success && !timed_out) {
     // Stages 2-5 from up to st.arm_seeds arm configurations at T2 (PickupSettings::arm_seeds).
     // The polynomials commit early: the wrists are cubics, so a joint's value at T2 (any 2 pi
     // turn gives the same grasp) decides where its polynomial runs after T2 and which limits bind.
@@ -377,7 +390,7 @@ PickupResult solve_successive(const Robot& robot, const PickupProblem& pb, const
                                         stages, x, status, price);
       ik_wall = ik_cpu = 0.0;
       if (status == SolveStatus::time_limit) timed_out = true;
-      if (stages.size() >= 3 && max_seeds > 1) {  // a trajectory with the grasp velocity: where it meets limits
+      if (stages.size() >= 3 && max_seeds > 1 && time_left()) {  // a trajectory with the grasp velocity: where it meets limits
         std::vector<Eigen::VectorXd> turns;
         for (const Eigen::VectorXd& w : wound_arm_configurations(robot, pb, st, arms[k], stages.back().x, price))
           if (!known(w)) turns.push_back(w);

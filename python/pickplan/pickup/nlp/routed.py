@@ -192,9 +192,11 @@ def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.Plan
         if out.success:  # converged, but failed the dense checks between the samples: not a feasible plan
             out.success, out.status = False, planner.SolveStatus.violation_between_samples
         out.reason = Reason.time_limit if timed_out else Reason.solver_failed
+        closest_text = (f"the closest plan reached stage {out.stages_completed} of 5" if ranked else
+                        "no base path (stage 1) converged from any seed, so there is no closest plan")
         out.detail = (f"the time limit of {time_limit:g} s ran out before a feasible plan" if timed_out else
                       f"no solver run succeeded although the geometry allows T >= {cert.lower_bound:.2f} s; "
-                      f"the closest plan reached stage {out.stages_completed} of 5")
+                      f"{closest_text}")
         if timed_out:
             out.status = planner.SolveStatus.time_limit
     out.total_seconds, out.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0
