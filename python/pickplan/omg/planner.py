@@ -109,6 +109,14 @@ class PlanResult:
     limits: Optional[KinematicLimits] = None  # the planned robot's limits (``timed``'s default)
     reason: str = ""               # why, for ungraspable ("ungraspable: wider than the 8 cm opening ...")
 
+    @classmethod
+    def unplanned(cls, status: "PlanStatus", q0: np.ndarray, timings: dict, goal_reasons: dict,
+                  reason: str = "") -> "PlanResult":
+        """A result with no plan (no goal, an ungraspable target): the start alone, empty history."""
+        history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}
+        return cls(status, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0, history, timings,
+                   goal_reasons, reason=reason)
+
     @property
     def success(self) -> bool:
         return self.status == PlanStatus.success
@@ -217,11 +225,9 @@ class OMGPlanner:
         timings["goal_set"] = clock() - t
         if gs is None or len(gs) == 0:
             timings["total"] = clock() - t_total
-            history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}
             status = PlanStatus.no_goals if verdict.graspable else PlanStatus.ungraspable
-            return PlanResult(status, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0, history,
-                              timings, gs.reason_counts() if gs is not None else {},
-                              reason="" if verdict.graspable else f"ungraspable: {verdict.reason}"), gs
+            return PlanResult.unplanned(status, q0, timings, gs.reason_counts() if gs is not None else {},
+                                        "" if verdict.graspable else f"ungraspable: {verdict.reason}"), gs
         result = self._optimize(world, q0, gs, timings)
         timings["total"] = clock() - t_total
         result.goal_reasons = gs.reason_counts()

@@ -108,9 +108,7 @@ class Replanner:
         timings["goal_set"] = clock() - t
         if len(goals) == 0:
             timings["total"] = clock() - t_total
-            history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}
-            result = PlanResult(PlanStatus.no_goals, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
-                                history, timings, goals.reason_counts())
+            result = PlanResult.unplanned(PlanStatus.no_goals, q0, timings, goals.reason_counts())
             self._remember(result, goals)
             return result
         r = self.settings
