@@ -93,6 +93,29 @@ def test_depth_sigmoid_recovers_known_noise():
     assert 0 < nll < np.log(2)
 
 
+def test_depth_sigmoid_is_the_constrained_optimum():
+    """Against brute force over the bounded (D_FT, log w) box: no grid point has a lower weighted
+    likelihood, for mixed, noise-free-but-overlapping and weighted samples; separated classes give
+    the narrowest band centred in their gap (the limit of the likelihood as the band narrows)."""
+    from pickplan.pickup.metamodel.calibration import DEPTH_CLIP, WIDTH_BOUNDS, _nll_terms
+    rng = np.random.default_rng(3)
+    grid_d = np.linspace(-DEPTH_CLIP, DEPTH_CLIP, 401)
+    grid_w = np.exp(np.linspace(np.log(WIDTH_BOUNDS[0]), np.log(WIDTH_BOUNDS[1]), 60))
+    for n, noise, weighted in ((40, 0.05, False), (200, 0.01, True), (15, 0.3, False)):
+        depth = rng.uniform(-0.3, 0.3, n)
+        y = rng.uniform(size=n) < 1 / (1 + np.exp(-(depth + 0.05) / noise))
+        wt = rng.uniform(0.1, 2.0, n) if weighted else np.ones(n)
+        d_ft, w, nll = fit_depth_sigmoid(depth, y, wt if weighted else None)
+        assert abs(d_ft) <= DEPTH_CLIP and WIDTH_BOUNDS[0] <= w <= WIDTH_BOUNDS[1]
+        wn = wt / wt.mean()
+        assert nll == pytest.approx(np.mean(wn * _nll_terms(depth, y, d_ft, w)), abs=1e-12)
+        brute = np.mean(wn * _nll_terms(depth, y, grid_d[:, None, None], grid_w[None, :, None]), axis=2).min()
+        assert nll <= brute + 1e-9
+    depth = np.array([-0.4, -0.25, -0.2, 0.1, 0.3])
+    d_ft, w, nll = fit_depth_sigmoid(depth, depth > 0)
+    assert w == pytest.approx(WIDTH_BOUNDS[0]) and d_ft == pytest.approx(-0.05, abs=1e-3) and nll < 1e-9
+
+
 def test_svm_depth_is_signed_distance_near_the_boundary():
     """Sphere of radius 0.5: near the surface the first-order depth is the distance."""
     rng = np.random.default_rng(1)

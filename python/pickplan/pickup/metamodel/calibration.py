@@ -30,7 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.special import expit
 from sklearn.model_selection import StratifiedKFold
 
 DEPTH_CLIP = 2.0  # normalized units; beyond this p is 0 or 1 anyway
@@ -64,26 +64,83 @@ def _nll_terms(depth, y, d_ft, width) -> np.ndarray:
     return np.where(y, np.logaddexp(0, -t), np.logaddexp(0, t))
 
 
+def _nll_ab(a: float, b: float, depth, sign, wt) -> tuple:
+    """Weighted negative log-likelihood of P(success) = sigmoid(a depth + b) (sign +1 for a success,
+    -1 for a failure), its gradient and Hessian in (a, b): convex, where (D_FT, w) is not."""
+    m = sign * (a * depth + b)
+    q = expit(-m)  # accurate far in the tails, where 1 - tanh rounds to 0 and the gradient vanishes
+    r, h = wt * q * sign, wt * q * (1.0 - q)
+    hd = h * depth
+    return (float(np.sum(wt * np.logaddexp(0.0, -m))), -np.array([np.sum(r * depth), np.sum(r)]),
+            np.array([[np.sum(hd * depth), np.sum(hd)], [np.sum(hd), np.sum(h)]]))
+
+
+def _newton_interior(nll, p, iterations: int = 100):
+    """Damped Newton (Armijo backtracking) from p: (value, point) at convergence, None when the
+    minimum runs to infinity (classes separated: the likelihood only grows as the band narrows)."""
+    f, g, H = nll(p)
+    for _ in range(iterations):
+        try:
+            step = -np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            return None
+        t = 1.0
+        while True:
+            fn, gn, Hn = nll(p + t * step)
+            if fn <= f + 1e-4 * t * (g @ step) or t < 1e-10:
+                break
+            t *= 0.5
+        p, f, g, H = p + t * step, fn, gn, Hn
+        if abs(g @ step) < 1e-12 * max(1.0, abs(f)):
+            return f, p
+    return None
+
+
+def _segment_min(nll, p0, p1, iterations: int = 60) -> tuple:
+    """(value, point) minimizing the convex nll on the segment p0-p1 (1-D Newton kept in [0, 1])."""
+    d, lam = p1 - p0, 0.5
+    f, g, H = nll(p0 + lam * d)
+    for _ in range(iterations):
+        slope, curv = g @ d, d @ H @ d
+        new = min(max(lam - slope / curv if curv > 0 else lam - np.sign(slope), 0.0), 1.0)
+        while True:
+            fn, gn, Hn = nll(p0 + new * d)
+            if fn <= f or abs(new - lam) < 1e-12:
+                break
+            new = 0.5 * (lam + new)
+        done = abs(new - lam) < 1e-10
+        lam, f, g, H = new, fn, gn, Hn
+        if done:
+            break
+    return f, p0 + lam * d
+
+
 def fit_depth_sigmoid(depth, y, weights=None) -> tuple:
     """(Weighted) maximum-likelihood (D_FT, w, mean negative log-likelihood) of
-    P(success | depth) = sigmoid((depth - D_FT) / w)."""
+    P(success | depth) = sigmoid((depth - D_FT) / w), |D_FT| <= DEPTH_CLIP, w in WIDTH_BOUNDS.
+
+    Solved as the logistic regression sigmoid(a depth + b), a = 1 / w, b = -D_FT / w, whose
+    likelihood is convex on a convex polygon (the bounds): the interior Newton minimum if it lies
+    inside, else the best minimum on the polygon's four edges. Separated classes give the
+    narrowest band centred in their gap."""
     depth, y = np.asarray(depth, float), np.asarray(y, bool)
     if y.all() or (~y).all():
         return (-DEPTH_CLIP if y.all() else DEPTH_CLIP), WIDTH_BOUNDS[0], 0.0
     wt = np.ones(len(y)) if weights is None else np.asarray(weights, float)
     wt = wt / wt.mean()
+    sign = np.where(y, 1.0, -1.0)
 
-    def nll(th):
-        return float(np.sum(wt * _nll_terms(depth, y, th[0], np.exp(th[1]))))
+    def nll(p):
+        return _nll_ab(p[0], p[1], depth, sign, wt)
 
-    lo, hi = np.log(WIDTH_BOUNDS[0]), np.log(WIDTH_BOUNDS[1])
-    best = None
-    for w0 in (0.01, 0.05):  # two starts: the likelihood is flat when classes barely mix
-        r = minimize(nll, [0.0, np.log(w0)], method="L-BFGS-B",
-                     bounds=[(-DEPTH_CLIP, DEPTH_CLIP), (lo, hi)])
-        if best is None or r.fun < best.fun:
-            best = r
-    return float(best.x[0]), float(np.exp(best.x[1])), float(best.fun) / len(y)
+    a_lo, a_hi, c = 1.0 / WIDTH_BOUNDS[1], 1.0 / WIDTH_BOUNDS[0], DEPTH_CLIP
+    corners = [np.array(v) for v in ((a_lo, -c * a_lo), (a_lo, c * a_lo), (a_hi, c * a_hi), (a_hi, -c * a_hi))]
+    candidates = [_segment_min(nll, corners[i], corners[(i + 1) % 4]) for i in range(4)]
+    inner = _newton_interior(nll, np.array([1.0 / 0.05, 0.0]))
+    if inner is not None and a_lo <= inner[1][0] <= a_hi and abs(inner[1][1]) <= c * inner[1][0]:
+        candidates.append(inner)
+    f, (a, b) = min(candidates, key=lambda cand: cand[0])
+    return float(-b / a), float(1.0 / a), f / len(y)
 
 
 @dataclass
