@@ -28,7 +28,7 @@ from typing import Optional
 import numpy as np
 
 from pickplan.core.settings import Option
-from pickplan.core.timing import TimedTrajectory
+from pickplan.core.timing import Interpolation, TimedTrajectory, TimingError, time_parameterize
 from pickplan.omg.planner import PlanResult
 from pickplan.omg.replan import Replanner
 
@@ -120,6 +120,7 @@ class ReplanMode(Option):
 @dataclass(frozen=True)
 class MovingSettings:
     timing_rate: float = 240.0       # Hz the plan is timed at (its duration is the arrival)
+    timing_grid: int = 4             # TOPP-RA grid points per waypoint interval (time_parameterize)
     prediction_rounds: int = 2       # plans per call at most: predict, plan, time, predict again
     arrival_tolerance: float = 0.02  # s: a plan whose arrival moved less is kept
     mode: ReplanMode = ReplanMode.warm
@@ -127,8 +128,9 @@ class MovingSettings:
     def __post_init__(self):
         if not (math.isfinite(self.timing_rate) and self.timing_rate > 0):
             raise ValueError(f"moving settings: timing_rate must be > 0 Hz, got {self.timing_rate}")
-        if int(self.prediction_rounds) != self.prediction_rounds or self.prediction_rounds < 1:
-            raise ValueError(f"moving settings: prediction_rounds must be an integer >= 1, got {self.prediction_rounds}")
+        for name in ("prediction_rounds", "timing_grid"):
+            if int(getattr(self, name)) != getattr(self, name) or getattr(self, name) < 1:
+                raise ValueError(f"moving settings: {name} must be an integer >= 1, got {getattr(self, name)}")
         if not self.arrival_tolerance >= 0:
             raise ValueError(f"moving settings: arrival_tolerance must be >= 0 s, got {self.arrival_tolerance}")
         object.__setattr__(self, "mode", ReplanMode.parse(self.mode, "replan mode"))
@@ -146,6 +148,18 @@ class MovingPlan:
     arrival_error: float = 0.0        # m the target moves between the arrival planned for and the plan's
 
 
+def _timed(result: PlanResult, s: "MovingSettings", start_velocity) -> TimedTrajectory:
+    """The plan timed as executed, from ``start_velocity``: PCHIP, or the cubic spline where TOPP-RA finds
+    no timing of the PCHIP path (a short replanned path that turns back on itself: PCHIP stops at every turn)."""
+    for interpolation in (Interpolation.PCHIP, Interpolation.CUBIC):
+        try:
+            return time_parameterize(result.trajectory, s.timing_rate, result.limits, interpolation, s.timing_grid,
+                                     start_velocity)
+        except TimingError:
+            if interpolation is Interpolation.CUBIC:
+                raise
+
+
 class MovingPlanner:
     """Plans to a moving target's predicted pose (see the module doc); one per target and thread."""
 
@@ -153,8 +167,10 @@ class MovingPlanner:
         self.replanner, self.settings = replanner, settings
         self.last: Optional[MovingPlan] = None
 
-    def plan(self, motion: TargetMotion, now: float, start: Optional[np.ndarray] = None) -> MovingPlan:
-        """A plan from ``start`` at time ``now`` to the target where ``motion`` puts it on the hand's arrival."""
+    def plan(self, motion: TargetMotion, now: float, start: Optional[np.ndarray] = None,
+             start_velocity: Optional[np.ndarray] = None) -> MovingPlan:
+        """A plan from ``start`` (moving at ``start_velocity``; None: at rest) at time ``now`` to the target
+        where ``motion`` puts it on the hand's arrival."""
         if not isinstance(motion, TargetMotion):
             raise TypeError(f"motion: expected a TargetMotion, got {type(motion).__name__}")
         if not math.isfinite(now):
@@ -170,7 +186,7 @@ class MovingPlanner:
             if not result.planned:
                 timed = None
                 break
-            timed = result.timed(s.timing_rate)
+            timed = _timed(result, s, start_velocity)
             d = timed.duration
             if abs(d - d_planned) <= s.arrival_tolerance:
                 break

@@ -5,13 +5,14 @@
 ``meet_time``, and clears a lane: the other objects whose footprint the target would sweep (from its
 start to where it is at ``end_time``, the nudge included) are left out.
 
-``Conveyor.before_step(t)`` runs before every physics step. The belt is ideal: while the target rests
-on it (its centre of mass less than ``release_height`` above where it started), its horizontal velocity
-is the belt's and it does not spin (no slip on the belt); lifted off, it is free. The nudge moves the
+``Conveyor.before_step(t)`` and ``after_step()`` run around every physics step. The belt is ideal:
+while the target rests on it (its centre of mass less than ``release_height`` above where it started),
+it moves horizontally with the belt and does not turn (no slip: the belt's grip overcomes the table's
+friction and the fingers' push); lifted off, it is free. The nudge moves the
 target by ``nudge`` at ``nudge_time`` in one step (a person pushing it).
 
 >>> scene2 = conveyor_scene(scene, path, meet_time=2.0, end_time=6.0)
->>> belt = Conveyor(client, body, model, path)     # then belt.before_step(t) every step
+>>> belt = Conveyor(client, body, model, path, time_step)  # before_step(t), step, after_step()
 """
 from __future__ import annotations
 
@@ -94,10 +95,11 @@ def conveyor_scene(scene: Scene, path: TargetPath, meet_time: float, end_time: f
 class Conveyor:
     """Drives one body along a ``TargetPath`` (see the module doc)."""
 
-    def __init__(self, client: int, body: int, model: objects_mod.ObjectModel, path: TargetPath):
+    def __init__(self, client: int, body: int, model: objects_mod.ObjectModel, path: TargetPath, time_step: float):
         from pickplan.sim.bullet import pb
 
-        self.pb, self.c, self.body, self.model, self.path = pb, client, body, model, path
+        self.pb, self.c, self.body, self.model, self.path, self.time_step = pb, client, body, model, path, time_step
+        self._held = None
         self.z0 = self.com()[2]
         self.nudged = False
 
@@ -112,13 +114,27 @@ class Conveyor:
         return self.com()[2] - self.z0 < self.path.release_height
 
     def before_step(self, t: float) -> None:
+        """The nudge when its time came; where the belt holds the target (before the step)."""
         pb, p = self.pb, self.path
         if p.nudge_time is not None and not self.nudged and t >= p.nudge_time:
             pos, quat = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.c)
             pb.resetBasePositionAndOrientation(self.body, (np.asarray(pos) + p.nudge).tolist(), quat,
                                                physicsClientId=self.c)
             self.nudged = True
+        self._held = None
         if np.any(p.velocity) and self.on_belt():
-            vz = pb.getBaseVelocity(self.body, physicsClientId=self.c)[0][2]
-            pb.resetBaseVelocity(self.body, [float(p.velocity[0]), float(p.velocity[1]), vz], [0.0, 0.0, 0.0],
-                                 physicsClientId=self.c)
+            self._held = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.c)
+
+    def after_step(self) -> None:
+        """A target on the belt moved with it: its horizontal position the belt's step on from where it was
+        (the table's friction, which the step applied, is the belt's to overcome), its turn undone."""
+        if self._held is None:
+            return
+        pb, p, dt = self.pb, self.path, self.time_step
+        (x, y, _), quat = self._held
+        z = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.c)[0][2]
+        vz = pb.getBaseVelocity(self.body, physicsClientId=self.c)[0][2]
+        pb.resetBasePositionAndOrientation(self.body, [x + p.velocity[0] * dt, y + p.velocity[1] * dt, z], quat,
+                                           physicsClientId=self.c)
+        pb.resetBaseVelocity(self.body, [float(p.velocity[0]), float(p.velocity[1]), vz], [0.0, 0.0, 0.0],
+                             physicsClientId=self.c)

@@ -45,7 +45,6 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from pickplan import _core
 from pickplan.core import objects as objects_mod
 from pickplan.core.timing import TimedTrajectory
 from pickplan.core.settings import Option
