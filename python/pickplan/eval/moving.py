@@ -3,12 +3,12 @@
 ``run_episode(scene, path, method, settings)``: the scene's target rides a belt or is nudged
 (``sim.conveyor``; the scene from ``conveyor_scene``), and the robot
 
-1. observes: every 1 / ``rate`` s the target's true pose with seeded noise (``noise`` m on each axis,
+1. observes: at ``observe_rate`` the target's true pose with seeded noise (``noise`` m on each axis,
    ``yaw_noise`` rad about the vertical) goes to a ``MotionEstimator``; it holds its start for
-   ``observe_time`` first;
+   ``observe_time`` first (open_loop stops observing once it planned);
 2. plans to the target's pose predicted for the hand's arrival (``omg.moving.MovingPlanner``) and follows
    the plan at its timing (one sample per control step, velocity feed-forward). ``MovingMethod``:
-   closed_loop replans warm at every observation from the commanded configuration and velocity, until the
+   closed_loop replans warm at ``rate`` from the commanded configuration and velocity, until the
    arrival is less than ``commit_time`` away; fresh does the same from scratch; open_loop plans once.
    A new plan is followed when it passes the success test and arrives no later than the plan followed, or
    the plan followed has gone stale (the target will not be where it goes); otherwise that one goes on;
@@ -54,11 +54,12 @@ class EpisodeStatus(Option):
 
 @dataclass(frozen=True)
 class LoopSettings:
-    rate: float = 5.0             # Hz: observations and replans
-    observe_time: float = 0.4     # s observed before the first plan
+    rate: float = 5.0             # Hz: replans
+    observe_rate: float = 30.0    # Hz: observations (a camera's frame rate)
+    observe_time: float = 0.6     # s observed before the first plan
     noise: float = 0.002          # m, sigma of each observed coordinate
     yaw_noise: float = 0.01       # rad, sigma of the observed turn about the vertical
-    window: int = 5               # observations in the velocity fit
+    window: int = 30              # observations in the velocity fit (1 s)
     jump: float = 0.02            # m from the prediction: a nudge (the fit restarts)
     commit_time: float = 0.3      # s: no replan when the hand arrives sooner
     # A new plan is followed when it arrives no later than the one followed (by delay_slack s), or when the
@@ -74,7 +75,7 @@ class LoopSettings:
     seed: int = 0
 
     def __post_init__(self):
-        for name in ("rate", "track_rate", "max_time"):
+        for name in ("rate", "observe_rate", "track_rate", "max_time"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"loop settings: {name} must be a finite number > 0, got {value!r}")
@@ -154,9 +155,12 @@ class _Episode:
     def t(self) -> float:
         return self.sim.steps * self.s.execution.time_step
 
+    def observe(self) -> None:
+        self.estimator.observe(self.t, _observe(self.sim.belt.pose(), self.rng, self.s))
+
     def tick(self) -> None:
-        """An observation, and a plan when the method makes one now."""
-        motion = self.estimator.observe(self.t, _observe(self.sim.belt.pose(), self.rng, self.s))
+        """A plan when the method makes one now."""
+        motion = self.estimator.motion
         if self.t < self.s.observe_time - 1e-9:
             return
         if self.plan is not None and (self.method is MovingMethod.open_loop or
@@ -175,10 +179,14 @@ class _Episode:
     def approach(self) -> bool:
         """Observe, plan and follow until the arrival (True) or max_time (False)."""
         s, sim = self.s, self.sim
-        next_tick = 0.0
+        next_tick = next_observation = 0.0
         arm = self.robot.info.arm_dof
         sim.command_fingers(self.q[arm], sim.grip_force)
         while self.t < s.max_time:
+            blind = self.method is MovingMethod.open_loop and self.plan is not None
+            if self.t >= next_observation - 1e-9 and not blind:
+                next_observation += 1.0 / s.observe_rate
+                self.observe()
             if self.t >= next_tick - 1e-9:
                 next_tick += 1.0 / s.rate
                 if not (self.method is MovingMethod.open_loop and self.plan is not None):

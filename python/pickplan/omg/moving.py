@@ -2,8 +2,8 @@
 
 A target moving at a constant, known or estimated velocity is grasped where it will be when the hand
 arrives. ``MovingPlanner.plan(motion, now, start)`` predicts the target's pose at ``now + d``, ``d`` the
-plan's duration as it will be executed (``PlanResult.timed``: TOPP-RA within the robot's limits, from
-rest to rest), plans there with a ``Replanner`` (warm from its last plan, or from scratch) and, when the
+plan's duration as it will be executed (TOPP-RA within the robot's limits, ``time_parameterize``, from
+the robot's velocity now to rest, through ``timing_waypoints``), plans there with a ``Replanner`` (warm from its last plan, or from scratch) and, when the
 new plan's duration moves the arrival by more than ``arrival_tolerance``, predicts again with it
 (``prediction_rounds`` in all).
 
@@ -87,6 +87,7 @@ class MotionEstimator:
         self._positions: deque = deque(maxlen=self.window)
         self.motion: Optional[TargetMotion] = None
         self.jumps = 0
+        self._fitted = False  # a velocity was fitted (two observations or more)
 
     def observe(self, t: float, pose) -> TargetMotion:
         """Adds the pose observed at time ``t`` (later than the last) and returns the motion estimated now."""
@@ -94,7 +95,8 @@ class MotionEstimator:
         if not math.isfinite(t) or (self._times and t <= self._times[-1]):
             raise ValueError(f"observation: time must be finite and after the last ({self._times[-1] if self._times else None}), got {t}")
         velocity = np.zeros(3) if self.motion is None else self.motion.velocity
-        if self.motion is not None and np.linalg.norm(pose[:3, 3] - self.motion.predict(t)[:3, 3]) > self.jump:
+        # (the jump test needs a velocity: before the first fit, a moving target is not where it was)
+        if self._fitted and np.linalg.norm(pose[:3, 3] - self.motion.predict(t)[:3, 3]) > self.jump:
             self._times.clear()  # nudged: the old positions say nothing about where it is now
             self._positions.clear()
             self.jumps += 1
@@ -106,6 +108,7 @@ class MotionEstimator:
             A = np.column_stack([np.ones_like(dt), dt])
             (p, velocity), *_ = np.linalg.lstsq(A, np.asarray(self._positions), rcond=None)
             fitted[:3, 3] = p
+            self._fitted = True
         self.motion = TargetMotion(fitted, velocity, float(t))
         return self.motion
 
@@ -121,7 +124,8 @@ class ReplanMode(Option):
 class MovingSettings:
     timing_rate: float = 240.0       # Hz the plan is timed at (its duration is the arrival)
     timing_grid: int = 4             # TOPP-RA grid points per waypoint interval (time_parameterize)
-    prediction_rounds: int = 2       # plans per call at most: predict, plan, time, predict again
+    timing_spacing: float = 0.1      # rad between the waypoints timed (timing_waypoints; 0: all)
+    prediction_rounds: int = 3       # plans per call at most: predict, plan, time, predict again
     arrival_tolerance: float = 0.02  # s: a plan whose arrival moved less is kept
     mode: ReplanMode = ReplanMode.warm
 
@@ -131,8 +135,9 @@ class MovingSettings:
         for name in ("prediction_rounds", "timing_grid"):
             if int(getattr(self, name)) != getattr(self, name) or getattr(self, name) < 1:
                 raise ValueError(f"moving settings: {name} must be an integer >= 1, got {getattr(self, name)}")
-        if not self.arrival_tolerance >= 0:
-            raise ValueError(f"moving settings: arrival_tolerance must be >= 0 s, got {self.arrival_tolerance}")
+        if not (self.arrival_tolerance >= 0 and self.timing_spacing >= 0):
+            raise ValueError(f"moving settings: arrival_tolerance and timing_spacing must be >= 0, got "
+                             f"{self.arrival_tolerance}, {self.timing_spacing}")
         object.__setattr__(self, "mode", ReplanMode.parse(self.mode, "replan mode"))
 
 
@@ -148,13 +153,28 @@ class MovingPlan:
     arrival_error: float = 0.0        # m the target moves between the arrival planned for and the plan's
 
 
-def _timed(result: PlanResult, s: "MovingSettings", start_velocity) -> TimedTrajectory:
+def timing_waypoints(Q: np.ndarray, spacing: float, tail: int) -> np.ndarray:
+    """The waypoints timed: the first, then each at least ``spacing`` (rad, joint-space arc length) on from
+    the last kept, and the last ``tail`` + 1 as they are (the standoff approach). CHOMP's waypoints of a
+    short replanned path lie a few mrad apart with as large wiggles, and a spline through all of them turns
+    so tightly that TOPP-RA crawls along it; through these it does not, within the same polyline."""
+    Q = np.asarray(Q, dtype=float)
+    last = max(1, len(Q) - tail - 1)
+    keep, run = [0], 0.0
+    for k in range(1, last):
+        run += float(np.linalg.norm(Q[k] - Q[k - 1]))
+        if run >= spacing:
+            keep.append(k)
+            run = 0.0
+    return Q[keep + list(range(last, len(Q)))]
+
+
+def _timed(Q: np.ndarray, limits, s: "MovingSettings", start_velocity) -> TimedTrajectory:
     """The plan timed as executed, from ``start_velocity``: PCHIP, or the cubic spline where TOPP-RA finds
-    no timing of the PCHIP path (a short replanned path that turns back on itself: PCHIP stops at every turn)."""
+    no timing of the PCHIP path (a short path that turns back on itself: PCHIP stops at every turn)."""
     for interpolation in (Interpolation.PCHIP, Interpolation.CUBIC):
         try:
-            return time_parameterize(result.trajectory, s.timing_rate, result.limits, interpolation, s.timing_grid,
-                                     start_velocity)
+            return time_parameterize(Q, s.timing_rate, limits, interpolation, s.timing_grid, start_velocity)
         except TimingError:
             if interpolation is Interpolation.CUBIC:
                 raise
@@ -186,7 +206,8 @@ class MovingPlanner:
             if not result.planned:
                 timed = None
                 break
-            timed = _timed(result, s, start_velocity)
+            Q = timing_waypoints(result.trajectory, s.timing_spacing, self.replanner.planner.settings.goals.standoff_steps)
+            timed = _timed(Q, result.limits, s, start_velocity)
             d = timed.duration
             if abs(d - d_planned) <= s.arrival_tolerance:
                 break
