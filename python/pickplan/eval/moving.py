@@ -222,6 +222,7 @@ class _Episode:
         k_close = int(round(close * s.track_rate))
         _follow(sim, path[:k_close + 1], [(seg, steps)] * k_close, False, sim.grip_force, False)
         self.held_after_close = sim.held()
+        sim.belt.release()  # the fingers hold it now: the belt's hold on it is no match (sim.conveyor)
         _follow(sim, path[k_close:], [(seg, steps)] * (n - k_close), False, sim.grip_force, False)
         _hold(sim, path[-1], ex.hold_duration, False)
         return sim.held(), float(sim.belt.com()[2] - z0)

@@ -115,14 +115,14 @@ def run_moving_bench(s: MovingBenchSettings) -> Dict[Tuple[str, str], List[dict]
     units = {(c, str(m)): {r["scene"]: r for r in _read(unit_csv(s.out, c, m)) if int(r["scene"]) in seeds}
              for c in s.cases() for m in s.methods}
     jobs = []
-    for case in s.cases():
-        for seed in seeds:
+    for seed in seeds:  # scene by scene: a run stopped early has every case on the same scenes
+        for case in s.cases():
             todo = [m for m in s.methods if str(seed) not in units[(case, str(m))]]
             if todo:
                 jobs.append({"settings": s, "case": case, "scene": seed, "methods": todo})
     with Runner(s.workers) as runner:
         for job, rows in runner.map(run_job, jobs, order=Order.COMPLETION, errors=OnError.RAISE,
-                                    progress=s.progress, label="moving", unit="scene"):
+                                    progress=s.progress, label="moving scenes"):
             for row in rows:
                 unit = units[(job["case"], row["method"])]
                 unit[str(row["scene"])] = row

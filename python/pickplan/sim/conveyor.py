@@ -8,7 +8,7 @@ start to where it is at ``end_time``, the nudge included) are left out.
 ``Conveyor.before_step(t)`` and ``after_step()`` run around every physics step. The belt is ideal:
 while the target rests on it (its centre of mass less than ``release_height`` above where it started),
 it moves horizontally with the belt and does not turn (no slip: the belt's grip overcomes the table's
-friction and the fingers' push); lifted off, it is free. The nudge moves the
+friction and the fingers' push); lifted off, or ``release``d (a gripper holds it), it is free. The nudge moves the
 target by ``nudge`` at ``nudge_time`` in one step (a person pushing it).
 
 >>> scene2 = conveyor_scene(scene, path, meet_time=2.0, end_time=6.0)
@@ -101,7 +101,7 @@ class Conveyor:
         self.pb, self.c, self.body, self.model, self.path, self.time_step = pb, client, body, model, path, time_step
         self._held = None
         self.z0 = self.com()[2]
-        self.nudged = False
+        self.nudged = self.released = False
 
     def com(self) -> np.ndarray:
         return np.asarray(self.pb.getBasePositionAndOrientation(self.body, physicsClientId=self.c)[0], float)
@@ -111,7 +111,11 @@ class Conveyor:
         return object_pose(self.c, self.body, self.model)
 
     def on_belt(self) -> bool:
-        return self.com()[2] - self.z0 < self.path.release_height
+        return not self.released and self.com()[2] - self.z0 < self.path.release_height
+
+    def release(self) -> None:
+        """The belt lets the target go (a gripper holds it: its grip dwarfs the belt's)."""
+        self.released = True
 
     def before_step(self, t: float) -> None:
         """The nudge when its time came; where the belt holds the target (before the step)."""
