@@ -8,7 +8,8 @@ new plan's duration moves the arrival by more than ``arrival_tolerance``, predic
 (``prediction_rounds`` in all).
 
 The velocity comes from noisy pose observations: ``MotionEstimator`` fits position = p + v (t - t_last)
-by least squares over the last ``window`` observations. An observation farther than ``jump`` from the
+by least squares over the last ``window`` observations (``horizontal``, the default: a target on a
+support, its height the observations' mean and its velocity horizontal). An observation farther than ``jump`` from the
 prediction (the target was nudged) restarts the fit from it, keeping the velocity until two new
 observations give one.
 
@@ -77,12 +78,12 @@ class TargetMotion:
 class MotionEstimator:
     """A target's motion from pose observations (see the module doc). One per target."""
 
-    def __init__(self, window: int = 5, jump: float = 0.02):
+    def __init__(self, window: int = 30, jump: float = 0.02, horizontal: bool = True):
         if int(window) != window or window < 2:
             raise ValueError(f"motion estimator: window must be an integer >= 2, got {window}")
         if not jump > 0:
             raise ValueError(f"motion estimator: jump must be > 0 m, got {jump}")
-        self.window, self.jump = int(window), float(jump)
+        self.window, self.jump, self.horizontal = int(window), float(jump), bool(horizontal)
         self._times: deque = deque(maxlen=self.window)
         self._positions: deque = deque(maxlen=self.window)
         self.motion: Optional[TargetMotion] = None
@@ -107,6 +108,8 @@ class MotionEstimator:
             dt = np.asarray(self._times) - t
             A = np.column_stack([np.ones_like(dt), dt])
             (p, velocity), *_ = np.linalg.lstsq(A, np.asarray(self._positions), rcond=None)
+            if self.horizontal:  # on a support: its height does not change, the noise does
+                velocity[2], p[2] = 0.0, float(np.mean(np.asarray(self._positions)[:, 2]))
             fitted[:3, 3] = p
             self._fitted = True
         self.motion = TargetMotion(fitted, velocity, float(t))
