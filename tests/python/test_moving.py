@@ -4,6 +4,8 @@ clear errors for bad input."""
 import numpy as np
 import pytest
 
+from pickplan.core import objects as objects_mod
+from pickplan.core import robots
 from pickplan.core.timing import panda_limits, time_parameterize
 from pickplan.eval.moving import EpisodeStatus, LoopSettings, MovingMethod, run_episode
 from pickplan.omg.moving import MotionEstimator, MovingPlanner, MovingSettings, TargetMotion, timing_waypoints
@@ -11,7 +13,6 @@ from pickplan.omg.planner import OMGPlanner, OMGSettings
 from pickplan.omg.replan import Replanner
 from pickplan.sim import bodies, scenes
 from pickplan.sim.conveyor import Conveyor, TargetPath, conveyor_scene
-from pickplan.core import objects as objects_mod, robots
 
 SETTINGS = OMGSettings(grasp_kind="antipodal")
 

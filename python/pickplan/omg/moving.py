@@ -21,7 +21,6 @@ observations give one.
 from __future__ import annotations
 
 import math
-import time
 from collections import deque
 from dataclasses import dataclass
 from typing import Optional
@@ -30,7 +29,7 @@ import numpy as np
 
 from pickplan.core.settings import Option
 from pickplan.core.timing import Interpolation, TimedTrajectory, TimingError, time_parameterize
-from pickplan.omg.planner import PlanResult
+from pickplan.omg.planner import PlanResult, _clock
 from pickplan.omg.replan import Replanner
 
 
@@ -152,8 +151,10 @@ class MovingPlan:
     arrival: float                    # s, when the timed plan ends (the hand at its goal)
     target_pose: np.ndarray           # the target's pose predicted for the arrival, that was planned to
     rounds: int                       # plans made (prediction rounds)
-    seconds: float                    # CPU s of the call (plans and timing)
+    seconds: float                    # s of the call on the planner's clock (OMGSettings.clock): plans and timing,
+                                      # the scene's preparation left out
     arrival_error: float = 0.0        # m the target moves between the arrival planned for and the plan's
+    planner_seconds: float = 0.0      # of ``seconds``, in the planner (PlanResult.timings' totals; the rest: timing)
 
 
 def timing_waypoints(Q: np.ndarray, spacing: float, tail: int) -> np.ndarray:
@@ -198,14 +199,17 @@ class MovingPlanner:
             raise TypeError(f"motion: expected a TargetMotion, got {type(motion).__name__}")
         if not math.isfinite(now):
             raise ValueError(f"now: expected a finite time, got {now}")
-        s, t0 = self.settings, time.thread_time()
+        s, clock = self.settings, _clock(self.replanner.planner.settings)
+        t0 = clock()
         # The first guess of the duration: what is left of the last plan (0 for the first plan: no move).
         d = max(0.0, self.last.arrival - now) if self.last is not None and self.last.timed is not None else 0.0
         target = self.replanner.world.target
-        result, timed, rounds, pose, d_planned = None, None, 0, None, d
+        result, timed, rounds, pose, d_planned, planner, prepare = None, None, 0, None, d, 0.0, 0.0
         for rounds in range(1, s.prediction_rounds + 1):
             pose, d_planned = motion.predict(now + d), d
             result = self._plan_once(target, pose, start)
+            planner += result.timings.get("total", 0.0)
+            prepare += result.timings.get("prepare", 0.0)
             if not result.planned:
                 timed = None
                 break
@@ -215,8 +219,8 @@ class MovingPlanner:
             if abs(d - d_planned) <= s.arrival_tolerance:
                 break
         arrival = now + (timed.duration if timed is not None else 0.0)
-        plan = MovingPlan(result, timed, float(now), float(arrival), pose, rounds, time.thread_time() - t0,
-                          motion.speed * abs(arrival - now - d_planned))
+        plan = MovingPlan(result, timed, float(now), float(arrival), pose, rounds, clock() - t0 - prepare,
+                          motion.speed * abs(arrival - now - d_planned), planner)
         self.last = plan
         return plan
 
