@@ -94,7 +94,7 @@ class EpisodeResult:
     plan_ms: List[float]          # CPU ms of each (planning and timing)
     planner_ms: List[float]       # of plan_ms, the planner's own (OMGSettings.clock; the rest is the timing)
     arrival: float                # s the hand reached its goal (nan: never)
-    miss: float                   # m between the hand's goal and the target's pose on arrival (in the hand's frame)
+    miss: float                   # m between the target's pose planned for and its true pose on arrival
     target_lift: float            # m
     max_penetration: float        # m, the robot into non-target bodies while approaching
     sim_time: float
@@ -147,12 +147,16 @@ class _Episode:
         models = {o.name: objects_mod.model_from_source(o.name, o.source) for o in scene.objects}
         self.q = np.asarray(world.start, dtype=float)
         self.v = np.zeros_like(self.q)  # the commanded configuration and velocity
-        self.sim = open_sim(scene, self.robot, self.q, s.execution, models, sim_class=_MovingSim)
-        self.sim.belt = Conveyor(self.sim.c, self.sim.bodies[scene.target], models[scene.target], path,
-                                 s.execution.time_step)
         self.estimator = MotionEstimator(s.window, s.jump)
         self.rng = np.random.default_rng(s.seed)
         self.plan, self.k0, self.plan_ms, self.planner_ms = None, 0, [], []
+        self.sim = open_sim(scene, self.robot, self.q, s.execution, models, sim_class=_MovingSim)
+        try:
+            self.sim.belt = Conveyor(self.sim.c, self.sim.bodies[scene.target], models[scene.target], path,
+                                     s.execution.time_step)
+        except BaseException:
+            self.sim.pb.disconnect(self.sim.c)
+            raise
 
     @property
     def t(self) -> float:
@@ -232,7 +236,7 @@ class _Episode:
         return sim.held(), float(sim.belt.com()[2] - z0)
 
     def miss(self) -> float:
-        """m between the planned hand pose's target and the target's true pose on arrival, in the hand frame."""
+        """m between the target's position the plan followed was made for and its true position on arrival."""
         if self.plan is None:
             return float("nan")
         true = self.sim.belt.pose()
