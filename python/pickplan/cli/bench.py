@@ -24,6 +24,7 @@ from pickplan.cli.scenes import clutter_range
 from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
 from pickplan.cli.bench_mbm import add_mbm_command
+from pickplan.cli.bench_moving import add_moving_command
 from pickplan.cli.robots import ROBOT_HELP
 from pickplan.core.io import write_json, write_text
 from pickplan.eval.plots import plot_table
@@ -267,6 +268,7 @@ def add_bench_commands(subparsers) -> None:
         p.set_defaults(handler=run_bench)
     add_perception_command(sub)
     add_mbm_command(sub)
+    add_moving_command(sub)
 
 
 def run_perception(args: argparse.Namespace) -> int:

@@ -203,11 +203,13 @@ def _path(Q: np.ndarray, interpolation: Interpolation):
 
 def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
                       interpolation: Interpolation = Interpolation.PCHIP,
-                      grid_per_segment: int = 16) -> TimedTrajectory:
+                      grid_per_segment: int = 16, start_velocity=None) -> TimedTrajectory:
     """Time-optimal rest-to-rest timing of ``waypoints`` (T, dof) under ``limits`` (default: the Panda's),
     sampled at ``rate`` Hz (default 1 kHz, Franka's control rate); see the module doc.
 
     ``grid_per_segment``: TOPP-RA grid points per waypoint interval (more: closer to time-optimal, slower).
+    ``start_velocity`` (dof,): the joints' velocity at the start (a replan while moving): the path starts at
+    its projection on the path's direction, or slower where TOPP-RA cannot stop in time from it; None: rest.
     """
     import toppra.algorithm  # toppra imports matplotlib: loaded when a trajectory is timed
     import toppra.constraint
@@ -233,7 +235,7 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
                    toppra.constraint.JointAccelerationConstraint(limits.acceleration)]
     solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=np.unique(grid),
                                      parametrizer="ParametrizeConstAccel")
-    timing = solver.compute_trajectory(0.0, 0.0)
+    timing = _compute(solver, path, Q, start_velocity)
     if timing is None:
         raise TimingError(f"TOPP-RA found no time parameterization of {len(Q)} waypoints")
     optimum = float(timing.duration)
@@ -252,9 +254,29 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
         scale *= excess * (1.0 + 1e-9)
     else:
         raise TimingError(f"could not bring the samples within the limits (excess {excess:.4f})")
-    qd[0], qd[-1] = 0.0, 0.0  # rest to rest (toppra's end velocity is zero to round-off)
+    qd[-1] = 0.0  # to rest (toppra's end velocity is zero to round-off)
+    if start_velocity is None:
+        qd[0] = 0.0
     q[0], q[-1] = Q[0], Q[-1]
     return TimedTrajectory(t, q, qd, qdd, rate, scale)
+
+
+def _compute(solver, path, Q: np.ndarray, start_velocity):
+    """TOPP-RA's timing from the start's path speed (the start velocity projected on q'(0); halved until
+    feasible, at last from rest) to rest; None where even rest to rest fails."""
+    sd = 0.0
+    if start_velocity is not None:
+        v = np.asarray(start_velocity, dtype=float)
+        if v.shape != (Q.shape[1],) or not np.all(np.isfinite(v)):
+            raise ValueError(f"start_velocity: expected {Q.shape[1]} finite numbers, got {start_velocity!r}")
+        tangent = path(np.array([0.0]), 1)[0]
+        sd = max(0.0, float(v @ tangent) / float(tangent @ tangent)) if np.any(tangent) else 0.0
+    for _ in range(4):
+        timing = solver.compute_trajectory(sd, 0.0)
+        if timing is not None or sd == 0.0:
+            return timing
+        sd *= 0.5
+    return solver.compute_trajectory(0.0, 0.0)
 
 
 def joint_move(q_from, q_to, limits: KinematicLimits, rate: float, min_duration: float = 0.0) -> TimedTrajectory:

@@ -45,7 +45,6 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from pickplan import _core
 from pickplan.core import objects as objects_mod
 from pickplan.core.timing import TimedTrajectory
 from pickplan.core.settings import Option
@@ -53,6 +52,7 @@ from pickplan.sim import scenes as scenes_mod
 from pickplan.core import robots
 from pickplan.core.description import load_description
 from pickplan.sim import bodies
+from pickplan.sim.hand_path import hand_path
 from pickplan.sim import render as viz
 from pickplan.sim.render import RecordSettings, save_frames, save_gif  # noqa: F401 - where callers find them
 
@@ -292,28 +292,11 @@ def _segment_steps(Q: np.ndarray, vmax: np.ndarray, s: ExecutionSettings) -> Lis
     return out
 
 
-#: Damped-least-squares steps per lift waypoint, each waypoint solved from the previous one.
-_LIFT_IK_STEPS = 3
-
-
 def _lift_path(robot, q0: np.ndarray, s: ExecutionSettings) -> np.ndarray:
-    """Arm configurations (lift_waypoints + 1, dof) moving the hand straight up, orientation held:
-    the native damped-least-squares IK (fixed damping ``ik_damping**2``, the arm joints inside
-    their limits, fingers frozen), _LIFT_IK_STEPS steps per waypoint."""
-    hand = robot.link_index(robot.info.hand_link)
-    ik = _core.IkSettings()
-    ik.weights = [1.0] * robot.info.arm_dof + [0.0] * (robot.dof - robot.info.arm_dof)
-    ik.rotation_error = _core.IkRotationError.sine_axis
-    ik.damping_schedule = _core.IkDamping.fixed
-    ik.damping = s.ik_damping ** 2
-    ik.max_iterations = _LIFT_IK_STEPS
-    ik.max_stalled_iterations = 0      # every step is taken, as many as asked
-    ik.position_tolerance = ik.rotation_tolerance = 0.0
-    ik.max_step = float("inf")
-    targets = np.repeat(robot.fk(q0)[hand][None], s.lift_waypoints, axis=0)
-    targets[:, 2, 3] += s.lift_height * np.arange(1, s.lift_waypoints + 1) / s.lift_waypoints
-    path, _ = _core.IkSolver(robot.native, hand, ik).solve_path(targets, q0)
-    return np.vstack([q0, path])
+    """Arm configurations (lift_waypoints + 1, dof) moving the hand straight up, orientation held."""
+    up = np.zeros((s.lift_waypoints, 3))
+    up[:, 2] = s.lift_height * np.arange(1, s.lift_waypoints + 1) / s.lift_waypoints
+    return hand_path(robot, q0, up, s.ik_damping)
 
 
 def _follow(sim: _Sim, Q: np.ndarray, segments, fingers_from_plan: bool, finger_force: float,
@@ -461,7 +444,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     lift_m = float(com_final[scene.target][2] - com0[scene.target][2]) if finite else float("nan")
     max_pen = max(sim.contacts.values(), default=0.0)
     collided = max_pen > s.collision_depth
-    success = bool(finite and held and lift_m >= s.success_lift_fraction * s.lift_height)
+    success = bool(finite and lifted_and_held(s, held, lift_m))
     if not finite:
         status, msg = ExecutionStatus.unstable, "the simulation produced non-finite states"
     elif success:
@@ -483,6 +466,11 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         target_pushed=target_pushed, held=bool(held), finger_gap=gap, tracking_error=sim.tracking_error,
         sim_time=sim.steps * s.time_step, steps=sim.steps, seconds=time.perf_counter() - t_start, message=msg,
         frames=sim.frames, slip=slip, slip_rotation=slip_rotation, grip_force=sim.grip_force)
+
+
+def lifted_and_held(s: ExecutionSettings, held: bool, lift_m: float) -> bool:
+    """Execution success: the target is between the fingers and rose by ``success_lift_fraction`` of the lift."""
+    return bool(held and lift_m >= s.success_lift_fraction * s.lift_height)
 
 
 def _slip(before: np.ndarray, after: np.ndarray, com: np.ndarray) -> Tuple[float, float]:
