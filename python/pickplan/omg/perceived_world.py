@@ -130,8 +130,8 @@ class PerceivedWorld:
         self.sdf: SceneSdf = self.perceived.sdf
         if TARGET not in self.sdf.names:  # a PerceivedScene handed to a second world has it already
             self.sdf.add_object(TARGET, target_grid(self.perceived.target_points, settings.target_resolution), np.eye(4))
-        self.body = self.robot.sample_body_points(settings.body_points_per_link
-                                                  or self.robot.description.body_points_per_link, seed=settings.body_seed)
+        self.body = self.cache.body_points(self.robot, settings.body_points_per_link
+                                           or self.robot.description.body_points_per_link, settings.body_seed)
         self._refiners: dict = {}
         self._chomps: dict = {}
         self.seconds = dict(self.perceived.seconds, world=time.perf_counter() - t0, grasps=0.0)
@@ -199,7 +199,12 @@ class PerceivedWorld:
 
     @functools.cached_property
     def hand_points(self) -> Tuple[np.ndarray, np.ndarray]:
-        """Samples on the open hand and fingers in the hand frame, and whether each is on a finger."""
+        """Samples on the open hand and fingers in the hand frame, and whether each is on a finger (the
+        robot's data: kept in the cache for every world of this robot)."""
+        key = ("hand_points", self.settings.hand_points_per_link, self.settings.seed)
+        return self.cache.robot_derived(self.robot, key, self._sample_hand_points)
+
+    def _sample_hand_points(self) -> Tuple[np.ndarray, np.ndarray]:
         robot = self.robot
         links = (robot.hand_link,) + tuple(robot.finger_links)
         body = robot.sample_body_points(self.settings.hand_points_per_link, seed=self.settings.seed, links=links)

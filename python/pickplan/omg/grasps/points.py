@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, replace
-from typing import Callable, Optional
+from typing import Callable, Optional, Tuple
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError, cKDTree
@@ -229,29 +229,44 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
     return out
 
 
-def _part_run(ry: np.ndarray, band: np.ndarray, gap: float) -> np.ndarray:
-    """(N,) bool: the points of ``band`` in the run along ``ry`` that holds ry = 0 (the sampled point)
-    with no gap wider than ``gap`` in it: the part the pads close on, not a neighbouring one beyond a
-    gap (whether a finger fits in that gap is the open-hand check's to say)."""
-    v = np.sort(ry[band])
+def sorted_quantiles(v: np.ndarray, q) -> np.ndarray:
+    """``np.quantile(v, q)`` (its default linear method, to the last bit) of an already sorted 1-D
+    ``v``: no copy, no partition; the per-call overhead of ``np.quantile`` dominated the grasp loops."""
+    q = np.asarray(q, float)
+    n = len(v)
+    at = (n - 1) * q
+    lo = np.floor(at)
+    t = at - lo
+    i = np.minimum(lo, n - 1).astype(np.intp)
+    a, b = v[i], v[np.minimum(i + 1, n - 1)]
+    diff = b - a
+    return np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)  # numpy's lerp, exact at both ends
+
+
+def _part_run(v: np.ndarray, gap: float) -> Tuple[int, int]:
+    """[start, stop) of the run of the sorted ``v`` that holds 0 (the sampled point) with no gap wider
+    than ``gap`` in it: the part the pads close on, not a neighbouring one beyond a gap (whether a
+    finger fits in that gap is the open-hand check's to say)."""
     cuts = np.flatnonzero(np.diff(v) > gap)
     k = np.searchsorted(v, 0.0)
-    lo = v[cuts[cuts < k][-1] + 1] if (cuts < k).any() else v[0]
-    hi = v[cuts[cuts >= k][0]] if (cuts >= k).any() else v[-1]
-    return band & (ry >= lo) & (ry <= hi)
+    before = cuts[cuts < k]
+    after = cuts[cuts >= k]
+    return (int(before[-1]) + 1 if len(before) else 0), (int(after[0]) + 1 if len(after) else len(v))
 
 
 def _faces_the_pads(ry: np.ndarray, rx: np.ndarray, s: PointGraspSettings) -> bool:
-    """Whether both ends of a section (points across the pads ``ry``, along the pads' width ``rx``)
-    turn at most ``max_face_turn`` from the pads: each end, found in the two halves of the pad's width,
-    moves by at most tan(max_face_turn) times the halves' distance. Across a part, not diagonally over
-    a corner of it (the pads would close on the corner's two faces, out of their friction cones, and
+    """Whether both ends of a section (points across the pads ``ry``, sorted, along the pads' width
+    ``rx``) turn at most ``max_face_turn`` from the pads: each end, found in the two halves of the pad's
+    width, moves by at most tan(max_face_turn) times the halves' distance. Across a part, not diagonally
+    over a corner of it (the pads would close on the corner's two faces, out of their friction cones, and
     squeeze it out, or the end of a part under half a pad (one half empty: a corner cut off)."""
-    halves = [ry[rx < 0], ry[rx >= 0]]
+    left = rx < 0
+    halves = [ry[left], ry[~left]]
     if min(len(h) for h in halves) < 2:
         return False
-    ends = np.array([np.quantile(h, [s.section_trim, 1.0 - s.section_trim]) for h in halves])
-    return bool(np.abs(ends[0] - ends[1]).max() <= np.tan(s.max_face_turn) * s.pad_width / 2)
+    q = (s.section_trim, 1.0 - s.section_trim)
+    ends = sorted_quantiles(halves[0], q) - sorted_quantiles(halves[1], q)
+    return bool(np.abs(ends).max() <= np.tan(s.max_face_turn) * s.pad_width / 2)
 
 
 def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
@@ -271,6 +286,8 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     Y2 = np.column_stack([np.cos(angles), np.sin(angles)])
     X2 = np.column_stack([-Y2[:, 1], Y2[:, 0]])
     F2 = flat @ E
+    q = (s.section_trim, 1.0 - s.section_trim)
+    tilts = (0.0, s.max_tilt / 2, -s.max_tilt / 2)
     out = []
     for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
         rel = F2 - F2[i]
@@ -278,20 +295,25 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
         # a part's section through this point spans at most the opening on either side of it
         band = (np.abs(rx) <= s.pad_width / 2) & (np.abs(ry) <= s.max_width)
         for a in np.flatnonzero(band.sum(axis=0) >= 3):
-            sel = band[:, a] & _part_run(ry[:, a], band[:, a], 2 * s.clearance)
-            if sel.sum() < 3:
+            idx = np.flatnonzero(band[:, a])
+            idx = idx[np.argsort(ry[idx, a], kind="stable")]
+            start, stop = _part_run(ry[idx, a], 2 * s.clearance)
+            if stop - start < 3:
                 continue
-            lo, hi = np.quantile(ry[sel, a], [s.section_trim, 1.0 - s.section_trim])
+            sel = idx[start:stop]
+            v = ry[sel, a]                                               # sorted
+            lo, hi = sorted_quantiles(v, q)
             if not s.min_width <= hi - lo <= s.max_width - s.width_margin:
                 continue
-            if not _faces_the_pads(ry[sel, a], rx[sel, a], s):
+            u = rx[sel, a]
+            if not _faces_the_pads(v, u, s):
                 continue
             y, x = E @ Y2[a], E @ X2[a]
-            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (rx[sel, a].max() + rx[sel, a].min()) * x
-            for tilt in (0.0, s.max_tilt / 2, -s.max_tilt / 2):
+            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (u.max() + u.min()) * x
+            top = height[sel].max() - s.grasp_depths[0]
+            for tilt in tilts:
                 lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
-                centre = mid + max(lowest, height[sel].max() - s.grasp_depths[0]) * n
-                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, centre),
+                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, mid + max(lowest, top) * n),
                             0.9 - abs(tilt) / (np.pi / 2), float(hi - lo)))
     return out
 
