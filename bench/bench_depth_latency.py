@@ -46,6 +46,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0, help="first scene seed")
     ap.add_argument("--views", type=int, nargs="+", default=[1, 3])
     ap.add_argument("--noise-mm", type=float, default=2.0)
+    ap.add_argument("--sort", default="cumulative", help="cProfile sort key")
     ap.add_argument("--profile", type=int, default=0, help="cProfile this many requests per view count; print the top")
     args = ap.parse_args()
     settings = method_spec(Table.planners, "OMG").omg_settings(30, 100, 50, 0)
@@ -68,7 +69,7 @@ def main() -> None:
             for obs in observations[:args.profile]:
                 request(obs, settings, cache)
             prof.disable()
-            pstats.Stats(prof).sort_stats("cumulative").print_stats(45)
+            pstats.Stats(prof).sort_stats(args.sort).print_stats(45)
         rows = [request(obs, settings, cache) for obs in observations]
         med = [1000 * np.median([r[k] for r in rows]) for k in STAGES]
         ok = sum(r["success"] for r in rows)

@@ -73,10 +73,10 @@ class PointGraspSettings:
 
 def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """Grasp-frame poses: closing axis y, approach z, the pad centre at ``centre``."""
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-    T[:3, 3] = centre
-    return T
+    (y0, y1, y2), (z0, z1, z2), (c0, c1, c2) = y.tolist(), z.tolist(), centre.tolist()
+    # y x z written out: np.cross's per-call overhead dominated the candidate loops (the same products)
+    return np.array([[y1 * z2 - y2 * z1, y0, z0, c0], [y2 * z0 - y0 * z2, y1, z1, c1],
+                     [y0 * z1 - y1 * z0, y2, z2, c2], [0.0, 0.0, 0.0, 1.0]])
 
 
 def _neighbourhoods(P, tree, radius: float):
@@ -117,13 +117,14 @@ def denoised(P, N, radius: float) -> np.ndarray:
     return P - np.einsum("ij,ij->i", P - centre, n)[:, None] * n
 
 
-def fitted_normals(P, N, radius: float) -> np.ndarray:
+def fitted_normals(P, N, radius: float, near=None) -> np.ndarray:
     """Per point: the normal of the plane fitted to the points within ``radius`` (the covariance's
     least eigenvector), turned to the side of ``N``. Normals from neighbouring pixels carry the depth
     noise divided by a pixel's spacing (tens of degrees at 2 mm); a fit over a few dozen points does
     not, so patches of a noisy flat face stay coherent. The side is the mean of ``N`` over the same
-    points. Points with fewer than 8 neighbours keep ``N``."""
-    k, j = _neighbourhoods(P, cKDTree(P), radius)
+    points. Points with fewer than 8 neighbours keep ``N``. ``near``: ``_neighbourhoods(P, ., radius)``
+    if already known."""
+    k, j = _neighbourhoods(P, cKDTree(P), radius) if near is None else near
     count = np.bincount(k, minlength=len(P))
     D = P[j] - _means(k, j, P, len(P))[k]
     C = np.stack([np.bincount(k, D[:, a] * D[:, b], minlength=len(P)) for a in range(3) for b in range(3)],
@@ -134,22 +135,27 @@ def fitted_normals(P, N, radius: float) -> np.ndarray:
     return np.where((count >= 8)[:, None], normal, N)  # a fit needs a few points more than a plane
 
 
-def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
+def antipodal_candidates(P, N, s: PointGraspSettings, rng, tree=None, near=None) -> list:
     """Pairs whose contact patches (``patch_normals`` over ``patch_radius``) are coherent and within
     each other's friction cone: a pair across a box's edges, whose noisy point normals lean towards
-    each other, is not a pinch."""
-    tree = cKDTree(P)
+    each other, is not a pinch. ``tree``, ``near``: P's k-d tree and patch neighbourhoods if known."""
+    tree = cKDTree(P) if tree is None else tree
     cone = np.cos(np.arctan(s.friction))
-    N, coherence = patch_normals(P, N, tree, s.patch_radius)
+    N, coherence = _unit_means(*(near or _neighbourhoods(P, tree, s.patch_radius)), N, len(P))
     seeds = rng.choice(len(P), min(s.samples, len(P)), replace=False)
+    # only coherent patches pair up: the others are dropped before the pairs are formed (same pairs, in
+    # the same order, as testing coherence after the cone)
+    coherent = coherence >= s.patch_coherence
+    seeds = seeds[coherent[seeds]]
     near = tree.query_ball_point(P[seeds], s.max_width - s.width_margin, return_sorted=False)
     i = np.repeat(seeds, [len(k) for k in near])
     j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(i))
+    i, j = i[coherent[j]], j[coherent[j]]
     widths = np.linalg.norm(P[j] - P[i], axis=1)
     i, j, widths = i[widths >= s.min_width], j[widths >= s.min_width], widths[widths >= s.min_width]
     axes = (P[j] - P[i]) / widths[:, None]
     margins = np.minimum(-np.einsum("ij,ij->i", axes, N[i]), np.einsum("ij,ij->i", N[j], axes))
-    ok = (margins >= cone) & (coherence[i] >= s.patch_coherence) & (coherence[j] >= s.patch_coherence)
+    ok = margins >= cone
     # (i, j, margin, width) of the pairs that pass the width and friction-cone tests
     pairs = np.column_stack([i[ok], j[ok], margins[ok], widths[ok]])
     most = max(1, s.max_candidates // s.approach_angles)
@@ -182,7 +188,7 @@ def _section(rel, sel, y, x, trim: float):
     if sel.sum() < 3:
         return None, None
     py, px = rel[sel] @ y, rel[sel] @ x
-    lo, hi = np.quantile(py, [trim, 1.0 - trim])
+    lo, hi = sorted_quantiles(np.sort(py), (trim, 1.0 - trim))
     return float(hi - lo), 0.5 * (hi + lo) * y + 0.5 * (px.max() + px.min()) * x
 
 
@@ -207,6 +213,7 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
     for a in np.append(np.pi * np.arange(s.yaw_steps) / s.yaw_steps, fine[np.argmin(spans)]):
         y = np.cos(a) * e1 + np.sin(a) * e2
         x = np.cross(y, n)
+        sections = {}  # per pad height: the tilts share most heights (and so their sections)
         for tilt in (0.0, s.max_tilt / 2, -s.max_tilt / 2, s.max_tilt, -s.max_tilt):
             z = -np.cos(tilt) * n + np.sin(tilt) * x  # down, tilted about the closing axis
             # pad centre heights above the plane, from just under the top down as far as the hand
@@ -215,7 +222,9 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
             lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
             for depth in s.grasp_depths:
                 height = max(lowest, top - depth)
-                width, mid = _section(rel, lo_h >= height - s.pad_length / 2, y, x, s.section_trim)
+                if height not in sections:
+                    sections[height] = _section(rel, lo_h >= height - s.pad_length / 2, y, x, s.section_trim)
+                width, mid = sections[height]
                 if fits(width):
                     centre = centre_flat + mid + height * n  # centre_flat lies on the plane
                     out.append((_frames(y, z, centre), 1.0 - abs(tilt) / (np.pi / 2), width))
@@ -470,10 +479,13 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
                 pad_width=gripper.pad_width if settings.pad_width is None else settings.pad_width,
                 width_margin=2 * settings.clearance if settings.width_margin is None else settings.width_margin)
     rng = np.random.default_rng(seed)
+    tree = near = None
     if s.denoise:
         P = denoised(P, N, s.patch_radius)
-        N = fitted_normals(P, N, s.patch_radius)
-    cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng) \
+        tree = cKDTree(P)
+        near = _neighbourhoods(P, tree, s.patch_radius)  # the fitted normals' and the contact patches'
+        N = fitted_normals(P, N, s.patch_radius, near)
+    cands = antipodal_candidates(P, N, s, rng, tree, near) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng) \
         + local_candidates(P, plane, s, rng)
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
@@ -485,7 +497,7 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     plane_n, plane_d = plane
     # fingertips above the plane: the lowest point of the pads, half a pad beyond their centre
     tips = G[:, :3, 3] + (s.pad_length / 2) * G[:, :3, 2]
-    fill = _pad_fill(G, P, cKDTree(P), width, s)
+    fill = _pad_fill(G, P, cKDTree(P) if tree is None else tree, width, s)
     lever = gravity_lever(G, P, plane)
     score = margin + 0.5 * fill + s.spare_weight * (s.max_width - width) / s.max_width - lever / s.lever_scale
     order = np.argsort(-score, kind="stable")
