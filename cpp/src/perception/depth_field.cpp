@@ -91,6 +91,30 @@ void carve(const DepthView& view, const DepthFieldSettings& s, const Eigen::Vect
     }
 }
 
+// Inside the occupied voxels: minus the distance to the nearest free node plus half a voxel. The
+// distance transform runs over the occupied voxels' bounding box grown by one voxel (within the
+// grid) only: that shell holds no occupied voxel, and any free voxel beyond it is farther than the
+// shell voxel nearest to it along each axis, so the box's transform is the whole grid's (exact).
+void inside_distances(const std::vector<std::uint8_t>& occupied, const Eigen::Vector3i& dims, Eigen::Vector3i lo,
+                      Eigen::Vector3i hi, double res, std::vector<float>* values) {
+  lo = (lo.array() - 1).max(0).matrix();
+  hi = (hi.array() + 1).min(dims.array() - 1).matrix();
+  const Eigen::Vector3i sub = hi - lo + Eigen::Vector3i::Ones();
+  std::vector<std::uint8_t> outside(static_cast<long>(sub.prod()));
+  auto index = [&](int x, int y, int z) { return (static_cast<long>(z) * dims.y() + y) * dims.x() + x; };
+  long k = 0;
+  for (int z = lo.z(); z <= hi.z(); ++z)
+    for (int y = lo.y(); y <= hi.y(); ++y)
+      for (int x = lo.x(); x <= hi.x(); ++x) outside[k++] = !occupied[index(x, y, z)];
+  const std::vector<float> to_free = squared_distance_transform(outside, sub);
+  const float half = static_cast<float>(0.5 * res);
+  k = 0;
+  for (int z = lo.z(); z <= hi.z(); ++z)
+    for (int y = lo.y(); y <= hi.y(); ++y)
+      for (int x = lo.x(); x <= hi.x(); ++x, ++k)
+        if (occupied[index(x, y, z)]) (*values)[index(x, y, z)] = -(std::sqrt(to_free[k]) * float(res) - half);
+}
+
 }  // namespace
 
 void DepthFieldSettings::validate() const {
@@ -160,7 +184,8 @@ DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFie
   for (const DepthView& view : views) carve(view, s, dims, &state);
 
   DepthField out;
-  std::vector<std::uint8_t> occupied(total), outside(total);
+  std::vector<std::uint8_t> occupied(total);
+  Eigen::Vector3i box_lo = dims, box_hi = Eigen::Vector3i::Constant(-1);  // the occupied voxels' bounds
   // the height above the plane is affine in the voxel index: stepped along each row, not recomputed
   const Eigen::Vector3d n = s.has_plane ? s.plane_normal : Eigen::Vector3d::Zero();
   for (int kz = 0; kz < dims.z(); ++kz)
@@ -172,7 +197,10 @@ DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFie
         const bool table = s.has_plane && h0 + res * kx * n.x() < s.plane_margin;
         const auto st = static_cast<VoxelState>(state[i]);
         occupied[i] = !table && st == VoxelState::kOccupied;
-        outside[i] = !occupied[i];
+        if (occupied[i]) {
+          box_lo = box_lo.cwiseMin(Eigen::Vector3i(kx, ky, kz));
+          box_hi = box_hi.cwiseMax(Eigen::Vector3i(kx, ky, kz));
+        }
         out.occupied += occupied[i];
         out.target += st == VoxelState::kTarget;
         out.free += st == VoxelState::kFree;
@@ -181,13 +209,10 @@ DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFie
   // Node distances: to the nearest occupied node minus half a voxel outside, minus the distance to
   // the nearest free node plus half a voxel inside (the surface lies between the two node sets).
   const std::vector<float> to_occupied = squared_distance_transform(occupied, dims);
-  const std::vector<float> to_free = squared_distance_transform(outside, dims);
   const float half = static_cast<float>(0.5 * res), cap = 1.0f;
   std::vector<float> values(total);
-  for (long i = 0; i < total; ++i) {
-    values[i] = occupied[i] ? -(std::sqrt(to_free[i]) * float(res) - half)
-                            : std::min(std::sqrt(to_occupied[i]) * float(res) - half, cap);
-  }
+  for (long i = 0; i < total; ++i) values[i] = std::min(std::sqrt(to_occupied[i]) * float(res) - half, cap);
+  if (out.occupied > 0) inside_distances(occupied, dims, box_lo, box_hi, res, &values);
   out.obstacles = std::make_shared<SdfGrid>(SdfGrid::from_values(s.lo, res, dims, std::move(values)));
 
   // The target's observed surface: back-projected target pixels, normals from neighbouring pixels.

@@ -238,7 +238,8 @@ class PerceivedWorld:
         gs = grasps_from_points(self.perceived.target_points, self.perceived.target_normals, self.plane,
                                 self.hand_sdf, n=n, seed=seed, scene_distance=self.obstacle_distance,
                                 hand_points=self.hand_points[0], settings=self.settings.grasps,
-                                gripper=self.robot.info, hull=self.hull if self.settings.use_hull else None)
+                                gripper=self.robot.info, hull=self.hull if self.settings.use_hull else None,
+                                denoised_points=self._quality_points[0] if self.settings.grasps.denoise else None)
         keep = self.clear_of_plane(gs.poses, standoff) if len(gs) else np.zeros(0, dtype=bool)
         out = GraspSet(gs.name, gs.poses[keep], gs.object_name, scores=gs.scores[keep],
                        info={k: np.asarray(v)[keep] for k, v in gs.info.items()})

@@ -454,7 +454,8 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
                        scene_distance: Optional[Callable[[np.ndarray], np.ndarray]] = None,
                        hand_points: Optional[np.ndarray] = None,
                        settings: PointGraspSettings = PointGraspSettings(),
-                       gripper: RobotInfo = PANDA, hull: Optional[np.ndarray] = None) -> GraspSet:
+                       gripper: RobotInfo = PANDA, hull: Optional[np.ndarray] = None,
+                       denoised_points: Optional[np.ndarray] = None) -> GraspSet:
     """Up to ``n`` grasps of the observed target (world frame; poses of ``gripper``'s hand link), best
     scores first.
 
@@ -462,7 +463,8 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     world points (M, 3) to their distance from the obstacles (the fused field), checked at
     ``hand_points`` (sample points on the open hand, hand frame) when both are given. ``hull``: (K, 3)
     samples of where the unseen rest of the target may be (``perception.hull.visibility_hull``): the
-    open hand must clear them as it clears the observed points.
+    open hand must clear them as it clears the observed points. ``denoised_points``: ``denoised(points,
+    normals, patch_radius)`` when the caller has it already (a perceived world's quality reads it too).
 
     Candidates are scored first (from the points alone) and checked in score order until ``n`` pass:
     the same grasps as checking all of them, at a fraction of the cost.
@@ -481,7 +483,7 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     rng = np.random.default_rng(seed)
     tree = near = None
     if s.denoise:
-        P = denoised(P, N, s.patch_radius)
+        P = denoised(P, N, s.patch_radius) if denoised_points is None else np.asarray(denoised_points, float)
         tree = cKDTree(P)
         near = _neighbourhoods(P, tree, s.patch_radius)  # the fitted normals' and the contact patches'
         N = fitted_normals(P, N, s.patch_radius, near)
