@@ -128,6 +128,22 @@ void DepthFieldSettings::validate() const {
   require(target_stride >= 1, "depth field: target_stride must be >= 1");
 }
 
+Eigen::VectorXi plane_inlier_counts(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets,
+                                    double tolerance) {
+  require(offsets.size() == normals.rows(), "plane inliers: expected one offset per normal, got " +
+                                                std::to_string(offsets.size()) + " for " + std::to_string(normals.rows()));
+  require(std::isfinite(tolerance) && tolerance >= 0, "plane inliers: tolerance must be >= 0");
+  Eigen::VectorXi counts = Eigen::VectorXi::Zero(normals.rows());
+  for (long k = 0; k < normals.rows(); ++k) {
+    const double nx = normals(k, 0), ny = normals(k, 1), nz = normals(k, 2), d = offsets(k);
+    int c = 0;
+    for (long i = 0; i < points.rows(); ++i)
+      c += std::abs(points(i, 0) * nx + points(i, 1) * ny + points(i, 2) * nz - d) < tolerance;
+    counts(k) = c;
+  }
+  return counts;
+}
+
 std::vector<float> squared_distance_transform(const std::vector<std::uint8_t>& mask, const Eigen::Vector3i& dims) {
   const long total = static_cast<long>(dims.prod());
   require(dims.minCoeff() >= 1 && static_cast<long>(mask.size()) == total,

@@ -53,6 +53,11 @@ struct DepthField {
 // Throws std::invalid_argument for mismatched sizes, non-rigid poses, bad intrinsics or settings.
 DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFieldSettings& settings);
 
+// How many of `points` lie within `tolerance` of each plane hypothesis normals.row(k) . x = offsets(k):
+// the support plane's RANSAC scores (python/pickplan/perception/field.py draws the hypotheses).
+Eigen::VectorXi plane_inlier_counts(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets,
+                                    double tolerance);
+
 // Exact squared Euclidean distance transform (Felzenszwalb and Huttenlocher) of a binary grid,
 // x-fastest dims: for each voxel the squared distance (in voxels) to the nearest `true` voxel
 // (a large value where there is none).

@@ -27,11 +27,12 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, replace
-from typing import Callable, Optional, Tuple
+from typing import Callable, Optional
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
+from pickplan import _core
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
 from pickplan.omg.grasps.quality import Load
@@ -188,7 +189,7 @@ def _section(rel, sel, y, x, trim: float):
     if sel.sum() < 3:
         return None, None
     py, px = rel[sel] @ y, rel[sel] @ x
-    lo, hi = sorted_quantiles(np.sort(py), (trim, 1.0 - trim))
+    lo, hi = _core.sorted_quantiles(np.sort(py), (trim, 1.0 - trim))
     return float(hi - lo), 0.5 * (hi + lo) * y + 0.5 * (px.max() + px.min()) * x
 
 
@@ -238,54 +239,19 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
     return out
 
 
-def sorted_quantiles(v: np.ndarray, q) -> np.ndarray:
-    """``np.quantile(v, q)`` (its default linear method, to the last bit) of an already sorted 1-D
-    ``v``: no copy, no partition; the per-call overhead of ``np.quantile`` dominated the grasp loops."""
-    q = np.asarray(q, float)
-    n = len(v)
-    at = (n - 1) * q
-    lo = np.floor(at)
-    t = at - lo
-    i = np.minimum(lo, n - 1).astype(np.intp)
-    a, b = v[i], v[np.minimum(i + 1, n - 1)]
-    diff = b - a
-    return np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)  # numpy's lerp, exact at both ends
-
-
-def _part_run(v: np.ndarray, gap: float) -> Tuple[int, int]:
-    """[start, stop) of the run of the sorted ``v`` that holds 0 (the sampled point) with no gap wider
-    than ``gap`` in it: the part the pads close on, not a neighbouring one beyond a gap (whether a
-    finger fits in that gap is the open-hand check's to say)."""
-    cuts = np.flatnonzero(np.diff(v) > gap)
-    k = np.searchsorted(v, 0.0)
-    before = cuts[cuts < k]
-    after = cuts[cuts >= k]
-    return (int(before[-1]) + 1 if len(before) else 0), (int(after[0]) + 1 if len(after) else len(v))
-
-
-def _faces_the_pads(ry: np.ndarray, rx: np.ndarray, s: PointGraspSettings) -> bool:
-    """Whether both ends of a section (points across the pads ``ry``, sorted, along the pads' width
-    ``rx``) turn at most ``max_face_turn`` from the pads: each end, found in the two halves of the pad's
-    width, moves by at most tan(max_face_turn) times the halves' distance. Across a part, not diagonally
-    over a corner of it (the pads would close on the corner's two faces, out of their friction cones, and
-    squeeze it out, or the end of a part under half a pad (one half empty: a corner cut off)."""
-    left = rx < 0
-    halves = [ry[left], ry[~left]]
-    if min(len(h) for h in halves) < 2:
-        return False
-    q = (s.section_trim, 1.0 - s.section_trim)
-    ends = sorted_quantiles(halves[0], q) - sorted_quantiles(halves[1], q)
-    return bool(np.abs(ends).max() <= np.tan(s.max_face_turn) * s.pad_width / 2)
-
-
 def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     """Grasps from above across a part of the target: at seeded points of its footprint and for each
     closing direction, the points in the band the pads sweep (a pad's width across, the open pads'
     span along) give the width and the middle of the part between them: a blade or a loop of
     scissors, a hammer's handle, a long box anywhere along it (a thin target's whole footprint is
-    often wider than the opening in every direction). The pads' centre ``grasp_depths[0]`` under the
-    part's top, as low as fingertips resting on the support allow (a thin target's points stand a few
-    noise widths above the plane: the fingers go down to it); upright and tilted about the closing axis."""
+    often wider than the opening in every direction). The part is the run of points through the
+    sampled one with no gap wider than twice the clearance (not a neighbouring part beyond a gap:
+    whether a finger fits in that gap is the open-hand check's to say); both of its ends must turn at
+    most ``max_face_turn`` from the pads across their width (across a part, not diagonally over a
+    corner of it, whose two faces would squeeze it out of the pads). The sections are found natively
+    (``_core.local_sections``). The pads' centre ``grasp_depths[0]`` under the part's top, as low as
+    fingertips resting on the support allow (a thin target's points stand a few noise widths above
+    the plane: the fingers go down to it); upright and tilted about the closing axis."""
     n, d = plane
     height = P @ n - d
     flat = P - np.outer(height, n)
@@ -295,34 +261,20 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     Y2 = np.column_stack([np.cos(angles), np.sin(angles)])
     X2 = np.column_stack([-Y2[:, 1], Y2[:, 0]])
     F2 = flat @ E
-    q = (s.section_trim, 1.0 - s.section_trim)
+    native = _core.SectionSettings()
+    native.pad_width, native.max_width, native.gap = s.pad_width, s.max_width, 2 * s.clearance
+    native.trim, native.min_width, native.fit_width = s.section_trim, s.min_width, s.max_width - s.width_margin
+    native.face_tolerance = np.tan(s.max_face_turn) * s.pad_width / 2
     tilts = (0.0, s.max_tilt / 2, -s.max_tilt / 2)
     out = []
     for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
         rel = F2 - F2[i]
-        ry, rx = rel @ Y2.T, rel @ X2.T                                  # (N, yaws)
-        # a part's section through this point spans at most the opening on either side of it
-        band = (np.abs(rx) <= s.pad_width / 2) & (np.abs(ry) <= s.max_width)
-        for a in np.flatnonzero(band.sum(axis=0) >= 3):
-            idx = np.flatnonzero(band[:, a])
-            idx = idx[np.argsort(ry[idx, a], kind="stable")]
-            start, stop = _part_run(ry[idx, a], 2 * s.clearance)
-            if stop - start < 3:
-                continue
-            sel = idx[start:stop]
-            v = ry[sel, a]                                               # sorted
-            lo, hi = sorted_quantiles(v, q)
-            if not s.min_width <= hi - lo <= s.max_width - s.width_margin:
-                continue
-            u = rx[sel, a]
-            if not _faces_the_pads(v, u, s):
-                continue
-            y, x = E @ Y2[a], E @ X2[a]
-            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (u.max() + u.min()) * x
-            top = height[sel].max() - s.grasp_depths[0]
+        for a, lo, hi, u_min, u_max, top in _core.local_sections(rel @ Y2.T, rel @ X2.T, height, native):
+            y, x = E @ Y2[int(a)], E @ X2[int(a)]
+            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (u_max + u_min) * x
             for tilt in tilts:
                 lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
-                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, mid + max(lowest, top) * n),
+                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, mid + max(lowest, top - s.grasp_depths[0]) * n),
                             0.9 - abs(tilt) / (np.pi / 2), float(hi - lo)))
     return out
 
