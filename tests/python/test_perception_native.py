@@ -136,3 +136,17 @@ def test_worlds_share_the_robots_points_through_the_cache():
     fresh = PerceivedWorld(obs)  # its own cache: the same samples, built again
     assert fresh.body is not a.body
     assert np.array_equal(fresh.body.points, a.body.points) and np.array_equal(fresh.hand_points[0], a.hand_points[0])
+
+
+def test_the_target_distance_grid_is_brute_force_exact():
+    rng = np.random.default_rng(4)
+    P = rng.normal(0.0, 0.03, (300, 3)) + [0.5, 0.0, 0.1]
+    lo, res, dims = np.array([0.4, -0.1, 0.0]), 0.01, np.array([21, 19, 17])
+    got = _core.point_distance_grid(P, lo, res, dims)
+    z, y, x = np.meshgrid(*(np.arange(k) for k in dims[::-1]), indexing="ij")
+    nodes = lo + res * np.stack([x, y, z], axis=-1)
+    want = np.sqrt(((nodes[..., None, :] - P) ** 2).sum(axis=-1)).min(axis=-1)
+    assert got.shape == (17, 19, 21)
+    assert np.allclose(got, want, rtol=1e-6, atol=1e-7)
+    with pytest.raises(ValueError, match="points"):
+        _core.point_distance_grid(np.zeros((0, 3)), lo, res, dims)

@@ -1,5 +1,7 @@
 #include "pickplan/perception/depth_field.hpp"
 
+#include "pickplan/geometry/point_index.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -142,6 +144,27 @@ Eigen::VectorXi plane_inlier_counts(const Vertices& points, const Vertices& norm
     counts(k) = c;
   }
   return counts;
+}
+
+std::vector<float> point_distance_grid(const Vertices& points, const Eigen::Vector3d& origin, double resolution,
+                                       const Eigen::Vector3i& dims) {
+  require(points.rows() > 0 && points.allFinite(), "point distance grid: expected finite points, got " +
+                                                       std::to_string(points.rows()) + " rows");
+  require(dims.minCoeff() >= 1 && static_cast<double>(dims.x()) * dims.y() * dims.z() < 2.0e8,
+          "point distance grid: expected 1 to 2e8 nodes");
+  require(origin.allFinite() && std::isfinite(resolution) && resolution > 0, "point distance grid: bad origin or resolution");
+  const PointIndex index(&points);
+  std::vector<float> out(static_cast<std::size_t>(dims.prod()));
+  std::size_t k = 0, nearest = 0;
+  double d2 = 0;
+  for (int z = 0; z < dims.z(); ++z)
+    for (int y = 0; y < dims.y(); ++y)
+      for (int x = 0; x < dims.x(); ++x, ++k) {
+        const Eigen::Vector3d q = origin + resolution * Eigen::Vector3d(x, y, z);
+        index.nearest(q.data(), &nearest, &d2);
+        out[k] = static_cast<float>(std::sqrt(d2));
+      }
+  return out;
 }
 
 std::vector<float> squared_distance_transform(const std::vector<std::uint8_t>& mask, const Eigen::Vector3i& dims) {
