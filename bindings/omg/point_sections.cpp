@@ -43,6 +43,21 @@ void init_point_sections(py::module_& m) {
       "The local sections of grasps from points that pass: rows (yaw, lo, hi, across_min, across_max, top).");
 
   m.def(
+      "points_in_frames",
+      [](const Array& frames, const Array& points, const Array& half) {
+        require_shape("frames", frames, {-1, 4, 4}, "(K, 4, 4)");
+        require_shape("points", points, {-1, 3}, "(N, 3)");
+        require_shape("half", half, {frames.shape(0), 3}, "(K, 3)");
+        const RowMatrixXd F = Eigen::Map<const RowMatrixXd>(frames.data(), frames.shape(0), 16);
+        const RowMatrixXd P = Eigen::Map<const RowMatrixXd>(points.data(), points.shape(0), 3);
+        const RowMatrixXd H = Eigen::Map<const RowMatrixXd>(half.data(), half.shape(0), 3);
+        py::gil_scoped_release release;
+        return Eigen::VectorXi(points_in_frames(F, P, H));
+      },
+      py::arg("frames"), py::arg("points"), py::arg("half"),
+      "Per frame: how many points lie in the box |R^T (p - origin)| < half about its origin.");
+
+  m.def(
       "sorted_quantiles",
       [](const Array& v, const Array& q) {
         require_shape("values", v, {-1}, "(N,)");

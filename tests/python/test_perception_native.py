@@ -150,3 +150,19 @@ def test_the_target_distance_grid_is_brute_force_exact():
     assert np.allclose(got, want, rtol=1e-6, atol=1e-7)
     with pytest.raises(ValueError, match="points"):
         _core.point_distance_grid(np.zeros((0, 3)), lo, res, dims)
+
+
+def test_points_in_frames_are_the_points_in_each_box():
+    rng = np.random.default_rng(6)
+    P = rng.uniform(-0.05, 0.05, (2000, 3))
+    frames = []
+    for _ in range(50):
+        Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = Q * np.sign(np.linalg.det(Q)), rng.uniform(-0.03, 0.03, 3)
+        frames.append(T)
+    G = np.array(frames)
+    half = rng.uniform(0.005, 0.03, (50, 3))
+    want = [int((np.abs((P - T[:3, 3]) @ T[:3, :3]) < h).all(axis=1).sum()) for T, h in zip(G, half)]
+    assert list(_core.points_in_frames(G, P, half)) == want
+    assert max(want) > 10

@@ -100,4 +100,24 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
   return out;
 }
 
+Eigen::VectorXi points_in_frames(const RowMatrixXd& frames, const RowMatrixXd& points, const RowMatrixXd& half) {
+  if (frames.cols() != 16 || points.cols() != 3 || half.cols() != 3 || half.rows() != frames.rows())
+    throw std::invalid_argument("points in frames: expected (K, 16) frames, (N, 3) points and (K, 3) half sizes");
+  Eigen::VectorXi counts = Eigen::VectorXi::Zero(frames.rows());
+  for (long k = 0; k < frames.rows(); ++k) {
+    const double* T = frames.row(k).data();  // row-major 4 x 4: axes in columns 0..2, origin in column 3
+    const double hx = half(k, 0), hy = half(k, 1), hz = half(k, 2), r2 = hx * hx + hy * hy + hz * hz;
+    int c = 0;
+    for (long i = 0; i < points.rows(); ++i) {
+      const double dx = points(i, 0) - T[3], dy = points(i, 1) - T[7], dz = points(i, 2) - T[11];
+      if (dx * dx + dy * dy + dz * dz > r2) continue;  // outside the box's circumscribed sphere
+      const double qx = dx * T[0] + dy * T[4] + dz * T[8], qy = dx * T[1] + dy * T[5] + dz * T[9],
+                   qz = dx * T[2] + dy * T[6] + dz * T[10];
+      c += std::abs(qx) < hx && std::abs(qy) < hy && std::abs(qz) < hz;
+    }
+    counts(k) = c;
+  }
+  return counts;
+}
+
 }  // namespace pickplan

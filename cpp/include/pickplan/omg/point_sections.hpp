@@ -4,6 +4,7 @@
 // closing direction, the points in the band the pads sweep give the part the pads close on (the run
 // through the sampled point with no gap wider than `gap`), its width between the `trim` quantiles
 // (numpy's default linear quantile, to the last bit) and whether both of its ends face the pads.
+// And the points each candidate's pads would hold (its score's pad fill).
 #include <vector>
 
 #include <Eigen/Core>
@@ -34,6 +35,10 @@ struct LocalSection {
 // closing direction; height: (N,). The sections that pass, in column order.
 std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixXd& rx, const Eigen::VectorXd& height,
                                          const SectionSettings& settings);
+
+// Per grasp frame (frames: K row-major 4 x 4 matrices, one per row), how many `points` lie in the
+// box |q| < half.row(k) of the frame's axes about its origin (q = R^T (p - origin)).
+Eigen::VectorXi points_in_frames(const RowMatrixXd& frames, const RowMatrixXd& points, const RowMatrixXd& half);
 
 // numpy's default (linear) quantile of the sorted values v[0..n), to the last bit.
 double sorted_quantile(const double* v, long n, double q);

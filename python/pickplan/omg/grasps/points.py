@@ -320,23 +320,11 @@ def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     return out
 
 
-def _pad_fill(G, P, tree, width, s: PointGraspSettings) -> np.ndarray:
+def _pad_fill(G, P, width, s: PointGraspSettings) -> np.ndarray:
     """Per grasp frame ``G``: how much of the pads the points fill (points in the pad rectangle
-    between the fingers, 30 fill it). Candidates sharing a centre and width (an antipodal pair's
-    turns about its closing axis) share one k-d tree query and one matrix product."""
+    between the fingers, 30 fill it; counted natively, ``_core.points_in_frames``)."""
     half = np.column_stack([np.full(len(G), 0.01), width / 2 + 0.005, np.full(len(G), s.pad_length / 2)])
-    key = np.column_stack([G[:, :3, 3], width])
-    _, first, group = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    group = group.reshape(-1)
-    members = np.split(np.argsort(group, kind="stable"), np.cumsum(np.bincount(group))[:-1])
-    fill = np.zeros(len(G))
-    for f, ks, near in zip(first, members, tree.query_ball_point(G[first, :3, 3], np.linalg.norm(half[first], axis=1))):
-        if not near:
-            continue
-        R = G[ks, :3, :3].transpose(1, 0, 2).reshape(3, -1)  # the group's frames side by side
-        q = ((P[near] - G[f, :3, 3]) @ R).reshape(len(near), len(ks), 3)  # grasp-frame points
-        fill[ks] = (np.abs(q) < half[f]).all(axis=2).sum(axis=0)
-    return np.minimum(1.0, fill / 30.0)
+    return np.minimum(1.0, _core.points_in_frames(G, P, half) / 30.0)
 
 
 def _hand_clear(T, P, hand_sdf, s: PointGraspSettings) -> np.ndarray:
@@ -451,7 +439,7 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     plane_n, plane_d = plane
     # fingertips above the plane: the lowest point of the pads, half a pad beyond their centre
     tips = G[:, :3, 3] + (s.pad_length / 2) * G[:, :3, 2]
-    fill = _pad_fill(G, P, cKDTree(P) if tree is None else tree, width, s)
+    fill = _pad_fill(G, P, width, s)
     lever = gravity_lever(G, P, plane)
     score = margin + 0.5 * fill + s.spare_weight * (s.max_width - width) / s.max_width - lever / s.lever_scale
     order = np.argsort(-score, kind="stable")
