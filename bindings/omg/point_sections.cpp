@@ -58,6 +58,29 @@ void init_point_sections(py::module_& m) {
       "Per frame: how many points lie in the box |R^T (p - origin)| < half about its origin.");
 
   m.def(
+      "antipodal_pairs",
+      [](const Array& points, const Array& normals, const py::array_t<long, py::array::c_style | py::array::forcecast>& i,
+         const py::array_t<long, py::array::c_style | py::array::forcecast>& j, double min_width, double cone) {
+        require_shape("points", points, {-1, 3}, "(N, 3)");
+        require_shape("normals", normals, {points.shape(0), 3}, "(N, 3) like points");
+        require_shape("i", i, {-1}, "(M,)");
+        require_shape("j", j, {i.shape(0)}, "(M,) like i");
+        const RowMatrixXd P = Eigen::Map<const RowMatrixXd>(points.data(), points.shape(0), 3);
+        const RowMatrixXd N = Eigen::Map<const RowMatrixXd>(normals.data(), normals.shape(0), 3);
+        const std::vector<long> I(i.data(), i.data() + i.shape(0)), J(j.data(), j.data() + j.shape(0));
+        AntipodalPairs found;
+        {
+          py::gil_scoped_release release;
+          found = antipodal_pairs(P, N, I, J, min_width, cone);
+        }
+        return py::make_tuple(py::array_t<long>(found.rows.size(), found.rows.data()),
+                              py::array_t<double>(found.margins.size(), found.margins.data()),
+                              py::array_t<double>(found.widths.size(), found.widths.data()));
+      },
+      py::arg("points"), py::arg("normals"), py::arg("i"), py::arg("j"), py::arg("min_width"), py::arg("cone"),
+      "The pairs (i, j) wide enough and within each other's friction cone: (rows kept, margins, widths).");
+
+  m.def(
       "sorted_quantiles",
       [](const Array& v, const Array& q) {
         require_shape("values", v, {-1}, "(N,)");

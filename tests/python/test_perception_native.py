@@ -4,13 +4,14 @@ implementation the native one replaced, kept here as the oracle), and exact geom
 import numpy as np
 import pytest
 
-from conftest import known_scene
 from pickplan import _core
 from pickplan.omg.grasps.points import PointGraspSettings, local_candidates
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.perceived_world import PerceivedWorld
 from pickplan.perception.field import support_plane
 from pickplan.sim.observe import render_observation
+
+from conftest import known_scene
 
 
 def test_sorted_quantiles_are_numpys_to_the_last_bit():
@@ -166,3 +167,26 @@ def test_points_in_frames_are_the_points_in_each_box():
     want = [int((np.abs((P - T[:3, 3]) @ T[:3, :3]) < h).all(axis=1).sum()) for T, h in zip(G, half)]
     assert list(_core.points_in_frames(G, P, half)) == want
     assert max(want) > 10
+
+
+def test_antipodal_pairs_are_the_pairs_within_both_friction_cones():
+    # points on two parallel faces 4 cm apart (normals outward) and a few on a third face: the pairs
+    # across the two faces within the cone pass, with their exact widths; pairs on one face do not
+    rng = np.random.default_rng(7)
+    left = np.column_stack([np.zeros(30), rng.uniform(-0.02, 0.02, (30, 2))])
+    right = np.column_stack([np.full(30, 0.04), rng.uniform(-0.02, 0.02, (30, 2))])
+    P = np.vstack([left, right])
+    N = np.vstack([np.tile([-1.0, 0, 0], (30, 1)), np.tile([1.0, 0, 0], (30, 1))])
+    i, j = np.repeat(np.arange(60), 60), np.tile(np.arange(60), 60)
+    cone = np.cos(np.arctan(0.3))
+    rows, margins, widths = _core.antipodal_pairs(P, N, i, j, 0.004, cone)
+    D = P[j] - P[i]
+    w = np.linalg.norm(D, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        m = np.minimum(-(D / w[:, None] * N[i]).sum(axis=1), (N[j] * D / w[:, None]).sum(axis=1))
+    want = np.flatnonzero((w >= 0.004) & (m >= cone))
+    assert np.array_equal(rows, want) and len(want) > 100
+    assert np.all((i[rows] < 30) != (j[rows] < 30))  # across the two faces only
+    assert np.allclose(widths, w[rows], rtol=0, atol=1e-15) and np.allclose(margins, m[rows], atol=1e-15)
+    with pytest.raises(ValueError, match="range"):
+        _core.antipodal_pairs(P, N, np.array([0]), np.array([60]), 0.004, cone)
