@@ -74,20 +74,23 @@ def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int 
     P = np.asarray(points, float)
     if len(P) < 3:
         raise ValueError("support plane: fewer than 3 points")
-    # the seeded hypotheses, three points each, drawn and formed at once (a repeated point: no plane)
-    A, B, C = P[np.random.default_rng(seed).integers(0, len(P), (iterations, 3))].transpose(1, 0, 2)
-    normals = np.cross(B - A, C - A)
-    length = np.linalg.norm(normals, axis=1)
-    formed = length >= 1e-9
-    normals = normals[formed] / length[formed, None]
-    normals *= np.where(normals[:, 2] < 0, -1.0, 1.0)[:, None]
-    up = normals[:, 2] >= min_up
-    if not up.any():
+    rng = np.random.default_rng(seed)
+    normals, offsets = [], []
+    for _ in range(iterations):  # the seeded hypotheses, scored natively below
+        a, b, c = P[rng.choice(len(P), 3, replace=False)]
+        n = np.cross(b - a, c - a)
+        if np.linalg.norm(n) < 1e-9:
+            continue
+        n /= np.linalg.norm(n)
+        n = -n if n[2] < 0 else n
+        if n[2] >= min_up:
+            normals.append(n)
+            offsets.append(float(n @ a))
+    if not normals:
         raise ValueError("support plane: no near-horizontal plane in the points; give the plane explicitly")
-    normals, offsets = normals[up], np.einsum("ij,ij->i", normals[up], A[formed][up])
-    counts = _core.plane_inlier_counts(P, normals, offsets, tolerance)  # natively: 200 x N distances
-    best = int(np.argmax(counts))  # the first with the most inliers
-    n, d = normals[best], float(offsets[best])
+    counts = _core.plane_inlier_counts(P, np.array(normals), np.array(offsets), tolerance)  # 200 x N distances
+    best = int(np.argmax(counts))  # the first with the most inliers, as a sequential search keeps it
+    n, d = normals[best], offsets[best]
     inliers = P[np.abs(P @ n - d) < tolerance]
     centre = inliers.mean(axis=0)
     n = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]  # (M, 3): never the M x M U
