@@ -75,22 +75,21 @@ def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int 
     if len(P) < 3:
         raise ValueError("support plane: fewer than 3 points")
     rng = np.random.default_rng(seed)
-    normals, offsets = [], []
-    for _ in range(iterations):  # the seeded hypotheses, scored natively below
-        a, b, c = P[rng.choice(len(P), 3, replace=False)]
-        n = np.cross(b - a, c - a)
-        if np.linalg.norm(n) < 1e-9:
-            continue
-        n /= np.linalg.norm(n)
-        n = -n if n[2] < 0 else n
-        if n[2] >= min_up:
-            normals.append(n)
-            offsets.append(float(n @ a))
-    if not normals:
+    # the seeded hypotheses (three distinct points each), formed at once: the sums are written out in
+    # the order numpy's per-vector norm and dot take them, so the planes are the same to the last bit
+    A, B, C = P[np.array([rng.choice(len(P), 3, replace=False) for _ in range(iterations)])].transpose(1, 0, 2)
+    normals = np.cross(B - A, C - A)
+    length = np.sqrt((normals * normals).sum(axis=1))
+    formed = length >= 1e-9
+    normals = normals[formed] / length[formed, None]
+    normals *= np.where(normals[:, 2] < 0, -1.0, 1.0)[:, None]
+    up = normals[:, 2] >= min_up
+    if not up.any():
         raise ValueError("support plane: no near-horizontal plane in the points; give the plane explicitly")
-    counts = _core.plane_inlier_counts(P, np.array(normals), np.array(offsets), tolerance)  # 200 x N distances
+    normals, offsets = normals[up], (normals[up] * A[formed][up]).sum(axis=1)
+    counts = _core.plane_inlier_counts(P, normals, offsets, tolerance)  # natively: 200 x N distances
     best = int(np.argmax(counts))  # the first with the most inliers, as a sequential search keeps it
-    n, d = normals[best], offsets[best]
+    n, d = normals[best], float(offsets[best])
     inliers = P[np.abs(P @ n - d) < tolerance]
     centre = inliers.mean(axis=0)
     n = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]  # (M, 3): never the M x M U
