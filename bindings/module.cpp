@@ -12,6 +12,7 @@ void init_isf(py::module_& m);
 void init_omg_loop(py::module_& m);
 void init_pickup_nlp(py::module_& m);
 void init_perception(py::module_& m);
+void init_point_sections(py::module_& m);
 void init_primitives(py::module_& m);
 void init_rrt_connect(py::module_& m);
 }
@@ -36,6 +37,7 @@ PYBIND11_MODULE(_core, m) {
   pickplan::bind::init_omg_loop(m);
   pickplan::bind::init_pickup_nlp(m);
   pickplan::bind::init_perception(m);
+  pickplan::bind::init_point_sections(m);
   pickplan::bind::init_primitives(m);  // extends SceneSdf and CollisionShape: after both
   pickplan::bind::init_rrt_connect(m);
 }

@@ -70,6 +70,42 @@ void init_perception(py::module_& m) {
       "Fuse depth views into a signed distance grid of the obstacles and the target's observed points.");
 
   m.def(
+      "plane_inlier_counts",
+      [](const Array& points, const Array& normals, const Array& offsets, double tolerance) {
+        require_shape("points", points, {-1, 3}, "(N, 3)");
+        require_shape("normals", normals, {-1, 3}, "(K, 3)");
+        require_shape("offsets", offsets, {normals.shape(0)}, "(K,)");
+        const Vertices P = Eigen::Map<const Vertices>(points.data(), points.shape(0), 3);
+        const Vertices N = Eigen::Map<const Vertices>(normals.data(), normals.shape(0), 3);
+        const Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(offsets.data(), offsets.shape(0));
+        py::gil_scoped_release release;
+        return Eigen::VectorXi(plane_inlier_counts(P, N, d, tolerance));
+      },
+      py::arg("points"), py::arg("normals"), py::arg("offsets"), py::arg("tolerance"),
+      "Per plane n_k . x = d_k: how many points lie within tolerance of it.");
+
+  m.def(
+      "point_distance_grid",
+      [](const Array& points, const Array& origin, double resolution, const IntArray& dims) {
+        require_shape("points", points, {-1, 3}, "(N, 3)");
+        require_shape("origin", origin, {3}, "(3,)");
+        require_shape("dims", dims, {3}, "(3,) nodes along x, y, z");
+        const Vertices P = Eigen::Map<const Vertices>(points.data(), points.shape(0), 3);
+        const Eigen::Vector3d o(origin.at(0), origin.at(1), origin.at(2));
+        const Eigen::Vector3i n(dims.at(0), dims.at(1), dims.at(2));
+        std::vector<float> d;
+        {
+          py::gil_scoped_release release;
+          d = point_distance_grid(P, o, resolution, n);
+        }
+        py::array_t<float> out({static_cast<py::ssize_t>(n.z()), static_cast<py::ssize_t>(n.y()), static_cast<py::ssize_t>(n.x())});
+        std::copy(d.begin(), d.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("points"), py::arg("origin"), py::arg("resolution"), py::arg("dims"),
+      "(nz, ny, nx) distances from the grid's nodes (origin + resolution * (x, y, z)) to the nearest point.");
+
+  m.def(
       "squared_distance_transform",
       [](const ByteArray& mask) {
         if (mask.ndim() != 3) throw std::invalid_argument("mask: expected a 3-D array (nz, ny, nx), got " + shape_str(mask));

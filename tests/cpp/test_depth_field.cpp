@@ -60,6 +60,38 @@ TEST(DepthField, MatchesExactDistancesAboveABox) {
   EXPECT_LE(f.obstacles->distance(Eigen::Vector3d(0.0, 0.0, 0.05)), 0.0);  // inside the cube
 }
 
+TEST(DepthField, NodeValuesAreExactDistancesOfTheOccupiedSet) {
+  // every node against brute force over the occupied set the field's signs give: outside, the
+  // distance to the nearest occupied node less half a voxel (capped at 1 m); inside, minus the
+  // distance to the nearest free node less half a voxel (the inside transform runs on a sub-box)
+  DepthFieldSettings s;
+  s.lo = Eigen::Vector3d(-0.15, -0.12, -0.05);
+  s.hi = Eigen::Vector3d(0.15, 0.12, 0.2);
+  s.resolution = 0.01;
+  s.has_plane = true;
+  const DepthField f = build_depth_field({top_view()}, s);
+  const Eigen::Vector3i dims = f.obstacles->dims();
+  const std::vector<float>& values = f.obstacles->values();
+  std::vector<Eigen::Vector3i> occupied, free;
+  for (long i = 0; i < dims.prod(); ++i) {
+    const Eigen::Vector3i p(i % dims.x(), (i / dims.x()) % dims.y(), i / (long(dims.x()) * dims.y()));
+    (values[i] < 0 ? occupied : free).push_back(p);
+  }
+  ASSERT_EQ(static_cast<int>(occupied.size()), f.occupied);
+  ASSERT_GT(f.occupied, 100);
+  auto nearest = [](const Eigen::Vector3i& p, const std::vector<Eigen::Vector3i>& set) {
+    double best = 1e30;
+    for (const auto& q : set) best = std::min(best, (q - p).cast<double>().squaredNorm());
+    return std::sqrt(best);
+  };
+  for (long i = 0; i < dims.prod(); ++i) {
+    const Eigen::Vector3i p(i % dims.x(), (i / dims.x()) % dims.y(), i / (long(dims.x()) * dims.y()));
+    const double want = values[i] < 0 ? -(nearest(p, free) * s.resolution - 0.5 * s.resolution)
+                                      : std::min(nearest(p, occupied) * s.resolution - 0.5 * s.resolution, 1.0);
+    ASSERT_NEAR(values[i], want, 1e-6) << "node " << p.transpose();
+  }
+}
+
 TEST(DepthField, RefusesBadInput) {
   DepthFieldSettings s;
   DepthView v = top_view();

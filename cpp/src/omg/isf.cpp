@@ -6,30 +6,14 @@
 #include <string>
 #include <stdexcept>
 
-#include <nanoflann.hpp>
-
 #include "pickplan/core/errors.hpp"
+#include "pickplan/geometry/point_index.hpp"
 
 namespace pickplan {
 
-namespace {
-// nanoflann dataset adaptor over the object points (rows of a row-major N x 3 matrix).
-struct PointCloud {
-  const Vertices* pts;
-  size_t kdtree_get_point_count() const { return static_cast<size_t>(pts->rows()); }
-  double kdtree_get_pt(size_t i, size_t d) const { return (*pts)(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(d)); }
-  template <class BBOX>
-  bool kdtree_get_bbox(BBOX&) const { return false; }
-};
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, PointCloud>, PointCloud, 3>;
-}  // namespace
-
 struct GraspRefiner::Index {
-  PointCloud cloud;
-  KdTree tree;
-  explicit Index(const Vertices* pts) : cloud{pts}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {
-    tree.buildIndex();
-  }
+  PointIndex points;
+  explicit Index(const Vertices* pts) : points(pts) {}
 };
 
 GraspRefiner::~GraspRefiner() = default;
@@ -82,9 +66,7 @@ GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) c
   for (int j = 0; j < M; ++j) {
     uh[j] = H.apply(contacts_.row(j).transpose());
     un[j] = H.R * contact_normals_.row(j).transpose();
-    nanoflann::KNNResultSet<double, size_t> res(1);
-    res.init(&nn[j], &dist2[j]);
-    index_->tree.findNeighbors(res, uh[j].data(), nanoflann::SearchParams(10));
+    index_->points.nearest(uh[j].data(), &nn[j], &dist2[j]);
   }
   for (int j = 0; j < M; ++j) {
     bool keep = true;

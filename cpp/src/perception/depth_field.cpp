@@ -1,5 +1,7 @@
 #include "pickplan/perception/depth_field.hpp"
 
+#include "pickplan/geometry/point_index.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -60,6 +62,61 @@ void dt_1d(const float* f, float* d, int n, int* v, float* z) {
   }
 }
 
+// One view's verdict on every voxel (the header's rule), merged into `state` by priority. The voxel's
+// camera-frame position is affine in its index: a row's start is transformed once and stepped along x.
+void carve(const DepthView& view, const DepthFieldSettings& s, const Eigen::Vector3i& dims, std::vector<std::uint8_t>* state) {
+  const Eigen::Matrix3d Rt = view.camera_pose.R.transpose();
+  const Eigen::Vector3d origin = Rt * (s.lo - view.camera_pose.p), step = s.resolution * Rt.col(0);
+  const double fx = view.K(0, 0), fy = view.K(1, 1), cx = view.K(0, 2), cy = view.K(1, 2), sk = view.K(0, 1);
+  const long H = view.depth.rows(), W = view.depth.cols();
+  const float* depth = view.depth.data();
+  const std::uint8_t* target = view.target.size() > 0 ? view.target.data() : nullptr;
+  for (int kz = 0; kz < dims.z(); ++kz)
+    for (int ky = 0; ky < dims.y(); ++ky) {
+      std::uint8_t* st = state->data() + (static_cast<long>(kz) * dims.y() + ky) * dims.x();
+      const Eigen::Vector3d p0 = origin + s.resolution * (ky * Rt.col(1) + kz * Rt.col(2));
+      for (int kx = 0; kx < dims.x(); ++kx) {
+        const double px = p0.x() + kx * step.x(), py = p0.y() + kx * step.y(), pz = p0.z() + kx * step.z();
+        if (pz <= 1e-6) continue;
+        const double iz = 1.0 / pz;
+        const double u = (fx * px + sk * py) * iz + cx, v = fy * py * iz + cy;
+        if (!(u >= 0 && v >= 0 && u < W && v < H)) continue;
+        const long pixel = static_cast<long>(v) * W + static_cast<long>(u);
+        const float d = depth[pixel];
+        if (!(std::isfinite(d) && d > 0)) continue;
+        VoxelState c;
+        if (pz < d - s.surface_margin) c = VoxelState::kFree;
+        else if (target && target[pixel]) c = VoxelState::kTarget;
+        else c = VoxelState::kOccupied;
+        st[kx] = std::max(st[kx], static_cast<std::uint8_t>(c));
+      }
+    }
+}
+
+// Inside the occupied voxels: minus the distance to the nearest free node plus half a voxel. The
+// distance transform runs over the occupied voxels' bounding box grown by one voxel (within the
+// grid) only: that shell holds no occupied voxel, and any free voxel beyond it is farther than the
+// shell voxel nearest to it along each axis, so the box's transform is the whole grid's (exact).
+void inside_distances(const std::vector<std::uint8_t>& occupied, const Eigen::Vector3i& dims, Eigen::Vector3i lo,
+                      Eigen::Vector3i hi, double res, std::vector<float>* values) {
+  lo = (lo.array() - 1).max(0).matrix();
+  hi = (hi.array() + 1).min(dims.array() - 1).matrix();
+  const Eigen::Vector3i sub = hi - lo + Eigen::Vector3i::Ones();
+  std::vector<std::uint8_t> outside(static_cast<long>(sub.prod()));
+  auto index = [&](int x, int y, int z) { return (static_cast<long>(z) * dims.y() + y) * dims.x() + x; };
+  long k = 0;
+  for (int z = lo.z(); z <= hi.z(); ++z)
+    for (int y = lo.y(); y <= hi.y(); ++y)
+      for (int x = lo.x(); x <= hi.x(); ++x) outside[k++] = !occupied[index(x, y, z)];
+  const std::vector<float> to_free = squared_distance_transform(outside, sub);
+  const float half = static_cast<float>(0.5 * res);
+  k = 0;
+  for (int z = lo.z(); z <= hi.z(); ++z)
+    for (int y = lo.y(); y <= hi.y(); ++y)
+      for (int x = lo.x(); x <= hi.x(); ++x, ++k)
+        if (occupied[index(x, y, z)]) (*values)[index(x, y, z)] = -(std::sqrt(to_free[k]) * float(res) - half);
+}
+
 }  // namespace
 
 void DepthFieldSettings::validate() const {
@@ -73,6 +130,43 @@ void DepthFieldSettings::validate() const {
   require(target_stride >= 1, "depth field: target_stride must be >= 1");
 }
 
+Eigen::VectorXi plane_inlier_counts(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets,
+                                    double tolerance) {
+  require(offsets.size() == normals.rows(), "plane inliers: expected one offset per normal, got " +
+                                                std::to_string(offsets.size()) + " for " + std::to_string(normals.rows()));
+  require(std::isfinite(tolerance) && tolerance >= 0, "plane inliers: tolerance must be >= 0");
+  Eigen::VectorXi counts = Eigen::VectorXi::Zero(normals.rows());
+  for (long k = 0; k < normals.rows(); ++k) {
+    const double nx = normals(k, 0), ny = normals(k, 1), nz = normals(k, 2), d = offsets(k);
+    int c = 0;
+    for (long i = 0; i < points.rows(); ++i)
+      c += std::abs(points(i, 0) * nx + points(i, 1) * ny + points(i, 2) * nz - d) < tolerance;
+    counts(k) = c;
+  }
+  return counts;
+}
+
+std::vector<float> point_distance_grid(const Vertices& points, const Eigen::Vector3d& origin, double resolution,
+                                       const Eigen::Vector3i& dims) {
+  require(points.rows() > 0 && points.allFinite(), "point distance grid: expected finite points, got " +
+                                                       std::to_string(points.rows()) + " rows");
+  require(dims.minCoeff() >= 1 && static_cast<double>(dims.x()) * dims.y() * dims.z() < 2.0e8,
+          "point distance grid: expected 1 to 2e8 nodes");
+  require(origin.allFinite() && std::isfinite(resolution) && resolution > 0, "point distance grid: bad origin or resolution");
+  const PointIndex index(&points);
+  std::vector<float> out(static_cast<std::size_t>(dims.prod()));
+  std::size_t k = 0, nearest = 0;
+  double d2 = 0;
+  for (int z = 0; z < dims.z(); ++z)
+    for (int y = 0; y < dims.y(); ++y)
+      for (int x = 0; x < dims.x(); ++x, ++k) {
+        const Eigen::Vector3d q = origin + resolution * Eigen::Vector3d(x, y, z);
+        index.nearest(q.data(), &nearest, &d2);
+        out[k] = static_cast<float>(std::sqrt(d2));
+      }
+  return out;
+}
+
 std::vector<float> squared_distance_transform(const std::vector<std::uint8_t>& mask, const Eigen::Vector3i& dims) {
   const long total = static_cast<long>(dims.prod());
   require(dims.minCoeff() >= 1 && static_cast<long>(mask.size()) == total,
@@ -83,14 +177,33 @@ std::vector<float> squared_distance_transform(const std::vector<std::uint8_t>& m
   const int n_max = dims.maxCoeff();
   std::vector<float> f(n_max), d(n_max), z(n_max + 1);
   std::vector<int> v(n_max);
+  // along x the input is binary: the distance to the nearest set voxel in a forward and a backward sweep
+  for (long row = 0; row < total; row += dims.x()) {
+    float* line = g.data() + row;
+    long last = -1;
+    for (long q = 0; q < dims.x(); ++q) {
+      if (line[q] == 0.0f) last = q;
+      else if (last >= 0) line[q] = float((q - last) * (q - last));
+    }
+    last = -1;
+    for (long q = dims.x() - 1; q >= 0; --q) {
+      if (line[q] == 0.0f) last = q;
+      else if (last >= 0) line[q] = std::min(line[q], float((q - last) * (q - last)));
+    }
+  }
   const long stride[3] = {1, dims.x(), static_cast<long>(dims.x()) * dims.y()};
-  for (int axis = 0; axis < 3; ++axis) {
+  for (int axis = 1; axis < 3; ++axis) {
     const int n = dims[axis];
     const int a = (axis + 1) % 3, b = (axis + 2) % 3;
     for (int i = 0; i < dims[a]; ++i)
       for (int j = 0; j < dims[b]; ++j) {
         const long base = i * stride[a] + j * stride[b];
-        for (int q = 0; q < n; ++q) f[q] = g[base + q * stride[axis]];
+        bool any = false;
+        for (int q = 0; q < n; ++q) {
+          f[q] = g[base + q * stride[axis]];
+          any = any || f[q] < big;
+        }
+        if (!any) continue;  // no set voxel in this line's planes yet: it stays far
         dt_1d(f.data(), d.data(), n, v.data(), z.data());
         for (int q = 0; q < n; ++q) g[base + q * stride[axis]] = std::min(d[q], big);
       }
@@ -107,57 +220,38 @@ DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFie
   const long total = static_cast<long>(dims.prod());
   std::vector<std::uint8_t> state(total, static_cast<std::uint8_t>(VoxelState::kNone));
 
-  for (const DepthView& view : views) {
-    const Eigen::Matrix3d Rt = view.camera_pose.R.transpose();
-    const Eigen::Vector3d t = view.camera_pose.p;
-    const double fx = view.K(0, 0), fy = view.K(1, 1), cx = view.K(0, 2), cy = view.K(1, 2), sk = view.K(0, 1);
-    const long H = view.depth.rows(), W = view.depth.cols();
-    const bool has_target = view.target.size() > 0;
-    for (int kz = 0; kz < dims.z(); ++kz)
-      for (int ky = 0; ky < dims.y(); ++ky) {
-        const long row_base = (static_cast<long>(kz) * dims.y() + ky) * dims.x();
-        for (int kx = 0; kx < dims.x(); ++kx) {
-          const Eigen::Vector3d x = s.lo + res * Eigen::Vector3d(kx, ky, kz);
-          const Eigen::Vector3d p = Rt * (x - t);
-          if (p.z() <= 1e-6) continue;
-          const double u = fx * p.x() / p.z() + sk * p.y() / p.z() + cx, v = fy * p.y() / p.z() + cy;
-          if (!(u >= 0 && v >= 0 && u < W && v < H)) continue;
-          const long col = static_cast<long>(u), row = static_cast<long>(v);
-          const float d = view.depth(row, col);
-          if (!(std::isfinite(d) && d > 0)) continue;
-          VoxelState c;
-          if (p.z() < d - s.surface_margin) c = VoxelState::kFree;
-          else if (has_target && view.target(row, col)) c = VoxelState::kTarget;
-          else c = VoxelState::kOccupied;
-          std::uint8_t& st = state[row_base + kx];
-          st = std::max(st, static_cast<std::uint8_t>(c));
-        }
-      }
-  }
+  for (const DepthView& view : views) carve(view, s, dims, &state);
 
   DepthField out;
-  std::vector<std::uint8_t> occupied(total), outside(total);
-  for (long i = 0; i < total; ++i) {
-    const long kx = i % dims.x(), ky = (i / dims.x()) % dims.y(), kz = i / (static_cast<long>(dims.x()) * dims.y());
-    const Eigen::Vector3d x = s.lo + res * Eigen::Vector3d(kx, ky, kz);
-    const bool table = s.has_plane && s.plane_normal.dot(x) - s.plane_offset < s.plane_margin;
-    const auto st = static_cast<VoxelState>(state[i]);
-    occupied[i] = !table && st == VoxelState::kOccupied;
-    outside[i] = !occupied[i];
-    out.occupied += occupied[i];
-    out.target += st == VoxelState::kTarget;
-    out.free += st == VoxelState::kFree;
-  }
+  std::vector<std::uint8_t> occupied(total);
+  Eigen::Vector3i box_lo = dims, box_hi = Eigen::Vector3i::Constant(-1);  // the occupied voxels' bounds
+  // the height above the plane is affine in the voxel index: stepped along each row, not recomputed
+  const Eigen::Vector3d n = s.has_plane ? s.plane_normal : Eigen::Vector3d::Zero();
+  for (int kz = 0; kz < dims.z(); ++kz)
+    for (int ky = 0; ky < dims.y(); ++ky) {
+      const long row = (static_cast<long>(kz) * dims.y() + ky) * dims.x();
+      const double h0 = n.dot(s.lo + res * Eigen::Vector3d(0, ky, kz)) - s.plane_offset;
+      for (int kx = 0; kx < dims.x(); ++kx) {
+        const long i = row + kx;
+        const bool table = s.has_plane && h0 + res * kx * n.x() < s.plane_margin;
+        const auto st = static_cast<VoxelState>(state[i]);
+        occupied[i] = !table && st == VoxelState::kOccupied;
+        if (occupied[i]) {
+          box_lo = box_lo.cwiseMin(Eigen::Vector3i(kx, ky, kz));
+          box_hi = box_hi.cwiseMax(Eigen::Vector3i(kx, ky, kz));
+        }
+        out.occupied += occupied[i];
+        out.target += st == VoxelState::kTarget;
+        out.free += st == VoxelState::kFree;
+      }
+    }
   // Node distances: to the nearest occupied node minus half a voxel outside, minus the distance to
   // the nearest free node plus half a voxel inside (the surface lies between the two node sets).
   const std::vector<float> to_occupied = squared_distance_transform(occupied, dims);
-  const std::vector<float> to_free = squared_distance_transform(outside, dims);
   const float half = static_cast<float>(0.5 * res), cap = 1.0f;
   std::vector<float> values(total);
-  for (long i = 0; i < total; ++i) {
-    values[i] = occupied[i] ? -(std::sqrt(to_free[i]) * float(res) - half)
-                            : std::min(std::sqrt(to_occupied[i]) * float(res) - half, cap);
-  }
+  for (long i = 0; i < total; ++i) values[i] = std::min(std::sqrt(to_occupied[i]) * float(res) - half, cap);
+  if (out.occupied > 0) inside_distances(occupied, dims, box_lo, box_hi, res, &values);
   out.obstacles = std::make_shared<SdfGrid>(SdfGrid::from_values(s.lo, res, dims, std::move(values)));
 
   // The target's observed surface: back-projected target pixels, normals from neighbouring pixels.

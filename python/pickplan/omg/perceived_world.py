@@ -42,6 +42,7 @@ from pickplan.omg.grasps import quality
 from pickplan.omg.grasps.points import PointGraspSettings, denoised, grasps_from_points, points_load
 from pickplan.omg.grasps.sets import GraspSet
 from pickplan.omg.model_cache import ModelCache
+from pickplan.omg.native_loop import StageClock
 from pickplan.omg.planner import OMGPlanner, OMGSettings
 from pickplan.omg.world import CheckerKind, World
 from pickplan.perception.field import FieldSettings, PerceivedScene, perceive
@@ -62,6 +63,14 @@ class PerceivedWorldSettings:
     seed: int = 0                     # plane RANSAC, hand samples, ISF subsample
     hull: HullSettings = dataclass_field(default_factory=HullSettings)
     use_hull: bool = False            # grasps clear the target's visibility hull, not only its observed points
+    clock: StageClock = StageClock.wall  # what ``PerceivedWorld.seconds`` read (thread_cpu: a shared machine's
+    #                                      other processes do not count)
+
+    def __post_init__(self):
+        object.__setattr__(self, "clock", StageClock.parse(self.clock, "stage clock"))
+
+    def timer(self):
+        return time.thread_time if self.clock is StageClock.thread_cpu else time.perf_counter
 
 
 @dataclass(frozen=True)
@@ -98,13 +107,11 @@ class FieldChecker:
 
 
 def target_grid(points: np.ndarray, resolution: float, margin: float = 0.03) -> "_core.SdfGrid":
-    """Unsigned distance to the observed target points on a grid around them (world frame)."""
+    """Unsigned distance to the observed target points on a grid around them (world frame; exact,
+    natively: ``_core.point_distance_grid``)."""
     lo = points.min(axis=0) - margin
     dims = np.ceil((points.max(axis=0) + margin - lo) / resolution).astype(int) + 1
-    zz, yy, xx = np.meshgrid(*(np.arange(k) for k in dims[::-1]), indexing="ij")
-    nodes = lo + resolution * np.stack([xx, yy, zz], axis=-1).reshape(-1, 3)
-    d, _ = cKDTree(points).query(nodes)
-    return _core.SdfGrid.from_values(lo, resolution, d.reshape(zz.shape).astype(np.float32))
+    return _core.SdfGrid.from_values(lo, resolution, _core.point_distance_grid(points, lo, resolution, dims))
 
 
 class PerceivedWorld:
@@ -120,8 +127,9 @@ class PerceivedWorld:
                              f"got {type(robot).__name__}")
         self.observation, self.settings = observation, settings
         self.scene = ObservedScene()
-        self.perceived = perceived or perceive(observation, settings.field, seed=settings.seed)
-        t0 = time.perf_counter()
+        clock = settings.timer()
+        self.perceived = perceived or perceive(observation, settings.field, seed=settings.seed, clock=clock)
+        t0 = clock()
         self.cache = ModelCache() if cache is None else cache  # the robot's data, shared with other worlds
         self.robot = self.cache.robot(robot if robot is not None else "panda", np.eye(4))
         if len(self.perceived.target_points) < 3:
@@ -130,11 +138,11 @@ class PerceivedWorld:
         self.sdf: SceneSdf = self.perceived.sdf
         if TARGET not in self.sdf.names:  # a PerceivedScene handed to a second world has it already
             self.sdf.add_object(TARGET, target_grid(self.perceived.target_points, settings.target_resolution), np.eye(4))
-        self.body = self.robot.sample_body_points(settings.body_points_per_link
-                                                  or self.robot.description.body_points_per_link, seed=settings.body_seed)
+        self.body = self.cache.body_points(self.robot, settings.body_points_per_link
+                                           or self.robot.description.body_points_per_link, settings.body_seed)
         self._refiners: dict = {}
         self._chomps: dict = {}
-        self.seconds = dict(self.perceived.seconds, world=time.perf_counter() - t0, grasps=0.0)
+        self.seconds = dict(self.perceived.seconds, world=clock() - t0, grasps=0.0)
 
     @classmethod
     def load(cls, path, robot=None, settings: PerceivedWorldSettings = PerceivedWorldSettings()) -> "PerceivedWorld":
@@ -188,9 +196,10 @@ class PerceivedWorld:
     @functools.cached_property
     def hull(self) -> np.ndarray:
         """Samples of where the target's unseen rest may be (``perception.hull.visibility_hull``)."""
-        t0 = time.perf_counter()
+        clock = self.settings.timer()
+        t0 = clock()
         out = visibility_hull(self.observation, self.perceived.target_points, self.plane, self.settings.hull)
-        self.seconds["grasps"] += time.perf_counter() - t0
+        self.seconds["grasps"] += clock() - t0
         return out
 
     @functools.cached_property
@@ -199,7 +208,12 @@ class PerceivedWorld:
 
     @functools.cached_property
     def hand_points(self) -> Tuple[np.ndarray, np.ndarray]:
-        """Samples on the open hand and fingers in the hand frame, and whether each is on a finger."""
+        """Samples on the open hand and fingers in the hand frame, and whether each is on a finger (the
+        robot's data: kept in the cache for every world of this robot)."""
+        key = ("hand_points", self.settings.hand_points_per_link, self.settings.seed)
+        return self.cache.robot_derived(self.robot, key, self._sample_hand_points)
+
+    def _sample_hand_points(self) -> Tuple[np.ndarray, np.ndarray]:
         robot = self.robot
         links = (robot.hand_link,) + tuple(robot.finger_links)
         body = robot.sample_body_points(self.settings.hand_points_per_link, seed=self.settings.seed, links=links)
@@ -229,15 +243,17 @@ class PerceivedWorld:
 
     def grasps(self, n: int = 100, seed: int = 0, standoff: float = GoalSetSettings.standoff) -> GraspSet:
         """Up to ``n`` grasps of the observed target (world frame) clear of the field and the plane."""
-        t0 = time.perf_counter()
+        clock = self.settings.timer()
+        t0 = clock()
         gs = grasps_from_points(self.perceived.target_points, self.perceived.target_normals, self.plane,
                                 self.hand_sdf, n=n, seed=seed, scene_distance=self.obstacle_distance,
                                 hand_points=self.hand_points[0], settings=self.settings.grasps,
-                                gripper=self.robot.info, hull=self.hull if self.settings.use_hull else None)
+                                gripper=self.robot.info, hull=self.hull if self.settings.use_hull else None,
+                                denoised_points=self._quality_points[0] if self.settings.grasps.denoise else None)
         keep = self.clear_of_plane(gs.poses, standoff) if len(gs) else np.zeros(0, dtype=bool)
         out = GraspSet(gs.name, gs.poses[keep], gs.object_name, scores=gs.scores[keep],
                        info={k: np.asarray(v)[keep] for k, v in gs.info.items()})
-        self.seconds["grasps"] += time.perf_counter() - t0
+        self.seconds["grasps"] += clock() - t0
         return out
 
     @functools.cached_property
@@ -280,10 +296,45 @@ class PerceivedWorld:
 
 
 class PerceivedPlanner(OMGPlanner):
-    """``OMGPlanner`` on a ``PerceivedWorld``: the same Algorithm 2; default grasps from points."""
+    """``OMGPlanner`` on a ``PerceivedWorld``: the same Algorithm 2; default grasps from points.
 
-    def __init__(self, world: PerceivedWorld, settings: OMGSettings = OMGSettings()):
-        super().__init__(None, world.scene, settings, world=world)
+    Made once and asked again and again, frame after frame: ``plan(observation=...)`` perceives the
+    next observation into a new world that shares the planner's cache (the robot's data: its body and
+    open-hand samples, the hand's field), so only what depends on the frame is computed again.
+
+    >>> planner = PerceivedPlanner(settings=OMGSettings())      # the Panda; robot= any described robot
+    >>> for obs in frames:
+    ...     result = planner.plan(observation=obs)
+    """
+
+    def __init__(self, world: Optional[PerceivedWorld] = None, settings: OMGSettings = OMGSettings(), robot=None,
+                 world_settings: PerceivedWorldSettings = PerceivedWorldSettings(), cache: Optional[ModelCache] = None):
+        if world is not None and not isinstance(world, PerceivedWorld):
+            raise TypeError(f"world: expected a PerceivedWorld, got {type(world).__name__}")
+        super().__init__(None, world.scene if world is not None else ObservedScene(), settings, world=world,
+                         cache=cache)
+        self.perceived_robot = robot if robot is not None else (world.robot if world is not None else None)
+        self.world_settings = world.settings if world is not None else world_settings
+
+    def use_observation(self, observation: Observation) -> PerceivedWorld:
+        """Plan in the world perceived from ``observation`` from now on (built now, from the cache)."""
+        self._world = PerceivedWorld(observation, self.perceived_robot, self.world_settings, cache=self.cache)
+        return self._world
+
+    def world(self, target: Optional[str] = None) -> PerceivedWorld:
+        if self._world is None:
+            raise ValueError("no observation: give one (PerceivedPlanner(world) or plan(observation=...))")
+        return self._world
+
+    def plan(self, start: Optional[np.ndarray] = None, target: Optional[str] = None, grasps=None, scene=None,
+             observation: Optional[Observation] = None):
+        """``OMGPlanner.plan`` in the world of ``observation`` (``use_observation``) if given, else the
+        current one; a perceived world has one target (``target`` and ``scene`` do not apply)."""
+        if scene is not None:
+            raise ValueError("a perceived planner plans from observations: plan(observation=...), not scene=")
+        if observation is not None:
+            self.use_observation(observation)
+        return super().plan(start, None, grasps)
 
     def default_grasps(self, world: PerceivedWorld) -> np.ndarray:
         s = self.settings

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Optional, Sequence, Tuple
+from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -75,22 +75,21 @@ def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int 
     if len(P) < 3:
         raise ValueError("support plane: fewer than 3 points")
     rng = np.random.default_rng(seed)
-    best, best_count = None, -1
-    for _ in range(iterations):
-        a, b, c = P[rng.choice(len(P), 3, replace=False)]
-        n = np.cross(b - a, c - a)
-        if np.linalg.norm(n) < 1e-9:
-            continue
-        n /= np.linalg.norm(n)
-        n = -n if n[2] < 0 else n
-        if n[2] < min_up:
-            continue
-        count = int((np.abs(P @ n - n @ a) < tolerance).sum())
-        if count > best_count:
-            best, best_count = (n, float(n @ a)), count
-    if best is None:
+    # the seeded hypotheses (three distinct points each), formed at once: the sums are written out in
+    # the order numpy's per-vector norm and dot take them, so the planes are the same to the last bit
+    A, B, C = P[np.array([rng.choice(len(P), 3, replace=False) for _ in range(iterations)])].transpose(1, 0, 2)
+    normals = np.cross(B - A, C - A)
+    length = np.sqrt((normals * normals).sum(axis=1))
+    formed = length >= 1e-9
+    normals = normals[formed] / length[formed, None]
+    normals *= np.where(normals[:, 2] < 0, -1.0, 1.0)[:, None]
+    up = normals[:, 2] >= min_up
+    if not up.any():
         raise ValueError("support plane: no near-horizontal plane in the points; give the plane explicitly")
-    n, d = best
+    normals, offsets = normals[up], (normals[up] * A[formed][up]).sum(axis=1)
+    counts = _core.plane_inlier_counts(P, normals, offsets, tolerance)  # natively: 200 x N distances
+    best = int(np.argmax(counts))  # the first with the most inliers, as a sequential search keeps it
+    n, d = normals[best], float(offsets[best])
     inliers = P[np.abs(P @ n - d) < tolerance]
     centre = inliers.mean(axis=0)
     n = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]  # (M, 3): never the M x M U
@@ -98,9 +97,11 @@ def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int 
     return n, float(n @ centre)
 
 
-def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: int = 0) -> PerceivedScene:
-    """The planner's world from ``obs``: fused field, support plane (detected unless given), target."""
-    t0 = time.perf_counter()
+def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: int = 0,
+             clock: Callable[[], float] = time.perf_counter) -> PerceivedScene:
+    """The planner's world from ``obs``: fused field, support plane (detected unless given), target;
+    ``seconds`` per stage as ``clock`` reads them."""
+    t0 = clock()
     if settings.plane is None:
         try:
             n, d = support_plane(_points(obs, 4), settings.plane_tolerance, seed=seed)
@@ -110,7 +111,7 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     else:
         n = np.asarray(settings.plane[0], float)
         n, d = n / np.linalg.norm(n), float(settings.plane[1])
-    t1 = time.perf_counter()
+    t1 = clock()
     native = _core.DepthFieldSettings()
     native.lo, native.hi = np.asarray(settings.lo, float), np.asarray(settings.hi, float)
     native.resolution, native.surface_margin = float(settings.resolution), float(settings.surface_margin)
@@ -118,7 +119,7 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     native.plane_margin, native.target_stride = float(settings.plane_margin), int(settings.target_stride)
     built = _core.build_depth_field(list(obs.depth), list(obs.K), list(obs.camera_pose),
                                     [m.astype(np.uint8) for m in obs.target_mask], native)
-    t2 = time.perf_counter()
+    t2 = clock()
     # the table: a slab under the plane, as wide as the workspace (its top face is the plane)
     lo, hi = np.asarray(settings.lo, float), np.asarray(settings.hi, float)
     thickness = 0.05
@@ -137,7 +138,7 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     T[:3, 3] = on_plane - R @ [0, 0, thickness / 2]
     size = (hi - lo) + 1.0
     sdf = SceneSdf([(OBSTACLES, built["obstacles"], np.eye(4))], table=((size[0], size[1], thickness), T))
-    t3 = time.perf_counter()
+    t3 = clock()
     return PerceivedScene(sdf, np.asarray(built["target_points"]), np.asarray(built["target_normals"]), (n, d),
                           counts={k: int(built[k]) for k in ("occupied", "target", "free")},
                           seconds={"plane": t1 - t0, "field": t2 - t1, "scene": t3 - t2},

@@ -53,6 +53,16 @@ struct DepthField {
 // Throws std::invalid_argument for mismatched sizes, non-rigid poses, bad intrinsics or settings.
 DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFieldSettings& settings);
 
+// How many of `points` lie within `tolerance` of each plane hypothesis normals.row(k) . x = offsets(k):
+// the support plane's RANSAC scores (python/pickplan/perception/field.py draws the hypotheses).
+Eigen::VectorXi plane_inlier_counts(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets,
+                                    double tolerance);
+
+// Distance from every node of the grid (origin, resolution, dims; x fastest) to the nearest of
+// `points` (exact, by a k-d tree): the observed target's unsigned distance grid.
+std::vector<float> point_distance_grid(const Vertices& points, const Eigen::Vector3d& origin, double resolution,
+                                       const Eigen::Vector3i& dims);
+
 // Exact squared Euclidean distance transform (Felzenszwalb and Huttenlocher) of a binary grid,
 // x-fastest dims: for each voxel the squared distance (in voxels) to the nearest `true` voxel
 // (a large value where there is none).

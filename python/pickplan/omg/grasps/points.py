@@ -32,6 +32,7 @@ from typing import Callable, Optional
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
+from pickplan import _core
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
 from pickplan.omg.grasps.quality import Load
@@ -73,10 +74,10 @@ class PointGraspSettings:
 
 def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """Grasp-frame poses: closing axis y, approach z, the pad centre at ``centre``."""
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-    T[:3, 3] = centre
-    return T
+    (y0, y1, y2), (z0, z1, z2), (c0, c1, c2) = y.tolist(), z.tolist(), centre.tolist()
+    # y x z written out: np.cross's per-call overhead dominated the candidate loops (the same products)
+    return np.array([[y1 * z2 - y2 * z1, y0, z0, c0], [y2 * z0 - y0 * z2, y1, z1, c1],
+                     [y0 * z1 - y1 * z0, y2, z2, c2], [0.0, 0.0, 0.0, 1.0]])
 
 
 def _neighbourhoods(P, tree, radius: float):
@@ -117,13 +118,14 @@ def denoised(P, N, radius: float) -> np.ndarray:
     return P - np.einsum("ij,ij->i", P - centre, n)[:, None] * n
 
 
-def fitted_normals(P, N, radius: float) -> np.ndarray:
+def fitted_normals(P, N, radius: float, near=None) -> np.ndarray:
     """Per point: the normal of the plane fitted to the points within ``radius`` (the covariance's
     least eigenvector), turned to the side of ``N``. Normals from neighbouring pixels carry the depth
     noise divided by a pixel's spacing (tens of degrees at 2 mm); a fit over a few dozen points does
     not, so patches of a noisy flat face stay coherent. The side is the mean of ``N`` over the same
-    points. Points with fewer than 8 neighbours keep ``N``."""
-    k, j = _neighbourhoods(P, cKDTree(P), radius)
+    points. Points with fewer than 8 neighbours keep ``N``. ``near``: ``_neighbourhoods(P, ., radius)``
+    if already known."""
+    k, j = _neighbourhoods(P, cKDTree(P), radius) if near is None else near
     count = np.bincount(k, minlength=len(P))
     D = P[j] - _means(k, j, P, len(P))[k]
     C = np.stack([np.bincount(k, D[:, a] * D[:, b], minlength=len(P)) for a in range(3) for b in range(3)],
@@ -134,22 +136,30 @@ def fitted_normals(P, N, radius: float) -> np.ndarray:
     return np.where((count >= 8)[:, None], normal, N)  # a fit needs a few points more than a plane
 
 
-def antipodal_candidates(P, N, s: PointGraspSettings, rng) -> list:
+def antipodal_candidates(P, N, s: PointGraspSettings, rng, tree=None, near=None) -> list:
     """Pairs whose contact patches (``patch_normals`` over ``patch_radius``) are coherent and within
     each other's friction cone: a pair across a box's edges, whose noisy point normals lean towards
-    each other, is not a pinch."""
-    tree = cKDTree(P)
+    each other, is not a pinch. ``tree``, ``near``: P's k-d tree and patch neighbourhoods if known."""
+    tree = cKDTree(P) if tree is None else tree
     cone = np.cos(np.arctan(s.friction))
-    N, coherence = patch_normals(P, N, tree, s.patch_radius)
+    N, coherence = _unit_means(*(near or _neighbourhoods(P, tree, s.patch_radius)), N, len(P))
     seeds = rng.choice(len(P), min(s.samples, len(P)), replace=False)
+    # only coherent patches pair up: the others are dropped before the pairs are formed (same pairs, in
+    # the same order, as testing coherence after the cone)
+    coherent = coherence >= s.patch_coherence
+    seeds = seeds[coherent[seeds]]
     near = tree.query_ball_point(P[seeds], s.max_width - s.width_margin, return_sorted=False)
     i = np.repeat(seeds, [len(k) for k in near])
     j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(i))
+    i, j = i[coherent[j]], j[coherent[j]]
+    # the pairs that pass the width and friction-cone tests, found natively among 10^5-10^6 with a cone
+    # a hair wider, then measured here as numpy measures them (einsum's sums differ in the last bit)
+    near_cone, _, _ = _core.antipodal_pairs(P, N, i, j, s.min_width, cone - 1e-9)
+    i, j = i[near_cone], j[near_cone]
     widths = np.linalg.norm(P[j] - P[i], axis=1)
-    i, j, widths = i[widths >= s.min_width], j[widths >= s.min_width], widths[widths >= s.min_width]
     axes = (P[j] - P[i]) / widths[:, None]
     margins = np.minimum(-np.einsum("ij,ij->i", axes, N[i]), np.einsum("ij,ij->i", N[j], axes))
-    ok = (margins >= cone) & (coherence[i] >= s.patch_coherence) & (coherence[j] >= s.patch_coherence)
+    ok = margins >= cone
     # (i, j, margin, width) of the pairs that pass the width and friction-cone tests
     pairs = np.column_stack([i[ok], j[ok], margins[ok], widths[ok]])
     most = max(1, s.max_candidates // s.approach_angles)
@@ -182,7 +192,7 @@ def _section(rel, sel, y, x, trim: float):
     if sel.sum() < 3:
         return None, None
     py, px = rel[sel] @ y, rel[sel] @ x
-    lo, hi = np.quantile(py, [trim, 1.0 - trim])
+    lo, hi = _core.sorted_quantiles(np.sort(py), (trim, 1.0 - trim))
     return float(hi - lo), 0.5 * (hi + lo) * y + 0.5 * (px.max() + px.min()) * x
 
 
@@ -207,6 +217,7 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
     for a in np.append(np.pi * np.arange(s.yaw_steps) / s.yaw_steps, fine[np.argmin(spans)]):
         y = np.cos(a) * e1 + np.sin(a) * e2
         x = np.cross(y, n)
+        sections = {}  # per pad height: the tilts share most heights (and so their sections)
         for tilt in (0.0, s.max_tilt / 2, -s.max_tilt / 2, s.max_tilt, -s.max_tilt):
             z = -np.cos(tilt) * n + np.sin(tilt) * x  # down, tilted about the closing axis
             # pad centre heights above the plane, from just under the top down as far as the hand
@@ -215,7 +226,9 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
             lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
             for depth in s.grasp_depths:
                 height = max(lowest, top - depth)
-                width, mid = _section(rel, lo_h >= height - s.pad_length / 2, y, x, s.section_trim)
+                if height not in sections:
+                    sections[height] = _section(rel, lo_h >= height - s.pad_length / 2, y, x, s.section_trim)
+                width, mid = sections[height]
                 if fits(width):
                     centre = centre_flat + mid + height * n  # centre_flat lies on the plane
                     out.append((_frames(y, z, centre), 1.0 - abs(tilt) / (np.pi / 2), width))
@@ -229,39 +242,19 @@ def footprint_candidates(P, plane, s: PointGraspSettings) -> list:
     return out
 
 
-def _part_run(ry: np.ndarray, band: np.ndarray, gap: float) -> np.ndarray:
-    """(N,) bool: the points of ``band`` in the run along ``ry`` that holds ry = 0 (the sampled point)
-    with no gap wider than ``gap`` in it: the part the pads close on, not a neighbouring one beyond a
-    gap (whether a finger fits in that gap is the open-hand check's to say)."""
-    v = np.sort(ry[band])
-    cuts = np.flatnonzero(np.diff(v) > gap)
-    k = np.searchsorted(v, 0.0)
-    lo = v[cuts[cuts < k][-1] + 1] if (cuts < k).any() else v[0]
-    hi = v[cuts[cuts >= k][0]] if (cuts >= k).any() else v[-1]
-    return band & (ry >= lo) & (ry <= hi)
-
-
-def _faces_the_pads(ry: np.ndarray, rx: np.ndarray, s: PointGraspSettings) -> bool:
-    """Whether both ends of a section (points across the pads ``ry``, along the pads' width ``rx``)
-    turn at most ``max_face_turn`` from the pads: each end, found in the two halves of the pad's width,
-    moves by at most tan(max_face_turn) times the halves' distance. Across a part, not diagonally over
-    a corner of it (the pads would close on the corner's two faces, out of their friction cones, and
-    squeeze it out, or the end of a part under half a pad (one half empty: a corner cut off)."""
-    halves = [ry[rx < 0], ry[rx >= 0]]
-    if min(len(h) for h in halves) < 2:
-        return False
-    ends = np.array([np.quantile(h, [s.section_trim, 1.0 - s.section_trim]) for h in halves])
-    return bool(np.abs(ends[0] - ends[1]).max() <= np.tan(s.max_face_turn) * s.pad_width / 2)
-
-
 def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     """Grasps from above across a part of the target: at seeded points of its footprint and for each
     closing direction, the points in the band the pads sweep (a pad's width across, the open pads'
     span along) give the width and the middle of the part between them: a blade or a loop of
     scissors, a hammer's handle, a long box anywhere along it (a thin target's whole footprint is
-    often wider than the opening in every direction). The pads' centre ``grasp_depths[0]`` under the
-    part's top, as low as fingertips resting on the support allow (a thin target's points stand a few
-    noise widths above the plane: the fingers go down to it); upright and tilted about the closing axis."""
+    often wider than the opening in every direction). The part is the run of points through the
+    sampled one with no gap wider than twice the clearance (not a neighbouring part beyond a gap:
+    whether a finger fits in that gap is the open-hand check's to say); both of its ends must turn at
+    most ``max_face_turn`` from the pads across their width (across a part, not diagonally over a
+    corner of it, whose two faces would squeeze it out of the pads). The sections are found natively
+    (``_core.local_sections``). The pads' centre ``grasp_depths[0]`` under the part's top, as low as
+    fingertips resting on the support allow (a thin target's points stand a few noise widths above
+    the plane: the fingers go down to it); upright and tilted about the closing axis."""
     n, d = plane
     height = P @ n - d
     flat = P - np.outer(height, n)
@@ -271,27 +264,20 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     Y2 = np.column_stack([np.cos(angles), np.sin(angles)])
     X2 = np.column_stack([-Y2[:, 1], Y2[:, 0]])
     F2 = flat @ E
+    native = _core.SectionSettings()
+    native.pad_width, native.max_width, native.gap = s.pad_width, s.max_width, 2 * s.clearance
+    native.trim, native.min_width, native.fit_width = s.section_trim, s.min_width, s.max_width - s.width_margin
+    native.face_tolerance = np.tan(s.max_face_turn) * s.pad_width / 2
+    tilts = (0.0, s.max_tilt / 2, -s.max_tilt / 2)
     out = []
     for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
         rel = F2 - F2[i]
-        ry, rx = rel @ Y2.T, rel @ X2.T                                  # (N, yaws)
-        # a part's section through this point spans at most the opening on either side of it
-        band = (np.abs(rx) <= s.pad_width / 2) & (np.abs(ry) <= s.max_width)
-        for a in np.flatnonzero(band.sum(axis=0) >= 3):
-            sel = band[:, a] & _part_run(ry[:, a], band[:, a], 2 * s.clearance)
-            if sel.sum() < 3:
-                continue
-            lo, hi = np.quantile(ry[sel, a], [s.section_trim, 1.0 - s.section_trim])
-            if not s.min_width <= hi - lo <= s.max_width - s.width_margin:
-                continue
-            if not _faces_the_pads(ry[sel, a], rx[sel, a], s):
-                continue
-            y, x = E @ Y2[a], E @ X2[a]
-            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (rx[sel, a].max() + rx[sel, a].min()) * x
-            for tilt in (0.0, s.max_tilt / 2, -s.max_tilt / 2):
+        for a, lo, hi, u_min, u_max, top in _core.local_sections(rel @ Y2.T, rel @ X2.T, height, native):
+            y, x = E @ Y2[int(a)], E @ X2[int(a)]
+            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (u_max + u_min) * x
+            for tilt in tilts:
                 lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
-                centre = mid + max(lowest, height[sel].max() - s.grasp_depths[0]) * n
-                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, centre),
+                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, mid + max(lowest, top - s.grasp_depths[0]) * n),
                             0.9 - abs(tilt) / (np.pi / 2), float(hi - lo)))
     return out
 
@@ -337,23 +323,11 @@ def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     return out
 
 
-def _pad_fill(G, P, tree, width, s: PointGraspSettings) -> np.ndarray:
+def _pad_fill(G, P, width, s: PointGraspSettings) -> np.ndarray:
     """Per grasp frame ``G``: how much of the pads the points fill (points in the pad rectangle
-    between the fingers, 30 fill it). Candidates sharing a centre and width (an antipodal pair's
-    turns about its closing axis) share one k-d tree query and one matrix product."""
+    between the fingers, 30 fill it; counted natively, ``_core.points_in_frames``)."""
     half = np.column_stack([np.full(len(G), 0.01), width / 2 + 0.005, np.full(len(G), s.pad_length / 2)])
-    key = np.column_stack([G[:, :3, 3], width])
-    _, first, group = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    group = group.reshape(-1)
-    members = np.split(np.argsort(group, kind="stable"), np.cumsum(np.bincount(group))[:-1])
-    fill = np.zeros(len(G))
-    for f, ks, near in zip(first, members, tree.query_ball_point(G[first, :3, 3], np.linalg.norm(half[first], axis=1))):
-        if not near:
-            continue
-        R = G[ks, :3, :3].transpose(1, 0, 2).reshape(3, -1)  # the group's frames side by side
-        q = ((P[near] - G[f, :3, 3]) @ R).reshape(len(near), len(ks), 3)  # grasp-frame points
-        fill[ks] = (np.abs(q) < half[f]).all(axis=2).sum(axis=0)
-    return np.minimum(1.0, fill / 30.0)
+    return np.minimum(1.0, _core.points_in_frames(G, P, half) / 30.0)
 
 
 def _hand_clear(T, P, hand_sdf, s: PointGraspSettings) -> np.ndarray:
@@ -423,7 +397,8 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
                        scene_distance: Optional[Callable[[np.ndarray], np.ndarray]] = None,
                        hand_points: Optional[np.ndarray] = None,
                        settings: PointGraspSettings = PointGraspSettings(),
-                       gripper: RobotInfo = PANDA, hull: Optional[np.ndarray] = None) -> GraspSet:
+                       gripper: RobotInfo = PANDA, hull: Optional[np.ndarray] = None,
+                       denoised_points: Optional[np.ndarray] = None) -> GraspSet:
     """Up to ``n`` grasps of the observed target (world frame; poses of ``gripper``'s hand link), best
     scores first.
 
@@ -431,7 +406,8 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     world points (M, 3) to their distance from the obstacles (the fused field), checked at
     ``hand_points`` (sample points on the open hand, hand frame) when both are given. ``hull``: (K, 3)
     samples of where the unseen rest of the target may be (``perception.hull.visibility_hull``): the
-    open hand must clear them as it clears the observed points.
+    open hand must clear them as it clears the observed points. ``denoised_points``: ``denoised(points,
+    normals, patch_radius)`` when the caller has it already (a perceived world's quality reads it too).
 
     Candidates are scored first (from the points alone) and checked in score order until ``n`` pass:
     the same grasps as checking all of them, at a fraction of the cost.
@@ -448,10 +424,13 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
                 pad_width=gripper.pad_width if settings.pad_width is None else settings.pad_width,
                 width_margin=2 * settings.clearance if settings.width_margin is None else settings.width_margin)
     rng = np.random.default_rng(seed)
+    tree = near = None
     if s.denoise:
-        P = denoised(P, N, s.patch_radius)
-        N = fitted_normals(P, N, s.patch_radius)
-    cands = antipodal_candidates(P, N, s, rng) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng) \
+        P = denoised(P, N, s.patch_radius) if denoised_points is None else np.asarray(denoised_points, float)
+        tree = cKDTree(P)
+        near = _neighbourhoods(P, tree, s.patch_radius)  # the fitted normals' and the contact patches'
+        N = fitted_normals(P, N, s.patch_radius, near)
+    cands = antipodal_candidates(P, N, s, rng, tree, near) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng) \
         + local_candidates(P, plane, s, rng)
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
@@ -463,7 +442,7 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     plane_n, plane_d = plane
     # fingertips above the plane: the lowest point of the pads, half a pad beyond their centre
     tips = G[:, :3, 3] + (s.pad_length / 2) * G[:, :3, 2]
-    fill = _pad_fill(G, P, cKDTree(P), width, s)
+    fill = _pad_fill(G, P, width, s)
     lever = gravity_lever(G, P, plane)
     score = margin + 0.5 * fill + s.spare_weight * (s.max_width - width) / s.max_width - lever / s.lever_scale
     order = np.argsort(-score, kind="stable")
