@@ -27,6 +27,7 @@ from typing import Optional
 
 import numpy as np
 
+from pickplan.core.fields import FieldReader
 from pickplan.core.settings import Option
 from pickplan.core.timing import Interpolation, TimedTrajectory, TimingError, time_parameterize
 from pickplan.omg.planner import PlanResult, _clock
@@ -34,15 +35,9 @@ from pickplan.omg.replan import Replanner
 
 
 def _finite(value, shape, name: str) -> np.ndarray:
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: expected numbers of shape {shape}, got {type(value).__name__}") from exc
-    if a.shape != shape:
-        raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: contains NaN or infinity: {a.tolist()}")
-    return a
+    """A finite float array of ``shape`` (the project's input check: an ``InputError`` naming ``name``)."""
+    with FieldReader() as reader:
+        return reader.array(value, name, shape=shape)
 
 
 @dataclass(frozen=True)
