@@ -23,7 +23,6 @@ Camera poses are in the robot base frame (the robot stands at the origin, as in 
 from __future__ import annotations
 
 import functools
-import time
 from dataclasses import dataclass, field as dataclass_field
 from typing import Optional, Tuple
 
@@ -70,7 +69,7 @@ class PerceivedWorldSettings:
         object.__setattr__(self, "clock", StageClock.parse(self.clock, "stage clock"))
 
     def timer(self):
-        return time.thread_time if self.clock is StageClock.thread_cpu else time.perf_counter
+        return self.clock.timer()
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,6 @@ The segments, each a straight IK path or an OMG plan:
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field, replace
 from typing import List, Optional, Tuple
 
@@ -36,7 +35,6 @@ from pickplan.omg.attach import (
     straight_path_steps,
 )
 from pickplan.omg.chomp import ChompSettings
-from pickplan.omg.native_loop import StageClock
 from pickplan.omg.place import PlaceGoalSet, PlaceRequest, PlaceSettings, build_place_goal_set, reason_summary
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanResult, plan_to_goal_set
 
@@ -206,7 +204,7 @@ class PickPlacePlanner:
         self.planner, self.request, self.settings = planner, request, settings
         self.transfer = transfer
         # what the timings read: the place's StageClock (thread_cpu: a loaded machine's other processes do not count)
-        self.clock = time.thread_time if settings.place.clock is StageClock.thread_cpu else time.perf_counter
+        self.clock = settings.place.clock.timer()
 
     @property
     def world(self):

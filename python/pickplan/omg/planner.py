@@ -7,7 +7,6 @@ C-Space ISF refinement of the selected goal, for N iterations with pre-terminati
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field, replace
 from typing import Optional, Tuple, Union
 
@@ -257,8 +256,8 @@ def plan_to_goal_set(settings: OMGSettings, world, q0: np.ndarray, goal_set: Goa
 
 
 def _clock(settings: OMGSettings):
-    """The timer ``settings.clock`` names (looked up per call: a bench may replace perf_counter)."""
-    return time.thread_time if settings.clock is StageClock.thread_cpu else time.perf_counter
+    """The timer ``settings.clock`` names."""
+    return settings.clock.timer()
 
 
 def target_graspability(world: World):
