@@ -61,13 +61,15 @@ void init_rrt_connect(py::module_& m) {
           py::arg("start"), py::arg("goals"), "RRT-Connect from start to any row of goals: a dict (status, path, ...).")
       .def(
           "shortcut",
-          [](const MotionPlanner& p, const Array& path, int attempts, std::uint64_t seed) {
+          [](const MotionPlanner& p, const Array& path, int attempts, std::uint64_t seed, double min_gain) {
             const Trajectory P = path_arg(p, path, "path");
             if (attempts < 0) throw std::invalid_argument("attempts: expected >= 0");
+            if (!(min_gain >= 0.0 && min_gain < 1.0)) throw std::invalid_argument("min_gain: expected a fraction in [0, 1)");
             py::gil_scoped_release release;
-            return p.shortcut(P, attempts, seed);
+            return p.shortcut(P, attempts, seed, min_gain);
           },
-          py::arg("path"), py::arg("attempts") = 100, py::arg("seed") = 0)
+          py::arg("path"), py::arg("attempts") = 100, py::arg("seed") = 0, py::arg("min_gain") = 0.0,
+          "Random shortcuts, each shortening the path by at least min_gain of its length, then vertices dropped.")
       .def(
           "first_invalid_segment",
           [](const MotionPlanner& p, const Array& path) {

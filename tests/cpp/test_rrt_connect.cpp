@@ -164,3 +164,67 @@ TEST(MotionCheck, CertifiedCheckCatchesAGrazeSamplingMisses) {
   EXPECT_EQ(MotionPlanner(c, s).first_invalid_segment(path), -1);
   EXPECT_EQ(sampled, -1);
 }
+
+TEST(MotionCheck, CertifiedProofsHoldForEveryPieceAndMeetAWallMidwayFast) {
+  auto r = floating_hand();
+  // Two boxes 2 cm apart leave a slot the hand slides along at a few millimetres' clearance.
+  CollisionChecker c = hand_checker(*r, {solid("left", {1.0, 0.2, 1.0}, {0, 0.2, 0}), solid("board", {0.001, 2.0, 2.0}, {0.9, 0, 0})});
+  MotionPlanner planner(c);
+  CollisionWorkspace ws(c);
+  const Eigen::VectorXd a = hand_at(-0.4, 0.0, 0.2), b = hand_at(0.4, 0.0, 0.25);
+  long checks = 0;
+  ASSERT_TRUE(planner.motion_certified(a.data(), b.data(), ws, &checks));
+  EXPECT_GT(checks, 2);
+  // Every sub-segment of a proved segment proves again (the proof keeps a clearance, it is not a tie).
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int k = 0; k < 50; ++k) {
+    double s = u(rng), t = u(rng);
+    if (s > t) std::swap(s, t);
+    const Eigen::VectorXd x = a + s * (b - a), y = a + t * (b - a);
+    EXPECT_TRUE(planner.motion_certified(x.data(), y.data(), ws)) << s << " " << t;
+  }
+  // A board halfway is met by the first query's neighbours: far fewer queries than proving the free half.
+  const Eigen::VectorXd far_a = hand_at(0.5, 0.0, 0.2), far_b = hand_at(1.3, 0.0, 0.2);
+  long through = 0, free_half = 0;
+  EXPECT_FALSE(planner.motion_certified(far_a.data(), far_b.data(), ws, &through));
+  const Eigen::VectorXd near_board = hand_at(0.75, 0.0, 0.2);
+  EXPECT_TRUE(planner.motion_certified(far_a.data(), near_board.data(), ws, &free_half));
+  EXPECT_LT(through, free_half);
+}
+
+TEST(CollisionCheck, MinDistanceWithACapIsTheLeastOfTheCapAndTheDistance) {
+  auto r = floating_hand();
+  CollisionChecker c = hand_checker(*r, {solid("board", {0.01, 2.0, 2.0}, {0.3, 0, 0})});
+  CollisionWorkspace ws(c);
+  const Eigen::VectorXd q = hand_at(0.0, 0.0, 0.2);
+  const double d = c.min_distance(q.data(), ws);
+  ASSERT_GT(d, 0.05);
+  EXPECT_DOUBLE_EQ(c.min_distance(q.data(), ws, d + 0.1), d);
+  EXPECT_DOUBLE_EQ(c.min_distance(q.data(), ws, 0.5 * d), 0.5 * d);
+}
+
+TEST(Shortcut, MinGainSkipsNegligibleShortcutsOnly) {
+  auto r = floating_hand();
+  // A box between the ends: the bend's vertex cannot be dropped, its corner can be cut.
+  CollisionChecker c = hand_checker(*r, {solid("box", {0.1, 0.1, 0.1}, {0, 0, 0.2})});
+  MotionPlanner planner(c);
+  Trajectory bent(3, 6), straight(2, 6);
+  bent.row(0) = hand_at(-0.4, 0, 0.2).transpose();
+  bent.row(1) = hand_at(0.0, 0.35, 0.2).transpose();
+  bent.row(2) = hand_at(0.4, 0, 0.2).transpose();
+  straight.row(0) = bent.row(0);
+  straight.row(1) = bent.row(2);
+  ASSERT_EQ(planner.first_invalid_segment(bent), -1);
+  ASSERT_EQ(planner.first_invalid_segment(straight), 0);
+  auto length = [](const Trajectory& p) {
+    double l = 0;
+    for (long i = 0; i + 1 < p.rows(); ++i) l += (p.row(i + 1) - p.row(i)).norm();
+    return l;
+  };
+  // Cutting the corner gains at most |bend| - |straight| = 0.26 of 1.06: never half the path.
+  EXPECT_NEAR(length(planner.shortcut(bent, 50, 1, 0.5)), length(bent), 1e-12);
+  const Trajectory cut = planner.shortcut(bent, 50, 1, 0.01);
+  EXPECT_LT(length(cut), length(bent) - 0.05);
+  EXPECT_EQ(planner.first_invalid_segment(cut), -1);
+}

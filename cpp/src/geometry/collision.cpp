@@ -446,13 +446,16 @@ bool CollisionChecker::in_collision_posed(CollisionWorkspace& ws) const {
   return false;
 }
 
-double CollisionChecker::min_distance(const double* q, CollisionWorkspace& ws) const {
+double CollisionChecker::min_distance(const double* q, CollisionWorkspace& ws, double cap) const {
   check_q(q);
   robot_.forward_kinematics(q, ws.robot);
   ws.order.clear();
-  for (int i = 0; i < num_pairs(); ++i) ws.order.emplace_back(pair_lower_bound(pairs_[i], ws), i);
+  for (int i = 0; i < num_pairs(); ++i) {
+    const double lb = pair_lower_bound(pairs_[i], ws);
+    if (lb < cap) ws.order.emplace_back(lb, i);
+  }
   std::sort(ws.order.begin(), ws.order.end());
-  double best = kInf;
+  double best = cap;
   for (const auto& [lb, i] : ws.order) {
     if (lb >= best) break;  // sorted: no later pair can be closer
     best = std::min(best, pair_distance(pairs_[i], ws, false, nullptr));

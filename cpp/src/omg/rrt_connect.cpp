@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -106,20 +107,32 @@ MotionPlanner::MotionPlanner(const CollisionChecker& checker, RrtSettings settin
 
 bool MotionPlanner::motion_certified(const double* a, const double* b, CollisionWorkspace& ws, long* checks) const {
   constexpr double kMinClearance = 1e-5;  // m: closer is no proof (and would take ever smaller steps)
-  constexpr int kMaxSteps = 20000;
+  constexpr int kMaxChecks = 20000;
   const int dof = checker_.robot().dof();
   const double total = bound_.bound(a, b);
+  if (!(total > 0.0)) return true;  // a == b: no motion (a itself is not checked)
   Eigen::VectorXd x(dof);
-  double t = 0.0;
-  for (int step = 0; step < kMaxSteps; ++step) {
+  // Intervals of t not yet proved free, widest first (a FIFO of halves): the midpoint's clearance d
+  // proves [t - d/total, t + d/total] free, since no robot point moves farther than d within it. The
+  // midpoints come coarse to fine, so an obstacle crossed midway is met after a few queries (as a
+  // sampled check meets it), and each query proves both sides of its state, not only the one ahead.
+  std::deque<std::pair<double, double>> open{{0.0, 1.0}};
+  for (int n = 0; !open.empty(); ++n) {
+    if (n == kMaxChecks) return false;
+    const auto [lo, hi] = open.front();
+    open.pop_front();
+    const double t = 0.5 * (lo + hi);
     for (int j = 0; j < dof; ++j) x[j] = a[j] + t * (b[j] - a[j]);
     if (checks) ++*checks;
-    const double d = checker_.min_distance(x.data(), ws);
+    // A clearance proving the whole interval is all it needs to know.
+    const double d = checker_.min_distance(x.data(), ws, kMinClearance + 0.5 * (hi - lo) * total * (1.0 + 1e-9));
     if (!(d > kMinClearance)) return false;
-    if ((1.0 - t) * total <= d) return true;  // no point moves as far as the nearest obstacle on the rest
-    t += d / total;
+    // Proved: clearance above kMinClearance on the whole segment, so any piece of it proves again.
+    const double r = (d - kMinClearance) / total;
+    if (t - r > lo) open.emplace_back(lo, t - r);
+    if (t + r < hi) open.emplace_back(t + r, hi);
   }
-  return false;
+  return true;
 }
 
 bool MotionPlanner::motion_valid(const double* a, const double* b, CollisionWorkspace& ws, long* checks) const {
@@ -253,7 +266,7 @@ RrtResult MotionPlanner::rrt_connect(const Eigen::VectorXd& start, const Traject
   return out;
 }
 
-Trajectory MotionPlanner::shortcut(const Trajectory& path, int attempts, std::uint64_t seed) const {
+Trajectory MotionPlanner::shortcut(const Trajectory& path, int attempts, std::uint64_t seed, double min_gain) const {
   if (path.rows() < 3) return path;
   const int dof = static_cast<int>(path.cols());
   CollisionWorkspace ws(checker_);
@@ -263,6 +276,12 @@ Trajectory MotionPlanner::shortcut(const Trajectory& path, int attempts, std::ui
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   // A point at fraction t of segment i.
   auto point = [&](int i, double t) -> Eigen::RowVectorXd { return (1 - t) * pts[i] + t * pts[i + 1]; };
+  std::vector<double> seg;  // segment lengths of pts
+  auto measure = [&] {
+    seg.resize(pts.size() - 1);
+    for (size_t s = 0; s + 1 < pts.size(); ++s) seg[s] = (pts[s + 1] - pts[s]).norm();
+  };
+  measure();
   for (int k = 0; k < attempts && pts.size() >= 3; ++k) {
     const int segs = static_cast<int>(pts.size()) - 1;
     std::uniform_int_distribution<int> pick(0, segs - 1);
@@ -271,6 +290,11 @@ Trajectory MotionPlanner::shortcut(const Trajectory& path, int attempts, std::ui
     if (i > j) std::swap(i, j);
     const double ti = unit(rng), tj = unit(rng);
     const Eigen::RowVectorXd a = point(i, ti), b = point(j, tj);
+    // The motion check is the cost: not paid for a shortcut that would gain next to nothing.
+    double along = (1 - ti) * seg[i] + tj * seg[j], length = 0.0;
+    for (int s = i + 1; s < j; ++s) along += seg[s];
+    for (double l : seg) length += l;
+    if (along - (b - a).norm() < min_gain * length) continue;
     if (!motion_valid(a.data(), b.data(), ws)) continue;
     // The new segment a -> b stands for everything between (the checked states lie on it).
     std::vector<Eigen::RowVectorXd> next(pts.begin(), pts.begin() + i + 1);
@@ -278,6 +302,7 @@ Trajectory MotionPlanner::shortcut(const Trajectory& path, int attempts, std::ui
     next.push_back(b);
     next.insert(next.end(), pts.begin() + j + 1, pts.end());
     pts.swap(next);
+    measure();
   }
   // Drop vertices a straight segment can skip (greedy, from the start), and repeated points.
   std::vector<Eigen::RowVectorXd> kept{pts.front()};
@@ -300,11 +325,21 @@ Trajectory MotionPlanner::shortcut(const Trajectory& path, int attempts, std::ui
 int MotionPlanner::first_invalid_segment(const Trajectory& path) const {
   CollisionWorkspace ws(checker_);
   if (path.rows() && checker_.in_collision(path.row(0).data(), ws)) return 0;
-  for (long i = 0; i + 1 < path.rows(); ++i) {
+  // The waypoints first (one cheap query each): a path that fails mostly fails at one, and then only
+  // the segments before it need proving.
+  long end = path.rows();
+  for (long i = 1; i < path.rows(); ++i) {
+    const Eigen::RowVectorXd q = path.row(i);
+    if (checker_.in_collision(q.data(), ws)) {
+      end = i;
+      break;
+    }
+  }
+  for (long i = 0; i + 1 < end; ++i) {
     const Eigen::RowVectorXd a = path.row(i), b = path.row(i + 1);
     if (!motion_valid(a.data(), b.data(), ws)) return static_cast<int>(i);
   }
-  return -1;
+  return end < path.rows() ? static_cast<int>(end - 1) : -1;
 }
 
 }  // namespace pickplan

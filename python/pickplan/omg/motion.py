@@ -64,6 +64,7 @@ class RrtSettings:
 class MotionSettings:
     rrt: RrtSettings = field(default_factory=RrtSettings)
     shortcut_attempts: int = 100     # random shortcuts of an RRT path
+    shortcut_min_gain: float = 0.01  # a shortcut gaining less than this fraction of the path's length is not checked
     smoothing: Smoothing = Smoothing.chomp
     chomp: ChompSettings = field(default_factory=lambda: ChompSettings(n=30, epsilon=0.05))
     chomp_iterations: int = 30
@@ -211,7 +212,7 @@ def plan_motion(world: MotionWorld, start, goals: Union[np.ndarray, PoseGoal],
     if path is None:
         return done(MotionStatus.not_found, np.zeros((0, robot.dof)), -1, "")
     t = time.perf_counter()
-    path = planner.shortcut(path, settings.shortcut_attempts, rrt.seed)
+    path = planner.shortcut(path, settings.shortcut_attempts, rrt.seed, settings.shortcut_min_gain)
     timings["shortcut"] = time.perf_counter() - t
     if settings.smoothing is Smoothing.chomp and len(path) > 2:
         t = time.perf_counter()

@@ -15,6 +15,7 @@
 // MPR); for two intersecting meshes 0 (FCL has no penetration depth for mesh pairs); for a
 // mesh contained in another, minus the gap between the two surfaces.
 // in_collision(q) is true when any checked pair collides or is closer than `margin`.
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -148,7 +149,10 @@ class CollisionChecker {
   // The same for link poses the caller has put in ws.robot.link_pose (e.g. a free-floating hand
   // placed at a grasp before any IK); only the checked links' poses are read.
   bool in_collision_posed(CollisionWorkspace& ws) const;
-  double min_distance(const double* q, CollisionWorkspace& ws) const;
+  // The least distance over the checked pairs, or `cap` when none is closer than `cap` (pairs whose
+  // bounding volumes are `cap` apart are then not measured: a caller needing only "at least cap" pays less).
+  double min_distance(const double* q, CollisionWorkspace& ws,
+                      double cap = std::numeric_limits<double>::infinity()) const;
   bool in_collision(const Eigen::VectorXd& q) const;
   double min_distance(const Eigen::VectorXd& q) const;
   // Every checked pair in collision or closer than max(margin, within), nearest first.

@@ -36,9 +36,10 @@ struct RrtSettings {
   double time_limit = 1.0;      // s (wall clock) before giving up
   std::uint64_t seed = 0;
   double goal_bias = 0.05;      // fraction of samples drawn at a goal (the start tree's extensions)
-  // The motion check proves a segment free by conservative advancement (from a state whose
-  // clearance is d, the next is where the bound says no point has moved d) instead of sampling it
-  // every `resolution` m, which lets a finger graze an obstacle between samples.
+  // The motion check proves a segment keeps a clearance (10 um) by conservative advancement (a state
+  // whose clearance is d proves the states around it no point can have moved d from; midpoints of the
+  // unproved intervals, coarse to fine) instead of sampling it every `resolution` m, which lets a
+  // finger graze an obstacle between samples.
   bool certified = true;
   std::vector<bool> active;     // joints that move (empty: all); the others keep the start's value
 };
@@ -64,8 +65,9 @@ class MotionPlanner {
   // Throws std::invalid_argument for a start or goals of the wrong size or outside the limits.
   RrtResult rrt_connect(const Eigen::VectorXd& start, const Trajectory& goals) const;
   // Random shortcuts between points on the path (then dropping vertices a straight segment
-  // skips); every new segment passes the motion check. Deterministic for a seed.
-  Trajectory shortcut(const Trajectory& path, int attempts, std::uint64_t seed) const;
+  // skips); every new segment passes the motion check. Deterministic for a seed. A shortcut that
+  // would shorten the path by less than `min_gain` times its length is not checked nor taken.
+  Trajectory shortcut(const Trajectory& path, int attempts, std::uint64_t seed, double min_gain = 0.0) const;
   // The motion check: true when every checked state of a -> b is free (a itself is not checked),
   // or, `certified`, when the whole continuous motion is proved free.
   bool motion_valid(const double* a, const double* b, CollisionWorkspace& ws, long* checks = nullptr) const;
