@@ -19,6 +19,7 @@ region too small for the object``, ``... region blocked``).
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from collections import Counter
@@ -26,9 +27,10 @@ from dataclasses import dataclass, field, replace
 from typing import List, Optional, Tuple
 
 import numpy as np
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, QhullError
 
 from pickplan import _core
+from pickplan.core.caches import mesh_content_key
 from pickplan.core.fields import FieldReader
 from pickplan.core.io import read_json
 from pickplan.core.settings import Option
@@ -219,11 +221,10 @@ def _yaws(request: PlaceRequest, settings: PlaceSettings) -> np.ndarray:
 def candidate_poses(request: PlaceRequest, vertices: np.ndarray, rotations: List[np.ndarray],
                     settings: PlaceSettings) -> np.ndarray:
     """(C, 4, 4) object poses: every rotation x yaw x grid position on the region's floor with the
-    object's ``vertices`` (object frame) all inside the box, the lowest ``gap`` above the floor."""
+    object's ``vertices`` (object frame; its hull's, ``hull_vertices``, bound the same extents) all
+    inside the box, the lowest ``gap`` above the floor."""
     lo, hi = np.asarray(request.region_min), np.asarray(request.region_max)
     V = np.asarray(vertices, float)
-    if len(V) > 64:  # the hull's vertices bound the same extents (qhull alone: trimesh's hull also repairs a mesh)
-        V = V[ConvexHull(V).vertices]
     out = []
     for R0 in rotations:
         for yaw in _yaws(request, settings):
@@ -274,14 +275,37 @@ def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.n
                         np.zeros((0, 4, 4)), [], 0.0)
         return PlaceGoalSet(empty, np.zeros((0, 4, 4)), PlaceVerdict.no_support, clock() - t0)
     current = carrying.base.target_pose
-    vertices = held.mesh.vertices if held.mesh is not None else held.points
+    vertices = _held_hull_vertices(carrying)
     rotations = resting_rotations(request, current, model, settings.max_rests)
-    poses = candidate_poses(request, np.asarray(vertices), rotations, settings)
+    poses = candidate_poses(request, vertices, rotations, settings)
     gs = _place_goals(carrying, poses, start, settings)
     if len(gs) == 0 and settings.margin > 0:  # no place keeps the margin (a crowded region): its edges too
-        poses = candidate_poses(request, np.asarray(vertices), rotations, replace(settings, margin=0.0))
+        poses = candidate_poses(request, vertices, rotations, replace(settings, margin=0.0))
         gs = _place_goals(carrying, poses, start, settings)
     return PlaceGoalSet(gs, poses, _verdict(len(poses), gs.reasons, len(gs)), clock() - t0)
+
+
+def hull_vertices(vertices: np.ndarray) -> np.ndarray:
+    """The vertices of the convex hull of ``vertices`` (N, 3) (qhull alone: trimesh's hull also repairs
+    the mesh), or all of them when they span no volume."""
+    V = np.asarray(vertices, float)
+    try:
+        return V[ConvexHull(V).vertices] if len(V) > 4 else V
+    except QhullError:  # flat or degenerate points (an observed face): every point counts
+        return V
+
+
+def _held_hull_vertices(carrying: HeldWorld) -> np.ndarray:
+    """The held object's hull vertices (object frame), from its mesh or its points: once per object and
+    cache (a mesh of thousands of vertices takes qhull 5-15 ms), not once per place."""
+    held = carrying.held
+    V = np.asarray(held.mesh.vertices if held.mesh is not None else held.points, float)
+    if carrying.cache is None:
+        return hull_vertices(V)
+    source = held.mesh if held.mesh is not None else None
+    key = ("hull_vertices",) + (mesh_content_key(source) if source is not None else
+                                 (V.shape, hashlib.blake2b(V.tobytes(), digest_size=16).hexdigest()))
+    return carrying.cache.derived(key, lambda: hull_vertices(V))
 
 
 def _place_goals(carrying: HeldWorld, poses: np.ndarray, start: np.ndarray, settings: PlaceSettings) -> GoalSet:
