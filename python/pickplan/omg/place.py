@@ -34,7 +34,7 @@ from pickplan.core.caches import mesh_content_key
 from pickplan.core.fields import FieldReader
 from pickplan.core.io import read_json
 from pickplan.core.settings import Option
-from pickplan.omg.attach import HeldCheck, HeldObject, HeldWorld
+from pickplan.omg.attach import HeldCheck, HeldWorld
 from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, ik_solver
 
 
@@ -267,7 +267,6 @@ def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.n
     configuration); ``model`` (the object's ``ObjectModel``) gives the stable resting poses; ``clock``
     times it."""
     t0 = clock()
-    held: HeldObject = carrying.held
     normal, offset = carrying.support_plane
     centre = 0.5 * (np.asarray(request.region_min) + np.asarray(request.region_max))
     if abs(normal @ np.array([centre[0], centre[1], request.floor]) - offset) > settings.floor_tolerance:
