@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Optional
+from typing import Callable, List, Optional
 
 import numpy as np
 
@@ -191,6 +191,76 @@ def known_from_lower_sc(model, margin: float) -> KnownFn:
     return known
 
 
+def _initial_design(rng: np.random.Generator, config: ActiveConfig, qs: List[np.ndarray]) -> np.ndarray:
+    """The first samples: the nominal pose, a stratified (Latin hypercube) design over the domain and
+    points from the focus Gaussian and from each query distribution."""
+    fs, ff = config.focus_scale, config.focus_fraction
+    n_g = int(round(ff * (config.n_init - 1)))
+    n = config.n_init - 1 - n_g
+    n_q = min(config.query_init, n_g // max(len(qs), 1))  # taken from the focus share
+    n_g -= n_q * len(qs)
+    lhs = (np.stack([rng.permutation(n) for _ in range(3)], 1) + rng.uniform(size=(n, 3))) / n
+    Q0 = [np.clip(rng.standard_normal((n_q, 3)) * sg, -1, 1) for sg in qs]
+    return np.vstack([np.zeros((1, 3)), 2 * lhs - 1, sample_focus(rng, n_g, fs, 1.0), *Q0])
+
+
+def _next_batch(rng: np.random.Generator, config: ActiveConfig, k: int, w: float, model, cal, gp, rho_se,
+                qs: List[np.ndarray], X: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """A batch of k poses to label: a share w exploits (where rho is uncertain, the band of the
+    calibration, then the SVM's boundary), the rest explores."""
+    n_exploit = int(round(w * k))
+    Pq = np.zeros((0, 3))
+    if gp is not None:
+        Pq = exploit_gp(rng, gp, qs, rho_se, X, int(round((config.rho_share + config.band_share) * n_exploit)),
+                        config.n_candidates)
+    elif cal is not None:
+        Pq = exploit_rho(rng, cal, qs, rho_se, X, int(round(config.rho_share * n_exploit)), config.n_candidates)
+        Pb = exploit_band(rng, cal, qs, np.vstack([X, Pq]), int(round(config.band_share * n_exploit)),
+                          config.n_candidates)
+        Pq = np.vstack([Pq, Pb])
+    Pe = exploit(rng, model, np.vstack([X, Pq]), y, n_exploit - len(Pq), config.n_candidates, query_sigmas=qs)
+    Pe = np.vstack([Pq, Pe])
+    Pr = explore(rng, np.vstack([X, Pe]) if len(Pe) else X, k - len(Pe), config.n_candidates,
+                 config.focus_scale, config.focus_fraction, qs, config.query_fraction)
+    return np.vstack([Pe, Pr])
+
+
+def _adapted_weight(w: float, acc: float, prev_acc: float, config: ActiveConfig) -> float:
+    """The exploit share: up a step when the accuracy rose, down when it fell."""
+    if acc > prev_acc:
+        return min(w + config.weight_step, config.weight_bounds[1])
+    if acc < prev_acc:
+        return max(w - config.weight_step, config.weight_bounds[0])
+    return w
+
+
+class _RhoEstimator:
+    """The stopping rule's rho estimates (each query distribution's rho and its standard error), from a
+    Gaussian process (``RhoModel.gp``) or the SVM's calibration; keeps what the next batch reads."""
+
+    def __init__(self, config: ActiveConfig, seed: int, qs: List[np.ndarray]):
+        self.config, self.seed, self.qs = config, seed, qs
+        self.queries = [gaussian_queries(config.n_rho_queries, seed + 1) * sg for sg in qs]
+        self.use_gp = RhoModel.parse(config.rho_model, "rho_model") is RhoModel.gp
+        self.gp_config = GPConfig(restarts=0, n_se_queries=config.gp_se_queries)
+        self.cal, self.gp, self.gp_theta = None, None, None
+
+    def estimate(self, rnd: int, XA: np.ndarray, yA: np.ndarray, simA: np.ndarray, params) -> Optional[np.ndarray]:
+        """(queries, 2) rho and standard error after round ``rnd``, or None before ``min_rounds`` or
+        while one class is missing."""
+        c = self.config
+        if rnd + 1 < c.min_rounds or not yA.any() or yA.all():
+            return None
+        if self.use_gp:
+            theta = None if self.gp_theta is None or rnd % c.select_every == 0 else self.gp_theta
+            self.gp = GPSuccessModel(XA, yA, theta=theta, seed=self.seed, config=self.gp_config)
+            self.gp_theta = self.gp.theta
+            return np.array([self.gp.rho(Q, self.seed) for Q in self.queries])
+        self.cal = calibrate(XA, yA, simA, lambda A, b: fit_svm(A, b, *params), c.calib_folds, self.seed,
+                             local_kappa=c.local_kappa, local_floor=c.local_floor)
+        return np.array([self.cal.rho(Q, sg) for Q, sg in zip(self.queries, self.qs)])
+
+
 def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveConfig = ActiveConfig(),
                    seed: int = 0, known_fn: Optional[KnownFn] = None) -> BoundaryResult:
     """Actively learn a GSB. label_fn maps normalized poses (n, 3) to bool successes."""
@@ -213,22 +283,12 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
             n_sims += int(todo.sum())
         return labels, todo
 
-    fs, ff = config.focus_scale, config.focus_fraction
-    # Initial samples: the nominal pose, a stratified (Latin hypercube) design over the
-    # domain and points from the focus Gaussian.
     qs = [np.asarray(sg, float) for sg in config.query_sigmas]
-    n_g = int(round(ff * (config.n_init - 1)))
-    n = config.n_init - 1 - n_g
-    n_q = min(config.query_init, n_g // max(len(qs), 1))  # taken from the focus share
-    n_g -= n_q * len(qs)
-    lhs = (np.stack([rng.permutation(n) for _ in range(3)], 1) + rng.uniform(size=(n, 3))) / n
-    Q0 = [np.clip(rng.standard_normal((n_q, 3)) * sg, -1, 1) for sg in qs]
-    X = np.vstack([np.zeros((1, 3)), 2 * lhs - 1, sample_focus(rng, n_g, fs, 1.0), *Q0])
+    X = _initial_design(rng, config, qs)
     y, sim = query(X)
-    H = sample_focus(rng, config.n_holdout, fs, ff)
+    H = sample_focus(rng, config.n_holdout, config.focus_scale, config.focus_fraction)
     yh, simh = query(H)
-    Z = gaussian_queries(config.n_rho_queries, seed + 1)
-    queries = [Z * sg for sg in qs]
+    rho = _RhoEstimator(config, seed, qs)
     params = (config.svm_c, config.svm_gamma, np.eye(3))
 
     def refit(rnd):
@@ -241,33 +301,13 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
     model = refit(0)
     w = config.exploit_weight
     prev_acc = balanced_accuracy(predict(model, H), yh)
-    history, streak, converged, prev_rho = [], 0, False, None
-    cal, rho_se = None, None  # the latest calibration, for exploit_rho
-    use_gp, gp, gp_theta = RhoModel.parse(config.rho_model, "rho_model") is RhoModel.gp, None, None
-    gp_config = GPConfig(restarts=0, n_se_queries=config.gp_se_queries)
+    history, streak, converged, prev_rho, rho_se = [], 0, False, None, None
     max_rounds = 4 * config.budget // config.batch_size  # free labels do not spend budget
     for rnd in range(max_rounds):
         k = min(config.batch_size, config.budget - n_sims)
         if k <= 0:
             break
-        n_exploit = int(round(w * k))
-        Pq = np.zeros((0, 3))
-        if gp is not None:
-            Pq = exploit_gp(rng, gp, qs, rho_se, X,
-                            int(round((config.rho_share + config.band_share) * n_exploit)),
-                            config.n_candidates)
-        elif cal is not None:
-            Pq = exploit_rho(rng, cal, qs, rho_se, X, int(round(config.rho_share * n_exploit)),
-                             config.n_candidates)
-            Pb = exploit_band(rng, cal, qs, np.vstack([X, Pq]),
-                              int(round(config.band_share * n_exploit)), config.n_candidates)
-            Pq = np.vstack([Pq, Pb])
-        Pe = exploit(rng, model, np.vstack([X, Pq]), y, n_exploit - len(Pq),
-                     config.n_candidates, query_sigmas=qs)
-        Pe = np.vstack([Pq, Pe])
-        Pr = explore(rng, np.vstack([X, Pe]) if len(Pe) else X, k - len(Pe),
-                     config.n_candidates, fs, ff, qs, config.query_fraction)
-        P = np.vstack([Pe, Pr])
+        P = _next_batch(rng, config, k, w, model, rho.cal, rho.gp, rho_se, qs, X, y)
         before = predict(model, P)
         yp, simp = query(P)
         X, y, sim = np.vstack([X, P]), np.concatenate([y, yp]), np.concatenate([sim, simp])
@@ -275,33 +315,18 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
         acc_hold = balanced_accuracy(predict(model, H), yh)
         acc_batch = float(np.mean(before == yp))
         acc = 0.5 * (acc_hold + acc_batch)
-        if acc > prev_acc:
-            w = min(w + config.weight_step, config.weight_bounds[1])
-        elif acc < prev_acc:
-            w = max(w - config.weight_step, config.weight_bounds[0])
-        prev_acc = acc
+        w, prev_acc = _adapted_weight(w, acc, prev_acc, config), acc
         h = {"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
              "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch, "exploit_weight": w}
-        ok, est = False, None
         # The stopping rule judges the GSB of every sample, held-out ones included (the
         # returned one; the final hyperparameter re-selection may still change it).
-        XA, yA, simA = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
-        if rnd + 1 >= config.min_rounds and yA.any() and (~yA).any() and use_gp:
-            gp = GPSuccessModel(XA, yA, theta=None if gp_theta is None or rnd % config.select_every == 0
-                                else gp_theta, seed=seed, config=gp_config)
-            gp_theta = gp.theta
-            est = np.array([gp.rho(Q, seed) for Q in queries])
-        elif rnd + 1 >= config.min_rounds and yA.any() and (~yA).any():
-            cal = calibrate(XA, yA, simA, lambda A, b: fit_svm(A, b, *params),
-                            config.calib_folds, seed, local_kappa=config.local_kappa,
-                            local_floor=config.local_floor)
-            est = np.array([cal.rho(Q, sg) for Q, sg in zip(queries, qs)])
+        est = rho.estimate(rnd, np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh]), params)
+        ok = False
         if est is not None:
             change = None if prev_rho is None else float(np.abs(est[:, 0] - prev_rho).max())
             prev_rho, rho_se = est[:, 0], est[:, 1]
             h.update(rho=est[:, 0].tolist(), rho_se=est[:, 1].tolist(), rho_change=change)
-            ok = bool(change is not None and est[:, 1].max() <= config.se_target
-                      and change <= config.rho_tol)
+            ok = bool(change is not None and est[:, 1].max() <= config.se_target and change <= config.rho_tol)
         history.append(h)
         streak = streak + 1 if ok else 0
         if streak >= config.patience:
