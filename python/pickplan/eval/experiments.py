@@ -293,7 +293,7 @@ def run_unit(unit: dict) -> dict:
                           ExecutionSettings(robot=world_settings.robot, waypoint_dt=chomp.duration / chomp.n))
         record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds,
                       execution_sim_time=ex.sim_time, slip=finite(ex.slip), slip_rotation=finite(ex.slip_rotation),
-                      grip_force=ex.grip_force)
+                      grip_force=ex.grip_force, lift=finite(ex.lift), execution_message=ex.message)
     record["unit_seconds"] = time.perf_counter() - t0
     return record
 

@@ -57,7 +57,7 @@ from pickplan.sim import scenes as scenes_mod
 from pickplan.core import robots
 from pickplan.core.description import load_description
 from pickplan.sim import bodies
-from pickplan.sim.hand_path import hand_path
+from pickplan.sim.lift import lift_headroom, lift_path
 from pickplan.sim import render as viz
 from pickplan.sim.render import RecordSettings, save_frames, save_gif  # noqa: F401 - where callers find them
 
@@ -167,6 +167,7 @@ class ExecutionResult:
                                            # to the end of the hold (nan: not between the fingers after closing)
     slip_rotation: float = float("nan")    # deg the target turned in the hand over the same time
     grip_force: float = 0.0                # N per finger the gripper squeezed with (settings or description)
+    lift: float = float("nan")             # m the hand was lifted by (lift_height, or less under an obstacle)
 
     def to_dict(self) -> dict:
         """JSON-ready (frames left out)."""
@@ -300,57 +301,6 @@ def _segment_steps(Q: np.ndarray, vmax: np.ndarray, s: ExecutionSettings) -> Lis
     return out
 
 
-def _lift_path(robot, q0: np.ndarray, s: ExecutionSettings, height: Optional[float] = None) -> np.ndarray:
-    """Arm configurations (lift_waypoints + 1, dof) moving the hand straight up by ``height`` (default
-    ``lift_height``), orientation held."""
-    up = np.zeros((s.lift_waypoints, 3))
-    up[:, 2] = (s.lift_height if height is None else height) * np.arange(1, s.lift_waypoints + 1) / s.lift_waypoints
-    return hand_path(robot, q0, up, s.ik_damping)
-
-
-def lift_headroom(sim: _Sim, robot, q: np.ndarray, obstacles: List[int]) -> float:
-    """How far (m, at most ``lift_height``) the hand can lift from ``q`` with the target carried
-    rigidly: the lift's waypoints probed kinematically (robot and target reset to them, no physics
-    step) against the ``obstacles`` bodies; the lift stops ``lift_clearance`` short of the first
-    waypoint where the robot or the target comes closer to one than that (closer than it started:
-    a wall it slides along is not above it). The world is put back as it was."""
-    s, pb, c = sim.s, sim.pb, sim.c
-    if not obstacles:
-        return s.lift_height
-    path = _lift_path(robot, q, s)
-    joints = sim.arm + sim.fingers
-    target = sim.bodies[sim.target]
-    saved_joints = [st[0] for st in pb.getJointStates(sim.robot, joints, physicsClientId=c)]
-    pos, quat = pb.getBasePositionAndOrientation(target, physicsClientId=c)
-    base = np.eye(4)
-    base[:3, :3], base[:3, 3] = scenes_mod._quat_to_mat(quat), pos
-    hand0 = robot.link_pose(q, robot.hand_link)
-
-    def distances(qk) -> np.ndarray:  # per (body, obstacle) pair, inf beyond the clearance
-        for j, v in zip(joints, qk):
-            pb.resetJointState(sim.robot, j, float(v), physicsClientId=c)
-        B = robot.link_pose(qk, robot.hand_link) @ np.linalg.inv(hand0) @ base
-        pb.resetBasePositionAndOrientation(target, B[:3, 3].tolist(), scenes_mod._mat_to_quat(B[:3, :3]),
-                                           physicsClientId=c)
-        pb.performCollisionDetection(physicsClientId=c)
-        return np.array([min((p[8] for p in pb.getClosestPoints(body, ob, s.lift_clearance, physicsClientId=c)),
-                             default=np.inf) for body in (sim.robot, target) for ob in obstacles])
-
-    try:
-        start = distances(path[0])
-        free = 0
-        for k in range(1, len(path)):
-            d = distances(path[k])
-            if np.any((d < s.lift_clearance) & (d < start - 1e-4)):
-                break
-            free = k
-    finally:
-        for j, v in zip(joints, saved_joints):
-            pb.resetJointState(sim.robot, j, v, physicsClientId=c)
-        pb.resetBasePositionAndOrientation(target, pos, quat, physicsClientId=c)
-    return s.lift_height * free / s.lift_waypoints
-
-
 def _follow(sim: _Sim, Q: np.ndarray, segments, fingers_from_plan: bool, finger_force: float,
             watch: bool, V: Optional[np.ndarray] = None) -> None:
     for k, (d, n) in enumerate(segments):
@@ -476,7 +426,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         # 3. lift, 4. hold
         q_lift = Q[-1].copy()  # continue from the commanded pose, so the arm target does not jump
         q_lift[robot.info.arm_dof:] = sim.joint_positions()[robot.info.arm_dof:]
-        lift = _lift_path(robot, q_lift, s, height)
+        lift = lift_path(robot, q_lift, s, height)
         seg = s.lift_duration / s.lift_waypoints
         _follow(sim, lift, [(seg, max(1, int(round(seg / s.time_step))))] * s.lift_waypoints, False,
                 sim.grip_force, False)
@@ -522,7 +472,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                               if n != scene.target},
         target_pushed=target_pushed, held=bool(held), finger_gap=gap, tracking_error=sim.tracking_error,
         sim_time=sim.steps * s.time_step, steps=sim.steps, seconds=time.perf_counter() - t_start, message=msg,
-        frames=sim.frames, slip=slip, slip_rotation=slip_rotation, grip_force=sim.grip_force)
+        frames=sim.frames, slip=slip, slip_rotation=slip_rotation, grip_force=sim.grip_force, lift=height)
 
 
 def lifted_and_held(s: ExecutionSettings, held: bool, lift_m: float, height: Optional[float] = None) -> bool:
