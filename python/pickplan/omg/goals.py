@@ -281,16 +281,17 @@ def lift_blocked_configurations(world: World, Q: np.ndarray, lift: float, step: 
 
 def _raised_blocked(world: World, P: np.ndarray, lift: float, step: float) -> np.ndarray:
     """(N,) which sets of world points (N, K, 3), with the target's hull vertices, raised by ``step``s up to
-    ``lift``, enter an obstacle of the scene (not an object, not the table)."""
+    ``lift``, enter an obstacle of the scene (not an object, not the table) they are not in already."""
     T = world.target_pose
     target = np.asarray(world.target_model.mesh.convex_hull.vertices, float) @ T[:3, :3].T + T[:3, 3]
     P = np.concatenate([P, np.broadcast_to(target, (len(P),) + target.shape)], axis=1)
     count = int(np.ceil(lift / step - 1e-9))
-    up = np.zeros((count, 1, 1, 3))
-    up[..., 2] = (np.arange(1, count + 1) * lift / count)[:, None, None]
+    up = np.zeros((count + 1, 1, 1, 3))
+    up[..., 2] = (np.arange(count + 1) * lift / count)[:, None, None]
     d, _ = world.sdf.distance((P[None] + up).reshape(-1, 3), cutoff=step,
                               exclude=[o.name for o in world.scene.objects], exclude_table=True)
-    return np.asarray(d).reshape(count, len(P), -1).min(axis=(0, 2)) < 0.0
+    d = np.asarray(d).reshape(count + 1, len(P), -1).min(axis=2)
+    return (d[1:].min(axis=0) < 0.0) & (d[0] >= 0.0)  # in an obstacle already: the collision checks say so
 
 
 def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
