@@ -111,6 +111,10 @@ def markdown(table: str, summary: Dict[str, dict], records: Sequence[dict], head
         slip_cell(summary[m]) for m in methods) + " |")
     lines.append("| Failed executions: " + " / ".join(OUTCOMES) + " | " + " | ".join(
         " / ".join(str(summary[m].get(k, 0)) for k in OUTCOMES) for m in methods) + " |")
+    failed_plans = ("in_collision", "not_smooth")  # planned, the success test failed
+    lines.append("| Failed plans: " + " / ".join(failed_plans) + " | " + " | ".join(" / ".join(
+        str(sum(r.get("method") == m and r.get("status") == k for r in records)) for k in failed_plans)
+        for m in methods) + " |")
     lines.append("| No goals (units) | " + " | ".join(str(summary[m].get("no_goals", 0)) for m in methods) + " |")
     lines.append("| Ungraspable targets (units, not in the rates) | " + " | ".join(
         str(summary[m].get("ungraspable", 0)) for m in methods) + " |")
