@@ -38,10 +38,8 @@ from pickplan.eval.methods import OPTIONAL_METHODS, Table, all_methods, method_s
 from pickplan.eval.plots import STAGES
 from pickplan.eval.summaries import UNIT_ERROR
 from pickplan.omg import grasps as grasps_mod
-from pickplan.omg.goals import GoalSetSettings
 from pickplan.omg.grasps import KINDS, GraspKind, GraspSet
 from pickplan.omg.grasps.generators import SupportFilter
-from pickplan.omg.grasps.hand import HandSceneChecker
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.planner import OMGPlanner, PlanStatus, target_graspability
 from pickplan.omg.world import CheckerKind, World, WorldSettings
@@ -210,28 +208,17 @@ def grasp_jobs(units: Sequence[dict]) -> List[dict]:
 _WORKER_MODELS = ModelCache()
 
 
-def scene_aware_filter(world: World, standoff: float = GoalSetSettings.standoff) -> SupportFilter:
-    """The antipodal generator's filter for the world's target as it lies: its support's plane (the table,
-    a shelf board, a bin's floor), approaches fanned from the open one (``World.open_approach``), and in a
-    scene with furniture only hands (at the grasp and ``standoff`` back) the rest of the scene leaves room for."""
-    scene = HandSceneChecker([m for m in world.scene_meshes() if m.name != world.target], world.target_pose,
-                             standoff, world.robot.info, world.cache.shapes) if world.scene.obstacles else None
-    return SupportFilter.under(world.target_pose, robot=world.robot, plane=world.support_plane,
-                               approach=world.open_approach(), scene=scene)
-
-
 def _unit_grasps(world: World, scene: Scene, kind: str, n: int, robot: str) -> GraspSet:
     """The unit's grasp set of the target (its poses, and what the generator rejected)."""
-    aware = {"support": scene_aware_filter(world)} if kind == "antipodal" else {}
+    aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot, plane=world.support_plane,
+                                                   approach=world.open_approach())} if kind == "antipodal" else {}
 
     def build():
         return grasps_mod.grasp_set(world.target_model, kind, n, seed=0, gripper=world.robot.info, **aware)
     if kind not in ("antipodal", "approach"):  # stored sets: read from disk
         return build()
     source = next(o.source for o in scene.objects if o.name == scene.target)
-    # the scene-aware filter reads the rest of the scene too
-    rest = tuple((o.name, np.asarray(o.pose).tobytes()) for o in list(scene.objects) + list(scene.obstacles))
-    key = ("grasps", kind, scene.target, source, np.asarray(world.target_pose).tobytes(), robot, int(n), rest)
+    key = ("grasps", kind, scene.target, source, np.asarray(world.target_pose).tobytes(), robot, int(n))
     gs = world.cache.derived(key, build)
     return replace(gs, poses=gs.poses.copy())  # a unit may not change what the next one reads
 

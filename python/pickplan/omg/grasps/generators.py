@@ -81,17 +81,13 @@ class SupportFilter:
     below it, or whose fingers reach deeper than the gripper's support tolerance plus the half pad
     length the goal set may lift a grasp by (``omg.goals.SupportSettings``), cannot be used.
     ``approach``: the direction (object frame) the generator's fan of approaches is centred on
-    (default: down onto the support; into a shelf: level, ``World.open_approach``). ``scene``: an object
-    with ``allows(hand poses in the object frame)`` (``hand.HandSceneChecker``): only grasps the rest of
-    the scene leaves room for are kept (None: the object and its support alone)."""
+    (default: down onto the support; into a shelf: level, ``World.open_approach``)."""
 
-    def __init__(self, normal, offset: float, tolerance: Optional[float] = None, robot=None, approach=None,
-                 scene=None):
+    def __init__(self, normal, offset: float, tolerance: Optional[float] = None, robot=None, approach=None):
         robot = robot if robot is not None else panda()  # the gripper's hand and fingers
         q = robot.ready_configuration
         self.normal, self.offset = np.asarray(normal, float) / np.linalg.norm(normal), float(offset)
         self.approach = -self.normal if approach is None else np.asarray(approach, float) / np.linalg.norm(approach)
-        self.scene = scene
         self.tolerance = collision.SupportContact(tolerance).resolved(robot) + \
             0.5 * collision.gripper_spec(robot).pad_length
         self.fingers = collision.HandGeometry(robot, q, robot.hand_link, robot.finger_links)
@@ -99,7 +95,7 @@ class SupportFilter:
 
     @classmethod
     def under(cls, object_pose, tolerance: Optional[float] = None, robot=None, plane=None,
-              approach=None, scene=None) -> "SupportFilter":
+              approach=None) -> "SupportFilter":
         """A world plane (unit normal, offset: normal . x = offset; default z = 0, the tabletop; a shelf
         board's top: ``World.support_plane``) in the frame of an object at ``object_pose``; ``approach``:
         the fan's centre, a world direction (default: down the plane's normal)."""
@@ -108,7 +104,7 @@ class SupportFilter:
         normal = np.asarray(normal, float) / np.linalg.norm(normal)
         # n.(R x + p) = c  <=>  (R^T n).x = c - n.p
         approach = None if approach is None else T[:3, :3].T @ np.asarray(approach, float)
-        return cls(T[:3, :3].T @ normal, float(offset) - float(normal @ T[:3, 3]), tolerance, robot, approach, scene)
+        return cls(T[:3, :3].T @ normal, float(offset) - float(normal @ T[:3, 3]), tolerance, robot, approach)
 
     @staticmethod
     def fan(k: int) -> np.ndarray:
@@ -117,12 +113,8 @@ class SupportFilter:
         return np.radians(15.0) * steps * np.where(np.arange(k) % 2 == 1, 1.0, -1.0)
 
     def allows(self, hand_poses) -> np.ndarray:
-        ok = (self.fingers.penetration(hand_poses, self.normal, self.offset) <= self.tolerance) & \
+        return (self.fingers.penetration(hand_poses, self.normal, self.offset) <= self.tolerance) & \
             (self.palm.penetration(hand_poses, self.normal, self.offset) <= 0.0)
-        if self.scene is not None and ok.any():
-            idx = np.flatnonzero(ok)
-            ok[idx] = self.scene.allows(np.asarray(hand_poses, float).reshape(-1, 4, 4)[idx])
-        return ok
 
 
 def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[float] = None,

@@ -151,31 +151,6 @@ class HandObjectChecker:
         return self.checker.in_collision_batch(hand_configurations(poses, opening, self.gripper)).astype(bool)
 
 
-class HandSceneChecker:
-    """The open hand at a grasp and at its pre-grasp (``standoff`` back along its approach axis) vs the
-    rest of a scene (the other objects and the furniture, not the target, not the table: the support
-    filter meets that) through the native FCL checker: what the goal set rejects before any IK
-    ("in_collision", "standoff_in_collision"), asked while grasps are generated so that the grasps
-    kept are ones the scene leaves room for (a shelf's next board, a bin's wall, a neighbour)."""
-
-    def __init__(self, scene_meshes, target_pose, standoff: float = 0.08, gripper: RobotInfo = PANDA, shapes=None):
-        self.gripper, self.standoff = gripper, float(standoff)
-        self.target_pose = np.asarray(target_pose, float)
-        robot = Robot.from_urdf(hand_urdf_path(True, gripper))
-        self.checker = CollisionChecker(robot, list(scene_meshes), None, CollisionSettings(), shapes=shapes)
-
-    def allows(self, poses) -> np.ndarray:
-        """(N,) hand poses in the target's frame clear of the scene at the grasp and the pre-grasp."""
-        H = np.einsum("ij,njk->nik", self.target_pose, np.asarray(poses, float).reshape(-1, 4, 4))
-        if len(H) == 0:
-            return np.zeros(0, dtype=bool)
-        back = H.copy()
-        back[:, :3, 3] -= self.standoff * H[:, :3, 2]
-        hit = self.checker.in_collision_batch(hand_configurations(np.concatenate([H, back]), None, self.gripper))
-        hit = np.asarray(hit, dtype=bool).reshape(2, -1)
-        return ~(hit[0] | hit[1])
-
-
 # --- hand contact points (for C-Space ISF) ----------------------------------------------------------
 @dataclass(frozen=True)
 class PadSettings:
