@@ -1,6 +1,6 @@
 """Picks beyond the tabletop (issue 35): the grasp filter against a shelf board's exact geometry (PyBullet's
 closest points), the lift's headroom under a board against the boxes' heights, a shelf pick and a bin pick
-planned by the bench's OMG unit and lifted in PyBullet, and a cabinet scene that plans or says why."""
+planned by the bench's OMG unit and lifted in PyBullet, and a cabinet scene that loads and plans."""
 import numpy as np
 import pytest
 
@@ -126,10 +126,9 @@ def test_a_pick_from_a_shelf_and_a_bin_is_lifted(tmp_path, lib, kind, seed):
     assert record["lift"] >= ExecutionSettings.min_lift
 
 
-def test_a_cabinet_scene_plans_or_says_why(tmp_path, lib):
-    """A cabinet (open door, drawer, the target on its inner board) loads into the planner and plans:
-    a trajectory, or a status with the grasps' rejection reasons."""
+def test_a_cabinet_scene_loads_and_plans(tmp_path, lib):
+    """A cabinet (open door, drawer, the target on its inner board, seed 0) loads into the planner (its
+    objects pass the placement check on their board) and the pick passes the success test."""
     record = _one_unit(tmp_path, Layout.cabinet, 0, lib, execute=False)
     assert record["valid"] and "error" not in record, record.get("error")
-    assert record["status"] == "success" or record["goal_reasons"] or record["status"] in ("in_collision",
-                                                                                           "not_smooth")
+    assert record["planning_success"], (record["status"], record.get("goal_reasons"))
