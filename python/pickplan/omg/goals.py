@@ -250,7 +250,7 @@ def lift_blocked(world: World, hand_poses: np.ndarray, start: np.ndarray, lift: 
     open as in ``start``) or target, raised straight up by up to ``lift`` m, would enter one of the
     scene's obstacles (``_raised_blocked``): no lift can follow such a grasp, whatever the arm does."""
     poses = np.asarray(hand_poses, float).reshape(-1, 4, 4)
-    if lift <= 0 or not world.scene.obstacles or not len(poses):
+    if lift <= 0 or not getattr(world.scene, "obstacles", None) or not len(poses):
         return np.zeros(len(poses), bool)
     robot, q = world.robot, np.asarray(start, float)
     fingers = world.cache.finger_geometry(robot, q)
@@ -267,7 +267,7 @@ def lift_blocked_configurations(world: World, Q: np.ndarray, lift: float, step: 
     nearly as one body."""
     robot = world.robot
     Q = np.asarray(Q, float).reshape(-1, robot.dof)
-    if lift <= 0 or not world.scene.obstacles or not len(Q):
+    if lift <= 0 or not getattr(world.scene, "obstacles", None) or not len(Q):
         return np.zeros(len(Q), bool)
 
     def hulls():  # (link index, hull vertices in the link's frame) of every moving link with geometry
