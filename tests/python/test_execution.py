@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from pickplan.sim import execution
+from pickplan.sim import lift as lift_mod
 from pickplan.core import objects
 from pickplan.core import robots
 from pickplan.sim import scenes
@@ -249,7 +250,7 @@ def test_lift_path_raises_the_hand_straight_up_with_the_native_ik(robot):
     lift_height * k / lift_waypoints above its start, orientation held, fingers untouched."""
     s = execution.ExecutionSettings()
     q0 = np.array(robot.ready_configuration, dtype=float)
-    path = execution._lift_path(robot, q0, s)
+    path = lift_mod.lift_path(robot, q0, s)
     assert path.shape == (s.lift_waypoints + 1, robot.dof)
     hand = robot.link_index("panda_hand")
     T0, poses = robot.fk(q0)[hand], robot.fk_batch(path)[:, hand]

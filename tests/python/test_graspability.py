@@ -98,8 +98,8 @@ def test_sweep_summaries_count_ungraspable_apart_with_per_object_rows():
     assert rows["dish_00"]["OMG"]["execution"] == 0.0
     assert rows["flat_box_02"]["OMG"]["graspable"] == 0 and rows["flat_box_02"]["OMG"]["ungraspable"] == 1
     text = object_markdown(rows, ["OMG"])
-    assert "| pen_00 | 50% / 50% (2) | n/a | 0 / 0 / 0 | OMG 1 (support_penetration 7, unreachable 2) | 0 |" in text
-    assert "| flat_box_02 | - | n/a | 0 / 0 / 0 | 0 | 1 (ungraspable: wider than the 8 cm opening in every direction) |" \
+    assert "| pen_00 | 50% / 50% (2) | n/a | 0 / 0 / 0 / 0 | OMG 1 (support_penetration 7, unreachable 2) | 0 |" in text
+    assert "| flat_box_02 | - | n/a | 0 / 0 / 0 / 0 | 0 | 1 (ungraspable: wider than the 8 cm opening in every direction) |" \
         in text
     csv_rows = object_rows(rows)
     assert {r["object"] for r in csv_rows} == {"pen_00", "dish_00", "flat_box_02"}

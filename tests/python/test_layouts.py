@@ -1,11 +1,9 @@
 """Scene families beyond the tabletop (sim.layouts): objects stand exactly on their boards, inside the
-furniture, named once; and a pick from a shelf, planned by the OMG planner, is executed in PyBullet."""
+furniture, named once (picks from them, planned and executed: test_shelf_picks.py)."""
 import numpy as np
 import pytest
 
 from pickplan.core import objects
-from pickplan.omg.planner import OMGPlanner, OMGSettings
-from pickplan.sim.execution import ExecutionSettings, execute_plan
 from pickplan.sim.layouts import Layout, generate_layout
 
 
@@ -50,14 +48,3 @@ def test_objects_stand_on_their_board_inside_the_furniture(kind, lib, layouts):
             assert not inside.any(), (o.name, ob.name)
     assert generate_layout(kind, seed=SEEDS[kind], library=lib).objects[0].pose.tolist() == \
         scene.objects[0].pose.tolist()
-
-
-def test_a_shelf_pick_is_executed_in_pybullet(layouts):
-    """One generated shelf (seed 3; not every seed's target has a goal set), planned and executed: the
-    fingers close on the target and lift it, the physics deciding."""
-    scene = layouts[Layout.shelf]
-    result = OMGPlanner("panda", scene, OMGSettings(grasp_kind="antipodal")).plan()
-    assert result.success, result.status
-    run = execute_plan(scene, result.trajectory, ExecutionSettings())
-    assert run.success and run.status == "lifted", run.status
-    assert run.target_lift > 0.05

@@ -21,6 +21,7 @@ from pickplan.eval.methods import TABLES
 from pickplan.eval.summaries import (OUTCOMES, grasp_costs_by_object, object_markdown, slip_cell, summarize,
                                      summarize_by_object)
 from pickplan.cli.scenes import clutter_range
+from pickplan.sim.layouts import Layout
 from pickplan.sim.scenes import ORIENTATIONS
 from pickplan.cli.exit_codes import run_command
 from pickplan.cli.bench_mbm import add_mbm_command
@@ -108,8 +109,12 @@ def markdown(table: str, summary: Dict[str, dict], records: Sequence[dict], head
         f"{summary[m]['valid']}/{summary[m]['units']} ({summary[m]['planned']})" for m in methods) + " |")
     lines.append("| Slip in the hand (mm / deg, median of lifted; slipped > 1 cm or 10 deg) | " + " | ".join(
         slip_cell(summary[m]) for m in methods) + " |")
-    lines.append("| Failed executions: dropped / missed / collision | " + " | ".join(
+    lines.append("| Failed executions: " + " / ".join(OUTCOMES) + " | " + " | ".join(
         " / ".join(str(summary[m].get(k, 0)) for k in OUTCOMES) for m in methods) + " |")
+    failed_plans = ("in_collision", "not_smooth")  # planned, the success test failed
+    lines.append("| Failed plans: " + " / ".join(failed_plans) + " | " + " | ".join(" / ".join(
+        str(sum(r.get("method") == m and r.get("status") == k for r in records)) for k in failed_plans)
+        for m in methods) + " |")
     lines.append("| No goals (units) | " + " | ".join(str(summary[m].get("no_goals", 0)) for m in methods) + " |")
     lines.append("| Ungraspable targets (units, not in the rates) | " + " | ".join(
         str(summary[m].get("ungraspable", 0)) for m in methods) + " |")
@@ -175,7 +180,8 @@ def write_report(settings: SweepSettings, records: List[dict]) -> str:
     titles = {"selection": "Table I: grasp selection", "refinement": "Table II: grasp refinement",
               "planners": "Table III: planners", "ablation": "Fig. 8: ablation of n and lambda"}
     objects = s.objects or (f"as in the scenes of {s.scene_dir}" if s.scene_dir else "built-in")
-    poses = "" if s.scene_dir else f", poses: {s.poses}, {s.clutter[0]}-{s.clutter[1]} objects per scene"
+    poses = "" if s.scene_dir else f", poses: {s.poses}, {s.clutter[0]}-{s.clutter[1]} objects per scene" \
+        if s.layout is Layout.table else f", {s.layout.value} layouts"
     poses += f", {s.grasp_kind} grasps" if s.grasp_kind else ""
     header = (f"## {titles[s.table]}: {scenes} scenes, {s.grasps} grasps each scene, {s.runs} runs"
               f" (objects: {objects}{poses})")
@@ -205,7 +211,7 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
                          workers=args.workers, ray=args.ray, seed=args.seed, iterations=args.iterations,
                          execute=not args.no_execute, timed_execution=args.timed_execution, time_limit=args.time_limit,
                          max_goals_tried=args.max_goals_tried, robot=args.robot, poses=args.poses,
-                         clutter=tuple(args.clutter), grasp_kind=getattr(args, "grasp_kind", None),
+                         clutter=tuple(args.clutter), layout=args.layout, grasp_kind=getattr(args, "grasp_kind", None),
                          progress=False if args.no_progress else None)
 
 
@@ -242,6 +248,9 @@ def add_bench_commands(subparsers) -> None:
                             "probability: lying bottles, boxes on any face) or resting")
         p.add_argument("--clutter", type=clutter_range, default=(3, 7), metavar="N-M",
                        help="objects per generated scene, fewest-most (default 3-7, the paper's)")
+        p.add_argument("--layout", choices=[k.value for k in Layout], default=Layout.table.value,
+                       help="generated scenes' family: table (the paper's), shelf, bin or cabinet "
+                            "(pickplan scenes --layout; --poses and --clutter are the table's)")
         if table != "refinement":
             p.add_argument("--grasp-kind", default=None, choices=("simulated", "graspit", "approach", "antipodal"),
                            help="every method's grasp set (default: simulated, stored or physics-verified); "

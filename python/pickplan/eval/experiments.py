@@ -44,6 +44,7 @@ from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.planner import OMGPlanner, PlanStatus, target_graspability
 from pickplan.omg.world import CheckerKind, World, WorldSettings
 from pickplan.sim.execution import ExecutionSettings, execute_plan
+from pickplan.sim.layouts import Layout, LayoutSettings, generate_layout
 from pickplan.sim.scene_sets import scene_seeds
 from pickplan.sim.scenes import Orientation, Scene, SceneSettings, generate_scene
 
@@ -60,6 +61,8 @@ class SweepSettings:
                                        # folder (None: $PICKPLAN_YCB_DIR if set, else the built-ins)
     poses: Orientation = Orientation.upright  # generated scenes' object poses
     clutter: Tuple[int, int] = (3, 7)  # objects per generated scene, fewest-most (the paper's 3-7)
+    layout: Layout = Layout.table      # generated scenes' family: the tabletop, or a shelf, bin or cabinet
+                                       # (``sim.layouts``; poses and clutter are the tabletop's)
     # The grasp set of every method (None: the table's, "simulated"); "antipodal" is generated per unit,
     # aware of the table under the target as it lies (physics-verified sets take minutes per new object).
     grasp_kind: Optional[GraspKind] = None
@@ -90,6 +93,7 @@ class SweepSettings:
         if self.grasp_kind is not None:
             object.__setattr__(self, "grasp_kind", GraspKind(self.grasp_kind))
         object.__setattr__(self, "poses", Orientation.parse(self.poses, "poses"))
+        object.__setattr__(self, "layout", Layout.parse(self.layout, "layout"))
         if len(self.clutter) != 2 or not 1 <= self.clutter[0] <= self.clutter[1]:
             raise ValueError(f"clutter: expected (fewest, most) with 1 <= fewest <= most, got {self.clutter!r}")
         if self.methods is not None:
@@ -119,9 +123,13 @@ def _make_scene(job: dict) -> dict:
     path = job["path"]
     if not os.path.exists(path):
         (fewest, most), poses = job.get("clutter", (3, 7)), job.get("poses", "upright")
-        settings = SceneSettings(orientation=poses, min_objects=int(fewest), max_objects=int(most),
-                                 robot=job.get("robot", "panda"))
-        generate_scene(job["seed"], objects_mod.library(job["objects"]), settings).save(path)
+        robot, layout = job.get("robot", "panda"), Layout.parse(job.get("layout", "table"), "layout")
+        lib = objects_mod.library(job["objects"])
+        if layout is Layout.table:
+            settings = SceneSettings(orientation=poses, min_objects=int(fewest), max_objects=int(most), robot=robot)
+            generate_scene(job["seed"], lib, settings).save(path)
+        else:
+            generate_layout(layout, job["seed"], lib, LayoutSettings(robot=robot)).save(path)
     return {"path": path}
 
 
@@ -139,7 +147,7 @@ def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None,
     folder = os.path.join(s.out, "scenes")
     os.makedirs(folder, exist_ok=True)
     jobs = [{"path": os.path.join(folder, f"scene_{i:04d}.json"), "seed": seed, "objects": s.objects,
-             "poses": s.poses, "clutter": tuple(s.clutter), "robot": s.robot}
+             "poses": s.poses, "clutter": tuple(s.clutter), "robot": s.robot, "layout": s.layout.value}
             for i, seed in enumerate(scene_seeds(s.seed, s.scenes))]
     todo = [j for j in jobs if not os.path.exists(j["path"])]
     with sweep_runner(s) if runner is None else contextlib.nullcontext(runner) as backend:
@@ -202,7 +210,8 @@ _WORKER_MODELS = ModelCache()
 
 def _unit_grasps(world: World, scene: Scene, kind: str, n: int, robot: str) -> GraspSet:
     """The unit's grasp set of the target (its poses, and what the generator rejected)."""
-    aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot)} if kind == "antipodal" else {}
+    aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot, plane=world.support_plane,
+                                                   approach=world.open_approach())} if kind == "antipodal" else {}
 
     def build():
         return grasps_mod.grasp_set(world.target_model, kind, n, seed=0, gripper=world.robot.info, **aware)
@@ -284,7 +293,7 @@ def run_unit(unit: dict) -> dict:
                           ExecutionSettings(robot=world_settings.robot, waypoint_dt=chomp.duration / chomp.n))
         record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds,
                       execution_sim_time=ex.sim_time, slip=finite(ex.slip), slip_rotation=finite(ex.slip_rotation),
-                      grip_force=ex.grip_force)
+                      grip_force=ex.grip_force, lift=finite(ex.lift), execution_message=ex.message)
     record["unit_seconds"] = time.perf_counter() - t0
     return record
 
@@ -334,13 +343,16 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
 # add units, and workers / Ray / progress do not change results.
 RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
                "time_limit", "max_goals_tried", "timed_execution", "robot",
-               "poses", "clutter", "grasp_kind")
+               "poses", "clutter", "grasp_kind", "layout")
+# What a sweep made before a key existed had (its records and sweep.json lack the key).
+RESUME_DEFAULTS = {"poses": "upright", "clutter": [3, 7], "grasp_kind": None, "layout": Layout.table.value}
 
 
 def sweep_fingerprint(settings: SweepSettings) -> dict:
     s = settings.effective()
     fp = {k: getattr(s, k) for k in RESUME_KEYS}
     fp["clutter"] = list(s.clutter)  # as JSON reads it back
+    fp["layout"] = s.layout.value
     for k in ("objects", "scene_dir"):
         named = k == "objects" and fp[k] in ("builtin", "procedural")
         fp[k] = fp[k] if named else os.path.realpath(fp[k]) if fp[k] else None
@@ -355,7 +367,8 @@ def _fingerprint_diff(record: dict, fp: dict) -> List[str]:
     theirs = record.get(FINGERPRINT_FIELD)
     if not isinstance(theirs, dict):
         return [f"{FINGERPRINT_FIELD}: none in the unit (written by another sweep or an older pickplan)"]
-    return [f"{k}: {theirs.get(k)!r} there, {fp[k]!r} now" for k in RESUME_KEYS if theirs.get(k) != fp[k]]
+    return [f"{k}: {theirs.get(k)!r} there, {fp[k]!r} now" for k in RESUME_KEYS
+            if theirs.get(k, RESUME_DEFAULTS["layout"] if k == "layout" else None) != fp[k]]
 
 
 def _refuse_foreign_unit(settings: SweepSettings, path: str, diff: List[str]) -> None:
@@ -382,7 +395,7 @@ def check_resumable(settings: SweepSettings) -> None:
     else:
         with open(path) as f:
             old = json.load(f)
-        defaults = {"poses": "upright", "clutter": [3, 7], "grasp_kind": None}  # sweeps made before these existed
+        defaults = RESUME_DEFAULTS  # sweeps made before these existed
         diff = [k for k in RESUME_KEYS if old.get(k, defaults.get(k)) != fp[k] and (k in old or k in defaults)]
         if diff:
             detail = ", ".join(f"{k}: {old[k]!r} there, {fp[k]!r} now" for k in diff)

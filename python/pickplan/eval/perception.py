@@ -233,7 +233,7 @@ def markdown(summary: Dict[str, dict], scenes: int, settings: PerceptionBenchSet
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
     lines.append("| Slip in the hand (mm / deg, median of lifted; slipped > 1 cm or 10 deg) | " + " | ".join(
         slip_cell(summary[m]) for m in methods) + " |")
-    lines.append("| Failed executions: dropped / missed / collision | " + " | ".join(
+    lines.append("| Failed executions: " + " / ".join(OUTCOMES) + " | " + " | ".join(
         " / ".join(str(summary[m][k]) for k in OUTCOMES) for m in methods) + " |")
     lines.append("| Units (errors) | " + " | ".join(f"{summary[m]['units']} ({summary[m]['errors']})"
                                                      for m in methods) + " |")

@@ -24,7 +24,7 @@ def _graspable(r: dict) -> bool:
 
 
 SLIPPED = (0.01, 10.0)  # m, deg: a lifted target that moved or turned this much in the hand slipped
-OUTCOMES = ("dropped", "missed", "collision")  # failed executions of successful plans, by status
+OUTCOMES = ("dropped", "missed", "collision", "blocked")  # failed executions of successful plans, by status
 
 
 def execution_outcomes(rs: Sequence[dict]) -> dict:
@@ -129,7 +129,7 @@ def object_markdown(by_object: Dict[str, Dict[str, dict]], methods: Sequence[str
     units with the grasps' rejection reasons, and the ungraspable units with the verdict."""
     lines = ["### Per target object", "",
              "Cells: planning / execution over the units whose target is graspable (units). Slip: mm / deg the "
-             "lifted targets moved in the hand (median), per method. Failed: dropped / missed / collision, summed "
+             "lifted targets moved in the hand (median), per method. Failed: " + " / ".join(OUTCOMES) + ", summed "
              "over methods. No goals: units per method, then the grasps' rejection reasons summed. Ungraspable: "
              "units, not counted in any rate.", "",
              "| Object | " + " | ".join(methods) + " | Slip | Failed | No goals | Ungraspable |",

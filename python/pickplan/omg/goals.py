@@ -17,6 +17,7 @@ from pickplan.core.settings import Option, to_native
 from pickplan.omg.grasps.quality import GraspFit, QualitySettings
 from pickplan.omg.grasps.verify import VerifySettings
 from pickplan.omg.world import CheckerKind, World
+from pickplan.sim.execution import ExecutionSettings
 
 
 class IkTask(Option):
@@ -114,9 +115,12 @@ class GoalSetSettings:
     seed: int = 0
     approach: Tuple[float, float, float] = (0.0, 0.0, 0.0)  # world direction of the standoff approach (unit;
                                                             # zero: the hand's +z; a place: gravity)
+    # m the hand, fingers and target must be free to rise from the grasp among the scene's obstacles
+    # (furniture: a shelf's next board; ``lift_blocked``): execution's shortest lift and its clearance.
+    lift: float = ExecutionSettings.min_lift + ExecutionSettings.lift_clearance
 
     # What the Python side applies itself (the native struct has no such fields; the drift test reads this)
-    PYTHON_ONLY: ClassVar[Tuple[str, ...]] = ("approach_clearance", "quality", "verify")
+    PYTHON_ONLY: ClassVar[Tuple[str, ...]] = ("approach_clearance", "quality", "verify", "lift")
 
     def to_native(self) -> "_core.GoalSetSettings":
         return to_native(self, _core.GoalSetSettings, skip=self.PYTHON_ONLY)
@@ -230,6 +234,66 @@ def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, st
     return poses, moved, todo & (depth > tolerance)
 
 
+def _rigid_with_hand(robot) -> Tuple[str, ...]:
+    """The links fixed to the hand link (the hand, a wrist flange and the last arm link before it):
+    the same pose relative to the hand at two configurations."""
+    Q = robot.random_configurations(2, seed=0)
+    hand = robot.link_index(robot.hand_link)
+    rel = [np.linalg.inv(robot.fk(q)[hand]) @ robot.fk(q) for q in Q]
+    same = np.all(np.abs(rel[0] - rel[1]) < 1e-9, axis=(1, 2))
+    return tuple(n for i, n in enumerate(robot.link_names) if same[i] and robot.collision_meshes(n) is not None)
+
+
+def lift_blocked(world: World, hand_poses: np.ndarray, start: np.ndarray, lift: float,
+                 step: float = 0.01) -> np.ndarray:
+    """(N,) world hand poses whose hand, the links fixed to it and the fingers (collision hull vertices,
+    open as in ``start``) or target, raised straight up by up to ``lift`` m, would enter one of the
+    scene's obstacles (``_raised_blocked``): no lift can follow such a grasp, whatever the arm does."""
+    poses = np.asarray(hand_poses, float).reshape(-1, 4, 4)
+    if lift <= 0 or not getattr(world.scene, "obstacles", None) or not len(poses):
+        return np.zeros(len(poses), bool)
+    robot, q = world.robot, np.asarray(start, float)
+    fingers = world.cache.finger_geometry(robot, q)
+    palm = world.cache.robot_derived(robot, ("rigid_hand_hull_vertices", q.tobytes()), lambda: collision.HandGeometry(
+        robot, q, robot.hand_link, _rigid_with_hand(robot)).vertices)
+    V = np.vstack([palm] + ([fingers.vertices] if fingers is not None else []))
+    return _raised_blocked(world, np.einsum("nij,pj->npi", poses[:, :3, :3], V) + poses[:, None, :3, 3], lift, step)
+
+
+def lift_blocked_configurations(world: World, Q: np.ndarray, lift: float, step: float = 0.01) -> np.ndarray:
+    """(G,) goal configurations whose moving links (collision hull vertices: a wrist under a shelf's next
+    board; the deepest point of a hull under a face is a vertex) or target, raised straight up by up to
+    ``lift`` m, would enter one of the scene's obstacles; the arm rises with the hand in a short lift,
+    nearly as one body."""
+    robot = world.robot
+    Q = np.asarray(Q, float).reshape(-1, robot.dof)
+    if lift <= 0 or not getattr(world.scene, "obstacles", None) or not len(Q):
+        return np.zeros(len(Q), bool)
+
+    def hulls():  # (link index, hull vertices in the link's frame) of every moving link with geometry
+        meshes = [(i, robot.collision_meshes(i)) for i in robot.moving_links()]
+        return [(i, np.asarray(m.convex_hull.vertices, float)) for i, m in meshes if m is not None]
+    parts = world.cache.robot_derived(robot, ("moving_link_hulls",), hulls)
+    F = robot.fk_batch(Q)  # (G, links, 4, 4)
+    P = np.concatenate([np.einsum("gij,pj->gpi", F[:, i, :3, :3], V) + F[:, i, None, :3, 3] for i, V in parts], axis=1)
+    return _raised_blocked(world, P, lift, step)
+
+
+def _raised_blocked(world: World, P: np.ndarray, lift: float, step: float) -> np.ndarray:
+    """(N,) which sets of world points (N, K, 3), with the target's hull vertices, raised by ``step``s up to
+    ``lift``, enter an obstacle of the scene (not an object, not the table) they are not in already."""
+    T = world.target_pose
+    target = np.asarray(world.target_model.mesh.convex_hull.vertices, float) @ T[:3, :3].T + T[:3, 3]
+    P = np.concatenate([P, np.broadcast_to(target, (len(P),) + target.shape)], axis=1)
+    count = int(np.ceil(lift / step - 1e-9))
+    up = np.zeros((count + 1, 1, 1, 3))
+    up[..., 2] = (np.arange(count + 1) * lift / count)[:, None, None]
+    d, _ = world.sdf.distance((P[None] + up).reshape(-1, 3), cutoff=step,
+                              exclude=[o.name for o in world.scene.objects], exclude_table=True)
+    d = np.asarray(d).reshape(count + 1, len(P), -1).min(axis=2)
+    return (d[1:].min(axis=0) < 0.0) & (d[0] >= 0.0)  # in an obstacle already: the collision checks say so
+
+
 def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
                    settings: GoalSetSettings = GoalSetSettings(), ik: IkSettings = IkSettings(),
                    collision_check: bool = True, support: SupportSettings = SupportSettings(),
@@ -260,8 +324,13 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     checker = world.checker(CheckerKind.goal).native if collision_check else None
     hand_checker = world.checker(CheckerKind.hand).native if collision_check else None
     problem = world.clearance_problem if collision_check and settings.approach_clearance > 0 else None
-    tried = np.flatnonzero(~blocked)
     reasons = ["support_penetration"] * len(grasps)
+    if collision_check and len(grasps):
+        no_lift = lift_blocked(world, hand_poses, start, settings.lift) & ~blocked
+        for k in np.flatnonzero(no_lift):
+            reasons[k] = "lift_blocked"
+        blocked = blocked | no_lift
+    tried = np.flatnonzero(~blocked)
     margin = np.full(len(grasps), np.nan)
     if collision_check and settings.quality is not None and len(tried):
         quality = world.grasp_quality(grasps[tried], settings.quality)
@@ -290,5 +359,10 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
         tried = reachable[held][np.argsort(-margin[reachable[held]], kind="stable")]
         out = goals(tried)
     grasp_index = tried[np.asarray(out["grasp_index"], dtype=int)] if len(tried) else np.zeros(0, int)
-    return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), grasp_index.astype(int),
-                   grasps, reasons, float(out["seconds"]), adjusted, margin)
+    goals_, tails = np.asarray(out["goals"]), np.asarray(out["tails"])
+    if collision_check and len(goals_):  # the whole arm under the lift (the hand alone was checked before IK)
+        stuck = lift_blocked_configurations(world, goals_, settings.lift)
+        for k in grasp_index[stuck]:
+            reasons[k] = "lift_blocked"
+        goals_, tails, grasp_index = goals_[~stuck], tails[~stuck], grasp_index[~stuck]
+    return GoalSet(goals_, tails, grasp_index.astype(int), grasps, reasons, float(out["seconds"]), adjusted, margin)

@@ -23,6 +23,7 @@ from pickplan.omg.grasps import GraspKind
 from pickplan.omg.isf import IsfSettings
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.native_loop import StageClock, run_native
+from pickplan.omg.sampled_start import SampledStart, clear_pregrasps, sampled_initialization
 from pickplan.sim.scenes import Scene
 from pickplan.omg.selection import Selection, make_policy
 from pickplan.omg.world import CheckerKind, World, WorldSettings
@@ -72,6 +73,9 @@ class OMGSettings:
     grasp_kind: GraspKind = GraspKind.simulated  # default grasps when plan() gets none: stored, else generated
     grasp_count: int = 100
     seed: int = 0
+    # Where the loop from the straight line fails in a scene with furniture (a shelf, a cabinet): once more
+    # from an RRT-Connect path (``omg.sampled_start``); None: never. A tabletop plans as in the paper.
+    sampled_start: Optional[SampledStart] = field(default_factory=SampledStart)
     clock: StageClock = StageClock.wall  # what PlanResult.timings read (thread_cpu: a loaded machine's
                                          # other processes do not count)
 
@@ -234,8 +238,28 @@ class OMGPlanner:
         return result, gs
 
     def _optimize(self, world: World, q0: np.ndarray, gs: GoalSet, timings: dict) -> PlanResult:
-        """Algorithm 2's loop over a non-empty goal set (the test oracle overrides it)."""
-        return run_loop(self.settings, world, q0, gs, timings)
+        """Algorithm 2's loop over a non-empty goal set (the test oracle overrides it); where it fails, once
+        more from a sampling-based initialization (``OMGSettings.sampled_start``)."""
+        result = run_loop(self.settings, world, q0, gs, timings)
+        s = self.settings
+        # the straight line is the paper's start on a tabletop; among furniture (a shelf) it is often none
+        if result.success or s.sampled_start is None or not getattr(world.scene, "obstacles", None):
+            return result
+        clock = _clock(s)
+        t = clock()
+        keep = clear_pregrasps(world, gs.tails, s.metrics.clearance)
+        clear = replace(gs, goals=gs.goals[keep], tails=gs.tails[keep], grasp_index=gs.grasp_index[keep])
+        warm = sampled_initialization(world, q0, clear.tails, s.chomp.n, s.sampled_start) if len(keep) else None
+        timings["sampled_start"] = clock() - t
+        if warm is None:
+            return result
+        retry = run_loop(s, world, q0, clear, timings, warm=warm)
+        if not retry.success:
+            return result
+        retry.history["sampled_start"] = True
+        retry.goal_set = np.array(gs.goals)  # rows of the whole goal set, as plan_with_goals returns it
+        retry.goal_source = int(keep[retry.goal_source]) if 0 <= retry.goal_source < len(keep) else -1
+        return retry
 
 
 def plan_to_goal_set(settings: OMGSettings, world, q0: np.ndarray, goal_set: GoalSet) -> PlanResult:

@@ -189,6 +189,26 @@ class World:
         return collision.support_plane(collision.Table(tuple(np.asarray(table.size, float)),
                                                        np.asarray(table.pose, float)))
 
+    def open_approach(self, room: float = 0.3) -> np.ndarray:
+        """The world direction a grasp of the target is best approached along (the centre of the
+        grasp generator's fan of approaches): down onto it (a tabletop, a bin), unless an obstacle lies
+        within ``room`` (m: the hand, its standoff and the wrist) above the target's top (a shelf's next
+        board, a cabinet's top); then level, from the robot's base towards the target (into the shelf)."""
+        T = self.target_pose
+        V = np.asarray(self.target_model.mesh.vertices, float) @ T[:3, :3].T + T[:3, 3]
+        top = np.array([*V[:, :2].mean(axis=0), V[:, 2].max()])
+        step = 0.01
+        points = top + np.outer(np.arange(step, room + step / 2, step), [0.0, 0.0, 1.0])
+        others = [o.name for o in self.scene.objects]  # furniture only: objects are not a roof
+        d, _ = self.sdf.distance(points, cutoff=step, exclude=others, exclude_table=True) \
+            if self.scene.obstacles else (np.full(len(points), np.inf), None)
+        if np.all(np.asarray(d) > step / 2):
+            return np.array([0.0, 0.0, -1.0])
+        level = top - np.asarray(self.scene.robot_base, float)[:3, 3]
+        level[2] = 0.0
+        n = np.linalg.norm(level)
+        return level / n if n > 1e-9 else np.array([1.0, 0.0, 0.0])
+
     def over_support(self, points: np.ndarray) -> np.ndarray:
         """(N,) whether world points lie over the table top's footprint (where its plane is a support)."""
         table = self.scene.table

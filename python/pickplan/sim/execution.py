@@ -17,11 +17,16 @@ default, with its gripper) is loaded at the scene's base and reset to ``trajecto
    finger follow the first (``couple_fingers``), as the real hand's mechanism does;
 3. **lift**: the hand moves straight up by ``lift_height`` with its orientation held: joint targets
    come from the native damped-least-squares IK of the hand link (the arm joints),
-   precomputed from the last waypoint (the arm's commanded pose while closing);
+   precomputed from the last waypoint (the arm's commanded pose while closing). Under a shelf's next
+   board the lift is shorter: the lift's waypoints are first probed kinematically in the simulation
+   (the robot at them, the target carried rigidly by the hand) against the scene's obstacles, and the
+   lift stops ``lift_clearance`` short of the first one it would come closer to than that
+   (``lift_headroom``); on a tabletop nothing is above and the lift is ``lift_height``;
 4. **hold**: the final targets are held for ``hold_duration``.
 
 "Execution success" (the paper's metric) = the target's centre of mass rose by at least
-``success_lift_fraction * lift_height`` and the target is still between the fingers at the end.
+``success_lift_fraction`` of the lift (``lift_height``, or the headroom under an obstacle, which must
+leave at least ``min_lift``) and the target is still between the fingers at the end.
 
 Beside the status, ``ExecutionResult.slip`` / ``slip_rotation``: how far the target's centre of mass
 moved and how far it turned in the hand from the closed grasp to the end of the hold (the grasp's own
@@ -30,7 +35,7 @@ test: a lifted target that slid 2 cm held by luck).
 ``ExecutionResult.status``: "lifted" (success); otherwise "collision" (the robot penetrated a
 non-target object or the table deeper than ``collision_depth`` while following the plan),
 "missed" (the target was not between the fingers after closing), "dropped" (it was, but it was not
-lifted or not held at the end), "invalid_trajectory" (waypoints outside the joint limits: not run),
+lifted or not held at the end), "blocked" (obstacles above the grasp leave less than ``min_lift``), "invalid_trajectory" (waypoints outside the joint limits: not run),
 "unstable" (the simulation diverged). Touches are recorded even when they are not collisions.
 
 >>> result = execute_plan(scene, plan.trajectory)
@@ -52,14 +57,14 @@ from pickplan.sim import scenes as scenes_mod
 from pickplan.core import robots
 from pickplan.core.description import load_description
 from pickplan.sim import bodies
-from pickplan.sim.hand_path import hand_path
+from pickplan.sim.lift import lift_headroom, lift_path
 from pickplan.sim import render as viz
 from pickplan.sim.render import RecordSettings, save_frames, save_gif  # noqa: F401 - where callers find them
 
 
 class ExecutionStatus(Option):
     """Every value ``ExecutionResult.status`` takes (see the module docstring)."""
-    lifted, dropped, missed, collision = "lifted", "dropped", "missed", "collision"
+    lifted, dropped, missed, collision, blocked = "lifted", "dropped", "missed", "collision", "blocked"
     invalid_trajectory, unstable = "invalid_trajectory", "unstable"
 
 
@@ -96,13 +101,15 @@ class ExecutionSettings:
     object_friction: float = 0.8          # lateral friction of the objects (and the table)
     object_spinning_friction: float = 0.003
     # --- lift and hold
-    lift_height: float = 0.15             # m, straight up
+    lift_height: float = 0.15             # m, straight up (less where an obstacle is above: lift_headroom)
+    lift_clearance: float = 0.01          # m the lifted robot and target keep from obstacles above
+    min_lift: float = 0.05                # m; obstacles above that leave less make the lift "blocked"
     lift_duration: float = 1.5            # s (0.1 m/s)
     lift_waypoints: int = 30              # damped-least-squares waypoints along the lift
     ik_damping: float = 0.01              # DLS damping lambda
     hold_duration: float = 0.5            # s
     # --- success test and bookkeeping
-    success_lift_fraction: float = 0.8    # the target must rise by this fraction of lift_height
+    success_lift_fraction: float = 0.8    # the target must rise by this fraction of the lift
     hold_margin: float = 0.005            # m; the target is "between the fingers" within this of both
     min_finger_gap: float = 0.002         # m; fingers closer than this hold nothing
     collision_depth: float = 0.002        # m; deeper contact with a non-target body = "collision"
@@ -113,7 +120,7 @@ class ExecutionSettings:
             if getattr(self, name) is not None and not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         for name in ("start_settle", "approach_settle", "close_duration", "close_settle", "hold_duration",
-                     "lift_height", "hold_margin", "min_finger_gap", "collision_depth", "joint_limit_tolerance"):
+                     "lift_height", "lift_clearance", "min_lift", "hold_margin", "min_finger_gap", "collision_depth", "joint_limit_tolerance"):
             if getattr(self, name) is not None and not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.arm_forces is not None:
@@ -160,6 +167,7 @@ class ExecutionResult:
                                            # to the end of the hold (nan: not between the fingers after closing)
     slip_rotation: float = float("nan")    # deg the target turned in the hand over the same time
     grip_force: float = 0.0                # N per finger the gripper squeezed with (settings or description)
+    lift: float = float("nan")             # m the hand was lifted by (lift_height, or less under an obstacle)
 
     def to_dict(self) -> dict:
         """JSON-ready (frames left out)."""
@@ -199,6 +207,7 @@ class _Sim:
         self.robot = ids["robot"]
         self.names = {bid: name for name, bid in ids.items() if name != "robot"}
         self.bodies = {name: bid for name, bid in ids.items() if name in models}  # the objects (not obstacles)
+        self.obstacle_ids = {o.name: ids[o.name] for o in scene.obstacles}  # furniture (the table apart)
         self.models = models
         self.target = scene.target
         joints = {pb.getJointInfo(self.robot, j, physicsClientId=client)[1].decode(): j
@@ -290,13 +299,6 @@ def _segment_steps(Q: np.ndarray, vmax: np.ndarray, s: ExecutionSettings) -> Lis
             d = max(d, float(np.max(np.abs(Q[k + 1] - Q[k]) / vmax)))
         out.append((d, max(1, int(round(d / s.time_step)))))
     return out
-
-
-def _lift_path(robot, q0: np.ndarray, s: ExecutionSettings) -> np.ndarray:
-    """Arm configurations (lift_waypoints + 1, dof) moving the hand straight up, orientation held."""
-    up = np.zeros((s.lift_waypoints, 3))
-    up[:, 2] = s.lift_height * np.arange(1, s.lift_waypoints + 1) / s.lift_waypoints
-    return hand_path(robot, q0, up, s.ik_damping)
 
 
 def _follow(sim: _Sim, Q: np.ndarray, segments, fingers_from_plan: bool, finger_force: float,
@@ -395,6 +397,8 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     sim = open_sim(scene, robot, Q[0], s, models, record)
     client = sim.c
     try:
+        # how far the plan's grasp can lift under what is above it (probed before anything moves)
+        height = lift_headroom(sim, robot, Q[-1], [sim_id for name, sim_id in sim.obstacle_ids.items()])
         com0 = {name: scene_com(name) for name in sim.bodies}
         if record is not None:
             if record.colorize:
@@ -422,7 +426,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         # 3. lift, 4. hold
         q_lift = Q[-1].copy()  # continue from the commanded pose, so the arm target does not jump
         q_lift[robot.info.arm_dof:] = sim.joint_positions()[robot.info.arm_dof:]
-        lift = _lift_path(robot, q_lift, s)
+        lift = lift_path(robot, q_lift, s, height)
         seg = s.lift_duration / s.lift_waypoints
         _follow(sim, lift, [(seg, max(1, int(round(seg / s.time_step))))] * s.lift_waypoints, False,
                 sim.grip_force, False)
@@ -444,7 +448,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     lift_m = float(com_final[scene.target][2] - com0[scene.target][2]) if finite else float("nan")
     max_pen = max(sim.contacts.values(), default=0.0)
     collided = max_pen > s.collision_depth
-    success = bool(finite and lifted_and_held(s, held, lift_m))
+    success = bool(finite and lifted_and_held(s, held, lift_m, height))
     if not finite:
         status, msg = ExecutionStatus.unstable, "the simulation produced non-finite states"
     elif success:
@@ -454,9 +458,12 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         status, msg = ExecutionStatus.collision, f"robot penetrated {worst} by {max_pen * 1000:.1f} mm during the approach"
     elif not held_after_close:
         status, msg = ExecutionStatus.missed, "the fingers closed without the target between them"
+    elif height < s.min_lift:
+        status, msg = ExecutionStatus.blocked, (f"obstacles above the grasp leave a lift of {height:.3f} m "
+                                                f"(at least {s.min_lift:.3f} m)")
     else:
         status, msg = ExecutionStatus.dropped, (f"target held after closing but at the end held={held}, "
-                                                f"lift {lift_m:.3f} m of {s.lift_height:.3f} m")
+                                                f"lift {lift_m:.3f} m of {height:.3f} m")
     return ExecutionResult(
         success=success, status=status, target=scene.target, target_lift=lift_m, target_final_pose=T_final,
         contacts_during_approach=dict(sorted(sim.contacts.items())), max_penetration=float(max_pen),
@@ -465,12 +472,14 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
                               if n != scene.target},
         target_pushed=target_pushed, held=bool(held), finger_gap=gap, tracking_error=sim.tracking_error,
         sim_time=sim.steps * s.time_step, steps=sim.steps, seconds=time.perf_counter() - t_start, message=msg,
-        frames=sim.frames, slip=slip, slip_rotation=slip_rotation, grip_force=sim.grip_force)
+        frames=sim.frames, slip=slip, slip_rotation=slip_rotation, grip_force=sim.grip_force, lift=height)
 
 
-def lifted_and_held(s: ExecutionSettings, held: bool, lift_m: float) -> bool:
-    """Execution success: the target is between the fingers and rose by ``success_lift_fraction`` of the lift."""
-    return bool(held and lift_m >= s.success_lift_fraction * s.lift_height)
+def lifted_and_held(s: ExecutionSettings, held: bool, lift_m: float, height: Optional[float] = None) -> bool:
+    """Execution success: the target is between the fingers and rose by ``success_lift_fraction`` of the lift
+    (``height``, default ``lift_height``), a lift of at least ``min_lift``."""
+    height = s.lift_height if height is None else float(height)
+    return bool(held and height >= s.min_lift and lift_m >= s.success_lift_fraction * height)
 
 
 def _slip(before: np.ndarray, after: np.ndarray, com: np.ndarray) -> Tuple[float, float]:

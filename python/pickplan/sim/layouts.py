@@ -22,9 +22,12 @@ from pickplan.core.description import RobotInfo, load_description
 from pickplan.core.graspability import graspability
 from pickplan.core.settings import Option
 from pickplan.core.shapes import Obstacle, Shape
+from pickplan.sim.execution import ExecutionSettings
 from pickplan.sim.scenes import Scene, SceneObject, Table, default_table
 
 THICKNESS = 0.02  # m: boards, walls, doors
+# m under the board above an object: execution's shortest lift, its clearance, and 1 cm between
+LIFT_ROOM = ExecutionSettings.min_lift + ExecutionSettings.lift_clearance + 0.01
 
 
 class Layout(Option):
@@ -71,7 +74,7 @@ def _table_of(board: Obstacle) -> Table:
     return Table(size=np.array(board.shape.size), pose=np.array(board.pose))
 
 
-def _shelf(rng, F) -> Tuple[_Furniture, List[Obstacle]]:
+def _shelf(rng, F) -> Tuple[_Furniture, List[Obstacle], List[float]]:
     depth, width = rng.uniform(0.3, 0.4), rng.uniform(0.7, 0.9)
     low, gap = rng.uniform(0.05, 0.2), rng.uniform(0.3, 0.38)
     tops = [low + k * gap for k in range(3)]
@@ -82,10 +85,10 @@ def _shelf(rng, F) -> Tuple[_Furniture, List[Obstacle]]:
     for side, y in (("left", 1), ("right", -1)):
         f.box(side, (depth, THICKNESS, top), (depth / 2, y * (width + THICKNESS) / 2, top / 2))
     f.box("back", (THICKNESS, width + 2 * THICKNESS, top), (depth + THICKNESS / 2, 0, top / 2))
-    return f, boards[:-1]
+    return f, boards[:-1], [gap - THICKNESS] * len(tops)
 
 
-def _cabinet(rng, F) -> Tuple[_Furniture, List[Obstacle]]:
+def _cabinet(rng, F) -> Tuple[_Furniture, List[Obstacle], List[float]]:
     depth, width, height = rng.uniform(0.35, 0.42), rng.uniform(0.5, 0.6), rng.uniform(0.75, 0.85)
     shelf_z = rng.uniform(0.35, 0.42)
     f = _Furniture(F, "cabinet_")
@@ -107,7 +110,7 @@ def _cabinet(rng, F) -> Tuple[_Furniture, List[Obstacle]]:
     f.box("drawer_floor", (depth, width - 0.02, THICKNESS), (depth / 2 - out, 0, 0.06))
     for side, y in (("drawer_left", 1), ("drawer_right", -1)):
         f.box(side, (depth, THICKNESS, drawer_h * 0.6), (depth / 2 - out, y * (width / 2 - 0.02), 0.05 + drawer_h * 0.3))
-    return f, [board]
+    return f, [board], [height - THICKNESS - shelf_z]
 
 
 def _bin(rng) -> Tuple[_Furniture, Table, np.ndarray]:
@@ -182,16 +185,16 @@ def _attempt_layout(kind: Layout, rng, lib, settings: LayoutSettings, info: Robo
     else:
         dist, yaw = rng.uniform(0.5, 0.62), rng.uniform(-0.35, 0.35)
         F = _pose(_rz(yaw), (dist * math.cos(yaw), dist * math.sin(yaw), 0.0))
-        furniture, boards = (_shelf if kind is Layout.shelf else _cabinet)(rng, F)
+        furniture, boards, free = (_shelf if kind is Layout.shelf else _cabinet)(rng, F)
         reachable = [b for b in boards if 0.15 <= b.top_plane()[1] <= 0.75]
         target_board = reachable[int(rng.integers(len(reachable)))]
         table = _table_of(target_board)
         obstacles = [o for o in furniture.boxes if o is not target_board]
         supports = []
-        for b in boards:
+        for b, height in zip(boards, free):
             d, w, _ = b.shape.size
             top = b.pose @ _pose(np.eye(3), (0, 0, THICKNESS / 2))
-            room = 0.28 if kind is Layout.shelf else 0.35
+            room = height - LIFT_ROOM  # an object the board above leaves room to lift
             # objects stand in the front part of a board (reached from the front)
             top = top @ _pose(np.eye(3), (-d / 2 + 0.3 * d, 0, 0))
             supports.append((top, (0.28 * d, w / 2 - 0.02), room, b is target_board))

@@ -88,9 +88,12 @@ MAX_TABLE_PENETRATION = 0.01  # m: settled objects sink a few mm into the table 
 
 def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None, path: Optional[str] = None) -> None:
     """InputError naming the object when one over the table reaches more than
-    ``MAX_TABLE_PENETRATION`` below its top face (into it, or under it)."""
+    ``MAX_TABLE_PENETRATION`` below its top face (into it, or under it). With other support surfaces
+    (obstacles marked ``support``: a shelf's lower boards) an object wholly under the table's bottom face
+    stands on one of them, not in the table."""
     if scene.table is None:
         return  # nothing to rest on or pass through
+    other_supports = any(getattr(ob, "support", False) for ob in getattr(scene, "obstacles", ()) or ())
     T_table = np.asarray(scene.table.pose, dtype=float)
     half = 0.5 * np.asarray(scene.table.size, dtype=float)
     to_table = np.linalg.inv(T_table)
@@ -106,6 +109,8 @@ def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None, 
         if np.any(np.abs(centre[:2]) > half[:2]):
             continue  # beside the table: nothing to pass through
         depth = half[2] - P[:, 2].min()
+        if other_supports and P[:, 2].max() <= -half[2]:
+            continue  # under the table, on another support
         if depth > MAX_TABLE_PENETRATION:
             raise InputError(f"object {o.name!r} reaches {100 * depth:.1f} cm below the table top (into or under the "
                              f"table; at most {100 * MAX_TABLE_PENETRATION:.0f} cm)", path=path, field=f"objects[{i}].pose")

@@ -79,27 +79,36 @@ class AntipodalSettings:
 class SupportFilter:
     """The support plane in the object's frame (the object as it lies): a hand whose palm reaches
     below it, or whose fingers reach deeper than the gripper's support tolerance plus the half pad
-    length the goal set may lift a grasp by (``omg.goals.SupportSettings``), cannot be used."""
+    length the goal set may lift a grasp by (``omg.goals.SupportSettings``), cannot be used.
+    ``approach``: the direction (object frame) the generator's fan of approaches is centred on
+    (default: down onto the support; into a shelf: level, ``World.open_approach``)."""
 
-    def __init__(self, normal, offset: float, tolerance: Optional[float] = None, robot=None):
+    def __init__(self, normal, offset: float, tolerance: Optional[float] = None, robot=None, approach=None):
         robot = robot if robot is not None else panda()  # the gripper's hand and fingers
         q = robot.ready_configuration
         self.normal, self.offset = np.asarray(normal, float) / np.linalg.norm(normal), float(offset)
+        self.approach = -self.normal if approach is None else np.asarray(approach, float) / np.linalg.norm(approach)
         self.tolerance = collision.SupportContact(tolerance).resolved(robot) + \
             0.5 * collision.gripper_spec(robot).pad_length
         self.fingers = collision.HandGeometry(robot, q, robot.hand_link, robot.finger_links)
         self.palm = collision.HandGeometry(robot, q, robot.hand_link, (robot.hand_link,))
 
     @classmethod
-    def under(cls, object_pose, tolerance: Optional[float] = None, robot=None) -> "SupportFilter":
-        """The plane z = 0 of the world (the table top) for an object at ``object_pose``."""
-        inv = np.linalg.inv(np.asarray(object_pose, float))
-        normal = inv[:3, :3] @ np.array([0.0, 0.0, 1.0])
-        return cls(normal, float(normal @ inv[:3, 3]), tolerance, robot)
+    def under(cls, object_pose, tolerance: Optional[float] = None, robot=None, plane=None,
+              approach=None) -> "SupportFilter":
+        """A world plane (unit normal, offset: normal . x = offset; default z = 0, the tabletop; a shelf
+        board's top: ``World.support_plane``) in the frame of an object at ``object_pose``; ``approach``:
+        the fan's centre, a world direction (default: down the plane's normal)."""
+        normal, offset = (np.array([0.0, 0.0, 1.0]), 0.0) if plane is None else plane
+        T = np.asarray(object_pose, float)
+        normal = np.asarray(normal, float) / np.linalg.norm(normal)
+        # n.(R x + p) = c  <=>  (R^T n).x = c - n.p
+        approach = None if approach is None else T[:3, :3].T @ np.asarray(approach, float)
+        return cls(T[:3, :3].T @ normal, float(offset) - float(normal @ T[:3, 3]), tolerance, robot, approach)
 
     @staticmethod
     def fan(k: int) -> np.ndarray:
-        """k approach angles about a grasp axis, from the most top-down one outwards: 0, +-15, +-30 deg, ..."""
+        """k approach angles about a grasp axis, from the one nearest the fan's centre outwards: 0, +-15, +-30 deg, ..."""
         steps = (np.arange(k) + 1) // 2
         return np.radians(15.0) * steps * np.where(np.arange(k) % 2 == 1, 1.0, -1.0)
 
@@ -170,8 +179,8 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
         y = np.where(flip[:, None], -d[idx], d[idx])  # +y points from the right finger to the left finger
         z0 = np.array([_perpendicular(v) for v in y])
         w0 = np.cross(y, z0)
-        if support is not None:  # from the most top-down approach about each axis, fanning out
-            down = -support.normal
+        if support is not None:  # from the approach nearest the centre (top-down) about each axis, fanning out
+            down = support.approach
             theta = np.arctan2(w0 @ down, z0 @ down)[:, None] + support.fan(k)
         z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * w0[:, None]   # (pairs, k, 3)
         yk = np.broadcast_to(y[:, None], z.shape)
