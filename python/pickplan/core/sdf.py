@@ -143,9 +143,9 @@ def mesh_sdf(mesh, settings: SdfSettings = SdfSettings(), cache: Optional[GridCa
     return grid
 
 
-def mesh_sdfs(meshes: Sequence, settings: SdfSettings, cache: GridCache, progress: Optional[bool] = None,
-              threads: Optional[int] = None) -> list:
-    """``mesh_sdf`` of each mesh through ``cache``, the grids not in memory built side by side on
+def mesh_sdfs(meshes: Sequence, settings: SdfSettings, cache: Optional[GridCache] = None,
+              progress: Optional[bool] = None, threads: Optional[int] = None) -> list:
+    """``mesh_sdf`` of each mesh (through ``cache`` when given), the grids not in memory built side by side on
     ``threads`` threads (default: one per core; the native build releases the GIL). On first use (no
     grid on disk yet) a bar with the time left appears after 2 s (``progress`` as ``runner.progress_bar``)."""
     keys = [mesh_content_key(m) for m in meshes]  # here, not on the threads: trimesh fills its hash cache
@@ -154,11 +154,11 @@ def mesh_sdfs(meshes: Sequence, settings: SdfSettings, cache: GridCache, progres
         first.setdefault(k, meshes[i])
     threads = min(len(first), threads or os.cpu_count() or 1)
     if threads <= 1:
-        grids = {k: cache.grid(m, settings) for k, m in first.items()}
+        grids = {k: mesh_sdf(m, settings, cache) for k, m in first.items()}
         return [grids[k] for k in keys]
     with progress_bar(len(first), "SDF grids", progress, unit="grid", delay=2.0) as bar:
         def build(mesh):
-            grid = cache.grid(mesh, settings)
+            grid = mesh_sdf(mesh, settings, cache)
             bar.update(1)
             return grid
 

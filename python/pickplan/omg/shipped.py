@@ -30,38 +30,38 @@ def grippers(robot_names: Sequence[str] = SHIPPED_ROBOTS) -> List[RobotInfo]:
 
 
 def grasp_entries(names: Optional[Iterable[str]] = None, robot_names: Sequence[str] = SHIPPED_ROBOTS,
-                  settings: OMGSettings = OMGSettings()) -> List[Tuple[str, str, RobotInfo]]:
-    """(object name, entry path relative to the cache folder, gripper) of each shipped grasp set: the
-    name the planner's default grasp set is cached under by this version (``simulated.cache_name``)."""
+                  settings: OMGSettings = OMGSettings()) -> List[Tuple[str, str, str, RobotInfo]]:
+    """(object name, entry path relative to the cache folder, entry label, gripper) of each shipped grasp
+    set: where the planner's default grasp set is cached by this version (``simulated.cache_name``)."""
     if settings.grasp_kind not in (GraspKind.simulated, GraspKind.simulated.value):
         raise ValueError(f"only the simulated grasp set ships, got {settings.grasp_kind!r}")
     library = objects.library("builtin")
     out = []
     for gripper in grippers(robot_names):
         for name in sorted(BUILTIN_SPECS) if names is None else names:
-            file = simulated.cache_name(library.get(name), settings.grasp_count, settings.seed, gripper=gripper)
-            out.append((name, f"{simulated.CACHE_FOLDER}/{file}", gripper))
+            request = (library.get(name), settings.grasp_count, settings.seed)
+            file = simulated.cache_name(*request, gripper=gripper)
+            out.append((name, f"{simulated.CACHE_FOLDER}/{file}", simulated.entry_label(*request, gripper=gripper),
+                        gripper))
     return out
 
 
 def build(folder: Optional[str] = None, names: Optional[Iterable[str]] = None, workers: int = 1,
           progress: Optional[bool] = None) -> dict:
     """Compute the shipped entries (``names``: the built-in objects to redo, default all) into ``folder``
-    (default ``io.shipped_dir()``) and rewrite its manifest; an object's older entries are removed.
-    Returns the manifest's entries."""
+    (default ``io.shipped_dir()``) and rewrite its manifest; an entry of the same label made by another
+    version is removed. Returns the manifest's entries."""
     folder = io.shipped_dir() if folder is None else folder
     settings = OMGSettings()
     library = objects.library("builtin")
     entries = io.read_manifest(folder)
-    for name, rel, gripper in grasp_entries(names, settings=settings):
-        model = library.get(name)
-        label = simulated.entry_label(model, gripper)
+    for name, rel, label, gripper in grasp_entries(names, settings=settings):
         for old in [r for r, e in entries.items() if e.get("label") == label]:
             entries.pop(old)
             if os.path.isfile(os.path.join(folder, old)):
                 os.unlink(os.path.join(folder, old))
-        gs = simulated.simulated_grasps(model, settings.grasp_count, settings.seed, workers=workers,
-                                      progress=progress, cache=False, gripper=gripper)
+        gs = simulated.simulated_grasps(library.get(name), settings.grasp_count, settings.seed, workers=workers,
+                                        progress=progress, cache=False, gripper=gripper)
         path = os.path.join(folder, rel)
         simulated.write_grasp_file(path, gs)
         entries[rel] = {"sha256": io.file_sha256(path), "label": label, "grasps": int(len(gs.poses))}

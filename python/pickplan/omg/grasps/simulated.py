@@ -30,27 +30,36 @@ CACHE_VERSION = 2  # 2: the shake test's turns and rotation check; coupled finge
 CACHE_FOLDER = "grasps"
 
 
+def _request(n, seed, settings, antipodal, oversample, max_rounds) -> dict:
+    return {"sim": asdict(settings), "antipodal": asdict(antipodal), "n": int(n), "seed": int(seed),
+            "oversample": float(oversample), "rounds": int(max_rounds)}
+
+
 def cache_name(model, n, seed, settings=SimSettings(), antipodal=AntipodalSettings(), oversample=3.0,
                max_rounds=4, gripper: RobotInfo = PANDA) -> str:
     """The entry's file name in the cache's ``grasps`` folder (and in the shipped one): the hash of
-    everything the set depends on."""
+    everything the set depends on, the generator's version (``CACHE_VERSION``) and the object's mesh,
+    collision parts and mass included."""
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(model.mesh.vertices, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(model.mesh.faces, dtype=np.int64).tobytes())
     with open(model.collision_obj_path(), "rb") as f:
         h.update(f.read())
-    h.update(json.dumps({"v": CACHE_VERSION, "mass": float(model.mass), "sim": asdict(settings),
-                         "antipodal": asdict(antipodal), "n": int(n), "seed": int(seed),
-                         "oversample": float(oversample), "rounds": int(max_rounds)}, sort_keys=True).encode())
+    request = _request(n, seed, settings, antipodal, oversample, max_rounds)
+    h.update(json.dumps({"v": CACHE_VERSION, "mass": float(model.mass), **request}, sort_keys=True).encode())
     if gripper.key != PANDA.key:  # the Panda's entries keep their names
         h.update(repr(gripper.key).encode())
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in model.name)
     return f"{safe}-simulated-{h.hexdigest()[:24]}.npz"
 
 
-def entry_label(model, gripper: RobotInfo = PANDA) -> str:
-    """What a shipped entry is of (``io.cache_entry``'s label): the object and the gripper."""
-    return f"{model.name} / {gripper.name}"
+def entry_label(model, n, seed, settings=SimSettings(), antipodal=AntipodalSettings(), oversample=3.0,
+                max_rounds=4, gripper: RobotInfo = PANDA) -> str:
+    """What an entry is of (``io.cache_entry``'s label): the object's name, the gripper and the request
+    (count, seed, settings), not the generator's version or the object's geometry; a shipped entry of
+    the same label under another name was made by another version."""
+    request = json.dumps(_request(n, seed, settings, antipodal, oversample, max_rounds), sort_keys=True)
+    return f"{model.name} / {gripper.name} / {hashlib.sha256(request.encode()).hexdigest()[:12]}"
 
 
 def read_grasp_file(path: str, object_name: str) -> GraspSet:
@@ -79,8 +88,9 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
     _check_count(n, seed)
     if int(workers) < 1:
         raise ValueError(f"workers: expected >= 1, got {workers}")
-    name = cache_name(model, n, seed, settings, antipodal, oversample, max_rounds, gripper) if cache else None
-    found = io.cache_entry(CACHE_FOLDER, name, label=entry_label(model, gripper)) if name else None
+    request = (model, n, seed, settings, antipodal, oversample, max_rounds, gripper)
+    name = cache_name(*request) if cache else None
+    found = io.cache_entry(CACHE_FOLDER, name, label=entry_label(*request)) if name else None
     if found:
         return read_grasp_file(found, model.name)
     m = int(math.ceil(n * oversample))
