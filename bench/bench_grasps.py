@@ -17,6 +17,7 @@ import numpy as np
 
 from pickplan.omg import grasps as G
 from pickplan.omg.grasps import physics as S
+from pickplan.omg.grasps import simulated as SG
 from pickplan.core import objects
 
 DEFAULT_OBJECTS = ("005_tomato_soup_can", "006_mustard_bottle", "021_bleach_cleanser", "025_mug", "024_bowl")
@@ -60,7 +61,7 @@ def main(argv=None) -> int:
             model = lib.get(name)
             _, t_app = timed(G.approach_grasps, model, a.n, a.seed)
             anti, t_anti = timed(G.antipodal_grasps, model, a.n, a.seed)
-            sim, t_sim = timed(S.simulated_grasps, model, a.sim_n, a.seed, workers=a.workers, cache=False,
+            sim, t_sim = timed(SG.simulated_grasps, model, a.sim_n, a.seed, workers=a.workers, cache=False,
                                progress=False)
             lift_a = S.lift_test(model, anti.poses[:a.lift_n]) if len(anti) else np.zeros(0)
             lift_s = S.lift_test(model, sim.poses) if len(sim) else np.zeros(0)

@@ -9,7 +9,8 @@ from conftest import ycb_dir_or_skip
 
 from pickplan.omg import grasps as G
 from pickplan.omg.grasps import physics as S
-from pickplan.core import objects
+from pickplan.omg.grasps import simulated as SG
+from pickplan.core import io, objects
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +104,7 @@ def test_bad_input_errors(builtins):
     with pytest.raises(ValueError, match="friction > 0"):
         G.antipodal_grasps(can, 3, 0, friction=0.0)
     with pytest.raises(ValueError, match="workers: expected >= 1"):
-        S.simulated_grasps(can, 2, 0, workers=0)
+        SG.simulated_grasps(can, 2, 0, workers=0)
     with pytest.raises(ValueError, match="opening"):
         G.hand_contacts(0.05)
 
@@ -218,26 +219,26 @@ def test_approach_grasps_are_free_tight_and_point_at_the_object(builtins):
 # --- simulated ----------------------------------------------------------------------------------------
 def test_simulated_grasps_deterministic_cached_and_worker_independent(builtins, tmp_path, capsys):
     model = builtins.get("005_tomato_soup_can")
-    a = S.simulated_grasps(model, 3, seed=5, oversample=2, cache=False, progress=True)
+    a = SG.simulated_grasps(model, 3, seed=5, oversample=2, cache=False, progress=True)
     assert "shake round 1" in capsys.readouterr().err
-    b = S.simulated_grasps(model, 3, seed=5, oversample=2)  # computes and writes the cache
+    b = SG.simulated_grasps(model, 3, seed=5, oversample=2)  # computes and writes the cache
     assert len(a) == 3 and a.name == "simulated"
     np.testing.assert_array_equal(a.poses, b.poses)
     np.testing.assert_array_equal(a.scores, b.scores)
-    files = os.listdir(S.cache_dir())
+    files = os.listdir(io.cache_dir(SG.CACHE_FOLDER))
     assert len(files) == 1 and files[0].startswith("005_tomato_soup_can-simulated-")
-    c = S.simulated_grasps(model, 3, seed=5, oversample=2)  # from the cache
+    c = SG.simulated_grasps(model, 3, seed=5, oversample=2)  # from the cache
     np.testing.assert_array_equal(a.poses, c.poses)
     assert int(c.info["tested"]) == int(a.info["tested"])
-    d = S.simulated_grasps(model, 3, seed=5, oversample=2, workers=2, cache=False)
+    d = SG.simulated_grasps(model, 3, seed=5, oversample=2, workers=2, cache=False)
     np.testing.assert_array_equal(a.poses, d.poses)
-    assert not np.allclose(S.simulated_grasps(model, 3, seed=6, oversample=2, cache=False).poses, a.poses)
+    assert not np.allclose(SG.simulated_grasps(model, 3, seed=6, oversample=2, cache=False).poses, a.poses)
     assert G.grasp_set(model, "simulated", 3, 5, oversample=2).poses.shape == (3, 4, 4)
 
 
 def test_simulated_grasps_lift_from_the_table(builtins):
     model = builtins.get("005_tomato_soup_can")
-    sim = S.simulated_grasps(model, 3, seed=0, oversample=2, cache=False)
+    sim = SG.simulated_grasps(model, 3, seed=0, oversample=2, cache=False)
     r_sim = S.lift_test(model, sim.poses)
     assert (r_sim >= 0).sum() >= 2 and S.lift_rate(r_sim) == 1.0
 

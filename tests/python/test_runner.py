@@ -85,6 +85,10 @@ def test_progress_bar_counts_jobs_and_stays_quiet_when_asked():
     with progress_bar(4, "left", True, shown) as bar:
         bar.update(4)
     assert "4/4" in shown.getvalue() and "<00:00" in shown.getvalue()  # the time left is shown
+    late = io.StringIO()  # a delayed bar: work done sooner shows nothing
+    with progress_bar(4, "late", True, late, delay=60.0) as bar:
+        bar.update(4)
+    assert late.getvalue() == ""
 
 
 def test_bad_arguments_are_clear():

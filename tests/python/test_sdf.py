@@ -134,6 +134,20 @@ def test_scene_sdf_takes_the_nearest_body_and_excludes_by_name():
     np.testing.assert_allclose(d_b[0], 0.07, atol=2e-3)
 
 
+def test_mesh_sdfs_builds_each_distinct_mesh_once_on_threads_in_order():
+    """The grids of a scene built side by side equal the ones built one by one, in the meshes' order;
+    a mesh given twice is built once."""
+    settings = sdf.SdfSettings(resolution=0.01, margin=0.05, cache_dir="")
+    box, ball = trimesh.creation.box(extents=(0.1, 0.06, 0.04)), trimesh.creation.icosphere(2, 0.04)
+    cache = sdf.GridCache(8)
+    grids = sdf.mesh_sdfs([box, ball, box], settings, cache, threads=2)
+    assert cache.misses == 2 and grids[0] is grids[2]
+    for mesh, grid in zip((box, ball), grids):
+        alone = sdf.mesh_sdf(mesh, settings)
+        np.testing.assert_array_equal(np.asarray(grid.values), np.asarray(alone.values))
+        np.testing.assert_array_equal(np.asarray(grid.origin), np.asarray(alone.origin))
+
+
 @pytest.mark.parametrize("V, F, message", [
     (np.zeros((0, 3)), np.zeros((0, 3), int), "empty"),
     (np.zeros((3, 3)), np.array([[0, 1, 2]]), "degenerate"),

@@ -187,12 +187,18 @@ OmgLoopResult Loop::run() {
   OmgLoopResult r;
   const int m = book_.tail_length();
   Trajectory xi = warm_ ? warm_->initial : initial(0);
-  const Eigen::VectorXd c0 = estimates(xi, 0);
-  policy_.reset(book_.size(), s_.iterations, &c0);
+  // The initial estimates pick the first goal and seed the policy; a warm start on a given goal needs
+  // them only when it does not stand as it is (below), so they wait until then.
+  const bool warm_goal = warm_ && warm_->initial_goal >= 0;
+  Eigen::VectorXd c0;
   int g = 0;
-  for (int j = 1; j < c0.size(); ++j)  // the initial goal: best by the initial estimate (np.argmin)
-    if (c0[j] < c0[g]) g = j;
-  if (warm_ && warm_->initial_goal >= 0) g = warm_->initial_goal;
+  if (warm_goal) {
+    g = warm_->initial_goal;
+  } else {
+    c0 = estimates(xi, 0);
+    for (int j = 1; j < c0.size(); ++j)  // the initial goal: best by the initial estimate (np.argmin)
+      if (c0[j] < c0[g]) g = j;
+  }
   if (!warm_) xi = initial(g);
   // A warm start already on its goal's approach (nothing moved there) may stand as it is; one whose
   // goal moved gets the new approach and is optimized (a jump onto it may pass the test, but is a jump).
@@ -204,6 +210,10 @@ OmgLoopResult Loop::run() {
     StageTimer timer(s_.clock, &seconds_.metrics);
     r.metrics = evaluate_trajectory(problem_, q0_, xi, s_.metrics, /*stop_at_failure=*/true);
     have_metrics = r.metrics.success;
+  }
+  if (!have_metrics) {
+    if (warm_goal) c0 = estimates(warm_->initial, 0);
+    policy_.reset(book_.size(), s_.iterations, &c0);
   }
   for (int i = 0; i < s_.iterations && !have_metrics; ++i) {
     r.iterations = i + 1;

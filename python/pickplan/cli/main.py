@@ -17,6 +17,7 @@ Exit codes (cli/exit_codes.py): 0 success, 1 ran but no plan, 2 bad input, 3 int
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 from typing import Optional, Sequence
@@ -35,8 +36,6 @@ from pickplan.omg.plan_file import plan_record
 from pickplan.omg.planner import OMGPlanner, OMGSettings
 from pickplan.sim.scenes import Scene
 from pickplan.cli.scenes import add_scene_commands
-from pickplan.cli.metamodel import add_metamodel_commands
-from pickplan.cli.pickup import add_pickup_commands
 from pickplan.cli.bench import add_bench_commands
 from pickplan.cli.robots import ROBOT_HELP, add_robot_commands
 from pickplan.cli.view import add_view_commands
@@ -80,7 +79,23 @@ def _cmd_plan(args) -> int:
     return ExitCode.OK if result.success else ExitCode.NO_PLAN
 
 
-def build_parser() -> argparse.ArgumentParser:
+# Groups whose modules import what the other commands never need (scikit-learn: a third of the start-up of
+# `pickplan plan`): imported when their command runs or every command is listed, else a stub names them.
+LAZY_GROUPS = {"metamodel": ("pickplan.cli.metamodel", "add_metamodel_commands",
+                             "pick-up-on-the-move success meta-model"),
+               "pickup": ("pickplan.cli.pickup", "add_pickup_commands", "pick-up on the move (Thakar et al.)")}
+
+
+def _add_group(sub, name: str, loaded: bool) -> None:
+    module, add, help = LAZY_GROUPS[name]
+    if loaded:
+        getattr(importlib.import_module(module), add)(sub, help=help)
+    else:
+        sub.add_parser(name, help=help)
+
+
+def build_parser(command: Optional[str] = None) -> argparse.ArgumentParser:
+    """Every command's parser; with ``command`` (the one about to run) the other lazy groups are stubs."""
     parser = argparse.ArgumentParser(prog="pickplan", description="Joint motion and grasp planning.")
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="plan and execute a grasp in a generated cluttered scene")
@@ -106,8 +121,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_scene_commands(sub)
     add_bench_commands(sub)
-    add_metamodel_commands(sub)
-    add_pickup_commands(sub)
+    for name in LAZY_GROUPS:
+        _add_group(sub, name, loaded=command is None or command == name)
     add_robot_commands(sub)
     add_view_commands(sub)
     add_observe_commands(sub)
@@ -121,7 +136,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     # ROS's own arguments (`pickplan ros serve ... --ros-args -p a:=1`) pass through unparsed
     ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
-    args = build_parser().parse_args(argv[:len(argv) - len(ros_args)])
+    command = next((a for a in argv if not a.startswith("-")), None)
+    args = build_parser(command).parse_args(argv[:len(argv) - len(ros_args)])
     args.ros_args = ros_args
     configure_logging(level_of(args))
     handler = getattr(args, "handler", None) or getattr(args, "func")

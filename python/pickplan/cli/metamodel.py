@@ -17,6 +17,7 @@ import argparse
 import os
 import sys
 from dataclasses import replace
+from typing import Optional
 
 import numpy as np
 
@@ -52,9 +53,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                         "rate (the failures no pose explains)")
 
 
-def add_metamodel_commands(subparsers) -> argparse.ArgumentParser:
+def add_metamodel_commands(subparsers, help: Optional[str] = None) -> argparse.ArgumentParser:
     """Register `metamodel build` and `metamodel compare` on an argparse subparsers object."""
-    mm = subparsers.add_parser("metamodel", help="pick-up-on-the-move success meta-model")
+    mm = subparsers.add_parser("metamodel", help=help)
     sub = mm.add_subparsers(dest="metamodel_command", required=True)
     b = sub.add_parser("build", help="learn the GSBs and fit rho_sigma(S_g, S_c)")
     _common(b)

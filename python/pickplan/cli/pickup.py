@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+from typing import Optional
 
 from pickplan.cli.output import add_verbosity_options, configure_logging, level_of
 from pickplan.cli.exit_codes import ExitCode
@@ -32,9 +33,9 @@ from pickplan.pickup.nlp import replay
 from pickplan.pickup.nlp import solve_problem
 
 
-def add_pickup_commands(subparsers) -> None:
+def add_pickup_commands(subparsers, help: Optional[str] = None) -> None:
     """Adds `pickup cases` to an argparse subparsers object (the pickplan CLI's)."""
-    pk = subparsers.add_parser("pickup", help="pick-up on the move (Thakar et al.)")
+    pk = subparsers.add_parser("pickup", help=help)
     sub = pk.add_subparsers(dest="pickup_command", required=True)
     c = sub.add_parser("cases", help="Tables I-IV and Fig. 5 of Sec. VI")
     c.add_argument("--out", default="out/pickup_cases", help="output folder")

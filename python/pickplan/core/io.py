@@ -5,7 +5,10 @@ cache folder, and derived files named by their content.
 - ``cache_dir``: ``$PICKPLAN_CACHE_DIR`` or ``~/.cache/pickplan`` (SDF grids, simulated grasps,
   meta-models);
 - ``content_file``: a file made from text (a URDF cut from another, an OBJ of collision parts) in
-  the per-user temp folder, named by the hash of its content and written once.
+  the per-user temp folder, named by the hash of its content and written once;
+- ``cache_entry``: where to read a cache entry from: the user's cache folder, else the copy shipped
+  with pickplan (``assets/cache``: what depends only on the built-in objects and robots, made by
+  ``make builtin-cache``), whose SHA-256 in ``assets/cache/manifest.json`` is checked on every read.
 """
 from __future__ import annotations
 
@@ -14,9 +17,11 @@ import hashlib
 import json
 import os
 import tempfile
-from typing import Any, Iterator
+import warnings
+from typing import Any, Iterator, Optional
 
 from pickplan.core.errors import InputError
+from pickplan.core.paths import assets_dir
 
 
 @contextlib.contextmanager
@@ -47,6 +52,62 @@ def cache_dir(*parts: str) -> str:
     """``$PICKPLAN_CACHE_DIR`` (default ``~/.cache/pickplan``), joined with ``parts``."""
     root = os.environ.get(CACHE_ENV) or os.path.join(os.path.expanduser("~"), ".cache", "pickplan")
     return os.path.join(root, *parts)
+
+
+SHIPPED_MANIFEST = "manifest.json"
+SHIPPED_FORMAT = 1
+
+
+def shipped_dir() -> str:
+    """The cache entries shipped with pickplan (``assets/cache``), laid out as the cache folder."""
+    return os.path.join(assets_dir(), "cache")
+
+
+def file_sha256(path: str) -> str:
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def read_manifest(folder: str) -> dict:
+    """The shipped entries listed in ``folder/manifest.json``: relative path -> {"sha256", "label"};
+    empty when there is no manifest (a source tree before ``make builtin-cache``)."""
+    path = os.path.join(folder, SHIPPED_MANIFEST)
+    if not os.path.isfile(path):
+        return {}
+    data = read_json(path, "shipped cache manifest")
+    if not isinstance(data, dict) or data.get("format") != SHIPPED_FORMAT or not isinstance(data.get("entries"), dict):
+        raise InputError(f"expected format {SHIPPED_FORMAT} with an 'entries' table", path=path, field="format")
+    return data["entries"]
+
+
+def cache_entry(*parts: str, label: str = "", shipped: Optional[str] = None) -> Optional[str]:
+    """The file to read the cache entry ``cache_dir(*parts)`` from: that file when the user's cache
+    holds it, else the copy shipped with pickplan (``shipped``, default ``shipped_dir()``) when its
+    manifest lists it and its SHA-256 matches; else None: the caller computes the entry and writes it
+    to ``cache_dir(*parts)``. Never trusted silently: a shipped copy that fails its checksum is not
+    used (a warning says so), nor is a shipped entry of the same ``label`` (an object's name) under
+    another name: it was made by another version of the generator (a warning says so)."""
+    own = cache_dir(*parts)
+    if os.path.isfile(own):
+        return own
+    folder = shipped_dir() if shipped is None else shipped
+    entries = read_manifest(folder)
+    name = "/".join(parts)
+    entry = entries.get(name)
+    if entry is None:
+        stale = [n for n, e in entries.items() if label and e.get("label") == label
+                 and os.path.dirname(n) == os.path.dirname(name)]
+        if stale:
+            warnings.warn(f"the shipped {os.path.dirname(name) or 'cache'} data of {label} was made by another "
+                          f"version of its generator ({stale[0]}, this version asks for {name}): computing it",
+                          stacklevel=2)
+        return None
+    path = os.path.join(folder, *parts)
+    if not os.path.isfile(path) or file_sha256(path) != entry.get("sha256"):
+        warnings.warn(f"shipped cache entry {path}: missing or checksum mismatch (corrupt): computing it",
+                      stacklevel=2)
+        return None
+    return path
 
 
 def content_file(text: str, folder: str, suffix: str, stem: str = "", header: str = "") -> str:

@@ -48,14 +48,16 @@ class JobFailure:
 
 
 def progress_bar(total: int, label: str = "", enabled: Optional[bool] = None, stream: Optional[TextIO] = None,
-                 done: int = 0, unit: str = "it") -> tqdm:
+                 done: int = 0, unit: str = "it", delay: float = 0.0) -> tqdm:
     """A tqdm bar on ``stream`` (default: the current stderr) with elapsed and remaining time.
     ``enabled``: True shows it, False hides it, None shows it only when the stream is a terminal and
-    the ``pickplan`` logger is not set above INFO (``pickplan --quiet`` sets it to WARNING)."""
+    the ``pickplan`` logger is not set above INFO (``pickplan --quiet`` sets it to WARNING).
+    ``delay``: seconds before it appears (work done sooner shows nothing)."""
     if enabled is None and logging.getLogger("pickplan").level > logging.INFO:
         enabled = False
     return tqdm(total=total, initial=done, desc=label, unit=unit, file=stream if stream is not None else sys.stderr,
-                disable=None if enabled is None else not enabled, dynamic_ncols=True, mininterval=0.25)
+                disable=None if enabled is None else not enabled, dynamic_ncols=True, mininterval=0.25,
+                delay=delay)
 
 
 def _call(fn: Callable[[Any], Any], job: Any, errors: OnError) -> Any:

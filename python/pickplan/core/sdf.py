@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import os
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Iterable, Optional, Sequence, Tuple
 
@@ -15,6 +16,7 @@ from pickplan.core.caches import BoundedCache, mesh_content_key
 from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open, cache_dir
 from pickplan.core.meshes import check_mesh_arrays
+from pickplan.core.runner import progress_bar
 
 SDF_FORMAT_VERSION = 2  # 2: entries carry a checksum and the writer's code and format versions
 
@@ -139,6 +141,30 @@ def mesh_sdf(mesh, settings: SdfSettings = SdfSettings(), cache: Optional[GridCa
     if path:
         _write_cache(path, grid)
     return grid
+
+
+def mesh_sdfs(meshes: Sequence, settings: SdfSettings, cache: Optional[GridCache] = None,
+              progress: Optional[bool] = None, threads: Optional[int] = None) -> list:
+    """``mesh_sdf`` of each mesh (through ``cache`` when given), the grids not in memory built side by side on
+    ``threads`` threads (default: one per core; the native build releases the GIL). On first use (no
+    grid on disk yet) a bar with the time left appears after 2 s (``progress`` as ``runner.progress_bar``)."""
+    keys = [mesh_content_key(m) for m in meshes]  # here, not on the threads: trimesh fills its hash cache
+    first = {}
+    for i, k in enumerate(keys):
+        first.setdefault(k, meshes[i])
+    threads = min(len(first), threads or os.cpu_count() or 1)
+    if threads <= 1:
+        grids = {k: mesh_sdf(m, settings, cache) for k, m in first.items()}
+        return [grids[k] for k in keys]
+    with progress_bar(len(first), "SDF grids", progress, unit="grid", delay=2.0) as bar:
+        def build(mesh):
+            grid = mesh_sdf(mesh, settings, cache)
+            bar.update(1)
+            return grid
+
+        with ThreadPoolExecutor(threads) as pool:
+            grids = dict(zip(first, pool.map(build, first.values())))
+    return [grids[k] for k in keys]
 
 
 class SceneSdf:

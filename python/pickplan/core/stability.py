@@ -53,21 +53,23 @@ def _drain_targets(hull: trimesh.Trimesh, faces: List[np.ndarray], com: np.ndarr
             key = tuple(sorted(edge))
             neighbours[k0][key] = k1
             neighbours[k1][key] = k0
-    verts = np.asarray(hull.vertices)
+    verts, tri = np.asarray(hull.vertices), np.asarray(hull.faces)
+    centers = np.asarray(hull.triangles_center)  # read once: each trimesh property read checks its cache
     step = np.arange(len(faces))
     for k in range(len(faces)):
+        if not neighbours[k]:
+            continue
         n = normals[k]
-        p = com - np.dot(com - verts[hull.faces[faces[k][0]][0]], n) * n  # COM projected onto the plane
+        p = com - np.dot(com - verts[tri[faces[k][0]][0]], n) * n  # COM projected onto the plane
+        edges = np.array(list(neighbours[k].keys()))
+        a = verts[edges[:, 0]]
+        outward = np.cross(verts[edges[:, 1]] - a, n)  # perpendicular to each edge in the face's plane
+        outward[np.einsum("ij,ij->i", outward, centers[faces[k][0]] - a) > 0] *= -1.0
+        d = np.einsum("ij,ij->i", p - a, outward) / np.linalg.norm(outward, axis=1)
         worst, target = 0.0, k
-        for (i, j), other in neighbours[k].items():
-            e = verts[j] - verts[i]
-            outward = np.cross(e, n)  # perpendicular to the edge in the face's plane
-            inside_point = hull.triangles_center[faces[k][0]]
-            if np.dot(outward, inside_point - verts[i]) > 0:
-                outward = -outward
-            d = np.dot(p - verts[i], outward) / np.linalg.norm(outward)
-            if d > worst + 1e-12:  # the projection lies beyond this edge: tip over it
-                worst, target = d, other
+        for dist, other in zip(d.tolist(), neighbours[k].values()):
+            if dist > worst + 1e-12:  # the projection lies beyond this edge: tip over it
+                worst, target = dist, other
         step[k] = target
     final = step.copy()
     for k in range(len(faces)):  # follow the tipping chain to a face that keeps the object

@@ -43,11 +43,9 @@ def hand_sdf(robot, opening: Optional[float] = None, resolution: float = 0.002,
     poses = robot.fk(q)
     H_inv = np.linalg.inv(poses[robot.link_index(robot.hand_link)])
     settings = sdf.SdfSettings(resolution=resolution, margin=0.03)
-    parts = []
-    for name in (robot.hand_link,) + tuple(robot.finger_links):
-        mesh = robot.collision_meshes(name)
-        parts.append((name, sdf.mesh_sdf(mesh, settings, grids), H_inv @ poses[robot.link_index(name)]))
-    hand = sdf.SceneSdf(parts)
+    names = (robot.hand_link,) + tuple(robot.finger_links)
+    meshes = sdf.mesh_sdfs([robot.collision_meshes(name) for name in names], settings, grids)
+    hand = sdf.SceneSdf((name, grid, H_inv @ poses[robot.link_index(name)]) for name, grid in zip(names, meshes))
     # One lookup instead of one per part, at the parts' own resolution (queries use a 1 cm cutoff).
     hand.merge(resolution=resolution, cutoff=settings.margin)
     return hand

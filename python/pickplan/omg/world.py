@@ -77,8 +77,8 @@ class World:
         for o in scene.objects:
             self.models[o.name] = library.get(o.name) if library is not None and o.name in library \
                 else objects.model_from_source(o.name, o.source)
-        grids = [(o.name, sdf.mesh_sdf(self.models[o.name].mesh, settings.sdf, cache.grids), o.pose)
-                 for o in scene.objects]
+        meshes = sdf.mesh_sdfs([self.models[o.name].mesh for o in scene.objects], settings.sdf, cache.grids)
+        grids = [(o.name, grid, o.pose) for o, grid in zip(scene.objects, meshes)]
         table = None if scene.table is None else (np.asarray(scene.table.size), np.asarray(scene.table.pose))
         self.sdf = sdf.SceneSdf(grids, table=table)
         shapes.add_to_sdf(self.sdf, scene.obstacles, settings.sdf, cache.grids)  # shelves, bins: closed forms

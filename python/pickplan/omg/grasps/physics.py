@@ -29,30 +29,26 @@ Franka hand drives both with one motor, and ``execution.py`` couples them the sa
 it, gravity along the closing axis pushes the object and both force-limited fingers sideways.
 
 Every candidate runs from a fresh ``resetSimulation`` with its own seed, so results do not depend on
-the number of workers or the order of the runs. ``simulated_grasps`` caches its result on disk.
+the number of workers or the order of the runs. The "Simulated" set itself (``simulated_grasps``, cached
+on disk and shipped for the built-in objects) is ``grasps.simulated``.
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import math
-import os
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Optional, Tuple
 
 import numpy as np
 
-from pickplan.core.io import atomic_open
-from pickplan.core.runner import Runner, run_jobs
+from pickplan.core.io import CACHE_ENV  # noqa: F401 - re-exported for callers
+from pickplan.core.runner import run_jobs
 from pickplan.omg.grasps.generators import AntipodalSettings, antipodal_grasps
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
 from pickplan.omg.grasps.hand_world import (HandWorld, InHand, SimObject, quintic_step,
                                             smooth_step, turned_about)
-from pickplan.omg.grasps.sets import GraspSet, _check_count, check_grasps
+from pickplan.omg.grasps.sets import check_grasps
 
-CACHE_ENV = "PICKPLAN_CACHE_DIR"
-CACHE_VERSION = 2  # 2: the shake test's turns and rotation check; coupled fingers
 
 
 @dataclass(frozen=True)
@@ -404,27 +400,6 @@ def shake_and_transport(model, m: int, seed: int = 0, workers: int = 1, sim: "Si
     return [{"index": i, "pose": cand.poses[i], "shake": sh, "transport": tr} for i, (sh, tr) in zip(idx, res)]
 
 
-# --- the "Simulated" set ------------------------------------------------------------------------------
-def cache_dir() -> str:
-    root = os.environ.get(CACHE_ENV) or os.path.join(os.path.expanduser("~"), ".cache", "pickplan")
-    return os.path.join(root, "grasps")
-
-
-def _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds, gripper: RobotInfo = PANDA) -> str:
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(model.mesh.vertices, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(model.mesh.faces, dtype=np.int64).tobytes())
-    with open(model.collision_obj_path(), "rb") as f:
-        h.update(f.read())
-    h.update(json.dumps({"v": CACHE_VERSION, "mass": float(model.mass), "sim": asdict(settings),
-                         "antipodal": asdict(antipodal), "n": int(n), "seed": int(seed),
-                         "oversample": float(oversample), "rounds": int(max_rounds)}, sort_keys=True).encode())
-    if gripper.key != PANDA.key:  # the Panda's entries keep their names
-        h.update(repr(gripper.key).encode())
-    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in model.name)
-    return os.path.join(cache_dir(), f"{safe}-simulated-{h.hexdigest()[:24]}.npz")
-
-
 def shake_candidates(model, m: int, seed: int = 0, round: int = 0,
                      antipodal: AntipodalSettings = AntipodalSettings(), gripper: RobotInfo = PANDA):
     """Round ``round`` of ``simulated_grasps``: its ``m`` antipodal candidates and the shake-test
@@ -434,61 +409,3 @@ def shake_candidates(model, m: int, seed: int = 0, round: int = 0,
     cand = antipodal_grasps(model, m, rseed, settings=antipodal, gripper=gripper)
     seeds = [int(np.random.SeedSequence([int(seed), int(round), i]).generate_state(1)[0]) for i in range(len(cand))]
     return cand, seeds
-
-
-def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
-                     settings: SimSettings = SimSettings(),
-                     antipodal: AntipodalSettings = AntipodalSettings(), oversample: float = 3.0,
-                     max_rounds: int = 4, progress: Optional[bool] = None, cache: bool = True,
-                     gripper: RobotInfo = PANDA) -> GraspSet:
-    """The "Simulated" set: antipodal candidates (``ceil(n * oversample)`` per round, seeded per
-    round) that hold in the shake test, first ``n`` in candidate order; fewer (with a warning)
-    when ``max_rounds`` rounds do not give ``n``. ``workers`` > 1 runs worker processes (spawn);
-    the result does not depend on it. ``scores`` = 1 - drift / max_drift; ``info`` carries the
-    antipodal contacts, normals, widths and drifts, plus "tested" (candidates simulated, 0-d).
-    Cached in ``$PICKPLAN_CACHE_DIR/grasps`` (default ``~/.cache/pickplan/grasps``). Poses of
-    ``gripper``'s hand link, simulated with that gripper."""
-    _check_count(n, seed)
-    if int(workers) < 1:
-        raise ValueError(f"workers: expected >= 1, got {workers}")
-    path = _cache_path(model, n, seed, settings, antipodal, oversample, max_rounds, gripper) if cache else None
-    if path and os.path.isfile(path):
-        with np.load(path) as z:
-            info = {k[5:]: z[k] for k in z.files if k.startswith("info_")}
-            return GraspSet("simulated", z["poses"], model.name, scores=z["scores"], info=info)
-    obj = SimObject(model)
-    m = int(math.ceil(n * oversample))
-    keep = {k: [] for k in ("poses", "scores", "contacts", "normals", "width", "drift")}
-    tested = 0
-    with Runner(int(workers)) as runner:  # one pool for every round
-        for rnd in range(max_rounds):
-            cand, seeds = shake_candidates(model, m, seed, rnd, antipodal, gripper)
-            if len(cand) == 0:
-                break
-            jobs = [(obj, T, sd, settings, gripper) for T, sd in zip(cand.poses, seeds)]
-            results = [r for _, r in runner.map(_shake_job, jobs, chunksize=_chunksize(len(jobs), workers),
-                                                progress=progress, label=f"{model.name} shake round {rnd + 1}")]
-            tested += len(cand)
-            for i, r in enumerate(results):
-                if r["held"]:
-                    keep["poses"].append(cand.poses[i])
-                    keep["scores"].append(1.0 - r["drift"] / settings.max_drift)
-                    for k in ("contacts", "normals", "width"):
-                        keep[k].append(cand.info[k][i])
-                    keep["drift"].append(r["drift"])
-            if len(keep["poses"]) >= n:
-                break
-    got = min(n, len(keep["poses"]))
-    if got < n:
-        import warnings
-        warnings.warn(f"{model.name}: only {got} of {n} simulated grasps held ({tested} tested)", stacklevel=2)
-    arr = {k: np.asarray(v[:got], dtype=float) for k, v in keep.items()}
-    if got == 0:
-        arr["poses"] = np.zeros((0, 4, 4))
-    info = {k: arr[k] for k in ("contacts", "normals", "width", "drift")}
-    info["tested"] = np.asarray(tested)
-    gs = GraspSet("simulated", arr["poses"], model.name, scores=arr["scores"], info=info)
-    if path:
-        with atomic_open(path, "wb") as f:
-            np.savez(f, poses=gs.poses, scores=gs.scores, **{f"info_{k}": v for k, v in info.items()})
-    return gs

@@ -22,7 +22,7 @@ from pickplan.core.poses import RIGID_CLEAN_TOLERANCE, clean_poses
 class GraspKind(Option):
     """The grasp set kinds (``grasp_set``): stored with YCB objects, or generated."""
 
-    simulated = "simulated"  # stored, else physics-verified (physics.simulated_grasps)
+    simulated = "simulated"  # stored, else physics-verified (simulated.simulated_grasps)
     graspit = "graspit"      # stored only
     approach = "approach"
     antipodal = "antipodal"

@@ -25,9 +25,9 @@ from typing import Tuple
 import numpy as np
 
 from pickplan.core.description import RobotInfo
-from pickplan.core.io import atomic_open
+from pickplan.core.io import atomic_open, cache_dir
 from pickplan.core.panda import PANDA
-from pickplan.omg.grasps.physics import CACHE_ENV, LiftSettings, SimObject, lift_trial
+from pickplan.omg.grasps.physics import LiftSettings, SimObject, lift_trial
 from pickplan.omg.grasps.quality import GraspFit, QualitySettings, model_quality
 from pickplan.omg.grasps.sets import check_grasps
 
@@ -70,9 +70,8 @@ def _cache_path(model, poses: np.ndarray, down: np.ndarray, gripper: RobotInfo, 
                          "settings": asdict(settings), "gripper": repr(gripper.key),
                          "grip": (gripper.grip_force, gripper.grip_speed, gripper.pad_friction)},
                         sort_keys=True, default=str).encode())
-    root = os.environ.get(CACHE_ENV) or os.path.join(os.path.expanduser("~"), ".cache", "pickplan")
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in model.name)
-    return os.path.join(root, "verified", f"{safe}-{h.hexdigest()[:24]}.npz")
+    return cache_dir("verified", f"{safe}-{h.hexdigest()[:24]}.npz")
 
 
 def verify_grasps(model, poses, object_pose, gripper: RobotInfo = PANDA, settings: VerifySettings = VerifySettings(),
