@@ -2,7 +2,8 @@
 # Proves a pickplan wheel self-contained (`make wheel-smoke`, and CI after `make test`):
 #   1. the bundled libraries' notices are listed and shipped (tools/third_party_notices.py --check);
 #   2. the wheel installs into a fresh venv outside the source tree (its Python deps from PyPI);
-#   3. ldd: every dependency of pickplan._core and pickplan-bench resolves into pickplan.libs/
+#   3. the shipped cache entries (assets/cache) are in the wheel and match their SHA-256;
+#   3b. ldd: every dependency of pickplan._core and pickplan-bench resolves into pickplan.libs/
 #      or to what manylinux takes from the system (glibc family, libstdc++, libgcc_s, libz, libexpat);
 #   4. in a private mount namespace where an empty file covers every Debian copy of a bundled library,
 #      `pickplan demo` plans and executes a scene (the process maps all of pickplan.libs/ and none of
@@ -23,6 +24,17 @@ echo "installed $(basename "$wheel") ($(du -k "$wheel" | cut -f1) KiB) into a fr
 
 cd "$work"  # nothing from the source tree on sys.path: pickplan comes from the venv
 venv/bin/python "$tools/wheel_check.py" libs "$work/hide.txt"
+# The built-in objects' shipped cache entries are in the wheel, each matching its SHA-256.
+venv/bin/python -c '
+import os
+from pickplan.core.io import file_sha256, read_manifest, shipped_dir
+folder = shipped_dir()
+entries = read_manifest(folder)
+assert entries, "no shipped cache entries in the wheel"
+bad = [n for n, e in entries.items() if file_sha256(os.path.join(folder, n)) != e["sha256"]]
+assert not bad, f"shipped cache entries failing their SHA-256: {bad}"
+print(f"{len(entries)} shipped cache entries verified in {folder}")
+'
 
 # The mount namespace is private to this command: the machine's libraries stay as they are.
 # Unprivileged users get one through a user namespace (needs kernel.unprivileged_userns_clone).
