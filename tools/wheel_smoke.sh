@@ -3,9 +3,9 @@
 #   1. the bundled libraries' notices are listed and shipped (tools/third_party_notices.py --check);
 #   2. the wheel installs into a fresh venv outside the source tree (its Python deps from PyPI);
 #   3. the shipped cache entries (assets/cache) are in the wheel and match their SHA-256;
-#   3b. ldd: every dependency of pickplan._core and pickplan-bench resolves into pickplan.libs/
+#   4. ldd: every dependency of pickplan._core and pickplan-bench resolves into pickplan.libs/
 #      or to what manylinux takes from the system (glibc family, libstdc++, libgcc_s, libz, libexpat);
-#   4. in a private mount namespace where an empty file covers every Debian copy of a bundled library,
+#   5. in a private mount namespace where an empty file covers every Debian copy of a bundled library,
 #      `pickplan demo` plans and executes a scene (the process maps all of pickplan.libs/ and none of
 #      the Debian copies) and pickplan-bench runs.
 # Usage: tools/wheel_smoke.sh dist/pickplan-VERSION-TAG.whl
