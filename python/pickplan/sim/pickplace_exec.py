@@ -165,28 +165,15 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
     models = {o.name: library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
               for o in scene.objects}
     sim = open_sim(scene, robot, parts["approach"].q[0], s, models, record, sim_class=_CarrySim)
-    arm = robot.info.arm_dof
     try:
         com0 = {name: sim.com(name) for name in sim.bodies}
         if record is not None:
             if record.colorize:
                 viz.colorize(sim.c, sim.bodies, sim.target)
             sim.capture()
-        sim.command_arm(parts["approach"].q[0], np.zeros(robot.dof))
-        sim.command_fingers(parts["approach"].q[0, arm], sim.grip_force)
-        for _ in range(int(round(s.start_settle / s.time_step))):
-            sim.step(True)
-        _follow_timed(sim, parts["approach"], True, True)
-        _hold(sim, parts["approach"].q[-1], s.approach_settle, True)
-        sim.command_fingers(robot.info.finger_closed, sim.grip_force)
-        _hold(sim, parts["approach"].q[-1], s.closing_time(robot.info), False)
-        held_after_close = sim.held()
-        sim.carrying = True
-        _follow_timed(sim, parts["lift"], False, True)
-        _hold(sim, parts["lift"].q[-1], s.hold_duration, True)
+        held_after_close, held_after_lift = _pick_and_lift(sim, robot, parts, s)
         grasp = hand_T_object(sim, robot)
         place_pose, planned = check.place_pose, True
-        held_after_lift = held_after_close and sim.held()  # lost on the lift: dropped, nothing to plan for
         if replan is not None and held_after_lift:
             out = replan(sim.joint_positions(), grasp)
             if out is None:
@@ -194,15 +181,7 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
             else:
                 parts.update(dict(out[0]))
                 place_pose = out[1]
-        held_before_release = False
-        if planned and held_after_lift:
-            _follow_timed(sim, parts["transfer"], False, True)
-            _hold(sim, parts["transfer"].q[-1], s.approach_settle, True)
-            held_before_release = sim.held()
-            sim.carrying = False
-            sim.command_fingers(robot.info.finger_open, sim.grip_force)
-            _hold(sim, parts["transfer"].q[-1], settings.release_duration, True)
-            _follow_timed(sim, parts["retract"], False, True)
+        held_before_release = bool(planned and held_after_lift) and _place_and_retract(sim, robot, parts, settings)
         _hold(sim, sim.joint_positions(), settings.settle_duration, False)
         final = scenes_mod.object_pose(sim.c, sim.bodies[scene.target], models[scene.target])
         v, w = sim.pb.getBaseVelocity(sim.bodies[scene.target], physicsClientId=sim.c)
@@ -228,6 +207,36 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
                               grasp, final, tilt, yaw, in_region, at_rest, dict(sorted(sim.contacts.items())),
                               dict(sorted(held_contacts.items())), moved, sim.steps * s.time_step,
                               time.perf_counter() - t_start, sim.frames)
+
+
+def _pick_and_lift(sim, robot, parts: dict, s) -> Tuple[bool, bool]:
+    """Settle at the start, approach, close, lift and hold: (held after closing, still held after the lift)."""
+    sim.command_arm(parts["approach"].q[0], np.zeros(robot.dof))
+    sim.command_fingers(parts["approach"].q[0, robot.info.arm_dof], sim.grip_force)
+    for _ in range(int(round(s.start_settle / s.time_step))):
+        sim.step(True)
+    _follow_timed(sim, parts["approach"], True, True)
+    _hold(sim, parts["approach"].q[-1], s.approach_settle, True)
+    sim.command_fingers(robot.info.finger_closed, sim.grip_force)
+    _hold(sim, parts["approach"].q[-1], s.closing_time(robot.info), False)
+    held_after_close = sim.held()
+    sim.carrying = True
+    _follow_timed(sim, parts["lift"], False, True)
+    _hold(sim, parts["lift"].q[-1], s.hold_duration, True)
+    return held_after_close, held_after_close and sim.held()  # lost on the lift: dropped, nothing to plan for
+
+
+def _place_and_retract(sim, robot, parts: dict, settings: PickPlaceExecSettings) -> bool:
+    """Carry, set down, release and retract: whether the object was still held before the release."""
+    s = settings.execution
+    _follow_timed(sim, parts["transfer"], False, True)
+    _hold(sim, parts["transfer"].q[-1], s.approach_settle, True)
+    held_before_release = sim.held()
+    sim.carrying = False
+    sim.command_fingers(robot.info.finger_open, sim.grip_force)
+    _hold(sim, parts["transfer"].q[-1], settings.release_duration, True)
+    _follow_timed(sim, parts["retract"], False, True)
+    return held_before_release
 
 
 def _outcome(finite: bool, stages: dict, collisions: dict, in_region: bool, at_rest: bool, tilt: float, yaw: float,
