@@ -117,6 +117,50 @@ class SupportFilter:
             (self.palm.penetration(hand_poses, self.normal, self.offset) <= 0.0)
 
 
+def _contact_pairs(mesh, rng: np.random.Generator, s: AntipodalSettings, cone: float):
+    """One round's ``samples_per_round`` surface points p (outward normals n_p), rays d from them into the
+    object uniform in the friction cone around -n_p, their exit points q (normals n_q; NaN without one),
+    the widths |q - p| and the angles of d to -n_p and n_q."""
+    m = s.samples_per_round
+    p, face = trimesh.sample.sample_surface(mesh, m, seed=int(rng.integers(2**31)))
+    n_p = mesh.face_normals[face]
+    cos_t = rng.uniform(np.cos(cone), 1.0, m)
+    phi = rng.uniform(0, 2 * np.pi, m)
+    u = np.array([_perpendicular(v) for v in n_p])
+    v = np.cross(n_p, u)
+    sin_t = np.sqrt(1 - cos_t ** 2)
+    d = -cos_t[:, None] * n_p + sin_t[:, None] * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)
+    loc, ray, tri = mesh.ray.intersects_location(p + 1e-5 * d, d, multiple_hits=False)
+    q = np.full((m, 3), np.nan)
+    n_q = np.full((m, 3), np.nan)
+    q[ray], n_q[ray] = loc, mesh.face_normals[tri]
+    w = np.linalg.norm(q - p, axis=1)
+    with np.errstate(invalid="ignore"):
+        ang_q = np.arccos(np.clip(np.einsum("ij,ij->i", n_q, d), -1, 1))
+        ang_p = np.arccos(np.clip(-np.einsum("ij,ij->i", n_p, d), -1, 1))
+    return p, q, n_p, n_q, d, w, ang_p, ang_q
+
+
+def _hands_about_axes(rng: np.random.Generator, p: np.ndarray, q: np.ndarray, d: np.ndarray, k: int,
+                      support: Optional[SupportFilter]) -> np.ndarray:
+    """(pairs, k, 4, 4) grasp frames closing along each pair's axis, pad centre at its midpoint, at k
+    turns about the axis (a random offset, or fanned out from the support's approach)."""
+    theta = rng.uniform(0, 2 * np.pi, len(p))[:, None] + 2 * np.pi * np.arange(k) / k
+    flip = rng.random(len(p)) < 0.5  # which finger takes p
+    y = np.where(flip[:, None], -d, d)  # +y points from the right finger to the left finger
+    z0 = np.array([_perpendicular(v) for v in y])
+    w0 = np.cross(y, z0)
+    if support is not None:  # from the approach nearest the centre (top-down) about each axis, fanning out
+        down = support.approach
+        theta = np.arctan2(w0 @ down, z0 @ down)[:, None] + support.fan(k)
+    z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * w0[:, None]   # (pairs, k, 3)
+    yk = np.broadcast_to(y[:, None], z.shape)
+    T = np.tile(np.eye(4), (len(p), k, 1, 1))
+    T[..., :3, 0], T[..., :3, 1], T[..., :3, 2] = np.cross(yk, z), yk, z
+    T[..., :3, 3] = (0.5 * (p + q))[:, None]
+    return T
+
+
 def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[float] = None,
                      max_width: Optional[float] = None, settings: AntipodalSettings = AntipodalSettings(),
                      gripper: RobotInfo = PANDA, support: Optional[SupportFilter] = None) -> GraspSet:
@@ -150,44 +194,14 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
     count = 0
     rejected = {"no_pair": 0, "hand_hits_object": 0, "support": 0}  # surface samples, then pairs
     for _ in range(s.max_rounds):
-        m = s.samples_per_round
-        p, face = trimesh.sample.sample_surface(mesh, m, seed=int(rng.integers(2**31)))
-        n_p = mesh.face_normals[face]
-        # ray direction uniform in the cone around -n_p
-        cos_t = rng.uniform(np.cos(cone), 1.0, m)
-        phi = rng.uniform(0, 2 * np.pi, m)
-        u = np.array([_perpendicular(v) for v in n_p])
-        v = np.cross(n_p, u)
-        sin_t = np.sqrt(1 - cos_t ** 2)
-        d = -cos_t[:, None] * n_p + sin_t[:, None] * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)
-        loc, ray, tri = mesh.ray.intersects_location(p + 1e-5 * d, d, multiple_hits=False)
-        q = np.full((m, 3), np.nan)
-        n_q = np.full((m, 3), np.nan)
-        q[ray], n_q[ray] = loc, mesh.face_normals[tri]
-        w = np.linalg.norm(q - p, axis=1)
-        with np.errstate(invalid="ignore"):
-            ang_q = np.arccos(np.clip(np.einsum("ij,ij->i", n_q, d), -1, 1))
-            ang_p = np.arccos(np.clip(-np.einsum("ij,ij->i", n_p, d), -1, 1))
-            ok = (ang_q <= cone) & (w >= s.min_width) & (w <= s.max_width - s.width_margin)
-        idx = np.flatnonzero(ok)
-        rejected["no_pair"] += m - len(idx)
+        p, q, n_p, n_q, d, w, ang_p, ang_q = _contact_pairs(mesh, rng, s, cone)
+        with np.errstate(invalid="ignore"):  # NaN where a ray found no exit
+            idx = np.flatnonzero((ang_q <= cone) & (w >= s.min_width) & (w <= s.max_width - s.width_margin))
+        rejected["no_pair"] += len(p) - len(idx)
         if len(idx) == 0:
             continue
         k = s.approach_angles
-        theta = rng.uniform(0, 2 * np.pi, len(idx))[:, None] + 2 * np.pi * np.arange(k) / k
-        flip = rng.random(len(idx)) < 0.5  # which finger takes p
-        y = np.where(flip[:, None], -d[idx], d[idx])  # +y points from the right finger to the left finger
-        z0 = np.array([_perpendicular(v) for v in y])
-        w0 = np.cross(y, z0)
-        if support is not None:  # from the approach nearest the centre (top-down) about each axis, fanning out
-            down = support.approach
-            theta = np.arctan2(w0 @ down, z0 @ down)[:, None] + support.fan(k)
-        z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * w0[:, None]   # (pairs, k, 3)
-        yk = np.broadcast_to(y[:, None], z.shape)
-        T = np.tile(np.eye(4), (len(idx), k, 1, 1))
-        T[..., :3, 0], T[..., :3, 1], T[..., :3, 2] = np.cross(yk, z), yk, z
-        T[..., :3, 3] = (0.5 * (p[idx] + q[idx]))[:, None]
-        T = T @ hand_from_grasp  # the grasp frames there -> the hand link
+        T = _hands_about_axes(rng, p[idx], q[idx], d[idx], k, support) @ hand_from_grasp  # grasp frames -> hand link
         free = ~check.in_collision(T.reshape(-1, 4, 4)).reshape(len(idx), k)
         rejected["hand_hits_object"] += int((~free.any(axis=1)).sum())
         if support is not None:
