@@ -11,7 +11,7 @@ next board) fails the test whatever the path to it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional, Tuple
 
 import numpy as np
@@ -54,7 +54,7 @@ def sampled_initialization(world, q0: np.ndarray, tails: np.ndarray, n: int,
     active = [i < robot.info.arm_dof for i in range(robot.dof)]
     checker = world.checker(CheckerKind.strict).native
     for attempt in range(settings.attempts):
-        rrt = RrtSettings(**{**settings.rrt.__dict__, "seed": settings.rrt.seed + attempt})
+        rrt = replace(settings.rrt, seed=settings.rrt.seed + attempt)
         planner = _core.MotionPlanner(checker, rrt.to_native(active))
         out = planner.rrt_connect(np.asarray(q0, float), np.asarray(tails[:, 0], float))
         if out["status"] != _core.RrtStatus.solved:
