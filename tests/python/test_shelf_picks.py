@@ -12,9 +12,10 @@ from pickplan.omg.grasps import antipodal_grasps
 from pickplan.omg.grasps.generators import AntipodalSettings, SupportFilter
 from pickplan.omg.grasps.hand import hand_urdf_path
 from pickplan.omg.world import World
+from pickplan.sim.arm_sim import open_sim
 from pickplan.sim.bodies import add_table
 from pickplan.sim.bullet import connect, pb
-from pickplan.sim.execution import ExecutionSettings, open_sim
+from pickplan.sim.execution import ExecutionSettings
 from pickplan.sim.layouts import Layout, generate_layout
 from pickplan.sim.lift import lift_headroom
 from pickplan.sim.scenes import Scene, SceneObject, Table, _mat_to_quat

@@ -32,8 +32,9 @@ from pickplan.core.settings import Option
 from pickplan.omg.moving import MotionEstimator, MovingPlanner, MovingSettings, ReplanMode
 from pickplan.omg.planner import OMGPlanner, OMGSettings
 from pickplan.omg.replan import Replanner, ReplanSettings
+from pickplan.sim.arm_sim import ArmSim, follow, hold, open_sim
 from pickplan.sim.conveyor import Conveyor, TargetPath
-from pickplan.sim.execution import ExecutionSettings, _follow, _hold, _Sim, lifted_and_held, open_sim
+from pickplan.sim.execution import ExecutionSettings, lifted_and_held
 from pickplan.sim.hand_path import hand_path
 from pickplan.sim.scenes import Scene
 
@@ -110,7 +111,7 @@ class EpisodeResult:
                 "sim_time": self.sim_time}
 
 
-class _MovingSim(_Sim):
+class _MovingSim(ArmSim):
     """The execution's simulation with the belt driven before every step."""
 
     belt: Optional[Conveyor] = None
@@ -228,11 +229,11 @@ class _Episode:
         sim.command_fingers(self.robot.info.finger_closed, sim.grip_force)
         z0 = sim.belt.z0
         k_close = int(round(close * s.track_rate))
-        _follow(sim, path[:k_close + 1], [(seg, steps)] * k_close, False, sim.grip_force, False)
+        follow(sim, path[:k_close + 1], [(seg, steps)] * k_close, False, sim.grip_force, False)
         self.held_after_close = sim.held()
         sim.belt.release()  # the fingers hold it now: the belt's hold on it is no match (sim.conveyor)
-        _follow(sim, path[k_close:], [(seg, steps)] * (n - k_close), False, sim.grip_force, False)
-        _hold(sim, path[-1], ex.hold_duration, False)
+        follow(sim, path[k_close:], [(seg, steps)] * (n - k_close), False, sim.grip_force, False)
+        hold(sim, path[-1], ex.hold_duration, False)
         return sim.held(), float(sim.belt.com()[2] - z0)
 
     def miss(self) -> float:

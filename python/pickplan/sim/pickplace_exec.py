@@ -30,7 +30,8 @@ from pickplan.core.settings import Option
 from pickplan.core.timing import TimedTrajectory
 from pickplan.sim import render as viz
 from pickplan.sim import scenes as scenes_mod
-from pickplan.sim.execution import ExecutionSettings, RecordSettings, _follow, _hold, _Sim, open_sim
+from pickplan.sim.arm_sim import ArmSim, follow, hold, open_sim
+from pickplan.sim.execution import ExecutionSettings, RecordSettings
 
 
 class PlaceOutcome(Option):
@@ -99,8 +100,8 @@ class PickPlaceExecution:
         return d
 
 
-class _CarrySim(_Sim):
-    """``_Sim`` that also records the carried object's contacts while ``carrying``."""
+class _CarrySim(ArmSim):
+    """``ArmSim`` that also records the carried object's contacts while ``carrying``."""
 
     def __init__(self, *args):
         super().__init__(*args)
@@ -122,12 +123,12 @@ def _resampled(timed: TimedTrajectory, time_step: float) -> TimedTrajectory:
     return timed if abs(timed.rate * time_step - 1.0) <= 1e-9 else timed.resampled(1.0 / time_step)
 
 
-def _follow_timed(sim: _Sim, timed: TimedTrajectory, fingers_from_plan: bool, watch: bool) -> None:
+def _follow_timed(sim: ArmSim, timed: TimedTrajectory, fingers_from_plan: bool, watch: bool) -> None:
     t = _resampled(timed, sim.s.time_step)
-    _follow(sim, t.q, [(sim.s.time_step, 1)] * (len(t.q) - 1), fingers_from_plan, sim.grip_force, watch, t.qd)
+    follow(sim, t.q, [(sim.s.time_step, 1)] * (len(t.q) - 1), fingers_from_plan, sim.grip_force, watch, t.qd)
 
 
-def hand_T_object(sim: _Sim, robot) -> np.ndarray:
+def hand_T_object(sim: ArmSim, robot) -> np.ndarray:
     """The target's pose in the hand link's frame now (the grasp as executed)."""
     hand = robot.fk(sim.joint_positions())[robot.link_index(robot.hand_link)]
     T = scenes_mod.object_pose(sim.c, sim.bodies[sim.target], sim.models[sim.target])
@@ -182,7 +183,7 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
                 parts.update(dict(out[0]))
                 place_pose = out[1]
         held_before_release = bool(planned and held_after_lift) and _place_and_retract(sim, robot, parts, settings)
-        _hold(sim, sim.joint_positions(), settings.settle_duration, False)
+        hold(sim, sim.joint_positions(), settings.settle_duration, False)
         final = scenes_mod.object_pose(sim.c, sim.bodies[scene.target], models[scene.target])
         v, w = sim.pb.getBaseVelocity(sim.bodies[scene.target], physicsClientId=sim.c)
         com1 = {name: sim.com(name) for name in sim.bodies}
@@ -216,13 +217,13 @@ def _pick_and_lift(sim, robot, parts: dict, s) -> Tuple[bool, bool]:
     for _ in range(int(round(s.start_settle / s.time_step))):
         sim.step(True)
     _follow_timed(sim, parts["approach"], True, True)
-    _hold(sim, parts["approach"].q[-1], s.approach_settle, True)
+    hold(sim, parts["approach"].q[-1], s.approach_settle, True)
     sim.command_fingers(robot.info.finger_closed, sim.grip_force)
-    _hold(sim, parts["approach"].q[-1], s.closing_time(robot.info), False)
+    hold(sim, parts["approach"].q[-1], s.closing_time(robot.info), False)
     held_after_close = sim.held()
     sim.carrying = True
     _follow_timed(sim, parts["lift"], False, True)
-    _hold(sim, parts["lift"].q[-1], s.hold_duration, True)
+    hold(sim, parts["lift"].q[-1], s.hold_duration, True)
     return held_after_close, held_after_close and sim.held()  # lost on the lift: dropped, nothing to plan for
 
 
@@ -230,11 +231,11 @@ def _place_and_retract(sim, robot, parts: dict, settings: PickPlaceExecSettings)
     """Carry, set down, release and retract: whether the object was still held before the release."""
     s = settings.execution
     _follow_timed(sim, parts["transfer"], False, True)
-    _hold(sim, parts["transfer"].q[-1], s.approach_settle, True)
+    hold(sim, parts["transfer"].q[-1], s.approach_settle, True)
     held_before_release = sim.held()
     sim.carrying = False
     sim.command_fingers(robot.info.finger_open, sim.grip_force)
-    _hold(sim, parts["transfer"].q[-1], settings.release_duration, True)
+    hold(sim, parts["transfer"].q[-1], settings.release_duration, True)
     _follow_timed(sim, parts["retract"], False, True)
     return held_before_release
 
