@@ -198,6 +198,70 @@ def _check_trajectory(trajectory, robot) -> np.ndarray:
 
 
 # --- the entry point -----------------------------------------------------------------------------
+def _outside_limits(scene, robot, Q: np.ndarray, over: np.ndarray, seconds: float) -> "ExecutionResult":
+    """The result of a trajectory not run: its worst waypoint and joint outside the limits."""
+    lo, hi = robot.lower_limits, robot.upper_limits
+    k, j = np.unravel_index(int(np.argmax(over)), over.shape)
+    return ExecutionResult(
+        success=False, status=ExecutionStatus.invalid_trajectory, target=scene.target, target_lift=0.0,
+        target_final_pose=np.asarray(scene.object(scene.target).pose, dtype=float).copy(),
+        contacts_during_approach={}, max_penetration=0.0, collided=False,
+        object_displacements={o.name: 0.0 for o in scene.objects if o.name != scene.target},
+        target_pushed=0.0, held=False, finger_gap=0.0, tracking_error=0.0, sim_time=0.0, steps=0,
+        seconds=seconds,
+        message=f"waypoint {k}, joint {robot.joint_names[j]}: {Q[k, j]:.4f} outside "
+                f"[{lo[j]:.4f}, {hi[j]:.4f}] by {over[k, j]:.4f}")
+
+
+def _approach(sim, robot, Q: np.ndarray, timed, s: ExecutionSettings) -> None:
+    """Settle at the start, follow the plan (timed, or at the velocity limits) and settle at its end."""
+    sim.command_arm(Q[0], np.zeros(robot.dof))
+    sim.command_fingers(Q[0, robot.info.arm_dof], sim.grip_force)
+    for _ in range(int(round(s.start_settle / s.time_step))):
+        sim.step(True)
+    segments = ([(s.time_step, 1)] * (len(Q) - 1) if timed is not None
+                else segment_steps(Q, robot.velocity_limits, s))
+    follow(sim, Q, segments, True, sim.grip_force, True, None if timed is None else timed.qd)
+    hold(sim, Q[-1], s.approach_settle, True)
+
+
+def _scene_com(scene, model, name: str) -> np.ndarray:
+    """An object's centre of mass where the scene puts it (world frame)."""
+    T = np.asarray(scene.object(name).pose, dtype=float)
+    return T[:3, :3] @ model.com + T[:3, 3]
+
+
+def _lift(sim, robot, q_grasp: np.ndarray, s: ExecutionSettings, height: float) -> None:
+    """Lift by ``height`` (the headroom probed) in ``lift_duration``, then hold."""
+    q_lift = q_grasp.copy()  # continue from the commanded pose, so the arm target does not jump
+    q_lift[robot.info.arm_dof:] = sim.joint_positions()[robot.info.arm_dof:]
+    lift = lift_path(robot, q_lift, s, height)
+    seg = s.lift_duration / s.lift_waypoints
+    follow(sim, lift, [(seg, max(1, int(round(seg / s.time_step))))] * s.lift_waypoints, False, sim.grip_force, False)
+    hold(sim, lift[-1], s.hold_duration, False)
+
+
+def _status(finite: bool, success: bool, contacts: dict, collided: bool, held_after_close: bool, held: bool,
+            lift_m: float, height: float, s: ExecutionSettings) -> Tuple[ExecutionStatus, str]:
+    """The execution's status and message: the first failure in the order of the task."""
+    if not finite:
+        status, msg = ExecutionStatus.unstable, "the simulation produced non-finite states"
+    elif success:
+        status, msg = ExecutionStatus.lifted, ""
+    elif collided:
+        worst = max(contacts, key=contacts.get)
+        status, msg = ExecutionStatus.collision, f"robot penetrated {worst} by {contacts[worst] * 1000:.1f} mm during the approach"
+    elif not held_after_close:
+        status, msg = ExecutionStatus.missed, "the fingers closed without the target between them"
+    elif height < s.min_lift:
+        status, msg = ExecutionStatus.blocked, (f"obstacles above the grasp leave a lift of {height:.3f} m "
+                                                f"(at least {s.min_lift:.3f} m)")
+    else:
+        status, msg = ExecutionStatus.dropped, (f"target held after closing but at the end held={held}, "
+                                                f"lift {lift_m:.3f} m of {height:.3f} m")
+    return status, msg
+
+
 def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSettings = ExecutionSettings(),
                  library: Optional[objects_mod.ObjectLibrary] = None,
                  record: Optional[RecordSettings] = None) -> ExecutionResult:
@@ -223,21 +287,8 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     models = {o.name: library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
               for o in scene.objects}
 
-    def scene_com(name):
-        T = np.asarray(scene.object(name).pose, dtype=float)
-        return T[:3, :3] @ models[name].com + T[:3, 3]
-
     if np.max(over) > s.joint_limit_tolerance:
-        k, j = np.unravel_index(int(np.argmax(over)), over.shape)
-        return ExecutionResult(
-            success=False, status=ExecutionStatus.invalid_trajectory, target=scene.target, target_lift=0.0,
-            target_final_pose=np.asarray(scene.object(scene.target).pose, dtype=float).copy(),
-            contacts_during_approach={}, max_penetration=0.0, collided=False,
-            object_displacements={o.name: 0.0 for o in scene.objects if o.name != scene.target},
-            target_pushed=0.0, held=False, finger_gap=0.0, tracking_error=0.0, sim_time=0.0, steps=0,
-            seconds=time.perf_counter() - t_start,
-            message=f"waypoint {k}, joint {robot.joint_names[j]}: {Q[k, j]:.4f} outside "
-                    f"[{lo[j]:.4f}, {hi[j]:.4f}] by {over[k, j]:.4f}")
+        return _outside_limits(scene, robot, Q, over, time.perf_counter() - t_start)
     Q = np.clip(Q, lo, hi)
 
     sim = open_sim(scene, robot, Q[0], s, models, record)
@@ -245,22 +296,13 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     try:
         # how far the plan's grasp can lift under what is above it (probed before anything moves)
         height = lift_headroom(sim, robot, Q[-1], [sim_id for name, sim_id in sim.obstacle_ids.items()])
-        com0 = {name: scene_com(name) for name in sim.bodies}
+        com0 = {name: _scene_com(scene, models[name], name) for name in sim.bodies}
         if record is not None:
             if record.colorize:
                 viz.colorize(client, sim.bodies, sim.target)
             sim.capture()
 
-        # 1. approach
-        zero = np.zeros(robot.dof)
-        sim.command_arm(Q[0], zero)
-        sim.command_fingers(Q[0, robot.info.arm_dof], sim.grip_force)
-        for _ in range(int(round(s.start_settle / s.time_step))):
-            sim.step(True)
-        segments = ([(s.time_step, 1)] * (len(Q) - 1) if timed is not None
-                    else segment_steps(Q, robot.velocity_limits, s))
-        follow(sim, Q, segments, True, sim.grip_force, True, None if timed is None else timed.qd)
-        hold(sim, Q[-1], s.approach_settle, True)
+        _approach(sim, robot, Q, timed, s)  # 1.
         target_pushed = float(np.linalg.norm(sim.com(scene.target) - com0[scene.target]))
 
         # 2. close (arm holds the last waypoint)
@@ -269,14 +311,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
         held_after_close = sim.held()
         grasped = sim.in_hand()  # the target in the hand as the lift starts: slip is measured from here
 
-        # 3. lift, 4. hold
-        q_lift = Q[-1].copy()  # continue from the commanded pose, so the arm target does not jump
-        q_lift[robot.info.arm_dof:] = sim.joint_positions()[robot.info.arm_dof:]
-        lift = lift_path(robot, q_lift, s, height)
-        seg = s.lift_duration / s.lift_waypoints
-        follow(sim, lift, [(seg, max(1, int(round(seg / s.time_step))))] * s.lift_waypoints, False,
-                sim.grip_force, False)
-        hold(sim, lift[-1], s.hold_duration, False)
+        _lift(sim, robot, Q[-1], s, height)  # 3. lift, 4. hold
 
         # outcome
         T_final = scenes_mod.object_pose(client, sim.bodies[scene.target], models[scene.target])
@@ -295,21 +330,7 @@ def execute_plan(scene: scenes_mod.Scene, trajectory, settings: ExecutionSetting
     max_pen = max(sim.contacts.values(), default=0.0)
     collided = max_pen > s.collision_depth
     success = bool(finite and lifted_and_held(s, held, lift_m, height))
-    if not finite:
-        status, msg = ExecutionStatus.unstable, "the simulation produced non-finite states"
-    elif success:
-        status, msg = ExecutionStatus.lifted, ""
-    elif collided:
-        worst = max(sim.contacts, key=sim.contacts.get)
-        status, msg = ExecutionStatus.collision, f"robot penetrated {worst} by {max_pen * 1000:.1f} mm during the approach"
-    elif not held_after_close:
-        status, msg = ExecutionStatus.missed, "the fingers closed without the target between them"
-    elif height < s.min_lift:
-        status, msg = ExecutionStatus.blocked, (f"obstacles above the grasp leave a lift of {height:.3f} m "
-                                                f"(at least {s.min_lift:.3f} m)")
-    else:
-        status, msg = ExecutionStatus.dropped, (f"target held after closing but at the end held={held}, "
-                                                f"lift {lift_m:.3f} m of {height:.3f} m")
+    status, msg = _status(finite, success, sim.contacts, collided, held_after_close, held, lift_m, height, s)
     return ExecutionResult(
         success=success, status=status, target=scene.target, target_lift=lift_m, target_final_pose=T_final,
         contacts_during_approach=dict(sorted(sim.contacts.items())), max_penetration=float(max_pen),
