@@ -337,7 +337,9 @@ int MotionPlanner::first_invalid_segment(const Trajectory& path) const {
   }
   for (long i = 0; i + 1 < end; ++i) {
     const Eigen::RowVectorXd a = path.row(i), b = path.row(i + 1);
-    if (!motion_valid(a.data(), b.data(), ws)) return static_cast<int>(i);
+    // b is known free (the pass above): the certified check need not query it again
+    const bool ok = settings_.certified ? motion_certified(a.data(), b.data(), ws) : motion_valid(a.data(), b.data(), ws);
+    if (!ok) return static_cast<int>(i);
   }
   return end < path.rows() ? static_cast<int>(end - 1) : -1;
 }
