@@ -98,7 +98,7 @@ void init_sdf(py::module_& m) {
       }, py::arg("size"), py::arg("pose"))
       .def("set_pose", [](SceneSdf& s, int index, const Array& pose) {
         s.set_pose(index, Transform::from_matrix(matrix4(pose, "object pose")));
-      }, py::arg("index"), py::arg("pose"), "Move object `index`; merged grids that hold it are merged again.")
+      }, py::arg("index"), py::arg("pose"), "Move object `index`: it is left out of the merged grids from then on and queried on its own grid.")
       .def(
           "merge",
           [](SceneSdf& s, const std::vector<int>& exclude, double resolution, double cutoff, int brick) {

@@ -163,3 +163,44 @@ def test_a_pinch_far_from_a_heavy_clamps_centre_of_mass_ranks_below_a_central_on
     out = q.model_quality(model, np.stack([central, far]) @ PANDA.hand_from_grasp, pose, PANDA)
     assert out.fit == [q.GraspFit.holds, q.GraspFit.slips]
     assert out.margin[0] > out.margin[1] and list(out.order()) == [0, 1]
+
+
+def test_a_worlds_grasp_verdicts_are_its_quality_kept_per_grasp():
+    """``World.grasp_verdicts`` (what the goal set ranks by) equals ``World.grasp_quality`` grasp for
+    grasp; a grasp seen before is not computed again (also in another order, or with the target moved
+    without turning), and a target that turned (gravity another way in its frame) is judged anew."""
+    from pickplan.omg.world import World
+    from pickplan.sim import scenes
+
+    world = World(scenes.generate_scene(3))
+    com = np.asarray(world.target_model.com, float)
+    info = world.robot.info
+    frames = []
+    for yaw in np.linspace(0.0, np.pi, 12, endpoint=False):
+        down = _frame(com + [0.0, 0.0, 0.01 * np.sin(3 * yaw)], [np.cos(yaw), np.sin(yaw), 0.0], [0.0, 0.0, -1.0])
+        frames.append(down @ np.linalg.inv(info.grasp_frame))   # hand poses, object frame
+    hands = np.array(frames)
+    settings = q.QualitySettings()
+
+    def check(rows):
+        truth = world.grasp_quality(hands[rows], settings)
+        margin, fit = world.grasp_verdicts(hands[rows], settings)
+        np.testing.assert_array_equal(margin, truth.margin)
+        assert fit == truth.fit
+
+    verdicts = world.cache.grasp_verdicts
+    check(np.arange(12))
+    assert (verdicts.hits, verdicts.misses) == (0, 12)
+    assert {f.value for f in world.grasp_verdicts(hands, settings)[1]} >= {"holds"}
+    check(np.arange(12)[::-3])
+    assert verdicts.misses == 12
+    T = world.target_pose.copy()
+    T[:3, 3] += [0.02, -0.01, 0.0]
+    world.move_object(world.scene.target, T)
+    check(np.arange(12))
+    assert verdicts.misses == 12  # moved, not turned: the same verdicts
+    c, s = np.cos(0.3), np.sin(0.3)
+    T[:3, :3] = np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]]) @ T[:3, :3]
+    world.move_object(world.scene.target, T)
+    check(np.arange(12))
+    assert verdicts.misses == 24  # turned: judged again

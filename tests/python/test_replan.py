@@ -1,5 +1,5 @@
 """Replanning as the world moves (omg.replan): objects moved in place give the same SDF and FCL answers
-as a world built at the new poses; a replan after no change returns the same trajectory without an
+as a world built at the new poses (a moved object queried on its own grid beside the merged rest); a replan after no change returns the same trajectory without an
 iteration; after the target moves the goal follows it and the plan lifts it in PyBullet; a robot that
 moved on starts there; bad moves are clear errors."""
 from dataclasses import replace
@@ -38,16 +38,36 @@ def test_a_moved_object_reads_as_a_world_built_there(scene):
     other = next(o.name for o in scene.objects if o.name != scene.target)
     moved_scene, T = _moved(scene, other, (0.03, -0.02), yaw=0.4)
     world.move_object(other, T)
+    world.move_object(other, T)  # a second move of a live object changes nothing
     fresh = World(moved_scene, cache=world.cache)
+    # The moved object left every merged grid (the grids without it took their places): it is queried on
+    # its own grid beside them. Truth: a world built at the new poses, its rest merged the same way (the
+    # same bricks) and the moved object's distance alone (its own grid: no merged grid has that mask).
+    excludes = [(scene.target,), ()]
+    assert sorted(world.sdf.merged_excludes) == sorted(tuple(sorted(e + (other,))) for e in excludes)
+    res = world.settings.sdf
+    for e in excludes:
+        fresh.sdf.merge(exclude=e + (other,), resolution=res.merged_resolution, cutoff=res.merged_cutoff)
+    alone = [n for n in fresh.sdf.names if n != other]
     rng = np.random.default_rng(0)
     lo, hi = np.min([o.pose[:3, 3] for o in scene.objects], axis=0), np.max([o.pose[:3, 3] for o in scene.objects], axis=0)
     X = rng.uniform(lo - [0.15, 0.15, 0.0], hi + [0.15, 0.15, 0.25], size=(4000, 3))
-    for exclude in ((), (scene.target,)):
+    for exclude in excludes:
         for cutoff in (0.05, np.inf):
             d, g = world.sdf.distance(X, cutoff=cutoff, exclude=exclude)
-            d2, g2 = fresh.sdf.distance(X, cutoff=cutoff, exclude=exclude)
+            if np.isinf(cutoff):  # beyond the merged grids' cutoff: every object on its own grid
+                d2, g2 = fresh.sdf.distance(X, cutoff=cutoff, exclude=exclude)
+            else:
+                d_rest, g_rest = fresh.sdf.distance(X, cutoff=cutoff, exclude=exclude + (other,))
+                d_other, g_other = fresh.sdf.distance(X, cutoff=cutoff, exclude=alone, exclude_table=True)
+                nearer = d_other < d_rest
+                d2, g2 = np.where(nearer, d_other, d_rest), np.where(nearer[:, None], g_other, g_rest)
+                assert nearer.sum() > 50  # the moved object is the nearest at many points
             np.testing.assert_array_equal(d, d2)
             np.testing.assert_array_equal(g, g2)
+            lb = world.sdf.lower_bound(X, exclude=exclude)
+            near = d < cutoff
+            assert np.all(lb[near] <= d[near] + 1e-12)  # still a lower bound with the live object beside the grid
     robot = world.robot
     Q = rng.uniform(robot.lower_limits, robot.upper_limits, size=(300, robot.dof))
     for kind in CheckerKind:

@@ -89,10 +89,36 @@ void SceneSdf::set_pose(int index, const Transform& pose) {
   require_rigid("SceneSdf: object pose", pose.matrix());
   bodies_[index].pose = pose;
   bodies_[index].inverse = pose.inverse();
-  std::vector<std::pair<std::uint64_t, MergedSdfSettings>> stale;
-  for (const auto& m : merged_)
-    if (!(m->exclude_mask() >> index & 1)) stale.emplace_back(m->exclude_mask(), m->settings());
-  for (const auto& [mask, settings] : stale) merge(mask, settings);
+  const std::uint64_t bit = std::uint64_t{1} << index;
+  if (live_ & bit) return;  // in no merged grid: nothing to redo
+  live_ |= bit;
+  std::vector<std::shared_ptr<const MergedSdf>> kept;
+  std::vector<std::pair<std::uint64_t, MergedSdfSettings>> without;
+  for (auto& m : merged_) {
+    if (m->exclude_mask() & bit) kept.push_back(std::move(m));
+    else without.emplace_back(m->exclude_mask() | bit, m->settings());
+  }
+  merged_ = std::move(kept);
+  for (const auto& [mask, settings] : without)
+    if (!merged(mask)) merge(mask, settings);
+}
+
+double SceneSdf::live_distance(const double* x, double* gradient, double best, std::uint64_t live) const {
+  const Eigen::Map<const Eigen::Vector3d> p(x);
+  Eigen::Vector3d g;
+  for (int i = 0; live; ++i, live >>= 1) {
+    if (!(live & 1)) continue;
+    const Body& b = bodies_[i];
+    const Eigen::Vector3d xl = b.inverse.apply(p);
+    const double g2 = (xl - xl.cwiseMax(b.lo).cwiseMin(b.hi)).squaredNorm();
+    if (g2 > 0 && (best <= 0 || g2 >= best * best)) continue;  // its surface box is farther than best
+    const double d = b.local_distance(xl, gradient ? &g : nullptr);
+    if (d < best) {
+      best = d;
+      if (gradient) Eigen::Map<Eigen::Vector3d>(gradient).noalias() = b.pose.R * g;
+    }
+  }
+  return best;
 }
 
 int SceneSdf::add_primitive(const Primitive& primitive, const Transform& pose) {
@@ -148,14 +174,14 @@ double SceneSdf::distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, d
   const MergedSdf* merged = use_merged(exclude_mask, cutoff);
   if (!merged) return distance_unmerged(x, gradient, cutoff, exclude_mask);
   return merged_distance(*merged, x.data(), gradient ? gradient->data() : nullptr, cutoff,
-                         has_table_ && !(exclude_mask & kTableBit));
+                         has_table_ && !(exclude_mask & kTableBit), live_included(exclude_mask));
 }
 
 void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settings) {
   if (!(settings.resolution > 0) || !std::isfinite(settings.resolution) || !(settings.cutoff > 0) ||
       !std::isfinite(settings.cutoff) || settings.brick < 1 || settings.brick > 64)
     throw std::invalid_argument("merged SDF: resolution and cutoff must be finite and > 0, brick in [1, 64]");
-  exclude_mask &= ~kTableBit;
+  exclude_mask = (exclude_mask | live_) & ~kTableBit;
   if (!merged(exclude_mask) && num_merged() >= kMaxMerged)
     throw std::invalid_argument("merged SDF: at most " + std::to_string(kMaxMerged) + " object masks per scene");
   // Beyond `pad` from every surface box, each object is beyond the cutoff (grid slack included).
@@ -243,6 +269,9 @@ SceneSdf::PartBounds SceneSdf::part_lower_bounds(const Eigen::Vector3d& x, std::
   PartBounds b{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
   if (const MergedSdf* merged = use_merged(exclude_mask, 0.0)) {
     b.objects = merged->lower_bound(x.data());
+    std::uint64_t live = live_included(exclude_mask);
+    for (int i = 0; live; ++i, live >>= 1)
+      if (live & 1) b.objects = std::min(b.objects, box_gap_bound(bodies_[i], x, 0.0));
   } else {
     for (int i = 0; i < num_objects(); ++i) {
       if (!(exclude_mask >> i & 1)) b.objects = std::min(b.objects, box_gap_bound(bodies_[i], x, 0.0));
@@ -320,7 +349,9 @@ void SceneSdf::distances(const double* points, long n, double* dist, double* gra
   }
   if (const MergedSdf* merged = use_merged(exclude_mask, cutoff)) {
     // The hot path, with the per-point dispatch hoisted out of the loop.
-    for (long i = 0; i < n; ++i) dist[i] = merged_distance(*merged, points + 3 * i, grad ? grad + 3 * i : nullptr, cutoff, table);
+    const std::uint64_t live = live_included(exclude_mask);
+    for (long i = 0; i < n; ++i)
+      dist[i] = merged_distance(*merged, points + 3 * i, grad ? grad + 3 * i : nullptr, cutoff, table, live);
     return;
   }
   const std::uint64_t mask = table ? exclude_mask : exclude_mask | kTableBit;

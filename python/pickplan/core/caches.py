@@ -12,6 +12,9 @@ import numpy as np
 T = TypeVar("T")
 
 
+_MISSING = object()
+
+
 class BoundedCache:
     """Least-recently-used map of at most ``max_entries`` values, built on a miss by ``get``.
     Thread-safe: two threads missing the same key may both build it (the first stored wins)."""
@@ -39,6 +42,28 @@ class BoundedCache:
             while len(self._entries) > self.max_entries:
                 self._entries.popitem(last=False)
         return value
+
+    def get_many(self, keys, build_missing: Callable[[np.ndarray], list]) -> list:
+        """The values of ``keys``; those not held are built in one call, ``build_missing(rows)`` (the
+        indices of the missing keys) returning their values in that order."""
+        with self._lock:
+            held = [self._entries.get(k, _MISSING) for k in keys]
+            for k, v in zip(keys, held):
+                if v is not _MISSING:
+                    self._entries.move_to_end(k)
+        missing = np.array([i for i, v in enumerate(held) if v is _MISSING], dtype=int)
+        self.hits += len(keys) - len(missing)
+        self.misses += len(missing)
+        if len(missing):
+            for i, v in zip(missing, build_missing(missing)):
+                held[i] = v
+            with self._lock:
+                for i in missing:
+                    self._entries[keys[i]] = held[i]
+                    self._entries.move_to_end(keys[i])
+                while len(self._entries) > self.max_entries:
+                    self._entries.popitem(last=False)
+        return held
 
     def __len__(self) -> int:
         return len(self._entries)

@@ -200,7 +200,8 @@ class SceneSdf:
         return index
 
     def set_pose(self, name: str, pose: np.ndarray) -> None:
-        """Move object ``name`` to ``pose``; the merged grids that hold it are merged again (lazily filled)."""
+        """Move object ``name`` to ``pose``. A moved object is left out of the merged grids from then on
+        and queried on its own grid beside them (moving it again costs nothing)."""
         self._native.set_pose(self.index(name), np.asarray(pose, dtype=float))
 
     @property

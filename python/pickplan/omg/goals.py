@@ -333,11 +333,10 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     tried = np.flatnonzero(~blocked)
     margin = np.full(len(grasps), np.nan)
     if collision_check and settings.quality is not None and len(tried):
-        quality = world.grasp_quality(grasps[tried], settings.quality)
-        margin[tried] = quality.margin
-        for k, fit in zip(tried, quality.fit):
+        margin[tried], fits = world.grasp_verdicts(grasps[tried], settings.quality)
+        for k, fit in zip(tried, fits):
             reasons[k] = fit.value
-        tried = tried[quality.order()]
+        tried = tried[np.argsort(-margin[tried], kind="stable")]  # best margin first
         tried = tried[np.asarray([reasons[k] == GraspFit.holds.value for k in tried], dtype=bool)]
 
     def goals(tried):

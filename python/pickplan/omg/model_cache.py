@@ -28,6 +28,7 @@ class ModelCache:
         self.grids = sdf.GridCache(max_objects + 8)             # + the hand's parts
         self.shapes = collision.ShapeCache(max_objects + 32)    # + the robot's links
         self._derived = BoundedCache(2 * max_objects + 16)      # surface samples, robot data
+        self.grasp_verdicts = BoundedCache(256 * max_objects)    # per grasp: its quality's margin and fit
 
     def derived(self, key: Hashable, build: Callable):
         """Any other per-object or per-robot value, by a key naming what it is built from."""

@@ -263,6 +263,12 @@ class PerceivedWorld:
             P = denoised(P, self.perceived.target_normals, self.settings.grasps.patch_radius)
         return P, cKDTree(P)
 
+    def grasp_verdicts(self, grasps: np.ndarray, settings: quality.QualitySettings):
+        """(margins, fits) of ``grasp_quality``, as ``World.grasp_verdicts``; not kept: the points are new
+        with every observation."""
+        q = self.grasp_quality(grasps, settings)
+        return q.margin, q.fit
+
     def grasp_quality(self, grasps: np.ndarray, settings: quality.QualitySettings) -> quality.Quality:
         """The quality (``grasps.quality``) of hand poses (world frame) on the observed target: patches
         on its denoised points (an unseen side mirrors the seen one), its load from the points

@@ -24,6 +24,11 @@ from pickplan.omg.grasps import quality, verify
 from pickplan.omg.model_cache import ModelCache
 
 
+def _rounded(values) -> bytes:
+    """A cache key of float values equal to 1e-9 (-0.0 taken as 0.0)."""
+    return (np.round(np.asarray(values, float), 9) + 0.0).tobytes()
+
+
 class CheckerKind(Option):
     """What a world's FCL checker lets touch (``World.checker``)."""
 
@@ -120,7 +125,7 @@ class World:
 
     def move_object(self, name: str, pose) -> None:
         """Move object ``name`` to ``pose`` in place, for replanning as the world moves (``omg.replan``):
-        the scene, the SDF (merged grids that hold it are merged again, filled lazily) and every FCL
+        the scene, the SDF (the object leaves the merged grids, queried on its own grid beside them) and every FCL
         checker built so far follow; what depends on the target's pose (its graspability, C-Space
         ISF's object samples) is built again on next use. The CHOMP problems read the moved SDF."""
         T = np.asarray(pose, dtype=float)
@@ -233,6 +238,25 @@ class World:
         key = ("pad_points", mesh_content_key(model.mesh), settings.spacing, settings.max_samples, settings.seed)
         surface = self.cache.derived(key, lambda: quality.surface_tree(model.mesh, settings))
         return quality.model_quality(model, grasps, self.target_pose, self.robot.info, settings, surface)
+
+    def grasp_verdicts(self, grasps: np.ndarray, settings: quality.QualitySettings) -> Tuple[np.ndarray, list]:
+        """(margins, fits) of ``grasp_quality``, each kept per grasp by the cache: a grasp's quality depends
+        only on the grasp in the target's frame, the target's model and gripper and which way is down in
+        its frame, so a moved target that did not turn, or another scene with the object lying the same
+        way, reuses it (grasps equal to 1 nm and 1e-9 rad)."""
+        grasps = np.asarray(grasps, float).reshape(-1, 4, 4)
+        model, info = self.target_model, self.robot.info
+        down = quality.model_load(model, self.target_pose).down
+        friction = model.friction if getattr(model, "friction", None) is not None else settings.object_friction
+        common = (mesh_content_key(model.mesh), float(model.mass), _rounded(model.com), friction,
+                  quality.Grip.of(info, friction), _rounded(info.grasp_frame), settings, _rounded(down))
+        keys = [(common, _rounded(g[:3])) for g in grasps]
+
+        def build(rows):
+            q = self.grasp_quality(grasps[rows], settings)
+            return list(zip(q.margin.tolist(), q.fit))
+        verdicts = self.cache.grasp_verdicts.get_many(keys, build)
+        return np.array([v[0] for v in verdicts], dtype=float), [v[1] for v in verdicts]
 
     def verify_grasps(self, grasps: np.ndarray, settings: verify.VerifySettings) -> verify.Verified:
         """``grasps.verify.verify_grasps`` of hand poses in the target's frame, the target lying as it

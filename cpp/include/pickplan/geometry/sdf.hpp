@@ -89,9 +89,14 @@ class SceneSdf {
   // Adds a solid primitive, queried in closed form; same index space and limits as add_object.
   int add_primitive(const Primitive& primitive, const Transform& pose);
   void set_table(const Eigen::Vector3d& size, const Transform& pose);
-  // Moves object `index` (an object that moves: replanning); merged grids that hold it are merged
-  // again with their settings (their bricks fill again on first lookup), the others are kept.
+  // Moves object `index` (an object that moves: replanning). A moved object becomes live: it is
+  // left out of every merged grid from then on and queried on its own grid beside them, so moving
+  // it again costs nothing. A merged grid that held it gives way to one for the same mask without
+  // it (kept if the scene has it already, e.g. the grid without the target; merged anew otherwise,
+  // its bricks filled on first lookup).
   void set_pose(int index, const Transform& pose);
+  // The objects moved by set_pose (bit i: object i).
+  std::uint64_t live_mask() const { return live_; }
   void clear_table() { has_table_ = false; }
 
   // Resamples the minimum over the objects not in `exclude_mask` into one world-frame bricked
@@ -99,6 +104,7 @@ class SceneSdf {
   // settings.cutoff take one lookup (plus the analytic table); others use the per-object path.
   // A scene keeps one merged grid per object mask (at most kMaxMerged; merging a mask again
   // replaces its grid): e.g. the target left out (grasping) and the target in (the transit).
+  // Live objects (set_pose) are never merged: a query's live objects are added to its grid's answer.
   // Adding an object drops the merged grids. Throws std::invalid_argument on bad settings.
   void merge(std::uint64_t exclude_mask, const MergedSdfSettings& settings = {});
   static constexpr int kMaxMerged = 4;
@@ -106,7 +112,7 @@ class SceneSdf {
   const MergedSdf* merged() const { return merged_.empty() ? nullptr : merged_.front().get(); }
   const MergedSdf* merged(std::uint64_t exclude_mask) const {
     for (const auto& m : merged_)
-      if ((exclude_mask & ~kTableBit) == m->exclude_mask()) return m.get();
+      if (((exclude_mask | live_) & ~kTableBit) == m->exclude_mask()) return m.get();
     return nullptr;
   }
   int num_merged() const { return static_cast<int>(merged_.size()); }
@@ -151,7 +157,11 @@ class SceneSdf {
   double table_distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient) const;
   // The merged grid (objects) and optionally the table, for a query use_merged() accepts
   // (inline: it is the per-point body of the batched hot loop).
-  double merged_distance(const MergedSdf& merged, const double* x, double* gradient, double cutoff, bool table) const;
+  double merged_distance(const MergedSdf& merged, const double* x, double* gradient, double cutoff, bool table,
+                         std::uint64_t live) const;
+  // The live objects (bits of `live`) where nearer than `best`: the nearer distance and its gradient.
+  double live_distance(const double* x, double* gradient, double best, std::uint64_t live) const;
+  std::uint64_t live_included(std::uint64_t exclude_mask) const { return live_ & ~exclude_mask & ~kTableBit; }
   // The merged grid that answers this query exactly as built (nullptr: the per-object path).
   const MergedSdf* use_merged(std::uint64_t exclude_mask, double cutoff) const {
     const MergedSdf* m = merged(exclude_mask);
@@ -160,6 +170,7 @@ class SceneSdf {
 
   std::vector<Body> bodies_;
   std::vector<std::shared_ptr<const MergedSdf>> merged_;
+  std::uint64_t live_ = 0;
   bool has_table_ = false;
   bool table_axis_aligned_ = false;
   Eigen::Vector3d table_half_ = Eigen::Vector3d::Zero();
@@ -167,13 +178,14 @@ class SceneSdf {
 };
 
 inline double SceneSdf::merged_distance(const MergedSdf& merged, const double* x, double* gradient, double cutoff,
-                                        bool table) const {
+                                        bool table, std::uint64_t live) const {
   double g[3];
   double best = merged.distance(x, gradient ? g : nullptr);
   if (best >= cutoff) {
     best = cutoff;
     g[0] = g[1] = g[2] = 0.0;
   }
+  if (live) best = live_distance(x, gradient ? g : nullptr, best, live);
   if (table) {
     Eigen::Vector3d gt;
     const double d = table_distance(Eigen::Map<const Eigen::Vector3d>(x), gradient ? &gt : nullptr);
