@@ -78,6 +78,11 @@ void init_isf(py::module_& m) {
         }
         return py::make_tuple(terms_dict(t), g);
       }, py::arg("q"), "f_grasp terms and the gradient with respect to q.")
+      .def("with_object", [](const Holder& h, const Array& object_points, const Array& object_normals) {
+        return Holder{h.robot, h.refiner->with_object(points3(object_points, "object points"),
+                                                      points3(object_normals, "object normals"))};
+      }, py::arg("object_points"), py::arg("object_normals"),
+         "This refiner for the target's surface samples (world) at another place: the target moved.")
       .def("set_support", [](Holder& h, const Array& finger_vertices, const Array& normal, double offset) {
         SupportPlane support;
         support.finger_vertices = points3(finger_vertices, "finger vertices");

@@ -102,7 +102,7 @@ void init_omg_loop(py::module_& m) {
   m.def("run_omg_loop", [](const ChompProblem& problem, const RefinerHolder* refiner, const py::object& hand_link,
                            const Array& q0, const Array& goals, const Array& tails, const py::object& grasp_index,
                            const Array& blend, const OmgLoopSettings& settings, const py::object& initial,
-                           int initial_goal) {
+                           int initial_goal, const py::object& initial_costs) {
     const int dof = problem.robot().dof();
     const int hand = link_arg(problem.robot(), hand_link);
     Array q = configuration(problem.robot(), q0, "start configuration");
@@ -126,8 +126,9 @@ void init_omg_loop(py::module_& m) {
       const Array Q = configurations(problem.robot(), initial.cast<Array>(), "initial");
       warm.initial = Eigen::Map<const Trajectory>(Q.data(), Q.shape(0), dof);
       warm.initial_goal = initial_goal;
-    } else if (initial_goal != -1) {
-      throw std::invalid_argument("initial_goal: given without an initial trajectory");
+      if (!initial_costs.is_none()) warm.initial_costs = vector_arg(initial_costs.cast<Array>(), "initial_costs");
+    } else if (initial_goal != -1 || !initial_costs.is_none()) {
+      throw std::invalid_argument("initial_goal, initial_costs: given without an initial trajectory");
     }
     OmgLoopResult r;
     {
@@ -138,9 +139,10 @@ void init_omg_loop(py::module_& m) {
     return result_dict(r);
   }, py::arg("problem"), py::arg("refiner"), py::arg("hand_link"), py::arg("q0"), py::arg("goals"), py::arg("tails"),
      py::arg("grasp_index"), py::arg("blend"), py::arg("settings"), py::arg("initial") = py::none(),
-     py::arg("initial_goal") = -1,
+     py::arg("initial_goal") = -1, py::arg("initial_costs") = py::none(),
      "Algorithm 2's loop over a goal set (refiner None: no ISF); returns the plan, its metrics and history. "
-     "initial (n, dof) and initial_goal: a warm start from a previous plan (replanning).");
+     "initial (n, dof), initial_goal and initial_costs (one per goal, or None: estimated): a warm start from a "
+     "previous plan (replanning).");
 }
 
 }  // namespace pickplan::bind

@@ -77,6 +77,23 @@ def test_a_moved_object_reads_as_a_world_built_there(scene):
     assert world.scene.object(other).pose.tolist() == T.tolist()
 
 
+def test_a_moved_targets_grasp_refiner_is_the_one_a_world_built_there_has(scene):
+    world = World(scene)
+    before = world.grasp_refiner()
+    moved_scene, T = _moved(scene, scene.target, (0.02, 0.01), yaw=0.3)
+    world.move_object(scene.target, T)
+    placed, fresh = world.grasp_refiner(), World(moved_scene, cache=world.cache).grasp_refiner()
+    assert placed is not before
+    rng = np.random.default_rng(2)
+    robot = world.robot
+    for q in rng.uniform(robot.lower_limits, robot.upper_limits, size=(20, robot.dof)):
+        (terms, grad), (terms2, grad2) = placed.cost(q), fresh.cost(q)
+        assert terms == terms2
+        np.testing.assert_array_equal(grad, grad2)
+        assert placed.support_depth(q) == fresh.support_depth(q)
+    assert before.cost(q)[0] != placed.cost(q)[0]  # the old one still sees the target where it was
+
+
 def test_bad_moves_are_clear_errors(scene):
     world = World(scene)
     with pytest.raises(KeyError, match="no object 'nothing'"):

@@ -17,7 +17,6 @@ struct GraspRefiner::Index {
 };
 
 GraspRefiner::~GraspRefiner() = default;
-GraspRefiner::GraspRefiner(GraspRefiner&&) noexcept = default;
 
 GraspRefiner::GraspRefiner(std::shared_ptr<const Robot> robot, int hand_link, Vertices contacts, Vertices contact_normals,
                            std::shared_ptr<const SceneSdf> hand_sdf, Vertices object_points, Vertices object_normals,
@@ -46,6 +45,13 @@ GraspRefiner::GraspRefiner(std::shared_ptr<const Robot> robot, int hand_link, Ve
   if (!settings_.active.empty())
     require_size("ISF settings: active joint mask", robot_->dof(), static_cast<long>(settings_.active.size()), "entries");
   index_ = std::make_unique<Index>(&object_points_);
+}
+
+std::shared_ptr<GraspRefiner> GraspRefiner::with_object(Vertices object_points, Vertices object_normals) const {
+  auto out = std::make_shared<GraspRefiner>(robot_, hand_, contacts_, contact_normals_, hand_sdf_, std::move(object_points),
+                                            std::move(object_normals), scene_, body_, exclude_mask_, settings_);
+  out->support_ = support_;
+  return out;
 }
 
 GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) const {

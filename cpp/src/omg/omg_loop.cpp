@@ -212,7 +212,7 @@ OmgLoopResult Loop::run() {
     have_metrics = r.metrics.success;
   }
   if (!have_metrics) {
-    if (warm_goal) c0 = estimates(warm_->initial, 0);
+    if (warm_goal) c0 = warm_->initial_costs.size() ? warm_->initial_costs : estimates(warm_->initial, 0);
     policy_.reset(book_.size(), s_.iterations, &c0);
   }
   for (int i = 0; i < s_.iterations && !have_metrics; ++i) {
@@ -284,6 +284,10 @@ OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refi
     if (warm->initial_goal < -1 || warm->initial_goal >= book.size())
       throw std::invalid_argument("OMG loop: warm start goal " + std::to_string(warm->initial_goal) + " is not one of the " +
                                   std::to_string(book.size()) + " goals");
+    if (warm->initial_costs.size() && warm->initial_costs.size() != book.size())
+      throw std::invalid_argument("OMG loop: warm start costs: expected one per goal (" + std::to_string(book.size()) +
+                                  "), got " + std::to_string(warm->initial_costs.size()));
+    require_finite("OMG loop: warm start costs", warm->initial_costs.data(), warm->initial_costs.size());
   }
   return Loop(problem, refiner, book, q0, blend, settings, warm).run();
 }

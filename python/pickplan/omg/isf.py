@@ -87,7 +87,7 @@ class GraspRefiner:
         active = [i < robot.info.arm_dof for i in range(robot.dof)]
         exclude = 1 << world.sdf.index(world.target)
         self._hand_sdf = cache.robot_derived(robot, "hand_sdf", lambda: hand_sdf(robot, grids=cache.grids))
-        self.settings = settings
+        self.settings, self._object_points, self._from_mesh = settings, object_points, surface is None
         self._native = _core.GraspRefiner(robot.native, robot.hand_link, contacts.points, contacts.normals,
                                           self._hand_sdf.native, pts, nrm, world.sdf.native, world.body.links,
                                           world.body.points, exclude, settings.to_native(active))
@@ -96,6 +96,20 @@ class GraspRefiner:
             vertices = cache.finger_geometry(robot, world.start).vertices
             normal, offset = world.support_plane
             self._native.set_support(vertices, np.asarray(normal, dtype=float), float(offset))
+
+    def placed(self, world: "World", seed: int = 0) -> "GraspRefiner":
+        """This refiner with the world's target where it lies now (it moved: ``World.move_object``); the
+        object-frame samples, hand SDF and support are reused (a rebuild from the mesh would give the same)."""
+        if not self._from_mesh:
+            raise ValueError("GraspRefiner.placed: this refiner's surface was given (observed points), not sampled "
+                             "from the target's mesh; build a new one for the new points")
+        mesh = world.target_model.mesh
+        local = world.cache.surface(mesh, self._object_points, seed, object_surface_local)
+        pts, nrm = object_surface(mesh, world.target_pose, self._object_points, seed, local=local)
+        out = object.__new__(GraspRefiner)
+        out.__dict__.update(self.__dict__)
+        out._native = self._native.with_object(pts, nrm)
+        return out
 
     def cost(self, q) -> Tuple[dict, np.ndarray]:
         """f_grasp terms (pml, align, isf, hand, obstacle, collision, total) and the gradient."""

@@ -69,10 +69,13 @@ def run_native(chomp, refiner, robot, q0, goals, tails, grasp_index, settings, p
     """Algorithm 2's loop over a goal set (``goals``, their approach ``tails`` and the input grasp
     each came from) with ``chomp`` (its problem), ``refiner`` (a ``GraspRefiner`` or None) for
     ``robot``; returns ``_core.run_omg_loop``'s dict (xi, goal, metrics, history, seconds per stage, ...).
-    ``warm``: (initial trajectory (n, dof), its goal index or -1) to start from a previous plan."""
+    ``warm``: (initial trajectory (n, dof), its goal index or -1[, one cost per goal for the selection to start
+    from, or None: estimated]) to start from a previous plan."""
     native = loop_settings(settings, policy, chomp.native_metric_settings(metric_settings))
-    initial, initial_goal = (None, -1) if warm is None else (np.asarray(warm[0], dtype=float), int(warm[1]))
+    initial, initial_goal, costs = (None, -1, None) if warm is None else \
+        (np.asarray(warm[0], dtype=float), int(warm[1]), None if len(warm) < 3 or warm[2] is None else
+         np.asarray(warm[2], dtype=float))
     return _core.run_omg_loop(chomp.problem, None if refiner is None else refiner._native, robot.hand_link,
                               np.asarray(q0, dtype=float), np.asarray(goals), np.asarray(tails),
                               np.asarray(grasp_index), cubic_blend(chomp.settings.n), native,
-                              initial=initial, initial_goal=initial_goal)
+                              initial=initial, initial_goal=initial_goal, initial_costs=costs)

@@ -317,7 +317,8 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
     """Algorithm 2's loop over the non-empty goal set ``gs`` in C++ (``native_loop``, the GIL
     released); ``timings`` gains the seconds of each stage. (tests/python/omg_reference_loop.py
     keeps the loop in Python, the oracle the native loop is tested against.) ``warm``: (the initial
-    trajectory after ``q0``, its goal in ``gs`` or -1), a replan's start (``omg.replan``)."""
+    trajectory after ``q0``, its goal in ``gs`` or -1[, the goals' costs to start the selection from or None]),
+    a replan's start (``omg.replan``)."""
     parts = LoopInputs.of(settings, world, gs.tails.shape[1])
     out = run_native(parts.chomp, parts.refiner, world.robot, q0, gs.goals, gs.tails, gs.grasp_index, settings,
                      parts.policy, parts.metric_settings, warm)

@@ -100,10 +100,10 @@ class Replanner:
         q0 = world.robot.check_within_limits(self._start if start is None else start, "start")
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
         t = clock()
-        goals, goal = self._follow(world, q0)
+        goals, goal, costs = self._follow(world, q0)
         if len(goals) < self.settings.min_goals:
             q0, grasps = self.planner._prepare(world, q0, self.grasps)
-            goals, goal = build_goal_set(world, grasps, q0, s.goals, s.ik), -1
+            goals, goal, costs = build_goal_set(world, grasps, q0, s.goals, s.ik), -1, None
             self._grasp_ids = np.arange(len(grasps))
         timings["goal_set"] = clock() - t
         if len(goals) == 0:
@@ -114,7 +114,8 @@ class Replanner:
         r = self.settings
         loop = replace(s, iterations=r.iterations, min_iterations=min(r.min_iterations, r.iterations),
                        check_every=r.check_every)
-        result = run_loop(loop, world, q0, goals, timings, warm=(warm_trajectory(self.last.trajectory, q0), goal))
+        result = run_loop(loop, world, q0, goals, timings,
+                          warm=(warm_trajectory(self.last.trajectory, q0), goal, costs if goal >= 0 else None))
         if not result.success and self.settings.fresh_on_failure:
             warm_seconds = clock() - t_total
             fresh = self.plan(q0)
@@ -134,24 +135,39 @@ class Replanner:
         self._start = np.asarray(result.trajectory[0], dtype=float)
         self._target_pose = self.world.target_pose.copy()
 
-    def _follow(self, world, q0: np.ndarray) -> Tuple[GoalSet, int]:
-        """The last goal set at the target's pose now, and the row of the last plan's goal in it (-1: lost)."""
+    def _follow(self, world, q0: np.ndarray) -> Tuple[GoalSet, int, Optional[np.ndarray]]:
+        """The last goal set at the target's pose now, the row of the last plan's goal in it (-1: lost) and
+        the last plan's latest cost estimate of each of its goals (the selection starts from them: the
+        goals moved as little as the target did; None: the last plan has none)."""
         last, goals = self.last, self._goals
         m = goals.tails.shape[1]
         if np.array_equal(world.target_pose, self._target_pose):
             # Nothing to follow: the goals stand, and the goal planned last with them (ISF's refined copy added).
             if not last.refined:
-                return goals, last.goal_source
+                return goals, last.goal_source, self._last_costs(np.arange(len(goals)))
+            rows = np.append(np.arange(len(goals)), -1)  # -1: the last plan's final goal, the refined copy
             return replace(goals, goals=np.vstack([goals.goals, last.goal]),
                            tails=np.concatenate([goals.tails, last.trajectory[None, -m:]]),
-                           grasp_index=np.append(goals.grasp_index, goals.grasp_index[last.goal_source])), len(goals)
+                           grasp_index=np.append(goals.grasp_index, goals.grasp_index[last.goal_source])), \
+                len(goals), self._last_costs(rows)
         rows = self._best_rows(len(goals))
         # Goal row rows[k] of the last set becomes grasp k here: the followed set's grasp_index index rows.
         followed = build_goal_set(world, goals.grasps[goals.grasp_index[rows]], q0, self.planner.settings.goals,
                                   self.planner.settings.ik, seeds=goals.goals[rows])
         self._grasp_ids = self._grasp_ids[goals.grasp_index[rows]]
         new = np.flatnonzero(rows[followed.grasp_index] == last.goal_source) if len(followed) else []
-        return followed, int(new[0]) if len(new) else -1
+        return followed, int(new[0]) if len(new) else -1, self._last_costs(rows[followed.grasp_index])
+
+    def _last_costs(self, rows: np.ndarray) -> Optional[np.ndarray]:
+        """The last plan's latest goal-cost estimates of its goal-set ``rows`` (-1: its final goal),
+        normalized as the loop's estimates are; None when it kept none."""
+        history = self.last.history
+        if not history.get("costs") or not history.get("goal") or not len(rows):
+            return None
+        last = np.asarray(history["costs"][-1], dtype=float)
+        c = last[np.where(rows < 0, int(history["goal"][-1]), rows)]
+        norm = np.linalg.norm(c)
+        return c / norm if norm > 0 and np.all(np.isfinite(c)) else None
 
     def _best_rows(self, count: int) -> np.ndarray:
         """Rows of the last goal set to follow: the last plan's goal first, then the lowest last estimates."""

@@ -29,6 +29,21 @@ def _rounded(values) -> bytes:
     return (np.round(np.asarray(values, float), 9) + 0.0).tobytes()
 
 
+class _HashedKey:
+    """A tuple key hashed once (dict lookups of many keys sharing it hash it once, not per key)."""
+
+    __slots__ = ("value", "_hash")
+
+    def __init__(self, value: tuple):
+        self.value, self._hash = value, hash(value)
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, _HashedKey) and self._hash == other._hash and self.value == other.value
+
+
 class CheckerKind(Option):
     """What a world's FCL checker lets touch (``World.checker``)."""
 
@@ -126,8 +141,8 @@ class World:
     def move_object(self, name: str, pose) -> None:
         """Move object ``name`` to ``pose`` in place, for replanning as the world moves (``omg.replan``):
         the scene, the SDF (the object leaves the merged grids, queried on its own grid beside them) and every FCL
-        checker built so far follow; what depends on the target's pose (its graspability, C-Space
-        ISF's object samples) is built again on next use. The CHOMP problems read the moved SDF."""
+        checker built so far follow; C-Space ISF's object samples are placed again, and what else depends
+        on the target's pose (its graspability) is built again on next use. The CHOMP problems read the moved SDF."""
         T = np.asarray(pose, dtype=float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise ValueError(f"pose of {name!r}: expected a finite 4x4 matrix, got shape {T.shape}")
@@ -138,7 +153,7 @@ class World:
         self.scene = replace(self.scene, objects=[replace(o, pose=T.copy()) if o.name == name else o
                                                   for o in self.scene.objects])
         if name == self.target:
-            self._refiners.clear()
+            self._refiners = {key: r.placed(self, key[1]) for key, r in self._refiners.items()}
             self.__dict__.pop("graspability", None)
 
     def scene_meshes(self):
@@ -239,6 +254,10 @@ class World:
         surface = self.cache.derived(key, lambda: quality.surface_tree(model.mesh, settings))
         return quality.model_quality(model, grasps, self.target_pose, self.robot.info, settings, surface)
 
+    @functools.cached_property
+    def _target_key(self) -> tuple:
+        return mesh_content_key(self.target_model.mesh)
+
     def grasp_verdicts(self, grasps: np.ndarray, settings: quality.QualitySettings) -> Tuple[np.ndarray, list]:
         """(margins, fits) of ``grasp_quality``, each kept per grasp by the cache: a grasp's quality depends
         only on the grasp in the target's frame, the target's model and gripper and which way is down in
@@ -248,9 +267,10 @@ class World:
         model, info = self.target_model, self.robot.info
         down = quality.model_load(model, self.target_pose).down
         friction = model.friction if getattr(model, "friction", None) is not None else settings.object_friction
-        common = (mesh_content_key(model.mesh), float(model.mass), _rounded(model.com), friction,
-                  quality.Grip.of(info, friction), _rounded(info.grasp_frame), settings, _rounded(down))
-        keys = [(common, _rounded(g[:3])) for g in grasps]
+        common = _HashedKey((self._target_key, float(model.mass), _rounded(model.com), friction,
+                             quality.Grip.of(info, friction), _rounded(info.grasp_frame), settings, _rounded(down)))
+        rounded = np.round(grasps[:, :3], 9) + 0.0
+        keys = [(common, g.tobytes()) for g in rounded]
 
         def build(rows):
             q = self.grasp_quality(grasps[rows], settings)

@@ -89,10 +89,12 @@ struct OmgLoopResult {
 // A warm start (replanning) gives `initial` (n x dof, after the start: the last plan moved to the new
 // start) and `initial_goal` (its goal in this goal set, or -1: the best by the first estimate): the
 // loop starts there with that goal's tail, and a start that already passes the success test on its
-// goal is returned with no iteration.
+// goal is returned with no iteration. `initial_costs` (one per goal, or empty): the goal costs the
+// selection policy starts from (the last plan's latest estimates of these goals); empty: estimated.
 struct WarmStart {
   Trajectory initial;
   int initial_goal = -1;
+  Eigen::VectorXd initial_costs;
 };
 OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refiner, int hand_link,
                            const Eigen::VectorXd& q0, const Trajectory& goals, const std::vector<Trajectory>& tails,
