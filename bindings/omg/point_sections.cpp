@@ -1,5 +1,6 @@
 // Bindings of the local sections of grasps from points (pickplan/omg/point_sections.hpp).
 #include "../common.hpp"
+#include "pickplan/omg/point_queries.hpp"
 #include "pickplan/omg/point_sections.hpp"
 
 namespace pickplan::bind {
@@ -79,6 +80,37 @@ void init_point_sections(py::module_& m) {
       },
       py::arg("points"), py::arg("normals"), py::arg("i"), py::arg("j"), py::arg("min_width"), py::arg("cone"),
       "The pairs (i, j) wide enough and within each other's friction cone: (rows kept, margins, widths).");
+
+  m.def(
+      "radius_pairs",
+      [](const Array& points, const py::array_t<long, py::array::c_style | py::array::forcecast>& queries, double radius,
+         std::optional<py::array_t<bool, py::array::c_style | py::array::forcecast>> keep,
+         std::optional<py::array_t<long, py::array::c_style | py::array::forcecast>> order) {
+        require_shape("points", points, {-1, 3}, "(N, 3)");
+        require_shape("queries", queries, {-1}, "(M,)");
+        const RowMatrixXd P = Eigen::Map<const RowMatrixXd>(points.data(), points.shape(0), 3);
+        const std::vector<long> Q(queries.data(), queries.data() + queries.shape(0));
+        std::vector<std::uint8_t> K;
+        if (keep) {
+          require_shape("keep", *keep, {points.shape(0)}, "(N,) like points");
+          K.assign(keep->data(), keep->data() + keep->shape(0));
+        }
+        std::vector<long> O;
+        if (order) {
+          require_shape("order", *order, {points.shape(0)}, "(N,) like points");
+          O.assign(order->data(), order->data() + order->shape(0));
+        }
+        RadiusPairs found;
+        {
+          py::gil_scoped_release release;
+          found = radius_pairs(P, Q, radius, K, O);
+        }
+        return py::make_tuple(py::array_t<long>(found.i.size(), found.i.data()),
+                              py::array_t<long>(found.j.size(), found.j.data()));
+      },
+      py::arg("points"), py::arg("queries"), py::arg("radius"), py::arg("keep") = py::none(), py::arg("order") = py::none(),
+      "The pairs (i, j) with |P_j - P_i| <= radius: i the queries in turn, each one's j (only kept ones) in the "
+      "place they take in order (a permutation of the points; default ascending).");
 
   m.def(
       "sorted_quantiles",

@@ -153,7 +153,7 @@ def test_fitted_normals_keep_a_noisy_flat_face_coherent():
     N /= np.linalg.norm(N, axis=1, keepdims=True)
     N *= np.sign(N @ true_n)[:, None]
     inner = (np.abs(u.ravel()) < 0.02) & (np.abs(v.ravel()) < 0.02)  # away from the face's border
-    _, raw_coherence = patch_normals(P, N, cKDTree(P), 0.008)
+    _, raw_coherence = patch_normals(P, N, 0.008)
     assert np.median(raw_coherence[inner]) < 0.9  # below PointGraspSettings.patch_coherence
     Q = denoised(P, N, 0.008)
     F = fitted_normals(Q, -N, 0.008)
@@ -161,7 +161,7 @@ def test_fitted_normals_keep_a_noisy_flat_face_coherent():
     F = fitted_normals(Q, N, 0.008)
     angle = np.degrees(np.arccos(np.clip(F[inner] @ true_n, -1, 1)))
     assert np.percentile(angle, 95) < 10
-    _, coherence = patch_normals(Q, F, cKDTree(Q), 0.008)
+    _, coherence = patch_normals(Q, F, 0.008)
     assert np.min(coherence[inner]) > 0.95
     # noise-free, the fit is exact
     P0 = np.outer(u.ravel(), e1) + np.outer(v.ravel(), e2)
@@ -177,7 +177,7 @@ def test_fitted_normals_on_a_box_edge_stay_incoherent():
     flat = (np.abs(P[:, 2] - 0.06) < 1e-9) & (np.abs(P[:, :2] - 0.03).max(axis=1) < 0.02)
     np.testing.assert_allclose(F[flat], N[flat], atol=1e-9)
     edge = (np.abs(P[:, 2] - 0.06) < 1e-9) & (np.abs(P[:, 0] - 0.06) < 1e-9) & (np.abs(P[:, 1] - 0.03) < 0.01)
-    _, coherence = patch_normals(P, F, cKDTree(P), 0.008)
+    _, coherence = patch_normals(P, F, 0.008)
     assert np.max(coherence[edge]) < 0.9
 
 
