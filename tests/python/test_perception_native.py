@@ -172,7 +172,7 @@ def test_points_in_frames_are_the_points_in_each_box():
     assert max(want) > 10
 
 
-def test_antipodal_pairs_are_the_pairs_within_both_friction_cones():
+def test_antipodal_partners_are_the_radius_pairs_within_both_friction_cones():
     # points on two parallel faces 4 cm apart (normals outward) and a few on a third face: the pairs
     # across the two faces within the cone pass, with their exact widths; pairs on one face do not
     rng = np.random.default_rng(7)
@@ -180,19 +180,22 @@ def test_antipodal_pairs_are_the_pairs_within_both_friction_cones():
     right = np.column_stack([np.full(30, 0.04), rng.uniform(-0.02, 0.02, (30, 2))])
     P = np.vstack([left, right])
     N = np.vstack([np.tile([-1.0, 0, 0], (30, 1)), np.tile([1.0, 0, 0], (30, 1))])
-    i, j = np.repeat(np.arange(60), 60), np.tile(np.arange(60), 60)
     cone = np.cos(np.arctan(0.3))
-    rows, margins, widths = _core.antipodal_pairs(P, N, i, j, 0.004, cone)
-    D = P[j] - P[i]
-    w = np.linalg.norm(D, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        m = np.minimum(-(D / w[:, None] * N[i]).sum(axis=1), (N[j] * D / w[:, None]).sum(axis=1))
-    want = np.flatnonzero((w >= 0.004) & (m >= cone))
-    assert np.array_equal(rows, want) and len(want) > 100
-    assert np.all((i[rows] < 30) != (j[rows] < 30))  # across the two faces only
-    assert np.allclose(widths, w[rows], rtol=0, atol=1e-15) and np.allclose(margins, m[rows], atol=1e-15)
-    with pytest.raises(ValueError, match="range"):
-        _core.antipodal_pairs(P, N, np.array([0]), np.array([60]), 0.004, cone)
+    keep, order = rng.uniform(size=60) < 0.8, rng.permutation(60)
+    seeds = rng.permutation(60)[:40]
+    for radius in (0.045, 1.0):  # some partners beyond the radius, and none
+        i, j = _core.radius_pairs(P, seeds, radius, keep, order)
+        D = P[j] - P[i]
+        w = np.linalg.norm(D, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            m = np.minimum(-(D / w[:, None] * N[i]).sum(axis=1), (N[j] * D / w[:, None]).sum(axis=1))
+        want = np.flatnonzero((w >= 0.004) & (m >= cone))
+        gi, gj, margins, widths = _core.antipodal_partners(P, N, seeds, radius, keep, order, 0.004, cone)
+        assert np.array_equal(gi, i[want]) and np.array_equal(gj, j[want]) and len(want) > 10
+        assert np.all((gi < 30) != (gj < 30))  # across the two faces only
+        assert np.allclose(widths, w[want], rtol=0, atol=1e-15) and np.allclose(margins, m[want], atol=1e-15)
+    with pytest.raises(ValueError, match="order"):
+        _core.antipodal_partners(P, N, seeds, 0.1, keep, order[:5], 0.004, cone)
 
 
 def test_radius_pairs_are_a_kd_tree_ball_query_sorted_or_in_its_order():

@@ -35,8 +35,12 @@ class CellIndex {
 
 }  // namespace
 
-RadiusPairs radius_pairs(const RowMatrixXd& points, const std::vector<long>& queries, double radius,
-                         const std::vector<std::uint8_t>& keep, const std::vector<long>& order) {
+namespace {
+
+// visit(i, j) for every pair radius_pairs finds, in its order.
+template <class Visit>
+void visit_radius_pairs(const RowMatrixXd& points, const std::vector<long>& queries, double radius,
+                        const std::vector<std::uint8_t>& keep, const std::vector<long>& order, Visit&& visit) {
   if (points.cols() != 3) throw std::invalid_argument("radius pairs: expected (N, 3) points");
   if (!(std::isfinite(radius) && radius > 0)) throw std::invalid_argument("radius pairs: radius must be > 0");
   if (!points.allFinite()) throw std::invalid_argument("radius pairs: points must be finite");
@@ -54,8 +58,7 @@ RadiusPairs radius_pairs(const RowMatrixXd& points, const std::vector<long>& que
     if (k < 0 || k >= n || rank[k] >= 0) throw std::invalid_argument("radius pairs: the order must hold every point once");
     rank[k] = t;
   }
-  RadiusPairs out;
-  if (n == 0) return out;
+  if (n == 0) return;
   const CellIndex cells(points, radius);
   const double r2 = radius * radius;
   std::vector<long> found;
@@ -86,9 +89,30 @@ RadiusPairs radius_pairs(const RowMatrixXd& points, const std::vector<long>& que
       for (long j : sequence)
         if (marked[j]) found.push_back(j), marked[j] = 0;
     }
-    out.i.insert(out.i.end(), found.size(), i);
-    out.j.insert(out.j.end(), found.begin(), found.end());
+    for (long j : found) visit(i, j);
   }
+}
+
+}  // namespace
+
+RadiusPairs radius_pairs(const RowMatrixXd& points, const std::vector<long>& queries, double radius,
+                         const std::vector<std::uint8_t>& keep, const std::vector<long>& order) {
+  RadiusPairs out;
+  visit_radius_pairs(points, queries, radius, keep, order, [&](long i, long j) { out.i.push_back(i), out.j.push_back(j); });
+  return out;
+}
+
+AntipodalPartners antipodal_partners(const RowMatrixXd& points, const RowMatrixXd& normals, const std::vector<long>& queries,
+                                     double radius, const std::vector<std::uint8_t>& keep, const std::vector<long>& order,
+                                     double min_width, double cone) {
+  if (normals.rows() != points.rows() || normals.cols() != 3)
+    throw std::invalid_argument("antipodal partners: expected (N, 3) normals like the points");
+  AntipodalPartners out;
+  double margin = 0, width = 0;
+  visit_radius_pairs(points, queries, radius, keep, order, [&](long i, long j) {
+    if (!antipodal_pair(points, normals, i, j, min_width, cone, &margin, &width)) return;
+    out.i.push_back(i), out.j.push_back(j), out.margins.push_back(margin), out.widths.push_back(width);
+  });
   return out;
 }
 

@@ -100,28 +100,17 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
   return out;
 }
 
-AntipodalPairs antipodal_pairs(const RowMatrixXd& points, const RowMatrixXd& normals, const std::vector<long>& i,
-                               const std::vector<long>& j, double min_width, double cone) {
-  if (points.cols() != 3 || normals.rows() != points.rows() || normals.cols() != 3 || i.size() != j.size())
-    throw std::invalid_argument("antipodal pairs: expected (N, 3) points and normals and as many i as j");
-  const long n = points.rows();
-  AntipodalPairs out;
-  for (std::size_t k = 0; k < i.size(); ++k) {
-    const long a = i[k], b = j[k];
-    if (a < 0 || b < 0 || a >= n || b >= n) throw std::invalid_argument("antipodal pairs: a point index out of range");
-    const double dx = points(b, 0) - points(a, 0), dy = points(b, 1) - points(a, 1), dz = points(b, 2) - points(a, 2);
-    const double w = std::sqrt(dx * dx + dy * dy + dz * dz);  // numpy's norm: the squares summed in order
-    if (!(w >= min_width)) continue;
-    const double ax = dx / w, ay = dy / w, az = dz / w;
-    const double from = -(ax * normals(a, 0) + ay * normals(a, 1) + az * normals(a, 2));
-    const double to = normals(b, 0) * ax + normals(b, 1) * ay + normals(b, 2) * az;
-    const double margin = std::min(from, to);
-    if (!(margin >= cone)) continue;
-    out.rows.push_back(static_cast<long>(k));
-    out.margins.push_back(margin);
-    out.widths.push_back(w);
-  }
-  return out;
+bool antipodal_pair(const RowMatrixXd& points, const RowMatrixXd& normals, long a, long b, double min_width, double cone,
+                    double* margin, double* width) {
+  const double dx = points(b, 0) - points(a, 0), dy = points(b, 1) - points(a, 1), dz = points(b, 2) - points(a, 2);
+  const double w = std::sqrt(dx * dx + dy * dy + dz * dz);  // numpy's norm: the squares summed in order
+  if (!(w >= min_width)) return false;
+  const double ax = dx / w, ay = dy / w, az = dz / w;
+  const double from = -(ax * normals(a, 0) + ay * normals(a, 1) + az * normals(a, 2));
+  const double to = normals(b, 0) * ax + normals(b, 1) * ay + normals(b, 2) * az;
+  *margin = std::min(from, to);
+  *width = w;
+  return *margin >= cone;
 }
 
 Eigen::VectorXi points_in_frames(const RowMatrixXd& frames, const RowMatrixXd& points, const RowMatrixXd& half) {

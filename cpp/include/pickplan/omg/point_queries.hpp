@@ -1,6 +1,6 @@
 #pragma once
 // The points within a radius of others, natively (python/pickplan/omg/grasps/points.py: contact
-// patches and antipodal partners of grasps from observed points).
+// patches of grasps from observed points, and antipodal partners).
 #include <cstdint>
 #include <vector>
 
@@ -20,5 +20,15 @@ struct RadiusPairs {
 };
 RadiusPairs radius_pairs(const RowMatrixXd& points, const std::vector<long>& queries, double radius,
                          const std::vector<std::uint8_t>& keep = {}, const std::vector<long>& order = {});
+
+// The pairs radius_pairs finds that pair up antipodally (antipodal_pair: width >= min_width, margin >=
+// cone), in its order, with their margins and widths: an antipodal grasp's contacts and their partners.
+struct AntipodalPartners {
+  std::vector<long> i, j;
+  std::vector<double> margins, widths;
+};
+AntipodalPartners antipodal_partners(const RowMatrixXd& points, const RowMatrixXd& normals, const std::vector<long>& queries,
+                                     double radius, const std::vector<std::uint8_t>& keep, const std::vector<long>& order,
+                                     double min_width, double cone);
 
 }  // namespace pickplan

@@ -144,13 +144,12 @@ def antipodal_candidates(P, N, s: PointGraspSettings, rng, near=None) -> list:
     # the same order, as testing coherence after the cone)
     coherent = coherence >= s.patch_coherence
     seeds = seeds[coherent[seeds]]
-    # each seed's coherent partners within the opening (natively), in the order of a k-d tree's
-    # unsorted ball query (its leaf order): the seeded subset below draws from the pairs in that order
-    i, j = _core.radius_pairs(P, seeds, s.max_width - s.width_margin, coherent, cKDTree(P).indices)
-    # the pairs that pass the width and friction-cone tests, found natively among 10^5-10^6 with a cone
-    # a hair wider, then measured here as numpy measures them (einsum's sums differ in the last bit)
-    near_cone, _, _ = _core.antipodal_pairs(P, N, i, j, s.min_width, cone - 1e-9)
-    i, j = i[near_cone], j[near_cone]
+    # each seed's coherent partners within the opening that pass the width and friction-cone tests,
+    # found natively among 10^5-10^6 with a cone a hair wider, in the order of a k-d tree's unsorted
+    # ball query (its leaf order: the seeded subset below draws from the pairs in that order), then
+    # measured here as numpy measures them (einsum's sums differ in the last bit)
+    i, j, _, _ = _core.antipodal_partners(P, N, seeds, s.max_width - s.width_margin, coherent, cKDTree(P).indices,
+                                          s.min_width, cone - 1e-9)
     widths = np.linalg.norm(P[j] - P[i], axis=1)
     axes = (P[j] - P[i]) / widths[:, None]
     margins = np.minimum(-np.einsum("ij,ij->i", axes, N[i]), np.einsum("ij,ij->i", N[j], axes))
