@@ -42,7 +42,7 @@ Eigen::VectorXi points_in_frames(const RowMatrixXd& frames, const RowMatrixXd& p
 
 // Whether points a and b (unit normals) pair up antipodally: the width w = |P_b - P_a| >= min_width and,
 // with the axis x = (P_b - P_a) / w, the margin min(-x . N_a, N_b . x) >= cone (margin and width set
-// whenever w >= min_width).
+// when it passes).
 bool antipodal_pair(const RowMatrixXd& points, const RowMatrixXd& normals, long a, long b, double min_width, double cone,
                     double* margin, double* width);
 

@@ -79,6 +79,15 @@ def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
                      [y0 * z1 - y1 * z0, y2, z2, c2], [0.0, 0.0, 0.0, 1.0]])
 
 
+def _frames_many(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """``_frames`` of (K, 3) rows at once (elementwise: the same values)."""
+    F = np.zeros((len(y), 4, 4))
+    F[:, :3, 0] = np.column_stack([y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1], y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
+                                   y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0]])
+    F[:, :3, 1], F[:, :3, 2], F[:, :3, 3], F[:, 3, 3] = y, z, centre, 1.0
+    return F
+
+
 def _neighbourhoods(P, radius: float):
     """The points within ``radius`` of each point of ``P``, flattened: owner indices k, neighbour indices j
     (ascending per owner, as a k-d tree's sorted ball query; natively, ``_core.radius_pairs``)."""
@@ -266,19 +275,29 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     # only points this near the sampled one can lie in a band (|across| <= pad_width / 2, |along| <=
     # max_width; a hair of slack for rounding): the others are left out, the rest keep their order
     reach2 = ((s.pad_width / 2) ** 2 + s.max_width ** 2) * (1 + 1e-6)
-    out = []
+    found = []  # per section: the sampled point, then (yaw, lo, hi, across_min, across_max, top)
     for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
         rel = F2 - F2[i]
         near = np.flatnonzero(np.einsum("ij,ij->i", rel, rel) <= reach2)
         ry, rx = rel @ Y2.T, rel @ X2.T
-        for a, lo, hi, u_min, u_max, top in _core.local_sections(ry[near], rx[near], height[near], native):
-            y, x = E @ Y2[int(a)], E @ X2[int(a)]
-            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (u_max + u_min) * x
-            for tilt in tilts:
-                lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
-                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, mid + max(lowest, top - s.grasp_depths[0]) * n),
-                            0.9 - abs(tilt) / (np.pi / 2), float(hi - lo)))
-    return out
+        found += [(i, *row) for row in _core.local_sections(ry[near], rx[near], height[near], native)]
+    if not found:
+        return []
+    # all sections' frames at once: each yaw's axes as one vector product each (as per section before),
+    # the rest elementwise (the same values)
+    i, a, lo, hi, u_min, u_max, top = np.array(found).T
+    i, a = i.astype(int), a.astype(int)
+    Yw = np.array([E @ Y2[k] for k in range(s.yaw_steps)])[a]
+    Xw = np.array([E @ X2[k] for k in range(s.yaw_steps)])[a]
+    mid = flat[i] + (0.5 * (lo + hi))[:, None] * Yw + (0.5 * (u_max + u_min))[:, None] * Xw
+    frames, scores = [], []
+    for tilt in tilts:
+        lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
+        centre = mid + np.maximum(lowest, top - s.grasp_depths[0])[:, None] * n
+        frames.append(_frames_many(Yw, -np.cos(tilt) * n + np.sin(tilt) * Xw, centre))
+        scores.append(0.9 - abs(tilt) / (np.pi / 2))
+    F = np.stack(frames, axis=1).reshape(-1, 4, 4)  # per section, its tilts in turn
+    return list(zip(F, np.tile(scores, len(found)).tolist(), np.repeat(hi - lo, len(tilts)).tolist()))
 
 
 def _side_candidates(rel, centre, y, x, width, s: PointGraspSettings) -> list:
