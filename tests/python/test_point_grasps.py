@@ -11,7 +11,8 @@ from conftest import known_scene as _known_scene
 from pickplan.core import robots
 from pickplan.omg import isf
 from pickplan.omg.grasps.points import (PointGraspSettings, denoised, fitted_normals, footprint_candidates, gravity_lever,
-                                        grasps_from_points, local_candidates, mass_centre, patch_normals)
+                                        grasps_from_points, local_candidates, mass_centre, patch_normals,
+                                        thinned)
 from pickplan.perception.field import perceive
 from pickplan.perception.hull import HullSettings, hull_voxels, visibility_hull
 from pickplan.sim.observe import render_observation
@@ -200,3 +201,12 @@ def test_section_widths_resist_depth_noise_and_keep_a_curved_side():
     C = np.column_stack([0.5 + 0.03 * np.cos(a.ravel()), 0.03 * np.sin(a.ravel()), z.ravel()])
     widths = [w for G, _, w in footprint_candidates(C, PLANE, s) if G[2, 2] < -0.99]
     assert widths and max(abs(w - 0.06) for w in widths) < 2e-4
+
+
+def test_thinned_keeps_the_first_point_of_each_voxel_in_order():
+    rng = np.random.default_rng(12)
+    P = np.vstack([rng.normal(0, 0.04, (3000, 3)), rng.normal(0, 0.04, (3000, 3)) - [0.3, 0.0, 0.5]])
+    first = {}
+    for k, v in enumerate(map(tuple, np.floor(P / 0.015).astype(int))):
+        first.setdefault(v, k)
+    assert np.array_equal(thinned(P, 0.015), P[sorted(first.values())])

@@ -408,7 +408,11 @@ def thinned(P: np.ndarray, cell: float) -> np.ndarray:
     """One point per ``cell``-sized voxel (the first), order kept: overlapping views' points once."""
     if len(P) == 0 or cell <= 0:
         return P
-    _, first = np.unique(np.floor(P / cell).astype(np.int64), axis=0, return_index=True)
+    V = np.floor(P / cell).astype(np.int64)
+    V -= V.min(axis=0)
+    span = V.max(axis=0) + 1
+    # one integer per voxel (row-major over the points' box): a 1-D unique, not a row-wise one
+    _, first = np.unique((V[:, 0] * span[1] + V[:, 1]) * span[2] + V[:, 2], return_index=True)
     return P[np.sort(first)]
 
 
