@@ -1,6 +1,7 @@
 #pragma once
 // Shared helpers for the pickplan._core bindings: numpy views with shape checks.
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>

@@ -1,4 +1,5 @@
 #include "../common.hpp"
+#include "pickplan/geometry/frame_clearance.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
 namespace pickplan::bind {
@@ -161,7 +162,34 @@ void init_sdf(py::module_& m) {
           py::arg("points"), py::arg("cutoff") = std::numeric_limits<double>::infinity(),
           py::arg("exclude") = std::vector<int>{}, py::arg("exclude_table") = false,
           "Signed distance to the nearest body and its gradient for (N, 3) world points. Bodies farther than "
-          "cutoff are skipped (the result is then cutoff with a zero gradient).");
+          "cutoff are skipped (the result is then cutoff with a zero gradient).")
+      .def(
+          "clear_in_frames",
+          [](const SceneSdf& s, const Array& frames, const Array& pts_in, bool inverse, double reach, double threshold,
+             double cutoff, const std::vector<int>& exclude, bool exclude_table) {
+            require_shape("frames", frames, {-1, 4, 4}, "(K, 4, 4)");
+            Array pts = points_arg(pts_in);
+            FrameClearance settings;
+            settings.inverse = inverse;
+            settings.reach = reach;
+            settings.threshold = threshold;
+            settings.cutoff = cutoff;
+            settings.exclude_mask = exclusion_mask(s, exclude, exclude_table);
+            const FrameMatrix F = Eigen::Map<const FrameMatrix>(frames.data(), frames.shape(0), 16);
+            const FrameMatrix P = Eigen::Map<const FrameMatrix>(pts.data(), pts.shape(0), 3);
+            std::vector<std::uint8_t> clear;
+            {
+              py::gil_scoped_release release;
+              clear = clear_in_frames(F, P, s, settings);
+            }
+            py::array_t<bool> out(static_cast<py::ssize_t>(clear.size()));
+            for (std::size_t k = 0; k < clear.size(); ++k) out.mutable_at(k) = clear[k] != 0;
+            return out;
+          },
+          py::arg("frames"), py::arg("points"), py::arg("inverse"), py::arg("reach"), py::arg("threshold"),
+          py::arg("cutoff"), py::arg("exclude") = std::vector<int>{}, py::arg("exclude_table") = false,
+          "Per frame: every point read (inverse: world points taken into the frame, those within reach of its "
+          "origin; else frame points taken to the world) farther than threshold from the bodies.");
 }
 
 }  // namespace pickplan::bind

@@ -1,8 +1,38 @@
 // Bindings of the local sections of grasps from points (pickplan/omg/point_sections.hpp).
 #include "../common.hpp"
+#include "pickplan/omg/point_queries.hpp"
 #include "pickplan/omg/point_sections.hpp"
 
 namespace pickplan::bind {
+
+namespace {
+
+using LongArray = py::array_t<long, py::array::c_style | py::array::forcecast>;
+using BoolArray = py::array_t<bool, py::array::c_style | py::array::forcecast>;
+
+// The arguments of a radius query: points, query indices, and optionally keep flags and an order.
+struct PairQuery {
+  RowMatrixXd P;
+  std::vector<long> Q, O;
+  std::vector<std::uint8_t> K;
+  PairQuery(const Array& points, const LongArray& queries, const std::optional<BoolArray>& keep,
+            const std::optional<LongArray>& order) {
+    require_shape("points", points, {-1, 3}, "(N, 3)");
+    require_shape("queries", queries, {-1}, "(M,)");
+    P = Eigen::Map<const RowMatrixXd>(points.data(), points.shape(0), 3);
+    Q.assign(queries.data(), queries.data() + queries.shape(0));
+    if (keep) {
+      require_shape("keep", *keep, {points.shape(0)}, "(N,) like points");
+      K.assign(keep->data(), keep->data() + keep->shape(0));
+    }
+    if (order) {
+      require_shape("order", *order, {points.shape(0)}, "(N,) like points");
+      O.assign(order->data(), order->data() + order->shape(0));
+    }
+  }
+};
+
+}  // namespace
 
 void init_point_sections(py::module_& m) {
   py::class_<SectionSettings>(m, "SectionSettings")
@@ -58,27 +88,42 @@ void init_point_sections(py::module_& m) {
       "Per frame: how many points lie in the box |R^T (p - origin)| < half about its origin.");
 
   m.def(
-      "antipodal_pairs",
-      [](const Array& points, const Array& normals, const py::array_t<long, py::array::c_style | py::array::forcecast>& i,
-         const py::array_t<long, py::array::c_style | py::array::forcecast>& j, double min_width, double cone) {
-        require_shape("points", points, {-1, 3}, "(N, 3)");
-        require_shape("normals", normals, {points.shape(0), 3}, "(N, 3) like points");
-        require_shape("i", i, {-1}, "(M,)");
-        require_shape("j", j, {i.shape(0)}, "(M,) like i");
-        const RowMatrixXd P = Eigen::Map<const RowMatrixXd>(points.data(), points.shape(0), 3);
-        const RowMatrixXd N = Eigen::Map<const RowMatrixXd>(normals.data(), normals.shape(0), 3);
-        const std::vector<long> I(i.data(), i.data() + i.shape(0)), J(j.data(), j.data() + j.shape(0));
-        AntipodalPairs found;
+      "radius_pairs",
+      [](const Array& points, const LongArray& queries, double radius, std::optional<BoolArray> keep,
+         std::optional<LongArray> order) {
+        const PairQuery q(points, queries, keep, order);
+        RadiusPairs found;
         {
           py::gil_scoped_release release;
-          found = antipodal_pairs(P, N, I, J, min_width, cone);
+          found = radius_pairs(q.P, q.Q, radius, q.K, q.O);
         }
-        return py::make_tuple(py::array_t<long>(found.rows.size(), found.rows.data()),
+        return py::make_tuple(py::array_t<long>(found.i.size(), found.i.data()),
+                              py::array_t<long>(found.j.size(), found.j.data()));
+      },
+      py::arg("points"), py::arg("queries"), py::arg("radius"), py::arg("keep") = py::none(), py::arg("order") = py::none(),
+      "The pairs (i, j) with |P_j - P_i| <= radius: i the queries in turn, each one's j (only kept ones) in the "
+      "place they take in order (a permutation of the points; default ascending).");
+
+  m.def(
+      "antipodal_partners",
+      [](const Array& points, const Array& normals, const LongArray& queries, double radius, std::optional<BoolArray> keep,
+         std::optional<LongArray> order, double min_width, double cone) {
+        const PairQuery q(points, queries, keep, order);
+        require_shape("normals", normals, {points.shape(0), 3}, "(N, 3) like points");
+        const RowMatrixXd N = Eigen::Map<const RowMatrixXd>(normals.data(), normals.shape(0), 3);
+        AntipodalPartners found;
+        {
+          py::gil_scoped_release release;
+          found = antipodal_partners(q.P, N, q.Q, radius, q.K, q.O, min_width, cone);
+        }
+        return py::make_tuple(py::array_t<long>(found.i.size(), found.i.data()),
+                              py::array_t<long>(found.j.size(), found.j.data()),
                               py::array_t<double>(found.margins.size(), found.margins.data()),
                               py::array_t<double>(found.widths.size(), found.widths.data()));
       },
-      py::arg("points"), py::arg("normals"), py::arg("i"), py::arg("j"), py::arg("min_width"), py::arg("cone"),
-      "The pairs (i, j) wide enough and within each other's friction cone: (rows kept, margins, widths).");
+      py::arg("points"), py::arg("normals"), py::arg("queries"), py::arg("radius"), py::arg("keep"), py::arg("order"),
+      py::arg("min_width"), py::arg("cone"),
+      "The radius pairs (as radius_pairs) at least min_width apart within each other's friction cone: (i, j, margins, widths).");
 
   m.def(
       "sorted_quantiles",

@@ -70,7 +70,7 @@ void init_perception(py::module_& m) {
       "Fuse depth views into a signed distance grid of the obstacles and the target's observed points.");
 
   m.def(
-      "plane_inlier_counts",
+      "most_inliers",
       [](const Array& points, const Array& normals, const Array& offsets, double tolerance) {
         require_shape("points", points, {-1, 3}, "(N, 3)");
         require_shape("normals", normals, {-1, 3}, "(K, 3)");
@@ -78,11 +78,15 @@ void init_perception(py::module_& m) {
         const Vertices P = Eigen::Map<const Vertices>(points.data(), points.shape(0), 3);
         const Vertices N = Eigen::Map<const Vertices>(normals.data(), normals.shape(0), 3);
         const Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(offsets.data(), offsets.shape(0));
-        py::gil_scoped_release release;
-        return Eigen::VectorXi(plane_inlier_counts(P, N, d, tolerance));
+        PlaneChoice best;
+        {
+          py::gil_scoped_release release;
+          best = most_inliers(P, N, d, tolerance);
+        }
+        return py::make_tuple(best.index, best.inliers);
       },
       py::arg("points"), py::arg("normals"), py::arg("offsets"), py::arg("tolerance"),
-      "Per plane n_k . x = d_k: how many points lie within tolerance of it.");
+      "The first plane n_k . x = d_k with the most points within tolerance of it: (k, its count); k -1 without planes.");
 
   m.def(
       "point_distance_grid",

@@ -11,18 +11,20 @@ namespace pickplan {
 namespace {
 
 TEST(DepthField, DistanceTransformIsExact) {
-  const Eigen::Vector3i dims(9, 7, 5);
-  std::mt19937 rng(4);
-  std::vector<std::uint8_t> mask(dims.prod());
-  for (auto& m : mask) m = (rng() % 17) == 0;
-  mask[3] = 1;
-  const auto d2 = squared_distance_transform(mask, dims);
-  for (int i = 0; i < dims.prod(); ++i) {
-    const Eigen::Vector3i p(i % 9, (i / 9) % 7, i / 63);
-    double best = 1e30;
-    for (int j = 0; j < dims.prod(); ++j)
-      if (mask[j]) best = std::min(best, (Eigen::Vector3i(j % 9, (j / 9) % 7, j / 63) - p).cast<double>().squaredNorm());
-    EXPECT_NEAR(d2[i], best, 1e-3) << "voxel " << i;
+  // lines shorter than the transform's 16-line blocks, and longer ones ending in a partial block
+  for (const Eigen::Vector3i dims : {Eigen::Vector3i(9, 7, 5), Eigen::Vector3i(37, 11, 13)}) {
+    std::mt19937 rng(4);
+    std::vector<std::uint8_t> mask(dims.prod());
+    for (auto& m : mask) m = (rng() % 97) == 0;
+    mask[3] = 1;
+    const auto d2 = squared_distance_transform(mask, dims);
+    auto at = [&](int i) { return Eigen::Vector3i(i % dims.x(), (i / dims.x()) % dims.y(), i / (dims.x() * dims.y())); };
+    for (int i = 0; i < dims.prod(); ++i) {
+      double best = 1e30;
+      for (int j = 0; j < dims.prod(); ++j)
+        if (mask[j]) best = std::min(best, (at(j) - at(i)).cast<double>().squaredNorm());
+      ASSERT_NEAR(d2[i], best, 1e-3) << "voxel " << i << " of " << dims.transpose();
+    }
   }
 }
 

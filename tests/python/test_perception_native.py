@@ -22,16 +22,19 @@ def test_sorted_quantiles_are_numpys_to_the_last_bit():
         assert np.array_equal(_core.sorted_quantiles(v, q), np.quantile(v, q)), n
 
 
-def test_plane_inlier_counts_are_brute_force_counts():
+def test_most_inliers_is_the_first_brute_force_maximum():
     rng = np.random.default_rng(0)
     P = rng.uniform(-1, 1, (5000, 3)) * [1, 1, 0.02]
     N = rng.normal(size=(40, 3))
+    N[::3] = [0.0, 0.0, 1.0]  # some near the points' plane: most hypotheses are left early, some not
     N /= np.linalg.norm(N, axis=1, keepdims=True)
     D = rng.uniform(-0.01, 0.01, 40)
+    N, D = np.vstack([N, N[[9, 3]]]), np.append(D, D[[9, 3]])  # ties: the first one keeps it
     want = [int((np.abs(P @ n - d) < 0.006).sum()) for n, d in zip(N, D)]
-    assert list(_core.plane_inlier_counts(P, N, D, 0.006)) == want
+    assert _core.most_inliers(P, N, D, 0.006) == (int(np.argmax(want)), max(want))
+    assert _core.most_inliers(P, N[:0], D[:0], 0.006) == (-1, 0)
     with pytest.raises(ValueError, match="offsets"):
-        _core.plane_inlier_counts(P, N, D[:3], 0.006)
+        _core.most_inliers(P, N, D[:3], 0.006)
 
 
 def test_the_support_plane_of_a_tilted_table_is_exact():
@@ -169,7 +172,7 @@ def test_points_in_frames_are_the_points_in_each_box():
     assert max(want) > 10
 
 
-def test_antipodal_pairs_are_the_pairs_within_both_friction_cones():
+def test_antipodal_partners_are_the_radius_pairs_within_both_friction_cones():
     # points on two parallel faces 4 cm apart (normals outward) and a few on a third face: the pairs
     # across the two faces within the cone pass, with their exact widths; pairs on one face do not
     rng = np.random.default_rng(7)
@@ -177,16 +180,68 @@ def test_antipodal_pairs_are_the_pairs_within_both_friction_cones():
     right = np.column_stack([np.full(30, 0.04), rng.uniform(-0.02, 0.02, (30, 2))])
     P = np.vstack([left, right])
     N = np.vstack([np.tile([-1.0, 0, 0], (30, 1)), np.tile([1.0, 0, 0], (30, 1))])
-    i, j = np.repeat(np.arange(60), 60), np.tile(np.arange(60), 60)
     cone = np.cos(np.arctan(0.3))
-    rows, margins, widths = _core.antipodal_pairs(P, N, i, j, 0.004, cone)
-    D = P[j] - P[i]
-    w = np.linalg.norm(D, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        m = np.minimum(-(D / w[:, None] * N[i]).sum(axis=1), (N[j] * D / w[:, None]).sum(axis=1))
-    want = np.flatnonzero((w >= 0.004) & (m >= cone))
-    assert np.array_equal(rows, want) and len(want) > 100
-    assert np.all((i[rows] < 30) != (j[rows] < 30))  # across the two faces only
-    assert np.allclose(widths, w[rows], rtol=0, atol=1e-15) and np.allclose(margins, m[rows], atol=1e-15)
-    with pytest.raises(ValueError, match="range"):
-        _core.antipodal_pairs(P, N, np.array([0]), np.array([60]), 0.004, cone)
+    keep, order = rng.uniform(size=60) < 0.8, rng.permutation(60)
+    seeds = rng.permutation(60)[:40]
+    for radius in (0.045, 1.0):  # some partners beyond the radius, and none
+        i, j = _core.radius_pairs(P, seeds, radius, keep, order)
+        D = P[j] - P[i]
+        w = np.linalg.norm(D, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            m = np.minimum(-(D / w[:, None] * N[i]).sum(axis=1), (N[j] * D / w[:, None]).sum(axis=1))
+        want = np.flatnonzero((w >= 0.004) & (m >= cone))
+        gi, gj, margins, widths = _core.antipodal_partners(P, N, seeds, radius, keep, order, 0.004, cone)
+        assert np.array_equal(gi, i[want]) and np.array_equal(gj, j[want]) and len(want) > 10
+        assert np.all((gi < 30) != (gj < 30))  # across the two faces only
+        assert np.allclose(widths, w[want], rtol=0, atol=1e-15) and np.allclose(margins, m[want], atol=1e-15)
+    with pytest.raises(ValueError, match="order"):
+        _core.antipodal_partners(P, N, seeds, 0.1, keep, order[:5], 0.004, cone)
+
+
+def test_radius_pairs_are_a_kd_tree_ball_query_sorted_or_in_its_order():
+    """Against scipy's cKDTree: sorted per query by default; the tree's unsorted answer (what the
+    antipodal pairs' seeded subset draws from) with the tree's indices as the order."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(3)
+    P = rng.normal(0, 0.04, (2000, 3))
+    keep = rng.uniform(size=2000) < 0.7
+    tree = cKDTree(P)
+    seeds = rng.choice(2000, 300, replace=False)
+    for radius in (0.008, 0.074):
+        i, j = _core.radius_pairs(P, np.arange(2000), radius)
+        near = tree.query_ball_point(P, radius)
+        assert np.array_equal(i, np.repeat(np.arange(2000), [len(a) for a in near]))
+        assert np.array_equal(j, np.concatenate(near))
+        i, j = _core.radius_pairs(P, seeds, radius, keep, tree.indices)
+        near = [[k for k in a if keep[k]] for a in tree.query_ball_point(P[seeds], radius, return_sorted=False)]
+        assert np.array_equal(i, np.repeat(seeds, [len(a) for a in near]))
+        assert np.array_equal(j, np.concatenate(near))
+    with pytest.raises(ValueError, match="keep"):
+        _core.radius_pairs(P, seeds, 0.01, keep[:5])
+
+
+def test_clear_in_frames_is_the_per_point_distance_test():
+    """SceneSdf.clear_in_frames against SceneSdf.distance point by point, both directions."""
+    from pickplan.core.sdf import SceneSdf, SdfQuery
+    from pickplan.core.shapes import Shape
+
+    rng = np.random.default_rng(4)
+    scene = SceneSdf()
+    scene.add_primitive("box", Shape.box(0.1, 0.06, 0.04), np.eye(4))
+    F = np.tile(np.eye(4), (150, 1, 1))
+    F[:, :3, :3] = np.linalg.qr(rng.normal(size=(150, 3, 3)))[0] * np.sign(rng.uniform(-1, 1, (150, 1, 1)))
+    F[:, :3, :3] *= np.linalg.det(F[:, :3, :3])[:, None, None]  # rotations
+    F[:, :3, 3] = rng.uniform(-0.15, 0.15, (150, 3))
+    pts = rng.normal(0, 0.05, (6, 3))
+    world = np.einsum("kij,mj->kmi", F[:, :3, :3], pts) + F[:, None, :3, 3]
+    d = scene.distance(world.reshape(-1, 3), cutoff=0.05)[0].reshape(150, -1)
+    want = d.min(axis=1) > 0.01
+    got = SdfQuery(scene, cutoff=0.05).clear_in_frames(F, pts, 0.01)
+    assert np.array_equal(got, want) and 0 < want.sum() < 150
+    local = np.einsum("kji,kmj->kmi", F[:, :3, :3], pts[None] - F[:, None, :3, 3])
+    near = (local ** 2).sum(axis=2) < 0.12 ** 2
+    d = np.where(near, scene.distance(local.reshape(-1, 3), cutoff=0.05)[0].reshape(150, -1), np.inf)
+    want = d.min(axis=1) > 0.01
+    got = scene.clear_in_frames(F, pts, 0.01, cutoff=0.05, inverse=True, reach=0.12)
+    assert np.array_equal(got, want) and 0 < want.sum() < 150

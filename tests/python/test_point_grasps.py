@@ -11,7 +11,8 @@ from conftest import known_scene as _known_scene
 from pickplan.core import robots
 from pickplan.omg import isf
 from pickplan.omg.grasps.points import (PointGraspSettings, denoised, fitted_normals, footprint_candidates, gravity_lever,
-                                        grasps_from_points, local_candidates, mass_centre, patch_normals)
+                                        grasps_from_points, local_candidates, mass_centre, patch_normals,
+                                        thinned)
 from pickplan.perception.field import perceive
 from pickplan.perception.hull import HullSettings, hull_voxels, visibility_hull
 from pickplan.sim.observe import render_observation
@@ -153,7 +154,7 @@ def test_fitted_normals_keep_a_noisy_flat_face_coherent():
     N /= np.linalg.norm(N, axis=1, keepdims=True)
     N *= np.sign(N @ true_n)[:, None]
     inner = (np.abs(u.ravel()) < 0.02) & (np.abs(v.ravel()) < 0.02)  # away from the face's border
-    _, raw_coherence = patch_normals(P, N, cKDTree(P), 0.008)
+    _, raw_coherence = patch_normals(P, N, 0.008)
     assert np.median(raw_coherence[inner]) < 0.9  # below PointGraspSettings.patch_coherence
     Q = denoised(P, N, 0.008)
     F = fitted_normals(Q, -N, 0.008)
@@ -161,7 +162,7 @@ def test_fitted_normals_keep_a_noisy_flat_face_coherent():
     F = fitted_normals(Q, N, 0.008)
     angle = np.degrees(np.arccos(np.clip(F[inner] @ true_n, -1, 1)))
     assert np.percentile(angle, 95) < 10
-    _, coherence = patch_normals(Q, F, cKDTree(Q), 0.008)
+    _, coherence = patch_normals(Q, F, 0.008)
     assert np.min(coherence[inner]) > 0.95
     # noise-free, the fit is exact
     P0 = np.outer(u.ravel(), e1) + np.outer(v.ravel(), e2)
@@ -177,7 +178,7 @@ def test_fitted_normals_on_a_box_edge_stay_incoherent():
     flat = (np.abs(P[:, 2] - 0.06) < 1e-9) & (np.abs(P[:, :2] - 0.03).max(axis=1) < 0.02)
     np.testing.assert_allclose(F[flat], N[flat], atol=1e-9)
     edge = (np.abs(P[:, 2] - 0.06) < 1e-9) & (np.abs(P[:, 0] - 0.06) < 1e-9) & (np.abs(P[:, 1] - 0.03) < 0.01)
-    _, coherence = patch_normals(P, F, cKDTree(P), 0.008)
+    _, coherence = patch_normals(P, F, 0.008)
     assert np.max(coherence[edge]) < 0.9
 
 
@@ -200,3 +201,12 @@ def test_section_widths_resist_depth_noise_and_keep_a_curved_side():
     C = np.column_stack([0.5 + 0.03 * np.cos(a.ravel()), 0.03 * np.sin(a.ravel()), z.ravel()])
     widths = [w for G, _, w in footprint_candidates(C, PLANE, s) if G[2, 2] < -0.99]
     assert widths and max(abs(w - 0.06) for w in widths) < 2e-4
+
+
+def test_thinned_keeps_the_first_point_of_each_voxel_in_order():
+    rng = np.random.default_rng(12)
+    P = np.vstack([rng.normal(0, 0.04, (3000, 3)), rng.normal(0, 0.04, (3000, 3)) - [0.3, 0.0, 0.5]])
+    first = {}
+    for k, v in enumerate(map(tuple, np.floor(P / 0.015).astype(int))):
+        first.setdefault(v, k)
+    assert np.array_equal(thinned(P, 0.015), P[sorted(first.values())])

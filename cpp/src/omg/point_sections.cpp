@@ -51,25 +51,30 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
                                 std::to_string(rx.rows()) + ", " + std::to_string(rx.cols()) + "), " +
                                 std::to_string(height.size()));
   std::vector<LocalSection> out;
-  std::vector<long> idx;
+  struct Banded {
+    double along, across, height;
+    long k;
+  };
+  std::vector<Banded> band;
   std::vector<double> v, u, left, right;
   for (long a = 0; a < ry.cols(); ++a) {
-    idx.clear();
+    band.clear();
     for (long k = 0; k < n; ++k)
-      if (std::abs(rx(k, a)) <= s.pad_width / 2 && std::abs(ry(k, a)) <= s.max_width) idx.push_back(k);
-    if (idx.size() < 3) continue;
-    std::stable_sort(idx.begin(), idx.end(), [&](long p, long q) { return ry(p, a) < ry(q, a); });
-    const long m = static_cast<long>(idx.size());
+      if (std::abs(rx(k, a)) <= s.pad_width / 2 && std::abs(ry(k, a)) <= s.max_width) band.push_back({ry(k, a), rx(k, a), height(k), k});
+    if (band.size() < 3) continue;
+    // sorted along the closing direction, ties in point order (a stable sort's order)
+    std::sort(band.begin(), band.end(), [](const Banded& p, const Banded& q) { return p.along < q.along || (p.along == q.along && p.k < q.k); });
+    const long m = static_cast<long>(band.size());
     // the run through 0 (the sampled point): from after the last gap before it to the first gap after
     long first_nonneg = m;
     for (long k = 0; k < m; ++k)
-      if (ry(idx[k], a) >= 0.0) {
+      if (band[k].along >= 0.0) {
         first_nonneg = k;
         break;
       }
     long start = 0, stop = m;
     for (long k = 0; k + 1 < m; ++k) {
-      if (!(ry(idx[k + 1], a) - ry(idx[k], a) > s.gap)) continue;
+      if (!(band[k + 1].along - band[k].along > s.gap)) continue;
       if (k < first_nonneg) start = k + 1;
       else {
         stop = k + 1;
@@ -81,9 +86,9 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
     u.clear();
     double top = -INFINITY;
     for (long k = start; k < stop; ++k) {
-      v.push_back(ry(idx[k], a));
-      u.push_back(rx(idx[k], a));
-      top = std::max(top, height(idx[k]));
+      v.push_back(band[k].along);
+      u.push_back(band[k].across);
+      top = std::max(top, band[k].height);
     }
     const long len = stop - start;
     LocalSection sec;
@@ -100,28 +105,21 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
   return out;
 }
 
-AntipodalPairs antipodal_pairs(const RowMatrixXd& points, const RowMatrixXd& normals, const std::vector<long>& i,
-                               const std::vector<long>& j, double min_width, double cone) {
-  if (points.cols() != 3 || normals.rows() != points.rows() || normals.cols() != 3 || i.size() != j.size())
-    throw std::invalid_argument("antipodal pairs: expected (N, 3) points and normals and as many i as j");
-  const long n = points.rows();
-  AntipodalPairs out;
-  for (std::size_t k = 0; k < i.size(); ++k) {
-    const long a = i[k], b = j[k];
-    if (a < 0 || b < 0 || a >= n || b >= n) throw std::invalid_argument("antipodal pairs: a point index out of range");
-    const double dx = points(b, 0) - points(a, 0), dy = points(b, 1) - points(a, 1), dz = points(b, 2) - points(a, 2);
-    const double w = std::sqrt(dx * dx + dy * dy + dz * dz);  // numpy's norm: the squares summed in order
-    if (!(w >= min_width)) continue;
-    const double ax = dx / w, ay = dy / w, az = dz / w;
-    const double from = -(ax * normals(a, 0) + ay * normals(a, 1) + az * normals(a, 2));
-    const double to = normals(b, 0) * ax + normals(b, 1) * ay + normals(b, 2) * az;
-    const double margin = std::min(from, to);
-    if (!(margin >= cone)) continue;
-    out.rows.push_back(static_cast<long>(k));
-    out.margins.push_back(margin);
-    out.widths.push_back(w);
-  }
-  return out;
+bool antipodal_pair(const RowMatrixXd& points, const RowMatrixXd& normals, long a, long b, double min_width, double cone,
+                    double* margin, double* width) {
+  const double dx = points(b, 0) - points(a, 0), dy = points(b, 1) - points(a, 1), dz = points(b, 2) - points(a, 2);
+  // facing away from either normal, the margin is negative (a positive cone is missed): no square root
+  if (cone > 0 && (dx * normals(a, 0) + dy * normals(a, 1) + dz * normals(a, 2) >= 0 ||
+                   dx * normals(b, 0) + dy * normals(b, 1) + dz * normals(b, 2) <= 0))
+    return false;
+  const double w = std::sqrt(dx * dx + dy * dy + dz * dz);  // numpy's norm: the squares summed in order
+  if (!(w >= min_width)) return false;
+  const double ax = dx / w, ay = dy / w, az = dz / w;
+  const double from = -(ax * normals(a, 0) + ay * normals(a, 1) + az * normals(a, 2));
+  const double to = normals(b, 0) * ax + normals(b, 1) * ay + normals(b, 2) * az;
+  *margin = std::min(from, to);
+  *width = w;
+  return *margin >= cone;
 }
 
 Eigen::VectorXi points_in_frames(const RowMatrixXd& frames, const RowMatrixXd& points, const RowMatrixXd& half) {

@@ -64,6 +64,8 @@ void dt_1d(const float* f, float* d, int n, int* v, float* z) {
 
 // One view's verdict on every voxel (the header's rule), merged into `state` by priority. The voxel's
 // camera-frame position is affine in its index: a row's start is transformed once and stepped along x.
+// Each row is projected first and its pixels prefetched, then read: the depth image does not fit the
+// cache, and a row's voxels land on pixels scattered across it.
 void carve(const DepthView& view, const DepthFieldSettings& s, const Eigen::Vector3i& dims, std::vector<std::uint8_t>* state) {
   const Eigen::Matrix3d Rt = view.camera_pose.R.transpose();
   const Eigen::Vector3d origin = Rt * (s.lo - view.camera_pose.p), step = s.resolution * Rt.col(0);
@@ -71,21 +73,33 @@ void carve(const DepthView& view, const DepthFieldSettings& s, const Eigen::Vect
   const long H = view.depth.rows(), W = view.depth.cols();
   const float* depth = view.depth.data();
   const std::uint8_t* target = view.target.size() > 0 ? view.target.data() : nullptr;
+  std::vector<long> pixels(dims.x());   // per voxel of the row: its pixel, -1 outside the view
+  std::vector<double> along(dims.x());  // and its depth along the optical axis
   for (int kz = 0; kz < dims.z(); ++kz)
     for (int ky = 0; ky < dims.y(); ++ky) {
       std::uint8_t* st = state->data() + (static_cast<long>(kz) * dims.y() + ky) * dims.x();
       const Eigen::Vector3d p0 = origin + s.resolution * (ky * Rt.col(1) + kz * Rt.col(2));
+      long seen = 0;
       for (int kx = 0; kx < dims.x(); ++kx) {
         const double px = p0.x() + kx * step.x(), py = p0.y() + kx * step.y(), pz = p0.z() + kx * step.z();
+        pixels[kx] = -1;
         if (pz <= 1e-6) continue;
         const double iz = 1.0 / pz;
         const double u = (fx * px + sk * py) * iz + cx, v = fy * py * iz + cy;
         if (!(u >= 0 && v >= 0 && u < W && v < H)) continue;
-        const long pixel = static_cast<long>(v) * W + static_cast<long>(u);
+        pixels[kx] = static_cast<long>(v) * W + static_cast<long>(u);
+        along[kx] = pz;
+        __builtin_prefetch(depth + pixels[kx]);
+        ++seen;
+      }
+      if (seen == 0) continue;
+      for (int kx = 0; kx < dims.x(); ++kx) {
+        const long pixel = pixels[kx];
+        if (pixel < 0) continue;
         const float d = depth[pixel];
         if (!(std::isfinite(d) && d > 0)) continue;
         VoxelState c;
-        if (pz < d - s.surface_margin) c = VoxelState::kFree;
+        if (along[kx] < d - s.surface_margin) c = VoxelState::kFree;
         else if (target && target[pixel]) c = VoxelState::kTarget;
         else c = VoxelState::kOccupied;
         st[kx] = std::max(st[kx], static_cast<std::uint8_t>(c));
@@ -130,20 +144,25 @@ void DepthFieldSettings::validate() const {
   require(target_stride >= 1, "depth field: target_stride must be >= 1");
 }
 
-Eigen::VectorXi plane_inlier_counts(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets,
-                                    double tolerance) {
+PlaneChoice most_inliers(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets, double tolerance) {
   require(offsets.size() == normals.rows(), "plane inliers: expected one offset per normal, got " +
                                                 std::to_string(offsets.size()) + " for " + std::to_string(normals.rows()));
   require(std::isfinite(tolerance) && tolerance >= 0, "plane inliers: tolerance must be >= 0");
-  Eigen::VectorXi counts = Eigen::VectorXi::Zero(normals.rows());
+  PlaneChoice best;
+  const long n = points.rows(), chunk = 512;
   for (long k = 0; k < normals.rows(); ++k) {
     const double nx = normals(k, 0), ny = normals(k, 1), nz = normals(k, 2), d = offsets(k);
-    int c = 0;
-    for (long i = 0; i < points.rows(); ++i)
-      c += std::abs(points(i, 0) * nx + points(i, 1) * ny + points(i, 2) * nz - d) < tolerance;
-    counts(k) = c;
+    long c = 0;
+    for (long start = 0; start < n; start += chunk) {
+      // a later hypothesis must have more inliers than the best so far: stop once it cannot
+      if (best.index >= 0 && c + (n - start) <= best.inliers) break;
+      const long end = std::min(n, start + chunk);
+      for (long i = start; i < end; ++i)
+        c += std::abs(points(i, 0) * nx + points(i, 1) * ny + points(i, 2) * nz - d) < tolerance;
+    }
+    if (best.index < 0 || c > best.inliers) best.index = k, best.inliers = c;
   }
-  return counts;
+  return best;
 }
 
 std::vector<float> point_distance_grid(const Vertices& points, const Eigen::Vector3d& origin, double resolution,
@@ -156,14 +175,27 @@ std::vector<float> point_distance_grid(const Vertices& points, const Eigen::Vect
   const PointIndex index(&points);
   std::vector<float> out(static_cast<std::size_t>(dims.prod()));
   std::size_t k = 0, nearest = 0;
-  double d2 = 0;
+  // A node's nearest distance is at most its neighbour's plus the resolution (triangle inequality):
+  // the search is bounded by it (with a hair of slack for rounding), the same nearest point found.
+  auto bounded = [&](const Eigen::Vector3d& q, double previous) {
+    double d2 = 0;
+    const double b = (previous + resolution) * (1 + 1e-9) + 1e-12;
+    if (!(previous >= 0 && index.nearest_within(q.data(), b * b, &nearest, &d2))) index.nearest(q.data(), &nearest, &d2);
+    return std::sqrt(d2);
+  };
+  double row_first = -1, plane_first = -1;  // the first node's distance of the previous row, plane
   for (int z = 0; z < dims.z(); ++z)
-    for (int y = 0; y < dims.y(); ++y)
+    for (int y = 0; y < dims.y(); ++y) {
+      double previous = y > 0 ? row_first : plane_first;
       for (int x = 0; x < dims.x(); ++x, ++k) {
-        const Eigen::Vector3d q = origin + resolution * Eigen::Vector3d(x, y, z);
-        index.nearest(q.data(), &nearest, &d2);
-        out[k] = static_cast<float>(std::sqrt(d2));
+        previous = bounded(origin + resolution * Eigen::Vector3d(x, y, z), previous);
+        out[k] = static_cast<float>(previous);
+        if (x == 0) {
+          row_first = previous;
+          if (y == 0) plane_first = previous;
+        }
       }
+    }
   return out;
 }
 
@@ -192,20 +224,30 @@ std::vector<float> squared_distance_transform(const std::vector<std::uint8_t>& m
     }
   }
   const long stride[3] = {1, dims.x(), static_cast<long>(dims.x()) * dims.y()};
+  // Along y and z, lines 16 x apart at a time: their values are read and written a cache line (16
+  // neighbouring x) per step along the line into a small block, and each line transformed there (the
+  // lines are independent: the same values as one line at a time, without a cache miss per value).
+  constexpr int kBlock = 16;
+  std::vector<float> block(static_cast<std::size_t>(n_max) * kBlock);
   for (int axis = 1; axis < 3; ++axis) {
     const int n = dims[axis];
-    const int a = (axis + 1) % 3, b = (axis + 2) % 3;
+    const int a = axis == 1 ? 2 : 1;  // the other axis
     for (int i = 0; i < dims[a]; ++i)
-      for (int j = 0; j < dims[b]; ++j) {
-        const long base = i * stride[a] + j * stride[b];
-        bool any = false;
-        for (int q = 0; q < n; ++q) {
-          f[q] = g[base + q * stride[axis]];
-          any = any || f[q] < big;
+      for (int x0 = 0; x0 < dims.x(); x0 += kBlock) {
+        const int w = std::min(kBlock, dims.x() - x0);
+        const long base = i * stride[a] + x0;
+        for (int q = 0; q < n; ++q) std::copy_n(g.data() + base + q * stride[axis], w, block.data() + q * kBlock);
+        for (int c = 0; c < w; ++c) {
+          bool any = false;
+          for (int q = 0; q < n; ++q) {
+            f[q] = block[q * kBlock + c];
+            any = any || f[q] < big;
+          }
+          if (!any) continue;  // no set voxel in this line's planes yet: it stays far
+          dt_1d(f.data(), d.data(), n, v.data(), z.data());
+          for (int q = 0; q < n; ++q) block[q * kBlock + c] = std::min(d[q], big);
         }
-        if (!any) continue;  // no set voxel in this line's planes yet: it stays far
-        dt_1d(f.data(), d.data(), n, v.data(), z.data());
-        for (int q = 0; q < n; ++q) g[base + q * stride[axis]] = std::min(d[q], big);
+        for (int q = 0; q < n; ++q) std::copy_n(block.data() + q * kBlock, w, g.data() + base + q * stride[axis]);
       }
   }
   return g;

@@ -241,3 +241,32 @@ class SceneSdf:
     def distance(self, points, cutoff: float = np.inf, exclude: Sequence[str] = (),
                  exclude_table: bool = False) -> Tuple[np.ndarray, np.ndarray]:
         return self._native.distance(points, cutoff, [self.index(n) for n in exclude], exclude_table)
+
+    def clear_in_frames(self, frames, points, threshold: float, cutoff: float = np.inf, exclude: Sequence[str] = (),
+                        exclude_table: bool = False, inverse: bool = False, reach: float = np.inf) -> np.ndarray:
+        """(K,) bool per pose of ``frames`` (K, 4, 4): every one of ``points`` (N, 3) farther than
+        ``threshold`` from the bodies (``distance`` with ``cutoff``). The points are in the frame and
+        go to the world; ``inverse``: they are world points taken into the frame (the field in the
+        frame's coordinates, as a hand's), only those within ``reach`` of its origin read. Natively, a
+        pose's test stopping at its first point too close."""
+        return self._native.clear_in_frames(np.asarray(frames, float), np.asarray(points, float), bool(inverse),
+                                            float(reach), float(threshold), float(cutoff),
+                                            [self.index(n) for n in exclude], bool(exclude_table))
+
+
+@dataclass(frozen=True)
+class SdfQuery:
+    """A scene's distance with fixed options, as a function of (M, 3) points; ``clear_in_frames`` asks
+    it of sample points in many poses at once (``SceneSdf.clear_in_frames``)."""
+
+    sdf: SceneSdf
+    cutoff: float = np.inf
+    exclude: Tuple[str, ...] = ()
+    exclude_table: bool = False
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        return self.sdf.distance(points, cutoff=self.cutoff, exclude=self.exclude, exclude_table=self.exclude_table)[0]
+
+    def clear_in_frames(self, frames: np.ndarray, points: np.ndarray, threshold: float) -> np.ndarray:
+        """(K,) bool per pose: ``points`` (frame coordinates) taken to the world all farther than ``threshold``."""
+        return self.sdf.clear_in_frames(frames, points, threshold, self.cutoff, self.exclude, self.exclude_table)

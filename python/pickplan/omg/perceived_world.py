@@ -33,7 +33,7 @@ from pickplan import _core
 from pickplan.core.errors import InputError
 from pickplan.core.graspability import Graspability
 from pickplan.core.observation import Observation
-from pickplan.core.sdf import SceneSdf
+from pickplan.core.sdf import SceneSdf, SdfQuery
 from pickplan.omg import isf
 from pickplan.omg.chomp import Chomp
 from pickplan.omg.goals import GoalSetSettings
@@ -224,9 +224,10 @@ class PerceivedWorld:
         pts = np.einsum("nij,nj->ni", rel[:, :3, :3], body.points) + rel[:, :3, 3]
         return pts, np.isin(body.links, [robot.link_index(f) for f in robot.finger_links])
 
-    def obstacle_distance(self, X: np.ndarray) -> np.ndarray:
+    @functools.cached_property
+    def obstacle_distance(self) -> SdfQuery:
         """Distance of world points from the fused obstacles (target and table left out)."""
-        return self.sdf.distance(X, cutoff=0.1, exclude=(TARGET,), exclude_table=True)[0]
+        return SdfQuery(self.sdf, cutoff=0.1, exclude=(TARGET,), exclude_table=True)
 
     def clear_of_plane(self, poses: np.ndarray, standoff: float) -> np.ndarray:
         """Per hand pose: the palm above the plane and the fingers above it less ``table_contact``, at

@@ -87,8 +87,9 @@ def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int 
     if not up.any():
         raise ValueError("support plane: no near-horizontal plane in the points; give the plane explicitly")
     normals, offsets = normals[up], (normals[up] * A[formed][up]).sum(axis=1)
-    counts = _core.plane_inlier_counts(P, normals, offsets, tolerance)  # natively: 200 x N distances
-    best = int(np.argmax(counts))  # the first with the most inliers, as a sequential search keeps it
+    # natively: the first with the most inliers, as a sequential search keeps it (a hypothesis is left
+    # once its uncounted points could not lift it above the best so far)
+    best, _ = _core.most_inliers(P, normals, offsets, tolerance)
     n, d = normals[best], float(offsets[best])
     inliers = P[np.abs(P @ n - d) < tolerance]
     centre = inliers.mean(axis=0)

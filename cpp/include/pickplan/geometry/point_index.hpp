@@ -21,6 +21,19 @@ class PointIndex {
     res.init(index, squared_distance);
     tree_.findNeighbors(res, q, nanoflann::SearchParams(10));
   }
+  // The same, searching only closer than sqrt(bound2) (a known upper bound of the nearest distance
+  // prunes the tree); false, and nothing written, when no point is that close.
+  bool nearest_within(const double* q, double bound2, std::size_t* index, double* squared_distance) const {
+    nanoflann::KNNResultSet<double, std::size_t> res(1);
+    std::size_t i = 0;
+    double d2 = 0;
+    res.init(&i, &d2);
+    d2 = bound2;  // the result set's worst distance: only closer points are taken
+    tree_.findNeighbors(res, q, nanoflann::SearchParams(10));
+    if (res.size() == 0) return false;
+    *index = i, *squared_distance = d2;
+    return true;
+  }
 
  private:
   struct Cloud {

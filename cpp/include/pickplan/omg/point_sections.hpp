@@ -40,15 +40,11 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
 // box |q| < half.row(k) of the frame's axes about its origin (q = R^T (p - origin)).
 Eigen::VectorXi points_in_frames(const RowMatrixXd& frames, const RowMatrixXd& points, const RowMatrixXd& half);
 
-// Antipodal pairs (i_k, j_k) of points with unit normals: the width w = |P_j - P_i|, the axis
-// a = (P_j - P_i) / w and the margin min(-a . N_i, N_j . a); the pairs with w >= min_width and a margin
-// >= cone are kept (their row k, margin and width, in order).
-struct AntipodalPairs {
-  std::vector<long> rows;
-  std::vector<double> margins, widths;
-};
-AntipodalPairs antipodal_pairs(const RowMatrixXd& points, const RowMatrixXd& normals, const std::vector<long>& i,
-                               const std::vector<long>& j, double min_width, double cone);
+// Whether points a and b (unit normals) pair up antipodally: the width w = |P_b - P_a| >= min_width and,
+// with the axis x = (P_b - P_a) / w, the margin min(-x . N_a, N_b . x) >= cone (margin and width set
+// when it passes).
+bool antipodal_pair(const RowMatrixXd& points, const RowMatrixXd& normals, long a, long b, double min_width, double cone,
+                    double* margin, double* width);
 
 // numpy's default (linear) quantile of the sorted values v[0..n), to the last bit.
 double sorted_quantile(const double* v, long n, double q);

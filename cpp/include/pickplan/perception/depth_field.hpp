@@ -53,10 +53,15 @@ struct DepthField {
 // Throws std::invalid_argument for mismatched sizes, non-rigid poses, bad intrinsics or settings.
 DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFieldSettings& settings);
 
-// How many of `points` lie within `tolerance` of each plane hypothesis normals.row(k) . x = offsets(k):
-// the support plane's RANSAC scores (python/pickplan/perception/field.py draws the hypotheses).
-Eigen::VectorXi plane_inlier_counts(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets,
-                                    double tolerance);
+// The first of the plane hypotheses normals.row(k) . x = offsets(k) with the most of `points` within
+// `tolerance` (the support plane's RANSAC; python/pickplan/perception/field.py draws the hypotheses),
+// and its inlier count; index -1 without hypotheses. A hypothesis is left as soon as the points it
+// has not counted could not lift it above the best so far.
+struct PlaneChoice {
+  long index = -1;
+  long inliers = 0;
+};
+PlaneChoice most_inliers(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets, double tolerance);
 
 // Distance from every node of the grid (origin, resolution, dims; x fastest) to the nearest of
 // `points` (exact, by a k-d tree): the observed target's unsigned distance grid.

@@ -25,7 +25,6 @@ Candidates are checked in score order until enough pass.
 """
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
@@ -80,12 +79,19 @@ def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
                      [y0 * z1 - y1 * z0, y2, z2, c2], [0.0, 0.0, 0.0, 1.0]])
 
 
-def _neighbourhoods(P, tree, radius: float):
-    """The points within ``radius`` of each point of ``P``, flattened: owner indices k, neighbour indices j."""
-    near = tree.query_ball_point(P, radius)
-    k = np.repeat(np.arange(len(P)), [len(a) for a in near])
-    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(k))
-    return k, j
+def _frames_many(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """``_frames`` of (K, 3) rows at once (elementwise: the same values)."""
+    F = np.zeros((len(y), 4, 4))
+    F[:, :3, 0] = np.column_stack([y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1], y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
+                                   y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0]])
+    F[:, :3, 1], F[:, :3, 2], F[:, :3, 3], F[:, 3, 3] = y, z, centre, 1.0
+    return F
+
+
+def _neighbourhoods(P, radius: float):
+    """The points within ``radius`` of each point of ``P``, flattened: owner indices k, neighbour indices j
+    (ascending per owner, as a k-d tree's sorted ball query; natively, ``_core.radius_pairs``)."""
+    return _core.radius_pairs(P, np.arange(len(P)), radius)
 
 
 def _means(k, j, X, n: int) -> np.ndarray:
@@ -101,10 +107,10 @@ def _unit_means(k, j, N, n: int):
     return mean / np.maximum(length, 1e-12)[:, None], length
 
 
-def patch_normals(P, N, tree, radius: float):
+def patch_normals(P, N, radius: float):
     """Per point: the mean of the normals within ``radius`` (a pad's contact patch), unit, and how
     coherent they are (the mean's length: 1 on a flat patch, about 0.7 across a box's edge)."""
-    return _unit_means(*_neighbourhoods(P, tree, radius), N, len(P))
+    return _unit_means(*_neighbourhoods(P, radius), N, len(P))
 
 
 def denoised(P, N, radius: float) -> np.ndarray:
@@ -112,7 +118,7 @@ def denoised(P, N, radius: float) -> np.ndarray:
     normal within ``radius``): depth noise, mostly along the surface normal, averaged over the patch
     (about 20 points a patch: noise cut about 4x), where the extents and the open-hand check read it.
     On a curved patch the move is the patch's sag, under a millimetre for radius 8 mm on a 3 cm radius."""
-    k, j = _neighbourhoods(P, cKDTree(P), radius)
+    k, j = _neighbourhoods(P, radius)
     n, _ = _unit_means(k, j, N, len(P))
     centre = _means(k, j, P, len(P))
     return P - np.einsum("ij,ij->i", P - centre, n)[:, None] * n
@@ -125,7 +131,7 @@ def fitted_normals(P, N, radius: float, near=None) -> np.ndarray:
     not, so patches of a noisy flat face stay coherent. The side is the mean of ``N`` over the same
     points. Points with fewer than 8 neighbours keep ``N``. ``near``: ``_neighbourhoods(P, ., radius)``
     if already known."""
-    k, j = _neighbourhoods(P, cKDTree(P), radius) if near is None else near
+    k, j = _neighbourhoods(P, radius) if near is None else near
     count = np.bincount(k, minlength=len(P))
     D = P[j] - _means(k, j, P, len(P))[k]
     C = np.stack([np.bincount(k, D[:, a] * D[:, b], minlength=len(P)) for a in range(3) for b in range(3)],
@@ -136,26 +142,23 @@ def fitted_normals(P, N, radius: float, near=None) -> np.ndarray:
     return np.where((count >= 8)[:, None], normal, N)  # a fit needs a few points more than a plane
 
 
-def antipodal_candidates(P, N, s: PointGraspSettings, rng, tree=None, near=None) -> list:
+def antipodal_candidates(P, N, s: PointGraspSettings, rng, near=None) -> list:
     """Pairs whose contact patches (``patch_normals`` over ``patch_radius``) are coherent and within
     each other's friction cone: a pair across a box's edges, whose noisy point normals lean towards
-    each other, is not a pinch. ``tree``, ``near``: P's k-d tree and patch neighbourhoods if known."""
-    tree = cKDTree(P) if tree is None else tree
+    each other, is not a pinch. ``near``: P's patch neighbourhoods (``_neighbourhoods``) if known."""
     cone = np.cos(np.arctan(s.friction))
-    N, coherence = _unit_means(*(near or _neighbourhoods(P, tree, s.patch_radius)), N, len(P))
+    N, coherence = _unit_means(*(near or _neighbourhoods(P, s.patch_radius)), N, len(P))
     seeds = rng.choice(len(P), min(s.samples, len(P)), replace=False)
     # only coherent patches pair up: the others are dropped before the pairs are formed (same pairs, in
     # the same order, as testing coherence after the cone)
     coherent = coherence >= s.patch_coherence
     seeds = seeds[coherent[seeds]]
-    near = tree.query_ball_point(P[seeds], s.max_width - s.width_margin, return_sorted=False)
-    i = np.repeat(seeds, [len(k) for k in near])
-    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64, count=len(i))
-    i, j = i[coherent[j]], j[coherent[j]]
-    # the pairs that pass the width and friction-cone tests, found natively among 10^5-10^6 with a cone
-    # a hair wider, then measured here as numpy measures them (einsum's sums differ in the last bit)
-    near_cone, _, _ = _core.antipodal_pairs(P, N, i, j, s.min_width, cone - 1e-9)
-    i, j = i[near_cone], j[near_cone]
+    # each seed's coherent partners within the opening that pass the width and friction-cone tests,
+    # found natively among 10^5-10^6 with a cone a hair wider, in the order of a k-d tree's unsorted
+    # ball query (its leaf order: the seeded subset below draws from the pairs in that order), then
+    # measured here as numpy measures them (einsum's sums differ in the last bit)
+    i, j, _, _ = _core.antipodal_partners(P, N, seeds, s.max_width - s.width_margin, coherent, cKDTree(P).indices,
+                                          s.min_width, cone - 1e-9)
     widths = np.linalg.norm(P[j] - P[i], axis=1)
     axes = (P[j] - P[i]) / widths[:, None]
     margins = np.minimum(-np.einsum("ij,ij->i", axes, N[i]), np.einsum("ij,ij->i", N[j], axes))
@@ -269,17 +272,32 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     native.trim, native.min_width, native.fit_width = s.section_trim, s.min_width, s.max_width - s.width_margin
     native.face_tolerance = np.tan(s.max_face_turn) * s.pad_width / 2
     tilts = (0.0, s.max_tilt / 2, -s.max_tilt / 2)
-    out = []
+    # only points this near the sampled one can lie in a band (|across| <= pad_width / 2, |along| <=
+    # max_width; a hair of slack for rounding): the others are left out, the rest keep their order
+    reach2 = ((s.pad_width / 2) ** 2 + s.max_width ** 2) * (1 + 1e-6)
+    found = []  # per section: the sampled point, then (yaw, lo, hi, across_min, across_max, top)
     for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
         rel = F2 - F2[i]
-        for a, lo, hi, u_min, u_max, top in _core.local_sections(rel @ Y2.T, rel @ X2.T, height, native):
-            y, x = E @ Y2[int(a)], E @ X2[int(a)]
-            mid = flat[i] + 0.5 * (lo + hi) * y + 0.5 * (u_max + u_min) * x
-            for tilt in tilts:
-                lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
-                out.append((_frames(y, -np.cos(tilt) * n + np.sin(tilt) * x, mid + max(lowest, top - s.grasp_depths[0]) * n),
-                            0.9 - abs(tilt) / (np.pi / 2), float(hi - lo)))
-    return out
+        near = np.flatnonzero(np.einsum("ij,ij->i", rel, rel) <= reach2)
+        ry, rx = rel @ Y2.T, rel @ X2.T
+        found += [(i, *row) for row in _core.local_sections(ry[near], rx[near], height[near], native)]
+    if not found:
+        return []
+    # all sections' frames at once: each yaw's axes as one vector product each (as per section before),
+    # the rest elementwise (the same values)
+    i, a, lo, hi, u_min, u_max, top = np.array(found).T
+    i, a = i.astype(int), a.astype(int)
+    Yw = np.array([E @ Y2[k] for k in range(s.yaw_steps)])[a]
+    Xw = np.array([E @ X2[k] for k in range(s.yaw_steps)])[a]
+    mid = flat[i] + (0.5 * (lo + hi))[:, None] * Yw + (0.5 * (u_max + u_min))[:, None] * Xw
+    frames, scores = [], []
+    for tilt in tilts:
+        lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact
+        centre = mid + np.maximum(lowest, top - s.grasp_depths[0])[:, None] * n
+        frames.append(_frames_many(Yw, -np.cos(tilt) * n + np.sin(tilt) * Xw, centre))
+        scores.append(0.9 - abs(tilt) / (np.pi / 2))
+    F = np.stack(frames, axis=1).reshape(-1, 4, 4)  # per section, its tilts in turn
+    return list(zip(F, np.tile(scores, len(found)).tolist(), np.repeat(hi - lo, len(tilts)).tolist()))
 
 
 def _side_candidates(rel, centre, y, x, width, s: PointGraspSettings) -> list:
@@ -330,24 +348,25 @@ def _pad_fill(G, P, width, s: PointGraspSettings) -> np.ndarray:
     return np.minimum(1.0, _core.points_in_frames(G, P, half) / 30.0)
 
 
-def _hand_clear(T, P, hand_sdf, s: PointGraspSettings) -> np.ndarray:
-    if len(T) == 0 or len(P) == 0:
-        return np.ones(len(T), dtype=bool)
-    local = (P[None, :, :] - T[:, None, :3, 3]) @ T[:, :3, :3]  # hand-frame points (matmul: BLAS, not einsum)
-    near = (local ** 2).sum(axis=2) < s.hand_reach ** 2  # only these can be inside the hand
-    d = np.full(near.shape, np.inf)
-    if near.any():  # one query for all: the distances are pointwise
-        d[near] = hand_sdf.distance(local[near], cutoff=0.05)[0]
-    return d.min(axis=1) > s.clearance
-
-
 def _open_hand_clear(T, P, coarse, hand_sdf, s: PointGraspSettings) -> np.ndarray:
     """Per hand pose ``T``: no point of ``P`` inside the open hand or within ``clearance`` of it
-    (between the pads is outside the hand). ``coarse``, a subset of ``P``, is checked first: most
-    rejected hands meet it, and only the rest are checked against all of ``P`` (the same verdict)."""
-    ok = _hand_clear(T, coarse, hand_sdf, s)
-    ok[ok] = _hand_clear(T[ok], P, hand_sdf, s)
+    (between the pads is outside the hand; only points within ``hand_reach`` of the hand frame can be
+    inside it). ``coarse``, a subset of ``P``, is checked first: most rejected hands meet it, and only
+    the rest are checked against all of ``P`` (the same verdict). Natively, ``SceneSdf.clear_in_frames``."""
+    if len(T) == 0 or len(P) == 0:
+        return np.ones(len(T), dtype=bool)
+    ok = hand_sdf.clear_in_frames(T, coarse, s.clearance, cutoff=0.05, inverse=True, reach=s.hand_reach)
+    ok[ok] = hand_sdf.clear_in_frames(T[ok], P, s.clearance, cutoff=0.05, inverse=True, reach=s.hand_reach)
     return ok
+
+
+def _scene_clear(T, hand_points, scene_distance, clearance: float) -> np.ndarray:
+    """Per hand pose ``T``: every hand sample farther than ``clearance`` from the other obstacles
+    (an ``SdfQuery`` answers natively for all poses at once; any other function of points per point)."""
+    if hasattr(scene_distance, "clear_in_frames"):
+        return scene_distance.clear_in_frames(T, hand_points, clearance)
+    world = np.einsum("kij,mj->kmi", T[:, :3, :3], hand_points) + T[:, None, :3, 3]
+    return scene_distance(world.reshape(-1, 3)).reshape(len(T), -1).min(axis=1) > clearance
 
 
 def mass_centre(P: np.ndarray, plane) -> np.ndarray:
@@ -389,7 +408,11 @@ def thinned(P: np.ndarray, cell: float) -> np.ndarray:
     """One point per ``cell``-sized voxel (the first), order kept: overlapping views' points once."""
     if len(P) == 0 or cell <= 0:
         return P
-    _, first = np.unique(np.floor(P / cell).astype(np.int64), axis=0, return_index=True)
+    V = np.floor(P / cell).astype(np.int64)
+    V -= V.min(axis=0)
+    span = V.max(axis=0) + 1
+    # one integer per voxel (row-major over the points' box): a 1-D unique, not a row-wise one
+    _, first = np.unique((V[:, 0] * span[1] + V[:, 1]) * span[2] + V[:, 2], return_index=True)
     return P[np.sort(first)]
 
 
@@ -403,7 +426,8 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     scores first.
 
     ``hand_sdf``: the open hand as a ``core.sdf.SceneSdf`` in the hand frame; ``scene_distance`` maps
-    world points (M, 3) to their distance from the obstacles (the fused field), checked at
+    world points (M, 3) to their distance from the obstacles (the fused field; a ``core.sdf.SdfQuery``
+    is asked natively for all poses at once), checked at
     ``hand_points`` (sample points on the open hand, hand frame) when both are given. ``hull``: (K, 3)
     samples of where the unseen rest of the target may be (``perception.hull.visibility_hull``): the
     open hand must clear them as it clears the observed points. ``denoised_points``: ``denoised(points,
@@ -424,13 +448,12 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
                 pad_width=gripper.pad_width if settings.pad_width is None else settings.pad_width,
                 width_margin=2 * settings.clearance if settings.width_margin is None else settings.width_margin)
     rng = np.random.default_rng(seed)
-    tree = near = None
+    near = None
     if s.denoise:
         P = denoised(P, N, s.patch_radius) if denoised_points is None else np.asarray(denoised_points, float)
-        tree = cKDTree(P)
-        near = _neighbourhoods(P, tree, s.patch_radius)  # the fitted normals' and the contact patches'
+        near = _neighbourhoods(P, s.patch_radius)  # the fitted normals' and the contact patches'
         N = fitted_normals(P, N, s.patch_radius, near)
-    cands = antipodal_candidates(P, N, s, rng, tree, near) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng) \
+    cands = antipodal_candidates(P, N, s, rng, near) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng) \
         + local_candidates(P, plane, s, rng)
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
@@ -455,8 +478,7 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     for chunk in np.array_split(order, max(1, len(order) // 64)):  # score order, bounded memory
         chunk = chunk[_open_hand_clear(T[chunk], check, coarse, hand_sdf, s)]
         if scene_distance is not None and hand_points is not None and len(chunk):
-            world = np.einsum("kij,mj->kmi", T[chunk, :3, :3], hand_points) + T[chunk, None, :3, 3]
-            chunk = chunk[scene_distance(world.reshape(-1, 3)).reshape(len(chunk), -1).min(axis=1) > s.obstacle_clearance]
+            chunk = chunk[_scene_clear(T[chunk], hand_points, scene_distance, s.obstacle_clearance)]
         kept.extend(chunk.tolist())
         if len(kept) >= n:
             break
