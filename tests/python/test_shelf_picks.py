@@ -1,13 +1,16 @@
 """Picks beyond the tabletop (issue 35): the grasp filter against a shelf board's exact geometry (PyBullet's
 closest points), the lift's headroom under a board against the boxes' heights, a shelf pick and a bin pick
 planned by the bench's OMG unit and lifted in PyBullet, and a cabinet scene that loads and plans."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from pickplan.core import objects
 from pickplan.core.robots import load_robot
 from pickplan.core.shapes import Obstacle, Shape
-from pickplan.eval.experiments import SweepSettings, run_sweep
+from pickplan.eval.experiments import SweepSettings, _unit_grasps, run_sweep
+from pickplan.omg.goals import GoalSetSettings, _raised_blocked, build_goal_set, lift_blocked_configurations
 from pickplan.omg.grasps import antipodal_grasps
 from pickplan.omg.grasps.generators import AntipodalSettings, SupportFilter
 from pickplan.omg.grasps.hand import hand_urdf_path
@@ -133,3 +136,38 @@ def test_a_cabinet_scene_loads_and_plans(tmp_path, lib):
     record = _one_unit(tmp_path, Layout.cabinet, 0, lib, execute=False)
     assert record["valid"] and "error" not in record, record.get("error")
     assert record["planning_success"], (record["status"], record.get("goal_reasons"))
+
+
+def test_the_goal_sets_lift_check_agrees_with_the_executed_lift(lib):
+    """In a cabinet (seed 1), the goal set's lift check (``lift_blocked_configurations``: the lift's own IK
+    path, the links' convex hulls by FCL) blocks exactly the goals whose lift PyBullet's headroom probe
+    (execution's) finds shorter than ``min_lift``; a rigid rise of the arm (the check before, which let
+    cabinet grasps through whose executed lift was blocked) misses one of them."""
+    scene = generate_layout(Layout.cabinet, seed=1, library=lib)
+    world = World(scene)
+    grasps = _unit_grasps(world, scene, "antipodal", 100, "panda")
+    settings = GoalSetSettings()
+    goals = build_goal_set(world, grasps.poses, settings=replace(settings, lift=0.0)).goals  # unchecked
+    blocked = lift_blocked_configurations(world, goals, settings.lift, settings.lift_clearance)
+    s = ExecutionSettings()
+    robot = load_robot("panda")
+    sim = open_sim(scene, robot, np.asarray(scene.robot_configuration), s, {o.name: lib.get(o.name) for o in scene.objects})
+    try:
+        headroom = np.array([lift_headroom(sim, robot, q, list(sim.obstacle_ids.values())) for q in goals])
+    finally:
+        pb.disconnect(sim.c)
+    short = headroom < s.min_lift - 1e-9
+    assert short.any() and (~short).any(), headroom
+    assert np.array_equal(blocked, short), (blocked, headroom)
+    rigid = _raised_blocked_arm(world, goals, settings.lift + settings.lift_clearance)
+    assert (short & ~rigid).any()
+
+
+def _raised_blocked_arm(world, Q, lift):
+    """The arm's hull vertices and the target raised rigidly by ``lift`` entering an obstacle (the check before)."""
+    robot = world.robot
+    F = robot.fk_batch(Q)
+    parts = [(i, np.asarray(robot.collision_meshes(i).convex_hull.vertices)) for i in robot.moving_links()
+             if robot.collision_meshes(i) is not None]
+    P = np.concatenate([np.einsum("gij,pj->gpi", F[:, i, :3, :3], V) + F[:, i, None, :3, 3] for i, V in parts], axis=1)
+    return _raised_blocked(world, P, lift, 0.01)

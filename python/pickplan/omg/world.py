@@ -34,6 +34,8 @@ class CheckerKind(Option):
     obstacles = "obstacles"  # the target is ignored entirely (trajectory validation)
     transit = "transit"      # the same, but the fingers may touch the table (their depth into the support
                              # is checked apart, as the success test does): sampling planners' validity
+    furniture = "furniture"  # the scene's obstacles alone, the links as convex hulls (as PyBullet takes
+                             # them): distances the executed lift keeps (``goals.lift_blocked_configurations``)
 
 
 @dataclass(frozen=True)
@@ -151,6 +153,10 @@ class World:
         return self._checkers[kind]
 
     def _build_checker(self, kind: CheckerKind) -> collision.CollisionChecker:
+        if kind is CheckerKind.furniture:
+            return collision.CollisionChecker(self.robot, [collision.SceneMesh(o.name, o.shape, o.pose)
+                                                           for o in self.scene.obstacles], None, convex_links=True,
+                                              shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())
