@@ -143,6 +143,37 @@ TEST(Metrics, ObjectClearanceAndTheApproachTail) {
   EXPECT_EQ(object_clearance(p, q1.data(), 1, 1.0, ws), 1.0);
 }
 
+TEST(Metrics, TheTransitKeepsItsClearanceFromTheTargetWhenAsked) {
+  // The target (excluded, a 0.1 m box centred at (0.5, 0, 0.3), top face z = 0.35) lies on the transit
+  // along x at z = 0.33 (through it) and 0.02 m below the one at z = 0.37; the tail is not measured.
+  PointCase c;
+  Vertices V;
+  Faces F;
+  test::box_mesh(Eigen::Vector3d::Constant(0.1), V, F);
+  Transform pose;
+  pose.p = Eigen::Vector3d(0.5, 0, 0.3);
+  c.scene->add_object(std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.1})), pose);
+  const ChompProblem p = c.problem();
+  MetricSettings s;
+  s.exclude_mask = 1;
+  s.tail_waypoints = 2;
+  const Eigen::VectorXd through0 = at(0.2, 0, 0.33), through1 = at(1.0, 0, 0.33);
+  const Eigen::VectorXd above0 = at(0.2, 0, 0.37), above1 = at(1.0, 0, 0.37);
+  EXPECT_TRUE(evaluate_trajectory(p, through0, line(through0, through1), s).collision_free);  // the paper's test
+  s.transit_target_clearance = 0.0;
+  EXPECT_FALSE(evaluate_trajectory(p, through0, line(through0, through1), s).collision_free);
+  EXPECT_FALSE(evaluate_trajectory(p, through0, line(through0, through1), s, true).collision_free);
+  EXPECT_TRUE(evaluate_trajectory(p, above0, line(above0, above1), s).collision_free);
+  s.transit_target_clearance = 0.01;
+  EXPECT_TRUE(evaluate_trajectory(p, above0, line(above0, above1), s).collision_free);
+  s.transit_target_clearance = 0.03;  // 0.02 m above the top is not enough
+  EXPECT_FALSE(evaluate_trajectory(p, above0, line(above0, above1), s).collision_free);
+  // Only the tail reaches the target (the pre-grasp, waypoint 8, is 0.13 m before its face): the approach's.
+  const Eigen::VectorXd far0 = at(-0.4, 0, 0.33), near1 = at(0.5, 0, 0.33);
+  s.tail_waypoints = 3;
+  EXPECT_TRUE(evaluate_trajectory(p, far0, line(far0, near1), s).collision_free);
+}
+
 TEST(Metrics, BadInputThrowsNamingTheProblem) {
   using test::expect_invalid_argument;
   PointCase c;
