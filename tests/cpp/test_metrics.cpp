@@ -55,6 +55,15 @@ void add_table(SceneSdf& scene) {  // top face at z = 0
   scene.set_table(Eigen::Vector3d(4, 4, 0.1), pose);
 }
 
+void add_box(SceneSdf& scene) {  // a 0.1 m box centred at (0.5, 0, 0.3)
+  Vertices V;
+  Faces F;
+  test::box_mesh(Eigen::Vector3d::Constant(0.1), V, F);
+  Transform pose;
+  pose.p = Eigen::Vector3d(0.5, 0, 0.3);
+  scene.add_object(std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.1})), pose);
+}
+
 }  // namespace
 
 TEST(Metrics, InterpolateIsPiecewiseLinearThroughTheWaypoints) {
@@ -120,12 +129,7 @@ TEST(Metrics, ObjectClearanceAndTheApproachTail) {
   // The point moves along x at z = 0.3 toward a 0.1 m box centred at (0.5, 0, 0.3): it ends 0.05 m
   // from the face x = 0.45, which it comes closer to than 0.08 m only on the last segment.
   PointCase c;
-  Vertices V;
-  Faces F;
-  test::box_mesh(Eigen::Vector3d::Constant(0.1), V, F);
-  Transform pose;
-  pose.p = Eigen::Vector3d(0.5, 0, 0.3);
-  c.scene->add_object(std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.1})), pose);
+  add_box(*c.scene);
   const ChompProblem p = c.problem();
   const Eigen::VectorXd q0 = at(0, 0, 0.3), q1 = at(0.4, 0, 0.3);
   MetricSettings s;
@@ -147,12 +151,7 @@ TEST(Metrics, TheTransitKeepsItsClearanceFromTheTargetWhenAsked) {
   // The target (excluded, a 0.1 m box centred at (0.5, 0, 0.3), top face z = 0.35) lies on the transit
   // along x at z = 0.33 (through it) and 0.02 m below the one at z = 0.37; the tail is not measured.
   PointCase c;
-  Vertices V;
-  Faces F;
-  test::box_mesh(Eigen::Vector3d::Constant(0.1), V, F);
-  Transform pose;
-  pose.p = Eigen::Vector3d(0.5, 0, 0.3);
-  c.scene->add_object(std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.1})), pose);
+  add_box(*c.scene);
   const ChompProblem p = c.problem();
   MetricSettings s;
   s.exclude_mask = 1;
