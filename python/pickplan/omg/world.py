@@ -130,8 +130,9 @@ class World:
             raise ValueError(f"pose of {name!r}: expected a finite 4x4 matrix, got shape {T.shape}")
         self.scene.object(name)  # a KeyError naming the objects
         self.sdf.set_pose(name, T)  # checks rigidity before anything changed
-        for checker in self._checkers.values():
-            checker.set_object_pose(name, T)
+        for kind, checker in self._checkers.items():
+            if kind is not CheckerKind.furniture:  # it holds the obstacles alone
+                checker.set_object_pose(name, T)
         self.scene = replace(self.scene, objects=[replace(o, pose=T.copy()) if o.name == name else o
                                                   for o in self.scene.objects])
         if name == self.target:
