@@ -71,7 +71,8 @@ void init_chomp(py::module_& m) {
       .def_readwrite("tail_waypoints", &MetricSettings::tail_waypoints)
       .def_readwrite("tail_clearance", &MetricSettings::tail_clearance)
       .def_readwrite("smoothness_threshold", &MetricSettings::smoothness_threshold)
-      .def_readwrite("exclude_mask", &MetricSettings::exclude_mask);
+      .def_readwrite("exclude_mask", &MetricSettings::exclude_mask)
+      .def_readwrite("transit_target_clearance", &MetricSettings::transit_target_clearance);
 
   py::class_<ChompWorkspace>(m, "ChompWorkspace", "Reusable scratch for a ChompProblem (one per thread).");
 

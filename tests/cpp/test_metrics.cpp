@@ -55,6 +55,15 @@ void add_table(SceneSdf& scene) {  // top face at z = 0
   scene.set_table(Eigen::Vector3d(4, 4, 0.1), pose);
 }
 
+void add_box(SceneSdf& scene) {  // a 0.1 m box centred at (0.5, 0, 0.3)
+  Vertices V;
+  Faces F;
+  test::box_mesh(Eigen::Vector3d::Constant(0.1), V, F);
+  Transform pose;
+  pose.p = Eigen::Vector3d(0.5, 0, 0.3);
+  scene.add_object(std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.1})), pose);
+}
+
 }  // namespace
 
 TEST(Metrics, InterpolateIsPiecewiseLinearThroughTheWaypoints) {
@@ -120,12 +129,7 @@ TEST(Metrics, ObjectClearanceAndTheApproachTail) {
   // The point moves along x at z = 0.3 toward a 0.1 m box centred at (0.5, 0, 0.3): it ends 0.05 m
   // from the face x = 0.45, which it comes closer to than 0.08 m only on the last segment.
   PointCase c;
-  Vertices V;
-  Faces F;
-  test::box_mesh(Eigen::Vector3d::Constant(0.1), V, F);
-  Transform pose;
-  pose.p = Eigen::Vector3d(0.5, 0, 0.3);
-  c.scene->add_object(std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.1})), pose);
+  add_box(*c.scene);
   const ChompProblem p = c.problem();
   const Eigen::VectorXd q0 = at(0, 0, 0.3), q1 = at(0.4, 0, 0.3);
   MetricSettings s;
@@ -141,6 +145,32 @@ TEST(Metrics, ObjectClearanceAndTheApproachTail) {
   EXPECT_NEAR(object_clearance(p, q1.data(), 0, 1.0, ws), 0.05, 1e-6);
   EXPECT_NEAR(object_clearance(p, at(0.3, 0, 0.3).data(), 0, 1.0, ws), 0.15, 1e-6);  // outside the grid
   EXPECT_EQ(object_clearance(p, q1.data(), 1, 1.0, ws), 1.0);
+}
+
+TEST(Metrics, TheTransitKeepsItsClearanceFromTheTargetWhenAsked) {
+  // The target (excluded, a 0.1 m box centred at (0.5, 0, 0.3), top face z = 0.35) lies on the transit
+  // along x at z = 0.33 (through it) and 0.02 m below the one at z = 0.37; the tail is not measured.
+  PointCase c;
+  add_box(*c.scene);
+  const ChompProblem p = c.problem();
+  MetricSettings s;
+  s.exclude_mask = 1;
+  s.tail_waypoints = 2;
+  const Eigen::VectorXd through0 = at(0.2, 0, 0.33), through1 = at(1.0, 0, 0.33);
+  const Eigen::VectorXd above0 = at(0.2, 0, 0.37), above1 = at(1.0, 0, 0.37);
+  EXPECT_TRUE(evaluate_trajectory(p, through0, line(through0, through1), s).collision_free);  // the paper's test
+  s.transit_target_clearance = 0.0;
+  EXPECT_FALSE(evaluate_trajectory(p, through0, line(through0, through1), s).collision_free);
+  EXPECT_FALSE(evaluate_trajectory(p, through0, line(through0, through1), s, true).collision_free);
+  EXPECT_TRUE(evaluate_trajectory(p, above0, line(above0, above1), s).collision_free);
+  s.transit_target_clearance = 0.01;
+  EXPECT_TRUE(evaluate_trajectory(p, above0, line(above0, above1), s).collision_free);
+  s.transit_target_clearance = 0.03;  // 0.02 m above the top is not enough
+  EXPECT_FALSE(evaluate_trajectory(p, above0, line(above0, above1), s).collision_free);
+  // Only the tail reaches the target (the pre-grasp, waypoint 8, is 0.13 m before its face): the approach's.
+  const Eigen::VectorXd far0 = at(-0.4, 0, 0.33), near1 = at(0.5, 0, 0.33);
+  s.tail_waypoints = 3;
+  EXPECT_TRUE(evaluate_trajectory(p, far0, line(far0, near1), s).collision_free);
 }
 
 TEST(Metrics, BadInputThrowsNamingTheProblem) {

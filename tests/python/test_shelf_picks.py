@@ -1,21 +1,26 @@
 """Picks beyond the tabletop (issue 35): the grasp filter against a shelf board's exact geometry (PyBullet's
 closest points), the lift's headroom under a board against the boxes' heights, a shelf pick and a bin pick
 planned by the bench's OMG unit and lifted in PyBullet, and a cabinet scene that loads and plans."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from pickplan.core import objects
 from pickplan.core.robots import load_robot
 from pickplan.core.shapes import Obstacle, Shape
-from pickplan.eval.experiments import SweepSettings, run_sweep
+from pickplan.eval.experiments import SweepSettings, _unit_grasps, run_sweep
+from pickplan.eval.methods import method_spec
+from pickplan.omg.goals import GoalSetSettings, _raised_blocked, build_goal_set, lift_blocked_configurations
 from pickplan.omg.grasps import antipodal_grasps
 from pickplan.omg.grasps.generators import AntipodalSettings, SupportFilter
 from pickplan.omg.grasps.hand import hand_urdf_path
+from pickplan.omg.planner import OMGPlanner
 from pickplan.omg.world import World
 from pickplan.sim.arm_sim import open_sim
 from pickplan.sim.bodies import add_table
 from pickplan.sim.bullet import connect, pb
-from pickplan.sim.execution import ExecutionSettings
+from pickplan.sim.execution import ExecutionSettings, execute_plan
 from pickplan.sim.layouts import Layout, generate_layout
 from pickplan.sim.lift import lift_headroom
 from pickplan.sim.scenes import Scene, SceneObject, Table, _mat_to_quat
@@ -133,3 +138,55 @@ def test_a_cabinet_scene_loads_and_plans(tmp_path, lib):
     record = _one_unit(tmp_path, Layout.cabinet, 0, lib, execute=False)
     assert record["valid"] and "error" not in record, record.get("error")
     assert record["planning_success"], (record["status"], record.get("goal_reasons"))
+
+
+def test_the_goal_sets_lift_check_agrees_with_the_executed_lift(lib):
+    """In a cabinet (seed 1), the goal set's lift check (``lift_blocked_configurations``: the lift's own IK
+    path, the links' convex hulls by FCL) blocks exactly the goals whose lift PyBullet's headroom probe
+    (execution's) finds shorter than ``min_lift``; a rigid rise of the arm (the check before, which let
+    cabinet grasps through whose executed lift was blocked) misses one of them."""
+    scene = generate_layout(Layout.cabinet, seed=1, library=lib)
+    world = World(scene)
+    grasps = _unit_grasps(world, scene, "antipodal", 100, "panda")
+    settings = GoalSetSettings()
+    goals = build_goal_set(world, grasps.poses, settings=replace(settings, lift=0.0)).goals  # unchecked
+    blocked = lift_blocked_configurations(world, goals, settings.lift, settings.lift_clearance)
+    s = ExecutionSettings()
+    robot = load_robot("panda")
+    sim = open_sim(scene, robot, np.asarray(scene.robot_configuration), s, {o.name: lib.get(o.name) for o in scene.objects})
+    try:
+        headroom = np.array([lift_headroom(sim, robot, q, list(sim.obstacle_ids.values())) for q in goals])
+    finally:
+        pb.disconnect(sim.c)
+    short = headroom < s.min_lift - 1e-9
+    assert short.any() and (~short).any(), headroom
+    assert np.array_equal(blocked, short), (blocked, headroom)
+    rigid = _raised_blocked_arm(world, goals, settings.lift + settings.lift_clearance)
+    assert (short & ~rigid).any()
+
+
+def _raised_blocked_arm(world, Q, lift):
+    """The arm's hull vertices and the target raised rigidly by ``lift`` entering an obstacle (the check before)."""
+    robot = world.robot
+    F = robot.fk_batch(Q)
+    parts = [(i, np.asarray(robot.collision_meshes(i).convex_hull.vertices)) for i in robot.moving_links()
+             if robot.collision_meshes(i) is not None]
+    P = np.concatenate([np.einsum("gij,pj->gpi", F[:, i, :3, :3], V) + F[:, i, None, :3, 3] for i, V in parts], axis=1)
+    return _raised_blocked(world, P, lift, 0.01)
+
+
+def test_the_transit_into_a_shelf_keeps_clear_of_the_target(lib):
+    """A shelf pick (a generated scene) whose plan swept a finger 5 mm into the target on the segment into the
+    pre-grasp (the success test left the target out of the transit: in PyBullet the finger pushed the mustard
+    bottle 12 cm before the hand closed, on nothing): among furniture the test holds the transit up to the
+    pre-grasp to the approach's clearance from the target (body points, densely), so the plan that passes it
+    leaves the target where it stands until the fingers close, and the pick is lifted."""
+    scene = generate_layout(Layout.shelf, seed=3618546533, library=lib)
+    world = World(scene)
+    grasps = _unit_grasps(world, scene, "antipodal", 100, "panda")
+    omg = method_spec("planners", "OMG").omg_settings(30, 100, SweepSettings("planners").iterations, 0)
+    result = OMGPlanner(None, scene, omg, world=world).plan(grasps=grasps.poses)
+    assert result.success, result.status
+    executed = execute_plan(scene, result.trajectory, ExecutionSettings(waypoint_dt=omg.chomp.duration / omg.chomp.n))
+    assert executed.target_pushed < 0.01, executed.target_pushed
+    assert executed.status == "lifted", executed.message

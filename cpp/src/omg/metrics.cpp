@@ -68,13 +68,26 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
   const int n = static_cast<int>(xi.rows());
   // Dense steps at or after this one lie on the approach tail (waypoints n - tail .. n).
   const double tail_start = s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints) / n * (s.steps - 1) : s.steps;
-  bool transit_free = true, table_free = true;
+  bool transit_free = true, table_free = true, target_free = true;
+  // The target alone (every other object and the table left out), measured in the transit when asked.
+  const std::uint64_t only_target = (all_objects & ~s.exclude_mask) | SceneSdf::kTableBit;
+  const bool measure_target = s.transit_target_clearance > -inf && (all_objects & s.exclude_mask) != 0;
+  const double target_cut = std::max(s.transit_target_clearance, 0.0) + 1e-3;  // beyond: clear
+  // ... on every dense step before the pre-grasp (the tail's first waypoint; the goal set checks the
+  // approach from there), the segment into it included.
+  const double target_end = s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints + 1) / n * (s.steps - 1) : s.steps;
   for (int t = 0; t < dense.rows(); ++t) {
     robot.forward_kinematics(dense.row(t).data(), ws);
     const double need = t >= tail_start ? s.tail_clearance : s.clearance;
+    const bool target_step = measure_target && t < target_end;
     double step_min = inf;
     for (const LinkGroup& grp : problem.groups()) {
       const Transform& T = ws.link_pose[grp.link];
+      if (target_step && scene.part_lower_bounds(T.apply(grp.center), only_target).objects - grp.radius < target_cut) {
+        for (int u = grp.begin; u < grp.end; ++u)
+          target_free = target_free && scene.distance_unmerged(T.apply(body.points.row(u).transpose()), nullptr,
+                                                               target_cut, only_target) >= s.transit_target_clearance;
+      }
       // Beyond its cutoff a part reads as the cap (exact: its true distance is beyond the cutoff), for a
       // whole group by its bound.
       const double obj_cut = object_cutoff();
@@ -100,9 +113,9 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
       }
     }
     transit_free = transit_free && step_min >= need;
-    if (stop_at_failure && !(transit_free && table_free)) return m;  // collision_free and success stay false
+    if (stop_at_failure && !(transit_free && table_free && target_free)) return m;  // collision_free, success stay false
   }
-  m.collision_free = transit_free && table_free;
+  m.collision_free = transit_free && table_free && target_free;
   m.success = m.collision_free && m.smoothness < s.smoothness_threshold;
   return m;
 }

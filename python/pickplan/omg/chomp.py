@@ -50,6 +50,9 @@ class MetricSettings:
     tail_waypoints: int = 0        # last waypoints (standoff approach) held to tail_clearance only
     tail_clearance: float = 0.01
     smoothness_threshold: float = 30.0
+    # The transit (before the tail) keeps this from the target (the metrics' excluded objects); -inf: not
+    # measured (the paper's test). The planner asks for it among furniture (OMGPlanner, LoopInputs).
+    transit_target_clearance: float = float("-inf")
     # The finger links may reach this far into the table (fingertips resting on it), as the goal set
     # lets them: None = the robot's finger links (bit = link index) and the gripper's default
     # tolerance (core.collision.SupportContact); Chomp.metrics resolves them.

@@ -18,6 +18,7 @@ from pickplan.omg.grasps.quality import GraspFit, QualitySettings
 from pickplan.omg.grasps.verify import VerifySettings
 from pickplan.omg.world import CheckerKind, World
 from pickplan.sim.execution import ExecutionSettings
+from pickplan.sim.lift import URDF_COLLISION_MARGIN, lift_path
 
 
 class IkTask(Option):
@@ -116,11 +117,14 @@ class GoalSetSettings:
     approach: Tuple[float, float, float] = (0.0, 0.0, 0.0)  # world direction of the standoff approach (unit;
                                                             # zero: the hand's +z; a place: gravity)
     # m the hand, fingers and target must be free to rise from the grasp among the scene's obstacles
-    # (furniture: a shelf's next board; ``lift_blocked``): execution's shortest lift and its clearance.
-    lift: float = ExecutionSettings.min_lift + ExecutionSettings.lift_clearance
+    # (furniture: a shelf's next board; ``lift_blocked``), keeping ``lift_clearance`` from them:
+    # execution's shortest lift and its clearance, which execution measures in PyBullet (its hulls'
+    # collision margin nearer than the exact distances the goal set takes).
+    lift: float = ExecutionSettings.min_lift
+    lift_clearance: float = ExecutionSettings.lift_clearance + URDF_COLLISION_MARGIN
 
     # What the Python side applies itself (the native struct has no such fields; the drift test reads this)
-    PYTHON_ONLY: ClassVar[Tuple[str, ...]] = ("approach_clearance", "quality", "verify", "lift")
+    PYTHON_ONLY: ClassVar[Tuple[str, ...]] = ("approach_clearance", "quality", "verify", "lift", "lift_clearance")
 
     def to_native(self) -> "_core.GoalSetSettings":
         return to_native(self, _core.GoalSetSettings, skip=self.PYTHON_ONLY)
@@ -260,23 +264,38 @@ def lift_blocked(world: World, hand_poses: np.ndarray, start: np.ndarray, lift: 
     return _raised_blocked(world, np.einsum("nij,pj->npi", poses[:, :3, :3], V) + poses[:, None, :3, 3], lift, step)
 
 
-def lift_blocked_configurations(world: World, Q: np.ndarray, lift: float, step: float = 0.01) -> np.ndarray:
-    """(G,) goal configurations whose moving links (collision hull vertices: a wrist under a shelf's next
-    board; the deepest point of a hull under a face is a vertex) or target, raised straight up by up to
-    ``lift`` m, would enter one of the scene's obstacles; the arm rises with the hand in a short lift,
-    nearly as one body."""
+def lift_blocked_configurations(world: World, Q: np.ndarray, lift: float, clearance: float,
+                                execution: ExecutionSettings = ExecutionSettings()) -> np.ndarray:
+    """(G,) goal configurations whose lift the scene's obstacles block, judged as execution judges it
+    (``sim.lift.lift_headroom``): along the lift's own IK path (``lift_path``, its waypoints up to ``lift``
+    m) a link (its convex hull, as PyBullet takes it: ``CheckerKind.furniture``) or the target (its hull's
+    vertices, carried by the hand) comes closer to an obstacle than ``clearance`` and closer than at the
+    grasp. A rigid rise misses what the arm's IK adds: lifting a hand deep in a cabinet raises the forearm
+    faster than the hand; and a hull's vertices miss a face passing under a board's edge."""
     robot = world.robot
     Q = np.asarray(Q, float).reshape(-1, robot.dof)
     if lift <= 0 or not getattr(world.scene, "obstacles", None) or not len(Q):
         return np.zeros(len(Q), bool)
+    step = execution.lift_height / execution.lift_waypoints
+    count = min(int(np.ceil(lift / step - 1e-9)), execution.lift_waypoints)  # a lift stopped before is short
+    paths = np.stack([lift_path(robot, q, execution)[:count + 1] for q in Q])  # (G, K + 1, dof)
+    checker, within = world.checker(CheckerKind.furniture), 2.0 * clearance
 
-    def hulls():  # (link index, hull vertices in the link's frame) of every moving link with geometry
-        meshes = [(i, robot.collision_meshes(i)) for i in robot.moving_links()]
-        return [(i, np.asarray(m.convex_hull.vertices, float)) for i, m in meshes if m is not None]
-    parts = world.cache.robot_derived(robot, ("moving_link_hulls",), hulls)
-    F = robot.fk_batch(Q)  # (G, links, 4, 4)
-    P = np.concatenate([np.einsum("gij,pj->gpi", F[:, i, :3, :3], V) + F[:, i, None, :3, 3] for i, V in parts], axis=1)
-    return _raised_blocked(world, P, lift, step)
+    def links_blocked(path) -> bool:
+        start = {(c.link, c.other): c.distance for c in checker.contacts(path[0], within)}
+        return any(c.distance < clearance and c.distance < start.get((c.link, c.other), within) - 1e-4
+                   for q in path[1:] for c in checker.contacts(q, within))
+    blocked = np.array([links_blocked(path) for path in paths], bool)
+    # the target rides with the hand: its pose relative to the hand at the grasp, at every waypoint
+    hand = robot.link_index(robot.hand_link)
+    H = robot.fk_batch(paths.reshape(-1, robot.dof))[:, hand].reshape(len(Q), count + 1, 4, 4)
+    carried = H @ np.linalg.inv(H[:, :1]) @ world.target_pose
+    V = np.asarray(world.target_model.mesh.convex_hull.vertices, float)
+    P = np.einsum("gkij,pj->gkpi", carried[..., :3, :3], V) + carried[..., None, :3, 3]
+    d, _ = world.sdf.distance(P.reshape(-1, 3), cutoff=within, exclude=[o.name for o in world.scene.objects],
+                              exclude_table=True)
+    d = np.asarray(d).reshape(len(Q), count + 1, -1)
+    return blocked | ((d[:, 1:] < clearance) & (d[:, 1:] < d[:, :1] - 1e-4)).any(axis=(1, 2))
 
 
 def _raised_blocked(world: World, P: np.ndarray, lift: float, step: float) -> np.ndarray:
@@ -326,7 +345,7 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     problem = world.clearance_problem if collision_check and settings.approach_clearance > 0 else None
     reasons = ["support_penetration"] * len(grasps)
     if collision_check and len(grasps):
-        no_lift = lift_blocked(world, hand_poses, start, settings.lift) & ~blocked
+        no_lift = lift_blocked(world, hand_poses, start, settings.lift + settings.lift_clearance) & ~blocked
         for k in np.flatnonzero(no_lift):
             reasons[k] = "lift_blocked"
         blocked = blocked | no_lift
@@ -360,7 +379,7 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
     grasp_index = tried[np.asarray(out["grasp_index"], dtype=int)] if len(tried) else np.zeros(0, int)
     goals_, tails = np.asarray(out["goals"]), np.asarray(out["tails"])
     if collision_check and len(goals_):  # the whole arm under the lift (the hand alone was checked before IK)
-        stuck = lift_blocked_configurations(world, goals_, settings.lift)
+        stuck = lift_blocked_configurations(world, goals_, settings.lift, settings.lift_clearance)
         for k in grasp_index[stuck]:
             reasons[k] = "lift_blocked"
         goals_, tails, grasp_index = goals_[~stuck], tails[~stuck], grasp_index[~stuck]

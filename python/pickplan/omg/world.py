@@ -54,6 +54,8 @@ class CheckerKind(Option):
     obstacles = "obstacles"  # the target is ignored entirely (trajectory validation)
     transit = "transit"      # the same, but the fingers may touch the table (their depth into the support
                              # is checked apart, as the success test does): sampling planners' validity
+    furniture = "furniture"  # the scene's obstacles alone, the links as convex hulls (as PyBullet takes
+                             # them): distances the executed lift keeps (``goals.lift_blocked_configurations``)
 
 
 @dataclass(frozen=True)
@@ -148,8 +150,9 @@ class World:
             raise ValueError(f"pose of {name!r}: expected a finite 4x4 matrix, got shape {T.shape}")
         self.scene.object(name)  # a KeyError naming the objects
         self.sdf.set_pose(name, T)  # checks rigidity before anything changed
-        for checker in self._checkers.values():
-            checker.set_object_pose(name, T)
+        for kind, checker in self._checkers.items():
+            if kind is not CheckerKind.furniture:  # it holds the obstacles alone
+                checker.set_object_pose(name, T)
         self.scene = replace(self.scene, objects=[replace(o, pose=T.copy()) if o.name == name else o
                                                   for o in self.scene.objects])
         if name == self.target:
@@ -171,6 +174,10 @@ class World:
         return self._checkers[kind]
 
     def _build_checker(self, kind: CheckerKind) -> collision.CollisionChecker:
+        if kind is CheckerKind.furniture:
+            return collision.CollisionChecker(self.robot, [collision.SceneMesh(o.name, o.shape, o.pose)
+                                                           for o in self.scene.obstacles], None, convex_links=True,
+                                              shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())

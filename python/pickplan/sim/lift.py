@@ -10,6 +10,10 @@ import numpy as np
 from pickplan.sim import scenes as scenes_mod
 from pickplan.sim.hand_path import hand_path
 
+#: m PyBullet's URDF importer gives the links' convex hulls as a collision margin (gUrdfDefaultCollisionMargin):
+#: ``lift_headroom``'s distances can be up to this much shorter than the exact ones of the same hulls.
+URDF_COLLISION_MARGIN = 0.001
+
 
 def lift_path(robot, q0: np.ndarray, s, height: Optional[float] = None) -> np.ndarray:
     """Arm configurations (lift_waypoints + 1, dof) moving the hand straight up by ``height`` (default

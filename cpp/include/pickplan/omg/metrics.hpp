@@ -1,6 +1,7 @@
 #pragma once
 // The paper's trajectory metrics (Sec. IV-A) on a densely interpolated trajectory.
 #include <cstdint>
+#include <limits>
 
 #include "pickplan/omg/chomp.hpp"
 
@@ -21,6 +22,9 @@ struct MetricSettings {
   double tail_clearance = 0.01;        //   the goal set checks it) need only this clearance
   double smoothness_threshold = 30.0;  // planning success needs smoothness below this
   std::uint64_t exclude_mask = 0;      // objects not counted (the target)
+  // The transit (before the tail) keeps at least this from the excluded objects (the target): the arm
+  // reaching into a shelf must not sweep through what it will grasp. -inf: not measured (the paper's test).
+  double transit_target_clearance = -std::numeric_limits<double>::infinity();
 };
 
 struct TrajectoryMetrics {
