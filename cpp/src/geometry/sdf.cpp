@@ -103,6 +103,13 @@ void SceneSdf::set_pose(int index, const Transform& pose) {
     if (!merged(mask)) merge(mask, settings);
 }
 
+namespace {
+// Squared gap from a point in a body's frame to its surface box (0 inside it).
+double box_gap2(const SceneSdf::Body& b, const Eigen::Vector3d& xl) {
+  return (xl - xl.cwiseMax(b.lo).cwiseMin(b.hi)).squaredNorm();
+}
+}  // namespace
+
 double SceneSdf::live_distance(const double* x, double* gradient, double best, std::uint64_t live) const {
   const Eigen::Map<const Eigen::Vector3d> p(x);
   Eigen::Vector3d g;
@@ -110,7 +117,7 @@ double SceneSdf::live_distance(const double* x, double* gradient, double best, s
     if (!(live & 1)) continue;
     const Body& b = bodies_[i];
     const Eigen::Vector3d xl = b.inverse.apply(p);
-    const double g2 = (xl - xl.cwiseMax(b.lo).cwiseMin(b.hi)).squaredNorm();
+    const double g2 = box_gap2(b, xl);
     if (g2 > 0 && (best <= 0 || g2 >= best * best)) continue;  // its surface box is farther than best
     const double d = b.local_distance(xl, gradient ? &g : nullptr);
     if (d < best) {
@@ -150,8 +157,7 @@ namespace {
 // one grid resolution for the interpolation; nothing (-inf) once the ball reaches the box,
 // since the inside can be arbitrarily deep.
 double box_gap_bound(const SceneSdf::Body& b, const Eigen::Vector3d& x, double radius) {
-  const Eigen::Vector3d xl = b.inverse.apply(x);
-  const double gap = (xl - xl.cwiseMax(b.lo).cwiseMin(b.hi)).norm() - radius;
+  const double gap = std::sqrt(box_gap2(b, b.inverse.apply(x))) - radius;
   return gap > 0 ? gap - b.slack : -std::numeric_limits<double>::infinity();
 }
 }  // namespace
@@ -300,8 +306,7 @@ double SceneSdf::distance_unmerged(const Eigen::Vector3d& x, Eigen::Vector3d* gr
   for (int i = 0; i < n; ++i) {
     if (exclude_mask >> i & 1) continue;
     const Body& b = bodies_[i];
-    const Eigen::Vector3d xl = b.inverse.apply(x);
-    const double g2 = (xl - xl.cwiseMax(b.lo).cwiseMin(b.hi)).squaredNorm();
+    const double g2 = box_gap2(b, b.inverse.apply(x));
     if (g2 > 0 && best > 0 && g2 >= best * best) continue;  // farther than the cutoff
     int k = m++;
     for (; k > 0 && gap2[order[k - 1]] > g2; --k) order[k] = order[k - 1];

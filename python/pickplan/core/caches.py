@@ -51,9 +51,9 @@ class BoundedCache:
             for k, v in zip(keys, held):
                 if v is not _MISSING:
                     self._entries.move_to_end(k)
-        missing = np.array([i for i, v in enumerate(held) if v is _MISSING], dtype=int)
-        self.hits += len(keys) - len(missing)
-        self.misses += len(missing)
+            missing = np.array([i for i, v in enumerate(held) if v is _MISSING], dtype=int)
+            self.hits += len(keys) - len(missing)
+            self.misses += len(missing)
         if len(missing):
             for i, v in zip(missing, build_missing(missing)):
                 held[i] = v

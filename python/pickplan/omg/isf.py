@@ -1,6 +1,7 @@
 """C-Space ISF grasp refinement (OMG Sec. III-E, Algorithm 1), native, for one target in one scene."""
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Optional, Tuple
 
@@ -106,8 +107,7 @@ class GraspRefiner:
         mesh = world.target_model.mesh
         local = world.cache.surface(mesh, self._object_points, seed, object_surface_local)
         pts, nrm = object_surface(mesh, world.target_pose, self._object_points, seed, local=local)
-        out = object.__new__(GraspRefiner)
-        out.__dict__.update(self.__dict__)
+        out = copy.copy(self)
         out._native = self._native.with_object(pts, nrm)
         return out
 

@@ -24,9 +24,9 @@ from pickplan.omg.grasps import quality, verify
 from pickplan.omg.model_cache import ModelCache
 
 
-def _rounded(values) -> bytes:
-    """A cache key of float values equal to 1e-9 (-0.0 taken as 0.0)."""
-    return (np.round(np.asarray(values, float), 9) + 0.0).tobytes()
+def _rounded(values) -> np.ndarray:
+    """Float values rounded to 1e-9 for cache keys (-0.0 taken as 0.0); ``.tobytes()`` of it (or of a row) is the key."""
+    return np.round(np.asarray(values, float), 9) + 0.0
 
 
 class _HashedKey:
@@ -274,10 +274,10 @@ class World:
         model, info = self.target_model, self.robot.info
         down = quality.model_load(model, self.target_pose).down
         friction = model.friction if getattr(model, "friction", None) is not None else settings.object_friction
-        common = _HashedKey((self._target_key, float(model.mass), _rounded(model.com), friction,
-                             quality.Grip.of(info, friction), _rounded(info.grasp_frame), settings, _rounded(down)))
-        rounded = np.round(grasps[:, :3], 9) + 0.0
-        keys = [(common, g.tobytes()) for g in rounded]
+        common = _HashedKey((self._target_key, float(model.mass), _rounded(model.com).tobytes(), friction,
+                             quality.Grip.of(info, friction), _rounded(info.grasp_frame).tobytes(), settings,
+                             _rounded(down).tobytes()))
+        keys = [(common, g.tobytes()) for g in _rounded(grasps[:, :3])]
 
         def build(rows):
             q = self.grasp_quality(grasps[rows], settings)
