@@ -78,11 +78,14 @@ void init_isf(py::module_& m) {
         }
         return py::make_tuple(terms_dict(t), g);
       }, py::arg("q"), "f_grasp terms and the gradient with respect to q.")
-      .def("with_object", [](const Holder& h, const Array& object_points, const Array& object_normals) {
+      .def("with_object", [](const Holder& h, const Array& object_points, const Array& object_normals,
+                             const Array& motion) {
         return Holder{h.robot, h.refiner->with_object(points3(object_points, "object points"),
-                                                      points3(object_normals, "object normals"))};
-      }, py::arg("object_points"), py::arg("object_normals"),
-         "This refiner for the target's surface samples (world) at another place: the target moved.")
+                                                      points3(object_normals, "object normals"),
+                                                      pose_arg(motion, "motion"))};
+      }, py::arg("object_points"), py::arg("object_normals"), py::arg("motion"),
+         "This refiner for the target's surface samples (world) at another place: the target moved by the "
+         "4x4 rigid `motion` (this refiner's points onto the new ones); its k-d tree is shared.")
       .def("set_support", [](Holder& h, const Array& finger_vertices, const Array& normal, double offset) {
         SupportPlane support;
         support.finger_vertices = points3(finger_vertices, "finger vertices");

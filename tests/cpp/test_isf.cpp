@@ -213,3 +213,32 @@ TEST(Isf, StepsDoNotPressTheFingersDeeperIntoTheSupport) {
   support.normal = Eigen::Vector3d(0, 0, 2);
   test::expect_invalid_argument([&] { r.set_support(support); }, "unit vector");
 }
+
+// A refiner placed again (the target moved) equals one built at the new place: the shared k-d tree,
+// queried through the motion, finds the same nearest points; a motion that is not the points' own throws.
+TEST(Isf, PlacedAgainEqualsBuiltThere) {
+  IsfCase c;
+  const GraspRefiner first = c.refiner();
+  Transform motion;
+  motion.R = axis_angle(Eigen::Vector3d::UnitZ(), 0.3);
+  motion.p = Eigen::Vector3d(0.02, -0.01, 0.0);
+  Vertices pts(c.cube_points.rows(), 3), nrm(c.cube_normals.rows(), 3);
+  for (Eigen::Index k = 0; k < pts.rows(); ++k) {
+    pts.row(k) = motion.apply(c.cube_points.row(k).transpose()).transpose();
+    nrm.row(k) = (motion.R * c.cube_normals.row(k).transpose()).transpose();
+  }
+  const auto moved = first.with_object(pts, nrm, motion);
+  const GraspRefiner built(c.robot, c.hand, c.contacts, c.normals, c.hand_sdf, pts, nrm, c.scene, c.body, 0, {});
+  // The hand where it held the cube before, moved with it (yaw and shift as the target), and a bit off.
+  for (const Eigen::VectorXd& q : {config(0.02, -0.01, -0.02, 0.3), config(0.025, -0.012, -0.01, 0.35, 0.05)}) {
+    Eigen::VectorXd g_moved, g_built;
+    const GraspTerms a = moved->cost(q, &g_moved), b = built.cost(q, &g_built);
+    ASSERT_GT(b.matched, 0);
+    EXPECT_EQ(a.matched, b.matched);
+    EXPECT_NEAR(a.total, b.total, 1e-12 * (1 + b.total));
+    EXPECT_LT((g_moved - g_built).cwiseAbs().maxCoeff(), 1e-9 * (1 + g_built.cwiseAbs().maxCoeff()));
+  }
+  Transform wrong = motion;
+  wrong.p.x() += 1e-3;
+  EXPECT_THROW(first.with_object(pts, nrm, wrong), std::invalid_argument);
+}

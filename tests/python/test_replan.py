@@ -140,8 +140,12 @@ def test_after_the_target_moves_the_goal_follows_and_the_plan_lifts_it(scene, re
     replanner, first = replanned
     world = replanner.world
     before = np.linalg.inv(world.target_pose) @ first.hand_pose  # the hand in the object frame
+    # The replanner's plan left the target out of every merged grid before it filled them: its move merges nothing.
+    assert all(scene.target in e for e in world.sdf.merged_excludes)
+    grids = world.sdf.merged_excludes
     moved_scene, T = _moved(scene, scene.target, (0.02, 0.0))
     result = replanner.replan(moved={scene.target: T})
+    assert world.sdf.merged_excludes == grids
     assert result.success, result.status
     assert 1 <= result.iterations <= replanner.settings.iterations  # the moved approach is optimized, not jumped onto
     after = np.linalg.inv(T) @ result.hand_pose

@@ -11,9 +11,11 @@
 
 namespace pickplan {
 
+// The tree owns the points it refers to: refiners placed elsewhere share it (with_object).
 struct GraspRefiner::Index {
+  Vertices source;
   PointIndex points;
-  explicit Index(const Vertices* pts) : points(pts) {}
+  explicit Index(const Vertices& pts) : source(pts), points(&source) {}
 };
 
 GraspRefiner::~GraspRefiner() = default;
@@ -44,13 +46,28 @@ GraspRefiner::GraspRefiner(std::shared_ptr<const Robot> robot, int hand_link, Ve
   require_finite("ISF body points", body_.points.data(), body_.points.size());
   if (!settings_.active.empty())
     require_size("ISF settings: active joint mask", robot_->dof(), static_cast<long>(settings_.active.size()), "entries");
-  index_ = std::make_unique<Index>(&object_points_);
+  index_ = std::make_shared<const Index>(object_points_);
 }
 
-std::shared_ptr<GraspRefiner> GraspRefiner::with_object(Vertices object_points, Vertices object_normals) const {
-  auto out = std::make_shared<GraspRefiner>(robot_, hand_, contacts_, contact_normals_, hand_sdf_, std::move(object_points),
-                                            std::move(object_normals), scene_, body_, exclude_mask_, settings_);
-  out->support_ = support_;
+std::shared_ptr<GraspRefiner> GraspRefiner::with_object(Vertices object_points, Vertices object_normals,
+                                                        const Transform& motion) const {
+  require_rigid("ISF: object motion", motion.matrix());
+  require_size("ISF object points", object_points_.rows(), object_points.rows(), "rows (the same samples, moved)");
+  require_size("ISF object normals", object_points.rows(), object_normals.rows(), "rows");
+  require_finite("ISF object points", object_points.data(), object_points.size());
+  require_finite("ISF object normals", object_normals.data(), object_normals.size());
+  const Eigen::Index n = object_points.rows();
+  for (const Eigen::Index k : {Eigen::Index{0}, n / 2, n - 1}) {  // the motion must be the points' own
+    const Eigen::Vector3d moved = motion.apply(object_points_.row(k).transpose());
+    if ((moved - object_points.row(k).transpose()).norm() > 1e-9 * (1.0 + moved.norm()))
+      throw std::invalid_argument("ISF with_object: the motion does not take the object points onto the new ones (row " +
+                                  std::to_string(k) + ")");
+  }
+  // A copy of this refiner (no validation, no tree built) with the new samples.
+  std::shared_ptr<GraspRefiner> out(new GraspRefiner(*this));
+  out->object_points_ = std::move(object_points);
+  out->object_normals_ = std::move(object_normals);
+  out->tree_from_world_ = tree_from_world_ * motion.inverse();
   return out;
 }
 
@@ -72,7 +89,9 @@ GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) c
   for (int j = 0; j < M; ++j) {
     uh[j] = H.apply(contacts_.row(j).transpose());
     un[j] = H.R * contact_normals_.row(j).transpose();
-    index_->points.nearest(uh[j].data(), &nn[j], &dist2[j]);
+    const Eigen::Vector3d in_tree = tree_from_world_.apply(uh[j]);
+    index_->points.nearest(in_tree.data(), &nn[j], &dist2[j]);
+    dist2[j] = (uh[j] - object_points_.row(nn[j]).transpose()).squaredNorm();  // in the world, as before a move
   }
   for (int j = 0; j < M; ++j) {
     bool keep = true;

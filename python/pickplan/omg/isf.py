@@ -89,6 +89,7 @@ class GraspRefiner:
         exclude = 1 << world.sdf.index(world.target)
         self._hand_sdf = cache.robot_derived(robot, "hand_sdf", lambda: hand_sdf(robot, grids=cache.grids))
         self.settings, self._object_points, self._from_mesh = settings, object_points, surface is None
+        self._pose = np.array(world.target_pose, dtype=float)  # where the samples were placed
         self._native = _core.GraspRefiner(robot.native, robot.hand_link, contacts.points, contacts.normals,
                                           self._hand_sdf.native, pts, nrm, world.sdf.native, world.body.links,
                                           world.body.points, exclude, settings.to_native(active))
@@ -108,7 +109,8 @@ class GraspRefiner:
         local = world.cache.surface(mesh, self._object_points, seed, object_surface_local)
         pts, nrm = object_surface(mesh, world.target_pose, self._object_points, seed, local=local)
         out = copy.copy(self)
-        out._native = self._native.with_object(pts, nrm)
+        out._pose = np.array(world.target_pose, dtype=float)
+        out._native = self._native.with_object(pts, nrm, out._pose @ np.linalg.inv(self._pose))
         return out
 
     def cost(self, q) -> Tuple[dict, np.ndarray]:

@@ -159,6 +159,11 @@ class World:
             self._refiners = {key: r.placed(self, key[1]) for key, r in self._refiners.items()}
             self.__dict__.pop("graspability", None)
 
+    def expect_motion(self, name: str) -> None:
+        """Object ``name`` will move (a replanner's target): the SDF queries it on its own grid from now
+        on, so that its first move re-merges nothing and refills no brick of the rest."""
+        self.sdf.set_pose(name, np.asarray(self.scene.object(name).pose, dtype=float))
+
     def scene_meshes(self):
         """Objects (meshes) and obstacles (primitives and meshes) as the FCL checkers take them."""
         return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects] + \

@@ -51,17 +51,18 @@ class GraspRefiner {
                std::shared_ptr<const SceneSdf> hand_sdf, Vertices object_points, Vertices object_normals,
                std::shared_ptr<const SceneSdf> scene, BodyPoints body, std::uint64_t exclude_mask, IsfSettings settings);
   ~GraspRefiner();
-  // Not movable: the k-d tree refers to object_points_ by address (a moved refiner would query the husk).
-  GraspRefiner(GraspRefiner&&) = delete;
 
   GraspTerms cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) const;
   // One Algorithm-1 step; returns the new configuration and its terms (never worse than q's).
   Eigen::VectorXd step(const Eigen::VectorXd& q, GraspTerms* terms = nullptr) const;
   Eigen::VectorXd refine(const Eigen::VectorXd& q, int iterations, GraspTerms* terms = nullptr) const;
 
-  // The same refiner for the target's surface samples at another place (the target moved: replanning);
-  // everything else, the support included, is shared or copied.
-  std::shared_ptr<GraspRefiner> with_object(Vertices object_points, Vertices object_normals) const;
+  // The same refiner for the target's surface samples at another place (the target moved: replanning):
+  // `motion` (rigid) takes this refiner's object points onto `object_points` (checked on three of them).
+  // The k-d tree is shared, queried through the motion; everything else, the support included, is
+  // shared or copied.
+  std::shared_ptr<GraspRefiner> with_object(Vertices object_points, Vertices object_normals,
+                                            const Transform& motion) const;
 
   // Set once, before the refiner is shared; an empty finger_vertices removes the support.
   void set_support(SupportPlane support);
@@ -82,7 +83,8 @@ class GraspRefiner {
   std::uint64_t exclude_mask_;
   IsfSettings settings_;
   SupportPlane support_;
-  std::unique_ptr<Index> index_;
+  std::shared_ptr<const Index> index_;  // over the object points as first given; shared by with_object
+  Transform tree_from_world_;           // world -> the frame of the tree's points
 };
 
 }  // namespace pickplan
