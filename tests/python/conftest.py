@@ -53,8 +53,11 @@ def ycb_dir_or_skip():
 
 
 def mbm_dir_or_skip():
+    """The MotionBenchMaker data folder; a skip where it is absent, a failure in CI (as for YCB)."""
     path = os.path.abspath(MBM_DIR)
     if not os.path.isfile(os.path.join(path, "problems_panda.tar.bz2")):
+        if in_ci():
+            pytest.fail(f"MotionBenchMaker data not found at {path}: CI must have it (set PICKPLAN_MBM_DIR)")
         pytest.skip(f"MotionBenchMaker data not found at {path} (set PICKPLAN_MBM_DIR); MBM checks skipped")
     return path
 

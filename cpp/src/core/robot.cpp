@@ -150,6 +150,122 @@ void require_finite_pose(const std::string& source, const std::string& what, con
     if (!std::isfinite(e)) throw std::invalid_argument("URDF '" + source + "': " + what + ": origin has NaN or infinity");
 }
 
+// The urdfdom model of a URDF document, its nesting checked first (the parser recurses per level).
+urdf::ModelInterfaceSharedPtr parse_urdf_model(const std::string& xml, const std::string& source) {
+  const int depth = xml_nesting_depth(xml);
+  if (depth > kMaxUrdfNesting)
+    throw std::invalid_argument("malformed URDF '" + source + "': elements nested " + std::to_string(depth) +
+                                " deep (at most " + std::to_string(kMaxUrdfNesting) + ")");
+  urdf::ModelInterfaceSharedPtr model;
+  try {
+    model = urdf::parseURDF(xml);
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("malformed URDF '" + source + "': " + e.what());
+  }
+  if (!model || !model->getRoot())
+    throw std::invalid_argument("malformed URDF '" + source +
+                                "': urdfdom could not parse it (not a <robot> document, or a broken link/joint tree)");
+  return model;
+}
+
+// The joint into a link: its type, origin and unit axis (moving joints), and its mimic (source
+// resolved by the caller once every joint is numbered).
+void read_joint(const urdf::Joint& j, const std::string& source, Link& link) {
+  link.joint_name = j.name;
+  require_finite_pose(source, "joint '" + j.name + "'", j.parent_to_joint_origin_transform);
+  link.joint_origin = to_transform(j.parent_to_joint_origin_transform);
+  switch (j.type) {
+    case urdf::Joint::FIXED: link.joint_type = JointType::Fixed; break;
+    case urdf::Joint::REVOLUTE: link.joint_type = JointType::Revolute; break;
+    case urdf::Joint::CONTINUOUS: link.joint_type = JointType::Continuous; break;
+    case urdf::Joint::PRISMATIC: link.joint_type = JointType::Prismatic; break;
+    default:
+      throw std::invalid_argument("URDF '" + source + "': joint '" + j.name +
+                                  "' has an unsupported type (floating/planar); model planar bases as "
+                                  "two prismatic joints and a revolute joint");
+  }
+  if (link.joint_type == JointType::Fixed) return;
+  const Eigen::Vector3d axis(j.axis.x, j.axis.y, j.axis.z);
+  if (!axis.allFinite() || axis.norm() < 1e-12)
+    throw std::invalid_argument("URDF '" + source + "': joint '" + j.name + "' has a zero or non-finite axis");
+  link.axis = axis.normalized();
+  link.axis_is_z = (link.axis - Eigen::Vector3d::UnitZ()).norm() < 1e-15;
+  if (j.mimic) {
+    if (!std::isfinite(j.mimic->multiplier) || !std::isfinite(j.mimic->offset))
+      throw std::invalid_argument("URDF '" + source + "': joint '" + j.name + "': mimic multiplier and offset must be finite");
+    link.mimic.multiplier = j.mimic->multiplier;
+    link.mimic.offset = j.mimic->offset;
+    link.mimic.source_q = -2;  // resolved once every joint has an index
+  }
+}
+
+struct JointLimits {
+  double lower, upper, velocity;
+};
+
+// A moving joint's position limits (none for continuous joints) and velocity limit (inf: none given).
+JointLimits read_limits(const urdf::Joint& j, JointType type, const std::string& source) {
+  const double inf = std::numeric_limits<double>::infinity();
+  JointLimits out{-inf, inf, inf};
+  if (j.limits && type != JointType::Continuous) {
+    out.lower = j.limits->lower;
+    out.upper = j.limits->upper;
+    if (!(std::isfinite(out.lower) && std::isfinite(out.upper) && out.lower <= out.upper))
+      throw std::invalid_argument("URDF '" + source + "': joint '" + j.name + "' has limits lower " +
+                                  std::to_string(out.lower) + " > upper " + std::to_string(out.upper) +
+                                  " (or not finite); expected lower <= upper");
+  }
+  if (j.limits && j.limits->velocity > 0) out.velocity = j.limits->velocity;
+  return out;
+}
+
+// One <collision> of link `link_name`: a mesh (its file resolved) or a primitive, sizes checked.
+CollisionGeometry read_collision(const urdf::Collision& col, const std::string& link_name, const std::string& base_dir,
+                                 const std::vector<std::string>& package_dirs, const std::string& source) {
+  CollisionGeometry g;
+  require_finite_pose(source, "collision of link '" + link_name + "'", col.origin);
+  g.origin = to_transform(col.origin);
+  switch (col.geometry->type) {
+    case urdf::Geometry::MESH: {
+      auto mesh = std::static_pointer_cast<const urdf::Mesh>(col.geometry);
+      g.kind = CollisionGeometry::Kind::Mesh;
+      g.mesh_path = resolve_mesh(mesh->filename, base_dir, package_dirs);
+      if (g.mesh_path.empty())
+        throw FileNotFound("URDF '" + source + "': collision mesh '" + mesh->filename + "' of link '" + link_name +
+                           "' not found (searched relative to '" + base_dir + "' and the package directories)");
+      g.scale = Eigen::Vector3d(mesh->scale.x, mesh->scale.y, mesh->scale.z);
+      for (int a = 0; a < 3; ++a)
+        if (!(std::isfinite(g.scale[a]) && g.scale[a] != 0.0))
+          throw std::invalid_argument("URDF '" + source + "': link '" + link_name +
+                                      "': mesh scale must be finite and non-zero");
+      break;
+    }
+    case urdf::Geometry::BOX: {
+      auto box = std::static_pointer_cast<const urdf::Box>(col.geometry);
+      g.kind = CollisionGeometry::Kind::Box;
+      g.size = Eigen::Vector3d(box->dim.x, box->dim.y, box->dim.z);
+      for (int a = 0; a < 3; ++a) require_positive(source, link_name, "box size", g.size[a]);
+      break;
+    }
+    case urdf::Geometry::CYLINDER: {
+      auto cyl = std::static_pointer_cast<const urdf::Cylinder>(col.geometry);
+      g.kind = CollisionGeometry::Kind::Cylinder;
+      g.size = Eigen::Vector3d(cyl->radius, cyl->length, 0.0);
+      require_positive(source, link_name, "cylinder radius", cyl->radius);
+      require_positive(source, link_name, "cylinder length", cyl->length);
+      break;
+    }
+    case urdf::Geometry::SPHERE: {
+      auto sph = std::static_pointer_cast<const urdf::Sphere>(col.geometry);
+      g.kind = CollisionGeometry::Kind::Sphere;
+      g.size = Eigen::Vector3d(sph->radius, 0.0, 0.0);
+      require_positive(source, link_name, "sphere radius", sph->radius);
+      break;
+    }
+  }
+  return g;
+}
+
 }  // namespace
 
 void require_rigid(const char* what, const Eigen::Matrix4d& M, double tol) {
@@ -184,20 +300,7 @@ Robot Robot::from_urdf_file(const std::string& path, const std::vector<std::stri
 
 Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_dir,
                               const std::vector<std::string>& package_dirs, const std::string& source) {
-  const int depth = xml_nesting_depth(xml);
-  if (depth > kMaxUrdfNesting)
-    throw std::invalid_argument("malformed URDF '" + source + "': elements nested " + std::to_string(depth) +
-                                " deep (at most " + std::to_string(kMaxUrdfNesting) + ")");
-  urdf::ModelInterfaceSharedPtr model;
-  try {
-    model = urdf::parseURDF(xml);
-  } catch (const std::exception& e) {
-    throw std::invalid_argument("malformed URDF '" + source + "': " + e.what());
-  }
-  if (!model || !model->getRoot())
-    throw std::invalid_argument("malformed URDF '" + source +
-                                "': urdfdom could not parse it (not a <robot> document, or a broken link/joint tree)");
-
+  const urdf::ModelInterfaceSharedPtr model = parse_urdf_model(xml, source);
   const auto order = joint_document_order(xml);
   auto rank = [&](const urdf::LinkConstSharedPtr& l) {
     auto it = l->parent_joint ? order.find(l->parent_joint->name) : order.end();
@@ -216,100 +319,22 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
     link.name = ulink->name;
     link.parent = parent;
     if (const auto& j = ulink->parent_joint) {
-      link.joint_name = j->name;
-      require_finite_pose(source, "joint '" + j->name + "'", j->parent_to_joint_origin_transform);
-      link.joint_origin = to_transform(j->parent_to_joint_origin_transform);
-      Eigen::Vector3d axis(j->axis.x, j->axis.y, j->axis.z);
-      switch (j->type) {
-        case urdf::Joint::FIXED: link.joint_type = JointType::Fixed; break;
-        case urdf::Joint::REVOLUTE: link.joint_type = JointType::Revolute; break;
-        case urdf::Joint::CONTINUOUS: link.joint_type = JointType::Continuous; break;
-        case urdf::Joint::PRISMATIC: link.joint_type = JointType::Prismatic; break;
-        default:
-          throw std::invalid_argument("URDF '" + source + "': joint '" + j->name +
-                                      "' has an unsupported type (floating/planar); model planar bases as "
-                                      "two prismatic joints and a revolute joint");
-      }
+      read_joint(*j, source, link);
       if (link.joint_type != JointType::Fixed) {
-        if (!axis.allFinite() || axis.norm() < 1e-12)
-          throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "' has a zero or non-finite axis");
-        link.axis = axis.normalized();
-        link.axis_is_z = (link.axis - Eigen::Vector3d::UnitZ()).norm() < 1e-15;
         link.q_index = static_cast<int>(robot.joint_names_.size());
         q_of_joint[j->name] = link.q_index;
         robot.joint_names_.push_back(j->name);
-        const double inf = std::numeric_limits<double>::infinity();
-        double lo = -inf, hi = inf, vel = inf;
-        if (j->limits && link.joint_type != JointType::Continuous) {
-          lo = j->limits->lower;
-          hi = j->limits->upper;
-          if (!(std::isfinite(lo) && std::isfinite(hi) && lo <= hi))
-            throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "' has limits lower " +
-                                        std::to_string(lo) + " > upper " + std::to_string(hi) +
-                                        " (or not finite); expected lower <= upper");
-        }
-        if (j->limits && j->limits->velocity > 0) vel = j->limits->velocity;
+        const JointLimits limits = read_limits(*j, link.joint_type, source);
         robot.lower_.conservativeResize(link.q_index + 1);
         robot.upper_.conservativeResize(link.q_index + 1);
         robot.velocity_.conservativeResize(link.q_index + 1);
-        robot.lower_[link.q_index] = lo;
-        robot.upper_[link.q_index] = hi;
-        robot.velocity_[link.q_index] = vel;
-        if (j->mimic) {
-          if (!std::isfinite(j->mimic->multiplier) || !std::isfinite(j->mimic->offset))
-            throw std::invalid_argument("URDF '" + source + "': joint '" + j->name + "': mimic multiplier and offset must be finite");
-          link.mimic.multiplier = j->mimic->multiplier;
-          link.mimic.offset = j->mimic->offset;
-          link.mimic.source_q = -2;  // resolved below, once every joint has an index
-        }
+        robot.lower_[link.q_index] = limits.lower;
+        robot.upper_[link.q_index] = limits.upper;
+        robot.velocity_[link.q_index] = limits.velocity;
       }
     }
-    for (const auto& col : ulink->collision_array) {
-      if (!col || !col->geometry) continue;
-      CollisionGeometry g;
-      require_finite_pose(source, "collision of link '" + ulink->name + "'", col->origin);
-      g.origin = to_transform(col->origin);
-      switch (col->geometry->type) {
-        case urdf::Geometry::MESH: {
-          auto mesh = std::static_pointer_cast<const urdf::Mesh>(col->geometry);
-          g.kind = CollisionGeometry::Kind::Mesh;
-          g.mesh_path = resolve_mesh(mesh->filename, base_dir, package_dirs);
-          if (g.mesh_path.empty())
-            throw FileNotFound("URDF '" + source + "': collision mesh '" + mesh->filename + "' of link '" +
-                               ulink->name + "' not found (searched relative to '" + base_dir +
-                               "' and the package directories)");
-          g.scale = Eigen::Vector3d(mesh->scale.x, mesh->scale.y, mesh->scale.z);
-          for (int a = 0; a < 3; ++a)
-            if (!(std::isfinite(g.scale[a]) && g.scale[a] != 0.0))
-              throw std::invalid_argument("URDF '" + source + "': link '" + ulink->name +
-                                          "': mesh scale must be finite and non-zero");
-          break;
-        }
-        case urdf::Geometry::BOX: {
-          auto box = std::static_pointer_cast<const urdf::Box>(col->geometry);
-          g.kind = CollisionGeometry::Kind::Box;
-          g.size = Eigen::Vector3d(box->dim.x, box->dim.y, box->dim.z);
-          for (int a = 0; a < 3; ++a) require_positive(source, ulink->name, "box size", g.size[a]);
-          break;
-        }
-        case urdf::Geometry::CYLINDER: {
-          auto cyl = std::static_pointer_cast<const urdf::Cylinder>(col->geometry);
-          g.kind = CollisionGeometry::Kind::Cylinder;
-          g.size = Eigen::Vector3d(cyl->radius, cyl->length, 0.0);
-          require_positive(source, ulink->name, "cylinder radius", cyl->radius);
-          require_positive(source, ulink->name, "cylinder length", cyl->length);
-          break;
-        }
-        case urdf::Geometry::SPHERE: {
-          auto sph = std::static_pointer_cast<const urdf::Sphere>(col->geometry);
-          g.kind = CollisionGeometry::Kind::Sphere;
-          g.size = Eigen::Vector3d(sph->radius, 0.0, 0.0);
-          require_positive(source, ulink->name, "sphere radius", sph->radius);
-          break;
-        }
-      }
-      link.collisions.push_back(g);
-    }
+    for (const auto& col : ulink->collision_array)
+      if (col && col->geometry) link.collisions.push_back(read_collision(*col, ulink->name, base_dir, package_dirs, source));
     const int index = static_cast<int>(robot.links_.size());
     robot.links_.push_back(std::move(link));
     std::vector<urdf::LinkConstSharedPtr> children(ulink->child_links.begin(), ulink->child_links.end());
