@@ -11,26 +11,14 @@
 
 #include "pickplan/core/errors.hpp"
 #include "pickplan/geometry/sdf.hpp"
+#include "collision_detail.hpp"
 
 namespace pickplan {
 namespace {
 
-using FclBvh = fcl::BVHModel<fcl::OBBRSSd>;
+using collision_detail::bounds;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 const char* const kTable = "table";
-
-std::shared_ptr<FclBvh> make_bvh(const TriangleMesh& m) {
-  std::vector<fcl::Vector3d> v(m.num_vertices());
-  std::vector<fcl::Triangle> t(m.num_faces());
-  for (int i = 0; i < m.num_vertices(); ++i) v[i] = m.vertices.row(i).transpose();
-  for (int i = 0; i < m.num_faces(); ++i) t[i] = fcl::Triangle(m.faces(i, 0), m.faces(i, 1), m.faces(i, 2));
-  auto bvh = std::make_shared<FclBvh>();
-  bvh->beginModel(static_cast<int>(t.size()), static_cast<int>(v.size()));
-  bvh->addSubModel(v, t);
-  bvh->endModel();
-  bvh->computeLocalAABB();
-  return bvh;
-}
 
 fcl::Transform3d to_fcl(const Transform& T) {
   fcl::Transform3d tf = fcl::Transform3d::Identity();
@@ -38,68 +26,6 @@ fcl::Transform3d to_fcl(const Transform& T) {
   tf.translation() = T.p;
   return tf;
 }
-
-Eigen::AlignedBox3d bounds(const TriangleMesh& m, const Transform& T = Transform{}) {
-  Eigen::AlignedBox3d box;
-  for (int i = 0; i < m.num_vertices(); ++i) box.extend(T.apply(m.vertices.row(i).transpose()));
-  return box;
-}
-
-}  // namespace
-
-struct CollisionShape::Bvh {
-  std::shared_ptr<fcl::CollisionGeometryd> model;  // a BVH, or a solid primitive
-};
-
-CollisionShape::CollisionShape(TriangleMesh mesh, const std::string& what) : mesh_(std::move(mesh)) {
-  mesh_.validate(what);
-  bvh_ = std::make_unique<Bvh>(Bvh{make_bvh(mesh_)});
-  box_ = bounds(mesh_);
-  center_ = box_.center();
-  for (int i = 0; i < mesh_.num_vertices(); ++i)
-    radius_ = std::max(radius_, (mesh_.vertices.row(i).transpose() - center_).norm());
-}
-
-std::shared_ptr<CollisionShape> CollisionShape::convex(TriangleMesh hull, const std::string& what) {
-  hull.validate(what);
-  std::shared_ptr<CollisionShape> s(new CollisionShape());
-  s->mesh_ = std::move(hull);
-  s->solid_ = true;
-  auto vertices = std::make_shared<std::vector<fcl::Vector3d>>();
-  for (int i = 0; i < s->mesh_.num_vertices(); ++i) vertices->push_back(s->mesh_.vertices.row(i).transpose());
-  auto faces = std::make_shared<std::vector<int>>();
-  for (int f = 0; f < s->mesh_.num_faces(); ++f)
-    faces->insert(faces->end(), {3, s->mesh_.faces(f, 0), s->mesh_.faces(f, 1), s->mesh_.faces(f, 2)});
-  auto geometry = std::make_shared<fcl::Convexd>(vertices, s->mesh_.num_faces(), faces);
-  geometry->computeLocalAABB();
-  s->bvh_ = std::make_unique<Bvh>(Bvh{geometry});
-  s->box_ = bounds(s->mesh_);
-  s->center_ = s->box_.center();
-  for (int i = 0; i < s->mesh_.num_vertices(); ++i)
-    s->radius_ = std::max(s->radius_, (s->mesh_.vertices.row(i).transpose() - s->center_).norm());
-  return s;
-}
-
-CollisionShape::CollisionShape(const Primitive& primitive, const std::string& what)
-    : solid_(true), has_primitive_(true), primitive_(primitive) {
-  primitive.validate(what);
-  mesh_ = primitive.enclosing_mesh();
-  std::shared_ptr<fcl::CollisionGeometryd> geometry;
-  switch (primitive.kind) {
-    case PrimitiveKind::Box: geometry = std::make_shared<fcl::Boxd>(primitive.size); break;
-    case PrimitiveKind::Cylinder: geometry = std::make_shared<fcl::Cylinderd>(primitive.size.x(), primitive.size.y()); break;
-    case PrimitiveKind::Sphere: geometry = std::make_shared<fcl::Sphered>(primitive.size.x()); break;
-  }
-  geometry->computeLocalAABB();
-  bvh_ = std::make_unique<Bvh>(Bvh{geometry});
-  box_ = primitive.bounds();
-  center_ = Eigen::Vector3d::Zero();
-  radius_ = box_.max().norm();
-}
-
-CollisionShape::~CollisionShape() = default;
-
-namespace {
 
 std::shared_ptr<const CollisionShape> shape_of(std::shared_ptr<const CollisionShape> shape, TriangleMesh& mesh,
                                                const std::string& what) {
@@ -153,31 +79,33 @@ CollisionChecker::~CollisionChecker() = default;
 CollisionChecker::CollisionChecker(CollisionChecker&&) noexcept = default;
 CollisionChecker& CollisionChecker::operator=(CollisionChecker&&) noexcept = default;
 
-CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> link_meshes,
-                                   std::vector<SceneObject> objects, const TableBox& table, CollisionSettings settings)
-    : robot_(robot), settings_(std::move(settings)), impl_(std::make_unique<Impl>()) {
-  if (!(settings_.margin >= 0.0) || !std::isfinite(settings_.margin))
-    throw std::invalid_argument("margin: expected a finite value >= 0, got " + std::to_string(settings_.margin));
-  // Robot links.
-  std::vector<int> geom_of_link(robot_.num_links(), -1);
+namespace {
+
+// The robot's link meshes, each link at most once; returns each link's geometry index (-1: none).
+std::vector<int> add_link_geometry(const Robot& robot, std::vector<LinkMesh> link_meshes, CollisionChecker::Impl& impl) {
+  std::vector<int> geom_of_link(robot.num_links(), -1);
   for (auto& lm : link_meshes) {
-    const int li = robot_.link_index(lm.link);
+    const int li = robot.link_index(lm.link);
     if (geom_of_link[li] >= 0) throw std::invalid_argument("link mesh for '" + lm.link + "' given twice");
     auto shape = shape_of(std::move(lm.shape), lm.mesh, "mesh of link '" + lm.link + "'");
     if (shape->primitive()) throw std::invalid_argument("link '" + lm.link + "': a link's geometry must be a mesh");
     const fcl::CollisionGeometryd* bvh = shape->bvh().model.get();
-    Impl::LinkGeom g{li, shape, bvh, shape->box(), shape->center(), shape->radius()};
-    geom_of_link[li] = static_cast<int>(impl_->links.size());
-    impl_->links.push_back(std::move(g));
+    CollisionChecker::Impl::LinkGeom g{li, shape, bvh, shape->box(), shape->center(), shape->radius()};
+    geom_of_link[li] = static_cast<int>(impl.links.size());
+    impl.links.push_back(std::move(g));
   }
-  // Scene objects.
+  return geom_of_link;
+}
+
+// The scene's objects at their (rigid) poses, names unique and not reserved; returns their names.
+std::vector<std::string> add_object_geometry(std::vector<SceneObject> objects, CollisionChecker::Impl& impl) {
   std::set<std::string> names;
   for (auto& o : objects) {
     if (o.name.empty() || o.name == kTable)
       throw std::invalid_argument("object name '" + o.name + "' is reserved or empty");
     if (!names.insert(o.name).second) throw std::invalid_argument("object name '" + o.name + "' given twice");
     require_rigid(("pose of object '" + o.name + "'").c_str(), o.pose.matrix());
-    Impl::ObjGeom g;
+    CollisionChecker::Impl::ObjGeom g;
     g.name = o.name;
     g.shape = shape_of(std::move(o.shape), o.mesh, "mesh of object '" + o.name + "'");
     g.bvh = g.shape->bvh().model.get();
@@ -187,23 +115,43 @@ CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> lin
     g.box = g.shape->box();
     g.world_box = bounds(g.mesh(), o.pose);
     g.probe_world = o.pose.apply(g.mesh().vertices.row(0).transpose());
-    impl_->objects.push_back(std::move(g));
+    impl.objects.push_back(std::move(g));
   }
-  // Table.
+  return {names.begin(), names.end()};
+}
+
+// The table box (all-zero size: no table).
+void add_table_geometry(const TableBox& table, CollisionChecker::Impl& impl) {
   require_finite("table size", table.size.data(), 3);
-  if (!table.size.isZero()) {
-    if (!(table.size.array() > 0).all())
-      throw std::invalid_argument("table size: expected 3 positive extents (or all zero for no table)");
-    require_rigid("table pose", table.pose.matrix());
-    impl_->has_table = true;
-    impl_->table = std::make_shared<fcl::Boxd>(table.size);
-    impl_->table_tf = to_fcl(table.pose);
-    impl_->table_inv = table.pose.inverse();
-    impl_->table_half = 0.5 * table.size;
-    for (int c = 0; c < 8; ++c)
-      impl_->table_world_box.extend(table.pose.apply(
-          0.5 * Eigen::Vector3d((c & 1 ? 1 : -1) * table.size.x(), (c & 2 ? 1 : -1) * table.size.y(), (c & 4 ? 1 : -1) * table.size.z())));
-  }
+  if (table.size.isZero()) return;
+  if (!(table.size.array() > 0).all())
+    throw std::invalid_argument("table size: expected 3 positive extents (or all zero for no table)");
+  require_rigid("table pose", table.pose.matrix());
+  impl.has_table = true;
+  impl.table = std::make_shared<fcl::Boxd>(table.size);
+  impl.table_tf = to_fcl(table.pose);
+  impl.table_inv = table.pose.inverse();
+  impl.table_half = 0.5 * table.size;
+  for (int c = 0; c < 8; ++c)
+    impl.table_world_box.extend(table.pose.apply(
+        0.5 * Eigen::Vector3d((c & 1 ? 1 : -1) * table.size.x(), (c & 2 ? 1 : -1) * table.size.y(), (c & 4 ? 1 : -1) * table.size.z())));
+}
+
+}  // namespace
+
+CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> link_meshes,
+                                   std::vector<SceneObject> objects, const TableBox& table, CollisionSettings settings)
+    : robot_(robot), settings_(std::move(settings)), impl_(std::make_unique<Impl>()) {
+  if (!(settings_.margin >= 0.0) || !std::isfinite(settings_.margin))
+    throw std::invalid_argument("margin: expected a finite value >= 0, got " + std::to_string(settings_.margin));
+  const std::vector<int> geom_of_link = add_link_geometry(robot_, std::move(link_meshes), *impl_);
+  const std::vector<std::string> names = add_object_geometry(std::move(objects), *impl_);
+  add_table_geometry(table, *impl_);
+  choose_pairs(names, geom_of_link);
+}
+
+void CollisionChecker::choose_pairs(const std::vector<std::string>& object_names, const std::vector<int>& geom_of_link) {
+  const std::set<std::string> names(object_names.begin(), object_names.end());
   // Exclusions and allowed pairs, by name.
   std::set<std::string> excluded;
   for (const auto& n : settings_.excluded_objects) {
@@ -234,30 +182,29 @@ CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> lin
       if (!excluded.count(on) && !allowed.count({link_name(g), on})) pairs_.push_back({g, OtherKind::Object, o});
     }
   }
-  if (settings_.self_collision) {
-    std::vector<double> ref = settings_.self_collision_reference;
-    if (ref.empty()) {
-      ref.assign(robot_.dof(), 0.0);
-      for (int j = 0; j < robot_.dof(); ++j)
-        ref[j] = std::clamp(0.0, robot_.lower_limits()[j], robot_.upper_limits()[j]);
-    }
-    robot_.check_configuration(ref.data(), static_cast<long>(ref.size()));
-    CollisionWorkspace ws(*this);
-    robot_.forward_kinematics(ref.data(), ws.robot);
-    auto geometric_parent = [&](int g) {
-      for (int l = robot_.link(impl_->links[g].link).parent; l >= 0; l = robot_.link(l).parent)
-        if (geom_of_link[l] >= 0) return geom_of_link[l];
-      return -1;
-    };
-    for (int a = 0; a < nl; ++a)
-      for (int b = a + 1; b < nl; ++b) {
-        if (geometric_parent(a) == b || geometric_parent(b) == a) continue;
-        if (allowed.count({link_name(a), link_name(b)})) continue;
-        Pair p{a, OtherKind::Link, b};
-        if (pair_collides(p, ws)) continue;
-        pairs_.push_back(p);
-      }
+  if (!settings_.self_collision) return;
+  // Link pairs: not a link and its geometric parent, not allowed, and apart at the reference configuration.
+  std::vector<double> ref = settings_.self_collision_reference;
+  if (ref.empty()) {
+    ref.assign(robot_.dof(), 0.0);
+    for (int j = 0; j < robot_.dof(); ++j) ref[j] = std::clamp(0.0, robot_.lower_limits()[j], robot_.upper_limits()[j]);
   }
+  robot_.check_configuration(ref.data(), static_cast<long>(ref.size()));
+  CollisionWorkspace ws(*this);
+  robot_.forward_kinematics(ref.data(), ws.robot);
+  auto geometric_parent = [&](int g) {
+    for (int l = robot_.link(impl_->links[g].link).parent; l >= 0; l = robot_.link(l).parent)
+      if (geom_of_link[l] >= 0) return geom_of_link[l];
+    return -1;
+  };
+  for (int a = 0; a < nl; ++a)
+    for (int b = a + 1; b < nl; ++b) {
+      if (geometric_parent(a) == b || geometric_parent(b) == a) continue;
+      if (allowed.count({link_name(a), link_name(b)})) continue;
+      Pair p{a, OtherKind::Link, b};
+      if (pair_collides(p, ws)) continue;
+      pairs_.push_back(p);
+    }
 }
 
 std::vector<std::pair<std::string, std::string>> CollisionChecker::checked_pairs() const {

@@ -171,6 +171,9 @@ class CollisionChecker {
     int other;       // object index, or link geometry index for Link, unused for Table
   };
   void check_q(const double* q) const;
+  // The pairs checked: every link against the table and objects not excluded or allowed, and link
+  // pairs apart at the self-collision reference (the constructor's last phase).
+  void choose_pairs(const std::vector<std::string>& object_names, const std::vector<int>& geom_of_link);
   double pair_lower_bound(const Pair& p, const CollisionWorkspace& ws) const;
   // Signed distance of one pair (fills info when given).
   double pair_distance(const Pair& p, const CollisionWorkspace& ws, bool want_points, ContactInfo* info) const;
