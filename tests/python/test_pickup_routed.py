@@ -230,6 +230,33 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     assert not off.success and off.reason is Reason.solver_failed and planner.Method.single_shot not in calls
 
 
+def test_plans_that_fail_between_the_samples_are_solved_again_at_refined_samples(robot, monkeypatch):
+    problem = _native(robot, _spec())
+    real = planner.plan
+    calls, plans = [], []
+
+    def coarse_fails(robot_, problem_, settings, method=planner.Method.successive, x0=None):
+        calls.append((planner.Method.parse(method, "method"), settings.samples_per_interval))
+        p = real(robot_, problem_, settings, method, x0)
+        plans.append(p)
+        if settings.samples_per_interval == FAST.samples_per_interval:  # as if it held its rows at the samples only
+            p.success, p.status = False, planner.SolveStatus.violation_between_samples
+        return p
+
+    monkeypatch.setattr(planner, "plan", coarse_fails)
+    p = routed.plan_routed(robot, problem, FAST, routes=0)
+    fine = round(FAST.samples_per_interval * routed.REFINE[0])
+    assert p.success and p.reason is Reason.none and p.seed.endswith(f", {fine} samples per interval")
+    assert planner.passes_dense_checks(robot, problem, p) and p.T >= p.lower_bound
+    # The five stages, then all constraints at once, at the given samples from every base path; then
+    # the five stages at the refined samples, from the first base path.
+    coarse = [c for c in calls if c[1] == FAST.samples_per_interval]
+    assert [m for m, _ in coarse] == sorted((m for m, _ in coarse), key=lambda m: m is planner.Method.single_shot)
+    assert calls[len(coarse):] == [(planner.Method.successive, fine)] and len(coarse) >= 2
+    # More samples, more rows: from the same base path, the refined NLP holds its rows at more instants.
+    assert p.stages[-1].rows > plans[0].stages[-1].rows
+
+
 # ---- the layouts --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("layout", list(random_problems.Layout))
 def test_layouts_draw_seeded_problems_of_their_kind(layout):

@@ -9,7 +9,11 @@ successive refinement from the fastest base path, and a wall-clock budget.
 3. The five stages (native ``solve_successive``: arm seeds) from the best stage-1 solution; on
    failure (or a plan that fails the dense checks, ``planner.dense_checks``) from the next, while
    the budget lasts. The first plan that passes is returned. When none does: all constraints at
-   once (the native direct track, on its own) from each stage-1 solution in the same order.
+   once (the native direct track, on its own) from each stage-1 solution in the same order; then
+   the five stages again with the samples refined (``REFINE``) from the stage-1 solutions whose
+   plans held their rows at the samples but not between them (a long T leaves a second or more
+   between samples, where the base polynomial slides sideways). No stage-1 solution at all: stage
+   1 again at the refined samples.
 4. No success: the reason is ``solver_failed`` (the certificate found nothing against the problem)
    and the plan that went furthest is returned as the closest; ``time_limit`` when the budget ran
    out first. With a budget the native runs get the time left (``PlannerSettings.time_limit``), and
@@ -43,6 +47,10 @@ BASE_DEGREES = (5, 7)
 # The five stages commit the arm to one IK branch and grasp timing; far from the bound that is
 # where the time went (behind layout: 23 s -> 11 s against a bound of 6 s).
 SECOND_OPINION = 3.0
+# When no plan passes and some held their rows at the samples but not between them (the base slides
+# sideways between samples a second or more apart when T is long), the five stages again with
+# the samples per interval scaled by these factors in turn (issue 37, behind layout: 8 -> 12 or 16).
+REFINE = (1.5, 2.0)
 
 
 class _Budget:
@@ -84,10 +92,13 @@ def _variants(robot, settings: planner.PlannerSettings) -> list:
     return [replace(settings, degrees=[d, d, d] + arm) for d in BASE_DEGREES]
 
 
-def _stage1(robot, problem, settings, budget: _Budget, routes) -> list:
+def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1.0) -> list:
     """Stage 1 from every seed at every base degree while time is left: [(T, label, settings, x)]
-    of the solved runs, fastest first (the lower degree first among equal T)."""
+    of the solved runs, fastest first (the lower degree first among equal T). ``factor`` scales the
+    samples per interval (the later stages from such a solution keep them)."""
     solved = []
+    if factor != 1:
+        settings = replace(settings, samples_per_interval=int(round(settings.samples_per_interval * factor)))
     variants = _variants(robot, settings)
     for k, variant in enumerate(variants):
         pending = seeds(robot, problem, variant, routes if k == len(variants) - 1 else 0, budget.deadline)
@@ -100,6 +111,7 @@ def _stage1(robot, problem, settings, budget: _Budget, routes) -> list:
             budget.note(r.status, time.monotonic() - t)
             if r.success:
                 name = label if len(variant.degrees) == 0 or k == 0 else f"{label}, base degree {variant.degrees[0]}"
+                name += f", {variant.samples_per_interval} samples per interval" if factor != 1 else ""
                 solved.append((r.objective * (1 + 1e-3 * k), name, variant, np.asarray(r.x)))
     return sorted(solved, key=lambda s: s[0])
 
@@ -122,13 +134,16 @@ def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTE
             yield f"route {r.label}", route.route_seed(r, geo, template, settings, robot.dof, problem.stroke)
 
 
-def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Method) -> tuple:
-    """(plan, whether it passes the dense checks) of ``method`` from one stage-1 solution. single_shot:
-    the all-constraint NLP from it (the native direct track on its own, with its iteration cap
-    ``direct_max_iter``)."""
+def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Method, factor: float = 1.0) -> tuple:
+    """(plan, whether it passes the dense checks) of ``method`` from one stage-1 solution, with the
+    samples per interval scaled by ``factor``. single_shot: the all-constraint NLP from it (the
+    native direct track on its own, with its iteration cap ``direct_max_iter``)."""
     _, label, variant, x1 = entry
     if method is planner.Method.single_shot:
         variant, label = replace(variant, max_iter=min(variant.max_iter, variant.direct_max_iter)), f"{label}, direct"
+    if factor != 1:
+        variant = replace(variant, samples_per_interval=int(round(variant.samples_per_interval * factor)))
+        label = f"{label}, {variant.samples_per_interval} samples per interval"
     t = time.monotonic()
     p = planner.plan(robot, problem, budget.settings(variant), method, x0=x1)
     p.seed = label
@@ -136,25 +151,44 @@ def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Me
     return p, bool(p.success and planner.passes_dense_checks(robot, problem, p))
 
 
-def _solve_ranked(robot, problem, ranked: list, budget: _Budget, method: planner.Method) -> tuple:
+def _between_samples(p: planner.PickupPlan) -> bool:
+    """The plan holds its rows at the samples but not between them: it converged yet failed a dense
+    check, or the native active set gave up on the rows between the samples."""
+    return p.success or p.status is planner.SolveStatus.violation_between_samples
+
+
+def _solve_ranked(robot, problem, ranked: list, budget: _Budget, method: planner.Method, factor: float = 1.0) -> tuple:
     """(the first plan that passes the dense checks or None, the stage-1 solution it came from, the
-    plan that went furthest) of ``method`` from the stage-1 solutions in their order, while the
-    budget lasts."""
-    closest = None
+    plan that went furthest, the stage-1 solutions whose plans failed only between the samples) of
+    ``method`` from the stage-1 solutions in their order, while the budget lasts."""
+    closest, between = None, []
     for entry in ranked:
         if budget.spent():
             break
-        p, ok = _solve_one(robot, problem, entry, budget, method)
+        p, ok = _solve_one(robot, problem, entry, budget, method, factor)
         if ok:
-            return p, entry, closest
+            return p, entry, closest, between
         if closest is None or p.stages_completed > closest.stages_completed:
             closest = p
-    return None, None, closest
+        if _between_samples(p):
+            between.append(entry)
+    return None, None, closest, between
+
+
+def _refined(robot, problem, entries: list, budget: _Budget) -> tuple:
+    """(plan, stage-1 solution) of the five stages with the samples refined (REFINE, each factor
+    in turn) from the stage-1 solutions whose plans held the rows at the samples only: the rows
+    then hold at instants that were between the samples. (None, None) when none passes."""
+    for factor in REFINE:
+        best, entry, _, entries = _solve_ranked(robot, problem, entries, budget, planner.Method.successive, factor)
+        if best is not None or not entries:
+            return best, entry
+    return None, None
 
 
 def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.PlannerSettings(),
                 time_limit: float = 0.0, routes: int = ROUTES, direct_track: bool = False,
-                fallback: bool = True) -> planner.PickupPlan:
+                fallback: bool = True, refine: bool = True) -> planner.PickupPlan:
     """Plans any layout (module doc). ``time_limit`` > 0: wall-clock seconds for the whole call.
     ``direct_track`` (settings.direct_track is replaced by it): the native all-constraint hedge after
     the five stages; off here, where the next stage-1 solution is the hedge (issue 37's benchmark,
@@ -175,14 +209,22 @@ def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.Plan
         p.total_seconds, p.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0
         return p
     ranked = _stage1(robot, problem, settings, budget, routes)
-    best, entry, closest = _solve_ranked(robot, problem, ranked, budget, planner.Method.successive)
-    if best is None and fallback:  # all constraints at once from the same base paths
-        best, entry, direct = _solve_ranked(robot, problem, ranked, budget, planner.Method.single_shot)
-        closest = closest or direct
-    elif best is not None and fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent():
-        other, ok = _solve_one(robot, problem, entry, budget, planner.Method.single_shot)
-        if ok and other.T < best.T:
-            best = other
+    for factor in REFINE if refine and not ranked else ():  # no base path: stage 1 again at refined samples
+        ranked = _stage1(robot, problem, settings, budget, routes, factor)
+        if ranked:
+            break
+    best, entry, closest, between = _solve_ranked(robot, problem, ranked, budget, planner.Method.successive)
+    if best is not None:
+        if fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent():
+            other, ok = _solve_one(robot, problem, entry, budget, planner.Method.single_shot)
+            if ok and other.T < best.T:
+                best = other
+    else:
+        if fallback:  # all constraints at once from the same base paths
+            best, entry, direct, _ = _solve_ranked(robot, problem, ranked, budget, planner.Method.single_shot)
+            closest = closest or direct
+        if best is None and between and refine:
+            best, entry = _refined(robot, problem, between, budget)
     out = best or closest
     timed_out = budget.deadline is not None and budget.spent() and best is None
     if out is None:  # no stage-1 solution (or no time for one)
