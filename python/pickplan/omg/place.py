@@ -224,26 +224,25 @@ def candidate_poses(request: PlaceRequest, vertices: np.ndarray, rotations: List
     object's ``vertices`` (object frame; its hull's, ``hull_vertices``, bound the same extents) all
     inside the box, the lowest ``gap`` above the floor."""
     lo, hi = np.asarray(request.region_min), np.asarray(request.region_max)
-    V = np.asarray(vertices, float)
-    out = []
-    for R0 in rotations:
-        for yaw in _yaws(request, settings):
-            R = _yaw(yaw) @ R0
-            W = V @ R.T
-            vmin, vmax = W.min(axis=0), W.max(axis=0)
-            z = lo[2] + settings.gap - vmin[2]
-            xlo, xhi = lo[:2] - vmin[:2], hi[:2] - vmax[:2]  # the origin's range keeping the object inside
-            if z + vmax[2] > hi[2] or np.any(xhi < xlo):
-                continue
-            keep = np.clip((xhi - xlo) / 2, 0.0, settings.margin)
-            xlo, xhi = xlo + keep, xhi - keep
-            axes = [np.arange(a, b + 1e-9, settings.position_step) if b - a >= settings.position_step
-                    else np.array([(a + b) / 2]) for a, b in zip(xlo, xhi)]
-            xy = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
-            T = np.repeat(np.eye(4)[None], len(xy), axis=0)
-            T[:, :3, :3], T[:, :2, 3], T[:, 2, 3] = R, xy, z
-            out.append(T)
-    poses = np.concatenate(out) if out else np.zeros((0, 4, 4))
+    Rs = [_yaw(yaw) @ R0 for R0 in rotations for yaw in _yaws(request, settings)]
+    # The vertices turned by every rotation at once, (N, 3 per rotation): their extents in one reduction
+    W = np.asarray(vertices, float) @ np.concatenate(Rs).T if Rs else np.zeros((0, 0))
+    extents = np.stack([W.min(axis=0), W.max(axis=0)], axis=1).reshape(len(Rs), 3, 2) if Rs else []
+    rotated, places = [], []
+    for R, (vmin, vmax) in zip(Rs, (e.T for e in extents)):
+        z = lo[2] + settings.gap - vmin[2]
+        xlo, xhi = lo[:2] - vmin[:2], hi[:2] - vmax[:2]  # the origin's range keeping the object inside
+        if z + vmax[2] > hi[2] or np.any(xhi < xlo):
+            continue
+        keep = np.clip((xhi - xlo) / 2, 0.0, settings.margin)
+        xlo, xhi = xlo + keep, xhi - keep
+        ax, ay = (np.arange(a, b + 1e-9, settings.position_step) if b - a >= settings.position_step
+                  else np.array([(a + b) / 2]) for a, b in zip(xlo, xhi))
+        places.append(np.column_stack([np.repeat(ax, len(ay)), np.tile(ay, len(ax)), np.full(len(ax) * len(ay), z)]))
+        rotated.append(np.broadcast_to(R, (len(places[-1]), 3, 3)))
+    poses = np.zeros((sum(len(p) for p in places), 4, 4))
+    if places:
+        poses[:, :3, :3], poses[:, :3, 3], poses[:, 3, 3] = np.concatenate(rotated), np.concatenate(places), 1.0
     if len(poses) > settings.max_candidates:
         keep = np.sort(np.random.default_rng(settings.seed).choice(len(poses), settings.max_candidates, replace=False))
         poses = poses[keep]
