@@ -154,9 +154,11 @@ class PlaceSettings:
     # The set-down: straight down from standoff above the place. Its first configuration (the pre-place)
     # must keep the transit's clearance (the success test's ``MetricSettings.clearance``, ``preplace_clearance``):
     # the transit arrives there, so a pre-place closer to an object would fail every plan.
-    # 20 goals (a grasp's 30): places are many and alike, and the goal-cost estimates scale with the goals
+    # 10 goals (a grasp's 30): places are many and alike (neighbours 2 cm or a yaw step apart), and the
+    # goal set's IK and the transfer's goal-cost estimates scale with the goals kept (20: place planning
+    # 24-30 ms median on the bench's first 12 YCB scenes, 10: 12 ms, the same plans succeeding)
     goals: GoalSetSettings = field(default_factory=lambda: GoalSetSettings(standoff=0.15, standoff_steps=5,
-                                                                            approach_clearance=0.01, max_goals=20))
+                                                                            approach_clearance=0.01, max_goals=10))
     preplace_clearance: float = 0.05
     # 8 IK seeds (a grasp's 24): a place out of reach from 8 seeds has neighbours in the grid to try
     ik: IkSettings = field(default_factory=lambda: IkSettings(num_seeds=8))
@@ -307,7 +309,9 @@ def _held_hull_vertices(carrying: HeldWorld) -> np.ndarray:
 
 
 def _place_goals(carrying: HeldWorld, poses: np.ndarray, start: np.ndarray, settings: PlaceSettings) -> GoalSet:
-    """The goal set of the held object's candidate ``poses`` (IK, set-down approach, collisions, pre-place)."""
+    """The goal set of the held object's candidate ``poses`` (IK, set-down approach, collisions, the
+    pre-place's clearance: a goal whose pre-place fails it is "pregrasp_clearance" and leaves its place
+    under the cap to another)."""
     hands = carrying.held.hand_pose(poses) if len(poses) else np.zeros((0, 4, 4))
     checker = carrying.checker(HeldCheck.carry)
     hand_checker = carrying.checker(HeldCheck.hand)
@@ -315,24 +319,10 @@ def _place_goals(carrying: HeldWorld, poses: np.ndarray, start: np.ndarray, sett
     out = _core.build_goal_set(ik_solver(carrying, settings.ik), None if checker is None else checker.native,
                                None if hand_checker is None else hand_checker.native, hands,
                                np.asarray(start, float), gs_settings.to_native(), carrying.clearance_problem,
-                               float(settings.goals.approach_clearance))
-    reasons = list(out["reasons"])
-    return _preplace_clear(carrying, GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]),
-                                             np.asarray(out["grasp_index"], int), hands, reasons, float(out["seconds"])),
-                           settings.preplace_clearance)
-
-
-def _preplace_clear(carrying: HeldWorld, gs: GoalSet, clearance: float) -> GoalSet:
-    """The goals whose pre-place keeps ``clearance`` (robot and held object from every object, the
-    target's old place and the table left out); the others' reason: "preplace_clearance"."""
-    if len(gs) == 0 or clearance <= 0:
-        return gs
-    X = carrying.robot.transform_points(gs.tails[:, 0], carrying.body)
-    d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=clearance, exclude=(carrying.target,), exclude_table=True)
-    keep = d.reshape(len(X), -1).min(axis=1) >= clearance
-    for g in np.flatnonzero(~keep):
-        gs.reasons[gs.grasp_index[g]] = "preplace_clearance"
-    return GoalSet(gs.goals[keep], gs.tails[keep], gs.grasp_index[keep], gs.grasps, gs.reasons, gs.seconds)
+                               float(settings.goals.approach_clearance),
+                               pregrasp_clearance=float(settings.preplace_clearance))
+    return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), np.asarray(out["grasp_index"], int), hands,
+                   list(out["reasons"]), float(out["seconds"]))
 
 
 def reason_summary(place: PlaceGoalSet) -> str:
