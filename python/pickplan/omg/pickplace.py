@@ -240,7 +240,9 @@ class PickPlacePlanner:
         need = s.place.metrics.clearance
         first = int(round(s.lift_min / s.lift_step))
         X = carrying.robot.transform_points(path[first:], carrying.body)
-        d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=need, exclude=(carrying.target,), exclude_table=True)
+        # measured as the success test measures (the transfer starts here, and its test reads this start)
+        d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=need, exclude=(carrying.target,), exclude_table=True,
+                                     reference=True)
         clear = np.flatnonzero(d.reshape(len(X), -1).min(axis=1) >= need)
         path = path[:first + (int(clear[0]) if len(clear) else len(X) - 1) + 1]
         contact = int(np.ceil(s.lift_contact / s.lift_step)) + 1
