@@ -145,7 +145,8 @@ void init_sdf(py::module_& m) {
       .def_property_readonly("has_table", &SceneSdf::has_table)
       .def(
           "distance",
-          [](const SceneSdf& s, const Array& pts_in, double cutoff, const std::vector<int>& exclude, bool exclude_table) {
+          [](const SceneSdf& s, const Array& pts_in, double cutoff, const std::vector<int>& exclude, bool exclude_table,
+             bool reference) {
             Array pts = points_arg(pts_in);
             const std::uint64_t mask = exclusion_mask(s, exclude, exclude_table);
             const py::ssize_t n = pts.shape(0);
@@ -155,14 +156,23 @@ void init_sdf(py::module_& m) {
             const double* p = pts.data();
             {
               py::gil_scoped_release release;
-              s.distances(p, n, dp, gp, cutoff, mask);
+              if (!reference) {
+                s.distances(p, n, dp, gp, cutoff, mask);
+              } else {
+                for (py::ssize_t i = 0; i < n; ++i) {
+                  Eigen::Vector3d g;
+                  dp[i] = s.distance_unmerged(Eigen::Map<const Eigen::Vector3d>(p + 3 * i), &g, cutoff, mask);
+                  Eigen::Map<Eigen::Vector3d>(gp + 3 * i) = g;
+                }
+              }
             }
             return py::make_tuple(d, grad);
           },
           py::arg("points"), py::arg("cutoff") = std::numeric_limits<double>::infinity(),
-          py::arg("exclude") = std::vector<int>{}, py::arg("exclude_table") = false,
+          py::arg("exclude") = std::vector<int>{}, py::arg("exclude_table") = false, py::arg("reference") = false,
           "Signed distance to the nearest body and its gradient for (N, 3) world points. Bodies farther than "
-          "cutoff are skipped (the result is then cutoff with a zero gradient).")
+          "cutoff are skipped (the result is then cutoff with a zero gradient). reference: by the per-object "
+          "grids only, as the success test measures (not a merged grid's resampling).")
       .def(
           "clear_in_frames",
           [](const SceneSdf& s, const Array& frames, const Array& pts_in, bool inverse, double reach, double threshold,

@@ -29,7 +29,7 @@ void init_goal_set(py::module_& m) {
   m.def("build_goal_set", [](const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                              const Array& hand_poses,
                              const Array& start, const GoalSetSettings& s, const ChompProblem* problem,
-                             double clearance, const py::object& seeds) {
+                             double clearance, const py::object& seeds, double pregrasp_clearance) {
     std::vector<Transform> poses = poses_arg(hand_poses, "grasps");
     Array q = configuration(ik.robot(), start, "start");
     Eigen::VectorXd qs = Eigen::Map<const Eigen::VectorXd>(q.data(), q.shape(0));
@@ -52,7 +52,14 @@ void init_goal_set(py::module_& m) {
         ok = [&](const Eigen::VectorXd& q) {
           return object_clearance(*problem, q.data(), problem->settings().exclude_mask, clearance, rws) >= clearance;
         };
-      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok, seeds.is_none() ? nullptr : &seed_rows);
+      // The pre-grasp: the same measure, kept to pregrasp_clearance (a place's pre-place: the transit's).
+      std::function<bool(const Eigen::VectorXd&)> pre;
+      if (problem && pregrasp_clearance > 0)
+        pre = [&](const Eigen::VectorXd& q) {
+          return object_clearance(*problem, q.data(), problem->settings().exclude_mask, pregrasp_clearance, rws) >=
+                 pregrasp_clearance;
+        };
+      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok, seeds.is_none() ? nullptr : &seed_rows, pre);
     }
     py::dict d;
     d["goals"] = traj_array(gs.goals);
@@ -69,7 +76,7 @@ void init_goal_set(py::module_& m) {
     return d;
   }, py::arg("ik"), py::arg("checker"), py::arg("hand_checker"), py::arg("hand_poses"), py::arg("start"),
      py::arg("settings") = GoalSetSettings(), py::arg("clearance_problem") = nullptr,
-     py::arg("approach_clearance") = 0.0, py::arg("seeds") = py::none());
+     py::arg("approach_clearance") = 0.0, py::arg("seeds") = py::none(), py::arg("pregrasp_clearance") = 0.0);
 }
 
 }  // namespace pickplan::bind

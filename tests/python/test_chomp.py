@@ -195,7 +195,8 @@ def test_link_culling_changes_no_cost_or_gradient(panda, body, merged):
 
 
 def test_merged_scene_grid_matches_per_object_grids(panda, body):
-    """The merged grid resamples the per-object grids: the CHOMP objective barely moves."""
+    """The merged grid resamples the per-object grids: the CHOMP objective barely moves; ``reference``
+    distances are the per-object grids' bit for bit."""
     plain, merged = _clutter_sdf(False), _clutter_sdf(True)
     info = merged.merged_info
     assert info["bricks"] > 0 and info["cutoff"] == 0.2 and info["exclude_mask"] == 0b10
@@ -208,3 +209,11 @@ def test_merged_scene_grid_matches_per_object_grids(panda, body):
     assert np.all(np.minimum(merged.lower_bound(pts, exclude=("o1",)), 0.2) <= d1 + 1e-12)
     # Another exclusion falls back to the per-object grids exactly.
     np.testing.assert_array_equal(merged.distance(pts, 0.2)[0], plain.distance(pts, 0.2)[0])
+    # reference=True reads the per-object grids whatever was merged, as the success test does (a lift stopped
+    # at the test's clearance by the merged grid started a transfer the test failed by 0.05 mm).
+    d2, g2 = merged.distance(pts, 0.2, exclude=("o1",), reference=True)
+    g0 = plain.distance(pts, 0.2, exclude=("o1",))[1]
+    assert np.any(d1 != d0)
+    np.testing.assert_array_equal(d2, d0)
+    np.testing.assert_allclose(g2[d0 < 0.2], g0[d0 < 0.2], rtol=0, atol=1e-12)
+

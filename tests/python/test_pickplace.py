@@ -48,6 +48,11 @@ def test_the_one_call_and_the_steps_plan_the_same(planned):
     lift, ok = planner.plan_lift(carrying, pick.goal)
     goals, place = planner.plan_place(carrying, lift[-1])
     assert ok and place.success
+    # the transfer's start keeps the success test's clearance as the test measures it (per-object grids)
+    X = carrying.robot.transform_points(lift[-1:], carrying.body)
+    d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=1.0, exclude=(carrying.target,), exclude_table=True,
+                                 reference=True)
+    assert d.min() >= SETTINGS.place.metrics.clearance
     np.testing.assert_array_equal(place.trajectory, plan.place.trajectory)
     # the segments join: each starts where the previous ended
     segs = [Q for _, Q in plan.segments()]

@@ -2,6 +2,7 @@
 region by exact geometry, every goal of a set puts the object at rest in the region (dropped in
 PyBullet), and an empty set says why."""
 import json
+from dataclasses import replace
 
 import numpy as np
 import pybullet as pb
@@ -159,3 +160,23 @@ def test_hull_vertices_give_the_candidates_all_vertices_give(held_case):
                                   candidate_poses(request, V, rotations, settings))
     flat = np.c_[np.random.default_rng(1).uniform(size=(20, 2)), np.zeros(20)]  # no volume: every point kept
     assert len(hull_vertices(flat)) == 20
+
+
+def test_pre_places_keep_the_transit_clearance_and_the_cap_counts_only_such_goals(held_case):
+    """Places around the can: a pre-place (15 cm above its place) nearer the can than the clearance asked
+    (8 cm here: the can is short) is rejected inside the goal-set loop ("pregrasp_clearance"), so it never takes one of the
+    ``max_goals`` places (a full set when enough places pass). Clearance measured here on the body points
+    in the scene SDF, the held object's old place and the table left out."""
+    _, carrying, start, box = held_case
+    can = carrying.base.scene.object(CAN).pose
+    request = PlaceRequest((can[0, 3] - 0.15, can[1, 3] - 0.15, 0.0), (can[0, 3] + 0.15, can[1, 3] + 0.15, 0.4))
+    goals = GoalSetSettings(standoff=0.15, standoff_steps=5, approach_clearance=0.01, max_goals=100)
+    settings = PlaceSettings(goals=goals, preplace_clearance=0.08)
+    every = build_place_goal_set(carrying, request, start, settings, model=box)
+    reasons = every.reason_counts()
+    assert reasons.get("pregrasp_clearance", 0) > 0 and len(every) >= 6, reasons
+    X = carrying.robot.transform_points(every.goal_set.tails[:, 0], carrying.body)
+    d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=1.0, exclude=(carrying.target,), exclude_table=True)
+    assert d.reshape(len(X), -1).min(axis=1).min() >= settings.preplace_clearance - 1e-6
+    capped = build_place_goal_set(carrying, request, start, replace(settings, goals=replace(goals, max_goals=5)), model=box)
+    assert len(capped) == 5, capped.reason_counts()

@@ -50,3 +50,24 @@ def test_regions_are_seeded_clear_or_partly_cluttered():
             assert np.all(walls.min(axis=0) < request.region_min[:2]) and np.all(walls.max(axis=0) > request.region_max[:2])
         else:
             assert with_region is scene
+
+
+def test_more_candidates_are_drawn_until_the_target_has_room():
+    """A bowl among a cracker box, a can and a mug (a bench scene's layout): none of the first 12
+    candidate regions leaves it a free disc of its radius (a region it cannot be set down in, "region
+    blocked" whatever the planner does); the later ones do, and the region chosen is one of those."""
+    from pickplan.eval.place_regions import RegionSettings, _footprints, _radius_xy
+
+    scene, _ = standing_scene((("003_cracker_box", (0.749, 0.192)), ("002_master_chef_can", (0.52, 0.283)),
+                               ("025_mug", (0.569, -0.303)), ("024_bowl", (0.38, 0.302))), "024_bowl")
+    room = _radius_xy(scene) + RegionSettings().clutter_margin
+    footprints = _footprints(scene, scene.target)
+
+    def cover(request):
+        return _cover(footprints, np.array(request.region_min[:2]), np.array(request.region_max[:2]))
+
+    _, first = place_task(scene, RegionKind.cluttered, seed=29, settings=RegionSettings(clutter_batches=1))
+    assert cover(first)[1] < room
+    _, request = place_task(scene, RegionKind.cluttered, seed=29)
+    share, radius = cover(request)
+    assert radius >= room and share > 0.0 and _overlaps(scene, request, skip=scene.target)

@@ -131,6 +131,55 @@ def test_straight_line_matches_closed_form_time_optimum(delta, v, a):
     assert distance_to_polyline(timed.q, Q).max() < 1e-12  # two waypoints: the path is the line
 
 
+# A pick-and-place retract (0.1 m straight up in 10 IK steps, fingers open) that TOPP-RA could not time
+# when grid points a hair (1e-6) either side of each waypoint made stages too short for its LP solver.
+RETRACT = np.array([
+    [0.5890942746674019, 0.9876503998544617, 0.09051522976214928, -0.982238691889985, 0.2507158176705692, 1.9789558478185054, 2.3709067273343134],
+    [0.588865001425803, 0.9764157390612018, 0.09025992639485987, -0.9768341560836314, 0.24981553257671393, 1.9628999630758577, 2.37552224014008],
+    [0.5886708991118623, 0.96616642612521, 0.09002503621522362, -0.9696870508378043, 0.24885326354895626, 1.9461043284446375, 2.380295345043367],
+    [0.5885095062200899, 0.9568832665678054, 0.08981504411427656, -0.9608417756165711, 0.2478380066914131, 1.9285948757377125, 2.3852182264951143],
+    [0.5883827466173777, 0.9486143516327235, 0.08963315221578082, -0.95022038001297, 0.24677124403122638, 1.9103427228792844, 2.3902969405192183],
+    [0.5882936232064306, 0.9414225902422599, 0.0894828448077359, -0.9377176437095162, 0.24565338155647157, 1.8913068339402626, 2.395540512780865],
+    [0.5882463120340969, 0.9353872678151195, 0.08936809319933671, -0.9231981851055375, 0.24448374745022997, 1.8714327652165708, 2.400961184705157],
+    [0.5882464558145304, 0.9306088259580623, 0.0892935941043994, -0.9064877136876699, 0.24326028633778, 1.8506488123754483, 2.4065752847229045],
+    [0.588301597599575, 0.9272159184795159, 0.0892651302080628, -0.887360127894711, 0.24197909546441454, 1.8288603342655434, 2.4124045121577993],
+    [0.5884713275345351, 0.9262472691824152, 0.0892866107521653, -0.8639354105527101, 0.24054849608201662, 1.805233880553722, 2.4186468693747756],
+    [0.5886897225484005, 0.9265270909116519, 0.08937733315790929, -0.8383545289978803, 0.23909901264146588, 1.7807343687313484, 2.425068449677068]])
+
+
+@pytest.mark.parametrize("grid_per_segment", [8, 16, 17])
+def test_straight_retract_with_near_flat_joints_is_timed_within_limits(grid_per_segment):
+    """Joint 0 turns round between waypoints 6 and 7 (a step of 1.4e-7 rad): PCHIP's q' is nearly zero
+    there and its q'' jumps at the waypoints. Timed at the execution's 250 Hz within the Panda's limits."""
+    Q = np.hstack([RETRACT, np.full((len(RETRACT), 2), 0.04)])
+    limits = panda_limits()
+    timed = time_parameterize(Q, 250.0, limits, grid_per_segment=grid_per_segment)
+    check_within_limits(timed, limits)
+    assert np.all(in_some_segment_box(timed.q, Q))
+    assert np.all(timed.qd[0] == 0) and np.all(timed.qd[-1] == 0)
+    assert np.array_equal(timed.q[0], Q[0]) and np.array_equal(timed.q[-1], Q[-1])
+    # Near the time optimum: the acceleration limit of some joint is reached (at most the last stretch).
+    assert np.max(np.abs(timed.qdd) / limits.acceleration) > 0.95
+    assert timed.slowdown < 1.05
+
+
+@pytest.mark.parametrize("interpolation", list(Interpolation))
+def test_path_left_derivatives_are_the_pieces_before_each_waypoint(interpolation):
+    """The acceleration constraint bounds q'' from both sides of a waypoint: the left one is the limit of
+    the piece before it (scipy evaluates a knot on the piece after it)."""
+    from pickplan.core.timing import _path
+
+    Q = np.hstack([RETRACT, np.full((len(RETRACT), 2), 0.04)])
+    path, ss = _path(Q, interpolation)
+    for order in (1, 2):
+        left = path.left(ss[1:], order)
+        assert np.allclose(left, path(ss[1:] - 1e-9, order), rtol=1e-5, atol=1e-6)
+        interior = ss[:-1] + np.diff(ss) * 0.37  # inside the pieces
+        assert np.allclose(path.left(interior, order), path(interior, order), rtol=1e-9, atol=1e-12)
+    jump = np.abs(path.left(ss[1:-1], 2) - path(ss[1:-1], 2)).max()
+    assert (jump > 1e-3) if interpolation is Interpolation.PCHIP else (jump < 1e-6)
+
+
 def test_export_round_trips(tmp_path, demo_plan):
     timed = demo_plan[1].timed(rate=250.0)
     for name in ("timed.json", "timed.npz"):

@@ -19,6 +19,7 @@ const char* to_string(GoalReason reason) {
     case GoalReason::standoff_unreachable: return "standoff_unreachable";
     case GoalReason::standoff_in_collision: return "standoff_in_collision";
     case GoalReason::approach_clearance: return "approach_clearance";
+    case GoalReason::pregrasp_clearance: return "pregrasp_clearance";
     case GoalReason::duplicate: return "duplicate";
     case GoalReason::over_cap: return "over_cap";
   }
@@ -28,7 +29,8 @@ const char* to_string(GoalReason reason) {
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& s,
-                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok, const Trajectory* seeds) {
+                       const std::function<bool(const Eigen::VectorXd&)>& approach_ok, const Trajectory* seeds,
+                       const std::function<bool(const Eigen::VectorXd&)>& pregrasp_ok) {
   const auto t0 = std::chrono::steady_clock::now();
   if (s.standoff_steps < 0 || s.standoff < 0 || s.max_goals < 1 || s.diversity < 0)
     throw std::invalid_argument("goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1 required");
@@ -130,6 +132,10 @@ GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, cons
         } else {
           tail.row(k2) = step.q.transpose();
         }
+      }
+      if (ok && pregrasp_ok && !pregrasp_ok(tail.row(0).transpose())) {
+        ok = false;
+        reason = GoalReason::pregrasp_clearance;
       }
       if (ok) {
         // Diversity: a goal too close to one already kept is a duplicate.

@@ -30,7 +30,6 @@ from pickplan.core import robots
 from pickplan.core.io import atomic_open
 
 FORMAT = "pickplan.timed_trajectory/1"
-_KNOT_EPS = 1e-6  # grid points this close on both sides of each waypoint: PCHIP's qdd jumps there
 
 
 class Interpolation(enum.Enum):
@@ -174,7 +173,8 @@ def _check_waypoints(waypoints) -> np.ndarray:
 
 
 def _path(Q: np.ndarray, interpolation: Interpolation):
-    """The geometric path q(s) through Q, s evenly spaced on [0, 1], as toppra reads a path."""
+    """The geometric path q(s) through Q, s evenly spaced on [0, 1], as toppra reads a path; its
+    ``left(s, order)`` is the derivative's limit from the left (PCHIP's q'' jumps at the waypoints)."""
     from scipy.interpolate import CubicSpline, PchipInterpolator
     from toppra.interpolator import AbstractGeometricPath
 
@@ -185,6 +185,16 @@ def _path(Q: np.ndarray, interpolation: Interpolation):
     class _ScipyPath(AbstractGeometricPath):
         def __call__(self, path_positions, order=0):
             return derivatives[order](path_positions)
+
+        def left(self, path_positions, order):
+            pp = derivatives[order]
+            s = np.asarray(path_positions, float)
+            piece = np.clip(np.searchsorted(pp.x, s, side="left") - 1, 0, len(pp.x) - 2)
+            h = (s - pp.x[piece])[:, None]
+            out = np.zeros((len(s), Q.shape[1]))
+            for c in pp.c:  # Horner on each grid point's piece (scipy's PPoly takes the right one at a knot)
+                out = out * h + c[piece]
+            return out
 
         @property
         def dof(self):
@@ -199,6 +209,25 @@ def _path(Q: np.ndarray, interpolation: Interpolation):
             return ss, Q
 
     return _ScipyPath(), ss
+
+
+def _acceleration_constraint(acceleration: np.ndarray):
+    """toppra's joint acceleration constraint with q''(s) from both sides of every grid point, so a
+    waypoint (where PCHIP's q'' jumps) is itself a grid point bounded on both of its pieces. (Grid points
+    a hair either side of each waypoint did the same, but TOPP-RA's LP solver fails on such short stages:
+    ``x + 2 delta u`` nearly parallel to the u axis; a smooth straight retract was not timed.)"""
+    import toppra.constraint
+    from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
+
+    class _BothSides(toppra.constraint.JointAccelerationConstraint):
+        def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
+            qs = path(gridpoints, 1)
+            a, b = np.hstack([qs, qs]), np.hstack([path.left(gridpoints, 2), path(gridpoints, 2)])
+            rows = np.eye(a.shape[1])
+            return canlinear_colloc_to_interpolate(a, b, np.zeros_like(a), np.vstack([rows, -rows]),
+                                                   np.tile(acceleration, 4), None, None, gridpoints, identical=True)
+
+    return _BothSides(acceleration)
 
 
 def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
@@ -229,12 +258,11 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
         zero = np.zeros_like(Q)
         return TimedTrajectory(np.zeros(1), Q, zero, zero.copy(), rate)
     path, ss = _path(Q, interpolation)
-    grid = np.concatenate([np.linspace(0.0, 1.0, (len(Q) - 1) * grid_per_segment + 1),
-                           ss[1:-1] - _KNOT_EPS, ss[1:-1] + _KNOT_EPS])
-    constraints = [toppra.constraint.JointVelocityConstraint(limits.velocity),
-                   toppra.constraint.JointAccelerationConstraint(limits.acceleration)]
-    solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=np.unique(grid),
-                                     parametrizer="ParametrizeConstAccel")
+    # Every segment cut in grid_per_segment equal stages from its waypoint: the waypoints are grid points
+    # exactly (no stage a rounding error long)
+    grid = np.append(ss[:-1, None] + np.diff(ss)[:, None] * (np.arange(grid_per_segment) / grid_per_segment), 1.0)
+    constraints = [toppra.constraint.JointVelocityConstraint(limits.velocity), _acceleration_constraint(limits.acceleration)]
+    solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
     timing = _compute(solver, path, Q, start_velocity)
     if timing is None:
         raise TimingError(f"TOPP-RA found no time parameterization of {len(Q)} waypoints")

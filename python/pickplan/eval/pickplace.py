@@ -32,7 +32,7 @@ from pickplan.eval.place_regions import RegionKind, place_task
 from pickplan.omg.attach import HeldCheck, HeldWorld
 from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.goals import GoalSetSettings, IkSettings
-from pickplan.omg.pickplace import TRANSFER_CHOMP, PickPlacePlan, PickPlacePlanner, PickPlaceSettings
+from pickplan.omg.pickplace import PickPlacePlan, PickPlacePlanner, PickPlaceSettings
 from pickplan.omg.place import PlaceRequest
 from pickplan.omg.planner import OMGPlanner, OMGSettings, target_graspability
 from pickplan.omg.world import World, WorldSettings
@@ -100,9 +100,8 @@ def unit_settings(unit: dict, method: str, world_settings: WorldSettings) -> Pic
                        ik=IkSettings(seed=seed), iterations=unit["iterations"], grasp_kind=unit.get("grasp_kind") or
                        "simulated", grasp_count=unit["grasp_candidates"], seed=seed, world=world_settings,
                        clock="thread_cpu")
-    place = OMGSettings(chomp=TRANSFER_CHOMP, refine=False, transit_avoids_target=False, iterations=unit["iterations"],
-                        seed=seed, selection="Fixed" if method == "Fixed" else "MD", world=world_settings,
-                        clock="thread_cpu")
+    place = replace(PickPlaceSettings().place, iterations=unit["iterations"], seed=seed,  # the transfer's defaults
+                    selection="Fixed" if method == "Fixed" else "MD", world=world_settings, clock="thread_cpu")
     return PickPlaceSettings(pick=pick, place=place)
 
 

@@ -38,6 +38,7 @@ class RegionSettings:
     bin_inner: Tuple[float, float] = (0.26, 0.22)  # m inside the walls
     clutter_share: float = 0.25                   # share of a partly cluttered region's floor objects cover
     clutter_margin: float = 0.01                  # m of free floor around the target where it would fit
+    clutter_batches: int = 8                       # batches of 12 candidate regions drawn until the target fits
     bin_height: float = 0.08
     height: float = 0.40                           # m of the region above its floor
     orientation: Orientation = Orientation.upright
@@ -91,12 +92,18 @@ def place_task(scene: Scene, kind: RegionKind, seed: int, settings: RegionSettin
     rng = np.random.default_rng([int(seed), 34])
     half = np.asarray(settings.bin_inner if kind is RegionKind.bin else settings.size) / 2
     if kind is RegionKind.cluttered:  # of candidates where the target fits, the share covered nearest the aim
-        centres = np.column_stack([rng.uniform(*settings.clutter_x, 12),
-                                   np.where(rng.uniform(size=12) < 0.5, -1.0, 1.0) * rng.uniform(*settings.clutter_y, 12)])
-        footprints = _footprints(scene, scene.target)
-        cover = np.array([_cover(footprints, c - half, c + half) for c in centres])
-        fits = cover[:, 1] >= _radius_xy(scene) + settings.clutter_margin
-        miss = np.abs(cover[:, 0] - settings.clutter_share) + np.where(fits, 0.0, 1.0)
+        footprints, room = _footprints(scene, scene.target), _radius_xy(scene) + settings.clutter_margin
+        centres, cover = np.zeros((0, 2)), np.zeros((0, 2))
+        # 12 candidates at a time until one leaves the target room: a region it cannot stand in is no
+        # place task (a big target among clutter), only the best of the last resort
+        for _ in range(settings.clutter_batches):
+            batch = np.column_stack([rng.uniform(*settings.clutter_x, 12),
+                                     np.where(rng.uniform(size=12) < 0.5, -1.0, 1.0) * rng.uniform(*settings.clutter_y, 12)])
+            centres = np.vstack([centres, batch])
+            cover = np.vstack([cover, [_cover(footprints, c - half, c + half) for c in batch]])
+            if np.any(cover[:, 1] >= room):
+                break
+        miss = np.abs(cover[:, 0] - settings.clutter_share) + np.where(cover[:, 1] >= room, 0.0, 1.0)
         centre = centres[int(np.argmin(miss))]
     else:  # beside the clutter, on the side farther from the target, moved out until it is clear
         target_y = float(np.asarray(scene.object(scene.target).pose)[1, 3])

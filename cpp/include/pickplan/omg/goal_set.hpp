@@ -16,6 +16,7 @@ namespace pickplan {
 // Why a grasp gave no goal (or ok: it did). The text forms are what Python and the plan files read.
 enum class GoalReason {
   ok, unreachable, in_collision, standoff_unreachable, standoff_in_collision, approach_clearance,
+  pregrasp_clearance,  // the pre-grasp (a place's pre-place) fails `pregrasp_ok`
   duplicate,  // closer than `diversity` to a goal already kept
   over_cap    // not tried: the cap was reached first
 };
@@ -49,10 +50,14 @@ struct GoalSet {
 // the clearance the success test demands of a plan's approach); failing grasps: approach_clearance.
 // `seeds` (optional, one row per grasp): the first IK seed of each grasp, before the start and the
 // spread (a replan seeds each grasp with its goal before the target moved).
+// `pregrasp_ok` (optional): the pre-grasp, where the transit arrives, must pass it too (a place's
+// pre-place keeps the transit's clearance); failing grasps: pregrasp_clearance. Checked inside the
+// loop, so such a goal does not take a place under the cap.
 GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                        const std::vector<Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& settings = {},
                        const std::function<bool(const Eigen::VectorXd&)>& approach_ok = {},
-                       const Trajectory* seeds = nullptr);
+                       const Trajectory* seeds = nullptr,
+                       const std::function<bool(const Eigen::VectorXd&)>& pregrasp_ok = {});
 
 }  // namespace pickplan
