@@ -47,18 +47,15 @@ void init_goal_set(py::module_& m) {
       // The success test's approach clearance: body points to the objects the problem does not
       // exclude (the target), the table left out (metrics.cpp, object_clearance).
       RobotWorkspace rws(ik.robot());
-      std::function<bool(const Eigen::VectorXd&)> ok;
-      if (problem && clearance > 0)
-        ok = [&](const Eigen::VectorXd& q) {
-          return object_clearance(*problem, q.data(), problem->settings().exclude_mask, clearance, rws) >= clearance;
+      // A check that keeps `need` by that measure (none without a problem or a positive need); the
+      // approach keeps `clearance`, the pre-grasp `pregrasp_clearance` (a place's pre-place: the transit's).
+      auto keeps = [&](double need) -> std::function<bool(const Eigen::VectorXd&)> {
+        if (!problem || !(need > 0)) return {};
+        return [&, need](const Eigen::VectorXd& q) {
+          return object_clearance(*problem, q.data(), problem->settings().exclude_mask, need, rws) >= need;
         };
-      // The pre-grasp: the same measure, kept to pregrasp_clearance (a place's pre-place: the transit's).
-      std::function<bool(const Eigen::VectorXd&)> pre;
-      if (problem && pregrasp_clearance > 0)
-        pre = [&](const Eigen::VectorXd& q) {
-          return object_clearance(*problem, q.data(), problem->settings().exclude_mask, pregrasp_clearance, rws) >=
-                 pregrasp_clearance;
-        };
+      };
+      const auto ok = keeps(clearance), pre = keeps(pregrasp_clearance);
       gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok, seeds.is_none() ? nullptr : &seed_rows, pre);
     }
     py::dict d;
