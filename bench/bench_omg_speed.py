@@ -32,9 +32,10 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 from pickplan.core import objects  # noqa: E402
+from pickplan.core.ik import IkSettings
 from pickplan.eval.baselines import BaselineSettings, plan_baseline  # noqa: E402
 from pickplan.omg import grasps as grasps_mod  # noqa: E402
-from pickplan.omg.goals import GoalSetSettings, IkSettings  # noqa: E402
+from pickplan.omg.goals import GoalSetSettings  # noqa: E402
 from pickplan.omg.planner import OMGPlanner, OMGSettings  # noqa: E402
 from pickplan.omg.world import World  # noqa: E402
 from pickplan.sim import scenes  # noqa: E402

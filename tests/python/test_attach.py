@@ -46,7 +46,7 @@ def carry_case():
 
 def _ik(robot, pose, seed):
     from pickplan import _core
-    from pickplan.omg.goals import IkSettings
+    from pickplan.core.ik import IkSettings
 
     active = [i < robot.info.arm_dof for i in range(robot.dof)]
     sol = _core.IkSolver(robot.native, robot.hand_link, IkSettings().to_native(active)).solve(pose, seed)

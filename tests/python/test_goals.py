@@ -4,6 +4,7 @@ import pybullet as pb
 import pytest
 
 from pickplan import _core
+from pickplan.core.ik import IkSettings
 from pickplan.omg import goals
 from pickplan.sim import scenes
 from pickplan.omg import world
@@ -35,7 +36,7 @@ def scene_world():
 
 def test_ik_recovers_1000_random_poses(panda):
     active = [True] * 7 + [False] * 2
-    ik = _core.IkSolver(panda.native, "panda_hand", goals.IkSettings().to_native(active))
+    ik = _core.IkSolver(panda.native, "panda_hand", IkSettings().to_native(active))
     Q = panda.random_configurations(1000, seed=3)
     Q[:, 7:] = 0.04
     targets = panda.fk_batch(Q)[:, panda.link_index("panda_hand")]
@@ -52,7 +53,7 @@ def test_ik_recovers_1000_random_poses(panda):
 
 def test_solve_all_returns_distinct_solutions_of_one_pose(panda):
     active = [True] * 7 + [False] * 2
-    ik = _core.IkSolver(panda.native, "panda_hand", goals.IkSettings().to_native(active))
+    ik = _core.IkSolver(panda.native, "panda_hand", IkSettings().to_native(active))
     target = panda.link_pose(panda.ready_configuration, "panda_hand")
     sols = ik.solve_all(target, panda.ready_configuration)
     assert len(sols) >= 2  # a 7-DOF arm has a family of solutions

@@ -129,7 +129,8 @@ def test_bindings_rigidity_check_uses_the_same_tolerance(panda):
 def test_graspit_grasps_of_the_shared_ycb_objects_load_and_give_goals(panda):
     """`pickplan plan --grasps graspit` failed: 'not a rigid transform (orthonormality error 1.0e-06)'."""
     from pickplan.core import objects
-    from pickplan.omg.goals import GoalSetSettings, IkSettings, build_goal_set  # noqa: F401
+    from pickplan.core.ik import IkSettings  # noqa: F401
+    from pickplan.omg.goals import GoalSetSettings, build_goal_set  # noqa: F401
     from pickplan.omg.planner import OMGPlanner, OMGSettings
 
     lib = objects.library(ycb_dir_or_skip())

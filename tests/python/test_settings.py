@@ -9,7 +9,8 @@ import pytest
 from pickplan import _core
 from pickplan.core.collision import CollisionSettings
 from pickplan.omg.chomp import ChompSettings, ChompStatus, Initialization, MetricSettings
-from pickplan.omg.goals import GoalSetSettings, IkSettings
+from pickplan.omg.goals import GoalSetSettings
+from pickplan.core.ik import IkSettings
 from pickplan.omg.grasps import GraspKind
 from pickplan.omg.isf import IsfSettings
 from pickplan.omg.planner import OMGSettings, PlanStatus
@@ -87,6 +88,24 @@ def test_the_drift_check_sees_a_changed_default_and_a_missing_field():
                                                      for n, t, d in fields if n != "seed_speed"])
     problems = drift(changed, native_type, lambda s: dataclasses.asdict(s), native_only, python_only)
     assert problems == ["seed_speed: native only", "max_iter: Python default 9, native 400"]
+
+
+def test_native_defaults_fill_only_the_fields_left_without_one():
+    """The decorator reads a default-constructed native struct: enums become the Option of the
+    field, vectors tuples; an explicit Python default stays; a field the struct lacks is an error."""
+    from pickplan.core.settings import native_defaults
+
+    @dataclasses.dataclass(frozen=True)
+    @native_defaults(_core.GoalSetSettings)
+    class Mirror:
+        max_goals: int
+        approach: tuple
+        seed: int = 5
+
+    assert Mirror() == Mirror(max_goals=30, approach=(0.0, 0.0, 0.0), seed=5)
+    assert type(Mirror().approach) is tuple and IkSettings().task is type(IkSettings().task).pose
+    with pytest.raises(TypeError, match="Missing.standoffs has no default and GoalSetSettings no such field"):
+        native_defaults(_core.GoalSetSettings)(type("Missing", (), {"__annotations__": {"standoffs": float}}))
 
 
 def test_planner_settings_reach_the_native_struct_as_enums():

@@ -28,6 +28,7 @@ from pickplan.core.caches import BoundedCache, mesh_content_key
 from pickplan.core.meshes import check_mesh_arrays
 from pickplan.core.panda import PANDA_DESCRIPTION
 from pickplan.core.robots import Robot
+from pickplan.core.settings import native_defaults, to_native
 from pickplan.core.shapes import Shape
 
 
@@ -57,26 +58,23 @@ class Table:
 
 
 @dataclass(frozen=True)
+@native_defaults(_core.CollisionSettings)
 class CollisionSettings:
     """Mirror of the C++ ``CollisionSettings`` (same field names and defaults)."""
 
-    allowed_pairs: Tuple[Tuple[str, str], ...] = ()   # (link, object | "table" | link) never checked
-    excluded_objects: Tuple[str, ...] = ()            # object names (or "table") ignored entirely
-    self_collision: bool = False                      # adjacent links and pairs touching at the reference skipped
+    allowed_pairs: Tuple[Tuple[str, str], ...]  # (link, object | "table" | link) never checked
+    excluded_objects: Tuple[str, ...]  # object names (or "table") ignored entirely
+    self_collision: bool  # adjacent links and pairs touching at the reference skipped
     self_collision_reference: Optional[Tuple[float, ...]] = None  # None: zero clipped to the limits
-    margin: float = 0.0                               # in_collision when closer than this (m)
-    detect_containment: bool = True                   # a mesh entirely inside another collides
+    margin: float  # in_collision when closer than this (m)
+    detect_containment: bool  # a mesh entirely inside another collides
 
     def to_native(self) -> "_core.CollisionSettings":
-        s = _core.CollisionSettings()
-        s.allowed_pairs = [(str(a), str(b)) for a, b in self.allowed_pairs]
-        s.excluded_objects = [str(n) for n in self.excluded_objects]
-        s.self_collision = bool(self.self_collision)
-        s.self_collision_reference = [] if self.self_collision_reference is None else \
-            [float(v) for v in self.self_collision_reference]
-        s.margin = float(self.margin)
-        s.detect_containment = bool(self.detect_containment)
-        return s
+        return to_native(self, _core.CollisionSettings,
+                         allowed_pairs=[(str(a), str(b)) for a, b in self.allowed_pairs],
+                         excluded_objects=[str(n) for n in self.excluded_objects],
+                         self_collision_reference=[] if self.self_collision_reference is None else
+                         [float(v) for v in self.self_collision_reference])
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,13 @@
-"""Settings plumbing shared by every layer: option enums with string values, and Python dataclass
+"""Settings plumbing shared by every layer: option enums with string values, Python dataclass
+settings whose defaults are the native structs' (written once, in C++), and Python dataclass
 settings -> the native settings structs with the same field names."""
 from __future__ import annotations
 
 import enum
+import typing
 from dataclasses import asdict, fields, is_dataclass
+
+import numpy as np
 
 
 class Option(str, enum.Enum):
@@ -36,6 +40,38 @@ class Option(str, enum.Enum):
     def from_native(cls, native):
         """The member named as the native enum value ``native``."""
         return cls[native.name]
+
+
+def native_defaults(native_type):
+    """Class decorator, applied under ``@dataclass``: every annotated field the class leaves without a
+    default takes the default of the field of that name of a default-constructed ``native_type`` (a
+    native enum as the member of the field's Option of the same name, a vector or list as a tuple),
+    so each default is written once, in the C++ struct. Python-only fields, and fields whose Python
+    type differs (None for "derive it"), keep defaults of their own."""
+
+    def apply(cls):
+        native = native_type()
+        hints = typing.get_type_hints(cls)
+        for name in cls.__dict__.get("__annotations__", {}):
+            if name in cls.__dict__ or typing.get_origin(hints[name]) is typing.ClassVar:
+                continue
+            if not hasattr(native, name):
+                raise TypeError(f"{cls.__name__}.{name} has no default and {native_type.__name__} no such field")
+            setattr(cls, name, _python_value(getattr(native, name), hints[name]))
+        return cls
+
+    return apply
+
+
+def _python_value(value, hint):
+    """A native struct's field value as the Python dataclass field typed ``hint`` holds it."""
+    if isinstance(hint, type) and issubclass(hint, Option):
+        return hint[value.name]
+    if isinstance(value, np.ndarray):
+        return tuple(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return tuple(tuple(v) if isinstance(v, (list, tuple)) else v for v in value)
+    return value
 
 
 def native_value(value, native_default):

@@ -12,10 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional, Tuple, Union
 
+from pickplan.core.ik import IkSettings
 from pickplan.core.settings import Option
 from pickplan.eval.baselines import Baseline
 from pickplan.omg.chomp import ChompSettings
-from pickplan.omg.goals import GoalSetSettings, IkSettings
+from pickplan.omg.goals import GoalSetSettings
 from pickplan.omg.grasps import GraspKind
 from pickplan.omg.planner import OMGSettings
 from pickplan.omg.selection import Selection

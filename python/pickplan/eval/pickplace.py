@@ -26,12 +26,13 @@ from typing import Optional
 
 import numpy as np
 
+from pickplan.core.ik import IkSettings
 from pickplan.eval.baselines import BaselineSettings, plan_baseline_to_goal_set
 from pickplan.eval.experiments import _WORKER_MODELS, _unit_grasps
 from pickplan.eval.place_regions import RegionKind, place_task
 from pickplan.omg.attach import HeldCheck, HeldWorld
 from pickplan.omg.chomp import ChompSettings
-from pickplan.omg.goals import GoalSetSettings, IkSettings
+from pickplan.omg.goals import GoalSetSettings
 from pickplan.omg.pickplace import PickPlacePlan, PickPlacePlanner, PickPlaceSettings
 from pickplan.omg.place import PlaceRequest
 from pickplan.omg.planner import OMGPlanner, OMGSettings, target_graspability

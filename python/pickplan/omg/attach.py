@@ -22,10 +22,10 @@ import trimesh
 
 from pickplan import _core
 from pickplan.core import collision, robots
+from pickplan.core.ik import IkSettings
 from pickplan.core.poses import rigid_errors
 from pickplan.core.settings import Option
 from pickplan.omg.chomp import Chomp
-from pickplan.omg.goals import IkSettings
 from pickplan.omg.perceived_world import PerceivedWorld
 from pickplan.omg.world import CheckerKind, World, _table_pairs
 

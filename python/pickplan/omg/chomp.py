@@ -12,26 +12,27 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core import collision
-from pickplan.core.settings import Option, to_native
+from pickplan.core.settings import Option, native_defaults, to_native
 from pickplan.core.robots import BodyPoints, Robot
 from pickplan.core.sdf import SceneSdf
 
 
 @dataclass(frozen=True)
+@native_defaults(_core.ChompSettings)
 class ChompSettings:
     """Mirrors the native ``ChompSettings``; defaults are the paper's (Sec. IV-B)."""
 
-    n: int = 30                  # waypoints after the fixed start
-    duration: float = 3.0        # dt = duration / n = 0.1 s at n = 30
-    lambda_: float = 0.1         # smoothness weight lambda (eq. 2)
-    lambda_growth: float = 1.02  # lambda_i = lambda * growth**i
-    step_size: float = 0.1       # 1 / eta_motion (eq. 6)
-    epsilon: float = 0.2         # obstacle padding (m)
-    top_k: int = 500             # largest obstacle terms that contribute (0 = all)
-    clip_gradient: float = 10.0  # element-wise clip of the obstacle gradient (0 = none)
-    joint_limit_steps: int = 10
-    obstacle_tail: int = 0       # last waypoints without obstacle cost (standoff approach)
-    link_culling: bool = True    # skip links whose bounding sphere is beyond epsilon (exact, faster)
+    n: int  # waypoints after the fixed start
+    duration: float  # dt = duration / n = 0.1 s at n = 30
+    lambda_: float  # smoothness weight lambda (eq. 2)
+    lambda_growth: float  # lambda_i = lambda * growth**i
+    step_size: float  # 1 / eta_motion (eq. 6)
+    epsilon: float  # obstacle padding (m)
+    top_k: int  # largest obstacle terms that contribute (0 = all)
+    clip_gradient: float  # element-wise clip of the obstacle gradient (0 = none)
+    joint_limit_steps: int
+    obstacle_tail: int  # last waypoints without obstacle cost (standoff approach)
+    link_culling: bool  # skip links whose bounding sphere is beyond epsilon (exact, faster)
 
     def to_native(self, exclude_mask: int = 0, active: Optional[Sequence[bool]] = None) -> "_core.ChompSettings":
         return to_native(self, _core.ChompSettings, exclude_mask=int(exclude_mask),
@@ -39,20 +40,21 @@ class ChompSettings:
 
 
 @dataclass(frozen=True)
+@native_defaults(_core.MetricSettings)
 class MetricSettings:
     """The paper's metrics (Sec. IV-A): dense interpolation to 200 steps, 5 cm padding."""
 
-    steps: int = 200
-    collision_padding: float = 0.05
-    epsilon: float = 0.2
-    clearance: float = 0.05
-    table_clearance: float = 0.0
-    tail_waypoints: int = 0        # last waypoints (standoff approach) held to tail_clearance only
-    tail_clearance: float = 0.01
-    smoothness_threshold: float = 30.0
+    steps: int
+    collision_padding: float
+    epsilon: float
+    clearance: float
+    table_clearance: float
+    tail_waypoints: int  # last waypoints (standoff approach) held to tail_clearance only
+    tail_clearance: float
+    smoothness_threshold: float
     # The transit (before the tail) keeps this from the target (the metrics' excluded objects); -inf: not
     # measured (the paper's test). The planner asks for it among furniture (OMGPlanner, LoopInputs).
-    transit_target_clearance: float = float("-inf")
+    transit_target_clearance: float
     # The finger links may reach this far into the table (fingertips resting on it), as the goal set
     # lets them: None = the robot's finger links (bit = link index) and the gripper's default
     # tolerance (core.collision.SupportContact); Chomp.metrics resolves them.

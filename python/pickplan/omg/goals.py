@@ -13,62 +13,13 @@ import numpy as np
 from pickplan import _core
 from pickplan.core.poses import RIGID_CLEAN_TOLERANCE, rigid_errors
 from pickplan.core import collision
-from pickplan.core.settings import Option, to_native
+from pickplan.core.ik import IkSettings
+from pickplan.core.settings import native_defaults, to_native
 from pickplan.omg.grasps.quality import GraspFit, QualitySettings
 from pickplan.omg.grasps.verify import VerifySettings
 from pickplan.omg.world import CheckerKind, World
 from pickplan.sim.execution import ExecutionSettings
 from pickplan.sim.lift import URDF_COLLISION_MARGIN, lift_path
-
-
-class IkTask(Option):
-    pose = "pose"
-    position = "position"
-
-
-class IkRotationError(Option):
-    angle_axis = "angle_axis"
-    sine_axis = "sine_axis"
-
-
-class IkDamping(Option):
-    adaptive = "adaptive"
-    fixed = "fixed"
-
-
-class IkStepNorm(Option):
-    max_abs = "max_abs"
-    euclidean = "euclidean"
-
-
-@dataclass(frozen=True)
-class IkSettings:
-    """Mirror of the native ``IkSettings`` (one damped-least-squares descent's settings, then the
-    spread of seeds); ``to_native`` sets the per-joint weights."""
-
-    task: IkTask = IkTask.pose
-    rotation_error: IkRotationError = IkRotationError.angle_axis
-    max_iterations: int = 40
-    position_tolerance: float = 1e-4
-    rotation_tolerance: float = 1e-3
-    damping_schedule: IkDamping = IkDamping.adaptive
-    damping: float = 1e-2
-    damping_decrease: float = 0.3
-    damping_increase: float = 10.0
-    min_damping: float = 1e-8
-    max_damping: float = 1e4
-    min_relative_decrease: float = 1e-3
-    max_stalled_iterations: int = 8
-    max_step: float = 0.5
-    step_norm: IkStepNorm = IkStepNorm.max_abs
-    limit_margin: float = 0.0
-    num_seeds: int = 24
-    seed: int = 0
-    duplicate_tolerance: float = 0.05
-
-    def to_native(self, active) -> "_core.IkSettings":
-        """The native settings; joints not ``active`` are frozen (weight 0)."""
-        return to_native(self, _core.IkSettings, weights=[1.0 if a else 0.0 for a in active])
 
 
 @dataclass(frozen=True)
@@ -89,6 +40,7 @@ class SupportSettings:
 
 
 @dataclass(frozen=True)
+@native_defaults(_core.GoalSetSettings)
 class GoalSetSettings:
     """Mirror of the native ``GoalSetSettings`` (paper: 30 goals per scene, 8 cm standoff), plus
     ``approach_clearance``: every configuration of the standoff approach (pre-grasp to grasp) must
@@ -107,15 +59,15 @@ class GoalSetSettings:
     # (``grasps.verify``, cached; worlds with the target's model only) and those that hold are tried:
     # what the model cannot judge (a pad's pressure over its patch, the simulator's contacts). None: never.
     verify: Optional[VerifySettings] = VerifySettings(budget=12)
-    standoff: float = 0.08
-    standoff_steps: int = 4
-    max_joint_jump: float = 0.5
-    diversity: float = 0.1
-    max_goals: int = 30
-    max_solutions: int = 4
-    seed: int = 0
-    approach: Tuple[float, float, float] = (0.0, 0.0, 0.0)  # world direction of the standoff approach (unit;
-                                                            # zero: the hand's +z; a place: gravity)
+    standoff: float
+    standoff_steps: int
+    max_joint_jump: float
+    diversity: float
+    max_goals: int
+    max_solutions: int
+    seed: int
+    approach: Tuple[float, float, float]  # world direction of the standoff approach (unit; zero: the hand's +z;
+                                          # a place: gravity)
     # m the hand, fingers and target must be free to rise from the grasp among the scene's obstacles
     # (furniture: a shelf's next board; ``lift_blocked``), keeping ``lift_clearance`` from them:
     # execution's shortest lift and its clearance, which execution measures in PyBullet (its hulls'

@@ -11,25 +11,26 @@ import trimesh
 from pickplan import _core
 from pickplan.omg import grasps
 from pickplan.core import sdf
-from pickplan.core.settings import to_native
+from pickplan.core.settings import native_defaults, to_native
 
 if TYPE_CHECKING:  # the world owns its refiner; isf only reads it
     from pickplan.omg.world import World
 
 
 @dataclass(frozen=True)
+@native_defaults(_core.IsfSettings)
 class IsfSettings:
     """Mirror of the native ``IsfSettings``; alpha, beta, gamma and eta_grasp are the paper's."""
 
-    alpha: float = 0.01
-    beta: float = 0.001
-    gamma: float = 0.5
-    step_size: float = 0.05
-    max_halvings: int = 8
-    length_unit: float = 0.01
-    hand_epsilon: float = 0.01
-    arm_epsilon: float = 0.2
-    max_joint_step: float = 0.05
+    alpha: float
+    beta: float
+    gamma: float
+    step_size: float
+    max_halvings: int
+    length_unit: float
+    hand_epsilon: float
+    arm_epsilon: float
+    max_joint_step: float
 
     def to_native(self, active) -> "_core.IsfSettings":
         return to_native(self, _core.IsfSettings, active=[bool(a) for a in active])

@@ -32,10 +32,11 @@ from scipy.spatial import ConvexHull, QhullError
 from pickplan import _core
 from pickplan.core.caches import mesh_content_key
 from pickplan.core.fields import FieldReader
+from pickplan.core.ik import IkSettings
 from pickplan.core.io import read_json
 from pickplan.core.settings import Option
 from pickplan.omg.attach import HeldCheck, HeldWorld
-from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, ik_solver
+from pickplan.omg.goals import GoalSet, GoalSetSettings, ik_solver
 
 
 class Orientation(Option):

@@ -18,7 +18,8 @@ from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import ChompSettings, MetricSettings
-from pickplan.omg.goals import GoalSet, GoalSetSettings, IkSettings, build_goal_set
+from pickplan.omg.goals import GoalSet, GoalSetSettings, build_goal_set
+from pickplan.core.ik import IkSettings
 from pickplan.omg.grasps import GraspKind
 from pickplan.omg.isf import IsfSettings
 from pickplan.omg.model_cache import ModelCache

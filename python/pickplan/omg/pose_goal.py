@@ -14,9 +14,9 @@ from typing import Optional
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.ik import IkSettings
 from pickplan.core.poses import clean_pose
 from pickplan.core.settings import Option
-from pickplan.omg.goals import IkSettings
 
 
 class Axis(Option):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from pickplan import _core
+from pickplan.core.ik import IkDamping, IkRotationError, IkSettings
 
 #: Damped-least-squares steps per waypoint, each waypoint solved from the previous one.
 IK_STEPS = 3
@@ -16,16 +17,11 @@ def hand_path(robot, q0: np.ndarray, offsets: np.ndarray, damping: float) -> np.
     (fixed damping ``damping**2``, the arm joints inside their limits, fingers frozen), IK_STEPS
     steps per waypoint."""
     hand = robot.link_index(robot.info.hand_link)
-    ik = _core.IkSettings()
-    ik.weights = [1.0] * robot.info.arm_dof + [0.0] * (robot.dof - robot.info.arm_dof)
-    ik.rotation_error = _core.IkRotationError.sine_axis
-    ik.damping_schedule = _core.IkDamping.fixed
-    ik.damping = damping ** 2
-    ik.max_iterations = IK_STEPS
-    ik.max_stalled_iterations = 0      # every step is taken, as many as asked
-    ik.position_tolerance = ik.rotation_tolerance = 0.0
-    ik.max_step = float("inf")
+    ik = IkSettings(rotation_error=IkRotationError.sine_axis, damping_schedule=IkDamping.fixed, damping=damping ** 2,
+                    max_iterations=IK_STEPS, max_stalled_iterations=0,  # every step is taken, as many as asked
+                    position_tolerance=0.0, rotation_tolerance=0.0, max_step=float("inf"))
+    active = [i < robot.info.arm_dof for i in range(robot.dof)]
     targets = np.repeat(robot.fk(q0)[hand][None], len(offsets), axis=0)
     targets[:, :3, 3] += np.asarray(offsets, dtype=float)
-    path, _ = _core.IkSolver(robot.native, hand, ik).solve_path(targets, q0)
+    path, _ = _core.IkSolver(robot.native, hand, ik.to_native(active)).solve_path(targets, q0)
     return np.vstack([q0, path])

@@ -24,7 +24,7 @@ from pickplan import _core
 from pickplan.core.io import write_bytes
 from pickplan.core.paths import assets_dir
 from pickplan.core.robots import Robot
-from pickplan.core.settings import Option, to_native
+from pickplan.core.settings import Option, native_defaults, to_native
 from pickplan.pickup.nlp.feasibility import Reason
 from pickplan.pickup.metamodel.model import FORMAT as METAMODEL_FORMAT, load_surface  # noqa: F401 - the format, re-exported
 
@@ -101,51 +101,52 @@ _OPTIONS = {"hessian": HessianMode, "basis": CoefficientBasis, "mu_strategy": Mu
 
 
 @dataclass
+@native_defaults(_core.PickupSettings)
 class PlannerSettings:
     """Mirrors the native PickupSettings (same field names and defaults; a test checks them
     field by field). Options take their enums or their spellings ("limited-memory")."""
 
-    samples_per_interval: int = 8
-    degrees: Sequence[int] = ()           # empty: quintic base and arm joints 1-3, cubic wrists
-    nonholonomic_tol: float = 0.002
-    velocity_tol: float = 0.005
-    angular_velocity_tol: float = 0.01
-    collision_margin: float = 0.02
-    joint_limit_margin: float = 0.05
-    t_min: float = 0.5
-    t_max: float = 100.0
-    rate_rows: RateRows = RateRows.hull
-    rate_hull_degree: int = 12            # Bernstein degree of the rate hull
-    tol: float = 1e-6
-    constr_viol_tol: float = 1e-6
-    max_iter: int = 400
-    max_cpu_time: float = 20.0
-    print_level: int = 0
-    derivative_test: bool = False         # Ipopt's first-order derivative checker
-    ipopt_options: Sequence[Tuple[str, str]] = ()  # extra Ipopt options (name, value)
-    output_file: str = ""                 # non-empty: Ipopt's log (print level 5) goes to this file
-    hessian: HessianMode = HessianMode.exact
-    basis: CoefficientBasis = CoefficientBasis.bernstein
-    active_set: bool = True               # joint/collision rows only where needed, re-solve on violation
-    active_joint_window: float = 0.3
-    active_collision_window: float = 0.15
-    active_max_rounds: int = 6
-    mu_resolve: float = 1e-4
-    warm_start_push: float = 1e-6
-    dense_subdivisions: int = 16          # collision check between samples (0: samples only)
-    dense_nonholonomic: float = 0.0       # ... and lateral base speed above this (m/s; 0: not)
-    mu_strategy: MuStrategy = MuStrategy.monotone
-    mu_init: float = 1e-2
-    seed: int = 0
-    arm_seed_noise: float = 0.05
-    seed_speed: float = 1.0               # heuristic seed: T = path length / seed_speed
-    timing_seed: bool = True              # stage 3 starts from the grasp-timing seed ...
-    timing_fraction: float = 0.5          # ... with this fraction (log T) of the full slow-down
-    direct_track: bool = True             # also solve all constraints from the stage-1 solution, keep the shorter
-    direct_max_iter: int = 200            # its Ipopt iterations
-    arm_seeds: int = 2                    # stages 2-5 from up to this many arm configurations at T2, keep the shortest
-    warm_start_stages: bool = True        # stages 4 and 5 start from the previous stage's multipliers
-    time_limit: float = 0.0               # wall-clock budget of one native solve (s; 0: none)
+    samples_per_interval: int
+    degrees: Sequence[int]  # empty: quintic base and arm joints 1-3, cubic wrists
+    nonholonomic_tol: float
+    velocity_tol: float
+    angular_velocity_tol: float
+    collision_margin: float
+    joint_limit_margin: float
+    t_min: float
+    t_max: float
+    rate_rows: RateRows
+    rate_hull_degree: int  # Bernstein degree of the rate hull
+    tol: float
+    constr_viol_tol: float
+    max_iter: int
+    max_cpu_time: float
+    print_level: int
+    derivative_test: bool  # Ipopt's first-order derivative checker
+    ipopt_options: Sequence[Tuple[str, str]]  # extra Ipopt options (name, value)
+    output_file: str  # non-empty: Ipopt's log (print level 5) goes to this file
+    hessian: HessianMode
+    basis: CoefficientBasis
+    active_set: bool  # joint/collision rows only where needed, re-solve on violation
+    active_joint_window: float
+    active_collision_window: float
+    active_max_rounds: int
+    mu_resolve: float
+    warm_start_push: float
+    dense_subdivisions: int  # collision check between samples (0: samples only)
+    dense_nonholonomic: float  # ... and lateral base speed above this (m/s; 0: not)
+    mu_strategy: MuStrategy
+    mu_init: float
+    seed: int
+    arm_seed_noise: float
+    seed_speed: float  # heuristic seed: T = path length / seed_speed
+    timing_seed: bool  # stage 3 starts from the grasp-timing seed ...
+    timing_fraction: float  # ... with this fraction (log T) of the full slow-down
+    direct_track: bool  # also solve all constraints from the stage-1 solution, keep the shorter
+    direct_max_iter: int  # its Ipopt iterations
+    arm_seeds: int  # stages 2-5 from up to this many arm configurations at T2, keep the shortest
+    warm_start_stages: bool  # stages 4 and 5 start from the previous stage's multipliers
+    time_limit: float  # wall-clock budget of one native solve (s; 0: none)
 
     def __post_init__(self):
         for name, option in _OPTIONS.items():
@@ -157,18 +158,19 @@ class PlannerSettings:
 
 
 @dataclass(frozen=True)
+@native_defaults(_core.StompSettings)
 class StompSettings:
     """Mirrors the native StompSettings (same field names and defaults)."""
 
-    iterations: int = 40
-    rollouts: int = 12
-    noise_stddev: float = 0.1        # scales the smooth exploration noise N(0, R^-1)
-    temperature: float = 10.0        # h of the per-timestep softmax
-    control_weight: float = 1.0      # smoothness (squared acceleration) cost
-    obstacle_weight: float = 1e3     # hinge obstacle cost per waypoint
-    limit_weight: float = 1e3        # joint position / rate limit hinge costs
-    margin: float = 0.02             # m, obstacle clearance wanted
-    seed: int = 0
+    iterations: int
+    rollouts: int
+    noise_stddev: float  # scales the smooth exploration noise N(0, R^-1)
+    temperature: float  # h of the per-timestep softmax
+    control_weight: float  # smoothness (squared acceleration) cost
+    obstacle_weight: float  # hinge obstacle cost per waypoint
+    limit_weight: float  # joint position / rate limit hinge costs
+    margin: float  # m, obstacle clearance wanted
+    seed: int
 
 
 @dataclass
