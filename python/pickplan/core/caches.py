@@ -1,7 +1,11 @@
 """Bounded, explicit caches for what depends only on an object model or a robot (SDF grids, FCL
-shapes, surface samples): the caller owns one and passes it in; nothing here is module-level state."""
+shapes, surface samples): the caller owns one and passes it in. The one exception is ``memo``: a
+bounded memo of a pure function of its arguments (a file's mesh, a description's pads), shared by
+the process because it can never be stale; every memo is listed here (``memo_stats``) and can be
+emptied (``clear_memos``)."""
 from __future__ import annotations
 
+import functools
 import hashlib
 import threading
 from collections import OrderedDict
@@ -84,3 +88,35 @@ def mesh_content_key(mesh) -> tuple:
     h.update(np.ascontiguousarray(V, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(F, dtype=np.int64).tobytes())
     return ("arrays", V.shape, F.shape, h.hexdigest())
+
+
+_MEMOS: "dict[str, BoundedCache]" = {}  # every memo by its function's qualified name
+
+
+def memo(max_entries: int, key: Callable[..., Hashable] = None):
+    """Decorator: remember at most ``max_entries`` results of a pure function, keyed by its
+    positional arguments (or by ``key(*args)``: a hashable summary of what the result depends on)."""
+
+    def wrap(fn):
+        cache = BoundedCache(max_entries)
+        _MEMOS[f"{fn.__module__}.{fn.__qualname__}"] = cache
+
+        @functools.wraps(fn)
+        def call(*args):
+            return cache.get(args if key is None else key(*args), lambda: fn(*args))
+
+        call.cache = cache
+        return call
+
+    return wrap
+
+
+def memo_stats() -> "dict[str, tuple[int, int, int]]":
+    """Every memo's (entries, hits, misses), by function name."""
+    return {name: (len(c), c.hits, c.misses) for name, c in _MEMOS.items()}
+
+
+def clear_memos() -> None:
+    """Empty every memo (their results are rebuilt on the next call)."""
+    for cache in _MEMOS.values():
+        cache.clear()

@@ -12,13 +12,14 @@ find no exit). The object's own frame gives the pairs once; a pose only tilts th
 """
 from __future__ import annotations
 
-import functools
 import threading
 from dataclasses import dataclass
 from typing import NamedTuple, Tuple
 
 import numpy as np
 import trimesh
+
+from pickplan.core.caches import memo
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,7 @@ class Graspability(NamedTuple):
                                   # with room for the fingers (inf: none)
 
 
-@functools.lru_cache(maxsize=256)  # a memo of a deterministic function of the mesh; bounded
+@memo(256)
 def _pairs(vertices: bytes, faces: bytes, samples: int, seed: int,
            cone_deg: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     V = np.frombuffer(vertices).reshape(-1, 3)

@@ -13,7 +13,6 @@ Two sources give the same ``ObjectModel`` record:
 """
 from __future__ import annotations
 
-import functools
 import glob
 import math
 import os
@@ -25,6 +24,7 @@ import numpy as np
 import trimesh
 
 from pickplan.core import containers, objects_builtin, procedural, stability
+from pickplan.core.caches import memo
 from pickplan.core.io import content_file
 
 YCB_ENV = "PICKPLAN_YCB_DIR"
@@ -359,9 +359,6 @@ class ObjectLibrary:
         return f"ObjectLibrary({self.source!r}, {len(self)} objects)"
 
 
-_LIBRARIES: Dict[str, ObjectLibrary] = {}  # per-process cache: meshes and hulls are costly to rebuild
-
-
 def library(source: Optional[Union[str, os.PathLike]] = None) -> ObjectLibrary:
     """The built-in set (``source`` None/"builtin" and no $PICKPLAN_YCB_DIR), the procedural families
     (``"procedural"``), or a YCB-layout folder.
@@ -371,9 +368,11 @@ def library(source: Optional[Union[str, os.PathLike]] = None) -> ObjectLibrary:
     if source is None:
         source = os.environ.get(YCB_ENV) or "builtin"
     source = os.fspath(source)
-    key = source if source in ("builtin", "procedural") else os.path.abspath(source)
-    if key in _LIBRARIES:
-        return _LIBRARIES[key]
+    return _library(source if source in ("builtin", "procedural") else os.path.abspath(source))
+
+
+@memo(8)  # a library keeps the meshes and hulls it has built: costly to rebuild
+def _library(key: str) -> ObjectLibrary:
     if key == "builtin":
         lib = ObjectLibrary(sorted(objects_builtin.BUILTIN_SPECS))
     elif key == "procedural":
@@ -385,11 +384,10 @@ def library(source: Optional[Union[str, os.PathLike]] = None) -> ObjectLibrary:
         if not names:
             raise ValueError(f"object library folder {key} has no object folders with a mesh.stl")
         lib = ObjectLibrary(names, root=key)
-    _LIBRARIES[key] = lib
     return lib
 
 
-@functools.lru_cache(maxsize=16)
+@memo(16)
 def container_object(source: str) -> ObjectModel:
     """A container a scene names by its size (``core.containers``: ``bin:<x>x<y>x<height>``)."""
     mesh, parts = containers.bin_geometry(source)

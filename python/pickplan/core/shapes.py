@@ -11,7 +11,6 @@ A mesh shape reads ``file`` (anything trimesh loads) scaled by ``size`` (sx, sy,
 """
 from __future__ import annotations
 
-import functools
 import os
 from dataclasses import dataclass, field
 from typing import Optional, Sequence, Tuple
@@ -20,6 +19,7 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core import sdf as sdf_mod
+from pickplan.core.caches import memo
 from pickplan.core.errors import InputError
 from pickplan.core.poses import clean_pose
 from pickplan.core.settings import Option
@@ -109,7 +109,7 @@ class Shape:
         return out
 
 
-@functools.lru_cache(maxsize=256)
+@memo(256)
 def _trimesh(kind: ShapeKind, size: Tuple[float, ...], file: str, vertices: tuple, faces: tuple):
     import trimesh
 

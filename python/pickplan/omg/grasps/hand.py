@@ -8,7 +8,6 @@ finger at +y), approaches along +z, and its pad centre sits ``PAD_DEPTH`` along 
 """
 from __future__ import annotations
 
-import functools
 import json
 import os
 import warnings
@@ -20,6 +19,7 @@ import numpy as np
 import trimesh
 from scipy.spatial.transform import Rotation
 
+from pickplan.core.caches import memo
 from pickplan.core.collision import CollisionChecker, CollisionSettings, SceneMesh
 from pickplan.core.description import RobotInfo, pose_matrix
 from pickplan.core.io import atomic_open, content_file
@@ -76,7 +76,7 @@ def hand_urdf_path(floating: bool = False, gripper: RobotInfo = PANDA) -> str:
     return _hand_urdf(bool(floating), gripper.urdf, gripper.hand_link, tuple(gripper.finger_links))
 
 
-@functools.lru_cache(maxsize=8)
+@memo(8)
 def _hand_urdf(floating: bool, src: str, hand_link: str, finger_links: tuple) -> str:
     root = ET.parse(src).getroot()
     mesh_dir = os.path.dirname(src)
@@ -231,7 +231,7 @@ def hand_contacts_path() -> str:
     return os.path.join(assets_dir(), "panda_hand_contacts.json")
 
 
-@functools.lru_cache(maxsize=4)
+@memo(4)
 def _load_contacts(path: str) -> HandContacts:
     with open(path, "r", encoding="utf-8") as f:
         d = json.load(f)

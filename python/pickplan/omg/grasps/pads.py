@@ -14,6 +14,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import trimesh
 
+from pickplan.core.caches import memo
+
 
 @dataclass(frozen=True)
 class HandContacts:
@@ -41,17 +43,12 @@ class RayPadSettings:
 
 
 def gripper_contacts(robot, settings: RayPadSettings = RayPadSettings()) -> HandContacts:
-    """The pads of a ``robots.DescribedRobot``'s fingers at its open configuration (cached per gripper:
-    the pads are a property of the description, not of one robot instance)."""
-    key = (robot.info.key, settings)
-    if key not in _DERIVED:
-        _DERIVED[key] = _contacts(robot, settings)
-    return _DERIVED[key]
+    """The pads of a ``robots.DescribedRobot``'s fingers at its open configuration (remembered per
+    gripper: the pads are a property of the description, not of one robot instance)."""
+    return _contacts(robot, settings)
 
 
-_DERIVED: dict = {}  # a cache of a pure function of the description's files: safe to share
-
-
+@memo(16, key=lambda robot, settings: (robot.info.key, settings))
 def _contacts(robot, settings: RayPadSettings) -> HandContacts:
     info = robot.info
     q = robot.ready_configuration
