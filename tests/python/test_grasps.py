@@ -110,11 +110,8 @@ def test_bad_input_errors(builtins):
 
 
 # --- hand contacts -------------------------------------------------------------------------------
-def test_hand_contacts_asset_is_reproducible_and_moves_with_fingers():
+def test_the_panda_pads_face_each_other_at_the_tips_and_move_with_the_fingers():
     c = G.hand_contacts()
-    d = G.derive_hand_contacts()
-    np.testing.assert_allclose(c.points, d["points"], atol=1e-6)
-    np.testing.assert_allclose(c.normals, d["normals"], atol=1e-8)
     counts = np.bincount(c.finger)
     assert len(counts) == 2 and all(20 <= k <= 40 for k in counts), counts
     np.testing.assert_allclose(np.linalg.norm(c.normals, axis=1), 1.0)
@@ -134,7 +131,7 @@ def test_hand_contacts_asset_is_reproducible_and_moves_with_fingers():
         T = np.linalg.inv(robot.link_pose(q, link)) @ T_hand
         p = c.points[c.finger == k] @ T[:3, :3].T + T[:3, 3]
         _, dist, _ = trimesh.proximity.closest_point(robot.collision_meshes(link), p)
-        assert dist.max() < 5e-4
+        assert dist.max() < 1e-6  # ray hits: on the surface
 
 
 # --- YCB convention ------------------------------------------------------------------------------

@@ -20,10 +20,9 @@ from typing import Optional
 
 from pickplan.omg.grasps.generators import (AntipodalSettings, ApproachSettings, antipodal_grasps,
                                             approach_grasps)
-from pickplan.omg.grasps.hand import (CONTACTS_FORMAT, FINGER_JOINTS, FINGER_LINKS, FINGER_OPEN, HAND_LINK,
-                                      PAD_DEPTH, HandContacts, HandObjectChecker, PadSettings,
-                                      derive_hand_contacts, hand_configurations, hand_contacts,
-                                      hand_contacts_path, hand_urdf_path, write_hand_contacts)
+from pickplan.omg.grasps.hand import (FINGER_JOINTS, FINGER_LINKS, FINGER_OPEN, HAND_LINK,
+                                      PAD_DEPTH, HandContacts, HandObjectChecker,
+                                      hand_configurations, hand_contacts, hand_urdf_path)
 from pickplan.omg.grasps.simulated import simulated_grasps
 from pickplan.omg.grasps.pads import gripper_contacts
 from pickplan.omg.grasps.sets import (KINDS, GraspKind, GraspSet, check_grasps, convert_grasps, fingers_straddle,
@@ -31,11 +30,11 @@ from pickplan.omg.grasps.sets import (KINDS, GraspKind, GraspSet, check_grasps, 
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA, YCB_TO_HAND
 
-__all__ = ["AntipodalSettings", "ApproachSettings", "CONTACTS_FORMAT", "FINGER_JOINTS", "FINGER_LINKS",
+__all__ = ["AntipodalSettings", "ApproachSettings", "FINGER_JOINTS", "FINGER_LINKS",
            "FINGER_OPEN", "GraspKind", "GraspSet", "HAND_LINK", "HandContacts", "HandObjectChecker", "KINDS", "PAD_DEPTH",
-           "PadSettings", "YCB_TO_HAND", "antipodal_grasps", "approach_grasps", "check_grasps", "convert_grasps", "fingers_straddle", "gripper_contacts",
-           "derive_hand_contacts", "grasp_set", "hand_configurations", "hand_contacts", "hand_contacts_path",
-           "hand_urdf_path", "load_grasp_set", "simulated_grasps", "write_hand_contacts"]
+           "YCB_TO_HAND", "antipodal_grasps", "approach_grasps", "check_grasps", "convert_grasps", "fingers_straddle", "gripper_contacts",
+           "grasp_set", "hand_configurations", "hand_contacts",
+           "hand_urdf_path", "load_grasp_set", "simulated_grasps"]
 
 
 def grasp_set(model, kind, n: int = 100, seed: int = 0, gripper: Optional[RobotInfo] = None, **kwargs) -> GraspSet:

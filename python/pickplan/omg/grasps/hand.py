@@ -8,24 +8,20 @@ finger at +y), approaches along +z, and its pad centre sits ``PAD_DEPTH`` along 
 """
 from __future__ import annotations
 
-import json
 import os
 import warnings
 import xml.etree.ElementTree as ET
-from dataclasses import asdict, dataclass
 from typing import Optional
 
 import numpy as np
-import trimesh
 from scipy.spatial.transform import Rotation
 
 from pickplan.core.caches import memo
 from pickplan.core.collision import CollisionChecker, CollisionSettings, SceneMesh
 from pickplan.core.description import RobotInfo, pose_matrix
-from pickplan.core.io import atomic_open, content_file
-from pickplan.core.panda import PANDA, panda_urdf_path
-from pickplan.core.paths import assets_dir
-from pickplan.core.robots import Robot
+from pickplan.core.io import content_file
+from pickplan.core.panda import PANDA
+from pickplan.core.robots import Robot, panda
 from pickplan.omg.grasps.pads import HandContacts, gripper_contacts
 from pickplan.omg.grasps.sets import check_grasps
 
@@ -35,7 +31,6 @@ FINGER_LINKS = PANDA.finger_links
 FINGER_JOINTS = PANDA.finger_joints
 FINGER_OPEN = PANDA.finger_open
 PAD_DEPTH = PANDA.pad_depth
-CONTACTS_FORMAT = "pickplan.hand_contacts"
 
 
 # --- the hand model: the hand link's subtree of the robot's URDF -------------------------------------
@@ -152,108 +147,15 @@ class HandObjectChecker:
 
 
 # --- hand contact points (for C-Space ISF) ----------------------------------------------------------
-@dataclass(frozen=True)
-class PadSettings:
-    pad_length: float = 0.018   # m of the finger tip that forms the pad (along the approach axis)
-    rows: int = 7               # grid along the approach axis
-    cols: int = 7               # grid across the finger
-    margin: float = 0.0012      # m kept from the pad's edges
-    flat_tol: float = 0.0005    # m: hits deeper than this behind the innermost surface are not pad
-    max_normal_deg: float = 5.0
-
-
-def derive_hand_contacts(settings: PadSettings = PadSettings()) -> dict:
-    """Pad points from the finger collision mesh and the URDF finger joints (reproducible asset).
-
-    A grid of rays is cast from the grasp's mid-plane outwards onto each finger's inner face; hits
-    on near-flat faces (normal within ``max_normal_deg`` of inward) and within ``flat_tol`` of the
-    innermost point, in the last ``pad_length`` of the finger, are kept.
-    """
-    root = ET.parse(panda_urdf_path()).getroot()
-    fingers, pts, nrm, idx = [], [], [], []
-    for k, (link, joint) in enumerate(zip(FINGER_LINKS, FINGER_JOINTS)):
-        j = root.find(f"joint[@name='{joint}']")
-        l = root.find(f"link[@name='{link}']")
-        T_joint = np.eye(4)
-        T_joint[:3, :3], T_joint[:3, 3] = _rpy_matrix(_xyz(j.find("origin"), "rpy")), _xyz(j.find("origin"))
-        axis = T_joint[:3, :3] @ _xyz(j.find("axis"))
-        coll = l.find("collision")
-        T_coll = np.eye(4)
-        T_coll[:3, :3], T_coll[:3, 3] = _rpy_matrix(_xyz(coll.find("origin"), "rpy")), _xyz(coll.find("origin"))
-        fname = coll.find("geometry/mesh").get("filename").replace("package://", "")
-        mesh = trimesh.load(os.path.join(os.path.dirname(panda_urdf_path()), fname), force="mesh", process=False)
-        T_open = np.eye(4)
-        T_open[:3, 3] = axis * FINGER_OPEN
-        mesh.apply_transform(T_joint @ T_open @ T_coll)  # finger mesh in the hand frame, fingers open
-        inward = -axis
-        across = np.cross(axis, [0.0, 0.0, 1.0])
-        lo, hi = mesh.bounds
-        z_top = hi[2]
-        zs = np.linspace(z_top - settings.pad_length + settings.margin, z_top - settings.margin, settings.rows)
-        w = abs(across) @ (hi - lo) / 2 - settings.margin
-        c = across @ (hi + lo) / 2
-        us = np.linspace(c - w, c + w, settings.cols)
-        # ray origins on the hand's mid-plane (between the fingers), cast outwards onto the pad
-        origins = np.array([u * across + np.array([0.0, 0.0, z]) for z in zs for u in us])
-        dirs = np.tile(axis, (len(origins), 1))
-        loc, ray, tri = mesh.ray.intersects_location(origins, dirs, multiple_hits=False)
-        depth = (loc - origins[ray]) @ axis
-        good = (mesh.face_normals[tri] @ inward) > np.cos(np.radians(settings.max_normal_deg))
-        good &= depth <= depth[good].min() + settings.flat_tol
-        order = np.argsort(ray[good])  # grid order, independent of the ray engine's output order
-        pts.append(loc[good][order])
-        nrm.append(np.tile(inward, (int(good.sum()), 1)))
-        idx.append(np.full(int(good.sum()), k))
-        fingers.append({"link": link, "joint": joint, "axis": axis.round(12).tolist()})
-    return {"format": CONTACTS_FORMAT, "version": 1, "frame": HAND_LINK, "finger_joint_value": FINGER_OPEN,
-            "description": "Panda finger-pad contact points and inward normals (towards the other finger) in "
-                           "the panda_hand frame with both finger joints at finger_joint_value; a point of "
-                           "finger k moves by axis_k * (q_k - finger_joint_value). Generated by "
-                           "pickplan.grasps.derive_hand_contacts from pybullet_data franka_panda "
-                           "meshes/collision/finger.obj and panda.urdf.",
-            "settings": asdict(settings), "fingers": fingers,
-            "points": np.concatenate(pts).round(7).tolist(), "normals": (np.concatenate(nrm).round(9) + 0.0).tolist(),
-            "finger": np.concatenate(idx).astype(int).tolist()}
-
-
-def write_hand_contacts(path: str, settings: PadSettings = PadSettings()) -> None:
-    """Regenerate the asset: ``write_hand_contacts("assets/panda_hand_contacts.json")``."""
-    d = derive_hand_contacts(settings)
-    text = json.dumps({k: v for k, v in d.items() if k not in ("points", "normals", "finger")}, indent=1)
-    rows = lambda a: "[\n  " + ",\n  ".join(json.dumps(r) for r in a) + "\n ]"  # one point per line
-    text = text[:-2] + ',\n "points": ' + rows(d["points"]) + ',\n "normals": ' + rows(d["normals"]) + \
-        ',\n "finger": ' + json.dumps(d["finger"]) + "\n}\n"
-    with atomic_open(path, "w") as f:
-        f.write(text)
-
-
-def hand_contacts_path() -> str:
-    return os.path.join(assets_dir(), "panda_hand_contacts.json")
-
-
-@memo(4)
-def _load_contacts(path: str) -> HandContacts:
-    with open(path, "r", encoding="utf-8") as f:
-        d = json.load(f)
-    if d.get("format") != CONTACTS_FORMAT:
-        raise ValueError(f"{path}: not a hand contacts file (format {d.get('format')!r})")
-    pts, nrm = np.asarray(d["points"], float), np.asarray(d["normals"], float)
-    fin = np.asarray(d["finger"], dtype=np.int64)
-    if pts.ndim != 2 or pts.shape[1] != 3 or nrm.shape != pts.shape or fin.shape != (len(pts),):
-        raise ValueError(f"{path}: points, normals and finger must be (M, 3), (M, 3), (M,)")
-    axes = np.asarray([f["axis"] for f in d["fingers"]], float)
-    return HandContacts(pts, nrm, fin, axes, float(d["finger_joint_value"]))
-
-
-def hand_contacts(opening: Optional[float] = None, path: Optional[str] = None, robot=None) -> HandContacts:
-    """The finger-pad contacts in the hand-link frame with finger joints at ``opening`` (default open):
-    the Panda's from ``assets/panda_hand_contacts.json`` (or ``path``); another robot's
-    (``robot``: a ``robots.DescribedRobot``) from its finger collision geometry (``pads.gripper_contacts``)."""
-    info = PANDA if robot is None else robot.info
+def hand_contacts(opening: Optional[float] = None, robot=None) -> HandContacts:
+    """The finger-pad contacts in the hand-link frame with finger joints at ``opening`` (default open)
+    of ``robot`` (a ``robots.DescribedRobot``; default: the Panda), derived from its finger collision
+    geometry (``pads.gripper_contacts``: one derivation for every gripper)."""
+    if robot is None:
+        robot = panda()
+    info = robot.info
     opening = info.finger_open if opening is None else float(opening)
     lo, hi = sorted((info.finger_open, info.finger_closed))
     if not lo <= opening <= hi:
         raise ValueError(f"opening: expected a finger joint value in [{lo}, {hi}], got {opening}")
-    if info.name == PANDA.name or path is not None:
-        return _load_contacts(os.path.abspath(path or hand_contacts_path())).at(opening)
     return gripper_contacts(robot).at(opening)
