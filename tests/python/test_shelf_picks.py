@@ -15,7 +15,7 @@ from pickplan.omg.goals import GoalSetSettings, _raised_blocked, build_goal_set,
 from pickplan.omg.grasps import antipodal_grasps
 from pickplan.omg.grasps.generators import AntipodalSettings, SupportFilter
 from pickplan.omg.grasps.hand import hand_urdf_path
-from pickplan.omg.planner import OMGPlanner
+from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
 from pickplan.omg.world import World
 from pickplan.sim.arm_sim import open_sim
 from pickplan.sim.bodies import add_table
@@ -132,6 +132,29 @@ def test_a_pick_from_a_shelf_and_a_bin_is_lifted(tmp_path, lib, kind, seed):
     assert record["lift"] >= ExecutionSettings.min_lift
 
 
+# Targets cramped on a shelf board (a sugar box 11 cm from a wall, 17 cm under the next board; a cracker box
+# 5 cm from a wall): none of the 100 default antipodal grasps leaves room for the hand, a few of 1000 do.
+CRAMPED_SHELF = 575919545
+CRAMPED_SHELF_UNIT = 4234552030
+
+
+def test_a_target_without_goals_among_the_default_grasps_gets_a_denser_set(lib):
+    """The planner's default grasps (``OMGSettings.dense_grasp_count``): with no denser set the target has no
+    goal; with it the plan succeeds from a grasp beyond the first 100."""
+    scene = generate_layout(Layout.shelf, seed=CRAMPED_SHELF, library=lib)
+    sparse = OMGPlanner(None, settings=OMGSettings(grasp_kind="antipodal", dense_grasp_count=0)).plan(scene=scene)
+    assert sparse.status == PlanStatus.no_goals
+    dense = OMGPlanner(None, settings=OMGSettings(grasp_kind="antipodal")).plan(scene=scene)
+    assert dense.success and dense.grasp_index >= 100, (dense.status, dense.grasp_index)
+
+
+def test_the_bench_unit_plans_a_cramped_target_from_a_denser_grasp_set(tmp_path, lib):
+    """A cramped target through the bench's unit: its 100 support-aware grasps give no goal, its 1000 do, and
+    the plan passes the success test (every method of a table gets the same grasps)."""
+    record = _one_unit(tmp_path, Layout.shelf, CRAMPED_SHELF_UNIT, lib, execute=False)
+    assert record["planning_success"] and record["goal_set_size"] > 0, (record["status"], record.get("goal_reasons"))
+
+
 def test_a_cabinet_scene_loads_and_plans(tmp_path, lib):
     """A cabinet (open door, drawer, the target on its inner board, seed 0) loads into the planner (its
     objects pass the placement check on their board) and the pick passes the success test."""
@@ -190,3 +213,31 @@ def test_the_transit_into_a_shelf_keeps_clear_of_the_target(lib):
     executed = execute_plan(scene, result.trajectory, ExecutionSettings(waypoint_dt=omg.chomp.duration / omg.chomp.n))
     assert executed.target_pushed < 0.01, executed.target_pushed
     assert executed.status == "lifted", executed.message
+
+
+def test_the_transit_distance_to_the_target_is_the_meshes_distance(lib):
+    """``transit_target_distance`` (FCL, every link against the target's mesh) against trimesh: dense surface
+    samples of the fingers and hand against the target mesh, on a straight line from a pre-grasp at 5 cm
+    into the grasp (the fingers straddle the target there: the distance falls below zero only if they cut it)."""
+    import trimesh
+
+    from pickplan.omg.planner import transit_target_distance
+    scene = generate_layout(Layout.shelf, seed=3618546533, library=lib)
+    world = World(scene)
+    grasps = _unit_grasps(world, scene, "antipodal", 100, "panda")
+    gs = build_goal_set(world, grasps.poses)
+    pre, goal = gs.tails[0][0], gs.tails[0][-1]
+    line = np.linspace(pre, goal, 5)
+    got = transit_target_distance(world, line, 1, 5)  # the waypoints themselves
+    target = lib.get(scene.target).mesh.copy()
+    target.apply_transform(np.asarray(next(o.pose for o in scene.objects if o.name == scene.target)))
+    query, robot = trimesh.proximity.ProximityQuery(target), world.robot
+    best = np.inf
+    for q in line:
+        F = robot.fk(q)
+        for link in (robot.hand_link,) + tuple(robot.finger_links):
+            mesh = robot.collision_meshes(link).copy()
+            mesh.apply_transform(F[robot.link_index(link)])
+            points = np.vstack([mesh.vertices, trimesh.sample.sample_surface(mesh, 2000, seed=0)[0]])
+            best = min(best, float(np.min(-query.signed_distance(points))))  # trimesh: positive inside
+    assert abs(got - best) < 2e-3 and got < 0.02, (got, best)

@@ -73,6 +73,10 @@ class OMGSettings:
     check_every: int = 5
     grasp_kind: GraspKind = GraspKind.simulated  # default grasps when plan() gets none: stored, else generated
     grasp_count: int = 100
+    # Where the default grasp set of a generated kind (antipodal, approach) gives no goal (a target near a
+    # shelf's wall, under a low board), a denser one of this many is tried once: the few grasps that fit
+    # are often missing from 100. 0: never. Stored sets and grasps given to plan() are used as they are.
+    dense_grasp_count: int = 1000
     seed: int = 0
     # Where the loop from the straight line fails in a scene with furniture (a shelf, a cabinet): once more
     # from an RRT-Connect path (``omg.sampled_start``); None: never. A tabletop plans as in the paper.
@@ -82,13 +86,19 @@ class OMGSettings:
 
     def __post_init__(self):
         for name, low in (("iterations", 1), ("check_every", 1), ("min_iterations", 0), ("isf_steps", 0),
-                          ("cost_time_stride", 1), ("cost_point_stride", 1), ("grasp_count", 1)):
+                          ("cost_time_stride", 1), ("cost_point_stride", 1), ("grasp_count", 1),
+                          ("dense_grasp_count", 0)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ValueError(f"OMGSettings.{name}: expected an integer >= {low}, got {value!r}")
         object.__setattr__(self, "selection", Selection.parse(self.selection, "selection policy"))
         object.__setattr__(self, "grasp_kind", GraspKind.parse(self.grasp_kind, "grasp set kind"))
         object.__setattr__(self, "clock", StageClock.parse(self.clock, "stage clock"))
+
+    def denser_grasp_count(self) -> Optional[int]:
+        """How many grasps to try where the default set gave no goal (``dense_grasp_count``), or None."""
+        generated = self.grasp_kind in (GraspKind.antipodal, GraspKind.approach)
+        return self.dense_grasp_count if generated and self.dense_grasp_count > self.grasp_count else None
 
 
 @dataclass
@@ -176,15 +186,21 @@ class OMGPlanner:
             self._world = World(scene, self.settings.world, robot=robot, cache=self.cache)
         return self._world
 
-    def default_grasps(self, world: World) -> np.ndarray:
-        """The settings' grasp set of the target for this robot's gripper: it depends on the object and
-        the gripper only, so it is built once per planner cache (a copy is returned)."""
+    def default_grasps(self, world: World, count: Optional[int] = None) -> np.ndarray:
+        """The settings' grasp set of the target for this robot's gripper (``count`` grasps, default the
+        settings'): it depends on the object and the gripper only, so it is built once per planner cache
+        (a copy is returned)."""
         s, model, gripper = self.settings, world.target_model, world.robot.info
-        key = ("grasp_set", mesh_content_key(model.mesh), model.name, str(s.grasp_kind), s.grasp_count, s.seed,
-               gripper.key)
-        poses = self.cache.derived(key, lambda: grasps_mod.grasp_set(model, s.grasp_kind, s.grasp_count, seed=s.seed,
+        count = s.grasp_count if count is None else int(count)
+        key = ("grasp_set", mesh_content_key(model.mesh), model.name, str(s.grasp_kind), count, s.seed, gripper.key)
+        poses = self.cache.derived(key, lambda: grasps_mod.grasp_set(model, s.grasp_kind, count, seed=s.seed,
                                                                      gripper=gripper).poses)
         return np.array(poses)
+
+    def _denser_goal_set(self, world: World, q0: np.ndarray) -> Optional[GoalSet]:
+        """The goal set of ``dense_grasp_count`` default grasps, where the settings allow one."""
+        s, count = self.settings, self.settings.denser_grasp_count()
+        return None if count is None else build_goal_set(world, self.default_grasps(world, count), q0, s.goals, s.ik)
 
     def _prepare(self, world: World, start, grasps) -> Tuple[np.ndarray, np.ndarray]:
         """The checked start and the grasps; builds what the scene caches (FCL models, ISF data)."""
@@ -217,6 +233,7 @@ class OMGPlanner:
         clock = _clock(s)
         t = clock()
         world = self.world(target)
+        defaulted = grasps is None
         q0, grasps = self._prepare(world, start, grasps)
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
@@ -226,6 +243,8 @@ class OMGPlanner:
 
         t = clock()
         gs = build_goal_set(world, grasps, q0, s.goals, s.ik) if verdict.graspable else None
+        if gs is not None and len(gs) == 0 and defaulted:
+            gs = self._denser_goal_set(world, q0) or gs
         timings["goal_set"] = clock() - t
         if gs is None or len(gs) == 0:
             timings["total"] = clock() - t_total
@@ -332,7 +351,29 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
     history = {"objective": list(out["objective"]), "goal": list(out["goals_chosen"]), "p": out["p"],
                "costs": out["costs"], "switches": out["switches"], "initial_grasp": out["initial_grasp"]}
     xi, robot = out["xi"], world.robot
-    return PlanResult(PlanStatus.of(out["metrics"]), np.vstack([q0, xi]), xi[-1].copy(), out["grasp_index"],
-                      robot.link_pose(xi[-1], robot.hand_link), out["refined"], out["metrics"], out["grasp_cost"],
+    metrics = out["metrics"]
+    if metrics["success"] and parts.metric_settings.transit_target_clearance > -np.inf and isinstance(world, World):
+        # The success test measures body points (a few per link: a finger's 20 leave 1.7 cm of its surface
+        # unsampled); the transit's clearance from the target is what pushes it in execution: measured exactly.
+        distance = transit_target_distance(world, np.vstack([q0, xi]), gs.tails.shape[1], parts.metric_settings.steps)
+        metrics["transit_target_distance"] = distance
+        if distance < parts.metric_settings.transit_target_clearance:
+            metrics["success"] = metrics["collision_free"] = False
+    return PlanResult(PlanStatus.of(metrics), np.vstack([q0, xi]), xi[-1].copy(), out["grasp_index"],
+                      robot.link_pose(xi[-1], robot.hand_link), out["refined"], metrics, out["grasp_cost"],
                       out["goal_set_size"], out["iterations"], history, timings,
                       goal_set=np.array(gs.goals), goal_source=out["goal_source"])
+
+
+def transit_target_distance(world: World, trajectory: np.ndarray, tail_length: int, steps: int) -> float:
+    """The least distance (m, FCL on the meshes) of the robot from the target over the transit of a
+    ``trajectory`` ((n + 1, dof), the start first) interpolated as the success test does (``steps`` over the
+    whole), up to its pre-grasp (the first of the last ``tail_length`` waypoints)."""
+    n = len(trajectory) - 1
+    end = n - tail_length + 1                    # the pre-grasp's row
+    params = np.linspace(0.0, n, steps)
+    params = params[params <= end]
+    k = np.minimum(params.astype(int), n - 1)
+    u = (params - k)[:, None]
+    dense = trajectory[k] + u * (trajectory[k + 1] - trajectory[k])
+    return float(world.checker(CheckerKind.target).min_distance_batch(dense).min())

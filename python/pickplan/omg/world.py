@@ -56,6 +56,8 @@ class CheckerKind(Option):
                              # is checked apart, as the success test does): sampling planners' validity
     furniture = "furniture"  # the scene's obstacles alone, the links as convex hulls (as PyBullet takes
                              # them): distances the executed lift keeps (``goals.lift_blocked_configurations``)
+    target = "target"        # the target alone, every link against its mesh: the exact clearance a transit
+                             # keeps from what it will grasp (``planner.transit_target_distance``)
 
 
 @dataclass(frozen=True)
@@ -182,6 +184,12 @@ class World:
         if kind is CheckerKind.furniture:
             return collision.CollisionChecker(self.robot, [collision.SceneMesh(o.name, o.shape, o.pose)
                                                            for o in self.scene.obstacles], None, convex_links=True,
+                                              shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
+        if kind is CheckerKind.target:
+            others = tuple(o.name for o in self.scene.objects if o.name != self.target) + \
+                tuple(o.name for o in self.scene.obstacles)  # no table given: none checked
+            return collision.CollisionChecker(self.robot, self.scene_meshes(), None,
+                                              collision.CollisionSettings(excluded_objects=others),
                                               shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
