@@ -65,7 +65,7 @@ def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limit
     routes = route.candidate_routes(geo, count=4)
     assert len(routes) >= 2 and len({r.label for r in routes}) == len(routes)
     rho = geo.v_max / geo.w_max
-    template = np.array(_core.pickup_heuristic_seed(robot.native, problem, FAST.native()))
+    template = np.array(_core.pickup_heuristic_seed(robot.native, problem, FAST.to_native()))
     for r in routes:
         P = r.poses
         step = np.linalg.norm(np.diff(P[:, :2], axis=0), axis=1)

@@ -30,8 +30,8 @@ PAIRS = {
                  set(GoalSetSettings.PYTHON_ONLY)),
     "isf": (IsfSettings, _core.IsfSettings, lambda s: s.to_native(ARM), {"active"}, set()),
     "collision": (CollisionSettings, _core.CollisionSettings, lambda s: s.to_native(), set(), set()),
-    "pickup": (nlp.PlannerSettings, _core.PickupSettings, lambda s: s.native(), set(), set()),
-    "stomp": (nlp.StompSettings, _core.StompSettings, lambda s: dataclasses.asdict(s), set(), set()),
+    "pickup": (nlp.PlannerSettings, _core.PickupSettings, lambda s: s.to_native(), set(), set()),
+    "stomp": (nlp.StompSettings, _core.StompSettings, lambda s: s.to_native(), set(), set()),
 }
 
 # Python option/status enums with a native py::enum_ of the same member names.
@@ -111,7 +111,7 @@ def test_native_defaults_fill_only_the_fields_left_without_one():
 def test_planner_settings_reach_the_native_struct_as_enums():
     s = nlp.PlannerSettings(hessian="limited-memory", rate_rows=nlp.RateRows.sampled, ipopt_options=[("a", "b")])
     assert s.hessian is nlp.HessianMode.limited_memory and s.rate_rows is nlp.RateRows.sampled
-    native = s.native()
+    native = s.to_native()
     assert native.hessian == _core.HessianMode.limited_memory and native.rate_rows == _core.RateRows.sampled
     assert native.basis == _core.CoefficientBasis.bernstein and native.ipopt_options == [("a", "b")]
 
@@ -163,7 +163,7 @@ def test_the_hessian_option_reaches_ipopt(tmp_path, hessian):
     problem = cases.make_problem(robot, 1)
     log = tmp_path / "ipopt.txt"
     settings = nlp.PlannerSettings(samples_per_interval=4, max_iter=1, hessian=hessian.value, output_file=str(log))
-    x0 = _core.pickup_heuristic_seed(robot.native, problem, settings.native())
+    x0 = _core.pickup_heuristic_seed(robot.native, problem, settings.to_native())
     nlp.solve_stage(robot, problem, x0, 1, settings)
     line = next(x for x in log.read_text().splitlines() if x.startswith("Number of nonzeros in Lagrangian Hessian"))
     nonzeros = int(line.rsplit(":", 1)[1])

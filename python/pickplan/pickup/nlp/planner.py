@@ -152,7 +152,7 @@ class PlannerSettings:
         for name, option in _OPTIONS.items():
             setattr(self, name, option.parse(getattr(self, name), name))
 
-    def native(self) -> "_core.PickupSettings":
+    def to_native(self) -> "_core.PickupSettings":
         return to_native(self, _core.PickupSettings, degrees=list(self.degrees),
                          ipopt_options=[(str(k), str(v)) for k, v in self.ipopt_options])
 
@@ -171,6 +171,9 @@ class StompSettings:
     limit_weight: float  # joint position / rate limit hinge costs
     margin: float  # m, obstacle clearance wanted
     seed: int
+
+    def to_native(self) -> "_core.StompSettings":
+        return to_native(self, _core.StompSettings)
 
 
 @dataclass
@@ -289,14 +292,14 @@ def plan(robot: Robot, problem, settings: PlannerSettings = PlannerSettings(),
     _check(problem, robot)
     x0 = np.zeros(0) if x0 is None else np.asarray(x0, dtype=float)
     if method is Method.single_shot:
-        return PickupPlan.from_native(_core.pickup_solve_single_shot(robot.native, problem, settings.native(), x0))
-    return PickupPlan.from_native(_core.pickup_solve_successive(robot.native, problem, settings.native(), x0))
+        return PickupPlan.from_native(_core.pickup_solve_single_shot(robot.native, problem, settings.to_native(), x0))
+    return PickupPlan.from_native(_core.pickup_solve_successive(robot.native, problem, settings.to_native(), x0))
 
 
 def solve_stage(robot: Robot, problem, x0, stage: int, settings: PlannerSettings = PlannerSettings()):
     """One stage (1..5, or 0 = all constraints) from the variable vector x0 (coefficients of the
     normalised-time polynomials, then T1/T, T2/T, T, S_g, S_c)."""
-    return _core.pickup_solve_stage(robot.native, problem, settings.native(), int(stage),
+    return _core.pickup_solve_stage(robot.native, problem, settings.to_native(), int(stage),
                                     np.asarray(x0, dtype=float))
 
 
@@ -305,7 +308,7 @@ def seed_from_times(robot: Robot, problem, T: float, T1: float, T2: float,
     """The heuristic seed with its times replaced; checks 0 <= T1 <= T2 <= T (ValueError)."""
     if not (np.isfinite([T, T1, T2]).all() and 0.0 <= T1 <= T2 <= T and T > 0):
         raise ValueError(f"inconsistent time ordering: expected 0 <= T1 <= T2 <= T, got T1={T1}, T2={T2}, T={T}")
-    x = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.native()))
+    x = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.to_native()))
     n = len(x) - 5
     x[n], x[n + 1], x[n + 2] = T1 / T, T2 / T, T
     return x
@@ -358,7 +361,7 @@ def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterati
             continue
         t = np.linspace(a, b, n)
         q, _, _ = result.sample(t)
-        st = to_native(StompSettings(iterations=int(iterations), seed=int(seed)), _core.StompSettings)
+        st = StompSettings(iterations=int(iterations), seed=int(seed)).to_native()
         info = _core.stomp_refine(robot.native, q, float(t[1] - t[0]), np.asarray(problem.arm_rate_limits),
                                   problem.body_spheres, problem.obstacles, st)
         out[name] = (t, np.array(info.q), info)

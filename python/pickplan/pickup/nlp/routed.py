@@ -126,7 +126,7 @@ def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTE
     """(label, x0) stage-1 seeds, one at a time (the caller checks its deadline between them): the
     native heuristic seed, then the route seeds, shortest first (their search stops at ``deadline``,
     a time.monotonic() instant)."""
-    template = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.native()))
+    template = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.to_native()))
     yield "heuristic", template
     if routes:
         geo = base_geometry(robot, problem, settings)
