@@ -226,14 +226,16 @@ class OMGPlanner:
         return self.plan_with_goals(start, target, grasps)[0]
 
     def plan_with_goals(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
-                        grasps: Optional[Union[np.ndarray, str]] = None) -> Tuple[PlanResult, Optional[GoalSet]]:
+                        grasps: Optional[Union[np.ndarray, str]] = None,
+                        dense: bool = True) -> Tuple[PlanResult, Optional[GoalSet]]:
         """``plan`` and the goal set it planned over (None when the target cannot be grasped at all):
-        what a replan starts from (``omg.replan``)."""
+        what a replan starts from (``omg.replan``). ``dense``: where the default grasps give no goal, try
+        the denser set (``OMGSettings.dense_grasp_count``; seconds, not what a real-time loop can wait for)."""
         s = self.settings
         clock = _clock(s)
         t = clock()
         world = self.world(target)
-        defaulted = grasps is None
+        densify = grasps is None and dense
         q0, grasps = self._prepare(world, start, grasps)
         # Scene preparation (SDFs, FCL models, grasp generation) is not planning: timed apart.
         timings = dict.fromkeys(("goal_set", "chomp", "costs", "selection", "isf", "metrics"), 0.0)
@@ -243,7 +245,7 @@ class OMGPlanner:
 
         t = clock()
         gs = build_goal_set(world, grasps, q0, s.goals, s.ik) if verdict.graspable else None
-        if gs is not None and len(gs) == 0 and defaulted:
+        if gs is not None and len(gs) == 0 and densify:
             gs = self._denser_goal_set(world, q0) or gs
         timings["goal_set"] = clock() - t
         if gs is None or len(gs) == 0:

@@ -88,7 +88,7 @@ class Replanner:
         world = self.world
         if hasattr(world, "expect_motion"):  # a perceived world moves no object (replans from a new start only)
             world.expect_motion(world.target)
-        result, goals = self.planner.plan_with_goals(start, grasps=self.grasps)
+        result, goals = self.planner.plan_with_goals(start, grasps=self.grasps, dense=False)  # in real time
         self._grasp_ids = np.arange(0 if goals is None else len(goals.grasps))
         self._remember(result, goals)
         return result
