@@ -63,7 +63,7 @@ template <typename T, typename... Options>
 class result_class : public py::class_<T, Options...> {
  public:
   result_class(py::handle scope, const char* name, const char* doc = "") : py::class_<T, Options...>(scope, name, doc) {
-    this->attr("_fields") = py::list();
+    this->attr("_fields") = py::tuple();
     this->def("to_dict", &result_to_dict, "The fields as a dict (nested results as dicts).");
     this->def("__repr__", &result_repr);
     this->def("__eq__", &result_equal);
@@ -84,7 +84,9 @@ class result_class : public py::class_<T, Options...> {
 
  private:
   result_class& add(const char* name) {
-    this->attr("_fields").attr("append")(name);
+    py::list names(this->attr("_fields"));
+    names.append(name);
+    this->attr("_fields") = py::tuple(names);
     return *this;
   }
 };
