@@ -40,11 +40,11 @@ def main():
                          metric_settings=chomp.MetricSettings(tail_waypoints=m))
         times.append(time.perf_counter() - t)
         tried += 1
-        ok += bool(res.metrics["success"])
-        free += bool(res.metrics["collision_free"])
-        print(f"scene {seed}: {'success' if res.metrics['success'] else 'failure'}, "
-              f"{'collision-free' if res.metrics['collision_free'] else 'in collision'}, clearance "
-              f"{res.metrics['min_clearance'] * 100:.1f} cm, smoothness {res.metrics['smoothness']:.1f}, "
+        ok += bool(res.metrics.success)
+        free += bool(res.metrics.collision_free)
+        print(f"scene {seed}: {'success' if res.metrics.success else 'failure'}, "
+              f"{'collision-free' if res.metrics.collision_free else 'in collision'}, clearance "
+              f"{res.metrics.min_clearance * 100:.1f} cm, smoothness {res.metrics.smoothness:.1f}, "
               f"{times[-1] * 1e3:.0f} ms", flush=True)
     print(f"CHOMP success {ok}/{tried}, collision-free {free}/{tried}; "
           f"median {np.median(times) * 1e3:.0f} ms per 100-iteration optimization")

@@ -97,7 +97,7 @@ def study_scene(scene, settings: omg.OMGSettings, policies, oracle: bool, kind: 
             "status": r.status, "success": bool(r.success), "goal_set": r.goal_set_size, "iterations": r.iterations,
             "switches": h["switches"], "grasp": r.grasp_index, "initial_grasp": h.get("initial_grasp", -1),
             "goals": [int(x) for x in h["goal"]],
-            "min_clearance": r.metrics.get("min_clearance"), "smoothness": r.metrics.get("smoothness"),
+            "min_clearance": getattr(r.metrics, "min_clearance", None), "smoothness": getattr(r.metrics, "smoothness", None),
             "costs": [np.round(c, 5).tolist() for c in h["costs"]] if p == "MD" else None,
             "reasons": r.goal_reasons if p == "Fixed" else None}
     if oracle:

@@ -81,9 +81,9 @@ def _record(robot, problem, spec, p, method, seed, cpu, wall) -> dict:
             "direct": stage(p.direct) if p.direct else None, "direct_chosen": bool(p.direct_chosen),
             "arm_seed_T": [None if np.isnan(t) else t for t in p.arm_seed_T],
             "failed_checks": [k for k, ok in sol.checks.items() if not ok],
-            "metrics": {k: sol.metrics[k] for k in ("pose_error_position", "pose_error_orientation",
+            "metrics": {k: getattr(sol.metrics, k) for k in ("pose_error_position", "pose_error_orientation",
                                                     "nonholonomic_mean", "min_clearance", "success_probability")}
-            if sol.metrics else None}
+            if sol.metrics is not None else None}
 
 
 def summarize(records: list, gamma: float) -> str:

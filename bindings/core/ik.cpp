@@ -1,24 +1,22 @@
 // The damped-least-squares IK (core/ik.hpp): settings, enums and the multi-start solver.
 #include "../common.hpp"
+#include "../convert.hpp"
+#include "../results.hpp"
 #include "pickplan/core/ik.hpp"
 
 namespace pickplan::bind {
 
 namespace {
 
-py::dict solution_dict(const IkSolution& s) {
-  py::dict d;
-  d["q"] = s.q;
-  d["converged"] = s.converged;
-  d["position_error"] = s.position_error;
-  d["rotation_error"] = s.rotation_error;
-  d["iterations"] = s.iterations;
-  return d;
-}
-
-Eigen::VectorXd configuration_vector(const Robot& robot, const Array& q, const char* what) {
-  const Array checked = configuration(robot, q, what);
-  return Eigen::Map<const Eigen::VectorXd>(checked.data(), checked.shape(0));
+// Solutions as arrays: (Q (N, dof), converged (N,)).
+py::tuple solution_arrays(const std::vector<IkSolution>& sols, int dof) {
+  Rows Q(sols.size(), dof);
+  std::vector<bool> ok;
+  for (std::size_t i = 0; i < sols.size(); ++i) {
+    Q.row(static_cast<long>(i)) = sols[i].q.transpose();
+    ok.push_back(sols[i].converged);
+  }
+  return py::make_tuple(rows_array(Q), mask_array(ok));
 }
 
 }  // namespace
@@ -58,6 +56,13 @@ void init_ik(py::module_& m) {
       .def_readwrite("limit_margin", &DlsSettings::limit_margin)
       .def_readwrite("weights", &DlsSettings::weights);
 
+  result_class<IkSolution>(m, "IkSolution", "One IK descent's end: q, whether it converged, its errors.")
+      .field("q", &IkSolution::q)
+      .field("converged", &IkSolution::converged)
+      .field("position_error", &IkSolution::position_error)
+      .field("rotation_error", &IkSolution::rotation_error)
+      .field("iterations", &IkSolution::iterations);
+
   py::class_<IkSettings, DlsSettings>(m, "IkSettings")
       .def(py::init<>())
       .def_readwrite("num_seeds", &IkSettings::num_seeds)
@@ -77,8 +82,8 @@ void init_ik(py::module_& m) {
           py::gil_scoped_release release;
           s = ik.solve(target, qs);
         }
-        return solution_dict(s);
-      }, py::arg("target"), py::arg("seed"), "One descent from seed: dict(q, converged, position_error, rotation_error, iterations).")
+        return s;
+      }, py::arg("target"), py::arg("seed"), "One descent from seed: an IkSolution.")
       .def("solve_path", [](const IkSolver& ik, const Array& P, const Array& seed) {
         const std::vector<Transform> targets = poses_arg(P, "target poses");
         const Eigen::VectorXd qs = configuration_vector(ik.robot(), seed, "seed");
@@ -87,14 +92,7 @@ void init_ik(py::module_& m) {
           py::gil_scoped_release release;
           sols = ik.solve_path(targets, qs);
         }
-        const py::ssize_t n = static_cast<py::ssize_t>(sols.size()), dof = ik.robot().dof();
-        py::array_t<double> Q({n, dof});
-        py::array_t<bool> ok(n);
-        for (py::ssize_t i = 0; i < n; ++i) {
-          Eigen::Map<Eigen::VectorXd>(Q.mutable_data() + i * dof, dof) = sols[i].q;
-          ok.mutable_data()[i] = sols[i].converged;
-        }
-        return py::make_tuple(Q, ok);
+        return solution_arrays(sols, ik.robot().dof());
       }, py::arg("targets"), py::arg("seed"),
          "One descent per pose, each from the previous solution: (Q (N, dof), converged (N,)).")
       .def("solve_all", [](const IkSolver& ik, const Array& T, const Array& start) {
@@ -105,27 +103,17 @@ void init_ik(py::module_& m) {
           py::gil_scoped_release release;
           sols = ik.solve_all(target, qs);
         }
-        py::list out;
-        for (const auto& s : sols) out.append(solution_dict(s));
-        return out;
-      }, py::arg("target"), py::arg("start"), "Every distinct converged solution, nearest to start first.")
+        return sols;
+      }, py::arg("target"), py::arg("start"), "Every distinct converged solution (IkSolution), nearest to start first.")
       .def("solve_batch", [](const IkSolver& ik, const Array& P, const Array& start) {
         const std::vector<Transform> targets = poses_arg(P, "target poses");
         const Eigen::VectorXd qs = configuration_vector(ik.robot(), start, "start");
-        const py::ssize_t n = static_cast<py::ssize_t>(targets.size()), dof = ik.robot().dof();
-        py::array_t<double> Q({n, dof});
-        py::array_t<bool> ok(n);
-        double* qp = Q.mutable_data();
-        bool* okp = ok.mutable_data();
+        std::vector<IkSolution> sols(targets.size());
         {
           py::gil_scoped_release release;
-          for (py::ssize_t i = 0; i < n; ++i) {
-            IkSolution s = ik.solve_any(targets[i], qs);
-            Eigen::Map<Eigen::VectorXd>(qp + i * dof, dof) = s.q;
-            okp[i] = s.converged;
-          }
+          for (std::size_t i = 0; i < targets.size(); ++i) sols[i] = ik.solve_any(targets[i], qs);
         }
-        return py::make_tuple(Q, ok);
+        return solution_arrays(sols, ik.robot().dof());
       }, py::arg("targets"), py::arg("start"), "First converged solution per pose: (Q (N, dof), converged (N,)).");
 }
 

@@ -1,4 +1,5 @@
 #include "../common.hpp"
+#include "../results.hpp"
 
 namespace pickplan::bind {
 
@@ -10,16 +11,6 @@ const char* joint_type_name(JointType t) {
     case JointType::Revolute: return "revolute";
     case JointType::Continuous: return "continuous";
     case JointType::Prismatic: return "prismatic";
-  }
-  return "?";
-}
-
-const char* geometry_kind_name(CollisionGeometry::Kind k) {
-  switch (k) {
-    case CollisionGeometry::Kind::Mesh: return "mesh";
-    case CollisionGeometry::Kind::Box: return "box";
-    case CollisionGeometry::Kind::Cylinder: return "cylinder";
-    case CollisionGeometry::Kind::Sphere: return "sphere";
   }
   return "?";
 }
@@ -113,25 +104,21 @@ py::array_t<double> transform_points(const Robot& robot, const Array& Q_in, cons
   return out;
 }
 
-py::list collision_geometries(const Robot& robot, const py::object& link) {
-  const int li = link_arg(robot, link);
-  py::list out;
-  for (const auto& g : robot.link(li).collisions) {
-    py::dict d;
-    d["kind"] = geometry_kind_name(g.kind);
-    d["mesh_path"] = g.mesh_path;
-    d["scale"] = std::vector<double>{g.scale.x(), g.scale.y(), g.scale.z()};
-    d["size"] = std::vector<double>{g.size.x(), g.size.y(), g.size.z()};
-    Eigen::Matrix<double, 4, 4, Eigen::RowMajor> M = g.origin.matrix();
-    d["origin"] = py::array_t<double>({4, 4}, M.data());
-    out.append(d);
-  }
-  return out;
-}
-
 }  // namespace
 
 void init_robot(py::module_& m) {
+  py::enum_<CollisionGeometry::Kind>(m, "GeometryKind")
+      .value("mesh", CollisionGeometry::Kind::Mesh)
+      .value("box", CollisionGeometry::Kind::Box)
+      .value("cylinder", CollisionGeometry::Kind::Cylinder)
+      .value("sphere", CollisionGeometry::Kind::Sphere);
+  result_class<CollisionGeometry>(m, "CollisionGeometry", "A link's URDF collision geometry (origin in the link frame).")
+      .field("kind", &CollisionGeometry::kind)
+      .field("mesh_path", &CollisionGeometry::mesh_path)
+      .field("scale", &CollisionGeometry::scale)
+      .field("size", &CollisionGeometry::size)
+      .computed("origin", [](const CollisionGeometry& g) { return Eigen::Matrix4d(g.origin.matrix()); });
+
   py::class_<Robot, std::shared_ptr<Robot>>(m, "Robot", "Immutable kinematic tree loaded from URDF.")
       .def_static("from_urdf_file", &Robot::from_urdf_file, py::arg("path"), py::arg("package_dirs") = std::vector<std::string>{},
                   py::call_guard<py::gil_scoped_release>())
@@ -175,7 +162,8 @@ void init_robot(py::module_& m) {
         return d;
       })
       .def("link_index", &Robot::link_index, py::arg("name"))
-      .def("collision_geometries", &collision_geometries, py::arg("link"))
+      .def("collision_geometries", [](const Robot& r, const py::object& link) { return r.link(link_arg(r, link)).collisions; },
+           py::arg("link"))
       .def("fk", &fk, py::arg("q"), "World pose (4x4) of every link: array (num_links, 4, 4).")
       .def("fk_batch", &fk_batch, py::arg("Q"), "Link poses for a batch (B, dof): array (B, num_links, 4, 4).")
       .def("jacobian", &jacobian, py::arg("q"), py::arg("link"), py::arg("point") = py::none(),

@@ -1,29 +1,12 @@
 // Bindings of the FCL collision checker (pickplan/collision.hpp).
 #include "../common.hpp"
+#include "../convert.hpp"
+#include "../results.hpp"
 #include "pickplan/geometry/collision.hpp"
 
 namespace pickplan::bind {
 
 namespace {
-
-TriangleMesh mesh_arg(const Array& V, const py::object& face_values, const std::string& what) {
-  require_shape((what + " vertices").c_str(), V, {-1, 3}, "(V, 3)");
-  const IntArray F = index_array((what + " faces").c_str(), face_values, kMaxIndex);
-  require_shape((what + " faces").c_str(), F, {-1, 3}, "(F, 3)");
-  TriangleMesh m;
-  m.vertices = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(V.data(), V.shape(0), 3);
-  m.faces = Eigen::Map<const Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>>(F.data(), F.shape(0), 3);
-  return m;
-}
-
-const char* kind_name(OtherKind k) {
-  switch (k) {
-    case OtherKind::Object: return "object";
-    case OtherKind::Table: return "table";
-    case OtherKind::Link: return "link";
-  }
-  return "?";
-}
 
 std::unique_ptr<CollisionChecker> make_checker(const Robot& robot, const py::list& link_meshes, const py::list& objects,
                                                const py::object& table_size, const py::object& table_pose,
@@ -67,11 +50,6 @@ std::unique_ptr<CollisionChecker> make_checker(const Robot& robot, const py::lis
   return std::make_unique<CollisionChecker>(robot, std::move(links), std::move(objs), table, settings);
 }
 
-Eigen::VectorXd q_arg(const CollisionChecker& c, const Array& q_in) {
-  Array q = configuration(c.robot(), q_in);
-  return Eigen::Map<const Eigen::VectorXd>(q.data(), q.shape(0));
-}
-
 }  // namespace
 
 void init_collision(py::module_& m) {
@@ -83,6 +61,18 @@ void init_collision(py::module_& m) {
       .def_readwrite("self_collision_reference", &CollisionSettings::self_collision_reference)
       .def_readwrite("margin", &CollisionSettings::margin)
       .def_readwrite("detect_containment", &CollisionSettings::detect_containment);
+
+  py::enum_<OtherKind>(m, "OtherKind", "What a robot link is near: an object, the table or another link.")
+      .value("object", OtherKind::Object)
+      .value("table", OtherKind::Table)
+      .value("link", OtherKind::Link);
+  result_class<ContactInfo>(m, "ContactInfo", "A link near (or in) something: signed distance and world points.")
+      .field("link", &ContactInfo::link)
+      .field("other", &ContactInfo::other)
+      .field("kind", &ContactInfo::kind)
+      .field("distance", &ContactInfo::distance)
+      .field("point_link", &ContactInfo::point_link)
+      .field("point_other", &ContactInfo::point_other);
 
   py::class_<CollisionShape, std::shared_ptr<CollisionShape>>(
       m, "CollisionShape", "A mesh with its FCL BVH, built once and shared by every checker that places it.")
@@ -111,14 +101,14 @@ void init_collision(py::module_& m) {
       .def_property_readonly("settings", &CollisionChecker::settings)
       .def("in_collision",
            [](const CollisionChecker& c, const Array& q) {
-             Eigen::VectorXd v = q_arg(c, q);
+             Eigen::VectorXd v = configuration_vector(c.robot(), q);
              py::gil_scoped_release release;
              return c.in_collision(v);
            },
            py::arg("q"))
       .def("min_distance",
            [](const CollisionChecker& c, const Array& q) {
-             Eigen::VectorXd v = q_arg(c, q);
+             Eigen::VectorXd v = configuration_vector(c.robot(), q);
              py::gil_scoped_release release;
              return c.min_distance(v);
            },
@@ -153,24 +143,13 @@ void init_collision(py::module_& m) {
            py::arg("Q"), py::arg("threads") = 1)
       .def("contacts",
            [](const CollisionChecker& c, const Array& q, double within) {
-             Eigen::VectorXd v = q_arg(c, q);
+             Eigen::VectorXd v = configuration_vector(c.robot(), q);
              std::vector<ContactInfo> found;
              {
                py::gil_scoped_release release;
                found = c.contacts(v, within);
              }
-             py::list out;
-             for (const auto& ci : found) {
-               py::dict d;
-               d["link"] = ci.link;
-               d["other"] = ci.other;
-               d["kind"] = kind_name(ci.kind);
-               d["distance"] = ci.distance;
-               d["point_link"] = Eigen::Vector3d(ci.point_link);
-               d["point_other"] = Eigen::Vector3d(ci.point_other);
-               out.append(d);
-             }
-             return out;
+             return found;
            },
            py::arg("q"), py::arg("within") = 0.0);
 }

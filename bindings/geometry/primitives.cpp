@@ -1,5 +1,6 @@
 // Bindings of the solid primitives (pickplan/geometry/primitives.hpp).
 #include "../common.hpp"
+#include "../convert.hpp"
 #include "pickplan/geometry/collision.hpp"
 #include "pickplan/geometry/primitives.hpp"
 #include "pickplan/geometry/sdf.hpp"
@@ -63,13 +64,7 @@ void init_primitives(py::module_& m) {
       .def_static(
           "convex",
           [](const Array& V, const py::object& F, const std::string& what) {
-            require_shape("convex vertices", V, {-1, 3}, "(V, 3)");
-            const IntArray faces = index_array("convex faces", F, kMaxIndex);
-            require_shape("convex faces", faces, {-1, 3}, "(F, 3)");
-            TriangleMesh m;
-            m.vertices = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(V.data(), V.shape(0), 3);
-            m.faces = Eigen::Map<const Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>>(faces.data(), faces.shape(0), 3);
-            return CollisionShape::convex(std::move(m), what);
+            return CollisionShape::convex(mesh_arg(V, F, "convex"), what);
           },
           py::arg("vertices"), py::arg("faces"), py::arg("what") = "convex",
           "A convex solid from a convex hull's vertices and faces (FCL's Convex).")

@@ -1,4 +1,6 @@
 #include "../common.hpp"
+#include "../convert.hpp"
+#include "../results.hpp"
 #include "pickplan/geometry/frame_clearance.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
@@ -17,7 +19,15 @@ std::uint64_t exclusion_mask(const SceneSdf& scene, const std::vector<int>& excl
   return mask;
 }
 
-Array points_arg(const Array& pts) {
+// A merged grid's size and settings when asked (bricks fill on first lookup: `filled` grows).
+struct MergedSdfInfo {
+  long bricks = 0, filled = 0, cells = 0;  // bricks: cells that may hold a brick
+  std::size_t bytes = 0;
+  double resolution = 0, cutoff = 0;
+  std::uint64_t exclude_mask = 0;
+};
+
+Array checked_points(const Array& pts) {
   require_shape("points", pts, {-1, 3}, "(N, 3)");
   require_finite_array("points", pts);
   return pts;
@@ -26,6 +36,18 @@ Array points_arg(const Array& pts) {
 }  // namespace
 
 void init_sdf(py::module_& m) {
+  result_class<SdfBuildReport>(m, "SdfBuildReport", "What building a grid from a mesh found: skipped faces, sign votes.")
+      .field("degenerate_faces", &SdfBuildReport::degenerate_faces)
+      .field("sign_disagreement", &SdfBuildReport::sign_disagreement);
+  result_class<MergedSdfInfo>(m, "MergedSdfInfo", "A merged grid's bricks, cells, bytes and settings.")
+      .field("bricks", &MergedSdfInfo::bricks)
+      .field("filled", &MergedSdfInfo::filled)
+      .field("cells", &MergedSdfInfo::cells)
+      .field("bytes", &MergedSdfInfo::bytes)
+      .field("resolution", &MergedSdfInfo::resolution)
+      .field("cutoff", &MergedSdfInfo::cutoff)
+      .field("exclude_mask", &MergedSdfInfo::exclude_mask);
+
   py::class_<SdfGrid, std::shared_ptr<SdfGrid>>(m, "SdfGrid", "Dense signed distance grid of one mesh (grid frame = mesh frame).")
       .def_static(
           "build",
@@ -42,10 +64,7 @@ void init_sdf(py::module_& m) {
               py::gil_scoped_release release;
               grid = std::make_shared<SdfGrid>(SdfGrid::build(Vm, Fm, {resolution, margin}, &report));
             }
-            py::dict info;
-            info["degenerate_faces"] = report.degenerate_faces;
-            info["sign_disagreement"] = report.sign_disagreement;
-            return py::make_tuple(grid, info);
+            return py::make_tuple(grid, report);
           },
           py::arg("vertices"), py::arg("faces"), py::arg("resolution") = 0.005, py::arg("margin") = 0.2,
           "Build from a triangle mesh; returns (grid, report).")
@@ -71,7 +90,7 @@ void init_sdf(py::module_& m) {
       .def(
           "distance",
           [](const SdfGrid& g, const Array& pts_in) {
-            Array pts = points_arg(pts_in);
+            Array pts = checked_points(pts_in);
             const py::ssize_t n = pts.shape(0);
             py::array_t<double> d(n), grad({n, py::ssize_t{3}});
             double* dp = d.mutable_data();
@@ -113,23 +132,16 @@ void init_sdf(py::module_& m) {
           "with that exclusion and a cutoff <= this one then take one lookup.")
       .def_property_readonly("merged_masks", &SceneSdf::merged_masks,
                              "Object exclusion masks with a merged grid, in the order they were merged.")
-      .def_property_readonly("merged_info", [](const SceneSdf& s) -> py::object {
+      .def_property_readonly("merged_info", [](const SceneSdf& s) -> std::optional<MergedSdfInfo> {
         const MergedSdf* m = s.merged();
-        if (!m) return py::none();
-        py::dict d;
-        d["bricks"] = m->num_bricks();  // cells that may hold a brick; bricks fill on first lookup
-        d["filled"] = m->num_filled();
-        d["cells"] = m->num_cells();
-        d["bytes"] = m->bytes();
-        d["resolution"] = m->settings().resolution;
-        d["cutoff"] = m->cutoff();
-        d["exclude_mask"] = m->exclude_mask();
-        return d;
+        if (!m) return std::nullopt;
+        return MergedSdfInfo{m->num_bricks(), m->num_filled(), m->num_cells(), m->bytes(), m->settings().resolution,
+                             m->cutoff(), m->exclude_mask()};
       })
       .def(
           "lower_bound",
           [](const SceneSdf& s, const Array& pts_in, const std::vector<int>& exclude, bool exclude_table) {
-            Array pts = points_arg(pts_in);
+            Array pts = checked_points(pts_in);
             const std::uint64_t mask = exclusion_mask(s, exclude, exclude_table);
             py::array_t<double> out(pts.shape(0));
             double* o = out.mutable_data();
@@ -147,7 +159,7 @@ void init_sdf(py::module_& m) {
           "distance",
           [](const SceneSdf& s, const Array& pts_in, double cutoff, const std::vector<int>& exclude, bool exclude_table,
              bool reference) {
-            Array pts = points_arg(pts_in);
+            Array pts = checked_points(pts_in);
             const std::uint64_t mask = exclusion_mask(s, exclude, exclude_table);
             const py::ssize_t n = pts.shape(0);
             py::array_t<double> d(n), grad({n, py::ssize_t{3}});
@@ -178,7 +190,7 @@ void init_sdf(py::module_& m) {
           [](const SceneSdf& s, const Array& frames, const Array& pts_in, bool inverse, double reach, double threshold,
              double cutoff, const std::vector<int>& exclude, bool exclude_table) {
             require_shape("frames", frames, {-1, 4, 4}, "(K, 4, 4)");
-            Array pts = points_arg(pts_in);
+            Array pts = checked_points(pts_in);
             FrameClearance settings;
             settings.inverse = inverse;
             settings.reach = reach;
@@ -192,9 +204,7 @@ void init_sdf(py::module_& m) {
               py::gil_scoped_release release;
               clear = clear_in_frames(F, P, s, settings);
             }
-            py::array_t<bool> out(static_cast<py::ssize_t>(clear.size()));
-            for (std::size_t k = 0; k < clear.size(); ++k) out.mutable_at(k) = clear[k] != 0;
-            return out;
+            return mask_array(clear);
           },
           py::arg("frames"), py::arg("points"), py::arg("inverse"), py::arg("reach"), py::arg("threshold"),
           py::arg("cutoff"), py::arg("exclude") = std::vector<int>{}, py::arg("exclude_table") = false,

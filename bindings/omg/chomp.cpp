@@ -1,4 +1,6 @@
 #include "../common.hpp"
+#include "../convert.hpp"
+#include "../results.hpp"
 #include "pickplan/omg/chomp.hpp"
 #include "pickplan/omg/metrics.hpp"
 #include "trajectory_results.hpp"
@@ -8,41 +10,39 @@ namespace pickplan::bind {
 namespace {
 
 Trajectory traj_arg(const ChompProblem& p, const Array& a, const char* what) {
-  const std::string desc = "(" + std::to_string(p.settings().n) + ", " + std::to_string(p.robot().dof()) + ")";
-  require_shape(what, a, {p.settings().n, p.robot().dof()}, desc.c_str());
-  require_finite_array(what, a);
-  return Eigen::Map<const Trajectory>(a.data(), a.shape(0), a.shape(1));
+  return configuration_rows(p.robot(), a, what, "n", p.settings().n);
 }
 
 Eigen::VectorXd q_arg(const ChompProblem& p, const Array& q) {
-  Array c = configuration(p.robot(), q, "start configuration");
-  return Eigen::Map<const Eigen::VectorXd>(c.data(), c.shape(0));
+  return configuration_vector(p.robot(), q, "start configuration");
 }
 
 Trajectory goal_arg(const ChompProblem& p, const Array& g) {
-  if (g.ndim() == 1) {
-    Array c = configuration(p.robot(), g, "goal");
-    return Eigen::Map<const Trajectory>(c.data(), 1, c.shape(0));
-  }
-  const std::string desc = "(m, " + std::to_string(p.robot().dof()) + ")";
-  require_shape("goal", g, {-1, p.robot().dof()}, desc.c_str());
-  require_finite_array("goal", g);
-  return Eigen::Map<const Trajectory>(g.data(), g.shape(0), g.shape(1));
-}
-
-py::dict terms_dict(const ObjectiveTerms& t) {
-  py::dict d;
-  d["obstacle"] = t.obstacle;
-  d["prior"] = t.prior;
-  d["total"] = t.total;
-  d["colliding_points"] = t.colliding_points;
-  return d;
+  if (g.ndim() == 1) return configuration_vector(p.robot(), g, "goal").transpose();
+  return configuration_rows(p.robot(), g, "goal", "m");
 }
 
 }  // namespace
 
 void init_chomp(py::module_& m) {
   py::enum_<ChompStatus>(m, "ChompStatus").value("ok", ChompStatus::ok);
+  result_class<ObjectiveTerms>(m, "ObjectiveTerms", "CHOMP objective terms: total = obstacle + lambda * prior.")
+      .field("obstacle", &ObjectiveTerms::obstacle)
+      .field("prior", &ObjectiveTerms::prior)
+      .field("total", &ObjectiveTerms::total)
+      .field("colliding_points", &ObjectiveTerms::colliding_points);
+  result_class<StepInfo>(m, "StepInfo", "One CHOMP step: the terms it started from, the goal error, limit projections.")
+      .field("before", &StepInfo::before)
+      .field("goal_error", &StepInfo::goal_error)
+      .field("limit_projections", &StepInfo::limit_projections);
+  result_class<ChompResult>(m, "ChompResult", "CHOMP iterations: the trajectory, objective history, final terms.")
+      .field("xi", &ChompResult::xi)
+      .field("objective", &ChompResult::objective)
+      .field("final_terms", &ChompResult::final_terms)
+      .field("iterations", &ChompResult::iterations)
+      .field("status", &ChompResult::status)
+      .field("seconds", &ChompResult::seconds);
+  bind_trajectory_metrics(m);
   py::class_<ChompSettings>(m, "ChompSettings")
       .def(py::init<>())
       .def_readwrite("n", &ChompSettings::n)
@@ -98,12 +98,12 @@ void init_chomp(py::module_& m) {
       .def("solve_A", [](const ChompProblem& p, const Array& v) {
         Trajectory V = traj_arg(p, v, "v"), out;
         p.solve_A(V, out);
-        return to_array(out);
+        return rows_array(out);
       })
       .def("prior", [](const ChompProblem& p, const Array& xi, const Array& q0) {
         Trajectory X = traj_arg(p, xi, "trajectory"), g;
         const double f = p.prior(X, q_arg(p, q0), &g);
-        return py::make_tuple(f, to_array(g));
+        return py::make_tuple(f, rows_array(g));
       }, py::arg("xi"), py::arg("q0"))
       .def("obstacle", [](const ChompProblem& p, const Array& xi, const Array& q0) {
         Trajectory X = traj_arg(p, xi, "trajectory"), g = Trajectory::Zero(X.rows(), X.cols());
@@ -114,7 +114,7 @@ void init_chomp(py::module_& m) {
           ChompWorkspace ws(p);
           t = p.obstacle(X, q, &g, ws);
         }
-        return py::make_tuple(terms_dict(t), to_array(g));
+        return py::make_tuple(t, rows_array(g));
       }, py::arg("xi"), py::arg("q0"), "f_obstacle over the top-k terms and its gradient.")
       .def("objective", [](const ChompProblem& p, const Array& xi, const Array& q0, int iteration) {
         Trajectory X = traj_arg(p, xi, "trajectory"), g;
@@ -125,7 +125,7 @@ void init_chomp(py::module_& m) {
           ChompWorkspace ws(p);
           t = p.objective(X, q, iteration, &g, ws);
         }
-        return py::make_tuple(terms_dict(t), to_array(g));
+        return py::make_tuple(t, rows_array(g));
       }, py::arg("xi"), py::arg("q0"), py::arg("iteration") = 0)
       .def("step", [](const ChompProblem& p, const Array& xi, const Array& q0, const py::object& goal, int iteration,
                       ChompWorkspace* ws) {
@@ -141,11 +141,7 @@ void init_chomp(py::module_& m) {
           if (!ws) ws = (own = std::make_unique<ChompWorkspace>(p)).get();
           info = p.step(X, q, has_goal ? &G : nullptr, iteration, *ws);
         }
-        py::dict d;
-        d["before"] = terms_dict(info.before);
-        d["goal_error"] = info.goal_error;
-        d["limit_projections"] = info.limit_projections;
-        return py::make_tuple(to_array(X), d);
+        return py::make_tuple(rows_array(X), info);
       }, py::arg("xi"), py::arg("q0"), py::arg("goal") = py::none(), py::arg("iteration") = 0,
          py::arg("workspace") = nullptr, "One CHOMP (goal=None: fixed end) or CHOMP-Proj step; returns (xi, info).")
       .def("optimize", [](const ChompProblem& p, const Array& xi, const Array& q0, const Array& goal, int iterations) {
@@ -158,23 +154,13 @@ void init_chomp(py::module_& m) {
           py::gil_scoped_release release;
           r = p.optimize(X, q, G, iterations);
         }
-        py::dict d;
-        d["xi"] = to_array(r.xi);
-        d["objective"] = r.objective;
-        d["final"] = terms_dict(r.final_terms);
-        d["iterations"] = r.iterations;
-        d["status"] = r.status;
-        d["seconds"] = r.seconds;
-        return d;
+        return r;
       }, py::arg("xi"), py::arg("q0"), py::arg("goal"), py::arg("iterations"))
       .def("goal_costs", [](const ChompProblem& p, const Array& xi, const Array& q0, int iteration, int horizon,
                             const Array& goals, int time_stride, int point_stride, ChompWorkspace* ws) {
         Trajectory X = traj_arg(p, xi, "trajectory");
         Eigen::VectorXd q = q_arg(p, q0);
-        const std::string desc = "(G, " + std::to_string(p.robot().dof()) + ")";
-        require_shape("goals", goals, {-1, p.robot().dof()}, desc.c_str());
-        require_finite_array("goals", goals);
-        Trajectory G = Eigen::Map<const Trajectory>(goals.data(), goals.shape(0), goals.shape(1));
+        Trajectory G = configuration_rows(p.robot(), goals, "goals", "G");
         py::array_t<double> out(G.rows());
         double* o = out.mutable_data();
         {
@@ -195,13 +181,13 @@ void init_chomp(py::module_& m) {
           py::gil_scoped_release release;
           mt = evaluate_trajectory(p, q, X, s);
         }
-        return metrics_dict(mt);
+        return mt;
       }, py::arg("xi"), py::arg("q0"), py::arg("settings"));
 
   m.def("interpolate", [](const Array& q0, const Array& xi, int steps) {
     require_shape("trajectory", xi, {-1, q0.shape(0)}, "(n, dof)");
     Eigen::VectorXd q = Eigen::Map<const Eigen::VectorXd>(q0.data(), q0.shape(0));
-    return to_array(interpolate(q, Eigen::Map<const Trajectory>(xi.data(), xi.shape(0), xi.shape(1)), steps));
+    return rows_array(interpolate(q, Eigen::Map<const Trajectory>(xi.data(), xi.shape(0), xi.shape(1)), steps));
   }, py::arg("q0"), py::arg("xi"), py::arg("steps"));
 }
 

@@ -1,4 +1,6 @@
 #include "../common.hpp"
+#include "../convert.hpp"
+#include "../results.hpp"
 #include "pickplan/omg/goal_set.hpp"
 #include "pickplan/omg/metrics.hpp"
 
@@ -6,11 +8,11 @@ namespace pickplan::bind {
 
 namespace {
 
-py::array_t<double> traj_array(const Trajectory& t) {
-  py::array_t<double> out({t.rows(), t.cols()});
-  Eigen::Map<Trajectory>(out.mutable_data(), t.rows(), t.cols()) = t;
-  return out;
-}
+// What build_goal_set returns: the goal set and its tails' shape (known without any goal).
+struct GoalSetResult {
+  GoalSet set;
+  py::ssize_t tail_rows = 0, dof = 0;
+};
 
 }  // namespace
 
@@ -26,17 +28,28 @@ void init_goal_set(py::module_& m) {
       .def_readwrite("seed", &GoalSetSettings::seed)
       .def_readwrite("approach", &GoalSetSettings::approach);
 
+  py::enum_<GoalReason> reason(m, "GoalReason", "Why an input grasp did or did not become a goal.");
+  for (GoalReason r : {GoalReason::ok, GoalReason::unreachable, GoalReason::in_collision, GoalReason::standoff_unreachable,
+                       GoalReason::standoff_in_collision, GoalReason::approach_clearance, GoalReason::pregrasp_clearance,
+                       GoalReason::duplicate, GoalReason::over_cap})
+    reason.value(to_string(r), r);
+
+  result_class<GoalSetResult>(m, "GoalSetResult", "IK goals with their approach tails, per input grasp a reason.")
+      .computed("goals", [](const GoalSetResult& r) -> const Trajectory& { return r.set.goals; })
+      .computed("tails", [](const GoalSetResult& r) { return stacked_array(r.set.tails, r.tail_rows, r.dof); })
+      .computed("grasp_index", [](const GoalSetResult& r) { return r.set.grasp_index; })
+      .computed("reasons", [](const GoalSetResult& r) { return r.set.reasons; })
+      .computed("seconds", [](const GoalSetResult& r) { return r.set.seconds; });
+
   m.def("build_goal_set", [](const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
                              const Array& hand_poses,
                              const Array& start, const GoalSetSettings& s, const ChompProblem* problem,
                              double clearance, const py::object& seeds, double pregrasp_clearance) {
     std::vector<Transform> poses = poses_arg(hand_poses, "grasps");
-    Array q = configuration(ik.robot(), start, "start");
-    Eigen::VectorXd qs = Eigen::Map<const Eigen::VectorXd>(q.data(), q.shape(0));
+    const Eigen::VectorXd qs = configuration_vector(ik.robot(), start, "start");
     Trajectory seed_rows;
     if (!seeds.is_none()) {
-      Array Q = configurations(ik.robot(), seeds.cast<Array>(), "seeds");
-      seed_rows = Eigen::Map<const Trajectory>(Q.data(), Q.shape(0), Q.shape(1));
+      seed_rows = configuration_rows(ik.robot(), seeds.cast<Array>(), "seeds", "B");
       if (seed_rows.rows() != static_cast<long>(poses.size()))
         throw py::value_error("seeds: expected one configuration per grasp (" + std::to_string(poses.size()) +
                               "), got " + std::to_string(seed_rows.rows()));
@@ -58,19 +71,7 @@ void init_goal_set(py::module_& m) {
       const auto ok = keeps(clearance), pre = keeps(pregrasp_clearance);
       gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok, seeds.is_none() ? nullptr : &seed_rows, pre);
     }
-    py::dict d;
-    d["goals"] = traj_array(gs.goals);
-    const py::ssize_t G = gs.goals.rows(), m = s.standoff_steps + 1, dof = ik.robot().dof();
-    py::array_t<double> tails({G, m, dof});
-    for (py::ssize_t g = 0; g < G; ++g)
-      Eigen::Map<Trajectory>(tails.mutable_data() + g * m * dof, m, dof) = gs.tails[g];
-    d["tails"] = tails;
-    d["grasp_index"] = gs.grasp_index;
-    std::vector<std::string> reasons;  // their text forms: what plan files and Python read
-    for (GoalReason r : gs.reasons) reasons.emplace_back(to_string(r));
-    d["reasons"] = reasons;
-    d["seconds"] = gs.seconds;
-    return d;
+    return GoalSetResult{std::move(gs), s.standoff_steps + 1, ik.robot().dof()};
   }, py::arg("ik"), py::arg("checker"), py::arg("hand_checker"), py::arg("hand_poses"), py::arg("start"),
      py::arg("settings") = GoalSetSettings(), py::arg("clearance_problem") = nullptr,
      py::arg("approach_clearance") = 0.0, py::arg("seeds") = py::none(), py::arg("pregrasp_clearance") = 0.0);

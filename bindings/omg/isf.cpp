@@ -1,36 +1,10 @@
 #include "../common.hpp"
+#include "../convert.hpp"
+#include "../results.hpp"
 #include "pickplan/omg/isf.hpp"
 #include "refiner_holder.hpp"
 
 namespace pickplan::bind {
-
-namespace {
-
-Vertices points3(const Array& a, const char* what) {
-  require_shape(what, a, {-1, 3}, "(N, 3)");
-  require_finite_array(what, a);
-  return Eigen::Map<const Vertices>(a.data(), a.shape(0), 3);
-}
-
-py::dict terms_dict(const GraspTerms& t) {
-  py::dict d;
-  d["pml"] = t.pml;
-  d["align"] = t.align;
-  d["isf"] = t.isf;
-  d["hand"] = t.hand;
-  d["obstacle"] = t.obstacle;
-  d["collision"] = t.collision;
-  d["total"] = t.total;
-  d["matched"] = t.matched;
-  return d;
-}
-
-Eigen::VectorXd q_of(const GraspRefiner& r, const Robot& robot, const Array& q) {
-  Array c = configuration(robot, q);
-  return Eigen::Map<const Eigen::VectorXd>(c.data(), c.shape(0));
-}
-
-}  // namespace
 
 void init_isf(py::module_& m) {
   py::class_<IsfSettings>(m, "IsfSettings")
@@ -45,6 +19,15 @@ void init_isf(py::module_& m) {
       .def_readwrite("arm_epsilon", &IsfSettings::arm_epsilon)
       .def_readwrite("max_joint_step", &IsfSettings::max_joint_step)
       .def_readwrite("active", &IsfSettings::active);
+  result_class<GraspTerms>(m, "GraspTerms", "f_grasp's terms (eq. 10) and the contacts matched.")
+      .field("pml", &GraspTerms::pml)
+      .field("align", &GraspTerms::align)
+      .field("isf", &GraspTerms::isf)
+      .field("hand", &GraspTerms::hand)
+      .field("obstacle", &GraspTerms::obstacle)
+      .field("collision", &GraspTerms::collision)
+      .field("total", &GraspTerms::total)
+      .field("matched", &GraspTerms::matched);
 
   using Holder = RefinerHolder;
   py::class_<Holder>(m, "GraspRefiner", "C-Space ISF (Algorithm 1) for one target object in one scene.")
@@ -53,7 +36,7 @@ void init_isf(py::module_& m) {
                        const Array& object_normals, std::shared_ptr<SceneSdf> scene, const py::object& body_link_values,
                        const Array& body_points, std::uint64_t exclude_mask, const IsfSettings& settings) {
              BodyPoints body;
-             body.points = points3(body_points, "body points");
+             body.points = points_arg(body_points, "body points");
              if (!robot) throw std::invalid_argument("robot: expected a Robot, got None");
              const IntArray body_links = index_array("body_links", body_link_values, robot->num_links());
              if (body_links.ndim() != 1 || body_links.shape(0) != body_points.shape(0))
@@ -61,8 +44,8 @@ void init_isf(py::module_& m) {
              body.link.assign(body_links.data(), body_links.data() + body_links.shape(0));
              const int hand = link_arg(*robot, hand_link);
              auto refiner = std::make_shared<GraspRefiner>(
-                 robot, hand, points3(contacts, "contact points"), points3(normals, "contact normals"), hand_sdf,
-                 points3(object_points, "object points"), points3(object_normals, "object normals"), scene,
+                 robot, hand, points_arg(contacts, "contact points"), points_arg(normals, "contact normals"), hand_sdf,
+                 points_arg(object_points, "object points"), points_arg(object_normals, "object normals"), scene,
                  std::move(body), exclude_mask, settings);
              return Holder{robot, refiner};
            }),
@@ -70,25 +53,25 @@ void init_isf(py::module_& m) {
            py::arg("object_points"), py::arg("object_normals"), py::arg("scene"), py::arg("body_links"),
            py::arg("body_points"), py::arg("exclude_mask"), py::arg("settings"))
       .def("cost", [](const Holder& h, const Array& q) {
-        Eigen::VectorXd qq = q_of(*h.refiner, *h.robot, q), g;
+        Eigen::VectorXd qq = configuration_vector(*h.robot, q), g;
         GraspTerms t;
         {
           py::gil_scoped_release release;
           t = h.refiner->cost(qq, &g);
         }
-        return py::make_tuple(terms_dict(t), g);
+        return py::make_tuple(t, g);
       }, py::arg("q"), "f_grasp terms and the gradient with respect to q.")
       .def("with_object", [](const Holder& h, const Array& object_points, const Array& object_normals,
                              const Array& motion) {
-        return Holder{h.robot, h.refiner->with_object(points3(object_points, "object points"),
-                                                      points3(object_normals, "object normals"),
+        return Holder{h.robot, h.refiner->with_object(points_arg(object_points, "object points"),
+                                                      points_arg(object_normals, "object normals"),
                                                       pose_arg(motion, "motion"))};
       }, py::arg("object_points"), py::arg("object_normals"), py::arg("motion"),
          "This refiner for the target's surface samples (world) at another place: the target moved by the "
          "4x4 rigid `motion` (this refiner's points onto the new ones); its k-d tree is shared.")
       .def("set_support", [](Holder& h, const Array& finger_vertices, const Array& normal, double offset) {
         SupportPlane support;
-        support.finger_vertices = points3(finger_vertices, "finger vertices");
+        support.finger_vertices = points_arg(finger_vertices, "finger vertices");
         require_shape("normal", normal, {3}, "(3,)");
         require_finite_array("normal", normal);
         support.normal = Eigen::Map<const Eigen::Vector3d>(normal.data());
@@ -97,17 +80,17 @@ void init_isf(py::module_& m) {
       }, py::arg("finger_vertices"), py::arg("normal"), py::arg("offset"),
          "The support plane ISF steps may not press the fingers deeper into (vertices in the hand frame).")
       .def("support_depth", [](const Holder& h, const Array& q) {
-        return h.refiner->support_depth(q_of(*h.refiner, *h.robot, q));
+        return h.refiner->support_depth(configuration_vector(*h.robot, q));
       }, py::arg("q"), "How far the fingers reach below the support plane at q (m; -inf without one).")
       .def("refine", [](const Holder& h, const Array& q, int iterations) {
         if (iterations < 0) throw std::invalid_argument("iterations must be >= 0");
-        Eigen::VectorXd qq = q_of(*h.refiner, *h.robot, q), out;
+        Eigen::VectorXd qq = configuration_vector(*h.robot, q), out;
         GraspTerms t;
         {
           py::gil_scoped_release release;
           out = h.refiner->refine(qq, iterations, &t);
         }
-        return py::make_tuple(out, terms_dict(t));
+        return py::make_tuple(out, t);
       }, py::arg("q"), py::arg("iterations") = 1, "Algorithm 1 steps; returns (q, terms at q).");
 }
 

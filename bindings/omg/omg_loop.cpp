@@ -1,55 +1,11 @@
 // Native goal selection policies and the Algorithm 2 loop (run with the GIL released).
 #include "../common.hpp"
+#include "../convert.hpp"
 #include "pickplan/omg/omg_loop.hpp"
 #include "refiner_holder.hpp"
 #include "trajectory_results.hpp"
 
 namespace pickplan::bind {
-
-namespace {
-
-Eigen::VectorXd vector_arg(const Array& a, const char* what) {
-  if (a.ndim() != 1) throw std::invalid_argument(std::string(what) + ": expected a 1-D array, got shape " + shape_str(a));
-  return Eigen::Map<const Eigen::VectorXd>(a.data(), a.shape(0));
-}
-
-py::array_t<double> vec(const Eigen::VectorXd& v) {
-  py::array_t<double> out(v.size());
-  std::copy(v.data(), v.data() + v.size(), out.mutable_data());
-  return out;
-}
-
-py::dict result_dict(const OmgLoopResult& r) {
-  py::dict d;
-  d["xi"] = to_array(r.xi);
-  d["goal"] = r.goal;
-  d["iterations"] = r.iterations;
-  d["metrics"] = metrics_dict(r.metrics);
-  d["grasp_cost"] = r.grasp_cost;
-  d["grasp_index"] = r.grasp_index;
-  d["goal_source"] = r.goal_source;
-  d["goal_set_size"] = r.goal_set_size;
-  d["refined"] = r.refined;
-  d["objective"] = r.objective;
-  d["goals_chosen"] = r.goals_chosen;
-  py::list p, costs;
-  for (const auto& v : r.p) p.append(vec(v));
-  for (const auto& v : r.costs) costs.append(vec(v));
-  d["p"] = p;
-  d["costs"] = costs;
-  d["switches"] = r.switches;
-  d["initial_grasp"] = r.initial_grasp;
-  py::dict s;
-  s["chomp"] = r.seconds.chomp;
-  s["costs"] = r.seconds.costs;
-  s["selection"] = r.seconds.selection;
-  s["isf"] = r.seconds.isf;
-  s["metrics"] = r.seconds.metrics;
-  d["seconds"] = s;
-  return d;
-}
-
-}  // namespace
 
 void init_omg_loop(py::module_& m) {
   py::enum_<SelectionKind>(m, "SelectionKind")
@@ -61,6 +17,29 @@ void init_omg_loop(py::module_& m) {
       .value("MD", SelectionKind::MD);
   py::enum_<CostKind>(m, "CostKind").value("objective", CostKind::objective).value("distance", CostKind::distance);
   py::enum_<StageClock>(m, "StageClock").value("wall", StageClock::wall).value("thread_cpu", StageClock::thread_cpu);
+  result_class<OmgStageSeconds>(m, "OmgStageSeconds", "Seconds the OMG loop spent in each stage.")
+      .field("chomp", &OmgStageSeconds::chomp)
+      .field("costs", &OmgStageSeconds::costs)
+      .field("selection", &OmgStageSeconds::selection)
+      .field("isf", &OmgStageSeconds::isf)
+      .field("metrics", &OmgStageSeconds::metrics);
+  result_class<OmgLoopResult>(m, "OmgLoopResult", "Algorithm 2's plan, its metrics and the per-iteration history.")
+      .field("xi", &OmgLoopResult::xi)
+      .field("goal", &OmgLoopResult::goal)
+      .field("iterations", &OmgLoopResult::iterations)
+      .field("metrics", &OmgLoopResult::metrics)
+      .field("grasp_cost", &OmgLoopResult::grasp_cost)
+      .field("grasp_index", &OmgLoopResult::grasp_index)
+      .field("goal_source", &OmgLoopResult::goal_source)
+      .field("goal_set_size", &OmgLoopResult::goal_set_size)
+      .field("refined", &OmgLoopResult::refined)
+      .field("objective", &OmgLoopResult::objective)
+      .field("goals_chosen", &OmgLoopResult::goals_chosen)
+      .field("p", &OmgLoopResult::p)
+      .field("costs", &OmgLoopResult::costs)
+      .field("switches", &OmgLoopResult::switches)
+      .field("initial_grasp", &OmgLoopResult::initial_grasp)
+      .field("seconds", &OmgLoopResult::seconds);
 
   py::class_<SelectionSettings>(m, "SelectionSettings")
       .def(py::init<>())
@@ -79,10 +58,10 @@ void init_omg_loop(py::module_& m) {
         s.reset(num_goals, horizon, &c);
       }, py::arg("num_goals"), py::arg("horizon"), py::arg("initial_costs") = py::none())
       .def("add_goal", &SelectionPolicy::add_goal)
-      .def("update", [](SelectionPolicy& s, const Array& c) { return vec(s.update(vector_arg(c, "costs"))); },
+      .def("update", [](SelectionPolicy& s, const Array& c) { return s.update(vector_arg(c, "costs")); },
            py::arg("costs"))
       .def("select", &SelectionPolicy::select)
-      .def_property_readonly("p", [](const SelectionPolicy& s) { return vec(s.p()); })
+      .def_property_readonly("p", [](const SelectionPolicy& s) { return s.p(); })
       .def("regret", &SelectionPolicy::regret);
 
   py::class_<OmgLoopSettings>(m, "OmgLoopSettings")
@@ -103,28 +82,18 @@ void init_omg_loop(py::module_& m) {
                            const Array& q0, const Array& goals, const Array& tails, const py::object& grasp_index,
                            const Array& blend, const OmgLoopSettings& settings, const py::object& initial,
                            int initial_goal, const py::object& initial_costs) {
-    const int dof = problem.robot().dof();
     const int hand = link_arg(problem.robot(), hand_link);
-    Array q = configuration(problem.robot(), q0, "start configuration");
-    const std::string gdesc = "(G, " + std::to_string(dof) + ")", tdesc = "(G, m, " + std::to_string(dof) + ")";
-    require_shape("goals", goals, {-1, dof}, gdesc.c_str());
-    require_shape("tails", tails, {goals.shape(0), -1, dof}, tdesc.c_str());
-    require_finite_array("goals", goals);
-    require_finite_array("tails", tails);
+    const Trajectory G = configuration_rows(problem.robot(), goals, "goals", "G");
+    const std::vector<Trajectory> T = configuration_blocks(problem.robot(), tails, "tails", goals.shape(0));
     const IntArray index = index_array("grasp_index", grasp_index, std::numeric_limits<int>::max());
     if (index.ndim() != 1 || index.shape(0) != goals.shape(0))
       throw std::invalid_argument("grasp_index: expected one entry per goal, got shape " + shape_str(index));
-    const Trajectory G = Eigen::Map<const Trajectory>(goals.data(), goals.shape(0), dof);
-    std::vector<Trajectory> T;
-    const long m_rows = tails.shape(1);
-    for (long g = 0; g < goals.shape(0); ++g)
-      T.push_back(Eigen::Map<const Trajectory>(tails.data() + g * m_rows * dof, m_rows, dof));
     const std::vector<int> gi(index.data(), index.data() + index.shape(0));
-    const Eigen::VectorXd q0v = Eigen::Map<const Eigen::VectorXd>(q.data(), dof), b = vector_arg(blend, "blend");
+    const Eigen::VectorXd q0v = configuration_vector(problem.robot(), q0, "start configuration");
+    const Eigen::VectorXd b = vector_arg(blend, "blend");
     WarmStart warm;
     if (!initial.is_none()) {
-      const Array Q = configurations(problem.robot(), initial.cast<Array>(), "initial");
-      warm.initial = Eigen::Map<const Trajectory>(Q.data(), Q.shape(0), dof);
+      warm.initial = configuration_rows(problem.robot(), initial.cast<Array>(), "initial", "B");
       warm.initial_goal = initial_goal;
       if (!initial_costs.is_none()) warm.initial_costs = vector_arg(initial_costs.cast<Array>(), "initial_costs");
     } else if (initial_goal != -1 || !initial_costs.is_none()) {
@@ -136,7 +105,7 @@ void init_omg_loop(py::module_& m) {
       r = run_omg_loop(problem, refiner ? refiner->refiner.get() : nullptr, hand, q0v, G, T, gi, b, settings,
                        initial.is_none() ? nullptr : &warm);
     }
-    return result_dict(r);
+    return r;
   }, py::arg("problem"), py::arg("refiner"), py::arg("hand_link"), py::arg("q0"), py::arg("goals"), py::arg("tails"),
      py::arg("grasp_index"), py::arg("blend"), py::arg("settings"), py::arg("initial") = py::none(),
      py::arg("initial_goal") = -1, py::arg("initial_costs") = py::none(),

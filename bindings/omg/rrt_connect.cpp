@@ -1,5 +1,7 @@
 // Bindings of RRT-Connect and the motion check (pickplan/omg/rrt_connect.hpp).
 #include "../common.hpp"
+#include "../convert.hpp"
+#include "../results.hpp"
 #include "pickplan/omg/rrt_connect.hpp"
 
 namespace pickplan::bind {
@@ -7,11 +9,7 @@ namespace pickplan::bind {
 namespace {
 
 Trajectory path_arg(const MotionPlanner& p, const Array& a, const char* what) {
-  const int dof = p.checker().robot().dof();
-  const std::string desc = "(k, " + std::to_string(dof) + ")";
-  require_shape(what, a, {-1, dof}, desc.c_str());
-  require_finite_array(what, a);
-  return Eigen::Map<const Trajectory>(a.data(), a.shape(0), a.shape(1));
+  return configuration_rows(p.checker().robot(), a, what, "k");
 }
 
 }  // namespace
@@ -23,6 +21,14 @@ void init_rrt_connect(py::module_& m) {
       .value("iterations", RrtStatus::iterations)
       .value("invalid_start", RrtStatus::invalid_start)
       .value("invalid_goals", RrtStatus::invalid_goals);
+  result_class<RrtResult>(m, "RrtResult", "RRT-Connect's path (start ... goal rows, when solved) and its effort.")
+      .field("status", &RrtResult::status)
+      .field("path", &RrtResult::path)
+      .field("goal", &RrtResult::goal)
+      .field("iterations", &RrtResult::iterations)
+      .field("checks", &RrtResult::checks)
+      .field("nodes", &RrtResult::nodes)
+      .field("seconds", &RrtResult::seconds);
   py::class_<RrtSettings>(m, "RrtSettings")
       .def(py::init<>())
       .def_readwrite("range", &RrtSettings::range)
@@ -40,25 +46,16 @@ void init_rrt_connect(py::module_& m) {
       .def(
           "rrt_connect",
           [](const MotionPlanner& p, const Array& start, const Array& goals) {
-            Array s = configuration(p.checker().robot(), start, "start");
-            const Eigen::VectorXd q0 = Eigen::Map<const Eigen::VectorXd>(s.data(), s.shape(0));
+            const Eigen::VectorXd q0 = configuration_vector(p.checker().robot(), start, "start");
             const Trajectory G = path_arg(p, goals, "goals");
             RrtResult r;
             {
               py::gil_scoped_release release;
               r = p.rrt_connect(q0, G);
             }
-            py::dict d;
-            d["status"] = r.status;
-            d["path"] = r.path;
-            d["goal"] = r.goal;
-            d["iterations"] = r.iterations;
-            d["checks"] = r.checks;
-            d["nodes"] = r.nodes;
-            d["seconds"] = r.seconds;
-            return d;
+            return r;
           },
-          py::arg("start"), py::arg("goals"), "RRT-Connect from start to any row of goals: a dict (status, path, ...).")
+          py::arg("start"), py::arg("goals"), "RRT-Connect from start to any row of goals: an RrtResult.")
       .def(
           "shortcut",
           [](const MotionPlanner& p, const Array& path, int attempts, std::uint64_t seed, double min_gain) {

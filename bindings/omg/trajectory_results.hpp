@@ -1,26 +1,20 @@
 #pragma once
-// Trajectories and the paper's metrics as Python values: shared by the CHOMP and OMG-loop bindings.
-#include "../common.hpp"
-#include "pickplan/omg/chomp.hpp"
+// The paper's trajectory metrics as a Python class: bound with CHOMP, returned by the OMG loop too.
+#include "../results.hpp"
 #include "pickplan/omg/metrics.hpp"
 
 namespace pickplan::bind {
 
-inline py::array_t<double> to_array(const Trajectory& t) {
-  py::array_t<double> out({t.rows(), t.cols()});
-  Eigen::Map<Trajectory>(out.mutable_data(), t.rows(), t.cols()) = t;
-  return out;
-}
-
-inline py::dict metrics_dict(const TrajectoryMetrics& mt) {
-  py::dict d;
-  d["smoothness"] = mt.smoothness;
-  d["collision"] = mt.collision;
-  d["min_clearance"] = mt.min_clearance;
-  d["min_table_clearance"] = mt.min_table_clearance;
-  d["collision_free"] = mt.collision_free;
-  d["success"] = mt.success;
-  return d;
+inline void bind_trajectory_metrics(py::module_& m) {
+  result_class<TrajectoryMetrics>(m, "TrajectoryMetrics", "The success test's measures of a trajectory (Sec. IV-A).")
+      .field("smoothness", &TrajectoryMetrics::smoothness)
+      .field("collision", &TrajectoryMetrics::collision)
+      .field("min_clearance", &TrajectoryMetrics::min_clearance)
+      .field("min_table_clearance", &TrajectoryMetrics::min_table_clearance)
+      .field("collision_free", &TrajectoryMetrics::collision_free)
+      .field("success", &TrajectoryMetrics::success);
+  m.def("marked_in_collision", &marked_in_collision, py::arg("metrics"),
+        "The metrics of a trajectory an exact check found in collision: neither collision-free nor a success.");
 }
 
 }  // namespace pickplan::bind

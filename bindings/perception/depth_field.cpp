@@ -1,5 +1,6 @@
 // Bindings of the depth-image world model (pickplan/perception/depth_field.hpp).
 #include "../common.hpp"
+#include "../results.hpp"
 #include "pickplan/perception/depth_field.hpp"
 
 namespace pickplan::bind {
@@ -41,6 +42,13 @@ void init_perception(py::module_& m) {
       .def_readwrite("plane_offset", &DepthFieldSettings::plane_offset)
       .def_readwrite("plane_margin", &DepthFieldSettings::plane_margin)
       .def_readwrite("target_stride", &DepthFieldSettings::target_stride);
+  result_class<DepthField>(m, "DepthField", "Fused depth views: the obstacles' grid, the target's points, voxel counts.")
+      .computed("obstacles", [](const DepthField& f) { return std::const_pointer_cast<SdfGrid>(f.obstacles); })
+      .field("target_points", &DepthField::target_points)
+      .field("target_normals", &DepthField::target_normals)
+      .field("occupied", &DepthField::occupied)
+      .field("target", &DepthField::target)
+      .field("free", &DepthField::free);
 
   m.def(
       "build_depth_field",
@@ -57,14 +65,7 @@ void init_perception(py::module_& m) {
           py::gil_scoped_release release;
           f = build_depth_field(views, settings);
         }
-        py::dict out;
-        out["obstacles"] = std::const_pointer_cast<SdfGrid>(f.obstacles);
-        out["target_points"] = f.target_points;
-        out["target_normals"] = f.target_normals;
-        out["occupied"] = f.occupied;
-        out["target"] = f.target;
-        out["free"] = f.free;
-        return out;
+        return f;
       },
       py::arg("depths"), py::arg("K"), py::arg("camera_poses"), py::arg("target_masks"), py::arg("settings"),
       "Fuse depth views into a signed distance grid of the obstacles and the target's observed points.");

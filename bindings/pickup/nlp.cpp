@@ -2,34 +2,12 @@
 // Ipopt + MUMPS are not thread-safe: the GIL is released around solves so Python stays
 // responsive, but run independent solves in separate processes (planner.solve_many).
 #include "../common.hpp"
+#include "../results.hpp"
 #include "pickplan/pickup/cases.hpp"
 #include "pickplan/pickup/nlp.hpp"
 #include "pickplan/pickup/stomp.hpp"
 
 namespace pickplan::bind {
-
-namespace {
-
-py::dict metrics_dict(const PickupMetrics& m) {
-  py::dict d;
-  d["pose_error_position"] = m.pose_error_position;
-  d["pose_error_orientation"] = m.pose_error_orientation;
-  d["nonholonomic_mean"] = m.nonholonomic_mean;
-  d["nonholonomic_drift"] = m.nonholonomic_drift;
-  d["nonholonomic_max"] = m.nonholonomic_max;
-  d["joint_limit_violation"] = m.joint_limit_violation;
-  d["joint_rate_max"] = m.joint_rate_max;
-  d["base_speed_max"] = m.base_speed_max;
-  d["base_speed_grasp_mean"] = m.base_speed_grasp_mean;
-  d["gripper_speed_grasp_mean"] = m.gripper_speed_grasp_mean;
-  d["velocity_error_max"] = m.velocity_error_max;
-  d["min_clearance"] = m.min_clearance;
-  d["goal_position_error"] = m.goal_position_error;
-  d["success_probability"] = m.success_probability;
-  return d;
-}
-
-}  // namespace
 
 void init_pickup_nlp(py::module_& m) {
   py::class_<RhoPoly>(m, "RhoPoly")
@@ -261,10 +239,22 @@ void init_pickup_nlp(py::module_& m) {
         },
         py::arg("robot"), py::arg("q"), py::arg("dt"), py::arg("arm_rate_limits"), py::arg("body_spheres"),
         py::arg("obstacles"), py::arg("settings") = StompSettings());
-  m.def("pickup_evaluate", [](const Robot& r, const PickupProblem& p, const PickupResult& res, int n) {
-          return metrics_dict(evaluate_pickup(r, p, res, n));
-        },
-        py::arg("robot"), py::arg("problem"), py::arg("result"), py::arg("n") = 2001);
+  result_class<PickupMetrics>(m, "PickupMetrics", "Dense re-sampling checks of a pick-up plan (cases.hpp).")
+      .field("pose_error_position", &PickupMetrics::pose_error_position)
+      .field("pose_error_orientation", &PickupMetrics::pose_error_orientation)
+      .field("nonholonomic_mean", &PickupMetrics::nonholonomic_mean)
+      .field("nonholonomic_drift", &PickupMetrics::nonholonomic_drift)
+      .field("nonholonomic_max", &PickupMetrics::nonholonomic_max)
+      .field("joint_limit_violation", &PickupMetrics::joint_limit_violation)
+      .field("joint_rate_max", &PickupMetrics::joint_rate_max)
+      .field("base_speed_max", &PickupMetrics::base_speed_max)
+      .field("base_speed_grasp_mean", &PickupMetrics::base_speed_grasp_mean)
+      .field("gripper_speed_grasp_mean", &PickupMetrics::gripper_speed_grasp_mean)
+      .field("velocity_error_max", &PickupMetrics::velocity_error_max)
+      .field("min_clearance", &PickupMetrics::min_clearance)
+      .field("goal_position_error", &PickupMetrics::goal_position_error)
+      .field("success_probability", &PickupMetrics::success_probability);
+  m.def("pickup_evaluate", &evaluate_pickup, py::arg("robot"), py::arg("problem"), py::arg("result"), py::arg("n") = 2001);
 }
 
 }  // namespace pickplan::bind

@@ -7,7 +7,7 @@ both plan the same (goals chosen at every iteration, trajectories to 1e-9).
 """
 from __future__ import annotations
 
-from typing import Optional, Tuple
+from typing import Tuple
 
 import numpy as np
 
@@ -125,7 +125,7 @@ class _Optimization:
         book, q0 = self.book, self.q0
         cand = xi if book.on_goal(xi, g) else self.chomp.step(xi.copy(), q0, book.tails[g], iterations, self.ws)[0]
         metrics = self.chomp.metrics(cand, q0, self.metric_settings)
-        return (cand, metrics) if metrics["success"] else (None, None)
+        return (cand, metrics) if metrics.success else (None, None)
 
     def run(self) -> PlanResult:
         s, book, q0, chomp, ws = self.settings, self.book, self.q0, self.chomp, self.ws
@@ -141,7 +141,7 @@ class _Optimization:
         for i in range(s.iterations):
             iterations = i + 1
             xi, info = self._timed("chomp", chomp.step, xi, q0, book.tails[g], i, ws)
-            history["objective"].append(info["before"]["total"])
+            history["objective"].append(info.before.total)
             c = self._timed("costs", self.estimates, xi, i + 1)
             history["costs"].append(c)
             g_next, p = self._timed("selection", self._select, c)
@@ -163,13 +163,13 @@ class _Optimization:
             xi, _ = chomp.step(xi, q0, book.tails[g], iterations, ws)
         return self._result(xi, g, iterations, metrics, history)
 
-    def _result(self, xi, g: int, iterations: int, metrics: Optional[dict], history: dict) -> PlanResult:
+    def _result(self, xi, g: int, iterations: int, metrics, history: dict) -> PlanResult:
         clock = _clock(self.settings)
         t = clock()
         if metrics is None:
             metrics = self.chomp.metrics(xi, self.q0, self.metric_settings)
         refiner = self.refiner
-        grasp_cost = float(refiner.cost(xi[-1])[0]["total"]) if refiner is not None else float("nan")
+        grasp_cost = float(refiner.cost(xi[-1])[0].total) if refiner is not None else float("nan")
         self.timings["metrics"] += clock() - t
         robot = self.world.robot
         return PlanResult(PlanStatus.of(metrics), np.vstack([self.q0, xi]), xi[-1].copy(), int(self.book.origin[g]),

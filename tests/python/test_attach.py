@@ -50,8 +50,8 @@ def _ik(robot, pose, seed):
 
     active = [i < robot.info.arm_dof for i in range(robot.dof)]
     sol = _core.IkSolver(robot.native, robot.hand_link, IkSettings().to_native(active)).solve(pose, seed)
-    assert sol["converged"]
-    return np.asarray(sol["q"])
+    assert sol.converged
+    return np.asarray(sol.q)
 
 
 def test_held_points_follow_the_hand_exactly(carry_case):
@@ -95,5 +95,5 @@ def test_a_transfer_only_the_held_object_would_hit_is_rejected(carry_case):
     xi = lift[-1] + (np.arange(1, n + 1) / n)[:, None] * (q_over - lift[-1])
     alone = world.chomp(ChompSettings()).metrics(xi, lift[-1], MetricSettings())
     held_metrics = carrying.chomp(ChompSettings()).metrics(xi, lift[-1], MetricSettings())
-    assert alone["collision_free"], alone
-    assert not held_metrics["collision_free"] and held_metrics["min_clearance"] < 0.0
+    assert alone.collision_free, alone
+    assert not held_metrics.collision_free and held_metrics.min_clearance < 0.0

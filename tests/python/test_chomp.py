@@ -68,8 +68,8 @@ def test_obstacle_gradient_matches_finite_differences(panda, body):
     low = np.array([0.0, 0.9, 0.0, -1.4, 0.0, 2.3, 0.785, 0.04, 0.04])  # hand near the table top
     xi = c.initial_trajectory(Q_LEFT, low)
     terms, g = c.problem.obstacle(xi, Q_LEFT)
-    assert terms["obstacle"] > 1.0  # the trajectory really is inside the padding
-    fd = _fd_gradient(lambda x: c.problem.obstacle(x, Q_LEFT)[0]["obstacle"], xi, 1e-6, c.active)
+    assert terms.obstacle > 1.0  # the trajectory really is inside the padding
+    fd = _fd_gradient(lambda x: c.problem.obstacle(x, Q_LEFT)[0].obstacle, xi, 1e-6, c.active)
     g[:, ~np.array(c.active)] = 0  # finger joints are not optimized (the step masks them)
     assert np.linalg.norm(g - fd) <= 1e-5 * np.linalg.norm(fd), np.linalg.norm(g - fd) / np.linalg.norm(fd)
 
@@ -79,7 +79,7 @@ def test_obstacle_gradient_with_object_grid_and_top_k(panda, body, wall_scene):
     c = chomp.Chomp(panda, wall_scene, body, settings)
     xi = c.initial_trajectory(Q_LEFT, Q_RIGHT)
     _, g = c.problem.obstacle(xi, Q_LEFT)
-    fd = _fd_gradient(lambda x: c.problem.obstacle(x, Q_LEFT)[0]["obstacle"], xi, 1e-7, c.active)
+    fd = _fd_gradient(lambda x: c.problem.obstacle(x, Q_LEFT)[0].obstacle, xi, 1e-7, c.active)
     g[:, ~np.array(c.active)] = 0
     # Trilinear cells and the top-k set make a few components non-smooth; the rest agree.
     assert np.linalg.norm(g - fd) <= 1e-3 * np.linalg.norm(fd)
@@ -94,7 +94,7 @@ def test_projected_step_meets_the_goal_exactly(panda, body, wall_scene):
         goal = goals[i % 3]
         xi, info = c.step(xi, Q_LEFT, goal, i, ws)
         assert np.abs(xi[-1] - goal).max() <= 1e-10
-        assert info["goal_error"] <= 1e-10
+        assert info.goal_error <= 1e-10
         np.testing.assert_array_equal(xi[:-1, 7:], np.broadcast_to(Q_LEFT[7:], (29, 2)))  # fingers untouched
     # A standoff tail of 4 waypoints is pinned as a whole.
     tail = np.linspace(Q_RIGHT + 0.1, Q_RIGHT, 4)
@@ -117,11 +117,11 @@ def test_wall_between_start_and_goal_is_avoided(panda, body, wall_scene):
     c = chomp.Chomp(panda, wall_scene, body)
     xi0 = c.initial_trajectory(Q_LEFT, Q_RIGHT)
     before = c.metrics(xi0, Q_LEFT)
-    assert before["min_clearance"] < 0  # the straight path goes through the wall
+    assert before.min_clearance < 0  # the straight path goes through the wall
     res = c.optimize(Q_LEFT, Q_RIGHT, iterations=100)
     m = res.metrics
-    assert m["min_clearance"] >= 0.05 and m["min_table_clearance"] >= 0.0
-    assert m["collision_free"] and m["success"], m
+    assert m.min_clearance >= 0.05 and m.min_table_clearance >= 0.0
+    assert m.collision_free and m.success, m
     assert np.abs(res.xi[-1] - Q_RIGHT).max() <= 1e-10
     lo, hi = panda.lower_limits, panda.upper_limits
     assert np.all(res.xi >= lo - 1e-9) and np.all(res.xi <= hi + 1e-9)
@@ -134,7 +134,7 @@ def test_joint_limits_are_restored_smoothly(panda, body):
     xi = c.initial_trajectory(Q_LEFT, goal)
     xi[10:20, 3] = -3.3  # joint 4's lower limit is -3.1416
     xi, info = c.step(xi, Q_LEFT, goal, 0)
-    assert info["limit_projections"] >= 1
+    assert info.limit_projections >= 1
     assert xi[:, 3].min() >= panda.lower_limits[3] - 1e-2
 
 
@@ -189,8 +189,8 @@ def test_link_culling_changes_no_cost_or_gradient(panda, body, merged):
         goal = Q_LEFT + np.r_[rng.uniform(-1, 1, 7), 0, 0]
         xi = culled.initial_trajectory(Q_LEFT, goal)
         (ref, g_ref), (got, g_got) = full.problem.obstacle(xi, Q_LEFT), culled.problem.obstacle(xi, Q_LEFT)
-        assert ref["obstacle"] > 0
-        assert got["obstacle"] == pytest.approx(ref["obstacle"], rel=1e-12)
+        assert ref.obstacle > 0
+        assert got.obstacle == pytest.approx(ref.obstacle, rel=1e-12)
         np.testing.assert_allclose(g_got, g_ref, rtol=0, atol=1e-12 * np.abs(g_ref).max())
 
 
@@ -199,13 +199,13 @@ def test_merged_scene_grid_matches_per_object_grids(panda, body):
     distances are the per-object grids' bit for bit."""
     plain, merged = _clutter_sdf(False), _clutter_sdf(True)
     info = merged.merged_info
-    assert info["bricks"] > 0 and info["cutoff"] == 0.2 and info["exclude_mask"] == 0b10
+    assert info.bricks > 0 and info.cutoff == 0.2 and info.exclude_mask == 0b10
     rng = np.random.default_rng(2)
     pts = np.c_[rng.uniform(0.2, 0.8, 4000), rng.uniform(-0.5, 0.5, 4000), rng.uniform(0.0, 0.4, 4000)]
     d0, _ = plain.distance(pts, 0.2, exclude=("o1",))
     d1, _ = merged.distance(pts, 0.2, exclude=("o1",))
     # Trilinear resampling of a 1-Lipschitz field at spacing h is off by at most h sqrt(3) / 2.
-    assert np.max(np.abs(d1 - d0)) <= info["resolution"] * np.sqrt(3) / 2
+    assert np.max(np.abs(d1 - d0)) <= info.resolution * np.sqrt(3) / 2
     assert np.all(np.minimum(merged.lower_bound(pts, exclude=("o1",)), 0.2) <= d1 + 1e-12)
     # Another exclusion falls back to the per-object grids exactly.
     np.testing.assert_array_equal(merged.distance(pts, 0.2)[0], plain.distance(pts, 0.2)[0])

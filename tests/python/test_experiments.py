@@ -135,7 +135,7 @@ def test_baselines_valid_trajectories(scene_dir):
         assert r.trajectory.shape == (31, world.robot.dof), name
         assert np.allclose(r.trajectory[0], world.start)
         assert np.all(r.trajectory >= lo - 1e-6) and np.all(r.trajectory <= hi + 1e-6), name
-        assert set(r.metrics) >= {"smoothness", "collision", "success"}
+        assert set(r.metrics.to_dict()) >= {"smoothness", "collision", "success"}
         assert r.timings["total"] >= r.timings["goal_set"] >= 0
         if name in ("FMT", "RRT-C"):
             # a path OMPL found (up to the pre-grasp) is valid at its waypoints, by the rule it was

@@ -57,7 +57,7 @@ def test_solve_all_returns_distinct_solutions_of_one_pose(panda):
     target = panda.link_pose(panda.ready_configuration, "panda_hand")
     sols = ik.solve_all(target, panda.ready_configuration)
     assert len(sols) >= 2  # a 7-DOF arm has a family of solutions
-    Q = np.array([s["q"] for s in sols])
+    Q = np.array([s.q for s in sols])
     assert np.abs(Q[0] - panda.ready_configuration).max() < 1e-3  # nearest to the start first
     for i in range(len(Q)):
         for j in range(i):

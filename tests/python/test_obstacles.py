@@ -90,7 +90,7 @@ def test_checkers_and_the_success_test_see_obstacles():
     # the success test of a trajectory through the wall fails on collision
     chomp = world.chomp(world_chomp_settings())
     xi = np.repeat(q[None], chomp.settings.n, axis=0)
-    assert not chomp.metrics(xi, q)["collision_free"]
+    assert not chomp.metrics(xi, q).collision_free
 
 
 def world_chomp_settings():

@@ -35,9 +35,9 @@ def test_plan_succeeds_and_is_consistent(scene, result):
     np.testing.assert_array_equal(traj[0], np.asarray(scene.robot_configuration))
     np.testing.assert_array_equal(traj[-1], result.goal)
     m = result.metrics
-    assert m["collision_free"] and m["smoothness"] < 30
+    assert m.collision_free and m.smoothness < 30
     # The reported smoothness is f_prior of the waypoints (dt = 0.1 s), recomputed here.
-    assert m["smoothness"] == pytest.approx(0.5 * np.sum(np.diff(traj, axis=0) ** 2) / 0.1**2, rel=1e-9)
+    assert m.smoothness == pytest.approx(0.5 * np.sum(np.diff(traj, axis=0) ** 2) / 0.1**2, rel=1e-9)
     assert np.all(traj >= result_world(scene).robot.lower_limits - 1e-9)
     assert result.timings["total"] > 0 and result.iterations >= 1
     assert len(result.history["objective"]) == result.iterations
@@ -107,8 +107,8 @@ def test_isf_decreases_f_grasp_on_ycb_simulated_grasps(tmp_path):
     gs = goals.build_goal_set(w, gset.poses, settings=goals.GoalSetSettings(max_goals=10, quality=None))
     assert len(gs) >= 3, gs.reason_counts()
     refiner = isf.GraspRefiner(w)
-    before = np.array([refiner.cost(g)[0]["total"] for g in gs.goals])
-    after = np.array([refiner.refine(g, 10)[1]["total"] for g in gs.goals])
+    before = np.array([refiner.cost(g)[0].total for g in gs.goals])
+    after = np.array([refiner.refine(g, 10)[1].total for g in gs.goals])
     assert np.all(after <= before)          # a step is only taken when f_grasp decreases
     assert after.mean() < before.mean()     # and on these grasps it does decrease
 
@@ -125,11 +125,11 @@ def test_isf_pushes_a_penetrating_hand_out(scene):
     T = robot.link_pose(gs.goals[0], robot.hand_link).copy()
     T[:3, 3] += 0.02 * T[:3, 2]
     ik = goals.ik_solver(w)
-    q = ik.solve(T, gs.goals[0])["q"]
+    q = ik.solve(T, gs.goals[0]).q
     before, _ = refiner.cost(q)
-    assert before["hand"] > 0.5
+    assert before.hand > 0.5
     q2, after = refiner.refine(q, 40)
-    assert after["hand"] < 0.2 * before["hand"]
+    assert after.hand < 0.2 * before.hand
 
 
 def test_world_merges_the_target_out_and_in(scene):
@@ -140,7 +140,7 @@ def test_world_merges_the_target_out_and_in(scene):
     center = w.target_pose[:3, 3]
     rng = np.random.default_rng(0)
     pts = center + rng.uniform(-0.15, 0.15, (3000, 3))
-    tol = w.sdf.merged_info["resolution"] * np.sqrt(3) / 2
+    tol = w.sdf.merged_info.resolution * np.sqrt(3) / 2
     unmerged = world.World(scene, world.WorldSettings(sdf=replace(world.WorldSettings().sdf, merged=False)))
     assert unmerged.sdf.merged_excludes == []
     for exclude in ((scene.target,), ()):

@@ -106,7 +106,7 @@ def _check_same(python, native):
     for pn, pp in zip(native.history["p"], python.history["p"]):
         np.testing.assert_allclose(pn, pp, rtol=0, atol=1e-12)
     for key in ("smoothness", "collision", "min_clearance", "min_table_clearance"):
-        assert native.metrics[key] == pytest.approx(python.metrics[key], rel=1e-9, abs=1e-12)
+        assert getattr(native.metrics, key) == pytest.approx(getattr(python.metrics, key), rel=1e-9, abs=1e-12)
     assert native.grasp_cost == pytest.approx(python.grasp_cost, rel=1e-9, nan_ok=True)
     np.testing.assert_allclose(native.hand_pose, python.hand_pose, rtol=0, atol=1e-12)
 

@@ -126,7 +126,7 @@ def test_goal_set_keeps_the_success_tests_approach_clearance(bowl):
     before = _plan(scene, world, poses, loose, selection="Fixed")
     # without the check: the best initial goal's approach passes the mug under 1 cm; it fails
     first = before.grasp_index
-    assert before.status == "in_collision" and 0.0 < before.metrics["min_clearance"] < need
+    assert before.status == "in_collision" and 0.0 < before.metrics.min_clearance < need
     gs0 = goals.build_goal_set(world, poses, settings=loose.goals)
     d0 = _approach_distances(world, gs0)
     assert d0[list(gs0.grasp_index).index(first)] < need
@@ -170,5 +170,5 @@ def test_reported_metrics_are_those_of_the_returned_trajectory(meat, meat_runs, 
                   exclude=(scene.target,))
     again = chomp.metrics(r.trajectory[1:], r.trajectory[0], replace(SETTINGS.metrics, tail_waypoints=m))
     for key in ("success", "smoothness", "min_clearance", "collision"):
-        assert again[key] == pytest.approx(r.metrics[key], rel=1e-12, abs=1e-12), key
+        assert getattr(again, key) == pytest.approx(getattr(r.metrics, key), rel=1e-12, abs=1e-12), key
     np.testing.assert_array_equal(r.goal, r.trajectory[-1])

@@ -68,8 +68,8 @@ def test_a_plan_from_an_observation_reads_no_mesh_and_lifts_the_true_object(obse
     monkeypatch.undo()
     # judged on the truth: the true meshes' SDF (target left out) and PyBullet with the true objects
     truth = true_metrics(World(scene), result.trajectory, OMGSettings())
-    assert truth["collision_free"], truth
-    assert truth["min_clearance"] > 0.0
+    assert truth.collision_free, truth
+    assert truth.min_clearance > 0.0
     executed = execute_plan(scene, result.trajectory)
     assert executed.success, executed.status
 
@@ -84,11 +84,11 @@ def test_isf_on_points_is_isf_on_the_same_points_from_a_mesh():
     q = world.start
     cost_mesh, grad_mesh = from_mesh.cost(q)
     cost_points, grad_points = from_points.cost(q)
-    assert cost_points["total"] == pytest.approx(cost_mesh["total"])
+    assert cost_points.total == pytest.approx(cost_mesh.total)
     np.testing.assert_allclose(grad_points, grad_mesh)
     # and fewer points on one side of the object change f_grasp: the points are what it reads
     half = pts[:, 1] > world.target_pose[1, 3]
-    assert isf.GraspRefiner(world, surface=(pts[half], nrm[half])).cost(q)[0]["total"] != pytest.approx(cost_mesh["total"])
+    assert isf.GraspRefiner(world, surface=(pts[half], nrm[half])).cost(q)[0].total != pytest.approx(cost_mesh.total)
     with pytest.raises(ValueError, match="surface: expected points and normals"):
         isf.GraspRefiner(world, surface=(pts, nrm[:10]))
 

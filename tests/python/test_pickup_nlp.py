@@ -74,7 +74,7 @@ def test_case_solves_and_dense_resampling_checks(robot, solved):
     assert problem.rho.value(p.S_g, p.S_c) >= problem.gamma - 1e-6
     assert abs((p.T2 - p.T1) * p.S_c - problem.stroke) < 1e-6
     m = planner.evaluate(robot, problem, p)
-    assert m["pose_error_position"] < 1e-4 and abs(m["nonholonomic_drift"] - drift) < 0.01
+    assert m.pose_error_position < 1e-4 and abs(m.nonholonomic_drift - drift) < 0.01
 
 
 def test_plan_dict_round_trip(tmp_path, solved):

@@ -120,8 +120,8 @@ def test_the_transit_may_avoid_an_object_the_metrics_leave_out(panda):
     avoided = chomp.Chomp(panda, scene, body, exclude=("target",), obstacle_exclude=())
     counted = chomp.Chomp(panda, scene, body)
     xi = left_out.initial_trajectory(Q_LEFT, Q_RIGHT)        # sweeps the arm through the box
-    f_out, f_avoid, f_all = (c.objective(xi, Q_LEFT)[0]["obstacle"] for c in (left_out, avoided, counted))
+    f_out, f_avoid, f_all = (c.objective(xi, Q_LEFT)[0].obstacle for c in (left_out, avoided, counted))
     assert f_avoid == pytest.approx(f_all) and f_avoid > f_out  # the optimizer's cost sees the box ...
     m_out, m_avoid = left_out.metrics(xi, Q_LEFT), avoided.metrics(xi, Q_LEFT)
-    assert m_avoid == m_out and m_out["collision_free"]        # ... the success test still leaves it out
-    assert not counted.metrics(xi, Q_LEFT)["collision_free"]
+    assert m_avoid.to_dict() == m_out.to_dict() and m_out.collision_free        # ... the success test still leaves it out
+    assert not counted.metrics(xi, Q_LEFT).collision_free

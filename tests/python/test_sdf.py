@@ -54,7 +54,7 @@ def test_ycb_mesh_matches_trimesh_and_is_cached(tmp_path):
 def test_sphere_grid_matches_closed_form_and_gradient_is_radial():
     mesh = trimesh.creation.icosphere(subdivisions=4, radius=0.05)
     grid, report = _core.SdfGrid.build(mesh.vertices, mesh.faces, 0.004, 0.1)
-    assert report["degenerate_faces"] == 0 and report["sign_disagreement"] == 0.0
+    assert report.degenerate_faces == 0 and report.sign_disagreement == 0.0
     rng = np.random.default_rng(3)
     P = rng.uniform(-0.12, 0.12, size=(2000, 3))
     d, g = grid.distance(P)

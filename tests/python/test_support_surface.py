@@ -180,8 +180,8 @@ def test_success_metric_lets_only_the_fingers_touch_the_table(pen_world):
     settings = MetricSettings(tail_waypoints=gs.tails.shape[1])
     allowed = chomp.metrics(xi, pen_world.start, settings)
     strict = chomp.metrics(xi, pen_world.start, replace(settings, support_link_mask=0))
-    assert -collision.SupportContact().resolved(robot) <= allowed["min_table_clearance"] < 0
-    assert allowed["collision_free"] and not strict["collision_free"]
+    assert -collision.SupportContact().resolved(robot) <= allowed.min_table_clearance < 0
+    assert allowed.collision_free and not strict.collision_free
 
 
 def test_sampling_planners_validity_follows_the_success_test(pen_world):

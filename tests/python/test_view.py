@@ -63,7 +63,7 @@ def test_plan_record_holds_the_goal_set_and_both_grasps(planned):
         assert plan["refined_goal"] is None
         np.testing.assert_array_equal(chosen, final)
     # A collision-free plan (its clearances are measured on the same body points) has no point inside.
-    assert result.metrics["collision_free"] and plan["collision_points"] == []
+    assert result.metrics.collision_free and plan["collision_points"] == []
 
 
 def test_collision_points_are_the_body_points_inside_the_table():

@@ -94,7 +94,7 @@ def run_plan(args: argparse.Namespace) -> int:
     failed = [k for k, ok in sol.checks.items() if not ok]
     cut = " (the time limit cut later runs: the best plan found before it)" if p.status is planner.SolveStatus.time_limit else ""
     print(f"solved{cut}: T = {p.T:.2f} s{bound}, grasping [{p.T1:.2f}, {p.T2:.2f}] s at S_g = {p.S_g:.3f} m/s, "
-          f"rho = {sol.metrics['success_probability']:.4f} (gamma {spec.gamma}); CPU {p.total_cpu_seconds:.2f} s")
+          f"rho = {sol.metrics.success_probability:.4f} (gamma {spec.gamma}); CPU {p.total_cpu_seconds:.2f} s")
     print(f"dense checks: {'all passed' if not failed else 'FAILED ' + ', '.join(failed)}")
     print(f"wrote {', '.join(paths.values())}")
     print(f"replay: pickplan pickup replay {paths['trajectory']} --gui")

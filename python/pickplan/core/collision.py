@@ -201,9 +201,8 @@ class CollisionChecker:
 
     def contacts(self, q, within: float = 0.0) -> List[Contact]:
         """Pairs in collision, or closer than ``max(margin, within)``, nearest first."""
-        return [Contact(d["link"], d["other"], d["kind"], float(d["distance"]),
-                        np.asarray(d["point_link"]), np.asarray(d["point_other"]))
-                for d in self._native.contacts(q, float(within))]
+        return [Contact(c.link, c.other, c.kind.name, float(c.distance), np.array(c.point_link), np.array(c.point_other))
+                for c in self._native.contacts(q, float(within))]
 
 
 # --- the support surface ----------------------------------------------------------------------------

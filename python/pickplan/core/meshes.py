@@ -5,24 +5,24 @@ import numpy as np
 from pickplan.core.errors import InputError
 
 
-def geometry_to_trimesh(geom: dict):
-    """A URDF collision geometry record (from the native Robot) as a trimesh in the link frame."""
+def geometry_to_trimesh(geom):
+    """A URDF collision geometry (the native Robot's ``CollisionGeometry``) as a trimesh in the link frame."""
     import trimesh
 
-    kind = geom["kind"]
+    kind = geom.kind.name
     if kind == "mesh":
-        loaded = trimesh.load(geom["mesh_path"], force="mesh", process=False)
+        loaded = trimesh.load(geom.mesh_path, force="mesh", process=False)
         mesh = loaded.copy()
-        mesh.apply_scale(np.asarray(geom["scale"], dtype=float))
+        mesh.apply_scale(np.asarray(geom.scale, dtype=float))
     elif kind == "box":
-        mesh = trimesh.creation.box(extents=geom["size"])
+        mesh = trimesh.creation.box(extents=np.array(geom.size, dtype=float))
     elif kind == "cylinder":
-        mesh = trimesh.creation.cylinder(radius=geom["size"][0], height=geom["size"][1], sections=32)
+        mesh = trimesh.creation.cylinder(radius=geom.size[0], height=geom.size[1], sections=32)
     elif kind == "sphere":
-        mesh = trimesh.creation.icosphere(subdivisions=2, radius=geom["size"][0])
+        mesh = trimesh.creation.icosphere(subdivisions=2, radius=geom.size[0])
     else:  # pragma: no cover - the native side only produces the kinds above
         raise ValueError(f"unknown collision geometry kind {kind!r}")
-    mesh.apply_transform(np.asarray(geom["origin"], dtype=float))
+    mesh.apply_transform(np.asarray(geom.origin, dtype=float))
     return mesh
 
 

@@ -232,7 +232,7 @@ class SceneSdf:
         return [tuple(n for i, n in enumerate(self._names) if mask >> i & 1) for mask in self._native.merged_masks]
 
     @property
-    def merged_info(self) -> Optional[dict]:
+    def merged_info(self) -> Optional["_core.MergedSdfInfo"]:
         return self._native.merged_info
 
     def lower_bound(self, points, exclude: Sequence[str] = (), exclude_table: bool = False) -> np.ndarray:

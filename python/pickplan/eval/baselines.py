@@ -25,6 +25,7 @@ from typing import Optional, Union
 
 import numpy as np
 
+from pickplan import _core
 from pickplan.core import collision
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
@@ -66,7 +67,7 @@ def chomp_c_settings(settings: OMGSettings) -> OMGSettings:
 
 
 def _empty(q0, timings, gs) -> PlanResult:
-    return PlanResult(PlanStatus.no_goals, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0,
+    return PlanResult(PlanStatus.no_goals, np.vstack([q0]), q0, -1, np.eye(4), False, None, float("nan"), 0, 0,
                       {"objective": [], "goal": [], "p": [], "switches": 0}, timings, gs.reason_counts())
 
 
@@ -139,7 +140,7 @@ class _Problem:
         self.ranking = [int(i) for i in np.argsort(np.asarray(c), kind="stable")]
         self.timings["ranking"] = time.perf_counter() - t
 
-    def metrics(self, xi) -> dict:
+    def metrics(self, xi) -> "_core.TrajectoryMetrics":
         t = time.perf_counter()
         out = self.chomp.metrics(xi, self.q0, self.metric_settings)
         self.timings["metrics"] += time.perf_counter() - t
@@ -175,10 +176,10 @@ def _chomp_over(pb: _Problem, settings: BaselineSettings, t_total: float) -> Pla
         out = pb.chomp.optimize(pb.q0, pb.gs.tails[g], settings.chomp_iterations, metric_settings=None)
         pb.timings["planning"] += time.perf_counter() - t
         metrics = pb.metrics(out.xi)
-        attempts.append({"goal": g, "success": bool(metrics["success"])})
+        attempts.append({"goal": g, "success": bool(metrics.success)})
         if first is None:
             first = (out.xi, g, metrics)
-        if metrics["success"]:
+        if metrics.success:
             return pb.result(out.xi, g, metrics, attempts, t_total)
     return pb.result(*first, attempts, t_total)
 
@@ -283,10 +284,10 @@ def _ompl_over(pb: _Problem, planner: Baseline, settings: BaselineSettings, t_to
         xi[:free + 1, :arm] = resample_path(np.vstack([q0[:arm], pts[1:]]), free + 1)
         xi[free:] = tail
         metrics = pb.metrics(xi)
-        attempts.append({"goal": g, "found": exact, "success": bool(metrics["success"])})
+        attempts.append({"goal": g, "found": exact, "success": bool(metrics.success)})
         if first is None:
             first = (xi, g, metrics)
-        if exact and metrics["success"]:
+        if exact and metrics.success:
             return pb.result(xi, g, metrics, attempts, t_total)
     return pb.result(*first, attempts, t_total)
 

@@ -45,8 +45,8 @@ def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResu
     rows = [
         ("Execution (target lifted)", lifted, PAPER_OMG["execution"]),
         ("Planning success (collision-free, smoothness < 30)", "yes" if result.success else "no", PAPER_OMG["planning"]),
-        ("Smoothness (f_prior)", f"{m.get('smoothness', float('nan')):.2f}", PAPER_OMG["smoothness"]),
-        ("Collision (sum of c(x) within 5 cm, 200 steps)", f"{m.get('collision', float('nan')):.2f}", PAPER_OMG["collision"]),
+        ("Smoothness (f_prior)", f"{getattr(m, 'smoothness', float('nan')):.2f}", PAPER_OMG["smoothness"]),
+        ("Collision (sum of c(x) within 5 cm, 200 steps)", f"{getattr(m, 'collision', float('nan')):.2f}", PAPER_OMG["collision"]),
         ("Grasp cost f_grasp", f"{result.grasp_cost:.2f}", PAPER_OMG["grasp"]),
         ("Planning time (s)", f"{planning_time:.3f}", PAPER_OMG["time"]),
         (f"Trajectory duration (s, timed within the {robot}'s velocity and acceleration limits)",
@@ -58,7 +58,7 @@ def metrics_table(result: PlanResult, executed: Optional[execution.ExecutionResu
     lines.append(f"Status: {result.status}; execution: {executed.status if executed else 'not run'}; "
                  f"{result.iterations} iterations, {result.goal_set_size} goals "
                  f"({result.history['switches']} goal switches), min clearance "
-                 f"{m.get('min_clearance', float('nan')) * 100:.1f} cm; goal set built in "
+                 f"{getattr(m, 'min_clearance', float('nan')) * 100:.1f} cm; goal set built in "
                  f"{result.timings['goal_set']:.3f} s.")
     lines.append("One scene is one sample: the paper's rates are over 100 scenes (see `pickplan bench`).")
     return "\n".join(lines) + "\n"

@@ -283,10 +283,10 @@ def run_unit(unit: dict) -> dict:
                   goal_set_size=result.goal_set_size, iterations=result.iterations, refined=bool(result.refined),
                   goal_set_time=float(result.timings.get("goal_set", 0.0)),
                   plan_time=float(result.timings["total"] - result.timings.get("goal_set", 0.0)),
-                  smoothness=float(m["smoothness"]) if planned else None,
-                  collision=float(m["collision"]) if planned else None,
-                  min_clearance=float(m["min_clearance"]) if planned else None,
-                  grasp_cost=float(world.grasp_refiner().cost(result.goal)[0]["total"]) if planned else None,
+                  smoothness=float(m.smoothness) if planned else None,
+                  collision=float(m.collision) if planned else None,
+                  min_clearance=float(m.min_clearance) if planned else None,
+                  grasp_cost=float(world.grasp_refiner().cost(result.goal)[0].total) if planned else None,
                   stage_times={k: float(result.timings.get(k, 0.0)) for k in STAGES})
     if planned and omg.goals.quality is not None:  # how well the executed (maybe refined) grasp holds, by the model
         hand = np.linalg.inv(world.target_pose) @ result.hand_pose

@@ -91,7 +91,7 @@ def _omg_settings(unit: dict) -> OMGSettings:
                                                            int(unit["seed"]))
 
 
-def true_metrics(true_world: World, trajectory: np.ndarray, settings: OMGSettings) -> dict:
+def true_metrics(true_world: World, trajectory: np.ndarray, settings: OMGSettings):
     """The paper's metrics of a trajectory (start first) in the true scene (its meshes' SDF)."""
     chomp = Chomp(true_world.robot, true_world.sdf, true_world.body, settings.chomp, exclude=(true_world.target,))
     tail = settings.goals.standoff_steps + 1
@@ -123,8 +123,8 @@ def run_perceived_unit(unit: dict) -> dict:
                   plan_time=float(result.timings["total"] - result.timings["goal_set"]))
     if planned:
         m = true_metrics(World(scene), result.trajectory, settings)
-        record.update(collision=float(m["collision"]), min_clearance=float(m["min_clearance"]),
-                      true_collision_free=bool(m["collision_free"]), smoothness=float(result.metrics["smoothness"]))
+        record.update(collision=float(m.collision), min_clearance=float(m.min_clearance),
+                      true_collision_free=bool(m.collision_free), smoothness=float(result.metrics.smoothness))
     record.update(execution_success=False, execution_status="not_executed")
     if unit["execute"] and result.success:
         ex = execute_plan(scene, result.trajectory, ExecutionSettings(waypoint_dt=settings.chomp.duration / settings.chomp.n))

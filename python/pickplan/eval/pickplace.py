@@ -202,8 +202,8 @@ def plan_fields(plan: PickPlacePlan) -> dict:
         out.update(place_planned=True, place_success=plan.place.success, place_status=plan.place.status.value,
                    place_time=float(plan.timings.get("place", 0.0)),
                    place_plan_time=float(plan.place.timings.get("total", 0.0) - plan.place.timings.get("goal_set", 0.0)),
-                   place_smoothness=float(m.get("smoothness", float("nan"))),
-                   place_clearance=float(m.get("min_clearance", float("nan"))),
+                   place_smoothness=float(getattr(m, "smoothness", float("nan"))),
+                   place_clearance=float(getattr(m, "min_clearance", float("nan"))),
                    place_iterations=int(plan.place.iterations))
     if plan.success:
         out["duration"] = float(sum(t.duration for _, t in plan.timed(250.0)))

@@ -5,7 +5,7 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional, Sequence, Union
 
 import numpy as np
@@ -77,11 +77,11 @@ class ChompStatus(Option):
 class ChompResult:
     xi: np.ndarray                 # (n, dof) waypoints after the start
     objective: list                # f_motion before each iteration
-    final: dict                    # obstacle, prior, total, colliding_points at the end
+    final: "_core.ObjectiveTerms"  # obstacle, prior, total, colliding_points at the end
     iterations: int
     status: ChompStatus
     seconds: float
-    metrics: dict = field(default_factory=dict)
+    metrics: Optional["_core.TrajectoryMetrics"] = None  # when optimize was given metric settings
 
 
 class Initialization(Option):
@@ -160,13 +160,13 @@ class Chomp:
             xi0 = np.array(xi0, dtype=float)
             xi0[-len(goal):] = goal
         out = self.problem.optimize(xi0, q0, goal, iterations)
-        result = ChompResult(out["xi"], list(out["objective"]), out["final"], out["iterations"],
-                             ChompStatus.from_native(out["status"]), out["seconds"])
+        result = ChompResult(out.xi, list(out.objective), out.final_terms, out.iterations,
+                             ChompStatus.from_native(out.status), out.seconds)
         if metric_settings is not None:
             result.metrics = self.metrics(result.xi, q0, metric_settings)
         return result
 
-    def metrics(self, xi, q0, settings: MetricSettings = MetricSettings()) -> dict:
+    def metrics(self, xi, q0, settings: MetricSettings = MetricSettings()) -> "_core.TrajectoryMetrics":
         return self.problem.metrics(xi, q0, self.native_metric_settings(settings))
 
     def native_metric_settings(self, settings: MetricSettings = MetricSettings()) -> "_core.MetricSettings":

@@ -322,25 +322,25 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
         out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses[tried], start,
                                    settings.to_native(), problem, float(settings.approach_clearance),
                                    None if seeds is None else seeds[tried])  # the seeds follow the order tried
-        for k, reason in zip(tried, out["reasons"]):
-            reasons[k] = reason
+        for k, reason in zip(tried, out.reasons):
+            reasons[k] = reason.name
         return out
     out = goals(tried)
     unsure = np.flatnonzero([r == GraspFit.slips.value for r in reasons])
-    if not len(out["goals"]) and len(unsure) and settings.verify is not None and hasattr(world, "verify_grasps"):
+    if not len(out.goals) and len(unsure) and settings.verify is not None and hasattr(world, "verify_grasps"):
         # the reachable ones only (the budget goes to grasps that can become goals), best margin first
         tried = unsure[np.argsort(-margin[unsure], kind="stable")]
-        reachable = np.unique(tried[np.asarray(goals(tried)["grasp_index"], dtype=int)])
+        reachable = np.unique(tried[np.asarray(goals(tried).grasp_index, dtype=int)])
         held = world.verify_grasps(grasps[reachable], settings.verify).keep
         for k in np.union1d(reachable[~held], [k for k in unsure if reasons[k] == "over_cap"]).astype(int):
             reasons[k] = GraspFit.slips.value  # failed in physics, or not looked at: the quality's verdict
         tried = reachable[held][np.argsort(-margin[reachable[held]], kind="stable")]
         out = goals(tried)
-    grasp_index = tried[np.asarray(out["grasp_index"], dtype=int)] if len(tried) else np.zeros(0, int)
-    goals_, tails = np.asarray(out["goals"]), np.asarray(out["tails"])
+    grasp_index = tried[np.asarray(out.grasp_index, dtype=int)] if len(tried) else np.zeros(0, int)
+    goals_, tails = np.asarray(out.goals), np.asarray(out.tails)
     if collision_check and len(goals_):  # the whole arm under the lift (the hand alone was checked before IK)
         stuck = lift_blocked_configurations(world, goals_, settings.lift, settings.lift_clearance)
         for k in grasp_index[stuck]:
             reasons[k] = "lift_blocked"
         goals_, tails, grasp_index = goals_[~stuck], tails[~stuck], grasp_index[~stuck]
-    return GoalSet(goals_, tails, grasp_index.astype(int), grasps, reasons, float(out["seconds"]), adjusted, margin)
+    return GoalSet(goals_, tails, grasp_index.astype(int), grasps, reasons, float(out.seconds), adjusted, margin)

@@ -114,11 +114,11 @@ class GraspRefiner:
         out._native = self._native.with_object(pts, nrm, out._pose @ np.linalg.inv(self._pose))
         return out
 
-    def cost(self, q) -> Tuple[dict, np.ndarray]:
+    def cost(self, q) -> Tuple["_core.GraspTerms", np.ndarray]:
         """f_grasp terms (pml, align, isf, hand, obstacle, collision, total) and the gradient."""
         return self._native.cost(q)
 
-    def refine(self, q, iterations: int = 1) -> Tuple[np.ndarray, dict]:
+    def refine(self, q, iterations: int = 1) -> Tuple[np.ndarray, "_core.GraspTerms"]:
         return self._native.refine(q, iterations)
 
     def support_depth(self, q) -> float:

@@ -204,10 +204,10 @@ def plan_motion(world: MotionWorld, start, goals: Union[np.ndarray, PoseGoal],
         out = planner.rrt_connect(q0, G[free]) if attempt == 0 else \
             world.planner(replace(rrt, seed=rrt.seed + attempt)).rrt_connect(q0, G[free])
         timings["rrt"] += time.perf_counter() - t
-        stats["iterations"] += int(out["iterations"])
-        stats["checks"] += int(out["checks"])
-        if out["status"] == _core.RrtStatus.solved:
-            path, goal = np.asarray(out["path"]), free[int(out["goal"])]
+        stats["iterations"] += int(out.iterations)
+        stats["checks"] += int(out.checks)
+        if out.status == _core.RrtStatus.solved:
+            path, goal = np.asarray(out.path), free[int(out.goal)]
             break
     if path is None:
         return done(MotionStatus.not_found, np.zeros((0, robot.dof)), -1, "")

@@ -68,7 +68,7 @@ def run_native(chomp, refiner, robot, q0, goals, tails, grasp_index, settings, p
                warm=None) -> dict:
     """Algorithm 2's loop over a goal set (``goals``, their approach ``tails`` and the input grasp
     each came from) with ``chomp`` (its problem), ``refiner`` (a ``GraspRefiner`` or None) for
-    ``robot``; returns ``_core.run_omg_loop``'s dict (xi, goal, metrics, history, seconds per stage, ...).
+    ``robot``; returns ``_core.run_omg_loop``'s ``OmgLoopResult`` (xi, goal, metrics, history, seconds per stage, ...).
     ``warm``: (initial trajectory (n, dof), its goal index or -1[, one cost per goal for the selection to start
     from, or None: estimated]) to start from a previous plan."""
     native = loop_settings(settings, policy, chomp.native_metric_settings(metric_settings))

@@ -161,7 +161,7 @@ class PickPlacePlan:
         if self.place is not None:
             d["place_status"] = self.place.status.value
             d["place_metrics"] = {k: (bool(v) if isinstance(v, (bool, np.bool_)) else float(v))
-                                  for k, v in self.place.metrics.items()}
+                                  for k, v in self.place.metrics.to_dict().items()}
         if self.place_goals is not None:
             d["place_goal_reasons"] = self.place_goals.reason_counts()
             d["place_goal_set"] = np.asarray(self.place_goals.goal_set.goals).tolist()

@@ -322,8 +322,8 @@ def _place_goals(carrying: HeldWorld, poses: np.ndarray, start: np.ndarray, sett
                                np.asarray(start, float), gs_settings.to_native(), carrying.clearance_problem,
                                float(settings.goals.approach_clearance),
                                pregrasp_clearance=float(settings.preplace_clearance))
-    return GoalSet(np.asarray(out["goals"]), np.asarray(out["tails"]), np.asarray(out["grasp_index"], int), hands,
-                   list(out["reasons"]), float(out["seconds"]))
+    return GoalSet(np.asarray(out.goals), np.asarray(out.tails), np.asarray(out.grasp_index, int), hands,
+                   [r.name for r in out.reasons], float(out.seconds))
 
 
 def reason_summary(place: PlaceGoalSet) -> str:

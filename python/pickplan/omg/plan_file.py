@@ -32,7 +32,8 @@ def plan_record(result: PlanResult, world: Optional[World] = None, execution: Op
     record = {
         "version": PLAN_FILE_VERSION,
         "robot": world.robot.info.name if world is not None else "panda",  # the viewer loads this robot
-        "status": result.status, "trajectory": result.trajectory.tolist(), "metrics": result.metrics,
+        "status": result.status, "trajectory": result.trajectory.tolist(),
+        "metrics": {} if result.metrics is None else result.metrics.to_dict(),
         "grasp_cost": result.grasp_cost, "timings": result.timings, "iterations": result.iterations,
         "execution": execution,
         "goal_set": np.asarray(result.goal_set).tolist(),

@@ -3,7 +3,7 @@ C-Space ISF refinement of the selected goal, for N iterations with pre-terminati
 
 >>> planner = OMGPlanner(None, scene, OMGSettings())
 >>> result = planner.plan()                # start and target from the scene, its default grasps
->>> result.status, result.metrics["smoothness"]
+>>> result.status, result.metrics.smoothness
 """
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from typing import Optional, Tuple, Union
 
 import numpy as np
 
+from pickplan import _core
 from pickplan.core import robots
 from pickplan.core.caches import mesh_content_key
 from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory, robot_limits, time_parameterize
@@ -42,11 +43,11 @@ class PlanStatus(Option):
                                    # with a stored set the object lacks; not a planning failure)
 
     @classmethod
-    def of(cls, metrics: dict) -> "PlanStatus":
-        """The status of a trajectory with these metrics (``Chomp.metrics``)."""
-        if metrics["success"]:
+    def of(cls, metrics) -> "PlanStatus":
+        """The status of a trajectory with these metrics (``Chomp.metrics``, a ``TrajectoryMetrics``)."""
+        if metrics.success:
             return cls.success
-        return cls.in_collision if not metrics["collision_free"] else cls.not_smooth
+        return cls.in_collision if not metrics.collision_free else cls.not_smooth
 
 
 @dataclass(frozen=True)
@@ -109,7 +110,8 @@ class PlanResult:
     grasp_index: int               # input grasp the final goal came from (-1 when none)
     hand_pose: np.ndarray          # world pose of the hand at the goal
     refined: bool                  # the final goal was refined by C-Space ISF
-    metrics: dict                  # smoothness, collision, min_clearance, success, ... (Sec. IV-A)
+    metrics: Optional["_core.TrajectoryMetrics"]  # smoothness, collision, min_clearance, success, ... (Sec. IV-A);
+                                                  # None when nothing was planned
     grasp_cost: float              # f_grasp at the final goal (eq. 10)
     goal_set_size: int
     iterations: int
@@ -128,7 +130,7 @@ class PlanResult:
                   reason: str = "") -> "PlanResult":
         """A result with no plan (no goal, an ungraspable target): the start alone, empty history."""
         history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}
-        return cls(status, np.vstack([q0]), q0, -1, np.eye(4), False, {}, float("nan"), 0, 0, history, timings,
+        return cls(status, np.vstack([q0]), q0, -1, np.eye(4), False, None, float("nan"), 0, 0, history, timings,
                    goal_reasons, reason=reason)
 
     @property
@@ -348,23 +350,23 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
     parts = LoopInputs.of(settings, world, gs.tails.shape[1])
     out = run_native(parts.chomp, parts.refiner, world.robot, q0, gs.goals, gs.tails, gs.grasp_index, settings,
                      parts.policy, parts.metric_settings, warm)
-    for phase, seconds in out["seconds"].items():
+    for phase, seconds in out.seconds.to_dict().items():
         timings[phase] += seconds
-    history = {"objective": list(out["objective"]), "goal": list(out["goals_chosen"]), "p": out["p"],
-               "costs": out["costs"], "switches": out["switches"], "initial_grasp": out["initial_grasp"]}
-    xi, robot = out["xi"], world.robot
-    metrics = out["metrics"]
-    if metrics["success"] and parts.metric_settings.transit_target_clearance > -np.inf and isinstance(world, World):
+    history = {"objective": list(out.objective), "goal": list(out.goals_chosen), "p": out.p,
+               "costs": out.costs, "switches": out.switches, "initial_grasp": out.initial_grasp}
+    xi, robot = out.xi, world.robot
+    metrics = out.metrics
+    if metrics.success and parts.metric_settings.transit_target_clearance > -np.inf and isinstance(world, World):
         # The success test measures body points (a few per link: a finger's 20 leave 1.7 cm of its surface
         # unsampled); the transit's clearance from the target is what pushes it in execution: measured exactly.
         distance = transit_target_distance(world, np.vstack([q0, xi]), gs.tails.shape[1], parts.metric_settings.steps)
-        metrics["transit_target_distance"] = distance
+        history["transit_target_distance"] = distance
         if distance < parts.metric_settings.transit_target_clearance:
-            metrics["success"] = metrics["collision_free"] = False
-    return PlanResult(PlanStatus.of(metrics), np.vstack([q0, xi]), xi[-1].copy(), out["grasp_index"],
-                      robot.link_pose(xi[-1], robot.hand_link), out["refined"], metrics, out["grasp_cost"],
-                      out["goal_set_size"], out["iterations"], history, timings,
-                      goal_set=np.array(gs.goals), goal_source=out["goal_source"])
+            metrics = _core.marked_in_collision(metrics)
+    return PlanResult(PlanStatus.of(metrics), np.vstack([q0, xi]), xi[-1].copy(), out.grasp_index,
+                      robot.link_pose(xi[-1], robot.hand_link), out.refined, metrics, out.grasp_cost,
+                      out.goal_set_size, out.iterations, history, timings,
+                      goal_set=np.array(gs.goals), goal_source=out.goal_source)
 
 
 def transit_target_distance(world: World, trajectory: np.ndarray, tail_length: int, steps: int) -> float:

@@ -75,7 +75,7 @@ def pose_goal_configurations(robot, active, start: np.ndarray, goal: PoseGoal,
     found = []
     for T in goal.targets():
         for s in solver.solve_all(T, start):
-            q = np.asarray(s["q"], dtype=float)
+            q = np.asarray(s.q, dtype=float)
             if all(np.linalg.norm(q - p) > ik.duplicate_tolerance for p in found):
                 found.append(q)
     if not found:

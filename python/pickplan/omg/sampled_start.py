@@ -57,10 +57,10 @@ def sampled_initialization(world, q0: np.ndarray, tails: np.ndarray, n: int,
         rrt = replace(settings.rrt, seed=settings.rrt.seed + attempt)
         planner = _core.MotionPlanner(checker, rrt.to_native(active))
         out = planner.rrt_connect(np.asarray(q0, float), np.asarray(tails[:, 0], float))
-        if out["status"] != _core.RrtStatus.solved:
+        if out.status != _core.RrtStatus.solved:
             continue
-        path = planner.shortcut(np.asarray(out["path"]), settings.shortcuts, rrt.seed)
-        g = int(out["goal"])
+        path = planner.shortcut(np.asarray(out.path), settings.shortcuts, rrt.seed)
+        g = int(out.goal)
         transit = resample(np.asarray(path), n - m + 2)[1:-1]  # q0 and the pre-grasp excluded
         return np.vstack([transit, tails[g]]), g
     return None

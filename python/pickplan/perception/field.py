@@ -138,9 +138,9 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     on_plane = np.array([centre_xy[0], centre_xy[1], (d - n[0] * centre_xy[0] - n[1] * centre_xy[1]) / n[2]])
     T[:3, 3] = on_plane - R @ [0, 0, thickness / 2]
     size = (hi - lo) + 1.0
-    sdf = SceneSdf([(OBSTACLES, built["obstacles"], np.eye(4))], table=((size[0], size[1], thickness), T))
+    sdf = SceneSdf([(OBSTACLES, built.obstacles, np.eye(4))], table=((size[0], size[1], thickness), T))
     t3 = clock()
-    return PerceivedScene(sdf, np.asarray(built["target_points"]), np.asarray(built["target_normals"]), (n, d),
-                          counts={k: int(built[k]) for k in ("occupied", "target", "free")},
+    return PerceivedScene(sdf, np.asarray(built.target_points), np.asarray(built.target_normals), (n, d),
+                          counts={k: int(getattr(built, k)) for k in ("occupied", "target", "free")},
                           seconds={"plane": t1 - t0, "field": t2 - t1, "scene": t3 - t2},
-                          obstacles=built["obstacles"])
+                          obstacles=built.obstacles)

@@ -211,4 +211,4 @@ def _plan_failure(result: PlanResult) -> str:
         return f"no goal configuration for any grasp of the target ({reasons})"
     m = result.metrics
     return (f"the plan failed the success test ({result.status}: min clearance "
-            f"{m.get('min_clearance', float('nan')):.3f} m, smoothness {m.get('smoothness', float('nan')):.3f})")
+            f"{getattr(m, 'min_clearance', float('nan')):.3f} m, smoothness {getattr(m, 'smoothness', float('nan')):.3f})")

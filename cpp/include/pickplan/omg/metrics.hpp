@@ -36,6 +36,13 @@ struct TrajectoryMetrics {
   bool success = false;         // collision-free and smooth enough
 };
 
+// `metrics` of a trajectory a check beyond them found in collision (the caller's exact one: body points
+// sample a finger's surface to 1.7 cm): neither collision-free nor a success.
+inline TrajectoryMetrics marked_in_collision(TrajectoryMetrics metrics) {
+  metrics.collision_free = metrics.success = false;
+  return metrics;
+}
+
 // Linear interpolation of [q0; xi] to `steps` configurations (rows).
 Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int steps);
 

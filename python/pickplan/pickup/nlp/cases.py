@@ -209,7 +209,7 @@ def _solve_job(job):
     st.seed = seed
     p = planner.plan(robot, problem, st, method)
     out = p.to_dict()
-    out["metrics"] = planner.evaluate(robot, problem, p) if p.stages_completed > 0 else None
+    out["metrics"] = planner.evaluate(robot, problem, p).to_dict() if p.stages_completed > 0 else None
     out["stomp"] = {}
     if p.success:  # STOMP on the arm tails [0, T1] and [T2, T] (Sec. V-B, last paragraph)
         for name, (t, Q, info) in planner.refine_tails(robot, problem, p, seed=seed).items():

@@ -314,9 +314,9 @@ def seed_from_times(robot: Robot, problem, T: float, T1: float, T2: float,
     return x
 
 
-def evaluate(robot: Robot, problem, result: PickupPlan, n: int = 2001) -> dict:
+def evaluate(robot: Robot, problem, result: PickupPlan, n: int = 2001) -> "_core.PickupMetrics":
     """Native dense re-sampling metrics (pose error at T2, non-holonomic error, limits, clearance)."""
-    return dict(_core.pickup_evaluate(robot.native, problem, result.native, int(n)))
+    return _core.pickup_evaluate(robot.native, problem, result.native, int(n))
 
 
 # ---- dense checks ------------------------------------------------------------------------------
@@ -330,18 +330,18 @@ JOINT_OVERSHOOT_TOL = 0.03      # rad past a joint limit between samples
 VELOCITY_ERROR_TOL = 0.05       # m/s, |J q' - S_g n_g| during grasping
 
 
-def dense_checks(problem, plan: PickupPlan, metrics: Optional[dict]) -> dict:
+def dense_checks(problem, plan: PickupPlan, metrics: Optional["_core.PickupMetrics"]) -> dict:
     """The checks a solution must pass by dense re-sampling (names -> bool; empty: no solution)."""
     if not plan.success or metrics is None:
         return {}
-    return {"pose_error_at_T2": metrics["pose_error_position"] <= POSE_POSITION_TOL
-            and metrics["pose_error_orientation"] <= POSE_ORIENTATION_TOL,
-            "nonholonomic": metrics["nonholonomic_mean"] <= NONHOLONOMIC_MEAN_TOL
-            and metrics["nonholonomic_drift"] <= NONHOLONOMIC_DRIFT_TOL,
-            "clearance": metrics["min_clearance"] >= 0.0,
-            "joint_limits": metrics["joint_limit_violation"] <= JOINT_OVERSHOOT_TOL,
-            "grasp_velocity": metrics["velocity_error_max"] <= VELOCITY_ERROR_TOL,
-            "rho_at_least_gamma": metrics["success_probability"] >= problem.gamma - 1e-6}
+    return {"pose_error_at_T2": metrics.pose_error_position <= POSE_POSITION_TOL
+            and metrics.pose_error_orientation <= POSE_ORIENTATION_TOL,
+            "nonholonomic": metrics.nonholonomic_mean <= NONHOLONOMIC_MEAN_TOL
+            and metrics.nonholonomic_drift <= NONHOLONOMIC_DRIFT_TOL,
+            "clearance": metrics.min_clearance >= 0.0,
+            "joint_limits": metrics.joint_limit_violation <= JOINT_OVERSHOOT_TOL,
+            "grasp_velocity": metrics.velocity_error_max <= VELOCITY_ERROR_TOL,
+            "rho_at_least_gamma": metrics.success_probability >= problem.gamma - 1e-6}
 
 
 def passes_dense_checks(robot: Robot, problem, plan: PickupPlan) -> bool:

@@ -11,6 +11,7 @@ from typing import Optional
 
 import numpy as np
 
+from pickplan import _core
 from pickplan.core.io import atomic_open, cache_dir, write_json
 from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
 from pickplan.pickup.nlp import planner, routed
@@ -62,7 +63,7 @@ class ProblemSolution:
     spec: PickupProblemSpec
     problem: object               # the native PickupProblem
     plan: planner.PickupPlan
-    metrics: Optional[dict]       # dense re-sampling metrics (None: no stage solved)
+    metrics: Optional["_core.PickupMetrics"]  # dense re-sampling metrics (None: no stage solved)
     checks: dict                  # check name -> passed
 
     @property
@@ -106,7 +107,8 @@ def metrics_dict(sol: ProblemSolution) -> dict:
             "T2": _finite(p.T2), "S_g": _finite(p.S_g), "S_c": _finite(p.S_c), "cpu_seconds": p.total_cpu_seconds,
             "wall_seconds": p.total_seconds, "lower_bound": _finite(p.lower_bound), "reason": p.reason,
             "detail": p.detail, "seed": p.seed,
-            "dense": {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in (sol.metrics or {}).items()},
+            "dense": {k: (None if isinstance(v, float) and math.isinf(v) else v)
+                      for k, v in ({} if sol.metrics is None else sol.metrics.to_dict()).items()},
             "stages": [{"stage": s.stage, "status": s.status, "ipopt": s.ipopt_status, "T": s.objective}
                        for s in p.stages]}
 
