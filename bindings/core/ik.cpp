@@ -2,6 +2,8 @@
 #include "../common.hpp"
 #include "pickplan/core/ik.hpp"
 
+using namespace pickplan::core;
+
 namespace pickplan::bind {
 
 namespace {

@@ -1,5 +1,7 @@
 #include "../common.hpp"
 
+using namespace pickplan::core;
+
 namespace pickplan::bind {
 
 namespace {

@@ -2,6 +2,9 @@
 #include "../common.hpp"
 #include "pickplan/geometry/collision.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+
 namespace pickplan::bind {
 
 namespace {

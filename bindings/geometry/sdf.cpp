@@ -2,6 +2,9 @@
 #include "pickplan/geometry/frame_clearance.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+
 namespace pickplan::bind {
 
 namespace {

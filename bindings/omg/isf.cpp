@@ -2,6 +2,10 @@
 #include "pickplan/omg/isf.hpp"
 #include "refiner_holder.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bind {
 
 namespace {

@@ -2,6 +2,10 @@
 #include "../common.hpp"
 #include "pickplan/omg/rrt_connect.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bind {
 
 namespace {

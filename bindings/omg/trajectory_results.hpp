@@ -6,6 +6,9 @@
 
 namespace pickplan::bind {
 
+using omg::Trajectory;
+using omg::TrajectoryMetrics;
+
 inline py::array_t<double> to_array(const Trajectory& t) {
   py::array_t<double> out({t.rows(), t.cols()});
   Eigen::Map<Trajectory>(out.mutable_data(), t.rows(), t.cols()) = t;

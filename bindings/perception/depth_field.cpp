@@ -2,6 +2,10 @@
 #include "../common.hpp"
 #include "pickplan/perception/depth_field.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::perception;
+
 namespace pickplan::bind {
 
 namespace {

@@ -6,6 +6,9 @@
 #include "pickplan/pickup/nlp.hpp"
 #include "pickplan/pickup/stomp.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::pickup;
+
 namespace pickplan::bind {
 
 namespace {
