@@ -8,6 +8,9 @@
 #include "bench_common.hpp"
 #include "pickplan/geometry/collision.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+
 namespace pickplan::bench {
 namespace {
 

@@ -65,7 +65,7 @@ inline void report(const char* name, const Stats& s, const char* unit_note = "")
 }
 
 // n seeded configurations uniform within the joint limits (continuous joints in [-pi, pi]).
-inline std::vector<Eigen::VectorXd> random_configurations(const Robot& robot, int n, unsigned seed) {
+inline std::vector<Eigen::VectorXd> random_configurations(const core::Robot& robot, int n, unsigned seed) {
   std::mt19937 rng(seed);
   std::vector<Eigen::VectorXd> qs;
   for (int i = 0; i < n; ++i) {

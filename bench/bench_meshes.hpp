@@ -11,7 +11,7 @@
 
 namespace pickplan::bench {
 
-inline void cylinder_mesh(double r, double h, int sections, Vertices& V, Faces& F) {
+inline void cylinder_mesh(double r, double h, int sections, geometry::Vertices& V, geometry::Faces& F) {
   V.resize(2 * sections + 2, 3);
   for (int i = 0; i < sections; ++i) {
     const double a = 2 * M_PI * i / sections;
@@ -30,7 +30,7 @@ inline void cylinder_mesh(double r, double h, int sections, Vertices& V, Faces& 
   }
 }
 
-inline void box_mesh(double x, double y, double z, Vertices& V, Faces& F) {
+inline void box_mesh(double x, double y, double z, geometry::Vertices& V, geometry::Faces& F) {
   V.resize(8, 3);
   for (int i = 0; i < 8; ++i) V.row(i) << ((i & 1) ? x : -x) / 2, ((i & 2) ? y : -y) / 2, ((i & 4) ? z : -z) / 2;
   F.resize(12, 3);
@@ -38,7 +38,7 @@ inline void box_mesh(double x, double y, double z, Vertices& V, Faces& F) {
 }
 
 // Binary STL (triangle soup: three vertices per face).
-inline void read_stl(const std::string& path, Vertices& V, Faces& F) {
+inline void read_stl(const std::string& path, geometry::Vertices& V, geometry::Faces& F) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot open " + path);
   char header[80];

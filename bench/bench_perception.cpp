@@ -7,6 +7,8 @@
 #include "bench_common.hpp"
 #include "pickplan/perception/depth_field.hpp"
 
+using namespace pickplan::perception;
+
 namespace pickplan::bench {
 namespace {
 

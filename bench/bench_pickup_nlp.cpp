@@ -10,6 +10,9 @@
 #include "bench_common.hpp"
 #include "pickplan/pickup/cases.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::pickup;
+
 namespace pickplan::bench {
 namespace {
 

@@ -11,6 +11,10 @@
 #include "pickplan/core/ik.hpp"
 #include "pickplan/geometry/mesh.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bench {
 namespace {
 

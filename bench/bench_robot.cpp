@@ -4,6 +4,8 @@
 #include "bench_common.hpp"
 #include "pickplan/core/robot.hpp"
 
+using namespace pickplan::core;
+
 namespace pickplan::bench {
 namespace {
 

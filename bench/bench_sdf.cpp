@@ -7,6 +7,9 @@
 #include "pickplan/core/robot.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+
 namespace pickplan::bench {
 namespace {
 

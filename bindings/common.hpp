@@ -18,6 +18,10 @@ namespace py = pybind11;
 
 namespace pickplan::bind {
 
+using core::Robot;
+using core::Transform;
+using core::cleaned_rigid;
+
 using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using IntArray = py::array_t<int, py::array::c_style | py::array::forcecast>;
 
@@ -38,7 +42,7 @@ inline void require_shape(const char* what, const py::array& a, std::vector<py::
 }
 
 inline void require_finite_array(const char* what, const Array& a) {
-  pickplan::require_finite(what, a.data(), static_cast<long>(a.size()));
+  core::require_finite(what, a.data(), static_cast<long>(a.size()));
 }
 
 // A configuration vector of the robot's size, finite.
@@ -62,7 +66,7 @@ inline Eigen::Matrix4d matrix4(const Array& a, const char* what) {
   Eigen::Matrix4d M;
   for (int r = 0; r < 4; ++r)
     for (int c = 0; c < 4; ++c) M(r, c) = a.at(r, c);
-  return pickplan::cleaned_rigid(what, M);  // the same tolerance as pickplan.core.poses
+  return cleaned_rigid(what, M);  // the same tolerance as pickplan.core.poses
 }
 
 // An index into [0, size): Python ints of any size are compared before narrowing, so 2**32 + 3

@@ -10,6 +10,8 @@
 namespace pickplan::bind {
 
 // Row-major like numpy: Trajectory (omg/chomp.hpp) and the other n x dof matrices are this type.
+using geometry::TriangleMesh;
+
 using Rows = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 // One configuration of the robot's size, finite.

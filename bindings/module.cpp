@@ -22,11 +22,11 @@ PYBIND11_MODULE(_core, m) {
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
-    } catch (const pickplan::FileNotFound& e) {
+    } catch (const pickplan::core::FileNotFound& e) {
       PyErr_SetString(PyExc_FileNotFoundError, e.what());
     }
   });
-  m.attr("RIGID_CLEAN_TOLERANCE") = pickplan::kRigidCleanTolerance;
+  m.attr("RIGID_CLEAN_TOLERANCE") = pickplan::core::kRigidCleanTolerance;
   pickplan::bind::init_robot(m);
   pickplan::bind::init_sdf(m);
   pickplan::bind::init_chomp(m);

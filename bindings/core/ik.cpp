@@ -4,6 +4,8 @@
 #include "../results.hpp"
 #include "pickplan/core/ik.hpp"
 
+using namespace pickplan::core;
+
 namespace pickplan::bind {
 
 namespace {

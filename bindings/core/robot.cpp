@@ -1,6 +1,8 @@
 #include "../common.hpp"
 #include "../results.hpp"
 
+using namespace pickplan::core;
+
 namespace pickplan::bind {
 
 namespace {

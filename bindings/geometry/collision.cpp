@@ -4,6 +4,9 @@
 #include "../results.hpp"
 #include "pickplan/geometry/collision.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+
 namespace pickplan::bind {
 
 namespace {

@@ -5,6 +5,9 @@
 #include "pickplan/geometry/primitives.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+
 namespace pickplan::bind {
 
 void init_primitives(py::module_& m) {

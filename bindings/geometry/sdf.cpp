@@ -4,6 +4,9 @@
 #include "pickplan/geometry/frame_clearance.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+
 namespace pickplan::bind {
 
 namespace {

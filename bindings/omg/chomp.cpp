@@ -5,6 +5,10 @@
 #include "pickplan/omg/metrics.hpp"
 #include "trajectory_results.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bind {
 
 namespace {

@@ -4,6 +4,10 @@
 #include "pickplan/omg/goal_set.hpp"
 #include "pickplan/omg/metrics.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bind {
 
 namespace {

@@ -4,6 +4,10 @@
 #include "pickplan/omg/isf.hpp"
 #include "refiner_holder.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bind {
 
 void init_isf(py::module_& m) {

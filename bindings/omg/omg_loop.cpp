@@ -5,6 +5,10 @@
 #include "refiner_holder.hpp"
 #include "trajectory_results.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bind {
 
 void init_omg_loop(py::module_& m) {

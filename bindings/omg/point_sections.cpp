@@ -3,6 +3,10 @@
 #include "pickplan/omg/point_queries.hpp"
 #include "pickplan/omg/point_sections.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bind {
 
 namespace {

@@ -7,6 +7,9 @@
 
 namespace pickplan::bind {
 
+using core::Robot;
+using omg::GraspRefiner;
+
 struct RefinerHolder {
   std::shared_ptr<Robot> robot;
   std::shared_ptr<GraspRefiner> refiner;

@@ -4,6 +4,10 @@
 #include "../results.hpp"
 #include "pickplan/omg/rrt_connect.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+
 namespace pickplan::bind {
 
 namespace {

@@ -5,6 +5,9 @@
 
 namespace pickplan::bind {
 
+using omg::marked_in_collision;
+using omg::TrajectoryMetrics;
+
 inline void bind_trajectory_metrics(py::module_& m) {
   result_class<TrajectoryMetrics>(m, "TrajectoryMetrics", "The success test's measures of a trajectory (Sec. IV-A).")
       .field("smoothness", &TrajectoryMetrics::smoothness)

@@ -3,6 +3,10 @@
 #include "../results.hpp"
 #include "pickplan/perception/depth_field.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::perception;
+
 namespace pickplan::bind {
 
 namespace {

@@ -7,6 +7,9 @@
 #include "pickplan/pickup/nlp.hpp"
 #include "pickplan/pickup/stomp.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::pickup;
+
 namespace pickplan::bind {
 
 void init_pickup_nlp(py::module_& m) {

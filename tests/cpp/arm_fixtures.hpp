@@ -51,12 +51,12 @@ inline const char* kMobileTwoLinkUrdf = R"(<?xml version="1.0"?>
   <joint name="tool_mount" type="fixed"><parent link="fore"/><child link="tool"/><origin xyz="0.4 0 0"/></joint>
 </robot>)";
 
-inline std::shared_ptr<Robot> floating_hand() {
-  return std::make_shared<Robot>(Robot::from_urdf_string(kFloatingHandUrdf, ".", {}, "floating_hand"));
+inline std::shared_ptr<core::Robot> floating_hand() {
+  return std::make_shared<core::Robot>(core::Robot::from_urdf_string(kFloatingHandUrdf, ".", {}, "floating_hand"));
 }
 
-inline std::shared_ptr<Robot> mobile_two_link() {
-  return std::make_shared<Robot>(Robot::from_urdf_string(kMobileTwoLinkUrdf, ".", {}, "mobile_two_link"));
+inline std::shared_ptr<core::Robot> mobile_two_link() {
+  return std::make_shared<core::Robot>(core::Robot::from_urdf_string(kMobileTwoLinkUrdf, ".", {}, "mobile_two_link"));
 }
 
 // Runs f and expects std::invalid_argument whose message contains `fragment`.

@@ -5,7 +5,7 @@
 namespace pickplan::test {
 
 // Axis-aligned box centred at the origin, outward-facing triangles.
-inline void box_mesh(const Eigen::Vector3d& size, Vertices& V, Faces& F) {
+inline void box_mesh(const Eigen::Vector3d& size, geometry::Vertices& V, geometry::Faces& F) {
   const Eigen::Vector3d h = size / 2;
   V.resize(8, 3);
   for (int i = 0; i < 8; ++i)

@@ -10,18 +10,18 @@
 
 namespace pickplan::test {
 
-inline Robot load_mobile_ur5() {
-  return Robot::from_urdf_file(std::string(PICKPLAN_TEST_DATA_DIR) + "/../../../assets/mobile_ur5.urdf");
+inline core::Robot load_mobile_ur5() {
+  return core::Robot::from_urdf_file(std::string(PICKPLAN_TEST_DATA_DIR) + "/../../../assets/mobile_ur5.urdf");
 }
 
-inline PickupSettings fast_pickup_settings() {
-  PickupSettings st;
+inline pickup::PickupSettings fast_pickup_settings() {
+  pickup::PickupSettings st;
   st.samples_per_interval = 6;
   return st;
 }
 
 // Worst |fd - J| / (1 + |J|) over all entries, fd the central difference of g (step 1e-6 relative).
-inline double jacobian_fd_error(const PickupConstraints& c, const Eigen::VectorXd& x) {
+inline double jacobian_fd_error(const pickup::PickupConstraints& c, const Eigen::VectorXd& x) {
   const Eigen::MatrixXd J = c.dense_jacobian(x);
   const int m = c.num_constraints();
   Eigen::VectorXd gp(m), gm(m);
@@ -41,7 +41,7 @@ inline double jacobian_fd_error(const PickupConstraints& c, const Eigen::VectorX
 
 // Worst relative error of the Lagrangian Hessian H against central differences of J(x)^T lambda
 // (step 1e-5 relative).
-inline double hessian_fd_error(const PickupConstraints& c, const Eigen::VectorXd& x, const Eigen::VectorXd& lam,
+inline double hessian_fd_error(const pickup::PickupConstraints& c, const Eigen::VectorXd& x, const Eigen::VectorXd& lam,
                                const Eigen::MatrixXd& H) {
   double worst = 0.0;
   for (int j = 0; j < c.num_vars(); ++j) {

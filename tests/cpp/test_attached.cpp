@@ -12,7 +12,10 @@
 #include "pickplan/geometry/collision.hpp"
 #include "pickplan/omg/chomp.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+namespace test = pickplan::test;
 
 namespace {
 

@@ -11,7 +11,8 @@
 #include "pickplan/core/errors.hpp"
 #include "pickplan/geometry/mesh.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::geometry;
 
 namespace {
 

@@ -7,6 +7,8 @@
 
 #include "pickplan/perception/depth_field.hpp"
 
+using namespace pickplan::perception;
+
 namespace pickplan {
 namespace {
 

@@ -9,7 +9,10 @@
 #include "arm_fixtures.hpp"
 #include "pickplan/omg/goal_set.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+namespace test = pickplan::test;
 
 namespace {
 

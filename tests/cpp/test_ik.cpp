@@ -18,7 +18,8 @@
 #include "pickplan/core/ik.hpp"
 #include "pickplan/core/robot.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+namespace test = pickplan::test;
 
 namespace {
 

@@ -10,7 +10,10 @@
 #include "mesh_fixtures.hpp"
 #include "pickplan/omg/isf.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+namespace test = pickplan::test;
 using test::kPalmCenter;
 using test::kPalmSize;
 

@@ -12,7 +12,10 @@
 #include "mesh_fixtures.hpp"
 #include "pickplan/omg/metrics.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+namespace test = pickplan::test;
 
 namespace {
 

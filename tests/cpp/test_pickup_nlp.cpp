@@ -14,7 +14,9 @@
 #include "pickplan/pickup/poly_traj.hpp"
 #include "pickplan/core/robot.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::pickup;
+namespace test = pickplan::test;
 
 namespace {
 

@@ -8,7 +8,7 @@
 
 #include "pickplan/pickup/options.hpp"
 
-using namespace pickplan;
+using namespace pickplan::pickup;
 
 TEST(PickupOptions, TextFormsRoundTrip) {
   for (auto v : {HessianMode::exact, HessianMode::limited_memory}) EXPECT_EQ(parse_hessian_mode(to_string(v)), v);

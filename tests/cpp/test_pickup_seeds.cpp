@@ -10,7 +10,9 @@
 #include "pickplan/pickup/nlp.hpp"
 #include "pickplan/core/robot.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::pickup;
+namespace test = pickplan::test;
 
 namespace {
 

@@ -10,6 +10,11 @@
 #include "pickplan/omg/point_queries.hpp"
 #include "pickplan/perception/depth_field.hpp"
 
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::perception;
+using namespace pickplan::omg;
+
 namespace pickplan {
 namespace {
 

@@ -9,7 +9,8 @@
 #include "arm_fixtures.hpp"
 #include "pickplan/pickup/poly_traj.hpp"
 
-using namespace pickplan;
+using namespace pickplan::pickup;
+namespace test = pickplan::test;
 
 TEST(PolyTraj, KnownCubicAndItsDerivatives) {
   // q(t) = 1 + 2 s - 3 s^2 + 0.5 s^3 with s = t / tau, tau = 2.

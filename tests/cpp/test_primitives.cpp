@@ -10,7 +10,8 @@
 #include "pickplan/geometry/primitives.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::geometry;
 
 namespace {
 

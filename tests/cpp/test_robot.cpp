@@ -6,7 +6,7 @@
 #include "pickplan/core/errors.hpp"
 #include "pickplan/core/robot.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
 
 namespace {
 

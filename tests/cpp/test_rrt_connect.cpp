@@ -7,7 +7,10 @@
 #include "arm_fixtures.hpp"
 #include "pickplan/omg/rrt_connect.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+using namespace pickplan::omg;
+namespace test = pickplan::test;
 using pickplan::test::floating_hand;
 
 namespace {

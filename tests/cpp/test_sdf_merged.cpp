@@ -9,7 +9,9 @@
 #include "mesh_fixtures.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::geometry;
+namespace test = pickplan::test;
 
 namespace {
 

@@ -12,7 +12,9 @@
 #include "pickplan/pickup/cases.hpp"
 #include "pickplan/pickup/stomp.hpp"
 
-using namespace pickplan;
+using namespace pickplan::core;
+using namespace pickplan::pickup;
+namespace test = pickplan::test;
 
 namespace {
 

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <sstream>
 
-namespace pickplan {
+namespace pickplan::core {
 
 void require_size(const char* what, long expected, long got, const char* unit) {
   if (expected == got) return;
@@ -22,4 +22,4 @@ void require_finite(const char* what, const double* values, long n) {
   }
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::core

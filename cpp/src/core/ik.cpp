@@ -12,7 +12,7 @@
 
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::core {
 
 Eigen::Vector3d rotation_log(const Eigen::Matrix3d& R) {
   const Eigen::AngleAxisd aa(R);
@@ -237,4 +237,4 @@ IkSolution IkSolver::solve_any(const Transform& target, const Eigen::VectorXd& s
   return best;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::core

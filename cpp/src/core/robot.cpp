@@ -15,7 +15,7 @@
 
 namespace fs = std::filesystem;
 
-namespace pickplan {
+namespace pickplan::core {
 namespace {
 
 constexpr int kMaxUrdfNesting = 64;  // real URDFs nest 5-6 deep (robot, link, collision, geometry, mesh)
@@ -475,4 +475,4 @@ void Robot::add_wrench_jacobian_transpose(const RobotWorkspace& ws, int link, co
   }
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::core

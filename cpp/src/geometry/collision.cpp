@@ -13,14 +13,14 @@
 #include "pickplan/geometry/sdf.hpp"
 #include "collision_detail.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 namespace {
 
-using collision_detail::bounds;
+using detail::bounds;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 const char* const kTable = "table";
 
-fcl::Transform3d to_fcl(const Transform& T) {
+fcl::Transform3d to_fcl(const core::Transform& T) {
   fcl::Transform3d tf = fcl::Transform3d::Identity();
   tf.linear() = T.R;
   tf.translation() = T.p;
@@ -49,7 +49,7 @@ struct CollisionChecker::Impl {
     std::string name;
     std::shared_ptr<const CollisionShape> shape;
     const fcl::CollisionGeometryd* bvh;  // a BVH, or a solid primitive (shape->solid())
-    Transform pose, inv_pose;
+    core::Transform pose, inv_pose;
     fcl::Transform3d tf;
     Eigen::AlignedBox3d box, world_box;
     Eigen::Vector3d probe_world;  // a vertex, for the object-inside-link test
@@ -61,7 +61,7 @@ struct CollisionChecker::Impl {
   std::shared_ptr<fcl::Boxd> table;
   fcl::Transform3d table_tf;
   Eigen::AlignedBox3d table_world_box;
-  Transform table_inv;
+  core::Transform table_inv;
   Eigen::Vector3d table_half = Eigen::Vector3d::Zero();
 
   const fcl::CollisionGeometryd* other_geom(OtherKind k, int i) const {
@@ -82,7 +82,8 @@ CollisionChecker& CollisionChecker::operator=(CollisionChecker&&) noexcept = def
 namespace {
 
 // The robot's link meshes, each link at most once; returns each link's geometry index (-1: none).
-std::vector<int> add_link_geometry(const Robot& robot, std::vector<LinkMesh> link_meshes, CollisionChecker::Impl& impl) {
+std::vector<int> add_link_geometry(const core::Robot& robot, std::vector<LinkMesh> link_meshes,
+                                   CollisionChecker::Impl& impl) {
   std::vector<int> geom_of_link(robot.num_links(), -1);
   for (auto& lm : link_meshes) {
     const int li = robot.link_index(lm.link);
@@ -104,7 +105,7 @@ std::vector<std::string> add_object_geometry(std::vector<SceneObject> objects, C
     if (o.name.empty() || o.name == kTable)
       throw std::invalid_argument("object name '" + o.name + "' is reserved or empty");
     if (!names.insert(o.name).second) throw std::invalid_argument("object name '" + o.name + "' given twice");
-    require_rigid(("pose of object '" + o.name + "'").c_str(), o.pose.matrix());
+    core::require_rigid(("pose of object '" + o.name + "'").c_str(), o.pose.matrix());
     CollisionChecker::Impl::ObjGeom g;
     g.name = o.name;
     g.shape = shape_of(std::move(o.shape), o.mesh, "mesh of object '" + o.name + "'");
@@ -122,11 +123,11 @@ std::vector<std::string> add_object_geometry(std::vector<SceneObject> objects, C
 
 // The table box (all-zero size: no table).
 void add_table_geometry(const TableBox& table, CollisionChecker::Impl& impl) {
-  require_finite("table size", table.size.data(), 3);
+  core::require_finite("table size", table.size.data(), 3);
   if (table.size.isZero()) return;
   if (!(table.size.array() > 0).all())
     throw std::invalid_argument("table size: expected 3 positive extents (or all zero for no table)");
-  require_rigid("table pose", table.pose.matrix());
+  core::require_rigid("table pose", table.pose.matrix());
   impl.has_table = true;
   impl.table = std::make_shared<fcl::Boxd>(table.size);
   impl.table_tf = to_fcl(table.pose);
@@ -139,7 +140,7 @@ void add_table_geometry(const TableBox& table, CollisionChecker::Impl& impl) {
 
 }  // namespace
 
-CollisionChecker::CollisionChecker(const Robot& robot, std::vector<LinkMesh> link_meshes,
+CollisionChecker::CollisionChecker(const core::Robot& robot, std::vector<LinkMesh> link_meshes,
                                    std::vector<SceneObject> objects, const TableBox& table, CollisionSettings settings)
     : robot_(robot), settings_(std::move(settings)), impl_(std::make_unique<Impl>()) {
   if (!(settings_.margin >= 0.0) || !std::isfinite(settings_.margin))
@@ -218,8 +219,8 @@ std::vector<std::pair<std::string, std::string>> CollisionChecker::checked_pairs
   return out;
 }
 
-void CollisionChecker::set_object_pose(const std::string& name, const Transform& pose) {
-  require_rigid(("pose of object '" + name + "'").c_str(), pose.matrix());
+void CollisionChecker::set_object_pose(const std::string& name, const core::Transform& pose) {
+  core::require_rigid(("pose of object '" + name + "'").c_str(), pose.matrix());
   for (auto& g : impl_->objects) {
     if (g.name != name) continue;
     g.pose = pose;
@@ -268,8 +269,8 @@ namespace {
 
 // True when some vertex of `inner` (placed by T_inner) lies inside the closed mesh `outer`
 // (placed by T_outer). With no triangle crossing, one vertex decides for the whole mesh.
-bool contained(const TriangleMesh& inner_mesh, const Transform& T_inner, const TriangleMesh& outer,
-               const Eigen::AlignedBox3d& outer_box, const Transform& T_outer_inv) {
+bool contained(const TriangleMesh& inner_mesh, const core::Transform& T_inner, const TriangleMesh& outer,
+               const Eigen::AlignedBox3d& outer_box, const core::Transform& T_outer_inv) {
   const Eigen::Vector3d p = T_outer_inv.apply(T_inner.apply(inner_mesh.vertices.row(0).transpose()));
   return outer_box.contains(p) && outer.winding_number(p) > 0.5;
 }
@@ -278,7 +279,7 @@ bool contained(const TriangleMesh& inner_mesh, const Transform& T_inner, const T
 
 bool CollisionChecker::pair_collides(const Pair& p, const CollisionWorkspace& ws) const {
   const auto& lg = impl_->links[p.link_geom];
-  const Transform& Tl = ws.robot.link_pose[lg.link];
+  const core::Transform& Tl = ws.robot.link_pose[lg.link];
   const fcl::Transform3d tf_link = to_fcl(Tl);
   fcl::CollisionRequestd req(1, false);
   fcl::CollisionResultd res;
@@ -296,7 +297,7 @@ bool CollisionChecker::pair_collides(const Pair& p, const CollisionWorkspace& ws
            (!lg.shape->solid() && contained(og.mesh(), og.pose, lg.mesh(), lg.box, Tl.inverse()));
   }
   const auto& og = impl_->links[p.other];
-  const Transform& To = ws.robot.link_pose[og.link];
+  const core::Transform& To = ws.robot.link_pose[og.link];
   fcl::collide(lg.bvh, tf_link, og.bvh, to_fcl(To), req, res);
   if (res.isCollision()) return true;
   if (!settings_.detect_containment) return false;
@@ -307,7 +308,7 @@ bool CollisionChecker::pair_collides(const Pair& p, const CollisionWorkspace& ws
 double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& ws, bool want_points,
                                        ContactInfo* info) const {
   const auto& lg = impl_->links[p.link_geom];
-  const Transform& Tl = ws.robot.link_pose[lg.link];
+  const core::Transform& Tl = ws.robot.link_pose[lg.link];
   const fcl::Transform3d tf_link = to_fcl(Tl);
   const fcl::CollisionGeometryd* other = impl_->other_geom(p.kind, p.other);
   const fcl::Transform3d tf_other = p.kind == OtherKind::Object ? impl_->objects[p.other].tf
@@ -356,7 +357,7 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
     const bool self = p.kind == OtherKind::Link;
     const TriangleMesh& om = self ? impl_->links[p.other].mesh() : impl_->objects[p.other].mesh();
     const Eigen::AlignedBox3d& ob = self ? impl_->links[p.other].box : impl_->objects[p.other].box;
-    const Transform To = self ? ws.robot.link_pose[impl_->links[p.other].link] : impl_->objects[p.other].pose;
+    const core::Transform To = self ? ws.robot.link_pose[impl_->links[p.other].link] : impl_->objects[p.other].pose;
     // Apart from a solid, nothing is inside it.
     const bool solid = self ? impl_->links[p.other].shape->solid() : impl_->objects[p.other].shape->solid();
     if ((!solid && contained(lg.mesh(), Tl, om, ob, To.inverse())) ||
@@ -411,19 +412,19 @@ double CollisionChecker::min_distance(const double* q, CollisionWorkspace& ws, d
 }
 
 bool CollisionChecker::in_collision(const Eigen::VectorXd& q) const {
-  require_size("configuration", robot_.dof(), q.size(), "joint values");
+  core::require_size("configuration", robot_.dof(), q.size(), "joint values");
   CollisionWorkspace ws(*this);
   return in_collision(q.data(), ws);
 }
 
 double CollisionChecker::min_distance(const Eigen::VectorXd& q) const {
-  require_size("configuration", robot_.dof(), q.size(), "joint values");
+  core::require_size("configuration", robot_.dof(), q.size(), "joint values");
   CollisionWorkspace ws(*this);
   return min_distance(q.data(), ws);
 }
 
 std::vector<ContactInfo> CollisionChecker::contacts(const Eigen::VectorXd& q, double within) const {
-  require_size("configuration", robot_.dof(), q.size(), "joint values");
+  core::require_size("configuration", robot_.dof(), q.size(), "joint values");
   check_q(q.data());
   if (!(within >= 0.0)) throw std::invalid_argument("within: expected a value >= 0");
   CollisionWorkspace ws(*this);
@@ -440,4 +441,4 @@ std::vector<ContactInfo> CollisionChecker::contacts(const Eigen::VectorXd& q, do
   return out;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -5,7 +5,7 @@
 
 #include "pickplan/geometry/collision.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 namespace {
 
@@ -46,4 +46,4 @@ void CollisionChecker::min_distance_batch(const double* Q, long B, double* out, 
   });
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -8,20 +8,20 @@
 
 #include "pickplan/geometry/collision.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 struct CollisionShape::Bvh {
   std::shared_ptr<fcl::CollisionGeometryd> model;  // a BVH, or a solid primitive
 };
 
-namespace collision_detail {
+namespace detail {
 
 // The axis-aligned box of a mesh's vertices moved by T.
-inline Eigen::AlignedBox3d bounds(const TriangleMesh& m, const Transform& T = Transform{}) {
+inline Eigen::AlignedBox3d bounds(const TriangleMesh& m, const core::Transform& T = core::Transform{}) {
   Eigen::AlignedBox3d box;
   for (int i = 0; i < m.num_vertices(); ++i) box.extend(T.apply(m.vertices.row(i).transpose()));
   return box;
 }
 
-}  // namespace collision_detail
-}  // namespace pickplan
+}  // namespace detail
+}  // namespace pickplan::geometry

@@ -4,7 +4,7 @@
 #include "pickplan/geometry/collision.hpp"
 #include "collision_detail.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 namespace {
 
 using FclBvh = fcl::BVHModel<fcl::OBBRSSd>;
@@ -24,7 +24,7 @@ std::shared_ptr<FclBvh> make_bvh(const TriangleMesh& m) {
 
 }  // namespace
 
-using collision_detail::bounds;
+using detail::bounds;
 
 CollisionShape::CollisionShape(TriangleMesh mesh, const std::string& what) : mesh_(std::move(mesh)) {
   mesh_.validate(what);
@@ -74,4 +74,4 @@ CollisionShape::CollisionShape(const Primitive& primitive, const std::string& wh
 
 CollisionShape::~CollisionShape() = default;
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -2,7 +2,7 @@
 
 #include <stdexcept>
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 std::vector<std::uint8_t> clear_in_frames(const FrameMatrix& frames, const FrameMatrix& points, const SceneSdf& field,
                                           const FrameClearance& s) {
@@ -36,4 +36,4 @@ std::vector<std::uint8_t> clear_in_frames(const FrameMatrix& frames, const Frame
   return clear;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -8,13 +8,13 @@
 
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 void TriangleMesh::validate(const std::string& what) const {
   if (num_faces() == 0 || num_vertices() == 0)
     throw std::invalid_argument(what + ": empty mesh (" + std::to_string(num_vertices()) + " vertices, " +
                                 std::to_string(num_faces()) + " faces)");
-  require_finite(what.c_str(), vertices.data(), static_cast<long>(vertices.size()));
+  core::require_finite(what.c_str(), vertices.data(), static_cast<long>(vertices.size()));
   double area = 0.0;
   for (int f = 0; f < num_faces(); ++f) {
     for (int k = 0; k < 3; ++k) {
@@ -29,7 +29,7 @@ void TriangleMesh::validate(const std::string& what) const {
   if (!(area > 0.0)) throw std::invalid_argument(what + ": degenerate mesh (all faces have zero area)");
 }
 
-TriangleMesh TriangleMesh::transformed(const Transform& T) const {
+TriangleMesh TriangleMesh::transformed(const core::Transform& T) const {
   TriangleMesh out = *this;
   for (int i = 0; i < num_vertices(); ++i) out.vertices.row(i) = T.apply(vertices.row(i).transpose()).transpose();
   return out;
@@ -135,7 +135,7 @@ TriangleMesh TriangleMesh::sphere(double radius, int rings, int sectors) {
 
 TriangleMesh read_obj(const std::string& path) {
   std::ifstream in(path);
-  if (!in) throw FileNotFound("OBJ file not found: '" + path + "'");
+  if (!in) throw core::FileNotFound("OBJ file not found: '" + path + "'");
   std::vector<Eigen::Vector3d> v;
   std::vector<Eigen::Vector3i> f;
   std::string line;
@@ -183,14 +183,14 @@ TriangleMesh read_obj(const std::string& path) {
   return m;
 }
 
-TriangleMesh link_collision_mesh(const Robot& robot, int link, int cylinder_sections) {
+TriangleMesh link_collision_mesh(const core::Robot& robot, int link, int cylinder_sections) {
   TriangleMesh out;
   out.vertices.resize(0, 3);
   out.faces.resize(0, 3);
   for (const auto& g : robot.link(link).collisions) {
     TriangleMesh part;
     switch (g.kind) {
-      case CollisionGeometry::Kind::Mesh: {
+      case core::CollisionGeometry::Kind::Mesh: {
         std::string ext = std::filesystem::path(g.mesh_path).extension().string();
         for (auto& c : ext) c = static_cast<char>(std::tolower(c));
         if (ext != ".obj")
@@ -201,13 +201,19 @@ TriangleMesh link_collision_mesh(const Robot& robot, int link, int cylinder_sect
           part.vertices.row(i) = part.vertices.row(i).cwiseProduct(g.scale.transpose());
         break;
       }
-      case CollisionGeometry::Kind::Box: part = TriangleMesh::box(g.size); break;
-      case CollisionGeometry::Kind::Cylinder: part = TriangleMesh::cylinder(g.size.x(), g.size.y(), cylinder_sections); break;
-      case CollisionGeometry::Kind::Sphere: part = TriangleMesh::sphere(g.size.x()); break;
+      case core::CollisionGeometry::Kind::Box:
+        part = TriangleMesh::box(g.size);
+        break;
+      case core::CollisionGeometry::Kind::Cylinder:
+        part = TriangleMesh::cylinder(g.size.x(), g.size.y(), cylinder_sections);
+        break;
+      case core::CollisionGeometry::Kind::Sphere:
+        part = TriangleMesh::sphere(g.size.x());
+        break;
     }
     out.append(part.transformed(g.origin));
   }
   return out;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -6,7 +6,7 @@
 
 #include "pickplan/geometry/sdf.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 void Primitive::validate(const std::string& what) const {
   const int used = kind == PrimitiveKind::Box ? 3 : kind == PrimitiveKind::Cylinder ? 2 : 1;
@@ -57,7 +57,7 @@ double Primitive::signed_distance(const Eigen::Vector3d& p, Eigen::Vector3d* gra
 }
 
 std::pair<double, int> Primitive::deepest(const std::vector<Eigen::Vector3d>& points,
-                                          const Transform& world_to_frame) const {
+                                          const core::Transform& world_to_frame) const {
   std::pair<double, int> out{0.0, -1};
   for (size_t i = 0; i < points.size(); ++i) {
     const double depth = -signed_distance(world_to_frame.apply(points[i]));
@@ -95,4 +95,4 @@ TriangleMesh Primitive::enclosing_mesh() const {
   }
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

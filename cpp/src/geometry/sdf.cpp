@@ -5,7 +5,7 @@
 
 #include "pickplan/geometry/sdf.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 double SdfGrid::distance(const Eigen::Vector3d& p, Eigen::Vector3d* gradient) const {
   const Eigen::Vector3d lo = origin_, hi = upper();
@@ -67,7 +67,7 @@ double box_signed_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& h, E
   return q[axis];
 }
 
-int SceneSdf::add_object(std::shared_ptr<const SdfGrid> grid, const Transform& pose) {
+int SceneSdf::add_object(std::shared_ptr<const SdfGrid> grid, const core::Transform& pose) {
   if (!grid) throw std::invalid_argument("SceneSdf: null grid");
   if (bodies_.size() >= 63) throw std::invalid_argument("SceneSdf: at most 63 objects (exclusion masks are 64-bit)");
   Body b;
@@ -82,11 +82,11 @@ int SceneSdf::add_object(std::shared_ptr<const SdfGrid> grid, const Transform& p
   return static_cast<int>(bodies_.size()) - 1;
 }
 
-void SceneSdf::set_pose(int index, const Transform& pose) {
+void SceneSdf::set_pose(int index, const core::Transform& pose) {
   if (index < 0 || index >= num_objects())
     throw std::out_of_range("SceneSdf: no object " + std::to_string(index) + " (" + std::to_string(num_objects()) +
                             " objects)");
-  require_rigid("SceneSdf: object pose", pose.matrix());
+  core::require_rigid("SceneSdf: object pose", pose.matrix());
   bodies_[index].pose = pose;
   bodies_[index].inverse = pose.inverse();
   const std::uint64_t bit = std::uint64_t{1} << index;
@@ -128,7 +128,7 @@ double SceneSdf::live_distance(const double* x, double* gradient, double best, s
   return best;
 }
 
-int SceneSdf::add_primitive(const Primitive& primitive, const Transform& pose) {
+int SceneSdf::add_primitive(const Primitive& primitive, const core::Transform& pose) {
   primitive.validate("SceneSdf primitive");
   if (bodies_.size() >= 63) throw std::invalid_argument("SceneSdf: at most 63 objects (exclusion masks are 64-bit)");
   Body b;
@@ -143,7 +143,7 @@ int SceneSdf::add_primitive(const Primitive& primitive, const Transform& pose) {
   return static_cast<int>(bodies_.size()) - 1;
 }
 
-void SceneSdf::set_table(const Eigen::Vector3d& size, const Transform& pose) {
+void SceneSdf::set_table(const Eigen::Vector3d& size, const core::Transform& pose) {
   if ((size.array() <= 0).any() || !size.allFinite()) throw std::invalid_argument("SceneSdf: table size must be positive");
   has_table_ = true;
   table_half_ = size / 2;
@@ -183,22 +183,20 @@ double SceneSdf::distance(const Eigen::Vector3d& x, Eigen::Vector3d* gradient, d
                          has_table_ && !(exclude_mask & kTableBit), live_included(exclude_mask));
 }
 
-void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settings) {
-  if (!(settings.resolution > 0) || !std::isfinite(settings.resolution) || !(settings.cutoff > 0) ||
-      !std::isfinite(settings.cutoff) || settings.brick < 1 || settings.brick > 64)
-    throw std::invalid_argument("merged SDF: resolution and cutoff must be finite and > 0, brick in [1, 64]");
-  exclude_mask = (exclude_mask | live_) & ~kTableBit;
-  if (!merged(exclude_mask) && num_merged() >= kMaxMerged)
-    throw std::invalid_argument("merged SDF: at most " + std::to_string(kMaxMerged) + " object masks per scene");
-  // Beyond `pad` from every surface box, each object is beyond the cutoff (grid slack included).
+namespace {
+// The region a merged grid covers: every included object's surface box, padded so that beyond it
+// each object is beyond the cutoff (grid slack included). Throws when it would hold too many bricks.
+void merged_region(const std::vector<SceneSdf::Body>& bodies, const std::vector<int>& included,
+                   const MergedSdfSettings& settings, Eigen::Vector3d& lo, Eigen::Vector3d& hi) {
   double pad = settings.cutoff + settings.resolution;
-  for (const Body& b : bodies_) pad = std::max(pad, settings.cutoff + b.slack);
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (int i = 0; i < num_objects(); ++i) {
-    if (exclude_mask >> i & 1) continue;
-    const Body& b = bodies_[i];
+  for (const SceneSdf::Body& b : bodies) pad = std::max(pad, settings.cutoff + b.slack);
+  lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  hi = -lo;
+  for (int i : included) {
+    const SceneSdf::Body& b = bodies[i];
     for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d corner((c & 1) ? b.hi.x() : b.lo.x(), (c & 2) ? b.hi.y() : b.lo.y(), (c & 4) ? b.hi.z() : b.lo.z());
+      const Eigen::Vector3d corner((c & 1) ? b.hi.x() : b.lo.x(), (c & 2) ? b.hi.y() : b.lo.y(),
+                                   (c & 4) ? b.hi.z() : b.lo.z());
       const Eigen::Vector3d w = b.pose.apply(corner);
       lo = lo.cwiseMin(w);
       hi = hi.cwiseMax(w);
@@ -212,49 +210,68 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
   if (cells > 5e7)
     throw std::invalid_argument("merged SDF: the objects span too large a region for resolution " +
                                 std::to_string(settings.resolution) + " m (" + std::to_string(cells) + " bricks)");
+}
+
+// Fills one brick (corner node first, x fastest) with the nearest body's distance, capped at the
+// cutoff; false when the whole brick is at the cutoff. Only bodies that may be the nearest
+// somewhere in the brick's ball (center, radius) are evaluated at its nodes: within the cutoff by
+// their box gap, and not dominated by another body's distance interval at the centre (a grid
+// interpolant changes by at most sqrt(3) per unit; 2 leaves slack).
+bool fill_brick(const std::vector<SceneSdf::Body>& bodies, const MergedSdfSettings& s, const Eigen::Vector3d& corner,
+                const Eigen::Vector3d& center, double radius, float* out) {
+  int ids[64];
+  double at_center[64];
+  int count = 0;
+  double best_upper = s.cutoff;
+  for (int i = 0; i < static_cast<int>(bodies.size()); ++i) {
+    if (box_gap_bound(bodies[i], center, radius) >= s.cutoff) continue;
+    const SceneSdf::Body& b = bodies[i];
+    at_center[count] = b.local_distance(b.inverse.apply(center));
+    best_upper = std::min(best_upper, at_center[count] + 2 * radius);
+    ids[count++] = i;
+  }
+  int n_near = 0;
+  for (int c = 0; c < count; ++c)
+    if (at_center[c] - 2 * radius < best_upper) ids[n_near++] = ids[c];
+  if (n_near == 0) return false;
+  bool any_inside = false;
+  long k = 0;
+  const int B = s.brick;
+  for (int z = 0; z <= B; ++z)
+    for (int y = 0; y <= B; ++y)
+      for (int x = 0; x <= B; ++x, ++k) {
+        const Eigen::Vector3d node = corner + Eigen::Vector3d(x, y, z) * s.resolution;
+        double d = s.cutoff;
+        for (int c = 0; c < n_near; ++c) {
+          const SceneSdf::Body& b = bodies[ids[c]];
+          d = std::min(d, b.local_distance(b.inverse.apply(node)));
+        }
+        out[k] = static_cast<float>(d);
+        any_inside |= d < s.cutoff;
+      }
+  return any_inside;
+}
+}  // namespace
+
+void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settings) {
+  if (!(settings.resolution > 0) || !std::isfinite(settings.resolution) || !(settings.cutoff > 0) ||
+      !std::isfinite(settings.cutoff) || settings.brick < 1 || settings.brick > 64)
+    throw std::invalid_argument("merged SDF: resolution and cutoff must be finite and > 0, brick in [1, 64]");
+  exclude_mask = (exclude_mask | live_) & ~kTableBit;
+  if (!merged(exclude_mask) && num_merged() >= kMaxMerged)
+    throw std::invalid_argument("merged SDF: at most " + std::to_string(kMaxMerged) + " object masks per scene");
   std::vector<int> included;
   for (int i = 0; i < num_objects(); ++i)
     if (!(exclude_mask >> i & 1)) included.push_back(i);
+  Eigen::Vector3d lo, hi;
+  merged_region(bodies_, included, settings, lo, hi);
   // The brick filler outlives this call (bricks fill on first lookup): it owns copies of the
   // included bodies (their grids are shared, immutable).
   std::vector<Body> bodies;
   for (int i : included) bodies.push_back(bodies_[i]);
   const MergedSdfSettings s = settings;
   auto fill = [bodies, s](const Eigen::Vector3d& corner, const Eigen::Vector3d& center, double radius, float* out) {
-    // Objects that may be the nearest somewhere in the ball: within the cutoff by their box gap,
-    // and not dominated by another object's distance interval at the centre (a grid interpolant
-    // changes by at most sqrt(3) per unit; 2 leaves slack).
-    int ids[64];
-    double at_center[64];
-    int count = 0;
-    double best_upper = s.cutoff;
-    for (int i = 0; i < static_cast<int>(bodies.size()); ++i) {
-      if (box_gap_bound(bodies[i], center, radius) >= s.cutoff) continue;
-      const Body& b = bodies[i];
-      at_center[count] = b.local_distance(b.inverse.apply(center));
-      best_upper = std::min(best_upper, at_center[count] + 2 * radius);
-      ids[count++] = i;
-    }
-    int n_near = 0;
-    for (int c = 0; c < count; ++c)
-      if (at_center[c] - 2 * radius < best_upper) ids[n_near++] = ids[c];
-    if (n_near == 0) return false;
-    bool any_inside = false;
-    long k = 0;
-    const int B = s.brick;
-    for (int z = 0; z <= B; ++z)
-      for (int y = 0; y <= B; ++y)
-        for (int x = 0; x <= B; ++x, ++k) {
-          const Eigen::Vector3d node = corner + Eigen::Vector3d(x, y, z) * s.resolution;
-          double d = s.cutoff;
-          for (int c = 0; c < n_near; ++c) {
-            const Body& b = bodies[ids[c]];
-            d = std::min(d, b.local_distance(b.inverse.apply(node)));
-          }
-          out[k] = static_cast<float>(d);
-          any_inside |= d < s.cutoff;
-        }
-    return any_inside;
+    return fill_brick(bodies, s, corner, center, radius, out);
   };
   const auto lower_bound = [&](const Eigen::Vector3d& center, double radius) {
     double best = std::numeric_limits<double>::infinity();
@@ -269,7 +286,6 @@ void SceneSdf::merge(std::uint64_t exclude_mask, const MergedSdfSettings& settin
     }
   merged_.push_back(std::move(grid));
 }
-
 
 SceneSdf::PartBounds SceneSdf::part_lower_bounds(const Eigen::Vector3d& x, std::uint64_t exclude_mask) const {
   PartBounds b{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
@@ -368,4 +384,4 @@ void SceneSdf::distances(const double* points, long n, double* dist, double* gra
   }
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

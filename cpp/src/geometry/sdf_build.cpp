@@ -9,7 +9,7 @@
 #include "pickplan/core/errors.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 namespace {
 
 struct Triangle {
@@ -167,7 +167,7 @@ std::vector<signed char> inside_votes(const Grid& g, const std::vector<Triangle>
 
 SdfGrid SdfGrid::build(const Vertices& V, const Faces& F, const SdfBuildSettings& s, SdfBuildReport* report) {
   if (V.rows() == 0 || F.rows() == 0) throw std::invalid_argument("SDF mesh: empty mesh (no vertices or no faces)");
-  require_finite("SDF mesh vertices", V.data(), V.size());
+  core::require_finite("SDF mesh vertices", V.data(), V.size());
   if (!(s.resolution > 0) || !(s.margin >= 0) || !std::isfinite(s.resolution) || !std::isfinite(s.margin))
     throw std::invalid_argument("SDF settings: resolution must be > 0 and margin >= 0");
   std::vector<Triangle> tris;
@@ -216,7 +216,7 @@ SdfGrid SdfGrid::from_values(const Eigen::Vector3d& origin, double resolution, c
   if (dims.minCoeff() < 2) throw std::invalid_argument("SDF grid: every dimension needs at least 2 nodes");
   if (!(resolution > 0)) throw std::invalid_argument("SDF grid: resolution must be > 0");
   const long n = static_cast<long>(dims.x()) * dims.y() * dims.z();
-  require_size("SDF grid values", n, static_cast<long>(values.size()));
+  core::require_size("SDF grid values", n, static_cast<long>(values.size()));
   SdfGrid grid;
   grid.origin_ = origin;
   grid.resolution_ = resolution;
@@ -225,10 +225,6 @@ SdfGrid SdfGrid::from_values(const Eigen::Vector3d& origin, double resolution, c
   grid.compute_surface_box();
   return grid;
 }
-
-}  // namespace pickplan
-
-namespace pickplan {
 
 void SdfGrid::compute_surface_box() {
   Eigen::Vector3i lo = dims_, hi = Eigen::Vector3i::Constant(-1);
@@ -249,4 +245,4 @@ void SdfGrid::compute_surface_box() {
   surface_hi_ = origin_ + (hi.cast<double>().array() + 1.0).matrix() * resolution_;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

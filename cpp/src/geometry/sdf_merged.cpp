@@ -3,7 +3,7 @@
 
 #include <thread>
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 std::int32_t MergedSdf::fill_cell(long cell) const {
   std::int32_t expected = kPending;
@@ -53,4 +53,4 @@ double MergedSdf::lower_bound_outside(const double* x) const {
   return cell_lower_[cell];
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -10,34 +10,35 @@
 
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 namespace {
 constexpr int kMaxPrecomputedTail = 16;
 
 // Sizes only (O(1), so hot loops can afford it): xi is (n, dof) and q0 has dof entries.
 void require_shapes(const ChompProblem& p, const Trajectory& xi, const Eigen::VectorXd& q0) {
-  require_size("trajectory rows", p.settings().n, xi.rows(), "waypoints");
-  require_size("trajectory columns", p.robot().dof(), xi.cols(), "joint values");
-  require_size("start configuration", p.robot().dof(), q0.size(), "joint values");
+  core::require_size("trajectory rows", p.settings().n, xi.rows(), "waypoints");
+  core::require_size("trajectory columns", p.robot().dof(), xi.cols(), "joint values");
+  core::require_size("start configuration", p.robot().dof(), q0.size(), "joint values");
 }
 }  // namespace
 
 ChompWorkspace::ChompWorkspace(const ChompProblem& p)
-    : fk(p.settings().n + 1, RobotWorkspace(p.robot())),
+    : fk(p.settings().n + 1, core::RobotWorkspace(p.robot())),
       x((p.settings().n + 1) * p.body().size(), 3),
       grad_d((p.settings().n + 1) * p.body().size(), 3),
       d((p.settings().n + 1) * p.body().size()),
       term(static_cast<size_t>(p.settings().n) * p.body().size()),
       live(static_cast<size_t>(p.settings().n + 1) * p.groups().size(), 1),
-      wrench(Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>::Zero((p.settings().n + 1) * p.groups().size(), 6)),
+      wrench(
+          Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>::Zero((p.settings().n + 1) * p.groups().size(), 6)),
       grad(p.settings().n, p.robot().dof()),
       u(p.settings().n, p.robot().dof()) {
   order.reserve(term.size());
 }
 
-ChompProblem::ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<const SceneSdf> scene, BodyPoints body,
-                           ChompSettings settings)
+ChompProblem::ChompProblem(std::shared_ptr<const core::Robot> robot, std::shared_ptr<const geometry::SceneSdf> scene,
+                           BodyPoints body, ChompSettings settings)
     : robot_(std::move(robot)), scene_(std::move(scene)), body_(std::move(body)), settings_(std::move(settings)) {
   if (!robot_ || !scene_) throw std::invalid_argument("CHOMP: robot and scene must not be null");
   const auto& s = settings_;
@@ -46,11 +47,13 @@ ChompProblem::ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<c
     throw std::invalid_argument("CHOMP settings: duration, step_size and epsilon must be > 0 and lambda >= 0");
   if (s.top_k < 0 || s.obstacle_tail < 0 || s.obstacle_tail > s.n)
     throw std::invalid_argument("CHOMP settings: top_k >= 0 and 0 <= obstacle_tail <= n required");
-  if (!s.active.empty()) require_size("CHOMP settings: active joint mask", robot_->dof(), static_cast<long>(s.active.size()), "entries");
-  require_size("body points: links", body_.points.rows(), static_cast<long>(body_.link.size()), "entries");
+  if (!s.active.empty())
+    core::require_size("CHOMP settings: active joint mask", robot_->dof(), static_cast<long>(s.active.size()),
+                       "entries");
+  core::require_size("body points: links", body_.points.rows(), static_cast<long>(body_.link.size()), "entries");
   for (int l : body_.link)
     if (l < 0 || l >= robot_->num_links()) throw std::invalid_argument("body points: link index " + std::to_string(l) + " out of range");
-  require_finite("body points", body_.points.data(), body_.points.size());
+  core::require_finite("body points", body_.points.data(), body_.points.size());
   for (int u = 0; u < body_.size(); ++u) {
     if (groups_.empty() || groups_.back().link != body_.link[u]) groups_.push_back({body_.link[u], u, u});
     groups_.back().end = u + 1;
@@ -85,7 +88,7 @@ ChompProblem::ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<c
 
 void ChompProblem::solve_A(const Trajectory& v, Trajectory& out) const {
   const int n = settings_.n;
-  require_size("solve_A: v", n, v.rows(), "rows");
+  core::require_size("solve_A: v", n, v.rows(), "rows");
   out.resize(v.rows(), v.cols());
   out.row(0) = v.row(0) / chol_diag_[0];
   for (int i = 1; i < n; ++i) out.row(i) = (v.row(i) - chol_sub_[i] * out.row(i - 1)) / chol_diag_[i];
@@ -118,7 +121,7 @@ void ChompProblem::check_trajectory(const Trajectory& xi, const Eigen::VectorXd&
         << xi.cols() << ")";
     throw std::invalid_argument(msg.str());
   }
-  require_finite("trajectory", xi.data(), xi.size());
+  core::require_finite("trajectory", xi.data(), xi.size());
   robot_->check_configuration(q0.data(), q0.size());
 }
 
@@ -145,15 +148,15 @@ double ChompProblem::prior(const Trajectory& xi, const Eigen::VectorXd& q0, Traj
   return f;
 }
 
-ChompProblem::GroupReach ChompProblem::group_reach(const RobotWorkspace& fk, const LinkGroup& group) const {
+ChompProblem::GroupReach ChompProblem::group_reach(const core::RobotWorkspace& fk, const LinkGroup& group) const {
   if (!settings_.link_culling) return {true, true};
   const Eigen::Vector3d c = fk.link_pose[group.link].apply(group.center);
-  const SceneSdf::PartBounds b = scene_->part_lower_bounds(c, settings_.exclude_mask);
+  const geometry::SceneSdf::PartBounds b = scene_->part_lower_bounds(c, settings_.exclude_mask);
   return {b.objects - group.radius < settings_.epsilon, b.table - group.radius < settings_.epsilon};
 }
 
-void ChompProblem::transform_points(const RobotWorkspace& fk, const LinkGroup& group, double* x) const {
-  const Transform& T = fk.link_pose[group.link];
+void ChompProblem::transform_points(const core::RobotWorkspace& fk, const LinkGroup& group, double* x) const {
+  const core::Transform& T = fk.link_pose[group.link];
   const double* p = body_.points.data() + 3 * static_cast<long>(group.begin);
   for (int u = group.begin; u < group.end; ++u, p += 3, x += 3) {
     Eigen::Map<Eigen::Vector3d> xw(x);
@@ -161,21 +164,13 @@ void ChompProblem::transform_points(const RobotWorkspace& fk, const LinkGroup& g
   }
 }
 
-ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorXd& q0, Trajectory* grad,
+// ws.live per (waypoint, group): 1 = points and distances evaluated, 2 = points only, 0 = neither.
+// The start has no term and waypoints past last_t are not charged, so neither needs distances
+// (the start's points are made on demand in obstacle_terms, for the speed of waypoint 1).
+void ChompProblem::obstacle_distances(const Trajectory& xi, const Eigen::VectorXd& q0, int last_t,
                                       ChompWorkspace& ws) const {
-  require_shapes(*this, xi, q0);
-  if (grad) {
-    require_size("obstacle gradient rows", settings_.n, grad->rows(), "waypoints");
-    require_size("obstacle gradient columns", robot_->dof(), grad->cols(), "joint values");
-  }
-  const int n = settings_.n, N = body_.size();
+  const int N = body_.size(), G = static_cast<int>(groups_.size());
   const double eps = settings_.epsilon;
-  ObjectiveTerms out;
-  const int G = static_cast<int>(groups_.size());
-  const int last_t = n - settings_.obstacle_tail;
-  // ws.live per (waypoint, group): 1 = points and distances evaluated, 2 = points only, 0 = neither.
-  // The start has no term and waypoints past last_t are not charged, so neither needs distances
-  // (the start's points are made on demand below, for the speed of waypoint 1).
   for (int t = 0; t <= last_t; ++t) {
     robot_->forward_kinematics(t == 0 ? q0.data() : xi.row(t - 1).data(), ws.fk[t]);
     for (int gi = 0; gi < G; ++gi) {
@@ -192,6 +187,12 @@ ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorX
                         settings_.exclude_mask, reach.objects, reach.table);
     }
   }
+}
+
+// Each near point's term: cost times its speed; colliding points counted.
+void ChompProblem::obstacle_terms(int last_t, ChompWorkspace& ws, ObjectiveTerms& out) const {
+  const int N = body_.size(), G = static_cast<int>(groups_.size());
+  const double eps = settings_.epsilon;
   ws.order.clear();
   const double inv_dt = 1.0 / dt_;
   // ws.term is only read at the indices ws.order lists, all written below: no clearing needed.
@@ -225,11 +226,13 @@ ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorX
     ws.order.resize(k);
   }
   for (int i : ws.order) out.obstacle += ws.term[i];
-  if (!grad) return out;
-  Trajectory& g = ws.u;  // reuse as the obstacle-gradient accumulator
-  g.setZero(n, robot_->dof());
-  // Each term's point forces are summed into a wrench per (waypoint, link group); one chain walk
-  // per loaded wrench then pulls them all back (J^T f without forming J).
+}
+
+// Each term's point forces are summed into a wrench per (waypoint, link group); one chain walk per
+// loaded wrench then pulls them all back (J^T f without forming J).
+void ChompProblem::obstacle_gradient(ChompWorkspace& ws, Trajectory& g) const {
+  const int N = body_.size(), G = static_cast<int>(groups_.size());
+  const double eps = settings_.epsilon, inv_dt = 1.0 / dt_;
   const auto load = [&](int t, int u, const Eigen::Vector3d& x, const Eigen::Vector3d& f) {
     const int row = t * G + group_of_[u];
     auto w = ws.wrench.row(row);
@@ -259,6 +262,23 @@ ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorX
                                           w.tail<3>().transpose(), g.row(t - 1).data());
     w.setZero();
   }
+}
+
+ObjectiveTerms ChompProblem::obstacle(const Trajectory& xi, const Eigen::VectorXd& q0, Trajectory* grad,
+                                      ChompWorkspace& ws) const {
+  require_shapes(*this, xi, q0);
+  if (grad) {
+    core::require_size("obstacle gradient rows", settings_.n, grad->rows(), "waypoints");
+    core::require_size("obstacle gradient columns", robot_->dof(), grad->cols(), "joint values");
+  }
+  ObjectiveTerms out;
+  const int last_t = settings_.n - settings_.obstacle_tail;
+  obstacle_distances(xi, q0, last_t, ws);
+  obstacle_terms(last_t, ws, out);
+  if (!grad) return out;
+  Trajectory& g = ws.u;  // reuse as the obstacle-gradient accumulator
+  g.setZero(settings_.n, robot_->dof());
+  obstacle_gradient(ws, g);
   if (settings_.clip_gradient > 0) g = g.cwiseMax(-settings_.clip_gradient).cwiseMin(settings_.clip_gradient);
   *grad += g;
   return out;
@@ -316,8 +336,8 @@ StepInfo ChompProblem::step(Trajectory& xi, const Eigen::VectorXd& q0, const Tra
   Trajectory delta = -s * ws.u;
   delta.noalias() += s * (M * ws.u.bottomRows(m));
   if (goal) {
-    require_size("CHOMP goal", robot_->dof(), goal->cols(), "joint values per row");
-    require_finite("CHOMP goal", goal->data(), goal->size());
+    core::require_size("CHOMP goal", robot_->dof(), goal->cols(), "joint values per row");
+    core::require_finite("CHOMP goal", goal->data(), goal->size());
     delta.noalias() -= M * (xi.bottomRows(m) - *goal);
   }
   xi += delta;
@@ -343,4 +363,4 @@ ChompResult ChompProblem::optimize(Trajectory xi, const Eigen::VectorXd& q0, con
   return res;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

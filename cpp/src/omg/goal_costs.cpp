@@ -2,11 +2,38 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
 
 #include "pickplan/omg/chomp.hpp"
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
+
+namespace {
+// Every stride-th body point overall, as before the grouping, per link group: its first index,
+// count and offset in a buffer of the strided points (size: their number).
+struct StridedPoints {
+  std::vector<int> first, count, offset;
+  int size = 0;
+  StridedPoints(const std::vector<LinkGroup>& groups, int stride)
+      : first(groups.size()), count(groups.size()), offset(groups.size()) {
+    for (size_t gi = 0; gi < groups.size(); ++gi) {
+      const LinkGroup& grp = groups[gi];
+      first[gi] = grp.begin + (stride - grp.begin % stride) % stride;
+      count[gi] = first[gi] < grp.end ? (grp.end - 1 - first[gi]) / stride + 1 : 0;
+      offset[gi] = size;
+      size += count[gi];
+    }
+  }
+};
+
+// Group gi's strided points, moved by its link's pose T, into x (3 per point).
+inline void place_points(const core::Transform& T, const geometry::Vertices& points, const StridedPoints& sp, int gi,
+                         int stride, double* x) {
+  for (int j = 0; j < sp.count[gi]; ++j)
+    Eigen::Map<Eigen::Vector3d>(x + 3L * j) = T.apply(points.row(sp.first[gi] + j * stride).transpose());
+}
+}  // namespace
 
 void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, int iteration, int horizon,
                               const Trajectory& goals, int time_stride, int point_stride, double* out,
@@ -14,7 +41,7 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
   check_trajectory(xi, q0);
   if (horizon < 1 || iteration < 0) throw std::invalid_argument("goal costs: horizon >= 1 and iteration >= 0 required");
   if (time_stride < 1 || point_stride < 1) throw std::invalid_argument("goal costs: strides must be >= 1");
-  require_size("goal costs: goals", robot_->dof(), goals.cols(), "joint values per row");
+  core::require_size("goal costs: goals", robot_->dof(), goals.cols(), "joint values per row");
   const int n = settings_.n;
   const int k = std::min(n - 1, static_cast<int>(std::floor(static_cast<double>(n) * iteration / horizon)));
   const Eigen::VectorXd a = k == 0 ? q0 : Eigen::VectorXd(xi.row(k - 1).transpose());
@@ -22,35 +49,24 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
   const double lambda = settings_.lambda * std::pow(settings_.lambda_growth, iteration);
   const double eps = settings_.epsilon, inv_dt = 1.0 / dt_;
   const int last_t = L - settings_.obstacle_tail;  // the standoff approach is not charged, as in CHOMP
-  RobotWorkspace& fk_cur = ws.fk[1];
-  RobotWorkspace& fk_a = ws.fk[2];  // n >= 2: at least three
+  core::RobotWorkspace& fk_cur = ws.fk[1];
+  core::RobotWorkspace& fk_a = ws.fk[2];       // n >= 2: at least three
   robot_->forward_kinematics(a.data(), fk_a);  // every goal's tail starts here
-  // Every point_stride-th body point overall, as before the grouping, per group: its first index,
-  // count and offset in a buffer of the strided points. ws.x holds three such buffers (it has
-  // (n + 1) N >= 3 N rows): the points at the tail start (the same for every goal, transformed once
-  // per call), at the current and at the previous tail step; a group's previous points are reused
-  // for the speed when that step transformed them (the same expression: bit-equal), else recomputed.
+  // The strided points (StridedPoints) in buffers: ws.x holds three (it has (n + 1) N >= 3 N rows):
+  // the points at the tail start (the same for every goal, transformed once per call), at the
+  // current and at the previous tail step; a group's previous points are reused for the speed when
+  // that step transformed them (the same expression: bit-equal), else recomputed.
   const int G = static_cast<int>(groups_.size());
-  std::vector<int> first(G), count(G), offset(G);
-  int S = 0;
-  for (int gi = 0; gi < G; ++gi) {
-    const LinkGroup& grp = groups_[gi];
-    first[gi] = grp.begin + (point_stride - grp.begin % point_stride) % point_stride;
-    count[gi] = first[gi] < grp.end ? (grp.end - 1 - first[gi]) / point_stride + 1 : 0;
-    offset[gi] = S;
-    S += count[gi];
-  }
+  const StridedPoints sp(groups_, point_stride);
+  const std::vector<int>&first = sp.first, &count = sp.count, &offset = sp.offset;
+  const int S = sp.size;
   double* const x_a = ws.x.data() + 6L * S;
-  for (int gi = 0; gi < G; ++gi) {
-    const Transform& T = fk_a.link_pose[groups_[gi].link];
-    for (int j = 0; j < count[gi]; ++j)
-      Eigen::Map<Eigen::Vector3d>(x_a + 3L * (offset[gi] + j)) =
-          T.apply(body_.points.row(first[gi] + j * point_stride).transpose());
-  }
+  for (int gi = 0; gi < G; ++gi)
+    place_points(fk_a.link_pose[groups_[gi].link], body_.points, sp, gi, point_stride, x_a + 3L * offset[gi]);
   std::vector<char> valid_prev(G), valid_cur(G);
   Eigen::VectorXd q(robot_->dof()), delta(robot_->dof());
-  const Transform* prev_pose = nullptr;  // link poses of the previous tail step
-  RobotWorkspace& fk_prev = ws.fk[0];
+  const core::Transform* prev_pose = nullptr;  // link poses of the previous tail step
+  core::RobotWorkspace& fk_prev = ws.fk[0];
   for (int g = 0; g < goals.rows(); ++g) {
     delta = goals.row(g).transpose() - a;
     // Prior of a constant-velocity tail: L equal steps of delta / L.
@@ -68,14 +84,12 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
         const LinkGroup& grp = groups_[gi];
         const GroupReach reach = group_reach(fk_cur, grp);
         if (!reach.any()) continue;  // every point beyond epsilon: no cost
-        const Transform& T = fk_cur.link_pose[grp.link];
         double* xg = x_cur + 3L * offset[gi];
         const int c = count[gi];
-        for (int j = 0; j < c; ++j)
-          Eigen::Map<Eigen::Vector3d>(xg + 3L * j) = T.apply(body_.points.row(first[gi] + j * point_stride).transpose());
+        place_points(fk_cur.link_pose[grp.link], body_.points, sp, gi, point_stride, xg);
         valid_cur[gi] = 1;
         scene_->distances(xg, c, ws.d.data(), nullptr, eps, settings_.exclude_mask, reach.objects, reach.table);
-        const Transform& Tp = prev_pose[grp.link];
+        const core::Transform& Tp = prev_pose[grp.link];
         const double* xpg = x_prev + 3L * offset[gi];
         for (int j = 0; j < c; ++j) {
           const double d = ws.d[j];
@@ -98,4 +112,4 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
   }
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

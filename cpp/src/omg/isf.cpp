@@ -9,53 +9,64 @@
 #include "pickplan/core/errors.hpp"
 #include "pickplan/geometry/point_index.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 // The tree owns the points it refers to: refiners placed elsewhere share it (with_object).
 struct GraspRefiner::Index {
-  Vertices source;
-  PointIndex points;
-  explicit Index(const Vertices& pts) : source(pts), points(&source) {}
+  geometry::Vertices source;
+  geometry::PointIndex points;
+  explicit Index(const geometry::Vertices& pts) : source(pts), points(&source) {}
 };
 
 GraspRefiner::~GraspRefiner() = default;
 
-GraspRefiner::GraspRefiner(std::shared_ptr<const Robot> robot, int hand_link, Vertices contacts, Vertices contact_normals,
-                           std::shared_ptr<const SceneSdf> hand_sdf, Vertices object_points, Vertices object_normals,
-                           std::shared_ptr<const SceneSdf> scene, BodyPoints body, std::uint64_t exclude_mask,
+GraspRefiner::GraspRefiner(std::shared_ptr<const core::Robot> robot, int hand_link, geometry::Vertices contacts,
+                           geometry::Vertices contact_normals, std::shared_ptr<const geometry::SceneSdf> hand_sdf,
+                           geometry::Vertices object_points, geometry::Vertices object_normals,
+                           std::shared_ptr<const geometry::SceneSdf> scene, BodyPoints body, std::uint64_t exclude_mask,
                            IsfSettings settings)
-    : robot_(std::move(robot)), hand_(hand_link), contacts_(std::move(contacts)),
-      contact_normals_(std::move(contact_normals)), hand_sdf_(std::move(hand_sdf)),
-      object_points_(std::move(object_points)), object_normals_(std::move(object_normals)), scene_(std::move(scene)),
-      body_(std::move(body)), exclude_mask_(exclude_mask), settings_(std::move(settings)) {
+    : robot_(std::move(robot)),
+      hand_(hand_link),
+      contacts_(std::move(contacts)),
+      contact_normals_(std::move(contact_normals)),
+      hand_sdf_(std::move(hand_sdf)),
+      object_points_(std::move(object_points)),
+      object_normals_(std::move(object_normals)),
+      scene_(std::move(scene)),
+      body_(std::move(body)),
+      exclude_mask_(exclude_mask),
+      settings_(std::move(settings)) {
   if (!robot_ || !hand_sdf_ || !scene_) throw std::invalid_argument("ISF: robot, hand SDF and scene must not be null");
   if (hand_ < 0 || hand_ >= robot_->num_links()) throw std::invalid_argument("ISF: hand link out of range");
   if (contacts_.rows() == 0) throw std::invalid_argument("ISF: no hand contact points");
-  require_size("ISF contact normals", contacts_.rows(), contact_normals_.rows(), "rows");
-  require_finite("ISF contact points", contacts_.data(), contacts_.size());
-  require_finite("ISF contact normals", contact_normals_.data(), contact_normals_.size());
+  core::require_size("ISF contact normals", contacts_.rows(), contact_normals_.rows(), "rows");
+  core::require_finite("ISF contact points", contacts_.data(), contacts_.size());
+  core::require_finite("ISF contact normals", contact_normals_.data(), contact_normals_.size());
   if (object_points_.rows() == 0) throw std::invalid_argument("ISF: no object surface points");
-  require_size("ISF object normals", object_points_.rows(), object_normals_.rows(), "rows");
-  require_finite("ISF object points", object_points_.data(), object_points_.size());
-  require_finite("ISF object normals", object_normals_.data(), object_normals_.size());
-  require_size("ISF body points: links", body_.points.rows(), static_cast<long>(body_.link.size()), "entries");
+  core::require_size("ISF object normals", object_points_.rows(), object_normals_.rows(), "rows");
+  core::require_finite("ISF object points", object_points_.data(), object_points_.size());
+  core::require_finite("ISF object normals", object_normals_.data(), object_normals_.size());
+  core::require_size("ISF body points: links", body_.points.rows(), static_cast<long>(body_.link.size()), "entries");
   for (int l : body_.link)
     if (l < 0 || l >= robot_->num_links())
       throw std::invalid_argument("ISF body points: link index " + std::to_string(l) + " out of range [0, " +
                                   std::to_string(robot_->num_links()) + ")");
-  require_finite("ISF body points", body_.points.data(), body_.points.size());
+  core::require_finite("ISF body points", body_.points.data(), body_.points.size());
   if (!settings_.active.empty())
-    require_size("ISF settings: active joint mask", robot_->dof(), static_cast<long>(settings_.active.size()), "entries");
+    core::require_size("ISF settings: active joint mask", robot_->dof(), static_cast<long>(settings_.active.size()),
+                       "entries");
   index_ = std::make_shared<const Index>(object_points_);
 }
 
-std::shared_ptr<GraspRefiner> GraspRefiner::with_object(Vertices object_points, Vertices object_normals,
-                                                        const Transform& motion) const {
-  require_rigid("ISF: object motion", motion.matrix());
-  require_size("ISF object points", object_points_.rows(), object_points.rows(), "rows (the same samples, moved)");
-  require_size("ISF object normals", object_points.rows(), object_normals.rows(), "rows");
-  require_finite("ISF object points", object_points.data(), object_points.size());
-  require_finite("ISF object normals", object_normals.data(), object_normals.size());
+std::shared_ptr<GraspRefiner> GraspRefiner::with_object(geometry::Vertices object_points,
+                                                        geometry::Vertices object_normals,
+                                                        const core::Transform& motion) const {
+  core::require_rigid("ISF: object motion", motion.matrix());
+  core::require_size("ISF object points", object_points_.rows(), object_points.rows(),
+                     "rows (the same samples, moved)");
+  core::require_size("ISF object normals", object_points.rows(), object_normals.rows(), "rows");
+  core::require_finite("ISF object points", object_points.data(), object_points.size());
+  core::require_finite("ISF object normals", object_normals.data(), object_normals.size());
   const Eigen::Index n = object_points.rows();
   for (const Eigen::Index k : {Eigen::Index{0}, n / 2, n - 1}) {  // the motion must be the points' own
     const Eigen::Vector3d moved = motion.apply(object_points_.row(k).transpose());
@@ -71,17 +82,12 @@ std::shared_ptr<GraspRefiner> GraspRefiner::with_object(Vertices object_points, 
   return out;
 }
 
-GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) const {
-  robot_->check_configuration(q.data(), q.size());
+// Nearest object point of every contact; a repeated neighbour keeps only its closest contact.
+// Adds f_pml and f_align (eqs. 11-12) and their force and torque on the hand.
+void GraspRefiner::contact_terms(const core::Transform& H, GraspTerms& t, Eigen::Vector3d& F,
+                                 Eigen::Vector3d& tau) const {
   const IsfSettings& s = settings_;
-  RobotWorkspace ws(*robot_);
-  robot_->forward_kinematics(q.data(), ws);
-  const Transform& H = ws.link_pose[hand_];
   const double unit = s.length_unit;
-  GraspTerms t;
-  // Wrench on the hand about its origin: force (d f / d position) and torque.
-  Eigen::Vector3d F = Eigen::Vector3d::Zero(), tau = Eigen::Vector3d::Zero();
-  // Nearest object point of every contact; a repeated neighbour keeps only its closest contact.
   const int M = static_cast<int>(contacts_.rows());
   std::vector<size_t> nn(M);
   std::vector<double> dist2(M);
@@ -110,9 +116,14 @@ GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) c
     F += gp;
     tau += (uh[j] - H.p).cross(gp) + un[j].cross(gn);
   }
-  t.isf = t.pml + s.alpha * t.align;
-  // Hand collision: object points inside (or near) the hand push the hand away (eq. 14).
-  const Transform Hinv = H.inverse();
+}
+
+// Hand collision: object points inside (or near) the hand push the hand away (eq. 14).
+void GraspRefiner::hand_collision_terms(const core::Transform& H, GraspTerms& t, Eigen::Vector3d& F,
+                                        Eigen::Vector3d& tau) const {
+  const IsfSettings& s = settings_;
+  const double unit = s.length_unit;
+  const core::Transform Hinv = H.inverse();
   Eigen::Vector3d g;
   for (Eigen::Index k = 0; k < object_points_.rows(); ++k) {
     const Eigen::Vector3d o = object_points_.row(k).transpose();
@@ -124,20 +135,40 @@ GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) c
     F += s.gamma * gw;
     tau += s.gamma * (o - H.p).cross(gw);
   }
-  Eigen::VectorXd gq = Eigen::VectorXd::Zero(robot_->dof());
+}
+
+// Arm obstacle cost at the single configuration g (eq. 14's f_obstacle).
+void GraspRefiner::arm_obstacle_terms(const core::RobotWorkspace& ws, GraspTerms& t, Eigen::VectorXd* gq) const {
+  const IsfSettings& s = settings_;
+  Eigen::Vector3d g;
   Eigen::Matrix<double, 3, Eigen::Dynamic> Jp(3, robot_->dof());
-  // Arm obstacle cost at the single configuration g (eq. 14's f_obstacle).
   for (int u = 0; u < body_.size(); ++u) {
     const Eigen::Vector3d x = ws.link_pose[body_.link[u]].apply(body_.points.row(u).transpose());
     const double d = scene_->distance(x, &g, s.arm_epsilon, exclude_mask_);
     if (d >= s.arm_epsilon) continue;
     double dc;
     t.obstacle += chomp_cost(d, s.arm_epsilon, &dc);
-    if (grad) {
+    if (gq) {
       robot_->position_jacobian_world(ws, body_.link[u], x, Jp);
-      gq += s.gamma * s.beta * Jp.transpose() * (dc * g);
+      *gq += s.gamma * s.beta * Jp.transpose() * (dc * g);
     }
   }
+}
+
+GraspTerms GraspRefiner::cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) const {
+  robot_->check_configuration(q.data(), q.size());
+  const IsfSettings& s = settings_;
+  core::RobotWorkspace ws(*robot_);
+  robot_->forward_kinematics(q.data(), ws);
+  const core::Transform& H = ws.link_pose[hand_];
+  GraspTerms t;
+  // Wrench on the hand about its origin: force (d f / d position) and torque.
+  Eigen::Vector3d F = Eigen::Vector3d::Zero(), tau = Eigen::Vector3d::Zero();
+  contact_terms(H, t, F, tau);
+  t.isf = t.pml + s.alpha * t.align;
+  hand_collision_terms(H, t, F, tau);
+  Eigen::VectorXd gq = Eigen::VectorXd::Zero(robot_->dof());
+  arm_obstacle_terms(ws, t, grad ? &gq : nullptr);
   t.collision = t.hand + s.beta * t.obstacle;
   t.total = t.isf + s.gamma * t.collision;
   if (grad) {
@@ -196,9 +227,9 @@ void GraspRefiner::set_support(SupportPlane support) {
 
 double GraspRefiner::support_depth(const Eigen::VectorXd& q) const {
   if (support_.finger_vertices.rows() == 0) return -std::numeric_limits<double>::infinity();
-  RobotWorkspace ws(*robot_);
+  core::RobotWorkspace ws(*robot_);
   robot_->forward_kinematics(q.data(), ws);
-  const Transform& hand = ws.link_pose[hand_];
+  const core::Transform& hand = ws.link_pose[hand_];
   double lowest = std::numeric_limits<double>::infinity();
   for (int i = 0; i < support_.finger_vertices.rows(); ++i) {
     const Eigen::Vector3d x = hand.apply(support_.finger_vertices.row(i).transpose());
@@ -216,4 +247,4 @@ Eigen::VectorXd GraspRefiner::refine(const Eigen::VectorXd& q, int iterations, G
   return cur;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -9,7 +9,7 @@
 
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 namespace {
 
@@ -43,21 +43,21 @@ void check_settings(const OmgLoopSettings& s) {
 
 }  // namespace
 
-GoalBook::GoalBook(const Robot& robot, int hand_link, const Trajectory& goals, std::vector<Trajectory> tails,
+GoalBook::GoalBook(const core::Robot& robot, int hand_link, const Trajectory& goals, std::vector<Trajectory> tails,
                    std::vector<int> grasp_index)
     : robot_(robot), hand_(hand_link), fk_(robot), tails_(std::move(tails)), origin_(std::move(grasp_index)) {
   const long G = goals.rows();
   if (G < 1) throw std::invalid_argument("goal book: no goals");
   if (hand_ < 0 || hand_ >= robot.num_links()) throw std::invalid_argument("goal book: hand link out of range");
-  require_size("goal book: goal columns", robot.dof(), goals.cols(), "joint values");
-  require_size("goal book: tails", G, static_cast<long>(tails_.size()), "tails (one per goal)");
-  require_size("goal book: grasp indices", G, static_cast<long>(origin_.size()), "entries (one per goal)");
-  require_finite("goal book: goals", goals.data(), goals.size());
+  core::require_size("goal book: goal columns", robot.dof(), goals.cols(), "joint values");
+  core::require_size("goal book: tails", G, static_cast<long>(tails_.size()), "tails (one per goal)");
+  core::require_size("goal book: grasp indices", G, static_cast<long>(origin_.size()), "entries (one per goal)");
+  core::require_finite("goal book: goals", goals.data(), goals.size());
   const long m = tails_.front().rows();
   for (const Trajectory& t : tails_) {
     if (t.rows() != m || t.rows() < 1) throw std::invalid_argument("goal book: every tail needs the same number (>= 1) of rows");
-    require_size("goal book: tail columns", robot.dof(), t.cols(), "joint values");
-    require_finite("goal book: tails", t.data(), t.size());
+    core::require_size("goal book: tail columns", robot.dof(), t.cols(), "joint values");
+    core::require_finite("goal book: tails", t.data(), t.size());
   }
   for (long g = 0; g < G; ++g) {
     goals_.push_back(goals.row(g).transpose());
@@ -135,7 +135,7 @@ class Loop {
   }
   Eigen::VectorXd estimates(const Trajectory& xi, int iteration);
   bool succeeds(Trajectory& xi, int g, int iterations, TrajectoryMetrics& metrics);
-  double now() const { return pickplan::now(s_.clock); }
+  double now() const { return omg::now(s_.clock); }
 
   const ChompProblem& problem_;
   const GraspRefiner* refiner_;
@@ -271,25 +271,26 @@ OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refi
                            const std::vector<int>& grasp_index, const Eigen::VectorXd& blend,
                            const OmgLoopSettings& settings, const WarmStart* warm) {
   check_settings(settings);
-  require_size("OMG loop: initialization blend", problem.settings().n, blend.size(), "entries (one per waypoint)");
-  require_finite("OMG loop: initialization blend", blend.data(), blend.size());
+  core::require_size("OMG loop: initialization blend", problem.settings().n, blend.size(),
+                     "entries (one per waypoint)");
+  core::require_finite("OMG loop: initialization blend", blend.data(), blend.size());
   problem.robot().check_configuration(q0.data(), q0.size());
   GoalBook book(problem.robot(), hand_link, goals, tails, grasp_index);
   if (book.tail_length() > problem.settings().n)
     throw std::invalid_argument("OMG loop: tails longer than the trajectory");
   if (warm) {
-    require_size("OMG loop: warm start", problem.settings().n, warm->initial.rows(), "waypoints");
-    require_size("OMG loop: warm start", q0.size(), warm->initial.cols(), "joints per waypoint");
-    require_finite("OMG loop: warm start", warm->initial.data(), warm->initial.size());
+    core::require_size("OMG loop: warm start", problem.settings().n, warm->initial.rows(), "waypoints");
+    core::require_size("OMG loop: warm start", q0.size(), warm->initial.cols(), "joints per waypoint");
+    core::require_finite("OMG loop: warm start", warm->initial.data(), warm->initial.size());
     if (warm->initial_goal < -1 || warm->initial_goal >= book.size())
       throw std::invalid_argument("OMG loop: warm start goal " + std::to_string(warm->initial_goal) + " is not one of the " +
                                   std::to_string(book.size()) + " goals");
     if (warm->initial_costs.size() && warm->initial_costs.size() != book.size())
       throw std::invalid_argument("OMG loop: warm start costs: expected one per goal (" + std::to_string(book.size()) +
                                   "), got " + std::to_string(warm->initial_costs.size()));
-    require_finite("OMG loop: warm start costs", warm->initial_costs.data(), warm->initial_costs.size());
+    core::require_finite("OMG loop: warm start costs", warm->initial_costs.data(), warm->initial_costs.size());
   }
   return Loop(problem, refiner, book, q0, blend, settings, warm).run();
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -6,7 +6,7 @@
 #include <string>
 #include <unordered_map>
 
-namespace pickplan {
+namespace pickplan::omg {
 
 namespace {
 
@@ -116,4 +116,4 @@ AntipodalPartners antipodal_partners(const RowMatrixXd& points, const RowMatrixX
   return out;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace pickplan {
+namespace pickplan::omg {
 
 void SectionSettings::validate() const {
   const double all[] = {pad_width, max_width, gap, trim, min_width, fit_width, face_tolerance};
@@ -142,4 +142,4 @@ Eigen::VectorXi points_in_frames(const RowMatrixXd& frames, const RowMatrixXd& p
   return counts;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -11,19 +11,19 @@
 
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
-MotionBound::MotionBound(const CollisionChecker& checker) {
-  const Robot& robot = checker.robot();
+MotionBound::MotionBound(const geometry::CollisionChecker& checker) {
+  const core::Robot& robot = checker.robot();
   const std::vector<double> own = checker.link_reach();
   // reach[l]: farthest distance from link l's origin to any geometry of l or its descendants.
   // Parents precede children in the link list (FK's order), so one backward pass suffices.
   std::vector<double> reach(own);
   for (int l = robot.num_links() - 1; l > 0; --l) {
-    const Link& link = robot.link(l);
+    const core::Link& link = robot.link(l);
     if (link.parent < 0) continue;
     double travel = 0.0;  // a prismatic joint may carry its child this far from its origin
-    if (link.joint_type == JointType::Prismatic) {
+    if (link.joint_type == core::JointType::Prismatic) {
       const int q = link.q_index >= 0 ? link.q_index : link.mimic.source_q;
       if (q >= 0) {
         const double lo = robot.lower_limits()[q], hi = robot.upper_limits()[q];
@@ -34,13 +34,13 @@ MotionBound::MotionBound(const CollisionChecker& checker) {
   }
   factors_ = Eigen::VectorXd::Zero(robot.dof());
   for (int l = 0; l < robot.num_links(); ++l) {
-    const Link& link = robot.link(l);
-    if (link.joint_type == JointType::Fixed) continue;
+    const core::Link& link = robot.link(l);
+    if (link.joint_type == core::JointType::Fixed) continue;
     const int q = link.q_index >= 0 ? link.q_index : link.mimic.source_q;
     if (q < 0) continue;
     const double m = link.q_index >= 0 ? 1.0 : std::abs(link.mimic.multiplier);
     // A rotation by dq moves a point r from the axis by at most r |dq|; a translation moves all by |dq|.
-    factors_[q] += m * (link.joint_type == JointType::Prismatic ? 1.0 : reach[l]);
+    factors_[q] += m * (link.joint_type == core::JointType::Prismatic ? 1.0 : reach[l]);
   }
 }
 
@@ -88,9 +88,62 @@ struct Tree {
 
 enum class Extend { trapped, advanced, reached };
 
+bool within_limits(const core::Robot& robot, const double* q) {
+  const Eigen::VectorXd& lo = robot.lower_limits();
+  const Eigen::VectorXd& hi = robot.upper_limits();
+  for (int j = 0; j < robot.dof(); ++j)
+    if (!std::isfinite(q[j]) || q[j] < lo[j] - 1e-9 || q[j] > hi[j] + 1e-9) return false;
+  return true;
+}
+
+// Roots the start tree at `start` and the goal tree at every collision-free goal (inactive joints
+// held at the start's values); false (and out.status) when the start collides or no goal is free.
+bool root_trees(const geometry::CollisionChecker& checker, const RrtSettings& settings, const Eigen::VectorXd& start,
+                const Trajectory& goals, geometry::CollisionWorkspace& ws, Tree& ta, Tree& tb, RrtResult& out) {
+  const core::Robot& robot = checker.robot();
+  const int dof = robot.dof();
+  if (!within_limits(robot, start.data())) throw std::invalid_argument("start: outside the joint limits or not finite");
+  ++out.checks;
+  if (checker.in_collision(start.data(), ws)) {
+    out.status = RrtStatus::invalid_start;
+    return false;
+  }
+  ta.add(start.data(), -1, -1);
+  for (int g = 0; g < goals.rows(); ++g) {
+    Eigen::VectorXd q = goals.row(g).transpose();
+    for (int j = 0; j < dof; ++j)
+      if (!(settings.active.empty() || settings.active[j])) q[j] = start[j];
+    if (!within_limits(robot, q.data()))
+      throw std::invalid_argument("goals row " + std::to_string(g) + ": outside the joint limits");
+    ++out.checks;
+    if (!checker.in_collision(q.data(), ws)) tb.add(q.data(), -1, g);
+  }
+  if (tb.size() == 0) {
+    out.status = RrtStatus::invalid_goals;
+    return false;
+  }
+  return true;
+}
+
+// The solved path: the start tree's branch from its root to node ia, then the goal tree's branch
+// from node ib's parent to its goal.
+void join_path(const Tree& ta, const Tree& tb, int ia, int ib, RrtResult& out) {
+  const int dof = ta.dof;
+  std::vector<int> front, back;
+  for (int i = ia; i >= 0; i = ta.parent[i]) front.push_back(i);
+  for (int i = tb.parent[ib]; i >= 0; i = tb.parent[i]) back.push_back(i);
+  std::reverse(front.begin(), front.end());
+  out.path.resize(static_cast<long>(front.size() + back.size()), dof);
+  long r = 0;
+  for (int i : front) out.path.row(r++) = Eigen::Map<const Eigen::RowVectorXd>(ta.at(i), dof);
+  for (int i : back) out.path.row(r++) = Eigen::Map<const Eigen::RowVectorXd>(tb.at(i), dof);
+  out.goal = tb.root_goal[ib];
+  out.status = RrtStatus::solved;
+}
+
 }  // namespace
 
-MotionPlanner::MotionPlanner(const CollisionChecker& checker, RrtSettings settings)
+MotionPlanner::MotionPlanner(const geometry::CollisionChecker& checker, RrtSettings settings)
     : checker_(checker), settings_(std::move(settings)), bound_(checker) {
   const int dof = checker.robot().dof();
   if (!settings_.active.empty() && static_cast<int>(settings_.active.size()) != dof)
@@ -105,7 +158,8 @@ MotionPlanner::MotionPlanner(const CollisionChecker& checker, RrtSettings settin
     throw std::invalid_argument("goal_bias: expected a fraction in [0, 1]");
 }
 
-bool MotionPlanner::motion_certified(const double* a, const double* b, CollisionWorkspace& ws, long* checks) const {
+bool MotionPlanner::motion_certified(const double* a, const double* b, geometry::CollisionWorkspace& ws,
+                                     long* checks) const {
   constexpr double kMinClearance = 1e-5;  // m: closer is no proof (and would take ever smaller steps)
   constexpr int kMaxChecks = 20000;
   const int dof = checker_.robot().dof();
@@ -135,7 +189,8 @@ bool MotionPlanner::motion_certified(const double* a, const double* b, Collision
   return true;
 }
 
-bool MotionPlanner::motion_valid(const double* a, const double* b, CollisionWorkspace& ws, long* checks) const {
+bool MotionPlanner::motion_valid(const double* a, const double* b, geometry::CollisionWorkspace& ws,
+                                 long* checks) const {
   if (settings_.certified) {
     if (checks) ++*checks;
     if (checker_.in_collision(b, ws)) return false;  // the end first: most rejected edges end in an obstacle
@@ -166,40 +221,17 @@ bool MotionPlanner::motion_valid(const double* a, const double* b, CollisionWork
 
 RrtResult MotionPlanner::rrt_connect(const Eigen::VectorXd& start, const Trajectory& goals) const {
   const auto t0 = Clock::now();
-  const Robot& robot = checker_.robot();
+  const core::Robot& robot = checker_.robot();
   const int dof = robot.dof();
-  require_size("start", dof, start.size(), "joint values");
+  core::require_size("start", dof, start.size(), "joint values");
   if (goals.rows() < 1) throw std::invalid_argument("goals: expected at least one goal configuration");
-  require_size("goals columns", dof, goals.cols(), "joint values");
+  core::require_size("goals columns", dof, goals.cols(), "joint values");
   const Eigen::VectorXd& lo = robot.lower_limits();
   const Eigen::VectorXd& hi = robot.upper_limits();
-  auto within = [&](const double* q) {
-    for (int j = 0; j < dof; ++j)
-      if (!std::isfinite(q[j]) || q[j] < lo[j] - 1e-9 || q[j] > hi[j] + 1e-9) return false;
-    return true;
-  };
-  if (!within(start.data())) throw std::invalid_argument("start: outside the joint limits or not finite");
   RrtResult out;
-  CollisionWorkspace ws(checker_);
-  ++out.checks;
-  if (checker_.in_collision(start.data(), ws)) {
-    out.status = RrtStatus::invalid_start;
-    return out;
-  }
+  geometry::CollisionWorkspace ws(checker_);
   Tree ta(dof), tb(dof);
-  ta.add(start.data(), -1, -1);
-  for (int g = 0; g < goals.rows(); ++g) {
-    Eigen::VectorXd q = goals.row(g).transpose();
-    for (int j = 0; j < dof; ++j)
-      if (!(settings_.active.empty() || settings_.active[j])) q[j] = start[j];
-    if (!within(q.data())) throw std::invalid_argument("goals row " + std::to_string(g) + ": outside the joint limits");
-    ++out.checks;
-    if (!checker_.in_collision(q.data(), ws)) tb.add(q.data(), -1, g);
-  }
-  if (tb.size() == 0) {
-    out.status = RrtStatus::invalid_goals;
-    return out;
-  }
+  if (!root_trees(checker_, settings_, start, goals, ws, ta, tb, out)) return out;
   std::mt19937_64 rng(settings_.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   Eigen::VectorXd sample = start, step(dof);
@@ -243,17 +275,7 @@ RrtResult MotionPlanner::rrt_connect(const Eigen::VectorXd& start, const Traject
       while (e == Extend::advanced);
       if (e == Extend::reached) {
         // Join: the start tree's branch to its root, then the goal tree's branch to its goal.
-        const int ia = a == &ta ? na : nb, ib = a == &ta ? nb : na;
-        std::vector<int> front, back;
-        for (int i = ia; i >= 0; i = ta.parent[i]) front.push_back(i);
-        for (int i = tb.parent[ib]; i >= 0; i = tb.parent[i]) back.push_back(i);
-        std::reverse(front.begin(), front.end());
-        out.path.resize(static_cast<long>(front.size() + back.size()), dof);
-        long r = 0;
-        for (int i : front) out.path.row(r++) = Eigen::Map<const Eigen::RowVectorXd>(ta.at(i), dof);
-        for (int i : back) out.path.row(r++) = Eigen::Map<const Eigen::RowVectorXd>(tb.at(i), dof);
-        out.goal = tb.root_goal[ib];
-        out.status = RrtStatus::solved;
+        join_path(ta, tb, a == &ta ? na : nb, a == &ta ? nb : na, out);
         ++out.iterations;
         break;
       }
@@ -269,7 +291,7 @@ RrtResult MotionPlanner::rrt_connect(const Eigen::VectorXd& start, const Traject
 Trajectory MotionPlanner::shortcut(const Trajectory& path, int attempts, std::uint64_t seed, double min_gain) const {
   if (path.rows() < 3) return path;
   const int dof = static_cast<int>(path.cols());
-  CollisionWorkspace ws(checker_);
+  geometry::CollisionWorkspace ws(checker_);
   std::vector<Eigen::RowVectorXd> pts;
   for (long i = 0; i < path.rows(); ++i) pts.push_back(path.row(i));
   std::mt19937_64 rng(seed);
@@ -323,7 +345,7 @@ Trajectory MotionPlanner::shortcut(const Trajectory& path, int attempts, std::ui
 }
 
 int MotionPlanner::first_invalid_segment(const Trajectory& path) const {
-  CollisionWorkspace ws(checker_);
+  geometry::CollisionWorkspace ws(checker_);
   if (path.rows() && checker_.in_collision(path.row(0).data(), ws)) return 0;
   // The waypoints first (one cheap query each): a path that fails mostly fails at one, and then only
   // the segments before it need proving.
@@ -344,4 +366,4 @@ int MotionPlanner::first_invalid_segment(const Trajectory& path) const {
   return end < path.rows() ? static_cast<int>(end - 1) : -1;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace pickplan {
+namespace pickplan::omg {
 
 namespace {
 
@@ -232,4 +232,4 @@ double SelectionPolicy::regret() const {
   return played - total.minCoeff();
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

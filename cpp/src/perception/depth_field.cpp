@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace pickplan {
+namespace pickplan::perception {
 
 namespace {
 
@@ -144,7 +144,8 @@ void DepthFieldSettings::validate() const {
   require(target_stride >= 1, "depth field: target_stride must be >= 1");
 }
 
-PlaneChoice most_inliers(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets, double tolerance) {
+PlaneChoice most_inliers(const geometry::Vertices& points, const geometry::Vertices& normals,
+                         const Eigen::VectorXd& offsets, double tolerance) {
   require(offsets.size() == normals.rows(), "plane inliers: expected one offset per normal, got " +
                                                 std::to_string(offsets.size()) + " for " + std::to_string(normals.rows()));
   require(std::isfinite(tolerance) && tolerance >= 0, "plane inliers: tolerance must be >= 0");
@@ -165,14 +166,14 @@ PlaneChoice most_inliers(const Vertices& points, const Vertices& normals, const 
   return best;
 }
 
-std::vector<float> point_distance_grid(const Vertices& points, const Eigen::Vector3d& origin, double resolution,
-                                       const Eigen::Vector3i& dims) {
+std::vector<float> point_distance_grid(const geometry::Vertices& points, const Eigen::Vector3d& origin,
+                                       double resolution, const Eigen::Vector3i& dims) {
   require(points.rows() > 0 && points.allFinite(), "point distance grid: expected finite points, got " +
                                                        std::to_string(points.rows()) + " rows");
   require(dims.minCoeff() >= 1 && static_cast<double>(dims.x()) * dims.y() * dims.z() < 2.0e8,
           "point distance grid: expected 1 to 2e8 nodes");
   require(origin.allFinite() && std::isfinite(resolution) && resolution > 0, "point distance grid: bad origin or resolution");
-  const PointIndex index(&points);
+  const geometry::PointIndex index(&points);
   std::vector<float> out(static_cast<std::size_t>(dims.prod()));
   std::size_t k = 0, nearest = 0;
   // A node's nearest distance is at most its neighbour's plus the resolution (triangle inequality):
@@ -294,7 +295,8 @@ DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFie
   std::vector<float> values(total);
   for (long i = 0; i < total; ++i) values[i] = std::min(std::sqrt(to_occupied[i]) * float(res) - half, cap);
   if (out.occupied > 0) inside_distances(occupied, dims, box_lo, box_hi, res, &values);
-  out.obstacles = std::make_shared<SdfGrid>(SdfGrid::from_values(s.lo, res, dims, std::move(values)));
+  out.obstacles =
+      std::make_shared<geometry::SdfGrid>(geometry::SdfGrid::from_values(s.lo, res, dims, std::move(values)));
 
   // The target's observed surface: back-projected target pixels, normals from neighbouring pixels.
   std::vector<Eigen::Vector3d> pts, nrm;
@@ -332,4 +334,4 @@ DepthField build_depth_field(const std::vector<DepthView>& views, const DepthFie
   return out;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::perception

@@ -8,7 +8,7 @@
 
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 RhoPoly example_rho(double shift) {
   RhoPoly r;
@@ -39,7 +39,7 @@ void set_part_grasp(PickupProblem& pb, GraspKind kind, double yaw, const Eigen::
   pb.part_xy = position.head<2>();
 }
 
-PickupProblem paper_case(const Robot& robot, int case_id, const RhoPoly& rho, const PaperCaseOptions& opt) {
+PickupProblem paper_case(const core::Robot& robot, int case_id, const RhoPoly& rho, const PaperCaseOptions& opt) {
   if (case_id < 1 || case_id > 6) throw std::invalid_argument("case_id must be 1..6, got " + std::to_string(case_id));
   if (robot.dof() != 9) throw std::invalid_argument("paper cases need the 9-DOF mobile_ur5, got " + std::to_string(robot.dof()) + " DOFs");
   const double yaws[6] = {0.0, M_PI / 4, M_PI / 2, 0.0, M_PI / 4, M_PI / 2};
@@ -72,25 +72,21 @@ PickupProblem paper_case(const Robot& robot, int case_id, const RhoPoly& rho, co
   return pb;
 }
 
-}  // namespace pickplan
-
-namespace pickplan {
-
-PickupMetrics evaluate_pickup(const Robot& robot, const PickupProblem& pb, const PickupResult& res, int n) {
+PickupMetrics evaluate_pickup(const core::Robot& robot, const PickupProblem& pb, const PickupResult& res, int n) {
   if (n < 3) throw std::invalid_argument("evaluate_pickup: need at least 3 samples");
   if (res.x.size() != res.traj.num_coeffs() + 5) throw std::invalid_argument("evaluate_pickup: result has no solution vector");
-  require_size("evaluate_pickup: result trajectory", robot.dof(), res.traj.dof(), "DOFs (the robot's)");
+  core::require_size("evaluate_pickup: result trajectory", robot.dof(), res.traj.dof(), "DOFs (the robot's)");
   if (pb.tool_link < 0 || pb.tool_link >= robot.num_links()) throw std::invalid_argument("evaluate_pickup: tool_link out of range");
   for (const auto& b : pb.body_spheres)
     if (b.link < 0 || b.link >= robot.num_links()) throw std::invalid_argument("evaluate_pickup: body sphere link out of range");
   PickupMetrics m;
   const int d = robot.dof();
-  RobotWorkspace ws(robot);
+  core::RobotWorkspace ws(robot);
   Eigen::VectorXd q(d), qd(d);
   Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, d);
   res.traj.eval(res.x.data(), res.T2, q.data(), nullptr, nullptr);
   robot.forward_kinematics(q.data(), ws);
-  const Transform tool = ws.link_pose[pb.tool_link];
+  const core::Transform tool = ws.link_pose[pb.tool_link];
   m.pose_error_position = (tool.p - pb.grasp_pose.p).norm();
   m.pose_error_orientation = Eigen::AngleAxisd(pb.grasp_pose.R.transpose() * tool.R).angle();
   m.min_clearance = std::numeric_limits<double>::infinity();
@@ -131,4 +127,4 @@ PickupMetrics evaluate_pickup(const Robot& robot, const PickupProblem& pb, const
   return m;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

@@ -13,8 +13,8 @@
 #include "nlp_detail.hpp"
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
-using namespace pickup_detail;
+namespace pickplan::pickup {
+using namespace detail;
 
 void PickupConstraints::hess_structure(int* rows, int* cols) const {
   int e = 0;
@@ -25,19 +25,37 @@ void PickupConstraints::hess_structure(int* rows, int* cols) const {
     }
 }
 
+struct PickupConstraints::ZHessian {
+  explicit ZHessian(int n)
+      : gq(Eigen::VectorXd::Zero(n)),
+        gv(Eigen::VectorXd::Zero(n)),
+        gp_nh(Eigen::VectorXd::Zero(n)),
+        Hqq(Eigen::MatrixXd::Zero(n, n)),
+        Hqv(Eigen::MatrixXd::Zero(n, n)),
+        Hvv(Eigen::MatrixXd::Zero(n, n)),
+        Hqp_nh(Eigen::MatrixXd::Zero(n, n)) {}
+  // z = (q, q') accumulators; the non-holonomic rows' terms in (q, P_s) separately.
+  Eigen::VectorXd gq, gv, gp_nh;
+  Eigen::MatrixXd Hqq, Hqv, Hvv, Hqp_nh;
+};
+
 void PickupConstraints::sample_hessian(const double* x, const double* lambda, int s, Eigen::MatrixXd& H) const {
-  const int r0 = sample_row_begin_[s], r1 = sample_row_begin_[s + 1], n = dof_;
+  const int r0 = sample_row_begin_[s], r1 = sample_row_begin_[s + 1];
   bool any = false;
   for (int r = r0; r < r1; ++r) any |= lambda[r] != 0.0;
   if (!any) return;
   Kin k(robot_);
   kinematics(k, x, s, r0, r1);
-  const double T = k.T;
+  ZHessian z(dof_);
+  if (z_polynomial_terms(lambda, r0, r1, k, z)) z_kinematic_terms(lambda, r0, r1, k, z);
+  chain_to_variables(x, s, k, z, H);
+}
+
+// The polynomial rows, exactly; true if a forward-kinematics row has a multiplier.
+bool PickupConstraints::z_polynomial_terms(const double* lambda, int r0, int r1, const Kin& k, ZHessian& z) const {
   const Eigen::VectorXd& v = k.qd;
-  // z = (q, q') accumulators; the non-holonomic rows' terms in (q, P_s) separately.
-  Eigen::VectorXd gq = Eigen::VectorXd::Zero(n), gv = Eigen::VectorXd::Zero(n), gp_nh = Eigen::VectorXd::Zero(n);
-  Eigen::MatrixXd Hqq = Eigen::MatrixXd::Zero(n, n), Hqv = Eigen::MatrixXd::Zero(n, n), Hvv = Eigen::MatrixXd::Zero(n, n);
-  Eigen::MatrixXd Hqp_nh = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd &gq = z.gq, &gv = z.gv, &gp_nh = z.gp_nh;
+  Eigen::MatrixXd &Hqq = z.Hqq, &Hvv = z.Hvv, &Hqp_nh = z.Hqp_nh;
   bool any_kin = false;
   for (int r = r0; r < r1; ++r) {
     const double l = lambda[r];
@@ -78,36 +96,50 @@ void PickupConstraints::sample_hessian(const double* x, const double* lambda, in
       default: any_kin |= is_kinematic(R.kind); break;
     }
   }
-  if (any_kin) {  // forward differences in q of the weighted exact gradients (linear in q')
-    Eigen::VectorXd G0q(n), G0v(n), Gq(n), Gv(n), cq(n), cqd(n);
-    auto weighted = [&](Kin& kk, Eigen::VectorXd& wq, Eigen::VectorXd& wv) {
-      wq.setZero();
-      wv.setZero();
-      double dsg;
-      for (int r = r0; r < r1; ++r) {
-        if (lambda[r] == 0.0 || !is_kinematic(rows_[r].kind)) continue;
-        row_partials(rows_[r], kk, cq, cqd, dsg);
-        wq += lambda[r] * cq;
-        wv += lambda[r] * cqd;
-      }
-    };
-    weighted(k, G0q, G0v);
-    gq += G0q;
-    gv += G0v;
-    Kin kp = k;
-    Eigen::MatrixXd D(n, n);
-    for (int j = 0; j < n; ++j) {
-      const double h = 1e-7 * std::max(1.0, std::abs(k.q[j]));
-      kp.q = k.q;
-      kp.q[j] += h;
-      update_kinematics(kp);
-      weighted(kp, Gq, Gv);
-      D.col(j) = (Gq - G0q) / h;
-      Hqv.row(j) += ((Gv - G0v) / h).transpose();  // d^2 / dq_j dq'_i
+  return any_kin;
+}
+
+// The forward-kinematics rows: forward differences in q of the weighted exact gradients (linear in q').
+void PickupConstraints::z_kinematic_terms(const double* lambda, int r0, int r1, Kin& k, ZHessian& z) const {
+  const int n = dof_;
+  Eigen::VectorXd G0q(n), G0v(n), Gq(n), Gv(n), cq(n), cqd(n);
+  auto weighted = [&](Kin& kk, Eigen::VectorXd& wq, Eigen::VectorXd& wv) {
+    wq.setZero();
+    wv.setZero();
+    double dsg;
+    for (int r = r0; r < r1; ++r) {
+      if (lambda[r] == 0.0 || !is_kinematic(rows_[r].kind)) continue;
+      row_partials(rows_[r], kk, cq, cqd, dsg);
+      wq += lambda[r] * cq;
+      wv += lambda[r] * cqd;
     }
-    Hqq += 0.5 * (D + D.transpose());
+  };
+  weighted(k, G0q, G0v);
+  z.gq += G0q;
+  z.gv += G0v;
+  Kin kp = k;
+  Eigen::MatrixXd D(n, n);
+  for (int j = 0; j < n; ++j) {
+    const double h = 1e-7 * std::max(1.0, std::abs(k.q[j]));
+    kp.q = k.q;
+    kp.q[j] += h;
+    update_kinematics(kp);
+    weighted(kp, Gq, Gv);
+    D.col(j) = (Gq - G0q) / h;
+    z.Hqv.row(j) += ((Gv - G0v) / h).transpose();  // d^2 / dq_j dq'_i
   }
-  // To y = (q, p = P_s, T) with q' = p / T.
+  z.Hqq += 0.5 * (D + D.transpose());
+}
+
+// To y = (q, p = P_s, T), then through y(a, t, T) into the coefficients, s1, s2 and T.
+void PickupConstraints::chain_to_variables(const double* x, int s, const Kin& k, const ZHessian& z,
+                                           Eigen::MatrixXd& H) const {
+  const int n = dof_;
+  const double T = k.T;
+  const Eigen::VectorXd& v = k.qd;
+  const Eigen::VectorXd &gq = z.gq, &gv = z.gv, &gp_nh = z.gp_nh;
+  const Eigen::MatrixXd &Hqq = z.Hqq, &Hqv = z.Hqv, &Hvv = z.Hvv, &Hqp_nh = z.Hqp_nh;
+  // q' = p / T.
   const double T2 = T * T;
   const Eigen::VectorXd gp = gv / T + gp_nh;
   const Eigen::MatrixXd Hqp = Hqv / T + Hqp_nh, Hpp = Hvv / T2;
@@ -171,8 +203,8 @@ void PickupConstraints::eval_hessian(const double* x, const double* lambda, doub
 }
 
 Eigen::MatrixXd PickupConstraints::dense_hessian(const Eigen::VectorXd& xv, const Eigen::VectorXd& lambda) const {
-  require_size("NLP variables x", n_, xv.size(), "values");
-  require_size("NLP multipliers lambda", num_constraints(), lambda.size(), "values (one per constraint row)");
+  core::require_size("NLP variables x", n_, xv.size(), "values");
+  core::require_size("NLP multipliers lambda", num_constraints(), lambda.size(), "values (one per constraint row)");
   const double* x = xv.data();
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n_, n_);
   for (int s = 0; s < static_cast<int>(samples_.size()); ++s) sample_hessian(x, lambda.data(), s, H);
@@ -204,4 +236,4 @@ Eigen::MatrixXd PickupConstraints::dense_hessian(const Eigen::VectorXd& xv, cons
   return H;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

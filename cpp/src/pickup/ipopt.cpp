@@ -16,8 +16,8 @@
 #include "pickplan/pickup/nlp.hpp"
 #include "nlp_detail.hpp"
 
-namespace pickplan {
-using pickup_detail::Multipliers;
+namespace pickplan::pickup {
+using detail::Multipliers;
 // -------------------------------------------------------------------------------------
 namespace {
 
@@ -261,7 +261,7 @@ SolveStatus short_status(Ipopt::ApplicationReturnStatus s) {
 
 }  // namespace
 
-namespace pickup_detail {
+namespace detail {
 
 double thread_cpu_seconds() {
   timespec ts{};
@@ -336,5 +336,5 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
   return res;
 }
 
-}  // namespace pickup_detail
-}  // namespace pickplan
+}  // namespace detail
+}  // namespace pickplan::pickup

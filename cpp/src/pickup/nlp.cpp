@@ -15,12 +15,12 @@
 #include <limits>
 #include <stdexcept>
 
-namespace pickplan {
-using namespace pickup_detail;
+namespace pickplan::pickup {
+using namespace detail;
 
-namespace pickup_detail {
+namespace detail {
 // Tool-point linear/angular velocity Jacobian and the derivatives of (J q') with respect to q.
-void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool, const Eigen::VectorXd& qd,
+void velocity_derivatives(const core::Robot& robot, const core::RobotWorkspace& ws, int tool, const Eigen::VectorXd& qd,
                           Eigen::Matrix<double, 6, Eigen::Dynamic>& J, Eigen::Matrix<double, 3, Eigen::Dynamic>& dv,
                           Eigen::Matrix<double, 3, Eigen::Dynamic>& dw) {
   const int n = robot.dof();
@@ -32,7 +32,7 @@ void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool
     const int L = robot.link_of_q(i);
     a[i] = ws.link_pose[L].R * robot.link(L).axis;
     o[i] = ws.link_pose[L].p;
-    rev[i] = robot.link(L).joint_type != JointType::Prismatic;
+    rev[i] = robot.link(L).joint_type != core::JointType::Prismatic;
     moves_tool[i] = robot.moves(i, tool);
   }
   dv.setZero();
@@ -61,7 +61,7 @@ void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool
   }
 }
 
-}  // namespace pickup_detail
+}  // namespace detail
 
 void PickupConstraints::eval_g(const double* x, double* g) const {
   for (int s = 0; s < static_cast<int>(samples_.size()); ++s)
@@ -247,7 +247,7 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
 }
 
 Eigen::MatrixXd PickupConstraints::dense_jacobian(const Eigen::VectorXd& x) const {
-  require_size("NLP variables x", n_, x.size(), "values");
+  core::require_size("NLP variables x", n_, x.size(), "values");
   std::vector<double> v(num_nonzeros());
   eval_jac(x.data(), v.data());
   Eigen::MatrixXd J = Eigen::MatrixXd::Zero(num_constraints(), n_);
@@ -256,7 +256,7 @@ Eigen::MatrixXd PickupConstraints::dense_jacobian(const Eigen::VectorXd& x) cons
 }
 
 double PickupConstraints::max_violation(const Eigen::VectorXd& x) const {
-  require_size("NLP variables x", n_, x.size(), "values");
+  core::require_size("NLP variables x", n_, x.size(), "values");
   Eigen::VectorXd xl, xu, gl, gu, g(num_constraints());
   bounds(xl, xu, gl, gu);
   eval_g(x.data(), g.data());
@@ -266,4 +266,4 @@ double PickupConstraints::max_violation(const Eigen::VectorXd& x) const {
   return v;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

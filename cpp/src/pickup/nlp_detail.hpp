@@ -9,8 +9,8 @@
 #include "pickplan/pickup/nlp.hpp"
 #include "pickplan/core/robot.hpp"
 
-namespace pickplan {
-namespace pickup_detail {
+namespace pickplan::pickup {
+namespace detail {
 
 enum Kind {
   K_START, K_NH, K_BSPEED, K_YAWRATE, K_JPOS, K_JRATE, K_AREA, K_VEL, K_OMEGA, K_POSE_P, K_POSE_R, K_POSE_TR,
@@ -20,9 +20,12 @@ constexpr double kInf = 2e19;
 
 // Tool-point linear/angular velocity Jacobian J and the derivatives of (J q') with respect to q
 // (dv: linear, dw: angular), at the kinematics already in ws.
-void velocity_derivatives(const Robot& robot, const RobotWorkspace& ws, int tool, const Eigen::VectorXd& qd,
+void velocity_derivatives(const core::Robot& robot, const core::RobotWorkspace& ws, int tool, const Eigen::VectorXd& qd,
                           Eigen::Matrix<double, 6, Eigen::Dynamic>& J, Eigen::Matrix<double, 3, Eigen::Dynamic>& dv,
                           Eigen::Matrix<double, 3, Eigen::Dynamic>& dw);
+
+// True (and why) when no trajectory can place the tool at the grasp position (problem.cpp).
+bool grasp_unreachable(const core::Robot& robot, const PickupProblem& pb, std::string& why);
 
 // Ipopt's multipliers: variable bounds (lower, upper) and constraint rows.
 struct Multipliers {
@@ -45,19 +48,26 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
                    const Multipliers* warm = nullptr);
 double thread_cpu_seconds();
 
-}  // namespace pickup_detail
+}  // namespace detail
 
 // Kinematic state at one sample: q, P_s = dq/ds, P_ss, q' = P_s / T, FK and tool Jacobians.
 struct PickupConstraints::Kin {
-  explicit Kin(const Robot& r)
-      : q(r.dof()), Ps(r.dof()), Pss(r.dof()), qd(r.dof()), ws(r), Jt(6, r.dof()), dv(3, r.dof()), dw(3, r.dof()),
+  explicit Kin(const core::Robot& r)
+      : q(r.dof()),
+        Ps(r.dof()),
+        Pss(r.dof()),
+        qd(r.dof()),
+        ws(r),
+        Jt(6, r.dof()),
+        dv(3, r.dof()),
+        dw(3, r.dof()),
         Jx(3, r.dof()) {}
   double T = 1.0, Sg = 0.0, t = 0.0, c = 1.0, sn = 0.0;
   bool need_kin = false, need_vel = false;
   Eigen::VectorXd q, Ps, Pss, qd;
-  RobotWorkspace ws;
+  core::RobotWorkspace ws;
   Eigen::Matrix<double, 6, Eigen::Dynamic> Jt;
   Eigen::Matrix<double, 3, Eigen::Dynamic> dv, dw, Jx;
 };
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

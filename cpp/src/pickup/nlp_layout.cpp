@@ -8,8 +8,8 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace pickplan {
-using namespace pickup_detail;
+namespace pickplan::pickup {
+using namespace detail;
 namespace {
 
 const char* kKindName[] = {"start", "nonholonomic", "base_speed", "yaw_rate", "joint_position", "joint_rate",
@@ -19,8 +19,28 @@ const char* kKindName[] = {"start", "nonholonomic", "base_speed", "yaw_rate", "j
 
 }  // namespace
 
-PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
-                                     int stage, const PickupRowSubset* subset)
+// Optional rows: every one (no subset) or those of the subset; collision rows between samples get
+// extra samples (one per distinct instant), after the regular ones.
+struct PickupConstraints::RowSelection {
+  struct Extra {
+    Sample at;
+    std::vector<int> joints, pairs;
+    bool nonholonomic;
+  };
+  std::vector<char> joints;             // per (regular sample, arm joint): its limit row is kept
+  std::vector<std::vector<int>> pairs;  // per regular sample: the collision pairs kept
+  std::vector<Extra> extra;
+  Extra& extra_at(const double* w) {
+    auto it = std::find_if(extra.begin(), extra.end(),
+                           [&](const Extra& e) { return e.at.w[0] == w[0] && e.at.w[1] == w[1] && e.at.w[2] == w[2]; });
+    if (it != extra.end()) return *it;
+    extra.push_back({{{w[0], w[1], w[2]}}, {}, {}, false});
+    return extra.back();
+  }
+};
+
+PickupConstraints::PickupConstraints(const core::Robot& robot, const PickupProblem& problem,
+                                     const PickupSettings& settings, int stage, const PickupRowSubset* subset)
     : robot_(robot), pb_(problem), st_(settings), stage_(stage) {
   if (stage < 0 || stage > 5) throw std::invalid_argument("stage must be 0 (all constraints) or 1..5, got " + std::to_string(stage));
   problem.validate(robot);
@@ -41,30 +61,55 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
                             : problem.rho.sg_upper_bound(problem.gamma, problem.sc_fixed, problem.sc_fixed);
   nc_ = traj_.num_coeffs();
   n_ = nc_ + 5;
-  const int level = stage == 0 ? 5 : stage;
-  level_ = level;
-  const int m = settings.samples_per_interval, na = dof_ - 3;
-  const bool hull = settings.rate_rows == RateRows::hull;
-  if (hull) {
-    // P_s of DOF i (degree d - 1, monomial p_l = (l + 1) a_{l+1}) in the Bernstein basis of degree
-    // n: beta_k = sum_{l <= k} C(k, l) / C(n, l) p_l. |P_s| <= max_k |beta_k| on [0, 1] (convex hull).
-    const int n = settings.rate_hull_degree;
-    if (n < 1 || n > 60) throw std::invalid_argument("rate_hull_degree must be in [1, 60], got " + std::to_string(n));
-    auto binom = [](int a, int b) {
-      double r = 1.0;
-      for (int i = 1; i <= b; ++i) r = r * (a - b + i) / i;
-      return r;
-    };
-    rate_hull_.assign(dof_, Eigen::MatrixXd());
+  level_ = stage == 0 ? 5 : stage;
+  if (settings.rate_rows == RateRows::hull) build_rate_hull();
+  place_samples(settings.samples_per_interval);
+  const double nh_bound = settings.nonholonomic_tol * ((problem.part_xy - problem.start.head<2>()).norm() +
+                                                       (problem.goal.head<2>() - problem.part_xy).norm());
+  nreg_ = static_cast<int>(samples_.size());
+  const RowSelection sel = select_rows(subset);
+  for (const auto& b : problem.body_spheres) {
+    unsigned mask = 0;
+    for (int i = 0; i < dof_; ++i)
+      if (robot.moves(i, b.link)) mask |= 1u << i;
+    body_mask_.push_back(mask);
+  }
+  add_sample_rows(sel, nh_bound);
+  sample_row_begin_.push_back(static_cast<int>(rows_.size()));
+  // Yaw and arm joint rates over all of [0, T]: the hull of the rate's Bernstein points.
+  if (settings.rate_rows == RateRows::hull) {
     for (int i = 2; i < dof_; ++i) {
-      const int d = traj_.degree(i), nn = std::max(n, d - 1);
-      Eigen::MatrixXd E = Eigen::MatrixXd::Zero(nn + 1, d + 1);
-      for (int k = 0; k <= nn; ++k)
-        for (int l = 0; l <= std::min(k, d - 1); ++l) E(k, l + 1) = (l + 1) * binom(k, l) / binom(nn, l);
-      rate_hull_[i] = E;
+      const double lim = i == 2 ? problem.base_yaw_rate_limit : problem.arm_rate_limits[i - 3];
+      for (int k = 0; k < rate_hull_[i].rows(); ++k) add_row(K_RATE_HULL, -1, i * 64 + k, 0, false, false, -lim, lim);
     }
   }
-  const unsigned all = (dof_ == 32) ? ~0u : ((1u << dof_) - 1u), base = 7u;
+  add_row(K_TIMING, -1, 0, 0, false, true, problem.stroke, problem.stroke);
+  add_row(K_ORDER, -1, 0, 0, false, false, 0.0, kInf);
+  if (level_ >= 4) add_row(K_RHO, -1, 0, 0, true, true, problem.gamma, kInf);
+}
+
+// P_s of DOF i (degree d - 1, monomial p_l = (l + 1) a_{l+1}) in the Bernstein basis of degree n:
+// beta_k = sum_{l <= k} C(k, l) / C(n, l) p_l. |P_s| <= max_k |beta_k| on [0, 1] (convex hull).
+void PickupConstraints::build_rate_hull() {
+  const int n = st_.rate_hull_degree;
+  if (n < 1 || n > 60) throw std::invalid_argument("rate_hull_degree must be in [1, 60], got " + std::to_string(n));
+  auto binom = [](int a, int b) {
+    double r = 1.0;
+    for (int i = 1; i <= b; ++i) r = r * (a - b + i) / i;
+    return r;
+  };
+  rate_hull_.assign(dof_, Eigen::MatrixXd());
+  for (int i = 2; i < dof_; ++i) {
+    const int d = traj_.degree(i), nn = std::max(n, d - 1);
+    Eigen::MatrixXd E = Eigen::MatrixXd::Zero(nn + 1, d + 1);
+    for (int k = 0; k <= nn; ++k)
+      for (int l = 0; l <= std::min(k, d - 1); ++l) E(k, l + 1) = (l + 1) * binom(k, l) / binom(nn, l);
+    rate_hull_[i] = E;
+  }
+}
+
+// m samples per interval: [0, s1), [s1, s2] (both ends), (s2, 1].
+void PickupConstraints::place_samples(int m) {
   for (int j = 0; j < m; ++j) samples_.push_back({{double(j) / m, 0.0, 0.0}});
   for (int j = 0; j < m; ++j) {
     double u = double(j) / (m - 1);
@@ -74,72 +119,72 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     double u = double(j) / m;
     samples_.push_back({{0.0, 1.0 - u, u}});
   }
-  const double vt = settings.velocity_tol, wt = settings.angular_velocity_tol;
-  const double nh_bound = settings.nonholonomic_tol * ((problem.part_xy - problem.start.head<2>()).norm() +
-                                                       (problem.goal.head<2>() - problem.part_xy).norm());
-  nreg_ = static_cast<int>(samples_.size());
-  // Optional rows: every one (no subset) or those of the subset; collision rows between samples
-  // get extra samples (one per distinct instant), after the regular ones.
-  std::vector<char> jsel(nreg_ * na, subset ? 0 : 1);
-  std::vector<std::vector<int>> csel(nreg_);
-  struct Extra { Sample at; std::vector<int> joints, pairs; bool nonholonomic; };
-  std::vector<Extra> extra;
-  auto extra_at = [&](const double* w) -> Extra& {
-    auto it = std::find_if(extra.begin(), extra.end(), [&](const Extra& e) {
-      return e.at.w[0] == w[0] && e.at.w[1] == w[1] && e.at.w[2] == w[2];
-    });
-    if (it != extra.end()) return *it;
-    extra.push_back({{{w[0], w[1], w[2]}}, {}, {}, false});
-    return extra.back();
-  };
-  const int no = static_cast<int>(problem.obstacles.size()), npairs = no * static_cast<int>(problem.body_spheres.size());
+}
+
+PickupConstraints::RowSelection PickupConstraints::select_rows(const PickupRowSubset* subset) {
+  const int na = dof_ - 3;
+  RowSelection sel;
+  sel.joints.assign(nreg_ * na, subset ? 0 : 1);
+  sel.pairs.resize(nreg_);
+  const int npairs = static_cast<int>(pb_.obstacles.size()) * static_cast<int>(pb_.body_spheres.size());
   if (subset) {
     for (const auto& j : subset->joints) {
       if (j.sample >= nreg_ || j.joint < 0 || j.joint >= na)
         throw std::invalid_argument("row subset: joint row (sample " + std::to_string(j.sample) + ", joint " +
                                     std::to_string(j.joint) + ") out of range");
-      if (j.sample >= 0) jsel[j.sample * na + j.joint] = 1;
-      else extra_at(j.w).joints.push_back(j.joint);
+      if (j.sample >= 0)
+        sel.joints[j.sample * na + j.joint] = 1;
+      else
+        sel.extra_at(j.w).joints.push_back(j.joint);
     }
     for (const auto& c : subset->collisions) {
       if (c.pair < 0 || c.pair >= npairs || c.sample >= nreg_)
         throw std::invalid_argument("row subset: collision row (sample " + std::to_string(c.sample) + ", pair " +
                                     std::to_string(c.pair) + ") out of range");
-      if (c.sample >= 0) csel[c.sample].push_back(c.pair);
-      else extra_at(c.w).pairs.push_back(c.pair);
+      if (c.sample >= 0)
+        sel.pairs[c.sample].push_back(c.pair);
+      else
+        sel.extra_at(c.w).pairs.push_back(c.pair);
     }
-    for (const auto& n : subset->nonholonomic) extra_at(n.w).nonholonomic = true;
+    for (const auto& n : subset->nonholonomic) sel.extra_at(n.w).nonholonomic = true;
   } else {
-    for (auto& v : csel)
+    for (auto& v : sel.pairs)
       for (int p = 0; p < npairs; ++p) v.push_back(p);
   }
-  for (auto& v : csel) {
+  for (auto& v : sel.pairs) {
     std::sort(v.begin(), v.end());
     v.erase(std::unique(v.begin(), v.end()), v.end());
   }
-  for (auto& e : extra) {
+  for (auto& e : sel.extra) {
     samples_.push_back(e.at);
     for (auto* v : {&e.joints, &e.pairs}) {
       std::sort(v->begin(), v->end());
       v->erase(std::unique(v->begin(), v->end()), v->end());
     }
   }
-  for (const auto& b : problem.body_spheres) {
-    unsigned mask = 0;
-    for (int i = 0; i < dof_; ++i)
-      if (robot.moves(i, b.link)) mask |= 1u << i;
-    body_mask_.push_back(mask);
-  }
-  auto joint_row = [&](int s, int j) {
-    const double lo = robot.lower_limits()[3 + j], hi = robot.upper_limits()[3 + j];
-    if (std::isfinite(lo) || std::isfinite(hi))
-      add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo + settings.joint_limit_margin : -kInf,
-              std::isfinite(hi) ? hi - settings.joint_limit_margin : kInf);
-  };
-  auto collision_rows = [&](int s, const std::vector<int>& pairs) {
-    for (int p : pairs)
-      if (pair_in_stage(p)) add_row(K_COLL, s, p, body_mask_[p / no], false, false, settings.collision_margin, kInf);
-  };
+  return sel;
+}
+
+void PickupConstraints::add_joint_row(int s, int j) {
+  const double lo = robot_.lower_limits()[3 + j], hi = robot_.upper_limits()[3 + j];
+  if (std::isfinite(lo) || std::isfinite(hi))
+    add_row(K_JPOS, s, j, 1u << (3 + j), false, false, std::isfinite(lo) ? lo + st_.joint_limit_margin : -kInf,
+            std::isfinite(hi) ? hi - st_.joint_limit_margin : kInf);
+}
+
+void PickupConstraints::add_collision_rows(int s, const std::vector<int>& pairs) {
+  const int no = static_cast<int>(pb_.obstacles.size());
+  for (int p : pairs)
+    if (pair_in_stage(p)) add_row(K_COLL, s, p, body_mask_[p / no], false, false, st_.collision_margin, kInf);
+}
+
+// The rows of every regular sample, then of the extra samples.
+void PickupConstraints::add_sample_rows(const RowSelection& sel, double nh_bound) {
+  const PickupProblem& problem = pb_;
+  const int m = st_.samples_per_interval, na = dof_ - 3;
+  const bool hull = st_.rate_rows == RateRows::hull;
+  const unsigned all = (dof_ == 32) ? ~0u : ((1u << dof_) - 1u), base = 7u;
+  const double vt = st_.velocity_tol, wt = st_.angular_velocity_tol;
   for (int s = 0; s < nreg_; ++s) {
     sample_row_begin_.push_back(static_cast<int>(rows_.size()));
     const int interval = s / m;
@@ -149,18 +194,18 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
     if (!hull)
       add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
     for (int j = 0; j < na; ++j) {
-      if (s > 0 && jsel[s * na + j]) joint_row(s, j);  // q(0) is fixed
+      if (s > 0 && sel.joints[s * na + j]) add_joint_row(s, j);  // q(0) is fixed
       if (!hull)
         add_row(K_JRATE, s, j, 1u << (3 + j), false, false, -problem.arm_rate_limits[j], problem.arm_rate_limits[j]);
     }
     if (interval == 1) {
       add_row(K_AREA, s, 0, base, false, false, problem.grasp_area_rmin * problem.grasp_area_rmin,
               problem.grasp_area_rmax * problem.grasp_area_rmax);
-      if (level >= 3) {
+      if (level_ >= 3) {
         for (int i = 0; i < 3; ++i) add_row(K_VEL, s, i, all, true, false, -vt, vt);
         for (int i = 0; i < 3; ++i) add_row(K_OMEGA, s, i, all, false, false, -wt, wt);
       }
-      if (level >= 2 && s == 2 * m - 1) {
+      if (level_ >= 2 && s == 2 * m - 1) {
         for (int i = 0; i < 3; ++i) add_row(K_POSE_P, s, i, all, false, false, 0.0, 0.0);
         for (int i = 0; i < 3; ++i) add_row(K_POSE_R, s, i, all, false, false, 0.0, 0.0);
         add_row(K_POSE_TR, s, 0, all, false, false, 1.0, kInf);
@@ -171,24 +216,14 @@ PickupConstraints::PickupConstraints(const Robot& robot, const PickupProblem& pr
       add_row(K_GOALYAW, s, 0, base, false, false, problem.goal[2] - problem.goal_tol_yaw,
               problem.goal[2] + problem.goal_tol_yaw);
     }
-    collision_rows(s, csel[s]);
+    add_collision_rows(s, sel.pairs[s]);
   }
-  for (int e = 0; e < static_cast<int>(extra.size()); ++e) {
+  for (int e = 0; e < static_cast<int>(sel.extra.size()); ++e) {
     sample_row_begin_.push_back(static_cast<int>(rows_.size()));
-    if (extra[e].nonholonomic) add_row(K_NH, nreg_ + e, 0, base, false, false, -nh_bound, nh_bound);
-    for (int j : extra[e].joints) joint_row(nreg_ + e, j);
-    collision_rows(nreg_ + e, extra[e].pairs);
+    if (sel.extra[e].nonholonomic) add_row(K_NH, nreg_ + e, 0, base, false, false, -nh_bound, nh_bound);
+    for (int j : sel.extra[e].joints) add_joint_row(nreg_ + e, j);
+    add_collision_rows(nreg_ + e, sel.extra[e].pairs);
   }
-  sample_row_begin_.push_back(static_cast<int>(rows_.size()));
-  if (hull) {  // yaw and arm joint rates over all of [0, T]: the hull of the rate's Bernstein points
-    for (int i = 2; i < dof_; ++i) {
-      const double lim = i == 2 ? problem.base_yaw_rate_limit : problem.arm_rate_limits[i - 3];
-      for (int k = 0; k < rate_hull_[i].rows(); ++k) add_row(K_RATE_HULL, -1, i * 64 + k, 0, false, false, -lim, lim);
-    }
-  }
-  add_row(K_TIMING, -1, 0, 0, false, true, problem.stroke, problem.stroke);
-  add_row(K_ORDER, -1, 0, 0, false, false, 0.0, kInf);
-  if (level >= 4) add_row(K_RHO, -1, 0, 0, true, true, problem.gamma, kInf);
 }
 
 void PickupConstraints::add_row(int kind, int sample, int aux, unsigned mask, bool sg, bool sc, double lo, double hi) {
@@ -277,4 +312,4 @@ std::vector<std::string> PickupConstraints::row_names() const {
   return out;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

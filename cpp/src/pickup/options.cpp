@@ -3,7 +3,7 @@
 #include <stdexcept>
 #include <utility>
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 namespace {
 
@@ -56,4 +56,4 @@ CoefficientBasis parse_coefficient_basis(const std::string& text) { return parse
 MuStrategy parse_mu_strategy(const std::string& text) { return parse(kMu, text, "mu_strategy"); }
 RateRows parse_rate_rows(const std::string& text) { return parse(kRates, text, "rate_rows"); }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

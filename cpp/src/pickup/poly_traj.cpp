@@ -8,7 +8,7 @@
 
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 PolyTraj::PolyTraj(std::vector<int> degrees, double time_scale) : degrees_(std::move(degrees)), tau_(time_scale) {
   if (!(time_scale > 0) || !std::isfinite(time_scale))
@@ -50,7 +50,7 @@ void PolyTraj::eval(const double* a, double t, double* q, double* qd, double* qd
 
 void PolyTraj::eval_many(const Eigen::VectorXd& coeffs, const Eigen::VectorXd& times, Eigen::MatrixXd* q,
                          Eigen::MatrixXd* qd, Eigen::MatrixXd* qdd) const {
-  require_size("PolyTraj coefficients", num_coeffs(), coeffs.size(), "coefficients");
+  core::require_size("PolyTraj coefficients", num_coeffs(), coeffs.size(), "coefficients");
   const long n = times.size();
   if (q) q->resize(n, dof());
   if (qd) qd->resize(n, dof());
@@ -69,8 +69,8 @@ void PolyTraj::fit_dof(int i, const Eigen::VectorXd& times, const Eigen::VectorX
   if (i < 0 || i >= dof())
     throw std::invalid_argument("PolyTraj::fit_dof: DOF index " + std::to_string(i) + " out of range [0, " +
                                 std::to_string(dof()) + ")");
-  require_size("PolyTraj::fit_dof values", times.size(), values.size());
-  if (weights.size()) require_size("PolyTraj::fit_dof weights", times.size(), weights.size());
+  core::require_size("PolyTraj::fit_dof values", times.size(), values.size());
+  if (weights.size()) core::require_size("PolyTraj::fit_dof weights", times.size(), weights.size());
   const int d = degrees_[i];
   Eigen::MatrixXd A(times.size(), d + 1);
   Eigen::VectorXd b = values;
@@ -83,4 +83,4 @@ void PolyTraj::fit_dof(int i, const Eigen::VectorXd& times, const Eigen::VectorX
   for (int k = 0; k <= d; ++k) coeffs[offset_[i] + k] = x[k];
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

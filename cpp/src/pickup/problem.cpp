@@ -7,10 +7,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "nlp_detail.hpp"
 #include "pickplan/pickup/nlp.hpp"
 
-namespace pickplan {
-
+namespace pickplan::pickup {
 
 // ---- rho ---------------------------------------------------------------------------------------
 namespace {
@@ -109,7 +109,7 @@ double RhoPoly::sg_upper_bound(double gamma, double sc_a, double sc_b) const {
   return std::numeric_limits<double>::quiet_NaN();
 }
 
-void PickupProblem::validate(const Robot& robot) const {
+void PickupProblem::validate(const core::Robot& robot) const {
   const int na = robot.dof() - 3;
   if (na < 1) throw std::invalid_argument("robot: expected 3 base DOFs plus an arm, got " + std::to_string(robot.dof()) + " DOFs");
   if (arm_start.size() != na)
@@ -146,4 +146,32 @@ std::vector<int> resolved_degrees(const PickupSettings& settings, int dof) {
   return settings.degrees.empty() ? default_degrees(dof) : settings.degrees;
 }
 
-}  // namespace pickplan
+namespace detail {
+// Sound reachability test of the grasp position: the tool is at most R (sum of the fixed link
+// offsets from the first arm joint to the tool, triangle inequality) from the first arm joint, whose
+// position is fixed on the base; if even the nearest base pose in the grasping area leaves the grasp
+// point farther than R, no trajectory can satisfy the grasp-pose constraint.
+bool grasp_unreachable(const core::Robot& robot, const PickupProblem& pb, std::string& why) {
+  const int first = robot.link_of_q(3);
+  double reach = 0.0;
+  for (int k = pb.tool_link; k >= 0 && k != first; k = robot.link(k).parent) {
+    if (robot.link(k).joint_type == core::JointType::Prismatic) return false;  // no bound for prismatic arms
+    reach += robot.link(k).joint_origin.p.norm();
+  }
+  core::RobotWorkspace ws(robot);
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(robot.dof());
+  robot.forward_kinematics(q.data(), ws);
+  const Eigen::Vector3d j0 = ws.link_pose[first].p - robot.base().p;
+  const double mount = j0.head<2>().norm();
+  const double dz = pb.grasp_pose.p.z() - (robot.base().p.z() + j0.z());
+  const double dxy_part = (pb.grasp_pose.p.head<2>() - pb.part_xy).norm();
+  const double h = std::max(0.0, pb.grasp_area_rmin - mount - dxy_part);
+  const double dmin = std::hypot(dz, h);
+  if (dmin <= reach) return false;
+  why = "grasp point at least " + std::to_string(dmin) + " m from the first arm joint, reach " + std::to_string(reach) +
+        " m";
+  return true;
+}
+}  // namespace detail
+
+}  // namespace pickplan::pickup

@@ -11,7 +11,7 @@
 #include "nlp_detail.hpp"
 #include "pickplan/core/errors.hpp"
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 void PickupRowSubset::merge(const PickupRowSubset& o) {
   for (const auto& j : o.joints)
@@ -34,7 +34,7 @@ void PickupRowSubset::merge(const PickupRowSubset& o) {
 }
 
 namespace {
-double clearance(const RobotWorkspace& ws, const PickupProblem& pb, int pair) {
+double clearance(const core::RobotWorkspace& ws, const PickupProblem& pb, int pair) {
   const int no = static_cast<int>(pb.obstacles.size());
   const BodySphere& b = pb.body_spheres[pair / no];
   const SphereObstacle& o = pb.obstacles[pair % no];
@@ -43,12 +43,12 @@ double clearance(const RobotWorkspace& ws, const PickupProblem& pb, int pair) {
 }  // namespace
 
 PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double joint_window, double collision_window) const {
-  require_size("NLP variables x", n_, x.size(), "values");
+  core::require_size("NLP variables x", n_, x.size(), "values");
   PickupRowSubset out;
   const int na = dof_ - 3, npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());
   const double s1 = x[idx_s1()], s2 = x[idx_s2()];
   Eigen::VectorXd q(dof_);
-  RobotWorkspace ws(robot_);
+  core::RobotWorkspace ws(robot_);
   for (int s = 0; s < nreg_; ++s) {
     const Sample& S = samples_[s];
     traj_.eval(x.data(), S.w[0] * s1 + S.w[1] * s2 + S.w[2], q.data(), nullptr, nullptr);
@@ -68,7 +68,7 @@ PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double jo
 
 PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int subdivisions, double threshold,
                                                 double joint_slack, double* min_clearance) const {
-  require_size("NLP variables x", n_, x.size(), "values");
+  core::require_size("NLP variables x", n_, x.size(), "values");
   if (subdivisions < 1) throw std::invalid_argument("dense check: subdivisions must be >= 1, got " + std::to_string(subdivisions));
   PickupRowSubset out;
   double least = std::numeric_limits<double>::infinity();
@@ -76,7 +76,7 @@ PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int su
   const bool coll = has_collision_rows();
   const double s1 = x[idx_s1()], s2 = x[idx_s2()];
   Eigen::VectorXd q(dof_), qs(dof_);
-  RobotWorkspace ws(robot_);
+  core::RobotWorkspace ws(robot_);
   std::vector<double> best(npairs), jbest(na);
   std::vector<PickupRowSubset::Collision> at(npairs);
   std::vector<PickupRowSubset::Joint> jat(na);
@@ -136,4 +136,4 @@ PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int su
   return out;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

@@ -10,7 +10,7 @@
 #include "pickplan/core/ik.hpp"
 #include "pickplan/pickup/nlp.hpp"
 
-namespace pickplan {
+namespace pickplan::pickup {
 namespace {
 // The S_g bound of PickupConstraints (sg_hi when rho >= gamma is unattainable: seeds still work).
 double sg_cap(const PickupProblem& pb) {
@@ -20,23 +20,22 @@ double sg_cap(const PickupProblem& pb) {
 }
 }  // namespace
 
-Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
-  pb.validate(robot);
-  const std::vector<int> deg = resolved_degrees(st, robot.dof());
-  PolyTraj tr(deg, 1.0);
-  const int nc = tr.num_coeffs();
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(nc + 5);
-  const Eigen::Vector2d s0 = pb.start.head<2>(), g0 = pb.goal.head<2>();
-  Eigen::Vector2d u0 = 0.5 * (s0 + g0) - pb.part_xy;
-  if (u0.norm() < 1e-9) u0 = Eigen::Vector2d::UnitX();
-  u0.normalize();
-  // Base: a cubic in s = t / T leaving the start along its heading, through a grasping-area point
-  // bp at s_m, to the goal. A small deterministic search over (bp direction, start speed, s_m)
-  // picks the curve whose end heading is within the goal tolerance and whose peak/mean speed
-  // ratio is smallest; T then puts the peak speed at 90 % of the limit.
-  const double rmid = 0.5 * (pb.grasp_area_rmin + pb.grasp_area_rmax);
-  double best = 1e300, sm = 0.5, tsc = 1.0;
+namespace {
+// The base's seed path: a cubic in s = t / T per coordinate, (cx, cy), and the fraction s_m where
+// it passes the grasping area; vmax its peak speed in s.
+struct BaseCubic {
   Eigen::Vector4d cx, cy;
+  double sm = 0.5, vmax = 1.0;
+};
+
+// A cubic leaving the start along its heading, through a grasping-area point bp at s_m, to the
+// goal. A small deterministic search over (bp direction about u0, start speed, s_m) picks the
+// curve whose end heading is within the goal tolerance and whose peak/mean speed ratio is smallest.
+BaseCubic search_base_cubic(const PickupProblem& pb, const Eigen::Vector2d& u0) {
+  const Eigen::Vector2d s0 = pb.start.head<2>(), g0 = pb.goal.head<2>();
+  const double rmid = 0.5 * (pb.grasp_area_rmin + pb.grasp_area_rmax);
+  double best = 1e300;
+  BaseCubic c;
   for (int ia = -9; ia <= 9; ++ia)
     for (double f : {0.5, 0.75, 1.0, 1.5})
       for (double smc : {0.3, 0.4, 0.5, 0.6}) {
@@ -60,16 +59,19 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, cons
         const double score = 100.0 * std::max(0.0, std::abs(dh) - 0.9 * pb.goal_tol_yaw) + vmax / std::max(vsum, 1e-9);
         if (score < best) {
           best = score;
-          sm = smc;
-          cx = ax;
-          cy = ay;
-          tsc = vmax;
+          c.sm = smc;
+          c.cx = ax;
+          c.cy = ay;
+          c.vmax = vmax;
         }
       }
-  const double T = std::max(1.0, tsc / (0.9 * pb.base_speed_limit));
-  const double sc = pb.vary_sc ? pb.rho.sc_hi : pb.sc_fixed, dtg = pb.stroke / sc;
-  const double tm = sm * T;
-  const double T1 = std::max(0.0, tm - 0.5 * dtg), T2 = T1 + dtg;
+  return c;
+}
+
+// Fits the base's coefficients in x (x, y and the heading unwrapped along the path) to the cubic,
+// the start weighted up.
+void fit_base_path(const PolyTraj& tr, const PickupProblem& pb, const BaseCubic& c, double* x) {
+  const Eigen::Vector4d &cx = c.cx, &cy = c.cy;
   const int K = 60;
   Eigen::VectorXd ts(K), xs(K), ys(K), ps(K), ws = Eigen::VectorXd::Ones(K);
   double prev = pb.start[2];
@@ -85,9 +87,30 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, cons
     ps[k] = prev = h;
   }
   ws[0] = 100.0;
-  tr.fit_dof(0, ts, xs, x.data(), ws);
-  tr.fit_dof(1, ts, ys, x.data(), ws);
-  tr.fit_dof(2, ts, ps, x.data(), ws);
+  tr.fit_dof(0, ts, xs, x, ws);
+  tr.fit_dof(1, ts, ys, x, ws);
+  tr.fit_dof(2, ts, ps, x, ws);
+}
+}  // namespace
+
+Eigen::VectorXd heuristic_seed(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
+  pb.validate(robot);
+  const std::vector<int> deg = resolved_degrees(st, robot.dof());
+  PolyTraj tr(deg, 1.0);
+  const int nc = tr.num_coeffs();
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(nc + 5);
+  const Eigen::Vector2d s0 = pb.start.head<2>(), g0 = pb.goal.head<2>();
+  Eigen::Vector2d u0 = 0.5 * (s0 + g0) - pb.part_xy;
+  if (u0.norm() < 1e-9) u0 = Eigen::Vector2d::UnitX();
+  u0.normalize();
+  // Base: a cubic through the grasping area (search_base_cubic); T then puts its peak speed at 90 %
+  // of the limit.
+  const BaseCubic c = search_base_cubic(pb, u0);
+  const double T = std::max(1.0, c.vmax / (0.9 * pb.base_speed_limit));
+  const double sc = pb.vary_sc ? pb.rho.sc_hi : pb.sc_fixed, dtg = pb.stroke / sc;
+  const double tm = c.sm * T;
+  const double T1 = std::max(0.0, tm - 0.5 * dtg), T2 = T1 + dtg;
+  fit_base_path(tr, pb, c, x.data());
   std::mt19937 rng(st.seed);
   std::normal_distribution<double> noise(0.0, st.arm_seed_noise);
   for (int i = 3; i < robot.dof(); ++i) {
@@ -102,7 +125,7 @@ Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& pb, cons
   return x;
 }
 
-Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
+Eigen::VectorXd random_seed(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st) {
   pb.validate(robot);
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
@@ -138,16 +161,16 @@ constexpr double kAreaInset = 0.02;         // m: the whole-body IK's base kept 
 constexpr double kUnreachedPenalty = 1e3;   // arm seeds: score per unit residual of a seed that misses the pose
 
 // The arm alone (base_weight 0) or the arm and the base translation (base_weight > 0).
-DlsSettings seed_ik_settings(const Robot& robot, const PickupSettings& st, double base_weight) {
-  DlsSettings s;
-  s.rotation_error = IkRotationError::sine_axis;
+core::DlsSettings seed_ik_settings(const core::Robot& robot, const PickupSettings& st, double base_weight) {
+  core::DlsSettings s;
+  s.rotation_error = core::IkRotationError::sine_axis;
   s.max_iterations = kSeedIkIterations;
   s.position_tolerance = s.rotation_tolerance = kSeedIkTolerance;
-  s.damping_schedule = IkDamping::fixed;
+  s.damping_schedule = core::IkDamping::fixed;
   s.damping = kSeedIkDamping;
   s.max_stalled_iterations = 0;
   s.max_step = kSeedIkMaxStep;
-  s.step_norm = IkStepNorm::euclidean;
+  s.step_norm = core::IkStepNorm::euclidean;
   s.limit_margin = st.joint_limit_margin;
   s.weights.assign(robot.dof(), 1.0);
   s.weights[0] = s.weights[1] = base_weight;
@@ -156,24 +179,24 @@ DlsSettings seed_ik_settings(const Robot& robot, const PickupSettings& st, doubl
 }
 
 // The error's norm as the steps see it: position and sin(angle) * axis.
-double residual(const IkSolution& sol) { return std::hypot(sol.position_error, std::sin(sol.rotation_error)); }
+double residual(const core::IkSolution& sol) { return std::hypot(sol.position_error, std::sin(sol.rotation_error)); }
 
 // IK of the tool for the grasp pose from q (updated in place); returns the residual before the
 // last step. A descent that does not converge oscillates, and the arm seeds choose among such
 // starts by this residual (their choice was tuned with it: the final one loses case 1's flip).
-double grasp_ik(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, Eigen::VectorXd& q,
+double grasp_ik(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st, Eigen::VectorXd& q,
                 double base_weight = 0.0) {
-  DlsSettings s = seed_ik_settings(robot, st, base_weight);
+  core::DlsSettings s = seed_ik_settings(robot, st, base_weight);
   s.max_iterations = kSeedIkIterations - 1;
-  const IkSolution before_last = solve_ik(robot, pb.tool_link, Transform{}, pb.grasp_pose, q, s);
+  const core::IkSolution before_last = core::solve_ik(robot, pb.tool_link, core::Transform{}, pb.grasp_pose, q, s);
   s.max_iterations = 1;  // the last step (none when converged)
-  q = solve_ik(robot, pb.tool_link, Transform{}, pb.grasp_pose, before_last.q, s).q;
+  q = core::solve_ik(robot, pb.tool_link, core::Transform{}, pb.grasp_pose, before_last.q, s).q;
   return residual(before_last);
 }
 
 // Whole-body IK (base translation weighted by kBaseWeight) from q, for the grasp pose; the base is
 // then kept in the grasping area and the arm re-solved. Returns the residual.
-double body_ik(const Robot& robot, const PickupProblem& pb, const PickupSettings& st, Eigen::VectorXd& q) {
+double body_ik(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st, Eigen::VectorXd& q) {
   grasp_ik(robot, pb, st, q, kBaseWeight);
   Eigen::Vector2d d = q.head<2>() - pb.part_xy;
   const double r = std::clamp(d.norm(), pb.grasp_area_rmin + kAreaInset, pb.grasp_area_rmax - kAreaInset);
@@ -183,7 +206,74 @@ double body_ik(const Robot& robot, const PickupProblem& pb, const PickupSettings
 
 }  // namespace
 
-GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+namespace {
+// Bends the base path x (into out) so that it passes q's base position at s2: the old path plus the
+// displacement at s2 faded out smoothly away from s2; the heading then follows the new path's
+// tangent (keeps the non-holonomic rows nearly met). Then the arm again, at the base pose the new
+// path actually has at s2 (q updated).
+void bend_base_path(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st, const PolyTraj& tr,
+                    const Eigen::VectorXd& x, double s2, const Eigen::VectorXd& q2, Eigen::VectorXd& q,
+                    Eigen::VectorXd& out) {
+  const int n = robot.dof();
+  const Eigen::Vector2d delta = q.head<2>() - q2.head<2>();
+  const int K = 60;
+  Eigen::VectorXd ss(K), vx(K), vy(K), vp(K), w = Eigen::VectorXd::Ones(K);
+  Eigen::VectorXd qk(n), qdk(n);
+  w[0] = 100.0;
+  for (int k = 0; k < K; ++k) {
+    ss[k] = double(k) / (K - 1);
+    tr.eval(x.data(), ss[k], qk.data(), nullptr, nullptr);
+    const double b = std::exp(-std::pow((ss[k] - s2) / 0.25, 2)) * (k == 0 ? 0.0 : 1.0);
+    vx[k] = qk[0] + b * delta.x();
+    vy[k] = qk[1] + b * delta.y();
+  }
+  tr.fit_dof(0, ss, vx, out.data(), w);
+  tr.fit_dof(1, ss, vy, out.data(), w);
+  double prev = pb.start[2];
+  for (int k = 0; k < K; ++k) {
+    tr.eval(out.data(), ss[k], qk.data(), qdk.data(), nullptr);
+    double h = k == 0 ? pb.start[2] : std::atan2(qdk[1], qdk[0]);
+    while (h - prev > M_PI) h -= 2 * M_PI;
+    while (h - prev < -M_PI) h += 2 * M_PI;
+    vp[k] = prev = h;
+  }
+  tr.fit_dof(2, ss, vp, out.data(), w);
+  for (int j = 0; j < 3; ++j) out[tr.offset(j)] = pb.start[j];
+  // The arm again, at the base pose the new path actually has at s2.
+  tr.eval(out.data(), s2, qk.data(), nullptr, nullptr);
+  q.head<3>() = qk.head<3>();
+  grasp_ik(robot, pb, st, q);
+}
+
+// The arm configuration `best` (arm joints from index 3, a 6-joint UR-type arm) on another IK
+// branch, by closed-form approximation (mask bit 0 the shoulder flip, 1 the elbow, 2 the wrist),
+// its revolute joints wrapped to the turn nearest the arm's start.
+Eigen::VectorXd flipped_arm(const Eigen::VectorXd& best, int mask, const PickupProblem& pb) {
+  Eigen::VectorXd f = best;
+  double* a = f.data() + 3;
+  if (mask & 1) {
+    a[0] += M_PI;
+    a[1] = -M_PI - a[1];
+    a[2] = -a[2];
+    a[3] = -M_PI - a[3];
+    a[4] = -a[4];
+  }
+  if (mask & 2) {
+    a[1] += a[2];
+    a[3] += a[2];
+    a[2] = -a[2];
+  }
+  if (mask & 4) {
+    a[3] += M_PI;
+    a[4] = -a[4];
+    a[5] += M_PI;
+  }
+  for (int j : {0, 1, 3, 5}) a[j] = pb.arm_start[j] + std::remainder(a[j] - pb.arm_start[j], 2 * M_PI);
+  return f;
+}
+}  // namespace
+
+GraspArmSeeds grasp_arm_seeds(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                               const Eigen::VectorXd& x, bool flips) {
   pb.validate(robot);
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
@@ -215,36 +305,7 @@ GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const
     // edge): move the base too, then bend the base path through the new pose at s2.
     Eigen::VectorXd q = best;
     if (body_ik(robot, pb, st, q) < kReachTolerance) {
-      // Base path: the old one plus the displacement at s2 faded out smoothly away from s2; the
-      // heading then follows the new path's tangent (keeps the non-holonomic rows nearly met).
-      const Eigen::Vector2d delta = q.head<2>() - q2.head<2>();
-      const int K = 60;
-      Eigen::VectorXd ss(K), vx(K), vy(K), vp(K), w = Eigen::VectorXd::Ones(K);
-      Eigen::VectorXd qk(n), qdk(n);
-      w[0] = 100.0;
-      for (int k = 0; k < K; ++k) {
-        ss[k] = double(k) / (K - 1);
-        tr.eval(x.data(), ss[k], qk.data(), nullptr, nullptr);
-        const double b = std::exp(-std::pow((ss[k] - s2) / 0.25, 2)) * (k == 0 ? 0.0 : 1.0);
-        vx[k] = qk[0] + b * delta.x();
-        vy[k] = qk[1] + b * delta.y();
-      }
-      tr.fit_dof(0, ss, vx, out.data(), w);
-      tr.fit_dof(1, ss, vy, out.data(), w);
-      double prev = pb.start[2];
-      for (int k = 0; k < K; ++k) {
-        tr.eval(out.data(), ss[k], qk.data(), qdk.data(), nullptr);
-        double h = k == 0 ? pb.start[2] : std::atan2(qdk[1], qdk[0]);
-        while (h - prev > M_PI) h -= 2 * M_PI;
-        while (h - prev < -M_PI) h += 2 * M_PI;
-        vp[k] = prev = h;
-      }
-      tr.fit_dof(2, ss, vp, out.data(), w);
-      for (int j = 0; j < 3; ++j) out[tr.offset(j)] = pb.start[j];
-      // The arm again, at the base pose the new path actually has at s2.
-      tr.eval(out.data(), s2, qk.data(), nullptr, nullptr);
-      q.head<3>() = qk.head<3>();
-      grasp_ik(robot, pb, st, q);
+      bend_base_path(robot, pb, st, tr, x, s2, q2, q, out);
       best = q;
     }
   }
@@ -262,26 +323,7 @@ GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const
     const Eigen::VectorXd& lo = robot.lower_limits();
     const Eigen::VectorXd& hi = robot.upper_limits();
     for (int mask : {1, 2, 4, 3, 5, 6, 7}) {  // bit 0 shoulder, 1 elbow, 2 wrist: single flips first
-      Eigen::VectorXd f = best;
-      double* a = f.data() + 3;
-      if (mask & 1) {
-        a[0] += M_PI;
-        a[1] = -M_PI - a[1];
-        a[2] = -a[2];
-        a[3] = -M_PI - a[3];
-        a[4] = -a[4];
-      }
-      if (mask & 2) {
-        a[1] += a[2];
-        a[3] += a[2];
-        a[2] = -a[2];
-      }
-      if (mask & 4) {
-        a[3] += M_PI;
-        a[4] = -a[4];
-        a[5] += M_PI;
-      }
-      for (int j : {0, 1, 3, 5}) a[j] = pb.arm_start[j] + std::remainder(a[j] - pb.arm_start[j], 2 * M_PI);
+      Eigen::VectorXd f = flipped_arm(best, mask, pb);
       if (grasp_ik(robot, pb, st, f) >= kReachTolerance) continue;
       bool inside = true, fresh = true;
       for (int j = 3; j < n; ++j) inside = inside && f[j] >= lo[j] + st.joint_limit_margin && f[j] <= hi[j] - st.joint_limit_margin;
@@ -292,7 +334,7 @@ GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& pb, const
   return g;
 }
 
-Eigen::VectorXd arm_blend_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+Eigen::VectorXd arm_blend_seed(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                                const Eigen::VectorXd& path, const Eigen::VectorXd& q2) {
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
@@ -319,7 +361,7 @@ Eigen::VectorXd arm_blend_seed(const Robot& robot, const PickupProblem& pb, cons
   return out;
 }
 
-std::vector<Eigen::VectorXd> wound_arm_configurations(const Robot& robot, const PickupProblem& pb,
+std::vector<Eigen::VectorXd> wound_arm_configurations(const core::Robot& robot, const PickupProblem& pb,
                                                       const PickupSettings& st, const Eigen::VectorXd& q2,
                                                       const Eigen::VectorXd& solution, const Eigen::VectorXd& price) {
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
@@ -351,13 +393,13 @@ std::vector<Eigen::VectorXd> wound_arm_configurations(const Robot& robot, const 
   return out;
 }
 
-Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+Eigen::VectorXd grasp_ik_seed(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                               const Eigen::VectorXd& x) {
   const GraspArmSeeds g = grasp_arm_seeds(robot, pb, st, x, false);
   return arm_blend_seed(robot, pb, st, g.path, g.arms.front());
 }
 
-Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, const PickupSettings& st,
+Eigen::VectorXd grasp_timing_seed(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st,
                                   const Eigen::VectorXd& x, double fraction) {
   pb.validate(robot);
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
@@ -367,7 +409,7 @@ Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, c
   const double s1 = x[nc], s2 = x[nc + 1], Sg = x[nc + 3], Sc = x[nc + 4];
   // Tool velocity per unit normalised time, v_j = J P_s, at the grasping samples; T such that the
   // tool's rms speed v / T during grasping is S_g (the speed stage 3 asks for).
-  RobotWorkspace ws(robot);
+  core::RobotWorkspace ws(robot);
   Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, n);
   Eigen::VectorXd q(n), ps(n);
   double vv = 0.0;
@@ -392,4 +434,4 @@ Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& pb, c
   return out;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

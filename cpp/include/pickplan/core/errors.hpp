@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace pickplan {
+namespace pickplan::core {
 
 class FileNotFound : public std::runtime_error {
  public:
@@ -16,4 +16,4 @@ void require_size(const char* what, long expected, long got, const char* unit = 
 // Throws std::invalid_argument when any of n values is NaN or infinite.
 void require_finite(const char* what, const double* values, long n);
 
-}  // namespace pickplan
+}  // namespace pickplan::core

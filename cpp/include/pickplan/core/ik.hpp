@@ -13,7 +13,7 @@
 
 #include "pickplan/core/robot.hpp"
 
-namespace pickplan {
+namespace pickplan::core {
 
 enum class IkTask { pose, position };          // the target fixes the full pose | its position only
 enum class IkDamping { adaptive, fixed };      // Levenberg-Marquardt: only decreases kept | every step kept
@@ -105,4 +105,4 @@ class IkSolver {
 // Rotation vector (axis * angle) of R, robust near 0 and pi.
 Eigen::Vector3d rotation_log(const Eigen::Matrix3d& R);
 
-}  // namespace pickplan
+}  // namespace pickplan::core

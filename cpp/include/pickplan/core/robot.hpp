@@ -8,7 +8,7 @@
 
 #include "pickplan/core/transform.hpp"
 
-namespace pickplan {
+namespace pickplan::core {
 
 enum class JointType { Fixed, Revolute, Continuous, Prismatic };
 
@@ -117,4 +117,4 @@ class Robot {
   Eigen::VectorXd lower_, upper_, velocity_;
 };
 
-}  // namespace pickplan
+}  // namespace pickplan::core

@@ -3,7 +3,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-namespace pickplan {
+namespace pickplan::core {
 
 struct Transform {
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
@@ -54,4 +54,4 @@ constexpr double kRigidCleanTolerance = 1e-4;
 // `tol` (orthonormality, determinant, last row); std::invalid_argument naming `what` otherwise.
 Eigen::Matrix4d cleaned_rigid(const char* what, const Eigen::Matrix4d& M, double tol = kRigidCleanTolerance);
 
-}  // namespace pickplan
+}  // namespace pickplan::core

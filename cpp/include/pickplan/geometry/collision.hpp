@@ -29,7 +29,7 @@
 #include "pickplan/core/robot.hpp"
 #include "pickplan/core/transform.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 // A mesh with what depends only on it: its FCL bounding-volume hierarchy and bounds, in its own
 // frame. Built once per object or link and shared (immutable) by every checker that places it,
@@ -81,13 +81,13 @@ struct LinkMesh {
 struct SceneObject {
   std::string name;   // unique, not "table"
   TriangleMesh mesh;  // in the object frame (ignored when shape is set)
-  Transform pose;     // object frame in the world
+  core::Transform pose;                                   // object frame in the world
   std::shared_ptr<const CollisionShape> shape = nullptr;  // prebuilt: reused, not rebuilt
 };
 
 struct TableBox {
   Eigen::Vector3d size = Eigen::Vector3d::Zero();  // full extents; all zero = no table
-  Transform pose;                                   // box centre in the world
+  core::Transform pose;                            // box centre in the world
 };
 
 struct CollisionSettings {
@@ -118,7 +118,7 @@ struct ContactInfo {
 class CollisionChecker;
 
 struct CollisionWorkspace {
-  RobotWorkspace robot;
+  core::RobotWorkspace robot;
   std::vector<std::pair<double, int>> order;  // (lower bound, pair) scratch
   explicit CollisionWorkspace(const CollisionChecker& checker);
 };
@@ -127,20 +127,20 @@ class CollisionChecker {
  public:
   // Throws std::invalid_argument for empty/degenerate/non-finite meshes, unknown link or
   // object names, duplicate names, a non-positive table size, a negative margin.
-  CollisionChecker(const Robot& robot, std::vector<LinkMesh> link_meshes, std::vector<SceneObject> objects,
+  CollisionChecker(const core::Robot& robot, std::vector<LinkMesh> link_meshes, std::vector<SceneObject> objects,
                    const TableBox& table = TableBox{}, CollisionSettings settings = CollisionSettings{});
   ~CollisionChecker();
   CollisionChecker(CollisionChecker&&) noexcept;
   CollisionChecker& operator=(CollisionChecker&&) noexcept;
 
-  const Robot& robot() const { return robot_; }
+  const core::Robot& robot() const { return robot_; }
   const CollisionSettings& settings() const { return settings_; }
   int num_pairs() const { return static_cast<int>(pairs_.size()); }  // pairs actually checked
   std::vector<std::pair<std::string, std::string>> checked_pairs() const;
   std::vector<std::string> object_names() const;
   // Moves the object `name` (replanning as the world moves); throws for an unknown name or a pose
   // that is not rigid. Not while another thread checks with this checker.
-  void set_object_pose(const std::string& name, const Transform& pose);
+  void set_object_pose(const std::string& name, const core::Transform& pose);
   // Per robot link: how far its checked geometry reaches from the link frame's origin (0 without any).
   std::vector<double> link_reach() const;
 
@@ -179,10 +179,10 @@ class CollisionChecker {
   double pair_distance(const Pair& p, const CollisionWorkspace& ws, bool want_points, ContactInfo* info) const;
   bool pair_collides(const Pair& p, const CollisionWorkspace& ws) const;
 
-  Robot robot_;
+  core::Robot robot_;
   CollisionSettings settings_;
   std::unique_ptr<Impl> impl_;
   std::vector<Pair> pairs_;
 };
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -9,7 +9,7 @@
 
 #include "pickplan/geometry/sdf.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 using FrameMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
@@ -29,4 +29,4 @@ struct FrameClearance {
 std::vector<std::uint8_t> clear_in_frames(const FrameMatrix& frames, const FrameMatrix& points, const SceneSdf& field,
                                           const FrameClearance& settings);
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -10,7 +10,7 @@
 #include "pickplan/core/robot.hpp"
 #include "pickplan/core/transform.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 struct TriangleMesh {
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> vertices;  // (V, 3)
@@ -24,7 +24,7 @@ struct TriangleMesh {
   void validate(const std::string& what) const;
 
   // Copy with every vertex mapped by T.
-  TriangleMesh transformed(const Transform& T) const;
+  TriangleMesh transformed(const core::Transform& T) const;
   // Concatenation (indices of `other` shifted).
   void append(const TriangleMesh& other);
   // Generalized winding number of the (closed, possibly not watertight) surface around p:
@@ -46,6 +46,6 @@ TriangleMesh read_obj(const std::string& path);
 // frame: meshes from OBJ files (scaled), boxes, cylinders, spheres meshed as above. Returns
 // an empty mesh (0 faces) for a link without collision geometry. Throws std::invalid_argument
 // for a mesh file that is not OBJ.
-TriangleMesh link_collision_mesh(const Robot& robot, int link, int cylinder_sections = 32);
+TriangleMesh link_collision_mesh(const core::Robot& robot, int link, int cylinder_sections = 32);
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

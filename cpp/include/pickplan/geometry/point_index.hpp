@@ -7,7 +7,7 @@
 
 #include "pickplan/geometry/sdf.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 class PointIndex {
  public:
@@ -50,4 +50,4 @@ class PointIndex {
   Tree tree_;
 };
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

@@ -12,7 +12,7 @@
 
 #include "pickplan/geometry/mesh.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 enum class PrimitiveKind { Box, Cylinder, Sphere };
 
@@ -32,11 +32,12 @@ struct Primitive {
   double signed_distance(const Eigen::Vector3d& p, Eigen::Vector3d* gradient = nullptr) const;
   // The deepest of `points` (world frame; `world_to_frame` maps them into the primitive's) inside
   // it: (depth >= 0, index), index -1 when none is inside.
-  std::pair<double, int> deepest(const std::vector<Eigen::Vector3d>& points, const Transform& world_to_frame) const;
+  std::pair<double, int> deepest(const std::vector<Eigen::Vector3d>& points,
+                                 const core::Transform& world_to_frame) const;
   // Axis-aligned bounds in the primitive's frame.
   Eigen::AlignedBox3d bounds() const;
   // A closed, outward-oriented mesh that contains the primitive (circumscribed polygons).
   TriangleMesh enclosing_mesh() const;
 };
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

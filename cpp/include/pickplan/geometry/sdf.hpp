@@ -13,7 +13,7 @@
 #include "pickplan/geometry/sdf_merged.hpp"
 #include "pickplan/core/transform.hpp"
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 using Vertices = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using Faces = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
@@ -73,8 +73,8 @@ class SceneSdf {
   struct Body {
     std::shared_ptr<const SdfGrid> grid;  // null for an analytic primitive
     Primitive primitive;     // used when grid is null
-    Transform pose;          // grid (primitive) frame in the world
-    Transform inverse;       // world into grid frame
+    core::Transform pose;    // grid (primitive) frame in the world
+    core::Transform inverse;  // world into grid frame
     Eigen::Vector3d lo, hi;  // surface box (see SdfGrid::surface_lo) in the grid frame
     double slack = 0;        // how far the interpolated value may sit below the true distance
     // Signed distance at a point in the body's frame (gradient in that frame).
@@ -85,16 +85,16 @@ class SceneSdf {
 
   SceneSdf() = default;
   // Adds an object; returns its index (used by exclusion masks; at most 64 objects).
-  int add_object(std::shared_ptr<const SdfGrid> grid, const Transform& pose);
+  int add_object(std::shared_ptr<const SdfGrid> grid, const core::Transform& pose);
   // Adds a solid primitive, queried in closed form; same index space and limits as add_object.
-  int add_primitive(const Primitive& primitive, const Transform& pose);
-  void set_table(const Eigen::Vector3d& size, const Transform& pose);
+  int add_primitive(const Primitive& primitive, const core::Transform& pose);
+  void set_table(const Eigen::Vector3d& size, const core::Transform& pose);
   // Moves object `index` (an object that moves: replanning). A moved object becomes live: it is
   // left out of every merged grid from then on and queried on its own grid beside them, so moving
   // it again costs nothing. A merged grid that held it gives way to one for the same mask without
   // it (kept if the scene has it already, e.g. the grid without the target; merged anew otherwise,
   // its bricks filled on first lookup).
-  void set_pose(int index, const Transform& pose);
+  void set_pose(int index, const core::Transform& pose);
   // The objects moved by set_pose (bit i: object i).
   std::uint64_t live_mask() const { return live_; }
   void clear_table() { has_table_ = false; }
@@ -174,7 +174,7 @@ class SceneSdf {
   bool has_table_ = false;
   bool table_axis_aligned_ = false;
   Eigen::Vector3d table_half_ = Eigen::Vector3d::Zero();
-  Transform table_pose_, table_inverse_;
+  core::Transform table_pose_, table_inverse_;
 };
 
 inline double SceneSdf::merged_distance(const MergedSdf& merged, const double* x, double* gradient, double cutoff,
@@ -201,4 +201,4 @@ inline double SceneSdf::merged_distance(const MergedSdf& merged, const double* x
 // Exact signed distance to a box of half extents h centred at the origin, with gradient.
 double box_signed_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& h, Eigen::Vector3d* gradient);
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

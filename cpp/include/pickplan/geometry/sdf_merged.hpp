@@ -14,7 +14,7 @@
 
 #include <Eigen/Core>
 
-namespace pickplan {
+namespace pickplan::geometry {
 
 struct MergedSdfSettings {
   double resolution = 0.01;   // node spacing (m): resampling 5 mm object grids is < 1 mm off outside thin walls
@@ -177,4 +177,4 @@ inline double MergedSdf::distance(const double* x, double* gradient) const {
   return d;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::geometry

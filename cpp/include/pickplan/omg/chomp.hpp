@@ -15,13 +15,13 @@
 #include "pickplan/core/robot.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 using Trajectory = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;  // n x dof
 
 struct BodyPoints {
   std::vector<int> link;  // link index of each point
-  Vertices points;        // N x 3, link frame
+  geometry::Vertices points;  // N x 3, link frame
   int size() const { return static_cast<int>(link.size()); }
 };
 
@@ -51,7 +51,7 @@ class ChompProblem;
 // Per-call scratch: sized once, reused every iteration (hot loops do not allocate).
 struct ChompWorkspace {
   explicit ChompWorkspace(const ChompProblem& problem);
-  std::vector<RobotWorkspace> fk;      // n + 1 link-pose sets (start included)
+  std::vector<core::RobotWorkspace> fk;                                 // n + 1 link-pose sets (start included)
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> x, grad_d;  // (n+1)*N points, SDF gradients
   Eigen::VectorXd d;                   // (n+1)*N distances
   std::vector<double> term;            // n*N obstacle terms
@@ -89,11 +89,11 @@ struct LinkGroup {
 
 class ChompProblem {
  public:
-  ChompProblem(std::shared_ptr<const Robot> robot, std::shared_ptr<const SceneSdf> scene, BodyPoints body,
-               ChompSettings settings);
+  ChompProblem(std::shared_ptr<const core::Robot> robot, std::shared_ptr<const geometry::SceneSdf> scene,
+               BodyPoints body, ChompSettings settings);
 
-  const Robot& robot() const { return *robot_; }
-  const SceneSdf& scene() const { return *scene_; }
+  const core::Robot& robot() const { return *robot_; }
+  const geometry::SceneSdf& scene() const { return *scene_; }
   const BodyPoints& body() const { return body_; }
   const std::vector<LinkGroup>& groups() const { return groups_; }
   // Whether the objects and the table can come within epsilon of the group's points at the
@@ -102,7 +102,7 @@ class ChompProblem {
     bool objects, table;
     bool any() const { return objects || table; }
   };
-  GroupReach group_reach(const RobotWorkspace& fk, const LinkGroup& group) const;
+  GroupReach group_reach(const core::RobotWorkspace& fk, const LinkGroup& group) const;
   const ChompSettings& settings() const { return settings_; }
   double dt() const { return dt_; }
 
@@ -139,10 +139,15 @@ class ChompProblem {
   const Eigen::MatrixXd& projector(int m) const;  // M = A^-1 C^T (C A^-1 C^T)^-1 for a tail of m rows
   void project_limits(Trajectory& xi, int m, ChompWorkspace& ws, StepInfo& info) const;
   void mask_inactive(Trajectory& g) const;
-  void transform_points(const RobotWorkspace& fk, const LinkGroup& group, double* x_world) const;
+  void transform_points(const core::RobotWorkspace& fk, const LinkGroup& group, double* x_world) const;
+  // obstacle()'s phases, up to waypoint last_t: points and distances where a group may be near;
+  // the charged terms (ws.term at the indices ws.order lists, top-k kept); their gradient into g.
+  void obstacle_distances(const Trajectory& xi, const Eigen::VectorXd& q0, int last_t, ChompWorkspace& ws) const;
+  void obstacle_terms(int last_t, ChompWorkspace& ws, ObjectiveTerms& out) const;
+  void obstacle_gradient(ChompWorkspace& ws, Trajectory& g) const;
 
-  std::shared_ptr<const Robot> robot_;
-  std::shared_ptr<const SceneSdf> scene_;
+  std::shared_ptr<const core::Robot> robot_;
+  std::shared_ptr<const geometry::SceneSdf> scene_;
   BodyPoints body_;
   std::vector<LinkGroup> groups_;
   std::vector<int> group_of_;  // body point -> its group
@@ -166,4 +171,4 @@ inline double chomp_cost(double d, double eps, double* dcost) {
   return 0.0;
 }
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -11,7 +11,7 @@
 #include "pickplan/geometry/collision.hpp"
 #include "pickplan/core/ik.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 // Why a grasp gave no goal (or ok: it did). The text forms are what Python and the plan files read.
 enum class GoalReason {
@@ -53,11 +53,11 @@ struct GoalSet {
 // `pregrasp_ok` (optional): the pre-grasp, where the transit arrives, must pass it too (a place's
 // pre-place keeps the transit's clearance); failing grasps: pregrasp_clearance. Checked inside the
 // loop, so such a goal does not take a place under the cap.
-GoalSet build_goal_set(const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
-                       const std::vector<Transform>& hand_poses,
+GoalSet build_goal_set(const core::IkSolver& ik, const geometry::CollisionChecker* checker,
+                       const geometry::CollisionChecker* hand_checker, const std::vector<core::Transform>& hand_poses,
                        const Eigen::VectorXd& start, const GoalSetSettings& settings = {},
                        const std::function<bool(const Eigen::VectorXd&)>& approach_ok = {},
                        const Trajectory* seeds = nullptr,
                        const std::function<bool(const Eigen::VectorXd&)>& pregrasp_ok = {});
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

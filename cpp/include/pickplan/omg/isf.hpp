@@ -11,7 +11,7 @@
 #include "pickplan/core/robot.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 struct IsfSettings {
   double alpha = 0.01;        // normal alignment weight (eq. 13)
@@ -32,7 +32,8 @@ struct IsfSettings {
 // fingers until they just touch, and a refinement must not undo that (in PyBullet it jams the
 // fingertips against the table while they close).
 struct SupportPlane {
-  Vertices finger_vertices;  // finger collision-hull vertices in the hand-link frame (fingers as ISF leaves them)
+  geometry::Vertices
+      finger_vertices;  // finger collision-hull vertices in the hand-link frame (fingers as ISF leaves them)
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit normal; normal . x = offset on the plane
   double offset = 0;
 };
@@ -47,9 +48,11 @@ class GraspRefiner {
   // contacts/normals: hand contact points and inward pad normals in the hand-link frame.
   // hand_sdf: the hand and open fingers as SDF parts, in the hand-link frame. object points/normals:
   // the target's surface samples in the world. body: arm body points for f_obstacle at g.
-  GraspRefiner(std::shared_ptr<const Robot> robot, int hand_link, Vertices contacts, Vertices contact_normals,
-               std::shared_ptr<const SceneSdf> hand_sdf, Vertices object_points, Vertices object_normals,
-               std::shared_ptr<const SceneSdf> scene, BodyPoints body, std::uint64_t exclude_mask, IsfSettings settings);
+  GraspRefiner(std::shared_ptr<const core::Robot> robot, int hand_link, geometry::Vertices contacts,
+               geometry::Vertices contact_normals, std::shared_ptr<const geometry::SceneSdf> hand_sdf,
+               geometry::Vertices object_points, geometry::Vertices object_normals,
+               std::shared_ptr<const geometry::SceneSdf> scene, BodyPoints body, std::uint64_t exclude_mask,
+               IsfSettings settings);
   ~GraspRefiner();
 
   GraspTerms cost(const Eigen::VectorXd& q, Eigen::VectorXd* grad) const;
@@ -61,8 +64,8 @@ class GraspRefiner {
   // `motion` (rigid) takes this refiner's object points onto `object_points` (checked on three of them).
   // The k-d tree is shared, queried through the motion; everything else, the support included, is
   // shared or copied.
-  std::shared_ptr<GraspRefiner> with_object(Vertices object_points, Vertices object_normals,
-                                            const Transform& motion) const;
+  std::shared_ptr<GraspRefiner> with_object(geometry::Vertices object_points, geometry::Vertices object_normals,
+                                            const core::Transform& motion) const;
 
   // Set once, before the refiner is shared; an empty finger_vertices removes the support.
   void set_support(SupportPlane support);
@@ -73,18 +76,23 @@ class GraspRefiner {
 
  private:
   struct Index;
-  std::shared_ptr<const Robot> robot_;
+  // cost()'s phases: each adds its terms to t and its wrench on the hand (about the hand's origin) to
+  // F and tau, or its gradient to gq (null: no gradient).
+  void contact_terms(const core::Transform& H, GraspTerms& t, Eigen::Vector3d& F, Eigen::Vector3d& tau) const;
+  void hand_collision_terms(const core::Transform& H, GraspTerms& t, Eigen::Vector3d& F, Eigen::Vector3d& tau) const;
+  void arm_obstacle_terms(const core::RobotWorkspace& ws, GraspTerms& t, Eigen::VectorXd* gq) const;
+  std::shared_ptr<const core::Robot> robot_;
   int hand_;
-  Vertices contacts_, contact_normals_;
-  std::shared_ptr<const SceneSdf> hand_sdf_;
-  Vertices object_points_, object_normals_;
-  std::shared_ptr<const SceneSdf> scene_;
+  geometry::Vertices contacts_, contact_normals_;
+  std::shared_ptr<const geometry::SceneSdf> hand_sdf_;
+  geometry::Vertices object_points_, object_normals_;
+  std::shared_ptr<const geometry::SceneSdf> scene_;
   BodyPoints body_;
   std::uint64_t exclude_mask_;
   IsfSettings settings_;
   SupportPlane support_;
   std::shared_ptr<const Index> index_;  // over the object points as first given; shared by with_object
-  Transform tree_from_world_;           // world -> the frame of the tree's points
+  core::Transform tree_from_world_;     // world -> the frame of the tree's points
 };
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

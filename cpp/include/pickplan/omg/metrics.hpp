@@ -5,7 +5,7 @@
 
 #include "pickplan/omg/chomp.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 struct MetricSettings {
   int steps = 200;                     // dense interpolation, start included
@@ -49,11 +49,11 @@ Trajectory interpolate(const Eigen::VectorXd& q0, const Trajectory& xi, int step
 // Smallest distance (up to `cap`) of the problem's body points at configuration q to the objects
 // outside `exclude_mask` (the table left out), measured as evaluate_trajectory measures it.
 double object_clearance(const ChompProblem& problem, const double* q, std::uint64_t exclude_mask, double cap,
-                        RobotWorkspace& ws);
+                        core::RobotWorkspace& ws);
 
 // stop_at_failure: return at the first reason the trajectory cannot succeed (too rough, or a dense
 // step short of its clearance); success is then exact but the other metrics are partial.
 TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::VectorXd& q0, const Trajectory& xi,
                                       const MetricSettings& settings, bool stop_at_failure = false);
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

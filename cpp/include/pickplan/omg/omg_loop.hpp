@@ -15,7 +15,7 @@
 #include "pickplan/omg/metrics.hpp"
 #include "pickplan/omg/selection.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 enum class StageClock { wall, thread_cpu };  // what the stage timings read
 
@@ -35,7 +35,7 @@ struct OmgLoopSettings {
 // a refined copy; later refinements update that copy. Goals ISF cannot improve are left alone.
 class GoalBook {
  public:
-  GoalBook(const Robot& robot, int hand_link, const Trajectory& goals, std::vector<Trajectory> tails,
+  GoalBook(const core::Robot& robot, int hand_link, const Trajectory& goals, std::vector<Trajectory> tails,
            std::vector<int> grasp_index);
   int size() const { return static_cast<int>(goals_.size()); }
   int tail_length() const { return static_cast<int>(tails_.front().rows()); }
@@ -52,9 +52,9 @@ class GoalBook {
 
  private:
   Eigen::Vector3d hand_position(const Eigen::VectorXd& q);
-  const Robot& robot_;
+  const core::Robot& robot_;
   int hand_;
-  RobotWorkspace fk_;
+  core::RobotWorkspace fk_;
   std::vector<Eigen::VectorXd> goals_;
   std::vector<Trajectory> tails_;
   std::vector<int> origin_, origin_goal_;
@@ -101,4 +101,4 @@ OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refi
                            const std::vector<int>& grasp_index, const Eigen::VectorXd& blend,
                            const OmgLoopSettings& settings, const WarmStart* warm = nullptr);
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -8,7 +8,7 @@
 
 #include "pickplan/omg/point_sections.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 // The pairs (i, j) with |P_j - P_i| <= radius, i = queries[q] in the order of `queries`, each query's
 // j in the place they take in `order` (a permutation of the points; empty: ascending); with `keep`
@@ -31,4 +31,4 @@ AntipodalPartners antipodal_partners(const RowMatrixXd& points, const RowMatrixX
                                      double radius, const std::vector<std::uint8_t>& keep, const std::vector<long>& order,
                                      double min_width, double cone);
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

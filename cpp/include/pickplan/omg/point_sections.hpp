@@ -9,7 +9,7 @@
 
 #include <Eigen/Core>
 
-namespace pickplan {
+namespace pickplan::omg {
 
 using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
@@ -49,4 +49,4 @@ bool antipodal_pair(const RowMatrixXd& points, const RowMatrixXd& normals, long 
 // numpy's default (linear) quantile of the sorted values v[0..n), to the last bit.
 double sorted_quantile(const double* v, long n, double q);
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

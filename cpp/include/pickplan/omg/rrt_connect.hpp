@@ -14,12 +14,12 @@
 #include "pickplan/geometry/collision.hpp"
 #include "pickplan/omg/chomp.hpp"
 
-namespace pickplan {
+namespace pickplan::omg {
 
 // |x(q + dq) - x(q)| <= sum_j factor[j] |dq_j| for every point x of the robot's collision geometry.
 class MotionBound {
  public:
-  explicit MotionBound(const CollisionChecker& checker);
+  explicit MotionBound(const geometry::CollisionChecker& checker);
   const Eigen::VectorXd& factors() const { return factors_; }  // m per unit of each joint
   double bound(const double* a, const double* b) const;       // metres, for the segment a -> b
   // Checked states a segment needs so that consecutive ones lie within `resolution` (>= 1).
@@ -57,9 +57,9 @@ struct RrtResult {
 class MotionPlanner {
  public:
   // The checker decides validity (with its allowed pairs, margin and self-collision settings).
-  MotionPlanner(const CollisionChecker& checker, RrtSettings settings = {});
+  MotionPlanner(const geometry::CollisionChecker& checker, RrtSettings settings = {});
   const RrtSettings& settings() const { return settings_; }
-  const CollisionChecker& checker() const { return checker_; }
+  const geometry::CollisionChecker& checker() const { return checker_; }
   const MotionBound& bound() const { return bound_; }
 
   // Throws std::invalid_argument for a start or goals of the wrong size or outside the limits.
@@ -70,16 +70,17 @@ class MotionPlanner {
   Trajectory shortcut(const Trajectory& path, int attempts, std::uint64_t seed, double min_gain = 0.0) const;
   // The motion check: true when every checked state of a -> b is free (a itself is not checked),
   // or, `certified`, when the whole continuous motion is proved free.
-  bool motion_valid(const double* a, const double* b, CollisionWorkspace& ws, long* checks = nullptr) const;
-  bool motion_certified(const double* a, const double* b, CollisionWorkspace& ws, long* checks = nullptr) const;
+  bool motion_valid(const double* a, const double* b, geometry::CollisionWorkspace& ws, long* checks = nullptr) const;
+  bool motion_certified(const double* a, const double* b, geometry::CollisionWorkspace& ws,
+                        long* checks = nullptr) const;
   // The first segment (row i -> i + 1) that fails the motion check, or -1; the first row is checked too.
   int first_invalid_segment(const Trajectory& path) const;
 
  private:
-  const CollisionChecker& checker_;
+  const geometry::CollisionChecker& checker_;
   RrtSettings settings_;
   MotionBound bound_;
   std::vector<int> active_;  // active joint indices
 };
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -7,7 +7,7 @@
 
 #include <Eigen/Core>
 
-namespace pickplan {
+namespace pickplan::omg {
 
 enum class SelectionKind { Fixed, Proj, FTC, FTL, EXP, MD };
 enum class CostKind { objective, distance };  // goal-cost estimates (eq. 8) | free end point's distance (Proj)
@@ -55,4 +55,4 @@ double numpy_sum(const double* a, long n);
 // shifted_kl_step); scaled_costs holds eta_k c per row.
 Eigen::MatrixXd shifted_kl_step(const Eigen::MatrixXd& P, const Eigen::MatrixXd& scaled_costs, double shift);
 
-}  // namespace pickplan
+}  // namespace pickplan::omg

@@ -19,7 +19,7 @@
 #include "pickplan/core/transform.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
-namespace pickplan {
+namespace pickplan::perception {
 
 using DepthImage = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 using PixelMask = Eigen::Matrix<std::uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
@@ -27,7 +27,7 @@ using PixelMask = Eigen::Matrix<std::uint8_t, Eigen::Dynamic, Eigen::Dynamic, Ei
 struct DepthView {
   DepthImage depth;          // H x W metres along the optical axis; <= 0 or non-finite: no return
   Eigen::Matrix3d K;         // pinhole intrinsics (fx, fy, cx, cy; pixel centres at integer + 0.5)
-  Transform camera_pose;     // camera -> world, OpenCV axes: z forward, x right, y down
+  core::Transform camera_pose;  // camera -> world, OpenCV axes: z forward, x right, y down
   PixelMask target;          // H x W, nonzero on the target (may be empty: no target in this view)
 };
 
@@ -45,8 +45,8 @@ struct DepthFieldSettings {
 };
 
 struct DepthField {
-  std::shared_ptr<const SdfGrid> obstacles;  // signed distance to OCCUPIED voxels (world frame grid)
-  Vertices target_points, target_normals;    // observed target surface, normals towards the camera side
+  std::shared_ptr<const geometry::SdfGrid> obstacles;  // signed distance to OCCUPIED voxels (world frame grid)
+  geometry::Vertices target_points, target_normals;    // observed target surface, normals towards the camera side
   int occupied = 0, target = 0, free = 0;    // voxel counts
 };
 
@@ -61,16 +61,17 @@ struct PlaneChoice {
   long index = -1;
   long inliers = 0;
 };
-PlaneChoice most_inliers(const Vertices& points, const Vertices& normals, const Eigen::VectorXd& offsets, double tolerance);
+PlaneChoice most_inliers(const geometry::Vertices& points, const geometry::Vertices& normals,
+                         const Eigen::VectorXd& offsets, double tolerance);
 
 // Distance from every node of the grid (origin, resolution, dims; x fastest) to the nearest of
 // `points` (exact, by a k-d tree): the observed target's unsigned distance grid.
-std::vector<float> point_distance_grid(const Vertices& points, const Eigen::Vector3d& origin, double resolution,
-                                       const Eigen::Vector3i& dims);
+std::vector<float> point_distance_grid(const geometry::Vertices& points, const Eigen::Vector3d& origin,
+                                       double resolution, const Eigen::Vector3i& dims);
 
 // Exact squared Euclidean distance transform (Felzenszwalb and Huttenlocher) of a binary grid,
 // x-fastest dims: for each voxel the squared distance (in voxels) to the nearest `true` voxel
 // (a large value where there is none).
 std::vector<float> squared_distance_transform(const std::vector<std::uint8_t>& mask, const Eigen::Vector3i& dims);
 
-}  // namespace pickplan
+}  // namespace pickplan::perception

@@ -8,7 +8,7 @@
 // Base speed <= 2 m/s, arm joint rates <= arm_rate (pi rad/s in the paper).
 #include "pickplan/pickup/nlp.hpp"
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 struct PaperCaseOptions {
   double gamma = 0.96;
@@ -26,14 +26,10 @@ enum class GraspKind { top, side };
 void set_part_grasp(PickupProblem& pb, GraspKind kind, double yaw, const Eigen::Vector3d& position);
 
 // The problem of case 1..6 (throws std::invalid_argument otherwise). The robot must be mobile_ur5.
-PickupProblem paper_case(const Robot& robot, int case_id, const RhoPoly& rho, const PaperCaseOptions& opt = {});
+PickupProblem paper_case(const core::Robot& robot, int case_id, const RhoPoly& rho, const PaperCaseOptions& opt = {});
 // A monotone (non-increasing in S_g, non-decreasing in S_c) Bernstein surface on
 // S_g in [0.05, 1.2] m/s, S_c in [0.05, 0.15] m/s for tests and benchmarks; `shift` moves it up/down.
 RhoPoly example_rho(double shift = 0.0);
-
-}  // namespace pickplan
-
-namespace pickplan {
 
 // Independent check of a planned trajectory by dense re-sampling (n instants over [0, T]).
 struct PickupMetrics {
@@ -52,6 +48,6 @@ struct PickupMetrics {
   double goal_position_error = 0;     // |(x, y)(T) - goal|, m
   double success_probability = 0;     // rho(S_g, S_c)
 };
-PickupMetrics evaluate_pickup(const Robot& robot, const PickupProblem& pb, const PickupResult& res, int n = 2001);
+PickupMetrics evaluate_pickup(const core::Robot& robot, const PickupProblem& pb, const PickupResult& res, int n = 2001);
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

@@ -22,7 +22,7 @@
 #include "pickplan/core/robot.hpp"
 #include "pickplan/core/transform.hpp"
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 // rho_sigma(S_g, S_c) as a tensor-product Bernstein polynomial on [sg_lo, sg_hi] x [sc_lo, sc_hi]
 // (the RhoSurface format of the meta-model: coeffs[i, j] multiplies B_i(u) B_j(v)).
@@ -56,7 +56,7 @@ struct PickupProblem {
   Eigen::VectorXd arm_start;                        // arm joints at t = 0 (dof - 3)
   Eigen::Vector3d goal = Eigen::Vector3d::Zero();   // base x, y, phi at T
   double goal_tol_pos = 0.5, goal_tol_yaw = 0.7853981633974483;
-  Transform grasp_pose;                             // tool pose at T2 (world)
+  core::Transform grasp_pose;                               // tool pose at T2 (world)
   Eigen::Vector3d approach_dir = Eigen::Vector3d::UnitX();  // n_g, unit, world
   Eigen::Vector2d part_xy = Eigen::Vector2d::Zero();        // grasping-area centre
   double grasp_area_rmin = 0.35, grasp_area_rmax = 0.8;     // base distance to the part during grasping
@@ -70,7 +70,7 @@ struct PickupProblem {
   std::vector<SphereObstacle> obstacles;
   std::vector<BodySphere> body_spheres;
   int tool_link = -1;                               // link index of the gripper tool frame
-  void validate(const Robot& robot) const;          // throws std::invalid_argument
+  void validate(const core::Robot& robot) const;    // throws std::invalid_argument
 };
 
 struct PickupSettings {
@@ -179,7 +179,7 @@ class PickupConstraints {
  public:
   // subset == nullptr: every joint-position and collision row at every regular sample (the full
   // stage); otherwise exactly the optional rows of the subset (all other rows always).
-  PickupConstraints(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage,
+  PickupConstraints(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage,
                     const PickupRowSubset* subset = nullptr);
   int num_vars() const { return n_; }
   int num_constraints() const { return static_cast<int>(rows_.size()); }
@@ -234,6 +234,15 @@ class PickupConstraints {
   struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
   struct Row { int kind, sample, aux; unsigned dof_mask; bool sg, sc; double lo, hi; int jac_begin; };
   void add_row(int kind, int sample, int aux, unsigned dof_mask, bool sg, bool sc, double lo, double hi);
+  // The constructor's phases (cpp/src/pickup/nlp_layout.cpp): the rate rows' Bernstein hull, the
+  // regular samples, which optional rows a subset keeps (extra samples appended), the rows.
+  struct RowSelection;
+  void build_rate_hull();
+  void place_samples(int per_interval);
+  RowSelection select_rows(const PickupRowSubset* subset);
+  void add_sample_rows(const RowSelection& sel, double nh_bound);
+  void add_joint_row(int sample, int joint);
+  void add_collision_rows(int sample, const std::vector<int>& pairs);
   struct Kin;  // kinematic state at one sample (cpp/src/pickup/nlp_detail.hpp)
   void sample_rows(const double* x, int sample, int r0, int r1, double* g, double* jac) const;
   void kinematics(Kin& k, const double* x, int sample, int r0, int r1) const;
@@ -242,8 +251,14 @@ class PickupConstraints {
   // Value of row R and its partials in (q, q') (the non-holonomic row: in (q, T q')) and S_g.
   double row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq, Eigen::VectorXd& cqd, double& dsg) const;
   void sample_hessian(const double* x, const double* lambda, int sample, Eigen::MatrixXd& H) const;
+  // sample_hessian's phases (cpp/src/pickup/hessian.cpp): the weighted rows' gradient and Hessian in
+  // z = (q, q'), then chained through y = (q, P_s, T) into the variables.
+  struct ZHessian;
+  bool z_polynomial_terms(const double* lambda, int r0, int r1, const Kin& k, ZHessian& z) const;
+  void z_kinematic_terms(const double* lambda, int r0, int r1, Kin& k, ZHessian& z) const;
+  void chain_to_variables(const double* x, int sample, const Kin& k, const ZHessian& z, Eigen::MatrixXd& H) const;
 
-  const Robot& robot_;
+  const core::Robot& robot_;
   const PickupProblem& pb_;
   PickupSettings st_;
   int stage_;
@@ -298,10 +313,10 @@ struct PickupResult {
 };
 
 // The heuristic seed of stage 1: base through a grasping-area point, arm at arm_start (+ noise).
-Eigen::VectorXd heuristic_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
+Eigen::VectorXd heuristic_seed(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
 // Stage-2 warm start: the arm polynomials re-fitted to blend from arm_start to a (multi-start,
 // damped least-squares) IK solution of the grasp pose at the base pose of x at T2; base unchanged.
-Eigen::VectorXd grasp_ik_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+Eigen::VectorXd grasp_ik_seed(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x);
 // The arm configurations at T2 of the stage-2 seeds: `path` is x with its base path (bent through
 // a reachable base pose if needed), arms[0] the configuration of grasp_ik_seed; with flips (6-joint
@@ -311,42 +326,42 @@ struct GraspArmSeeds {
   Eigen::VectorXd path;
   std::vector<Eigen::VectorXd> arms;  // full configurations q(T2), dof entries
 };
-GraspArmSeeds grasp_arm_seeds(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+GraspArmSeeds grasp_arm_seeds(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x, bool flips);
 // The stage-2 seed: `path` with the arm polynomials blended from arm_start to q2 at s2 (then held).
-Eigen::VectorXd arm_blend_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+Eigen::VectorXd arm_blend_seed(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                                const Eigen::VectorXd& path, const Eigen::VectorXd& q2);
 // q2 with one arm joint turned by 2 pi away from a joint limit that `solution` (a trajectory from
 // the seed of q2) runs into, one configuration per such joint and side, where the turned value is
 // within the limits: the same grasp pose, but the joint's polynomial has room on that side.
 // Ordered by price (per DOF, e.g. the multipliers of its limit rows; empty: joint order), highest first.
-std::vector<Eigen::VectorXd> wound_arm_configurations(const Robot& robot, const PickupProblem& problem,
+std::vector<Eigen::VectorXd> wound_arm_configurations(const core::Robot& robot, const PickupProblem& problem,
                                                       const PickupSettings& settings, const Eigen::VectorXd& q2,
                                                       const Eigen::VectorXd& solution,
                                                       const Eigen::VectorXd& price = Eigen::VectorXd());
 // Stage-3 warm start: the same path in normalised time, slowed down: T moves `fraction` of the way
 // (in log T; 0.5: the geometric mean) from its value to the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
 // to keep (T2 - T1) S_c = stroke. x unchanged when that would not slow it down.
-Eigen::VectorXd grasp_timing_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
-                                  const Eigen::VectorXd& x, double fraction = 0.5);
+Eigen::VectorXd grasp_timing_seed(const core::Robot& robot, const PickupProblem& problem,
+                                  const PickupSettings& settings, const Eigen::VectorXd& x, double fraction = 0.5);
 // A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others
 // random, 0 <= T1 < T2 <= T (seeded by settings.seed).
-Eigen::VectorXd random_seed(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
+Eigen::VectorXd random_seed(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings);
 // One Ipopt solve of a stage (1..5) from x0; stage 0 = all constraints (single shot). Never throws
 // for solver failures: they are statuses. Throws std::invalid_argument for bad input.
-StageResult solve_stage(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings, int stage,
-                        const Eigen::VectorXd& x0);
+StageResult solve_stage(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+                        int stage, const Eigen::VectorXd& x0);
 // The five stages of Sec. V-B from the heuristic seed (or x0 when given, non-empty).
-PickupResult solve_successive(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+PickupResult solve_successive(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                               const Eigen::VectorXd& x0 = Eigen::VectorXd());
 // The baseline "without sequencing": all constraints at once from random_seed().
 // All constraints at once (stage 0) from the random seed (random_seed, settings.seed), or from x0
 // when it is given (non-empty; e.g. a stage-1 solution: the direct track on its own).
-PickupResult solve_single_shot(const Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
+PickupResult solve_single_shot(const core::Robot& robot, const PickupProblem& problem, const PickupSettings& settings,
                                const Eigen::VectorXd& x0 = Eigen::VectorXd());
 // Default polynomial degrees for a robot with `dof` DOFs (3 base + arm).
 std::vector<int> default_degrees(int dof);
 // The degrees a solve uses: settings.degrees, or default_degrees(dof) when empty.
 std::vector<int> resolved_degrees(const PickupSettings& settings, int dof);
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

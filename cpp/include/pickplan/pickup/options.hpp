@@ -4,7 +4,7 @@
 #include <ostream>
 #include <string>
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 enum class HessianMode { exact, limited_memory };     // eval_hessian | Ipopt's L-BFGS ("limited-memory")
 enum class CoefficientBasis { bernstein, monomial };  // Ipopt's coefficient variables (results: monomial)
@@ -36,4 +36,4 @@ MuStrategy parse_mu_strategy(const std::string& text);
 RateRows parse_rate_rows(const std::string& text);
 inline std::ostream& operator<<(std::ostream& os, SolveStatus status) { return os << to_string(status); }
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

@@ -6,7 +6,7 @@
 
 #include <Eigen/Core>
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 class PolyTraj {
  public:
@@ -40,4 +40,4 @@ class PolyTraj {
   double tau_ = 1.0;
 };
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup

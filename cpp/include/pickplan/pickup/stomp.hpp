@@ -12,7 +12,7 @@
 #include "pickplan/pickup/nlp.hpp"
 #include "pickplan/core/robot.hpp"
 
-namespace pickplan {
+namespace pickplan::pickup {
 
 struct StompSettings {
   int iterations = 40;
@@ -39,8 +39,8 @@ struct StompResult {
 
 // Q: (N >= 5, dof) waypoints at spacing dt > 0; columns 0-2 the base (not changed), the rest the arm.
 // Throws std::invalid_argument on bad shapes.
-StompResult stomp_refine(const Robot& robot, const Eigen::MatrixXd& Q, double dt, const Eigen::VectorXd& arm_rate_limits,
-                         const std::vector<BodySphere>& spheres, const std::vector<SphereObstacle>& obstacles,
-                         const StompSettings& settings = {});
+StompResult stomp_refine(const core::Robot& robot, const Eigen::MatrixXd& Q, double dt,
+                         const Eigen::VectorXd& arm_rate_limits, const std::vector<BodySphere>& spheres,
+                         const std::vector<SphereObstacle>& obstacles, const StompSettings& settings = {});
 
-}  // namespace pickplan
+}  // namespace pickplan::pickup
