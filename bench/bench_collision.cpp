@@ -80,11 +80,14 @@ void bench_collision(const Options& opt) {
     for (const auto& q : *set)
       if (!checker.in_collision(q.data(), ws)) free_qs.push_back(q);
     std::printf("%s: %zu configurations, %zu colliding\n", tag, set->size(), set->size() - free_qs.size());
-    auto all = time_samples(static_cast<int>(set->size()), 20, [&](int i) { sink += checker.in_collision((*set)[i].data(), ws); });
+    auto all = time_samples(static_cast<int>(set->size()), 20,
+                            [&](int i) { sink += checker.in_collision((*set)[i].data(), ws); });
     report((std::string("in_collision, ") + tag).c_str(), summarize(all));
-    auto fr = time_samples(static_cast<int>(free_qs.size()), 20, [&](int i) { sink += checker.in_collision(free_qs[i].data(), ws); });
+    auto fr = time_samples(static_cast<int>(free_qs.size()), 20,
+                           [&](int i) { sink += checker.in_collision(free_qs[i].data(), ws); });
     report((std::string("in_collision, ") + tag + ", free ones (no early exit)").c_str(), summarize(fr));
-    auto md = time_samples(static_cast<int>(free_qs.size()), 3, [&](int i) { dsink += checker.min_distance(free_qs[i].data(), ws); });
+    auto md = time_samples(static_cast<int>(free_qs.size()), 3,
+                           [&](int i) { dsink += checker.min_distance(free_qs[i].data(), ws); });
     report((std::string("min_distance, ") + tag + ", free ones").c_str(), summarize(md));
   }
 
@@ -92,15 +95,18 @@ void bench_collision(const Options& opt) {
   self.self_collision = true;
   CollisionChecker with_self(robot, links, objects, table, self);
   CollisionWorkspace ws2(with_self);
-  auto sc = time_samples(static_cast<int>(reach.size()), 20, [&](int i) { sink += with_self.in_collision(reach[i].data(), ws2); });
-  report(("in_collision + self-collision, reaching (" + std::to_string(with_self.num_pairs()) + " pairs)").c_str(), summarize(sc));
+  auto sc = time_samples(static_cast<int>(reach.size()), 20,
+                         [&](int i) { sink += with_self.in_collision(reach[i].data(), ws2); });
+  report(("in_collision + self-collision, reaching (" + std::to_string(with_self.num_pairs()) + " pairs)").c_str(),
+         summarize(sc));
 
   // Batch throughput (reaching set) on 1 and 2 threads.
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> Q(reach.size(), robot.dof());
   for (size_t i = 0; i < reach.size(); ++i) Q.row(static_cast<Eigen::Index>(i)) = reach[i].transpose();
   std::unique_ptr<bool[]> out(new bool[reach.size()]);
   for (int threads : {1, 2}) {
-    auto b = time_samples(5, 1, [&](int) { checker.in_collision_batch(Q.data(), static_cast<long>(reach.size()), out.get(), threads); });
+    auto b = time_samples(
+        5, 1, [&](int) { checker.in_collision_batch(Q.data(), static_cast<long>(reach.size()), out.get(), threads); });
     Stats s = summarize(b);
     s.median /= reach.size(), s.worst /= reach.size(), s.mean /= reach.size();
     report(("in_collision_batch, " + std::to_string(threads) + " thread(s), per configuration").c_str(), s);

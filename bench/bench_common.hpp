@@ -2,10 +2,10 @@
 // Tiny benchmark harness for pickplan-bench: fixed seeded inputs, median / worst per case.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <functional>
 #include <map>
-#include <cmath>
 #include <random>
 #include <string>
 #include <vector>
@@ -15,9 +15,9 @@
 namespace pickplan::bench {
 
 struct Options {
-  std::string urdf;          // Panda URDF
-  std::string ycb_dir;       // optional real-object folder
-  int samples = 200;         // timed samples per case
+  std::string urdf;     // Panda URDF
+  std::string ycb_dir;  // optional real-object folder
+  int samples = 200;    // timed samples per case
   std::map<std::string, std::string> extra;
 };
 
@@ -54,13 +54,18 @@ inline void report(const char* name, const Stats& s, const char* unit_note = "")
     static char buf[4][32];
     static int k = 0;
     char* b = buf[k++ % 4];
-    if (sec < 1e-6) std::snprintf(b, 32, "%.1f ns", sec * 1e9);
-    else if (sec < 1e-3) std::snprintf(b, 32, "%.2f us", sec * 1e6);
-    else if (sec < 1) std::snprintf(b, 32, "%.2f ms", sec * 1e3);
-    else std::snprintf(b, 32, "%.3f s", sec);
+    if (sec < 1e-6)
+      std::snprintf(b, 32, "%.1f ns", sec * 1e9);
+    else if (sec < 1e-3)
+      std::snprintf(b, 32, "%.2f us", sec * 1e6);
+    else if (sec < 1)
+      std::snprintf(b, 32, "%.2f ms", sec * 1e3);
+    else
+      std::snprintf(b, 32, "%.3f s", sec);
     return b;
   };
-  std::printf("%-48s median %12s   worst %12s   mean %12s %s\n", name, fmt(s.median), fmt(s.worst), fmt(s.mean), unit_note);
+  std::printf("%-48s median %12s   worst %12s   mean %12s %s\n", name, fmt(s.median), fmt(s.worst), fmt(s.mean),
+              unit_note);
   std::fflush(stdout);
 }
 

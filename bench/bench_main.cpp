@@ -54,14 +54,19 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (a == "--urdf") opt.urdf = next();
-    else if (a == "--ycb") opt.ycb_dir = next();
-    else if (a == "--only") only = next();
-    else if (a == "--samples") opt.samples = std::atoi(next().c_str());
+    if (a == "--urdf")
+      opt.urdf = next();
+    else if (a == "--ycb")
+      opt.ycb_dir = next();
+    else if (a == "--only")
+      only = next();
+    else if (a == "--samples")
+      opt.samples = std::atoi(next().c_str());
     else if (a.rfind("--", 0) == 0 && a.find('=') != std::string::npos)
       opt.extra[a.substr(2, a.find('=') - 2)] = a.substr(a.find('=') + 1);
     else if (a == "-h" || a == "--help") {
-      std::cout << "usage: pickplan-bench [--urdf PANDA_URDF] [--ycb DIR] [--only SECTION,...] [--samples N]\nsections:";
+      std::cout
+          << "usage: pickplan-bench [--urdf PANDA_URDF] [--ycb DIR] [--only SECTION,...] [--samples N]\nsections:";
       for (const auto& [name, fn] : sections()) std::cout << " " << name;
       std::cout << "\n";
       return 0;

@@ -41,8 +41,10 @@ DepthView render(double azimuth, const std::vector<Box>& boxes) {
   const double fy = 0.5 * H / std::tan(58.0 * M_PI / 360.0);
   const Eigen::Vector3d target(0.55, 0, 0.05);
   const double e = 50.0 * M_PI / 180.0, a = azimuth * M_PI / 180.0;
-  const Eigen::Vector3d eye = target + 1.1 * Eigen::Vector3d(std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e));
-  const Eigen::Vector3d z = (target - eye).normalized(), x = z.cross(Eigen::Vector3d::UnitZ()).normalized(), y = z.cross(x);
+  const Eigen::Vector3d eye =
+      target + 1.1 * Eigen::Vector3d(std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e));
+  const Eigen::Vector3d z = (target - eye).normalized(), x = z.cross(Eigen::Vector3d::UnitZ()).normalized(),
+                        y = z.cross(x);
   DepthView v;
   v.K << fy, 0, W / 2.0, 0, fy, H / 2.0, 0, 0, 1;
   v.camera_pose.R << x, y, z;
@@ -55,7 +57,8 @@ DepthView render(double azimuth, const std::vector<Box>& boxes) {
       const double t = cast(eye, v.camera_pose.R * ray_cam, boxes);  // t along a ray with unit z: depth
       v.depth(r, c) = static_cast<float>(t);
       const Eigen::Vector3d hit = eye + t * (v.camera_pose.R * ray_cam);
-      v.target(r, c) = t > 0 && hit.z() > 0.002 && (hit - boxes[0].lo).minCoeff() > -1e-6 && (boxes[0].hi - hit).minCoeff() > -1e-6;
+      v.target(r, c) =
+          t > 0 && hit.z() > 0.002 && (hit - boxes[0].lo).minCoeff() > -1e-6 && (boxes[0].hi - hit).minCoeff() > -1e-6;
     }
   return v;
 }

@@ -1,8 +1,8 @@
 // Pick-up on the move (Thakar et al.): the five stages of successive refinement per test case,
 // and the single-shot baseline. Options: --mobile_urdf=PATH --cases=1,2,... --m=8 --shots=1
 #include <algorithm>
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <sstream>
@@ -24,7 +24,8 @@ std::string find_mobile_urdf(const Options& opt) {
   std::error_code ec;
   fs::path exe = fs::canonical("/proc/self/exe", ec);
   for (fs::path dir = exe.parent_path(); !dir.empty() && dir != dir.root_path(); dir = dir.parent_path()) {
-    if (fs::is_regular_file(dir / "assets" / "mobile_ur5.urdf", ec)) return (dir / "assets" / "mobile_ur5.urdf").string();
+    if (fs::is_regular_file(dir / "assets" / "mobile_ur5.urdf", ec))
+      return (dir / "assets" / "mobile_ur5.urdf").string();
     fs::path lib = dir / "lib";
     if (fs::is_directory(lib, ec))
       for (const auto& py : fs::directory_iterator(lib, ec)) {
@@ -76,7 +77,8 @@ void bench_pickup(const Options& opt) {
     std::stringstream ss(opt.extra.at("cases"));
     for (std::string tok; std::getline(ss, tok, ',');) cases.push_back(std::atoi(tok.c_str()));
   }
-  std::printf("pick-up NLP: m = %d samples per interval, %s Hessian, MUMPS\n", st.samples_per_interval, to_string(st.hessian));
+  std::printf("pick-up NLP: m = %d samples per interval, %s Hessian, MUMPS\n", st.samples_per_interval,
+              to_string(st.hessian));
   {
     PickupProblem pb = paper_case(robot, 1, example_rho());
     PickupConstraints all(robot, pb, st, 0);
@@ -84,8 +86,10 @@ void bench_pickup(const Options& opt) {
     std::vector<double> g(all.num_constraints()), jv(all.num_nonzeros());
     std::printf("all-constraint NLP: %d variables, %d constraints, %d Jacobian nonzeros\n", all.num_vars(),
                 all.num_constraints(), all.num_nonzeros());
-    report("constraints g(x), all stages' rows", summarize(time_samples(50, 5, [&](int) { all.eval_g(x.data(), g.data()); })));
-    report("constraint Jacobian, all stages' rows", summarize(time_samples(50, 5, [&](int) { all.eval_jac(x.data(), jv.data()); })));
+    report("constraints g(x), all stages' rows",
+           summarize(time_samples(50, 5, [&](int) { all.eval_g(x.data(), g.data()); })));
+    report("constraint Jacobian, all stages' rows",
+           summarize(time_samples(50, 5, [&](int) { all.eval_jac(x.data(), jv.data()); })));
   }
   if (opt.extra.count("diag")) {  // worst-violated rows of the heuristic seed, per stage
     PickupProblem pb = paper_case(robot, std::atoi(opt.extra.at("diag").c_str()), example_rho());
@@ -127,27 +131,32 @@ void bench_pickup(const Options& opt) {
   for (int c : cases) {
     PickupProblem pb = paper_case(robot, c, rho);
     PickupResult r = solve_successive(robot, pb, st);
-    std::printf("case %d: %-12s total %.3f s (cpu %.3f s) |", c, to_string(r.status), r.total_seconds, r.total_cpu_seconds);
+    std::printf("case %d: %-12s total %.3f s (cpu %.3f s) |", c, to_string(r.status), r.total_seconds,
+                r.total_cpu_seconds);
     for (const auto& s : r.stages)
       std::printf(" s%d %.3fs/%dit%s", s.stage, s.seconds, s.iterations,
                   s.rounds > 1 ? ("/" + std::to_string(s.rounds) + "r").c_str() : "");
     if (r.direct.stage == 0 && r.direct.status != SolveStatus::not_run)
-      std::printf(" direct %.3fs/%dit (cpu %.3f s) %s T %.2f%s", r.direct.seconds, r.direct.iterations, r.direct.cpu_seconds,
-                  to_string(r.direct.status), r.direct.objective, r.direct_chosen ? " [chosen]" : "");
+      std::printf(" direct %.3fs/%dit (cpu %.3f s) %s T %.2f%s", r.direct.seconds, r.direct.iterations,
+                  r.direct.cpu_seconds, to_string(r.direct.status), r.direct.objective,
+                  r.direct_chosen ? " [chosen]" : "");
     if (r.arm_seeds_tried > 1) {
       std::printf("   arm seeds (cpu %.3f s not kept), T:", r.search_cpu_seconds);
-      for (int k = 0; k < r.arm_seeds_tried; ++k) std::printf(" %.2f%s", r.arm_seed_T[k], k == r.arm_seed_chosen ? "*" : "");
+      for (int k = 0; k < r.arm_seeds_tried; ++k)
+        std::printf(" %.2f%s", r.arm_seed_T[k], k == r.arm_seed_chosen ? "*" : "");
     }
     std::printf("\n");
     totals.push_back(r.total_seconds);
     cpu_totals.push_back(r.total_cpu_seconds);
     if (r.stages_completed > 0) {
       PickupMetrics m = evaluate_pickup(robot, pb, r);
-      std::printf("   T %.2f s  T1 %.2f  T2 %.2f  Sg %.3f  Sc %.3f  rho %.4f | pose err %.2e m %.2e rad | NH mean %.2e m/s drift %.2e m"
-                  " | v err %.2e | clear %.3f | base %.2f m/s, grasp %.2f m/s, gripper %.2f m/s\n",
-                  r.T, r.T1, r.T2, r.S_g, r.S_c, m.success_probability, m.pose_error_position, m.pose_error_orientation,
-                  m.nonholonomic_mean, m.nonholonomic_drift, m.velocity_error_max, m.min_clearance, m.base_speed_max,
-                  m.base_speed_grasp_mean, m.gripper_speed_grasp_mean);
+      std::printf(
+          "   T %.2f s  T1 %.2f  T2 %.2f  Sg %.3f  Sc %.3f  rho %.4f | pose err %.2e m %.2e rad | NH mean %.2e m/s "
+          "drift %.2e m"
+          " | v err %.2e | clear %.3f | base %.2f m/s, grasp %.2f m/s, gripper %.2f m/s\n",
+          r.T, r.T1, r.T2, r.S_g, r.S_c, m.success_probability, m.pose_error_position, m.pose_error_orientation,
+          m.nonholonomic_mean, m.nonholonomic_drift, m.velocity_error_max, m.min_clearance, m.base_speed_max,
+          m.base_speed_grasp_mean, m.gripper_speed_grasp_mean);
     }
     dump("sequential", r);
     double best_single = std::numeric_limits<double>::infinity();
@@ -155,8 +164,8 @@ void bench_pickup(const Options& opt) {
       PickupSettings s1 = st;
       s1.seed = k;
       PickupResult b = solve_single_shot(robot, pb, s1);
-      std::printf("   single-shot seed %d: %-12s %.3f s (cpu %.3f s) %d it, T %.2f\n", k, to_string(b.status), b.total_seconds,
-                  b.total_cpu_seconds, b.stages[0].iterations, b.stages[0].objective);
+      std::printf("   single-shot seed %d: %-12s %.3f s (cpu %.3f s) %d it, T %.2f\n", k, to_string(b.status),
+                  b.total_seconds, b.total_cpu_seconds, b.stages[0].iterations, b.stages[0].objective);
       if (b.success) best_single = std::min(best_single, b.T);
       if (b.success) dump("single shot", b);
     }

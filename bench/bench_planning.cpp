@@ -5,11 +5,11 @@
 #include <random>
 
 #include "bench_common.hpp"
-#include "pickplan/omg/chomp.hpp"
-#include "pickplan/geometry/collision.hpp"
-#include "pickplan/omg/goal_set.hpp"
 #include "pickplan/core/ik.hpp"
+#include "pickplan/geometry/collision.hpp"
 #include "pickplan/geometry/mesh.hpp"
+#include "pickplan/omg/chomp.hpp"
+#include "pickplan/omg/goal_set.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::geometry;
@@ -33,7 +33,8 @@ Clutter make_clutter(unsigned seed) {
     SceneObject o;
     o.name = "obj" + std::to_string(i);
     const double h = U(0.08, 0.22);
-    o.mesh = i % 2 == 0 ? TriangleMesh::box({U(0.05, 0.1), U(0.05, 0.1), h}) : TriangleMesh::cylinder(U(0.03, 0.045), h, 32);
+    o.mesh =
+        i % 2 == 0 ? TriangleMesh::box({U(0.05, 0.1), U(0.05, 0.1), h}) : TriangleMesh::cylinder(U(0.03, 0.045), h, 32);
     o.pose.R = axis_angle(Eigen::Vector3d::UnitZ(), U(-M_PI, M_PI));
     o.pose.p = Eigen::Vector3d(U(0.4, 0.7), U(-0.3, 0.3), h / 2);
     c.sdf->add_object(std::make_shared<SdfGrid>(SdfGrid::build(o.mesh.vertices, o.mesh.faces, {0.005, 0.2})), o.pose);
@@ -91,17 +92,16 @@ void bench_planning(const Options& opt) {
   ChompWorkspace ws(chomp);
   Trajectory xi = xi0;
   int it = 0;
-  report("CHOMP-Proj iteration, per-object grids", summarize(time_samples(opt.samples, 1, [&](int) {
-           chomp.step(xi, q0, &goal, it++, ws);
-         })));
+  report("CHOMP-Proj iteration, per-object grids",
+         summarize(time_samples(opt.samples, 1, [&](int) { chomp.step(xi, q0, &goal, it++, ws); })));
   const auto t_merge = std::chrono::steady_clock::now();
   clutter.sdf->merge(cs.exclude_mask, MergedSdfSettings{});
   std::printf("merged scene grid built in %.1f ms\n", 1e3 * seconds_since(t_merge));
   xi = xi0;
   it = 0;
-  report("CHOMP-Proj iteration (n=30, 20 pts/link)", summarize(time_samples(opt.samples, 1, [&](int) {
-           chomp.step(xi, q0, &goal, it++, ws);
-         })), "[target <= 100 us]");
+  report("CHOMP-Proj iteration (n=30, 20 pts/link)",
+         summarize(time_samples(opt.samples, 1, [&](int) { chomp.step(xi, q0, &goal, it++, ws); })),
+         "[target <= 100 us]");
   report("CHOMP, 100 iterations", summarize(time_samples(5, 1, [&](int) { chomp.optimize(xi0, q0, goal, 100); })));
   Trajectory goals(30, 9);
   std::mt19937 rng(5);
@@ -127,16 +127,15 @@ void bench_planning(const Options& opt) {
   std::uniform_real_distribution<double> u(0.2, 0.8);
   for (int k = 0; k < opt.samples; ++k) {
     Eigen::VectorXd q(9);
-    for (int j = 0; j < 9; ++j) q[j] = robot->lower_limits()[j] + u(rng) * (robot->upper_limits()[j] - robot->lower_limits()[j]);
+    for (int j = 0; j < 9; ++j)
+      q[j] = robot->lower_limits()[j] + u(rng) * (robot->upper_limits()[j] - robot->lower_limits()[j]);
     robot->forward_kinematics(q.data(), rws);
     targets.push_back(rws.link_pose[robot->link_index("panda_hand")]);
   }
-  report("IK, one solve from the start (random reachable pose)", summarize(time_samples(opt.samples, 1, [&](int i) {
-           ik.solve(targets[i], q0);
-         })));
-  report("IK, first solution over all seeds", summarize(time_samples(opt.samples, 1, [&](int i) {
-           ik.solve_any(targets[i], q0);
-         })));
+  report("IK, one solve from the start (random reachable pose)",
+         summarize(time_samples(opt.samples, 1, [&](int i) { ik.solve(targets[i], q0); })));
+  report("IK, first solution over all seeds",
+         summarize(time_samples(opt.samples, 1, [&](int i) { ik.solve_any(targets[i], q0); })));
   std::vector<LinkMesh> links;
   for (int l = 0; l < robot->num_links(); ++l) {
     TriangleMesh m = link_collision_mesh(*robot, l);
@@ -147,7 +146,8 @@ void bench_planning(const Options& opt) {
   CollisionChecker checker(*robot, links, clutter.objects, clutter.table, col);
   std::vector<LinkMesh> hand_links;
   for (const auto& lm : links)
-    if (lm.link == "panda_hand" || lm.link == "panda_leftfinger" || lm.link == "panda_rightfinger") hand_links.push_back(lm);
+    if (lm.link == "panda_hand" || lm.link == "panda_leftfinger" || lm.link == "panda_rightfinger")
+      hand_links.push_back(lm);
   CollisionChecker hand_checker(*robot, hand_links, clutter.objects, clutter.table, col);
   // 100 side grasps around the target cylinder obj1 (ring of approach directions, 4 heights).
   std::vector<Transform> grasps;
@@ -163,9 +163,9 @@ void bench_planning(const Options& opt) {
     grasps.push_back(T);
   }
   GoalSet gs;
-  report("goal set, 100 grasps, standoff, clutter", summarize(time_samples(5, 1, [&](int) {
-           gs = build_goal_set(ik, &checker, &hand_checker, grasps, q0, {});
-         })), "[target <= 50 ms]");
+  report("goal set, 100 grasps, standoff, clutter",
+         summarize(time_samples(5, 1, [&](int) { gs = build_goal_set(ik, &checker, &hand_checker, grasps, q0, {}); })),
+         "[target <= 50 ms]");
   std::map<std::string, int> reasons;
   for (const auto& r : gs.reasons) ++reasons[to_string(r)];
   std::printf("    -> %zu goals after the cap; grasps by outcome:", static_cast<size_t>(gs.goals.rows()));

@@ -65,7 +65,8 @@ void bench_sdf(const Options& opt) {
   const long n = static_cast<long>(pts.size() / 3);
   std::vector<double> d(n), g(3 * n);
   const auto throughput = [&](const char* what, double cutoff) {
-    Stats st = summarize(time_samples(opt.samples, 5, [&](int) { scene.distances(pts.data(), n, d.data(), g.data(), cutoff); }));
+    Stats st = summarize(
+        time_samples(opt.samples, 5, [&](int) { scene.distances(pts.data(), n, d.data(), g.data(), cutoff); }));
     char name[128];
     std::snprintf(name, sizeof name, "SDF+grad, %ld pts, %s", n, what);
     report(name, st);
@@ -84,15 +85,13 @@ void bench_sdf(const Options& opt) {
   Vertices V;
   Faces F;
   cylinder_mesh(0.035, 0.1, 48, V, F);
-  report("SDF build, cylinder (192 faces), 5 mm, margin 0.2", summarize(time_samples(3, 1, [&](int) {
-           SdfGrid::build(V, F, {0.005, 0.2});
-         })));
+  report("SDF build, cylinder (192 faces), 5 mm, margin 0.2",
+         summarize(time_samples(3, 1, [&](int) { SdfGrid::build(V, F, {0.005, 0.2}); })));
   const std::string stl = opt.ycb_dir + "/006_mustard_bottle/mesh.stl";
   if (!opt.ycb_dir.empty() && std::filesystem::is_regular_file(stl)) {
     read_stl(stl, V, F);
-    report("SDF build, YCB mustard bottle (15,728 faces), 5 mm", summarize(time_samples(3, 1, [&](int) {
-             SdfGrid::build(V, F, {0.005, 0.2});
-           })));
+    report("SDF build, YCB mustard bottle (15,728 faces), 5 mm",
+           summarize(time_samples(3, 1, [&](int) { SdfGrid::build(V, F, {0.005, 0.2}); })));
   } else {
     std::printf("    (YCB SDF build skipped: pass --ycb DIR or set PICKPLAN_YCB_DIR)\n");
   }

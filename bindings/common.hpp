@@ -18,9 +18,9 @@ namespace py = pybind11;
 
 namespace pickplan::bind {
 
+using core::cleaned_rigid;
 using core::Robot;
 using core::Transform;
-using core::cleaned_rigid;
 
 using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using IntArray = py::array_t<int, py::array::c_style | py::array::forcecast>;
@@ -38,7 +38,8 @@ inline void require_shape(const char* what, const py::array& a, std::vector<py::
                           const char* expected_desc) {
   bool ok = a.ndim() == static_cast<py::ssize_t>(shape.size());
   for (size_t i = 0; ok && i < shape.size(); ++i) ok = shape[i] < 0 || a.shape(i) == shape[i];
-  if (!ok) throw std::invalid_argument(std::string(what) + ": expected shape " + expected_desc + ", got " + shape_str(a));
+  if (!ok)
+    throw std::invalid_argument(std::string(what) + ": expected shape " + expected_desc + ", got " + shape_str(a));
 }
 
 inline void require_finite_array(const char* what, const Array& a) {
@@ -47,8 +48,9 @@ inline void require_finite_array(const char* what, const Array& a) {
 
 // A configuration vector of the robot's size, finite.
 inline Array configuration(const Robot& robot, const Array& q, const char* what = "configuration") {
-  if (q.ndim() != 1) throw std::invalid_argument(std::string(what) + ": expected a 1-D array of " +
-                                                 std::to_string(robot.dof()) + " joint values, got shape " + shape_str(q));
+  if (q.ndim() != 1)
+    throw std::invalid_argument(std::string(what) + ": expected a 1-D array of " + std::to_string(robot.dof()) +
+                                " joint values, got shape " + shape_str(q));
   robot.check_configuration(q.data(), static_cast<long>(q.shape(0)));
   return q;
 }
@@ -91,15 +93,15 @@ inline IntArray index_array(const char* what, const py::handle& value, py::ssize
     throw std::invalid_argument(std::string(what) + ": expected integer indices, got dtype " +
                                 py::str(a.dtype()).cast<std::string>());
   auto bad = [&](const std::string& v, py::ssize_t j) {
-    return std::invalid_argument(std::string(what) + ": entry " + std::to_string(j) + " = " + v +
-                                 " out of range [0, " + std::to_string(size) + ")");
+    return std::invalid_argument(std::string(what) + ": entry " + std::to_string(j) + " = " + v + " out of range [0, " +
+                                 std::to_string(size) + ")");
   };
   if (kind == 'u') {  // uint64 past 2**63 must not turn negative before the check
-    auto u = py::array_t<unsigned long long, py::array::c_style | py::array::forcecast>::ensure(a);
+    auto u = py::array_t < unsigned long long, py::array::c_style | py::array::forcecast > ::ensure(a);
     for (py::ssize_t j = 0; j < u.size(); ++j)
       if (u.data()[j] >= static_cast<unsigned long long>(size)) throw bad(std::to_string(u.data()[j]), j);
   } else if (a.size() > 0) {
-    auto w = py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure(a);
+    auto w = py::array_t < long long, py::array::c_style | py::array::forcecast > ::ensure(a);
     for (py::ssize_t j = 0; j < w.size(); ++j)
       if (w.data()[j] < 0 || w.data()[j] >= size) throw bad(std::to_string(w.data()[j]), j);
   }
@@ -116,7 +118,8 @@ inline std::vector<Transform> poses_arg(const Array& P, const char* what) {
   std::vector<Transform> out;
   for (py::ssize_t i = 0; i < P.shape(0); ++i) {
     Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(P.data() + 16 * i);
-    out.push_back(Transform::from_matrix(cleaned_rigid((std::string(what) + " [" + std::to_string(i) + "]").c_str(), M)));
+    out.push_back(
+        Transform::from_matrix(cleaned_rigid((std::string(what) + " [" + std::to_string(i) + "]").c_str(), M)));
   }
   return out;
 }

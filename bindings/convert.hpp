@@ -45,7 +45,8 @@ inline std::vector<Rows> configuration_blocks(const Robot& robot, const Array& a
 
 // A 1-D array of any length.
 inline Eigen::VectorXd vector_arg(const Array& a, const char* what) {
-  if (a.ndim() != 1) throw std::invalid_argument(std::string(what) + ": expected a 1-D array, got shape " + shape_str(a));
+  if (a.ndim() != 1)
+    throw std::invalid_argument(std::string(what) + ": expected a 1-D array, got shape " + shape_str(a));
   return Eigen::Map<const Eigen::VectorXd>(a.data(), a.shape(0));
 }
 

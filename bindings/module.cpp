@@ -15,7 +15,7 @@ void init_perception(py::module_& m);
 void init_point_sections(py::module_& m);
 void init_primitives(py::module_& m);
 void init_rrt_connect(py::module_& m);
-}
+}  // namespace pickplan::bind
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "pickplan native core (private: use the pickplan Python modules)";

@@ -32,8 +32,8 @@ inline bool result_equal(const py::object& self, const py::object& other) {
   const py::object array_equal = py::module_::import("numpy").attr("array_equal");
   for (const auto& name : self.attr("_fields")) {
     const py::object a = self.attr(name), b = other.attr(name);
-    const bool same = py::isinstance<py::array>(a) || py::isinstance<py::array>(b) ? array_equal(a, b).cast<bool>()
-                                                                                     : a.equal(b);
+    const bool same =
+        py::isinstance<py::array>(a) || py::isinstance<py::array>(b) ? array_equal(a, b).cast<bool>() : a.equal(b);
     if (!same) return false;
   }
   return true;
@@ -70,7 +70,7 @@ class result_class : public py::class_<T, Options...> {
   }
 
   template <typename D>
-  result_class& field(const char* name, const D T::*member) {
+  result_class& field(const char* name, const D T::* member) {
     this->def_readonly(name, member);
     return add(name);
   }

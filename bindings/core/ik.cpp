@@ -1,8 +1,8 @@
 // The damped-least-squares IK (core/ik.hpp): settings, enums and the multi-start solver.
+#include "pickplan/core/ik.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
 #include "../results.hpp"
-#include "pickplan/core/ik.hpp"
 
 using namespace pickplan::core;
 
@@ -24,12 +24,8 @@ py::tuple solution_arrays(const std::vector<IkSolution>& sols, int dof) {
 }  // namespace
 
 void init_ik(py::module_& m) {
-  py::enum_<IkTask>(m, "IkTask")
-      .value("pose", IkTask::pose)
-      .value("position", IkTask::position);
-  py::enum_<IkDamping>(m, "IkDamping")
-      .value("adaptive", IkDamping::adaptive)
-      .value("fixed", IkDamping::fixed);
+  py::enum_<IkTask>(m, "IkTask").value("pose", IkTask::pose).value("position", IkTask::position);
+  py::enum_<IkDamping>(m, "IkDamping").value("adaptive", IkDamping::adaptive).value("fixed", IkDamping::fixed);
   py::enum_<IkStepNorm>(m, "IkStepNorm")
       .value("max_abs", IkStepNorm::max_abs)
       .value("euclidean", IkStepNorm::euclidean);
@@ -76,47 +72,60 @@ void init_ik(py::module_& m) {
              return std::make_shared<IkSolver>(robot, link_arg(*robot, link), s);
            }),
            py::arg("robot"), py::arg("link"), py::arg("settings") = IkSettings())
-      .def("solve", [](const IkSolver& ik, const Array& T, const Array& seed) {
-        const Transform target = pose_arg(T, "target pose");
-        const Eigen::VectorXd qs = configuration_vector(ik.robot(), seed, "seed");
-        IkSolution s;
-        {
-          py::gil_scoped_release release;
-          s = ik.solve(target, qs);
-        }
-        return s;
-      }, py::arg("target"), py::arg("seed"), "One descent from seed: an IkSolution.")
-      .def("solve_path", [](const IkSolver& ik, const Array& P, const Array& seed) {
-        const std::vector<Transform> targets = poses_arg(P, "target poses");
-        const Eigen::VectorXd qs = configuration_vector(ik.robot(), seed, "seed");
-        std::vector<IkSolution> sols;
-        {
-          py::gil_scoped_release release;
-          sols = ik.solve_path(targets, qs);
-        }
-        return solution_arrays(sols, ik.robot().dof());
-      }, py::arg("targets"), py::arg("seed"),
-         "One descent per pose, each from the previous solution: (Q (N, dof), converged (N,)).")
-      .def("solve_all", [](const IkSolver& ik, const Array& T, const Array& start) {
-        const Transform target = pose_arg(T, "target pose");
-        const Eigen::VectorXd qs = configuration_vector(ik.robot(), start, "start");
-        std::vector<IkSolution> sols;
-        {
-          py::gil_scoped_release release;
-          sols = ik.solve_all(target, qs);
-        }
-        return sols;
-      }, py::arg("target"), py::arg("start"), "Every distinct converged solution (IkSolution), nearest to start first.")
-      .def("solve_batch", [](const IkSolver& ik, const Array& P, const Array& start) {
-        const std::vector<Transform> targets = poses_arg(P, "target poses");
-        const Eigen::VectorXd qs = configuration_vector(ik.robot(), start, "start");
-        std::vector<IkSolution> sols(targets.size());
-        {
-          py::gil_scoped_release release;
-          for (std::size_t i = 0; i < targets.size(); ++i) sols[i] = ik.solve_any(targets[i], qs);
-        }
-        return solution_arrays(sols, ik.robot().dof());
-      }, py::arg("targets"), py::arg("start"), "First converged solution per pose: (Q (N, dof), converged (N,)).");
+      .def(
+          "solve",
+          [](const IkSolver& ik, const Array& T, const Array& seed) {
+            const Transform target = pose_arg(T, "target pose");
+            const Eigen::VectorXd qs = configuration_vector(ik.robot(), seed, "seed");
+            IkSolution s;
+            {
+              py::gil_scoped_release release;
+              s = ik.solve(target, qs);
+            }
+            return s;
+          },
+          py::arg("target"), py::arg("seed"), "One descent from seed: an IkSolution.")
+      .def(
+          "solve_path",
+          [](const IkSolver& ik, const Array& P, const Array& seed) {
+            const std::vector<Transform> targets = poses_arg(P, "target poses");
+            const Eigen::VectorXd qs = configuration_vector(ik.robot(), seed, "seed");
+            std::vector<IkSolution> sols;
+            {
+              py::gil_scoped_release release;
+              sols = ik.solve_path(targets, qs);
+            }
+            return solution_arrays(sols, ik.robot().dof());
+          },
+          py::arg("targets"), py::arg("seed"),
+          "One descent per pose, each from the previous solution: (Q (N, dof), converged (N,)).")
+      .def(
+          "solve_all",
+          [](const IkSolver& ik, const Array& T, const Array& start) {
+            const Transform target = pose_arg(T, "target pose");
+            const Eigen::VectorXd qs = configuration_vector(ik.robot(), start, "start");
+            std::vector<IkSolution> sols;
+            {
+              py::gil_scoped_release release;
+              sols = ik.solve_all(target, qs);
+            }
+            return sols;
+          },
+          py::arg("target"), py::arg("start"),
+          "Every distinct converged solution (IkSolution), nearest to start first.")
+      .def(
+          "solve_batch",
+          [](const IkSolver& ik, const Array& P, const Array& start) {
+            const std::vector<Transform> targets = poses_arg(P, "target poses");
+            const Eigen::VectorXd qs = configuration_vector(ik.robot(), start, "start");
+            std::vector<IkSolution> sols(targets.size());
+            {
+              py::gil_scoped_release release;
+              for (std::size_t i = 0; i < targets.size(); ++i) sols[i] = ik.solve_any(targets[i], qs);
+            }
+            return solution_arrays(sols, ik.robot().dof());
+          },
+          py::arg("targets"), py::arg("start"), "First converged solution per pose: (Q (N, dof), converged (N,)).");
 }
 
 }  // namespace pickplan::bind

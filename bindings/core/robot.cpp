@@ -9,10 +9,14 @@ namespace {
 
 const char* joint_type_name(JointType t) {
   switch (t) {
-    case JointType::Fixed: return "fixed";
-    case JointType::Revolute: return "revolute";
-    case JointType::Continuous: return "continuous";
-    case JointType::Prismatic: return "prismatic";
+    case JointType::Fixed:
+      return "fixed";
+    case JointType::Revolute:
+      return "revolute";
+    case JointType::Continuous:
+      return "continuous";
+    case JointType::Prismatic:
+      return "prismatic";
   }
   return "?";
 }
@@ -46,7 +50,8 @@ py::array_t<double> fk_batch(const Robot& robot, const Array& Q_in) {
   return out;
 }
 
-py::array_t<double> jacobian(const Robot& robot, const Array& q_in, const py::object& link, const py::object& point_in) {
+py::array_t<double> jacobian(const Robot& robot, const Array& q_in, const py::object& link,
+                             const py::object& point_in) {
   Array q = configuration(robot, q_in);
   const int li = link_arg(robot, link);
   Array point = point_in.is_none() ? Array(std::vector<py::ssize_t>{3}) : point_in.cast<Array>();
@@ -114,7 +119,8 @@ void init_robot(py::module_& m) {
       .value("box", CollisionGeometry::Kind::Box)
       .value("cylinder", CollisionGeometry::Kind::Cylinder)
       .value("sphere", CollisionGeometry::Kind::Sphere);
-  result_class<CollisionGeometry>(m, "CollisionGeometry", "A link's URDF collision geometry (origin in the link frame).")
+  result_class<CollisionGeometry>(m, "CollisionGeometry",
+                                  "A link's URDF collision geometry (origin in the link frame).")
       .field("kind", &CollisionGeometry::kind)
       .field("mesh_path", &CollisionGeometry::mesh_path)
       .field("scale", &CollisionGeometry::scale)
@@ -122,16 +128,21 @@ void init_robot(py::module_& m) {
       .computed("origin", [](const CollisionGeometry& g) { return Eigen::Matrix4d(g.origin.matrix()); });
 
   py::class_<Robot, std::shared_ptr<Robot>>(m, "Robot", "Immutable kinematic tree loaded from URDF.")
-      .def_static("from_urdf_file", &Robot::from_urdf_file, py::arg("path"), py::arg("package_dirs") = std::vector<std::string>{},
-                  py::call_guard<py::gil_scoped_release>())
+      .def_static("from_urdf_file", &Robot::from_urdf_file, py::arg("path"),
+                  py::arg("package_dirs") = std::vector<std::string>{}, py::call_guard<py::gil_scoped_release>())
       .def_static("from_urdf_string", &Robot::from_urdf_string, py::arg("xml"), py::arg("base_dir"),
                   py::arg("package_dirs") = std::vector<std::string>{}, py::arg("source_name") = "<string>",
                   py::call_guard<py::gil_scoped_release>())
-      .def("with_base", [](const Robot& r, const Array& T) { return r.with_base(Transform::from_matrix(matrix4(T, "base pose"))); },
-           py::arg("base_pose"))
-      .def("with_attached_link", [](const Robot& r, const std::string& name, const std::string& parent, const Array& T) {
-        return r.with_attached_link(name, parent, Transform::from_matrix(matrix4(T, "attached link origin")));
-      }, py::arg("name"), py::arg("parent"), py::arg("origin"))
+      .def(
+          "with_base",
+          [](const Robot& r, const Array& T) { return r.with_base(Transform::from_matrix(matrix4(T, "base pose"))); },
+          py::arg("base_pose"))
+      .def(
+          "with_attached_link",
+          [](const Robot& r, const std::string& name, const std::string& parent, const Array& T) {
+            return r.with_attached_link(name, parent, Transform::from_matrix(matrix4(T, "attached link origin")));
+          },
+          py::arg("name"), py::arg("parent"), py::arg("origin"))
       .def_property_readonly("name", &Robot::name)
       .def_property_readonly("dof", &Robot::dof)
       .def_property_readonly("num_links", &Robot::num_links)
@@ -141,31 +152,37 @@ void init_robot(py::module_& m) {
       .def_property_readonly("upper_limits", &Robot::upper_limits)
       .def_property_readonly("velocity_limits", &Robot::velocity_limits)
       .def_property_readonly("base_pose", [](const Robot& r) { return Eigen::Matrix4d(r.base().matrix()); })
-      .def_property_readonly("link_parents", [](const Robot& r) {
-        std::vector<int> v;
-        for (const auto& l : r.links()) v.push_back(l.parent);
-        return v;
-      })
-      .def_property_readonly("link_q_index", [](const Robot& r) {
-        std::vector<int> v;
-        for (const auto& l : r.links()) v.push_back(l.q_index);
-        return v;
-      })
-      .def_property_readonly("link_joint_types", [](const Robot& r) {
-        std::vector<std::string> v;
-        for (const auto& l : r.links()) v.push_back(joint_type_name(l.joint_type));
-        return v;
-      })
-      .def_property_readonly("mimic", [](const Robot& r) {
-        py::dict d;  // joint name -> (source joint name, multiplier, offset)
-        for (const auto& l : r.links())
-          if (l.mimic.source_q >= 0)
-            d[py::str(l.joint_name)] = py::make_tuple(r.joint_names()[l.mimic.source_q], l.mimic.multiplier, l.mimic.offset);
-        return d;
-      })
+      .def_property_readonly("link_parents",
+                             [](const Robot& r) {
+                               std::vector<int> v;
+                               for (const auto& l : r.links()) v.push_back(l.parent);
+                               return v;
+                             })
+      .def_property_readonly("link_q_index",
+                             [](const Robot& r) {
+                               std::vector<int> v;
+                               for (const auto& l : r.links()) v.push_back(l.q_index);
+                               return v;
+                             })
+      .def_property_readonly("link_joint_types",
+                             [](const Robot& r) {
+                               std::vector<std::string> v;
+                               for (const auto& l : r.links()) v.push_back(joint_type_name(l.joint_type));
+                               return v;
+                             })
+      .def_property_readonly("mimic",
+                             [](const Robot& r) {
+                               py::dict d;  // joint name -> (source joint name, multiplier, offset)
+                               for (const auto& l : r.links())
+                                 if (l.mimic.source_q >= 0)
+                                   d[py::str(l.joint_name)] = py::make_tuple(r.joint_names()[l.mimic.source_q],
+                                                                             l.mimic.multiplier, l.mimic.offset);
+                               return d;
+                             })
       .def("link_index", &Robot::link_index, py::arg("name"))
-      .def("collision_geometries", [](const Robot& r, const py::object& link) { return r.link(link_arg(r, link)).collisions; },
-           py::arg("link"))
+      .def(
+          "collision_geometries",
+          [](const Robot& r, const py::object& link) { return r.link(link_arg(r, link)).collisions; }, py::arg("link"))
       .def("fk", &fk, py::arg("q"), "World pose (4x4) of every link: array (num_links, 4, 4).")
       .def("fk_batch", &fk_batch, py::arg("Q"), "Link poses for a batch (B, dof): array (B, num_links, 4, 4).")
       .def("jacobian", &jacobian, py::arg("q"), py::arg("link"), py::arg("point") = py::none(),

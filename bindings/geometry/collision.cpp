@@ -1,8 +1,8 @@
 // Bindings of the FCL collision checker (pickplan/collision.hpp).
+#include "pickplan/geometry/collision.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
 #include "../results.hpp"
-#include "pickplan/geometry/collision.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::geometry;
@@ -31,10 +31,12 @@ std::unique_ptr<CollisionChecker> make_checker(const Robot& robot, const py::lis
     auto t = item.cast<py::tuple>();
     const bool prebuilt = t.size() == 3 && py::isinstance<CollisionShape>(t[1]);
     if (t.size() != 4 && !prebuilt)
-      throw std::invalid_argument("objects: expected (name, vertices, faces, pose 4x4) or (name, shape, pose 4x4) tuples");
+      throw std::invalid_argument(
+          "objects: expected (name, vertices, faces, pose 4x4) or (name, shape, pose 4x4) tuples");
     auto name = t[0].cast<std::string>();
     const std::string what = "object '" + name + "'";
-    const Transform pose = Transform::from_matrix(matrix4(t[prebuilt ? 2 : 3].cast<Array>(), ("pose of " + what).c_str()));
+    const Transform pose =
+        Transform::from_matrix(matrix4(t[prebuilt ? 2 : 3].cast<Array>(), ("pose of " + what).c_str()));
     if (prebuilt)
       objs.push_back({name, TriangleMesh{}, pose, t[1].cast<std::shared_ptr<CollisionShape>>()});
     else
@@ -47,7 +49,8 @@ std::unique_ptr<CollisionChecker> make_checker(const Robot& robot, const py::lis
     require_finite_array("table size", s);
     table.size = Eigen::Vector3d(s.at(0), s.at(1), s.at(2));
     if (table.size.isZero()) throw std::invalid_argument("table size: expected 3 positive extents, got zeros");
-    table.pose = table_pose.is_none() ? Transform{} : Transform::from_matrix(matrix4(table_pose.cast<Array>(), "table pose"));
+    table.pose =
+        table_pose.is_none() ? Transform{} : Transform::from_matrix(matrix4(table_pose.cast<Array>(), "table pose"));
   }
   py::gil_scoped_release release;
   return std::make_unique<CollisionChecker>(robot, std::move(links), std::move(objs), table, settings);
@@ -88,8 +91,8 @@ void init_collision(py::module_& m) {
       .def_property_readonly("num_vertices", [](const CollisionShape& s) { return s.mesh().num_vertices(); })
       .def_property_readonly("num_faces", [](const CollisionShape& s) { return s.mesh().num_faces(); });
 
-  py::class_<CollisionChecker>(m, "CollisionChecker",
-                               "Immutable FCL collision checker: robot link meshes against scene meshes and a table box.")
+  py::class_<CollisionChecker>(
+      m, "CollisionChecker", "Immutable FCL collision checker: robot link meshes against scene meshes and a table box.")
       .def(py::init(&make_checker), py::arg("robot"), py::arg("link_meshes"), py::arg("objects"),
            py::arg("table_size") = py::none(), py::arg("table_pose") = py::none(),
            py::arg("settings") = CollisionSettings{},
@@ -98,63 +101,71 @@ void init_collision(py::module_& m) {
       .def_property_readonly("num_pairs", &CollisionChecker::num_pairs)
       .def_property_readonly("checked_pairs", &CollisionChecker::checked_pairs)
       .def_property_readonly("object_names", &CollisionChecker::object_names)
-      .def("set_object_pose", [](CollisionChecker& c, const std::string& name, const Array& pose) {
-        c.set_object_pose(name, Transform::from_matrix(matrix4(pose, "object pose")));
-      }, py::arg("name"), py::arg("pose"), "Move the object `name` (a 4x4 rigid pose).")
+      .def(
+          "set_object_pose",
+          [](CollisionChecker& c, const std::string& name, const Array& pose) {
+            c.set_object_pose(name, Transform::from_matrix(matrix4(pose, "object pose")));
+          },
+          py::arg("name"), py::arg("pose"), "Move the object `name` (a 4x4 rigid pose).")
       .def_property_readonly("settings", &CollisionChecker::settings)
-      .def("in_collision",
-           [](const CollisionChecker& c, const Array& q) {
-             Eigen::VectorXd v = configuration_vector(c.robot(), q);
-             py::gil_scoped_release release;
-             return c.in_collision(v);
-           },
-           py::arg("q"))
-      .def("min_distance",
-           [](const CollisionChecker& c, const Array& q) {
-             Eigen::VectorXd v = configuration_vector(c.robot(), q);
-             py::gil_scoped_release release;
-             return c.min_distance(v);
-           },
-           py::arg("q"))
-      .def("in_collision_batch",
-           [](const CollisionChecker& c, const Array& Q_in, int threads) {
-             Array Q = configurations(c.robot(), Q_in);
-             const long B = static_cast<long>(Q.shape(0));
-             py::array_t<bool> out(B);
-             bool* o = out.mutable_data();
-             const double* q = Q.data();
-             {
-               py::gil_scoped_release release;
-               c.in_collision_batch(q, B, o, threads);
-             }
-             return out;
-           },
-           py::arg("Q"), py::arg("threads") = 1)
-      .def("min_distance_batch",
-           [](const CollisionChecker& c, const Array& Q_in, int threads) {
-             Array Q = configurations(c.robot(), Q_in);
-             const long B = static_cast<long>(Q.shape(0));
-             py::array_t<double> out(B);
-             double* o = out.mutable_data();
-             const double* q = Q.data();
-             {
-               py::gil_scoped_release release;
-               c.min_distance_batch(q, B, o, threads);
-             }
-             return out;
-           },
-           py::arg("Q"), py::arg("threads") = 1)
-      .def("contacts",
-           [](const CollisionChecker& c, const Array& q, double within) {
-             Eigen::VectorXd v = configuration_vector(c.robot(), q);
-             std::vector<ContactInfo> found;
-             {
-               py::gil_scoped_release release;
-               found = c.contacts(v, within);
-             }
-             return found;
-           },
-           py::arg("q"), py::arg("within") = 0.0);
+      .def(
+          "in_collision",
+          [](const CollisionChecker& c, const Array& q) {
+            Eigen::VectorXd v = configuration_vector(c.robot(), q);
+            py::gil_scoped_release release;
+            return c.in_collision(v);
+          },
+          py::arg("q"))
+      .def(
+          "min_distance",
+          [](const CollisionChecker& c, const Array& q) {
+            Eigen::VectorXd v = configuration_vector(c.robot(), q);
+            py::gil_scoped_release release;
+            return c.min_distance(v);
+          },
+          py::arg("q"))
+      .def(
+          "in_collision_batch",
+          [](const CollisionChecker& c, const Array& Q_in, int threads) {
+            Array Q = configurations(c.robot(), Q_in);
+            const long B = static_cast<long>(Q.shape(0));
+            py::array_t<bool> out(B);
+            bool* o = out.mutable_data();
+            const double* q = Q.data();
+            {
+              py::gil_scoped_release release;
+              c.in_collision_batch(q, B, o, threads);
+            }
+            return out;
+          },
+          py::arg("Q"), py::arg("threads") = 1)
+      .def(
+          "min_distance_batch",
+          [](const CollisionChecker& c, const Array& Q_in, int threads) {
+            Array Q = configurations(c.robot(), Q_in);
+            const long B = static_cast<long>(Q.shape(0));
+            py::array_t<double> out(B);
+            double* o = out.mutable_data();
+            const double* q = Q.data();
+            {
+              py::gil_scoped_release release;
+              c.min_distance_batch(q, B, o, threads);
+            }
+            return out;
+          },
+          py::arg("Q"), py::arg("threads") = 1)
+      .def(
+          "contacts",
+          [](const CollisionChecker& c, const Array& q, double within) {
+            Eigen::VectorXd v = configuration_vector(c.robot(), q);
+            std::vector<ContactInfo> found;
+            {
+              py::gil_scoped_release release;
+              found = c.contacts(v, within);
+            }
+            return found;
+          },
+          py::arg("q"), py::arg("within") = 0.0);
 }
 
 }  // namespace pickplan::bind

@@ -1,8 +1,8 @@
 // Bindings of the solid primitives (pickplan/geometry/primitives.hpp).
+#include "pickplan/geometry/primitives.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
 #include "pickplan/geometry/collision.hpp"
-#include "pickplan/geometry/primitives.hpp"
 #include "pickplan/geometry/sdf.hpp"
 
 using namespace pickplan::core;
@@ -60,10 +60,11 @@ void init_primitives(py::module_& m) {
 
   py::class_<CollisionShape, std::shared_ptr<CollisionShape>> shape =
       py::reinterpret_borrow<py::class_<CollisionShape, std::shared_ptr<CollisionShape>>>(m.attr("CollisionShape"));
-  shape.def_static(
-           "from_primitive",
-           [](const Primitive& p, const std::string& what) { return std::make_shared<CollisionShape>(p, what); },
-           py::arg("primitive"), py::arg("what") = "primitive")
+  shape
+      .def_static(
+          "from_primitive",
+          [](const Primitive& p, const std::string& what) { return std::make_shared<CollisionShape>(p, what); },
+          py::arg("primitive"), py::arg("what") = "primitive")
       .def_static(
           "convex",
           [](const Array& V, const py::object& F, const std::string& what) {

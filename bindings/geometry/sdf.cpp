@@ -1,8 +1,8 @@
+#include "pickplan/geometry/sdf.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
 #include "../results.hpp"
 #include "pickplan/geometry/frame_clearance.hpp"
-#include "pickplan/geometry/sdf.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::geometry;
@@ -39,7 +39,8 @@ Array checked_points(const Array& pts) {
 }  // namespace
 
 void init_sdf(py::module_& m) {
-  result_class<SdfBuildReport>(m, "SdfBuildReport", "What building a grid from a mesh found: skipped faces, sign votes.")
+  result_class<SdfBuildReport>(m, "SdfBuildReport",
+                               "What building a grid from a mesh found: skipped faces, sign votes.")
       .field("degenerate_faces", &SdfBuildReport::degenerate_faces)
       .field("sign_disagreement", &SdfBuildReport::sign_disagreement);
   result_class<MergedSdfInfo>(m, "MergedSdfInfo", "A merged grid's bricks, cells, bytes and settings.")
@@ -51,7 +52,8 @@ void init_sdf(py::module_& m) {
       .field("cutoff", &MergedSdfInfo::cutoff)
       .field("exclude_mask", &MergedSdfInfo::exclude_mask);
 
-  py::class_<SdfGrid, std::shared_ptr<SdfGrid>>(m, "SdfGrid", "Dense signed distance grid of one mesh (grid frame = mesh frame).")
+  py::class_<SdfGrid, std::shared_ptr<SdfGrid>>(m, "SdfGrid",
+                                                "Dense signed distance grid of one mesh (grid frame = mesh frame).")
       .def_static(
           "build",
           [](const Array& V, const py::object& face_values, double resolution, double margin) {
@@ -75,7 +77,8 @@ void init_sdf(py::module_& m) {
           "from_values",
           [](const Eigen::Vector3d& origin, double resolution,
              const py::array_t<float, py::array::c_style | py::array::forcecast>& values) {
-            if (values.ndim() != 3) throw std::invalid_argument("values: expected a 3-D array (nz, ny, nx), got " + shape_str(values));
+            if (values.ndim() != 3)
+              throw std::invalid_argument("values: expected a 3-D array (nz, ny, nx), got " + shape_str(values));
             std::vector<float> v(values.data(), values.data() + values.size());
             Eigen::Vector3i dims(values.shape(2), values.shape(1), values.shape(0));
             return std::make_shared<SdfGrid>(SdfGrid::from_values(origin, resolution, dims, std::move(v)));
@@ -84,12 +87,16 @@ void init_sdf(py::module_& m) {
       .def_property_readonly("origin", &SdfGrid::origin)
       .def_property_readonly("resolution", &SdfGrid::resolution)
       .def_property_readonly("upper", &SdfGrid::upper)
-      .def_property_readonly("shape", [](const SdfGrid& g) { return py::make_tuple(g.dims().z(), g.dims().y(), g.dims().x()); })
-      .def_property_readonly("values", [](const SdfGrid& g) {
-        py::array_t<float> out({g.dims().z(), g.dims().y(), g.dims().x()});
-        std::copy(g.values().begin(), g.values().end(), out.mutable_data());
-        return out;
-      }, "Node values, array (nz, ny, nx) float32 (x fastest).")
+      .def_property_readonly("shape",
+                             [](const SdfGrid& g) { return py::make_tuple(g.dims().z(), g.dims().y(), g.dims().x()); })
+      .def_property_readonly(
+          "values",
+          [](const SdfGrid& g) {
+            py::array_t<float> out({g.dims().z(), g.dims().y(), g.dims().x()});
+            std::copy(g.values().begin(), g.values().end(), out.mutable_data());
+            return out;
+          },
+          "Node values, array (nz, ny, nx) float32 (x fastest).")
       .def(
           "distance",
           [](const SdfGrid& g, const Array& pts_in) {
@@ -113,15 +120,25 @@ void init_sdf(py::module_& m) {
 
   py::class_<SceneSdf, std::shared_ptr<SceneSdf>>(m, "SceneSdf", "Posed SDF grids plus a table box.")
       .def(py::init<>())
-      .def("add_object", [](SceneSdf& s, std::shared_ptr<SdfGrid> grid, const Array& pose) {
-        return s.add_object(std::move(grid), Transform::from_matrix(matrix4(pose, "object pose")));
-      }, py::arg("grid"), py::arg("pose"))
-      .def("set_table", [](SceneSdf& s, const Eigen::Vector3d& size, const Array& pose) {
-        s.set_table(size, Transform::from_matrix(matrix4(pose, "table pose")));
-      }, py::arg("size"), py::arg("pose"))
-      .def("set_pose", [](SceneSdf& s, int index, const Array& pose) {
-        s.set_pose(index, Transform::from_matrix(matrix4(pose, "object pose")));
-      }, py::arg("index"), py::arg("pose"), "Move object `index`: it is left out of the merged grids from then on and queried on its own grid.")
+      .def(
+          "add_object",
+          [](SceneSdf& s, std::shared_ptr<SdfGrid> grid, const Array& pose) {
+            return s.add_object(std::move(grid), Transform::from_matrix(matrix4(pose, "object pose")));
+          },
+          py::arg("grid"), py::arg("pose"))
+      .def(
+          "set_table",
+          [](SceneSdf& s, const Eigen::Vector3d& size, const Array& pose) {
+            s.set_table(size, Transform::from_matrix(matrix4(pose, "table pose")));
+          },
+          py::arg("size"), py::arg("pose"))
+      .def(
+          "set_pose",
+          [](SceneSdf& s, int index, const Array& pose) {
+            s.set_pose(index, Transform::from_matrix(matrix4(pose, "object pose")));
+          },
+          py::arg("index"), py::arg("pose"),
+          "Move object `index`: it is left out of the merged grids from then on and queried on its own grid.")
       .def(
           "merge",
           [](SceneSdf& s, const std::vector<int>& exclude, double resolution, double cutoff, int brick) {
@@ -135,12 +152,14 @@ void init_sdf(py::module_& m) {
           "with that exclusion and a cutoff <= this one then take one lookup.")
       .def_property_readonly("merged_masks", &SceneSdf::merged_masks,
                              "Object exclusion masks with a merged grid, in the order they were merged.")
-      .def_property_readonly("merged_info", [](const SceneSdf& s) -> std::optional<MergedSdfInfo> {
-        const MergedSdf* m = s.merged();
-        if (!m) return std::nullopt;
-        return MergedSdfInfo{m->num_bricks(), m->num_filled(), m->num_cells(), m->bytes(), m->settings().resolution,
-                             m->cutoff(), m->exclude_mask()};
-      })
+      .def_property_readonly("merged_info",
+                             [](const SceneSdf& s) -> std::optional<MergedSdfInfo> {
+                               const MergedSdf* m = s.merged();
+                               if (!m) return std::nullopt;
+                               return MergedSdfInfo{m->num_bricks(),  m->num_filled(),          m->num_cells(),
+                                                    m->bytes(),       m->settings().resolution, m->cutoff(),
+                                                    m->exclude_mask()};
+                             })
       .def(
           "lower_bound",
           [](const SceneSdf& s, const Array& pts_in, const std::vector<int>& exclude, bool exclude_table) {

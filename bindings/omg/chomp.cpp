@@ -1,7 +1,7 @@
+#include "pickplan/omg/chomp.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
 #include "../results.hpp"
-#include "pickplan/omg/chomp.hpp"
 #include "pickplan/omg/metrics.hpp"
 #include "trajectory_results.hpp"
 
@@ -87,8 +87,8 @@ void init_chomp(py::module_& m) {
              if (!robot) throw std::invalid_argument("robot: expected a Robot, got None");
              const IntArray links = index_array("links", link_values, robot->num_links());
              if (links.ndim() != 1 || links.shape(0) != points.shape(0))
-               throw std::invalid_argument("body links: expected shape (" + std::to_string(points.shape(0)) + ",), got " +
-                                           shape_str(links));
+               throw std::invalid_argument("body links: expected shape (" + std::to_string(points.shape(0)) +
+                                           ",), got " + shape_str(links));
              BodyPoints body;
              body.link.assign(links.data(), links.data() + links.shape(0));
              body.points = Eigen::Map<const Vertices>(points.data(), points.shape(0), 3);
@@ -99,100 +99,125 @@ void init_chomp(py::module_& m) {
       .def_property_readonly("settings", &ChompProblem::settings)
       .def("workspace", [](const ChompProblem& p) { return std::make_unique<ChompWorkspace>(p); })
       .def("A_matrix", &ChompProblem::A_matrix)
-      .def("solve_A", [](const ChompProblem& p, const Array& v) {
-        Trajectory V = traj_arg(p, v, "v"), out;
-        p.solve_A(V, out);
-        return rows_array(out);
-      })
-      .def("prior", [](const ChompProblem& p, const Array& xi, const Array& q0) {
-        Trajectory X = traj_arg(p, xi, "trajectory"), g;
-        const double f = p.prior(X, q_arg(p, q0), &g);
-        return py::make_tuple(f, rows_array(g));
-      }, py::arg("xi"), py::arg("q0"))
-      .def("obstacle", [](const ChompProblem& p, const Array& xi, const Array& q0) {
-        Trajectory X = traj_arg(p, xi, "trajectory"), g = Trajectory::Zero(X.rows(), X.cols());
-        Eigen::VectorXd q = q_arg(p, q0);
-        ObjectiveTerms t;
-        {
-          py::gil_scoped_release release;
-          ChompWorkspace ws(p);
-          t = p.obstacle(X, q, &g, ws);
-        }
-        return py::make_tuple(t, rows_array(g));
-      }, py::arg("xi"), py::arg("q0"), "f_obstacle over the top-k terms and its gradient.")
-      .def("objective", [](const ChompProblem& p, const Array& xi, const Array& q0, int iteration) {
-        Trajectory X = traj_arg(p, xi, "trajectory"), g;
-        Eigen::VectorXd q = q_arg(p, q0);
-        ObjectiveTerms t;
-        {
-          py::gil_scoped_release release;
-          ChompWorkspace ws(p);
-          t = p.objective(X, q, iteration, &g, ws);
-        }
-        return py::make_tuple(t, rows_array(g));
-      }, py::arg("xi"), py::arg("q0"), py::arg("iteration") = 0)
-      .def("step", [](const ChompProblem& p, const Array& xi, const Array& q0, const py::object& goal, int iteration,
-                      ChompWorkspace* ws) {
-        Trajectory X = traj_arg(p, xi, "trajectory");
-        Eigen::VectorXd q = q_arg(p, q0);
-        Trajectory G;
-        const bool has_goal = !goal.is_none();
-        if (has_goal) G = goal_arg(p, goal.cast<Array>());
-        StepInfo info;
-        {
-          py::gil_scoped_release release;
-          std::unique_ptr<ChompWorkspace> own;
-          if (!ws) ws = (own = std::make_unique<ChompWorkspace>(p)).get();
-          info = p.step(X, q, has_goal ? &G : nullptr, iteration, *ws);
-        }
-        return py::make_tuple(rows_array(X), info);
-      }, py::arg("xi"), py::arg("q0"), py::arg("goal") = py::none(), py::arg("iteration") = 0,
-         py::arg("workspace") = nullptr, "One CHOMP (goal=None: fixed end) or CHOMP-Proj step; returns (xi, info).")
-      .def("optimize", [](const ChompProblem& p, const Array& xi, const Array& q0, const Array& goal, int iterations) {
-        Trajectory X = traj_arg(p, xi, "trajectory");
-        Eigen::VectorXd q = q_arg(p, q0);
-        Trajectory G = goal_arg(p, goal);
-        if (iterations < 0) throw std::invalid_argument("iterations must be >= 0");
-        ChompResult r;
-        {
-          py::gil_scoped_release release;
-          r = p.optimize(X, q, G, iterations);
-        }
-        return r;
-      }, py::arg("xi"), py::arg("q0"), py::arg("goal"), py::arg("iterations"))
-      .def("goal_costs", [](const ChompProblem& p, const Array& xi, const Array& q0, int iteration, int horizon,
-                            const Array& goals, int time_stride, int point_stride, ChompWorkspace* ws) {
-        Trajectory X = traj_arg(p, xi, "trajectory");
-        Eigen::VectorXd q = q_arg(p, q0);
-        Trajectory G = configuration_rows(p.robot(), goals, "goals", "G");
-        py::array_t<double> out(G.rows());
-        double* o = out.mutable_data();
-        {
-          py::gil_scoped_release release;
-          std::unique_ptr<ChompWorkspace> own;
-          if (!ws) ws = (own = std::make_unique<ChompWorkspace>(p)).get();
-          p.goal_costs(X, q, iteration, horizon, G, time_stride, point_stride, o, *ws);
-        }
-        return out;
-      }, py::arg("xi"), py::arg("q0"), py::arg("iteration"), py::arg("horizon"), py::arg("goals"),
-         py::arg("time_stride") = 1, py::arg("point_stride") = 1, py::arg("workspace") = nullptr,
-         "OMG goal-cost estimates (unnormalized) of a constant-velocity tail from xi(t_i) to each goal.")
-      .def("metrics", [](const ChompProblem& p, const Array& xi, const Array& q0, const MetricSettings& s) {
-        Trajectory X = traj_arg(p, xi, "trajectory");
-        Eigen::VectorXd q = q_arg(p, q0);
-        TrajectoryMetrics mt;
-        {
-          py::gil_scoped_release release;
-          mt = evaluate_trajectory(p, q, X, s);
-        }
-        return mt;
-      }, py::arg("xi"), py::arg("q0"), py::arg("settings"));
+      .def("solve_A",
+           [](const ChompProblem& p, const Array& v) {
+             Trajectory V = traj_arg(p, v, "v"), out;
+             p.solve_A(V, out);
+             return rows_array(out);
+           })
+      .def(
+          "prior",
+          [](const ChompProblem& p, const Array& xi, const Array& q0) {
+            Trajectory X = traj_arg(p, xi, "trajectory"), g;
+            const double f = p.prior(X, q_arg(p, q0), &g);
+            return py::make_tuple(f, rows_array(g));
+          },
+          py::arg("xi"), py::arg("q0"))
+      .def(
+          "obstacle",
+          [](const ChompProblem& p, const Array& xi, const Array& q0) {
+            Trajectory X = traj_arg(p, xi, "trajectory"), g = Trajectory::Zero(X.rows(), X.cols());
+            Eigen::VectorXd q = q_arg(p, q0);
+            ObjectiveTerms t;
+            {
+              py::gil_scoped_release release;
+              ChompWorkspace ws(p);
+              t = p.obstacle(X, q, &g, ws);
+            }
+            return py::make_tuple(t, rows_array(g));
+          },
+          py::arg("xi"), py::arg("q0"), "f_obstacle over the top-k terms and its gradient.")
+      .def(
+          "objective",
+          [](const ChompProblem& p, const Array& xi, const Array& q0, int iteration) {
+            Trajectory X = traj_arg(p, xi, "trajectory"), g;
+            Eigen::VectorXd q = q_arg(p, q0);
+            ObjectiveTerms t;
+            {
+              py::gil_scoped_release release;
+              ChompWorkspace ws(p);
+              t = p.objective(X, q, iteration, &g, ws);
+            }
+            return py::make_tuple(t, rows_array(g));
+          },
+          py::arg("xi"), py::arg("q0"), py::arg("iteration") = 0)
+      .def(
+          "step",
+          [](const ChompProblem& p, const Array& xi, const Array& q0, const py::object& goal, int iteration,
+             ChompWorkspace* ws) {
+            Trajectory X = traj_arg(p, xi, "trajectory");
+            Eigen::VectorXd q = q_arg(p, q0);
+            Trajectory G;
+            const bool has_goal = !goal.is_none();
+            if (has_goal) G = goal_arg(p, goal.cast<Array>());
+            StepInfo info;
+            {
+              py::gil_scoped_release release;
+              std::unique_ptr<ChompWorkspace> own;
+              if (!ws) ws = (own = std::make_unique<ChompWorkspace>(p)).get();
+              info = p.step(X, q, has_goal ? &G : nullptr, iteration, *ws);
+            }
+            return py::make_tuple(rows_array(X), info);
+          },
+          py::arg("xi"), py::arg("q0"), py::arg("goal") = py::none(), py::arg("iteration") = 0,
+          py::arg("workspace") = nullptr, "One CHOMP (goal=None: fixed end) or CHOMP-Proj step; returns (xi, info).")
+      .def(
+          "optimize",
+          [](const ChompProblem& p, const Array& xi, const Array& q0, const Array& goal, int iterations) {
+            Trajectory X = traj_arg(p, xi, "trajectory");
+            Eigen::VectorXd q = q_arg(p, q0);
+            Trajectory G = goal_arg(p, goal);
+            if (iterations < 0) throw std::invalid_argument("iterations must be >= 0");
+            ChompResult r;
+            {
+              py::gil_scoped_release release;
+              r = p.optimize(X, q, G, iterations);
+            }
+            return r;
+          },
+          py::arg("xi"), py::arg("q0"), py::arg("goal"), py::arg("iterations"))
+      .def(
+          "goal_costs",
+          [](const ChompProblem& p, const Array& xi, const Array& q0, int iteration, int horizon, const Array& goals,
+             int time_stride, int point_stride, ChompWorkspace* ws) {
+            Trajectory X = traj_arg(p, xi, "trajectory");
+            Eigen::VectorXd q = q_arg(p, q0);
+            Trajectory G = configuration_rows(p.robot(), goals, "goals", "G");
+            py::array_t<double> out(G.rows());
+            double* o = out.mutable_data();
+            {
+              py::gil_scoped_release release;
+              std::unique_ptr<ChompWorkspace> own;
+              if (!ws) ws = (own = std::make_unique<ChompWorkspace>(p)).get();
+              p.goal_costs(X, q, iteration, horizon, G, time_stride, point_stride, o, *ws);
+            }
+            return out;
+          },
+          py::arg("xi"), py::arg("q0"), py::arg("iteration"), py::arg("horizon"), py::arg("goals"),
+          py::arg("time_stride") = 1, py::arg("point_stride") = 1, py::arg("workspace") = nullptr,
+          "OMG goal-cost estimates (unnormalized) of a constant-velocity tail from xi(t_i) to each goal.")
+      .def(
+          "metrics",
+          [](const ChompProblem& p, const Array& xi, const Array& q0, const MetricSettings& s) {
+            Trajectory X = traj_arg(p, xi, "trajectory");
+            Eigen::VectorXd q = q_arg(p, q0);
+            TrajectoryMetrics mt;
+            {
+              py::gil_scoped_release release;
+              mt = evaluate_trajectory(p, q, X, s);
+            }
+            return mt;
+          },
+          py::arg("xi"), py::arg("q0"), py::arg("settings"));
 
-  m.def("interpolate", [](const Array& q0, const Array& xi, int steps) {
-    require_shape("trajectory", xi, {-1, q0.shape(0)}, "(n, dof)");
-    Eigen::VectorXd q = Eigen::Map<const Eigen::VectorXd>(q0.data(), q0.shape(0));
-    return rows_array(interpolate(q, Eigen::Map<const Trajectory>(xi.data(), xi.shape(0), xi.shape(1)), steps));
-  }, py::arg("q0"), py::arg("xi"), py::arg("steps"));
+  m.def(
+      "interpolate",
+      [](const Array& q0, const Array& xi, int steps) {
+        require_shape("trajectory", xi, {-1, q0.shape(0)}, "(n, dof)");
+        Eigen::VectorXd q = Eigen::Map<const Eigen::VectorXd>(q0.data(), q0.shape(0));
+        return rows_array(interpolate(q, Eigen::Map<const Trajectory>(xi.data(), xi.shape(0), xi.shape(1)), steps));
+      },
+      py::arg("q0"), py::arg("xi"), py::arg("steps"));
 }
 
 }  // namespace pickplan::bind

@@ -1,7 +1,7 @@
+#include "pickplan/omg/goal_set.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
 #include "../results.hpp"
-#include "pickplan/omg/goal_set.hpp"
 #include "pickplan/omg/metrics.hpp"
 
 using namespace pickplan::core;
@@ -33,9 +33,10 @@ void init_goal_set(py::module_& m) {
       .def_readwrite("approach", &GoalSetSettings::approach);
 
   py::enum_<GoalReason> reason(m, "GoalReason", "Why an input grasp did or did not become a goal.");
-  for (GoalReason r : {GoalReason::ok, GoalReason::unreachable, GoalReason::in_collision, GoalReason::standoff_unreachable,
-                       GoalReason::standoff_in_collision, GoalReason::approach_clearance, GoalReason::pregrasp_clearance,
-                       GoalReason::duplicate, GoalReason::over_cap})
+  for (GoalReason r :
+       {GoalReason::ok, GoalReason::unreachable, GoalReason::in_collision, GoalReason::standoff_unreachable,
+        GoalReason::standoff_in_collision, GoalReason::approach_clearance, GoalReason::pregrasp_clearance,
+        GoalReason::duplicate, GoalReason::over_cap})
     reason.value(to_string(r), r);
 
   result_class<GoalSetResult>(m, "GoalSetResult", "IK goals with their approach tails, per input grasp a reason.")
@@ -45,40 +46,42 @@ void init_goal_set(py::module_& m) {
       .computed("reasons", [](const GoalSetResult& r) { return r.set.reasons; })
       .computed("seconds", [](const GoalSetResult& r) { return r.set.seconds; });
 
-  m.def("build_goal_set", [](const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
-                             const Array& hand_poses,
-                             const Array& start, const GoalSetSettings& s, const ChompProblem* problem,
-                             double clearance, const py::object& seeds, double pregrasp_clearance) {
-    std::vector<Transform> poses = poses_arg(hand_poses, "grasps");
-    const Eigen::VectorXd qs = configuration_vector(ik.robot(), start, "start");
-    Trajectory seed_rows;
-    if (!seeds.is_none()) {
-      seed_rows = configuration_rows(ik.robot(), seeds.cast<Array>(), "seeds", "B");
-      if (seed_rows.rows() != static_cast<long>(poses.size()))
-        throw py::value_error("seeds: expected one configuration per grasp (" + std::to_string(poses.size()) +
-                              "), got " + std::to_string(seed_rows.rows()));
-    }
-    GoalSet gs;
-    {
-      py::gil_scoped_release release;
-      // The success test's approach clearance: body points to the objects the problem does not
-      // exclude (the target), the table left out (metrics.cpp, object_clearance).
-      RobotWorkspace rws(ik.robot());
-      // A check that keeps `need` by that measure (none without a problem or a positive need); the
-      // approach keeps `clearance`, the pre-grasp `pregrasp_clearance` (a place's pre-place: the transit's).
-      auto keeps = [&](double need) -> std::function<bool(const Eigen::VectorXd&)> {
-        if (!problem || !(need > 0)) return {};
-        return [&, need](const Eigen::VectorXd& q) {
-          return object_clearance(*problem, q.data(), problem->settings().exclude_mask, need, rws) >= need;
-        };
-      };
-      const auto ok = keeps(clearance), pre = keeps(pregrasp_clearance);
-      gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok, seeds.is_none() ? nullptr : &seed_rows, pre);
-    }
-    return GoalSetResult{std::move(gs), s.standoff_steps + 1, ik.robot().dof()};
-  }, py::arg("ik"), py::arg("checker"), py::arg("hand_checker"), py::arg("hand_poses"), py::arg("start"),
-     py::arg("settings") = GoalSetSettings(), py::arg("clearance_problem") = nullptr,
-     py::arg("approach_clearance") = 0.0, py::arg("seeds") = py::none(), py::arg("pregrasp_clearance") = 0.0);
+  m.def(
+      "build_goal_set",
+      [](const IkSolver& ik, const CollisionChecker* checker, const CollisionChecker* hand_checker,
+         const Array& hand_poses, const Array& start, const GoalSetSettings& s, const ChompProblem* problem,
+         double clearance, const py::object& seeds, double pregrasp_clearance) {
+        std::vector<Transform> poses = poses_arg(hand_poses, "grasps");
+        const Eigen::VectorXd qs = configuration_vector(ik.robot(), start, "start");
+        Trajectory seed_rows;
+        if (!seeds.is_none()) {
+          seed_rows = configuration_rows(ik.robot(), seeds.cast<Array>(), "seeds", "B");
+          if (seed_rows.rows() != static_cast<long>(poses.size()))
+            throw py::value_error("seeds: expected one configuration per grasp (" + std::to_string(poses.size()) +
+                                  "), got " + std::to_string(seed_rows.rows()));
+        }
+        GoalSet gs;
+        {
+          py::gil_scoped_release release;
+          // The success test's approach clearance: body points to the objects the problem does not
+          // exclude (the target), the table left out (metrics.cpp, object_clearance).
+          RobotWorkspace rws(ik.robot());
+          // A check that keeps `need` by that measure (none without a problem or a positive need); the
+          // approach keeps `clearance`, the pre-grasp `pregrasp_clearance` (a place's pre-place: the transit's).
+          auto keeps = [&](double need) -> std::function<bool(const Eigen::VectorXd&)> {
+            if (!problem || !(need > 0)) return {};
+            return [&, need](const Eigen::VectorXd& q) {
+              return object_clearance(*problem, q.data(), problem->settings().exclude_mask, need, rws) >= need;
+            };
+          };
+          const auto ok = keeps(clearance), pre = keeps(pregrasp_clearance);
+          gs = build_goal_set(ik, checker, hand_checker, poses, qs, s, ok, seeds.is_none() ? nullptr : &seed_rows, pre);
+        }
+        return GoalSetResult{std::move(gs), s.standoff_steps + 1, ik.robot().dof()};
+      },
+      py::arg("ik"), py::arg("checker"), py::arg("hand_checker"), py::arg("hand_poses"), py::arg("start"),
+      py::arg("settings") = GoalSetSettings(), py::arg("clearance_problem") = nullptr,
+      py::arg("approach_clearance") = 0.0, py::arg("seeds") = py::none(), py::arg("pregrasp_clearance") = 0.0);
 }
 
 }  // namespace pickplan::bind

@@ -1,7 +1,7 @@
+#include "pickplan/omg/isf.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
 #include "../results.hpp"
-#include "pickplan/omg/isf.hpp"
 #include "refiner_holder.hpp"
 
 using namespace pickplan::core;
@@ -56,46 +56,58 @@ void init_isf(py::module_& m) {
            py::arg("robot"), py::arg("hand_link"), py::arg("contacts"), py::arg("normals"), py::arg("hand_sdf"),
            py::arg("object_points"), py::arg("object_normals"), py::arg("scene"), py::arg("body_links"),
            py::arg("body_points"), py::arg("exclude_mask"), py::arg("settings"))
-      .def("cost", [](const Holder& h, const Array& q) {
-        Eigen::VectorXd qq = configuration_vector(*h.robot, q), g;
-        GraspTerms t;
-        {
-          py::gil_scoped_release release;
-          t = h.refiner->cost(qq, &g);
-        }
-        return py::make_tuple(t, g);
-      }, py::arg("q"), "f_grasp terms and the gradient with respect to q.")
-      .def("with_object", [](const Holder& h, const Array& object_points, const Array& object_normals,
-                             const Array& motion) {
-        return Holder{h.robot, h.refiner->with_object(points_arg(object_points, "object points"),
-                                                      points_arg(object_normals, "object normals"),
-                                                      pose_arg(motion, "motion"))};
-      }, py::arg("object_points"), py::arg("object_normals"), py::arg("motion"),
-         "This refiner for the target's surface samples (world) at another place: the target moved by the "
-         "4x4 rigid `motion` (this refiner's points onto the new ones); its k-d tree is shared.")
-      .def("set_support", [](Holder& h, const Array& finger_vertices, const Array& normal, double offset) {
-        SupportPlane support;
-        support.finger_vertices = points_arg(finger_vertices, "finger vertices");
-        require_shape("normal", normal, {3}, "(3,)");
-        require_finite_array("normal", normal);
-        support.normal = Eigen::Map<const Eigen::Vector3d>(normal.data());
-        support.offset = offset;
-        h.refiner->set_support(std::move(support));
-      }, py::arg("finger_vertices"), py::arg("normal"), py::arg("offset"),
-         "The support plane ISF steps may not press the fingers deeper into (vertices in the hand frame).")
-      .def("support_depth", [](const Holder& h, const Array& q) {
-        return h.refiner->support_depth(configuration_vector(*h.robot, q));
-      }, py::arg("q"), "How far the fingers reach below the support plane at q (m; -inf without one).")
-      .def("refine", [](const Holder& h, const Array& q, int iterations) {
-        if (iterations < 0) throw std::invalid_argument("iterations must be >= 0");
-        Eigen::VectorXd qq = configuration_vector(*h.robot, q), out;
-        GraspTerms t;
-        {
-          py::gil_scoped_release release;
-          out = h.refiner->refine(qq, iterations, &t);
-        }
-        return py::make_tuple(out, t);
-      }, py::arg("q"), py::arg("iterations") = 1, "Algorithm 1 steps; returns (q, terms at q).");
+      .def(
+          "cost",
+          [](const Holder& h, const Array& q) {
+            Eigen::VectorXd qq = configuration_vector(*h.robot, q), g;
+            GraspTerms t;
+            {
+              py::gil_scoped_release release;
+              t = h.refiner->cost(qq, &g);
+            }
+            return py::make_tuple(t, g);
+          },
+          py::arg("q"), "f_grasp terms and the gradient with respect to q.")
+      .def(
+          "with_object",
+          [](const Holder& h, const Array& object_points, const Array& object_normals, const Array& motion) {
+            return Holder{h.robot, h.refiner->with_object(points_arg(object_points, "object points"),
+                                                          points_arg(object_normals, "object normals"),
+                                                          pose_arg(motion, "motion"))};
+          },
+          py::arg("object_points"), py::arg("object_normals"), py::arg("motion"),
+          "This refiner for the target's surface samples (world) at another place: the target moved by the "
+          "4x4 rigid `motion` (this refiner's points onto the new ones); its k-d tree is shared.")
+      .def(
+          "set_support",
+          [](Holder& h, const Array& finger_vertices, const Array& normal, double offset) {
+            SupportPlane support;
+            support.finger_vertices = points_arg(finger_vertices, "finger vertices");
+            require_shape("normal", normal, {3}, "(3,)");
+            require_finite_array("normal", normal);
+            support.normal = Eigen::Map<const Eigen::Vector3d>(normal.data());
+            support.offset = offset;
+            h.refiner->set_support(std::move(support));
+          },
+          py::arg("finger_vertices"), py::arg("normal"), py::arg("offset"),
+          "The support plane ISF steps may not press the fingers deeper into (vertices in the hand frame).")
+      .def(
+          "support_depth",
+          [](const Holder& h, const Array& q) { return h.refiner->support_depth(configuration_vector(*h.robot, q)); },
+          py::arg("q"), "How far the fingers reach below the support plane at q (m; -inf without one).")
+      .def(
+          "refine",
+          [](const Holder& h, const Array& q, int iterations) {
+            if (iterations < 0) throw std::invalid_argument("iterations must be >= 0");
+            Eigen::VectorXd qq = configuration_vector(*h.robot, q), out;
+            GraspTerms t;
+            {
+              py::gil_scoped_release release;
+              out = h.refiner->refine(qq, iterations, &t);
+            }
+            return py::make_tuple(out, t);
+          },
+          py::arg("q"), py::arg("iterations") = 1, "Algorithm 1 steps; returns (q, terms at q).");
 }
 
 }  // namespace pickplan::bind

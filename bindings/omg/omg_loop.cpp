@@ -1,7 +1,7 @@
 // Native goal selection policies and the Algorithm 2 loop (run with the GIL released).
+#include "pickplan/omg/omg_loop.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
-#include "pickplan/omg/omg_loop.hpp"
 #include "refiner_holder.hpp"
 #include "trajectory_results.hpp"
 
@@ -56,14 +56,18 @@ void init_omg_loop(py::module_& m) {
       .def(py::init<SelectionSettings>(), py::arg("settings"))
       .def_property_readonly("kind", &SelectionPolicy::kind)
       .def_property_readonly("cost_kind", &SelectionPolicy::cost_kind)
-      .def("reset", [](SelectionPolicy& s, int num_goals, int horizon, const py::object& initial) {
-        if (initial.is_none()) return s.reset(num_goals, horizon, nullptr);
-        const Eigen::VectorXd c = vector_arg(initial.cast<Array>(), "initial costs");
-        s.reset(num_goals, horizon, &c);
-      }, py::arg("num_goals"), py::arg("horizon"), py::arg("initial_costs") = py::none())
+      .def(
+          "reset",
+          [](SelectionPolicy& s, int num_goals, int horizon, const py::object& initial) {
+            if (initial.is_none()) return s.reset(num_goals, horizon, nullptr);
+            const Eigen::VectorXd c = vector_arg(initial.cast<Array>(), "initial costs");
+            s.reset(num_goals, horizon, &c);
+          },
+          py::arg("num_goals"), py::arg("horizon"), py::arg("initial_costs") = py::none())
       .def("add_goal", &SelectionPolicy::add_goal)
-      .def("update", [](SelectionPolicy& s, const Array& c) { return s.update(vector_arg(c, "costs")); },
-           py::arg("costs"))
+      .def(
+          "update", [](SelectionPolicy& s, const Array& c) { return s.update(vector_arg(c, "costs")); },
+          py::arg("costs"))
       .def("select", &SelectionPolicy::select)
       .def_property_readonly("p", [](const SelectionPolicy& s) { return s.p(); })
       .def("regret", &SelectionPolicy::regret);
@@ -82,40 +86,43 @@ void init_omg_loop(py::module_& m) {
       .def_readwrite("metrics", &OmgLoopSettings::metrics)
       .def_readwrite("clock", &OmgLoopSettings::clock);
 
-  m.def("run_omg_loop", [](const ChompProblem& problem, const RefinerHolder* refiner, const py::object& hand_link,
-                           const Array& q0, const Array& goals, const Array& tails, const py::object& grasp_index,
-                           const Array& blend, const OmgLoopSettings& settings, const py::object& initial,
-                           int initial_goal, const py::object& initial_costs) {
-    const int hand = link_arg(problem.robot(), hand_link);
-    const Trajectory G = configuration_rows(problem.robot(), goals, "goals", "G");
-    const std::vector<Trajectory> T = configuration_blocks(problem.robot(), tails, "tails", goals.shape(0));
-    const IntArray index = index_array("grasp_index", grasp_index, std::numeric_limits<int>::max());
-    if (index.ndim() != 1 || index.shape(0) != goals.shape(0))
-      throw std::invalid_argument("grasp_index: expected one entry per goal, got shape " + shape_str(index));
-    const std::vector<int> gi(index.data(), index.data() + index.shape(0));
-    const Eigen::VectorXd q0v = configuration_vector(problem.robot(), q0, "start configuration");
-    const Eigen::VectorXd b = vector_arg(blend, "blend");
-    WarmStart warm;
-    if (!initial.is_none()) {
-      warm.initial = configuration_rows(problem.robot(), initial.cast<Array>(), "initial", "B");
-      warm.initial_goal = initial_goal;
-      if (!initial_costs.is_none()) warm.initial_costs = vector_arg(initial_costs.cast<Array>(), "initial_costs");
-    } else if (initial_goal != -1 || !initial_costs.is_none()) {
-      throw std::invalid_argument("initial_goal, initial_costs: given without an initial trajectory");
-    }
-    OmgLoopResult r;
-    {
-      py::gil_scoped_release release;
-      r = run_omg_loop(problem, refiner ? refiner->refiner.get() : nullptr, hand, q0v, G, T, gi, b, settings,
-                       initial.is_none() ? nullptr : &warm);
-    }
-    return r;
-  }, py::arg("problem"), py::arg("refiner"), py::arg("hand_link"), py::arg("q0"), py::arg("goals"), py::arg("tails"),
-     py::arg("grasp_index"), py::arg("blend"), py::arg("settings"), py::arg("initial") = py::none(),
-     py::arg("initial_goal") = -1, py::arg("initial_costs") = py::none(),
-     "Algorithm 2's loop over a goal set (refiner None: no ISF); returns the plan, its metrics and history. "
-     "initial (n, dof), initial_goal and initial_costs (one per goal, or None: estimated): a warm start from a "
-     "previous plan (replanning).");
+  m.def(
+      "run_omg_loop",
+      [](const ChompProblem& problem, const RefinerHolder* refiner, const py::object& hand_link, const Array& q0,
+         const Array& goals, const Array& tails, const py::object& grasp_index, const Array& blend,
+         const OmgLoopSettings& settings, const py::object& initial, int initial_goal,
+         const py::object& initial_costs) {
+        const int hand = link_arg(problem.robot(), hand_link);
+        const Trajectory G = configuration_rows(problem.robot(), goals, "goals", "G");
+        const std::vector<Trajectory> T = configuration_blocks(problem.robot(), tails, "tails", goals.shape(0));
+        const IntArray index = index_array("grasp_index", grasp_index, std::numeric_limits<int>::max());
+        if (index.ndim() != 1 || index.shape(0) != goals.shape(0))
+          throw std::invalid_argument("grasp_index: expected one entry per goal, got shape " + shape_str(index));
+        const std::vector<int> gi(index.data(), index.data() + index.shape(0));
+        const Eigen::VectorXd q0v = configuration_vector(problem.robot(), q0, "start configuration");
+        const Eigen::VectorXd b = vector_arg(blend, "blend");
+        WarmStart warm;
+        if (!initial.is_none()) {
+          warm.initial = configuration_rows(problem.robot(), initial.cast<Array>(), "initial", "B");
+          warm.initial_goal = initial_goal;
+          if (!initial_costs.is_none()) warm.initial_costs = vector_arg(initial_costs.cast<Array>(), "initial_costs");
+        } else if (initial_goal != -1 || !initial_costs.is_none()) {
+          throw std::invalid_argument("initial_goal, initial_costs: given without an initial trajectory");
+        }
+        OmgLoopResult r;
+        {
+          py::gil_scoped_release release;
+          r = run_omg_loop(problem, refiner ? refiner->refiner.get() : nullptr, hand, q0v, G, T, gi, b, settings,
+                           initial.is_none() ? nullptr : &warm);
+        }
+        return r;
+      },
+      py::arg("problem"), py::arg("refiner"), py::arg("hand_link"), py::arg("q0"), py::arg("goals"), py::arg("tails"),
+      py::arg("grasp_index"), py::arg("blend"), py::arg("settings"), py::arg("initial") = py::none(),
+      py::arg("initial_goal") = -1, py::arg("initial_costs") = py::none(),
+      "Algorithm 2's loop over a goal set (refiner None: no ISF); returns the plan, its metrics and history. "
+      "initial (n, dof), initial_goal and initial_costs (one per goal, or None: estimated): a warm start from a "
+      "previous plan (replanning).");
 }
 
 }  // namespace pickplan::bind

@@ -1,7 +1,7 @@
 // Bindings of the local sections of grasps from points (pickplan/omg/point_sections.hpp).
+#include "pickplan/omg/point_sections.hpp"
 #include "../common.hpp"
 #include "pickplan/omg/point_queries.hpp"
-#include "pickplan/omg/point_sections.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::geometry;
@@ -104,14 +104,15 @@ void init_point_sections(py::module_& m) {
         return py::make_tuple(py::array_t<long>(found.i.size(), found.i.data()),
                               py::array_t<long>(found.j.size(), found.j.data()));
       },
-      py::arg("points"), py::arg("queries"), py::arg("radius"), py::arg("keep") = py::none(), py::arg("order") = py::none(),
+      py::arg("points"), py::arg("queries"), py::arg("radius"), py::arg("keep") = py::none(),
+      py::arg("order") = py::none(),
       "The pairs (i, j) with |P_j - P_i| <= radius: i the queries in turn, each one's j (only kept ones) in the "
       "place they take in order (a permutation of the points; default ascending).");
 
   m.def(
       "antipodal_partners",
-      [](const Array& points, const Array& normals, const LongArray& queries, double radius, std::optional<BoolArray> keep,
-         std::optional<LongArray> order, double min_width, double cone) {
+      [](const Array& points, const Array& normals, const LongArray& queries, double radius,
+         std::optional<BoolArray> keep, std::optional<LongArray> order, double min_width, double cone) {
         const PairQuery q(points, queries, keep, order);
         require_shape("normals", normals, {points.shape(0), 3}, "(N, 3) like points");
         const RowMatrixXd N = Eigen::Map<const RowMatrixXd>(normals.data(), normals.shape(0), 3);
@@ -127,7 +128,8 @@ void init_point_sections(py::module_& m) {
       },
       py::arg("points"), py::arg("normals"), py::arg("queries"), py::arg("radius"), py::arg("keep"), py::arg("order"),
       py::arg("min_width"), py::arg("cone"),
-      "The radius pairs (as radius_pairs) at least min_width apart within each other's friction cone: (i, j, margins, widths).");
+      "The radius pairs (as radius_pairs) at least min_width apart within each other's friction cone: (i, j, margins, "
+      "widths).");
 
   m.def(
       "sorted_quantiles",

@@ -1,8 +1,8 @@
 // Bindings of RRT-Connect and the motion check (pickplan/omg/rrt_connect.hpp).
+#include "pickplan/omg/rrt_connect.hpp"
 #include "../common.hpp"
 #include "../convert.hpp"
 #include "../results.hpp"
-#include "pickplan/omg/rrt_connect.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::geometry;
@@ -65,7 +65,8 @@ void init_rrt_connect(py::module_& m) {
           [](const MotionPlanner& p, const Array& path, int attempts, std::uint64_t seed, double min_gain) {
             const Trajectory P = path_arg(p, path, "path");
             if (attempts < 0) throw std::invalid_argument("attempts: expected >= 0");
-            if (!(min_gain >= 0.0 && min_gain < 1.0)) throw std::invalid_argument("min_gain: expected a fraction in [0, 1)");
+            if (!(min_gain >= 0.0 && min_gain < 1.0))
+              throw std::invalid_argument("min_gain: expected a fraction in [0, 1)");
             py::gil_scoped_release release;
             return p.shortcut(P, attempts, seed, min_gain);
           },

@@ -1,7 +1,7 @@
 // Bindings of the depth-image world model (pickplan/perception/depth_field.hpp).
+#include "pickplan/perception/depth_field.hpp"
 #include "../common.hpp"
 #include "../results.hpp"
-#include "pickplan/perception/depth_field.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::geometry;
@@ -14,7 +14,8 @@ namespace {
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
 using ByteArray = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
 
-DepthView view_arg(const FloatArray& depth, const Array& K, const Array& pose, const py::object& target, std::size_t k) {
+DepthView view_arg(const FloatArray& depth, const Array& K, const Array& pose, const py::object& target,
+                   std::size_t k) {
   const std::string w = "view " + std::to_string(k);
   require_shape((w + " depth").c_str(), depth, {-1, -1}, "(H, W)");
   require_shape((w + " K").c_str(), K, {3, 3}, "(3, 3)");
@@ -46,7 +47,8 @@ void init_perception(py::module_& m) {
       .def_readwrite("plane_offset", &DepthFieldSettings::plane_offset)
       .def_readwrite("plane_margin", &DepthFieldSettings::plane_margin)
       .def_readwrite("target_stride", &DepthFieldSettings::target_stride);
-  result_class<DepthField>(m, "DepthField", "Fused depth views: the obstacles' grid, the target's points, voxel counts.")
+  result_class<DepthField>(m, "DepthField",
+                           "Fused depth views: the obstacles' grid, the target's points, voxel counts.")
       .computed("obstacles", [](const DepthField& f) { return std::const_pointer_cast<SdfGrid>(f.obstacles); })
       .field("target_points", &DepthField::target_points)
       .field("target_normals", &DepthField::target_normals)
@@ -59,11 +61,14 @@ void init_perception(py::module_& m) {
       [](const std::vector<FloatArray>& depths, const std::vector<Array>& Ks, const std::vector<Array>& poses,
          const std::vector<py::object>& targets, const DepthFieldSettings& settings) {
         if (Ks.size() != depths.size() || poses.size() != depths.size() || targets.size() != depths.size())
-          throw std::invalid_argument("depth field: expected as many intrinsics, poses and target masks as depth "
-                                      "images (" + std::to_string(depths.size()) + "), got " + std::to_string(Ks.size()) +
-                                      ", " + std::to_string(poses.size()) + ", " + std::to_string(targets.size()));
+          throw std::invalid_argument(
+              "depth field: expected as many intrinsics, poses and target masks as depth "
+              "images (" +
+              std::to_string(depths.size()) + "), got " + std::to_string(Ks.size()) + ", " +
+              std::to_string(poses.size()) + ", " + std::to_string(targets.size()));
         std::vector<DepthView> views;
-        for (std::size_t k = 0; k < depths.size(); ++k) views.push_back(view_arg(depths[k], Ks[k], poses[k], targets[k], k));
+        for (std::size_t k = 0; k < depths.size(); ++k)
+          views.push_back(view_arg(depths[k], Ks[k], poses[k], targets[k], k));
         DepthField f;
         {
           py::gil_scoped_release release;
@@ -91,7 +96,8 @@ void init_perception(py::module_& m) {
         return py::make_tuple(best.index, best.inliers);
       },
       py::arg("points"), py::arg("normals"), py::arg("offsets"), py::arg("tolerance"),
-      "The first plane n_k . x = d_k with the most points within tolerance of it: (k, its count); k -1 without planes.");
+      "The first plane n_k . x = d_k with the most points within tolerance of it: (k, its count); k -1 without "
+      "planes.");
 
   m.def(
       "point_distance_grid",
@@ -107,7 +113,8 @@ void init_perception(py::module_& m) {
           py::gil_scoped_release release;
           d = point_distance_grid(P, o, resolution, n);
         }
-        py::array_t<float> out({static_cast<py::ssize_t>(n.z()), static_cast<py::ssize_t>(n.y()), static_cast<py::ssize_t>(n.x())});
+        py::array_t<float> out(
+            {static_cast<py::ssize_t>(n.z()), static_cast<py::ssize_t>(n.y()), static_cast<py::ssize_t>(n.x())});
         std::copy(d.begin(), d.end(), out.mutable_data());
         return out;
       },
@@ -117,7 +124,8 @@ void init_perception(py::module_& m) {
   m.def(
       "squared_distance_transform",
       [](const ByteArray& mask) {
-        if (mask.ndim() != 3) throw std::invalid_argument("mask: expected a 3-D array (nz, ny, nx), got " + shape_str(mask));
+        if (mask.ndim() != 3)
+          throw std::invalid_argument("mask: expected a 3-D array (nz, ny, nx), got " + shape_str(mask));
         std::vector<std::uint8_t> v(mask.data(), mask.data() + mask.size());
         const Eigen::Vector3i dims(mask.shape(2), mask.shape(1), mask.shape(0));
         std::vector<float> d;

@@ -1,10 +1,10 @@
 // Bindings of the pick-up on the move NLP (pickplan.pickup.planner is the public face).
 // Ipopt + MUMPS are not thread-safe: the GIL is released around solves so Python stays
 // responsive, but run independent solves in separate processes (planner.solve_many).
+#include "pickplan/pickup/nlp.hpp"
 #include "../common.hpp"
 #include "../results.hpp"
 #include "pickplan/pickup/cases.hpp"
-#include "pickplan/pickup/nlp.hpp"
 #include "pickplan/pickup/stomp.hpp"
 
 using namespace pickplan::core;
@@ -41,8 +41,9 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("goal", &PickupProblem::goal)
       .def_readwrite("goal_tol_pos", &PickupProblem::goal_tol_pos)
       .def_readwrite("goal_tol_yaw", &PickupProblem::goal_tol_yaw)
-      .def_property("grasp_pose", [](const PickupProblem& p) { return Eigen::Matrix4d(p.grasp_pose.matrix()); },
-                    [](PickupProblem& p, const Array& M) { p.grasp_pose = Transform::from_matrix(matrix4(M, "grasp_pose")); })
+      .def_property(
+          "grasp_pose", [](const PickupProblem& p) { return Eigen::Matrix4d(p.grasp_pose.matrix()); },
+          [](PickupProblem& p, const Array& M) { p.grasp_pose = Transform::from_matrix(matrix4(M, "grasp_pose")); })
       .def_readwrite("approach_dir", &PickupProblem::approach_dir)
       .def_readwrite("part_xy", &PickupProblem::part_xy)
       .def_readwrite("grasp_area_rmin", &PickupProblem::grasp_area_rmin)
@@ -56,26 +57,28 @@ void init_pickup_nlp(py::module_& m) {
       .def_readwrite("base_yaw_rate_limit", &PickupProblem::base_yaw_rate_limit)
       .def_readwrite("arm_rate_limits", &PickupProblem::arm_rate_limits)
       .def_readwrite("tool_link", &PickupProblem::tool_link)
-      .def_property("obstacles",
-                    [](const PickupProblem& p) {
-                      py::list out;
-                      for (const auto& o : p.obstacles) out.append(py::make_tuple(o.center, o.radius));
-                      return out;
-                    },
-                    [](PickupProblem& p, const std::vector<std::pair<Eigen::Vector3d, double>>& v) {
-                      p.obstacles.clear();
-                      for (const auto& [c, r] : v) p.obstacles.push_back({c, r});
-                    })
-      .def_property("body_spheres",
-                    [](const PickupProblem& p) {
-                      py::list out;
-                      for (const auto& b : p.body_spheres) out.append(py::make_tuple(b.link, b.center, b.radius));
-                      return out;
-                    },
-                    [](PickupProblem& p, const std::vector<std::tuple<int, Eigen::Vector3d, double>>& v) {
-                      p.body_spheres.clear();
-                      for (const auto& [l, c, r] : v) p.body_spheres.push_back({l, c, r});
-                    })
+      .def_property(
+          "obstacles",
+          [](const PickupProblem& p) {
+            py::list out;
+            for (const auto& o : p.obstacles) out.append(py::make_tuple(o.center, o.radius));
+            return out;
+          },
+          [](PickupProblem& p, const std::vector<std::pair<Eigen::Vector3d, double>>& v) {
+            p.obstacles.clear();
+            for (const auto& [c, r] : v) p.obstacles.push_back({c, r});
+          })
+      .def_property(
+          "body_spheres",
+          [](const PickupProblem& p) {
+            py::list out;
+            for (const auto& b : p.body_spheres) out.append(py::make_tuple(b.link, b.center, b.radius));
+            return out;
+          },
+          [](PickupProblem& p, const std::vector<std::tuple<int, Eigen::Vector3d, double>>& v) {
+            p.body_spheres.clear();
+            for (const auto& [l, c, r] : v) p.body_spheres.push_back({l, c, r});
+          })
       .def("set_part_grasp", &set_part_grasp, py::arg("kind"), py::arg("yaw"), py::arg("position"),
            "grasp pose, approach direction and grasping-area centre of a part at `position` with `yaw`")
       .def("validate", &PickupProblem::validate, py::arg("robot"));
@@ -86,16 +89,18 @@ void init_pickup_nlp(py::module_& m) {
   py::enum_<CoefficientBasis>(m, "CoefficientBasis")
       .value("bernstein", CoefficientBasis::bernstein)
       .value("monomial", CoefficientBasis::monomial);
-  py::enum_<MuStrategy>(m, "MuStrategy").value("monotone", MuStrategy::monotone).value("adaptive", MuStrategy::adaptive);
+  py::enum_<MuStrategy>(m, "MuStrategy")
+      .value("monotone", MuStrategy::monotone)
+      .value("adaptive", MuStrategy::adaptive);
   py::enum_<RateRows>(m, "RateRows").value("hull", RateRows::hull).value("sampled", RateRows::sampled);
   {
     py::enum_<SolveStatus> status(m, "SolveStatus");
-    for (SolveStatus s : {SolveStatus::not_run, SolveStatus::solved, SolveStatus::solved_acceptable,
-                          SolveStatus::infeasible, SolveStatus::diverging, SolveStatus::max_iterations,
-                          SolveStatus::max_cpu_time, SolveStatus::restoration_failed, SolveStatus::step_too_small,
-                          SolveStatus::invalid_number, SolveStatus::solver_error, SolveStatus::bounded,
-                          SolveStatus::violation_between_samples, SolveStatus::constraint_violation,
-                          SolveStatus::time_limit})
+    for (SolveStatus s :
+         {SolveStatus::not_run, SolveStatus::solved, SolveStatus::solved_acceptable, SolveStatus::infeasible,
+          SolveStatus::diverging, SolveStatus::max_iterations, SolveStatus::max_cpu_time,
+          SolveStatus::restoration_failed, SolveStatus::step_too_small, SolveStatus::invalid_number,
+          SolveStatus::solver_error, SolveStatus::bounded, SolveStatus::violation_between_samples,
+          SolveStatus::constraint_violation, SolveStatus::time_limit})
       status.value(to_string(s), s);
   }
 
@@ -178,33 +183,41 @@ void init_pickup_nlp(py::module_& m) {
       .def_readonly("search_seconds", &PickupResult::search_seconds)
       .def_readonly("search_cpu_seconds", &PickupResult::search_cpu_seconds)
       .def_property_readonly("degrees", [](const PickupResult& r) { return r.traj.degrees(); })
-      .def("sample", [](const PickupResult& r, const Eigen::VectorXd& times) {
-             if (r.x.size() != r.traj.num_coeffs() + 5) throw std::invalid_argument("result holds no trajectory");
-             Eigen::MatrixXd q, qd, qdd;
-             r.traj.eval_many(r.x.head(r.traj.num_coeffs()), times, &q, &qd, &qdd);
-             return py::make_tuple(q, qd, qdd);
-           }, py::arg("times"), "q, q', q'' at the given times (s), each (len(times), dof)");
+      .def(
+          "sample",
+          [](const PickupResult& r, const Eigen::VectorXd& times) {
+            if (r.x.size() != r.traj.num_coeffs() + 5) throw std::invalid_argument("result holds no trajectory");
+            Eigen::MatrixXd q, qd, qdd;
+            r.traj.eval_many(r.x.head(r.traj.num_coeffs()), times, &q, &qd, &qdd);
+            return py::make_tuple(q, qd, qdd);
+          },
+          py::arg("times"), "q, q', q'' at the given times (s), each (len(times), dof)");
 
-  m.def("pickup_paper_case", [](const Robot& robot, int case_id, const RhoPoly& rho, double gamma, double arm_rate,
-                                bool obstacles, double part_z) {
-          PaperCaseOptions o;
-          o.gamma = gamma;
-          o.arm_rate = arm_rate;
-          o.obstacles = obstacles;
-          o.part_z = part_z;
-          return paper_case(robot, case_id, rho, o);
-        },
-        py::arg("robot"), py::arg("case_id"), py::arg("rho"), py::arg("gamma") = 0.96, py::arg("arm_rate") = M_PI,
-        py::arg("obstacles") = true, py::arg("part_z") = 0.5);
+  m.def(
+      "pickup_paper_case",
+      [](const Robot& robot, int case_id, const RhoPoly& rho, double gamma, double arm_rate, bool obstacles,
+         double part_z) {
+        PaperCaseOptions o;
+        o.gamma = gamma;
+        o.arm_rate = arm_rate;
+        o.obstacles = obstacles;
+        o.part_z = part_z;
+        return paper_case(robot, case_id, rho, o);
+      },
+      py::arg("robot"), py::arg("case_id"), py::arg("rho"), py::arg("gamma") = 0.96, py::arg("arm_rate") = M_PI,
+      py::arg("obstacles") = true, py::arg("part_z") = 0.5);
   m.def("pickup_example_rho", &example_rho, py::arg("shift") = 0.0);
   m.def("pickup_heuristic_seed", &heuristic_seed, py::arg("robot"), py::arg("problem"), py::arg("settings"));
   m.def("pickup_random_seed", &random_seed, py::arg("robot"), py::arg("problem"), py::arg("settings"));
   m.def("pickup_solve_stage", &solve_stage, py::arg("robot"), py::arg("problem"), py::arg("settings"), py::arg("stage"),
         py::arg("x0"), py::call_guard<py::gil_scoped_release>());
-  m.def("pickup_solve_successive", [](const Robot& r, const PickupProblem& p, const PickupSettings& s,
-                                      const Eigen::VectorXd& x0) { return solve_successive(r, p, s, x0); },
-        py::arg("robot"), py::arg("problem"), py::arg("settings"), py::arg("x0") = Eigen::VectorXd(),
-        py::call_guard<py::gil_scoped_release>());
+  m.def(
+      "pickup_solve_successive",
+      [](const Robot& r, const PickupProblem& p, const PickupSettings& s, const Eigen::VectorXd& x0) {
+        return solve_successive(r, p, s, x0);
+      },
+      py::arg("robot"), py::arg("problem"), py::arg("settings"), py::arg("x0") = Eigen::VectorXd(),
+      py::call_guard<py::gil_scoped_release>());
   m.def("pickup_solve_single_shot", &solve_single_shot, py::arg("robot"), py::arg("problem"), py::arg("settings"),
         py::arg("x0") = Eigen::VectorXd(), py::call_guard<py::gil_scoped_release>());
   py::class_<StompSettings>(m, "StompSettings")
@@ -229,19 +242,20 @@ void init_pickup_nlp(py::module_& m) {
       .def_readonly("limits_ok", &StompResult::limits_ok)
       .def_readonly("iterations", &StompResult::iterations)
       .def_readonly("seconds", &StompResult::seconds);
-  m.def("stomp_refine",
-        [](const Robot& robot, const Eigen::MatrixXd& Q, double dt, const Eigen::VectorXd& rate,
-           const std::vector<std::tuple<int, Eigen::Vector3d, double>>& spheres,
-           const std::vector<std::pair<Eigen::Vector3d, double>>& obstacles, const StompSettings& st) {
-          std::vector<BodySphere> b;
-          for (const auto& [l, c, r] : spheres) b.push_back({l, c, r});
-          std::vector<SphereObstacle> o;
-          for (const auto& [c, r] : obstacles) o.push_back({c, r});
-          py::gil_scoped_release release;
-          return stomp_refine(robot, Q, dt, rate, b, o, st);
-        },
-        py::arg("robot"), py::arg("q"), py::arg("dt"), py::arg("arm_rate_limits"), py::arg("body_spheres"),
-        py::arg("obstacles"), py::arg("settings") = StompSettings());
+  m.def(
+      "stomp_refine",
+      [](const Robot& robot, const Eigen::MatrixXd& Q, double dt, const Eigen::VectorXd& rate,
+         const std::vector<std::tuple<int, Eigen::Vector3d, double>>& spheres,
+         const std::vector<std::pair<Eigen::Vector3d, double>>& obstacles, const StompSettings& st) {
+        std::vector<BodySphere> b;
+        for (const auto& [l, c, r] : spheres) b.push_back({l, c, r});
+        std::vector<SphereObstacle> o;
+        for (const auto& [c, r] : obstacles) o.push_back({c, r});
+        py::gil_scoped_release release;
+        return stomp_refine(robot, Q, dt, rate, b, o, st);
+      },
+      py::arg("robot"), py::arg("q"), py::arg("dt"), py::arg("arm_rate_limits"), py::arg("body_spheres"),
+      py::arg("obstacles"), py::arg("settings") = StompSettings());
   result_class<PickupMetrics>(m, "PickupMetrics", "Dense re-sampling checks of a pick-up plan (cases.hpp).")
       .field("pose_error_position", &PickupMetrics::pose_error_position)
       .field("pose_error_orientation", &PickupMetrics::pose_error_orientation)
@@ -257,7 +271,8 @@ void init_pickup_nlp(py::module_& m) {
       .field("min_clearance", &PickupMetrics::min_clearance)
       .field("goal_position_error", &PickupMetrics::goal_position_error)
       .field("success_probability", &PickupMetrics::success_probability);
-  m.def("pickup_evaluate", &evaluate_pickup, py::arg("robot"), py::arg("problem"), py::arg("result"), py::arg("n") = 2001);
+  m.def("pickup_evaluate", &evaluate_pickup, py::arg("robot"), py::arg("problem"), py::arg("result"),
+        py::arg("n") = 2001);
 }
 
 }  // namespace pickplan::bind

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <string>
 
-#include "pickplan/pickup/nlp.hpp"
 #include "pickplan/core/robot.hpp"
+#include "pickplan/pickup/nlp.hpp"
 
 namespace pickplan::test {
 
@@ -49,8 +49,10 @@ inline double hessian_fd_error(const pickup::PickupConstraints& c, const Eigen::
     Eigen::VectorXd xp = x, xm = x;
     xp[j] += h;
     xm[j] -= h;
-    const Eigen::VectorXd fd = (c.dense_jacobian(xp).transpose() * lam - c.dense_jacobian(xm).transpose() * lam) / (2 * h);
-    for (int i = 0; i < c.num_vars(); ++i) worst = std::max(worst, std::abs(fd[i] - H(i, j)) / (1.0 + std::abs(H(i, j))));
+    const Eigen::VectorXd fd =
+        (c.dense_jacobian(xp).transpose() * lam - c.dense_jacobian(xm).transpose() * lam) / (2 * h);
+    for (int i = 0; i < c.num_vars(); ++i)
+      worst = std::max(worst, std::abs(fd[i] - H(i, j)) / (1.0 + std::abs(H(i, j))));
   }
   return worst;
 }

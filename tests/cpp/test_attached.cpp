@@ -133,7 +133,7 @@ TEST(AttachedLink, CollisionCheckerSeesAMeshOnItByItsName) {
 
 TEST(AttachedLink, BadInputThrowsNamingTheProblem) {
   const Robot r = Robot::from_urdf_file(kData + "/mixed_arm.urdf");
-  EXPECT_THROW(r.with_attached_link("l2", "l4", Transform{}), std::invalid_argument);   // name taken
+  EXPECT_THROW(r.with_attached_link("l2", "l4", Transform{}), std::invalid_argument);      // name taken
   EXPECT_THROW(r.with_attached_link("held", "nope", Transform{}), std::invalid_argument);  // no parent
   EXPECT_THROW(r.with_attached_link("", "l4", Transform{}), std::invalid_argument);
   Transform sheared;

@@ -6,8 +6,8 @@
 #include <memory>
 #include <random>
 
-#include <Eigen/Dense>
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 
 #include "arm_fixtures.hpp"
 #include "mesh_fixtures.hpp"
@@ -113,7 +113,8 @@ TEST(Chomp, ObjectiveGradientMatchesFiniteDifferences) {
       Trajectory xp = xi, xm = xi;
       xp(r, j) += h;
       xm(r, j) -= h;
-      const double fd = (p.objective(xp, c.q0, 3, nullptr, ws).total - p.objective(xm, c.q0, 3, nullptr, ws).total) / (2 * h);
+      const double fd =
+          (p.objective(xp, c.q0, 3, nullptr, ws).total - p.objective(xm, c.q0, 3, nullptr, ws).total) / (2 * h);
       worst = std::max(worst, std::abs(fd - grad(r, j)));
     }
   EXPECT_LT(worst, 1e-4 * (1 + scale)) << "largest gradient entry " << scale;
@@ -234,7 +235,8 @@ TEST(Chomp, GoalCostIsTheObjectiveOfTheStraightTail) {
   p.goal_costs(wiggly_path(c, n, 0.05), c.q0, 0, 20, goals, 1, 1, out, ws);
   for (int g = 0; g < 2; ++g) {
     Trajectory line(n, d);
-    for (int t = 0; t < n; ++t) line.row(t) = (c.q0 + (goals.row(g).transpose() - c.q0) * double(t + 1) / n).transpose();
+    for (int t = 0; t < n; ++t)
+      line.row(t) = (c.q0 + (goals.row(g).transpose() - c.q0) * double(t + 1) / n).transpose();
     const ObjectiveTerms f = p.objective(line, c.q0, 0, nullptr, ws);
     ASSERT_GT(f.obstacle, 0.0);
     EXPECT_NEAR(out[g], f.total, 1e-9 * (1 + f.total)) << "goal " << g;
@@ -290,13 +292,16 @@ TEST(Chomp, StridedGoalCostsEqualABruteForceSumOverEveryStridedPoint) {
               const bool was = p.group_reach(prev, grp).any(), now = p.group_reach(cur, grp).any();
               if (culling && !was && now) {
                 for (int u = grp.begin; u < grp.end; ++u)
-                  if (scene->distance(cur.link_pose[grp.link].apply(c.body.points.row(u).transpose()), nullptr, s.epsilon) < s.epsilon) ++reentries;
+                  if (scene->distance(cur.link_pose[grp.link].apply(c.body.points.row(u).transpose()), nullptr,
+                                      s.epsilon) < s.epsilon)
+                    ++reentries;
               }
             }
             for (int u = 0; u < c.body.size(); u += ps) {
               const Eigen::Vector3d x = cur.link_pose[c.body.link[u]].apply(c.body.points.row(u).transpose());
               const Eigen::Vector3d xp = prev.link_pose[c.body.link[u]].apply(c.body.points.row(u).transpose());
-              obstacle += chomp_cost(scene->distance(x, nullptr, s.epsilon), s.epsilon, nullptr) * (x - xp).norm() * inv_dt;
+              obstacle +=
+                  chomp_cost(scene->distance(x, nullptr, s.epsilon), s.epsilon, nullptr) * (x - xp).norm() * inv_dt;
             }
             prev = cur;
           }
@@ -331,7 +336,8 @@ TEST(Chomp, BadInputThrowsNamingTheProblem) {
   expect_invalid_argument([&] { p.solve_A(xi.topRows(9), out); }, "expected 10 rows, got 9");
   Trajectory x = xi;
   const Trajectory goal4 = Trajectory::Zero(1, 4), goal_long = Trajectory::Zero(11, 5);
-  expect_invalid_argument([&] { p.step(x, c.q0, &goal4, 0, ws); }, "CHOMP goal: expected 5 joint values per row, got 4");
+  expect_invalid_argument([&] { p.step(x, c.q0, &goal4, 0, ws); },
+                          "CHOMP goal: expected 5 joint values per row, got 4");
   expect_invalid_argument([&] { p.step(x, c.q0, &goal_long, 0, ws); }, "expected 1 to 10 goal rows, got 11");
   expect_invalid_argument([&] { p.step(x, q_short, nullptr, 0, ws); }, "expected 5 joint values, got 4");
   double costs[1];
@@ -343,11 +349,13 @@ TEST(Chomp, BadInputThrowsNamingTheProblem) {
   expect_invalid_argument([&] { p.step(nan_xi, c.q0, nullptr, 0, ws); }, "NaN or infinite");
   BodyPoints bad = c.body;
   bad.link.pop_back();
-  expect_invalid_argument([&] { ChompProblem(c.robot, c.scene, bad, exact_settings()); }, "body points: links: expected");
+  expect_invalid_argument([&] { ChompProblem(c.robot, c.scene, bad, exact_settings()); },
+                          "body points: links: expected");
   bad = c.body;
   bad.link[0] = 99;
   expect_invalid_argument([&] { ChompProblem(c.robot, c.scene, bad, exact_settings()); }, "link index 99 out of range");
   ChompSettings mask = exact_settings();
   mask.active = {true, false};
-  expect_invalid_argument([&] { ChompProblem(c.robot, c.scene, c.body, mask); }, "active joint mask: expected 5 entries, got 2");
+  expect_invalid_argument([&] { ChompProblem(c.robot, c.scene, c.body, mask); },
+                          "active joint mask: expected 5 entries, got 2");
 }

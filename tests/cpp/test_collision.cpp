@@ -7,8 +7,8 @@
 
 #include <gtest/gtest.h>
 
-#include "pickplan/geometry/collision.hpp"
 #include "pickplan/core/errors.hpp"
+#include "pickplan/geometry/collision.hpp"
 #include "pickplan/geometry/mesh.hpp"
 
 using namespace pickplan::core;
@@ -21,7 +21,8 @@ const std::string kData = PICKPLAN_TEST_DATA_DIR;
 double volume(const TriangleMesh& m) {  // divergence theorem: positive for outward faces
   double v = 0;
   for (int f = 0; f < m.num_faces(); ++f) {
-    const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0)), b = m.vertices.row(m.faces(f, 1)), c = m.vertices.row(m.faces(f, 2));
+    const Eigen::Vector3d a = m.vertices.row(m.faces(f, 0)), b = m.vertices.row(m.faces(f, 1)),
+                          c = m.vertices.row(m.faces(f, 2));
     v += a.dot(b.cross(c)) / 6.0;
   }
   return v;
@@ -120,7 +121,8 @@ TEST(Collision, BoxToBoxDistancesMatchClosedForm) {
   Robot r = mixed_arm();
   // Root box spans x in [-0.1, 0.1]; a 0.1 cube at x = 0.1 + g + 0.05 is g away.
   for (double g : {0.001, 0.013, 0.2}) {
-    CollisionChecker c(r, root_box_only(r), {{"cube", TriangleMesh::box({0.1, 0.1, 0.1}), translation(0.15 + g, 0.02, 0.0)}});
+    CollisionChecker c(r, root_box_only(r),
+                       {{"cube", TriangleMesh::box({0.1, 0.1, 0.1}), translation(0.15 + g, 0.02, 0.0)}});
     Eigen::VectorXd q = Eigen::VectorXd::Zero(r.dof());
     EXPECT_NEAR(c.min_distance(q), g, 1e-9);
     EXPECT_FALSE(c.in_collision(q));
@@ -132,18 +134,21 @@ TEST(Collision, BoxToBoxDistancesMatchClosedForm) {
     EXPECT_NEAR(near[0].point_other.x(), 0.1 + g, 1e-9);
   }
   // Overlap of two meshes: in collision, distance 0 (FCL has no mesh-mesh penetration depth).
-  CollisionChecker over(r, root_box_only(r), {{"cube", TriangleMesh::box({0.1, 0.1, 0.1}), translation(0.14, 0.02, 0.0)}});
+  CollisionChecker over(r, root_box_only(r),
+                        {{"cube", TriangleMesh::box({0.1, 0.1, 0.1}), translation(0.14, 0.02, 0.0)}});
   EXPECT_TRUE(over.in_collision(Eigen::VectorXd::Zero(r.dof())));
   EXPECT_EQ(over.min_distance(Eigen::VectorXd::Zero(r.dof())), 0.0);
   // A cube rotated 45 degrees about z: its edge reaches half-size * sqrt(2) towards the root box.
   const double h = 0.05, g = 0.03;
-  CollisionChecker rot(r, root_box_only(r),
-                       {{"cube", TriangleMesh::box({2 * h, 2 * h, 2 * h}), rot_z(M_PI / 4, {0.1 + g + h * std::sqrt(2.0), 0, 0})}});
+  CollisionChecker rot(
+      r, root_box_only(r),
+      {{"cube", TriangleMesh::box({2 * h, 2 * h, 2 * h}), rot_z(M_PI / 4, {0.1 + g + h * std::sqrt(2.0), 0, 0})}});
   EXPECT_NEAR(rot.min_distance(Eigen::VectorXd::Zero(r.dof())), g, 1e-9);
   // Corner to corner: a cube diagonally off the root box's corner (0.1, 0.1, 0.05).
   const Eigen::Vector3d d(0.02, 0.03, 0.04);
-  CollisionChecker diag(r, root_box_only(r),
-                        {{"cube", TriangleMesh::box({0.1, 0.1, 0.1}), translation(0.15 + d.x(), 0.15 + d.y(), 0.1 + d.z())}});
+  CollisionChecker diag(
+      r, root_box_only(r),
+      {{"cube", TriangleMesh::box({0.1, 0.1, 0.1}), translation(0.15 + d.x(), 0.15 + d.y(), 0.1 + d.z())}});
   EXPECT_NEAR(diag.min_distance(Eigen::VectorXd::Zero(r.dof())), d.norm(), 1e-9);
 }
 
@@ -154,8 +159,9 @@ TEST(Collision, SphereDistanceWithinTessellationBound) {
   // Sphere centre diagonally off the root box corner (0.1, 0.1, 0.05).
   const Eigen::Vector3d dir = Eigen::Vector3d(1, 2, 2).normalized();
   const Eigen::Vector3d centre = Eigen::Vector3d(0.1, 0.1, 0.05) + (rad + gap) * dir;
-  CollisionChecker c(r, root_box_only(r),
-                     {{"ball", TriangleMesh::sphere(rad, rings, sectors), translation(centre.x(), centre.y(), centre.z())}});
+  CollisionChecker c(
+      r, root_box_only(r),
+      {{"ball", TriangleMesh::sphere(rad, rings, sectors), translation(centre.x(), centre.y(), centre.z())}});
   const double dist = c.min_distance(Eigen::VectorXd::Zero(r.dof()));
   const double sag = rad * (1 - std::cos(M_PI / rings) * std::cos(M_PI / sectors));  // inscribed mesh vs sphere
   EXPECT_GE(dist, gap - 1e-9);
@@ -246,7 +252,8 @@ TEST(Collision, ArmAgainstWallMatchesVertexExtent) {
     double max_x = -1e9;
     for (const auto& lm : meshes) {
       const Transform& T = ws.link_pose[r.link_index(lm.link)];
-      for (int i = 0; i < lm.mesh.num_vertices(); ++i) max_x = std::max(max_x, T.apply(lm.mesh.vertices.row(i).transpose()).x());
+      for (int i = 0; i < lm.mesh.num_vertices(); ++i)
+        max_x = std::max(max_x, T.apply(lm.mesh.vertices.row(i).transpose()).x());
     }
     const double gap = (trial % 2 == 0) ? 0.004 + 0.002 * trial : -0.01;
     const double face = max_x + gap;

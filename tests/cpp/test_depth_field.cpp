@@ -20,7 +20,9 @@ TEST(DepthField, DistanceTransformIsExact) {
     for (auto& m : mask) m = (rng() % 97) == 0;
     mask[3] = 1;
     const auto d2 = squared_distance_transform(mask, dims);
-    auto at = [&](int i) { return Eigen::Vector3i(i % dims.x(), (i / dims.x()) % dims.y(), i / (dims.x() * dims.y())); };
+    auto at = [&](int i) {
+      return Eigen::Vector3i(i % dims.x(), (i / dims.x()) % dims.y(), i / (dims.x() * dims.y()));
+    };
     for (int i = 0; i < dims.prod(); ++i) {
       double best = 1e30;
       for (int j = 0; j < dims.prod(); ++j)

@@ -44,12 +44,12 @@ enum Grasp { kFree, kUnreachable, kInBlock, kPreGraspInShelf, kBelowTheLift, kSa
 std::vector<Transform> grasps() {
   std::vector<Transform> g(kGrasps);
   g[kFree] = hand_at(0.5, 0, 0.3);
-  g[kUnreachable] = hand_at(3.0, 0, 0.3);          // x is limited to [-1, 1]
-  g[kInBlock] = hand_at(-0.5, 0, 0.3);             // the palm crosses a 6 cm block at z 0.22 .. 0.28
-  g[kPreGraspInShelf] = hand_at(0, 0.5, 0.3);      // 8 cm back, the palm (z 0.15 .. 0.19) enters a shelf at z 0.12 .. 0.16
-  g[kBelowTheLift] = hand_at(0, -0.5, -0.49);      // the lift stops at z = -0.5: no room to back off 2 cm
+  g[kUnreachable] = hand_at(3.0, 0, 0.3);      // x is limited to [-1, 1]
+  g[kInBlock] = hand_at(-0.5, 0, 0.3);         // the palm crosses a 6 cm block at z 0.22 .. 0.28
+  g[kPreGraspInShelf] = hand_at(0, 0.5, 0.3);  // 8 cm back, the palm (z 0.15 .. 0.19) enters a shelf at z 0.12 .. 0.16
+  g[kBelowTheLift] = hand_at(0, -0.5, -0.49);  // the lift stops at z = -0.5: no room to back off 2 cm
   g[kSameAsFree] = g[kFree];
-  g[kTooFar] = hand_at(0.8, 0, 0.3);               // rejected by the approach test below
+  g[kTooFar] = hand_at(0.8, 0, 0.3);  // rejected by the approach test below
   return g;
 }
 

@@ -14,9 +14,9 @@
 
 #include <Eigen/Dense>
 
-#include "pickup_fixtures.hpp"
 #include "pickplan/core/ik.hpp"
 #include "pickplan/core/robot.hpp"
+#include "pickup_fixtures.hpp"
 
 using namespace pickplan::core;
 namespace test = pickplan::test;
@@ -127,7 +127,8 @@ TEST(Ik, PositionTaskMatchesTheTwoLinkClosedForm) {
     const Eigen::VectorXd q_true = random_q(r, rng, 0.2);
     Transform target = link_pose(r, q_true, tip);
     target.R = Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitX()).toRotationMatrix();  // unreachable, ignored
-    const Eigen::VectorXd seed = (q_true + Eigen::Vector2d(0.3, -0.3)).cwiseMax(r.lower_limits()).cwiseMin(r.upper_limits());
+    const Eigen::VectorXd seed =
+        (q_true + Eigen::Vector2d(0.3, -0.3)).cwiseMax(r.lower_limits()).cwiseMin(r.upper_limits());
     const IkSolution sol = solve_ik(r, tip, Transform{}, target, seed, s);
     ASSERT_TRUE(sol.converged) << i;
     const double d = std::hypot(target.p.x(), target.p.y());
@@ -169,7 +170,8 @@ TEST(Ik, OneWeightedStepIsTheDampedLeastSquaresFormula) {
   e.head<3>() = target.p - T0.p;
   e.tail<3>() = rotation_log(target.R * T0.R.transpose());
   const Eigen::VectorXd W = Eigen::Map<const Eigen::VectorXd>(s.weights.data(), r.dof());
-  const Eigen::Matrix<double, 6, 6> A = J * W.asDiagonal() * J.transpose() + s.damping * Eigen::Matrix<double, 6, 6>::Identity();
+  const Eigen::Matrix<double, 6, 6> A =
+      J * W.asDiagonal() * J.transpose() + s.damping * Eigen::Matrix<double, 6, 6>::Identity();
   const Eigen::VectorXd dq = W.asDiagonal() * J.transpose() * A.ldlt().solve(e);
   EXPECT_EQ(sol.iterations, 1);
   EXPECT_LT((sol.q - q0 - dq).cwiseAbs().maxCoeff(), 1e-6);
@@ -282,7 +284,8 @@ TEST(Ik, BadSizesAndSettingsThrowClearly) {
   s.damping = 0.0;
   EXPECT_NE(message_of([&] { solve_ik(*r, tool, {}, target, q, s); }).find("damping must be > 0"), std::string::npos);
   s = DlsSettings{};
-  EXPECT_NE(message_of([&] { solve_ik(*r, r->num_links(), {}, target, q, s); }).find("out of range"), std::string::npos);
+  EXPECT_NE(message_of([&] { solve_ik(*r, r->num_links(), {}, target, q, s); }).find("out of range"),
+            std::string::npos);
   Eigen::VectorXd nan_seed = q;
   nan_seed[2] = std::nan("");
   EXPECT_NE(message_of([&] { solve_ik(*r, tool, {}, target, nan_seed, s); }).find("IK seed"), std::string::npos);

@@ -24,9 +24,9 @@ constexpr double kHalfCube = 0.03;
 struct IsfCase {
   std::shared_ptr<const Robot> robot = test::floating_hand();
   int hand = robot->link_index("hand");
-  Vertices contacts, normals;             // finger pads at x = +-3 cm, normals pointing inward
+  Vertices contacts, normals;  // finger pads at x = +-3 cm, normals pointing inward
   std::shared_ptr<SceneSdf> hand_sdf = std::make_shared<SceneSdf>();
-  Vertices cube_points, cube_normals;     // the cube's surface, 1 cm apart, outward normals
+  Vertices cube_points, cube_normals;  // the cube's surface, 1 cm apart, outward normals
   std::shared_ptr<SceneSdf> scene = std::make_shared<SceneSdf>();
   BodyPoints body;
 
@@ -137,7 +137,7 @@ TEST(Isf, PenetratingPalmIsPushedOut) {
   EXPECT_GE(c.palm_penetration(out), -0.002);  // out, up to the SDF grid's resolution
   EXPECT_LT(after.total, before.total);
   EXPECT_LT(after.hand, 0.1 * before.hand);
-  EXPECT_LT(out[2], 0.0);                       // by moving away from the cube (down), not through it
+  EXPECT_LT(out[2], 0.0);                                // by moving away from the cube (down), not through it
   EXPECT_LT(std::abs(out[0]) + std::abs(out[1]), 1e-3);  // the fit keeps the fingers on the faces
 }
 

@@ -50,7 +50,9 @@ Trajectory line(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return xi;
 }
 
-double chomp_c(double d, double eps) { return d < 0 ? -d + eps / 2 : (d < eps ? 0.5 * (d - eps) * (d - eps) / eps : 0.0); }
+double chomp_c(double d, double eps) {
+  return d < 0 ? -d + eps / 2 : (d < eps ? 0.5 * (d - eps) * (d - eps) / eps : 0.0);
+}
 
 void add_table(SceneSdf& scene) {  // top face at z = 0
   Transform pose;
@@ -201,8 +203,8 @@ TEST(Metrics, CullingAndCutoffsEqualMeasuringEveryPoint) {
   Faces F;
   test::box_mesh(Eigen::Vector3d(0.1, 0.1, 0.3), V, F);
   const auto grid = std::make_shared<SdfGrid>(SdfGrid::build(V, F, {0.01, 0.2}));
-  for (const Eigen::Vector3d& at : {Eigen::Vector3d(0.9, 0.3, 0.15), Eigen::Vector3d(-0.2, 0.8, 0.15),
-                                    Eigen::Vector3d(0.5, -0.6, 0.15)}) {
+  for (const Eigen::Vector3d& at :
+       {Eigen::Vector3d(0.9, 0.3, 0.15), Eigen::Vector3d(-0.2, 0.8, 0.15), Eigen::Vector3d(0.5, -0.6, 0.15)}) {
     Transform pose;
     pose.p = at;
     scene->add_object(grid, pose);
@@ -245,7 +247,8 @@ TEST(Metrics, CullingAndCutoffsEqualMeasuringEveryPoint) {
     RobotWorkspace ws(*robot);
     double min_obj = cap, min_table = cap, collision = 0;
     bool free = true;
-    const double tail_start = s.tail_waypoints > 0 ? double(kWaypoints - s.tail_waypoints) / kWaypoints * (s.steps - 1) : s.steps;
+    const double tail_start =
+        s.tail_waypoints > 0 ? double(kWaypoints - s.tail_waypoints) / kWaypoints * (s.steps - 1) : s.steps;
     for (int t = 0; t < dense.rows(); ++t) {
       robot->forward_kinematics(dense.row(t).data(), ws);
       for (int k = 0; k < body.size(); ++k) {

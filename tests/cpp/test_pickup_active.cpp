@@ -7,10 +7,10 @@
 
 #include <gtest/gtest.h>
 
-#include "pickup_fixtures.hpp"
+#include "pickplan/core/robot.hpp"
 #include "pickplan/pickup/cases.hpp"
 #include "pickplan/pickup/nlp.hpp"
-#include "pickplan/core/robot.hpp"
+#include "pickup_fixtures.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::pickup;
@@ -21,8 +21,8 @@ namespace {
 Robot load() { return test::load_mobile_ur5(); }
 PickupSettings fast_settings() { return test::fast_pickup_settings(); }
 
-Eigen::VectorXd perturbed_seed(const Robot& r, const PickupProblem& pb, const PickupSettings& st, const PickupConstraints& c,
-                               unsigned seed) {
+Eigen::VectorXd perturbed_seed(const Robot& r, const PickupProblem& pb, const PickupSettings& st,
+                               const PickupConstraints& c, unsigned seed) {
   Eigen::VectorXd x = heuristic_seed(r, pb, st);
   std::mt19937 rng(seed);
   std::normal_distribution<double> nz(0.0, 0.05);
@@ -54,7 +54,10 @@ TEST(PickupActiveSet, SubsetRowsHaveExactDerivatives) {
   PickupProblem pb = paper_case(r, 5, example_rho());
   PickupSettings st = fast_settings();
   PickupRowSubset sub;
-  sub.joints = {{1, 0, {0, 0, 0}}, {5, 2, {0, 0, 0}}, {12, 5, {0, 0, 0}}, {17, 1, {0, 0, 0}},
+  sub.joints = {{1, 0, {0, 0, 0}},
+                {5, 2, {0, 0, 0}},
+                {12, 5, {0, 0, 0}},
+                {17, 1, {0, 0, 0}},
                 {-1, 2, {0.3, 0.7, 0.0}}};  // the elbow between two grasping samples
   sub.collisions.push_back({3, {0, 0, 0}, 4});
   sub.collisions.push_back({-1, {0.55, 0.0, 0.0}, 7});    // inside [0, T1)
@@ -156,8 +159,8 @@ TEST(PickupActiveSet, DenseCheckFindsCollisionsBetweenSamples) {
   // Stages before 5 carry only the base's collision rows; the dense check follows the stage.
   PickupConstraints s1(r, pb, st, 1);
   for (const auto& p : s1.dense_points(x, 16, 1.0, 0.0).collisions) EXPECT_TRUE(s1.pair_in_stage(p.pair));
-  EXPECT_TRUE(s1.pair_in_stage(pair));        // base sphere: a base path constraint
-  EXPECT_FALSE(s1.pair_in_stage(no * 4));     // flange sphere: stage 5 only
+  EXPECT_TRUE(s1.pair_in_stage(pair));     // base sphere: a base path constraint
+  EXPECT_FALSE(s1.pair_in_stage(no * 4));  // flange sphere: stage 5 only
   EXPECT_TRUE(c.pair_in_stage(no * 4));
 }
 
@@ -186,9 +189,10 @@ TEST(PickupActiveSet, DenseCheckFindsLateralMotionBetweenSamples) {
     EXPECT_NEAR(qs[1], 0.0, 1e-9);
   }
   c.traj().eval(x.data(), 0.5 * (a + b) - 0.25 * (b - a), q.data(), qs.data(), nullptr);
-  const double nh_bound = st.nonholonomic_tol * ((pb.part_xy - pb.start.head<2>()).norm() + (pb.goal.head<2>() - pb.part_xy).norm());
+  const double nh_bound =
+      st.nonholonomic_tol * ((pb.part_xy - pb.start.head<2>()).norm() + (pb.goal.head<2>() - pb.part_xy).norm());
   ASSERT_GT(std::abs(qs[1]) / x[c.idx_T()], 4 * st.dense_nonholonomic);  // m/s: the slide is well above the threshold
-  ASSERT_GT(std::abs(qs[1]), 4 * nh_bound);                               // and the rows' bound
+  ASSERT_GT(std::abs(qs[1]), 4 * nh_bound);                              // and the rows' bound
   const PickupRowSubset pts = c.dense_points(x, 16, -1.0, 1e9);
   bool inside = false;
   for (const auto& n : pts.nonholonomic) {
@@ -222,8 +226,7 @@ TEST(PickupActiveSet, SuccessProbabilityBoundsGripperSpeed) {
   for (double sg = cap + 1e-3; sg <= rho.sg_hi; sg += 0.01)
     for (double sc = rho.sc_lo; sc <= rho.sc_hi; sc += 0.005) EXPECT_LT(rho.value(sg, sc), 0.96);
   bool some_feasible = false;  // the bound is tight: just below it some S_c reaches gamma
-  for (double sc = rho.sc_lo; sc <= rho.sc_hi + 1e-12; sc += 0.005)
-    some_feasible |= rho.value(cap - 1e-6, sc) >= 0.96;
+  for (double sc = rho.sc_lo; sc <= rho.sc_hi + 1e-12; sc += 0.005) some_feasible |= rho.value(cap - 1e-6, sc) >= 0.96;
   EXPECT_TRUE(some_feasible);
   EXPECT_TRUE(std::isnan(rho.sg_upper_bound(1.5, rho.sc_lo, rho.sc_hi)));
   Robot r = load();

@@ -8,11 +8,11 @@
 #include <gtest/gtest.h>
 
 #include "arm_fixtures.hpp"
-#include "pickup_fixtures.hpp"
+#include "pickplan/core/robot.hpp"
 #include "pickplan/pickup/cases.hpp"
 #include "pickplan/pickup/nlp.hpp"
 #include "pickplan/pickup/poly_traj.hpp"
-#include "pickplan/core/robot.hpp"
+#include "pickup_fixtures.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::pickup;
@@ -254,7 +254,8 @@ TEST(PickupNlp, SizeChecksNameTheProblem) {
   res.traj = PolyTraj(std::vector<int>(8, 3), 1.0);  // 8 DOFs for a 9-DOF robot
   res.x.resize(res.traj.num_coeffs() + 5);
   res.x.setZero();
-  expect_invalid_argument([&] { evaluate_pickup(r, pb, res); }, "result trajectory: expected 9 DOFs (the robot's), got 8");
+  expect_invalid_argument([&] { evaluate_pickup(r, pb, res); },
+                          "result trajectory: expected 9 DOFs (the robot's), got 8");
   pb.arm_start.resize(5);
   expect_invalid_argument([&] { PickupConstraints(r, pb, st, 1); }, "arm_start: expected 6 joint values, got 5");
 }

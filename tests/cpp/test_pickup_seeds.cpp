@@ -5,10 +5,10 @@
 
 #include <gtest/gtest.h>
 
-#include "pickup_fixtures.hpp"
+#include "pickplan/core/robot.hpp"
 #include "pickplan/pickup/cases.hpp"
 #include "pickplan/pickup/nlp.hpp"
-#include "pickplan/core/robot.hpp"
+#include "pickup_fixtures.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::pickup;

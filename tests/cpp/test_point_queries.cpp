@@ -38,7 +38,8 @@ TEST(RadiusPairs, EqualBruteForceInQueryOrderAscending) {
       std::vector<long> ei, ej;
       for (long i : queries)
         for (long j = 0; j < P.rows(); ++j)
-          if ((!masked || keep[j]) && (P.row(j) - P.row(i)).squaredNorm() <= radius * radius) ei.push_back(i), ej.push_back(j);
+          if ((!masked || keep[j]) && (P.row(j) - P.row(i)).squaredNorm() <= radius * radius)
+            ei.push_back(i), ej.push_back(j);
       EXPECT_EQ(got.i, ei) << "radius " << radius;
       EXPECT_EQ(got.j, ej) << "radius " << radius;
     }

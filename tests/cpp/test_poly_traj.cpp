@@ -134,8 +134,9 @@ TEST(PolyTraj, BadInputThrowsNamingTheProblem) {
   expect_invalid_argument([] { PolyTraj({3}, NAN); }, "time_scale must be positive");
   PolyTraj p({2, 3}, 1.0);
   Eigen::MatrixXd Q;
-  expect_invalid_argument([&] { p.eval_many(Eigen::VectorXd::Zero(6), Eigen::VectorXd::Zero(2), &Q, nullptr, nullptr); },
-                          "expected 7 coefficients, got 6");
+  expect_invalid_argument(
+      [&] { p.eval_many(Eigen::VectorXd::Zero(6), Eigen::VectorXd::Zero(2), &Q, nullptr, nullptr); },
+      "expected 7 coefficients, got 6");
   double c[7];
   const Eigen::VectorXd t3 = Eigen::VectorXd::LinSpaced(3, 0, 1), t4 = Eigen::VectorXd::LinSpaced(4, 0, 1);
   expect_invalid_argument([&] { p.fit_dof(0, t3, t4, c); }, "values: expected 3 values, got 4");

@@ -39,23 +39,23 @@ void expect_gradient_matches_differences(const Primitive& prim, const Eigen::Vec
 }  // namespace
 
 TEST(Primitives, BoxDistancesMatchHandComputedValues) {
-  const Primitive box = Primitive::box({0.4, 0.2, 0.1});  // half extents 0.2, 0.1, 0.05
-  EXPECT_NEAR(box.signed_distance({0.5, 0.0, 0.0}), 0.3, 1e-15);                             // off a face
-  EXPECT_NEAR(box.signed_distance({0.3, 0.2, 0.0}), std::hypot(0.1, 0.1), 1e-15);            // off an edge
+  const Primitive box = Primitive::box({0.4, 0.2, 0.1});                           // half extents 0.2, 0.1, 0.05
+  EXPECT_NEAR(box.signed_distance({0.5, 0.0, 0.0}), 0.3, 1e-15);                   // off a face
+  EXPECT_NEAR(box.signed_distance({0.3, 0.2, 0.0}), std::hypot(0.1, 0.1), 1e-15);  // off an edge
   EXPECT_NEAR(box.signed_distance({-0.23, 0.14, -0.1}), std::sqrt(0.03 * 0.03 + 0.04 * 0.04 + 0.05 * 0.05), 1e-15);
-  EXPECT_NEAR(box.signed_distance({0.0, 0.0, 0.0}), -0.05, 1e-15);                           // nearest face: z
-  EXPECT_NEAR(box.signed_distance({0.15, 0.02, 0.0}), -0.05, 1e-15);                         // x and z tie
+  EXPECT_NEAR(box.signed_distance({0.0, 0.0, 0.0}), -0.05, 1e-15);    // nearest face: z
+  EXPECT_NEAR(box.signed_distance({0.15, 0.02, 0.0}), -0.05, 1e-15);  // x and z tie
   EXPECT_NEAR(box.signed_distance({0.19, 0.0, 0.01}), -0.01, 1e-15);
 }
 
 TEST(Primitives, CylinderDistancesMatchHandComputedValues) {
-  const Primitive cyl = Primitive::cylinder(0.03, 0.14);  // MoveIt's can: radius 3 cm, 14 cm tall
-  EXPECT_NEAR(cyl.signed_distance({0.05, 0.0, 0.0}), 0.02, 1e-15);                  // radial
-  EXPECT_NEAR(cyl.signed_distance({0.03, 0.04, 0.01}), 0.02, 1e-15);                // radial, off-axis direction
-  EXPECT_NEAR(cyl.signed_distance({0.0, 0.01, 0.1}), 0.03, 1e-15);                  // above the cap
+  const Primitive cyl = Primitive::cylinder(0.03, 0.14);              // MoveIt's can: radius 3 cm, 14 cm tall
+  EXPECT_NEAR(cyl.signed_distance({0.05, 0.0, 0.0}), 0.02, 1e-15);    // radial
+  EXPECT_NEAR(cyl.signed_distance({0.03, 0.04, 0.01}), 0.02, 1e-15);  // radial, off-axis direction
+  EXPECT_NEAR(cyl.signed_distance({0.0, 0.01, 0.1}), 0.03, 1e-15);    // above the cap
   EXPECT_NEAR(cyl.signed_distance({0.06, 0.0, -0.11}), std::hypot(0.03, 0.04), 1e-15);  // off the rim
-  EXPECT_NEAR(cyl.signed_distance({0.0, 0.0, 0.0}), -0.03, 1e-15);                  // the wall is nearest
-  EXPECT_NEAR(cyl.signed_distance({0.0, 0.0, 0.065}), -0.005, 1e-15);               // the cap is nearest
+  EXPECT_NEAR(cyl.signed_distance({0.0, 0.0, 0.0}), -0.03, 1e-15);                      // the wall is nearest
+  EXPECT_NEAR(cyl.signed_distance({0.0, 0.0, 0.065}), -0.005, 1e-15);                   // the cap is nearest
   const Primitive sphere = Primitive::sphere(0.1);
   EXPECT_NEAR(sphere.signed_distance({0.1, 0.2, 0.2}), 0.2, 1e-15);
   EXPECT_NEAR(sphere.signed_distance({0.0, 0.03, 0.04}), -0.05, 1e-15);
@@ -64,7 +64,8 @@ TEST(Primitives, CylinderDistancesMatchHandComputedValues) {
 TEST(Primitives, GradientsAreUnitAndMatchFiniteDifferences) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-0.3, 0.3);
-  for (const Primitive& prim : {Primitive::box({0.4, 0.2, 0.1}), Primitive::cylinder(0.05, 0.2), Primitive::sphere(0.08)}) {
+  for (const Primitive& prim :
+       {Primitive::box({0.4, 0.2, 0.1}), Primitive::cylinder(0.05, 0.2), Primitive::sphere(0.08)}) {
     for (int i = 0; i < 200; ++i) {
       const Eigen::Vector3d p(u(rng), u(rng), u(rng));
       Eigen::Vector3d g;
@@ -97,8 +98,8 @@ TEST(Primitives, SceneSdfAnswersInClosedFormAndMergedWithinResolution) {
   std::vector<Eigen::Vector3d> points;
   for (int i = 0; i < 500; ++i) points.emplace_back(ux(rng), uy(rng), uz(rng));
   for (const auto& x : points) {
-    const double expected = std::min({cutoff, board.signed_distance(T_board.inverse().apply(x)),
-                                      can.signed_distance(T_can.inverse().apply(x))});
+    const double expected = std::min(
+        {cutoff, board.signed_distance(T_board.inverse().apply(x)), can.signed_distance(T_can.inverse().apply(x))});
     Eigen::Vector3d g;
     EXPECT_NEAR(scene.distance(x, &g, cutoff), expected, 1e-12);
   }
@@ -116,15 +117,18 @@ TEST(Primitives, CheckerTakesSolidPrimitives) {
   std::vector<LinkMesh> root{{"l0", link_collision_mesh(r, r.link_index("l0"))}};
   const Eigen::VectorXd q = Eigen::VectorXd::Zero(r.dof());
   auto make = [&](const Primitive& p, const Transform& T) {
-    std::vector<SceneObject> objs{{"obstacle", TriangleMesh{}, T, std::make_shared<const CollisionShape>(p, "obstacle")}};
+    std::vector<SceneObject> objs{
+        {"obstacle", TriangleMesh{}, T, std::make_shared<const CollisionShape>(p, "obstacle")}};
     return CollisionChecker(r, root, objs);
   };
   // A cylinder standing 3 cm off the box's +x face: its exact distance (no tessellation).
-  EXPECT_NEAR(make(Primitive::cylinder(0.05, 0.3), posed(0, {0, 0, 1}, {0.1 + 0.03 + 0.05, 0, 0})).min_distance(q), 0.03, 1e-6);
+  EXPECT_NEAR(make(Primitive::cylinder(0.05, 0.3), posed(0, {0, 0, 1}, {0.1 + 0.03 + 0.05, 0, 0})).min_distance(q),
+              0.03, 1e-6);
   // A sphere off the corner (0.1, 0.1, 0.05).
   const Eigen::Vector3d dir = Eigen::Vector3d(1, 2, 2).normalized();
-  EXPECT_NEAR(make(Primitive::sphere(0.04), posed(0, {0, 0, 1}, Eigen::Vector3d(0.1, 0.1, 0.05) + 0.065 * dir)).min_distance(q),
-              0.025, 1e-6);
+  EXPECT_NEAR(
+      make(Primitive::sphere(0.04), posed(0, {0, 0, 1}, Eigen::Vector3d(0.1, 0.1, 0.05) + 0.065 * dir)).min_distance(q),
+      0.025, 1e-6);
   // A board 1 cm into the box from above: a penetration depth, as against the table.
   CollisionChecker hit = make(Primitive::box({1, 1, 0.02}), posed(0, {0, 0, 1}, {0, 0, 0.05 + 0.01 - 0.01}));
   EXPECT_TRUE(hit.in_collision(q));

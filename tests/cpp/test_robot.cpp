@@ -82,7 +82,8 @@ TEST(Robot, JacobiansMatchCentralFiniteDifferences) {
         r.forward_kinematics(qm.data(), wm);
         Eigen::Vector3d dx = (wp.link_pose[l].apply(p) - wm.link_pose[l].apply(p)) / (2 * h);
         Eigen::Vector3d dw = (rotation_log(wp.link_pose[l].R * ws.link_pose[l].R.transpose()) -
-                              rotation_log(wm.link_pose[l].R * ws.link_pose[l].R.transpose())) / (2 * h);
+                              rotation_log(wm.link_pose[l].R * ws.link_pose[l].R.transpose())) /
+                             (2 * h);
         EXPECT_NEAR((J.block<3, 1>(0, k) - dx).norm(), 0.0, 1e-8) << "link " << l << " q " << k;
         EXPECT_NEAR((J.block<3, 1>(3, k) - dw).norm(), 0.0, 1e-8) << "link " << l << " q " << k;
         if (!r.moves(k, l)) EXPECT_EQ(J.col(k).norm(), 0.0);
@@ -117,7 +118,8 @@ TEST(Robot, CollisionPrimitivesAreRead) {
 
 TEST(Robot, BadInputThrowsClearErrors) {
   EXPECT_THROW(Robot::from_urdf_file(kData + "/does_not_exist.urdf"), FileNotFound);
-  EXPECT_THROW(Robot::from_urdf_string("<robot name='x'><link name='a'/><joint name='j'", ".", {}), std::invalid_argument);
+  EXPECT_THROW(Robot::from_urdf_string("<robot name='x'><link name='a'/><joint name='j'", ".", {}),
+               std::invalid_argument);
   EXPECT_THROW(Robot::from_urdf_string(
                    "<robot name='x'><link name='a'><collision><geometry><mesh filename='ghost.stl'/></geometry>"
                    "</collision></link></robot>",

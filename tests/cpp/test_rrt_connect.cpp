@@ -27,8 +27,10 @@ SceneObject solid(const std::string& name, const Eigen::Vector3d& size, const Ei
 
 // A wall in the plane x = 0 (2 cm thick) with a 24 cm square hole at y in [-0.12, 0.12], z in [0.18, 0.42].
 std::vector<SceneObject> wall_with_hole() {
-  return {solid("below", {0.02, 2.0, 0.68}, {0, 0, 0.18 - 0.34}), solid("above", {0.02, 2.0, 0.58}, {0, 0, 0.42 + 0.29}),
-          solid("left", {0.02, 0.88, 0.24}, {0, 0.12 + 0.44, 0.3}), solid("right", {0.02, 0.88, 0.24}, {0, -0.12 - 0.44, 0.3})};
+  return {solid("below", {0.02, 2.0, 0.68}, {0, 0, 0.18 - 0.34}),
+          solid("above", {0.02, 2.0, 0.58}, {0, 0, 0.42 + 0.29}),
+          solid("left", {0.02, 0.88, 0.24}, {0, 0.12 + 0.44, 0.3}),
+          solid("right", {0.02, 0.88, 0.24}, {0, -0.12 - 0.44, 0.3})};
 }
 
 CollisionChecker hand_checker(const Robot& r, std::vector<SceneObject> objects) {
@@ -171,7 +173,8 @@ TEST(MotionCheck, CertifiedCheckCatchesAGrazeSamplingMisses) {
 TEST(MotionCheck, CertifiedProofsHoldForEveryPieceAndMeetAWallMidwayFast) {
   auto r = floating_hand();
   // Two boxes 2 cm apart leave a slot the hand slides along at a few millimetres' clearance.
-  CollisionChecker c = hand_checker(*r, {solid("left", {1.0, 0.2, 1.0}, {0, 0.2, 0}), solid("board", {0.001, 2.0, 2.0}, {0.9, 0, 0})});
+  CollisionChecker c =
+      hand_checker(*r, {solid("left", {1.0, 0.2, 1.0}, {0, 0.2, 0}), solid("board", {0.001, 2.0, 2.0}, {0.9, 0, 0})});
   MotionPlanner planner(c);
   CollisionWorkspace ws(c);
   const Eigen::VectorXd a = hand_at(-0.4, 0.0, 0.2), b = hand_at(0.4, 0.0, 0.25);

@@ -100,7 +100,8 @@ TEST(MergedSdf, GradientIsTheInterpolantDerivative) {
       Eigen::Vector3d e = Eigen::Vector3d::Zero();
       e[a] = h;
       const double fd = (scene.distance(x + e, nullptr, 0.2, SceneSdf::kTableBit) -
-                         scene.distance(x - e, nullptr, 0.2, SceneSdf::kTableBit)) / (2 * h);
+                         scene.distance(x - e, nullptr, 0.2, SceneSdf::kTableBit)) /
+                        (2 * h);
       EXPECT_NEAR(g[a], fd, 1e-5);
       ++checked;
     }
@@ -151,7 +152,8 @@ TEST(MergedSdf, OneGridPerMaskEachEqualToMergingThatMaskAlone) {
     EXPECT_EQ(g_both, g_one);
     for (int i = 0; i < 4000; ++i) {  // and each within the resampling error of the per-object grids
       const Eigen::Map<const Eigen::Vector3d> x(X.data() + 3 * i);
-      EXPECT_NEAR(d_both[i], reference.distance(x, nullptr, 0.2, mask), MergedSdfSettings{}.resolution * std::sqrt(3.0) / 2);
+      EXPECT_NEAR(d_both[i], reference.distance(x, nullptr, 0.2, mask),
+                  MergedSdfSettings{}.resolution * std::sqrt(3.0) / 2);
       EXPECT_EQ(both.lower_bound(x, mask), one->lower_bound(x, mask));
     }
   }
@@ -207,7 +209,8 @@ TEST(MergedSdf, LazyBricksFilledByRacingThreadsEqualOneThread) {
   std::vector<std::vector<double>> got(threads, std::vector<double>(n)), got_grad(threads, std::vector<double>(3 * n));
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t)
-    pool.emplace_back([&, t] { racing.distances(points.data(), n, got[t].data(), got_grad[t].data(), 0.2, 0, true, true); });
+    pool.emplace_back(
+        [&, t] { racing.distances(points.data(), n, got[t].data(), got_grad[t].data(), 0.2, 0, true, true); });
   for (auto& th : pool) th.join();
   for (int t = 0; t < threads; ++t) {
     EXPECT_EQ(got[t], expected);

@@ -8,9 +8,9 @@
 #include <gtest/gtest.h>
 
 #include "arm_fixtures.hpp"
-#include "pickup_fixtures.hpp"
 #include "pickplan/pickup/cases.hpp"
 #include "pickplan/pickup/stomp.hpp"
+#include "pickup_fixtures.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::pickup;
@@ -26,7 +26,8 @@ struct StompCase {
   std::vector<BodySphere> spheres;
   StompCase() {
     const int upper = robot->link_index("upper"), fore = robot->link_index("fore");
-    spheres = {{upper, Eigen::Vector3d(0.25, 0, 0), 0.05}, {fore, Eigen::Vector3d(0.2, 0, 0), 0.05},
+    spheres = {{upper, Eigen::Vector3d(0.25, 0, 0), 0.05},
+               {fore, Eigen::Vector3d(0.2, 0, 0), 0.05},
                {fore, Eigen::Vector3d(0.4, 0, 0), 0.04}};
   }
   // N waypoints: base still at the origin, the arm joints from a to b plus a fixed wiggle.

@@ -71,8 +71,8 @@ void check_problem(const Robot& r, const Transform& target, const Eigen::VectorX
 }
 
 // The descent of solve_ik, its arguments already checked.
-IkSolution descend(const Robot& r, int link, const Transform& tip, const Transform& target,
-                   const Eigen::VectorXd& seed, const DlsSettings& s) {
+IkSolution descend(const Robot& r, int link, const Transform& tip, const Transform& target, const Eigen::VectorXd& seed,
+                   const DlsSettings& s) {
   const int d = r.dof();
   const bool pose = s.task == IkTask::pose;
   const Eigen::VectorXd w = joint_weights(s, d);
@@ -97,7 +97,8 @@ IkSolution descend(const Robot& r, int link, const Transform& tip, const Transfo
     e.tail<3>() = 0.5 * (T.R.col(0).cross(target.R.col(0)) + T.R.col(1).cross(target.R.col(1)) +
                          T.R.col(2).cross(target.R.col(2)));
     const double sine = e.tail<3>().norm(), cosine = 0.5 * ((T.R.transpose() * target.R).trace() - 1.0);
-    if (sine < kVanishingSine && cosine < 0) e.tail<3>() = rotation_log(target.R * T.R.transpose());  // half a turn away
+    if (sine < kVanishingSine && cosine < 0)
+      e.tail<3>() = rotation_log(target.R * T.R.transpose());  // half a turn away
     return std::atan2(sine, cosine);
   };
   auto cost = [&](const Vector6& e) { return pose ? e.squaredNorm() : e.head<3>().squaredNorm(); };

@@ -1,15 +1,15 @@
 #include "pickplan/core/robot.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <cctype>
-#include <cmath>
 #include <sstream>
 
-#include <Eigen/SVD>
 #include <urdf_parser/urdf_parser.h>
+#include <Eigen/SVD>
 
 #include "pickplan/core/errors.hpp"
 
@@ -147,7 +147,8 @@ void require_finite_pose(const std::string& source, const std::string& what, con
   pose.rotation.getQuaternion(x, y, z, w);
   const double v[7] = {pose.position.x, pose.position.y, pose.position.z, x, y, z, w};
   for (double e : v)
-    if (!std::isfinite(e)) throw std::invalid_argument("URDF '" + source + "': " + what + ": origin has NaN or infinity");
+    if (!std::isfinite(e))
+      throw std::invalid_argument("URDF '" + source + "': " + what + ": origin has NaN or infinity");
 }
 
 // The urdfdom model of a URDF document, its nesting checked first (the parser recurses per level).
@@ -175,10 +176,18 @@ void read_joint(const urdf::Joint& j, const std::string& source, Link& link) {
   require_finite_pose(source, "joint '" + j.name + "'", j.parent_to_joint_origin_transform);
   link.joint_origin = to_transform(j.parent_to_joint_origin_transform);
   switch (j.type) {
-    case urdf::Joint::FIXED: link.joint_type = JointType::Fixed; break;
-    case urdf::Joint::REVOLUTE: link.joint_type = JointType::Revolute; break;
-    case urdf::Joint::CONTINUOUS: link.joint_type = JointType::Continuous; break;
-    case urdf::Joint::PRISMATIC: link.joint_type = JointType::Prismatic; break;
+    case urdf::Joint::FIXED:
+      link.joint_type = JointType::Fixed;
+      break;
+    case urdf::Joint::REVOLUTE:
+      link.joint_type = JointType::Revolute;
+      break;
+    case urdf::Joint::CONTINUOUS:
+      link.joint_type = JointType::Continuous;
+      break;
+    case urdf::Joint::PRISMATIC:
+      link.joint_type = JointType::Prismatic;
+      break;
     default:
       throw std::invalid_argument("URDF '" + source + "': joint '" + j.name +
                                   "' has an unsupported type (floating/planar); model planar bases as "
@@ -192,7 +201,8 @@ void read_joint(const urdf::Joint& j, const std::string& source, Link& link) {
   link.axis_is_z = (link.axis - Eigen::Vector3d::UnitZ()).norm() < 1e-15;
   if (j.mimic) {
     if (!std::isfinite(j.mimic->multiplier) || !std::isfinite(j.mimic->offset))
-      throw std::invalid_argument("URDF '" + source + "': joint '" + j.name + "': mimic multiplier and offset must be finite");
+      throw std::invalid_argument("URDF '" + source + "': joint '" + j.name +
+                                  "': mimic multiplier and offset must be finite");
     link.mimic.multiplier = j.mimic->multiplier;
     link.mimic.offset = j.mimic->offset;
     link.mimic.source_q = -2;  // resolved once every joint has an index
@@ -334,7 +344,8 @@ Robot Robot::from_urdf_string(const std::string& xml, const std::string& base_di
       }
     }
     for (const auto& col : ulink->collision_array)
-      if (col && col->geometry) link.collisions.push_back(read_collision(*col, ulink->name, base_dir, package_dirs, source));
+      if (col && col->geometry)
+        link.collisions.push_back(read_collision(*col, ulink->name, base_dir, package_dirs, source));
     const int index = static_cast<int>(robot.links_.size());
     robot.links_.push_back(std::move(link));
     std::vector<urdf::LinkConstSharedPtr> children(ulink->child_links.begin(), ulink->child_links.end());
@@ -470,8 +481,8 @@ void Robot::add_wrench_jacobian_transpose(const RobotWorkspace& ws, int link, co
     if (L.q_index < 0) continue;
     const Eigen::Vector3d& a = ws.axis_world[k];
     // sum_i (a x (x_i - p)) . f_i = a . sum_i (x_i - p) x f_i = a . (M - p x F)
-    out[L.q_index] += L.joint_type == JointType::Prismatic ? a.dot(force)
-                                                          : a.dot(moment - ws.link_pose[k].p.cross(force));
+    out[L.q_index] +=
+        L.joint_type == JointType::Prismatic ? a.dot(force) : a.dot(moment - ws.link_pose[k].p.cross(force));
   }
 }
 

@@ -6,12 +6,12 @@
 #include <set>
 #include <stdexcept>
 
-#include <Eigen/Geometry>
 #include <fcl/fcl.h>
+#include <Eigen/Geometry>
 
+#include "collision_detail.hpp"
 #include "pickplan/core/errors.hpp"
 #include "pickplan/geometry/sdf.hpp"
-#include "collision_detail.hpp"
 
 namespace pickplan::geometry {
 namespace {
@@ -40,8 +40,8 @@ struct CollisionChecker::Impl {
     int link;
     std::shared_ptr<const CollisionShape> shape;
     const fcl::CollisionGeometryd* bvh;  // shape's
-    Eigen::AlignedBox3d box;   // link frame
-    Eigen::Vector3d center;    // bounding sphere, link frame
+    Eigen::AlignedBox3d box;             // link frame
+    Eigen::Vector3d center;              // bounding sphere, link frame
     double radius;
     const TriangleMesh& mesh() const { return shape->mesh(); }
   };
@@ -134,8 +134,9 @@ void add_table_geometry(const TableBox& table, CollisionChecker::Impl& impl) {
   impl.table_inv = table.pose.inverse();
   impl.table_half = 0.5 * table.size;
   for (int c = 0; c < 8; ++c)
-    impl.table_world_box.extend(table.pose.apply(
-        0.5 * Eigen::Vector3d((c & 1 ? 1 : -1) * table.size.x(), (c & 2 ? 1 : -1) * table.size.y(), (c & 4 ? 1 : -1) * table.size.z())));
+    impl.table_world_box.extend(
+        table.pose.apply(0.5 * Eigen::Vector3d((c & 1 ? 1 : -1) * table.size.x(), (c & 2 ? 1 : -1) * table.size.y(),
+                                               (c & 4 ? 1 : -1) * table.size.z())));
 }
 
 }  // namespace
@@ -151,7 +152,8 @@ CollisionChecker::CollisionChecker(const core::Robot& robot, std::vector<LinkMes
   choose_pairs(names, geom_of_link);
 }
 
-void CollisionChecker::choose_pairs(const std::vector<std::string>& object_names, const std::vector<int>& geom_of_link) {
+void CollisionChecker::choose_pairs(const std::vector<std::string>& object_names,
+                                    const std::vector<int>& geom_of_link) {
   const std::set<std::string> names(object_names.begin(), object_names.end());
   // Exclusions and allowed pairs, by name.
   std::set<std::string> excluded;
@@ -212,9 +214,12 @@ std::vector<std::pair<std::string, std::string>> CollisionChecker::checked_pairs
   std::vector<std::pair<std::string, std::string>> out;
   for (const auto& p : pairs_) {
     const std::string a = robot_.link(impl_->links[p.link_geom].link).name;
-    if (p.kind == OtherKind::Table) out.emplace_back(a, kTable);
-    else if (p.kind == OtherKind::Object) out.emplace_back(a, impl_->objects[p.other].name);
-    else out.emplace_back(a, robot_.link(impl_->links[p.other].link).name);
+    if (p.kind == OtherKind::Table)
+      out.emplace_back(a, kTable);
+    else if (p.kind == OtherKind::Object)
+      out.emplace_back(a, impl_->objects[p.other].name);
+    else
+      out.emplace_back(a, robot_.link(impl_->links[p.other].link).name);
   }
   return out;
 }
@@ -312,8 +317,9 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
   const fcl::Transform3d tf_link = to_fcl(Tl);
   const fcl::CollisionGeometryd* other = impl_->other_geom(p.kind, p.other);
   const fcl::Transform3d tf_other = p.kind == OtherKind::Object ? impl_->objects[p.other].tf
-                                    : p.kind == OtherKind::Table ? impl_->table_tf
-                                                                 : to_fcl(ws.robot.link_pose[impl_->links[p.other].link]);
+                                    : p.kind == OtherKind::Table
+                                        ? impl_->table_tf
+                                        : to_fcl(ws.robot.link_pose[impl_->links[p.other].link]);
   fcl::DistanceRequestd dreq(want_points);
   fcl::DistanceResultd dres;
   fcl::distance(lg.bvh, tf_link, other, tf_other, dreq, dres);
@@ -367,7 +373,7 @@ double CollisionChecker::pair_distance(const Pair& p, const CollisionWorkspace& 
   if (info) {
     info->link = robot_.link(lg.link).name;
     info->kind = p.kind;
-    info->other = p.kind == OtherKind::Object ? impl_->objects[p.other].name
+    info->other = p.kind == OtherKind::Object  ? impl_->objects[p.other].name
                   : p.kind == OtherKind::Table ? std::string(kTable)
                                                : robot_.link(impl_->links[p.other].link).name;
     info->distance = d;

@@ -3,8 +3,8 @@
 // CollisionShape, and the bounds both need.
 #include <memory>
 
-#include <Eigen/Geometry>
 #include <fcl/fcl.h>
+#include <Eigen/Geometry>
 
 #include "pickplan/geometry/collision.hpp"
 

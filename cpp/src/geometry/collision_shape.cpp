@@ -1,8 +1,8 @@
 // CollisionShape: a mesh (an FCL BVH), a convex hull or a primitive, with its bounds.
 #include <algorithm>
 
-#include "pickplan/geometry/collision.hpp"
 #include "collision_detail.hpp"
+#include "pickplan/geometry/collision.hpp"
 
 namespace pickplan::geometry {
 namespace {
@@ -61,9 +61,15 @@ CollisionShape::CollisionShape(const Primitive& primitive, const std::string& wh
   mesh_ = primitive.enclosing_mesh();
   std::shared_ptr<fcl::CollisionGeometryd> geometry;
   switch (primitive.kind) {
-    case PrimitiveKind::Box: geometry = std::make_shared<fcl::Boxd>(primitive.size); break;
-    case PrimitiveKind::Cylinder: geometry = std::make_shared<fcl::Cylinderd>(primitive.size.x(), primitive.size.y()); break;
-    case PrimitiveKind::Sphere: geometry = std::make_shared<fcl::Sphered>(primitive.size.x()); break;
+    case PrimitiveKind::Box:
+      geometry = std::make_shared<fcl::Boxd>(primitive.size);
+      break;
+    case PrimitiveKind::Cylinder:
+      geometry = std::make_shared<fcl::Cylinderd>(primitive.size.x(), primitive.size.y());
+      break;
+    case PrimitiveKind::Sphere:
+      geometry = std::make_shared<fcl::Sphered>(primitive.size.x());
+      break;
   }
   geometry->computeLocalAABB();
   bvh_ = std::make_unique<Bvh>(Bvh{geometry});

@@ -65,14 +65,15 @@ TriangleMesh TriangleMesh::box(const Eigen::Vector3d& size) {
   TriangleMesh m;
   m.vertices.resize(8, 3);
   for (int i = 0; i < 8; ++i)
-    m.vertices.row(i) << (i & 1 ? 0.5 : -0.5) * size.x(), (i & 2 ? 0.5 : -0.5) * size.y(), (i & 4 ? 0.5 : -0.5) * size.z();
+    m.vertices.row(i) << (i & 1 ? 0.5 : -0.5) * size.x(), (i & 2 ? 0.5 : -0.5) * size.y(),
+        (i & 4 ? 0.5 : -0.5) * size.z();
   m.faces.resize(12, 3);
-  m.faces << 0, 2, 1, 1, 2, 3,   // -z
-      4, 5, 6, 5, 7, 6,          // +z
-      0, 1, 4, 1, 5, 4,          // -y
-      2, 6, 3, 3, 6, 7,          // +y
-      0, 4, 2, 2, 4, 6,          // -x
-      1, 3, 5, 3, 7, 5;          // +x
+  m.faces << 0, 2, 1, 1, 2, 3,  // -z
+      4, 5, 6, 5, 7, 6,         // +z
+      0, 1, 4, 1, 5, 4,         // -y
+      2, 6, 3, 3, 6, 7,         // +y
+      0, 4, 2, 2, 4, 6,         // -x
+      1, 3, 5, 3, 7, 5;         // +x
   return m;
 }
 
@@ -194,8 +195,9 @@ TriangleMesh link_collision_mesh(const core::Robot& robot, int link, int cylinde
         std::string ext = std::filesystem::path(g.mesh_path).extension().string();
         for (auto& c : ext) c = static_cast<char>(std::tolower(c));
         if (ext != ".obj")
-          throw std::invalid_argument("link '" + robot.link(link).name + "': collision mesh '" + g.mesh_path +
-                                      "' is not an OBJ file (the native reader handles OBJ only; pass meshes from Python)");
+          throw std::invalid_argument(
+              "link '" + robot.link(link).name + "': collision mesh '" + g.mesh_path +
+              "' is not an OBJ file (the native reader handles OBJ only; pass meshes from Python)");
         part = read_obj(g.mesh_path);
         for (int i = 0; i < part.num_vertices(); ++i)
           part.vertices.row(i) = part.vertices.row(i).cwiseProduct(g.scale.transpose());

@@ -69,9 +69,14 @@ std::pair<double, int> Primitive::deepest(const std::vector<Eigen::Vector3d>& po
 Eigen::AlignedBox3d Primitive::bounds() const {
   Eigen::Vector3d h;
   switch (kind) {
-    case PrimitiveKind::Box: h = 0.5 * size; break;
-    case PrimitiveKind::Cylinder: h = Eigen::Vector3d(size.x(), size.x(), 0.5 * size.y()); break;
-    default: h = Eigen::Vector3d::Constant(size.x());
+    case PrimitiveKind::Box:
+      h = 0.5 * size;
+      break;
+    case PrimitiveKind::Cylinder:
+      h = Eigen::Vector3d(size.x(), size.x(), 0.5 * size.y());
+      break;
+    default:
+      h = Eigen::Vector3d::Constant(size.x());
   }
   return Eigen::AlignedBox3d(-h, h);
 }

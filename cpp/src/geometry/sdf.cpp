@@ -95,8 +95,10 @@ void SceneSdf::set_pose(int index, const core::Transform& pose) {
   std::vector<std::shared_ptr<const MergedSdf>> kept;
   std::vector<std::pair<std::uint64_t, MergedSdfSettings>> without;
   for (auto& m : merged_) {
-    if (m->exclude_mask() & bit) kept.push_back(std::move(m));
-    else without.emplace_back(m->exclude_mask() | bit, m->settings());
+    if (m->exclude_mask() & bit)
+      kept.push_back(std::move(m));
+    else
+      without.emplace_back(m->exclude_mask() | bit, m->settings());
   }
   merged_ = std::move(kept);
   for (const auto& [mask, settings] : without)
@@ -144,7 +146,8 @@ int SceneSdf::add_primitive(const Primitive& primitive, const core::Transform& p
 }
 
 void SceneSdf::set_table(const Eigen::Vector3d& size, const core::Transform& pose) {
-  if ((size.array() <= 0).any() || !size.allFinite()) throw std::invalid_argument("SceneSdf: table size must be positive");
+  if ((size.array() <= 0).any() || !size.allFinite())
+    throw std::invalid_argument("SceneSdf: table size must be positive");
   has_table_ = true;
   table_half_ = size / 2;
   table_pose_ = pose;

@@ -60,7 +60,8 @@ void unsigned_distance(const Grid& g, const std::vector<Triangle>& tris, std::ve
     Eigen::Vector3d lo = tri.a.cwiseMin(tri.b).cwiseMin(tri.c).array() - band;
     Eigen::Vector3d hi = tri.a.cwiseMax(tri.b).cwiseMax(tri.c).array() + band;
     Eigen::Vector3i ilo = ((lo - g.origin) / g.res).array().ceil().cast<int>().max(0);
-    Eigen::Vector3i ihi = ((hi - g.origin) / g.res).array().floor().cast<int>().min(Eigen::Array3i(g.nx - 1, g.ny - 1, g.nz - 1));
+    Eigen::Vector3i ihi =
+        ((hi - g.origin) / g.res).array().floor().cast<int>().min(Eigen::Array3i(g.nx - 1, g.ny - 1, g.nz - 1));
     for (int k = ilo.z(); k <= ihi.z(); ++k)
       for (int j = ilo.y(); j <= ihi.y(); ++j)
         for (int i = ilo.x(); i <= ihi.x(); ++i) {
@@ -83,10 +84,9 @@ void unsigned_distance(const Grid& g, const std::vector<Triangle>& tris, std::ve
           for (int ii = 0; ii < g.nx; ++ii) {
             const int i = sx > 0 ? ii : g.nx - 1 - ii;
             const long id = g.index(i, j, k);
-            const std::array<long, 3> nbr = {
-                (i - sx >= 0 && i - sx < g.nx) ? g.index(i - sx, j, k) : -1,
-                (j - sy >= 0 && j - sy < g.ny) ? g.index(i, j - sy, k) : -1,
-                (k - sz >= 0 && k - sz < g.nz) ? g.index(i, j, k - sz) : -1};
+            const std::array<long, 3> nbr = {(i - sx >= 0 && i - sx < g.nx) ? g.index(i - sx, j, k) : -1,
+                                             (j - sy >= 0 && j - sy < g.ny) ? g.index(i, j - sy, k) : -1,
+                                             (k - sz >= 0 && k - sz < g.nz) ? g.index(i, j, k - sz) : -1};
             for (long nb : nbr) {
               if (nb < 0) continue;
               const int t = closest[nb];
@@ -118,8 +118,10 @@ std::vector<signed char> inside_votes(const Grid& g, const std::vector<Triangle>
       const Eigen::Vector3d P[3] = {t.a, t.b, t.c};
       double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
       for (const auto& p : P) {
-        umin = std::min(umin, p[u]); umax = std::max(umax, p[u]);
-        vmin = std::min(vmin, p[v]); vmax = std::max(vmax, p[v]);
+        umin = std::min(umin, p[u]);
+        umax = std::max(umax, p[u]);
+        vmin = std::min(vmin, p[v]);
+        vmax = std::max(vmax, p[v]);
       }
       const int i0 = std::max(0, static_cast<int>(std::ceil((umin - g.origin[u]) / g.res)));
       const int i1 = std::min(nu - 1, static_cast<int>(std::floor((umax - g.origin[u]) / g.res)));
@@ -151,7 +153,9 @@ std::vector<signed char> inside_votes(const Grid& g, const std::vector<Triangle>
           while (passed < hv.size() && hv[passed] < pa) ++passed;
           if (passed % 2 == 1) {
             int idx[3];
-            idx[axis] = a; idx[u] = i; idx[v] = j;
+            idx[axis] = a;
+            idx[u] = i;
+            idx[v] = j;
             votes[g.index(idx[0], idx[1], idx[2])] += 1;
           }
         }
@@ -177,7 +181,8 @@ SdfGrid SdfGrid::build(const Vertices& V, const Faces& F, const SdfBuildSettings
     for (int c = 0; c < 3; ++c)
       if (F(f, c) < 0 || F(f, c) >= V.rows()) {
         std::ostringstream msg;
-        msg << "SDF mesh: face " << f << " refers to vertex " << F(f, c) << " but there are " << V.rows() << " vertices";
+        msg << "SDF mesh: face " << f << " refers to vertex " << F(f, c) << " but there are " << V.rows()
+            << " vertices";
         throw std::invalid_argument(msg.str());
       }
     Triangle t{V.row(F(f, 0)).transpose(), V.row(F(f, 1)).transpose(), V.row(F(f, 2)).transpose()};

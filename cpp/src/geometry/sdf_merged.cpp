@@ -8,7 +8,8 @@ namespace pickplan::geometry {
 std::int32_t MergedSdf::fill_cell(long cell) const {
   std::int32_t expected = kPending;
   if (state_[cell].compare_exchange_strong(expected, kFilling, std::memory_order_acquire)) {
-    const long cx = cell % cells_.x(), cy = cell / cells_.x() % cells_.y(), cz = cell / (static_cast<long>(cells_.x()) * cells_.y());
+    const long cx = cell % cells_.x(), cy = cell / cells_.x() % cells_.y(),
+               cz = cell / (static_cast<long>(cells_.x()) * cells_.y());
     const double edge = settings_.brick * settings_.resolution;
     const Eigen::Vector3d corner = origin_ + Eigen::Vector3d(cx, cy, cz) * edge;
     const Eigen::Vector3d center = corner.array() + 0.5 * edge;
@@ -49,7 +50,8 @@ double MergedSdf::lower_bound_outside(const double* x) const {
     // Outside the covered box every object is beyond the cutoff, and farther by the gap.
     return settings_.cutoff + (f - cf).norm() * edge;
   }
-  const long cell = (static_cast<long>(cf.z()) * cells_.y() + static_cast<long>(cf.y())) * cells_.x() + static_cast<long>(cf.x());
+  const long cell =
+      (static_cast<long>(cf.z()) * cells_.y() + static_cast<long>(cf.y())) * cells_.x() + static_cast<long>(cf.x());
   return cell_lower_[cell];
 }
 

@@ -52,7 +52,8 @@ ChompProblem::ChompProblem(std::shared_ptr<const core::Robot> robot, std::shared
                        "entries");
   core::require_size("body points: links", body_.points.rows(), static_cast<long>(body_.link.size()), "entries");
   for (int l : body_.link)
-    if (l < 0 || l >= robot_->num_links()) throw std::invalid_argument("body points: link index " + std::to_string(l) + " out of range");
+    if (l < 0 || l >= robot_->num_links())
+      throw std::invalid_argument("body points: link index " + std::to_string(l) + " out of range");
   core::require_finite("body points", body_.points.data(), body_.points.size());
   for (int u = 0; u < body_.size(); ++u) {
     if (groups_.empty() || groups_.back().link != body_.link[u]) groups_.push_back({body_.link[u], u, u});
@@ -138,7 +139,8 @@ double ChompProblem::prior(const Trajectory& xi, const Eigen::VectorXd& q0, Traj
   double f = 0;
   if (grad) grad->setZero(n, robot_->dof());
   for (int t = 0; t < n; ++t) {
-    const Eigen::RowVectorXd diff = t == 0 ? Eigen::RowVectorXd(xi.row(0) - q0.transpose()) : Eigen::RowVectorXd(xi.row(t) - xi.row(t - 1));
+    const Eigen::RowVectorXd diff =
+        t == 0 ? Eigen::RowVectorXd(xi.row(0) - q0.transpose()) : Eigen::RowVectorXd(xi.row(t) - xi.row(t - 1));
     f += 0.5 * diff.squaredNorm() * inv_dt2;
     if (grad) {
       grad->row(t) += diff * inv_dt2;
@@ -220,9 +222,8 @@ void ChompProblem::obstacle_terms(int last_t, ChompWorkspace& ws, ObjectiveTerms
     }
   const int k = settings_.top_k;
   if (k > 0 && static_cast<int>(ws.order.size()) > k) {
-    std::nth_element(ws.order.begin(), ws.order.begin() + k, ws.order.end(), [&](int a, int b) {
-      return ws.term[a] != ws.term[b] ? ws.term[a] > ws.term[b] : a < b;
-    });
+    std::nth_element(ws.order.begin(), ws.order.begin() + k, ws.order.end(),
+                     [&](int a, int b) { return ws.term[a] != ws.term[b] ? ws.term[a] > ws.term[b] : a < b; });
     ws.order.resize(k);
   }
   for (int i : ws.order) out.obstacle += ws.term[i];
@@ -346,7 +347,8 @@ StepInfo ChompProblem::step(Trajectory& xi, const Eigen::VectorXd& q0, const Tra
   return info;
 }
 
-ChompResult ChompProblem::optimize(Trajectory xi, const Eigen::VectorXd& q0, const Trajectory& goal, int iterations) const {
+ChompResult ChompProblem::optimize(Trajectory xi, const Eigen::VectorXd& q0, const Trajectory& goal,
+                                   int iterations) const {
   if (iterations < 0) throw std::invalid_argument("CHOMP: iterations must be >= 0, got " + std::to_string(iterations));
   const auto t0 = std::chrono::steady_clock::now();
   ChompWorkspace ws(*this);

@@ -4,8 +4,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include "pickplan/omg/chomp.hpp"
 #include "pickplan/core/errors.hpp"
+#include "pickplan/omg/chomp.hpp"
 
 namespace pickplan::omg {
 
@@ -95,8 +95,9 @@ void ChompProblem::goal_costs(const Trajectory& xi, const Eigen::VectorXd& q0, i
           const double d = ws.d[j];
           if (d >= eps) continue;
           const Eigen::Vector3d x = Eigen::Map<const Eigen::Vector3d>(xg + 3L * j);
-          const Eigen::Vector3d xp = valid_prev[gi] ? Eigen::Vector3d(Eigen::Map<const Eigen::Vector3d>(xpg + 3L * j))
-                                                    : Tp.apply(body_.points.row(first[gi] + j * point_stride).transpose());
+          const Eigen::Vector3d xp = valid_prev[gi]
+                                         ? Eigen::Vector3d(Eigen::Map<const Eigen::Vector3d>(xpg + 3L * j))
+                                         : Tp.apply(body_.points.row(first[gi] + j * point_stride).transpose());
           // Speed over the strided step, times the step count it stands for.
           obstacle += chomp_cost(d, eps, nullptr) * (x - xp).norm() * inv_dt;
         }

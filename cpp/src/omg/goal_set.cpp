@@ -14,15 +14,24 @@ namespace pickplan::omg {
 
 const char* to_string(GoalReason reason) {
   switch (reason) {
-    case GoalReason::ok: return "ok";
-    case GoalReason::unreachable: return "unreachable";
-    case GoalReason::in_collision: return "in_collision";
-    case GoalReason::standoff_unreachable: return "standoff_unreachable";
-    case GoalReason::standoff_in_collision: return "standoff_in_collision";
-    case GoalReason::approach_clearance: return "approach_clearance";
-    case GoalReason::pregrasp_clearance: return "pregrasp_clearance";
-    case GoalReason::duplicate: return "duplicate";
-    case GoalReason::over_cap: return "over_cap";
+    case GoalReason::ok:
+      return "ok";
+    case GoalReason::unreachable:
+      return "unreachable";
+    case GoalReason::in_collision:
+      return "in_collision";
+    case GoalReason::standoff_unreachable:
+      return "standoff_unreachable";
+    case GoalReason::standoff_in_collision:
+      return "standoff_in_collision";
+    case GoalReason::approach_clearance:
+      return "approach_clearance";
+    case GoalReason::pregrasp_clearance:
+      return "pregrasp_clearance";
+    case GoalReason::duplicate:
+      return "duplicate";
+    case GoalReason::over_cap:
+      return "over_cap";
   }
   throw std::invalid_argument("invalid goal reason " + std::to_string(static_cast<int>(reason)));
 }

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <string>
 #include <stdexcept>
+#include <string>
 
 #include "pickplan/core/errors.hpp"
 #include "pickplan/geometry/point_index.hpp"
@@ -71,8 +71,9 @@ std::shared_ptr<GraspRefiner> GraspRefiner::with_object(geometry::Vertices objec
   for (const Eigen::Index k : {Eigen::Index{0}, n / 2, n - 1}) {  // the motion must be the points' own
     const Eigen::Vector3d moved = motion.apply(object_points_.row(k).transpose());
     if ((moved - object_points.row(k).transpose()).norm() > 1e-9 * (1.0 + moved.norm()))
-      throw std::invalid_argument("ISF with_object: the motion does not take the object points onto the new ones (row " +
-                                  std::to_string(k) + ")");
+      throw std::invalid_argument(
+          "ISF with_object: the motion does not take the object points onto the new ones (row " + std::to_string(k) +
+          ")");
   }
   // A copy of this refiner (no validation, no tree built) with the new samples.
   std::shared_ptr<GraspRefiner> out(new GraspRefiner(*this));
@@ -107,12 +108,12 @@ void GraspRefiner::contact_terms(const core::Transform& H, GraspTerms& t, Eigen:
     ++t.matched;
     const Eigen::Vector3d uo = object_points_.row(nn[j]).transpose();
     const Eigen::Vector3d no = object_normals_.row(nn[j]).transpose();
-    const double r = (uh[j] - uo).dot(no) / unit;           // eq. 11 residual, in length units
-    const double a = un[j].dot(no) + 1.0;                    // eq. 12 residual
+    const double r = (uh[j] - uo).dot(no) / unit;  // eq. 11 residual, in length units
+    const double a = un[j].dot(no) + 1.0;          // eq. 12 residual
     t.pml += r * r;
     t.align += a * a;
-    const Eigen::Vector3d gp = 2.0 * r / unit * no;          // d f_pml / d u_h
-    const Eigen::Vector3d gn = 2.0 * s.alpha * a * no;       // d (alpha f_align) / d u_h^n
+    const Eigen::Vector3d gp = 2.0 * r / unit * no;     // d f_pml / d u_h
+    const Eigen::Vector3d gn = 2.0 * s.alpha * a * no;  // d (alpha f_align) / d u_h^n
     F += gp;
     tau += (uh[j] - H.p).cross(gp) + un[j].cross(gn);
   }

@@ -50,7 +50,9 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
   if (stop_at_failure && !(m.smoothness < s.smoothness_threshold)) return m;  // success needs both
   // An object distance changes a metric only below this: the running minimum (min_clearance), the
   // collision padding, or the clearance the test demands.
-  auto object_cutoff = [&m, &s] { return std::max({m.min_clearance, s.collision_padding, s.clearance, s.tail_clearance}); };
+  auto object_cutoff = [&m, &s] {
+    return std::max({m.min_clearance, s.collision_padding, s.clearance, s.tail_clearance});
+  };
   const Trajectory dense = interpolate(q0, xi, s.steps);
   const core::Robot& robot = problem.robot();
   const BodyPoints& body = problem.body();
@@ -67,7 +69,8 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
   m.min_table_clearance = cap;
   const int n = static_cast<int>(xi.rows());
   // Dense steps at or after this one lie on the approach tail (waypoints n - tail .. n).
-  const double tail_start = s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints) / n * (s.steps - 1) : s.steps;
+  const double tail_start =
+      s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints) / n * (s.steps - 1) : s.steps;
   bool transit_free = true, table_free = true, target_free = true;
   // The target alone (every other object and the table left out), measured in the transit when asked.
   const std::uint64_t only_target = (all_objects & ~s.exclude_mask) | geometry::SceneSdf::kTableBit;
@@ -75,7 +78,8 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
   const double target_cut = std::max(s.transit_target_clearance, 0.0) + 1e-3;  // beyond: clear
   // ... on every dense step before the pre-grasp (the tail's first waypoint; the goal set checks the
   // approach from there), the segment into it included.
-  const double target_end = s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints + 1) / n * (s.steps - 1) : s.steps;
+  const double target_end =
+      s.tail_waypoints > 0 ? static_cast<double>(n - s.tail_waypoints + 1) / n * (s.steps - 1) : s.steps;
   for (int t = 0; t < dense.rows(); ++t) {
     robot.forward_kinematics(dense.row(t).data(), ws);
     const double need = t >= tail_start ? s.tail_clearance : s.clearance;
@@ -115,7 +119,8 @@ TrajectoryMetrics evaluate_trajectory(const ChompProblem& problem, const Eigen::
       }
     }
     transit_free = transit_free && step_min >= need;
-    if (stop_at_failure && !(transit_free && table_free && target_free)) return m;  // collision_free, success stay false
+    if (stop_at_failure && !(transit_free && table_free && target_free))
+      return m;  // collision_free, success stay false
   }
   m.collision_free = transit_free && table_free && target_free;
   m.success = m.collision_free && m.smoothness < s.smoothness_threshold;

@@ -35,10 +35,11 @@ class StageTimer {
 };
 
 void check_settings(const OmgLoopSettings& s) {
-  if (s.iterations < 1 || s.isf_steps < 0 || s.cost_time_stride < 1 || s.cost_point_stride < 1 || s.min_iterations < 0 ||
-      s.check_every < 1)
-    throw std::invalid_argument("OMG loop settings: iterations >= 1, isf_steps >= 0, strides >= 1, min_iterations >= 0 "
-                                "and check_every >= 1 required");
+  if (s.iterations < 1 || s.isf_steps < 0 || s.cost_time_stride < 1 || s.cost_point_stride < 1 ||
+      s.min_iterations < 0 || s.check_every < 1)
+    throw std::invalid_argument(
+        "OMG loop settings: iterations >= 1, isf_steps >= 0, strides >= 1, min_iterations >= 0 "
+        "and check_every >= 1 required");
 }
 
 }  // namespace
@@ -55,7 +56,8 @@ GoalBook::GoalBook(const core::Robot& robot, int hand_link, const Trajectory& go
   core::require_finite("goal book: goals", goals.data(), goals.size());
   const long m = tails_.front().rows();
   for (const Trajectory& t : tails_) {
-    if (t.rows() != m || t.rows() < 1) throw std::invalid_argument("goal book: every tail needs the same number (>= 1) of rows");
+    if (t.rows() != m || t.rows() < 1)
+      throw std::invalid_argument("goal book: every tail needs the same number (>= 1) of rows");
     core::require_size("goal book: tail columns", robot.dof(), t.cols(), "joint values");
     core::require_finite("goal book: tails", t.data(), t.size());
   }
@@ -121,7 +123,14 @@ class Loop {
  public:
   Loop(const ChompProblem& problem, const GraspRefiner* refiner, GoalBook& book, const Eigen::VectorXd& q0,
        const Eigen::VectorXd& blend, const OmgLoopSettings& s, const WarmStart* warm)
-      : problem_(problem), refiner_(refiner), book_(book), q0_(q0), blend_(blend), s_(s), warm_(warm), ws_(problem),
+      : problem_(problem),
+        refiner_(refiner),
+        book_(book),
+        q0_(q0),
+        blend_(blend),
+        s_(s),
+        warm_(warm),
+        ws_(problem),
         policy_(s.selection) {}
 
   OmgLoopResult run();
@@ -283,8 +292,8 @@ OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refi
     core::require_size("OMG loop: warm start", q0.size(), warm->initial.cols(), "joints per waypoint");
     core::require_finite("OMG loop: warm start", warm->initial.data(), warm->initial.size());
     if (warm->initial_goal < -1 || warm->initial_goal >= book.size())
-      throw std::invalid_argument("OMG loop: warm start goal " + std::to_string(warm->initial_goal) + " is not one of the " +
-                                  std::to_string(book.size()) + " goals");
+      throw std::invalid_argument("OMG loop: warm start goal " + std::to_string(warm->initial_goal) +
+                                  " is not one of the " + std::to_string(book.size()) + " goals");
     if (warm->initial_costs.size() && warm->initial_costs.size() != book.size())
       throw std::invalid_argument("OMG loop: warm start costs: expected one per goal (" + std::to_string(book.size()) +
                                   "), got " + std::to_string(warm->initial_costs.size()));

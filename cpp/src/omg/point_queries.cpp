@@ -47,15 +47,18 @@ void visit_radius_pairs(const RowMatrixXd& points, const std::vector<long>& quer
   if (!keep.empty() && static_cast<long>(keep.size()) != points.rows())
     throw std::invalid_argument("radius pairs: expected one keep flag per point, got " + std::to_string(keep.size()));
   for (long q : queries)
-    if (q < 0 || q >= points.rows()) throw std::invalid_argument("radius pairs: query index " + std::to_string(q) + " out of range");
+    if (q < 0 || q >= points.rows())
+      throw std::invalid_argument("radius pairs: query index " + std::to_string(q) + " out of range");
   const long n = points.rows();
   std::vector<long> sequence = order, rank(static_cast<std::size_t>(n), -1);  // a point's place in the order
   if (sequence.empty())
     for (long k = 0; k < n; ++k) sequence.push_back(k);
-  if (static_cast<long>(sequence.size()) != n) throw std::invalid_argument("radius pairs: the order must hold every point once");
+  if (static_cast<long>(sequence.size()) != n)
+    throw std::invalid_argument("radius pairs: the order must hold every point once");
   for (long t = 0; t < n; ++t) {
     const long k = sequence[t];
-    if (k < 0 || k >= n || rank[k] >= 0) throw std::invalid_argument("radius pairs: the order must hold every point once");
+    if (k < 0 || k >= n || rank[k] >= 0)
+      throw std::invalid_argument("radius pairs: the order must hold every point once");
     rank[k] = t;
   }
   if (n == 0) return;
@@ -98,12 +101,14 @@ void visit_radius_pairs(const RowMatrixXd& points, const std::vector<long>& quer
 RadiusPairs radius_pairs(const RowMatrixXd& points, const std::vector<long>& queries, double radius,
                          const std::vector<std::uint8_t>& keep, const std::vector<long>& order) {
   RadiusPairs out;
-  visit_radius_pairs(points, queries, radius, keep, order, [&](long i, long j) { out.i.push_back(i), out.j.push_back(j); });
+  visit_radius_pairs(points, queries, radius, keep, order,
+                     [&](long i, long j) { out.i.push_back(i), out.j.push_back(j); });
   return out;
 }
 
-AntipodalPartners antipodal_partners(const RowMatrixXd& points, const RowMatrixXd& normals, const std::vector<long>& queries,
-                                     double radius, const std::vector<std::uint8_t>& keep, const std::vector<long>& order,
+AntipodalPartners antipodal_partners(const RowMatrixXd& points, const RowMatrixXd& normals,
+                                     const std::vector<long>& queries, double radius,
+                                     const std::vector<std::uint8_t>& keep, const std::vector<long>& order,
                                      double min_width, double cone) {
   if (normals.rows() != points.rows() || normals.cols() != 3)
     throw std::invalid_argument("antipodal partners: expected (N, 3) normals like the points");

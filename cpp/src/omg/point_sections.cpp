@@ -60,10 +60,12 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
   for (long a = 0; a < ry.cols(); ++a) {
     band.clear();
     for (long k = 0; k < n; ++k)
-      if (std::abs(rx(k, a)) <= s.pad_width / 2 && std::abs(ry(k, a)) <= s.max_width) band.push_back({ry(k, a), rx(k, a), height(k), k});
+      if (std::abs(rx(k, a)) <= s.pad_width / 2 && std::abs(ry(k, a)) <= s.max_width)
+        band.push_back({ry(k, a), rx(k, a), height(k), k});
     if (band.size() < 3) continue;
     // sorted along the closing direction, ties in point order (a stable sort's order)
-    std::sort(band.begin(), band.end(), [](const Banded& p, const Banded& q) { return p.along < q.along || (p.along == q.along && p.k < q.k); });
+    std::sort(band.begin(), band.end(),
+              [](const Banded& p, const Banded& q) { return p.along < q.along || (p.along == q.along && p.k < q.k); });
     const long m = static_cast<long>(band.size());
     // the run through 0 (the sampled point): from after the last gap before it to the first gap after
     long first_nonneg = m;
@@ -75,7 +77,8 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
     long start = 0, stop = m;
     for (long k = 0; k + 1 < m; ++k) {
       if (!(band[k + 1].along - band[k].along > s.gap)) continue;
-      if (k < first_nonneg) start = k + 1;
+      if (k < first_nonneg)
+        start = k + 1;
       else {
         stop = k + 1;
         break;
@@ -105,8 +108,8 @@ std::vector<LocalSection> local_sections(const RowMatrixXd& ry, const RowMatrixX
   return out;
 }
 
-bool antipodal_pair(const RowMatrixXd& points, const RowMatrixXd& normals, long a, long b, double min_width, double cone,
-                    double* margin, double* width) {
+bool antipodal_pair(const RowMatrixXd& points, const RowMatrixXd& normals, long a, long b, double min_width,
+                    double cone, double* margin, double* width) {
   const double dx = points(b, 0) - points(a, 0), dy = points(b, 1) - points(a, 1), dz = points(b, 2) - points(a, 2);
   // facing away from either normal, the margin is negative (a positive cone is missed): no square root
   if (cone > 0 && (dx * normals(a, 0) + dy * normals(a, 1) + dz * normals(a, 2) >= 0 ||

@@ -61,8 +61,8 @@ using Clock = std::chrono::steady_clock;
 
 struct Tree {
   int dof;
-  std::vector<double> q;     // nodes, row-major
-  std::vector<int> parent;   // -1 for a root
+  std::vector<double> q;       // nodes, row-major
+  std::vector<int> parent;     // -1 for a root
   std::vector<int> root_goal;  // the goal row a node descends from (goal trees), -1 otherwise
   explicit Tree(int d) : dof(d) {}
   int size() const { return static_cast<int>(parent.size()); }
@@ -255,13 +255,13 @@ RrtResult MotionPlanner::rrt_connect(const Eigen::VectorXd& start, const Traject
   Tree* a = &ta;
   Tree* b = &tb;
   for (out.iterations = 0; out.iterations < settings_.max_iterations; ++out.iterations) {
-    if ((out.iterations & 31) == 0 &&
-        std::chrono::duration<double>(Clock::now() - t0).count() > settings_.time_limit) {
+    if ((out.iterations & 31) == 0 && std::chrono::duration<double>(Clock::now() - t0).count() > settings_.time_limit) {
       out.status = RrtStatus::timeout;
       break;
     }
     if (a == &ta && unit(rng) < settings_.goal_bias) {
-      sample = tb.size() ? Eigen::Map<const Eigen::VectorXd>(tb.at(std::uniform_int_distribution<int>(0, tb.size() - 1)(rng)), dof)
+      sample = tb.size() ? Eigen::Map<const Eigen::VectorXd>(
+                               tb.at(std::uniform_int_distribution<int>(0, tb.size() - 1)(rng)), dof)
                          : sample;
     } else {
       for (int j : active_) sample[j] = lo[j] + unit(rng) * (hi[j] - lo[j]);
@@ -360,7 +360,8 @@ int MotionPlanner::first_invalid_segment(const Trajectory& path) const {
   for (long i = 0; i + 1 < end; ++i) {
     const Eigen::RowVectorXd a = path.row(i), b = path.row(i + 1);
     // b is known free (the pass above): the certified check need not query it again
-    const bool ok = settings_.certified ? motion_certified(a.data(), b.data(), ws) : motion_valid(a.data(), b.data(), ws);
+    const bool ok =
+        settings_.certified ? motion_certified(a.data(), b.data(), ws) : motion_valid(a.data(), b.data(), ws);
     if (!ok) return static_cast<int>(i);
   }
   return end < path.rows() ? static_cast<int>(end - 1) : -1;

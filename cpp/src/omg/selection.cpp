@@ -180,8 +180,9 @@ Eigen::VectorXd SelectionPolicy::next(const Eigen::VectorXd& c) {
       return one_hot(n, argmin(total));
     }
     case SelectionKind::EXP: {
-      const double eta = settings_.exp_eta > 0 ? settings_.exp_eta
-                                               : std::sqrt(std::max(std::log(static_cast<double>(n)), 1e-12) / horizon_);
+      const double eta = settings_.exp_eta > 0
+                             ? settings_.exp_eta
+                             : std::sqrt(std::max(std::log(static_cast<double>(n)), 1e-12) / horizon_);
       return multiplicative(p_, c, eta);
     }
     case SelectionKind::MD:

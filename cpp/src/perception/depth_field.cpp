@@ -21,7 +21,8 @@ void require(bool ok, const std::string& what) {
 void validate_view(const DepthView& v, std::size_t k) {
   const std::string w = "depth view " + std::to_string(k) + ": ";
   require(v.depth.rows() > 1 && v.depth.cols() > 1, w + "expected an H x W depth image, got " +
-                                                        std::to_string(v.depth.rows()) + " x " + std::to_string(v.depth.cols()));
+                                                        std::to_string(v.depth.rows()) + " x " +
+                                                        std::to_string(v.depth.cols()));
   require(v.target.size() == 0 || (v.target.rows() == v.depth.rows() && v.target.cols() == v.depth.cols()),
           w + "target mask is " + std::to_string(v.target.rows()) + " x " + std::to_string(v.target.cols()) +
               ", the depth image " + std::to_string(v.depth.rows()) + " x " + std::to_string(v.depth.cols()));
@@ -66,7 +67,8 @@ void dt_1d(const float* f, float* d, int n, int* v, float* z) {
 // camera-frame position is affine in its index: a row's start is transformed once and stepped along x.
 // Each row is projected first and its pixels prefetched, then read: the depth image does not fit the
 // cache, and a row's voxels land on pixels scattered across it.
-void carve(const DepthView& view, const DepthFieldSettings& s, const Eigen::Vector3i& dims, std::vector<std::uint8_t>* state) {
+void carve(const DepthView& view, const DepthFieldSettings& s, const Eigen::Vector3i& dims,
+           std::vector<std::uint8_t>* state) {
   const Eigen::Matrix3d Rt = view.camera_pose.R.transpose();
   const Eigen::Vector3d origin = Rt * (s.lo - view.camera_pose.p), step = s.resolution * Rt.col(0);
   const double fx = view.K(0, 0), fy = view.K(1, 1), cx = view.K(0, 2), cy = view.K(1, 2), sk = view.K(0, 1);
@@ -99,9 +101,12 @@ void carve(const DepthView& view, const DepthFieldSettings& s, const Eigen::Vect
         const float d = depth[pixel];
         if (!(std::isfinite(d) && d > 0)) continue;
         VoxelState c;
-        if (along[kx] < d - s.surface_margin) c = VoxelState::kFree;
-        else if (target && target[pixel]) c = VoxelState::kTarget;
-        else c = VoxelState::kOccupied;
+        if (along[kx] < d - s.surface_margin)
+          c = VoxelState::kFree;
+        else if (target && target[pixel])
+          c = VoxelState::kTarget;
+        else
+          c = VoxelState::kOccupied;
         st[kx] = std::max(st[kx], static_cast<std::uint8_t>(c));
       }
     }
@@ -139,7 +144,8 @@ void DepthFieldSettings::validate() const {
   const Eigen::Vector3d n = (hi - lo) / resolution;
   require(n.prod() < 2.0e8, "depth field: more than 2e8 voxels; coarsen the resolution or shrink the box");
   require(std::isfinite(surface_margin) && surface_margin >= 0, "depth field: surface_margin must be >= 0");
-  require(!has_plane || (plane_normal.allFinite() && std::abs(plane_normal.norm() - 1) < 1e-6 && std::isfinite(plane_offset)),
+  require(!has_plane ||
+              (plane_normal.allFinite() && std::abs(plane_normal.norm() - 1) < 1e-6 && std::isfinite(plane_offset)),
           "depth field: the support plane needs a unit normal and a finite offset");
   require(target_stride >= 1, "depth field: target_stride must be >= 1");
 }
@@ -147,7 +153,8 @@ void DepthFieldSettings::validate() const {
 PlaneChoice most_inliers(const geometry::Vertices& points, const geometry::Vertices& normals,
                          const Eigen::VectorXd& offsets, double tolerance) {
   require(offsets.size() == normals.rows(), "plane inliers: expected one offset per normal, got " +
-                                                std::to_string(offsets.size()) + " for " + std::to_string(normals.rows()));
+                                                std::to_string(offsets.size()) + " for " +
+                                                std::to_string(normals.rows()));
   require(std::isfinite(tolerance) && tolerance >= 0, "plane inliers: tolerance must be >= 0");
   PlaneChoice best;
   const long n = points.rows(), chunk = 512;
@@ -168,11 +175,12 @@ PlaneChoice most_inliers(const geometry::Vertices& points, const geometry::Verti
 
 std::vector<float> point_distance_grid(const geometry::Vertices& points, const Eigen::Vector3d& origin,
                                        double resolution, const Eigen::Vector3i& dims) {
-  require(points.rows() > 0 && points.allFinite(), "point distance grid: expected finite points, got " +
-                                                       std::to_string(points.rows()) + " rows");
+  require(points.rows() > 0 && points.allFinite(),
+          "point distance grid: expected finite points, got " + std::to_string(points.rows()) + " rows");
   require(dims.minCoeff() >= 1 && static_cast<double>(dims.x()) * dims.y() * dims.z() < 2.0e8,
           "point distance grid: expected 1 to 2e8 nodes");
-  require(origin.allFinite() && std::isfinite(resolution) && resolution > 0, "point distance grid: bad origin or resolution");
+  require(origin.allFinite() && std::isfinite(resolution) && resolution > 0,
+          "point distance grid: bad origin or resolution");
   const geometry::PointIndex index(&points);
   std::vector<float> out(static_cast<std::size_t>(dims.prod()));
   std::size_t k = 0, nearest = 0;
@@ -181,7 +189,8 @@ std::vector<float> point_distance_grid(const geometry::Vertices& points, const E
   auto bounded = [&](const Eigen::Vector3d& q, double previous) {
     double d2 = 0;
     const double b = (previous + resolution) * (1 + 1e-9) + 1e-12;
-    if (!(previous >= 0 && index.nearest_within(q.data(), b * b, &nearest, &d2))) index.nearest(q.data(), &nearest, &d2);
+    if (!(previous >= 0 && index.nearest_within(q.data(), b * b, &nearest, &d2)))
+      index.nearest(q.data(), &nearest, &d2);
     return std::sqrt(d2);
   };
   double row_first = -1, plane_first = -1;  // the first node's distance of the previous row, plane
@@ -215,13 +224,17 @@ std::vector<float> squared_distance_transform(const std::vector<std::uint8_t>& m
     float* line = g.data() + row;
     long last = -1;
     for (long q = 0; q < dims.x(); ++q) {
-      if (line[q] == 0.0f) last = q;
-      else if (last >= 0) line[q] = float((q - last) * (q - last));
+      if (line[q] == 0.0f)
+        last = q;
+      else if (last >= 0)
+        line[q] = float((q - last) * (q - last));
     }
     last = -1;
     for (long q = dims.x() - 1; q >= 0; --q) {
-      if (line[q] == 0.0f) last = q;
-      else if (last >= 0) line[q] = std::min(line[q], float((q - last) * (q - last)));
+      if (line[q] == 0.0f)
+        last = q;
+      else if (last >= 0)
+        line[q] = std::min(line[q], float((q - last) * (q - last)));
     }
   }
   const long stride[3] = {1, dims.x(), static_cast<long>(dims.x()) * dims.y()};

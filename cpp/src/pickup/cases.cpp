@@ -13,10 +13,7 @@ namespace pickplan::pickup {
 RhoPoly example_rho(double shift) {
   RhoPoly r;
   r.coeffs.resize(4, 3);
-  r.coeffs << 0.995, 0.998, 0.999,
-              0.95, 0.965, 0.975,
-              0.85, 0.88, 0.90,
-              0.60, 0.65, 0.70;
+  r.coeffs << 0.995, 0.998, 0.999, 0.95, 0.965, 0.975, 0.85, 0.88, 0.90, 0.60, 0.65, 0.70;
   r.coeffs = (r.coeffs.array() + shift).cwiseMax(0.0).cwiseMin(1.0).matrix();
   r.sg_lo = 0.05;
   r.sg_hi = 1.2;
@@ -26,7 +23,8 @@ RhoPoly example_rho(double shift) {
 }
 
 void set_part_grasp(PickupProblem& pb, GraspKind kind, double yaw, const Eigen::Vector3d& position) {
-  if (!std::isfinite(yaw) || !position.allFinite()) throw std::invalid_argument("part grasp: yaw and position must be finite");
+  if (!std::isfinite(yaw) || !position.allFinite())
+    throw std::invalid_argument("part grasp: yaw and position must be finite");
   const Eigen::Vector3d px(std::cos(yaw), std::sin(yaw), 0.0), py(-std::sin(yaw), std::cos(yaw), 0.0);
   Eigen::Matrix3d R;
   const Eigen::Vector3d z = kind == GraspKind::top ? Eigen::Vector3d(0, 0, -1) : px;
@@ -41,7 +39,8 @@ void set_part_grasp(PickupProblem& pb, GraspKind kind, double yaw, const Eigen::
 
 PickupProblem paper_case(const core::Robot& robot, int case_id, const RhoPoly& rho, const PaperCaseOptions& opt) {
   if (case_id < 1 || case_id > 6) throw std::invalid_argument("case_id must be 1..6, got " + std::to_string(case_id));
-  if (robot.dof() != 9) throw std::invalid_argument("paper cases need the 9-DOF mobile_ur5, got " + std::to_string(robot.dof()) + " DOFs");
+  if (robot.dof() != 9)
+    throw std::invalid_argument("paper cases need the 9-DOF mobile_ur5, got " + std::to_string(robot.dof()) + " DOFs");
   const double yaws[6] = {0.0, M_PI / 4, M_PI / 2, 0.0, M_PI / 4, M_PI / 2};
   PickupProblem pb;
   pb.start = Eigen::Vector3d(0.0, 0.0, M_PI / 6);
@@ -74,11 +73,14 @@ PickupProblem paper_case(const core::Robot& robot, int case_id, const RhoPoly& r
 
 PickupMetrics evaluate_pickup(const core::Robot& robot, const PickupProblem& pb, const PickupResult& res, int n) {
   if (n < 3) throw std::invalid_argument("evaluate_pickup: need at least 3 samples");
-  if (res.x.size() != res.traj.num_coeffs() + 5) throw std::invalid_argument("evaluate_pickup: result has no solution vector");
+  if (res.x.size() != res.traj.num_coeffs() + 5)
+    throw std::invalid_argument("evaluate_pickup: result has no solution vector");
   core::require_size("evaluate_pickup: result trajectory", robot.dof(), res.traj.dof(), "DOFs (the robot's)");
-  if (pb.tool_link < 0 || pb.tool_link >= robot.num_links()) throw std::invalid_argument("evaluate_pickup: tool_link out of range");
+  if (pb.tool_link < 0 || pb.tool_link >= robot.num_links())
+    throw std::invalid_argument("evaluate_pickup: tool_link out of range");
   for (const auto& b : pb.body_spheres)
-    if (b.link < 0 || b.link >= robot.num_links()) throw std::invalid_argument("evaluate_pickup: body sphere link out of range");
+    if (b.link < 0 || b.link >= robot.num_links())
+      throw std::invalid_argument("evaluate_pickup: body sphere link out of range");
   PickupMetrics m;
   const int d = robot.dof();
   core::RobotWorkspace ws(robot);
@@ -101,13 +103,15 @@ PickupMetrics evaluate_pickup(const core::Robot& robot, const PickupProblem& pb,
     m.nonholonomic_max = std::max(m.nonholonomic_max, nh);
     m.base_speed_max = std::max(m.base_speed_max, std::hypot(qd[0], qd[1]));
     for (int j = 3; j < d; ++j) {
-      m.joint_limit_violation = std::max({m.joint_limit_violation, robot.lower_limits()[j] - q[j], q[j] - robot.upper_limits()[j]});
+      m.joint_limit_violation =
+          std::max({m.joint_limit_violation, robot.lower_limits()[j] - q[j], q[j] - robot.upper_limits()[j]});
       m.joint_rate_max = std::max(m.joint_rate_max, std::abs(qd[j]));
     }
     robot.forward_kinematics(q.data(), ws);
     for (const auto& b : pb.body_spheres)
       for (const auto& o : pb.obstacles)
-        m.min_clearance = std::min(m.min_clearance, (ws.link_pose[b.link].apply(b.center) - o.center).norm() - b.radius - o.radius);
+        m.min_clearance =
+            std::min(m.min_clearance, (ws.link_pose[b.link].apply(b.center) - o.center).norm() - b.radius - o.radius);
     if (t >= res.T1 && t <= res.T2) {
       robot.point_jacobian(ws, pb.tool_link, Eigen::Vector3d::Zero(), J);
       const Eigen::Vector3d v = J.topRows<3>() * qd;

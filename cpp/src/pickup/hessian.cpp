@@ -9,9 +9,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "pickplan/pickup/nlp.hpp"
 #include "nlp_detail.hpp"
 #include "pickplan/core/errors.hpp"
+#include "pickplan/pickup/nlp.hpp"
 
 namespace pickplan::pickup {
 using namespace detail;
@@ -63,11 +63,21 @@ bool PickupConstraints::z_polynomial_terms(const double* lambda, int r0, int r1,
     const Row& R = rows_[r];
     const int a = R.aux;
     switch (R.kind) {
-      case K_START: gq[a] += l; break;
-      case K_JPOS: gq[3 + a] += l; break;
-      case K_GOALYAW: gq[2] += l; break;
-      case K_JRATE: gv[3 + a] += l; break;
-      case K_YAWRATE: gv[2] += l; break;
+      case K_START:
+        gq[a] += l;
+        break;
+      case K_JPOS:
+        gq[3 + a] += l;
+        break;
+      case K_GOALYAW:
+        gq[2] += l;
+        break;
+      case K_JRATE:
+        gv[3 + a] += l;
+        break;
+      case K_YAWRATE:
+        gv[2] += l;
+        break;
       case K_BSPEED:
         gv[0] += 2 * l * v[0];
         gv[1] += 2 * l * v[1];
@@ -93,7 +103,9 @@ bool PickupConstraints::z_polynomial_terms(const double* lambda, int r0, int r1,
         Hqp_nh(2, 1) += l * k.sn;
         break;
       }
-      default: any_kin |= is_kinematic(R.kind); break;
+      default:
+        any_kin |= is_kinematic(R.kind);
+        break;
     }
   }
   return any_kin;
@@ -155,7 +167,8 @@ void PickupConstraints::chain_to_variables(const double* x, int s, const Kin& k,
   }
   Eigen::VectorXd Psss = Eigen::VectorXd::Zero(n);
   for (int i = 0; i < n; ++i)
-    for (int j = 3; j <= traj_.degree(i); ++j) Psss[i] += x[traj_.offset(i) + j] * j * (j - 1) * (j - 2) * std::pow(t, j - 3);
+    for (int j = 3; j <= traj_.degree(i); ++j)
+      Psss[i] += x[traj_.offset(i) + j] * j * (j - 1) * (j - 2) * std::pow(t, j - 3);
   const Eigen::VectorXd& Ps = k.Ps;
   const Eigen::VectorXd& Pss = k.Pss;
   const Eigen::VectorXd uq = Hqq * Ps + Hqp * Pss, up = Hqp.transpose() * Ps + Hpp * Pss;

@@ -13,8 +13,8 @@
 #include <coin/IpIpoptData.hpp>
 #include <coin/IpTNLP.hpp>
 
-#include "pickplan/pickup/nlp.hpp"
 #include "nlp_detail.hpp"
+#include "pickplan/pickup/nlp.hpp"
 
 namespace pickplan::pickup {
 using detail::Multipliers;
@@ -41,9 +41,7 @@ class CoeffBasis {
     for (int i = 0; i < tr.dof(); ++i) blocks_.push_back({tr.offset(i), tr.degree(i) + 1});
   }
   bool identity() const { return blocks_.empty(); }
-  Eigen::VectorXd to_x(const double* z) const {
-    return M_ * Eigen::Map<const Eigen::VectorXd>(z, M_.rows());
-  }
+  Eigen::VectorXd to_x(const double* z) const { return M_ * Eigen::Map<const Eigen::VectorXd>(z, M_.rows()); }
   Eigen::VectorXd to_z(const Eigen::VectorXd& x) const { return identity() ? x : Eigen::VectorXd(Minv_ * x); }
   // Jacobian values in x -> z: every run of a DOF's coefficient columns (as PickupConstraints lays
   // them out: consecutive, starting at the DOF's offset) times that DOF's block.
@@ -71,7 +69,8 @@ class CoeffBasis {
     Eigen::MatrixXd HM = H;  // H M: columns of each block mixed
     for (const auto& [o, len] : blocks_) HM.middleCols(o, len) = H.middleCols(o, len) * M_.block(o, o, len, len);
     Eigen::MatrixXd out = HM;  // M^T (H M): rows of each block mixed
-    for (const auto& [o, len] : blocks_) out.middleRows(o, len) = M_.block(o, o, len, len).transpose() * HM.middleRows(o, len);
+    for (const auto& [o, len] : blocks_)
+      out.middleRows(o, len) = M_.block(o, o, len, len).transpose() * HM.middleRows(o, len);
     return out;
   }
 
@@ -90,7 +89,12 @@ class PickupTNLP : public Ipopt::TNLP {
  public:
   PickupTNLP(const PickupConstraints& c, const Eigen::VectorXd& x0, bool exact_hessian, bool bernstein,
              const Multipliers* warm)
-      : x_(x0), c_(c), basis_(c.traj(), c.num_vars(), bernstein), z0_(basis_.to_z(x0)), exact_(exact_hessian), warm_(warm) {
+      : x_(x0),
+        c_(c),
+        basis_(c.traj(), c.num_vars(), bernstein),
+        z0_(basis_.to_z(x0)),
+        exact_(exact_hessian),
+        warm_(warm) {
     std::vector<int> r(c.num_nonzeros()), cl(c.num_nonzeros());
     c.jac_structure(r.data(), cl.data());
     basis_.prepare_jacobian(cl.data(), c.num_nonzeros());
@@ -189,7 +193,8 @@ class PickupTNLP : public Ipopt::TNLP {
       if (values == nullptr) {
         c_.hess_structure(rows, cols);
       } else {
-        const Eigen::MatrixXd H = basis_.hessian_to_z(c_.dense_hessian(basis_.to_x(z), Eigen::Map<const Eigen::VectorXd>(lambda, m)));
+        const Eigen::MatrixXd H =
+            basis_.hessian_to_z(c_.dense_hessian(basis_.to_x(z), Eigen::Map<const Eigen::VectorXd>(lambda, m)));
         int e = 0;
         for (int i = 0; i < n; ++i)
           for (int j = 0; j <= i; ++j) values[e++] = H(i, j);
@@ -225,37 +230,63 @@ class PickupTNLP : public Ipopt::TNLP {
 
 const char* app_status_text(Ipopt::ApplicationReturnStatus s) {
   switch (s) {
-    case Ipopt::Solve_Succeeded: return "Solve_Succeeded";
-    case Ipopt::Solved_To_Acceptable_Level: return "Solved_To_Acceptable_Level";
-    case Ipopt::Infeasible_Problem_Detected: return "Infeasible_Problem_Detected";
-    case Ipopt::Search_Direction_Becomes_Too_Small: return "Search_Direction_Becomes_Too_Small";
-    case Ipopt::Diverging_Iterates: return "Diverging_Iterates";
-    case Ipopt::User_Requested_Stop: return "User_Requested_Stop";
-    case Ipopt::Feasible_Point_Found: return "Feasible_Point_Found";
-    case Ipopt::Maximum_Iterations_Exceeded: return "Maximum_Iterations_Exceeded";
-    case Ipopt::Restoration_Failed: return "Restoration_Failed";
-    case Ipopt::Error_In_Step_Computation: return "Error_In_Step_Computation";
-    case Ipopt::Maximum_CpuTime_Exceeded: return "Maximum_CpuTime_Exceeded";
-    case Ipopt::Not_Enough_Degrees_Of_Freedom: return "Not_Enough_Degrees_Of_Freedom";
-    case Ipopt::Invalid_Problem_Definition: return "Invalid_Problem_Definition";
-    case Ipopt::Invalid_Option: return "Invalid_Option";
-    case Ipopt::Invalid_Number_Detected: return "Invalid_Number_Detected";
-    default: return "Internal_Error";
+    case Ipopt::Solve_Succeeded:
+      return "Solve_Succeeded";
+    case Ipopt::Solved_To_Acceptable_Level:
+      return "Solved_To_Acceptable_Level";
+    case Ipopt::Infeasible_Problem_Detected:
+      return "Infeasible_Problem_Detected";
+    case Ipopt::Search_Direction_Becomes_Too_Small:
+      return "Search_Direction_Becomes_Too_Small";
+    case Ipopt::Diverging_Iterates:
+      return "Diverging_Iterates";
+    case Ipopt::User_Requested_Stop:
+      return "User_Requested_Stop";
+    case Ipopt::Feasible_Point_Found:
+      return "Feasible_Point_Found";
+    case Ipopt::Maximum_Iterations_Exceeded:
+      return "Maximum_Iterations_Exceeded";
+    case Ipopt::Restoration_Failed:
+      return "Restoration_Failed";
+    case Ipopt::Error_In_Step_Computation:
+      return "Error_In_Step_Computation";
+    case Ipopt::Maximum_CpuTime_Exceeded:
+      return "Maximum_CpuTime_Exceeded";
+    case Ipopt::Not_Enough_Degrees_Of_Freedom:
+      return "Not_Enough_Degrees_Of_Freedom";
+    case Ipopt::Invalid_Problem_Definition:
+      return "Invalid_Problem_Definition";
+    case Ipopt::Invalid_Option:
+      return "Invalid_Option";
+    case Ipopt::Invalid_Number_Detected:
+      return "Invalid_Number_Detected";
+    default:
+      return "Internal_Error";
   }
 }
 
 SolveStatus short_status(Ipopt::ApplicationReturnStatus s) {
   switch (s) {
-    case Ipopt::Solve_Succeeded: return SolveStatus::solved;
-    case Ipopt::Solved_To_Acceptable_Level: return SolveStatus::solved_acceptable;
-    case Ipopt::Infeasible_Problem_Detected: return SolveStatus::infeasible;
-    case Ipopt::Diverging_Iterates: return SolveStatus::diverging;
-    case Ipopt::Maximum_Iterations_Exceeded: return SolveStatus::max_iterations;
-    case Ipopt::Maximum_CpuTime_Exceeded: return SolveStatus::max_cpu_time;
-    case Ipopt::Restoration_Failed: return SolveStatus::restoration_failed;
-    case Ipopt::Search_Direction_Becomes_Too_Small: return SolveStatus::step_too_small;
-    case Ipopt::Invalid_Number_Detected: return SolveStatus::invalid_number;
-    default: return SolveStatus::solver_error;
+    case Ipopt::Solve_Succeeded:
+      return SolveStatus::solved;
+    case Ipopt::Solved_To_Acceptable_Level:
+      return SolveStatus::solved_acceptable;
+    case Ipopt::Infeasible_Problem_Detected:
+      return SolveStatus::infeasible;
+    case Ipopt::Diverging_Iterates:
+      return SolveStatus::diverging;
+    case Ipopt::Maximum_Iterations_Exceeded:
+      return SolveStatus::max_iterations;
+    case Ipopt::Maximum_CpuTime_Exceeded:
+      return SolveStatus::max_cpu_time;
+    case Ipopt::Restoration_Failed:
+      return SolveStatus::restoration_failed;
+    case Ipopt::Search_Direction_Becomes_Too_Small:
+      return SolveStatus::step_too_small;
+    case Ipopt::Invalid_Number_Detected:
+      return SolveStatus::invalid_number;
+    default:
+      return SolveStatus::solver_error;
   }
 }
 
@@ -274,8 +305,8 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
   IpoptRun res;
   const auto t0 = std::chrono::steady_clock::now();
   const double c0 = thread_cpu_seconds();
-  Ipopt::SmartPtr<PickupTNLP> nlp = new PickupTNLP(cons, x0, st.hessian == HessianMode::exact,
-                                                   st.basis == CoefficientBasis::bernstein, warm);
+  Ipopt::SmartPtr<PickupTNLP> nlp =
+      new PickupTNLP(cons, x0, st.hessian == HessianMode::exact, st.basis == CoefficientBasis::bernstein, warm);
   if (st.time_limit > 0) {
     nlp->has_deadline = true;
     nlp->last_callback = t0;
@@ -289,7 +320,8 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
   app->Options()->SetStringValue("mu_strategy", to_string(st.mu_strategy));
   app->Options()->SetNumericValue("mu_init", mu_init);
   if (warm) {
-    if (warm->lambda.size() != cons.num_constraints() || warm->zl.size() != cons.num_vars() || warm->zu.size() != cons.num_vars())
+    if (warm->lambda.size() != cons.num_constraints() || warm->zl.size() != cons.num_vars() ||
+        warm->zu.size() != cons.num_vars())
       throw std::invalid_argument("warm start: multiplier sizes do not match the constraint system");
     app->Options()->SetStringValue("warm_start_init_point", "yes");
     app->Options()->SetNumericValue("warm_start_bound_push", st.warm_start_push);
@@ -327,7 +359,8 @@ IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, cons
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   res.cpu_seconds = thread_cpu_seconds() - c0;
   res.ipopt_status = app_status_text(status);
-  res.status = nlp->deadline_hit && status == Ipopt::User_Requested_Stop ? SolveStatus::time_limit : short_status(status);
+  res.status =
+      nlp->deadline_hit && status == Ipopt::User_Requested_Stop ? SolveStatus::time_limit : short_status(status);
   res.converged = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level;
   res.iterations = nlp->iterations;
   res.mult = nlp->mult;

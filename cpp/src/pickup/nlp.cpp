@@ -95,15 +95,19 @@ void PickupConstraints::update_kinematics(Kin& k) const {
   k.sn = std::sin(k.q[2]);
   if (!k.need_kin) return;
   robot_.forward_kinematics(k.q.data(), k.ws);
-  if (k.need_vel) velocity_derivatives(robot_, k.ws, pb_.tool_link, k.qd, k.Jt, k.dv, k.dw);
-  else robot_.point_jacobian(k.ws, pb_.tool_link, Eigen::Vector3d::Zero(), k.Jt);
+  if (k.need_vel)
+    velocity_derivatives(robot_, k.ws, pb_.tool_link, k.qd, k.Jt, k.dv, k.dw);
+  else
+    robot_.point_jacobian(k.ws, pb_.tool_link, Eigen::Vector3d::Zero(), k.Jt);
 }
 
 bool PickupConstraints::is_kinematic(int kind) {
-  return kind == K_VEL || kind == K_OMEGA || kind == K_POSE_P || kind == K_POSE_R || kind == K_POSE_TR || kind == K_COLL;
+  return kind == K_VEL || kind == K_OMEGA || kind == K_POSE_P || kind == K_POSE_R || kind == K_POSE_TR ||
+         kind == K_COLL;
 }
 
-double PickupConstraints::row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq, Eigen::VectorXd& cqd, double& dsg) const {
+double PickupConstraints::row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq, Eigen::VectorXd& cqd,
+                                       double& dsg) const {
   const int n = dof_;
   const Eigen::VectorXd &q = k.q, &Ps = k.Ps, &qd = k.qd;
   const double T = k.T, c = k.c, sn = k.sn;
@@ -113,27 +117,51 @@ double PickupConstraints::row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq
   double val = 0.0;
   const int a = R.aux;
   switch (R.kind) {
-    case K_START: val = q[a]; cq[a] = 1.0; break;
+    case K_START:
+      val = q[a];
+      cq[a] = 1.0;
+      break;
     case K_NH:  // |x_s sin phi - y_s cos phi| <= eps L (normalised time: time-scale invariant)
       val = Ps[0] * sn - Ps[1] * c;
       cq[2] = Ps[0] * c + Ps[1] * sn;
       cqd[0] = T * sn;  // c depends on q' only through P_s = T q'
       cqd[1] = -T * c;
       break;
-    case K_BSPEED: val = qd[0] * qd[0] + qd[1] * qd[1]; cqd[0] = 2 * qd[0]; cqd[1] = 2 * qd[1]; break;
-    case K_YAWRATE: val = qd[2]; cqd[2] = 1.0; break;
-    case K_JPOS: val = q[3 + a]; cq[3 + a] = 1.0; break;
-    case K_JRATE: val = qd[3 + a]; cqd[3 + a] = 1.0; break;
+    case K_BSPEED:
+      val = qd[0] * qd[0] + qd[1] * qd[1];
+      cqd[0] = 2 * qd[0];
+      cqd[1] = 2 * qd[1];
+      break;
+    case K_YAWRATE:
+      val = qd[2];
+      cqd[2] = 1.0;
+      break;
+    case K_JPOS:
+      val = q[3 + a];
+      cq[3 + a] = 1.0;
+      break;
+    case K_JRATE:
+      val = qd[3 + a];
+      cqd[3 + a] = 1.0;
+      break;
     case K_AREA: {
       const double dx = q[0] - pb_.part_xy[0], dy = q[1] - pb_.part_xy[1];
-      val = dx * dx + dy * dy; cq[0] = 2 * dx; cq[1] = 2 * dy;
+      val = dx * dx + dy * dy;
+      cq[0] = 2 * dx;
+      cq[1] = 2 * dy;
       break;
     }
     case K_VEL:
       val = k.Jt.row(a).dot(qd) - k.Sg * pb_.approach_dir[a];
-      cq = k.dv.row(a).transpose(); cqd = k.Jt.row(a).transpose(); dsg = -pb_.approach_dir[a];
+      cq = k.dv.row(a).transpose();
+      cqd = k.Jt.row(a).transpose();
+      dsg = -pb_.approach_dir[a];
       break;
-    case K_OMEGA: val = k.Jt.row(3 + a).dot(qd); cq = k.dw.row(a).transpose(); cqd = k.Jt.row(3 + a).transpose(); break;
+    case K_OMEGA:
+      val = k.Jt.row(3 + a).dot(qd);
+      cq = k.dw.row(a).transpose();
+      cqd = k.Jt.row(3 + a).transpose();
+      break;
     case K_POSE_P:
       val = k.ws.link_pose[pb_.tool_link].p[a] - pb_.grasp_pose.p[a];
       cq = k.Jt.row(a).transpose();
@@ -144,7 +172,10 @@ double PickupConstraints::row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq
       const Eigen::Matrix3d& Rd = pb_.grasp_pose.R;
       Eigen::Vector3d e = Eigen::Vector3d::Zero();
       double tr = 0.0;
-      for (int j = 0; j < 3; ++j) { e += 0.5 * Rt.col(j).cross(Rd.col(j)); tr += Rt.col(j).dot(Rd.col(j)); }
+      for (int j = 0; j < 3; ++j) {
+        e += 0.5 * Rt.col(j).cross(Rd.col(j));
+        tr += Rt.col(j).dot(Rd.col(j));
+      }
       val = R.kind == K_POSE_R ? e[a] : tr;
       for (int j = 0; j < n; ++j) {
         const Eigen::Vector3d w = k.Jt.block<3, 1>(3, j);
@@ -161,10 +192,15 @@ double PickupConstraints::row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq
     }
     case K_GOALPOS: {
       const double dx = q[0] - pb_.goal[0], dy = q[1] - pb_.goal[1];
-      val = dx * dx + dy * dy; cq[0] = 2 * dx; cq[1] = 2 * dy;
+      val = dx * dx + dy * dy;
+      cq[0] = 2 * dx;
+      cq[1] = 2 * dy;
       break;
     }
-    case K_GOALYAW: val = q[2]; cq[2] = 1.0; break;
+    case K_GOALYAW:
+      val = q[2];
+      cq[2] = 1.0;
+      break;
     case K_COLL: {
       const int no = static_cast<int>(pb_.obstacles.size());
       const BodySphere& b = pb_.body_spheres[a / no];
@@ -177,7 +213,8 @@ double PickupConstraints::row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq
       cq = k.Jx.transpose() * (d / dist);
       break;
     }
-    default: break;
+    default:
+      break;
   }
   return val;
 }
@@ -190,7 +227,12 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
       double* J = jac ? jac + R.jac_begin : nullptr;
       if (R.kind == K_TIMING) {  // (T2 - T1) S_c = stroke
         if (g) g[r] = (s2 - s1) * T * Sc;
-        if (J) { J[0] = -T * Sc; J[1] = T * Sc; J[2] = (s2 - s1) * Sc; J[3] = (s2 - s1) * T; }
+        if (J) {
+          J[0] = -T * Sc;
+          J[1] = T * Sc;
+          J[2] = (s2 - s1) * Sc;
+          J[3] = (s2 - s1) * T;
+        }
       } else if (R.kind == K_RATE_HULL) {  // beta_k / T
         const int i = R.aux / 64, k = R.aux % 64, d = traj_.degree(i);
         const double b = rate_hull_[i].row(k).dot(Eigen::Map<const Eigen::VectorXd>(x + traj_.offset(i), d + 1));
@@ -201,10 +243,17 @@ void PickupConstraints::sample_rows(const double* x, int s, int r0, int r1, doub
         }
       } else if (R.kind == K_ORDER) {
         if (g) g[r] = s2 - s1;
-        if (J) { J[0] = -1.0; J[1] = 1.0; }
+        if (J) {
+          J[0] = -1.0;
+          J[1] = 1.0;
+        }
       } else if (R.kind == K_RHO) {
         if (g) g[r] = pb_.rho.value(Sg, Sc);
-        if (J) { Eigen::Vector2d d = pb_.rho.gradient(Sg, Sc); J[0] = d[0]; J[1] = d[1]; }
+        if (J) {
+          Eigen::Vector2d d = pb_.rho.gradient(Sg, Sc);
+          J[0] = d[0];
+          J[1] = d[1];
+        }
       }
     }
     return;

@@ -6,15 +6,32 @@
 
 #include <Eigen/Core>
 
-#include "pickplan/pickup/nlp.hpp"
 #include "pickplan/core/robot.hpp"
+#include "pickplan/pickup/nlp.hpp"
 
 namespace pickplan::pickup {
 namespace detail {
 
 enum Kind {
-  K_START, K_NH, K_BSPEED, K_YAWRATE, K_JPOS, K_JRATE, K_AREA, K_VEL, K_OMEGA, K_POSE_P, K_POSE_R, K_POSE_TR,
-  K_GOALPOS, K_GOALYAW, K_COLL, K_TIMING, K_ORDER, K_RHO, K_RATE_HULL
+  K_START,
+  K_NH,
+  K_BSPEED,
+  K_YAWRATE,
+  K_JPOS,
+  K_JRATE,
+  K_AREA,
+  K_VEL,
+  K_OMEGA,
+  K_POSE_P,
+  K_POSE_R,
+  K_POSE_TR,
+  K_GOALPOS,
+  K_GOALYAW,
+  K_COLL,
+  K_TIMING,
+  K_ORDER,
+  K_RHO,
+  K_RATE_HULL
 };
 constexpr double kInf = 2e19;
 
@@ -37,11 +54,11 @@ struct Multipliers {
 struct IpoptRun {
   SolveStatus status = SolveStatus::not_run;  // Ipopt's return code, shortened
   std::string ipopt_status;                   // ... and in full, as text
-  bool converged = false;            // Solve_Succeeded or Solved_To_Acceptable_Level
+  bool converged = false;                     // Solve_Succeeded or Solved_To_Acceptable_Level
   int iterations = 0;
   double seconds = 0.0, cpu_seconds = 0.0;  // wall and thread CPU time
-  Eigen::VectorXd x;                 // the final iterate (x0 when Ipopt returned nothing usable)
-  Multipliers mult;                  // at the final iterate (empty when Ipopt returned none)
+  Eigen::VectorXd x;                        // the final iterate (x0 when Ipopt returned nothing usable)
+  Multipliers mult;                         // at the final iterate (empty when Ipopt returned none)
 };
 // warm (optional): multipliers to start from (Ipopt's warm_start_init_point).
 IpoptRun run_ipopt(const PickupConstraints& cons, const PickupSettings& st, const Eigen::VectorXd& x0, double mu_init,

@@ -1,8 +1,8 @@
 // The row layout of the pick-up NLP (Sec. V-A): which constraint rows each stage has at which
 // samples, their bounds, the variable bounds and the Jacobian's sparsity; row names and keys for
 // diagnostics and warm starts. The values and derivatives of the rows are in nlp.cpp.
-#include "pickplan/pickup/nlp.hpp"
 #include "nlp_detail.hpp"
+#include "pickplan/pickup/nlp.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,10 +12,13 @@ namespace pickplan::pickup {
 using namespace detail;
 namespace {
 
-const char* kKindName[] = {"start", "nonholonomic", "base_speed", "yaw_rate", "joint_position", "joint_rate",
-                           "grasp_area", "gripper_velocity", "gripper_angular_velocity", "grasp_position",
-                           "grasp_orientation", "grasp_orientation_half", "goal_position", "goal_yaw",
-                           "collision", "grasp_timing", "time_order", "success_probability", "rate_hull"};
+const char* kKindName[] = {"start",          "nonholonomic",      "base_speed",
+                           "yaw_rate",       "joint_position",    "joint_rate",
+                           "grasp_area",     "gripper_velocity",  "gripper_angular_velocity",
+                           "grasp_position", "grasp_orientation", "grasp_orientation_half",
+                           "goal_position",  "goal_yaw",          "collision",
+                           "grasp_timing",   "time_order",        "success_probability",
+                           "rate_hull"};
 
 }  // namespace
 
@@ -42,17 +45,21 @@ struct PickupConstraints::RowSelection {
 PickupConstraints::PickupConstraints(const core::Robot& robot, const PickupProblem& problem,
                                      const PickupSettings& settings, int stage, const PickupRowSubset* subset)
     : robot_(robot), pb_(problem), st_(settings), stage_(stage) {
-  if (stage < 0 || stage > 5) throw std::invalid_argument("stage must be 0 (all constraints) or 1..5, got " + std::to_string(stage));
+  if (stage < 0 || stage > 5)
+    throw std::invalid_argument("stage must be 0 (all constraints) or 1..5, got " + std::to_string(stage));
   problem.validate(robot);
   if (settings.samples_per_interval < 2)
-    throw std::invalid_argument("samples_per_interval must be >= 2, got " + std::to_string(settings.samples_per_interval));
+    throw std::invalid_argument("samples_per_interval must be >= 2, got " +
+                                std::to_string(settings.samples_per_interval));
   if (!(settings.dense_nonholonomic >= 0 && std::isfinite(settings.dense_nonholonomic)))
-    throw std::invalid_argument("dense_nonholonomic must be a finite number >= 0, got " + std::to_string(settings.dense_nonholonomic));
+    throw std::invalid_argument("dense_nonholonomic must be a finite number >= 0, got " +
+                                std::to_string(settings.dense_nonholonomic));
   dof_ = robot.dof();
   if (dof_ > 31) throw std::invalid_argument("at most 31 DOFs supported");
   const std::vector<int> deg = resolved_degrees(settings, dof_);
   if (static_cast<int>(deg.size()) != dof_)
-    throw std::invalid_argument("degrees: expected " + std::to_string(dof_) + " values, got " + std::to_string(deg.size()));
+    throw std::invalid_argument("degrees: expected " + std::to_string(dof_) + " values, got " +
+                                std::to_string(deg.size()));
   traj_ = PolyTraj(deg, 1.0);
   // S_g above this bound can never meet rho >= gamma: bounding it in every stage (not only from
   // stage 4 on, where the probability row enforces it) keeps stage 3 from driving the gripper to
@@ -191,8 +198,7 @@ void PickupConstraints::add_sample_rows(const RowSelection& sel, double nh_bound
     // The start configuration is q(0) = a_i0: variable bounds (bounds()), not rows.
     add_row(K_NH, s, 0, base, false, false, -nh_bound, nh_bound);
     add_row(K_BSPEED, s, 0, base, false, false, -kInf, problem.base_speed_limit * problem.base_speed_limit);
-    if (!hull)
-      add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
+    if (!hull) add_row(K_YAWRATE, s, 0, base, false, false, -problem.base_yaw_rate_limit, problem.base_yaw_rate_limit);
     for (int j = 0; j < na; ++j) {
       if (s > 0 && sel.joints[s * na + j]) add_joint_row(s, j);  // q(0) is fixed
       if (!hull)
@@ -257,7 +263,8 @@ void PickupConstraints::add_row(int kind, int sample, int aux, unsigned mask, bo
   rows_.push_back(r);
 }
 
-void PickupConstraints::bounds(Eigen::VectorXd& xl, Eigen::VectorXd& xu, Eigen::VectorXd& gl, Eigen::VectorXd& gu) const {
+void PickupConstraints::bounds(Eigen::VectorXd& xl, Eigen::VectorXd& xu, Eigen::VectorXd& gl,
+                               Eigen::VectorXd& gu) const {
   xl = Eigen::VectorXd::Constant(n_, -kInf);
   xu = Eigen::VectorXd::Constant(n_, kInf);
   for (int i = 0; i < dof_; ++i)  // q(0) = a_i0: the start configuration

@@ -16,15 +16,21 @@ constexpr Names<CoefficientBasis> kBasis[] = {{CoefficientBasis::bernstein, "ber
                                               {CoefficientBasis::monomial, "monomial"}};
 constexpr Names<MuStrategy> kMu[] = {{MuStrategy::monotone, "monotone"}, {MuStrategy::adaptive, "adaptive"}};
 constexpr Names<RateRows> kRates[] = {{RateRows::hull, "hull"}, {RateRows::sampled, "sampled"}};
-constexpr Names<SolveStatus> kStatus[] = {
-    {SolveStatus::not_run, "not_run"}, {SolveStatus::solved, "solved"},
-    {SolveStatus::solved_acceptable, "solved_acceptable"}, {SolveStatus::infeasible, "infeasible"},
-    {SolveStatus::diverging, "diverging"}, {SolveStatus::max_iterations, "max_iterations"},
-    {SolveStatus::max_cpu_time, "max_cpu_time"}, {SolveStatus::restoration_failed, "restoration_failed"},
-    {SolveStatus::step_too_small, "step_too_small"}, {SolveStatus::invalid_number, "invalid_number"},
-    {SolveStatus::solver_error, "solver_error"}, {SolveStatus::bounded, "bounded"},
-    {SolveStatus::violation_between_samples, "violation_between_samples"},
-    {SolveStatus::constraint_violation, "constraint_violation"}, {SolveStatus::time_limit, "time_limit"}};
+constexpr Names<SolveStatus> kStatus[] = {{SolveStatus::not_run, "not_run"},
+                                          {SolveStatus::solved, "solved"},
+                                          {SolveStatus::solved_acceptable, "solved_acceptable"},
+                                          {SolveStatus::infeasible, "infeasible"},
+                                          {SolveStatus::diverging, "diverging"},
+                                          {SolveStatus::max_iterations, "max_iterations"},
+                                          {SolveStatus::max_cpu_time, "max_cpu_time"},
+                                          {SolveStatus::restoration_failed, "restoration_failed"},
+                                          {SolveStatus::step_too_small, "step_too_small"},
+                                          {SolveStatus::invalid_number, "invalid_number"},
+                                          {SolveStatus::solver_error, "solver_error"},
+                                          {SolveStatus::bounded, "bounded"},
+                                          {SolveStatus::violation_between_samples, "violation_between_samples"},
+                                          {SolveStatus::constraint_violation, "constraint_violation"},
+                                          {SolveStatus::time_limit, "time_limit"}};
 
 template <class E, std::size_t N>
 const char* name_of(const Names<E> (&names)[N], E value) {

@@ -52,7 +52,8 @@ void RhoPoly::validate() const {
   if (!coeffs.allFinite()) throw std::invalid_argument("rho: coefficients must be finite");
   if (!(sg_hi > sg_lo) || !(sc_hi > sc_lo))
     throw std::invalid_argument("rho: speed ranges must satisfy lo < hi, got S_g [" + std::to_string(sg_lo) + ", " +
-                                std::to_string(sg_hi) + "], S_c [" + std::to_string(sc_lo) + ", " + std::to_string(sc_hi) + "]");
+                                std::to_string(sg_hi) + "], S_c [" + std::to_string(sc_lo) + ", " +
+                                std::to_string(sc_hi) + "]");
 }
 
 double RhoPoly::value(double sg, double sc) const {
@@ -71,7 +72,8 @@ Eigen::Vector2d RhoPoly::gradient(double sg, double sc) const {
 
 Eigen::Matrix2d RhoPoly::hessian(double sg, double sc) const {
   Eigen::VectorXd bu, dbu, bv, dbv;
-  const double u = std::clamp((sg - sg_lo) / (sg_hi - sg_lo), 0.0, 1.0), v = std::clamp((sc - sc_lo) / (sc_hi - sc_lo), 0.0, 1.0);
+  const double u = std::clamp((sg - sg_lo) / (sg_hi - sg_lo), 0.0, 1.0),
+               v = std::clamp((sc - sc_lo) / (sc_hi - sc_lo), 0.0, 1.0);
   bernstein(static_cast<int>(coeffs.rows()) - 1, u, bu, dbu);
   bernstein(static_cast<int>(coeffs.cols()) - 1, v, bv, dbv);
   const Eigen::VectorXd ddu = bernstein_dd(static_cast<int>(coeffs.rows()) - 1, u);
@@ -111,19 +113,25 @@ double RhoPoly::sg_upper_bound(double gamma, double sc_a, double sc_b) const {
 
 void PickupProblem::validate(const core::Robot& robot) const {
   const int na = robot.dof() - 3;
-  if (na < 1) throw std::invalid_argument("robot: expected 3 base DOFs plus an arm, got " + std::to_string(robot.dof()) + " DOFs");
+  if (na < 1)
+    throw std::invalid_argument("robot: expected 3 base DOFs plus an arm, got " + std::to_string(robot.dof()) +
+                                " DOFs");
   if (arm_start.size() != na)
-    throw std::invalid_argument("arm_start: expected " + std::to_string(na) + " joint values, got " + std::to_string(arm_start.size()));
+    throw std::invalid_argument("arm_start: expected " + std::to_string(na) + " joint values, got " +
+                                std::to_string(arm_start.size()));
   if (arm_rate_limits.size() != na)
-    throw std::invalid_argument("arm_rate_limits: expected " + std::to_string(na) + " values, got " + std::to_string(arm_rate_limits.size()));
+    throw std::invalid_argument("arm_rate_limits: expected " + std::to_string(na) + " values, got " +
+                                std::to_string(arm_rate_limits.size()));
   if ((arm_rate_limits.array() <= 0).any()) throw std::invalid_argument("arm_rate_limits must be positive");
   if (tool_link < 0 || tool_link >= robot.num_links()) throw std::invalid_argument("tool_link: index out of range");
   if (std::abs(approach_dir.norm() - 1.0) > 1e-6) throw std::invalid_argument("approach_dir must be a unit vector");
   if (!(grasp_area_rmax > grasp_area_rmin) || grasp_area_rmin < 0)
     throw std::invalid_argument("grasp area: expected 0 <= rmin < rmax");
-  if (!(gamma >= 0 && gamma <= 1)) throw std::invalid_argument("gamma must lie in [0, 1], got " + std::to_string(gamma));
+  if (!(gamma >= 0 && gamma <= 1))
+    throw std::invalid_argument("gamma must lie in [0, 1], got " + std::to_string(gamma));
   if (!(stroke > 0)) throw std::invalid_argument("stroke must be positive");
-  if (!(base_speed_limit > 0) || !(base_yaw_rate_limit > 0)) throw std::invalid_argument("base limits must be positive");
+  if (!(base_speed_limit > 0) || !(base_yaw_rate_limit > 0))
+    throw std::invalid_argument("base limits must be positive");
   if (!(goal_tol_pos > 0) || !(goal_tol_yaw > 0)) throw std::invalid_argument("goal tolerances must be positive");
   rho.validate();
   if (!vary_sc && !(sc_fixed > 0)) throw std::invalid_argument("sc_fixed must be positive");

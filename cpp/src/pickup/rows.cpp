@@ -3,13 +3,13 @@
 // the regular samples.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
-#include <limits>
 
-#include "pickplan/pickup/nlp.hpp"
 #include "nlp_detail.hpp"
 #include "pickplan/core/errors.hpp"
+#include "pickplan/pickup/nlp.hpp"
 
 namespace pickplan::pickup {
 
@@ -27,9 +27,8 @@ void PickupRowSubset::merge(const PickupRowSubset& o) {
         }))
       collisions.push_back(c);
   for (const auto& n : o.nonholonomic)
-    if (std::none_of(nonholonomic.begin(), nonholonomic.end(), [&](const Instant& a) {
-          return a.w[0] == n.w[0] && a.w[1] == n.w[1] && a.w[2] == n.w[2];
-        }))
+    if (std::none_of(nonholonomic.begin(), nonholonomic.end(),
+                     [&](const Instant& a) { return a.w[0] == n.w[0] && a.w[1] == n.w[1] && a.w[2] == n.w[2]; }))
       nonholonomic.push_back(n);
 }
 
@@ -42,7 +41,8 @@ double clearance(const core::RobotWorkspace& ws, const PickupProblem& pb, int pa
 }
 }  // namespace
 
-PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double joint_window, double collision_window) const {
+PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double joint_window,
+                                             double collision_window) const {
   core::require_size("NLP variables x", n_, x.size(), "values");
   PickupRowSubset out;
   const int na = dof_ - 3, npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());
@@ -69,7 +69,8 @@ PickupRowSubset PickupConstraints::near_rows(const Eigen::VectorXd& x, double jo
 PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int subdivisions, double threshold,
                                                 double joint_slack, double* min_clearance) const {
   core::require_size("NLP variables x", n_, x.size(), "values");
-  if (subdivisions < 1) throw std::invalid_argument("dense check: subdivisions must be >= 1, got " + std::to_string(subdivisions));
+  if (subdivisions < 1)
+    throw std::invalid_argument("dense check: subdivisions must be >= 1, got " + std::to_string(subdivisions));
   PickupRowSubset out;
   double least = std::numeric_limits<double>::infinity();
   const int na = dof_ - 3, npairs = static_cast<int>(pb_.obstacles.size() * pb_.body_spheres.size());
@@ -89,9 +90,10 @@ PickupRowSubset PickupConstraints::dense_points(const Eigen::VectorXd& x, int su
     bool nh = false;
     for (int k = 1; k < subdivisions; ++k) {  // interior instants
       const double f = double(k) / subdivisions;
-      const double w[3] = {A.w[0] + f * (B.w[0] - A.w[0]), A.w[1] + f * (B.w[1] - A.w[1]), A.w[2] + f * (B.w[2] - A.w[2])};
+      const double w[3] = {A.w[0] + f * (B.w[0] - A.w[0]), A.w[1] + f * (B.w[1] - A.w[1]),
+                           A.w[2] + f * (B.w[2] - A.w[2])};
       traj_.eval(x.data(), w[0] * s1 + w[1] * s2 + w[2], q.data(), qs.data(), nullptr);  // qs: d/ds (traj_ has T = 1)
-      const double lat = std::abs(qs[0] * std::sin(q[2]) - qs[1] * std::cos(q[2]));  // the row K_NH's value
+      const double lat = std::abs(qs[0] * std::sin(q[2]) - qs[1] * std::cos(q[2]));      // the row K_NH's value
       if (st_.dense_nonholonomic > 0 && lat > lateral) {
         lateral = lat;
         nh_at = {{w[0], w[1], w[2]}};

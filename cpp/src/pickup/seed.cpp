@@ -154,11 +154,11 @@ namespace {
 constexpr int kSeedIkIterations = 150;
 constexpr double kSeedIkTolerance = 1e-10;  // m and rad: descents stop here
 constexpr double kSeedIkDamping = 1e-4;
-constexpr double kSeedIkMaxStep = 0.3;      // Euclidean norm of one step (rad and m)
-constexpr double kReachTolerance = 1e-6;    // a residual below this reaches the grasp pose
-constexpr double kBaseWeight = 0.3;         // whole-body IK: weight of the base translation
-constexpr double kAreaInset = 0.02;         // m: the whole-body IK's base kept this far inside the grasping area
-constexpr double kUnreachedPenalty = 1e3;   // arm seeds: score per unit residual of a seed that misses the pose
+constexpr double kSeedIkMaxStep = 0.3;     // Euclidean norm of one step (rad and m)
+constexpr double kReachTolerance = 1e-6;   // a residual below this reaches the grasp pose
+constexpr double kBaseWeight = 0.3;        // whole-body IK: weight of the base translation
+constexpr double kAreaInset = 0.02;        // m: the whole-body IK's base kept this far inside the grasping area
+constexpr double kUnreachedPenalty = 1e3;  // arm seeds: score per unit residual of a seed that misses the pose
 
 // The arm alone (base_weight 0) or the arm and the base translation (base_weight > 0).
 core::DlsSettings seed_ik_settings(const core::Robot& robot, const PickupSettings& st, double base_weight) {
@@ -279,7 +279,8 @@ GraspArmSeeds grasp_arm_seeds(const core::Robot& robot, const PickupProblem& pb,
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs(), n = robot.dof();
-  if (x.size() != nc + 5) throw std::invalid_argument("grasp_arm_seeds: expected " + std::to_string(nc + 5) + " variables");
+  if (x.size() != nc + 5)
+    throw std::invalid_argument("grasp_arm_seeds: expected " + std::to_string(nc + 5) + " variables");
   const double s2 = x[nc + 1];
   Eigen::VectorXd q2(n);
   tr.eval(x.data(), s2, q2.data(), nullptr, nullptr);
@@ -293,7 +294,8 @@ GraspArmSeeds grasp_arm_seeds(const core::Robot& robot, const PickupProblem& pb,
       q[3] += pan;
       q[n - 1] += w3;
       const double err = grasp_ik(robot, pb, st, q);
-      const double score = (err > kReachTolerance ? kUnreachedPenalty * err : 0.0) + (q.tail(n - 3) - pb.arm_start).norm();
+      const double score =
+          (err > kReachTolerance ? kUnreachedPenalty * err : 0.0) + (q.tail(n - 3) - pb.arm_start).norm();
       if (score < best_score) {
         best_score = score;
         best = q;
@@ -326,7 +328,8 @@ GraspArmSeeds grasp_arm_seeds(const core::Robot& robot, const PickupProblem& pb,
       Eigen::VectorXd f = flipped_arm(best, mask, pb);
       if (grasp_ik(robot, pb, st, f) >= kReachTolerance) continue;
       bool inside = true, fresh = true;
-      for (int j = 3; j < n; ++j) inside = inside && f[j] >= lo[j] + st.joint_limit_margin && f[j] <= hi[j] - st.joint_limit_margin;
+      for (int j = 3; j < n; ++j)
+        inside = inside && f[j] >= lo[j] + st.joint_limit_margin && f[j] <= hi[j] - st.joint_limit_margin;
       for (const auto& h : g.arms) fresh = fresh && (f - h).norm() > 1e-3;
       if (inside && fresh) g.arms.push_back(f);
     }
@@ -367,7 +370,8 @@ std::vector<Eigen::VectorXd> wound_arm_configurations(const core::Robot& robot, 
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int n = robot.dof();
-  if (solution.size() != tr.num_coeffs() + 5 || q2.size() != n) throw std::invalid_argument("wound_arm_configurations: wrong sizes");
+  if (solution.size() != tr.num_coeffs() + 5 || q2.size() != n)
+    throw std::invalid_argument("wound_arm_configurations: wrong sizes");
   // Where each arm joint of the solution comes within 1.5 margins of a limit (dense in s).
   Eigen::VectorXd lo = Eigen::VectorXd::Constant(n, 1e300), hi = -lo, q(n);
   for (int k = 0; k <= 200; ++k) {
@@ -405,7 +409,8 @@ Eigen::VectorXd grasp_timing_seed(const core::Robot& robot, const PickupProblem&
   const std::vector<int> deg = resolved_degrees(st, robot.dof());
   PolyTraj tr(deg, 1.0);
   const int nc = tr.num_coeffs(), n = robot.dof();
-  if (x.size() != nc + 5) throw std::invalid_argument("grasp_timing_seed: expected " + std::to_string(nc + 5) + " variables");
+  if (x.size() != nc + 5)
+    throw std::invalid_argument("grasp_timing_seed: expected " + std::to_string(nc + 5) + " variables");
   const double s1 = x[nc], s2 = x[nc + 1], Sg = x[nc + 3], Sc = x[nc + 4];
   // Tool velocity per unit normalised time, v_j = J P_s, at the grasping samples; T such that the
   // tool's rms speed v / T during grasping is S_g (the speed stage 3 asks for).

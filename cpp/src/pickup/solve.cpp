@@ -7,11 +7,11 @@
 #include <cstdio>
 #include <limits>
 #include <map>
-#include <string>
 #include <stdexcept>
+#include <string>
 
-#include "pickplan/pickup/nlp.hpp"
 #include "nlp_detail.hpp"
+#include "pickplan/pickup/nlp.hpp"
 
 namespace pickplan::pickup {
 using namespace detail;
@@ -81,7 +81,8 @@ StageResult solve_stage(const core::Robot& robot, const PickupProblem& pb, const
 namespace {
 void check_seed(const PickupConstraints& cons, const Eigen::VectorXd& x0) {
   if (x0.size() != cons.num_vars())
-    throw std::invalid_argument("seed: expected " + std::to_string(cons.num_vars()) + " variables, got " + std::to_string(x0.size()));
+    throw std::invalid_argument("seed: expected " + std::to_string(cons.num_vars()) + " variables, got " +
+                                std::to_string(x0.size()));
   if (!x0.allFinite()) throw std::invalid_argument("seed: values must be finite");
   const double T = x0[cons.idx_T()], T1 = x0[cons.idx_s1()] * T, T2 = x0[cons.idx_s2()] * T;
   if (!(T > 0 && x0[cons.idx_s1()] >= 0.0 && x0[cons.idx_s1()] <= x0[cons.idx_s2()] && x0[cons.idx_s2()] <= 1.0))
@@ -210,7 +211,8 @@ StageResult solve_stage_warm(const core::Robot& robot, const PickupProblem& pb, 
     if (!run.converged) break;
     if (x[cons.idx_T()] >= bound) {
       res.status = SolveStatus::bounded;
-      res.ipopt_status += " (T " + std::to_string(x[cons.idx_T()]) + " s, not below the best known " + std::to_string(bound) + " s)";
+      res.ipopt_status +=
+          " (T " + std::to_string(x[cons.idx_T()]) + " s, not below the best known " + std::to_string(bound) + " s)";
       break;
     }
     const bool feasible = cons.max_violation(x) <= tol;
@@ -237,7 +239,8 @@ StageResult solve_stage_warm(const core::Robot& robot, const PickupProblem& pb, 
   const bool converged = res.status == SolveStatus::solved || res.status == SolveStatus::solved_acceptable;
   res.success = converged && res.max_violation <= tol;
   if (converged && !res.success) res.status = SolveStatus::constraint_violation;
-  if (warm_out && (res.success || res.status == SolveStatus::bounded)) {  // (bounded: its multipliers still price the rows)
+  if (warm_out &&
+      (res.success || res.status == SolveStatus::bounded)) {  // (bounded: its multipliers still price the rows)
     *warm_out = prev;
     warm_out->subset = subset;
   }
@@ -449,8 +452,10 @@ PickupResult solve_successive(const core::Robot& robot, const PickupProblem& pb,
   out.x = x0.size() ? x0 : heuristic_seed(robot, pb, st);
   const double seed_wall = elapsed(t_h), seed_cpu = thread_cpu_seconds() - cpu_h;  // counted in stage 1
   if (out.x.size() != num_vars(robot, st))
-    throw std::invalid_argument("seed: expected " + std::to_string(num_vars(robot, st)) + " variables, got " + std::to_string(out.x.size()));
-  StageResult r1 = solve_stage_warm(robot, pb, st, 1, out.x, nullptr, nullptr, std::numeric_limits<double>::infinity(), limits);
+    throw std::invalid_argument("seed: expected " + std::to_string(num_vars(robot, st)) + " variables, got " +
+                                std::to_string(out.x.size()));
+  StageResult r1 =
+      solve_stage_warm(robot, pb, st, 1, out.x, nullptr, nullptr, std::numeric_limits<double>::infinity(), limits);
   r1.seconds += seed_wall;
   r1.cpu_seconds += seed_cpu;
   out.stages.push_back(r1);

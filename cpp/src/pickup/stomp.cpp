@@ -53,7 +53,8 @@ Costs evaluate(const core::Robot& robot, const Eigen::MatrixXd& Q, double dt, co
     c.per_step[i] = cost;
   }
   for (int i = 1; i + 1 < N; ++i)
-    c.smooth += (Q.row(i + 1).tail(na) - 2 * Q.row(i).tail(na) + Q.row(i - 1).tail(na)).squaredNorm() / (dt * dt * dt * dt);
+    c.smooth +=
+        (Q.row(i + 1).tail(na) - 2 * Q.row(i).tail(na) + Q.row(i - 1).tail(na)).squaredNorm() / (dt * dt * dt * dt);
   c.smooth *= dt;
   c.total = c.per_step.sum() + st.control_weight * c.smooth;
   return c;
@@ -65,7 +66,8 @@ namespace {
 void check_stomp_inputs(const core::Robot& robot, const Eigen::MatrixXd& Q0, double dt, const Eigen::VectorXd& rate,
                         const std::vector<BodySphere>& spheres, const StompSettings& st) {
   const int N = static_cast<int>(Q0.rows()), d = robot.dof(), na = d - 3;
-  if (na < 1) throw std::invalid_argument("stomp: expected 3 base DOFs plus an arm, got " + std::to_string(d) + " DOFs");
+  if (na < 1)
+    throw std::invalid_argument("stomp: expected 3 base DOFs plus an arm, got " + std::to_string(d) + " DOFs");
   core::require_size("stomp: waypoints", d, Q0.cols(), "joint values per row");
   if (N < 5) throw std::invalid_argument("stomp: need at least 5 waypoints, got " + std::to_string(N));
   core::require_finite("stomp: waypoints", Q0.data(), Q0.size());

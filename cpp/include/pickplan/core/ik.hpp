@@ -3,8 +3,8 @@
 // pick-up NLP's seeds, the lift in execution). One descent (solve_ik) takes per-joint weights,
 // joint limits with a margin, a full pose or a position target, and a fixed or adaptive
 // (Levenberg-Marquardt) damping; IkSolver adds a fixed, seeded spread of start configurations.
-// Written by hand rather than with a general NLP library for speed: a converging solve takes ~10-20 iterations of one FK + one 6x6
-// solve (see pickplan-bench).
+// Written by hand rather than with a general NLP library for speed: a converging solve takes ~10-20 iterations of one
+// FK + one 6x6 solve (see pickplan-bench).
 #include <memory>
 #include <utility>
 #include <vector>
@@ -30,21 +30,21 @@ enum class IkRotationError { angle_axis, sine_axis };
 struct DlsSettings {
   IkTask task = IkTask::pose;
   IkRotationError rotation_error = IkRotationError::angle_axis;
-  int max_iterations = 40;  // converging descents: median 8, 90 % <= 26; later seeds cover the rest (99.6 %)
-  double position_tolerance = 1e-4;   // m: converged below this and rotation_tolerance
-  double rotation_tolerance = 1e-3;   // rad (ignored for IkTask::position)
+  int max_iterations = 40;           // converging descents: median 8, 90 % <= 26; later seeds cover the rest (99.6 %)
+  double position_tolerance = 1e-4;  // m: converged below this and rotation_tolerance
+  double rotation_tolerance = 1e-3;  // rad (ignored for IkTask::position)
   IkDamping damping_schedule = IkDamping::adaptive;
-  double damping = 1e-2;              // > 0, added to J W J^T's diagonal (adaptive: its start value)
-  double damping_decrease = 0.3;      // adaptive: factor after a step that lowered the error
-  double damping_increase = 10.0;     // adaptive: factor after a rejected step
-  double min_damping = 1e-8;          // adaptive: bounds of the damping
+  double damping = 1e-2;           // > 0, added to J W J^T's diagonal (adaptive: its start value)
+  double damping_decrease = 0.3;   // adaptive: factor after a step that lowered the error
+  double damping_increase = 10.0;  // adaptive: factor after a rejected step
+  double min_damping = 1e-8;       // adaptive: bounds of the damping
   double max_damping = 1e4;
   double min_relative_decrease = 1e-3;  // a step lowering the squared error by less stalls
-  int max_stalled_iterations = 8;     // stop after this many stalls in a row (a local minimum or a limit); 0: never
-  double max_step = 0.5;              // rad (m for prismatic joints) per step: never jump across the workspace
+  int max_stalled_iterations = 8;       // stop after this many stalls in a row (a local minimum or a limit); 0: never
+  double max_step = 0.5;                // rad (m for prismatic joints) per step: never jump across the workspace
   IkStepNorm step_norm = IkStepNorm::max_abs;
-  double limit_margin = 0.0;          // moving joints stay this far inside their limits
-  std::vector<double> weights;        // per joint, >= 0; 0 freezes a joint at the seed's value; empty: all 1
+  double limit_margin = 0.0;    // moving joints stay this far inside their limits
+  std::vector<double> weights;  // per joint, >= 0; 0 freezes a joint at the seed's value; empty: all 1
 };
 
 // The multi-start solver's settings: one descent's plus the spread of seeds.
@@ -58,7 +58,7 @@ struct IkSolution {
   Eigen::VectorXd q;
   double position_error = 0, rotation_error = 0;  // m, rad (the angle) at q
   int iterations = 0;                             // steps computed
-  bool converged = false;                         // both errors below the tolerances (position only for IkTask::position)
+  bool converged = false;  // both errors below the tolerances (position only for IkTask::position)
 };
 
 // Throws std::invalid_argument naming the first setting out of range or a weights vector whose

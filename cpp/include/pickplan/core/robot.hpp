@@ -15,10 +15,10 @@ enum class JointType { Fixed, Revolute, Continuous, Prismatic };
 struct CollisionGeometry {
   enum class Kind { Mesh, Box, Cylinder, Sphere };
   Kind kind = Kind::Mesh;
-  std::string mesh_path;                             // absolute, for Kind::Mesh
-  Eigen::Vector3d scale = Eigen::Vector3d::Ones();   // mesh scale
-  Eigen::Vector3d size = Eigen::Vector3d::Zero();    // box: xyz; cylinder: (radius, length, 0); sphere: (radius, 0, 0)
-  Transform origin;                                  // geometry frame in the link frame
+  std::string mesh_path;                            // absolute, for Kind::Mesh
+  Eigen::Vector3d scale = Eigen::Vector3d::Ones();  // mesh scale
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();   // box: xyz; cylinder: (radius, length, 0); sphere: (radius, 0, 0)
+  Transform origin;                                 // geometry frame in the link frame
 };
 
 struct Mimic {
@@ -29,13 +29,13 @@ struct Mimic {
 
 struct Link {
   std::string name;
-  int parent = -1;                 // index of the parent link, -1 for the root
-  std::string joint_name;          // joint connecting the parent to this link ("" for the root)
+  int parent = -1;         // index of the parent link, -1 for the root
+  std::string joint_name;  // joint connecting the parent to this link ("" for the root)
   JointType joint_type = JointType::Fixed;
-  Transform joint_origin;          // joint frame in the parent link frame
+  Transform joint_origin;                           // joint frame in the parent link frame
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // unit joint axis in the joint frame
-  bool axis_is_z = true;           // revolute about +z (every Panda joint): a cheaper rotation in FK
-  int q_index = -1;                // configuration index of the joint, -1 for fixed joints
+  bool axis_is_z = true;                            // revolute about +z (every Panda joint): a cheaper rotation in FK
+  int q_index = -1;                                 // configuration index of the joint, -1 for fixed joints
   Mimic mimic;
   std::vector<CollisionGeometry> collisions;
 };
@@ -43,8 +43,8 @@ struct Link {
 class Robot;
 
 struct RobotWorkspace {
-  std::vector<Transform> link_pose;          // world pose of every link frame
-  std::vector<Eigen::Vector3d> axis_world;   // world joint axis of every link (set by FK, read by Jacobians)
+  std::vector<Transform> link_pose;         // world pose of every link frame
+  std::vector<Eigen::Vector3d> axis_world;  // world joint axis of every link (set by FK, read by Jacobians)
   explicit RobotWorkspace(const Robot& robot);
 };
 
@@ -83,7 +83,7 @@ class Robot {
   // True when configuration entry q moves link (q's joint is on the chain to it).
   bool moves(int q, int link) const { return chain_mask_[link * dof() + q] != 0; }
 
-  int link_index(const std::string& name) const;  // throws std::invalid_argument naming the links
+  int link_index(const std::string& name) const;            // throws std::invalid_argument naming the links
   void check_configuration(const double* q, long n) const;  // size and finiteness
 
   // Fills ws.link_pose for configuration q (size dof, not validated: hot path).

@@ -7,8 +7,8 @@
 // queries are reentrant and may run in parallel threads.
 //
 // Semantics. Link meshes and object meshes are triangle surfaces (FCL BVH); the table and
-// primitive objects (CollisionShape from a Primitive) are solids. Two surfaces collide when triangles intersect; with `detect_containment` a mesh
-// lying entirely inside a closed mesh (no triangle crossing) also counts, found by a
+// primitive objects (CollisionShape from a Primitive) are solids. Two surfaces collide when triangles intersect; with
+// `detect_containment` a mesh lying entirely inside a closed mesh (no triangle crossing) also counts, found by a
 // generalized-winding-number test. Distances are exact separations between the surfaces
 // when apart. In collision they are <= 0 but not a full penetration depth (which would be
 // more negative): against the table, minus the largest per-triangle penetration depth (FCL,
@@ -24,10 +24,10 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "pickplan/geometry/mesh.hpp"
-#include "pickplan/geometry/primitives.hpp"
 #include "pickplan/core/robot.hpp"
 #include "pickplan/core/transform.hpp"
+#include "pickplan/geometry/mesh.hpp"
+#include "pickplan/geometry/primitives.hpp"
 
 namespace pickplan::geometry {
 
@@ -73,14 +73,14 @@ class CollisionShape {
 };
 
 struct LinkMesh {
-  std::string link;   // robot link name
-  TriangleMesh mesh;  // in the link frame (ignored when shape is set)
+  std::string link;                                       // robot link name
+  TriangleMesh mesh;                                      // in the link frame (ignored when shape is set)
   std::shared_ptr<const CollisionShape> shape = nullptr;  // prebuilt: reused, not rebuilt
 };
 
 struct SceneObject {
-  std::string name;   // unique, not "table"
-  TriangleMesh mesh;  // in the object frame (ignored when shape is set)
+  std::string name;                                       // unique, not "table"
+  TriangleMesh mesh;                                      // in the object frame (ignored when shape is set)
   core::Transform pose;                                   // object frame in the world
   std::shared_ptr<const CollisionShape> shape = nullptr;  // prebuilt: reused, not rebuilt
 };
@@ -100,15 +100,15 @@ struct CollisionSettings {
   // and pairs already colliding at the reference configuration are not checked.
   // Empty reference = zero configuration clipped to the joint limits.
   std::vector<double> self_collision_reference;
-  double margin = 0.0;              // safety margin (m) for in_collision, >= 0
-  bool detect_containment = true;   // a mesh entirely inside another counts as collision
+  double margin = 0.0;             // safety margin (m) for in_collision, >= 0
+  bool detect_containment = true;  // a mesh entirely inside another counts as collision
 };
 
 enum class OtherKind { Object, Table, Link };
 
 struct ContactInfo {
-  std::string link;    // robot link
-  std::string other;   // object name, "table" or link name
+  std::string link;   // robot link
+  std::string other;  // object name, "table" or link name
   OtherKind kind = OtherKind::Object;
   double distance = 0;  // signed: > 0 apart (exact), <= 0 in collision (see the header comment)
   Eigen::Vector3d point_link = Eigen::Vector3d::Zero();   // world; a contact point when colliding
@@ -166,9 +166,9 @@ class CollisionChecker {
 
  private:
   struct Pair {
-    int link_geom;   // index into link geometry
+    int link_geom;  // index into link geometry
     OtherKind kind;
-    int other;       // object index, or link geometry index for Link, unused for Table
+    int other;  // object index, or link geometry index for Link, unused for Table
   };
   void check_q(const double* q) const;
   // The pairs checked: every link against the table and objects not excluded or allowed, and link

@@ -12,7 +12,8 @@ namespace pickplan::geometry {
 class PointIndex {
  public:
   // `points` must outlive the index and not change (the tree refers to it).
-  explicit PointIndex(const Vertices* points) : cloud_{points}, tree_(3, cloud_, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {
+  explicit PointIndex(const Vertices* points)
+      : cloud_{points}, tree_(3, cloud_, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {
     tree_.buildIndex();
   }
   // The nearest point's row and its squared distance from q (x, y, z).
@@ -43,7 +44,9 @@ class PointIndex {
       return (*pts)(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(d));
     }
     template <class BBOX>
-    bool kdtree_get_bbox(BBOX&) const { return false; }
+    bool kdtree_get_bbox(BBOX&) const {
+      return false;
+    }
   };
   using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud, 3>;
   Cloud cloud_;

@@ -9,9 +9,9 @@
 
 #include <Eigen/Core>
 
+#include "pickplan/core/transform.hpp"
 #include "pickplan/geometry/primitives.hpp"
 #include "pickplan/geometry/sdf_merged.hpp"
-#include "pickplan/core/transform.hpp"
 
 namespace pickplan::geometry {
 
@@ -24,7 +24,7 @@ struct SdfBuildSettings {
 };
 
 struct SdfBuildReport {
-  int degenerate_faces = 0;   // zero-area triangles skipped
+  int degenerate_faces = 0;        // zero-area triangles skipped
   double sign_disagreement = 0.0;  // fraction of nodes where the three ray axes disagreed (holes)
 };
 
@@ -72,11 +72,11 @@ class SceneSdf {
  public:
   struct Body {
     std::shared_ptr<const SdfGrid> grid;  // null for an analytic primitive
-    Primitive primitive;     // used when grid is null
-    core::Transform pose;    // grid (primitive) frame in the world
-    core::Transform inverse;  // world into grid frame
-    Eigen::Vector3d lo, hi;  // surface box (see SdfGrid::surface_lo) in the grid frame
-    double slack = 0;        // how far the interpolated value may sit below the true distance
+    Primitive primitive;                  // used when grid is null
+    core::Transform pose;                 // grid (primitive) frame in the world
+    core::Transform inverse;              // world into grid frame
+    Eigen::Vector3d lo, hi;               // surface box (see SdfGrid::surface_lo) in the grid frame
+    double slack = 0;                     // how far the interpolated value may sit below the true distance
     // Signed distance at a point in the body's frame (gradient in that frame).
     double local_distance(const Eigen::Vector3d& p, Eigen::Vector3d* gradient = nullptr) const {
       return grid ? grid->distance(p, gradient) : primitive.signed_distance(p, gradient);

@@ -17,9 +17,9 @@
 namespace pickplan::geometry {
 
 struct MergedSdfSettings {
-  double resolution = 0.01;   // node spacing (m): resampling 5 mm object grids is < 1 mm off outside thin walls
-  double cutoff = 0.2;        // values are clamped here; queries with a larger cutoff fall back
-  int brick = 4;              // voxels per brick edge (a brick stores (brick+1)^3 nodes)
+  double resolution = 0.01;  // node spacing (m): resampling 5 mm object grids is < 1 mm off outside thin walls
+  double cutoff = 0.2;       // values are clamped here; queries with a larger cutoff fall back
+  int brick = 4;             // voxels per brick edge (a brick stores (brick+1)^3 nodes)
 };
 
 class MergedSdf {
@@ -27,8 +27,8 @@ class MergedSdf {
   // `fill(corner, center, radius, out)` writes the (brick+1)^3 node values (clamped at the cutoff,
   // x fastest) of the brick whose lowest node is `corner` and returns whether any is below the
   // cutoff; `lower_bound(center, radius)` bounds every object's distance over the ball.
-  using BrickFill = std::function<bool(const Eigen::Vector3d& corner, const Eigen::Vector3d& center, double radius,
-                                       float* out)>;
+  using BrickFill =
+      std::function<bool(const Eigen::Vector3d& corner, const Eigen::Vector3d& center, double radius, float* out)>;
   // Bricks are filled lazily, on the first lookup that lands in them (the same values, computed
   // the same way, as filling them all here): a new scene pays only for the bricks its plans touch.
   template <class LowerBoundFn>
@@ -46,7 +46,8 @@ class MergedSdf {
     const double fx = (x[0] - origin_.x()) * inv_edge_, fy = (x[1] - origin_.y()) * inv_edge_,
                  fz = (x[2] - origin_.z()) * inv_edge_;
     if (fx >= 0 && fy >= 0 && fz >= 0 && fx < cells_d_[0] && fy < cells_d_[1] && fz < cells_d_[2]) {
-      const long cell = (static_cast<long>(fz) * cells_.y() + static_cast<long>(fy)) * cells_.x() + static_cast<long>(fx);
+      const long cell =
+          (static_cast<long>(fz) * cells_.y() + static_cast<long>(fy)) * cells_.x() + static_cast<long>(fx);
       return cell_lower_[cell];
     }
     return lower_bound_outside(x);
@@ -56,7 +57,7 @@ class MergedSdf {
   double cutoff() const { return settings_.cutoff; }
   const MergedSdfSettings& settings() const { return settings_; }
   long num_bricks() const { return num_slots_; }  // cells that may hold a brick (filled or not yet)
-  long num_filled() const;                         // bricks filled so far with a value below the cutoff
+  long num_filled() const;                        // bricks filled so far with a value below the cutoff
   long num_cells() const { return num_cells_; }
   std::size_t bytes() const {
     return num_slots_ * brick_nodes_ * sizeof(float) + num_cells_ * (2 * sizeof(std::int32_t) + sizeof(float));
@@ -67,7 +68,7 @@ class MergedSdf {
  private:
   // Per-cell state: a filled brick's slot (>= 0) or one of these.
   static constexpr std::int32_t kEmpty = -1, kPending = -2, kFilling = -3;
-  std::int32_t fill_cell(long cell) const;  // the cell's final state, filling its brick if pending
+  std::int32_t fill_cell(long cell) const;            // the cell's final state, filling its brick if pending
   double lower_bound_outside(const double* x) const;  // lower_bound off the covered box (or NaN)
 
   MergedSdfSettings settings_;
@@ -75,17 +76,17 @@ class MergedSdf {
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
   Eigen::Vector3i cells_ = Eigen::Vector3i::Zero();
   double inv_resolution_ = 0.0;
-  double inv_edge_ = 0.0;                    // 1 / (brick * resolution)
-  double cells_d_[3] = {0, 0, 0};            // cells_ as doubles
+  double inv_edge_ = 0.0;                             // 1 / (brick * resolution)
+  double cells_d_[3] = {0, 0, 0};                     // cells_ as doubles
   Eigen::Vector3d box_hi_ = Eigen::Vector3d::Zero();  // the covered box's upper corner
   long brick_nodes_ = 1;
   long num_cells_ = 0, num_slots_ = 0;
-  int brick_shift_ = -1;                     // log2(brick) when a power of two: shifts, not divisions
-  double voxels_[3] = {0, 0, 0};             // covered box in voxels (cells * brick)
+  int brick_shift_ = -1;                                // log2(brick) when a power of two: shifts, not divisions
+  double voxels_[3] = {0, 0, 0};                        // covered box in voxels (cells * brick)
   std::unique_ptr<std::atomic<std::int32_t>[]> state_;  // per cell
-  std::unique_ptr<std::int32_t[]> slot_;      // per cell: its reserved brick slot (-1: beyond the cutoff)
-  std::unique_ptr<float[]> values_;           // slot after slot, x fastest inside a brick; written once per slot
-  std::unique_ptr<float[]> cell_lower_;       // per cell: lower bound of the distance anywhere in it
+  std::unique_ptr<std::int32_t[]> slot_;                // per cell: its reserved brick slot (-1: beyond the cutoff)
+  std::unique_ptr<float[]> values_;      // slot after slot, x fastest inside a brick; written once per slot
+  std::unique_ptr<float[]> cell_lower_;  // per cell: lower bound of the distance anywhere in it
   BrickFill fill_;
   double half_diagonal_ = 0;
 };
@@ -170,7 +171,8 @@ inline double MergedSdf::distance(const double* x, double* gradient) const {
   if (d >= settings_.cutoff) return empty();
   if (gradient) {
     gradient[0] = ((1 - tz) * ((1 - ty) * (c100 - c000) + ty * (c110 - c010)) +
-                   tz * ((1 - ty) * (c101 - c001) + ty * (c111 - c011))) * inv_resolution_;
+                   tz * ((1 - ty) * (c101 - c001) + ty * (c111 - c011))) *
+                  inv_resolution_;
     gradient[1] = ((1 - tz) * (c10 - c00) + tz * (c11 - c01)) * inv_resolution_;
     gradient[2] = (c1 - c0) * inv_resolution_;
   }

@@ -3,8 +3,8 @@
 //
 // xi = (q_1 .. q_n), q_0 fixed. f_prior = 1/2 sum_t |(q_t - q_{t-1}) / dt|^2 = 1/2 |K xi + e|^2.
 // f_obstacle = sum_t sum_u c(x_u(q_t)) |x_u(q_t) - x_u(q_{t-1})| / dt: the cost of body point u
-// weighted by its workspace speed (eq. 4; like f_prior, the Riemann sum divided by dt). Its exact gradient is the discrete form of CHOMP's
-// functional gradient (velocity-orthogonal projection of grad c plus the curvature term).
+// weighted by its workspace speed (eq. 4; like f_prior, the Riemann sum divided by dt). Its exact gradient is the
+// discrete form of CHOMP's functional gradient (velocity-orthogonal projection of grad c plus the curvature term).
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -20,25 +20,25 @@ namespace pickplan::omg {
 using Trajectory = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;  // n x dof
 
 struct BodyPoints {
-  std::vector<int> link;  // link index of each point
+  std::vector<int> link;      // link index of each point
   geometry::Vertices points;  // N x 3, link frame
   int size() const { return static_cast<int>(link.size()); }
 };
 
 struct ChompSettings {
-  int n = 30;                   // waypoints after the fixed start
-  double duration = 3.0;        // seconds; dt = duration / n (0.1 s at n = 30)
-  double lambda = 0.1;          // smoothness weight in f_obstacle + lambda f_prior (eq. 2)
-  double lambda_growth = 1.02;  // lambda_i = lambda * growth^i: smoothness gains weight as iterations go
-  double step_size = 0.1;       // 1 / eta_motion in the covariant update (eq. 6)
-  double epsilon = 0.2;         // obstacle padding (m)
-  int top_k = 500;              // only the k largest obstacle terms contribute (0 = all)
-  double clip_gradient = 10.0;  // element-wise clip of the obstacle gradient (0 = none)
-  int joint_limit_steps = 10;   // smooth projections back inside the joint limits
-  int obstacle_tail = 0;        // last waypoints whose obstacle cost is ignored (the standoff approach)
+  int n = 30;                      // waypoints after the fixed start
+  double duration = 3.0;           // seconds; dt = duration / n (0.1 s at n = 30)
+  double lambda = 0.1;             // smoothness weight in f_obstacle + lambda f_prior (eq. 2)
+  double lambda_growth = 1.02;     // lambda_i = lambda * growth^i: smoothness gains weight as iterations go
+  double step_size = 0.1;          // 1 / eta_motion in the covariant update (eq. 6)
+  double epsilon = 0.2;            // obstacle padding (m)
+  int top_k = 500;                 // only the k largest obstacle terms contribute (0 = all)
+  double clip_gradient = 10.0;     // element-wise clip of the obstacle gradient (0 = none)
+  int joint_limit_steps = 10;      // smooth projections back inside the joint limits
+  int obstacle_tail = 0;           // last waypoints whose obstacle cost is ignored (the standoff approach)
   std::uint64_t exclude_mask = 0;  // SceneSdf objects ignored by the obstacle cost (e.g. the target)
-  bool link_culling = true;     // skip a link's points when its bounding sphere is beyond epsilon (exact)
-  std::vector<bool> active;     // joints the optimizer moves (empty = all); others stay at q_0's value
+  bool link_culling = true;        // skip a link's points when its bounding sphere is beyond epsilon (exact)
+  std::vector<bool> active;        // joints the optimizer moves (empty = all); others stay at q_0's value
 };
 
 struct ObjectiveTerms {
@@ -53,18 +53,18 @@ struct ChompWorkspace {
   explicit ChompWorkspace(const ChompProblem& problem);
   std::vector<core::RobotWorkspace> fk;                                 // n + 1 link-pose sets (start included)
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> x, grad_d;  // (n+1)*N points, SDF gradients
-  Eigen::VectorXd d;                   // (n+1)*N distances
-  std::vector<double> term;            // n*N obstacle terms
-  std::vector<int> order;              // candidate term indices for the top-k selection
-  std::vector<char> live;              // (n+1) x groups: 1 distances evaluated, 2 points only, 0 culled
+  Eigen::VectorXd d;                                                    // (n+1)*N distances
+  std::vector<double> term;                                             // n*N obstacle terms
+  std::vector<int> order;  // candidate term indices for the top-k selection
+  std::vector<char> live;  // (n+1) x groups: 1 distances evaluated, 2 points only, 0 culled
   Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor> wrench;  // (n+1) x groups: force, moment
-  std::vector<int> loaded;             // wrench rows touched this evaluation
-  Trajectory grad, u;                  // gradient and A^-1 gradient
+  std::vector<int> loaded;                                           // wrench rows touched this evaluation
+  Trajectory grad, u;                                                // gradient and A^-1 gradient
 };
 
 struct StepInfo {
-  ObjectiveTerms before;       // objective at the trajectory the step started from
-  double goal_error = 0;       // max |xi tail - goal| after the step (0 up to rounding)
+  ObjectiveTerms before;  // objective at the trajectory the step started from
+  double goal_error = 0;  // max |xi tail - goal| after the step (0 up to rounding)
   int limit_projections = 0;
 };
 

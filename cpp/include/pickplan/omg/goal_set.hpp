@@ -7,30 +7,35 @@
 
 #include <Eigen/Core>
 
-#include "pickplan/omg/chomp.hpp"
-#include "pickplan/geometry/collision.hpp"
 #include "pickplan/core/ik.hpp"
+#include "pickplan/geometry/collision.hpp"
+#include "pickplan/omg/chomp.hpp"
 
 namespace pickplan::omg {
 
 // Why a grasp gave no goal (or ok: it did). The text forms are what Python and the plan files read.
 enum class GoalReason {
-  ok, unreachable, in_collision, standoff_unreachable, standoff_in_collision, approach_clearance,
+  ok,
+  unreachable,
+  in_collision,
+  standoff_unreachable,
+  standoff_in_collision,
+  approach_clearance,
   pregrasp_clearance,  // the pre-grasp (a place's pre-place) fails `pregrasp_ok`
-  duplicate,  // closer than `diversity` to a goal already kept
-  over_cap    // not tried: the cap was reached first
+  duplicate,           // closer than `diversity` to a goal already kept
+  over_cap             // not tried: the cap was reached first
 };
 const char* to_string(GoalReason reason);
 
 struct GoalSetSettings {
-  double standoff = 0.08;    // m, pre-grasp distance back along the approach axis (hand +z)
-  int standoff_steps = 4;    // waypoints from the pre-grasp to the grasp (the tail has steps + 1 rows)
+  double standoff = 0.08;       // m, pre-grasp distance back along the approach axis (hand +z)
+  int standoff_steps = 4;       // waypoints from the pre-grasp to the grasp (the tail has steps + 1 rows)
   double max_joint_jump = 0.5;  // rad between consecutive tail configurations (continuity)
-  double diversity = 0.1;    // rad (max-norm): goals closer than this to a kept goal are duplicates
-  int max_goals = 30;        // cap, as in the paper's experiments (up to 100): grasps are tried
-                             // in a seeded random order until this many goals are kept
-  int max_solutions = 4;     // distinct IK solutions tried per grasp before giving up on it
-  unsigned seed = 0;         // the trial order (so which goals are kept: a seeded, uniform subset)
+  double diversity = 0.1;       // rad (max-norm): goals closer than this to a kept goal are duplicates
+  int max_goals = 30;           // cap, as in the paper's experiments (up to 100): grasps are tried
+                                // in a seeded random order until this many goals are kept
+  int max_solutions = 4;        // distinct IK solutions tried per grasp before giving up on it
+  unsigned seed = 0;            // the trial order (so which goals are kept: a seeded, uniform subset)
   // World direction the hand moves in along the standoff (unit, or zero: the hand's own +z, a
   // grasp's approach). A place sets gravity: the held object comes down onto its support.
   Eigen::Vector3d approach = Eigen::Vector3d::Zero();

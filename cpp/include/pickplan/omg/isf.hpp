@@ -7,23 +7,23 @@
 
 #include <Eigen/Core>
 
-#include "pickplan/omg/chomp.hpp"
 #include "pickplan/core/robot.hpp"
 #include "pickplan/geometry/sdf.hpp"
+#include "pickplan/omg/chomp.hpp"
 
 namespace pickplan::omg {
 
 struct IsfSettings {
-  double alpha = 0.01;        // normal alignment weight (eq. 13)
-  double beta = 0.001;        // arm obstacle weight (eq. 14)
-  double gamma = 0.5;         // collision weight (eq. 10)
-  double step_size = 0.05;    // eta_grasp: first trial step; shortened until f_grasp decreases
-  int max_halvings = 8;        // shortenings of a failed trial step (each at least halves it)
-  double length_unit = 0.01;  // distances enter f_pml in this unit (cm), which sets the cost scale
-  double hand_epsilon = 0.01; // padding of the hand-collision cost (m)
-  double arm_epsilon = 0.2;   // padding of the arm obstacle cost at g (m), CHOMP's epsilon
+  double alpha = 0.01;           // normal alignment weight (eq. 13)
+  double beta = 0.001;           // arm obstacle weight (eq. 14)
+  double gamma = 0.5;            // collision weight (eq. 10)
+  double step_size = 0.05;       // eta_grasp: first trial step; shortened until f_grasp decreases
+  int max_halvings = 8;          // shortenings of a failed trial step (each at least halves it)
+  double length_unit = 0.01;     // distances enter f_pml in this unit (cm), which sets the cost scale
+  double hand_epsilon = 0.01;    // padding of the hand-collision cost (m)
+  double arm_epsilon = 0.2;      // padding of the arm obstacle cost at g (m), CHOMP's epsilon
   double max_joint_step = 0.05;  // rad: the largest joint change of one step
-  std::vector<bool> active;   // joints ISF moves (empty = all)
+  std::vector<bool> active;      // joints ISF moves (empty = all)
 };
 
 // The support the target rests on (the table): the fingers may touch it, but an ISF step may not press

@@ -8,11 +8,11 @@
 namespace pickplan::omg {
 
 struct MetricSettings {
-  int steps = 200;                     // dense interpolation, start included
-  double collision_padding = 0.05;     // "collision": sum of c(d) of points closer than this
-  double epsilon = 0.2;                // padding of the cost c(d) summed by "collision"
-  double clearance = 0.05;             // collision-free: every point at least this far from objects
-  double table_clearance = 0.0;        // ... and this far from the table (grasps sit close to it)
+  int steps = 200;                  // dense interpolation, start included
+  double collision_padding = 0.05;  // "collision": sum of c(d) of points closer than this
+  double epsilon = 0.2;             // padding of the cost c(d) summed by "collision"
+  double clearance = 0.05;          // collision-free: every point at least this far from objects
+  double table_clearance = 0.0;     // ... and this far from the table (grasps sit close to it)
   // The support surface: the links in support_link_mask (bit = link index: the fingers) may touch
   // the table down to support_tolerance inside it (a grasp of a thin object rests its fingertips on
   // it); every other link keeps table_clearance.
@@ -28,12 +28,12 @@ struct MetricSettings {
 };
 
 struct TrajectoryMetrics {
-  double smoothness = 0;        // f_prior of the planned waypoints (dt of the problem)
+  double smoothness = 0;  // f_prior of the planned waypoints (dt of the problem)
   double collision = 0;
-  double min_clearance = 0;     // to non-excluded objects (not the table); capped at the largest of
+  double min_clearance = 0;        // to non-excluded objects (not the table); capped at the largest of
   double min_table_clearance = 0;  // epsilon and the clearances (farther is not measured)
   bool collision_free = false;
-  bool success = false;         // collision-free and smooth enough
+  bool success = false;  // collision-free and smooth enough
 };
 
 // `metrics` of a trajectory a check beyond them found in collision (the caller's exact one: body points

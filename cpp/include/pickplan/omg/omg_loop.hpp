@@ -27,7 +27,7 @@ struct OmgLoopSettings {
   int cost_time_stride = 2, cost_point_stride = 2;
   bool pre_terminate = true;
   int min_iterations = 10, check_every = 5;
-  MetricSettings metrics;       // the success test (tail_waypoints: the standoff approach)
+  MetricSettings metrics;  // the success test (tail_waypoints: the standoff approach)
   StageClock clock = StageClock::wall;
 };
 
@@ -68,11 +68,11 @@ struct OmgStageSeconds {
 };
 
 struct OmgLoopResult {
-  Trajectory xi;                 // n x dof, after the start
-  int goal = -1;                 // book index of the final goal
+  Trajectory xi;  // n x dof, after the start
+  int goal = -1;  // book index of the final goal
   int iterations = 0;
-  TrajectoryMetrics metrics;     // of xi
-  double grasp_cost = 0;         // f_grasp at the final goal (NaN without a refiner)
+  TrajectoryMetrics metrics;  // of xi
+  double grasp_cost = 0;      // f_grasp at the final goal (NaN without a refiner)
   int grasp_index = -1, goal_source = -1, goal_set_size = 0;
   bool refined = false;
   // history, per iteration

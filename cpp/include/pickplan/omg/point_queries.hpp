@@ -27,8 +27,9 @@ struct AntipodalPartners {
   std::vector<long> i, j;
   std::vector<double> margins, widths;
 };
-AntipodalPartners antipodal_partners(const RowMatrixXd& points, const RowMatrixXd& normals, const std::vector<long>& queries,
-                                     double radius, const std::vector<std::uint8_t>& keep, const std::vector<long>& order,
+AntipodalPartners antipodal_partners(const RowMatrixXd& points, const RowMatrixXd& normals,
+                                     const std::vector<long>& queries, double radius,
+                                     const std::vector<std::uint8_t>& keep, const std::vector<long>& order,
                                      double min_width, double cone);
 
 }  // namespace pickplan::omg

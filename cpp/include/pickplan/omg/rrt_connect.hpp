@@ -21,7 +21,7 @@ class MotionBound {
  public:
   explicit MotionBound(const geometry::CollisionChecker& checker);
   const Eigen::VectorXd& factors() const { return factors_; }  // m per unit of each joint
-  double bound(const double* a, const double* b) const;       // metres, for the segment a -> b
+  double bound(const double* a, const double* b) const;        // metres, for the segment a -> b
   // Checked states a segment needs so that consecutive ones lie within `resolution` (>= 1).
   int steps(const double* a, const double* b, double resolution) const;
 
@@ -30,26 +30,26 @@ class MotionBound {
 };
 
 struct RrtSettings {
-  double range = 0.5;           // largest extension (rad, Euclidean over the active joints)
-  double resolution = 0.01;     // m: largest motion of any robot point between checked states
-  long max_iterations = 200000; // samples before giving up
-  double time_limit = 1.0;      // s (wall clock) before giving up
+  double range = 0.5;            // largest extension (rad, Euclidean over the active joints)
+  double resolution = 0.01;      // m: largest motion of any robot point between checked states
+  long max_iterations = 200000;  // samples before giving up
+  double time_limit = 1.0;       // s (wall clock) before giving up
   std::uint64_t seed = 0;
-  double goal_bias = 0.05;      // fraction of samples drawn at a goal (the start tree's extensions)
+  double goal_bias = 0.05;  // fraction of samples drawn at a goal (the start tree's extensions)
   // The motion check proves a segment keeps a clearance (10 um) by conservative advancement (a state
   // whose clearance is d proves the states around it no point can have moved d from; midpoints of the
   // unproved intervals, coarse to fine) instead of sampling it every `resolution` m, which lets a
   // finger graze an obstacle between samples.
   bool certified = true;
-  std::vector<bool> active;     // joints that move (empty: all); the others keep the start's value
+  std::vector<bool> active;  // joints that move (empty: all); the others keep the start's value
 };
 
 enum class RrtStatus { solved, timeout, iterations, invalid_start, invalid_goals };
 
 struct RrtResult {
   RrtStatus status = RrtStatus::timeout;
-  Trajectory path;               // start ... goal (rows), when solved
-  int goal = -1;                 // row of the goal set reached
+  Trajectory path;  // start ... goal (rows), when solved
+  int goal = -1;    // row of the goal set reached
   long iterations = 0, checks = 0, nodes = 0;
   double seconds = 0;
 };

@@ -14,9 +14,9 @@ enum class CostKind { objective, distance };  // goal-cost estimates (eq. 8) | f
 
 struct SelectionSettings {
   SelectionKind kind = SelectionKind::MD;
-  double exp_eta = 0;                         // EXP: fixed rate (<= 0: sqrt(log |G| / N))
+  double exp_eta = 0;                              // EXP: fixed rate (<= 0: sqrt(log |G| / N))
   std::vector<int> md_exponents{-2, -1, 0, 2, 4};  // MD: eta_k = 2^k log N
-  double md_shift = -1;                       // MD: KL shift (< 0: 1 / (4 |G| + 1))
+  double md_shift = -1;                            // MD: KL shift (< 0: 1 / (4 |G| + 1))
 };
 
 class SelectionPolicy {
@@ -24,7 +24,9 @@ class SelectionPolicy {
   explicit SelectionPolicy(SelectionSettings settings = {});
 
   SelectionKind kind() const { return settings_.kind; }
-  CostKind cost_kind() const { return settings_.kind == SelectionKind::Proj ? CostKind::distance : CostKind::objective; }
+  CostKind cost_kind() const {
+    return settings_.kind == SelectionKind::Proj ? CostKind::distance : CostKind::objective;
+  }
   // A fresh distribution over num_goals (>= 1) goals; initial_costs (may be null) start Fixed.
   void reset(int num_goals, int horizon, const Eigen::VectorXd* initial_costs = nullptr);
   // A new goal joins (C-Space ISF's refined copy): it gets the mode's mass, then p is renormalized.

@@ -25,29 +25,29 @@ using DepthImage = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 using PixelMask = Eigen::Matrix<std::uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 struct DepthView {
-  DepthImage depth;          // H x W metres along the optical axis; <= 0 or non-finite: no return
-  Eigen::Matrix3d K;         // pinhole intrinsics (fx, fy, cx, cy; pixel centres at integer + 0.5)
+  DepthImage depth;             // H x W metres along the optical axis; <= 0 or non-finite: no return
+  Eigen::Matrix3d K;            // pinhole intrinsics (fx, fy, cx, cy; pixel centres at integer + 0.5)
   core::Transform camera_pose;  // camera -> world, OpenCV axes: z forward, x right, y down
-  PixelMask target;          // H x W, nonzero on the target (may be empty: no target in this view)
+  PixelMask target;             // H x W, nonzero on the target (may be empty: no target in this view)
 };
 
 struct DepthFieldSettings {
   Eigen::Vector3d lo = Eigen::Vector3d(-0.1, -0.6, -0.02);  // workspace box (world)
   Eigen::Vector3d hi = Eigen::Vector3d(1.0, 0.6, 0.6);
-  double resolution = 0.01;        // voxel edge (m)
-  double surface_margin = 0.003;   // m in front of a measured depth still counted at the surface (depth noise)
-  bool has_plane = false;          // support plane n . x = d (n up): voxels below it are the table's
+  double resolution = 0.01;       // voxel edge (m)
+  double surface_margin = 0.003;  // m in front of a measured depth still counted at the surface (depth noise)
+  bool has_plane = false;         // support plane n . x = d (n up): voxels below it are the table's
   Eigen::Vector3d plane_normal = Eigen::Vector3d::UnitZ();
   double plane_offset = 0.0;
-  double plane_margin = 0.01;      // m above the plane still counted as the table
-  int target_stride = 1;           // keep every k-th target pixel (both axes) as a target point
-  void validate() const;           // throws std::invalid_argument
+  double plane_margin = 0.01;  // m above the plane still counted as the table
+  int target_stride = 1;       // keep every k-th target pixel (both axes) as a target point
+  void validate() const;       // throws std::invalid_argument
 };
 
 struct DepthField {
   std::shared_ptr<const geometry::SdfGrid> obstacles;  // signed distance to OCCUPIED voxels (world frame grid)
   geometry::Vertices target_points, target_normals;    // observed target surface, normals towards the camera side
-  int occupied = 0, target = 0, free = 0;    // voxel counts
+  int occupied = 0, target = 0, free = 0;              // voxel counts
 };
 
 // Throws std::invalid_argument for mismatched sizes, non-rigid poses, bad intrinsics or settings.

@@ -33,20 +33,20 @@ RhoPoly example_rho(double shift = 0.0);
 
 // Independent check of a planned trajectory by dense re-sampling (n instants over [0, T]).
 struct PickupMetrics {
-  double pose_error_position = 0;     // |p_tool(T2) - p_grasp|, m
-  double pose_error_orientation = 0;  // rotation angle between R_tool(T2) and R_grasp, rad
-  double nonholonomic_mean = 0;       // mean |x' sin phi - y' cos phi| over [0, T], m/s
-  double nonholonomic_drift = 0;      // integral of |x' sin phi - y' cos phi| dt over [0, T], m
-  double nonholonomic_max = 0;        // m/s
-  double joint_limit_violation = 0;   // max over arm joints and time, rad
-  double joint_rate_max = 0;          // max |q_i'| over arm joints, rad/s
-  double base_speed_max = 0;          // m/s
-  double base_speed_grasp_mean = 0;   // mean base speed during [T1, T2], m/s
+  double pose_error_position = 0;       // |p_tool(T2) - p_grasp|, m
+  double pose_error_orientation = 0;    // rotation angle between R_tool(T2) and R_grasp, rad
+  double nonholonomic_mean = 0;         // mean |x' sin phi - y' cos phi| over [0, T], m/s
+  double nonholonomic_drift = 0;        // integral of |x' sin phi - y' cos phi| dt over [0, T], m
+  double nonholonomic_max = 0;          // m/s
+  double joint_limit_violation = 0;     // max over arm joints and time, rad
+  double joint_rate_max = 0;            // max |q_i'| over arm joints, rad/s
+  double base_speed_max = 0;            // m/s
+  double base_speed_grasp_mean = 0;     // mean base speed during [T1, T2], m/s
   double gripper_speed_grasp_mean = 0;  // mean |J q'| of the tool during [T1, T2], m/s
-  double velocity_error_max = 0;      // max |J q' - S_g n_g| during [T1, T2], m/s
-  double min_clearance = 0;           // min signed sphere distance to obstacles, m (inf: none)
-  double goal_position_error = 0;     // |(x, y)(T) - goal|, m
-  double success_probability = 0;     // rho(S_g, S_c)
+  double velocity_error_max = 0;        // max |J q' - S_g n_g| during [T1, T2], m/s
+  double min_clearance = 0;             // min signed sphere distance to obstacles, m (inf: none)
+  double goal_position_error = 0;       // |(x, y)(T) - goal|, m
+  double success_probability = 0;       // rho(S_g, S_c)
 };
 PickupMetrics evaluate_pickup(const core::Robot& robot, const PickupProblem& pb, const PickupResult& res, int n = 2001);
 

@@ -17,10 +17,10 @@
 
 #include <Eigen/Core>
 
-#include "pickplan/pickup/options.hpp"
-#include "pickplan/pickup/poly_traj.hpp"
 #include "pickplan/core/robot.hpp"
 #include "pickplan/core/transform.hpp"
+#include "pickplan/pickup/options.hpp"
+#include "pickplan/pickup/poly_traj.hpp"
 
 namespace pickplan::pickup {
 
@@ -61,33 +61,33 @@ struct PickupProblem {
   Eigen::Vector2d part_xy = Eigen::Vector2d::Zero();        // grasping-area centre
   double grasp_area_rmin = 0.35, grasp_area_rmax = 0.8;     // base distance to the part during grasping
   RhoPoly rho;
-  double gamma = 0.96;                              // success-probability threshold
-  double stroke = 0.085;                            // finger travel: T2 - T1 = stroke / S_c
-  bool vary_sc = true;                              // false: S_c fixed at sc_fixed
+  double gamma = 0.96;    // success-probability threshold
+  double stroke = 0.085;  // finger travel: T2 - T1 = stroke / S_c
+  bool vary_sc = true;    // false: S_c fixed at sc_fixed
   double sc_fixed = 0.15;
   double base_speed_limit = 2.0, base_yaw_rate_limit = 3.141592653589793;
-  Eigen::VectorXd arm_rate_limits;                  // (dof - 3), rad/s
+  Eigen::VectorXd arm_rate_limits;  // (dof - 3), rad/s
   std::vector<SphereObstacle> obstacles;
   std::vector<BodySphere> body_spheres;
-  int tool_link = -1;                               // link index of the gripper tool frame
-  void validate(const core::Robot& robot) const;    // throws std::invalid_argument
+  int tool_link = -1;                             // link index of the gripper tool frame
+  void validate(const core::Robot& robot) const;  // throws std::invalid_argument
 };
 
 struct PickupSettings {
-  int samples_per_interval = 8;         // m instants in each of [0,T1], [T1,T2], [T2,T]
-  std::vector<int> degrees;             // per DOF; empty: default_degrees() (5 base, 5 arm joints 1-3, 3 wrists)
+  int samples_per_interval = 8;  // m instants in each of [0,T1], [T1,T2], [T2,T]
+  std::vector<int> degrees;      // per DOF; empty: default_degrees() (5 base, 5 arm joints 1-3, 3 wrists)
   // Non-holonomic base, in normalised time: |x_s sin phi - y_s cos phi| <= tol * L with L the
   // start-part-goal distance, i.e. lateral speed <= tol L / T (heading error ~ tol rad at mean speed).
   double nonholonomic_tol = 0.002;
-  HessianMode hessian = HessianMode::exact;          // exact (eval_hessian) | limited_memory (Ipopt's L-BFGS)
+  HessianMode hessian = HessianMode::exact;              // exact (eval_hessian) | limited_memory (Ipopt's L-BFGS)
   CoefficientBasis basis = CoefficientBasis::bernstein;  // Ipopt's coefficient variables (results: monomial)
-  MuStrategy mu_strategy = MuStrategy::monotone;     // Ipopt barrier update
+  MuStrategy mu_strategy = MuStrategy::monotone;         // Ipopt barrier update
   double mu_init = 1e-2;
-  double velocity_tol = 0.005;          // |J q' - S_g n_g| per component (m/s) during grasping
-  double angular_velocity_tol = 0.01;   // |omega| per component (rad/s) during grasping
-  double collision_margin = 0.02;       // m
-  double joint_limit_margin = 0.05;     // rad, sampled position limits tightened (limits hold between samples)
-  double t_min = 0.5, t_max = 100.0;    // bounds on T (s)
+  double velocity_tol = 0.005;         // |J q' - S_g n_g| per component (m/s) during grasping
+  double angular_velocity_tol = 0.01;  // |omega| per component (rad/s) during grasping
+  double collision_margin = 0.02;      // m
+  double joint_limit_margin = 0.05;    // rad, sampled position limits tightened (limits hold between samples)
+  double t_min = 0.5, t_max = 100.0;   // bounds on T (s)
   // Yaw and arm joint rate limits: hull bounds each rate polynomial by its Bernstein points of
   // degree rate_hull_degree (the convex-hull property: the limit then holds on all of [0, T], with
   // a small margin of conservatism, in a few rows per DOF); sampled: at the m samples per interval.
@@ -95,27 +95,27 @@ struct PickupSettings {
   int rate_hull_degree = 12;
   double tol = 1e-6, constr_viol_tol = 1e-6;
   int max_iter = 400;
-  double max_cpu_time = 20.0;           // per stage (s)
+  double max_cpu_time = 20.0;  // per stage (s)
   int print_level = 0;
-  bool derivative_test = false;         // runs Ipopt's first-order derivative checker
+  bool derivative_test = false;                                    // runs Ipopt's first-order derivative checker
   std::vector<std::pair<std::string, std::string>> ipopt_options;  // extra Ipopt options (name, value)
-  std::string output_file;              // non-empty: Ipopt's log (print level 5) goes to this file
+  std::string output_file;  // non-empty: Ipopt's log (print level 5) goes to this file
   // Active set: joint-position and collision rows only where the trajectory comes within these
   // windows of them; every row is checked after each solve and violated/near rows join for a
   // re-solve from the last solution (at most active_max_rounds runs). false: every row always.
   bool active_set = true;
-  double active_joint_window = 0.3;      // rad
-  double active_collision_window = 0.15; // m
+  double active_joint_window = 0.3;       // rad
+  double active_collision_window = 0.15;  // m
   int active_max_rounds = 6;
-  double mu_resolve = 1e-4;             // mu_init of the re-solves (warm: multipliers carried over)
-  double warm_start_push = 1e-6;        // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
-  bool timing_seed = true;              // stage 3 starts from grasp_timing_seed()
-  double timing_fraction = 0.5;         // ... with this fraction of the full slow-down (in log T)
+  double mu_resolve = 1e-4;       // mu_init of the re-solves (warm: multipliers carried over)
+  double warm_start_push = 1e-6;  // Ipopt's warm_start_{bound,slack_bound,mult_bound}_push
+  bool timing_seed = true;        // stage 3 starts from grasp_timing_seed()
+  double timing_fraction = 0.5;   // ... with this fraction of the full slow-down (in log T)
   // The successive refinement also solves the all-constraint NLP (stage 0) once from the stage-1
   // solution (a direct track that is not committed to the stage-2 IK branch and grasp timing) and
   // returns the better of the two (PickupResult::direct; false: the five stages only).
   bool direct_track = true;
-  int direct_max_iter = 200;            // its Ipopt iterations (a hedge: it must not dominate the time)
+  int direct_max_iter = 200;  // its Ipopt iterations (a hedge: it must not dominate the time)
   // Stages 2-5 run from up to this many arm configurations at T2 (1: the single IK seed of the
   // paper's scheme), in this order: the IK solution (grasp_ik_seed); the same with the arm joint
   // whose limit rows carry the largest multipliers in that run (the limit that costs the most
@@ -126,7 +126,7 @@ struct PickupSettings {
   int arm_seeds = 2;
   // (Iteration caps on the successive refinement, its re-solves and stages 4-5 were measured and
   // dropped: the slowest solves are the hard ones, and every cap lost problems; bench/PICKUP.md.)
-  bool warm_start_stages = true;        // stages 4 and 5 start from the previous stage's multipliers
+  bool warm_start_stages = true;  // stages 4 and 5 start from the previous stage's multipliers
   // Wall-clock budget of one solve_successive / solve_single_shot call (s; 0: none). Each Ipopt run
   // stops before an iteration that would end past the deadline (its intermediate callback, the
   // next iteration taken as long as the last), no stage, arm seed or direct track starts after a
@@ -143,9 +143,9 @@ struct PickupSettings {
   // Python's dense check accepts) it cost CPU and lost problems on the paper's and the side
   // layouts, and traded shorter T for solved problems on the behind layout (bench/PICKUP.md, issue 37).
   double dense_nonholonomic = 0.0;
-  double seed_speed = 1.0;              // heuristic seed: T = path length / seed_speed
-  unsigned seed = 0;                    // random seeds (arm perturbation, single-shot baseline)
-  double arm_seed_noise = 0.05;         // rad, heuristic seed arm perturbation
+  double seed_speed = 1.0;       // heuristic seed: T = path length / seed_speed
+  unsigned seed = 0;             // random seeds (arm perturbation, single-shot baseline)
+  double arm_seed_noise = 0.05;  // rad, heuristic seed arm perturbation
 };
 
 // A subset of a stage's optional rows (joint-position and collision rows), for the active-set
@@ -154,14 +154,14 @@ struct PickupSettings {
 // non-holonomic rows at instants between the samples (every regular sample has one anyway).
 struct PickupRowSubset {
   struct Joint {
-    int sample = 0;    // >= 0: a regular sample (w unused); -1: the instant given by w
-    int joint = 0;     // arm joint 0..dof-4
+    int sample = 0;  // >= 0: a regular sample (w unused); -1: the instant given by w
+    int joint = 0;   // arm joint 0..dof-4
     double w[3] = {0.0, 0.0, 0.0};
   };
   struct Collision {
-    int sample = -1;   // >= 0: a regular sample (w unused); -1: the instant given by w
+    int sample = -1;  // >= 0: a regular sample (w unused); -1: the instant given by w
     double w[3] = {0.0, 0.0, 0.0};
-    int pair = 0;      // body_sphere * num_obstacles + obstacle
+    int pair = 0;  // body_sphere * num_obstacles + obstacle
   };
   struct Instant {
     double w[3] = {0.0, 0.0, 0.0};
@@ -231,8 +231,16 @@ class PickupConstraints {
                                double* min_clearance = nullptr) const;
 
  private:
-  struct Sample { double w[3]; };  // s = w0 s1 + w1 s2 + w2
-  struct Row { int kind, sample, aux; unsigned dof_mask; bool sg, sc; double lo, hi; int jac_begin; };
+  struct Sample {
+    double w[3];
+  };  // s = w0 s1 + w1 s2 + w2
+  struct Row {
+    int kind, sample, aux;
+    unsigned dof_mask;
+    bool sg, sc;
+    double lo, hi;
+    int jac_begin;
+  };
   void add_row(int kind, int sample, int aux, unsigned dof_mask, bool sg, bool sc, double lo, double hi);
   // The constructor's phases (cpp/src/pickup/nlp_layout.cpp): the rate rows' Bernstein hull, the
   // regular samples, which optional rows a subset keeps (extra samples appended), the rows.
@@ -265,7 +273,7 @@ class PickupConstraints {
   PolyTraj traj_;
   int nc_ = 0, n_ = 0, dof_ = 0, level_ = 0, nreg_ = 0;
   double sg_cap_ = 0.0;
-  std::vector<unsigned> body_mask_;  // DOFs moving each body sphere
+  std::vector<unsigned> body_mask_;         // DOFs moving each body sphere
   std::vector<Eigen::MatrixXd> rate_hull_;  // per DOF: monomial coefficients -> Bernstein points of P_s
   std::vector<Sample> samples_;
   std::vector<Row> rows_;
@@ -276,13 +284,13 @@ class PickupConstraints {
 struct StageResult {
   int stage = 0;
   SolveStatus status = SolveStatus::not_run;
-  std::string ipopt_status;    // Ipopt's ApplicationReturnStatus / SolverReturn as text
+  std::string ipopt_status;  // Ipopt's ApplicationReturnStatus / SolverReturn as text
   bool success = false;
-  double seconds = 0.0;         // wall time of the stage (Ipopt runs, checks, and in solve_successive its seed)
-  double cpu_seconds = 0.0;     // its thread CPU time (the machine may be shared)
-  int iterations = 0;           // over all active-set rounds
-  int rounds = 0;               // Ipopt runs (active-set re-solves + 1)
-  int rows = 0;                 // constraint rows of the last run
+  double seconds = 0.0;        // wall time of the stage (Ipopt runs, checks, and in solve_successive its seed)
+  double cpu_seconds = 0.0;    // its thread CPU time (the machine may be shared)
+  int iterations = 0;          // over all active-set rounds
+  int rounds = 0;              // Ipopt runs (active-set re-solves + 1)
+  int rows = 0;                // constraint rows of the last run
   double objective = 0.0;      // T
   double max_violation = 0.0;  // at the returned x
   Eigen::VectorXd x;
@@ -291,13 +299,13 @@ struct StageResult {
 struct PickupResult {
   SolveStatus status = SolveStatus::not_run;  // of the last attempted stage (solved when all succeeded)
   bool success = false;
-  int stages_completed = 0;    // the returned x is the solution of this stage (0: the seed)
+  int stages_completed = 0;  // the returned x is the solution of this stage (0: the seed)
   std::vector<StageResult> stages;
-  Eigen::VectorXd x;           // last good solution
+  Eigen::VectorXd x;  // last good solution
   double total_seconds = 0.0;
   double total_cpu_seconds = 0.0;
   double T = 0, T1 = 0, T2 = 0, S_g = 0, S_c = 0;
-  PolyTraj traj;               // in absolute time: time_scale = T, coefficients x[0 : num_coeffs]
+  PolyTraj traj;  // in absolute time: time_scale = T, coefficients x[0 : num_coeffs]
   // solve_successive with settings.direct_track: the all-constraint solve from the stage-1
   // solution (stage 0 = not run), and whether its solution is the one returned (x, T, ...;
   // then stages_completed is 5 too, the stage records stay those of the five stages).
@@ -340,8 +348,8 @@ std::vector<Eigen::VectorXd> wound_arm_configurations(const core::Robot& robot, 
                                                       const Eigen::VectorXd& solution,
                                                       const Eigen::VectorXd& price = Eigen::VectorXd());
 // Stage-3 warm start: the same path in normalised time, slowed down: T moves `fraction` of the way
-// (in log T; 0.5: the geometric mean) from its value to the T at which the tool's rms speed over the grasping samples is S_g; T1 moves
-// to keep (T2 - T1) S_c = stroke. x unchanged when that would not slow it down.
+// (in log T; 0.5: the geometric mean) from its value to the T at which the tool's rms speed over the grasping samples
+// is S_g; T1 moves to keep (T2 - T1) S_c = stroke. x unchanged when that would not slow it down.
 Eigen::VectorXd grasp_timing_seed(const core::Robot& robot, const PickupProblem& problem,
                                   const PickupSettings& settings, const Eigen::VectorXd& x, double fraction = 0.5);
 // A random seed for the single-shot baseline: a_x0 = x_i, a_y0 = y_i, a_phi0 = phi_i, others

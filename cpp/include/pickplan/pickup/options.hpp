@@ -18,9 +18,21 @@ enum class RateRows { hull, sampled };                // rate limits on Bernstei
 // time_limit: the wall-clock budget (PickupSettings::time_limit) ran out (the result holds the best
 // feasible solution found before, if any: PickupResult::success).
 enum class SolveStatus {
-  not_run, solved, solved_acceptable, infeasible, diverging, max_iterations, max_cpu_time,
-  restoration_failed, step_too_small, invalid_number, solver_error, bounded,
-  violation_between_samples, constraint_violation, time_limit
+  not_run,
+  solved,
+  solved_acceptable,
+  infeasible,
+  diverging,
+  max_iterations,
+  max_cpu_time,
+  restoration_failed,
+  step_too_small,
+  invalid_number,
+  solver_error,
+  bounded,
+  violation_between_samples,
+  constraint_violation,
+  time_limit
 };
 
 const char* to_string(HessianMode mode);

@@ -26,8 +26,8 @@ class PolyTraj {
   // q, q', q'' at time t (any of the outputs may be null). coeffs has num_coeffs() entries.
   void eval(const double* coeffs, double t, double* q, double* qd, double* qdd) const;
   // Evaluates at many times: rows of the returned (len(times), dof) matrices.
-  void eval_many(const Eigen::VectorXd& coeffs, const Eigen::VectorXd& times, Eigen::MatrixXd* q,
-                 Eigen::MatrixXd* qd, Eigen::MatrixXd* qdd) const;
+  void eval_many(const Eigen::VectorXd& coeffs, const Eigen::VectorXd& times, Eigen::MatrixXd* q, Eigen::MatrixXd* qd,
+                 Eigen::MatrixXd* qdd) const;
   // d q_i(t) / d a_ik = basis(t, k, 0); d q_i'(t) / d a_ik = basis(t, k, 1) (the map is linear).
   // Fits DOF i's coefficients by least squares to values at times (weighted rows): used for seeds.
   // weights (optional, same length) scale the residuals.

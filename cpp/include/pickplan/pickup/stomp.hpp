@@ -9,30 +9,30 @@
 
 #include <Eigen/Core>
 
-#include "pickplan/pickup/nlp.hpp"
 #include "pickplan/core/robot.hpp"
+#include "pickplan/pickup/nlp.hpp"
 
 namespace pickplan::pickup {
 
 struct StompSettings {
   int iterations = 40;
   int rollouts = 12;
-  double noise_stddev = 0.1;       // scales the smooth exploration noise N(0, R^-1)
-  double temperature = 10.0;       // h of the per-timestep softmax
-  double control_weight = 1.0;     // weight of the smoothness (squared acceleration) cost
-  double obstacle_weight = 1e3;    // weight of the hinge obstacle cost per waypoint
-  double limit_weight = 1e3;       // weight of the joint position / rate limit hinge costs
-  double margin = 0.02;            // m, obstacle clearance wanted
+  double noise_stddev = 0.1;     // scales the smooth exploration noise N(0, R^-1)
+  double temperature = 10.0;     // h of the per-timestep softmax
+  double control_weight = 1.0;   // weight of the smoothness (squared acceleration) cost
+  double obstacle_weight = 1e3;  // weight of the hinge obstacle cost per waypoint
+  double limit_weight = 1e3;     // weight of the joint position / rate limit hinge costs
+  double margin = 0.02;          // m, obstacle clearance wanted
   unsigned seed = 0;
 };
 
 struct StompResult {
-  Eigen::MatrixXd q;               // (N, dof) refined waypoints (base columns unchanged)
+  Eigen::MatrixXd q;                                    // (N, dof) refined waypoints (base columns unchanged)
   double initial_cost = 0, final_cost = 0;              // total cost
   double initial_smoothness = 0, final_smoothness = 0;  // sum of squared arm accelerations
-  double max_rate = 0;             // max |finite-difference arm joint rate|, rad/s
-  double min_clearance = 0;        // min sphere clearance over the waypoints, m
-  bool limits_ok = false;          // joint position and rate limits hold at every waypoint
+  double max_rate = 0;                                  // max |finite-difference arm joint rate|, rad/s
+  double min_clearance = 0;                             // min sphere clearance over the waypoints, m
+  bool limits_ok = false;                               // joint position and rate limits hold at every waypoint
   int iterations = 0;
   double seconds = 0;
 };
