@@ -78,15 +78,17 @@ PYTEST_WORKERS ?= $(JOBS)
 test-python: install
 	$(PY) -m pytest tests/python -q -n $(PYTEST_WORKERS) --dist loadfile
 
-# Lint and formatting rules as code ([tool.ruff] in pyproject.toml: pyflakes and import order; .clang-format
-# for every C++ file). Quick: CI runs it before the tests. `make format` fixes what it can. (ruff's
-# formatter is not applied: it breaks the aligned comments that document settings fields across lines.)
+# Lint and formatting rules as code ([tool.ruff] in pyproject.toml: pyflakes, import order and the
+# formatter; .clang-format for every C++ file), the tools pinned above. Quick: CI runs it before the
+# tests; `make format` applies both formatters and the fixable lint rules.
 lint: venv
 	$(VENV)/bin/ruff check --no-cache python tests bench tools
+	$(VENV)/bin/ruff format --no-cache --check python tests bench tools
 	$(VENV)/bin/clang-format --dry-run --Werror $(CPP_SOURCES)
 
 format: venv
 	$(VENV)/bin/ruff check --no-cache --fix python tests bench tools
+	$(VENV)/bin/ruff format --no-cache python tests bench tools
 	$(VENV)/bin/clang-format -i $(CPP_SOURCES)
 
 # A self-contained wheel: the pip build (reusing build/ from `make install`), then auditwheel

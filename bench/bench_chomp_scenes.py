@@ -3,6 +3,7 @@ of the goal set built from antipodal grasps), 100 iterations; success = the pape
 
     .venv/bin/python bench/bench_chomp_scenes.py --scenes 20
 """
+
 import argparse
 import time
 import warnings
@@ -36,18 +37,24 @@ def main():
         xi0 = c.initial_trajectory(w.start, gs.goals[0], kind="linear")
         xi0[-m:] = gs.tails[0]
         t = time.perf_counter()
-        res = c.optimize(w.start, gs.tails[0], args.iterations, xi0=xi0,
-                         metric_settings=chomp.MetricSettings(tail_waypoints=m))
+        res = c.optimize(
+            w.start, gs.tails[0], args.iterations, xi0=xi0, metric_settings=chomp.MetricSettings(tail_waypoints=m)
+        )
         times.append(time.perf_counter() - t)
         tried += 1
         ok += bool(res.metrics.success)
         free += bool(res.metrics.collision_free)
-        print(f"scene {seed}: {'success' if res.metrics.success else 'failure'}, "
-              f"{'collision-free' if res.metrics.collision_free else 'in collision'}, clearance "
-              f"{res.metrics.min_clearance * 100:.1f} cm, smoothness {res.metrics.smoothness:.1f}, "
-              f"{times[-1] * 1e3:.0f} ms", flush=True)
-    print(f"CHOMP success {ok}/{tried}, collision-free {free}/{tried}; "
-          f"median {np.median(times) * 1e3:.0f} ms per 100-iteration optimization")
+        print(
+            f"scene {seed}: {'success' if res.metrics.success else 'failure'}, "
+            f"{'collision-free' if res.metrics.collision_free else 'in collision'}, clearance "
+            f"{res.metrics.min_clearance * 100:.1f} cm, smoothness {res.metrics.smoothness:.1f}, "
+            f"{times[-1] * 1e3:.0f} ms",
+            flush=True,
+        )
+    print(
+        f"CHOMP success {ok}/{tried}, collision-free {free}/{tried}; "
+        f"median {np.median(times) * 1e3:.0f} ms per 100-iteration optimization"
+    )
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ of the planning thread per scene (world, grasps, goal set, plan).
 
     .venv/bin/python bench/bench_default_api.py --scenes 20
 """
+
 from __future__ import annotations
 
 import argparse

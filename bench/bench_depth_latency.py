@@ -7,6 +7,7 @@ request's ``time.process_time``, its stages' thread CPU time; medians over the s
 
     .venv/bin/python bench/bench_depth_latency.py --scenes 20 --views 1 3 --noise-mm 2 [--profile 1]
 """
+
 from __future__ import annotations
 
 import os
@@ -37,9 +38,17 @@ def request(obs, planner: PerceivedPlanner) -> dict:
     total = time.process_time() - t0
     s = dict(planner.world().seconds)
     plan = float(result.timings["total"] - result.timings["goal_set"])
-    return {"plane": s["plane"], "field": s["field"], "scene": s["scene"], "world": s["world"],
-            "grasps": s["grasps"], "goal_set": float(result.timings["goal_set"]), "plan": plan, "total": total,
-            "success": bool(result.success)}
+    return {
+        "plane": s["plane"],
+        "field": s["field"],
+        "scene": s["scene"],
+        "world": s["world"],
+        "grasps": s["grasps"],
+        "goal_set": float(result.timings["goal_set"]),
+        "plan": plan,
+        "total": total,
+        "success": bool(result.success),
+    }
 
 
 def main() -> None:
@@ -63,19 +72,23 @@ def main() -> None:
                 observations.append(render_observation(sc, views=views, noise=args.noise_mm / 1000, seed=k))
             except InputError:  # the target hidden from every camera: no request to time
                 continue
-        planner = PerceivedPlanner(settings=settings, world_settings=PerceivedWorldSettings(clock="thread_cpu"))  # long-lived: the robot's data built once
+        planner = PerceivedPlanner(
+            settings=settings, world_settings=PerceivedWorldSettings(clock="thread_cpu")
+        )  # long-lived: the robot's data built once
         request(observations[0], planner)  # warm-up: the robot's data and the hand's field
         if args.profile:
             prof = cProfile.Profile()
             prof.enable()
-            for obs in observations[:args.profile]:
+            for obs in observations[: args.profile]:
                 request(obs, planner)
             prof.disable()
             pstats.Stats(prof).sort_stats(args.sort).print_stats(45)
         rows = [request(obs, planner) for obs in observations]
         med = [1000 * np.median([r[k] for r in rows]) for k in STAGES]
         ok = sum(r["success"] for r in rows)
-        print(f"| {views} | {len(rows)} | " + " | ".join(f"{m:.1f}" for m in med) + f" | {ok}/{len(rows)} |", flush=True)
+        print(
+            f"| {views} | {len(rows)} | " + " | ".join(f"{m:.1f}" for m in med) + f" | {ok}/{len(rows)} |", flush=True
+        )
 
 
 if __name__ == "__main__":

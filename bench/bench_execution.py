@@ -8,6 +8,7 @@ the open Panda hand (< 75 mm across) is grasped top-down with the hand-made traj
 
 Prints one line per execution and mean / median / worst wall time, CPU time and time per step.
 """
+
 import argparse
 import os
 import statistics
@@ -47,8 +48,11 @@ def main(argv=None):
             cpus.append(cpu)
             per_step.append(cpu / r.steps)
             ok += r.success
-            print(f"seed {seed} {o.name:22s} {r.status:9s} lift {r.target_lift:.3f} m  steps {r.steps}  "
-                  f"wall {r.seconds:.2f} s  cpu {cpu:.2f} s  frames {len(r.frames)}", flush=True)
+            print(
+                f"seed {seed} {o.name:22s} {r.status:9s} lift {r.target_lift:.3f} m  steps {r.steps}  "
+                f"wall {r.seconds:.2f} s  cpu {cpu:.2f} s  frames {len(r.frames)}",
+                flush=True,
+            )
     if not walls:
         print("no graspable objects")
         return 1
@@ -56,8 +60,10 @@ def main(argv=None):
     print(f"\n{n} executions, {ok} lifted ({100.0 * ok / n:.0f} %)")
     rows = (("wall", walls, "s", 1.0), ("cpu", cpus, "s", 1.0), ("cpu per step", per_step, "ms", 1e3))
     for label, xs, unit, k in rows:
-        print(f"{label:13s} mean {k * statistics.mean(xs):.3f} {unit}  median {k * statistics.median(xs):.3f} {unit}"
-              f"  worst {k * max(xs):.3f} {unit}")
+        print(
+            f"{label:13s} mean {k * statistics.mean(xs):.3f} {unit}  median {k * statistics.median(xs):.3f} {unit}"
+            f"  worst {k * max(xs):.3f} {unit}"
+        )
     return 0
 
 

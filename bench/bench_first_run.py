@@ -6,6 +6,7 @@ one run again in the last run's cache (what every later plan costs).
     .venv/bin/python bench/bench_first_run.py --scenes 3 --repeat 3
     .venv/bin/python bench/bench_first_run.py --python /other/venv/bin/python   # another install, same scenes
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,8 +26,25 @@ from pickplan.core.io import write_json
 def _scenes(n: int, seed: int, folder: str) -> list:
     """``pickplan scenes`` of built-in objects, made in their own cache (not timed)."""
     env = dict(os.environ, PICKPLAN_CACHE_DIR=os.path.join(folder, "cache"))
-    subprocess.run([sys.executable, "-m", "pickplan", "-q", "scenes", "--n", str(n), "--seed", str(seed),
-                    "--objects", "builtin", "--out", os.path.join(folder, "scenes")], env=env, check=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pickplan",
+            "-q",
+            "scenes",
+            "--n",
+            str(n),
+            "--seed",
+            str(seed),
+            "--objects",
+            "builtin",
+            "--out",
+            os.path.join(folder, "scenes"),
+        ],
+        env=env,
+        check=True,
+    )
     return [os.path.join(folder, "scenes", f"scene_{i:04d}.json") for i in range(n)]
 
 
@@ -35,8 +53,9 @@ def _run(python: str, scene: str, cache: str, tmp: str, out: str) -> dict:
     env = dict(os.environ, PICKPLAN_CACHE_DIR=cache, TMPDIR=tmp)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    proc = subprocess.run([python, "-m", "pickplan", "plan", "--scene", scene, "--out", out], env=env,
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [python, "-m", "pickplan", "plan", "--scene", scene, "--out", out], env=env, capture_output=True, text=True
+    )
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode not in (0, 1):  # 1: ran, no plan
@@ -61,15 +80,29 @@ def main() -> None:
             fresh = []
             for r in range(args.repeat):
                 run_dir = os.path.join(root, f"s{k}-r{r}")
-                fresh.append(_run(args.python, scene, os.path.join(run_dir, "cache"), os.path.join(run_dir, "tmp"),
-                                  os.path.join(run_dir, "out")))
-            warm = _run(args.python, scene, os.path.join(run_dir, "cache"), os.path.join(run_dir, "tmp"),
-                        os.path.join(run_dir, "out"))
+                fresh.append(
+                    _run(
+                        args.python,
+                        scene,
+                        os.path.join(run_dir, "cache"),
+                        os.path.join(run_dir, "tmp"),
+                        os.path.join(run_dir, "out"),
+                    )
+                )
+            warm = _run(
+                args.python,
+                scene,
+                os.path.join(run_dir, "cache"),
+                os.path.join(run_dir, "tmp"),
+                os.path.join(run_dir, "out"),
+            )
             runs.append({"scene": os.path.basename(scene), "target": data["target"], "fresh": fresh, "warm": warm})
             walls = [x["wall"] for x in fresh]
-            rows.append(f"| {os.path.basename(scene)} | {data['target']} | {len(data['objects'])} | "
-                        f"{np.median(walls):.1f} | {min(walls):.1f}-{max(walls):.1f} | "
-                        f"{np.median([x['cpu'] for x in fresh]):.1f} | {warm['wall']:.1f} |")
+            rows.append(
+                f"| {os.path.basename(scene)} | {data['target']} | {len(data['objects'])} | "
+                f"{np.median(walls):.1f} | {min(walls):.1f}-{max(walls):.1f} | "
+                f"{np.median([x['cpu'] for x in fresh]):.1f} | {warm['wall']:.1f} |"
+            )
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
     print("| scene | target | objects | fresh wall s (median) | range | fresh CPU s | again, warm cache, wall s |")
     print("|---|---|---|---|---|---|---|")

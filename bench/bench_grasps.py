@@ -6,6 +6,7 @@ of the "simulated" (shake-verified) set against raw antipodal candidates (and th
 
 Prints a Markdown table (figures in bench/README.md). No cache: every run simulates.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -51,8 +52,10 @@ def main(argv=None) -> int:
         libs.append(("ycb", objects.library(a.ycb)))
     else:
         print(f"(YCB folder not found at {a.ycb}: YCB rows skipped)", file=sys.stderr)
-    print("| object | approach n=%d (s) | antipodal n=%d (s) | simulated n=%d, %d workers (s, tested) "
-          "| lift: antipodal | lift: simulated | lift: YCB file |" % (a.n, a.n, a.sim_n, a.workers))
+    print(
+        "| object | approach n=%d (s) | antipodal n=%d (s) | simulated n=%d, %d workers (s, tested) "
+        "| lift: antipodal | lift: simulated | lift: YCB file |" % (a.n, a.n, a.sim_n, a.workers)
+    )
     print("|---|---|---|---|---|---|---|")
     for src, lib in libs:
         for name in a.objects:
@@ -61,16 +64,20 @@ def main(argv=None) -> int:
             model = lib.get(name)
             _, t_app = timed(G.approach_grasps, model, a.n, a.seed)
             anti, t_anti = timed(G.antipodal_grasps, model, a.n, a.seed)
-            sim, t_sim = timed(SG.simulated_grasps, model, a.sim_n, a.seed, workers=a.workers, cache=False,
-                               progress=False)
-            lift_a = S.lift_test(model, anti.poses[:a.lift_n]) if len(anti) else np.zeros(0)
+            sim, t_sim = timed(
+                SG.simulated_grasps, model, a.sim_n, a.seed, workers=a.workers, cache=False, progress=False
+            )
+            lift_a = S.lift_test(model, anti.poses[: a.lift_n]) if len(anti) else np.zeros(0)
             lift_s = S.lift_test(model, sim.poses) if len(sim) else np.zeros(0)
             lift_y = "-"
             if "simulated" in model.grasps:
-                lift_y = rate(S.lift_test(model, G.load_grasp_set(model, "simulated").poses[:a.lift_n]))
+                lift_y = rate(S.lift_test(model, G.load_grasp_set(model, "simulated").poses[: a.lift_n]))
             tested = int(sim.info.get("tested", 0)) if len(sim) else 0
-            print(f"| {src}:{name} | {t_app:.2f} | {t_anti:.2f} ({len(anti)}) | {t_sim:.1f} ({len(sim)} of {tested}) "
-                  f"| {rate(lift_a)} | {rate(lift_s)} | {lift_y} |", flush=True)
+            print(
+                f"| {src}:{name} | {t_app:.2f} | {t_anti:.2f} ({len(anti)}) | {t_sim:.1f} ({len(sim)} of {tested}) "
+                f"| {rate(lift_a)} | {rate(lift_s)} | {lift_y} |",
+                flush=True,
+            )
     return 0
 
 

@@ -17,6 +17,7 @@ The process is pinned to one core (``--core``) but for the last part, ``plan_man
 same plans (worlds built) on 1 and on 2 threads, unpinned. The load average is printed with the
 figures, since the machine may be shared.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -58,8 +59,16 @@ def load_scenes(n: int, ycb: str, folder: str):
 
 
 def paper_settings() -> OMGSettings:
-    return OMGSettings(goals=GoalSetSettings(max_goals=30, seed=0), ik=IkSettings(seed=0), selection="MD",
-                       refine=True, iterations=50, grasp_kind="simulated", grasp_count=100, seed=0)
+    return OMGSettings(
+        goals=GoalSetSettings(max_goals=30, seed=0),
+        ik=IkSettings(seed=0),
+        selection="MD",
+        refine=True,
+        iterations=50,
+        grasp_kind="simulated",
+        grasp_count=100,
+        seed=0,
+    )
 
 
 def plan_time(result) -> float:
@@ -110,9 +119,13 @@ def main(argv=None):
     ap.add_argument("--core", type=int, default=None, help="pin to this CPU (default: the current one)")
     ap.add_argument("--no-rrt", action="store_true", help="OMG only")
     ap.add_argument("--threads", type=int, default=2, help="plan_many threads for the scaling figure (0: skip)")
-    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
-                    help="cpu: every timing in this process (the planners' stage timings too) reads this "
-                         "thread's CPU time, so other processes' load does not count (for a shared machine)")
+    ap.add_argument(
+        "--clock",
+        choices=("wall", "cpu"),
+        default="wall",
+        help="cpu: every timing in this process (the planners' stage timings too) reads this "
+        "thread's CPU time, so other processes' load does not count (for a shared machine)",
+    )
     args = ap.parse_args(argv)
     if args.clock == "cpu":
         time.perf_counter = time.thread_time  # bench-only: the planners time their stages with perf_counter
@@ -132,8 +145,11 @@ def main(argv=None):
     t = time.perf_counter()
     for scene in scene_list:
         world = new_world(scene, settings, cache)
-        grasps.append(grasps_mod.grasp_set(world.target_model, settings.grasp_kind, settings.grasp_count,
-                                           seed=settings.seed).poses)
+        grasps.append(
+            grasps_mod.grasp_set(
+                world.target_model, settings.grasp_kind, settings.grasp_count, seed=settings.seed
+            ).poses
+        )
         OMGPlanner(None, scene, settings, world=world).plan(grasps=grasps[-1])
     print(f"warm-up pass {time.perf_counter() - t:.1f} s", flush=True)
 
@@ -150,46 +166,69 @@ def main(argv=None):
             omg_runs.append(OMGPlanner(None, scene, settings, world=world).plan(grasps=grasps[i]))
             if not args.no_rrt:
                 rrt_runs.append(plan_baseline("RRT-C", scene, baseline, world=world, grasps=grasps[i]))
-        row = {"new": t_new, "world": t_world, "prepare": first.timings["prepare"],
-               "goal_set": first.timings["goal_set"], "first_plan": plan_time(first),
-               "omg": median([plan_time(r) for r in omg_runs]),
-               "rrt": median([plan_time(r) for r in rrt_runs]),
-               "omg_ok": omg_runs[0].success, "rrt_ok": bool(rrt_runs and rrt_runs[0].success),
-               "goals": omg_runs[0].goal_set_size, "its": omg_runs[0].iterations}
+        row = {
+            "new": t_new,
+            "world": t_world,
+            "prepare": first.timings["prepare"],
+            "goal_set": first.timings["goal_set"],
+            "first_plan": plan_time(first),
+            "omg": median([plan_time(r) for r in omg_runs]),
+            "rrt": median([plan_time(r) for r in rrt_runs]),
+            "omg_ok": omg_runs[0].success,
+            "rrt_ok": bool(rrt_runs and rrt_runs[0].success),
+            "goals": omg_runs[0].goal_set_size,
+            "its": omg_runs[0].iterations,
+        }
         for k in STAGES:
             row[k] = median([r.timings[k] for r in omg_runs])
         row["python"] = median([plan_time(r) - sum(r.timings[k] for k in STAGES) for r in omg_runs])
         rows.append(row)
-        print(f"scene {i:2d}: goals {row['goals']:2d} its {row['its']:2d} omg {1e3 * row['omg']:6.2f} ms "
-              f"({'ok' if row['omg_ok'] else 'FAIL'})  rrt-c {1e3 * row['rrt']:6.2f} ms "
-              f"({'ok' if row['rrt_ok'] else 'FAIL'})  new scene {1e3 * t_new:6.1f} ms "
-              f"(world {1e3 * t_world:.1f}, checkers+isf {1e3 * row['prepare']:.1f}, "
-              f"goal set {1e3 * row['goal_set']:.1f}, plan {1e3 * row['first_plan']:.1f})", flush=True)
+        print(
+            f"scene {i:2d}: goals {row['goals']:2d} its {row['its']:2d} omg {1e3 * row['omg']:6.2f} ms "
+            f"({'ok' if row['omg_ok'] else 'FAIL'})  rrt-c {1e3 * row['rrt']:6.2f} ms "
+            f"({'ok' if row['rrt_ok'] else 'FAIL'})  new scene {1e3 * t_new:6.1f} ms "
+            f"(world {1e3 * t_world:.1f}, checkers+isf {1e3 * row['prepare']:.1f}, "
+            f"goal set {1e3 * row['goal_set']:.1f}, plan {1e3 * row['first_plan']:.1f})",
+            flush=True,
+        )
 
     planned = [r for r in rows if r["goals"] > 0]
-    print(f"\n== {len(planned)} scenes with a goal set (of {len(rows)}), medians, one core; "
-          f"load after: {os.getloadavg()}")
-    print(f"OMG plan        {1e3 * median([r['omg'] for r in planned]):6.2f} ms   "
-          f"success {sum(r['omg_ok'] for r in planned)}/{len(planned)}")
+    print(
+        f"\n== {len(planned)} scenes with a goal set (of {len(rows)}), medians, one core; load after: {os.getloadavg()}"
+    )
+    print(
+        f"OMG plan        {1e3 * median([r['omg'] for r in planned]):6.2f} ms   "
+        f"success {sum(r['omg_ok'] for r in planned)}/{len(planned)}"
+    )
     if not args.no_rrt:
         ratios = [r["omg"] / r["rrt"] for r in planned if r["rrt"] > 0]
-        print(f"RRT-Connect     {1e3 * median([r['rrt'] for r in planned]):6.2f} ms   "
-              f"success {sum(r['rrt_ok'] for r in planned)}/{len(planned)}")
-        print(f"ratio OMG/RRT-C per scene: median {median(ratios):.2f}  "
-              f"(quartiles {np.percentile(ratios, 25):.2f} .. {np.percentile(ratios, 75):.2f})")
-    print("OMG stages (ms): " + "  ".join(f"{k} {1e3 * median([r[k] for r in planned]):.2f}"
-                                         for k in STAGES + ("python",)))
-    print(f"new scene       {1e3 * median([r['new'] for r in rows]):6.1f} ms  (world "
-          f"{1e3 * median([r['world'] for r in rows]):.1f}, checkers + ISF data "
-          f"{1e3 * median([r['prepare'] for r in rows]):.1f}, goal set "
-          f"{1e3 * median([r['goal_set'] for r in rows]):.1f}, plan {1e3 * median([r['first_plan'] for r in rows]):.1f})")
+        print(
+            f"RRT-Connect     {1e3 * median([r['rrt'] for r in planned]):6.2f} ms   "
+            f"success {sum(r['rrt_ok'] for r in planned)}/{len(planned)}"
+        )
+        print(
+            f"ratio OMG/RRT-C per scene: median {median(ratios):.2f}  "
+            f"(quartiles {np.percentile(ratios, 25):.2f} .. {np.percentile(ratios, 75):.2f})"
+        )
+    print(
+        "OMG stages (ms): "
+        + "  ".join(f"{k} {1e3 * median([r[k] for r in planned]):.2f}" for k in STAGES + ("python",))
+    )
+    print(
+        f"new scene       {1e3 * median([r['new'] for r in rows]):6.1f} ms  (world "
+        f"{1e3 * median([r['world'] for r in rows]):.1f}, checkers + ISF data "
+        f"{1e3 * median([r['prepare'] for r in rows]):.1f}, goal set "
+        f"{1e3 * median([r['goal_set'] for r in rows]):.1f}, plan {1e3 * median([r['first_plan'] for r in rows]):.1f})"
+    )
     if args.threads > 1:
         os.sched_setaffinity(0, range(os.cpu_count()))
         scaling = thread_scaling(scene_list, worlds, grasps, settings, args.threads)
         if scaling:
-            print(f"plan_many, {len(scene_list)} plans (worlds built): 1 thread {scaling[1]:.3f} s, {args.threads} "
-                  f"threads {scaling[args.threads]:.3f} s: {scaling[1] / scaling[args.threads]:.2f}x on "
-                  f"{os.cpu_count()} cores; load {os.getloadavg()}")
+            print(
+                f"plan_many, {len(scene_list)} plans (worlds built): 1 thread {scaling[1]:.3f} s, {args.threads} "
+                f"threads {scaling[args.threads]:.3f} s: {scaling[1] / scaling[args.threads]:.2f}x on "
+                f"{os.cpu_count()} cores; load {os.getloadavg()}"
+            )
     return 0
 
 

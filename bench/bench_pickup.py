@@ -12,6 +12,7 @@ Measures, with fixed seeds:
     PYTHONPATH=python python bench/bench_pickup.py --workers 2 --out /tmp/bench_pickup
     PYTHONPATH=python python bench/bench_pickup.py --quick        # a minute or two
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,7 +26,8 @@ import numpy as np
 from pickplan.pickup.metamodel.active import ActiveConfig, PoseDomain, learn_boundary, learn_random, predict
 from pickplan.pickup.metamodel.compare import compare, plot_comparison, summarize, table_markdown
 from pickplan.core.io import write_text
-from pickplan.pickup.metamodel.model import BuildConfig, build_metamodel
+from pickplan.pickup.metamodel.build import build_metamodel
+from pickplan.pickup.metamodel.model import BuildConfig
 from pickplan.pickup.metamodel.parallel import SimRunner, sample_seeds
 from pickplan.pickup.metamodel.parts import PARTS
 from pickplan.pickup.metamodel.sim import SimConfig, simulate_grasp
@@ -47,8 +49,7 @@ def bench_sim_time(n: int, seed: int) -> dict:
     return out
 
 
-def bench_active_vs_random(part, pairs, cfg: ActiveConfig, n_test: int, workers: int,
-                           seed: int) -> list:
+def bench_active_vs_random(part, pairs, cfg: ActiveConfig, n_test: int, workers: int, seed: int) -> list:
     dom = PoseDomain()
     rows = []
     with SimRunner(part, SimConfig(), workers) as runner:
@@ -64,14 +65,24 @@ def bench_active_vs_random(part, pairs, cfg: ActiveConfig, n_test: int, workers:
             rnd = learn_random(label, act.n_simulations, cfg, seed=seed + 2)
             # Test poses from the query distribution (the focus mixture) and uniform.
             rng = np.random.default_rng(seed + 3)
-            T = np.vstack([np.clip(rng.normal(0, cfg.focus_scale, (n_test // 2, 3)), -1, 1),
-                           rng.uniform(-1, 1, (n_test - n_test // 2, 3))])
+            T = np.vstack(
+                [
+                    np.clip(rng.normal(0, cfg.focus_scale, (n_test // 2, 3)), -1, 1),
+                    rng.uniform(-1, 1, (n_test - n_test // 2, 3)),
+                ]
+            )
             yT = runner.run(dom.to_offsets(T), s_g, s_c, sample_seeds(seed + 4, 0, n_test))
-            rows.append({"s_g": s_g, "s_c": s_c, "budget": act.n_simulations,
-                         "converged": act.converged,
-                         "accuracy_active": float(np.mean(predict(act.model, T) == yT)),
-                         "accuracy_random": float(np.mean(predict(rnd.model, T) == yT)),
-                         "test_success_fraction": float(yT.mean())})
+            rows.append(
+                {
+                    "s_g": s_g,
+                    "s_c": s_c,
+                    "budget": act.n_simulations,
+                    "converged": act.converged,
+                    "accuracy_active": float(np.mean(predict(act.model, T) == yT)),
+                    "accuracy_random": float(np.mean(predict(rnd.model, T) == yT)),
+                    "test_success_fraction": float(yT.mean()),
+                }
+            )
             print(rows[-1], file=sys.stderr)
     return rows
 
@@ -84,8 +95,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--samples", type=int, default=None, help="extensive samples per pair")
     ap.add_argument("--out", default=os.path.join("results", "bench_pickup"))
-    ap.add_argument("--cache", default=None,
-                    help="directory caching the extensive-sampling labels (reruns are free)")
+    ap.add_argument("--cache", default=None, help="directory caching the extensive-sampling labels (reruns are free)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
     report = {"part": args.part, "quick": args.quick, "seed": args.seed}
@@ -101,22 +111,27 @@ def main(argv=None) -> int:
         n_ext, n_test, pairs = args.samples or 1000, 400, [(0.3, 0.1), (0.5, 0.05)]
 
     t0 = time.perf_counter()
-    report["active_vs_random"] = bench_active_vs_random(args.part, pairs, cfg.active, n_test,
-                                                        args.workers, args.seed)
+    report["active_vs_random"] = bench_active_vs_random(args.part, pairs, cfg.active, n_test, args.workers, args.seed)
     report["active_vs_random_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     mm = build_metamodel(args.part, cfg, seed=args.seed, workers=args.workers, progress=True)
     report["build_s"] = time.perf_counter() - t0
     mm.save(os.path.join(args.out, f"metamodel_{args.part}.json"))
-    report["boundaries"] = [{"s_g": bm.s_g, "s_c": bm.s_c, "simulations": bm.n_simulations,
-                             "free_labels": int((~bm.simulated).sum()), "d_ft": bm.d_ft,
-                             "width": bm.width,
-                             "converged": bm.converged}
-                            for _, bm in sorted(mm.boundaries.items())]
+    report["boundaries"] = [
+        {
+            "s_g": bm.s_g,
+            "s_c": bm.s_c,
+            "simulations": bm.n_simulations,
+            "free_labels": int((~bm.simulated).sum()),
+            "d_ft": bm.d_ft,
+            "width": bm.width,
+            "converged": bm.converged,
+        }
+        for _, bm in sorted(mm.boundaries.items())
+    ]
     t0 = time.perf_counter()
-    rows = compare(mm, n_samples=n_ext, seed=args.seed, workers=args.workers,
-                   cache_dir=args.cache)
+    rows = compare(mm, n_samples=n_ext, seed=args.seed, workers=args.workers, cache_dir=args.cache)
     report["compare_s"] = time.perf_counter() - t0
     report["n_extensive"] = n_ext
     report["compare_summary"] = summarize(rows)

@@ -4,6 +4,7 @@ solved by the successive refinement for several thresholds gamma on the stand-in
 
     .venv/bin/python bench/bench_pickup_gamma.py [--m 6] [--case 1] [--gammas 0.9,0.94,...]   # after make install
 """
+
 import argparse
 import os
 
@@ -28,9 +29,12 @@ def main() -> None:
         ok = p.success
         rho = f"{pb.rho.value(p.S_g, p.S_c):.3f}" if ok else "-"
         status = p.status if ok else f"{p.status} (stage {p.stages_completed + 1}; the last good stage is returned)"
-        print(f"| {g:.2f} | {status} | {rho} | {p.S_g:.3f} | {p.T:.2f} | {p.total_seconds:.2f} / {p.total_cpu_seconds:.2f} | "
-              f"{'yes' if p.direct_chosen else 'no'} |" if ok else
-              f"| {g:.2f} | {status} | - | - | - | {p.total_seconds:.2f} / {p.total_cpu_seconds:.2f} | - |")
+        print(
+            f"| {g:.2f} | {status} | {rho} | {p.S_g:.3f} | {p.T:.2f} | {p.total_seconds:.2f} / {p.total_cpu_seconds:.2f} | "
+            f"{'yes' if p.direct_chosen else 'no'} |"
+            if ok
+            else f"| {g:.2f} | {status} | - | - | - | {p.total_seconds:.2f} / {p.total_cpu_seconds:.2f} | - |"
+        )
 
 
 if __name__ == "__main__":

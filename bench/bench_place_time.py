@@ -7,6 +7,7 @@ the place goal set, and the transfer's stages (CHOMP, goal-cost estimates, selec
         --grasp-kind antipodal --no-execute --out out/bench/pp12
     .venv/bin/python bench/bench_place_time.py out/bench/pp12
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,8 +18,8 @@ import time
 import numpy as np
 
 from pickplan.eval import experiments
-from pickplan.eval.experiments import _unit_grasps
 from pickplan.eval.pickplace import unit_settings, unit_task
+from pickplan.eval.units import _unit_grasps
 from pickplan.omg.pickplace import PickPlacePlanner
 from pickplan.omg.planner import OMGPlanner
 
@@ -53,8 +54,16 @@ def main() -> None:
     files = sorted(glob.glob(os.path.join(args.run, "scenes", "scene_*.json")))
     if not files:
         raise SystemExit(f"no scenes in {args.run}/scenes")
-    s = experiments.SweepSettings(table="pickplace", scene_dir=os.path.join(args.run, "scenes"), objects=args.objects,
-                                  grasp_kind="antipodal", runs=1, methods=("OMG",), execute=False, workers=0).effective()
+    s = experiments.SweepSettings(
+        table="pickplace",
+        scene_dir=os.path.join(args.run, "scenes"),
+        objects=args.objects,
+        grasp_kind="antipodal",
+        runs=1,
+        methods=("OMG",),
+        execute=False,
+        workers=0,
+    ).effective()
     units = experiments.make_units(s, files)[: args.limit or None]
     rows = []
     for unit in units:
@@ -64,12 +73,17 @@ def main() -> None:
             continue
         kept, goal_set, total, stages = out
         rows.append((goal_set, total, *stages.values()))
-        print(f"{unit['scene_name']}: {kept} goals, goal set {goal_set:.1f} ms, place {total:.1f} ms, " +
-              ", ".join(f"{k} {v:.1f}" for k, v in stages.items()), flush=True)
+        print(
+            f"{unit['scene_name']}: {kept} goals, goal set {goal_set:.1f} ms, place {total:.1f} ms, "
+            + ", ".join(f"{k} {v:.1f}" for k, v in stages.items()),
+            flush=True,
+        )
     if rows:
         med = np.median(np.array(rows), axis=0)
-        print(f"median of {len(rows)}: goal set {med[0]:.1f} ms, place {med[1]:.1f} ms, " +
-              ", ".join(f"{k} {v:.1f}" for k, v in zip(STAGES, med[2:])))
+        print(
+            f"median of {len(rows)}: goal set {med[0]:.1f} ms, place {med[1]:.1f} ms, "
+            + ", ".join(f"{k} {v:.1f}" for k, v in zip(STAGES, med[2:]))
+        )
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ models, grasp generation) is reported apart: it is done once per scene, not per 
 
 Prints one line per scene and the median of every stage over the scenes with a goal set.
 """
+
 import argparse
 import statistics
 import time
@@ -29,8 +30,11 @@ def main(argv=None):
     ap.add_argument("--selection", default="MD")
     ap.add_argument("--no-merged", action="store_true", help="per-object SDF grids instead of the merged grid")
     args = ap.parse_args(argv)
-    settings = omg.OMGSettings(grasp_kind=args.grasps, selection=args.selection,
-                               world=world.WorldSettings(sdf=sdf.SdfSettings(merged=not args.no_merged)))
+    settings = omg.OMGSettings(
+        grasp_kind=args.grasps,
+        selection=args.selection,
+        world=world.WorldSettings(sdf=sdf.SdfSettings(merged=not args.no_merged)),
+    )
     rows = []
     for seed in range(args.scenes):
         scene = scenes.generate_scene(seed)
@@ -44,14 +48,18 @@ def main(argv=None):
             r = planner.plan(grasps=grasps)
             if best is None or r.timings["total"] < best.timings["total"]:
                 best = r
-        print(f"scene {seed}: {best.status:12s} goals {best.goal_set_size:3d} its {best.iterations:2d}  "
-              + "  ".join(f"{k} {1e3 * best.timings[k]:7.1f}" for k in STAGES)
-              + f"  ms | world {1e3 * prep:.0f} ms (merge {1e3 * w.merge_seconds:.0f})")
+        print(
+            f"scene {seed}: {best.status:12s} goals {best.goal_set_size:3d} its {best.iterations:2d}  "
+            + "  ".join(f"{k} {1e3 * best.timings[k]:7.1f}" for k in STAGES)
+            + f"  ms | world {1e3 * prep:.0f} ms (merge {1e3 * w.merge_seconds:.0f})"
+        )
         if best.goal_set_size:
             rows.append(best)
     if rows:
-        print(f"median over {len(rows)} scenes with goals (ms): "
-              + "  ".join(f"{k} {1e3 * statistics.median(r.timings[k] for r in rows):.1f}" for k in STAGES))
+        print(
+            f"median over {len(rows)} scenes with goals (ms): "
+            + "  ".join(f"{k} {1e3 * statistics.median(r.timings[k] for r in rows):.1f}" for k in STAGES)
+        )
         print(f"planning success {sum(r.success for r in rows)}/{len(rows)}")
 
 

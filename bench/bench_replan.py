@@ -7,6 +7,7 @@ included for the warm one) and, with ``--execute``, executed in PyBullet on the 
 
     .venv/bin/python bench/bench_replan.py --scenes 40 --shift 0.02 --execute --out out/bench/replan
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,8 +25,19 @@ from pickplan.omg.world import World
 from pickplan.sim import scenes
 from pickplan.sim.execution import execute_plan
 
-FIELDS = ("scene", "first_success", "warm_success", "warm_ms", "warm_iterations", "warm_goals", "fresh_success",
-          "fresh_ms", "fresh_iterations", "warm_lifted", "fresh_lifted")
+FIELDS = (
+    "scene",
+    "first_success",
+    "warm_success",
+    "warm_ms",
+    "warm_iterations",
+    "warm_goals",
+    "fresh_success",
+    "fresh_ms",
+    "fresh_iterations",
+    "warm_lifted",
+    "fresh_lifted",
+)
 
 
 def moved(scene, shift: float, rng):
@@ -45,8 +57,12 @@ def run_scene(seed: int, shift: float, execute: bool, settings: OMGSettings, cac
     moved_scene, T = moved(scene, shift, np.random.default_rng(seed))
     t = time.thread_time()
     warm = replanner.replan(moved={scene.target: T})
-    row.update(warm_success=warm.success, warm_ms=1000 * (time.thread_time() - t), warm_iterations=warm.iterations,
-               warm_goals=warm.goal_set_size)
+    row.update(
+        warm_success=warm.success,
+        warm_ms=1000 * (time.thread_time() - t),
+        warm_iterations=warm.iterations,
+        warm_goals=warm.goal_set_size,
+    )
     fresh_world = World(moved_scene, settings.world, cache=cache)
     t = time.thread_time()
     fresh = OMGPlanner(None, moved_scene, settings, world=fresh_world).plan()
@@ -63,14 +79,17 @@ def summary(rows) -> str:
         return f"{100 * np.mean(vals):.0f} % ({sum(vals)}/{len(vals)})" if vals else "-"
 
     planned = [r for r in rows if r["first_success"]]
-    lines = ["| | warm replan | fresh plan |", "|---|---|---|",
-             f"| success test passed | {rate('warm_success')} | {rate('fresh_success')} |",
-             f"| lifted in PyBullet | {rate('warm_lifted')} | {rate('fresh_lifted')} |",
-             f"| median ms CPU (p90) | {np.median([r['warm_ms'] for r in planned]):.1f} "
-             f"({np.percentile([r['warm_ms'] for r in planned], 90):.1f}) | "
-             f"{np.median([r['fresh_ms'] for r in planned]):.1f} ({np.percentile([r['fresh_ms'] for r in planned], 90):.1f}) |",
-             f"| median iterations | {np.median([r['warm_iterations'] for r in planned]):.0f} | "
-             f"{np.median([r['fresh_iterations'] for r in planned]):.0f} |"]
+    lines = [
+        "| | warm replan | fresh plan |",
+        "|---|---|---|",
+        f"| success test passed | {rate('warm_success')} | {rate('fresh_success')} |",
+        f"| lifted in PyBullet | {rate('warm_lifted')} | {rate('fresh_lifted')} |",
+        f"| median ms CPU (p90) | {np.median([r['warm_ms'] for r in planned]):.1f} "
+        f"({np.percentile([r['warm_ms'] for r in planned], 90):.1f}) | "
+        f"{np.median([r['fresh_ms'] for r in planned]):.1f} ({np.percentile([r['fresh_ms'] for r in planned], 90):.1f}) |",
+        f"| median iterations | {np.median([r['warm_iterations'] for r in planned]):.0f} | "
+        f"{np.median([r['fresh_iterations'] for r in planned]):.0f} |",
+    ]
     return "\n".join(lines) + f"\n\n{len(planned)} of {len(rows)} scenes planned from scratch first.\n"
 
 

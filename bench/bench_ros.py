@@ -13,6 +13,7 @@ Every ``--library-every``-th request the library plans the same observation in t
 from the same start, ``result.timed`` at the node's rate): the library's latency. The node's
 resident memory is read from /proc every 25 requests.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -49,7 +50,7 @@ def _target_point(obs) -> np.ndarray:
 
 
 def _library_seconds(pipeline: PickPipeline, request: PickRequest, start) -> float:
-    obs, world_settings = pipeline.observation(request)   # the same observation the node builds
+    obs, world_settings = pipeline.observation(request)  # the same observation the node builds
     t0 = time.perf_counter()
     world = PerceivedWorld(obs, pipeline.robot, pipeline.settings.world, cache=pipeline.cache)  # finds the plane
     result = PerceivedPlanner(world, pipeline.settings.planner).plan(start=start)
@@ -61,8 +62,12 @@ def _library_seconds(pipeline: PickPipeline, request: PickRequest, start) -> flo
 
 def _stats(xs) -> dict:
     xs = sorted(xs)
-    return {"n": len(xs), "median_ms": 1000 * statistics.median(xs), "p90_ms": 1000 * xs[int(0.9 * (len(xs) - 1))],
-            "max_ms": 1000 * xs[-1]}
+    return {
+        "n": len(xs),
+        "median_ms": 1000 * statistics.median(xs),
+        "p90_ms": 1000 * xs[int(0.9 * (len(xs) - 1))],
+        "max_ms": 1000 * xs[-1],
+    }
 
 
 def main(argv=None) -> int:
@@ -83,15 +88,29 @@ def main(argv=None) -> int:
     start = robot.ready_configuration
     point = _target_point(obs)
     pipeline = PickPipeline(PickSettings(planner=OMGSettings(seed=0)))
-    request = PickRequest([CameraView(np.where(obs.depth[0] > 0, obs.depth[0], np.nan), obs.K[0], obs.camera_pose[0])],
-                          start, point)
+    request = PickRequest(
+        [CameraView(np.where(obs.depth[0] > 0, obs.depth[0], np.nan), obs.K[0], obs.camera_pose[0])], start, point
+    )
     os.makedirs(args.out, exist_ok=True)
     client = PickClient()
     replay = ObservationReplay(client.node, obs, robot, start)
     client.node.create_timer(0.2, replay.publish)
     log = open(os.path.join(args.out, "node.log"), "w")
-    node = subprocess.Popen([sys.executable, "-m", "pickplan", "ros", "serve", "--transport", "shm", "--ros-args",
-                             *replay.node_arguments()], stdout=log, stderr=subprocess.STDOUT)
+    node = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "pickplan",
+            "ros",
+            "serve",
+            "--transport",
+            "shm",
+            "--ros-args",
+            *replay.node_arguments(),
+        ],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     node_s, library_s, rss = [], [], []
     try:
         if not client.wait_for_server(120):
@@ -109,23 +128,34 @@ def main(argv=None) -> int:
                 library_s.append(_library_seconds(pipeline, request, start))
             if k % 25 == 0:
                 rss.append((k, _rss_mb(node.pid)))
-                print(f"{k} requests: node {1000 * statistics.median(node_s):.0f} ms, library "
-                      f"{1000 * statistics.median(library_s):.0f} ms (medians), node RSS {rss[-1][1]:.0f} MB", flush=True)
+                print(
+                    f"{k} requests: node {1000 * statistics.median(node_s):.0f} ms, library "
+                    f"{1000 * statistics.median(library_s):.0f} ms (medians), node RSS {rss[-1][1]:.0f} MB",
+                    flush=True,
+                )
     finally:
         node.send_signal(2)
         node.wait(timeout=30)
         client.close()
         log.close()
-    report = {"node": _stats(node_s), "library": _stats(library_s), "rss_mb": rss,
-              "load_average": os.getloadavg(), "scene_seed": args.scene_seed, "views": 1,
-              "image": f"{obs.depth.shape[2]} x {obs.depth.shape[1]}"}
+    report = {
+        "node": _stats(node_s),
+        "library": _stats(library_s),
+        "rss_mb": rss,
+        "load_average": os.getloadavg(),
+        "scene_seed": args.scene_seed,
+        "views": 1,
+        "image": f"{obs.depth.shape[2]} x {obs.depth.shape[1]}",
+    }
     n, lib = report["node"], report["library"]
-    text = (f"| | requests | median ms | p90 ms | max ms |\n|---|---|---|---|---|\n"
-            f"| node: request to trajectory | {n['n']} | {n['median_ms']:.0f} | {n['p90_ms']:.0f} | {n['max_ms']:.0f} |\n"
-            f"| library, same observation | {lib['n']} | {lib['median_ms']:.0f} | {lib['p90_ms']:.0f} | "
-            f"{lib['max_ms']:.0f} |\n\nDifference of the medians: {n['median_ms'] - lib['median_ms']:.1f} ms. "
-            f"Node RSS (MB) after request k: {', '.join(f'{k}: {m:.0f}' for k, m in rss)}. "
-            f"Load average {report['load_average'][0]:.1f}.\n")
+    text = (
+        f"| | requests | median ms | p90 ms | max ms |\n|---|---|---|---|---|\n"
+        f"| node: request to trajectory | {n['n']} | {n['median_ms']:.0f} | {n['p90_ms']:.0f} | {n['max_ms']:.0f} |\n"
+        f"| library, same observation | {lib['n']} | {lib['median_ms']:.0f} | {lib['p90_ms']:.0f} | "
+        f"{lib['max_ms']:.0f} |\n\nDifference of the medians: {n['median_ms'] - lib['median_ms']:.1f} ms. "
+        f"Node RSS (MB) after request k: {', '.join(f'{k}: {m:.0f}' for k, m in rss)}. "
+        f"Load average {report['load_average'][0]:.1f}.\n"
+    )
     print(text)
     write_text(os.path.join(args.out, "report.md"), text)
     write_json(os.path.join(args.out, "report.json"), json.loads(json.dumps(report)))

@@ -6,6 +6,7 @@ Each figure is wall time on this machine, one process, one thread of PyBullet. O
 timed on fresh (uncached) records; scene generation is timed with the library already loaded, as
 ``pickplan scenes`` sees it after its first scene.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -63,8 +64,12 @@ def bench_scenes(lib, n, seed=0):
 
 
 def _object_table(title, rows):
-    out = [f"**{title}**", "", "| object | faces | convex parts | mesh + parts (ms) | mass props (ms) | resting poses (ms) |",
-           "|---|---|---|---|---|---|"]
+    out = [
+        f"**{title}**",
+        "",
+        "| object | faces | convex parts | mesh + parts (ms) | mass props (ms) | resting poses (ms) |",
+        "|---|---|---|---|---|---|",
+    ]
     for name, faces, parts, t_build, t_mass, t_rest in rows:
         out.append(f"| {name} | {faces} | {parts} | {t_build * 1e3:.1f} | {t_mass * 1e3:.1f} | {t_rest * 1e3:.1f} |")
     tot = np.sum([[r[3], r[4], r[5]] for r in rows], axis=0) * 1e3
@@ -83,13 +88,18 @@ def main(argv=None) -> int:
     lines = _object_table("built-in objects (procedural)", bench_objects_builtin())
     if have_ycb:
         lines += [""] + _object_table(f"YCB objects ({ycb})", bench_objects_ycb(ycb))
-    lines += ["", "| object set | scenes | objects per scene (mean) | s per scene (mean) | median | worst |",
-              "|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        "| object set | scenes | objects per scene (mean) | s per scene (mean) | median | worst |",
+        "|---|---|---|---|---|---|",
+    ]
     sets = [("built-in", objects.library("builtin"))] + ([("YCB", objects.library(ycb))] if have_ycb else [])
     for label, lib in sets:
         times, counts = bench_scenes(lib, args.scenes)
-        lines.append(f"| {label} | {len(times)} | {np.mean(counts):.1f} | {np.mean(times):.3f} | "
-                     f"{statistics.median(times):.3f} | {max(times):.3f} |")
+        lines.append(
+            f"| {label} | {len(times)} | {np.mean(counts):.1f} | {np.mean(times):.3f} | "
+            f"{statistics.median(times):.3f} | {max(times):.3f} |"
+        )
     if not have_ycb:
         lines.append(f"\n(YCB rows skipped: no folder at {ycb})")
     print("\n".join(lines))

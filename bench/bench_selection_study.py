@@ -13,6 +13,7 @@ Serial, one process; scenes are generated once into ``--scene-dir`` and reused. 
 100 antipodal grasps (seed 0; the built-ins have no stored simulated set), YCB scenes the stored
 simulated set. Table I setting: no ISF, 30 goals, N = 50, pre-termination as in the planner.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -84,8 +85,9 @@ def random_start(world: World, spread: float, seed: int) -> np.ndarray:
     raise RuntimeError(f"no start with 5 cm clearance within {spread} rad of the ready pose")
 
 
-def study_scene(scene, settings: omg.OMGSettings, policies, oracle: bool, kind: str,
-                start_spread: float = 0.0, start_seed: int = 0) -> dict:
+def study_scene(
+    scene, settings: omg.OMGSettings, policies, oracle: bool, kind: str, start_spread: float = 0.0, start_seed: int = 0
+) -> dict:
     world = World(scene)
     g = scene_grasps(world, kind)
     start = random_start(world, start_spread, start_seed) if start_spread > 0 else None
@@ -94,18 +96,26 @@ def study_scene(scene, settings: omg.OMGSettings, policies, oracle: bool, kind: 
         r = omg.OMGPlanner(None, scene, replace(settings, selection=p), world=world).plan(start=start, grasps=g)
         h = r.history
         rec["policies"][p] = {
-            "status": r.status, "success": bool(r.success), "goal_set": r.goal_set_size, "iterations": r.iterations,
-            "switches": h["switches"], "grasp": r.grasp_index, "initial_grasp": h.get("initial_grasp", -1),
+            "status": r.status,
+            "success": bool(r.success),
+            "goal_set": r.goal_set_size,
+            "iterations": r.iterations,
+            "switches": h["switches"],
+            "grasp": r.grasp_index,
+            "initial_grasp": h.get("initial_grasp", -1),
             "goals": [int(x) for x in h["goal"]],
-            "min_clearance": getattr(r.metrics, "min_clearance", None), "smoothness": getattr(r.metrics, "smoothness", None),
+            "min_clearance": getattr(r.metrics, "min_clearance", None),
+            "smoothness": getattr(r.metrics, "smoothness", None),
             "costs": [np.round(c, 5).tolist() for c in h["costs"]] if p == "MD" else None,
-            "reasons": r.goal_reasons if p == "Fixed" else None}
+            "reasons": r.goal_reasons if p == "Fixed" else None,
+        }
     if oracle:
         gs = build_goal_set(world, g, world.start if start is None else start, settings.goals, settings.ik)
         alone = {}
         for gi in gs.grasp_index:
             r = omg.OMGPlanner(None, scene, replace(settings, selection="Fixed"), world=world).plan(
-                start=start, grasps=g[[gi]])
+                start=start, grasps=g[[gi]]
+            )
             alone[int(gi)] = r.status
         rec["alone"] = alone
         rec["goal_grasps"] = [int(x) for x in gs.grasp_index]
@@ -119,33 +129,45 @@ def main(argv=None) -> int:
     ap.add_argument("--first", type=int, default=0, help="skip this many scenes of the set")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--policies", nargs="+", default=list(POLICIES))
-    ap.add_argument("--approach-clearance", type=float, default=None,
-                    help="goal-set approach clearance (m); default: the goal set's default")
+    ap.add_argument(
+        "--approach-clearance",
+        type=float,
+        default=None,
+        help="goal-set approach clearance (m); default: the goal set's default",
+    )
     ap.add_argument("--oracle", action="store_true", help="also plan every goal of the goal set alone")
-    ap.add_argument("--start-spread", type=float, default=0.0,
-                    help="random start per scene: ready pose + U(-S, S) rad per arm joint (0: the ready pose)")
+    ap.add_argument(
+        "--start-spread",
+        type=float,
+        default=0.0,
+        help="random start per scene: ready pose + U(-S, S) rad per arm joint (0: the ready pose)",
+    )
     ap.add_argument("--n", type=int, default=None, help="trajectory waypoints (default: the planner's, 30)")
     ap.add_argument("--scene-dir", default="out/selstudy/scenes")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
-    goals = GoalSetSettings() if a.approach_clearance is None else GoalSetSettings(approach_clearance=a.approach_clearance)
+    goals = (
+        GoalSetSettings() if a.approach_clearance is None else GoalSetSettings(approach_clearance=a.approach_clearance)
+    )
     settings = omg.OMGSettings(refine=False, goals=goals)
     if a.n is not None:
         settings = replace(settings, chomp=replace(settings.chomp, n=a.n))
     kind = "simulated" if a.set == "ycb" else "antipodal"
     records = []
     t0 = time.perf_counter()
-    for k, (path, scene) in enumerate(load_scenes(a.set, a.first + a.scenes, a.seed, a.scene_dir)[a.first:]):
+    for k, (path, scene) in enumerate(load_scenes(a.set, a.first + a.scenes, a.seed, a.scene_dir)[a.first :]):
         rec = study_scene(scene, settings, a.policies, a.oracle, kind, a.start_spread, start_seed=a.first + k)
         rec["scene"] = path
         records.append(rec)
-        line = " ".join(f"{p}:{'ok' if v['success'] else v['status'][:4]}/{v['switches']}"
-                        for p, v in rec["policies"].items())
+        line = " ".join(
+            f"{p}:{'ok' if v['success'] else v['status'][:4]}/{v['switches']}" for p, v in rec["policies"].items()
+        )
         extra = ""
         if a.oracle:
             extra = f" alone ok {sum(s == 'success' for s in rec['alone'].values())}/{len(rec['alone'])}"
-        print(f"[{k + 1}/{a.scenes} {time.perf_counter() - t0:.0f}s] {os.path.basename(path)} {line}{extra}",
-              flush=True)
+        print(
+            f"[{k + 1}/{a.scenes} {time.perf_counter() - t0:.0f}s] {os.path.basename(path)} {line}{extra}", flush=True
+        )
     summary = {p: sum(r["policies"][p]["success"] for r in records) for p in a.policies}
     planned = sum(r["policies"][a.policies[0]]["goal_set"] > 0 for r in records)
     print("success:", summary, f"(scenes {len(records)}, with goals {planned})")

@@ -11,6 +11,7 @@ one-sided Fisher exact test (simulated vs rejected).
     .venv/bin/python bench/bench_transport.py --workers 2
     .venv/bin/python bench/bench_transport.py --objects 021_bleach_cleanser --n 20 --source builtin
 """
+
 from __future__ import annotations
 
 import argparse
@@ -74,20 +75,31 @@ def main(argv=None) -> int:
             ok = np.array([r["transport"]["held"] for r in rows], bool)
             group = "hard" if name in HARD else "easy"
             p = pooled.setdefault((src, group), [0, 0, 0, 0])
-            p[0] += int(ok.sum()); p[1] += len(ok); p[2] += int(ok[sh].sum()); p[3] += int(sh.sum())
-            print(f"| {src}:{name} | {total} ({len(rows)}) | {fmt(int(ok.sum()), len(ok))} | "
-                  f"{fmt(int(ok[sh].sum()), int(sh.sum()))} | {fmt(int(ok[~sh].sum()), int((~sh).sum()))} | "
-                  f"{time.perf_counter() - t0:.0f} |", flush=True)
+            p[0] += int(ok.sum())
+            p[1] += len(ok)
+            p[2] += int(ok[sh].sum())
+            p[3] += int(sh.sum())
+            print(
+                f"| {src}:{name} | {total} ({len(rows)}) | {fmt(int(ok.sum()), len(ok))} | "
+                f"{fmt(int(ok[sh].sum()), int(sh.sum()))} | {fmt(int(ok[~sh].sum()), int((~sh).sum()))} | "
+                f"{time.perf_counter() - t0:.0f} |",
+                flush=True,
+            )
     print()
     for (src, group), (k_all, n_all, k_sim, n_sim) in sorted(pooled.items()):
         k_rej, n_rej = k_all - k_sim, n_all - n_sim
         lo_a, hi_a = wilson(k_all, n_all)
         lo_s, hi_s = wilson(k_sim, n_sim)
-        pval = fisher_exact([[k_sim, n_sim - k_sim], [k_rej, n_rej - k_rej]], alternative="greater")[1] \
-            if n_sim and n_rej else float("nan")
-        print(f"{src} {group}: antipodal {fmt(k_all, n_all)} [{lo_a:.2f}, {hi_a:.2f}], simulated "
-              f"{fmt(k_sim, n_sim)} [{lo_s:.2f}, {hi_s:.2f}], rejected {fmt(k_rej, n_rej)}; "
-              f"Fisher one-sided p (simulated > rejected) = {pval:.2g}")
+        pval = (
+            fisher_exact([[k_sim, n_sim - k_sim], [k_rej, n_rej - k_rej]], alternative="greater")[1]
+            if n_sim and n_rej
+            else float("nan")
+        )
+        print(
+            f"{src} {group}: antipodal {fmt(k_all, n_all)} [{lo_a:.2f}, {hi_a:.2f}], simulated "
+            f"{fmt(k_sim, n_sim)} [{lo_s:.2f}, {hi_s:.2f}], rejected {fmt(k_rej, n_rej)}; "
+            f"Fisher one-sided p (simulated > rejected) = {pval:.2g}"
+        )
     return 0
 
 

@@ -5,6 +5,7 @@ Prints a Markdown table: grasps, simulated, kept, seconds (first call, cached ca
 
     .venv/bin/python bench/bench_verify.py --n 30
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,8 +42,10 @@ def main() -> None:
         verify_grasps(model, gs.poses, pose)
         t3 = time.perf_counter()
         total.append(t2 - t1)
-        print(f"| {model.name} | {len(gs)} | {int(v.simulated.sum())} | {int(v.keep.sum())} | {t1 - t0:.1f} | "
-              f"{t2 - t1:.1f} | {t3 - t2:.3f} |")
+        print(
+            f"| {model.name} | {len(gs)} | {int(v.simulated.sum())} | {int(v.keep.sum())} | {t1 - t0:.1f} | "
+            f"{t2 - t1:.1f} | {t3 - t2:.3f} |"
+        )
     print(f"\nverification: median {np.median(total):.1f} s, max {np.max(total):.1f} s per object")
 
 

@@ -25,6 +25,7 @@ Issue 37: ``--layout paper|side|behind|cluttered|headings`` draws the problems o
 a second time with that wall-clock budget. With ``--shots 0`` the summary is issue 37's: solved,
 declared infeasible (reason verified: the certificate's), failed, T / lower bound, CPU and wall.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -50,7 +51,7 @@ def _solve(job) -> dict:
     rho = solve_problem.rho_for_spec(spec, metamodel, progress=False)
     problem = problem_file.native_problem(robot, spec, rho)
     out = {}
-    for limit in ([0.0] + budget if budget and budget[0] else [0.0]):
+    for limit in [0.0] + budget if budget and budget[0] else [0.0]:
         settings = planner.PlannerSettings(seed=seed, **overrides)
         t0, w0 = time.process_time(), time.monotonic()  # the solve only (not the benchmark's dense checks)
         if method is planner.Method.routed:
@@ -61,8 +62,14 @@ def _solve(job) -> dict:
         if limit:
             metrics = planner.evaluate(robot, problem, p) if p.success else None
             checks = solve_problem.dense_checks(problem, p, metrics)
-            out["budget"] = {"limit": limit, "status": str(p.status), "wall": wall, "cpu": cpu, "T": p.T if p.success else None,
-                             "solved": bool(p.success and checks and all(checks.values()))}
+            out["budget"] = {
+                "limit": limit,
+                "status": str(p.status),
+                "wall": wall,
+                "cpu": cpu,
+                "T": p.T if p.success else None,
+                "solved": bool(p.success and checks and all(checks.values())),
+            }
         else:
             out.update(_record(robot, problem, spec, p, method, seed, cpu, wall))
     return out
@@ -71,19 +78,47 @@ def _solve(job) -> dict:
 def _record(robot, problem, spec, p, method, seed, cpu, wall) -> dict:
     metrics = planner.evaluate(robot, problem, p) if p.stages_completed > 0 else None
     sol = solve_problem.ProblemSolution(spec, problem, p, metrics, solve_problem.dense_checks(problem, p, metrics))
-    stage = lambda s: {"stage": s.stage, "status": str(s.status), "iterations": s.iterations,  # noqa: E731
-                       "rounds": s.rounds, "cpu": s.cpu_seconds, "T": s.objective}
-    return {"method": str(method), "seed": seed, "status": str(p.status), "best_stage": p.stages_completed,
-            "converged": bool(p.success), "solved": bool(sol.passed), "T": p.T if p.success else None,
-            "cpu": cpu, "wall": wall, "native_cpu": p.total_cpu_seconds, "stages": [stage(s) for s in p.stages],
-            "lower_bound": p.lower_bound if np.isfinite(p.lower_bound) else None, "reason": str(p.reason),
-            "detail": p.detail, "seed_used": p.seed,
-            "direct": stage(p.direct) if p.direct else None, "direct_chosen": bool(p.direct_chosen),
-            "arm_seed_T": [None if np.isnan(t) else t for t in p.arm_seed_T],
-            "failed_checks": [k for k, ok in sol.checks.items() if not ok],
-            "metrics": {k: getattr(sol.metrics, k) for k in ("pose_error_position", "pose_error_orientation",
-                                                    "nonholonomic_mean", "min_clearance", "success_probability")}
-            if sol.metrics is not None else None}
+    stage = lambda s: {
+        "stage": s.stage,
+        "status": str(s.status),
+        "iterations": s.iterations,  # noqa: E731
+        "rounds": s.rounds,
+        "cpu": s.cpu_seconds,
+        "T": s.objective,
+    }
+    return {
+        "method": str(method),
+        "seed": seed,
+        "status": str(p.status),
+        "best_stage": p.stages_completed,
+        "converged": bool(p.success),
+        "solved": bool(sol.passed),
+        "T": p.T if p.success else None,
+        "cpu": cpu,
+        "wall": wall,
+        "native_cpu": p.total_cpu_seconds,
+        "stages": [stage(s) for s in p.stages],
+        "lower_bound": p.lower_bound if np.isfinite(p.lower_bound) else None,
+        "reason": str(p.reason),
+        "detail": p.detail,
+        "seed_used": p.seed,
+        "direct": stage(p.direct) if p.direct else None,
+        "direct_chosen": bool(p.direct_chosen),
+        "arm_seed_T": [None if np.isnan(t) else t for t in p.arm_seed_T],
+        "failed_checks": [k for k, ok in sol.checks.items() if not ok],
+        "metrics": {
+            k: getattr(sol.metrics, k)
+            for k in (
+                "pose_error_position",
+                "pose_error_orientation",
+                "nonholonomic_mean",
+                "min_clearance",
+                "success_probability",
+            )
+        }
+        if sol.metrics is not None
+        else None,
+    }
 
 
 def summarize(records: list, gamma: float) -> str:
@@ -107,7 +142,8 @@ def summarize(records: list, gamma: float) -> str:
     lines = [
         f"problems: {n} (gamma {gamma}); single shots per problem: {len(records[0]['shots'])}",
         "",
-        "| target | measured |", "|---|---|",
+        "| target | measured |",
+        "|---|---|",
         f"| successive solves every problem a single shot solves | {len(both)} of {sum(any_shot)}"
         f"{' (missed: ' + ', '.join(map(str, missed)) + ')' if missed else ''} |",
         f"| successive solves >= 95 % of all | {sum(solved)} of {n} ({sum(solved) / n:.0%}) |",
@@ -120,7 +156,9 @@ def summarize(records: list, gamma: float) -> str:
         f"{' (failed: ' + str(conv_fail) + ')' if conv_fail else ''} |",
         "",
         f"T(successive) / T(best shot) on the problems both solve: median {np.median(ratio):.3f}, "
-        f"min {ratio.min():.3f}, max {ratio.max():.3f}." if len(ratio) else "",
+        f"min {ratio.min():.3f}, max {ratio.max():.3f}."
+        if len(ratio)
+        else "",
         f"Single shots: {sum(s['solved'] for r in records for s in r['shots'])} of {len(shot_cpu)} solved; "
         f"CPU median {np.median(shot_cpu):.2f} s, worst {shot_cpu.max():.2f} s; problems solved by at least one: "
         f"{sum(any_shot)}.",
@@ -140,33 +178,50 @@ def summarize_layout(records: list, layout: str) -> str:
     """Issue 37's figures of one layout (records of a --shots 0 run)."""
     succ = [r["successive"] for r in records]
     n = len(succ)
-    declared = [i for i, s in enumerate(succ) if s["reason"] in (Reason.out_of_reach, Reason.gamma_unattainable,
-                                                                  Reason.horizon_too_short)]
+    declared = [
+        i
+        for i, s in enumerate(succ)
+        if s["reason"] in (Reason.out_of_reach, Reason.gamma_unattainable, Reason.horizon_too_short)
+    ]
     solved = [i for i, s in enumerate(succ) if s["solved"]]
     failed = [(i, succ[i]["status"], succ[i]["reason"]) for i in range(n) if i not in solved and i not in declared]
     ratio = np.array([succ[i]["T"] / succ[i]["lower_bound"] for i in solved if succ[i]["lower_bound"]])
     cpu, wall = np.array([s["cpu"] for s in succ]), np.array([s["wall"] for s in succ])
     feasible = n - len(declared)
-    lines = [f"### layout {layout}: {n} problems", "", "| target | measured |", "|---|---|",
-             f"| solved or declared infeasible with a verified reason | {len(solved)} solved, {len(declared)} declared "
-             f"infeasible ({', '.join(str(i) + ': ' + succ[i]['reason'] for i in declared) or 'none'}), {len(failed)} failed |",
-             f"| >= 95 % of the problems with a feasible certificate solved | {len(solved)} of {feasible} "
-             f"({len(solved) / max(feasible, 1):.0%}) |"]
+    lines = [
+        f"### layout {layout}: {n} problems",
+        "",
+        "| target | measured |",
+        "|---|---|",
+        f"| solved or declared infeasible with a verified reason | {len(solved)} solved, {len(declared)} declared "
+        f"infeasible ({', '.join(str(i) + ': ' + succ[i]['reason'] for i in declared) or 'none'}), {len(failed)} failed |",
+        f"| >= 95 % of the problems with a feasible certificate solved | {len(solved)} of {feasible} "
+        f"({len(solved) / max(feasible, 1):.0%}) |",
+    ]
     if len(ratio):
-        lines.append(f"| T / lower bound: median <= 1.5, max <= 3 | median {np.median(ratio):.2f}, p90 "
-                     f"{np.percentile(ratio, 90):.2f}, max {ratio.max():.2f}; above 3: {int((ratio > 3).sum())}; "
-                     f"bound above a solved T (a bug): {int((ratio < 1).sum())} |")
-    lines.append(f"| CPU median <= 1 s | median {np.median(cpu):.2f} s, p90 {np.percentile(cpu, 90):.2f} s, worst "
-                 f"{cpu.max():.2f} s (wall median {np.median(wall):.2f} s, worst {wall.max():.2f} s) |")
+        lines.append(
+            f"| T / lower bound: median <= 1.5, max <= 3 | median {np.median(ratio):.2f}, p90 "
+            f"{np.percentile(ratio, 90):.2f}, max {ratio.max():.2f}; above 3: {int((ratio > 3).sum())}; "
+            f"bound above a solved T (a bug): {int((ratio < 1).sum())} |"
+        )
+    lines.append(
+        f"| CPU median <= 1 s | median {np.median(cpu):.2f} s, p90 {np.percentile(cpu, 90):.2f} s, worst "
+        f"{cpu.max():.2f} s (wall median {np.median(wall):.2f} s, worst {wall.max():.2f} s) |"
+    )
     budget = [r["successive"].get("budget") for r in records]
     if all(budget):
         bw = np.array([b["wall"] for b in budget])
         kept = [i for i in solved if budget[i]["solved"]]
-        lines.append(f"| --time-limit {budget[0]['limit']:g}: no wall time above it; every problem solved without it "
-                     f"still feasible | worst wall {bw.max():.2f} s (over the limit: {int((bw > budget[0]['limit']).sum())}); "
-                     f"{len(kept)} of {len(solved)} solved ones feasible with the budget |")
-    lines += ["", f"Not solved (problem, status, reason): {failed or 'none'}.",
-              f"Seeds the solutions came from: {_count(succ[i]['seed_used'] for i in solved)}."]
+        lines.append(
+            f"| --time-limit {budget[0]['limit']:g}: no wall time above it; every problem solved without it "
+            f"still feasible | worst wall {bw.max():.2f} s (over the limit: {int((bw > budget[0]['limit']).sum())}); "
+            f"{len(kept)} of {len(solved)} solved ones feasible with the budget |"
+        )
+    lines += [
+        "",
+        f"Not solved (problem, status, reason): {failed or 'none'}.",
+        f"Seeds the solutions came from: {_count(succ[i]['seed_used'] for i in solved)}.",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -174,7 +229,9 @@ def _run_layout(args, overrides, layout, out) -> list:
     if layout == CASES:  # the paper's six cases, as shipped
         specs = [problem_file.load_problem(cases.case_path(c)) for c in range(1, 7)]
     else:
-        specs = random_problems.random_problems(args.n, args.seed, random_problems.Workspace(layout=random_problems.Layout(layout)))
+        specs = random_problems.random_problems(
+            args.n, args.seed, random_problems.Workspace(layout=random_problems.Layout(layout))
+        )
     if args.metamodel:
         named = args.metamodel in (problem_file.STANDIN, *problem_file.BUILTIN_PARTS)
         specs = [replace(s, metamodel=args.metamodel if named else os.path.abspath(args.metamodel)) for s in specs]
@@ -184,7 +241,7 @@ def _run_layout(args, overrides, layout, out) -> list:
     if args.shots_from:
         with open(args.shots_from, encoding="utf-8") as f:
             earlier = [json.loads(line)["shots"] for line in f if line.strip()]
-        if len(earlier) < len(specs) or any(len(e) != args.shots for e in earlier[:len(specs)]):
+        if len(earlier) < len(specs) or any(len(e) != args.shots for e in earlier[: len(specs)]):
             raise SystemExit(f"{args.shots_from}: expected {args.shots} single shots for each of {len(specs)} problems")
     method = planner.Method(args.method)
     jobs = []
@@ -213,18 +270,34 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=100)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--shots", type=int, default=10)
-    ap.add_argument("--metamodel", default=None,
-                    help="meta-model JSON or 'standin' (default: the problems' built-in box, built on first use)")
+    ap.add_argument(
+        "--metamodel",
+        default=None,
+        help="meta-model JSON or 'standin' (default: the problems' built-in box, built on first use)",
+    )
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default="out/bench_pickup_problems")
     ap.add_argument("--summarize", default=None, metavar="JSONL", help="only summarize the records of a (partial) run")
-    ap.add_argument("--shots-from", default=None, metavar="JSONL",
-                    help="take the single shots from the records.jsonl of an earlier run on the same problems (they do "
-                         "not depend on the successive refinement's settings) and solve only the successive refinement")
-    ap.add_argument("--set", default="{}", metavar="JSON",
-                    help="PlannerSettings overrides (a JSON object) for the successive refinement only")
-    ap.add_argument("--layout", nargs="+", default=["paper"], choices=[x.value for x in random_problems.Layout] + [CASES],
-                    help="problem layouts (one run each, in OUT/LAYOUT/ when more than one); cases: the paper's six")
+    ap.add_argument(
+        "--shots-from",
+        default=None,
+        metavar="JSONL",
+        help="take the single shots from the records.jsonl of an earlier run on the same problems (they do "
+        "not depend on the successive refinement's settings) and solve only the successive refinement",
+    )
+    ap.add_argument(
+        "--set",
+        default="{}",
+        metavar="JSON",
+        help="PlannerSettings overrides (a JSON object) for the successive refinement only",
+    )
+    ap.add_argument(
+        "--layout",
+        nargs="+",
+        default=["paper"],
+        choices=[x.value for x in random_problems.Layout] + [CASES],
+        help="problem layouts (one run each, in OUT/LAYOUT/ when more than one); cases: the paper's six",
+    )
     ap.add_argument("--method", default="successive", choices=["successive", "routed"])
     ap.add_argument("--time-limit", type=float, default=0.0, help="also solve each problem with this wall budget (s)")
     args = ap.parse_args(argv)

@@ -6,6 +6,7 @@
 Prints the page's size and the time to build and to render it; keeps the page beside the picture
 with ``--keep-page``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,9 +47,11 @@ def main() -> int:
         t1 = time.perf_counter()
         screenshot(page, args.out, moment=args.moment)
         t2 = time.perf_counter()
-        print(f"scene {args.seed}: {result.status}; page {os.path.getsize(page) / 1e6:.2f} MB "
-              f"({len(view.commands)} commands, {view.duration:.1f} s of motion) built in {t1 - t0:.1f} s; "
-              f"screenshot {args.out} in {t2 - t1:.1f} s")
+        print(
+            f"scene {args.seed}: {result.status}; page {os.path.getsize(page) / 1e6:.2f} MB "
+            f"({len(view.commands)} commands, {view.duration:.1f} s of motion) built in {t1 - t0:.1f} s; "
+            f"screenshot {args.out} in {t2 - t1:.1f} s"
+        )
     return 0
 
 

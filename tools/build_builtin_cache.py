@@ -4,6 +4,7 @@ pickplan must be installed (`make install`). Commit the result.
 
     python tools/build_builtin_cache.py [--objects 005_tomato_soup_can,...] [--workers 2]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,8 +18,11 @@ from pickplan.omg import shipped
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "assets", "cache"),
-                        help="the shipped cache folder (default: the source tree's assets/cache)")
+    parser.add_argument(
+        "--out",
+        default=os.path.join(os.path.dirname(__file__), "..", "assets", "cache"),
+        help="the shipped cache folder (default: the source tree's assets/cache)",
+    )
     parser.add_argument("--objects", default="", help="comma-separated built-in objects to redo (default: all)")
     parser.add_argument("--workers", type=int, default=1)
     args = parser.parse_args(argv)

@@ -10,6 +10,7 @@ LICENSES/THIRD_PARTY.md. --check needs no dpkg: it fails when a bundled library 
 THIRD_PARTY.md, a listed notice file is missing, or the wheel's .dist-info does not carry them.
 Standard library only.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,8 +25,14 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 LICENSES = ROOT / "LICENSES"
 TABLE = LICENSES / "THIRD_PARTY.md"
 # BLAS and LAPACK sit in subfolders behind Debian's alternatives symlinks.
-LIBRARY_DIRS = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/x86_64-linux-gnu/blas", "/usr/lib/x86_64-linux-gnu/lapack",
-                "/usr/lib", "/lib/x86_64-linux-gnu", "/lib")
+LIBRARY_DIRS = (
+    "/usr/lib/x86_64-linux-gnu",
+    "/usr/lib/x86_64-linux-gnu/blas",
+    "/usr/lib/x86_64-linux-gnu/lapack",
+    "/usr/lib",
+    "/lib/x86_64-linux-gnu",
+    "/lib",
+)
 
 # The licence of the bundled library itself (the Debian copyright files also list the licences of
 # files that do not end up in the shared library, e.g. build scripts and documentation).
@@ -73,8 +80,9 @@ def debian_package(library: str) -> str:
 
 
 def query(package: str, field: str) -> str:
-    return subprocess.run(["dpkg-query", "-W", "-f", field, package], capture_output=True, text=True,
-                          check=True).stdout.strip()
+    return subprocess.run(
+        ["dpkg-query", "-W", "-f", field, package], capture_output=True, text=True, check=True
+    ).stdout.strip()
 
 
 def write(wheel: pathlib.Path) -> None:
@@ -84,8 +92,10 @@ def write(wheel: pathlib.Path) -> None:
         source = query(package, "${source:Package}")
         sources.setdefault(source, package)
         licence = LICENCES_BY_PACKAGE.get(package, "see the notice file")
-        rows.append(f"| `{library}` | {package} {query(package, '${Version}')} | {licence} | "
-                    f"[{source}.copyright]({source}.copyright) |")
+        rows.append(
+            f"| `{library}` | {package} {query(package, '${Version}')} | {licence} | "
+            f"[{source}.copyright]({source}.copyright) |"
+        )
     for old in LICENSES.glob("*.copyright"):
         old.unlink()
     for source, package in sources.items():
@@ -97,21 +107,29 @@ def write(wheel: pathlib.Path) -> None:
         "`/usr/share/doc/PACKAGE/copyright`. Their sources: `apt-get source PACKAGE` on Debian 12.\n"
         "pickplan itself is BSD-3-Clause (`LICENSE`). Regenerate with\n"
         "`python3 tools/third_party_notices.py dist/pickplan-*.whl --write`.\n\n"
-        "| library | Debian package | licence | notice |\n|---|---|---|---|\n" + "\n".join(rows) + "\n")
+        "| library | Debian package | licence | notice |\n|---|---|---|---|\n" + "\n".join(rows) + "\n"
+    )
     print(f"wrote {TABLE.relative_to(ROOT)}: {len(rows)} libraries from {len(sources)} source packages")
 
 
 def check(wheel: pathlib.Path) -> None:
     table = TABLE.read_text()
     listed = dict(re.findall(r"^\| `([^`]+)` \|.*\[([^\]]+)\]", table, flags=re.M))
-    problems = [f"{lib} is bundled but not listed in LICENSES/THIRD_PARTY.md (run --write)"
-                for lib in bundled_libraries(wheel) if lib not in listed]
-    problems += [f"LICENSES/{notice} is missing" for notice in set(listed.values())
-                 if not (LICENSES / notice).is_file()]
+    problems = [
+        f"{lib} is bundled but not listed in LICENSES/THIRD_PARTY.md (run --write)"
+        for lib in bundled_libraries(wheel)
+        if lib not in listed
+    ]
+    problems += [
+        f"LICENSES/{notice} is missing" for notice in set(listed.values()) if not (LICENSES / notice).is_file()
+    ]
     with zipfile.ZipFile(wheel) as zf:
         shipped = {pathlib.PurePosixPath(n).name for n in zf.namelist() if ".dist-info/licenses/" in n}
-    problems += [f"the wheel's .dist-info/licenses/ lacks {name}" for name in
-                 ["LICENSE", "THIRD_PARTY.md", *sorted(set(listed.values()))] if name not in shipped]
+    problems += [
+        f"the wheel's .dist-info/licenses/ lacks {name}"
+        for name in ["LICENSE", "THIRD_PARTY.md", *sorted(set(listed.values()))]
+        if name not in shipped
+    ]
     if problems:
         sys.exit("third-party notices:\n  " + "\n  ".join(problems))
     print(f"third-party notices: {len(listed)} bundled libraries listed, notices shipped in the wheel")

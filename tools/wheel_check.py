@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
 """Checks an installed pickplan wheel is self-contained; run by tools/wheel_smoke.sh with the fresh venv's python.
 
-    python wheel_check.py libs HIDE_LIST   # ldd of the extension and pickplan-bench; writes the Debian
-                                           # copies of the bundled libraries (to hide) into HIDE_LIST
+    # ldd of the extension and pickplan-bench; writes the Debian copies of the bundled libraries (to hide) into
+    # HIDE_LIST
+    python wheel_check.py libs HIDE_LIST
     python wheel_check.py run OUT [HIDE_LIST]   # `pickplan demo --out OUT` in this process, then checks
                                            # every native library it mapped (/proc/self/maps)
 
 Allowed outside the wheel: what manylinux lets a wheel take from the system (auditwheel's
 manylinux_2_35 policy: the glibc family, libstdc++, libgcc_s, libz, libexpat, ...). Standard library only.
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -23,11 +25,32 @@ from third_party_notices import LIBRARY_DIRS, original_name
 # auditwheel's manylinux policy lib_whitelist (identical for manylinux_2_17 ... manylinux_2_35, plus
 # libmvec), and the loader itself.
 MANYLINUX_SYSTEM = {
-    "libatomic.so.1", "libgcc_s.so.1", "libstdc++.so.6", "libm.so.6", "libmvec.so.1", "libanl.so.1",
-    "libdl.so.2", "librt.so.1", "libc.so.6", "libnsl.so.1", "libutil.so.1", "libpthread.so.0",
-    "libX11.so.6", "libXext.so.6", "libXrender.so.1", "libICE.so.6", "libSM.so.6", "libGL.so.1",
-    "libgobject-2.0.so.0", "libgthread-2.0.so.0", "libglib-2.0.so.0", "libresolv.so.2", "libexpat.so.1",
-    "libz.so.1", "ld-linux-x86-64.so.2", "linux-vdso.so.1",
+    "libatomic.so.1",
+    "libgcc_s.so.1",
+    "libstdc++.so.6",
+    "libm.so.6",
+    "libmvec.so.1",
+    "libanl.so.1",
+    "libdl.so.2",
+    "librt.so.1",
+    "libc.so.6",
+    "libnsl.so.1",
+    "libutil.so.1",
+    "libpthread.so.0",
+    "libX11.so.6",
+    "libXext.so.6",
+    "libXrender.so.1",
+    "libICE.so.6",
+    "libSM.so.6",
+    "libGL.so.1",
+    "libgobject-2.0.so.0",
+    "libgthread-2.0.so.0",
+    "libglib-2.0.so.0",
+    "libresolv.so.2",
+    "libexpat.so.1",
+    "libz.so.1",
+    "ld-linux-x86-64.so.2",
+    "linux-vdso.so.1",
 }
 
 
@@ -96,12 +119,16 @@ def check_libs(hide_list: pathlib.Path) -> None:
     if bad:
         sys.exit("dependencies outside the wheel (and outside manylinux's system set):\n  " + "\n  ".join(bad))
     bundled = sorted(p.name for p in libs.iterdir())
-    print(f"ldd: every dependency of {len(programs)} programs resolves into {libs} ({len(bundled)} libraries) "
-          "or manylinux's system set")
+    print(
+        f"ldd: every dependency of {len(programs)} programs resolves into {libs} ({len(bundled)} libraries) "
+        "or manylinux's system set"
+    )
     hide, kept = debian_copies(libs)
     hide_list.write_text("".join(p + "\n" for p in hide))
-    print(f"Debian copies of the bundled libraries on this machine: {len(hide)} to hide"
-          + (f"; kept visible because the Python interpreter itself links them: {', '.join(kept)}" if kept else ""))
+    print(
+        f"Debian copies of the bundled libraries on this machine: {len(hide)} to hide"
+        + (f"; kept visible because the Python interpreter itself links them: {', '.join(kept)}" if kept else "")
+    )
 
 
 def mapped_libraries() -> set[str]:
@@ -123,10 +150,14 @@ def check_run(out: pathlib.Path, hide_list: pathlib.Path | None) -> None:
     hidden = set(hide_list.read_text().split()) if hide_list else set()
     debian = sorted(p for p in mapped if os.path.realpath(p) in hidden)
     if not core or debian or len(from_wheel) != len(list(libs.iterdir())):
-        sys.exit(f"native libraries: extension {core}, {len(from_wheel)} of {len(list(libs.iterdir()))} from "
-                 f"pickplan.libs, Debian copies loaded: {debian}")
-    print(f"demo planned and executed; the process mapped pickplan._core and all {len(from_wheel)} libraries "
-          f"from {libs}, none of the {len(hidden)} Debian copies")
+        sys.exit(
+            f"native libraries: extension {core}, {len(from_wheel)} of {len(list(libs.iterdir()))} from "
+            f"pickplan.libs, Debian copies loaded: {debian}"
+        )
+    print(
+        f"demo planned and executed; the process mapped pickplan._core and all {len(from_wheel)} libraries "
+        f"from {libs}, none of the {len(hidden)} Debian copies"
+    )
 
 
 def main() -> None:

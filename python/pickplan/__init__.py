@@ -24,6 +24,7 @@ list:
 logger hierarchy and prints nothing; the application (the command line: ``pickplan.cli.output``)
 decides what is shown.
 """
+
 from __future__ import annotations
 
 import logging

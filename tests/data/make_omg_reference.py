@@ -13,6 +13,7 @@ Built-in-object scenes (seeds 1-4; two run all 50 iterations without pre-termina
 with ISF, paper settings otherwise. Stored per scene: the scene JSON, the grasps, the goal set,
 the trajectory, the chosen goal and grasp, the goals chosen per iteration and the status.
 """
+
 import json
 import os
 
@@ -60,10 +61,19 @@ def rebase():
         r = plan_case(out, p, pre_terminate, cache=None)
         assert np.array_equal(r.goal_set, out[p + "goal_set"]) and str(r.status.value) == str(out[p + "status"])
         scalars = np.array([r.grasp_index, r.goal_source, r.iterations, int(r.refined)])
-        print(prefix, "trajectory moved by", float(np.abs(r.trajectory - out[p + "trajectory"]).max()),
-              "| goals chosen", "unchanged" if np.array_equal(r.history["goal"], out[p + "goals_chosen"]) else
-              f"{out[p + 'goals_chosen'][-1]} -> {r.history['goal'][-1]}", "| grasp, source, iterations, refined",
-              out[p + "scalars"].tolist(), "->", scalars.tolist())
+        print(
+            prefix,
+            "trajectory moved by",
+            float(np.abs(r.trajectory - out[p + "trajectory"]).max()),
+            "| goals chosen",
+            "unchanged"
+            if np.array_equal(r.history["goal"], out[p + "goals_chosen"])
+            else f"{out[p + 'goals_chosen'][-1]} -> {r.history['goal'][-1]}",
+            "| grasp, source, iterations, refined",
+            out[p + "scalars"].tolist(),
+            "->",
+            scalars.tolist(),
+        )
         out[p + "trajectory"], out[p + "scalars"] = r.trajectory, scalars
         out[p + "goals_chosen"] = np.asarray(r.history["goal"], dtype=int)
     np.savez_compressed(REFERENCE, **out)

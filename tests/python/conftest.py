@@ -3,11 +3,13 @@ import os
 import numpy as np
 import pytest
 
-YCB_DIR = os.environ.get("PICKPLAN_YCB_DIR",
-                         os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "ycb"))
+YCB_DIR = os.environ.get(
+    "PICKPLAN_YCB_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "ycb")
+)
 
-MBM_DIR = os.environ.get("PICKPLAN_MBM_DIR",
-                         os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "mbm"))
+MBM_DIR = os.environ.get(
+    "PICKPLAN_MBM_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "mbm")
+)
 
 
 @pytest.fixture(scope="session")
@@ -47,8 +49,10 @@ def ycb_dir_or_none():
 def ycb_dir_or_skip():
     path = ycb_dir_or_none()
     if path is None:
-        pytest.skip(f"YCB data folder not found at {os.path.abspath(YCB_DIR)} (set PICKPLAN_YCB_DIR); "
-                    "real-object checks skipped")
+        pytest.skip(
+            f"YCB data folder not found at {os.path.abspath(YCB_DIR)} (set PICKPLAN_YCB_DIR); "
+            "real-object checks skipped"
+        )
     return path
 
 
@@ -67,8 +71,11 @@ def rng(seed=0):
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "ray: starts a local Ray cluster (slow to start); CI runs these, "
-                                       "`-m 'not ray'` leaves them out of a quick local run")
+    config.addinivalue_line(
+        "markers",
+        "ray: starts a local Ray cluster (slow to start); CI runs these, "
+        "`-m 'not ray'` leaves them out of a quick local run",
+    )
 
 
 def standing_pose(model, xy):

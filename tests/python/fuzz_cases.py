@@ -4,6 +4,7 @@ Run as a worker: ``python fuzz_cases.py CASES.json`` reads [{"kind", "payload"},
 per case, ``BEGIN i`` before and one JSON line after, so the parent can attribute a crash or a hang
 to the case that caused it. Allowed outcomes: a valid result with finite numbers, or a documented
 error (ValueError, of which InputError, FileNotFoundError): anything else is a finding."""
+
 from __future__ import annotations
 
 import base64
@@ -18,11 +19,41 @@ import numpy as np
 
 ALLOWED_ERRORS = (ValueError, FileNotFoundError)
 WEIRD_NUMBERS = ["NaN", "Infinity", "-Infinity", "-1", "0", "1e308", "-1e308", "4294967299", "1e-320", "3"]
-TOML_NUMBERS = ["nan", "inf", "-inf", "1e308", "-1e308", "1e-300", "0", "-1", "0.0", "9" * 5000, '"x"', "[]", "{}",
-                "true", "[1e308, 1e308]"]
-HUGE_INTEGER = "9" * 5000   # more digits than Python converts to int from text (4,300)
-WEIRD_VALUES = [float("nan"), float("inf"), -1.0, 0.0, 1e308, 2**32 + 3, -(2**63), "1.0", "", None, True, [], {},
-                [[1, 2], [3]], "\u0000"]
+TOML_NUMBERS = [
+    "nan",
+    "inf",
+    "-inf",
+    "1e308",
+    "-1e308",
+    "1e-300",
+    "0",
+    "-1",
+    "0.0",
+    "9" * 5000,
+    '"x"',
+    "[]",
+    "{}",
+    "true",
+    "[1e308, 1e308]",
+]
+HUGE_INTEGER = "9" * 5000  # more digits than Python converts to int from text (4,300)
+WEIRD_VALUES = [
+    float("nan"),
+    float("inf"),
+    -1.0,
+    0.0,
+    1e308,
+    2**32 + 3,
+    -(2**63),
+    "1.0",
+    "",
+    None,
+    True,
+    [],
+    {},
+    [[1, 2], [3]],
+    "\u0000",
+]
 
 
 # --- mutation -------------------------------------------------------------------------------------
@@ -81,7 +112,7 @@ def mutate_json(data, rng: random.Random) -> str:
     text = json.dumps(data, allow_nan=True)
     for depth in (10, 1000, 50_000):
         text = text.replace(f'"__NEST_{depth}__"', "[" * depth + "0" + "]" * depth)
-    return text if rng.random() < 0.95 else text[:-rng.randint(1, 20)]
+    return text if rng.random() < 0.95 else text[: -rng.randint(1, 20)]
 
 
 def replace_numbers(text: str, rng: random.Random, choices, times: int = 1) -> str:
@@ -187,8 +218,9 @@ def mutate_text(text: str, rng: random.Random) -> str:
         chars = list(text)
         for _ in range(rng.randint(1, 10)):
             if chars:
-                chars[rng.randrange(len(chars))] = chr(rng.choice([0, 10, 34, 39, 47, 60, 62, 91, 93, 123, 125,
-                                                                   rng.randint(32, 126), 0xFFFD]))
+                chars[rng.randrange(len(chars))] = chr(
+                    rng.choice([0, 10, 34, 39, 47, 60, 62, 91, 93, 123, 125, rng.randint(32, 126), 0xFFFD])
+                )
         return "".join(chars)
     i = rng.randint(0, len(text))
     return text[:i] + rng.choice(["<a>" * 20_000, "[" * 20_000, "\x00\xff", "&lt;", "<!--", "]]>"]) + text[i:]
@@ -240,8 +272,13 @@ def run_scene(text: str, work: str):
     from pickplan.sim.scenes import Scene
 
     scene = Scene.from_json(text)
-    _finite(scene.robot_base, scene.table.size, scene.table.pose, scene.robot_configuration,
-            *[o.pose for o in scene.objects])
+    _finite(
+        scene.robot_base,
+        scene.table.size,
+        scene.table.pose,
+        scene.robot_configuration,
+        *[o.pose for o in scene.objects],
+    )
 
 
 def run_grasps(data_b64: str, work: str):
@@ -378,14 +415,26 @@ def run_exec(code: str, work: str):  # the harness's own test: a case is any Pyt
     exec(code, {})
 
 
-RUNNERS = {"exec": run_exec, "scene": run_scene, "grasps": run_grasps, "metamodel": run_metamodel,
-           "problem": run_problem, "urdf": run_urdf, "mesh": run_mesh, "robot": run_robot,
-           "observation": run_observation}
+RUNNERS = {
+    "exec": run_exec,
+    "scene": run_scene,
+    "grasps": run_grasps,
+    "metamodel": run_metamodel,
+    "problem": run_problem,
+    "urdf": run_urdf,
+    "mesh": run_mesh,
+    "robot": run_robot,
+    "observation": run_observation,
+}
 
 
 # Kinds whose every error must name the file read (issue 39: the README's exit-code contract).
-NAMED_FILES = {"robot": "robot.toml", "observation": "obs.npz", "problem": "problem.json",
-               "metamodel": "metamodel.json"}
+NAMED_FILES = {
+    "robot": "robot.toml",
+    "observation": "obs.npz",
+    "problem": "problem.json",
+    "metamodel": "metamodel.json",
+}
 
 
 def run_case(kind: str, payload, work: str) -> dict:

@@ -5,6 +5,7 @@ both plan the same (goals chosen at every iteration, trajectories to 1e-9).
 
 >>> result = ReferencePlanner(None, scene, settings, world=world).plan(grasps=grasps)
 """
+
 from __future__ import annotations
 
 from typing import Tuple
@@ -34,11 +35,11 @@ class GoalBook:
         self.initial_goals = np.array(gs.goals)  # the IK goal set as built, before any refinement
         self.goals = list(gs.goals)
         self.tails = list(gs.tails)
-        self.origin = list(gs.grasp_index)         # input grasp of each goal
-        self.origin_goal = list(range(len(gs)))    # goal-set goal each goal came from (refined copies: their source)
-        self.refined_copy: dict = {}               # goal index -> index of its refined copy
-        self.stalled: set = set()                  # goals ISF leaves alone
-        self.grasp_hand: dict = {}                 # hand position at an input goal, made when ISF first refines it
+        self.origin = list(gs.grasp_index)  # input grasp of each goal
+        self.origin_goal = list(range(len(gs)))  # goal-set goal each goal came from (refined copies: their source)
+        self.refined_copy: dict = {}  # goal index -> index of its refined copy
+        self.stalled: set = set()  # goals ISF leaves alone
+        self.grasp_hand: dict = {}  # hand position at an input goal, made when ISF first refines it
         self.tail_length = gs.tails.shape[1]
 
     def __len__(self) -> int:
@@ -46,7 +47,7 @@ class GoalBook:
 
     def on_goal(self, xi, g: int) -> bool:
         """The tail sits on goal g's tail (after a projection step: to round-off)."""
-        return bool(np.abs(xi[-self.tail_length:] - self.tails[g]).max() <= 1e-9)
+        return bool(np.abs(xi[-self.tail_length :] - self.tails[g]).max() <= 1e-9)
 
     def is_refined(self, g: int) -> bool:
         return g in self.refined_copy.values()
@@ -85,8 +86,12 @@ class _Optimization:
     def __init__(self, settings, world, q0: np.ndarray, book: GoalBook, timings: dict):
         self.settings, self.world, self.q0, self.book, self.timings = settings, world, q0, book, timings
         parts = LoopInputs.of(settings, world, book.tail_length)
-        self.chomp, self.metric_settings, self.refiner, self.policy = \
-            parts.chomp, parts.metric_settings, parts.refiner, parts.policy
+        self.chomp, self.metric_settings, self.refiner, self.policy = (
+            parts.chomp,
+            parts.metric_settings,
+            parts.refiner,
+            parts.policy,
+        )
         self.ws = self.chomp.workspace()
 
     def estimates(self, xi, i: int) -> np.ndarray:
@@ -97,8 +102,9 @@ class _Optimization:
             free_end = xi[-1] - s.chomp.step_size * self.chomp.problem.solve_A(grad)[-1]
             c = np.linalg.norm(goals - free_end, axis=1)
         else:
-            c = self.chomp.problem.goal_costs(xi, self.q0, i, s.iterations, goals, s.cost_time_stride,
-                                              s.cost_point_stride, self.ws)
+            c = self.chomp.problem.goal_costs(
+                xi, self.q0, i, s.iterations, goals, s.cost_time_stride, s.cost_point_stride, self.ws
+            )
         norm = np.linalg.norm(c)
         return c / norm if norm > 0 else c
 
@@ -134,9 +140,15 @@ class _Optimization:
         self.policy.reset(len(book), s.iterations, c0)
         g = int(np.argmin(c0))  # the initial goal: best by the initial estimate (as Fixed)
         xi = cubic_initialization(q0, book.goals[g], s.chomp.n)
-        xi[-book.tail_length:] = book.tails[g]
-        history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0,
-                   "initial_grasp": int(book.origin[g])}
+        xi[-book.tail_length :] = book.tails[g]
+        history = {
+            "objective": [],
+            "goal": [],
+            "p": [],
+            "costs": [],
+            "switches": 0,
+            "initial_grasp": int(book.origin[g]),
+        }
         iterations, metrics = 0, None
         for i in range(s.iterations):
             iterations = i + 1
@@ -172,7 +184,19 @@ class _Optimization:
         grasp_cost = float(refiner.cost(xi[-1])[0].total) if refiner is not None else float("nan")
         self.timings["metrics"] += clock() - t
         robot = self.world.robot
-        return PlanResult(PlanStatus.of(metrics), np.vstack([self.q0, xi]), xi[-1].copy(), int(self.book.origin[g]),
-                          robot.link_pose(xi[-1], robot.hand_link), self.book.is_refined(g), metrics, grasp_cost,
-                          len(self.book), iterations, history, self.timings,
-                          goal_set=self.book.initial_goals.copy(), goal_source=int(self.book.origin_goal[g]))
+        return PlanResult(
+            PlanStatus.of(metrics),
+            np.vstack([self.q0, xi]),
+            xi[-1].copy(),
+            int(self.book.origin[g]),
+            robot.link_pose(xi[-1], robot.hand_link),
+            self.book.is_refined(g),
+            metrics,
+            grasp_cost,
+            len(self.book),
+            iterations,
+            history,
+            self.timings,
+            goal_set=self.book.initial_goals.copy(),
+            goal_source=int(self.book.origin_goal[g]),
+        )

@@ -1,6 +1,7 @@
 """Any robot and parallel gripper (issue 21): robots built from their descriptions, grasps converted to or
 generated for their grippers, pads from their own geometry, limits from their files, and a plan executed
 in PyBullet for the UR5 + 2F-85 and the iiwa + WSG 50."""
+
 import dataclasses
 
 import numpy as np
@@ -33,17 +34,17 @@ def test_short_names_and_the_robot_a_description_builds():
     for name, dof in (("panda", 9), ("ur5", 8), ("iiwa", 9)):
         robot = robots.load_robot(name)
         desc = load_description(name)
-        assert robot.dof == dof and robot.joint_names[:robot.arm_dof] == list(desc.arm_joints)
+        assert robot.dof == dof and robot.joint_names[: robot.arm_dof] == list(desc.arm_joints)
         assert np.allclose(robot.base_pose, desc.base_pose)
-        assert np.allclose(robot.ready_configuration[:robot.arm_dof], desc.start)
+        assert np.allclose(robot.ready_configuration[: robot.arm_dof], desc.start)
 
 
 def test_the_timing_limits_are_the_descriptions():
     for name in ("ur5_2f85", "iiwa_wsg50", "panda"):
         robot, desc = robots.load_robot(name), load_description(name)
         limits = robot_limits(robot)
-        assert np.allclose(limits.velocity[:robot.arm_dof], desc.velocity_limits)
-        assert np.allclose(limits.acceleration[:robot.arm_dof], desc.acceleration_limits)
+        assert np.allclose(limits.velocity[: robot.arm_dof], desc.velocity_limits)
+        assert np.allclose(limits.acceleration[: robot.arm_dof], desc.acceleration_limits)
         assert len(limits.velocity) == robot.dof
 
 
@@ -70,9 +71,9 @@ def test_converted_grasps_keep_the_grasp_frame_and_drop_what_does_not_fit():
     assert len(panda_set) == 20
     for name in OTHERS:
         info = robot_info(name)
-        out = G.convert_grasps(panda_set, model, info)   # no hand check: a pure change of frames
+        out = G.convert_grasps(panda_set, model, info)  # no hand check: a pure change of frames
         kept = out.info["source_index"]
-        assert len(out) == len(panda_set)                 # both open wider than the Panda
+        assert len(out) == len(panda_set)  # both open wider than the Panda
         assert np.allclose(out.poses @ info.grasp_frame, panda_set.poses[kept] @ PANDA.grasp_frame, atol=1e-9)
     narrow = dataclasses.replace(PANDA, max_opening=0.02)  # a 2 cm gripper keeps only what is narrower
     width = panda_set.info["width"]
@@ -87,7 +88,7 @@ def test_stored_ycb_grasps_convert_and_clear_the_object():
     info = robot_info("ur5_2f85")
     gs = G.grasp_set(model, "simulated", gripper=info)
     assert len(gs) == 100  # the 2F-85 opens wider than the Panda: every stored grasp fits
-    frames = gs.poses @ info.grasp_frame   # the stored grasp frames, some backed off along the approach
+    frames = gs.poses @ info.grasp_frame  # the stored grasp frames, some backed off along the approach
     stored = G.grasp_set(model, "simulated").poses[gs.info["source_index"]] @ PANDA.grasp_frame
     back = np.einsum("nij,ni->nj", frames[:, :3, :3], stored[:, :3, 3] - frames[:, :3, 3])
     assert np.allclose(frames[:, :3, :3], stored[:, :3, :3]) and np.allclose(back[:, :2], 0.0, atol=1e-9)
@@ -132,7 +133,7 @@ def test_a_demo_sized_plan_executes_and_lifts(name, seed):
     result = OMGPlanner(None, scene, settings).plan()
     assert result.status == PlanStatus.success
     assert result.trajectory.shape[1] == robots.load_robot(name).dof
-    timed = result.timed(rate=240.0)                       # within this robot's limits
+    timed = result.timed(rate=240.0)  # within this robot's limits
     limits = robot_limits(robots.load_robot(name))
     assert np.all(np.abs(timed.qd) <= limits.velocity * (1 + 1e-6))
     run = execute_plan(scene, result.trajectory, ExecutionSettings(robot=name))
@@ -143,9 +144,12 @@ def test_a_demo_sized_plan_executes_and_lifts(name, seed):
 def test_the_validator_names_an_approach_axis_that_is_not_the_hands_z(tmp_path):
     text = open(load_description("iiwa_wsg50").source).read()
     path = tmp_path / "tilted.toml"
-    path.write_text(text.replace('grasp_frame = { xyz = [0.0, 0.0, 0.11], rpy = [0.0, 0.0, 0.0] }',
-                                 'grasp_frame = { xyz = [0.0, 0.0, 0.11], rpy = [0.0, 0.3, 0.0] }')
-                    .replace('mount]\nurdf = "assets:', 'mount]\nurdf = "assets:'))
+    path.write_text(
+        text.replace(
+            "grasp_frame = { xyz = [0.0, 0.0, 0.11], rpy = [0.0, 0.0, 0.0] }",
+            "grasp_frame = { xyz = [0.0, 0.0, 0.11], rpy = [0.0, 0.3, 0.0] }",
+        ).replace('mount]\nurdf = "assets:', 'mount]\nurdf = "assets:')
+    )
     _, problems = check_description(str(path))
     assert any("z axis (the approach) must be the hand link's +z" in str(p) for p in problems), problems
 
@@ -154,8 +158,9 @@ def test_a_sweep_plans_for_its_robot_and_will_not_resume_with_another(tmp_path):
     from pickplan.eval.experiments import SweepSettings, check_resumable, make_units
 
     scenes.generate_scene(seed=1).save(str(tmp_path / "scene_0000.json"))
-    s = SweepSettings("planners", out=str(tmp_path / "out"), scene_dir=str(tmp_path), runs=1, methods=("OMG",),
-                      robot="iiwa")
+    s = SweepSettings(
+        "planners", out=str(tmp_path / "out"), scene_dir=str(tmp_path), runs=1, methods=("OMG",), robot="iiwa"
+    )
     units = make_units(s, [str(tmp_path / "scene_0000.json")])
     assert [u["robot"] for u in units] == ["iiwa"]
     check_resumable(s)

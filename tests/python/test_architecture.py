@@ -1,5 +1,6 @@
 """The package's shape is part of its contract: folders are layers, every import points down, no
 module imports itself back through others, and every public name imports."""
+
 import ast
 import importlib
 import os
@@ -124,4 +125,5 @@ def test_the_layered_modules_are_the_one_public_surface():
             importlib.import_module(f"pickplan.{flat}")
     assert not hasattr(pickplan, "OMGPlanner")
     from pickplan.omg import OMGPlanner
+
     assert OMGPlanner is importlib.import_module("pickplan.omg.planner").OMGPlanner

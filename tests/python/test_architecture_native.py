@@ -2,6 +2,7 @@
 bindings is a layer with a namespace of its own, and every include points down (or sideways within
 the layer). Ranks: core 0, geometry 1, then perception, omg and pickup side by side at 2 (none
 includes another: perception builds fields from depth images, omg and pickup are two planners)."""
+
 import os
 import re
 
@@ -68,8 +69,9 @@ def namespace_violations(root: str) -> list:
         opened = NAMESPACE.findall(open(path).read())
         if path.endswith(".hpp") and not opened:
             wrong.append(f"{rel}: declares no pickplan namespace")
-        wrong.extend(f"{rel}: namespace {ns}, expected pickplan::{layer}" for ns in opened
-                     if ns != f"pickplan::{layer}")
+        wrong.extend(
+            f"{rel}: namespace {ns}, expected pickplan::{layer}" for ns in opened if ns != f"pickplan::{layer}"
+        )
     return wrong
 
 
@@ -90,21 +92,28 @@ def _write(root, rel, text):
         f.write(text)
 
 
-@pytest.mark.parametrize("rel, include", [
-    ("cpp/include/pickplan/core/a.hpp", '#include "pickplan/geometry/b.hpp"'),  # upward
-    ("cpp/src/omg/a.cpp", '#include "pickplan/pickup/b.hpp"'),  # sideways between applications
-    ("cpp/src/geometry/a.cpp", '#include "../omg/b.hpp"'),  # upward, relative
-    ("bindings/core/a.cpp", '#include "pickplan/omg/b.hpp"'),
-])
+@pytest.mark.parametrize(
+    "rel, include",
+    [
+        ("cpp/include/pickplan/core/a.hpp", '#include "pickplan/geometry/b.hpp"'),  # upward
+        ("cpp/src/omg/a.cpp", '#include "pickplan/pickup/b.hpp"'),  # sideways between applications
+        ("cpp/src/geometry/a.cpp", '#include "../omg/b.hpp"'),  # upward, relative
+        ("bindings/core/a.cpp", '#include "pickplan/omg/b.hpp"'),
+    ],
+)
 def test_the_checks_catch_a_planted_violation(tmp_path, rel, include):
     root = str(tmp_path)
     layer = rel.split("/")[-2]
     _write(root, "cpp/include/pickplan/core/ok.hpp", "#pragma once\nnamespace pickplan::core {\n}\n")
-    _write(root, "cpp/src/omg/ok.cpp", '#include "pickplan/core/ok.hpp"\n#include "pickplan/geometry/b.hpp"\n'
-           "namespace pickplan::omg {\n}\n")
+    _write(
+        root,
+        "cpp/src/omg/ok.cpp",
+        '#include "pickplan/core/ok.hpp"\n#include "pickplan/geometry/b.hpp"\nnamespace pickplan::omg {\n}\n',
+    )
     assert include_violations(root) == [] and namespace_violations(root) == []
     _write(root, rel, f"{include}\nnamespace pickplan::{layer} {{\n}}\n")
     assert len(include_violations(root)) == 1
     _write(root, "cpp/include/pickplan/core/ok.hpp", "#pragma once\nnamespace pickplan {\n}\n")
-    assert namespace_violations(root) == ["cpp/include/pickplan/core/ok.hpp: namespace pickplan, expected "
-                                          "pickplan::core"]
+    assert namespace_violations(root) == [
+        "cpp/include/pickplan/core/ok.hpp: namespace pickplan, expected pickplan::core"
+    ]

@@ -1,6 +1,7 @@
 """The held object as part of the robot (omg.attach): its body points follow the hand exactly, and a
 transfer the robot alone would clear but the held object would not is rejected by the FCL checks
 and by the success test."""
+
 import numpy as np
 import pytest
 
@@ -25,9 +26,16 @@ def carry_case():
     box_pose = standing_pose(box, (0.5, -0.12))
     wall_pose = np.eye(4)
     wall_pose[:3, 3] = [0.5, 0.16, 0.0]
-    scene = scenes.Scene(np.eye(4), scenes.default_table(),
-                         [scenes.SceneObject(BOX, f"builtin:{BOX}", box_pose),
-                          scenes.SceneObject("bin", bin_source(0.2, 0.2, 0.08), wall_pose)], BOX, seed=0)
+    scene = scenes.Scene(
+        np.eye(4),
+        scenes.default_table(),
+        [
+            scenes.SceneObject(BOX, f"builtin:{BOX}", box_pose),
+            scenes.SceneObject("bin", bin_source(0.2, 0.2, 0.08), wall_pose),
+        ],
+        BOX,
+        seed=0,
+    )
     world = World(scene)
     robot = world.robot
     top = float((box.mesh.vertices @ box_pose[:3, :3].T + box_pose[:3, 3])[:, 2].max())
@@ -62,14 +70,17 @@ def test_held_points_follow_the_hand_exactly(carry_case):
     mine = carrying.body.links == link
     assert mine.sum() == len(held.points) and len(carrying.body) == len(world.body) + len(held.points)
     Q = robot.random_configurations(50, seed=1)
-    X = robot.transform_points(Q, carrying.body)[:, mine]                 # native FK of the held link
-    hands = world.robot.fk_batch(Q)[:, world.robot.link_index(world.robot.hand_link)]   # the unattached robot
-    expected = np.einsum("tij,nj->tni", (hands @ held.hand_T_object)[:, :3, :3], held.points) + \
-        (hands @ held.hand_T_object)[:, None, :3, 3]
+    X = robot.transform_points(Q, carrying.body)[:, mine]  # native FK of the held link
+    hands = world.robot.fk_batch(Q)[:, world.robot.link_index(world.robot.hand_link)]  # the unattached robot
+    expected = (
+        np.einsum("tij,nj->tni", (hands @ held.hand_T_object)[:, :3, :3], held.points)
+        + (hands @ held.hand_T_object)[:, None, :3, 3]
+    )
     np.testing.assert_allclose(X, expected, atol=1e-12)
     # the robot's own points are untouched by the attachment
-    np.testing.assert_allclose(robot.transform_points(Q, world.body), world.robot.transform_points(Q, world.body),
-                               atol=0)
+    np.testing.assert_allclose(
+        robot.transform_points(Q, world.body), world.robot.transform_points(Q, world.body), atol=0
+    )
 
 
 def test_a_transfer_only_the_held_object_would_hit_is_rejected(carry_case):

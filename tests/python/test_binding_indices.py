@@ -1,6 +1,7 @@
 """Index arrays given to the native core directly (issue 26): an int64 2**32 + 3 was narrowed to int
 in the bindings without a check and became link 3 (or vertex 3); now every index array is checked
 at full width and a bad one raises ValueError naming the argument."""
+
 import numpy as np
 import pytest
 import trimesh
@@ -64,6 +65,6 @@ def test_mesh_faces_past_32_bits_are_refused_not_wrapped(panda):
     with pytest.raises(ValueError, match=r"^faces: entry 7 = 4294967299 out of range"):
         _core.SdfGrid.build(box.vertices, F, 0.01, 0.05)
     with pytest.raises(ValueError, match=r"^object 'box' faces: entry 7 = 4294967299 out of range"):
-        _core.CollisionChecker(panda.native, [], [("box", box.vertices, F, np.eye(4))], None, None,
-                               _core.CollisionSettings())
-
+        _core.CollisionChecker(
+            panda.native, [], [("box", box.vertices, F, np.eye(4))], None, None, _core.CollisionSettings()
+        )

@@ -1,4 +1,5 @@
 """The one process-wide memo: bounded, keyed by what the result depends on, listed and emptied."""
+
 from pickplan.core import caches, objects
 
 
@@ -11,8 +12,8 @@ def test_a_memo_is_bounded_least_recently_used_and_keyed_as_asked():
         return x * x
 
     assert [square(2, "a"), square(2, "b"), square(3, None)] == [4, 4, 9]
-    assert calls == [2, 3]                      # the key ignores the second argument
-    square(4, None)                             # 2 is the least recently used: dropped
+    assert calls == [2, 3]  # the key ignores the second argument
+    square(4, None)  # 2 is the least recently used: dropped
     assert square(3, None) == 9 and calls == [2, 3, 4]
     assert square(2, None) == 4 and calls == [2, 3, 4, 2]
     name = f"{__name__}.{square.__qualname__}"

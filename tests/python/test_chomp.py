@@ -1,4 +1,5 @@
 """CHOMP / CHOMP-Proj: gradients vs finite differences, exact goal projection, convergence, avoidance."""
+
 import concurrent.futures
 
 import numpy as np
@@ -216,4 +217,3 @@ def test_merged_scene_grid_matches_per_object_grids(panda, body):
     assert np.any(d1 != d0)
     np.testing.assert_array_equal(d2, d0)
     np.testing.assert_allclose(g2[d0 < 0.2], g0[d0 < 0.2], rtol=0, atol=1e-12)
-

@@ -1,5 +1,6 @@
 """Exit codes mean one thing each (cli/exit_codes.py): 0 success, 1 ran but no plan, 2 bad input
 with a message naming the file or option, 3 internal error; never a bare traceback."""
+
 import json
 import socket
 import types
@@ -41,7 +42,7 @@ def test_robot_configuration_of_5_exits_bad_input_naming_file_and_field(capsys, 
 
 def test_deeply_nested_json_exits_bad_input(capsys, tmp_path):
     deep = tmp_path / "deep.json"
-    deep.write_text("{\"a\": " * 50_000 + "1" + "}" * 50_000)
+    deep.write_text('{"a": ' * 50_000 + "1" + "}" * 50_000)
     code, err = _run(capsys, ["plan", "--scene", str(deep)])
     assert code == 2 and "deep.json" in err and "nested too deeply" in err
 
@@ -49,9 +50,11 @@ def test_deeply_nested_json_exits_bad_input(capsys, tmp_path):
 def test_out_naming_a_file_exits_bad_input(capsys, scene_file, tmp_path):
     taken = tmp_path / "taken"
     taken.write_text("x")
-    for argv in (["plan", "--scene", str(scene_file), "--out", str(taken)],
-                 ["scenes", "--n", "1", "--out", str(taken)],
-                 ["bench", "planners", "--quick", "--out", str(taken)]):
+    for argv in (
+        ["plan", "--scene", str(scene_file), "--out", str(taken)],
+        ["scenes", "--n", "1", "--out", str(taken)],
+        ["bench", "planners", "--quick", "--out", str(taken)],
+    ):
         code, err = _run(capsys, argv)
         assert code == 2, argv
         assert f"--out: '{taken}' is a file; expected a folder" in err
@@ -90,9 +93,10 @@ def test_plan_exits_ok_on_success_and_no_plan_otherwise(capsys, scene_file, tmp_
     target = next(o for o in far["objects"] if o["name"] == far["target"])
     target["pose"][0][3], target["pose"][1][3] = 1.02, 0.72  # 1.25 m from the base; the Panda reaches 0.85 m
     (tmp_path / "far.json").write_text(json.dumps(far))
-    for scene, out, code_wanted, status_wanted in ((scene_file, tmp_path / "ok", ExitCode.OK, "success"),
-                                                   (tmp_path / "far.json", tmp_path / "far", ExitCode.NO_PLAN,
-                                                    "no_goals")):
+    for scene, out, code_wanted, status_wanted in (
+        (scene_file, tmp_path / "ok", ExitCode.OK, "success"),
+        (tmp_path / "far.json", tmp_path / "far", ExitCode.NO_PLAN, "no_goals"),
+    ):
         code, _ = _run(capsys, ["plan", "--scene", str(scene), "--grasps", "antipodal", "--out", str(out)])
         assert code == code_wanted
         assert json.loads((out / "plan.json").read_text())["status"] == status_wanted

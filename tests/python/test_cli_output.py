@@ -1,6 +1,7 @@
 """What the command line shows: pickplan's own output only (no PyBullet banner, from a fresh
 process where PyBullet is imported for the first time), the library's notes on the ``pickplan``
 logger shown by default and hidden by ``--quiet``, and ``-q`` / ``-v`` before or after the command."""
+
 import logging
 import os
 import subprocess
@@ -16,8 +17,9 @@ BANNER = "pybullet build time"
 
 
 def _cli(*argv, cwd):
-    return subprocess.run([sys.executable, "-m", "pickplan.cli", *argv], capture_output=True, text=True,
-                          cwd=cwd, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "pickplan.cli", *argv], capture_output=True, text=True, cwd=cwd, timeout=600
+    )
 
 
 def test_commands_that_run_pybullet_show_no_banner_and_observe_writes_its_views(tmp_path):
@@ -25,8 +27,16 @@ def test_commands_that_run_pybullet_show_no_banner_and_observe_writes_its_views(
     assert scenes.returncode == 0, scenes.stderr
     assert scenes.stdout.startswith("wrote 1 scenes to")
     obs_path = tmp_path / "obs.npz"
-    observe = _cli("observe", "--scene", str(tmp_path / "scenes" / "scene_0000.json"), "--views", "2",
-                   "--out", str(obs_path), cwd=tmp_path)
+    observe = _cli(
+        "observe",
+        "--scene",
+        str(tmp_path / "scenes" / "scene_0000.json"),
+        "--views",
+        "2",
+        "--out",
+        str(obs_path),
+        cwd=tmp_path,
+    )
     assert observe.returncode == 0, observe.stderr
     for run in (scenes, observe):
         assert BANNER not in run.stdout and BANNER not in run.stderr
@@ -54,8 +64,12 @@ def test_commands_that_run_pybullet_show_no_banner_and_observe_writes_its_views(
 
 def test_quiet_hides_the_library_notes_and_verbose_shows_its_details(capsys):
     note = logging.getLogger("pickplan.tests.note")
-    for argv, info, debug in ((["robots", "list"], True, False), (["-q", "robots", "list"], False, False),
-                              (["robots", "list", "--quiet"], False, False), (["robots", "-v", "list"], True, True)):
+    for argv, info, debug in (
+        (["robots", "list"], True, False),
+        (["-q", "robots", "list"], False, False),
+        (["robots", "list", "--quiet"], False, False),
+        (["robots", "-v", "list"], True, True),
+    ):
         assert main(argv) == 0
         capsys.readouterr()
         note.info("an info note")
@@ -65,11 +79,18 @@ def test_quiet_hides_the_library_notes_and_verbose_shows_its_details(capsys):
     main(["robots", "list"])  # leave the default level for the tests after this one
 
 
-@pytest.mark.parametrize("argv, level", [(["demo"], logging.INFO), (["-q", "demo"], logging.WARNING),
-                                         (["demo", "--quiet"], logging.WARNING), (["-v", "demo"], logging.DEBUG),
-                                         (["plan", "-v", "--scene", "s.json"], logging.DEBUG),
-                                         (["bench", "planners", "-q", "--quick"], logging.WARNING),
-                                         (["metamodel", "build", "--quiet"], logging.WARNING)])
+@pytest.mark.parametrize(
+    "argv, level",
+    [
+        (["demo"], logging.INFO),
+        (["-q", "demo"], logging.WARNING),
+        (["demo", "--quiet"], logging.WARNING),
+        (["-v", "demo"], logging.DEBUG),
+        (["plan", "-v", "--scene", "s.json"], logging.DEBUG),
+        (["bench", "planners", "-q", "--quick"], logging.WARNING),
+        (["metamodel", "build", "--quiet"], logging.WARNING),
+    ],
+)
 def test_verbosity_flags_stand_before_or_after_the_command(argv, level):
     assert level_of(build_parser().parse_args(argv)) == level
 

@@ -2,6 +2,7 @@
 (and `view --html`), a dangling symbolic link, a folder that takes no new files, a file where a
 folder goes (or the reverse) is an InputError naming the option, exit 2, and the command's work
 never starts. Before, these were found after planning, with a bare errno message."""
+
 import argparse
 import os
 
@@ -27,8 +28,18 @@ OUT_COMMANDS = [(words, p) for words, p in _leaf_parsers(build_parser()) if "--o
 
 def test_the_commands_that_write_are_all_covered():
     names = {" ".join(w) for w, _ in OUT_COMMANDS}
-    assert {"demo", "plan", "scenes", "observe", "bench planners", "bench perception", "metamodel build",
-            "pickup plan", "pickup problems", "pickup cases"} <= names, names
+    assert {
+        "demo",
+        "plan",
+        "scenes",
+        "observe",
+        "bench planners",
+        "bench perception",
+        "metamodel build",
+        "pickup plan",
+        "pickup problems",
+        "pickup cases",
+    } <= names, names
 
 
 def _unwritable_folder(tmp_path) -> str:
@@ -46,9 +57,11 @@ def _bad_outputs(tmp_path, kind):
     link.symlink_to(tmp_path / "nowhere" / "at_all")
     a_file = tmp_path / "a_file"
     a_file.write_text("x")
-    bad = {"dangling symlink": (str(link), "is a symbolic link to"),
-           "unwritable": (os.path.join(_unwritable_folder(tmp_path), "out", "result"), "does not take new files"),
-           "under a file": (str(a_file / "sub"), "is a file")}
+    bad = {
+        "dangling symlink": (str(link), "is a symbolic link to"),
+        "unwritable": (os.path.join(_unwritable_folder(tmp_path), "out", "result"), "does not take new files"),
+        "under a file": (str(a_file / "sub"), "is a file"),
+    }
     if kind is OutputKind.folder:
         bad["a file for a folder"] = (str(a_file), "is a file; expected a folder")
     else:
@@ -74,8 +87,9 @@ def test_a_good_out_passes_and_leaves_nothing_behind(tmp_path):
     for words, parser in OUT_COMMANDS:
         kind = parser.get_default("out_kind") or OutputKind.folder
         out = tmp_path / "new" / ("result.npz" if kind is OutputKind.file else "folder")
-        args = argparse.Namespace(**{**{a.dest: a.default for a in parser._actions}, **parser._defaults,
-                                     "out": str(out)})
+        args = argparse.Namespace(
+            **{**{a.dest: a.default for a in parser._actions}, **parser._defaults, "out": str(out)}
+        )
         assert run_command(" ".join(words), lambda a: 0, args) == ExitCode.OK
     assert os.listdir(tmp_path) == []  # the check writes nothing (a probe file, removed)
 

@@ -1,5 +1,6 @@
 """FCL collision checker (pickplan.core.collision) against PyBullet's closest points, plus the
 Python layer: settings, contacts, batches, errors."""
+
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -10,9 +11,9 @@ import trimesh
 from pickplan.core.collision import CollisionChecker, CollisionSettings, SceneMesh, Table
 
 N_SCENES = 4
-N_PER_SCENE = 250          # 1,000 configurations in total
-PB_RANGE = 0.05            # PyBullet closest points are requested within 5 cm
-NEAR_TOUCH = 0.005         # disagreements must lie within 5 mm of contact
+N_PER_SCENE = 250  # 1,000 configurations in total
+PB_RANGE = 0.05  # PyBullet closest points are requested within 5 cm
+NEAR_TOUCH = 0.005  # disagreements must lie within 5 mm of contact
 
 
 def _rot_z(a):
@@ -58,14 +59,27 @@ class BulletScene:
                 self.movable.append((robot.joint_names.index(info[1].decode()), j))
         self.others = []
         for obj in objects:
-            shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=np.asarray(obj.mesh.vertices).tolist(),
-                                            physicsClientId=cid)
-            self.others.append(pb.createMultiBody(0, shape, basePosition=obj.pose[:3, 3].tolist(),
-                                                  baseOrientation=_quat(obj.pose[:3, :3]), physicsClientId=cid))
+            shape = pb.createCollisionShape(
+                pb.GEOM_MESH, vertices=np.asarray(obj.mesh.vertices).tolist(), physicsClientId=cid
+            )
+            self.others.append(
+                pb.createMultiBody(
+                    0,
+                    shape,
+                    basePosition=obj.pose[:3, 3].tolist(),
+                    baseOrientation=_quat(obj.pose[:3, :3]),
+                    physicsClientId=cid,
+                )
+            )
         T = table.pose_matrix()
-        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=(np.asarray(table.size) / 2).tolist(), physicsClientId=cid)
-        self.others.append(pb.createMultiBody(0, shape, basePosition=T[:3, 3].tolist(),
-                                              baseOrientation=_quat(T[:3, :3]), physicsClientId=cid))
+        shape = pb.createCollisionShape(
+            pb.GEOM_BOX, halfExtents=(np.asarray(table.size) / 2).tolist(), physicsClientId=cid
+        )
+        self.others.append(
+            pb.createMultiBody(
+                0, shape, basePosition=T[:3, 3].tolist(), baseOrientation=_quat(T[:3, :3]), physicsClientId=cid
+            )
+        )
 
     def set_q(self, q):
         for qi, j in self.movable:
@@ -87,8 +101,13 @@ def sample_configurations(panda, n, seed):
     uniform = panda.random_configurations(n // 2, seed=seed)
     pool = panda.random_configurations(40 * n, seed=seed + 1)
     hand = panda.fk_batch(pool)[:, panda.link_index(panda.hand_link), :3, 3]
-    inside = (hand[:, 0] > 0.25) & (hand[:, 0] < 0.85) & (np.abs(hand[:, 1]) < 0.45) & \
-             (hand[:, 2] > -0.05) & (hand[:, 2] < 0.3)
+    inside = (
+        (hand[:, 0] > 0.25)
+        & (hand[:, 0] < 0.85)
+        & (np.abs(hand[:, 1]) < 0.45)
+        & (hand[:, 2] > -0.05)
+        & (hand[:, 2] < 0.3)
+    )
     reaching = pool[inside][: n - n // 2]
     assert len(reaching) == n - n // 2
     return np.concatenate([uniform, reaching])
@@ -124,9 +143,11 @@ def test_verdicts_agree_with_pybullet_on_1000_configurations(panda, bullet, scen
     np.testing.assert_array_equal(fcl_hit, fcl_d <= 0.0)
     disagree = np.flatnonzero(fcl_hit != pb_hit)
     agreement = 1.0 - len(disagree) / n
-    print(f"\nFCL vs PyBullet: {n} configurations, {pb_hit.sum()} colliding (PyBullet), agreement "
-          f"{100 * agreement:.1f} %, disagreements {len(disagree)}: FCL distance "
-          f"{np.round(fcl_d[disagree] * 1000, 2).tolist()} mm, PyBullet {np.round(pb_d[disagree] * 1000, 2).tolist()} mm")
+    print(
+        f"\nFCL vs PyBullet: {n} configurations, {pb_hit.sum()} colliding (PyBullet), agreement "
+        f"{100 * agreement:.1f} %, disagreements {len(disagree)}: FCL distance "
+        f"{np.round(fcl_d[disagree] * 1000, 2).tolist()} mm, PyBullet {np.round(pb_d[disagree] * 1000, 2).tolist()} mm"
+    )
     assert agreement >= 0.99
     # Every disagreement is a near-touching configuration in both checkers.
     assert np.all(np.abs(fcl_d[disagree]) < NEAR_TOUCH)
@@ -136,8 +157,10 @@ def test_verdicts_agree_with_pybullet_on_1000_configurations(panda, bullet, scen
     close = (~fcl_hit) & (~pb_hit) & (fcl_d < PB_RANGE - 0.01)
     assert close.sum() > 20
     err = fcl_d[close] - pb_d[close]
-    print(f"free and within 4 cm: {close.sum()} configurations, FCL - PyBullet distance: min "
-          f"{1000 * err.min():.2f} mm, median {1000 * np.median(err):.2f} mm, max {1000 * err.max():.2f} mm")
+    print(
+        f"free and within 4 cm: {close.sum()} configurations, FCL - PyBullet distance: min "
+        f"{1000 * err.min():.2f} mm, median {1000 * np.median(err):.2f} mm, max {1000 * err.max():.2f} mm"
+    )
     assert np.all(err > -1e-4) and np.all(err < 0.0025)
 
 
@@ -213,8 +236,9 @@ def test_self_collision_sanity_against_pybullet(panda, bullet):
 
     def pb_self(q):
         scene.set_q(q)
-        return any(pb.getClosestPoints(scene.body, scene.body, 0.0, idx[a], idx[b], physicsClientId=bullet)
-                   for a, b in pairs)
+        return any(
+            pb.getClosestPoints(scene.body, scene.body, 0.0, idx[a], idx[b], physicsClientId=bullet) for a, b in pairs
+        )
 
     Q = panda.random_configurations(300, seed=5)
     fcl = checker.in_collision_batch(Q)
@@ -222,8 +246,10 @@ def test_self_collision_sanity_against_pybullet(panda, bullet):
     assert truth.sum() > 10
     dist = checker.min_distance_batch(Q)
     disagree = np.flatnonzero(fcl != truth)
-    print(f"\nself-collision: {truth.sum()} / 300 colliding (PyBullet); disagreements {len(disagree)} at "
-          f"FCL distances {np.round(dist[disagree] * 1000, 2).tolist()} mm")
+    print(
+        f"\nself-collision: {truth.sum()} / 300 colliding (PyBullet); disagreements {len(disagree)} at "
+        f"FCL distances {np.round(dist[disagree] * 1000, 2).tolist()} mm"
+    )
     assert (fcl == truth).mean() >= 0.98
     assert np.all(np.abs(dist[disagree]) < NEAR_TOUCH)
     # Contacts of a self-colliding configuration name checked link pairs only.

@@ -1,6 +1,7 @@
 """What ``pickplan demo`` writes, read back: the plan it reports, its timed trajectory (from the plan's
 start to its goal, within the Panda's limits, the same in JSON and NPZ), the execution's outcome in
 the table and in the exit code, the picture of the execution and the 3D view."""
+
 import json
 
 import numpy as np

@@ -1,5 +1,6 @@
 """Robot descriptions: the shipped ones describe their robots truly (kinematics against PyBullet, the
 grasp frame between the pads), and a wrong file gets every problem named, never a crash."""
+
 import numpy as np
 import pybullet as pb
 import pytest
@@ -30,8 +31,10 @@ def test_forward_kinematics_match_pybullet(name):
         T = desc.base_pose
         w, x, y, z = _quat_wxyz(T[:3, :3])
         body = pb.loadURDF(desc.urdf, T[:3, 3].tolist(), [x, y, z, w], useFixedBase=True, physicsClientId=client)
-        joints = {pb.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
-                  for j in range(pb.getNumJoints(body, physicsClientId=client))}
+        joints = {
+            pb.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
+            for j in range(pb.getNumJoints(body, physicsClientId=client))
+        }
         links = {pb.getJointInfo(body, j, physicsClientId=client)[12].decode(): j for j in joints.values()}
         rng = np.random.default_rng(3)
         for _ in range(5):
@@ -86,21 +89,26 @@ def _write(tmp_path, text):
 PANDA_TEXT = open(D.description_path("panda")).read()
 
 
-@pytest.mark.parametrize("change, expected", [
-    (("hand_link = \"panda_hand\"", "hand_link = \"panda_palm\""), "'panda_palm' is not a link"),
-    (("name = \"panda_finger_joint2\"", "name = \"panda_joint7\""), "is also an arm joint"),
-    (("xyz = [0.0, 0.0, 0.1034]", "xyz = [0.0, 0.012, 0.1034]"), "not between the pads"),
-    (("xyz = [0.0, 0.0, 0.1034]", "xyz = [0.0, 0.0, 0.3]"), "not level with the pads"),
-    (("max_opening = 0.08", "max_opening = 0.12"), "pads are 0.0797 m apart"),
-    (("body_points_per_link = 20", "body_points_per_link = 20\ncolour = \"red\""), "colour: unknown key"),
-    (("start = [0.0, -1.285", "start = [nan, -1.285"), "start[0]: expected a finite number, got nan"),
-    (("start = [0.0, -1.285, 0.0, -2.356, 0.0, 1.571, 0.785]", "start = [0.0, -1.285]"),
-     "start: expected a list of 7 numbers, got 2 values"),
-    (("start = [0.0, -1.285", "start = [9.0, -1.285"), "panda_joint1 = 9.0 outside its limits"),
-    (("urdf = \"pybullet_data:franka_panda/panda.urdf\"", "urdf = \"missing.urdf\""), "urdf: file not found"),
-    (("max_opening = 0.08", "max_opening = \"wide\""), "max_opening: expected a number, got str 'wide'"),
-    (("[gripper]", "[gripper\n"), "not valid TOML"),
-])
+@pytest.mark.parametrize(
+    "change, expected",
+    [
+        (('hand_link = "panda_hand"', 'hand_link = "panda_palm"'), "'panda_palm' is not a link"),
+        (('name = "panda_finger_joint2"', 'name = "panda_joint7"'), "is also an arm joint"),
+        (("xyz = [0.0, 0.0, 0.1034]", "xyz = [0.0, 0.012, 0.1034]"), "not between the pads"),
+        (("xyz = [0.0, 0.0, 0.1034]", "xyz = [0.0, 0.0, 0.3]"), "not level with the pads"),
+        (("max_opening = 0.08", "max_opening = 0.12"), "pads are 0.0797 m apart"),
+        (("body_points_per_link = 20", 'body_points_per_link = 20\ncolour = "red"'), "colour: unknown key"),
+        (("start = [0.0, -1.285", "start = [nan, -1.285"), "start[0]: expected a finite number, got nan"),
+        (
+            ("start = [0.0, -1.285, 0.0, -2.356, 0.0, 1.571, 0.785]", "start = [0.0, -1.285]"),
+            "start: expected a list of 7 numbers, got 2 values",
+        ),
+        (("start = [0.0, -1.285", "start = [9.0, -1.285"), "panda_joint1 = 9.0 outside its limits"),
+        (('urdf = "pybullet_data:franka_panda/panda.urdf"', 'urdf = "missing.urdf"'), "urdf: file not found"),
+        (("max_opening = 0.08", 'max_opening = "wide"'), "max_opening: expected a number, got str 'wide'"),
+        (("[gripper]", "[gripper\n"), "not valid TOML"),
+    ],
+)
 def test_a_wrong_file_names_its_problem(tmp_path, change, expected):
     old, new = change
     assert old in PANDA_TEXT
@@ -111,11 +119,17 @@ def test_a_wrong_file_names_its_problem(tmp_path, change, expected):
 def test_a_fixed_finger_joint_is_named(tmp_path):
     urdf = tmp_path / "panda_fixed.urdf"
     text = open(D.load_description("panda").urdf).read()
-    text = text.replace('<joint name="panda_finger_joint2" type="prismatic">',
-                        '<joint name="panda_finger_joint2" type="fixed">')
+    text = text.replace(
+        '<joint name="panda_finger_joint2" type="prismatic">', '<joint name="panda_finger_joint2" type="fixed">'
+    )
     urdf.write_text(text)
-    path = _write(tmp_path, PANDA_TEXT.replace('urdf = "pybullet_data:franka_panda/panda.urdf"',
-                                               f'urdf = "{urdf}"\npackage_dirs = ["pybullet_data:franka_panda"]'))
+    path = _write(
+        tmp_path,
+        PANDA_TEXT.replace(
+            'urdf = "pybullet_data:franka_panda/panda.urdf"',
+            f'urdf = "{urdf}"\npackage_dirs = ["pybullet_data:franka_panda"]',
+        ),
+    )
     _, problems = check_description(path)
     assert any("'panda_finger_joint2' is fixed, expected prismatic or revolute" in str(p) for p in problems), problems
 
@@ -124,8 +138,12 @@ def test_the_robots_command_lists_and_checks(tmp_path, capsys):
     assert cli_main(["robots", "list"]) == 0
     out = capsys.readouterr().out
     assert all(name in out for name in SHIPPED) and "problem" not in out
-    bad = _write(tmp_path, PANDA_TEXT.replace("hand_link = \"panda_hand\"", "hand_link = \"nothing\"")
-                 .replace("max_opening = 0.08", "max_opening = -1.0"))
+    bad = _write(
+        tmp_path,
+        PANDA_TEXT.replace('hand_link = "panda_hand"', 'hand_link = "nothing"').replace(
+            "max_opening = 0.08", "max_opening = -1.0"
+        ),
+    )
     assert cli_main(["robots", "check", bad]) == 2
     out = capsys.readouterr().out
     assert "'nothing' is not a link" in out and "gripper.max_opening: -1.0 m is outside (0.0, 0.5] m" in out

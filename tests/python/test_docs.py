@@ -1,4 +1,5 @@
 """The user guide's Python blocks run, in order, in one namespace (docs/guide.md): what it shows works."""
+
 import os
 import re
 

@@ -4,6 +4,7 @@ The grasps are built here from the object meshes (top-down, fingers across the n
 the footprint) and solved with a small damped-least-squares IK on ``Robot.jacobian``; the trajectory
 is start -> pre-grasp 10 cm above -> grasp by linear joint interpolation.
 """
+
 import struct
 
 import numpy as np
@@ -16,8 +17,8 @@ from pickplan.core import robots
 from pickplan.sim import scenes
 
 GRASP_DEPTH = 0.105  # panda_hand origin -> the point between the finger pads (panda_grasptarget)
-SEED_CAN, CAN = 5, "005_tomato_soup_can"   # an upside-down can with free space around it
-OBSTACLE = "010_potted_meat_can"           # in the same scene, between the robot and the can
+SEED_CAN, CAN = 5, "005_tomato_soup_can"  # an upside-down can with free space around it
+OBSTACLE = "010_potted_meat_can"  # in the same scene, between the robot and the can
 
 
 # --- helpers: grasps and IK built for the test -----------------------------------------------------
@@ -49,12 +50,11 @@ def ik(robot, T_goal, q0, iters=400, lam=0.05):
     q = np.array(q0, dtype=float)
     for _ in range(iters):
         T = robot.fk(q)[hand]
-        err = np.concatenate([T_goal[:3, 3] - T[:3, 3],
-                              0.5 * sum(np.cross(T[:3, i], T_goal[:3, i]) for i in range(3))])
+        err = np.concatenate([T_goal[:3, 3] - T[:3, 3], 0.5 * sum(np.cross(T[:3, i], T_goal[:3, i]) for i in range(3))])
         if np.linalg.norm(err) < 1e-6:
             break
         J = robot.jacobian(q, hand, None)[:, :7]
-        dq = J.T @ np.linalg.solve(J @ J.T + lam ** 2 * np.eye(6), err)
+        dq = J.T @ np.linalg.solve(J @ J.T + lam**2 * np.eye(6), err)
         dq *= min(1.0, 0.2 / max(np.linalg.norm(dq), 1e-12))
         q[:7] = np.clip(q[:7] + dq, robot.lower_limits[:7], robot.upper_limits[:7])
     T = robot.fk(q)[hand]
@@ -188,13 +188,16 @@ def test_out_of_limits_is_an_invalid_trajectory(can_scene, can_plan):
 
 
 # --- bad input -----------------------------------------------------------------------------------
-@pytest.mark.parametrize("bad, words", [
-    (np.zeros((5, 7)), "(T, 9)"),
-    (np.zeros(9), "(T, 9)"),
-    (np.zeros((0, 9)), "at least one"),
-    ([[0.0] * 9, [0.0] * 8], "trajectory"),
-    ("abc", "trajectory"),
-])
+@pytest.mark.parametrize(
+    "bad, words",
+    [
+        (np.zeros((5, 7)), "(T, 9)"),
+        (np.zeros(9), "(T, 9)"),
+        (np.zeros((0, 9)), "at least one"),
+        ([[0.0] * 9, [0.0] * 8], "trajectory"),
+        ("abc", "trajectory"),
+    ],
+)
 def test_bad_shapes_raise(can_scene, bad, words):
     with pytest.raises(ValueError, match="trajectory") as info:
         execution.execute_plan(can_scene, bad)

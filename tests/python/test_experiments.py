@@ -1,5 +1,6 @@
 """The paper-table runner: a quick sweep gives complete, consistent tables; an interrupted sweep
 resumes to the same table; the baselines give valid trajectories; Ray started locally runs units."""
+
 import functools
 import io
 import json
@@ -11,6 +12,7 @@ import pytest
 
 from pickplan.core.description import robot_info
 from pickplan.eval import experiments as E
+from pickplan.eval import units
 from pickplan.eval.summaries import summarize
 from pickplan.cli import bench as C
 
@@ -39,8 +41,16 @@ def scene_dir(tmp_path_factory):
 
 def test_quick_planners_sweep_tables_complete(scene_dir, tmp_path):
     methods = ("CHOMP", "CHOMP-C", "RRT-C", "OMG")
-    s = E.SweepSettings("planners", out=str(tmp_path), scene_dir=scene_dir, runs=1, methods=methods, quick=True,
-                        workers=2, progress=True)
+    s = E.SweepSettings(
+        "planners",
+        out=str(tmp_path),
+        scene_dir=scene_dir,
+        runs=1,
+        methods=methods,
+        quick=True,
+        workers=2,
+        progress=True,
+    )
     err = io.StringIO()
     records = E.run_sweep(s, stream=err)
     assert len(records) == 3 * len(methods)
@@ -125,8 +135,7 @@ def test_baselines_valid_trajectories(scene_dir):
 
     scene = Scene.load(os.path.join(scene_dir, sorted(os.listdir(scene_dir))[0]))
     world = World(scene)
-    settings = BaselineSettings(omg=OMGSettings(goals=GoalSetSettings(max_goals=10), grasp_count=30),
-                                time_limit=0.5)
+    settings = BaselineSettings(omg=OMGSettings(goals=GoalSetSettings(max_goals=10), grasp_count=30), time_limit=0.5)
     validity = SupportValidity(world, world.start, settings.omg.metrics.support_tolerance)
     lo, hi = world.robot.lower_limits, world.robot.upper_limits
     for name in ("CHOMP", "CHOMP-C", "FMT", "RRT-C"):
@@ -143,25 +152,62 @@ def test_baselines_valid_trajectories(scene_dir):
             returned = next(a for a in r.history["attempts"] if a["goal"] == r.history["goal"][0])
             assert returned["found"] or not r.success, name
             if returned["found"]:
-                assert all(validity(q) for q in r.trajectory[1:31 - 5 + 1]), name
+                assert all(validity(q) for q in r.trajectory[1 : 31 - 5 + 1]), name
 
 
 def test_ray_local_runs_units(scene_dir, tmp_path):
     pytest.importorskip("ray")
-    s = E.SweepSettings("selection", out=str(tmp_path), scene_dir=scene_dir, runs=1, methods=("MD",), quick=True,
-                        workers=2, ray="local", execute=False, progress=False)
+    s = E.SweepSettings(
+        "selection",
+        out=str(tmp_path),
+        scene_dir=scene_dir,
+        runs=1,
+        methods=("MD",),
+        quick=True,
+        workers=2,
+        ray="local",
+        execute=False,
+        progress=False,
+    )
     records = E.run_sweep(s)
     assert len(records) == 3 and {r["method"] for r in records} == {"MD"}
     # the same units in this process give the same plans
-    serial = E.run_sweep(E.SweepSettings("selection", out=str(tmp_path / "serial"), scene_dir=scene_dir, runs=1,
-                                         methods=("MD",), quick=True, workers=0, execute=False, progress=False))
+    serial = E.run_sweep(
+        E.SweepSettings(
+            "selection",
+            out=str(tmp_path / "serial"),
+            scene_dir=scene_dir,
+            runs=1,
+            methods=("MD",),
+            quick=True,
+            workers=0,
+            execute=False,
+            progress=False,
+        )
+    )
     assert [(r["status"], r["smoothness"]) for r in records] == [(r["status"], r["smoothness"]) for r in serial]
 
 
 def test_cli_ablation_quick_writes_plot(scene_dir, tmp_path):
     out = tmp_path / "abl"
-    rc = C.main(["bench", "ablation", "--quick", "--scene-dir", scene_dir, "--methods", "n=20", "lambda=1",
-                 "--workers", "0", "--no-execute", "--no-progress", "--out", str(out)])
+    rc = C.main(
+        [
+            "bench",
+            "ablation",
+            "--quick",
+            "--scene-dir",
+            scene_dir,
+            "--methods",
+            "n=20",
+            "lambda=1",
+            "--workers",
+            "0",
+            "--no-execute",
+            "--no-progress",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     assert os.path.getsize(out / "fig8.png") > 0
     assert "n=20" in (out / "table.md").read_text()
@@ -181,12 +227,29 @@ def test_resuming_with_other_settings_is_refused(scene_dir, tmp_path):
 
     def counting(unit):
         calls.append(unit)
-        return {"table": unit["table"], "scene": unit["scene_name"], "target": "t", "method": unit["method"],
-                "run": unit["run"], "status": "no_goals", "valid": True, "planned": False,
-                "planning_success": False, "execution_success": False}
+        return {
+            "table": unit["table"],
+            "scene": unit["scene_name"],
+            "target": "t",
+            "method": unit["method"],
+            "run": unit["run"],
+            "status": "no_goals",
+            "valid": True,
+            "planned": False,
+            "planning_success": False,
+            "execution_success": False,
+        }
 
-    base = dict(out=str(tmp_path / "sweep"), scene_dir=scene_dir, runs=1, methods=("Fixed",), grasps=10,
-                workers=0, execute=False, progress=False)
+    base = dict(
+        out=str(tmp_path / "sweep"),
+        scene_dir=scene_dir,
+        runs=1,
+        methods=("Fixed",),
+        grasps=10,
+        workers=0,
+        execute=False,
+        progress=False,
+    )
     # the counting units plan nothing: no simulated grasp sets built for them (100 per target, minutes cold)
     sweep = functools.partial(E.run_sweep, unit_fn=counting, warm_grasps=False)
     assert len(sweep(E.SweepSettings("selection", **base))) == 3
@@ -203,11 +266,29 @@ def test_resuming_with_other_settings_is_refused(scene_dir, tmp_path):
 
 def test_no_execute_says_not_run_and_durations_are_reported(scene_dir, tmp_path):
     out = tmp_path / "noexec"
-    rc = C.main(["bench", "selection", "--quick", "--scene-dir", scene_dir, "--methods", "Fixed",
-                 "--workers", "0", "--no-execute", "--no-progress", "--out", str(out)])
+    rc = C.main(
+        [
+            "bench",
+            "selection",
+            "--quick",
+            "--scene-dir",
+            scene_dir,
+            "--methods",
+            "Fixed",
+            "--workers",
+            "0",
+            "--no-execute",
+            "--no-progress",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
-    rows = {line.split("|")[1].strip(): line for line in (out / "table.md").read_text().splitlines()
-            if line.startswith("| ")}
+    rows = {
+        line.split("|")[1].strip(): line
+        for line in (out / "table.md").read_text().splitlines()
+        if line.startswith("| ")
+    }
     assert "not run" in rows["Execution"] and "0%" not in rows["Execution"]  # never a zero for a column not run
     records = json.loads((out / "runs.json").read_text())
     planned = [r for r in records if r.get("planned")]
@@ -225,8 +306,17 @@ def test_no_execute_says_not_run_and_durations_are_reported(scene_dir, tmp_path)
 def test_timed_execution_follows_the_timed_trajectory(scene_dir, tmp_path):
     from pickplan.sim.execution import ExecutionSettings
 
-    s = E.SweepSettings("selection", out=str(tmp_path), scene_dir=scene_dir, runs=1, methods=("Fixed",), quick=True,
-                        workers=0, timed_execution=True, progress=False)
+    s = E.SweepSettings(
+        "selection",
+        out=str(tmp_path),
+        scene_dir=scene_dir,
+        runs=1,
+        methods=("Fixed",),
+        quick=True,
+        workers=0,
+        timed_execution=True,
+        progress=False,
+    )
     units = E.make_units(s, E.scene_files(s))
     executed = []
     for unit in units:
@@ -235,23 +325,39 @@ def test_timed_execution_follows_the_timed_trajectory(scene_dir, tmp_path):
             executed.append(r)
             assert r["execution_run"] and r["execution_status"] != "not_executed"
             x = ExecutionSettings()  # sim time = the timed approach + the fixed settle, close, lift and hold phases
-            fixed = x.start_settle + x.approach_settle + x.closing_time(robot_info('panda')) + x.lift_duration + x.hold_duration
+            fixed = (
+                x.start_settle
+                + x.approach_settle
+                + x.closing_time(robot_info("panda"))
+                + x.lift_duration
+                + x.hold_duration
+            )
             assert r["execution_sim_time"] == pytest.approx(fixed + r["trajectory_duration"], abs=3 * x.time_step)
     assert executed, "the seeded scenes: at least one plans with Fixed"
 
 
 def test_a_damaged_unit_file_is_redone_on_resume_and_named(scene_dir, tmp_path):
     """Regression (issue 26): a damaged unit file stopped a resume with a JSON error naming no file."""
-    base = dict(scene_dir=scene_dir, runs=1, methods=("Fixed", "MD"), quick=True, workers=0, execute=False,
-                progress=False)
+    base = dict(
+        scene_dir=scene_dir, runs=1, methods=("Fixed", "MD"), quick=True, workers=0, execute=False, progress=False
+    )
     s = E.SweepSettings("selection", out=str(tmp_path / "damaged"), **base)
     calls = []
 
     def fake(unit):  # a finished record without planning: the sweep's bookkeeping is what is tested
         calls.append(unit)
-        return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
-                "seed": int(unit["seed"]), "status": "success", "valid": True, "planned": True,
-                "planning_success": True, "execution_success": False}
+        return {
+            "table": unit["table"],
+            "scene": unit["scene_name"],
+            "method": unit["method"],
+            "run": unit["run"],
+            "seed": int(unit["seed"]),
+            "status": "success",
+            "valid": True,
+            "planned": True,
+            "planning_success": True,
+            "execution_success": False,
+        }
 
     first = E.run_sweep(s, unit_fn=fake)
     n = len(first)
@@ -276,20 +382,31 @@ def test_a_workers_shared_models_do_not_change_records(scene_dir, tmp_path, monk
     record equals the one a fresh cache gives (plans, metrics, statuses: everything but times)."""
     from pickplan.omg.model_cache import ModelCache
 
-    s = E.SweepSettings("planners", out=str(tmp_path / "shared"), scene_dir=scene_dir, runs=1,
-                        methods=("CHOMP-C", "OMG"), quick=True, workers=0, progress=False, execute=False,
-                        grasp_kind="antipodal")
+    s = E.SweepSettings(
+        "planners",
+        out=str(tmp_path / "shared"),
+        scene_dir=scene_dir,
+        runs=1,
+        methods=("CHOMP-C", "OMG"),
+        quick=True,
+        workers=0,
+        progress=False,
+        execute=False,
+        grasp_kind="antipodal",
+    )
     shared = E.run_sweep(s)
     calls = []
 
     def fresh(unit):
-        monkeypatch.setattr(E, "_WORKER_MODELS", ModelCache())
+        monkeypatch.setattr(units, "_WORKER_MODELS", ModelCache())
         calls.append(unit["method"])
-        return E.run_unit(unit)
+        return units.run_unit(unit)
+
     alone = E.run_sweep(E.SweepSettings(**{**s.__dict__, "out": str(tmp_path / "fresh")}), unit_fn=fresh)
 
     def comparable(r):
         return {k: v for k, v in r.items() if "time" not in k and k not in ("unit_seconds", "sweep")}
+
     assert len(shared) == len(alone) == len(calls) == 6
     assert [comparable(r) for r in shared] == [comparable(r) for r in alone]
     assert sum(r["planning_success"] for r in shared) >= 3  # plans, not a table of failures

@@ -8,6 +8,7 @@ result, two readers that disagree, or another exception type (in the CLI: exit 2
 
 PICKPLAN_FUZZ_COUNT cases per kind (default 300; `make fuzz FUZZ_COUNT=5000` runs more),
 PICKPLAN_FUZZ_SEED the seed (default 0)."""
+
 import base64
 import collections
 import json
@@ -95,14 +96,26 @@ def bases(tmp_path_factory):
     from conftest import known_scene
 
     obs = render_observation(known_scene()[0], views=1, rig=CameraRig(width=80, height=60))
-    observation = {"depth": obs.depth, "K": obs.K, "camera_pose": obs.camera_pose, "rgb": obs.rgb,
-                   "target_mask": obs.target_mask.astype(np.uint8), "format": np.array("pickplan.observation"),
-                   "version": np.array(1)}
+    observation = {
+        "depth": obs.depth,
+        "K": obs.K,
+        "camera_pose": obs.camera_pose,
+        "rgb": obs.rgb,
+        "target_mask": obs.target_mask.astype(np.uint8),
+        "format": np.array("pickplan.observation"),
+        "version": np.array(1),
+    }
     robots = [open(description.description_path(name)).read() for name in ("panda", "ur5_2f85")]
-    return {"scene": scenes.generate_scene(seed=2).to_dict(), "grasps": np.asarray(grasps, float), "metamodel": mm,
-            "problem": problem, "robot": robots, "observation": observation,
-            "urdf": URDF.format(mesh=str(folder / "link.obj")),
-            "mesh": {"mesh.stl": _stl_text(cylinder), "collision.obj": _obj_text(cylinder.convex_hull)}}
+    return {
+        "scene": scenes.generate_scene(seed=2).to_dict(),
+        "grasps": np.asarray(grasps, float),
+        "metamodel": mm,
+        "problem": problem,
+        "robot": robots,
+        "observation": observation,
+        "urdf": URDF.format(mesh=str(folder / "link.obj")),
+        "mesh": {"mesh.stl": _stl_text(cylinder), "collision.obj": _obj_text(cylinder.convex_hull)},
+    }
 
 
 def make_cases(kind: str, base, n: int, seed: int) -> list:
@@ -138,10 +151,17 @@ def run_cases(cases: list, folder) -> dict:
     results, start = {}, 0
     while start < len(cases):
         with open(os.path.join(folder, "stderr.txt"), "w") as err:
-            proc = subprocess.Popen([sys.executable, WORKER, path, str(start)], stdout=subprocess.PIPE, stderr=err,
-                                    text=True, start_new_session=True)
+            proc = subprocess.Popen(
+                [sys.executable, WORKER, path, str(start)],
+                stdout=subprocess.PIPE,
+                stderr=err,
+                text=True,
+                start_new_session=True,
+            )
             lines: queue.Queue = queue.Queue()
-            threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout] + [lines.put(None)], daemon=True).start()
+            threading.Thread(
+                target=lambda: [lines.put(x) for x in proc.stdout] + [lines.put(None)], daemon=True
+            ).start()
             current = None
             while True:
                 try:  # the first case also pays for the imports
@@ -160,8 +180,9 @@ def run_cases(cases: list, folder) -> dict:
                         results[current] = {"outcome": "crash", "error": why}
                         start = current + 1
                     elif code != 0:
-                        pytest.fail(f"fuzz worker failed outside any case (exit {code}): "
-                                    f"{open(err.name).read()[-2000:]}")
+                        pytest.fail(
+                            f"fuzz worker failed outside any case (exit {code}): {open(err.name).read()[-2000:]}"
+                        )
                     else:
                         start = len(cases)
                     break

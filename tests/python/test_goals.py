@@ -1,4 +1,5 @@
 """IK and goal sets: poses reproduced, limits respected, collision filtering checked in PyBullet."""
+
 import numpy as np
 import pybullet as pb
 import pytest
@@ -44,8 +45,9 @@ def test_ik_recovers_1000_random_poses(panda):
     assert ok.mean() >= 0.99, ok.mean()
     reached = panda.fk_batch(sols[ok])[:, panda.link_index("panda_hand")]
     pos_err = np.linalg.norm(reached[:, :3, 3] - targets[ok, :3, 3], axis=1)
-    rot_err = np.array([np.arccos(np.clip((np.trace(a[:3, :3].T @ b[:3, :3]) - 1) / 2, -1, 1))
-                        for a, b in zip(reached, targets[ok])])
+    rot_err = np.array(
+        [np.arccos(np.clip((np.trace(a[:3, :3].T @ b[:3, :3]) - 1) / 2, -1, 1)) for a, b in zip(reached, targets[ok])]
+    )
     assert pos_err.max() <= 1e-3 and rot_err.max() <= 0.01
     assert np.all(sols >= panda.lower_limits - 1e-12) and np.all(sols <= panda.upper_limits + 1e-12)
     np.testing.assert_array_equal(sols[:, 7:], 0.04)  # inactive finger joints keep the seed's values
@@ -72,8 +74,15 @@ def test_goal_set_reaches_grasps_with_a_straight_standoff(scene_world):
     gs = goals.build_goal_set(w, grasps, settings=goals.GoalSetSettings(max_goals=100, quality=None))
     assert len(gs) >= 3, gs.reason_counts()
     assert len(gs.reasons) == len(grasps) and set(gs.reasons) <= {
-        "ok", "unreachable", "in_collision", "standoff_unreachable", "standoff_in_collision", "approach_clearance",
-        "duplicate", "over_cap"}
+        "ok",
+        "unreachable",
+        "in_collision",
+        "standoff_unreachable",
+        "standoff_in_collision",
+        "approach_clearance",
+        "duplicate",
+        "over_cap",
+    }
     hand = w.robot.link_index("panda_hand")
     for g, tail, gi in zip(gs.goals, gs.tails, gs.grasp_index):
         np.testing.assert_array_equal(tail[-1], g)
@@ -95,8 +104,11 @@ def test_collision_filter_agrees_with_pybullet(scene_world):
     try:
         bodies = scenes.load_into_pybullet(w.scene, cid)
         robot = bodies["robot"]
-        movable = [j for j in range(pb.getNumJoints(robot, physicsClientId=cid))
-                   if pb.getJointInfo(robot, j, physicsClientId=cid)[2] != pb.JOINT_FIXED]
+        movable = [
+            j
+            for j in range(pb.getNumJoints(robot, physicsClientId=cid))
+            if pb.getJointInfo(robot, j, physicsClientId=cid)[2] != pb.JOINT_FIXED
+        ]
         others = [b for name, b in bodies.items() if name not in ("robot", w.target)]
         moving_links = set(j for j in range(pb.getNumJoints(robot, physicsClientId=cid)))
 

@@ -1,5 +1,6 @@
 """Grasp quality (``omg.grasps.quality``): closed forms, the force split against an optimiser, and the
 ranking of grasps on a heavy elongated tool."""
+
 import numpy as np
 import pytest
 import trimesh
@@ -38,7 +39,7 @@ def test_a_box_held_at_its_centre_needs_friction_for_its_weight_and_the_carry():
     _, P = _box_points((0.04, 0.06, 0.10))
     m = 1.5
     load = q.Load(m, np.zeros(3), np.array([0.0, 0.0, -1.0]))
-    G = _frame([0, 0, 0.02], [1, 0, 0], [0, 0, -1])   # from above, closing across the 4 cm
+    G = _frame([0, 0, 0.02], [1, 0, 0], [0, 0, -1])  # from above, closing across the 4 cm
     s = q.QualitySettings(acceleration=2.5)
     out = q.grasp_quality(P, G[None], load, GRIP, s)
     expected = m * (9.81 + 2.5) / (2 * GRIP.friction * GRIP.force)
@@ -69,8 +70,8 @@ def test_an_off_centre_pinch_must_hold_the_weights_torque_by_torsional_friction(
 def test_a_pad_that_meets_nothing_misses():
     _, P = _box_points((0.04, 0.06, 0.10))
     load = q.Load(0.1, np.zeros(3), np.array([0.0, 0.0, -1.0]))
-    beside = _frame([0.2, 0, 0], [1, 0, 0], [0, 0, -1])      # nowhere near the box
-    too_wide = _frame([0, 0, 0], [0, 1, 0], [0, 0, -1])       # 6 cm across: inside the 8 cm opening, fine
+    beside = _frame([0.2, 0, 0], [1, 0, 0], [0, 0, -1])  # nowhere near the box
+    too_wide = _frame([0, 0, 0], [0, 1, 0], [0, 0, -1])  # 6 cm across: inside the 8 cm opening, fine
     out = q.grasp_quality(P, np.stack([beside, too_wide]), load, GRIP, AT_REST)
     assert out.fit == [q.GraspFit.misses, q.GraspFit.holds]
     assert out.margin[0] == -np.inf
@@ -80,8 +81,8 @@ def _sphere(k=300):
     """k unit vectors spread over the sphere (a Fibonacci lattice)."""
     i = np.arange(k) + 0.5
     z = 1 - 2 * i / k
-    a = np.pi * (1 + 5 ** 0.5) * i
-    return np.column_stack([np.sqrt(1 - z ** 2) * np.cos(a), np.sqrt(1 - z ** 2) * np.sin(a), z])
+    a = np.pi * (1 + 5**0.5) * i
+    return np.column_stack([np.sqrt(1 - z**2) * np.cos(a), np.sqrt(1 - z**2) * np.sin(a), z])
 
 
 def _optimal_utilisation(patches, frame, load, grip, settings):
@@ -100,10 +101,13 @@ def _optimal_utilisation(patches, frame, load, grip, settings):
         T = np.cross(com, F)
         N = (grip.force - 0.5 * F[1], grip.force + 0.5 * F[1])
         # variables: t+ (x, z), t- (x, z), m+, m-, N+ cop+ (x, z), N- cop- (x, z), u
-        A_eq = [[1, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0], [0, 1, 0, 1, 0, 0, 0, 0, 0, 0, 0],
-                [0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 0],
-                [0, p[0, 1], 0, p[1, 1], 0, 0, 0, 1, 0, -1, 0],     # torque about x
-                [-p[0, 1], 0, -p[1, 1], 0, 0, 0, -1, 0, 1, 0, 0]]   # torque about z
+        A_eq = [
+            [1, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0],
+            [0, 1, 0, 1, 0, 0, 0, 0, 0, 0, 0],
+            [0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 0],
+            [0, p[0, 1], 0, p[1, 1], 0, 0, 0, 1, 0, -1, 0],  # torque about x
+            [-p[0, 1], 0, -p[1, 1], 0, 0, 0, -1, 0, 1, 0, 0],
+        ]  # torque about z
         b_eq = [F[0], F[2], T[1], T[0], T[2]]  # the object settled in the grip: no squeeze couple left
         A_ub = []
         for i, (Ni, r) in enumerate(zip(N, rho)):
@@ -112,8 +116,13 @@ def _optimal_utilisation(patches, frame, load, grip, settings):
                 row[2 * i], row[2 * i + 1] = d[0] / (grip.friction * Ni), d[1] / (grip.friction * Ni)
                 row[4 + i], row[10] = d[2] / (grip.friction * Ni * r), -1.0
                 A_ub.append(row)
-        bounds = [(None, None)] * 6 + [(-N[0] * h[0, 0], N[0] * h[0, 0]), (-N[0] * h[0, 1], N[0] * h[0, 1]),
-                                       (-N[1] * h[1, 0], N[1] * h[1, 0]), (-N[1] * h[1, 1], N[1] * h[1, 1]), (0, None)]
+        bounds = [(None, None)] * 6 + [
+            (-N[0] * h[0, 0], N[0] * h[0, 0]),
+            (-N[0] * h[0, 1], N[0] * h[0, 1]),
+            (-N[1] * h[1, 0], N[1] * h[1, 0]),
+            (-N[1] * h[1, 1], N[1] * h[1, 1]),
+            (0, None),
+        ]
         res = linprog([0] * 10 + [1], A_ub=A_ub, b_ub=np.zeros(len(A_ub)), A_eq=A_eq, b_eq=b_eq, bounds=bounds)
         assert res.status == 0
         best = max(best, res.fun)
@@ -150,8 +159,9 @@ def test_a_pinch_far_from_a_heavy_clamps_centre_of_mass_ranks_below_a_central_on
     beside the centre of mass against one across the far end of a jaw; the far one ranks lower and slips."""
     lib = objects.library("procedural")
     base = lib.get("clamp_01")
-    model = objects.make_object("heavy_clamp", base.mesh, base.collision_parts, "test", mass=1.5,
-                                friction=base.friction)
+    model = objects.make_object(
+        "heavy_clamp", base.mesh, base.collision_parts, "test", mass=1.5, friction=base.friction
+    )
     pose = model.resting_poses[0]
     down = pose[:3, :3].T @ [0.0, 0.0, -1.0]
     (x0, y0, _), (x1, _, _) = model.mesh.bounds
@@ -178,7 +188,7 @@ def test_a_worlds_grasp_verdicts_are_its_quality_kept_per_grasp():
     frames = []
     for yaw in np.linspace(0.0, np.pi, 12, endpoint=False):
         down = _frame(com + [0.0, 0.0, 0.01 * np.sin(3 * yaw)], [np.cos(yaw), np.sin(yaw), 0.0], [0.0, 0.0, -1.0])
-        frames.append(down @ np.linalg.inv(info.grasp_frame))   # hand poses, object frame
+        frames.append(down @ np.linalg.inv(info.grasp_frame))  # hand poses, object frame
     hands = np.array(frames)
     settings = q.QualitySettings()
 

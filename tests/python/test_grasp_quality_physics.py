@@ -1,5 +1,6 @@
 """The grasp quality against PyBullet: grasps it ranks high hold more often than grasps it ranks low
 (several object families), and rim pinches of bowls, judged on the mesh, lift."""
+
 import dataclasses
 
 import numpy as np
@@ -27,9 +28,14 @@ def _held(model, poses, rest, force, still: bool = True):
     fingertips may rest on the table as the goal set lets them (2 mm)."""
     settings = LiftSettings(rest_index=rest, table_clearance=-0.002, finger_force=force)
     _, trials = lift_test(model, poses, settings, details=True)
-    return np.array([-1 if not t["applicable"] else
-                     int(t["lifted"] and (not still or (t["rotation"] < HELD[0] and t["slip"] < HELD[1])))
-                     for t in trials])
+    return np.array(
+        [
+            -1
+            if not t["applicable"]
+            else int(t["lifted"] and (not still or (t["rotation"] < HELD[0] and t["slip"] < HELD[1])))
+            for t in trials
+        ]
+    )
 
 
 @pytest.mark.parametrize("family", ["long_box", "hammer", "mustard"])
@@ -50,7 +56,7 @@ def test_grasps_ranked_high_hold_in_pybullet_more_often_than_grasps_ranked_low(f
     held = _held(model, poses, rest, force)
     order = quality.order()
     order = order[held[order] >= 0]
-    high, low = order[:len(order) // 2], order[len(order) // 2:]
+    high, low = order[: len(order) // 2], order[len(order) // 2 :]
     assert len(order) >= 10
     assert held[high].mean() > held[low].mean() + 0.2, (held[high], held[low])
     says_holds = quality.holds() & (held >= 0)
@@ -117,7 +123,7 @@ def test_physics_verifies_what_the_quality_is_unsure_of_and_caches_it(tmp_path, 
     v = verify_grasps(model, poses, pose, weak, settings)
     unsure = (v.margin >= settings.band[0]) & (v.margin < settings.band[1])
     assert 0 < v.simulated.sum() <= settings.budget and not (v.simulated & ~unsure).any()
-    assert not (v.keep & ~v.simulated & (v.margin < settings.band[1])).any()   # kept unsimulated: clear ones only
+    assert not (v.keep & ~v.simulated & (v.margin < settings.band[1])).any()  # kept unsimulated: clear ones only
     again = verify_grasps(model, poses, pose, weak, settings)
     assert again.cached and again.seconds == 0.0 and np.array_equal(again.keep, v.keep)
     held = _held(model, poses, 0, 25.0)

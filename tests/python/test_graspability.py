@@ -1,5 +1,6 @@
 """The ungraspable verdict (issue 20): boxes whose widths are known exactly, the planner's status,
 and sweeps that count ungraspable targets apart with per-object rows."""
+
 from types import SimpleNamespace
 
 import numpy as np
@@ -25,13 +26,16 @@ def _turned_about_x(angle):
     return T
 
 
-@pytest.mark.parametrize("extents, opening, graspable, reason, narrowest", [
-    ((0.06, 0.15, 0.03), 0.08, True, "", 0.06),       # 6 cm across fits the 8 cm opening
-    ((0.20, 0.15, 0.03), 0.08, False, "flat face", None),   # only the 3 cm height is narrow
-    ((0.06, 0.15, 0.03), 0.05, False, "flat face", None),   # the same box, a 5 cm gripper
-    ((0.10, 0.12, 0.20), 0.08, False, "wider than the 8 cm opening in every direction", None),
-    ((0.06, 0.15, 0.03), 0.02, False, "wider than the 2 cm opening in every direction", None),
-])
+@pytest.mark.parametrize(
+    "extents, opening, graspable, reason, narrowest",
+    [
+        ((0.06, 0.15, 0.03), 0.08, True, "", 0.06),  # 6 cm across fits the 8 cm opening
+        ((0.20, 0.15, 0.03), 0.08, False, "flat face", None),  # only the 3 cm height is narrow
+        ((0.06, 0.15, 0.03), 0.05, False, "flat face", None),  # the same box, a 5 cm gripper
+        ((0.10, 0.12, 0.20), 0.08, False, "wider than the 8 cm opening in every direction", None),
+        ((0.06, 0.15, 0.03), 0.02, False, "wider than the 2 cm opening in every direction", None),
+    ],
+)
 def test_verdict_of_boxes_follows_their_exact_widths(extents, opening, graspable, reason, narrowest):
     verdict = graspability(_box(extents), np.eye(4), opening)
     assert verdict.graspable is graspable
@@ -61,8 +65,12 @@ def test_planner_reports_an_ungraspable_target_with_its_reason():
     model = objects.library("builtin").get("002_master_chef_can")  # 10 cm across
     pose = np.array(model.resting_poses[0])
     pose[:2, 3] += [0.5, 0.0]
-    scene = scenes.Scene(robot_base=np.eye(4), table=scenes.default_table(scenes.SceneSettings()),
-                         objects=[scenes.SceneObject(model.name, model.source, pose)], target=model.name)
+    scene = scenes.Scene(
+        robot_base=np.eye(4),
+        table=scenes.default_table(scenes.SceneSettings()),
+        objects=[scenes.SceneObject(model.name, model.source, pose)],
+        target=model.name,
+    )
     result = OMGPlanner(None, scene, OMGSettings(grasp_kind="antipodal")).plan()
     assert result.status == PlanStatus.ungraspable and not result.planned
     assert result.reason == "ungraspable: wider than the 8 cm opening in every direction"
@@ -77,18 +85,39 @@ def test_scene_targets_are_graspable_when_any_object_is():
 
 
 def _record(target, method, status, planning=False, execution=False, graspable=True, **extra):
-    return {"target": target, "method": method, "status": status, "valid": True, "graspable": graspable,
-            "planned": status not in ("no_goals", "ungraspable"), "planning_success": planning,
-            "execution_success": execution, "execution_run": True, "smoothness": 1.0, "collision": 0.0,
-            "grasp_cost": 1.0, "plan_time": 0.01, "goal_set_time": 0.01, "goal_set_size": 3, **extra}
+    return {
+        "target": target,
+        "method": method,
+        "status": status,
+        "valid": True,
+        "graspable": graspable,
+        "planned": status not in ("no_goals", "ungraspable"),
+        "planning_success": planning,
+        "execution_success": execution,
+        "execution_run": True,
+        "smoothness": 1.0,
+        "collision": 0.0,
+        "grasp_cost": 1.0,
+        "plan_time": 0.01,
+        "goal_set_time": 0.01,
+        "goal_set_size": 3,
+        **extra,
+    }
 
 
 def test_sweep_summaries_count_ungraspable_apart_with_per_object_rows():
-    records = [_record("pen_00", "OMG", "success", True, True),
-               _record("pen_00", "OMG", "no_goals", goal_reasons={"support_penetration": 7, "unreachable": 2}),
-               _record("dish_00", "OMG", "success", True, False),
-               _record("flat_box_02", "OMG", "ungraspable", graspable=False,
-                       reason="ungraspable: wider than the 8 cm opening in every direction")]
+    records = [
+        _record("pen_00", "OMG", "success", True, True),
+        _record("pen_00", "OMG", "no_goals", goal_reasons={"support_penetration": 7, "unreachable": 2}),
+        _record("dish_00", "OMG", "success", True, False),
+        _record(
+            "flat_box_02",
+            "OMG",
+            "ungraspable",
+            graspable=False,
+            reason="ungraspable: wider than the 8 cm opening in every direction",
+        ),
+    ]
     summary = summarize(records, ["OMG"])["OMG"]
     assert summary["valid"] == 3 and summary["ungraspable"] == 1 and summary["no_goals"] == 1
     assert summary["planning"] == pytest.approx(2 / 3) and summary["execution"] == pytest.approx(1 / 3)
@@ -99,29 +128,43 @@ def test_sweep_summaries_count_ungraspable_apart_with_per_object_rows():
     assert rows["flat_box_02"]["OMG"]["graspable"] == 0 and rows["flat_box_02"]["OMG"]["ungraspable"] == 1
     text = object_markdown(rows, ["OMG"])
     assert "| pen_00 | 50% / 50% (2) | n/a | 0 / 0 / 0 / 0 | OMG 1 (support_penetration 7, unreachable 2) | 0 |" in text
-    assert "| flat_box_02 | - | n/a | 0 / 0 / 0 / 0 | 0 | 1 (ungraspable: wider than the 8 cm opening in every direction) |" \
+    assert (
+        "| flat_box_02 | - | n/a | 0 / 0 / 0 / 0 | 0 | 1 (ungraspable: wider than the 8 cm opening in every direction) |"
         in text
+    )
     csv_rows = object_rows(rows)
     assert {r["object"] for r in csv_rows} == {"pen_00", "dish_00", "flat_box_02"}
-    assert next(r for r in csv_rows if r["object"] == "pen_00")["no_goals_reasons"] == \
-        "support_penetration:7;unreachable:2"
+    assert (
+        next(r for r in csv_rows if r["object"] == "pen_00")["no_goals_reasons"]
+        == "support_penetration:7;unreachable:2"
+    )
 
 
 def test_slip_is_the_median_over_lifted_units_and_undefined_without_one():
     """Slip in the hand: the median over lifted units only (a dropped unit's slip does not count), a
     unit slipped beyond 1 cm or 10 degrees counted; with nothing lifted (e.g. not executed) it is None,
     so two summaries of the same records are equal and the table cell reads n/a."""
-    records = [_record("pen_00", "OMG", "success", True, True, slip=0.002, slip_rotation=1.0),
-               _record("pen_00", "OMG", "success", True, True, slip=0.004, slip_rotation=12.0),
-               _record("pen_00", "OMG", "success", True, True, slip=0.030, slip_rotation=2.0),
-               _record("pen_00", "OMG", "success", True, False, slip=0.5, slip_rotation=90.0,
-                       execution_status="dropped")]
+    records = [
+        _record("pen_00", "OMG", "success", True, True, slip=0.002, slip_rotation=1.0),
+        _record("pen_00", "OMG", "success", True, True, slip=0.004, slip_rotation=12.0),
+        _record("pen_00", "OMG", "success", True, True, slip=0.030, slip_rotation=2.0),
+        _record("pen_00", "OMG", "success", True, False, slip=0.5, slip_rotation=90.0, execution_status="dropped"),
+    ]
     row = summarize(records, ["OMG"])["OMG"]
     assert row["slip"] == pytest.approx(0.004) and row["slip_rotation"] == pytest.approx(2.0)
     assert row["slipped"] == 2 and row["dropped"] == 1
     assert slip_cell(row) == "4.0 / 2.0 (2)"
-    unexecuted = [{**r, "execution_success": False, "execution_run": False, "slip": None, "slip_rotation": None,
-                   "trajectory_duration": 2.0} for r in records]
+    unexecuted = [
+        {
+            **r,
+            "execution_success": False,
+            "execution_run": False,
+            "slip": None,
+            "slip_rotation": None,
+            "trajectory_duration": 2.0,
+        }
+        for r in records
+    ]
     first, second = summarize(unexecuted, ["OMG"]), summarize([dict(r) for r in unexecuted], ["OMG"])
     assert first["OMG"]["slip"] is None and first == second
     assert slip_cell(first["OMG"]) == "n/a"
@@ -134,8 +177,7 @@ def test_bench_takes_the_scene_settings():
 
     parser = argparse.ArgumentParser()
     add_bench_commands(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["bench", "planners", "--objects", "procedural", "--poses", "stable",
-                              "--clutter", "8-12"])
+    args = parser.parse_args(["bench", "planners", "--objects", "procedural", "--poses", "stable", "--clutter", "8-12"])
     s = settings_from_args(args)
     assert (s.objects, s.poses, s.clutter) == ("procedural", "stable", (8, 12))
     fp = sweep_fingerprint(s)
@@ -219,12 +261,21 @@ def test_a_graspable_target_without_candidates_is_counted_with_the_generators_re
     from pickplan.omg.world import World
 
     slab = objects.make_object("slab", trimesh.creation.box(extents=(0.20, 0.15, 0.03)), [], "test")
-    gs = antipodal_grasps(slab, 5, seed=0, settings=AntipodalSettings(max_rounds=2, samples_per_round=100),
-                          support=SupportFilter.under(slab.resting_poses[0]))
+    gs = antipodal_grasps(
+        slab,
+        5,
+        seed=0,
+        settings=AntipodalSettings(max_rounds=2, samples_per_round=100),
+        support=SupportFilter.under(slab.resting_poses[0]),
+    )
     assert len(gs) == 0 and gs.rejected["support"] > 0 and sum(gs.rejected.values()) >= 200
     model = objects.library("builtin").get("005_tomato_soup_can")
     pose = np.array(model.resting_poses[0])
     pose[:2, 3] += [0.5, 0.0]
-    scene = scenes.Scene(robot_base=np.eye(4), table=scenes.default_table(scenes.SceneSettings()),
-                         objects=[scenes.SceneObject(model.name, model.source, pose)], target=model.name)
+    scene = scenes.Scene(
+        robot_base=np.eye(4),
+        table=scenes.default_table(scenes.SceneSettings()),
+        objects=[scenes.SceneObject(model.name, model.source, pose)],
+        target=model.name,
+    )
     assert build_goal_set(World(scene), np.zeros((0, 4, 4))).reason_counts() == {"no_candidates": 1}

@@ -1,5 +1,6 @@
 """Grasp sets: convention (YCB files + PyBullet), antipodal / approach geometry, the physics-verified
 "simulated" set (determinism, cache, workers, lift and transport tests), hand contacts, bad input."""
+
 import os
 
 import numpy as np
@@ -124,6 +125,7 @@ def test_the_panda_pads_face_each_other_at_the_tips_and_move_with_the_fingers():
     # the pad points lie on the finger surfaces of the Panda model at its open configuration
     from pickplan.core.robots import panda
     import trimesh
+
     robot = panda()
     q = robot.ready_configuration
     T_hand = robot.link_pose(q, "panda_hand")

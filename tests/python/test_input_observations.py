@@ -2,6 +2,7 @@
 masks that are not boolean, intrinsics no camera has, NaN colours and a target pixel of the wrong
 length are InputErrors naming the file and the field (exit 2), never an internal error or a plan
 on garbage. Each case here was an internal error (exit 3), accepted, or named no file before."""
+
 import numpy as np
 import pytest
 
@@ -21,9 +22,15 @@ def fields():
     """The arrays of a valid one-view observation, as Observation.save writes them."""
     scene, _ = known_scene()
     obs = render_observation(scene, views=1, rig=RIG)
-    return {"depth": obs.depth, "K": obs.K, "camera_pose": obs.camera_pose,
-            "target_mask": obs.target_mask.astype(np.uint8), "rgb": obs.rgb,
-            "format": np.array("pickplan.observation"), "version": np.array(1)}
+    return {
+        "depth": obs.depth,
+        "K": obs.K,
+        "camera_pose": obs.camera_pose,
+        "target_mask": obs.target_mask.astype(np.uint8),
+        "rgb": obs.rgb,
+        "format": np.array("pickplan.observation"),
+        "version": np.array(1),
+    }
 
 
 def _write(tmp_path, arrays, name="obs.npz"):
@@ -84,23 +91,35 @@ def test_a_npy_renamed_npz_is_named(tmp_path, capsys):
     _refused(str(path), None, "a single .npy array, not an .npz archive", capsys)
 
 
-@pytest.mark.parametrize("change, field, words", [
-    (lambda f: _entry(f, "K", (0, 0, 0), 1e-300), "K", "fx = 1e-300 px gives a field of view"),  # an IndexError
-    (lambda f: _entry(f, "K", (0, 0, 1), 1e9), "K", "skew 1e+09 px"),                             # it planned
-    (lambda f: {"K": f["K"].astype(str)}, "K", "expected numbers, got an array of <U"),  # named no file
-    (lambda f: {"target_mask": np.full(f["depth"].shape, np.nan)}, "target_mask",
-     "expected booleans or 0/1 integers, got an array of float64"),     # was "everything is the target"
-    (lambda f: {"target_mask": 2 * f["target_mask"]}, "target_mask", "expected 0 or 1, got values 0..2"),
-    (lambda f: {"rgb": np.full(f["rgb"].shape, np.nan)}, "rgb", "expected colours in 0..255"),  # cast silently
-    (lambda f: {"version": np.array(2)}, "version", "reads observation version 1, got 2"),       # not checked
-    (lambda f: {"version": None}, "version", "missing"),
-    (lambda f: {"target_mask": None, "target_pixel": np.array([60, 80, 5])}, "target_pixel",
-     "one (row, col) pair per view: shape (1, 2), got (3,)"),           # "cannot reshape array of size 3"
-    (lambda f: {"target_mask": None, "target_pixel": np.array([[60.5, 80.0]])}, "target_pixel",
-     "expected numbers, got an array of float64"),
-    (lambda f: {"depth": np.full(f["depth"].shape, 1e30, np.float32)}, "depth", "more than a depth camera's"),
-    (lambda f: _entry(f, "camera_pose", (0, 2, 3), 1e6), "camera_pose", "m from the robot base"),
-])
+@pytest.mark.parametrize(
+    "change, field, words",
+    [
+        (lambda f: _entry(f, "K", (0, 0, 0), 1e-300), "K", "fx = 1e-300 px gives a field of view"),  # an IndexError
+        (lambda f: _entry(f, "K", (0, 0, 1), 1e9), "K", "skew 1e+09 px"),  # it planned
+        (lambda f: {"K": f["K"].astype(str)}, "K", "expected numbers, got an array of <U"),  # named no file
+        (
+            lambda f: {"target_mask": np.full(f["depth"].shape, np.nan)},
+            "target_mask",
+            "expected booleans or 0/1 integers, got an array of float64",
+        ),  # was "everything is the target"
+        (lambda f: {"target_mask": 2 * f["target_mask"]}, "target_mask", "expected 0 or 1, got values 0..2"),
+        (lambda f: {"rgb": np.full(f["rgb"].shape, np.nan)}, "rgb", "expected colours in 0..255"),  # cast silently
+        (lambda f: {"version": np.array(2)}, "version", "reads observation version 1, got 2"),  # not checked
+        (lambda f: {"version": None}, "version", "missing"),
+        (
+            lambda f: {"target_mask": None, "target_pixel": np.array([60, 80, 5])},
+            "target_pixel",
+            "one (row, col) pair per view: shape (1, 2), got (3,)",
+        ),  # "cannot reshape array of size 3"
+        (
+            lambda f: {"target_mask": None, "target_pixel": np.array([[60.5, 80.0]])},
+            "target_pixel",
+            "expected numbers, got an array of float64",
+        ),
+        (lambda f: {"depth": np.full(f["depth"].shape, 1e30, np.float32)}, "depth", "more than a depth camera's"),
+        (lambda f: _entry(f, "camera_pose", (0, 2, 3), 1e6), "camera_pose", "m from the robot base"),
+    ],
+)
 def test_bad_fields_are_named(fields, tmp_path, capsys, change, field, words):
     _refused(_write(tmp_path, _changed(fields, **change(fields))), field, words, capsys)
 
@@ -118,8 +137,9 @@ def test_no_table_in_view_names_the_observation(fields, tmp_path, capsys):
 
 
 def test_every_problem_of_an_observation_is_named_at_once(fields, tmp_path):
-    bad = _changed(fields, K=fields["K"] * 1e-300, target_mask=fields["target_mask"] * 3.0,
-                   rgb=np.full(fields["rgb"].shape, -1))
+    bad = _changed(
+        fields, K=fields["K"] * 1e-300, target_mask=fields["target_mask"] * 3.0, rgb=np.full(fields["rgb"].shape, -1)
+    )
     with pytest.raises(InputError) as err:
         Observation.load(_write(tmp_path, bad))
     assert [p.field for p in err.value.problems] == ["K", "target_mask", "rgb"], str(err.value)

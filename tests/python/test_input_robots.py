@@ -2,6 +2,7 @@
 description file and the field, `pickplan robots check` and every command that loads a robot
 (`load_robot`, `demo --robot`) agree on every file, and values outside a real robot's ranges are
 refused. Each case here was an internal error (exit 3) or accepted before."""
+
 import os
 import re
 
@@ -28,8 +29,13 @@ def _with_urdf(tmp_path, urdf_text, name="arm.urdf"):
     """The Panda's description naming a URDF of ``urdf_text`` (its meshes from pybullet_data)."""
     urdf = tmp_path / name
     urdf.write_text(urdf_text)
-    return _toml(tmp_path, PANDA_TEXT.replace('urdf = "pybullet_data:franka_panda/panda.urdf"',
-                                              f'urdf = "{urdf}"\npackage_dirs = ["pybullet_data:franka_panda"]'))
+    return _toml(
+        tmp_path,
+        PANDA_TEXT.replace(
+            'urdf = "pybullet_data:franka_panda/panda.urdf"',
+            f'urdf = "{urdf}"\npackage_dirs = ["pybullet_data:franka_panda"]',
+        ),
+    )
 
 
 def _panda_urdf(tmp_path, old, new, count=1):
@@ -52,14 +58,20 @@ def _refused(path, field, words):
 
 def test_a_urdf_that_is_malformed_xml_or_not_xml_is_named(tmp_path):
     """Was a ParseError (exit 3) in `robots check` and `demo --robot`."""
-    _refused(_with_urdf(tmp_path, '<?xml version="1.0"?>\n<robot name="x"><link name="a">'), "urdf",
-             "arm.urdf is not well-formed XML")
+    _refused(
+        _with_urdf(tmp_path, '<?xml version="1.0"?>\n<robot name="x"><link name="a">'),
+        "urdf",
+        "arm.urdf is not well-formed XML",
+    )
     _refused(_with_urdf(tmp_path, "\x00\x01binary \xff garbage"), "urdf", "arm.urdf is not well-formed XML")
     _refused(_with_urdf(tmp_path, '<?xml version="1.0"?>\n<html><body/></html>'), "urdf", "not a URDF: .*<html>")
     gripper = tmp_path / "gripper.urdf"  # a mounted gripper's URDF: was parsed as XML unchecked (ParseError)
     gripper.write_text('<robot name="g"><link name="palm"></robot>')
-    _refused(_toml(tmp_path, UR5_TEXT.replace('urdf = "assets:robots/robotiq_2f85.urdf"', f'urdf = "{gripper}"')),
-             "mount.urdf", "gripper.urdf is not well-formed XML")
+    _refused(
+        _toml(tmp_path, UR5_TEXT.replace('urdf = "assets:robots/robotiq_2f85.urdf"', f'urdf = "{gripper}"')),
+        "mount.urdf",
+        "gripper.urdf is not well-formed XML",
+    )
 
 
 def test_a_mesh_file_or_a_link_given_twice_is_named(tmp_path):
@@ -82,24 +94,31 @@ def test_arm_motor_forces_outside_a_real_joints_are_refused(tmp_path):
         _refused(path, "urdf", f"joint panda_joint1's effort limit '{effort}' is not within")
 
 
-@pytest.mark.parametrize("old, new, field, words", [
-    ("velocity = [2.175,", "velocity = [1e-300,", "limits.velocity[0]", r"1e-300 rad/s is outside \[0.01, 50.0\]"),
-    ("acceleration = [15.0,", "acceleration = [1e308,", "limits.acceleration[0]", "is outside"),
-    ("jerk = [7500.0,", "jerk = [1e308,", "limits.jerk[0]", "is outside"),
-    ("finger_acceleration = 1.0", "finger_acceleration = 1e308", "limits.finger_acceleration", "is outside"),
-    ("pad = { length = 0.018,", "pad = { length = -0.018,", "gripper.pad.length", r"-0.018 m is outside"),
-    ("width = 0.02,", "width = 0.0,", "gripper.pad.width", r"0.0 m is outside \[0.001, 0.2\]"),
-    ("friction = 1.0 }", "friction = -1.0 }", "gripper.pad.friction", "expected a positive number"),
-    ("force = 70.0", "force = 0.0", "gripper.force", "expected a positive number"),
-    ("force = 70.0", "force = 1e9", "gripper.force", "is outside"),
-    ("speed = 0.1 ", "speed = -0.1 ", "gripper.speed", "expected a positive number"),
-    ("max_opening = 0.08", "max_opening = 1e9", "gripper.max_opening", "is outside"),
-    ("body_points_per_link = 20", "body_points_per_link = 1000000000", "body_points_per_link",
-     r"expected an integer in \[1, 1000\]"),
-    ("start = [0.0, -1.285", "start = [1e308, -1.285", "start[0]", "is outside"),
-    ("xyz = [0.0, 0.0, 0.1034]", "xyz = [0.0, 0.0, 1e300]", "gripper.grasp_frame.xyz[2]", "is outside"),
-    ("max_opening = 0.08", "max_opening = \"wide\"", "gripper.max_opening", "expected a number, got str 'wide'"),
-])
+@pytest.mark.parametrize(
+    "old, new, field, words",
+    [
+        ("velocity = [2.175,", "velocity = [1e-300,", "limits.velocity[0]", r"1e-300 rad/s is outside \[0.01, 50.0\]"),
+        ("acceleration = [15.0,", "acceleration = [1e308,", "limits.acceleration[0]", "is outside"),
+        ("jerk = [7500.0,", "jerk = [1e308,", "limits.jerk[0]", "is outside"),
+        ("finger_acceleration = 1.0", "finger_acceleration = 1e308", "limits.finger_acceleration", "is outside"),
+        ("pad = { length = 0.018,", "pad = { length = -0.018,", "gripper.pad.length", r"-0.018 m is outside"),
+        ("width = 0.02,", "width = 0.0,", "gripper.pad.width", r"0.0 m is outside \[0.001, 0.2\]"),
+        ("friction = 1.0 }", "friction = -1.0 }", "gripper.pad.friction", "expected a positive number"),
+        ("force = 70.0", "force = 0.0", "gripper.force", "expected a positive number"),
+        ("force = 70.0", "force = 1e9", "gripper.force", "is outside"),
+        ("speed = 0.1 ", "speed = -0.1 ", "gripper.speed", "expected a positive number"),
+        ("max_opening = 0.08", "max_opening = 1e9", "gripper.max_opening", "is outside"),
+        (
+            "body_points_per_link = 20",
+            "body_points_per_link = 1000000000",
+            "body_points_per_link",
+            r"expected an integer in \[1, 1000\]",
+        ),
+        ("start = [0.0, -1.285", "start = [1e308, -1.285", "start[0]", "is outside"),
+        ("xyz = [0.0, 0.0, 0.1034]", "xyz = [0.0, 0.0, 1e300]", "gripper.grasp_frame.xyz[2]", "is outside"),
+        ("max_opening = 0.08", 'max_opening = "wide"', "gripper.max_opening", "expected a number, got str 'wide'"),
+    ],
+)
 def test_values_outside_a_real_robots_ranges_are_refused(tmp_path, old, new, field, words):
     """A velocity limit of 1e-300 passed `robots check` and overflowed toppra; 1e308 accelerations,
     a negative pad, a zero pad width and 10^9 body points per link (a field the planner never
@@ -109,15 +128,25 @@ def test_values_outside_a_real_robots_ranges_are_refused(tmp_path, old, new, fie
 
 
 def test_a_description_without_pads_is_refused(tmp_path):
-    _refused(_toml(tmp_path, PANDA_TEXT.replace("pad = { length = 0.018, width = 0.02, friction = 1.0 }", "")), "gripper.pad",
-             "missing")
+    _refused(
+        _toml(tmp_path, PANDA_TEXT.replace("pad = { length = 0.018, width = 0.02, friction = 1.0 }", "")),
+        "gripper.pad",
+        "missing",
+    )
 
 
-@pytest.mark.parametrize("old, new, field", [
-    ('["panda_hand", "panda_rightfinger"]', '["panda_hand", "no_such_link"]', "skip_collision"),
-    ('hand_link = "panda_hand"', 'hand_link = "panda_palm"', "gripper.hand_link"),
-    ('{ name = "panda_finger_joint2", open = 0.04', '{ name = "panda_finger_joint2", open = 0.03', "gripper.finger_joints"),
-])
+@pytest.mark.parametrize(
+    "old, new, field",
+    [
+        ('["panda_hand", "panda_rightfinger"]', '["panda_hand", "no_such_link"]', "skip_collision"),
+        ('hand_link = "panda_hand"', 'hand_link = "panda_palm"', "gripper.hand_link"),
+        (
+            '{ name = "panda_finger_joint2", open = 0.04',
+            '{ name = "panda_finger_joint2", open = 0.03',
+            "gripper.finger_joints",
+        ),
+    ],
+)
 def test_robots_check_and_demo_agree_by_construction(tmp_path, capsys, old, new, field):
     """`robots check` named links that do not exist while `demo --robot` planned with the file (and
     finger joints of two open values the other way round)."""
@@ -154,8 +183,11 @@ def test_the_planner_reads_the_descriptions_body_point_density(tmp_path):
 
 
 def test_every_problem_of_a_file_is_named_at_once(tmp_path):
-    text = (PANDA_TEXT.replace("max_opening = 0.08", "max_opening = -1.0")
-            .replace("velocity = [2.175,", "velocity = [0.0,").replace('hand_link = "panda_hand"', 'hand_link = "x"'))
+    text = (
+        PANDA_TEXT.replace("max_opening = 0.08", "max_opening = -1.0")
+        .replace("velocity = [2.175,", "velocity = [0.0,")
+        .replace('hand_link = "panda_hand"', 'hand_link = "x"')
+    )
     problems = _refused(_toml(tmp_path, text), "gripper.max_opening", "is outside")
     fields = {p.field for p in problems}
     assert {"gripper.max_opening", "limits.velocity[0]", "gripper.hand_link"} <= fields, fields

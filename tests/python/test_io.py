@@ -1,4 +1,5 @@
 """The one atomic writer (pickplan.core.io): complete files or none, readable results, the folder made."""
+
 import json
 import os
 

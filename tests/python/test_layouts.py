@@ -1,5 +1,6 @@
 """Scene families beyond the tabletop (sim.layouts): objects stand exactly on their boards, inside the
 furniture, named once (picks from them, planned and executed: test_shelf_picks.py)."""
+
 import numpy as np
 import pytest
 
@@ -30,8 +31,9 @@ def test_objects_stand_on_their_board_inside_the_furniture(kind, lib, layouts):
     scene = layouts[kind]
     names = [o.name for o in scene.objects]
     assert len(names) == len(set(names)) >= 2 and scene.target in names and scene.obstacles
-    supports = [(np.asarray(scene.table.pose), np.asarray(scene.table.size))] + \
-        [(np.asarray(o.pose), np.asarray(o.shape.size)) for o in scene.obstacles if o.support]
+    supports = [(np.asarray(scene.table.pose), np.asarray(scene.table.size))] + [
+        (np.asarray(o.pose), np.asarray(o.shape.size)) for o in scene.obstacles if o.support
+    ]
     tops = [board_top(T, s) for T, s in supports]
     for o in scene.objects:
         V = np.asarray(lib.get(o.name).mesh.vertices) @ o.pose[:3, :3].T + o.pose[:3, 3]
@@ -46,5 +48,6 @@ def test_objects_stand_on_their_board_inside_the_furniture(kind, lib, layouts):
             p = (V - ob.pose[:3, 3]) @ ob.pose[:3, :3]
             inside = np.all(np.abs(p) < 0.5 * np.asarray(ob.shape.size) - 1e-6, axis=1)
             assert not inside.any(), (o.name, ob.name)
-    assert generate_layout(kind, seed=SEEDS[kind], library=lib).objects[0].pose.tolist() == \
-        scene.objects[0].pose.tolist()
+    assert (
+        generate_layout(kind, seed=SEEDS[kind], library=lib).objects[0].pose.tolist() == scene.objects[0].pose.tolist()
+    )

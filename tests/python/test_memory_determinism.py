@@ -1,5 +1,6 @@
 """Memory and determinism (issue 26): 300 plans in one process keep resident memory flat, and the
 same seed gives the bit-identical plan in another process and in threads planning in parallel."""
+
 import json
 import subprocess
 import sys
@@ -24,7 +25,9 @@ def plan_digest(world, seed=0):
     return hashlib.sha256(np.ascontiguousarray(r.trajectory).tobytes()).hexdigest() + "/" + r.status
 """
 
-MEMORY_SCRIPT = PLAN_SETUP + """
+MEMORY_SCRIPT = (
+    PLAN_SETUP
+    + """
 def rss_mb():
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
@@ -37,8 +40,11 @@ for i in range(300):
         samples.append(rss_mb())
 print(json.dumps(samples))
 """
+)
 
-DETERMINISM_SCRIPT = PLAN_SETUP + """
+DETERMINISM_SCRIPT = (
+    PLAN_SETUP
+    + """
 serial = [plan_digest(World(scene), seed) for seed in (0, 1)]
 threaded = {}
 def worker(k):
@@ -48,11 +54,13 @@ threads = [threading.Thread(target=worker, args=(k,)) for k in range(4)]
 [t.join() for t in threads]
 print(json.dumps({"serial": serial, "threaded": [threaded[k] for k in range(4)]}))
 """
+)
 
 
 def _run(script: str, timeout: float = 600) -> str:
-    run = subprocess.run([sys.executable, "-c", textwrap.dedent(script)], capture_output=True, text=True,
-                         timeout=timeout)
+    run = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(script)], capture_output=True, text=True, timeout=timeout
+    )
     assert run.returncode == 0, run.stderr[-3000:]
     return run.stdout.strip().splitlines()[-1]
 

@@ -1,6 +1,7 @@
 """Motion planning among obstacles (omg.motion) and the independent trajectory checker
 (eval.trajectory_check): a board between two free waypoints is caught; RRT-Connect + CHOMP reaches
 into a shelf where the straight line cannot, and the checker accepts what it returns."""
+
 import numpy as np
 import pytest
 
@@ -57,11 +58,13 @@ def test_checker_catches_a_thin_board_between_free_waypoints(arm, cache):
 
 def shelf():
     """A shelf 0.6 m in front of the robot, open towards it: boards at z 0.2 and 0.7, two sides, a back."""
-    return [Obstacle("bottom", Shape.box(0.4, 0.8, 0.02), at(0.75, 0.0, 0.2), support=True),
-            Obstacle("top", Shape.box(0.4, 0.8, 0.02), at(0.75, 0.0, 0.7)),
-            Obstacle("left", Shape.box(0.4, 0.02, 0.52), at(0.75, 0.41, 0.45)),
-            Obstacle("right", Shape.box(0.4, 0.02, 0.52), at(0.75, -0.41, 0.45)),
-            Obstacle("back", Shape.box(0.02, 0.8, 0.52), at(0.96, 0.0, 0.45))]
+    return [
+        Obstacle("bottom", Shape.box(0.4, 0.8, 0.02), at(0.75, 0.0, 0.2), support=True),
+        Obstacle("top", Shape.box(0.4, 0.8, 0.02), at(0.75, 0.0, 0.7)),
+        Obstacle("left", Shape.box(0.4, 0.02, 0.52), at(0.75, 0.41, 0.45)),
+        Obstacle("right", Shape.box(0.4, 0.02, 0.52), at(0.75, -0.41, 0.45)),
+        Obstacle("back", Shape.box(0.02, 0.8, 0.52), at(0.96, 0.0, 0.45)),
+    ]
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,6 @@
 """MoveIt's scene files into pickplan's scene model: PlanningScene YAML and the .scene text, against
 hand-computed geometry; malformed files named with their field; MotionBenchMaker's files as they are."""
+
 import os
 
 import numpy as np
@@ -145,19 +146,30 @@ def test_scene_text_in_both_formats(tmp_path):
     np.testing.assert_allclose(crate.pose[:3, 3], [1, 2, 3])
 
 
-@pytest.mark.parametrize("text, field", [
-    (YAML.replace("dimensions: [1.2, 0.4, 0.02]", "dimensions: [1.2, 0.4]"),
-     "world.collision_objects[0].primitives[0].dimensions"),
-    (YAML.replace("dimensions: [0.14, 0.03]", "dimensions: [0.14, -0.03]"),
-     "world.collision_objects[1].primitives[0].dimensions"),
-    (YAML.replace("type: box", "type: cone"), "world.collision_objects[0].primitives[0].type"),
-    (YAML.replace("orientation: {x: 0, y: 0, z: 0, w: 1}", "orientation: {x: 0, y: 0, z: 0, w: 3}"),
-     "world.collision_objects[1].primitive_poses[0].orientation"),
-    (YAML.replace("position: [0.0, 0.0, 0.2]", "position: [0.0, zero, 0.2]"),
-     "world.collision_objects[1].primitive_poses[1].position[1]"),
-    (YAML.replace("    - id: can\n", "    - name: can\n"), "world.collision_objects[1].id"),
-    (YAML.replace("    - [false, false, false]\n", ""), "allowed_collision_matrix.entry_values"),
-])
+@pytest.mark.parametrize(
+    "text, field",
+    [
+        (
+            YAML.replace("dimensions: [1.2, 0.4, 0.02]", "dimensions: [1.2, 0.4]"),
+            "world.collision_objects[0].primitives[0].dimensions",
+        ),
+        (
+            YAML.replace("dimensions: [0.14, 0.03]", "dimensions: [0.14, -0.03]"),
+            "world.collision_objects[1].primitives[0].dimensions",
+        ),
+        (YAML.replace("type: box", "type: cone"), "world.collision_objects[0].primitives[0].type"),
+        (
+            YAML.replace("orientation: {x: 0, y: 0, z: 0, w: 1}", "orientation: {x: 0, y: 0, z: 0, w: 3}"),
+            "world.collision_objects[1].primitive_poses[0].orientation",
+        ),
+        (
+            YAML.replace("position: [0.0, 0.0, 0.2]", "position: [0.0, zero, 0.2]"),
+            "world.collision_objects[1].primitive_poses[1].position[1]",
+        ),
+        (YAML.replace("    - id: can\n", "    - name: can\n"), "world.collision_objects[1].id"),
+        (YAML.replace("    - [false, false, false]\n", ""), "allowed_collision_matrix.entry_values"),
+    ],
+)
 def test_malformed_yaml_names_file_and_field(tmp_path, text, field):
     path = tmp_path / "bad.yaml"
     path.write_text(text)
@@ -212,8 +224,15 @@ def test_bench_mbm_plans_and_checks_two_problems(tmp_path):
     from pickplan.eval.mbm import MbmSettings, read_problems, run_mbm
 
     archive = os.path.join(mbm_dir_or_skip(), "problems_panda.tar.bz2")
-    settings = MbmSettings(problems=archive, sets=("box_panda",), planners=("pickplan", "ompl"), limit=3,
-                           out=str(tmp_path), progress=False, time_limit=5.0)
+    settings = MbmSettings(
+        problems=archive,
+        sets=("box_panda",),
+        planners=("pickplan", "ompl"),
+        limit=3,
+        out=str(tmp_path),
+        progress=False,
+        time_limit=5.0,
+    )
     rows = run_mbm(settings)
     assert [(r["problem"], r["planner"]) for r in rows] == [(1, "pickplan"), (1, "ompl"), (2, "pickplan"), (2, "ompl")]
     assert all(r["solved"] for r in rows)
@@ -224,8 +243,9 @@ def test_bench_mbm_plans_and_checks_two_problems(tmp_path):
     problems = {p.index: p for p in read_problems(archive, ("box_panda",), limit=3)}
     for r in rows:
         goal = problems[r["problem"]].request.goal
-        assert r["path_length"] >= 0.999 * np.linalg.norm([goal[j] - problems[r["problem"]].request.start[j]
-                                                          for j in goal])  # no shorter than the straight line
+        assert r["path_length"] >= 0.999 * np.linalg.norm(
+            [goal[j] - problems[r["problem"]].request.start[j] for j in goal]
+        )  # no shorter than the straight line
     text = (tmp_path / "runs.csv").read_text().splitlines()
     assert len(text) == 5 and text[0].startswith("set,problem,planner,solved,valid,success")
     assert "| box_panda | pickplan | 100.0 % (2/2)" in (tmp_path / "summary.md").read_text()

@@ -1,6 +1,7 @@
 """Moving targets (issue 36): the motion estimated from noisy observations, goals indexed by time against
 the PyBullet conveyor, a timing that starts in motion, the closed loop lifting a target on a belt, and
 clear errors for bad input."""
+
 import numpy as np
 import pytest
 
@@ -29,7 +30,7 @@ def test_the_estimator_fits_the_velocity_and_restarts_after_a_nudge():
     p[:3, 3] = [0.5, 0.1, 0.02] + v * 0.6 + [0.0, 0.04, 0.0]  # nudged 4 cm
     motion = est.observe(0.65, p)
     assert est.jumps == 1
-    np.testing.assert_allclose(motion.pose[:3, 3], p[:3, 3])   # where it is now, not a blend with before
+    np.testing.assert_allclose(motion.pose[:3, 3], p[:3, 3])  # where it is now, not a blend with before
     np.testing.assert_allclose(motion.velocity, v, atol=1e-9)  # the belt's velocity kept until refitted
 
 

@@ -1,6 +1,7 @@
 """The native bindings return result classes, not dicts (issue 32): each call on a small real input,
 its result's type and a few of its fields against an independent computation, and the generic
 to_dict / == / repr every result class shares."""
+
 import json
 import pathlib
 import re
@@ -40,8 +41,9 @@ def table_chomp(panda):
 def test_no_binding_builds_a_dict():
     """Results cross as classes: the dicts left are Robot.mimic (joint name -> its source, a lookup by
     name) and the generic to_dict (results.hpp)."""
-    found = {str(p.relative_to(BINDINGS)): len(re.findall(r"py::dict\b", p.read_text()))
-             for p in BINDINGS.rglob("*.[ch]pp")}
+    found = {
+        str(p.relative_to(BINDINGS)): len(re.findall(r"py::dict\b", p.read_text())) for p in BINDINGS.rglob("*.[ch]pp")
+    }
     assert {k: n for k, n in found.items() if n} == {"core/robot.cpp": 1, "results.hpp": 2}  # and to_dict
 
 
@@ -87,8 +89,11 @@ def test_to_dict_equality_and_repr_are_generic(table_chomp):
     xi = c.initial_trajectory(Q_LEFT, Q_RIGHT)
     m, again = c.metrics(xi, Q_LEFT), c.metrics(xi, Q_LEFT)
     d = m.to_dict()
-    assert list(d) == list(type(m)._fields) == ["smoothness", "collision", "min_clearance", "min_table_clearance",
-                                                "collision_free", "success"]
+    assert (
+        list(d)
+        == list(type(m)._fields)
+        == ["smoothness", "collision", "min_clearance", "min_table_clearance", "collision_free", "success"]
+    )
     assert d["smoothness"] == m.smoothness and json.loads(json.dumps(d)) == d
     assert m == again and m != c.metrics(xi[::-1].copy(), Q_LEFT) and m != d
     assert repr(m).startswith("TrajectoryMetrics(smoothness=")

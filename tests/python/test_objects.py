@@ -1,4 +1,5 @@
 """pickplan.core.objects: built-in shapes, mass properties, resting poses, the YCB-layout loader, errors."""
+
 import os
 
 import numpy as np
@@ -10,9 +11,18 @@ from pickplan.core import objects
 from pickplan.core import objects_builtin
 from conftest import ycb_dir_or_skip
 
-YCB_TEN = ["002_master_chef_can", "003_cracker_box", "004_sugar_box", "005_tomato_soup_can",
-           "006_mustard_bottle", "010_potted_meat_can", "019_pitcher_base", "021_bleach_cleanser",
-           "024_bowl", "025_mug"]
+YCB_TEN = [
+    "002_master_chef_can",
+    "003_cracker_box",
+    "004_sugar_box",
+    "005_tomato_soup_can",
+    "006_mustard_bottle",
+    "010_potted_meat_can",
+    "019_pitcher_base",
+    "021_bleach_cleanser",
+    "024_bowl",
+    "025_mug",
+]
 
 
 @pytest.fixture(scope="module")
@@ -203,8 +213,9 @@ def test_loader_errors_are_clear(tmp_path):
     _write_object_folder(tmp_path / "flat", flat)
     with pytest.raises(ValueError, match="degenerate"):
         objects.load_ycb_object(tmp_path / "flat")
-    _write_object_folder(tmp_path / "badgrasps", trimesh.creation.box(extents=[0.05] * 3),
-                         grasps={"x": np.zeros((3, 3))})
+    _write_object_folder(
+        tmp_path / "badgrasps", trimesh.creation.box(extents=[0.05] * 3), grasps={"x": np.zeros((3, 3))}
+    )
     with pytest.raises(ValueError, match=r"\(N, 4, 4\)"):
         objects.load_ycb_object(tmp_path / "badgrasps")
     with pytest.raises(FileNotFoundError, match="nowhere"):
@@ -225,8 +236,10 @@ def test_non_watertight_mesh_works_with_a_warning(tmp_path):
 
 def test_obj_parts_reader_splits_objects_and_rejects_bad_lines(tmp_path):
     p = tmp_path / "two.obj"
-    p.write_text("o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n"
-                 "o b\nv 2 0 0\nv 3 0 0\nv 2 1 0\nv 2 0 1\nf -4 -3 -2\nf 5 7 8\nf 5 8 6\nf 6 8 7\n")
+    p.write_text(
+        "o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n"
+        "o b\nv 2 0 0\nv 3 0 0\nv 2 1 0\nv 2 0 1\nf -4 -3 -2\nf 5 7 8\nf 5 8 6\nf 6 8 7\n"
+    )
     parts = objects.read_obj_parts(str(p))
     assert len(parts) == 2 and all(len(q.faces) == 4 for q in parts)
     assert parts[1].vertices[:, 0].min() == 2.0
@@ -241,7 +254,9 @@ def test_real_ycb_objects_load(tmp_path):
     assert set(YCB_TEN) <= set(lib.names)
     m = lib.get("006_mustard_bottle")
     assert m.mesh.is_watertight and len(m.mesh.faces) == 15728
-    n_parts = sum(1 for line in open(os.path.join(root, "006_mustard_bottle", "collision.obj")) if line.startswith("o "))
+    n_parts = sum(
+        1 for line in open(os.path.join(root, "006_mustard_bottle", "collision.obj")) if line.startswith("o ")
+    )
     assert len(m.collision_parts) == n_parts >= 2
     assert m.grasps["simulated"].shape == (100, 4, 4) and "graspit" in m.grasps
     assert m.mass == pytest.approx(0.603)
@@ -251,5 +266,6 @@ def test_real_ycb_objects_load(tmp_path):
     assert abs(T[2, 2]) > 0.95
     assert "simulated" not in lib.get("002_master_chef_can").grasps
     # the built-in stand-in has the real object's size (within 12 % per axis, upright)
-    np.testing.assert_allclose(np.sort(objects.library("builtin").get("006_mustard_bottle").extents),
-                               np.sort(m.extents), rtol=0.12)
+    np.testing.assert_allclose(
+        np.sort(objects.library("builtin").get("006_mustard_bottle").extents), np.sort(m.extents), rtol=0.12
+    )

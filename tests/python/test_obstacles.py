@@ -1,5 +1,6 @@
 """Obstacles of any shape at any pose in the world model: the scene file, the SDF (closed forms), the
 FCL checkers, the success test, PyBullet execution and the 3D view all take them."""
+
 import numpy as np
 import pytest
 
@@ -22,8 +23,9 @@ def pose(x, y, z, yaw=0.0):
 def scene_with(obstacles):
     far = pose(0.9, 0.6, 0.05)
     obj = scenes.SceneObject("box", "builtin:003_cracker_box", far)
-    return scenes.Scene(robot_base=np.eye(4), table=scenes.default_table(), objects=[obj], target="box",
-                        obstacles=obstacles)
+    return scenes.Scene(
+        robot_base=np.eye(4), table=scenes.default_table(), objects=[obj], target="box", obstacles=obstacles
+    )
 
 
 WALL = Obstacle("wall", Shape.box(0.5, 0.02, 0.5), pose(0.5, 0.0, 0.25, yaw=0.3))
@@ -34,8 +36,9 @@ BALL = Obstacle("ball", Shape.sphere(0.05), pose(0.4, 0.35, 0.6))
 def test_scene_file_round_trip_and_malformed_obstacles():
     scene = scene_with([WALL, POST, BALL])
     again = scenes.Scene.from_json(scene.to_json())
-    assert [(o.name, o.shape, o.support) for o in again.obstacles] == [(o.name, o.shape, o.support)
-                                                                       for o in scene.obstacles]
+    assert [(o.name, o.shape, o.support) for o in again.obstacles] == [
+        (o.name, o.shape, o.support) for o in scene.obstacles
+    ]
     for o, p in zip(again.obstacles, scene.obstacles):
         np.testing.assert_array_equal(o.pose, p.pose)
     d = scene.to_dict()

@@ -1,4 +1,5 @@
 """The OMG planner end to end, and C-Space ISF, checked against independent truth."""
+
 import warnings
 from dataclasses import replace
 
@@ -90,8 +91,11 @@ def test_bad_start_raises(scene):
     q = planner.world().start.copy()
     q[3] = robot.upper_limits[3] + 0.5
     lo, hi = robot.lower_limits[3], robot.upper_limits[3]
-    with pytest.raises(ValueError, match=rf"start: joint panda_joint4 = {q[3]:.4f} is outside its limits "
-                                         rf"\[{lo:.4f}, {hi:.4f}\]"):
+    with pytest.raises(
+        ValueError,
+        match=rf"start: joint panda_joint4 = {q[3]:.4f} is outside its limits "
+        rf"\[{lo:.4f}, {hi:.4f}\]",
+    ):
         planner.plan(start=q)
 
 
@@ -109,8 +113,8 @@ def test_isf_decreases_f_grasp_on_ycb_simulated_grasps(tmp_path):
     refiner = isf.GraspRefiner(w)
     before = np.array([refiner.cost(g)[0].total for g in gs.goals])
     after = np.array([refiner.refine(g, 10)[1].total for g in gs.goals])
-    assert np.all(after <= before)          # a step is only taken when f_grasp decreases
-    assert after.mean() < before.mean()     # and on these grasps it does decrease
+    assert np.all(after <= before)  # a step is only taken when f_grasp decreases
+    assert after.mean() < before.mean()  # and on these grasps it does decrease
 
 
 def test_isf_pushes_a_penetrating_hand_out(scene):

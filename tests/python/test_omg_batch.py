@@ -1,4 +1,5 @@
 """plan_many (issue 24): plans on parallel threads equal the same plans made one by one."""
+
 import numpy as np
 import pytest
 

@@ -7,6 +7,7 @@ comparison runs with it off (``transit_avoids_target=False``), as the planner wa
 issue 33's grasp quality, which drops the goals of grasps that slip (``GoalSetSettings(quality=None)``).
 Session 20's one pad derivation for every gripper moved the trajectories (ISF), not one decision: the
 reference's trajectories were replanned then (``make_omg_reference.py --rebase``)."""
+
 import json
 import os
 
@@ -34,16 +35,21 @@ def check_same(ref, prefix, result):
     np.testing.assert_array_equal(result.goal_set, ref[prefix + "goal_set"])
     np.testing.assert_array_equal(np.asarray(result.history["goal"]), ref[prefix + "goals_chosen"])
     grasp, source, iterations, refined = ref[prefix + "scalars"]
-    assert (result.grasp_index, result.goal_source, result.iterations, int(result.refined)) == \
-        (grasp, source, iterations, refined)
+    assert (result.grasp_index, result.goal_source, result.iterations, int(result.refined)) == (
+        grasp,
+        source,
+        iterations,
+        refined,
+    )
     np.testing.assert_allclose(result.trajectory, ref[prefix + "trajectory"], rtol=0, atol=1e-9)
 
 
 def plan_case(reference, p, pre_terminate, cache):
     """The stored scene and grasps planned as the reference was: the settings of its day."""
     scene = Scene.from_dict(json.loads(str(reference[p + "scene"])))
-    settings = omg.OMGSettings(pre_terminate=pre_terminate, transit_avoids_target=False,
-                               goals=GoalSetSettings(quality=None))
+    settings = omg.OMGSettings(
+        pre_terminate=pre_terminate, transit_avoids_target=False, goals=GoalSetSettings(quality=None)
+    )
     world = World(scene, settings.world, cache=cache)
     return omg.OMGPlanner(None, scene, settings, world=world).plan(grasps=reference[p + "grasps"])
 

@@ -3,6 +3,7 @@ policies against omg.selection's (the research reference) on random inputs, and 
 native loop against the Python loop (the oracle in omg_reference_loop.py): same goals chosen at
 every iteration, same grasp and goal, trajectories equal to 1e-9, on several scenes, every policy,
 with and without ISF and pre-termination."""
+
 import json
 import os
 import threading
@@ -95,10 +96,17 @@ def _plan(scene, world, grasps, settings, planner=omg.OMGPlanner):
 def _check_same(python, native):
     assert native.status == python.status
     assert native.history["goal"] == python.history["goal"]  # the same goal chosen at every iteration
-    assert (native.grasp_index, native.goal_source, native.refined, native.iterations, native.goal_set_size) == \
-        (python.grasp_index, python.goal_source, python.refined, python.iterations, python.goal_set_size)
-    assert (native.history["switches"], native.history["initial_grasp"]) == \
-        (python.history["switches"], python.history["initial_grasp"])
+    assert (native.grasp_index, native.goal_source, native.refined, native.iterations, native.goal_set_size) == (
+        python.grasp_index,
+        python.goal_source,
+        python.refined,
+        python.iterations,
+        python.goal_set_size,
+    )
+    assert (native.history["switches"], native.history["initial_grasp"]) == (
+        python.history["switches"],
+        python.history["initial_grasp"],
+    )
     np.testing.assert_allclose(native.trajectory, python.trajectory, rtol=0, atol=1e-9)
     np.testing.assert_allclose(native.history["objective"], python.history["objective"], rtol=1e-12)
     for cn, cp in zip(native.history["costs"], python.history["costs"]):

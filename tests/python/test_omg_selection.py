@@ -18,6 +18,7 @@ goals' fall, the online policies switch, and the CHOMP-Proj step carries the who
 smoothly to the new goal (eq. 7's offset term; the planner used to overwrite the tail instead,
 which left a jump and ended "not smooth").
 """
+
 import math
 import warnings
 from dataclasses import replace
@@ -42,8 +43,11 @@ def _pose(x, y, z, yaw, flip=None):
     the world's horizontal)."""
     c, s = math.cos(yaw), math.sin(yaw)
     Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    F = {None: np.eye(3), "z": np.diag([1.0, -1.0, -1.0]),
-         "x": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])}[flip]
+    F = {
+        None: np.eye(3),
+        "z": np.diag([1.0, -1.0, -1.0]),
+        "x": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
+    }[flip]
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = Rz @ F, (x, y, z)
     return T
@@ -72,8 +76,9 @@ MEAT = {
 
 def _setup(objects):
     objs = [scenes.SceneObject(name, "builtin:" + name, _pose(*p)) for name, p in objects.items()]
-    scene = scenes.Scene(np.eye(4), scenes.default_table(scenes.SceneSettings()), objs, next(iter(objects)),
-                         None, list(PANDA.ready))
+    scene = scenes.Scene(
+        np.eye(4), scenes.default_table(scenes.SceneSettings()), objs, next(iter(objects)), None, list(PANDA.ready)
+    )
     world = World(scene)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -91,8 +96,38 @@ def bowl():
 
 
 # The 30 antipodal grasps (of 100, seed 0) that make MEAT's goal set: all reachable, none capped.
-MEAT_GRASPS = [1, 4, 7, 8, 13, 18, 20, 23, 26, 35, 43, 47, 48, 49, 53, 56, 58, 60, 66, 69, 71, 73, 75, 81, 83, 88,
-               90, 91, 95, 99]
+MEAT_GRASPS = [
+    1,
+    4,
+    7,
+    8,
+    13,
+    18,
+    20,
+    23,
+    26,
+    35,
+    43,
+    47,
+    48,
+    49,
+    53,
+    56,
+    58,
+    60,
+    66,
+    69,
+    71,
+    73,
+    75,
+    81,
+    83,
+    88,
+    90,
+    91,
+    95,
+    99,
+]
 
 
 @pytest.fixture(scope="module")
@@ -166,8 +201,7 @@ def test_reported_metrics_are_those_of_the_returned_trajectory(meat, meat_runs, 
     scene, world, poses = meat
     r = meat_runs["MD"] if not refine else _plan(scene, world, poses, selection="MD", refine=True)
     m = SETTINGS.goals.standoff_steps + 1
-    chomp = Chomp(world.robot, world.sdf, world.body, replace(SETTINGS.chomp, obstacle_tail=m),
-                  exclude=(scene.target,))
+    chomp = Chomp(world.robot, world.sdf, world.body, replace(SETTINGS.chomp, obstacle_tail=m), exclude=(scene.target,))
     again = chomp.metrics(r.trajectory[1:], r.trajectory[0], replace(SETTINGS.metrics, tail_waypoints=m))
     for key in ("success", "smoothness", "min_clearance", "collision"):
         assert getattr(again, key) == pytest.approx(getattr(r.metrics, key), rel=1e-12, abs=1e-12), key

@@ -1,6 +1,7 @@
 """The OMG planner on a depth observation (issue 22): plans from a perceived world lift the true object in
 PyBullet and keep clear of the true meshes, nothing reads an object mesh or a stored grasp, ISF refines on
 points, bad input is refused, and `pickplan plan --observation` / `bench perception` run."""
+
 import importlib
 import json
 import os
@@ -46,10 +47,18 @@ def test_a_plan_from_an_observation_reads_no_mesh_and_lifts_the_true_object(obse
     scene, path, _ = observed
     # Everything that could give the planner an object: models, meshes, stored grasps, mesh worlds.
     monkeypatch.setenv("PICKPLAN_YCB_DIR", str(tmp_path))  # an empty object folder
-    for module, name in ((objects, "model_from_source"), (objects, "library"), (objects, "builtin_object"),
-                         (objects, "procedural_object"), (objects, "load_ycb_object"), (objects, "read_obj_parts"),
-                         (objects, "read_grasp_array"), (grasp_sets, "load_grasp_set"), (World, "__init__"),
-                         (isf, "object_surface")):
+    for module, name in (
+        (objects, "model_from_source"),
+        (objects, "library"),
+        (objects, "builtin_object"),
+        (objects, "procedural_object"),
+        (objects, "load_ycb_object"),
+        (objects, "read_obj_parts"),
+        (objects, "read_grasp_array"),
+        (grasp_sets, "load_grasp_set"),
+        (World, "__init__"),
+        (isf, "object_surface"),
+    ):
         monkeypatch.setattr(module, name, _refuse)
     loaded = []
     for name in ("load", "load_mesh"):  # mesh files: only the robot's own (its collision geometry)
@@ -60,6 +69,7 @@ def test_a_plan_from_an_observation_reads_no_mesh_and_lifts_the_true_object(obse
             if "franka_panda" not in str(path):
                 _refuse()
             return _original(path, *args, **kwargs)
+
         monkeypatch.setattr(trimesh, name, robot_only)
     world = PerceivedWorld(Observation.load(path))
     result = PerceivedPlanner(world, OMGSettings()).plan()
@@ -143,8 +153,17 @@ def test_plan_observation_cli_executes_on_the_scene_and_refuses_bad_input(observ
 
 
 def test_bench_perception_writes_its_table_and_resumes(tmp_path):
-    settings = PerceptionBenchSettings(out=str(tmp_path / "bench"), scenes=1, views=(1,), noises=(0.0,), mesh=False,
-                                       execute=False, workers=1, progress=False, iterations=20)
+    settings = PerceptionBenchSettings(
+        out=str(tmp_path / "bench"),
+        scenes=1,
+        views=(1,),
+        noises=(0.0,),
+        mesh=False,
+        execute=False,
+        workers=1,
+        progress=False,
+        iterations=20,
+    )
     records = run_perception_bench(settings)
     assert [r["method"] for r in records] == ["1v/0mm"]
     unit = os.path.join(settings.out, "units", os.listdir(os.path.join(settings.out, "units"))[0])

@@ -1,5 +1,6 @@
 """Planning's world from depth cameras: observations (format, errors), the fused field against exact
 distances of a known scene, unseen space behind a surface, the support plane, the target's points."""
+
 import numpy as np
 import pytest
 import trimesh
@@ -42,10 +43,24 @@ def test_the_field_matches_exact_distances_where_observed(known):
     top = can.bounds[1][2]
     rng = np.random.default_rng(1)
     # above the can, and on its side facing the first camera (+x): seen by every view or by the first
-    pts = np.vstack([np.column_stack([rng.uniform(*can.bounds[:, 0], 40), rng.uniform(*can.bounds[:, 1], 40),
-                                      top + rng.uniform(0.02, 0.08, 40)]),
-                     np.column_stack([can.bounds[1][0] + rng.uniform(0.02, 0.06, 40),
-                                      np.full(40, can.centroid[1]), rng.uniform(0.02, top - 0.02, 40)])])
+    pts = np.vstack(
+        [
+            np.column_stack(
+                [
+                    rng.uniform(*can.bounds[:, 0], 40),
+                    rng.uniform(*can.bounds[:, 1], 40),
+                    top + rng.uniform(0.02, 0.08, 40),
+                ]
+            ),
+            np.column_stack(
+                [
+                    can.bounds[1][0] + rng.uniform(0.02, 0.06, 40),
+                    np.full(40, can.centroid[1]),
+                    rng.uniform(0.02, top - 0.02, 40),
+                ]
+            ),
+        ]
+    )
     exact = np.abs(trimesh.proximity.signed_distance(can, pts))
     d, _ = perceived.sdf.distance(pts, exclude_table=True)
     np.testing.assert_allclose(d, exact, atol=RES)
@@ -61,7 +76,8 @@ def test_space_no_camera_has_seen_behind_a_surface_is_occupied():
     d, _ = perceived.sdf.distance(behind, exclude_table=True)
     assert d[0] <= 0.0  # ...but hidden by it: occupied
     d3, _ = perceive(render_observation(scene, views=3), FieldSettings(resolution=RES)).sdf.distance(
-        behind, exclude_table=True)
+        behind, exclude_table=True
+    )
     assert d3[0] > 0.0  # the side cameras see behind it
 
 
@@ -93,7 +109,10 @@ def test_noise_moves_the_field_by_about_the_noise(known):
     noise = 0.002
     noisy = render_observation(scene, views=3, noise=noise, seed=3)
     assert not np.array_equal(noisy.depth, obs.depth)
-    clean_field, noisy_field = perceive(obs, FieldSettings(resolution=RES)), perceive(noisy, FieldSettings(resolution=RES))
+    clean_field, noisy_field = (
+        perceive(obs, FieldSettings(resolution=RES)),
+        perceive(noisy, FieldSettings(resolution=RES)),
+    )
     can = _world_mesh(scene, lib, "005_tomato_soup_can")
     rng = np.random.default_rng(2)
     lo, hi = can.bounds[0] - [0.08, 0.08, 0.0], can.bounds[1] + [0.08, 0.08, 0.08]
@@ -116,7 +135,9 @@ def test_observations_round_trip_and_refuse_bad_input(tmp_path, known):
     assert np.array_equal(back.depth, obs.depth) and np.array_equal(back.target_mask, obs.target_mask)
     cases = {
         "target_mask: expected shape": dict(target_mask=obs.target_mask[:, :-1]),
-        "camera_pose: view 0 is not a rigid transform": dict(camera_pose=obs.camera_pose * np.array([1, 1, 1, 1.0])[:, None] * 1.01),
+        "camera_pose: view 0 is not a rigid transform": dict(
+            camera_pose=obs.camera_pose * np.array([1, 1, 1, 1.0])[:, None] * 1.01
+        ),
         "has depth in only 0.0 %": dict(depth=np.zeros_like(obs.depth)),
         "negative or infinite": dict(depth=-obs.depth),
         "K: expected shape": dict(K=obs.K[:, :2]),
@@ -146,9 +167,12 @@ def test_a_target_pixel_grows_to_its_surface(known):
     assert inter > 0.5 * obs.target_mask[0].sum()  # recall: most of the target's pixels
 
 
-@pytest.mark.xfail(strict=True, reason="found by issue 32: grow_target leaks from the box's foot onto the table "
-                                       "(depth is continuous where an object stands on it): 2,438 of 226,900 grown "
-                                       "pixels are the target's; fix grow_target, then drop this mark")
+@pytest.mark.xfail(
+    strict=True,
+    reason="found by issue 32: grow_target leaks from the box's foot onto the table "
+    "(depth is continuous where an object stands on it): 2,438 of 226,900 grown "
+    "pixels are the target's; fix grow_target, then drop this mark",
+)
 def test_a_grown_target_stays_on_the_target(known):
     _, _, obs = known
     r, c = np.argwhere(obs.target_mask[0])[len(np.argwhere(obs.target_mask[0])) // 2]
@@ -174,16 +198,23 @@ def test_grasps_from_points_lift_the_true_object_in_pybullet(views):
 
     scene, lib = _known_scene()
     perceived = perceive(render_observation(scene, views=views))
-    gs = grasps_from_points(perceived.target_points, perceived.target_normals, perceived.plane,
-                            isf.hand_sdf(robots.panda()), n=5, seed=0,
-                            scene_distance=lambda X: perceived.sdf.distance(X, cutoff=0.1)[0])
+    gs = grasps_from_points(
+        perceived.target_points,
+        perceived.target_normals,
+        perceived.plane,
+        isf.hand_sdf(robots.panda()),
+        n=5,
+        seed=0,
+        scene_distance=lambda X: perceived.sdf.distance(X, cutoff=0.1)[0],
+    )
     assert len(gs) == 5 and gs.name == "points"
     # judged on the true object: the grasps (world frame) in the object's frame, the object resting as in the scene
     model = lib.get("004_sugar_box")
     T_obj = next(o.pose for o in scene.objects if o.name == "004_sugar_box")
     upright = int(np.argmax([r[2, 2] for r in model.resting_poses]))
-    lifted = physics.lift_test(model, np.linalg.inv(T_obj) @ gs.poses,
-                               physics.LiftSettings(rest_index=upright, table_clearance=-0.004))
+    lifted = physics.lift_test(
+        model, np.linalg.inv(T_obj) @ gs.poses, physics.LiftSettings(rest_index=upright, table_clearance=-0.004)
+    )
     assert (lifted == 1).sum() >= 4, lifted
 
 

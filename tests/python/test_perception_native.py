@@ -1,6 +1,7 @@
 """The native pieces of the depth-to-trajectory path (issue 36) against independent truth: numpy's
 quantiles, brute-force inlier counts, the local-section rule written out in numpy (the Python
 implementation the native one replaced, kept here as the oracle), and exact geometry."""
+
 import numpy as np
 import pytest
 
@@ -85,7 +86,9 @@ def test_native_local_sections_follow_the_rule_exactly():
     for trial in range(30):  # bars of random widths and angles, a neighbouring part, noise
         w = rng.uniform(0.005, 0.09)
         bar = np.column_stack([rng.uniform(-0.1, 0.1, 400), rng.uniform(-w / 2, w / 2, 400)])
-        other = np.column_stack([rng.uniform(-0.1, 0.1, 100), rng.uniform(0.0, 0.01, 100) + w / 2 + rng.uniform(0, 0.02)])
+        other = np.column_stack(
+            [rng.uniform(-0.1, 0.1, 100), rng.uniform(0.0, 0.01, 100) + w / 2 + rng.uniform(0, 0.02)]
+        )
         F2 = np.vstack([bar, other]) + rng.normal(0, 0.001, (500, 2))
         turn = rng.uniform(0, np.pi)
         F2 = F2 @ np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
@@ -240,7 +243,7 @@ def test_clear_in_frames_is_the_per_point_distance_test():
     got = SdfQuery(scene, cutoff=0.05).clear_in_frames(F, pts, 0.01)
     assert np.array_equal(got, want) and 0 < want.sum() < 150
     local = np.einsum("kji,kmj->kmi", F[:, :3, :3], pts[None] - F[:, None, :3, 3])
-    near = (local ** 2).sum(axis=2) < 0.12 ** 2
+    near = (local**2).sum(axis=2) < 0.12**2
     d = np.where(near, scene.distance(local.reshape(-1, 3), cutoff=0.05)[0].reshape(150, -1), np.inf)
     want = d.min(axis=1) > 0.01
     got = scene.clear_in_frames(F, pts, 0.01, cutoff=0.05, inverse=True, reach=0.12)

@@ -1,5 +1,6 @@
 """The target as the object nearest a point (perception.target), judged against PyBullet's
 segmentation of the rendered views; the shared back-projection against the closed-form pinhole."""
+
 import numpy as np
 import pytest
 

@@ -2,6 +2,7 @@
 timed within the robot's limits, the 3D view carries the object with the hand and leaves it at its
 place, and the whole task executes in PyBullet (the object at rest in the region, upright, nothing
 else moved, no collision)."""
+
 import json
 from dataclasses import replace
 
@@ -25,8 +26,9 @@ REQUEST = PlaceRequest((0.35, -0.5, 0.0), (0.6, -0.25, 0.4))
 
 
 def _scene():
-    return standing_scene((("005_tomato_soup_can", (0.5, 0.0)), ("004_sugar_box", (0.6, 0.2))),
-                          "005_tomato_soup_can")[0]
+    return standing_scene((("005_tomato_soup_can", (0.5, 0.0)), ("004_sugar_box", (0.6, 0.2))), "005_tomato_soup_can")[
+        0
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +52,9 @@ def test_the_one_call_and_the_steps_plan_the_same(planned):
     assert ok and place.success
     # the transfer's start keeps the success test's clearance as the test measures it (per-object grids)
     X = carrying.robot.transform_points(lift[-1:], carrying.body)
-    d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=1.0, exclude=(carrying.target,), exclude_table=True,
-                                 reference=True)
+    d, _ = carrying.sdf.distance(
+        X.reshape(-1, 3), cutoff=1.0, exclude=(carrying.target,), exclude_table=True, reference=True
+    )
     assert d.min() >= SETTINGS.place.metrics.clearance
     np.testing.assert_array_equal(place.trajectory, plan.place.trajectory)
     # the segments join: each starts where the previous ended
@@ -70,8 +73,19 @@ def test_pickplace_command_writes_both_segments_timed_and_the_view(planned, tmp_
     scene.save(str(tmp_path / "scene.json"))
     (tmp_path / "region.json").write_text(json.dumps(REQUEST.to_dict()))
     out = tmp_path / "out"
-    code = main(["pickplace", "--scene", str(tmp_path / "scene.json"), "--place", str(tmp_path / "region.json"),
-                 "--grasps", "antipodal", "--out", str(out)])
+    code = main(
+        [
+            "pickplace",
+            "--scene",
+            str(tmp_path / "scene.json"),
+            "--place",
+            str(tmp_path / "region.json"),
+            "--grasps",
+            "antipodal",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     record = json.loads((out / "pickplace.json").read_text())
     assert [s["name"] for s in record["timed"]] == ["approach", "lift", "transfer", "retract"]
@@ -79,7 +93,9 @@ def test_pickplace_command_writes_both_segments_timed_and_the_view(planned, tmp_
     for seg, timed in zip(record["segments"], record["timed"]):
         q, qd, qdd = (np.asarray(timed[k]) for k in ("q", "qd", "qdd"))
         np.testing.assert_allclose(q[[0, -1]], np.asarray(seg["waypoints"])[[0, -1]], atol=1e-9)
-        assert np.all(np.abs(qd) <= limits.velocity * (1 + 1e-6)) and np.all(np.abs(qdd) <= limits.acceleration * (1 + 1e-6))
+        assert np.all(np.abs(qd) <= limits.velocity * (1 + 1e-6)) and np.all(
+            np.abs(qdd) <= limits.acceleration * (1 + 1e-6)
+        )
         assert np.all(qd[[0, -1]] == 0)  # rest to rest: the hand stops to close, release and between segments
     assert (out / "view.html").stat().st_size > 10000
     # the view: the object rides with the hand between the grasp and the release, then rests at its place
@@ -120,8 +136,19 @@ def test_pick_and_place_from_a_depth_observation(tmp_path):
     scene.save(str(tmp_path / "scene.json"))
     (tmp_path / "region.json").write_text(json.dumps(REQUEST.to_dict()))
     out = tmp_path / "out"
-    code = main(["pickplace", "--observation", path, "--scene", str(tmp_path / "scene.json"),
-                 "--place", str(tmp_path / "region.json"), "--out", str(out)])
+    code = main(
+        [
+            "pickplace",
+            "--observation",
+            path,
+            "--scene",
+            str(tmp_path / "scene.json"),
+            "--place",
+            str(tmp_path / "region.json"),
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     record = json.loads((out / "pickplace.json").read_text())
     assert record["status"] == "success" and len(record["timed"]) == 4
@@ -168,7 +195,9 @@ def test_the_carry_check_sees_the_held_object_on_the_true_meshes(planned):
     pose = np.eye(4)
     pose[:2, 3] = can[:, :2].mean(axis=0)
     pose[2, 3] = can[:, 2].min() + 0.015 - box.mesh.vertices[:, 2].max()
-    blocked = replace(scene, objects=list(scene.objects) + [
-        scenes.SceneObject("010_potted_meat_can", "builtin:010_potted_meat_can", pose)])
+    blocked = replace(
+        scene,
+        objects=list(scene.objects) + [scenes.SceneObject("010_potted_meat_can", "builtin:010_potted_meat_can", pose)],
+    )
     other = PickPlacePlanner(OMGPlanner(None, blocked, SETTINGS.pick), REQUEST, SETTINGS)
     assert carry_collides(plan, other.attach(plan.pick.goal, plan.held))

@@ -1,9 +1,9 @@
 """SVM active learner on a synthetic success region with exact truth."""
+
 import numpy as np
 import pytest
 
-from pickplan.pickup.metamodel.active import (ActiveConfig, known_from_lower_sc, learn_boundary,
-                                    learn_random, predict)
+from pickplan.pickup.metamodel.active import ActiveConfig, known_from_lower_sc, learn_boundary, learn_random, predict
 from pickplan.pickup.metamodel.synthetic import EllipsoidOracle
 
 CFG = ActiveConfig(n_init=20, n_holdout=20, batch_size=15, budget=100, select_every=100)
@@ -46,7 +46,7 @@ def test_active_beats_random_sampling_at_equal_budget():
 def test_active_loop_samples_near_the_boundary():
     oracle = EllipsoidOracle(0.3, 0.1)
     res = learn_boundary(oracle, CFG, seed=2)
-    later = res.X[CFG.n_init:len(res.X) - CFG.n_holdout]  # chosen by the active loop
+    later = res.X[CFG.n_init : len(res.X) - CFG.n_holdout]  # chosen by the active loop
     band = lambda U: np.abs(np.sqrt(((U / oracle.half_axes) ** 2).sum(1)) - 1) < 0.3
     uniform = np.random.default_rng(0).uniform(-1, 1, (20000, 3))
     assert band(later).mean() > 10 * band(uniform).mean()

@@ -1,6 +1,7 @@
 """More arm seeds (PickupSettings.arm_seeds > 2) run stages 2-5 from the IK solution's other branches
 too: the returned solution is the shortest of the runs and never longer than with fewer seeds, and it
 passes the dense checks."""
+
 import math
 
 import pytest

@@ -1,6 +1,7 @@
 """`pickplan pickup cases` output (Tables I-IV beside the paper's numbers, Fig. 5 plot, trajectories as
 JSON/NPZ) and the PyBullet replay. The solves are replaced by one real solved plan (case 4, m = 6)
 so the test checks the writing, not the (benchmarked) solver."""
+
 import copy
 import json
 import os
@@ -22,14 +23,29 @@ def test_cases_cli_writes_tables_plot_trajectories_and_replays(tmp_path, monkeyp
     assert plan_dict["success"], plan_dict["status"]
     failed = {**copy.deepcopy(plan_dict), "success": False, "status": "infeasible", "seed": 1}
     one = lambda c, **kw: {**copy.deepcopy(plan_dict), "case": c, **kw}  # noqa: E731
-    monkeypatch.setattr(cases, "run_main_cases", lambda cfg: {
-        c: {"successive": one(c, direct_chosen=c == 5), "single_shot": one(c, method="single_shot"),
-            "single_shot_all": [one(c, method="single_shot"), {**failed, "case": c}]} for c in range(1, 7)})
-    monkeypatch.setattr(cases, "run_table4", lambda cfg: {(c, lv): one(c) for c in cases.TABLE4_CASES for lv in ("low", "high")})
+    monkeypatch.setattr(
+        cases,
+        "run_main_cases",
+        lambda cfg: {
+            c: {
+                "successive": one(c, direct_chosen=c == 5),
+                "single_shot": one(c, method="single_shot"),
+                "single_shot_all": [one(c, method="single_shot"), {**failed, "case": c}],
+            }
+            for c in range(1, 7)
+        },
+    )
+    monkeypatch.setattr(
+        cases, "run_table4", lambda cfg: {(c, lv): one(c) for c in cases.TABLE4_CASES for lv in ("low", "high")}
+    )
     monkeypatch.setattr(cases, "run_fig5", lambda cfg: {"high (3 pi rad/s)": one(1), "low (pi/2 rad/s)": one(1)})
     out = tmp_path / "out"
-    assert cases_cli.main(["cases", "--out", str(out), "--quick", "--metamodel", "standin",
-                          "--replay", "case4_sequential"]) == 0
+    assert (
+        cases_cli.main(
+            ["cases", "--out", str(out), "--quick", "--metamodel", "standin", "--replay", "case4_sequential"]
+        )
+        == 0
+    )
     md = (out / "tables.md").read_text()
     assert "rho_sigma source: STAND-IN surface" in md
     for title in ("Table I", "Table II", "Table III", "Table IV"):
@@ -61,7 +77,7 @@ def test_replay_checks_pose_and_finds_a_collision(plan_dict):
     x, deg = np.asarray(bad["x"]), bad["degrees"]
     for i, v in enumerate((5.2, 0.9)):
         off = sum(d + 1 for d in deg[:i])
-        x[off:off + deg[i] + 1] = 0.0
+        x[off : off + deg[i] + 1] = 0.0
         x[off] = v
     bad["x"] = x.tolist()
     assert replay.replay(bad, 4, frames=10)["min_distance"] < 0.0
@@ -72,8 +88,13 @@ def test_replay_checks_pose_and_finds_a_collision(plan_dict):
 def test_ensure_metamodel_builds_once_from_simulation_and_the_nlp_reads_it(tmp_path, monkeypatch):
     from pickplan.pickup.metamodel import model as metamodel
     from pickplan.pickup.metamodel.active import ActiveConfig
-    tiny = metamodel.BuildConfig(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.15), n_queries=2000,
-                                 active=ActiveConfig(n_init=12, n_holdout=12, batch_size=10, budget=30))
+
+    tiny = metamodel.BuildConfig(
+        sg_grid=(0.1, 0.5),
+        sc_grid=(0.05, 0.15),
+        n_queries=2000,
+        active=ActiveConfig(n_init=12, n_holdout=12, batch_size=10, budget=30),
+    )
     path = tmp_path / "mm" / "metamodel_box.json"
     assert cases.ensure_metamodel(path, tiny, seed=3, progress=False) == str(path)
     mm = metamodel.MetaModel.load(path)
@@ -83,7 +104,7 @@ def test_ensure_metamodel_builds_once_from_simulation_and_the_nlp_reads_it(tmp_p
     assert rho.value(0.3, 0.1) == pytest.approx(float(mm.surfaces["medium"](0.3, 0.1)), abs=1e-12)
     # A second call reuses the file and builds nothing.
     mtime = path.stat().st_mtime_ns
-    monkeypatch.setattr(metamodel, "build_metamodel", lambda *a, **k: pytest.fail("rebuilt a cached model"))
+    monkeypatch.setattr(cases, "build_metamodel", lambda *a, **k: pytest.fail("rebuilt a cached model"))
     assert cases.ensure_metamodel(path, tiny, progress=False) == str(path)
     assert path.stat().st_mtime_ns == mtime
     # Not a meta-model, or another part's: clear errors, nothing overwritten.
@@ -102,9 +123,11 @@ def test_ensure_metamodel_builds_once_from_simulation_and_the_nlp_reads_it(tmp_p
 def test_cases_cli_uses_the_built_meta_model_by_default(tmp_path, monkeypatch, plan_dict):
     seen = {}
     monkeypatch.setattr(cases, "ensure_metamodel", lambda path, **kw: seen.setdefault("path", path))
+
     def main_cases(cfg):
         seen["metamodel"] = cfg.metamodel
         raise KeyboardInterrupt  # stop after the wiring: the solves are benchmarked, not unit-tested
+
     monkeypatch.setattr(cases, "run_main_cases", main_cases)
     with pytest.raises(KeyboardInterrupt):
         cases_cli.main(["cases", "--out", str(tmp_path)])

@@ -1,4 +1,5 @@
 """`metamodel build` / `compare` end to end on the real simulation with tiny budgets."""
+
 import json
 import math
 import os
@@ -11,8 +12,7 @@ from pickplan.pickup.metamodel.sim import SimConfig
 
 def test_build_and_compare(tmp_path):
     out = str(tmp_path)
-    args = ["--quick", "--parts", "box", "--out", out, "--seed", "1", "--budget", "40",
-            "--quiet"]
+    args = ["--quick", "--parts", "box", "--out", out, "--seed", "1", "--budget", "40", "--quiet"]
     assert main(["metamodel", "build", *args]) == 0
     mm = MetaModel.load(tmp_path / "metamodel_box.json")
     assert [lv.name for lv in mm.levels] == ["low", "medium", "high"]
@@ -27,9 +27,17 @@ def test_build_and_compare(tmp_path):
     assert data["reference_seed"] == 0
     lv = mm.levels[0]
     for seed, present in ((0, True), (1, False)):
-        key = reference_cache_path(cache, "box", SimConfig(), 0.1, 0.05, lv.sigma_r,
-                                   lv.sigma_phi, 3,
-                                   reference_seed(seed, 0.1, 0.05, lv.sigma_r, lv.sigma_phi))
+        key = reference_cache_path(
+            cache,
+            "box",
+            SimConfig(),
+            0.1,
+            0.05,
+            lv.sigma_r,
+            lv.sigma_phi,
+            3,
+            reference_seed(seed, 0.1, 0.05, lv.sigma_r, lv.sigma_phi),
+        )
         assert os.path.exists(key) == present
     assert len(data["rows"]) == 3 * 4
     assert all(0.0 <= r["rho_extensive"] <= 1.0 for r in data["rows"])

@@ -1,4 +1,5 @@
 """GP classification for rho (pickup/gpc.py) against closed forms and exact oracles."""
+
 import math
 
 import numpy as np
@@ -17,9 +18,13 @@ def _half_space_samples(n, a, seed, width=0.03, s=0.1, lapse=0.0):
     quarter from the query Gaussian N(0, s^2), the rest near the boundary."""
     rng = np.random.default_rng(seed)
     k = n // 4
-    X = np.vstack([rng.uniform(-1, 1, (k, 3)), rng.normal(0, s, (k, 3)),
-                   np.column_stack([a + rng.normal(0, 0.15, n - 2 * k),
-                                    rng.uniform(-1, 1, (n - 2 * k, 2))])])
+    X = np.vstack(
+        [
+            rng.uniform(-1, 1, (k, 3)),
+            rng.normal(0, s, (k, 3)),
+            np.column_stack([a + rng.normal(0, 0.15, n - 2 * k), rng.uniform(-1, 1, (n - 2 * k, 2))]),
+        ]
+    )
     X = np.clip(X, -1, 1)
     p = (1 - lapse) / (1 + np.exp(-(a - X[:, 0]) / width))
     return X, rng.uniform(size=n) < p
@@ -80,8 +85,7 @@ def test_outside_the_domain_is_failure_and_one_class_is_constant():
 def test_probability_variance_peaks_on_the_boundary():
     X, y = _half_space_samples(300, 0.0, seed=7)
     gp = GPSuccessModel(X, y, seed=0)
-    on, inside, outside = gp.probability_variance(np.array([[0.0, 0, 0], [-0.6, 0, 0],
-                                                             [0.6, 0, 0]]))
+    on, inside, outside = gp.probability_variance(np.array([[0.0, 0, 0], [-0.6, 0, 0], [0.6, 0, 0]]))
     assert on > 10 * inside and on > 10 * outside
 
 
@@ -156,8 +160,7 @@ def test_learning_loop_can_stop_and_sample_on_the_gp_posterior():
     res = learn_boundary(oracle, ActiveConfig(budget=150, rho_model="gp"), seed=0)
     assert res.n_simulations <= 150
     rounds = [h for h in res.history if "rho" in h]
-    assert rounds and all(len(h["rho"]) == 3 and all(0 <= s < 0.5 for s in h["rho_se"])
-                          for h in rounds)
+    assert rounds and all(len(h["rho"]) == 3 and all(0 <= s < 0.5 for s in h["rho_se"]) for h in rounds)
     truth = oracle.probability(0.012, math.radians(15))
     assert abs(rounds[-1]["rho"][2] - truth) < 0.1
     with pytest.raises(ValueError, match="rho_model"):

@@ -1,4 +1,5 @@
 """Kernel metric, local noise band and query-by-committee sampling of the rho estimator."""
+
 import numpy as np
 import pytest
 from sklearn.svm import SVC
@@ -43,11 +44,11 @@ def test_depth_gradient_is_in_pose_space_for_any_metric():
     f, g = m.value_and_gradient(U)
     np.testing.assert_allclose(f, m.decision_function(U), atol=1e-9)
     h = 1e-6
-    fd = np.stack([(m.decision_function(U + h * e) - m.decision_function(U - h * e)) / (2 * h)
-                   for e in np.eye(3)], axis=1)
+    fd = np.stack(
+        [(m.decision_function(U + h * e) - m.decision_function(U - h * e)) / (2 * h) for e in np.eye(3)], axis=1
+    )
     np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-6)
-    np.testing.assert_allclose(svm_depth(m, U),
-                               np.clip(f / np.linalg.norm(g, axis=1), -2, 2), atol=1e-12)
+    np.testing.assert_allclose(svm_depth(m, U), np.clip(f / np.linalg.norm(g, axis=1), -2, 2), atol=1e-12)
 
 
 def test_selection_prefers_the_whitened_metric_on_a_thin_slab():
@@ -103,6 +104,5 @@ def test_exploit_band_samples_each_gaussians_stretch_of_the_boundary():
     assert in_small.sum() >= 2
     d = np.sqrt((((P[:, None] - P[None]) / wide) ** 2).sum(-1)) + np.eye(len(P))
     assert d[~in_small][:, ~in_small].min() >= 0.5 - 1e-9
-    np.testing.assert_array_equal(
-        P, exploit_band(np.random.default_rng(0), cal, [small, wide], X, 12, 2000))
+    np.testing.assert_array_equal(P, exploit_band(np.random.default_rng(0), cal, [small, wide], X, 12, 2000))
     assert len(exploit_band(np.random.default_rng(0), None, [small], X, 5, 100)) == 0

@@ -1,5 +1,6 @@
 """A user's own part from a closed mesh (issue 23): validation of the mesh, the part's mass and grasp
 from exact geometry, a simulated grasp, and `pickplan metamodel build --part` (quick setting)."""
+
 import math
 
 import numpy as np
@@ -85,8 +86,10 @@ def test_metamodel_build_for_a_user_mesh_quick(tmp_path, capsys):
     path = str(tmp_path / "pentagon.stl")
     pentagon_prism(path)
     out = tmp_path / "mm"
-    assert cli_main(["metamodel", "build", "--part", path, "--density", "800", "--smoke",
-                     "--out", str(out), "--quiet"]) == 0
+    assert (
+        cli_main(["metamodel", "build", "--part", path, "--density", "800", "--smoke", "--out", str(out), "--quiet"])
+        == 0
+    )
     mm = MetaModel.load(str(out / "metamodel_pentagon.json"))
     assert mm.part_name == "pentagon" and (out / "pentagon_rho.md").exists()
     for level in mm.levels:

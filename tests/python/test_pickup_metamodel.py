@@ -1,5 +1,6 @@
 """Meta-model on the synthetic oracle (exact truth): rho bounds, monotonicity, gradient,
 conservatism vs the true probability, save / load, bad input."""
+
 import math
 import os
 
@@ -7,13 +8,18 @@ import numpy as np
 import pytest
 
 from pickplan.pickup.metamodel.active import ActiveConfig
-from pickplan.pickup.metamodel.model import DEFAULT_LEVELS, BuildConfig, MetaModel, build_metamodel
+from pickplan.pickup.metamodel.build import build_metamodel
+from pickplan.pickup.metamodel.model import DEFAULT_LEVELS, BuildConfig, MetaModel
 from pickplan.pickup.metamodel.synthetic import EllipsoidOracle, oracle_factory
 
 CFG = BuildConfig(
-    sg_grid=(0.1, 0.3, 0.5), sc_grid=(0.05, 0.15),
+    sg_grid=(0.1, 0.3, 0.5),
+    sc_grid=(0.05, 0.15),
     active=ActiveConfig(n_init=20, n_holdout=20, batch_size=15, budget=90, select_every=100),
-    n_queries=6000, surface_degree=(2, 1), rho_model="svm")  # the GP: test_pickup_rho.py
+    n_queries=6000,
+    surface_degree=(2, 1),
+    rho_model="svm",
+)  # the GP: test_pickup_rho.py
 
 
 @pytest.fixture(scope="module")
@@ -31,8 +37,7 @@ def test_rho_in_unit_interval_and_monotone(model):
         assert np.all(np.diff(R, axis=0) <= 1e-9)  # non-increasing in S_g
     # The high-uncertainty level is never more likely to succeed than the low one.
     lo, hi = DEFAULT_LEVELS[0], DEFAULT_LEVELS[2]
-    assert np.all(model.rho(G, C, hi.sigma_r, hi.sigma_phi)
-                  <= model.rho(G, C, lo.sigma_r, lo.sigma_phi) + 1e-9)
+    assert np.all(model.rho(G, C, hi.sigma_r, hi.sigma_phi) <= model.rho(G, C, lo.sigma_r, lo.sigma_phi) + 1e-9)
 
 
 def test_rho_near_truth_and_surface_below_grid(model):
@@ -77,13 +82,15 @@ def test_save_load_roundtrip_and_new_sigma(model, tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["mm.json"]  # no temp file left behind
     loaded = MetaModel.load(path)
     for lv in model.levels:
-        assert loaded.rho(0.27, 0.11, lv.sigma_r, lv.sigma_phi) == \
-            model.rho(0.27, 0.11, lv.sigma_r, lv.sigma_phi)
+        assert loaded.rho(0.27, 0.11, lv.sigma_r, lv.sigma_phi) == model.rho(0.27, 0.11, lv.sigma_r, lv.sigma_phi)
     # A sigma that was not built is computed from the saved boundaries.
     r_mid = loaded.rho(0.3, 0.1, 0.005, math.radians(8))
     lo, hi = DEFAULT_LEVELS[0], DEFAULT_LEVELS[2]
-    assert loaded.rho(0.3, 0.1, hi.sigma_r, hi.sigma_phi) - 0.02 <= r_mid <= \
-        loaded.rho(0.3, 0.1, lo.sigma_r, lo.sigma_phi) + 0.02
+    assert (
+        loaded.rho(0.3, 0.1, hi.sigma_r, hi.sigma_phi) - 0.02
+        <= r_mid
+        <= loaded.rho(0.3, 0.1, lo.sigma_r, lo.sigma_phi) + 0.02
+    )
 
 
 def test_bad_input(model, tmp_path):
@@ -113,12 +120,18 @@ def test_closing_speed_monotonicity_follows_the_part(tmp_path):
 
     from pickplan.pickup.metamodel.parts import get_part
 
-    cfg = BuildConfig(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.1, 0.15), n_queries=3000, surface_degree=(1, 2),
-                      active=ActiveConfig(n_init=20, n_holdout=20, batch_size=15, budget=60, select_every=100))
+    cfg = BuildConfig(
+        sg_grid=(0.1, 0.5),
+        sc_grid=(0.05, 0.1, 0.15),
+        n_queries=3000,
+        surface_degree=(1, 2),
+        active=ActiveConfig(n_init=20, n_holdout=20, batch_size=15, budget=60, select_every=100),
+    )
     assert get_part("box").closing_monotone and not get_part("cylinder").closing_monotone
     mono = build_metamodel("box", cfg, seed=1, label_fn_factory=oracle_factory)
-    free = build_metamodel(dc_replace(get_part("box"), closing_monotone=False), cfg, seed=1,
-                           label_fn_factory=oracle_factory)
+    free = build_metamodel(
+        dc_replace(get_part("box"), closing_monotone=False), cfg, seed=1, label_fn_factory=oracle_factory
+    )
     assert sum((~bm.simulated).sum() for bm in mono.boundaries.values()) > 0
     assert all(bm.simulated.all() for bm in free.boundaries.values())  # every label simulated
     assert mono.monotone_sc and not free.monotone_sc

@@ -1,5 +1,6 @@
 """Pick-up on the move NLP through the Python layer: a case solves and its trajectory is checked by
 independent dense re-sampling (numpy polynomials + the robot's FK / Jacobian); bad input."""
+
 import json
 import math
 
@@ -30,7 +31,7 @@ def resample(plan_dict, n):
     q, qd, off = np.zeros((n, len(deg))), np.zeros((n, len(deg))), 0
     P = np.polynomial.polynomial
     for i, d in enumerate(deg):
-        a = x[off:off + d + 1]
+        a = x[off : off + d + 1]
         q[:, i], qd[:, i] = P.polyval(t / T, a), P.polyval(t / T, P.polyder(a)) / T
         off += d + 1
     return t, q, qd
@@ -146,9 +147,21 @@ def test_metamodel_file_surface_is_used(robot, tmp_path):
     # A RhoSurface-format level written by hand: the planner must read exactly these coefficients.
     coeffs = [[0.99, 0.995], [0.9, 0.95], [0.5, 0.6]]
     f = tmp_path / "mm.json"
-    f.write_text(json.dumps({"format": planner.METAMODEL_FORMAT, "levels": [
-        {"name": "medium", "sigma_r": 0.007, "sigma_phi": math.radians(10),
-         "surface": {"coeffs": coeffs, "sg_range": [0.1, 1.0], "sc_range": [0.05, 0.15]}}]}))
+    f.write_text(
+        json.dumps(
+            {
+                "format": planner.METAMODEL_FORMAT,
+                "levels": [
+                    {
+                        "name": "medium",
+                        "sigma_r": 0.007,
+                        "sigma_phi": math.radians(10),
+                        "surface": {"coeffs": coeffs, "sg_range": [0.1, 1.0], "sc_range": [0.05, 0.15]},
+                    }
+                ],
+            }
+        )
+    )
     rho = planner.load_rho(f, 0.007, math.radians(10))
     assert np.allclose(rho.coeffs, coeffs) and rho.sg_range == (0.1, 1.0)
     assert rho.value(0.1, 0.05) == pytest.approx(0.99)

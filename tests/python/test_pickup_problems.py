@@ -1,6 +1,7 @@
 """Pick-up problem files (issue 23): the format's round trip and every error at the door, the six
 shipped cases equal to the native reference definitions, a random problem solved and checked by
 independent dense re-sampling, and `pickplan pickup plan / problems` end to end."""
+
 import copy
 import json
 import math
@@ -34,8 +35,15 @@ def write(tmp_path, d, name="p.json"):
 def test_round_trip_of_the_cases_and_of_random_problems(tmp_path):
     specs = [problem_file.load_problem(cases.case_path(c)) for c in range(1, 7)]
     specs += random_problems.random_problems(5, 3)
-    specs.append(replace(specs[0], uncertainty=problem_file.Uncertainty.custom, sigma_r=0.004, sigma_phi=0.1,
-                         obstacles=(problem_file.BoxObstacle((4.0, 1.0, 0.3), (0.4, 1.2, 0.6), 0.3),)))
+    specs.append(
+        replace(
+            specs[0],
+            uncertainty=problem_file.Uncertainty.custom,
+            sigma_r=0.004,
+            sigma_phi=0.1,
+            obstacles=(problem_file.BoxObstacle((4.0, 1.0, 0.3), (0.4, 1.2, 0.6), 0.3),),
+        )
+    )
     for i, spec in enumerate(specs):
         path = tmp_path / f"p{i}.json"
         problem_file.dump_problem(spec, path)
@@ -152,9 +160,26 @@ def test_box_obstacles_are_covered_by_their_spheres():
 
 
 # ---- the cases: files equal to the native reference ----------------------------------------------
-FIELDS = ["start", "arm_start", "goal", "goal_tol_pos", "goal_tol_yaw", "grasp_pose", "approach_dir", "part_xy",
-          "grasp_area_rmin", "grasp_area_rmax", "gamma", "stroke", "vary_sc", "sc_fixed", "base_speed_limit",
-          "base_yaw_rate_limit", "arm_rate_limits", "tool_link"]
+FIELDS = [
+    "start",
+    "arm_start",
+    "goal",
+    "goal_tol_pos",
+    "goal_tol_yaw",
+    "grasp_pose",
+    "approach_dir",
+    "part_xy",
+    "grasp_area_rmin",
+    "grasp_area_rmax",
+    "gamma",
+    "stroke",
+    "vary_sc",
+    "sc_fixed",
+    "base_speed_limit",
+    "base_yaw_rate_limit",
+    "arm_rate_limits",
+    "tool_link",
+]
 
 
 @pytest.mark.parametrize("case_id", range(1, 7))
@@ -208,18 +233,22 @@ def test_a_random_problem_is_solved_and_passes_independent_dense_checks(robot):
     q, qd, off = np.zeros((len(t), 9)), np.zeros((len(t), 9)), 0
     P = np.polynomial.polynomial
     for i, k in enumerate(deg):
-        a = x[off:off + k + 1]
+        a = x[off : off + k + 1]
         q[:, i], qd[:, i] = P.polyval(t / T, a), P.polyval(t / T, P.polyder(a)) / T
         off += k + 1
-    q2 = np.array([P.polyval(p.T2 / T, x[o:o + k + 1]) for o, k in zip(np.cumsum([0] + [k + 1 for k in deg]), deg)])
+    q2 = np.array([P.polyval(p.T2 / T, x[o : o + k + 1]) for o, k in zip(np.cumsum([0] + [k + 1 for k in deg]), deg)])
     tool = robot.link_pose(q2, "tool")
     G = np.asarray(problem.grasp_pose)
     assert np.linalg.norm(tool[:3, 3] - G[:3, 3]) < 1e-3
     assert math.acos(min(1.0, (np.trace(G[:3, :3].T @ tool[:3, :3]) - 1) / 2)) < 1e-2
     lateral = np.abs(qd[:, 0] * np.sin(q[:, 2]) - qd[:, 1] * np.cos(q[:, 2]))
     assert np.mean(lateral) < 0.02 and np.trapezoid(lateral, t) < 0.2
-    clearance = min(np.linalg.norm(c - o) - r - ro for k in range(0, len(t), 3)
-                    for c, r in _spheres_world(robot, q[k], problem) for o, ro in problem.obstacles)
+    clearance = min(
+        np.linalg.norm(c - o) - r - ro
+        for k in range(0, len(t), 3)
+        for c, r in _spheres_world(robot, q[k], problem)
+        for o, ro in problem.obstacles
+    )
     assert clearance >= 0.0, clearance
     assert np.hypot(q[-1, 0] - spec.base_goal[0], q[-1, 1] - spec.base_goal[1]) <= spec.goal_tol_pos + 1e-6
     assert problem.rho.value(p.S_g, p.S_c) >= spec.gamma - 1e-6

@@ -1,12 +1,14 @@
 """rho against exact truth on a noisy synthetic oracle (labels drawn with a known success
 probability that falls off smoothly across the boundary, like the simulation's friction
 jitter), and the calibration pieces it rests on."""
+
 import numpy as np
 import pytest
 
 from pickplan.pickup.metamodel.active import fit_svm
+from pickplan.pickup.metamodel.build import build_metamodel
 from pickplan.pickup.metamodel.calibration import calibrate, fit_depth_sigmoid, svm_depth
-from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel, success_probability
+from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, success_probability
 from pickplan.pickup.metamodel.synthetic import NoisyEllipsoidOracle, noisy_oracle_factory
 
 WIDTH = 0.1  # noise band of the oracle, in ellipsoid-radius units
@@ -28,8 +30,7 @@ def test_rho_accurate_and_conservative_on_noisy_oracle(noisy_model):
     errors, slack = [], []
     for lv in noisy_model.levels:
         for (i, j), bm in noisy_model.boundaries.items():
-            truth = NoisyEllipsoidOracle(bm.s_g, bm.s_c, WIDTH).probability(lv.sigma_r,
-                                                                            lv.sigma_phi)
+            truth = NoisyEllipsoidOracle(bm.s_g, bm.s_c, WIDTH).probability(lv.sigma_r, lv.sigma_phi)
             _, _, se = success_probability(bm, lv.sigma_r, lv.sigma_phi, details=True)
             errors.append(noisy_model.rho_grids[lv.name][i, j] - truth)
             slack.append(0.01 + 2 * np.sqrt(truth * (1 - truth) / 2000) + se)
@@ -52,8 +53,9 @@ def test_conservative_margin_is_the_posterior_error(noisy_model):
         rho, rho_hat, se = success_probability(bm, lv.sigma_r, lv.sigma_phi, z=z, details=True)
         assert se > 0 and rho == pytest.approx(max(rho_hat - z * se, 0.0))
     # The grid is the model's own z (the GP's expected rho by default).
-    rho, _, _ = success_probability(bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries,
-                                    z=noisy_model.conservative_z, details=True)
+    rho, _, _ = success_probability(
+        bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries, z=noisy_model.conservative_z, details=True
+    )
     assert noisy_model.rho_grids[lv.name][1, 0] == pytest.approx(rho, abs=1e-12)
 
 
@@ -65,12 +67,14 @@ def test_lapse_caps_the_grid_and_survives_a_round_trip(noisy_model, tmp_path):
     assert 0 < lapse < 0.05
     lv = noisy_model.levels[0]
     bm = noisy_model.boundaries[(0, 1)]
-    capped = success_probability(bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries,
-                                 z=noisy_model.conservative_z, lapse=lapse)
+    capped = success_probability(
+        bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries, z=noisy_model.conservative_z, lapse=lapse
+    )
     assert noisy_model.rho_grids[lv.name][0, 1] == pytest.approx(capped, abs=1e-12)
     assert capped <= 1 - lapse
-    uncapped = success_probability(bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries,
-                                   z=noisy_model.conservative_z)
+    uncapped = success_probability(
+        bm, lv.sigma_r, lv.sigma_phi, n_queries=noisy_model.n_queries, z=noisy_model.conservative_z
+    )
     assert capped < uncapped
     noisy_model.save(tmp_path / "mm.json")
     assert MetaModel.load(tmp_path / "mm.json").lapse == lapse
@@ -98,6 +102,7 @@ def test_depth_sigmoid_is_the_constrained_optimum():
     likelihood, for mixed, noise-free-but-overlapping and weighted samples; separated classes give
     the narrowest band centred in their gap (the limit of the likelihood as the band narrows)."""
     from pickplan.pickup.metamodel.calibration import DEPTH_CLIP, WIDTH_BOUNDS, _nll_terms
+
     rng = np.random.default_rng(3)
     grid_d = np.linspace(-DEPTH_CLIP, DEPTH_CLIP, 401)
     grid_w = np.exp(np.linspace(np.log(WIDTH_BOUNDS[0]), np.log(WIDTH_BOUNDS[1]), 60))

@@ -2,6 +2,7 @@
 curvature, the seed's speed and yaw-rate limits), the lower bound on T (closed form on a straight
 line, never above a solved T), every infeasibility reason on a constructed problem, the time budget,
 and the benchmark layouts."""
+
 import math
 import time
 from dataclasses import replace
@@ -22,11 +23,21 @@ def robot():
 
 
 def _spec(**kw):
-    base = dict(base_start=(0.0, 0.0, 0.0), base_goal=(8.0, 0.0, 0.0), part_position=(4.0, 1.0, 0.5), part_yaw=0.0,
-                metamodel="standin", uncertainty=problem_file.Uncertainty.medium, sigma_r=0.007,
-                sigma_phi=math.radians(10), gamma=0.96,
-                obstacles=(problem_file.SphereObstacle((4.0, 1.0, 0.15), 0.15),
-                           problem_file.SphereObstacle((4.0, 1.0, 0.33), 0.06)))
+    base = dict(
+        base_start=(0.0, 0.0, 0.0),
+        base_goal=(8.0, 0.0, 0.0),
+        part_position=(4.0, 1.0, 0.5),
+        part_yaw=0.0,
+        metamodel="standin",
+        uncertainty=problem_file.Uncertainty.medium,
+        sigma_r=0.007,
+        sigma_phi=math.radians(10),
+        gamma=0.96,
+        obstacles=(
+            problem_file.SphereObstacle((4.0, 1.0, 0.15), 0.15),
+            problem_file.SphereObstacle((4.0, 1.0, 0.33), 0.06),
+        ),
+    )
     base.update(kw)
     return problem_file.PickupProblemSpec(**base)
 
@@ -40,7 +51,9 @@ def _end(q0, word, seg, rho):
     return route.sample_dubins(q0, word, seg, rho)[-1]
 
 
-@pytest.mark.parametrize("q1", [(5.0, 0.0, 0.0), (0.0, 2.0, math.pi), (-3.0, 1.0, 2.0), (1.0, -4.0, -1.0), (0.3, 0.2, 3.0)])
+@pytest.mark.parametrize(
+    "q1", [(5.0, 0.0, 0.0), (0.0, 2.0, math.pi), (-3.0, 1.0, 2.0), (1.0, -4.0, -1.0), (0.3, 0.2, 3.0)]
+)
 def test_every_dubins_word_ends_at_the_goal_pose_and_the_shortest_is_known_in_closed_form(q1):
     rho, q0 = 1.0, (0.0, 0.0, 0.0)
     words = route.dubins_words(q0, q1, rho)
@@ -50,16 +63,19 @@ def test_every_dubins_word_ends_at_the_goal_pose_and_the_shortest_is_known_in_cl
         assert np.allclose(e[:2], q1[:2], atol=1e-9) and abs(math.remainder(e[2] - q1[2], 2 * math.pi)) < 1e-9, word
     length = route.dubins_shortest(q0, q1, rho)[2]
     if q1 == (5.0, 0.0, 0.0):
-        assert length == pytest.approx(5.0)                 # straight ahead
+        assert length == pytest.approx(5.0)  # straight ahead
     if q1 == (0.0, 2.0, math.pi):
-        assert length == pytest.approx(math.pi)             # a half circle of radius 1
-    assert length >= math.hypot(q1[0], q1[1]) - 1e-12       # never shorter than the straight line
+        assert length == pytest.approx(math.pi)  # a half circle of radius 1
+    assert length >= math.hypot(q1[0], q1[1]) - 1e-12  # never shorter than the straight line
 
 
 def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limits(robot):
-    spec = _spec(base_start=(0.0, 0.0, math.pi / 2), part_position=(4.0, 3.5, 0.5),
-                 obstacles=_spec().obstacles[:0] + (problem_file.SphereObstacle((4.0, 3.5, 0.15), 0.15),
-                                                    problem_file.SphereObstacle((2.0, 1.5, 0.3), 0.3)))
+    spec = _spec(
+        base_start=(0.0, 0.0, math.pi / 2),
+        part_position=(4.0, 3.5, 0.5),
+        obstacles=_spec().obstacles[:0]
+        + (problem_file.SphereObstacle((4.0, 3.5, 0.15), 0.15), problem_file.SphereObstacle((2.0, 1.5, 0.3), 0.3)),
+    )
     problem = _native(robot, spec)
     geo = base_geometry(robot, problem, FAST)
     routes = route.candidate_routes(geo, count=4)
@@ -69,12 +85,12 @@ def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limit
     for r in routes:
         P = r.poses
         step = np.linalg.norm(np.diff(P[:, :2], axis=0), axis=1)
-        assert step.max() <= route.STEP + 1e-9                                 # continuous
+        assert step.max() <= route.STEP + 1e-9  # continuous
         assert np.allclose(P[0], geo.start) and np.allclose(P[-1, :2], geo.goal[:2], atol=1e-9)
         assert abs(math.remainder(P[-1, 2] - geo.goal[2], 2 * math.pi)) < 1e-9
         turn = np.abs(np.diff(P[:, 2]))
-        assert np.all(2 * rho * np.sin(turn / 2) <= step + 1e-9)               # curvature <= 1 / rho (chords)
-        motion = np.arctan2(np.diff(P[:, 1]), np.diff(P[:, 0]))               # no lateral motion
+        assert np.all(2 * rho * np.sin(turn / 2) <= step + 1e-9)  # curvature <= 1 / rho (chords)
+        motion = np.arctan2(np.diff(P[:, 1]), np.diff(P[:, 0]))  # no lateral motion
         lateral = np.abs(np.sin(motion - P[1:, 2]))[step > 1e-6]
         assert lateral.max() < 0.05
         assert geo.free(P[:, :2], 0.05).all()
@@ -84,11 +100,11 @@ def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limit
         nc = len(x) - 5
         T, s1, s2 = x[nc + 2], x[nc], x[nc + 1]
         assert 0 <= s1 < s2 <= 1 and (s2 - s1) * T == pytest.approx(problem.stroke / x[nc + 4])
-        coeff = [x[o:o + 6] for o in (0, 6, 12)]
+        coeff = [x[o : o + 6] for o in (0, 6, 12)]
         u = np.linspace(0, 1, 2001)
         v = [np.polynomial.polynomial.polyval(u, np.polynomial.polynomial.polyder(c)) / T for c in coeff]
-        assert np.hypot(v[0], v[1]).max() <= geo.v_max * (1 + 1e-9)          # the speed limit
-        assert np.abs(v[2]).max() <= geo.w_max * (1 + 1e-9)                   # the yaw-rate limit
+        assert np.hypot(v[0], v[1]).max() <= geo.v_max * (1 + 1e-9)  # the speed limit
+        assert np.abs(v[2]).max() <= geo.w_max * (1 + 1e-9)  # the yaw-rate limit
         assert np.allclose([c[0] for c in coeff], geo.start)
 
 
@@ -97,13 +113,16 @@ def test_the_bound_equals_the_closed_form_on_a_straight_line(robot):
     # Start, grasp and goal on one line, no obstacle on it: the base drives straight at its limit,
     # through the grasping annulus (its chord is longer than v W), and stops goal_tol short of the goal.
     for v, D in ((2.0, 8.0), (0.5, 6.0), (1.2, 10.0)):
-        spec = _spec(base_goal=(D, 0.0, 0.0), part_position=(D / 2, 0.5, 0.5),
-                     obstacles=(problem_file.SphereObstacle((D / 2, 0.5, 0.15), 0.15),),
-                     base_speed_limit=v)
+        spec = _spec(
+            base_goal=(D, 0.0, 0.0),
+            part_position=(D / 2, 0.5, 0.5),
+            obstacles=(problem_file.SphereObstacle((D / 2, 0.5, 0.15), 0.15),),
+            base_speed_limit=v,
+        )
         problem = _native(robot, spec)
         geo = base_geometry(robot, problem, FAST)
         W = geo.window
-        assert W * v < 2 * math.sqrt(geo.r_max ** 2 - 0.5 ** 2)  # the chord holds the window
+        assert W * v < 2 * math.sqrt(geo.r_max**2 - 0.5**2)  # the chord holds the window
         closed = (D - spec.goal_tol_pos) / v
         # Any route start -> p -> q -> goal ball is at least D - tol long (triangle inequality), so
         # the grid minimum is >= closed; the bound lowers it by the grid's 4 h / v only.
@@ -134,7 +153,9 @@ def test_each_infeasibility_reason_on_a_constructed_problem(robot):
     for reason, (spec, settings) in list(cases.items()) + [(Reason.out_of_reach, (dome, FAST))]:
         problem = _native(robot, spec)
         if reason is Reason.gamma_unattainable:
-            problem.rho = _core.RhoPoly(np.array([[0.9, 0.8, 0.9], [0.5, 0.6, 0.7], [0.2, 0.3, 0.3]]), (0.05, 1.2), (0.05, 0.15))
+            problem.rho = _core.RhoPoly(
+                np.array([[0.9, 0.8, 0.9], [0.5, 0.6, 0.7], [0.2, 0.3, 0.3]]), (0.05, 1.2), (0.05, 0.15)
+            )
         cert = certify(robot, problem, settings)
         assert cert.reason is reason and cert.detail, (reason, cert)
         p = routed.plan_routed(robot, problem, settings)
@@ -143,7 +164,7 @@ def test_each_infeasibility_reason_on_a_constructed_problem(robot):
     # sqrt((0.3 + 1.2)^2 - 1.0^2) = 1.118 m exceeds the annulus' 0.8 m; the straight line at 2 m/s
     # takes 7.5 s / 2 > 3 s.
     # (A Bernstein surface lies within the hull of its coefficients: at most 0.9 < 0.96.)
-    assert math.sqrt(1.5 ** 2 - 1.0 ** 2) > 0.8 and (8.0 - 0.5) / 2.0 > 3.0
+    assert math.sqrt(1.5**2 - 1.0**2) > 0.8 and (8.0 - 0.5) / 2.0 > 3.0
     # The solver fails (one Ipopt iteration per run) on a problem the bound calls feasible.
     problem = _native(robot, _spec())
     p = routed.plan_routed(robot, problem, replace(FAST, max_iter=1))
@@ -184,8 +205,11 @@ def test_the_time_budget(robot):
 
 
 def test_the_route_search_and_the_seeds_stop_at_the_deadline(robot):
-    spec = _spec(base_start=(0.0, 0.0, math.pi / 2), part_position=(4.0, 3.5, 0.5),
-                 obstacles=(problem_file.SphereObstacle((4.0, 3.5, 0.15), 0.15),))
+    spec = _spec(
+        base_start=(0.0, 0.0, math.pi / 2),
+        part_position=(4.0, 3.5, 0.5),
+        obstacles=(problem_file.SphereObstacle((4.0, 3.5, 0.15), 0.15),),
+    )
     problem = _native(robot, spec)
     geo = base_geometry(robot, problem, FAST)
     assert route.candidate_routes(geo, 3) and route.candidate_routes(geo, 3, deadline=time.monotonic() - 1.0) == []
@@ -252,7 +276,7 @@ def test_plans_that_fail_between_the_samples_are_solved_again_at_refined_samples
     # the five stages at the refined samples, from the first base path.
     coarse = [c for c in calls if c[1] == FAST.samples_per_interval]
     assert [m for m, _ in coarse] == sorted((m for m, _ in coarse), key=lambda m: m is planner.Method.single_shot)
-    assert calls[len(coarse):] == [(planner.Method.successive, fine)] and len(coarse) >= 2
+    assert calls[len(coarse) :] == [(planner.Method.successive, fine)] and len(coarse) >= 2
     # More samples, more rows: from the same base path, the refined NLP holds its rows at more instants.
     assert p.stages[-1].rows > plans[0].stages[-1].rows
 

@@ -1,4 +1,5 @@
 """Moving-gripper simulation: determinism, obvious labels, physics trends, bad input."""
+
 import os
 
 import numpy as np
@@ -12,8 +13,7 @@ from pickplan.pickup.metamodel.sim import SimConfig, closing_time, nominal_part_
 def test_same_seed_same_result_and_seed_matters():
     a = simulate_grasp("box", (0.004, -0.003, 0.05), 0.3, 0.1, seed=5)
     b = simulate_grasp("box", (0.004, -0.003, 0.05), 0.3, 0.1, seed=5)
-    assert (a.success, a.reason, a.drift, a.lift, a.steps) == (b.success, b.reason, b.drift,
-                                                               b.lift, b.steps)
+    assert (a.success, a.reason, a.drift, a.lift, a.steps) == (b.success, b.reason, b.drift, b.lift, b.steps)
     # The seed drives the friction jitter, so the trajectory of the part changes with it.
     c = simulate_grasp("box", (0.004, -0.003, 0.05), 0.3, 0.1, seed=6)
     assert (c.drift, c.lift) != (a.drift, a.lift)
@@ -48,8 +48,7 @@ def test_nominal_pose_puts_grasp_point_at_origin():
     xy, yaw = nominal_part_pose(part)
     c, s = np.cos(yaw), np.sin(yaw)
     gx, gy = part.strategy.tcp_xyz[:2]
-    np.testing.assert_allclose([xy[0] + c * gx - s * gy, xy[1] + s * gx + c * gy], [0, 0],
-                               atol=1e-12)
+    np.testing.assert_allclose([xy[0] + c * gx - s * gy, xy[1] + s * gx + c * gy], [0, 0], atol=1e-12)
     assert closing_time(part, 0.1) == pytest.approx((0.085 - 0.015) / 0.2)
 
 
@@ -70,13 +69,11 @@ def test_bad_input():
 
 
 def test_batch_is_the_same_in_worker_processes():
-    offsets = np.array([[0.0, 0.0, 0.0], [0.0, 0.045, 0.0], [0.01, 0.004, 0.1],
-                        [0.06, 0.0, 0.0], [-0.01, 0.0, -0.05]])
+    offsets = np.array([[0.0, 0.0, 0.0], [0.0, 0.045, 0.0], [0.01, 0.004, 0.1], [0.06, 0.0, 0.0], [-0.01, 0.0, -0.05]])
     serial = run_batch("cylinder", offsets, 0.3, 0.1, seed=3, workers=1)
     parallel = run_batch("cylinder", offsets, 0.3, 0.1, seed=3, workers=2)
     np.testing.assert_array_equal(serial, parallel)
     seeds = sample_seeds(3, 0, len(offsets))
-    direct = [simulate_grasp("cylinder", o, 0.3, 0.1, seed=int(s)).success
-              for o, s in zip(offsets, seeds)]
+    direct = [simulate_grasp("cylinder", o, 0.3, 0.1, seed=int(s)).success for o, s in zip(offsets, seeds)]
     np.testing.assert_array_equal(serial, direct)
     assert serial[0] and not serial[1] and not serial[3]

@@ -1,4 +1,5 @@
 """The conservative monotone rho surface."""
+
 import numpy as np
 import pytest
 

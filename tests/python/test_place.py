@@ -1,6 +1,7 @@
 """Place requests and place goal sets (omg.place): requests checked at the door, candidates inside the
 region by exact geometry, every goal of a set puts the object at rest in the region (dropped in
 PyBullet), and an empty set says why."""
+
 import json
 from dataclasses import replace
 
@@ -36,9 +37,13 @@ def held_case():
     lib = objects.library("builtin")
     box, can = lib.get(BOX), lib.get(CAN)
     box_pose, can_pose = standing_pose(box, (0.5, 0.0)), standing_pose(can, (0.5, 0.25))
-    scene = scenes.Scene(np.eye(4), scenes.default_table(),
-                         [scenes.SceneObject(BOX, f"builtin:{BOX}", box_pose),
-                          scenes.SceneObject(CAN, f"builtin:{CAN}", can_pose)], BOX, seed=0)
+    scene = scenes.Scene(
+        np.eye(4),
+        scenes.default_table(),
+        [scenes.SceneObject(BOX, f"builtin:{BOX}", box_pose), scenes.SceneObject(CAN, f"builtin:{CAN}", can_pose)],
+        BOX,
+        seed=0,
+    )
     world = World(scene)
     robot = world.robot
     top = float((box.mesh.vertices @ box_pose[:3, :3].T + box_pose[:3, 3])[:, 2].max())
@@ -62,13 +67,15 @@ def test_request_files_are_checked_at_the_door(tmp_path):
     request = PlaceRequest.load(str(path))
     assert request.orientation is Orientation.stable and request.floor == 0.0
     assert PlaceRequest.from_dict(request.to_dict()) == request
-    for bad, field in (({"region": {"min": [0, 0, 0], "max": [0.1, -0.1, 0.2]}}, "region.max"),
-                       ({"region": {"min": [0, 0]}}, "region.min"),
-                       ({**good, "tolerance_deg": 0}, "tolerance_deg"),
-                       ({**good, "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 2]]}, "rotation"),
-                       ({**good, "orientation": "sideways"}, "orientation"),
-                       ({**good, "orientation": "pose"}, "rotation"),
-                       ({**good, "colour": "red"}, "colour")):
+    for bad, field in (
+        ({"region": {"min": [0, 0, 0], "max": [0.1, -0.1, 0.2]}}, "region.max"),
+        ({"region": {"min": [0, 0]}}, "region.min"),
+        ({**good, "tolerance_deg": 0}, "tolerance_deg"),
+        ({**good, "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 2]]}, "rotation"),
+        ({**good, "orientation": "sideways"}, "orientation"),
+        ({**good, "orientation": "pose"}, "rotation"),
+        ({**good, "colour": "red"}, "colour"),
+    ):
         path.write_text(json.dumps(bad))
         with pytest.raises(InputError) as err:
             PlaceRequest.load(str(path))
@@ -107,7 +114,9 @@ def _rest(client, body, model, seconds=1.5):
 def test_every_place_goal_puts_the_object_at_rest_in_the_region(held_case, orientation):
     world, carrying, start, box = held_case
     request = PlaceRequest((0.35, -0.45, 0.0), (0.65, -0.2, 0.4), orientation)
-    goals = build_place_goal_set(carrying, request, start, PlaceSettings(goals=GoalSetSettings(max_goals=12, standoff=0.1)), model=box)
+    goals = build_place_goal_set(
+        carrying, request, start, PlaceSettings(goals=GoalSetSettings(max_goals=12, standoff=0.1)), model=box
+    )
     assert goals.verdict is PlaceVerdict.ok and len(goals) >= 5, goals.reason_counts()
     robot = carrying.robot
     for g, q in enumerate(goals.goal_set.goals):
@@ -124,20 +133,26 @@ def test_every_place_goal_puts_the_object_at_rest_in_the_region(held_case, orien
             pb.disconnect(client)
         hull = box.mesh.convex_hull.vertices @ final[:3, :3].T + final[:3, 3]
         assert v < 0.01 and w < 0.1
-        assert np.all(hull >= np.array(request.region_min) - 0.005) and np.all(hull <= np.array(request.region_max) + 0.005)
+        assert np.all(hull >= np.array(request.region_min) - 0.005) and np.all(
+            hull <= np.array(request.region_max) + 0.005
+        )
         up = np.clip((final[:3, :3].T @ [0, 0, 1]) @ (planned[:3, :3].T @ [0, 0, 1]), -1, 1)
         assert np.degrees(np.arccos(up)) < 5.0  # it lands as planned, not toppled
 
 
 def test_an_empty_place_goal_set_says_why(held_case):
     _, carrying, start, box = held_case
-    small = PlaceRequest((0.5, -0.3, 0.0), (0.53, -0.27, 0.4))                  # 3 x 3 cm: the box does not fit
-    far = PlaceRequest((1.0, 0.65, 0.0), (1.09, 0.78, 0.4))                     # beyond the arm's reach
-    can = carrying.base.scene.object(CAN).pose                                   # only the can's own footprint
+    small = PlaceRequest((0.5, -0.3, 0.0), (0.53, -0.27, 0.4))  # 3 x 3 cm: the box does not fit
+    far = PlaceRequest((1.0, 0.65, 0.0), (1.09, 0.78, 0.4))  # beyond the arm's reach
+    can = carrying.base.scene.object(CAN).pose  # only the can's own footprint
     blocked = PlaceRequest((can[0, 3] - 0.07, can[1, 3] - 0.07, 0.0), (can[0, 3] + 0.07, can[1, 3] + 0.07, 0.4))
-    shelf = PlaceRequest((0.4, -0.4, 0.2), (0.6, -0.2, 0.5))                    # a floor in mid-air
-    for request, verdict in ((small, PlaceVerdict.too_small), (far, PlaceVerdict.out_of_reach),
-                             (blocked, PlaceVerdict.blocked), (shelf, PlaceVerdict.no_support)):
+    shelf = PlaceRequest((0.4, -0.4, 0.2), (0.6, -0.2, 0.5))  # a floor in mid-air
+    for request, verdict in (
+        (small, PlaceVerdict.too_small),
+        (far, PlaceVerdict.out_of_reach),
+        (blocked, PlaceVerdict.blocked),
+        (shelf, PlaceVerdict.no_support),
+    ):
         goals = build_place_goal_set(carrying, request, start, model=box)
         assert len(goals) == 0 and goals.verdict is verdict, goals.reason_counts()
         assert goals.reason == f"no_place_goals: {verdict.value}"
@@ -149,6 +164,7 @@ def test_hull_vertices_give_the_candidates_all_vertices_give(held_case):
     import trimesh
 
     from pickplan.omg.place import hull_vertices
+
     mesh = trimesh.creation.capsule(height=0.1, radius=0.03, count=[48, 48])
     V = np.asarray(mesh.vertices) + np.random.default_rng(0).normal(scale=1e-4, size=mesh.vertices.shape)
     H = hull_vertices(V)
@@ -156,8 +172,9 @@ def test_hull_vertices_give_the_candidates_all_vertices_give(held_case):
     request = PlaceRequest((0.35, -0.45, 0.0), (0.65, -0.2, 0.4), "upright")
     rotations = [np.eye(3), trimesh.transformations.rotation_matrix(0.7, (1, 1, 0))[:3, :3]]
     settings = PlaceSettings()
-    np.testing.assert_array_equal(candidate_poses(request, H, rotations, settings),
-                                  candidate_poses(request, V, rotations, settings))
+    np.testing.assert_array_equal(
+        candidate_poses(request, H, rotations, settings), candidate_poses(request, V, rotations, settings)
+    )
     flat = np.c_[np.random.default_rng(1).uniform(size=(20, 2)), np.zeros(20)]  # no volume: every point kept
     assert len(hull_vertices(flat)) == 20
 
@@ -178,5 +195,7 @@ def test_pre_places_keep_the_transit_clearance_and_the_cap_counts_only_such_goal
     X = carrying.robot.transform_points(every.goal_set.tails[:, 0], carrying.body)
     d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=1.0, exclude=(carrying.target,), exclude_table=True)
     assert d.reshape(len(X), -1).min(axis=1).min() >= settings.preplace_clearance - 1e-6
-    capped = build_place_goal_set(carrying, request, start, replace(settings, goals=replace(goals, max_goals=5)), model=box)
+    capped = build_place_goal_set(
+        carrying, request, start, replace(settings, goals=replace(goals, max_goals=5)), model=box
+    )
     assert len(capped) == 5, capped.reason_counts()

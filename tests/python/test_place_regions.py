@@ -1,6 +1,7 @@
 """The bench's place regions (eval.place_regions): the covered share and the free disc of a region by
 exact geometry; generated regions are seeded, free regions and bins clear of the clutter, a partly
 cluttered region reaches into the clutter and leaves room for the target."""
+
 import numpy as np
 from scipy.spatial import ConvexHull
 
@@ -15,8 +16,10 @@ def _square(lo, hi):
 
 def test_cover_is_the_share_and_the_largest_free_disc():
     lo, hi, step = np.array([0.0, 0.0]), np.array([0.2, 0.1]), 0.01
+
     def near(radius, truth):  # centres on a grid of cells: up to one cell short, never more
         return truth - step <= radius <= truth + 1e-12
+
     share, radius = _cover([], lo, hi, step)
     assert share == 0.0 and near(radius, 0.05)  # empty: the disc touches both long sides
     share, radius = _cover([_square((0.1, -0.1), (0.3, 0.2))], lo, hi, step)  # the right half covered
@@ -29,13 +32,23 @@ def test_cover_is_the_share_and_the_largest_free_disc():
 
 def _overlaps(scene, request, skip=None):
     lo, hi = np.array(request.region_min[:2]), np.array(request.region_max[:2])
-    return [name for name, xy in _hulls_xy(scene) if name != skip
-            and np.all(xy.max(axis=0) > lo) and np.all(xy.min(axis=0) < hi)]
+    return [
+        name
+        for name, xy in _hulls_xy(scene)
+        if name != skip and np.all(xy.max(axis=0) > lo) and np.all(xy.min(axis=0) < hi)
+    ]
 
 
 def test_regions_are_seeded_clear_or_partly_cluttered():
-    scene, _ = standing_scene((("004_sugar_box", (0.5, 0.0)), ("005_tomato_soup_can", (0.55, 0.25)),
-                               ("025_mug", (0.45, -0.28)), ("010_potted_meat_can", (0.62, 0.3))), "004_sugar_box")
+    scene, _ = standing_scene(
+        (
+            ("004_sugar_box", (0.5, 0.0)),
+            ("005_tomato_soup_can", (0.55, 0.25)),
+            ("025_mug", (0.45, -0.28)),
+            ("010_potted_meat_can", (0.62, 0.3)),
+        ),
+        "004_sugar_box",
+    )
     for kind in RegionKind:
         with_region, request = place_task(scene, kind, seed=5)
         assert place_task(scene, kind, seed=5)[1] == request
@@ -47,7 +60,9 @@ def test_regions_are_seeded_clear_or_partly_cluttered():
             assert not _overlaps(scene, request)
         if kind is RegionKind.bin:  # the walls stand around the region, outside it
             walls = dict(_hulls_xy(with_region))["bin"]
-            assert np.all(walls.min(axis=0) < request.region_min[:2]) and np.all(walls.max(axis=0) > request.region_max[:2])
+            assert np.all(walls.min(axis=0) < request.region_min[:2]) and np.all(
+                walls.max(axis=0) > request.region_max[:2]
+            )
         else:
             assert with_region is scene
 
@@ -58,8 +73,15 @@ def test_more_candidates_are_drawn_until_the_target_has_room():
     blocked" whatever the planner does); the later ones do, and the region chosen is one of those."""
     from pickplan.eval.place_regions import RegionSettings, _footprints, _radius_xy
 
-    scene, _ = standing_scene((("003_cracker_box", (0.749, 0.192)), ("002_master_chef_can", (0.52, 0.283)),
-                               ("025_mug", (0.569, -0.303)), ("024_bowl", (0.38, 0.302))), "024_bowl")
+    scene, _ = standing_scene(
+        (
+            ("003_cracker_box", (0.749, 0.192)),
+            ("002_master_chef_can", (0.52, 0.283)),
+            ("025_mug", (0.569, -0.303)),
+            ("024_bowl", (0.38, 0.302)),
+        ),
+        "024_bowl",
+    )
     room = _radius_xy(scene) + RegionSettings().clutter_margin
     footprints = _footprints(scene, scene.target)
 

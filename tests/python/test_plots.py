@@ -1,4 +1,5 @@
 """The picture beside every sweep table: per-object success and time per stage."""
+
 import numpy as np
 from PIL import Image
 
@@ -12,10 +13,17 @@ def _records(execute: bool):
         for target in ("005_tomato_soup_can", "pen_01", "004_sugar_box"):
             for run in range(3):
                 ok = bool(rng.random() < 0.8)
-                out.append({"method": m, "target": target, "valid": True, "planning_success": ok,
-                            "execution_success": ok and execute and bool(rng.random() < 0.9),
-                            "execution_run": execute,
-                            "stage_times": {s: float(rng.uniform(0.0005, 0.003)) for s in STAGES}})
+                out.append(
+                    {
+                        "method": m,
+                        "target": target,
+                        "valid": True,
+                        "planning_success": ok,
+                        "execution_success": ok and execute and bool(rng.random() < 0.9),
+                        "execution_run": execute,
+                        "stage_times": {s: float(rng.uniform(0.0005, 0.003)) for s in STAGES},
+                    }
+                )
     return out
 
 

@@ -1,5 +1,6 @@
 """Grasps from partial point clouds (issue 22): checked in score order, sized on the cross-section the
 pads close on, gravity's lever arm, and the target's visibility hull against the true object."""
+
 import dataclasses
 
 import numpy as np
@@ -10,9 +11,15 @@ from scipy.spatial import cKDTree
 from conftest import known_scene as _known_scene
 from pickplan.core import robots
 from pickplan.omg import isf
-from pickplan.omg.grasps.points import (PointGraspSettings, denoised, fitted_normals, footprint_candidates, gravity_lever,
-                                        grasps_from_points, local_candidates, mass_centre, patch_normals,
-                                        thinned)
+from pickplan.omg.grasps.point_geometry import (
+    denoised,
+    fitted_normals,
+    gravity_lever,
+    mass_centre,
+    patch_normals,
+    thinned,
+)
+from pickplan.omg.grasps.points import PointGraspSettings, footprint_candidates, grasps_from_points, local_candidates
 from pickplan.perception.field import perceive
 from pickplan.perception.hull import HullSettings, hull_voxels, visibility_hull
 from pickplan.sim.observe import render_observation
@@ -166,8 +173,9 @@ def test_fitted_normals_keep_a_noisy_flat_face_coherent():
     assert np.min(coherence[inner]) > 0.95
     # noise-free, the fit is exact
     P0 = np.outer(u.ravel(), e1) + np.outer(v.ravel(), e2)
-    np.testing.assert_allclose(fitted_normals(P0, np.tile(true_n, (len(P0), 1)), 0.008), np.tile(true_n, (len(P0), 1)),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        fitted_normals(P0, np.tile(true_n, (len(P0), 1)), 0.008), np.tile(true_n, (len(P0), 1)), atol=1e-9
+    )
 
 
 def test_fitted_normals_on_a_box_edge_stay_incoherent():
@@ -191,10 +199,14 @@ def test_section_widths_resist_depth_noise_and_keep_a_curved_side():
     noisy = P + N * rng.normal(0, 0.002, (len(P), 1))
     Q = denoised(noisy, N, 0.008)
     s = PointGraspSettings(max_width=0.08, pad_length=0.018, width_margin=0.006)
+
     def across(settings):
         return [w for G, _, w in footprint_candidates(Q, PLANE, settings) if G[2, 2] < -0.99 and abs(G[1, 1]) > 0.999]
-    trimmed, extremes = across(s), across(PointGraspSettings(max_width=0.1, pad_length=0.018, width_margin=0.006,
-                                                                        section_trim=0.0))
+
+    trimmed, extremes = (
+        across(s),
+        across(PointGraspSettings(max_width=0.1, pad_length=0.018, width_margin=0.006, section_trim=0.0)),
+    )
     assert trimmed and extremes
     assert max(abs(w - 0.07) for w in trimmed) < 0.002 < min(w - 0.07 for w in extremes)
     a, z = np.meshgrid(np.linspace(0, 2 * np.pi, 240, endpoint=False), np.arange(0.0, 0.1, 0.003))

@@ -1,4 +1,5 @@
 """Procedural object families, drop probabilities of resting poses, and scenes posed as they come."""
+
 import json
 
 import numpy as np
@@ -78,8 +79,9 @@ def test_a_face_the_com_overhangs_drains_into_its_neighbours():
     # object cannot rest on that face, and the solid angle of that face goes to the faces it tips onto
     A, B, C = (0.0, 0.0), (0.1, 0.0), (0.3, 0.1)
     verts = [[x, y, z] for y in (0.0, 0.05) for x, z in (A, B, C)]
-    prism = trimesh.Trimesh(vertices=verts, faces=[[0, 1, 2], [3, 5, 4], [0, 3, 4], [0, 4, 1], [1, 4, 5],
-                                                   [1, 5, 2], [2, 5, 3], [2, 3, 0]])
+    prism = trimesh.Trimesh(
+        vertices=verts, faces=[[0, 1, 2], [3, 5, 4], [0, 3, 4], [0, 4, 1], [1, 4, 5], [1, 5, 2], [2, 5, 3], [2, 3, 0]]
+    )
     prism.fix_normals()
     com = prism.center_mass
     poses, _ = objects.compute_resting_poses(prism, com)
@@ -117,8 +119,26 @@ def test_stable_scenes_hold_still_after_reloading(tmp_path):
 
 def test_the_scenes_command_takes_poses_objects_and_clutter(tmp_path):
     out = tmp_path / "set"
-    assert scenes_cli.main(["scenes", "--n", "2", "--seed", "1", "--objects", "procedural", "--poses", "stable",
-                            "--clutter", "8-10", "--out", str(out)]) == 0
+    assert (
+        scenes_cli.main(
+            [
+                "scenes",
+                "--n",
+                "2",
+                "--seed",
+                "1",
+                "--objects",
+                "procedural",
+                "--poses",
+                "stable",
+                "--clutter",
+                "8-10",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     index = json.loads((out / "index.json").read_text())
     assert index["orientation"] == "stable" and index["clutter"] == [8, 10] and index["objects"] == "procedural"
     assert all(1 <= len(e["objects"]) <= 10 for e in index["scenes"])

@@ -1,4 +1,5 @@
 """The README's Python example runs as written (a user copies it first) and its plan lifts the target."""
+
 import pathlib
 import re
 

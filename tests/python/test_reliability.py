@@ -1,6 +1,7 @@
 """Regression tests for issue 26's bad-input cases, each named after the case it pins. Every
 case must end in a clear exception (a ValueError / InputError naming the field) or, for caches,
 a warning and a rebuild: never a crash, a silent repair of nonsense, or a confident wrong result."""
+
 import json
 import subprocess
 import sys
@@ -149,8 +150,9 @@ def test_graspit_grasps_of_the_shared_ycb_objects_load_and_give_goals(panda):
 
 # --- meshes and the SDF cache -----------------------------------------------------------------------
 def test_degenerate_zero_volume_collision_mesh_is_refused(panda):
-    flat = trimesh.Trimesh(vertices=[[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0.1, 0.1, 0]], faces=[[0, 1, 2], [1, 3, 2]],
-                           process=False)
+    flat = trimesh.Trimesh(
+        vertices=[[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0.1, 0.1, 0]], faces=[[0, 1, 2], [1, 3, 2]], process=False
+    )
     with pytest.raises(InputError, match="object 'plate': degenerate mesh: it encloses no volume"):
         CollisionChecker(panda, [SceneMesh("plate", flat, np.eye(4))])
     with pytest.raises(InputError, match="degenerate mesh"):
@@ -188,8 +190,17 @@ def _rewrite(path, **changes):
         np.savez(f, **data)
 
 
-@pytest.mark.parametrize("damage", ["nan_values_with_a_matching_checksum", "inf_values", "checksum_mismatch",
-                                    "truncated_file", "other_code_version", "old_format_without_checksum"])
+@pytest.mark.parametrize(
+    "damage",
+    [
+        "nan_values_with_a_matching_checksum",
+        "inf_values",
+        "checksum_mismatch",
+        "truncated_file",
+        "other_code_version",
+        "old_format_without_checksum",
+    ],
+)
 def test_sdf_cache_damaged_entry_is_rebuilt_with_a_warning_never_used(tmp_path, damage):
     mesh = trimesh.creation.box(extents=[0.06, 0.08, 0.1])
     settings = sdf.SdfSettings(resolution=0.01, margin=0.05, cache_dir=str(tmp_path))
@@ -236,7 +247,9 @@ def _moved(d, dz):
 
 
 def test_object_3cm_into_the_table_is_refused(scene_dict):
-    with pytest.raises(ValueError, match=r"objects\[0\]\.pose: object .* reaches (2\.[5-9]|3\.[0-4]) cm below the table top"):
+    with pytest.raises(
+        ValueError, match=r"objects\[0\]\.pose: object .* reaches (2\.[5-9]|3\.[0-4]) cm below the table top"
+    ):
         scenes.Scene.from_dict(_moved(scene_dict, -0.03))
     scenes.Scene.from_dict(_moved(scene_dict, -0.002))  # settling contact depth: accepted
 
@@ -249,7 +262,10 @@ def test_object_50cm_under_the_table_is_refused(scene_dict):
 def test_scene_poses_given_as_strings_are_refused(scene_dict):
     d = json.loads(json.dumps(scene_dict))
     d["objects"][1]["pose"] = [[str(v) for v in row] for row in d["objects"][1]["pose"]]
-    with pytest.raises(ValueError, match=r"objects\[1\]\.pose: expected numbers, got str '1\.0'|objects\[1\]\.pose: expected numbers, got str"):
+    with pytest.raises(
+        ValueError,
+        match=r"objects\[1\]\.pose: expected numbers, got str '1\.0'|objects\[1\]\.pose: expected numbers, got str",
+    ):
         scenes.Scene.from_dict(d)
     d = json.loads(json.dumps(scene_dict))
     d["robot_base"] = json.dumps(d["robot_base"])
@@ -284,13 +300,37 @@ def test_deeply_nested_json_is_a_clear_error(tmp_path):
 def _metamodel():
     from pickplan.pickup.metamodel.model import FORMAT, VERSION
 
-    lv = {"name": "low", "sigma_r": 0.002, "sigma_phi": 0.087, "rho_grid": [[0.9, 0.8], [0.7, 0.6]],
-          "surface": {"coeffs": [[0.9, 0.8], [0.7, 0.6]], "sg_range": [0.1, 1.0], "sc_range": [0.05, 0.15]}}
-    b = {"i": 0, "j": 0, "s_g": 0.1, "s_c": 0.05, "X": [[0.1, 0.2, 0.3], [0.0, -0.1, 0.5]], "y": [1, 0],
-         "simulated": [1, 1], "svm_c": 10.0, "svm_gamma": 2.0}
-    return {"format": FORMAT, "version": VERSION, "part": "box", "sg_grid": [0.1, 1.0], "sc_grid": [0.05, 0.15],
-            "domain": {"r_max": 0.05, "phi_max": 1.0}, "n_queries": 100, "surface_degree": [3, 2],
-            "lapse": 0.01, "levels": [lv], "boundaries": [b]}
+    lv = {
+        "name": "low",
+        "sigma_r": 0.002,
+        "sigma_phi": 0.087,
+        "rho_grid": [[0.9, 0.8], [0.7, 0.6]],
+        "surface": {"coeffs": [[0.9, 0.8], [0.7, 0.6]], "sg_range": [0.1, 1.0], "sc_range": [0.05, 0.15]},
+    }
+    b = {
+        "i": 0,
+        "j": 0,
+        "s_g": 0.1,
+        "s_c": 0.05,
+        "X": [[0.1, 0.2, 0.3], [0.0, -0.1, 0.5]],
+        "y": [1, 0],
+        "simulated": [1, 1],
+        "svm_c": 10.0,
+        "svm_gamma": 2.0,
+    }
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "part": "box",
+        "sg_grid": [0.1, 1.0],
+        "sc_grid": [0.05, 0.15],
+        "domain": {"r_max": 0.05, "phi_max": 1.0},
+        "n_queries": 100,
+        "surface_degree": [3, 2],
+        "lapse": 0.01,
+        "levels": [lv],
+        "boundaries": [b],
+    }
 
 
 def test_metamodel_validation_constants_match_the_reader():
@@ -309,15 +349,20 @@ def test_nan_sigma_r_in_a_metamodel_is_refused():
         validate_metamodel(d, "m.json")
 
 
-@pytest.mark.parametrize("mutate, message", [
-    (lambda d: [d], r"\(top level\): expected an object \(a table of keys\), got list"),
-    (lambda d: {**d, "n_queries": "100"}, r"n_queries: expected an integer, got str"),
-    (lambda d: {**d, "sg_grid": [0.1, "1.0"]}, r"sg_grid: expected numbers, got str"),
-    (lambda d: {**d, "lapse": 1.5}, r"lapse: 1\.5 is outside \[0\.0, 1\.0\]"),
-    (lambda d: {**d, "boundaries": [{**d["boundaries"][0], "y": [1]}]}, r"boundaries\[0\]\.y: expected 2 labels"),
-    (lambda d: {**d, "levels": [{**d["levels"][0], "rho_grid": [[0.5, 2.0], [0.1, 0.1]]}]},
-     r"levels\[0\]\.rho_grid: values must lie in \[0\.0, 1\.0\]"),
-])
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (lambda d: [d], r"\(top level\): expected an object \(a table of keys\), got list"),
+        (lambda d: {**d, "n_queries": "100"}, r"n_queries: expected an integer, got str"),
+        (lambda d: {**d, "sg_grid": [0.1, "1.0"]}, r"sg_grid: expected numbers, got str"),
+        (lambda d: {**d, "lapse": 1.5}, r"lapse: 1\.5 is outside \[0\.0, 1\.0\]"),
+        (lambda d: {**d, "boundaries": [{**d["boundaries"][0], "y": [1]}]}, r"boundaries\[0\]\.y: expected 2 labels"),
+        (
+            lambda d: {**d, "levels": [{**d["levels"][0], "rho_grid": [[0.5, 2.0], [0.1, 0.1]]}]},
+            r"levels\[0\]\.rho_grid: values must lie in \[0\.0, 1\.0\]",
+        ),
+    ],
+)
 def test_metamodel_wrong_types_and_ranges_name_the_field(mutate, message):
     from pickplan.pickup.metamodel.validate import validate_metamodel
 

@@ -1,5 +1,6 @@
 """Pictures through Pillow: PNG round-trips exactly; the GIF keeps every frame (held poses too),
 its timing and looping, and decodes to the frames it was given; bad input is named."""
+
 import numpy as np
 import pytest
 from PIL import Image, ImageSequence
@@ -11,7 +12,7 @@ def _frames():
     out = []
     for k in range(4):
         f = np.full((40, 50, 3), 255, np.uint8)
-        f[5:20, 5 + 5 * k:20 + 5 * k] = (200, 30, 30)  # a moving red block
+        f[5:20, 5 + 5 * k : 20 + 5 * k] = (200, 30, 30)  # a moving red block
         f[25:35, :] = (30, 120, 200)
         out.append(f)
     return out + [out[-1].copy()]  # the last pose held: two identical frames

@@ -2,6 +2,7 @@
 as a world built at the new poses (a moved object queried on its own grid beside the merged rest); a replan after no change returns the same trajectory without an
 iteration; after the target moves the goal follows it and the plan lifts it in PyBullet; a robot that
 moved on starts there; bad moves are clear errors."""
+
 from dataclasses import replace
 
 import numpy as np
@@ -50,7 +51,10 @@ def test_a_moved_object_reads_as_a_world_built_there(scene):
         fresh.sdf.merge(exclude=e + (other,), resolution=res.merged_resolution, cutoff=res.merged_cutoff)
     alone = [n for n in fresh.sdf.names if n != other]
     rng = np.random.default_rng(0)
-    lo, hi = np.min([o.pose[:3, 3] for o in scene.objects], axis=0), np.max([o.pose[:3, 3] for o in scene.objects], axis=0)
+    lo, hi = (
+        np.min([o.pose[:3, 3] for o in scene.objects], axis=0),
+        np.max([o.pose[:3, 3] for o in scene.objects], axis=0),
+    )
     X = rng.uniform(lo - [0.15, 0.15, 0.0], hi + [0.15, 0.15, 0.25], size=(4000, 3))
     for exclude in excludes:
         for cutoff in (0.05, np.inf):
@@ -113,9 +117,9 @@ def test_warm_trajectory_keeps_the_path_and_moves_its_start():
     np.testing.assert_array_equal(warm_trajectory(last, last[0]), last[1:])  # nothing changed: the same rows
     moved = warm_trajectory(last, last[0] + 0.02)
     assert moved.shape == (30, 9)
-    np.testing.assert_allclose(moved[-1], last[-1], atol=1e-12)          # the end stays
+    np.testing.assert_allclose(moved[-1], last[-1], atol=1e-12)  # the end stays
     np.testing.assert_allclose(moved[0] - last[1], 0.02 * (1 - (3 / 30**2 - 2 / 30**3)), atol=1e-12)
-    on = warm_trajectory(last, last[10])                                   # moved on along the path
+    on = warm_trajectory(last, last[10])  # moved on along the path
     assert on.shape == (30, 9)
     np.testing.assert_allclose(on[-1], last[-1], atol=1e-12)
 

@@ -1,6 +1,7 @@
 """The rho surface exists twice by design: in Python (part 1 fits it, RhoSurface) and in C++ (the NLP
 constrains with it, RhoPoly). They must be one function: compare values and gradients at random
 interior points of random surfaces, not only at the corners where Bernstein forms agree trivially."""
+
 import numpy as np
 import pytest
 
@@ -20,8 +21,9 @@ def test_python_and_native_rho_agree_inside_the_domain(degrees):
     sg = rng.uniform(*sg_range, 200)
     sc = rng.uniform(*sc_range, 200)
     # strictly interior: no point within 1 % of an edge
-    inside = (np.abs(sg - np.clip(sg, sg_range[0] + 0.012, sg_range[1] - 0.012)) == 0) & \
-             (np.abs(sc - np.clip(sc, sc_range[0] + 0.005, sc_range[1] - 0.005)) == 0)
+    inside = (np.abs(sg - np.clip(sg, sg_range[0] + 0.012, sg_range[1] - 0.012)) == 0) & (
+        np.abs(sc - np.clip(sc, sc_range[0] + 0.005, sc_range[1] - 0.005)) == 0
+    )
     sg, sc = sg[inside], sc[inside]
     assert len(sg) > 150
     py_val = py_surface(sg, sc)
@@ -37,7 +39,11 @@ def test_the_gradient_both_sides_agree_with_finite_differences():
     native = rho_from_surface(surface)
     h = 1e-6
     for sg, sc in rng.uniform((0.2, 0.2), (1.1, 0.5), (20, 2)):
-        fd = np.array([(native.value(sg + h, sc) - native.value(sg - h, sc)) / (2 * h),
-                       (native.value(sg, sc + h) - native.value(sg, sc - h)) / (2 * h)])
+        fd = np.array(
+            [
+                (native.value(sg + h, sc) - native.value(sg - h, sc)) / (2 * h),
+                (native.value(sg, sc + h) - native.value(sg, sc - h)) / (2 * h),
+            ]
+        )
         np.testing.assert_allclose(np.asarray(native.gradient(sg, sc)), fd, atol=1e-6)
         np.testing.assert_allclose(surface.gradient(sg, sc), fd, atol=1e-6)

@@ -1,4 +1,5 @@
 """Robot kinematics against PyBullet (independent implementation) and finite differences."""
+
 import os
 
 import numpy as np
@@ -46,8 +47,12 @@ def test_fk_matches_pybullet_1000_random_configurations(panda, bullet):
     worst_p = worst_r = 0.0
     for b, q in enumerate(Q):
         _set_q(bullet, body, movable, panda, q)
-        states = pb.getLinkStates(body, list(range(pb.getNumJoints(body, physicsClientId=bullet))),
-                                  computeForwardKinematics=True, physicsClientId=bullet)
+        states = pb.getLinkStates(
+            body,
+            list(range(pb.getNumJoints(body, physicsClientId=bullet))),
+            computeForwardKinematics=True,
+            physicsClientId=bullet,
+        )
         for li, name in enumerate(panda.link_names):
             j = index[name]
             if j < 0:
@@ -136,8 +141,9 @@ def test_jacobian_matches_pybullet(panda, bullet):
             j = index[link]
             p_link = rng.uniform(-0.05, 0.05, 3)
             # Measured: for this URDF PyBullet's localPosition is the URDF link frame.
-            lin, ang = pb.calculateJacobian(body, j, p_link.tolist(), q.tolist(), [0.0] * 9, [0.0] * 9,
-                                            physicsClientId=bullet)
+            lin, ang = pb.calculateJacobian(
+                body, j, p_link.tolist(), q.tolist(), [0.0] * 9, [0.0] * 9, physicsClientId=bullet
+            )
             J = panda.jacobian(q, link, p_link)
             # PyBullet's single-precision URDF parse bounds the agreement (see the FK test).
             np.testing.assert_allclose(J[:3], np.array(lin), atol=1e-6)
@@ -165,7 +171,9 @@ def test_jacobian_matches_central_finite_differences(panda):
                 dq[k] = h
                 Tp, Tm = panda.fk(q + dq)[li], panda.fk(q - dq)[li]
                 J_fd[:3, k] = ((Tp[:3, :3] @ p + Tp[:3, 3]) - (Tm[:3, :3] @ p + Tm[:3, 3])) / (2 * h)
-                J_fd[3:, k] = (_rotation_log(Tp[:3, :3] @ T0[:3, :3].T) - _rotation_log(Tm[:3, :3] @ T0[:3, :3].T)) / (2 * h)
+                J_fd[3:, k] = (_rotation_log(Tp[:3, :3] @ T0[:3, :3].T) - _rotation_log(Tm[:3, :3] @ T0[:3, :3].T)) / (
+                    2 * h
+                )
             np.testing.assert_allclose(J, J_fd, atol=1e-7)
 
 
@@ -218,12 +226,15 @@ def test_with_base_moves_every_link(panda):
     assert np.array_equal(panda.base_pose, np.eye(4))  # the original is unchanged
 
 
-@pytest.mark.parametrize("bad, message", [
-    (np.zeros(7), "expected 9 joint values, got 7"),
-    (np.array([0.0] * 8 + [np.nan]), "NaN or infinite"),
-    (np.array([0.0] * 8 + [np.inf]), "NaN or infinite"),
-    (np.zeros((2, 9)), "expected a 1-D array"),
-])
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (np.zeros(7), "expected 9 joint values, got 7"),
+        (np.array([0.0] * 8 + [np.nan]), "NaN or infinite"),
+        (np.array([0.0] * 8 + [np.inf]), "NaN or infinite"),
+        (np.zeros((2, 9)), "expected a 1-D array"),
+    ],
+)
 def test_bad_configurations_raise_clear_errors(panda, bad, message):
     with pytest.raises(ValueError, match=message):
         panda.fk(bad)
@@ -268,6 +279,11 @@ def test_import_panda_from_fresh_interpreter():
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-c", "from pickplan.core import robots; r = robots.panda(); print(r.dof, r.link_names)"],
-                         capture_output=True, text=True, check=True, cwd=os.path.dirname(__file__))
+    out = subprocess.run(
+        [sys.executable, "-c", "from pickplan.core import robots; r = robots.panda(); print(r.dof, r.link_names)"],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=os.path.dirname(__file__),
+    )
     assert out.stdout.startswith("9 ['panda_link0'")

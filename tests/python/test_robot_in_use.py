@@ -1,5 +1,6 @@
 """The robot in use, past its description (issue 21): scenes made for it, stored grasps converted only where
 its fingers straddle the object, and a transit that keeps away from the target it will grasp."""
+
 import types
 
 import numpy as np
@@ -29,7 +30,7 @@ def test_a_scene_made_for_a_robot_stands_it_at_its_start_clear_of_every_object(n
     monkeypatch.setattr(scenes, "graspability", recording)
     lib = objects.library("builtin")
     scene = scenes.generate_scene(3, lib, scenes.SceneSettings(robot=name))
-    assert set(openings) == {info.max_opening}            # the target is judged with this gripper's opening
+    assert set(openings) == {info.max_opening}  # the target is judged with this gripper's opening
     assert scene.robot == info.name and scene.robot_configuration == list(info.ready)
     back = scenes.Scene.from_json(scene.to_json())
     assert back.robot == info.name and back.robot_configuration == scene.robot_configuration
@@ -39,13 +40,16 @@ def test_a_scene_made_for_a_robot_stands_it_at_its_start_clear_of_every_object(n
     try:
         ids = scenes.load_into_pybullet(back, client, lib)
         robot = robots.load_robot(name, back.robot_base)
-        links = {pb.getJointInfo(ids["robot"], j, physicsClientId=client)[12].decode(): j
-                 for j in range(pb.getNumJoints(ids["robot"], physicsClientId=client))}
-        state = pb.getLinkState(ids["robot"], links[info.hand_link], computeForwardKinematics=True,
-                                physicsClientId=client)
+        links = {
+            pb.getJointInfo(ids["robot"], j, physicsClientId=client)[12].decode(): j
+            for j in range(pb.getNumJoints(ids["robot"], physicsClientId=client))
+        }
+        state = pb.getLinkState(
+            ids["robot"], links[info.hand_link], computeForwardKinematics=True, physicsClientId=client
+        )
         hand = robot.link_pose(robot.ready_configuration, info.hand_link)
         assert np.allclose(state[4], hand[:3, 3], atol=1e-6)  # PyBullet's robot at its base, at its start
-        for o in back.objects:                                 # nothing was left touching it
+        for o in back.objects:  # nothing was left touching it
             assert not pb.getClosestPoints(ids[o.name], ids["robot"], 0.0, physicsClientId=client), o.name
     finally:
         pb.disconnect(client)
@@ -66,8 +70,9 @@ def _boxes(*specs):
     parts = []
     for lo, hi in specs:
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-        parts.append(trimesh.creation.box(extents=hi - lo,
-                                          transform=trimesh.transformations.translation_matrix((lo + hi) / 2)))
+        parts.append(
+            trimesh.creation.box(extents=hi - lo, transform=trimesh.transformations.translation_matrix((lo + hi) / 2))
+        )
     return trimesh.util.concatenate(parts)
 
 
@@ -83,13 +88,16 @@ def _top_down(center, closing_along_x=False):
 def test_a_backed_off_grasp_whose_finger_would_rest_on_the_object_is_dropped():
     # A post (5 x 4 cm, 9 cm tall) with two 5 cm high blocks beside it, 4.1-7 cm off its axis along y:
     # outside the Panda's open pads (8 cm), right under the 2F-85's (8.5 cm apart, 1 cm thick).
-    mesh = _boxes(((-0.02, -0.025, 0.0), (0.02, 0.025, 0.09)),
-                  ((-0.02, 0.041, 0.0), (0.02, 0.07, 0.05)), ((-0.02, -0.07, 0.0), (0.02, -0.041, 0.05)))
+    mesh = _boxes(
+        ((-0.02, -0.025, 0.0), (0.02, 0.025, 0.09)),
+        ((-0.02, 0.041, 0.0), (0.02, 0.07, 0.05)),
+        ((-0.02, -0.07, 0.0), (0.02, -0.041, 0.05)),
+    )
     model = types.SimpleNamespace(mesh=mesh)
     info = robot_info("ur5")
     frames = np.stack([_top_down((0.0, 0.0, 0.065)), _top_down((0.0, 0.0, 0.065), closing_along_x=True)])
     panda_set = G.GraspSet("test", frames @ np.linalg.inv(PANDA.grasp_frame), "post")
-    plain = G.convert_grasps(panda_set, model, info)         # frames only: both fit the opening
+    plain = G.convert_grasps(panda_set, model, info)  # frames only: both fit the opening
     assert len(plain) == 2
     checker = G.HandObjectChecker(model, 0.0, info)
     assert checker.in_collision(plain.poses).tolist() == [True, False]  # the tips reach 2.5 cm down: into a block
@@ -100,7 +108,7 @@ def test_a_backed_off_grasp_whose_finger_would_rest_on_the_object_is_dropped():
     reach = info.pad_length / 2
     assert G.fingers_straddle(model, frames, info, reach).tolist() == [False, True]
     lifted = frames[:1].copy()
-    lifted[0, 2, 3] += 0.05 + reach                          # far above the blocks: nothing under the fingers
+    lifted[0, 2, 3] += 0.05 + reach  # far above the blocks: nothing under the fingers
     assert G.fingers_straddle(model, lifted, info, reach).tolist() == [True]
 
 
@@ -119,9 +127,9 @@ def test_the_transit_may_avoid_an_object_the_metrics_leave_out(panda):
     left_out = chomp.Chomp(panda, scene, body, exclude=("target",))
     avoided = chomp.Chomp(panda, scene, body, exclude=("target",), obstacle_exclude=())
     counted = chomp.Chomp(panda, scene, body)
-    xi = left_out.initial_trajectory(Q_LEFT, Q_RIGHT)        # sweeps the arm through the box
+    xi = left_out.initial_trajectory(Q_LEFT, Q_RIGHT)  # sweeps the arm through the box
     f_out, f_avoid, f_all = (c.objective(xi, Q_LEFT)[0].obstacle for c in (left_out, avoided, counted))
     assert f_avoid == pytest.approx(f_all) and f_avoid > f_out  # the optimizer's cost sees the box ...
     m_out, m_avoid = left_out.metrics(xi, Q_LEFT), avoided.metrics(xi, Q_LEFT)
-    assert m_avoid.to_dict() == m_out.to_dict() and m_out.collision_free        # ... the success test still leaves it out
+    assert m_avoid.to_dict() == m_out.to_dict() and m_out.collision_free  # ... the success test still leaves it out
     assert not counted.metrics(xi, Q_LEFT).collision_free

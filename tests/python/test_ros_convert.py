@@ -1,6 +1,7 @@
 """ROS messages -> pickplan's arrays (pickplan.ros.convert) on the real message classes, against
 independent truth (the pinhole model in OpenCV's pixel convention, scipy's rotations); and the library
 without the ros extra: it imports, and the node's commands name the extra."""
+
 import subprocess
 import sys
 
@@ -49,8 +50,10 @@ def test_row_padding_and_big_endian_are_read_as_the_fields_say():
     assert np.isnan(convert.depth_image(inf)).sum() == 3
 
 
-@pytest.mark.parametrize("change, field", [
-    ({"encoding": "rgb8"}, "encoding"), ({"step": 10}, "step"), ({"height": 7}, "data"), ({"width": 1}, "height")])
+@pytest.mark.parametrize(
+    "change, field",
+    [({"encoding": "rgb8"}, "encoding"), ({"step": 10}, "step"), ({"height": 7}, "data"), ({"width": 1}, "height")],
+)
 def test_a_malformed_image_names_its_field(change, field):
     msg = Image(**convert.image_fields(_depth(), "32FC1"))
     for k, v in change.items():
@@ -65,7 +68,7 @@ def test_camera_info_intrinsics_follow_opencv_pixel_centres():
     info = CameraInfo(height=480, width=640, k=[fx, 0, cx, 0, fy, cy, 0, 0, 1])
     K = convert.observation_K(info, (480, 640))
     X = np.array([0.12, -0.07, 1.3])
-    c, r = fx * X[0] / X[2] + cx, fy * X[1] / X[2] + cy   # OpenCV: the centre of pixel c is at u = c
+    c, r = fx * X[0] / X[2] + cx, fy * X[1] / X[2] + cy  # OpenCV: the centre of pixel c is at u = c
     r, c = int(round(r)), int(round(c))
     X = np.array([(c - cx) / fx, (r - cy) / fy, 1.0]) * 1.3  # exactly on that centre's ray
     depth = np.zeros((480, 640))
@@ -120,11 +123,14 @@ sys.meta_path.insert(0, Block())
 
 
 def test_the_library_imports_without_the_extra_and_the_node_names_it():
-    code = BLOCK_ROS + """
+    code = (
+        BLOCK_ROS
+        + """
 import pickplan, pickplan.cli.main, pickplan.ros.pipeline, pickplan.ros.convert
 from pickplan.cli.main import main
 sys.exit(main(['ros', 'serve', '--robot', 'panda']))
 """
+    )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert run.returncode == 2, run.stderr
     assert "pip install 'pickplan[ros]'" in run.stderr and "rclpy" in run.stderr, run.stderr

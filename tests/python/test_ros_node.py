@@ -4,6 +4,7 @@ images rendered from a scene (two cameras: 32FC1 metres and 16UC1 millimetres), 
 and the joint states, clicks a point on the target, calls the service, and executes the trajectory
 it receives in PyBullet on the true objects: the target is lifted. Every kind of bad message gets
 a failed response naming it, and the next good request is answered."""
+
 import os
 import signal
 import subprocess
@@ -77,8 +78,19 @@ def scene_and_replay(ros):
 def server(ros, scene_and_replay):
     *_, replay = scene_and_replay
     log = open(ros / "node.log", "w")
-    cmd = [sys.executable, "-m", "pickplan", "ros", "serve", "--robot", "panda", "--transport", "shm",
-           "--ros-args", *replay.node_arguments()]
+    cmd = [
+        sys.executable,
+        "-m",
+        "pickplan",
+        "ros",
+        "serve",
+        "--robot",
+        "panda",
+        "--transport",
+        "shm",
+        "--ros-args",
+        *replay.node_arguments(),
+    ]
     proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ))
     try:
         yield proc
@@ -117,7 +129,7 @@ def test_a_clicked_target_is_planned_timed_and_lifted_in_physics(ready, server):
     assert reply.trajectory is not None and reply.trajectory.header.frame_id == robot.link_names[0]
     timed = convert.timed_trajectory(reply.trajectory, robot.joint_names)
     np.testing.assert_allclose(timed.q[0], robot.ready_configuration, atol=1e-9)  # from the joint states
-    np.testing.assert_allclose(timed.qd[[0, -1]], 0.0, atol=1e-6)                 # rest to rest
+    np.testing.assert_allclose(timed.qd[[0, -1]], 0.0, atol=1e-6)  # rest to rest
     limits = robot_limits(robot)
     assert np.all(np.abs(timed.qd) <= limits.velocity * (1 + 1e-3))
     assert np.all(np.abs(timed.qdd) <= limits.acceleration * (1 + 1e-2))
@@ -150,9 +162,9 @@ def test_markers_and_status_describe_the_plan(ready):
     markers = {m.ns: m for m in arrays[-1].markers if m.ns}
     assert set(markers) >= {"field", "target", "goal_set", "chosen_grasp"}
     target = np.array([[p.x, p.y, p.z] for p in markers["target"].points])
-    assert np.linalg.norm(target.mean(axis=0)[:2] - point[:2]) < 0.05   # the observed target is the clicked one
+    assert np.linalg.norm(target.mean(axis=0)[:2] - point[:2]) < 0.05  # the observed target is the clicked one
     hand = np.array([[p.x, p.y, p.z] for p in markers["chosen_grasp"].points])
-    assert np.linalg.norm(hand.mean(axis=0)[:2] - point[:2]) < 0.15     # the chosen hand is at the target
+    assert np.linalg.norm(hand.mean(axis=0)[:2] - point[:2]) < 0.15  # the chosen hand is at the target
     field = np.array([[p.x, p.y, p.z] for p in markers["field"].points])
     can = next(o for o in scene.objects if o.name != scene.target).pose[:3, 3]
     assert np.min(np.linalg.norm(field[:, :2] - can[:2], axis=1)) < 0.03  # the other object is in the field
@@ -161,10 +173,12 @@ def test_markers_and_status_describe_the_plan(ready):
 
 def _bad_cases(replay, robot):
     """(name, break it, what the reason names): one malformed input of each kind."""
+
     def image_field(v, **fields):
         def apply():
             for k, val in fields.items():
                 setattr(replay.images[v], k, val)
+
         return apply
 
     def nan_depth():
@@ -239,8 +253,13 @@ def _cut(timed, segments) -> dict:
     out = {}
     for name, t0, t1 in segments:
         k0, k1 = (int(round(t * timed.rate)) for t in (t0, t1))
-        out[name] = TimedTrajectory(timed.t[k0:k1 + 1] - timed.t[k0], timed.q[k0:k1 + 1], timed.qd[k0:k1 + 1],
-                                    timed.qdd[k0:k1 + 1], timed.rate)
+        out[name] = TimedTrajectory(
+            timed.t[k0 : k1 + 1] - timed.t[k0],
+            timed.q[k0 : k1 + 1],
+            timed.qd[k0 : k1 + 1],
+            timed.qdd[k0 : k1 + 1],
+            timed.rate,
+        )
     return out
 
 
@@ -264,7 +283,9 @@ def test_pick_and_place_puts_the_target_in_the_region_in_physics(ready):
     assert len(edges) == 24
     np.testing.assert_allclose([edges.min(axis=0), edges.max(axis=0)], [PLACE_REGION[:3], PLACE_REGION[3:]])
     hand = np.array([[p.x, p.y, p.z] for p in markers["place"].points]).mean(axis=0)
-    assert np.all(hand[:2] > np.array(PLACE_REGION[:2]) - 0.05) and np.all(hand[:2] < np.array(PLACE_REGION[3:5]) + 0.05)
+    assert np.all(hand[:2] > np.array(PLACE_REGION[:2]) - 0.05) and np.all(
+        hand[:2] < np.array(PLACE_REGION[3:5]) + 0.05
+    )
     assert [n for n, *_ in reply.segments] == ["approach", "close", "lift", "transfer", "release", "retract"]
     timed = convert.timed_trajectory(reply.trajectory, robot.joint_names)
     assert reply.segments[0][1] == 0.0 and reply.segments[-1][2] == pytest.approx(timed.duration, abs=1e-3)
@@ -274,16 +295,21 @@ def test_pick_and_place_puts_the_target_in_the_region_in_physics(ready):
     assert np.all(np.abs(timed.qdd) <= limits.acceleration * (1 + 1e-2))
     parts = _cut(timed, reply.segments)
     arm, info = robot.info.arm_dof, robot.info
-    for name, fingers in (("approach", info.finger_open), ("lift", info.finger_closed),
-                          ("transfer", info.finger_closed), ("retract", info.finger_open)):
+    for name, fingers in (
+        ("approach", info.finger_open),
+        ("lift", info.finger_closed),
+        ("transfer", info.finger_closed),
+        ("retract", info.finger_open),
+    ):
         np.testing.assert_allclose(parts[name].q[:, arm:], fingers, atol=1e-9, err_msg=name)
     for name in ("close", "release"):  # the gripper moves, the arm stands still
         assert np.ptp(parts[name].q[:, :arm], axis=0).max() < 1e-12, name
         np.testing.assert_allclose(parts[name].qd[[0, -1]], 0.0, atol=1e-9)
     target = next(o for o in scene.objects if o.name == scene.target)
     check = PlaceCheck(PLACE_REGION[:3], PLACE_REGION[3:], target.pose)  # upright: the up axis it stood with
-    executed = execute_pick_and_place(scene, [(n, parts[n]) for n in ("approach", "lift", "transfer", "retract")],
-                                      check, library=lib)
+    executed = execute_pick_and_place(
+        scene, [(n, parts[n]) for n in ("approach", "lift", "transfer", "retract")], check, library=lib
+    )
     assert executed.success, (executed.status, executed.message)
 
 
@@ -308,6 +334,8 @@ def test_memory_stays_flat_over_repeated_requests(ready, server):
         seconds.append(reply.seconds)
         rss.append(rss_mb(server.pid))
     growth = max(rss[12:]) - rss[8]
-    print(f"\nnode RSS {rss[0]:.0f} -> {rss[-1]:.0f} MB over {len(rss)} requests; request to trajectory "
-          f"median {1000 * np.median(seconds):.0f} ms")
+    print(
+        f"\nnode RSS {rss[0]:.0f} -> {rss[-1]:.0f} MB over {len(rss)} requests; request to trajectory "
+        f"median {1000 * np.median(seconds):.0f} ms"
+    )
     assert growth < 15.0, rss

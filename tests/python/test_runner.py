@@ -1,5 +1,6 @@
 """The one job runner (pickplan.core.runner): job order kept, failures recorded, the same results in
 this process and in a pool of two spawned workers, completion order, and the progress bar."""
+
 import io
 import math
 import os

@@ -1,4 +1,5 @@
 """pickplan.sim.scenes: seeded generation, resting objects, JSON round trip, reloading, the CLI."""
+
 import json
 import math
 import os
@@ -36,8 +37,9 @@ def _check_resting(scene, lib, client):
         np.testing.assert_allclose(scenes.object_pose(client, b, m), o.pose, atol=1e-6)  # reload is exact
         lowest = (m.mesh.vertices @ o.pose[:3, :3].T[:, 2] + o.pose[2, 3]).min()
         assert -0.005 <= lowest <= 0.005, (o.name, lowest)  # resting on the table top (z = 0)
-        assert any(c[2] == ids["table"] or c[1] == ids["table"]
-                   for c in pb.getContactPoints(bodyA=b, physicsClientId=client)), o.name
+        assert any(
+            c[2] == ids["table"] or c[1] == ids["table"] for c in pb.getContactPoints(bodyA=b, physicsClientId=client)
+        ), o.name
         assert not pb.getClosestPoints(b, ids["robot"], 0.005, physicsClientId=client), o.name
         com = o.pose[:3, :3] @ m.com + o.pose[:3, 3]
         assert 0.2 <= com[0] <= 0.9 and -0.5 <= com[1] <= 0.5, (o.name, com)
@@ -169,7 +171,9 @@ def test_cli_writes_scenes_and_an_index(tmp_path, capsys, monkeypatch):
         assert scene.seed == e["seed"] and scene.target == e["target"]
         assert [o.name for o in scene.objects] == e["objects"]
     # scene i of a set is reproducible on its own from its recorded seed
-    assert scenes.generate_scene(index["scenes"][1]["seed"], "builtin").to_json() == (out / "scene_0001.json").read_text()
+    assert (
+        scenes.generate_scene(index["scenes"][1]["seed"], "builtin").to_json() == (out / "scene_0001.json").read_text()
+    )
     err = capsys.readouterr().err
     assert "2/2" in err and "[" in err
     with pytest.raises(SystemExit):

@@ -1,4 +1,5 @@
 """SDF grids against trimesh's exact signed distance, the interpolant's own derivatives, and closed forms."""
+
 import os
 import warnings
 
@@ -28,11 +29,14 @@ def _check_against_trimesh(mesh, grid, n, seed, margin=0.19):
     return err
 
 
-@pytest.mark.parametrize("make", [
-    lambda: trimesh.creation.box(extents=(0.08, 0.15, 0.2)),
-    lambda: trimesh.creation.cylinder(radius=0.035, height=0.1, sections=48),
-    lambda: trimesh.creation.annulus(r_min=0.03, r_max=0.05, height=0.08, sections=48),  # a hollow tube
-])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: trimesh.creation.box(extents=(0.08, 0.15, 0.2)),
+        lambda: trimesh.creation.cylinder(radius=0.035, height=0.1, sections=48),
+        lambda: trimesh.creation.annulus(r_min=0.03, r_max=0.05, height=0.08, sections=48),  # a hollow tube
+    ],
+)
 def test_grid_matches_trimesh_exact_signed_distance(make):
     mesh = make()
     grid = sdf.mesh_sdf(mesh, sdf.SdfSettings(cache_dir=""))
@@ -121,8 +125,8 @@ def test_scene_sdf_takes_the_nearest_body_and_excludes_by_name():
     np.testing.assert_allclose(d_objects[0], 0.1, atol=2e-3)  # a's face at y = 0.05
     np.testing.assert_allclose(d_objects[1], 0.2, atol=2e-3)  # a's top at z = 0.1
     d, g = scene.distance(p)
-    np.testing.assert_allclose(d[0], 0.05, atol=1e-12)        # the table top is nearer
-    np.testing.assert_allclose(d[2], 0.01, atol=1e-12)        # the table top, analytic
+    np.testing.assert_allclose(d[0], 0.05, atol=1e-12)  # the table top is nearer
+    np.testing.assert_allclose(d[2], 0.01, atol=1e-12)  # the table top, analytic
     np.testing.assert_allclose(g[2], [0, 0, 1], atol=1e-12)
     d_ex, _ = scene.distance(p, exclude=["a"], exclude_table=True)
     assert d_ex[0] > 0.1 and d_ex[2] > 0.2 and d_ex[1] > 0.2
@@ -148,12 +152,15 @@ def test_mesh_sdfs_builds_each_distinct_mesh_once_on_threads_in_order():
         np.testing.assert_array_equal(np.asarray(grid.origin), np.asarray(alone.origin))
 
 
-@pytest.mark.parametrize("V, F, message", [
-    (np.zeros((0, 3)), np.zeros((0, 3), int), "empty"),
-    (np.zeros((3, 3)), np.array([[0, 1, 2]]), "degenerate"),
-    (np.eye(3), np.array([[0, 1, 5]]), "refers to vertex 5"),
-    (np.array([[0, 0, 0], [1, 0, 0], [np.nan, 1, 0]]), np.array([[0, 1, 2]]), "NaN"),
-])
+@pytest.mark.parametrize(
+    "V, F, message",
+    [
+        (np.zeros((0, 3)), np.zeros((0, 3), int), "empty"),
+        (np.zeros((3, 3)), np.array([[0, 1, 2]]), "degenerate"),
+        (np.eye(3), np.array([[0, 1, 5]]), "refers to vertex 5"),
+        (np.array([[0, 0, 0], [1, 0, 0], [np.nan, 1, 0]]), np.array([[0, 1, 2]]), "NaN"),
+    ],
+)
 def test_bad_meshes_raise(V, F, message):
     with pytest.raises(ValueError, match=message):
         _core.SdfGrid.build(V, F, 0.01, 0.05)

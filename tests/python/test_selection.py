@@ -1,4 +1,5 @@
 """Selection policies against closed forms and invariants (OMG Sec. III-D)."""
+
 import math
 
 import numpy as np
@@ -68,9 +69,14 @@ def test_shifted_kl_step_matches_a_numerical_minimizer():
 
         exact = selection.shifted_kl_step(q, eta_c[None, :], delta)[0]
         assert np.all(exact >= 0) and np.isclose(exact.sum(), 1.0)
-        num = minimize(objective, np.full(n, 1.0 / n), method="SLSQP", bounds=[(0, 1)] * n,
-                       constraints=[{"type": "eq", "fun": lambda p: p.sum() - 1}],
-                       options={"ftol": 1e-14, "maxiter": 500})
+        num = minimize(
+            objective,
+            np.full(n, 1.0 / n),
+            method="SLSQP",
+            bounds=[(0, 1)] * n,
+            constraints=[{"type": "eq", "fun": lambda p: p.sum() - 1}],
+            options={"ftol": 1e-14, "maxiter": 500},
+        )
         assert objective(exact) <= num.fun + 1e-9
         np.testing.assert_allclose(exact, num.x, atol=2e-4)
 
@@ -81,8 +87,11 @@ def test_shifted_md_tracks_a_goal_that_became_cheaper_and_plain_kl_follows_the_l
     # leader); the shift keeps goal 1's probability recoverable, so MD moves within a few rounds.
     costs = np.array([[0.4, 0.6]] * 20 + [[0.66, 0.4]] * 30)
     first_switch = {}
-    for label, policy in (("FTL", selection.FTL()), ("MD0", selection.MirrorDescent(shift=0.0)),
-                          ("MD", selection.MirrorDescent())):
+    for label, policy in (
+        ("FTL", selection.FTL()),
+        ("MD0", selection.MirrorDescent(shift=0.0)),
+        ("MD", selection.MirrorDescent()),
+    ):
         modes = [int(np.argmax(p)) for p in _run(policy, costs)]
         first_switch[label] = modes.index(1)
     assert first_switch["FTL"] == first_switch["MD0"] == 35  # index of round 36

@@ -1,5 +1,6 @@
 """Settings and results that cannot drift: every Python settings dataclass that mirrors a native
 struct has its fields and defaults, and options and statuses are enums that keep their spellings."""
+
 import dataclasses
 import json
 
@@ -26,8 +27,13 @@ PAIRS = {
     "chomp": (ChompSettings, _core.ChompSettings, lambda s: s.to_native(), {"exclude_mask", "active"}, set()),
     "metrics": (MetricSettings, _core.MetricSettings, lambda s: s.to_native(), {"exclude_mask"}, set()),
     "ik": (IkSettings, _core.IkSettings, lambda s: s.to_native(ARM), {"weights"}, set()),
-    "goal_set": (GoalSetSettings, _core.GoalSetSettings, lambda s: s.to_native(), set(),
-                 set(GoalSetSettings.PYTHON_ONLY)),
+    "goal_set": (
+        GoalSetSettings,
+        _core.GoalSetSettings,
+        lambda s: s.to_native(),
+        set(),
+        set(GoalSetSettings.PYTHON_ONLY),
+    ),
     "isf": (IsfSettings, _core.IsfSettings, lambda s: s.to_native(ARM), {"active"}, set()),
     "collision": (CollisionSettings, _core.CollisionSettings, lambda s: s.to_native(), set(), set()),
     "pickup": (nlp.PlannerSettings, _core.PickupSettings, lambda s: s.to_native(), set(), set()),
@@ -35,12 +41,30 @@ PAIRS = {
 }
 
 # Python option/status enums with a native py::enum_ of the same member names.
-NATIVE_ENUMS = [(ChompStatus, _core.ChompStatus), (nlp.HessianMode, _core.HessianMode),
-                (nlp.CoefficientBasis, _core.CoefficientBasis), (nlp.MuStrategy, _core.MuStrategy),
-                (nlp.RateRows, _core.RateRows), (nlp.SolveStatus, _core.SolveStatus),
-                (problem_file.GraspKind, _core.GraspKind)]
-OPTIONS = [ChompStatus, Initialization, GraspKind, PlanStatus, Selection, CostKind, CheckerKind, nlp.HessianMode,
-           nlp.CoefficientBasis, nlp.MuStrategy, nlp.RateRows, nlp.Method, ExecutionStatus]
+NATIVE_ENUMS = [
+    (ChompStatus, _core.ChompStatus),
+    (nlp.HessianMode, _core.HessianMode),
+    (nlp.CoefficientBasis, _core.CoefficientBasis),
+    (nlp.MuStrategy, _core.MuStrategy),
+    (nlp.RateRows, _core.RateRows),
+    (nlp.SolveStatus, _core.SolveStatus),
+    (problem_file.GraspKind, _core.GraspKind),
+]
+OPTIONS = [
+    ChompStatus,
+    Initialization,
+    GraspKind,
+    PlanStatus,
+    Selection,
+    CostKind,
+    CheckerKind,
+    nlp.HessianMode,
+    nlp.CoefficientBasis,
+    nlp.MuStrategy,
+    nlp.RateRows,
+    nlp.Method,
+    ExecutionStatus,
+]
 
 
 def native_fields(native_type) -> set:
@@ -54,8 +78,9 @@ def same(a, b) -> bool:
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):  # an Eigen vector field (GoalSetSettings.approach)
         return np.shape(a) == np.shape(b) and np.array_equal(np.asarray(a, float), np.asarray(b, float))
     if isinstance(a, (list, tuple)) or isinstance(b, (list, tuple)):
-        return [tuple(x) if isinstance(x, (list, tuple)) else x for x in a] == \
-            [tuple(x) if isinstance(x, (list, tuple)) else x for x in b]
+        return [tuple(x) if isinstance(x, (list, tuple)) else x for x in a] == [
+            tuple(x) if isinstance(x, (list, tuple)) else x for x in b
+        ]
     return type(a) is type(b) and a == b
 
 
@@ -84,8 +109,10 @@ def test_python_settings_match_the_native_struct_field_by_field(pair):
 def test_the_drift_check_sees_a_changed_default_and_a_missing_field():
     py_type, native_type, convert, native_only, python_only = PAIRS["pickup"]
     fields = [(f.name, f.type, dataclasses.field(default=f.default)) for f in dataclasses.fields(py_type)]
-    changed = dataclasses.make_dataclass("Changed", [(n, t, dataclasses.field(default=9) if n == "max_iter" else d)
-                                                     for n, t, d in fields if n != "seed_speed"])
+    changed = dataclasses.make_dataclass(
+        "Changed",
+        [(n, t, dataclasses.field(default=9) if n == "max_iter" else d) for n, t, d in fields if n != "seed_speed"],
+    )
     problems = drift(changed, native_type, lambda s: dataclasses.asdict(s), native_only, python_only)
     assert problems == ["seed_speed: native only", "max_iter: Python default 9, native 400"]
 

@@ -1,6 +1,7 @@
 """Picks beyond the tabletop (issue 35): the grasp filter against a shelf board's exact geometry (PyBullet's
 closest points), the lift's headroom under a board against the boxes' heights, a shelf pick and a bin pick
 planned by the bench's OMG unit and lifted in PyBullet, and a cabinet scene that loads and plans."""
+
 from dataclasses import replace
 
 import numpy as np
@@ -9,8 +10,9 @@ import pytest
 from pickplan.core import objects
 from pickplan.core.robots import load_robot
 from pickplan.core.shapes import Obstacle, Shape
-from pickplan.eval.experiments import SweepSettings, _unit_grasps, run_sweep
+from pickplan.eval.experiments import SweepSettings, run_sweep
 from pickplan.eval.methods import method_spec
+from pickplan.eval.units import _unit_grasps
 from pickplan.omg.goals import GoalSetSettings, _raised_blocked, build_goal_set, lift_blocked_configurations
 from pickplan.omg.grasps import antipodal_grasps
 from pickplan.omg.grasps.generators import AntipodalSettings, SupportFilter
@@ -54,8 +56,10 @@ def test_grasp_filter_meets_the_shelf_board_not_the_floor(lib):
         board = add_table(cid, scene.table)
         info = world.robot.info
         hand = pb.loadURDF(hand_urdf_path(False, info), useFixedBase=True, physicsClientId=cid)
-        joints = {pb.getJointInfo(hand, j, physicsClientId=cid)[1].decode(): j
-                  for j in range(pb.getNumJoints(hand, physicsClientId=cid))}
+        joints = {
+            pb.getJointInfo(hand, j, physicsClientId=cid)[1].decode(): j
+            for j in range(pb.getNumJoints(hand, physicsClientId=cid))
+        }
         links = {pb.getJointInfo(hand, j, physicsClientId=cid)[12].decode(): j for j in joints.values()}
         fingers = [links[name] for name in info.finger_links]
         for name in info.finger_joints:
@@ -89,17 +93,28 @@ def test_the_lift_stops_under_a_board(lib):
     pose[:3, 3] = (0.6, 0.3, -float(model.mesh.bounds[0, 2]))  # resting on z = 0
     top = float(model.mesh.bounds[1, 2]) + pose[2, 3]
     gap = 0.08
-    board = Obstacle("board", Shape.box(0.2, 0.2, 0.02), np.array(
-        [[1, 0, 0, 0.6], [0, 1, 0, 0.3], [0, 0, 1, top + gap + 0.01], [0, 0, 0, 1.0]]), True)
+    board = Obstacle(
+        "board",
+        Shape.box(0.2, 0.2, 0.02),
+        np.array([[1, 0, 0, 0.6], [0, 1, 0, 0.3], [0, 0, 1, top + gap + 0.01], [0, 0, 0, 1.0]]),
+        True,
+    )
     s = ExecutionSettings()
     robot = load_robot("panda")
     q = robot.ready_configuration
     heights = []
     for obstacles in ([board], []):
-        scene = Scene(robot_base=np.eye(4), table=Table(size=np.array([1.0, 1.2, 0.05]), pose=np.array(
-            [[1, 0, 0, 0.6], [0, 1, 0, 0], [0, 0, 1, -0.025], [0, 0, 0, 1.0]])),
-            objects=[SceneObject(model.name, model.source, pose)], target=model.name,
-            robot_configuration=list(q), obstacles=obstacles)
+        scene = Scene(
+            robot_base=np.eye(4),
+            table=Table(
+                size=np.array([1.0, 1.2, 0.05]),
+                pose=np.array([[1, 0, 0, 0.6], [0, 1, 0, 0], [0, 0, 1, -0.025], [0, 0, 0, 1.0]]),
+            ),
+            objects=[SceneObject(model.name, model.source, pose)],
+            target=model.name,
+            robot_configuration=list(q),
+            obstacles=obstacles,
+        )
         sim = open_sim(scene, robot, q, s, {model.name: model})
         try:
             heights.append(lift_headroom(sim, robot, q, list(sim.obstacle_ids.values())))
@@ -115,8 +130,17 @@ def _one_unit(tmp_path, kind: Layout, seed: int, lib, execute: bool = True) -> d
     folder = tmp_path / "scenes"
     folder.mkdir()
     generate_layout(kind, seed=seed, library=lib).save(str(folder / "scene_0000.json"))
-    settings = SweepSettings("planners", out=str(tmp_path / "out"), scene_dir=str(folder), methods=("OMG",),
-                             grasp_kind="antipodal", runs=1, workers=1, execute=execute, progress=False)
+    settings = SweepSettings(
+        "planners",
+        out=str(tmp_path / "out"),
+        scene_dir=str(folder),
+        methods=("OMG",),
+        grasp_kind="antipodal",
+        runs=1,
+        workers=1,
+        execute=execute,
+        progress=False,
+    )
     (record,) = run_sweep(settings)
     return record
 
@@ -176,7 +200,9 @@ def test_the_goal_sets_lift_check_agrees_with_the_executed_lift(lib):
     blocked = lift_blocked_configurations(world, goals, settings.lift, settings.lift_clearance)
     s = ExecutionSettings()
     robot = load_robot("panda")
-    sim = open_sim(scene, robot, np.asarray(scene.robot_configuration), s, {o.name: lib.get(o.name) for o in scene.objects})
+    sim = open_sim(
+        scene, robot, np.asarray(scene.robot_configuration), s, {o.name: lib.get(o.name) for o in scene.objects}
+    )
     try:
         headroom = np.array([lift_headroom(sim, robot, q, list(sim.obstacle_ids.values())) for q in goals])
     finally:
@@ -192,8 +218,11 @@ def _raised_blocked_arm(world, Q, lift):
     """The arm's hull vertices and the target raised rigidly by ``lift`` entering an obstacle (the check before)."""
     robot = world.robot
     F = robot.fk_batch(Q)
-    parts = [(i, np.asarray(robot.collision_meshes(i).convex_hull.vertices)) for i in robot.moving_links()
-             if robot.collision_meshes(i) is not None]
+    parts = [
+        (i, np.asarray(robot.collision_meshes(i).convex_hull.vertices))
+        for i in robot.moving_links()
+        if robot.collision_meshes(i) is not None
+    ]
     P = np.concatenate([np.einsum("gij,pj->gpi", F[:, i, :3, :3], V) + F[:, i, None, :3, 3] for i, V in parts], axis=1)
     return _raised_blocked(world, P, lift, 0.01)
 
@@ -222,6 +251,7 @@ def test_the_transit_distance_to_the_target_is_the_meshes_distance(lib):
     import trimesh
 
     from pickplan.omg.planner import transit_target_distance
+
     scene = generate_layout(Layout.shelf, seed=3618546533, library=lib)
     world = World(scene)
     grasps = _unit_grasps(world, scene, "antipodal", 100, "panda")

@@ -1,6 +1,7 @@
 """The cache entries pickplan ships (assets/cache, core.io.cache_entry, omg.shipped): read only when their
 SHA-256 matches the manifest, never when made by another generator version, and equal to what the
 generator makes now (re-simulated on a sample of one small object)."""
+
 import os
 import shutil
 import warnings
@@ -29,8 +30,9 @@ def _shipped_folder(tmp_path, files: dict, labels: dict = None) -> str:
 
 def test_cache_entry_reads_a_shipped_copy_only_when_its_checksum_matches(tmp_path, monkeypatch):
     monkeypatch.setenv(io.CACHE_ENV, str(tmp_path / "user"))
-    folder = _shipped_folder(tmp_path, {"grasps/a.npz": b"grasps of a", "grasps/b.npz": b"grasps of b"},
-                             {"grasps/b.npz": "b / panda"})
+    folder = _shipped_folder(
+        tmp_path, {"grasps/a.npz": b"grasps of a", "grasps/b.npz": b"grasps of b"}, {"grasps/b.npz": "b / panda"}
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert io.cache_entry("grasps", "a.npz", shipped=folder) == os.path.join(folder, "grasps", "a.npz")
@@ -78,7 +80,7 @@ def test_shipped_grasps_are_what_the_generator_makes_now():
     round's candidates that held, in order (to rounding); two of them hold again in the shake test with
     the same drift (its score, to 0.05: 1 mm) and the candidates it left out (at most two) fail."""
     model = objects.library("builtin").get(SMALL)
-    (_, rel, _, gripper), = shipped.grasp_entries([SMALL])
+    ((_, rel, _, gripper),) = shipped.grasp_entries([SMALL])
     gs = simulated.read_grasp_file(os.path.join(io.shipped_dir(), rel), SMALL)
     cand, seeds = physics.shake_candidates(model, int(np.ceil(len(gs.poses) * 3.0)), 0, 0, gripper=gripper)
     flat = cand.poses.reshape(len(cand), -1)
@@ -102,7 +104,7 @@ def test_shipped_grasps_are_what_the_generator_makes_now():
 def test_the_planner_default_grasps_of_a_builtin_object_come_from_the_shipped_copy(tmp_path, monkeypatch):
     monkeypatch.setenv(io.CACHE_ENV, str(tmp_path / "user"))
     model = objects.library("builtin").get(SMALL)
-    (_, rel, _, _), = shipped.grasp_entries([SMALL])
+    ((_, rel, _, _),) = shipped.grasp_entries([SMALL])
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         gs = grasp_set(model, "simulated", 100, seed=0)
@@ -118,13 +120,21 @@ def test_a_new_generator_version_is_said_and_another_request_is_not(tmp_path, mo
     other = (model, 3, 5)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert io.cache_entry(simulated.CACHE_FOLDER, simulated.cache_name(*other),
-                              label=simulated.entry_label(*other)) is None
+        assert (
+            io.cache_entry(simulated.CACHE_FOLDER, simulated.cache_name(*other), label=simulated.entry_label(*other))
+            is None
+        )
     monkeypatch.setattr(simulated, "CACHE_VERSION", simulated.CACHE_VERSION + 1)
     shipped_request = (model, 100, 0)
     with pytest.warns(UserWarning, match="another version of its generator"):
-        assert io.cache_entry(simulated.CACHE_FOLDER, simulated.cache_name(*shipped_request),
-                              label=simulated.entry_label(*shipped_request)) is None
+        assert (
+            io.cache_entry(
+                simulated.CACHE_FOLDER,
+                simulated.cache_name(*shipped_request),
+                label=simulated.entry_label(*shipped_request),
+            )
+            is None
+        )
 
 
 def test_a_regenerated_entry_replaces_the_objects_old_one_in_the_manifest(tmp_path, monkeypatch):
@@ -132,7 +142,7 @@ def test_a_regenerated_entry_replaces_the_objects_old_one_in_the_manifest(tmp_pa
     the test above)."""
     folder = tmp_path / "cache"
     shutil.copytree(io.shipped_dir(), folder)
-    (_, rel, _, _), = shipped.grasp_entries([SMALL])
+    ((_, rel, _, _),) = shipped.grasp_entries([SMALL])
     old = "grasps/" + SMALL + "-simulated-000000000000000000000000.npz"
     os.rename(folder / rel, folder / old)
     entries = io.read_manifest(str(folder))

@@ -3,6 +3,7 @@
 PyBullet execution is the judge of the thin-object grasp; the palm test checks the hand's own
 collision mesh against the table plane before asking the goal set.
 """
+
 import numpy as np
 import pytest
 
@@ -15,8 +16,9 @@ from pickplan.omg.world import World
 from pickplan.sim import scenes
 from pickplan.sim.execution import execute_plan
 
-NO_SUPPORT_MODEL = goals.SupportSettings(contact=collision.SupportContact(0.0), max_shift=0.0, max_level_deg=0.0,
-                                         tilts_deg=())
+NO_SUPPORT_MODEL = goals.SupportSettings(
+    contact=collision.SupportContact(0.0), max_shift=0.0, max_level_deg=0.0, tilts_deg=()
+)
 NO_SUPPORT_MODEL_BUT_TOLERANCE = goals.SupportSettings(max_shift=0.0, max_level_deg=0.0, tilts_deg=())
 # The hand poses below that test the support alone close on empty table 25 cm from the pen: the grasp
 # quality (issue 33) rightly says they miss (``test_a_hand_beside_the_object_misses``), so they are
@@ -29,8 +31,9 @@ def _lone_object_scene(name: str, xy=(0.5, 0.05)) -> scenes.Scene:
     pose = np.array(model.resting_poses[0])
     pose[:2, 3] += xy
     table = scenes.default_table(scenes.SceneSettings())
-    return scenes.Scene(robot_base=np.eye(4), table=table, objects=[scenes.SceneObject(name, model.source, pose)],
-                        target=name)
+    return scenes.Scene(
+        robot_base=np.eye(4), table=table, objects=[scenes.SceneObject(name, model.source, pose)], target=name
+    )
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +53,8 @@ def _tables_plane(world):
 def test_default_tolerance_comes_from_the_gripper_pads(pen_world):
     pad = collision.gripper_spec(pen_world.robot).pad_length
     assert collision.SupportContact().resolved(pen_world.robot) == pytest.approx(
-        collision.SUPPORT_TOLERANCE_FRACTION * pad)
+        collision.SUPPORT_TOLERANCE_FRACTION * pad
+    )
     assert collision.SupportContact(0.001).resolved(pen_world.robot) == 0.001
     with pytest.raises(ValueError, match="support tolerance"):
         collision.SupportContact(-0.001).resolved(pen_world.robot)
@@ -63,10 +67,10 @@ def test_finger_penetration_is_exact_against_the_plane(pen_world):
     normal, offset = _tables_plane(pen_world)
     H = np.eye(4)
     H[:3, :3] = np.diag([1.0, -1.0, -1.0])  # z (approach) down
-    tip = fingers.vertices[:, 2].max()      # deepest finger point along the approach axis
+    tip = fingers.vertices[:, 2].max()  # deepest finger point along the approach axis
     heights = np.array([-0.004, 0.0, 0.01])
     poses = np.repeat(H[None], 3, axis=0)
-    poses[:, 2, 3] = tip + heights          # fingertips at these heights above the table top (z = 0)
+    poses[:, 2, 3] = tip + heights  # fingertips at these heights above the table top (z = 0)
     assert np.allclose(fingers.penetration(poses, normal, offset), -heights, atol=1e-9)
 
 
@@ -133,8 +137,9 @@ def test_palm_on_the_table_is_still_rejected(pen_world):
     assert gs.reasons == ["ok"] and gs.adjusted[0]  # lifted until the fingertips just touch
     hand = robot.link_pose(gs.goals[0], robot.hand_link)
     assert fingers.penetration(hand[None], normal, offset)[0] == pytest.approx(0.0, abs=2e-4)
-    kept = goals.build_goal_set(pen_world, (to_object @ down)[None], settings=NO_QUALITY,
-                                support=NO_SUPPORT_MODEL_BUT_TOLERANCE)
+    kept = goals.build_goal_set(
+        pen_world, (to_object @ down)[None], settings=NO_QUALITY, support=NO_SUPPORT_MODEL_BUT_TOLERANCE
+    )
     assert kept.reasons == ["ok"] and not kept.adjusted[0]  # 1 mm deep, within the tolerance, as it is
 
     side = np.eye(4)
@@ -171,12 +176,16 @@ def test_success_metric_lets_only_the_fingers_touch_the_table(pen_world):
     fingers = collision.HandGeometry(robot, pen_world.start, robot.hand_link, robot.finger_links)
     normal, offset = _tables_plane(pen_world)
     down = _down_at(fingers, normal, offset, 0.002)
-    gs = goals.build_goal_set(pen_world, (np.linalg.inv(pen_world.target_pose) @ down)[None],
-                              settings=NO_QUALITY, support=NO_SUPPORT_MODEL_BUT_TOLERANCE)
+    gs = goals.build_goal_set(
+        pen_world,
+        (np.linalg.inv(pen_world.target_pose) @ down)[None],
+        settings=NO_QUALITY,
+        support=NO_SUPPORT_MODEL_BUT_TOLERANCE,
+    )
     assert gs.reasons == ["ok"]
     chomp = Chomp(robot, pen_world.sdf, pen_world.body, exclude=(pen_world.target,))
     xi = cubic_initialization(pen_world.start, gs.goals[0], 30)
-    xi[-gs.tails.shape[1]:] = gs.tails[0]
+    xi[-gs.tails.shape[1] :] = gs.tails[0]
     settings = MetricSettings(tail_waypoints=gs.tails.shape[1])
     allowed = chomp.metrics(xi, pen_world.start, settings)
     strict = chomp.metrics(xi, pen_world.start, replace(settings, support_link_mask=0))
@@ -197,8 +206,11 @@ def test_sampling_planners_validity_follows_the_success_test(pen_world):
     side = np.eye(4)
     side[:3, :3] = np.column_stack([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
     side[:3, 3] = [0.45, -0.2, 0.0]
-    hands = [_down_at(fingers, normal, offset, 0.001), _down_at(fingers, normal, offset, 0.006),
-             _at_depth(fingers, side, normal, offset, -0.0005)]
+    hands = [
+        _down_at(fingers, normal, offset, 0.001),
+        _down_at(fingers, normal, offset, 0.006),
+        _at_depth(fingers, side, normal, offset, -0.0005),
+    ]
     sets = [goals.build_goal_set(pen_world, (to_object @ H)[None], collision_check=False) for H in hands]
     assert all(gs.reasons == ["ok"] for gs in sets)
     qs = [gs.goals[0] for gs in sets]
@@ -227,6 +239,7 @@ def test_isf_steps_never_press_the_fingers_deeper_into_the_support(pen_world):
     assert np.allclose([refiner.support_depth(q) for q in gs.goals], exact, atol=1e-9)
 
     from pickplan.omg.isf import GraspRefiner
+
     free = GraspRefiner(pen_world)
     free._native.set_support(np.zeros((0, 3)), np.array([0.0, 0.0, 1.0]), 0.0)  # no support
     pressed, kept = 0, 0
@@ -236,8 +249,8 @@ def test_isf_steps_never_press_the_fingers_deeper_into_the_support(pen_world):
         assert refiner.support_depth(q_ref) <= limit
         kept += bool(np.abs(q_ref - q).max() > 0)
         pressed += refiner.support_depth(free.refine(q, 10)[0]) > limit
-    assert pressed > 0   # the premise: unconstrained ISF presses some of these grasps into the table
-    assert kept > 0      # and the constrained one still refines grasps
+    assert pressed > 0  # the premise: unconstrained ISF presses some of these grasps into the table
+    assert kept > 0  # and the constrained one still refines grasps
     with pytest.raises(ValueError, match="unit vector"):
         free._native.set_support(fingers.vertices, np.array([0.0, 0.0, 2.0]), 0.0)
 
@@ -253,10 +266,11 @@ def test_cached_finger_geometry_is_the_fresh_one_built_once_per_opening(pen_worl
     assert cache.finger_geometry(other_world.robot, other_world.start).vertices is cached.vertices
     assert not cached.vertices.flags.writeable
     closed = np.array(pen_world.start, dtype=float)
-    closed[robot.info.arm_dof:] = robot.lower_limits[robot.info.arm_dof:]
+    closed[robot.info.arm_dof :] = robot.lower_limits[robot.info.arm_dof :]
     narrow = cache.finger_geometry(robot, closed)
-    assert np.array_equal(narrow.vertices, collision.HandGeometry(robot, closed, robot.hand_link,
-                                                                  robot.finger_links).vertices)
+    assert np.array_equal(
+        narrow.vertices, collision.HandGeometry(robot, closed, robot.hand_link, robot.finger_links).vertices
+    )
     assert not np.allclose(narrow.vertices, fresh.vertices)  # the fingers moved
     with pytest.raises(ValueError, match="vertices"):
         collision.HandGeometry.from_vertices(np.zeros((0, 3)))

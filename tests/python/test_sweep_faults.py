@@ -3,6 +3,7 @@ resumed, a Ray worker killed mid-task, and a resume that would mix two sweeps' u
 
 The truth each run is held to is an uninterrupted run of the same units: the same per-unit results,
 the same table, every unit exactly once."""
+
 import csv
 import json
 import os
@@ -19,7 +20,7 @@ from pickplan.eval.summaries import summarize
 
 METHODS = ("Fixed", "MD")
 KILL_AFTER_UNITS = 1  # unit files on disk before the kill; a run has len(METHODS) * scenes units
-DEADLINE_S = 45.0     # one bench run; a slower one is a hang, not a result
+DEADLINE_S = 45.0  # one bench run; a slower one is a hang, not a result
 
 
 @pytest.fixture(scope="module")
@@ -31,8 +32,22 @@ def scene_dir(tmp_path_factory):
 
 
 def _settings(scene_dir, out, **changes):
-    return E.SweepSettings(**{**dict(table="selection", out=str(out), scene_dir=scene_dir, runs=1, methods=METHODS,
-                                     quick=True, workers=2, execute=False, progress=False), **changes})
+    return E.SweepSettings(
+        **{
+            **dict(
+                table="selection",
+                out=str(out),
+                scene_dir=scene_dir,
+                runs=1,
+                methods=METHODS,
+                quick=True,
+                workers=2,
+                execute=False,
+                progress=False,
+            ),
+            **changes,
+        }
+    )
 
 
 @pytest.fixture(scope="module")
@@ -43,8 +58,25 @@ def reference(scene_dir, tmp_path_factory):
 
 
 def _bench_command(scene_dir, out, *extra):
-    return [sys.executable, "-m", "pickplan", "bench", "selection", "--quick", "--scene-dir", scene_dir,
-            "--methods", *METHODS, "--workers", "2", "--no-execute", "--no-progress", "--out", str(out), *extra]
+    return [
+        sys.executable,
+        "-m",
+        "pickplan",
+        "bench",
+        "selection",
+        "--quick",
+        "--scene-dir",
+        scene_dir,
+        "--methods",
+        *METHODS,
+        "--workers",
+        "2",
+        "--no-execute",
+        "--no-progress",
+        "--out",
+        str(out),
+        *extra,
+    ]
 
 
 def _start(command):
@@ -86,15 +118,24 @@ def _finish(proc):
 
 def _outcome(records):
     """What a unit's result is, without its timings."""
-    return {(r["scene"], r["method"], r["run"]): (r["status"], r["planning_success"], r["goal_set_size"],
-                                                  r["smoothness"], r["collision"], r["min_clearance"])
-            for r in records}
+    return {
+        (r["scene"], r["method"], r["run"]): (
+            r["status"],
+            r["planning_success"],
+            r["goal_set_size"],
+            r["smoothness"],
+            r["collision"],
+            r["min_clearance"],
+        )
+        for r in records
+    }
 
 
 def _check_same_as_reference(out, reference):
     """Every unit exactly once, each as in the uninterrupted run, and the same table."""
-    expected = {E.unit_key({"scene_name": r["scene"], "method": r["method"], "run": r["run"]}) + ".json"
-                for r in reference}
+    expected = {
+        E.unit_key({"scene_name": r["scene"], "method": r["method"], "run": r["run"]}) + ".json" for r in reference
+    }
     assert set(_unit_files(out)) == expected
     with open(os.path.join(out, "runs.json")) as f:
         records = json.load(f)
@@ -103,8 +144,10 @@ def _check_same_as_reference(out, reference):
     with open(os.path.join(out, "runs.csv")) as f:
         assert len(list(csv.DictReader(f))) == len(reference)
     assert _outcome(records) == _outcome(reference)
-    without_times = lambda rs: {m: {k: v for k, v in row.items() if "time" not in k}  # noqa: E731
-                                for m, row in summarize(rs, METHODS).items()}
+    without_times = lambda rs: {
+        m: {k: v for k, v in row.items() if "time" not in k}  # noqa: E731
+        for m, row in summarize(rs, METHODS).items()
+    }
     assert without_times(records) == without_times(reference)
 
 
@@ -167,9 +210,19 @@ def test_a_resume_that_would_mix_two_sweeps_is_refused(scene_dir, tmp_path):
 
     def fake(unit):  # a finished record: the sweep's bookkeeping is what is tested
         calls.append(unit)
-        return {"table": unit["table"], "scene": unit["scene_name"], "target": "t", "method": unit["method"],
-                "run": unit["run"], "seed": int(unit["seed"]), "status": "no_goals", "valid": True,
-                "planned": False, "planning_success": False, "execution_success": False}
+        return {
+            "table": unit["table"],
+            "scene": unit["scene_name"],
+            "target": "t",
+            "method": unit["method"],
+            "run": unit["run"],
+            "seed": int(unit["seed"]),
+            "status": "no_goals",
+            "valid": True,
+            "planned": False,
+            "planning_success": False,
+            "execution_success": False,
+        }
 
     out = tmp_path / "mixed"
     first = E.run_sweep(_settings(scene_dir, out, workers=0), unit_fn=fake)
@@ -200,7 +253,8 @@ def test_a_resume_that_would_mix_two_sweeps_is_refused(scene_dir, tmp_path):
 
     # Through the CLI: bad input, exit code 2, one line naming the folder and the field.
     os.remove(out / "sweep.json")
-    result = subprocess.run(_bench_command(scene_dir, out, "--seed", "4"), capture_output=True, text=True,
-                            timeout=DEADLINE_S)
+    result = subprocess.run(
+        _bench_command(scene_dir, out, "--seed", "4"), capture_output=True, text=True, timeout=DEADLINE_S
+    )
     assert result.returncode == 2, result.stderr
     assert f"{out}/units" in result.stderr and "seed: 0 there, 4 now" in result.stderr

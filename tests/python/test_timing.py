@@ -1,5 +1,6 @@
 """Timed trajectories: samples within the limits, on the planned path, rest to rest, the closed-form
 time-optimal duration of a straight line, export round trips, and execution of a timed plan."""
+
 import json
 import math
 
@@ -8,8 +9,15 @@ import pytest
 
 from pickplan.core.description import robot_info
 from pickplan.core.panda import PANDA
-from pickplan.core.timing import (Interpolation, KinematicLimits, TimedTrajectory, concatenate, joint_move,
-                                  panda_limits, time_parameterize)
+from pickplan.core.timing import (
+    Interpolation,
+    KinematicLimits,
+    TimedTrajectory,
+    concatenate,
+    joint_move,
+    panda_limits,
+    time_parameterize,
+)
 
 RATE = 1000.0
 
@@ -44,7 +52,7 @@ def check_within_limits(timed, limits):
     assert np.all(np.abs(np.diff(timed.qd, axis=0)) <= limits.acceleration * dt * (1 + 1e-6) + 1e-12)
     # qd is the derivative of q: trapezoid rule, exact to a * dt^2 / 4 for |qdd| <= a.
     trapezoid = dt * (timed.qd[1:] + timed.qd[:-1]) / 2
-    assert np.all(np.abs(np.diff(timed.q, axis=0) - trapezoid) <= limits.acceleration * dt ** 2 / 4 + 1e-9)
+    assert np.all(np.abs(np.diff(timed.q, axis=0) - trapezoid) <= limits.acceleration * dt**2 / 4 + 1e-9)
 
 
 def distance_to_polyline(points, Q):
@@ -111,10 +119,13 @@ def test_random_paths_within_limits(seed):
         assert np.all(timed.qd[0] == 0) and np.all(timed.qd[-1] == 0)
 
 
-@pytest.mark.parametrize("delta, v, a", [
-    ((0.8, -0.3, 0.1), (2.0, 1.0, 1.0), (10.0, 4.0, 5.0)),    # reaches full speed: accelerate, coast, brake
-    ((0.05, 0.02, 0.0), (2.0, 2.0, 2.0), (5.0, 5.0, 5.0)),    # too short to reach it: bang-bang
-])
+@pytest.mark.parametrize(
+    "delta, v, a",
+    [
+        ((0.8, -0.3, 0.1), (2.0, 1.0, 1.0), (10.0, 4.0, 5.0)),  # reaches full speed: accelerate, coast, brake
+        ((0.05, 0.02, 0.0), (2.0, 2.0, 2.0), (5.0, 5.0, 5.0)),  # too short to reach it: bang-bang
+    ],
+)
 def test_straight_line_matches_closed_form_time_optimum(delta, v, a):
     """On a straight joint-space line q = q0 + s * delta the joints move together: the path speed is
     limited by V = min v_j / |delta_j|, A = min a_j / |delta_j|, and the fastest rest-to-rest motion
@@ -123,7 +134,7 @@ def test_straight_line_matches_closed_form_time_optimum(delta, v, a):
     moving = np.abs(delta) > 0
     V = np.min(v[moving] / np.abs(delta[moving]))
     A = np.min(a[moving] / np.abs(delta[moving]))
-    optimum = 1.0 / V + V / A if 1.0 >= V ** 2 / A else 2.0 * math.sqrt(1.0 / A)
+    optimum = 1.0 / V + V / A if 1.0 >= V**2 / A else 2.0 * math.sqrt(1.0 / A)
     Q = np.array([np.zeros(3), delta])
     timed = time_parameterize(Q, RATE, KinematicLimits(v, a), grid_per_segment=200)
     assert timed.duration == pytest.approx(optimum, rel=0.02, abs=2.0 / RATE)
@@ -133,18 +144,109 @@ def test_straight_line_matches_closed_form_time_optimum(delta, v, a):
 
 # A pick-and-place retract (0.1 m straight up in 10 IK steps, fingers open) that TOPP-RA could not time
 # when grid points a hair (1e-6) either side of each waypoint made stages too short for its LP solver.
-RETRACT = np.array([
-    [0.5890942746674019, 0.9876503998544617, 0.09051522976214928, -0.982238691889985, 0.2507158176705692, 1.9789558478185054, 2.3709067273343134],
-    [0.588865001425803, 0.9764157390612018, 0.09025992639485987, -0.9768341560836314, 0.24981553257671393, 1.9628999630758577, 2.37552224014008],
-    [0.5886708991118623, 0.96616642612521, 0.09002503621522362, -0.9696870508378043, 0.24885326354895626, 1.9461043284446375, 2.380295345043367],
-    [0.5885095062200899, 0.9568832665678054, 0.08981504411427656, -0.9608417756165711, 0.2478380066914131, 1.9285948757377125, 2.3852182264951143],
-    [0.5883827466173777, 0.9486143516327235, 0.08963315221578082, -0.95022038001297, 0.24677124403122638, 1.9103427228792844, 2.3902969405192183],
-    [0.5882936232064306, 0.9414225902422599, 0.0894828448077359, -0.9377176437095162, 0.24565338155647157, 1.8913068339402626, 2.395540512780865],
-    [0.5882463120340969, 0.9353872678151195, 0.08936809319933671, -0.9231981851055375, 0.24448374745022997, 1.8714327652165708, 2.400961184705157],
-    [0.5882464558145304, 0.9306088259580623, 0.0892935941043994, -0.9064877136876699, 0.24326028633778, 1.8506488123754483, 2.4065752847229045],
-    [0.588301597599575, 0.9272159184795159, 0.0892651302080628, -0.887360127894711, 0.24197909546441454, 1.8288603342655434, 2.4124045121577993],
-    [0.5884713275345351, 0.9262472691824152, 0.0892866107521653, -0.8639354105527101, 0.24054849608201662, 1.805233880553722, 2.4186468693747756],
-    [0.5886897225484005, 0.9265270909116519, 0.08937733315790929, -0.8383545289978803, 0.23909901264146588, 1.7807343687313484, 2.425068449677068]])
+RETRACT = np.array(
+    [
+        [
+            0.5890942746674019,
+            0.9876503998544617,
+            0.09051522976214928,
+            -0.982238691889985,
+            0.2507158176705692,
+            1.9789558478185054,
+            2.3709067273343134,
+        ],
+        [
+            0.588865001425803,
+            0.9764157390612018,
+            0.09025992639485987,
+            -0.9768341560836314,
+            0.24981553257671393,
+            1.9628999630758577,
+            2.37552224014008,
+        ],
+        [
+            0.5886708991118623,
+            0.96616642612521,
+            0.09002503621522362,
+            -0.9696870508378043,
+            0.24885326354895626,
+            1.9461043284446375,
+            2.380295345043367,
+        ],
+        [
+            0.5885095062200899,
+            0.9568832665678054,
+            0.08981504411427656,
+            -0.9608417756165711,
+            0.2478380066914131,
+            1.9285948757377125,
+            2.3852182264951143,
+        ],
+        [
+            0.5883827466173777,
+            0.9486143516327235,
+            0.08963315221578082,
+            -0.95022038001297,
+            0.24677124403122638,
+            1.9103427228792844,
+            2.3902969405192183,
+        ],
+        [
+            0.5882936232064306,
+            0.9414225902422599,
+            0.0894828448077359,
+            -0.9377176437095162,
+            0.24565338155647157,
+            1.8913068339402626,
+            2.395540512780865,
+        ],
+        [
+            0.5882463120340969,
+            0.9353872678151195,
+            0.08936809319933671,
+            -0.9231981851055375,
+            0.24448374745022997,
+            1.8714327652165708,
+            2.400961184705157,
+        ],
+        [
+            0.5882464558145304,
+            0.9306088259580623,
+            0.0892935941043994,
+            -0.9064877136876699,
+            0.24326028633778,
+            1.8506488123754483,
+            2.4065752847229045,
+        ],
+        [
+            0.588301597599575,
+            0.9272159184795159,
+            0.0892651302080628,
+            -0.887360127894711,
+            0.24197909546441454,
+            1.8288603342655434,
+            2.4124045121577993,
+        ],
+        [
+            0.5884713275345351,
+            0.9262472691824152,
+            0.0892866107521653,
+            -0.8639354105527101,
+            0.24054849608201662,
+            1.805233880553722,
+            2.4186468693747756,
+        ],
+        [
+            0.5886897225484005,
+            0.9265270909116519,
+            0.08937733315790929,
+            -0.8383545289978803,
+            0.23909901264146588,
+            1.7807343687313484,
+            2.425068449677068,
+        ],
+    ]
+)
 
 
 @pytest.mark.parametrize("grid_per_segment", [8, 16, 17])
@@ -246,7 +348,7 @@ def test_executing_the_timed_plan_lifts_on_its_schedule(demo_plan):
     assert by_waypoints.success
     assert by_time.success and by_time.status == "lifted" and by_time.target_lift > 0.8 * s.lift_height
     assert not by_time.collided and by_time.tracking_error < 0.05
-    fixed = s.start_settle + s.approach_settle + s.closing_time(robot_info('panda')) + s.lift_duration + s.hold_duration
+    fixed = s.start_settle + s.approach_settle + s.closing_time(robot_info("panda")) + s.lift_duration + s.hold_duration
     assert by_time.sim_time == pytest.approx(fixed + timed.duration, abs=3 * s.time_step)
     assert by_time.sim_time < by_waypoints.sim_time  # the limits allow a faster approach than 0.1 s per waypoint
 
@@ -256,8 +358,11 @@ def test_demo_table_reports_duration_and_a_run_that_did_not_happen(demo_plan):
 
     _, result = demo_plan
     timed = result.timed(rate=RATE)
-    rows = {line.split("|")[1].strip(): line.split("|")[2].strip() for line in
-            metrics_table(result, None, timed).splitlines() if line.startswith("| ")}
+    rows = {
+        line.split("|")[1].strip(): line.split("|")[2].strip()
+        for line in metrics_table(result, None, timed).splitlines()
+        if line.startswith("| ")
+    }
     assert rows["Execution (target lifted)"] == "not run"
     duration = rows["Trajectory duration (s, timed within the Panda's velocity and acceleration limits)"]
     assert float(duration) == pytest.approx(timed.duration, abs=1e-3)
@@ -272,14 +377,22 @@ def test_joint_move_is_a_rest_to_rest_quintic_at_the_limits(delta, min_duration)
     m = joint_move(a, b, limits, RATE, min_duration)
     np.testing.assert_allclose(m.q[[0, -1]], [a, b], atol=1e-12)
     np.testing.assert_allclose(m.qd[[0, -1]], 0.0, atol=1e-12)
-    assert np.all(np.abs(m.qd) <= limits.velocity * (1 + 1e-9)) and np.all(np.abs(m.qdd) <= limits.acceleration * (1 + 1e-9))
+    assert np.all(np.abs(m.qd) <= limits.velocity * (1 + 1e-9)) and np.all(
+        np.abs(m.qdd) <= limits.acceleration * (1 + 1e-9)
+    )
     # the closed form's shortest duration (peak speed 15/8 d/T, peak acceleration 10/sqrt(3) d/T^2), whole samples
-    need = max(min_duration, 1.875 * delta / limits.velocity[3], math.sqrt(10 / math.sqrt(3) * delta / limits.acceleration[3]),
-               1 / RATE)
+    need = max(
+        min_duration,
+        1.875 * delta / limits.velocity[3],
+        math.sqrt(10 / math.sqrt(3) * delta / limits.acceleration[3]),
+        1 / RATE,
+    )
     assert need <= m.duration < need + 1.0 / RATE
     # the velocities and accelerations are the positions' derivatives (central differences)
     np.testing.assert_allclose(np.gradient(m.q[:, 3], m.t)[1:-1], m.qd[1:-1, 3], atol=1e-12 + 1e-3 * np.abs(m.qd).max())
-    np.testing.assert_allclose(np.gradient(m.qd[:, 3], m.t)[1:-1], m.qdd[1:-1, 3], atol=1e-12 + 1e-2 * np.abs(m.qdd).max())
+    np.testing.assert_allclose(
+        np.gradient(m.qd[:, 3], m.t)[1:-1], m.qdd[1:-1, 3], atol=1e-12 + 1e-2 * np.abs(m.qdd).max()
+    )
     others = np.delete(np.arange(len(a)), 3)
     assert np.all(m.q[:, others] == a[others])
 
@@ -293,11 +406,18 @@ def test_concatenate_joins_at_rest_and_reports_each_part():
     whole, spans = concatenate([first, hold, second])
     assert len(whole.t) == len(first.t) + len(hold.t) + len(second.t) - 2
     np.testing.assert_allclose(np.diff(whole.t), 1.0 / RATE, atol=1e-9)
-    np.testing.assert_allclose(spans, [(0, first.duration), (first.duration, first.duration + hold.duration),
-                                       (first.duration + hold.duration, whole.duration)], atol=1e-9)
+    np.testing.assert_allclose(
+        spans,
+        [
+            (0, first.duration),
+            (first.duration, first.duration + hold.duration),
+            (first.duration + hold.duration, whole.duration),
+        ],
+        atol=1e-9,
+    )
     for part, (t0, t1) in zip((first, hold, second), spans):
         k0 = int(round(t0 * RATE))
-        np.testing.assert_array_equal(whole.q[k0:k0 + len(part.t)], part.q)
+        np.testing.assert_array_equal(whole.q[k0 : k0 + len(part.t)], part.q)
     with pytest.raises(ValueError, match="starts .* away"):
         concatenate([first, second])
     with pytest.raises(ValueError, match="Hz"):

@@ -1,5 +1,6 @@
 """The 3D view of a plan (``pickplan view``): what plan.json holds for it, the drawing against forward
 kinematics and exact geometry, the self-contained page, and the page rendered in headless Chromium."""
+
 import ipaddress
 import json
 import os
@@ -56,8 +57,9 @@ def test_plan_record_holds_the_goal_set_and_both_grasps(planned):
     if result.refined:
         np.testing.assert_array_equal(np.asarray(plan["refined_goal"]), final)
         # ISF is local: the hand moves at most isf_max_shift from the chosen grasp (forward kinematics).
-        shift = np.linalg.norm(robot.link_pose(final, robot.hand_link)[:3, 3]
-                               - robot.link_pose(chosen, robot.hand_link)[:3, 3])
+        shift = np.linalg.norm(
+            robot.link_pose(final, robot.hand_link)[:3, 3] - robot.link_pose(chosen, robot.hand_link)[:3, 3]
+        )
         assert shift <= SETTINGS.isf_max_shift + 1e-9
     else:
         assert plan["refined_goal"] is None
@@ -70,8 +72,12 @@ def test_collision_points_are_the_body_points_inside_the_table():
     table = scenes.default_table()
     far = np.eye(4)
     far[:3, 3] = [0.9, 0.6, 0.05]  # out of the arm's way
-    scene = scenes.Scene(robot_base=np.eye(4), table=table,
-                         objects=[scenes.SceneObject("box", "builtin:003_cracker_box", far)], target="box")
+    scene = scenes.Scene(
+        robot_base=np.eye(4),
+        table=table,
+        objects=[scenes.SceneObject("box", "builtin:003_cracker_box", far)],
+        target="box",
+    )
     world = World(scene)
     q_down = world.robot.ready_configuration.copy()
     q_down[1], q_down[3] = 1.4, -1.0  # shoulder forward, elbow open: the hand goes into the table top
@@ -108,9 +114,13 @@ def test_view_moves_every_link_along_the_trajectory_by_forward_kinematics(planne
             pose = robot.link_pose(q, name)
             np.testing.assert_allclose(tracks[".position"][key]["value"], pose[:3, 3], atol=1e-9)
             x, y, z, w = tracks[".quaternion"][key]["value"]
-            R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                          [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                          [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+            R = np.array(
+                [
+                    [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                    [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                    [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+                ]
+            )
             np.testing.assert_allclose(R, pose[:3, :3], atol=1e-9)
         assert tracks[".position"][-1]["time"] == 3 * (len(Q) - 1)
         moved += 1
@@ -133,8 +143,11 @@ def test_view_draws_the_scene_the_goal_set_and_both_grasps(planned):
     assert ("/meshcat/pickplan/refined_grasp" in drawn) == result.refined
     # The object sits where the scene puts it.
     target = scene.object(scene.target)
-    (placed,) = [c for c in lowered(view)
-                 if c["type"] == "set_transform" and c["path"] == f"/meshcat/pickplan/objects/{target.name}"]
+    (placed,) = [
+        c
+        for c in lowered(view)
+        if c["type"] == "set_transform" and c["path"] == f"/meshcat/pickplan/objects/{target.name}"
+    ]
     np.testing.assert_allclose(np.reshape(placed["matrix"], (4, 4)).T, target.pose)
 
 
@@ -221,7 +234,7 @@ def _server_pids() -> list:
 def _address(hex_address: str) -> str:
     """/proc/net/tcp{,6}'s local address (little-endian 32-bit words) as text."""
     raw = bytes.fromhex(hex_address)
-    return str(ipaddress.ip_address(b"".join(raw[i:i + 4][::-1] for i in range(0, len(raw), 4))))
+    return str(ipaddress.ip_address(b"".join(raw[i : i + 4][::-1] for i in range(0, len(raw), 4))))
 
 
 def _listening(pid: int) -> list:
@@ -282,12 +295,20 @@ def test_chromium_renders_the_robot_and_the_scene(planned, tmp_path):
     folder, _, _ = planned
     view = view_folder(folder)
     robot_paths = ("/meshcat/pickplan/robot/",)
-    without_robot = PlanView([c for c in view.commands if getattr(c, "path", None) is not None
-                              and not c.path.lower().startswith(robot_paths)], view.duration, view.title)
+    without_robot = PlanView(
+        [
+            c
+            for c in view.commands
+            if getattr(c, "path", None) is not None and not c.path.lower().startswith(robot_paths)
+        ],
+        view.duration,
+        view.title,
+    )
     size = dict(width=900, height=640)  # software WebGL: fewer pixels, less time
     full = _pixels(screenshot(write_html(view, str(tmp_path / "full.html")), str(tmp_path / "full.png"), **size))
-    bare = _pixels(screenshot(write_html(without_robot, str(tmp_path / "bare.html")), str(tmp_path / "bare.png"),
-                              **size))
+    bare = _pixels(
+        screenshot(write_html(without_robot, str(tmp_path / "bare.html")), str(tmp_path / "bare.png"), **size)
+    )
     h, w, _ = full.shape
     canvas = full[: h - 140, : w - 260]  # leave out the legend and the controls panel
     assert len(np.unique(canvas.reshape(-1, 3), axis=0)) > 2000  # shaded meshes, not an empty canvas

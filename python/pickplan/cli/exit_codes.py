@@ -9,6 +9,7 @@ code   meaning
 3      internal error: a bug in pickplan (one line; ``PICKPLAN_TRACEBACK=1`` prints the traceback)
 =====  =====================================================================================
 """
+
 from __future__ import annotations
 
 import enum
@@ -63,8 +64,11 @@ def run_command(name: str, handler: Callable, args) -> int:
     except Exception as exc:  # noqa: BLE001 - the last resort: one line instead of a traceback
         if os.environ.get("PICKPLAN_TRACEBACK"):
             traceback.print_exc()
-        print(f"pickplan {name}: internal error ({type(exc).__name__}: {exc}); this is a bug in pickplan, "
-              f"PICKPLAN_TRACEBACK=1 prints where", file=sys.stderr)
+        print(
+            f"pickplan {name}: internal error ({type(exc).__name__}: {exc}); this is a bug in pickplan, "
+            f"PICKPLAN_TRACEBACK=1 prints where",
+            file=sys.stderr,
+        )
         return ExitCode.INTERNAL_ERROR
 
 
@@ -115,8 +119,9 @@ def check_output(path: str, option: str, kind: OutputKind) -> None:
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
-        raise InputError(f"cannot write '{path}': the folder '{folder}' does not take new files ({exc.strerror})",
-                         field=field) from None
+        raise InputError(
+            f"cannot write '{path}': the folder '{folder}' does not take new files ({exc.strerror})", field=field
+        ) from None
 
 
 def check_ray_address(address: str) -> None:

@@ -14,6 +14,7 @@
 
 Exit codes (cli/exit_codes.py): 0 success, 1 ran but no plan, 2 bad input, 3 internal error.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -55,8 +56,13 @@ def _cmd_demo(args) -> int:
 
 def _cmd_plan(args) -> int:
 
-    settings = OMGSettings(selection=args.selection, refine=not args.no_refine, iterations=args.iterations,
-                           grasp_kind=args.grasps, seed=args.seed)
+    settings = OMGSettings(
+        selection=args.selection,
+        refine=not args.no_refine,
+        iterations=args.iterations,
+        grasp_kind=args.grasps,
+        seed=args.seed,
+    )
     if args.observation:  # the scene, if any, only for execution
         return run_plan_observation(args, settings)
     if not args.scene:
@@ -64,8 +70,11 @@ def _cmd_plan(args) -> int:
     scene = Scene.load(args.scene)
     planner = OMGPlanner(args.robot, scene, settings)
     result = planner.plan()
-    executed = execution.execute_plan(scene, result.trajectory, execution.ExecutionSettings(robot=args.robot)) \
-        if args.execute and result.planned else None
+    executed = (
+        execution.execute_plan(scene, result.trajectory, execution.ExecutionSettings(robot=args.robot))
+        if args.execute and result.planned
+        else None
+    )
     table = metrics_table(result, executed)
     print(table)
     if result.reason:
@@ -74,16 +83,19 @@ def _cmd_plan(args) -> int:
         os.makedirs(args.out, exist_ok=True)
         write_text(os.path.join(args.out, "metrics.md"), table)
         scene.save(os.path.join(args.out, "scene.json"))  # beside the plan: `pickplan view` reads both
-        write_json(os.path.join(args.out, "plan.json"),
-                   plan_record(result, planner.world(), executed.to_dict() if executed else None))
+        write_json(
+            os.path.join(args.out, "plan.json"),
+            plan_record(result, planner.world(), executed.to_dict() if executed else None),
+        )
     return ExitCode.OK if result.success else ExitCode.NO_PLAN
 
 
 # Groups whose modules import what the other commands never need (scikit-learn: a third of the start-up of
 # `pickplan plan`): imported when their command runs or every command is listed, else a stub names them.
-LAZY_GROUPS = {"metamodel": ("pickplan.cli.metamodel", "add_metamodel_commands",
-                             "pick-up-on-the-move success meta-model"),
-               "pickup": ("pickplan.cli.pickup", "add_pickup_commands", "pick-up on the move (Thakar et al.)")}
+LAZY_GROUPS = {
+    "metamodel": ("pickplan.cli.metamodel", "add_metamodel_commands", "pick-up-on-the-move success meta-model"),
+    "pickup": ("pickplan.cli.pickup", "add_pickup_commands", "pick-up on the move (Thakar et al.)"),
+}
 
 
 def _add_group(sub, name: str, loaded: bool) -> None:
@@ -102,13 +114,17 @@ def build_parser(command: Optional[str] = None) -> argparse.ArgumentParser:
     demo.add_argument("--out", default="out/demo", help="folder for the picture and the metrics table")
     demo.add_argument("--seed", type=int, default=1, help="scene seed")
     demo.add_argument("--robot", default="panda", help=ROBOT_HELP)
-    demo.add_argument("--place", action="store_true",
-                      help="pick and place: put the target down in a free region beside the clutter")
+    demo.add_argument(
+        "--place", action="store_true", help="pick and place: put the target down in a free region beside the clutter"
+    )
     demo.set_defaults(handler=_cmd_demo)
     plan = sub.add_parser("plan", help="plan one scene (JSON from `pickplan scenes`) or one depth observation")
     plan.add_argument("--scene", default=None, help="scene JSON; with --observation only to --execute on")
-    plan.add_argument("--observation", default=None,
-                      help="plan from depth images (.npz from `pickplan observe`): no mesh or stored grasp is read")
+    plan.add_argument(
+        "--observation",
+        default=None,
+        help="plan from depth images (.npz from `pickplan observe`): no mesh or stored grasp is read",
+    )
     plan.add_argument("--selection", default=Selection.MD.value, choices=[s.value for s in Selection])
     plan.add_argument("--grasps", default=GraspKind.simulated.value, choices=[k.value for k in GraspKind])
     plan.add_argument("--iterations", type=int, default=50)
@@ -135,9 +151,9 @@ def build_parser(command: Optional[str] = None) -> argparse.ArgumentParser:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     # ROS's own arguments (`pickplan ros serve ... --ros-args -p a:=1`) pass through unparsed
-    ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
+    ros_args = argv[argv.index("--ros-args") :] if "--ros-args" in argv else []
     command = next((a for a in argv if not a.startswith("-")), None)
-    args = build_parser(command).parse_args(argv[:len(argv) - len(ros_args)])
+    args = build_parser(command).parse_args(argv[: len(argv) - len(ros_args)])
     args.ros_args = ros_args
     configure_logging(level_of(args))
     handler = getattr(args, "handler", None) or getattr(args, "func")

@@ -1,4 +1,5 @@
 """``pickplan observe``: render depth observations of a scene from cameras around the table."""
+
 from __future__ import annotations
 
 import argparse
@@ -22,6 +23,8 @@ def run_observe(args: argparse.Namespace) -> int:
     obs = render_observation(Scene.load(args.scene), views=args.views, noise=args.noise, seed=args.seed)
     obs.save(args.out)
     valid = (obs.depth > 0).mean()
-    print(f"wrote {args.out}: {obs.views} view(s) of {obs.depth.shape[2]} x {obs.depth.shape[1]}, "
-          f"{100 * valid:.0f} % pixels with depth, target in {int(obs.target_mask.sum())} pixels")
+    print(
+        f"wrote {args.out}: {obs.views} view(s) of {obs.depth.shape[2]} x {obs.depth.shape[1]}, "
+        f"{100 * valid:.0f} % pixels with depth, target in {int(obs.target_mask.sum())} pixels"
+    )
     return 0

@@ -11,6 +11,7 @@ option             shows
 
 The options are accepted before and after the command (``pickplan -q demo``, ``pickplan demo -q``).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,10 +36,16 @@ def add_verbosity_options(parser: argparse.ArgumentParser, top: bool = True) -> 
     top they default to "not given", so the flag may stand before or after the command."""
     default = {} if top else {"default": argparse.SUPPRESS}
     group = parser.add_mutually_exclusive_group()
-    group.add_argument("-v", "--verbose", action="count", help="show the library's details", **(
-        {"default": 0} if top else default))
-    group.add_argument("-q", "--quiet", action="store_true", help="show only warnings and errors", **(
-        {"default": False} if top else default))
+    group.add_argument(
+        "-v", "--verbose", action="count", help="show the library's details", **({"default": 0} if top else default)
+    )
+    group.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="show only warnings and errors",
+        **({"default": False} if top else default),
+    )
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             for sub in dict.fromkeys(action.choices.values()):  # aliases map to one parser

@@ -5,6 +5,7 @@ Writes to ``--out``: ``pickplace.json`` (both segments, timed within the robot's
 ``plan.json`` + ``scene.json`` + ``view.html`` (the 3D view: the object carried and placed) and the
 request as ``region.json``.
 """
+
 from __future__ import annotations
 
 import os
@@ -28,20 +29,33 @@ from pickplan.sim.view_page import write_html
 
 
 def summary(plan: PickPlacePlan) -> str:
-    lines = [f"pick and place: {plan.status.value}" + (f" ({plan.reason})" if plan.reason else ""),
-             f"  pick: {plan.pick.status.value}, {plan.pick.goal_set_size} goals, "
-             f"{1000 * plan.pick.timings.get('total', 0.0):.1f} ms"]
+    lines = [
+        f"pick and place: {plan.status.value}" + (f" ({plan.reason})" if plan.reason else ""),
+        f"  pick: {plan.pick.status.value}, {plan.pick.goal_set_size} goals, "
+        f"{1000 * plan.pick.timings.get('total', 0.0):.1f} ms",
+    ]
     if plan.place_goals is not None:
-        lines.append(f"  place goal set: {len(plan.place_goals)} goals of {len(plan.place_goals.object_poses)} "
-                     f"candidates ({plan.place_goals.reason_counts()})")
+        lines.append(
+            f"  place goal set: {len(plan.place_goals)} goals of {len(plan.place_goals.object_poses)} "
+            f"candidates ({plan.place_goals.reason_counts()})"
+        )
     if plan.place is not None:
-        lines.append(f"  transfer: {plan.place.status.value}, {plan.place.iterations} iterations, place planning "
-                     f"{1000 * plan.timings.get('place', 0.0):.1f} ms (goal set + trajectory)")
+        lines.append(
+            f"  transfer: {plan.place.status.value}, {plan.place.iterations} iterations, place planning "
+            f"{1000 * plan.timings.get('place', 0.0):.1f} ms (goal set + trajectory)"
+        )
     return "\n".join(lines)
 
 
-def write_outputs(out: str, scene: Optional[Scene], request: PlaceRequest, plan: PickPlacePlan, robot: str,
-                  execution: Optional[dict] = None, observed: bool = False) -> None:
+def write_outputs(
+    out: str,
+    scene: Optional[Scene],
+    request: PlaceRequest,
+    plan: PickPlacePlan,
+    robot: str,
+    execution: Optional[dict] = None,
+    observed: bool = False,
+) -> None:
     """pickplace.json, region.json; with a scene also scene.json, plan.json and view.html (``observed``: the
     plan is from depth; the view draws the scene's true target carried)."""
     os.makedirs(out, exist_ok=True)
@@ -74,13 +88,20 @@ def run_pickplace(args) -> int:
         if scene is None:
             raise InputError("--execute needs --scene (the true objects to execute on)", field="--execute")
         frame = scene.object(scene.target).pose if args.observation else None
-        ex = execute_in_sim(scene, planner, plan, request, planner.world.robot.info.name,
-                            **({"frame": frame} if frame is not None else {}))
+        ex = execute_in_sim(
+            scene,
+            planner,
+            plan,
+            request,
+            planner.world.robot.info.name,
+            **({"frame": frame} if frame is not None else {}),
+        )
         executed = ex.to_dict()
         print(f"  executed: {ex.status.value}" + (f" ({ex.message})" if ex.message else ""))
     if args.out:
-        write_outputs(args.out, scene, request, plan, planner.world.robot.info.name, executed,
-                      observed=bool(args.observation))
+        write_outputs(
+            args.out, scene, request, plan, planner.world.robot.info.name, executed, observed=bool(args.observation)
+        )
         print(f"wrote {args.out}/pickplace.json, region.json" + (", scene.json, plan.json, view.html" if scene else ""))
     ok = plan.success and (executed is None or executed["success"])
     return ExitCode.OK if ok else ExitCode.NO_PLAN

@@ -1,4 +1,5 @@
 """``pickplan robots``: the shipped robot descriptions, and a check of a user's description file."""
+
 from __future__ import annotations
 
 import argparse
@@ -8,8 +9,10 @@ from pickplan.core.description import robot_info, shipped, shipped_name
 from pickplan.core.robots import check_description
 from pickplan.omg.grasps import HandObjectChecker, load_grasp_set
 
-ROBOT_HELP = ("the robot: a shipped description (`pickplan robots list`; a short name such as 'iiwa' or 'ur5' "
-              "is the part of one shipped name before its first '_') or a .toml description file; default panda")
+ROBOT_HELP = (
+    "the robot: a shipped description (`pickplan robots list`; a short name such as 'iiwa' or 'ur5' "
+    "is the part of one shipped name before its first '_') or a .toml description file; default panda"
+)
 
 
 def add_robot_commands(subparsers) -> None:
@@ -19,7 +22,9 @@ def add_robot_commands(subparsers) -> None:
     check = sub.add_parser("check", help="validate a robot description (TOML) and name every problem")
     check.add_argument("file", help="a .toml description, or the name of a shipped one")
     check.set_defaults(handler=run_check)
-    grasps = sub.add_parser("grasps", help="how many of each object's stored (Panda) grasps convert to a robot's gripper")
+    grasps = sub.add_parser(
+        "grasps", help="how many of each object's stored (Panda) grasps convert to a robot's gripper"
+    )
     grasps.add_argument("robot", help=ROBOT_HELP)
     grasps.add_argument("--objects", required=True, help="a YCB object folder")
     grasps.add_argument("--kind", default="simulated", help="stored set: simulated or graspit")
@@ -44,8 +49,10 @@ def run_check(args: argparse.Namespace) -> int:
             print(f"  - {p}")
         return 2
     g = desc.gripper
-    print(f"{args.file}: ok: {desc.name}, {len(desc.arm_joints)} arm joints, gripper {g.hand_link} "
-          f"opening {g.max_opening * 1000:.0f} mm")
+    print(
+        f"{args.file}: ok: {desc.name}, {len(desc.arm_joints)} arm joints, gripper {g.hand_link} "
+        f"opening {g.max_opening * 1000:.0f} mm"
+    )
     return 0
 
 
@@ -53,7 +60,9 @@ def run_grasps(args: argparse.Namespace) -> int:
     """A markdown table: per object, the stored grasps and how many fit the gripper (``convert_grasps``)."""
     info = robot_info(args.robot)
     library = objects_mod.library(args.objects)
-    print(f"| object | stored {args.kind} | kept for {shipped_name(args.robot) if '.' not in args.robot else info.name} |")
+    print(
+        f"| object | stored {args.kind} | kept for {shipped_name(args.robot) if '.' not in args.robot else info.name} |"
+    )
     print("|---|---|---|")
     total = kept = 0
     for name in library.names:

@@ -8,6 +8,7 @@
 The ROS modules are imported when a command runs, so the CLI works without the extra; a missing
 extra is a one-line error naming it (exit code 2).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,27 +30,50 @@ def _ros(module: str):
 
 
 def add_ros_commands(subparsers) -> None:
-    ros = subparsers.add_parser("ros", help="the ROS 2 node: plan picks from depth cameras (pip install 'pickplan[ros]')")
+    ros = subparsers.add_parser(
+        "ros", help="the ROS 2 node: plan picks from depth cameras (pip install 'pickplan[ros]')"
+    )
     sub = ros.add_subparsers(dest="ros_command", required=True)
-    serve = sub.add_parser("serve", help="start the node (Ctrl-C stops it); ROS parameters follow --ros-args "
-                                         "(-p NAME:=VALUE, --params-file FILE)")
+    serve = sub.add_parser(
+        "serve",
+        help="start the node (Ctrl-C stops it); ROS parameters follow --ros-args (-p NAME:=VALUE, --params-file FILE)",
+    )
     serve.add_argument("--robot", default="panda", help=ROBOT_HELP)
     serve.add_argument("--transport", default="default", choices=("default", "shm"), help=TRANSPORT_HELP)
     serve.set_defaults(handler=run_serve)
     call = sub.add_parser("call", help="ask a running node to plan; prints its status (exit 1: no plan)")
-    call.add_argument("--point", type=float, nargs=3, default=None, metavar=("X", "Y", "Z"),
-                      help="target: the object nearest this point (base frame, m); default: the node's current target")
-    call.add_argument("--place", type=float, nargs=6, default=None, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
-                      help="pick and place: put the object in this box (base frame, m; its floor on a support)")
-    call.add_argument("--orientation", default=None, choices=("upright", "stable"),
-                      help="with --place: upright (as it stood; the node's default) or any stable resting pose")
+    call.add_argument(
+        "--point",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="target: the object nearest this point (base frame, m); default: the node's current target",
+    )
+    call.add_argument(
+        "--place",
+        type=float,
+        nargs=6,
+        default=None,
+        metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+        help="pick and place: put the object in this box (base frame, m; its floor on a support)",
+    )
+    call.add_argument(
+        "--orientation",
+        default=None,
+        choices=("upright", "stable"),
+        help="with --place: upright (as it stood; the node's default) or any stable resting pose",
+    )
     call.add_argument("--server", default="/pickplan", help="the node's name (default /pickplan)")
     call.add_argument("--transport", default="default", choices=("default", "shm"), help=TRANSPORT_HELP)
     call.add_argument("--timeout", type=float, default=120.0, help="seconds to wait for the node and its answer")
     call.add_argument("--out", default=None, help="save the trajectory as a timed trajectory (.json or .npz)")
     call.set_defaults(handler=run_call)
-    replay = sub.add_parser("replay", help="publish an observation (.npz) as depth cameras and the robot at its start, "
-                                           "to try the node without a robot; prints the node's camera parameters")
+    replay = sub.add_parser(
+        "replay",
+        help="publish an observation (.npz) as depth cameras and the robot at its start, "
+        "to try the node without a robot; prints the node's camera parameters",
+    )
     replay.add_argument("--observation", required=True, help="observation .npz (pickplan observe)")
     replay.add_argument("--robot", default="panda", help=ROBOT_HELP)
     replay.add_argument("--encoding", default="32FC1", choices=("32FC1", "16UC1"), help="depth encoding")
@@ -94,10 +118,16 @@ def run_replay(args: argparse.Namespace) -> int:
     configure_transport(args.transport, os.environ)
     client_mod, replay_mod = _ros("client"), _ros("replay")
     with client_mod.PickClient(name="pickplan_replay") as client:
-        replay = replay_mod.ObservationReplay(client.node, observation, robot, robot.ready_configuration,
-                                              [args.encoding] * observation.views)
-        print("start the node with: pickplan ros serve --robot", args.robot, "--ros-args", " ".join(
-            a if a == "-p" else f"'{a}'" for a in replay.node_arguments()), flush=True)
+        replay = replay_mod.ObservationReplay(
+            client.node, observation, robot, robot.ready_configuration, [args.encoding] * observation.views
+        )
+        print(
+            "start the node with: pickplan ros serve --robot",
+            args.robot,
+            "--ros-args",
+            " ".join(a if a == "-p" else f"'{a}'" for a in replay.node_arguments()),
+            flush=True,
+        )
         client.node.create_timer(1.0 / args.rate, replay.publish)
         try:
             client.spin(float("inf"))

@@ -6,6 +6,7 @@ self-contained page instead.
 
 Wired into ``pickplan.cli.main`` through ``add_view_commands``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,14 +24,26 @@ def add_view_commands(subparsers) -> None:
     """Add ``view`` to a ``pickplan`` argparse sub-parser set."""
     p = subparsers.add_parser("view", help="3D view of a plan folder (live viewer, or --html for a page)")
     p.add_argument("folder", help="folder with plan.json and scene.json (pickplan demo / plan --out)")
-    p.add_argument("--html", default=None, metavar="FILE",
-                   help="write a self-contained page (opens from the file, no server or network) and exit")
+    p.add_argument(
+        "--html",
+        default=None,
+        metavar="FILE",
+        help="write a self-contained page (opens from the file, no server or network) and exit",
+    )
     p.add_argument("--open", action="store_true", help="also open the viewer in the default browser")
-    p.add_argument("--host", default=LOOPBACK, metavar="ADDRESS",
-                   help="address the live viewer listens on (default 127.0.0.1: this machine only; another "
-                        "address lets anyone who can reach it open the view)")
-    p.add_argument("--seconds-per-waypoint", type=float, default=ViewSettings.seconds_per_waypoint,
-                   help="pace of the robot's motion in the view (plan.json has no timing)")
+    p.add_argument(
+        "--host",
+        default=LOOPBACK,
+        metavar="ADDRESS",
+        help="address the live viewer listens on (default 127.0.0.1: this machine only; another "
+        "address lets anyone who can reach it open the view)",
+    )
+    p.add_argument(
+        "--seconds-per-waypoint",
+        type=float,
+        default=ViewSettings.seconds_per_waypoint,
+        help="pace of the robot's motion in the view (plan.json has no timing)",
+    )
     p.set_defaults(handler=run_view)
 
 
@@ -48,8 +61,11 @@ def run_view(args: argparse.Namespace) -> int:
         return 0
     check_host(args.host)
     if not is_loopback(args.host):
-        print(f"WARNING: the viewer listens on {args.host}, not only on this machine: anyone who can reach "
-              f"{args.host} can open the view (no password)", file=sys.stderr)
+        print(
+            f"WARNING: the viewer listens on {args.host}, not only on this machine: anyone who can reach "
+            f"{args.host} can open the view (no password)",
+            file=sys.stderr,
+        )
     serve(view, open_browser=args.open, host=args.host)
     return 0
 

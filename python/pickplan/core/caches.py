@@ -3,6 +3,7 @@ shapes, surface samples): the caller owns one and passes it in. The one exceptio
 bounded memo of a pure function of its arguments (a file's mesh, a description's pads), shared by
 the process because it can never be stale; every memo is listed here (``memo_stats``) and can be
 emptied (``clear_memos``)."""
+
 from __future__ import annotations
 
 import functools

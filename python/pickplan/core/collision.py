@@ -16,6 +16,7 @@ and <= 0 in collision: minus a lower bound of the penetration (the deepest trian
 against the table, 0 for intersecting meshes, minus the surface gap for a mesh contained in
 another). See ``cpp/include/pickplan/collision.hpp`` for the precise semantics.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -70,11 +71,15 @@ class CollisionSettings:
     detect_containment: bool  # a mesh entirely inside another collides
 
     def to_native(self) -> "_core.CollisionSettings":
-        return to_native(self, _core.CollisionSettings,
-                         allowed_pairs=[(str(a), str(b)) for a, b in self.allowed_pairs],
-                         excluded_objects=[str(n) for n in self.excluded_objects],
-                         self_collision_reference=[] if self.self_collision_reference is None else
-                         [float(v) for v in self.self_collision_reference])
+        return to_native(
+            self,
+            _core.CollisionSettings,
+            allowed_pairs=[(str(a), str(b)) for a, b in self.allowed_pairs],
+            excluded_objects=[str(n) for n in self.excluded_objects],
+            self_collision_reference=[]
+            if self.self_collision_reference is None
+            else [float(v) for v in self.self_collision_reference],
+        )
 
 
 @dataclass(frozen=True)
@@ -83,9 +88,9 @@ class Contact:
 
     link: str
     other: str
-    kind: str                 # "object", "table" or "link"
-    distance: float           # > 0 separation (exact); <= 0 in collision (see the module docstring)
-    point_link: np.ndarray    # world coordinates
+    kind: str  # "object", "table" or "link"
+    distance: float  # > 0 separation (exact); <= 0 in collision (see the module docstring)
+    point_link: np.ndarray  # world coordinates
     point_other: np.ndarray
 
 
@@ -101,8 +106,10 @@ class ShapeCache(BoundedCache):
     def shape(self, mesh, what: str) -> "_core.CollisionShape":
         if isinstance(mesh, Shape):
             if mesh.primitive:
-                return self.get(("primitive", mesh.kind.value, mesh.size),
-                                lambda: _core.CollisionShape.from_primitive(mesh.native(), what))
+                return self.get(
+                    ("primitive", mesh.kind.value, mesh.size),
+                    lambda: _core.CollisionShape.from_primitive(mesh.native(), what),
+                )
             mesh = mesh.trimesh()
 
         def build():
@@ -113,6 +120,7 @@ class ShapeCache(BoundedCache):
 
     def convex(self, mesh, what: str) -> "_core.CollisionShape":
         """The convex hull of ``mesh`` as FCL's convex solid."""
+
         def build():
             V, F = _mesh_arrays(_checked_mesh(mesh, what).convex_hull, what)
             return _core.CollisionShape.convex(V, F, what)
@@ -134,26 +142,36 @@ class CollisionChecker:
     when comparing with PyBullet, and fast (a GJK query per pair instead of a BVH walk).
     """
 
-    def __init__(self, robot: Robot, objects: Sequence[SceneMesh] = (), table: Optional[Table] = None,
-                 settings: CollisionSettings = CollisionSettings(), convex_links: bool = False,
-                 links: Optional[Sequence[str]] = None, shapes: Optional[ShapeCache] = None,
-                 link_meshes: Optional[dict] = None):
+    def __init__(
+        self,
+        robot: Robot,
+        objects: Sequence[SceneMesh] = (),
+        table: Optional[Table] = None,
+        settings: CollisionSettings = CollisionSettings(),
+        convex_links: bool = False,
+        links: Optional[Sequence[str]] = None,
+        shapes: Optional[ShapeCache] = None,
+        link_meshes: Optional[dict] = None,
+    ):
         """``links``: check only these links (default: every link with collision geometry).
         ``shapes``: a cache of FCL shapes shared with other checkers (None: built for this one).
         ``link_meshes``: link name -> mesh, the robot's collision meshes when the caller has them."""
         self.robot = robot
         self.settings = settings
         native_links = []
-        for name in (robot.link_names if links is None else links):
-            mesh = link_meshes[name] if link_meshes is not None and name in link_meshes else robot.collision_meshes(name)
+        for name in robot.link_names if links is None else links:
+            mesh = (
+                link_meshes[name] if link_meshes is not None and name in link_meshes else robot.collision_meshes(name)
+            )
             if mesh is None:
                 continue
             what = f"mesh of link '{name}'"
             if convex_links:  # FCL's convex solid: one GJK query per pair, no BVH walk
                 native_links.append((name, (shapes or ShapeCache()).convex(mesh, what)))
                 continue
-            native_links.append((name, shapes.shape(mesh, what)) if shapes is not None
-                                else (name, *_mesh_arrays(mesh, what)))
+            native_links.append(
+                (name, shapes.shape(mesh, what)) if shapes is not None else (name, *_mesh_arrays(mesh, what))
+            )
         native_objects = []
         for obj in objects:
             name, mesh, pose = obj
@@ -165,8 +183,9 @@ class CollisionChecker:
         size = pose = None
         if table is not None:
             size, pose = np.asarray(table.size, dtype=float), table.pose_matrix()
-        self._native = _core.CollisionChecker(robot.native, native_links, native_objects, size, pose,
-                                              settings.to_native())
+        self._native = _core.CollisionChecker(
+            robot.native, native_links, native_objects, size, pose, settings.to_native()
+        )
 
     @property
     def native(self) -> "_core.CollisionChecker":
@@ -201,8 +220,10 @@ class CollisionChecker:
 
     def contacts(self, q, within: float = 0.0) -> List[Contact]:
         """Pairs in collision, or closer than ``max(margin, within)``, nearest first."""
-        return [Contact(c.link, c.other, c.kind.name, float(c.distance), np.array(c.point_link), np.array(c.point_other))
-                for c in self._native.contacts(q, float(within))]
+        return [
+            Contact(c.link, c.other, c.kind.name, float(c.distance), np.array(c.point_link), np.array(c.point_other))
+            for c in self._native.contacts(q, float(within))
+        ]
 
 
 # --- the support surface ----------------------------------------------------------------------------

@@ -5,6 +5,7 @@ floor, the support a placed object rests on). Built from thin boxes through the 
 
 >>> model = pickplan.objects.model_from_source("bin", "bin:0.220x0.180x0.100")
 """
+
 from __future__ import annotations
 
 import re
@@ -13,7 +14,7 @@ from typing import Tuple
 import trimesh
 
 BIN_PREFIX = "bin:"
-WALL = 0.01     # m thick
+WALL = 0.01  # m thick
 BIN_MASS = 5.0  # kg: heavy, so a touch does not push it
 
 
@@ -34,8 +35,12 @@ def parse_bin(source: str) -> Tuple[float, float, float]:
 def bin_parts(inner_x: float, inner_y: float, height: float) -> list:
     """The four walls (object frame: the inside centred on the origin, bottom at z = 0)."""
     ox = inner_x + 2 * WALL  # the long walls span the short ones' ends
-    walls = [((ox, WALL), (0.0, (inner_y + WALL) / 2)), ((ox, WALL), (0.0, -(inner_y + WALL) / 2)),
-             ((WALL, inner_y), ((inner_x + WALL) / 2, 0.0)), ((WALL, inner_y), (-(inner_x + WALL) / 2, 0.0))]
+    walls = [
+        ((ox, WALL), (0.0, (inner_y + WALL) / 2)),
+        ((ox, WALL), (0.0, -(inner_y + WALL) / 2)),
+        ((WALL, inner_y), ((inner_x + WALL) / 2, 0.0)),
+        ((WALL, inner_y), (-(inner_x + WALL) / 2, 0.0)),
+    ]
     out = []
     for (sx, sy), (cx, cy) in walls:
         T = trimesh.transformations.translation_matrix((cx, cy, height / 2))

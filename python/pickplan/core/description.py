@@ -13,6 +13,7 @@ Paths in a file: ``pybullet_data:REL`` (pybullet_data's folder), ``assets:REL`` 
 an absolute path, or a path relative to the description file. This module is pure Python: loading a
 description does not need the native module; checking it against the robot model does.
 """
+
 from __future__ import annotations
 
 import os
@@ -32,19 +33,19 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python < 3.11 reads TOML with the tomli backport
     import tomli as tomllib
 
-ROBOTS_FOLDER = "robots"   # under assets/
+ROBOTS_FOLDER = "robots"  # under assets/
 # Where a description states no gripper force, speed or pad friction: a small electric parallel
 # gripper's (the Franka Hand's 70 N continuous grasp force, 0.1 m/s), rubber-like pads.
-DEFAULT_GRIP_FORCE = 70.0    # N each pad presses an object with
-DEFAULT_GRIP_SPEED = 0.1     # m/s per finger
-DEFAULT_PAD_FRICTION = 1.0   # Coulomb coefficient (times the object's own, as the simulator combines them)
+DEFAULT_GRIP_FORCE = 70.0  # N each pad presses an object with
+DEFAULT_GRIP_SPEED = 0.1  # m/s per finger
+DEFAULT_PAD_FRICTION = 1.0  # Coulomb coefficient (times the object's own, as the simulator combines them)
 
 
 @dataclass(frozen=True)
 class FingerJoint:
     name: str
-    open: float     # joint value with the gripper open
-    closed: float   # joint value with the gripper closed on nothing
+    open: float  # joint value with the gripper open
+    closed: float  # joint value with the gripper closed on nothing
 
 
 @dataclass(frozen=True)
@@ -52,12 +53,12 @@ class GripperSpec:
     hand_link: str
     finger_links: Tuple[str, ...]
     finger_joints: Tuple[FingerJoint, ...]
-    max_opening: float         # m between the pads, open
-    pad_length: float          # m of finger along the approach axis that touches
-    pad_width: float           # m across the finger
-    grasp_frame: np.ndarray    # 4x4 in the hand link: z approach, y closing, origin between the pads
-    force: float = DEFAULT_GRIP_FORCE        # N each pad presses an object with when the gripper squeezes
-    speed: float = DEFAULT_GRIP_SPEED        # m/s each finger closes at
+    max_opening: float  # m between the pads, open
+    pad_length: float  # m of finger along the approach axis that touches
+    pad_width: float  # m across the finger
+    grasp_frame: np.ndarray  # 4x4 in the hand link: z approach, y closing, origin between the pads
+    force: float = DEFAULT_GRIP_FORCE  # N each pad presses an object with when the gripper squeezes
+    speed: float = DEFAULT_GRIP_SPEED  # m/s each finger closes at
     pad_friction: float = DEFAULT_PAD_FRICTION  # Coulomb coefficient of the pads (times an object's own)
 
 
@@ -65,18 +66,18 @@ class GripperSpec:
 class RobotDescription:
     name: str
     description: str
-    source: str                      # the file it was read from
-    urdf: str                        # the URDF to load (composed with the gripper where there is a mount)
+    source: str  # the file it was read from
+    urdf: str  # the URDF to load (composed with the gripper where there is a mount)
     package_dirs: Tuple[str, ...]
-    base_pose: np.ndarray            # 4x4 world pose of the robot's root link
+    base_pose: np.ndarray  # 4x4 world pose of the robot's root link
     arm_joints: Tuple[str, ...]
-    start: Tuple[float, ...]         # arm joint values, in arm_joints order
+    start: Tuple[float, ...]  # arm joint values, in arm_joints order
     body_points_per_link: int
     skip_collision: Tuple[Tuple[str, str], ...]
-    velocity_limits: Optional[Tuple[float, ...]]      # per arm joint; None: the URDF's
+    velocity_limits: Optional[Tuple[float, ...]]  # per arm joint; None: the URDF's
     acceleration_limits: Optional[Tuple[float, ...]]
     jerk_limits: Optional[Tuple[float, ...]]
-    finger_acceleration_limit: Optional[float]        # per finger joint (m/s^2 or rad/s^2)
+    finger_acceleration_limit: Optional[float]  # per finger joint (m/s^2 or rad/s^2)
     gripper: GripperSpec
     urdf_files: Tuple[str, ...] = ()  # the user's URDF files ``urdf`` was composed from (messages name them)
 
@@ -91,48 +92,69 @@ class RobotInfo:
     """A described robot's facts as the planner, grasps and execution read them (one per description)."""
 
     name: str
-    urdf: str           # the robot's URDF (with the gripper where the description mounts one)
+    urdf: str  # the robot's URDF (with the gripper where the description mounts one)
     hand_link: str
     finger_links: tuple
     finger_joints: tuple
     arm_joints: tuple
     arm_dof: int
-    ready: tuple        # the start configuration: arm start, then every finger open (URDF joint order)
+    ready: tuple  # the start configuration: arm start, then every finger open (URDF joint order)
     finger_open: float  # joint value of every finger joint with the gripper open
     finger_closed: float  # ... and closed on nothing
-    pad_depth: float    # m from the hand link's origin to the grasp frame's (the pad centre)
+    pad_depth: float  # m from the hand link's origin to the grasp frame's (the pad centre)
     max_opening: float  # m between the pads, open
-    pad_length: float   # m of finger along the approach axis that touches
-    pad_width: float    # m across the finger
-    grasp_frame: np.ndarray        # 4x4 in the hand link: z approach, y closing, origin between the pads
-    arm_velocity_limits: Optional[tuple]     # rad/s; None: the URDF's
-    arm_acceleration_limits: tuple           # rad/s^2
-    arm_jerk_limits: Optional[tuple]         # rad/s^3 (stated for controllers; not enforced)
-    finger_acceleration_limit: float         # m/s^2 or rad/s^2
-    grip_force: float = 0.0       # N each pad presses with when the gripper squeezes (description's gripper.force)
-    grip_speed: float = 0.0       # m/s each finger closes at (gripper.speed)
-    pad_friction: float = 0.0     # Coulomb coefficient of the pads (gripper.pad.friction)
+    pad_length: float  # m of finger along the approach axis that touches
+    pad_width: float  # m across the finger
+    grasp_frame: np.ndarray  # 4x4 in the hand link: z approach, y closing, origin between the pads
+    arm_velocity_limits: Optional[tuple]  # rad/s; None: the URDF's
+    arm_acceleration_limits: tuple  # rad/s^2
+    arm_jerk_limits: Optional[tuple]  # rad/s^3 (stated for controllers; not enforced)
+    finger_acceleration_limit: float  # m/s^2 or rad/s^2
+    grip_force: float = 0.0  # N each pad presses with when the gripper squeezes (description's gripper.force)
+    grip_speed: float = 0.0  # m/s each finger closes at (gripper.speed)
+    pad_friction: float = 0.0  # Coulomb coefficient of the pads (gripper.pad.friction)
 
     @classmethod
     def from_description(cls, desc: RobotDescription) -> "RobotInfo":
         g = desc.gripper
         acceleration = desc.acceleration_limits or (DEFAULT_ACCELERATION,) * len(desc.arm_joints)
-        return cls(name=desc.name, urdf=desc.urdf, hand_link=g.hand_link, finger_links=tuple(g.finger_links),
-                   finger_joints=tuple(f.name for f in g.finger_joints), arm_joints=tuple(desc.arm_joints),
-                   arm_dof=len(desc.arm_joints), ready=tuple(desc.start) + tuple(f.open for f in g.finger_joints),
-                   finger_open=g.finger_joints[0].open, finger_closed=g.finger_joints[0].closed,
-                   pad_depth=float(np.linalg.norm(g.grasp_frame[:3, 3])), max_opening=float(g.max_opening),
-                   pad_length=float(g.pad_length), pad_width=float(g.pad_width), grasp_frame=np.array(g.grasp_frame),
-                   arm_velocity_limits=desc.velocity_limits, arm_acceleration_limits=tuple(acceleration),
-                   arm_jerk_limits=desc.jerk_limits,
-                   finger_acceleration_limit=float(desc.finger_acceleration_limit or DEFAULT_FINGER_ACCELERATION),
-                   grip_force=float(g.force), grip_speed=float(g.speed), pad_friction=float(g.pad_friction))
+        return cls(
+            name=desc.name,
+            urdf=desc.urdf,
+            hand_link=g.hand_link,
+            finger_links=tuple(g.finger_links),
+            finger_joints=tuple(f.name for f in g.finger_joints),
+            arm_joints=tuple(desc.arm_joints),
+            arm_dof=len(desc.arm_joints),
+            ready=tuple(desc.start) + tuple(f.open for f in g.finger_joints),
+            finger_open=g.finger_joints[0].open,
+            finger_closed=g.finger_joints[0].closed,
+            pad_depth=float(np.linalg.norm(g.grasp_frame[:3, 3])),
+            max_opening=float(g.max_opening),
+            pad_length=float(g.pad_length),
+            pad_width=float(g.pad_width),
+            grasp_frame=np.array(g.grasp_frame),
+            arm_velocity_limits=desc.velocity_limits,
+            arm_acceleration_limits=tuple(acceleration),
+            arm_jerk_limits=desc.jerk_limits,
+            finger_acceleration_limit=float(desc.finger_acceleration_limit or DEFAULT_FINGER_ACCELERATION),
+            grip_force=float(g.force),
+            grip_speed=float(g.speed),
+            pad_friction=float(g.pad_friction),
+        )
 
     @property
     def key(self) -> tuple:
         """What identifies the gripper in caches (the dataclass holds an array, so it does not hash)."""
-        return (self.name, self.urdf, self.hand_link, self.finger_joints, self.finger_open, self.max_opening,
-                tuple(np.round(self.grasp_frame, 9).ravel()))
+        return (
+            self.name,
+            self.urdf,
+            self.hand_link,
+            self.finger_joints,
+            self.finger_open,
+            self.max_opening,
+            tuple(np.round(self.grasp_frame, 9).ravel()),
+        )
 
     @property
     def hand_from_grasp(self) -> np.ndarray:
@@ -151,24 +173,24 @@ def robot_info(name_or_file: str) -> RobotInfo:
 
 
 # Where a description states no acceleration limits: conservative values, said in the file's docs.
-DEFAULT_ACCELERATION = 3.0          # rad/s^2 per arm joint
-DEFAULT_FINGER_ACCELERATION = 1.0   # m/s^2 (or rad/s^2) per finger joint
+DEFAULT_ACCELERATION = 3.0  # rad/s^2 per arm joint
+DEFAULT_FINGER_ACCELERATION = 1.0  # m/s^2 (or rad/s^2) per finger joint
 
 
 # --- physical ranges a description's values must lie in (beyond them a value is a typo or garbage) -----
-VELOCITY = (0.01, 50.0)               # rad/s (m/s for a prismatic joint)
-ACCELERATION = (0.01, 1000.0)         # rad/s^2
-JERK = (0.1, 1e6)                     # rad/s^3
+VELOCITY = (0.01, 50.0)  # rad/s (m/s for a prismatic joint)
+ACCELERATION = (0.01, 1000.0)  # rad/s^2
+JERK = (0.1, 1e6)  # rad/s^3
 FINGER_ACCELERATION = (0.001, 100.0)  # m/s^2 (or rad/s^2)
-PAD = (0.001, 0.2)                    # m: a pad's length and its width
-MAX_OPENING = 0.5                     # m between the pads, open
-GRIP_FORCE = 10000.0                  # N a gripper's pad presses with, at most
-GRIP_SPEED = 5.0                      # m/s a finger closes at, at most
-PAD_FRICTION = 10.0                   # a pad's Coulomb coefficient, at most
-BODY_POINTS = (1, 1000)               # per link
-MAX_OFFSET = 100.0                    # m: a position in a description (base, mount, grasp frame)
-MAX_ANGLE = 4 * np.pi                 # rad: roll, pitch, yaw
-MAX_JOINT_VALUE = 100.0               # rad or m: start and finger values (the URDF's limits bound them further)
+PAD = (0.001, 0.2)  # m: a pad's length and its width
+MAX_OPENING = 0.5  # m between the pads, open
+GRIP_FORCE = 10000.0  # N a gripper's pad presses with, at most
+GRIP_SPEED = 5.0  # m/s a finger closes at, at most
+PAD_FRICTION = 10.0  # a pad's Coulomb coefficient, at most
+BODY_POINTS = (1, 1000)  # per link
+MAX_OFFSET = 100.0  # m: a position in a description (base, mount, grasp frame)
+MAX_ANGLE = 4 * np.pi  # rad: roll, pitch, yaw
+MAX_JOINT_VALUE = 100.0  # rad or m: start and finger values (the URDF's limits bound them further)
 LIMITS = {"velocity": VELOCITY, "acceleration": ACCELERATION, "jerk": JERK}
 
 
@@ -187,15 +209,27 @@ def resolve_path(text: str, relative_to: str) -> str:
     if text.startswith("pybullet_data:"):
         import pybullet_data  # only when a description asks for its files
 
-        return os.path.join(pybullet_data.getDataPath(), text[len("pybullet_data:"):])
+        return os.path.join(pybullet_data.getDataPath(), text[len("pybullet_data:") :])
     if text.startswith("assets:"):
-        return os.path.join(assets_dir(), text[len("assets:"):])
+        return os.path.join(assets_dir(), text[len("assets:") :])
     return text if os.path.isabs(text) else os.path.join(os.path.dirname(os.path.abspath(relative_to)), text)
 
 
 # --- the file -------------------------------------------------------------------------------------
-TOP_KEYS = ("name", "description", "urdf", "package_dirs", "base", "arm_joints", "start", "body_points_per_link",
-            "skip_collision", "mount", "limits", "gripper")
+TOP_KEYS = (
+    "name",
+    "description",
+    "urdf",
+    "package_dirs",
+    "base",
+    "arm_joints",
+    "start",
+    "body_points_per_link",
+    "skip_collision",
+    "mount",
+    "limits",
+    "gripper",
+)
 
 
 def shipped() -> List[str]:
@@ -212,8 +246,10 @@ def shipped_name(name: str) -> str:
         return name
     short = [n for n in names if n.split("_")[0] == name]
     if len(short) != 1:
-        raise FileNotFoundError(f"no shipped robot {name!r}; shipped: {names} (short names: "
-                                f"{sorted(n.split('_')[0] for n in names)}; or give a .toml file)")
+        raise FileNotFoundError(
+            f"no shipped robot {name!r}; shipped: {names} (short names: "
+            f"{sorted(n.split('_')[0] for n in names)}; or give a .toml file)"
+        )
     return short[0]
 
 
@@ -261,16 +297,28 @@ def parse_description(name_or_file: str) -> Tuple[Optional[RobotDescription], Li
     base = r.get(data, "base", "", lambda v, w: read_pose(r, v, w), default=np.eye(4), required=False)
     arm = r.get(data, "arm_joints", "", _names, default=(), r=r)
     start = r.get(data, "start", "", r.vector, n=len(arm) if arm else None, lo=-MAX_JOINT_VALUE, hi=MAX_JOINT_VALUE)
-    per_link = r.get(data, "body_points_per_link", "", r.integer, default=20, required=False,
-                     lo=BODY_POINTS[0], hi=BODY_POINTS[1])
+    per_link = r.get(
+        data, "body_points_per_link", "", r.integer, default=20, required=False, lo=BODY_POINTS[0], hi=BODY_POINTS[1]
+    )
     skip = r.get(data, "skip_collision", "", _pairs, default=(), required=False, r=r)
     limits = _limits(r, r.get(data, "limits", "", r.table, default={}, required=False), len(arm))
     gripper = _gripper(r, r.get(data, "gripper", "", r.table, default={}))
     urdf, urdf_files = _urdf(r, data, path)
-    desc = RobotDescription(name=name, description=description, source=path, urdf=urdf, package_dirs=package_dirs,
-                            base_pose=base, arm_joints=tuple(arm), start=start or (0.0,) * len(arm),
-                            body_points_per_link=per_link, skip_collision=skip, gripper=gripper,
-                            urdf_files=urdf_files, **limits)
+    desc = RobotDescription(
+        name=name,
+        description=description,
+        source=path,
+        urdf=urdf,
+        package_dirs=package_dirs,
+        base_pose=base,
+        arm_joints=tuple(arm),
+        start=start or (0.0,) * len(arm),
+        body_points_per_link=per_link,
+        skip_collision=skip,
+        gripper=gripper,
+        urdf_files=urdf_files,
+        **limits,
+    )
     return desc, r.problems
 
 
@@ -296,11 +344,29 @@ def _pairs(value, where: str, r: FieldReader) -> Tuple[Tuple[str, str], ...]:
 
 def _limits(r: FieldReader, limits: dict, arm_dof: int) -> dict:
     r.table(limits, "limits", known=("velocity", "acceleration", "jerk", "finger_acceleration"))
-    out = {f"{k}_limits": r.get(limits, k, "limits", r.vector, required=False, n=arm_dof or None,
-                                lo=lo, hi=hi, unit="rad/s" if k == "velocity" else "")
-           for k, (lo, hi) in LIMITS.items()}
-    out["finger_acceleration_limit"] = r.get(limits, "finger_acceleration", "limits", r.number, required=False,
-                                             lo=FINGER_ACCELERATION[0], hi=FINGER_ACCELERATION[1])
+    out = {
+        f"{k}_limits": r.get(
+            limits,
+            k,
+            "limits",
+            r.vector,
+            required=False,
+            n=arm_dof or None,
+            lo=lo,
+            hi=hi,
+            unit="rad/s" if k == "velocity" else "",
+        )
+        for k, (lo, hi) in LIMITS.items()
+    }
+    out["finger_acceleration_limit"] = r.get(
+        limits,
+        "finger_acceleration",
+        "limits",
+        r.number,
+        required=False,
+        lo=FINGER_ACCELERATION[0],
+        hi=FINGER_ACCELERATION[1],
+    )
     return out
 
 
@@ -321,23 +387,30 @@ def _urdf(r: FieldReader, data: dict, path: str) -> Tuple[str, Tuple[str, ...]]:
     with r.part():
         gripper_text = r.get(mount, "urdf", "mount", r.text, default="")
         parent = r.get(mount, "parent_link", "mount", r.text, default="")
-        xyz = r.get(mount, "xyz", "mount", r.vector, default=(0.0, 0.0, 0.0), required=False, n=3,
-                    lo=-MAX_OFFSET, hi=MAX_OFFSET)
-        rpy = r.get(mount, "rpy", "mount", r.vector, default=(0.0, 0.0, 0.0), required=False, n=3,
-                    lo=-MAX_ANGLE, hi=MAX_ANGLE)
+        xyz = r.get(
+            mount, "xyz", "mount", r.vector, default=(0.0, 0.0, 0.0), required=False, n=3, lo=-MAX_OFFSET, hi=MAX_OFFSET
+        )
+        rpy = r.get(
+            mount, "rpy", "mount", r.vector, default=(0.0, 0.0, 0.0), required=False, n=3, lo=-MAX_ANGLE, hi=MAX_ANGLE
+        )
         gripper_urdf = resolve_path(gripper_text, path) if gripper_text else ""
         if not os.path.isfile(gripper_urdf):
             r.fail("mount.urdf", f"file not found: {gripper_urdf or '(none given)'}")
         hand = read_urdf(r, gripper_urdf, "mount.urdf")
-        return compose_mount(r, arm, urdf, hand, gripper_urdf, parent, pose_matrix(xyz, rpy), path), \
-            (urdf, gripper_urdf)
+        return compose_mount(r, arm, urdf, hand, gripper_urdf, parent, pose_matrix(xyz, rpy), path), (
+            urdf,
+            gripper_urdf,
+        )
     return urdf, (urdf,)
 
 
 def _gripper(r: FieldReader, g: dict) -> GripperSpec:
     w = "gripper"
-    r.table(g, w, known=("hand_link", "finger_links", "finger_joints", "max_opening", "pad", "grasp_frame", "force",
-                         "speed"))
+    r.table(
+        g,
+        w,
+        known=("hand_link", "finger_links", "finger_joints", "max_opening", "pad", "grasp_frame", "force", "speed"),
+    )
     hand = r.get(g, "hand_link", w, r.text, default="")
     links = r.get(g, "finger_links", w, lambda v, f: tuple(r.text(x, fx) for fx, x in r.items(v, f)), default=())
     joints = []
@@ -347,25 +420,50 @@ def _gripper(r: FieldReader, g: dict) -> GripperSpec:
     if not joints:
         r.note(f"{w}.finger_joints", "at least one finger joint is needed")
     elif len({f.open for f in joints}) != 1 or len({f.closed for f in joints}) != 1:  # one command moves every finger
-        r.note(f"{w}.finger_joints", "every finger joint needs the same open and the same closed value, got open "
-                                     f"{sorted({f.open for f in joints})}, closed {sorted({f.closed for f in joints})}")
+        r.note(
+            f"{w}.finger_joints",
+            "every finger joint needs the same open and the same closed value, got open "
+            f"{sorted({f.open for f in joints})}, closed {sorted({f.closed for f in joints})}",
+        )
     opening = r.get(g, "max_opening", w, r.number, default=0.0, lo=0.0, hi=MAX_OPENING, low_open=True, unit="m")
     pad = r.get(g, "pad", w, r.table, default={}, known=("length", "width", "friction"))
     pad_length = r.get(pad, "length", f"{w}.pad", r.number, default=0.0, lo=PAD[0], hi=PAD[1], unit="m") if pad else 0.0
     pad_width = r.get(pad, "width", f"{w}.pad", r.number, default=0.0, lo=PAD[0], hi=PAD[1], unit="m") if pad else 0.0
     frame = r.get(g, "grasp_frame", w, lambda v, f: read_pose(r, v, f), default=np.eye(4))
-    grip = dict(force=r.get(g, "force", w, r.number, default=DEFAULT_GRIP_FORCE, required=False, hi=GRIP_FORCE,
-                            positive=True, unit="N"),
-                speed=r.get(g, "speed", w, r.number, default=DEFAULT_GRIP_SPEED, required=False, hi=GRIP_SPEED,
-                            positive=True, unit="m/s"),
-                pad_friction=r.get(pad, "friction", f"{w}.pad", r.number, default=DEFAULT_PAD_FRICTION,
-                                   required=False, hi=PAD_FRICTION, positive=True))
+    grip = dict(
+        force=r.get(
+            g, "force", w, r.number, default=DEFAULT_GRIP_FORCE, required=False, hi=GRIP_FORCE, positive=True, unit="N"
+        ),
+        speed=r.get(
+            g,
+            "speed",
+            w,
+            r.number,
+            default=DEFAULT_GRIP_SPEED,
+            required=False,
+            hi=GRIP_SPEED,
+            positive=True,
+            unit="m/s",
+        ),
+        pad_friction=r.get(
+            pad,
+            "friction",
+            f"{w}.pad",
+            r.number,
+            default=DEFAULT_PAD_FRICTION,
+            required=False,
+            hi=PAD_FRICTION,
+            positive=True,
+        ),
+    )
     return GripperSpec(hand, links, joints, opening, pad_length, pad_width, frame, **grip)
 
 
 def _finger_joint(r: FieldReader, j, where: str) -> FingerJoint:
     t = r.table(j, where, known=("name", "open", "closed"))
     bounds = dict(lo=-MAX_JOINT_VALUE, hi=MAX_JOINT_VALUE)
-    return FingerJoint(r.get(t, "name", where, r.text, default=""), r.get(t, "open", where, r.number, default=0.0,
-                                                                          **bounds),
-                       r.get(t, "closed", where, r.number, default=0.0, **bounds))
+    return FingerJoint(
+        r.get(t, "name", where, r.text, default=""),
+        r.get(t, "open", where, r.number, default=0.0, **bounds),
+        r.get(t, "closed", where, r.number, default=0.0, **bounds),
+    )

@@ -12,6 +12,7 @@ origin within the pads' extent along the approach axis, its z axis the hand link
 set's pre-grasp backs off along it), and the URDF orders the arm joints before the finger joints
 (configurations are laid out so). ``skip_collision`` may pair a link with "table".
 """
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -23,12 +24,12 @@ from pickplan.core.description import MAX_ANGLE, VELOCITY, RobotDescription
 from pickplan.core.fields import FieldReader
 from pickplan.core.urdf_xml import joint_efforts, joint_types
 
-CENTRE_TOL = 0.003   # m: the grasp origin from the middle of the gap between the pads
-GAP_TOL = 0.006      # m: the measured gap from max_opening
+CENTRE_TOL = 0.003  # m: the grasp origin from the middle of the gap between the pads
+GAP_TOL = 0.006  # m: the measured gap from max_opening
 FINGER_TYPES = ("prismatic", "revolute")
-MAX_TRAVEL = {"revolute": MAX_ANGLE, "prismatic": 10.0}   # rad, m: a joint limit beyond is not a real joint
-EFFORT = (0.1, 1e5)   # N m (N): the arm's motors in execution take the URDF's effort limits
-TABLE = "table"   # skip_collision may pair a link with the table the robot stands on
+MAX_TRAVEL = {"revolute": MAX_ANGLE, "prismatic": 10.0}  # rad, m: a joint limit beyond is not a real joint
+EFFORT = (0.1, 1e5)  # N m (N): the arm's motors in execution take the URDF's effort limits
+TABLE = "table"  # skip_collision may pair a link with the table the robot stands on
 
 
 def start_configuration(desc: RobotDescription, robot) -> np.ndarray:
@@ -73,8 +74,11 @@ def model_problems(r: FieldReader, desc: RobotDescription, robot) -> None:
     _joint_problems(r, desc, robot, types)
     for name, effort in joint_efforts(root).items():
         if name in desc.arm_joints and not EFFORT[0] <= _float(effort) <= EFFORT[1]:
-            r.note("urdf", f"joint {name}'s effort limit {effort!r} is not within [{EFFORT[0]:g}, {EFFORT[1]:g}] "
-                           f"(N m or N; execution drives the arm with it)")
+            r.note(
+                "urdf",
+                f"joint {name}'s effort limit {effort!r} is not within [{EFFORT[0]:g}, {EFFORT[1]:g}] "
+                f"(N m or N; execution drives the arm with it)",
+            )
     others = set(names) - set(desc.arm_joints) - {f.name for f in g.finger_joints}
     if others:
         r.note("arm_joints", f"movable joints that are neither arm_joints nor gripper.finger_joints: {sorted(others)}")
@@ -91,12 +95,19 @@ def model_problems(r: FieldReader, desc: RobotDescription, robot) -> None:
     if not gripper_named or not all(types.get(f.name) in FINGER_TYPES for f in g.finger_joints):
         return  # no pads to measure the grasp frame against
     if g.grasp_frame[:3, 2] @ np.array([0.0, 0.0, 1.0]) < 1.0 - 1e-6:
-        r.note("gripper.grasp_frame", "its z axis (the approach) must be the hand link's +z: the goal set's "
-                                      "pre-grasp backs off along the hand's z (turn the hand link, or mount a frame that is)")
-    if [j for j in names if j in desc.arm_joints or j in {f.name for f in g.finger_joints}] != \
-            list(desc.arm_joints) + [f.name for f in g.finger_joints] and not others:
-        r.note("arm_joints", f"configurations are the arm joints then the finger joints (gripper.finger_joints), "
-                             f"but the URDF orders its movable joints {names}")
+        r.note(
+            "gripper.grasp_frame",
+            "its z axis (the approach) must be the hand link's +z: the goal set's "
+            "pre-grasp backs off along the hand's z (turn the hand link, or mount a frame that is)",
+        )
+    if [j for j in names if j in desc.arm_joints or j in {f.name for f in g.finger_joints}] != list(desc.arm_joints) + [
+        f.name for f in g.finger_joints
+    ] and not others:
+        r.note(
+            "arm_joints",
+            f"configurations are the arm joints then the finger joints (gripper.finger_joints), "
+            f"but the URDF orders its movable joints {names}",
+        )
     with r.part():
         _grasp_frame_problems(r, desc, robot)
 
@@ -123,8 +134,11 @@ def _joint_problems(r: FieldReader, desc: RobotDescription, robot, types: dict) 
             r.note("gripper.finger_joints", f"{f.name!r} is also an arm joint")
         elif types.get(f.name) not in FINGER_TYPES:
             kind = types.get(f.name)
-            r.note("gripper.finger_joints", f"{f.name!r} " + (f"is {kind}, expected prismatic or revolute"
-                                                               if kind else "is not a joint of the URDF"))
+            r.note(
+                "gripper.finger_joints",
+                f"{f.name!r} "
+                + (f"is {kind}, expected prismatic or revolute" if kind else "is not a joint of the URDF"),
+            )
         else:
             i = names.index(f.name)
             for what, value in (("open", f.open), ("closed", f.closed)):
@@ -133,17 +147,24 @@ def _joint_problems(r: FieldReader, desc: RobotDescription, robot, types: dict) 
     for i, name in enumerate(names):
         bound = MAX_TRAVEL.get(types.get(name))
         if bound is not None and not (-bound <= lo[i] <= hi[i] <= bound):
-            r.note("urdf", f"joint {name}'s limits [{lo[i]:.4g}, {hi[i]:.4g}] are not within "
-                           f"[{-bound:.4g}, {bound:.4g}] ({types.get(name)}): not a real joint's")
+            r.note(
+                "urdf",
+                f"joint {name}'s limits [{lo[i]:.4g}, {hi[i]:.4g}] are not within "
+                f"[{-bound:.4g}, {bound:.4g}] ({types.get(name)}): not a real joint's",
+            )
     v = robot.velocity_limits  # the URDF's: the fingers', and the arm's where the description gives none
-    from_urdf = [f.name for f in desc.gripper.finger_joints] + (list(desc.arm_joints) if desc.velocity_limits is None
-                                                                else [])
+    from_urdf = [f.name for f in desc.gripper.finger_joints] + (
+        list(desc.arm_joints) if desc.velocity_limits is None else []
+    )
     for name in from_urdf:
         if name in names and not VELOCITY[0] <= v[names.index(name)] <= VELOCITY[1]:
             field = "urdf" if name not in desc.arm_joints else "limits.velocity"
-            r.note(field, f"the URDF's velocity limit of {name}, {v[names.index(name)]:g}, is outside "
-                          f"[{VELOCITY[0]:g}, {VELOCITY[1]:g}]" + (" (the description gives none)"
-                                                                   if field == "limits.velocity" else ""))
+            r.note(
+                field,
+                f"the URDF's velocity limit of {name}, {v[names.index(name)]:g}, is outside "
+                f"[{VELOCITY[0]:g}, {VELOCITY[1]:g}]"
+                + (" (the description gives none)" if field == "limits.velocity" else ""),
+            )
 
 
 def _grasp_frame_problems(r: FieldReader, desc: RobotDescription, robot) -> None:
@@ -155,11 +176,20 @@ def _grasp_frame_problems(r: FieldReader, desc: RobotDescription, robot) -> None
     except ValueError as exc:
         r.fail("gripper.finger_links", str(exc))
     if abs(centre) > CENTRE_TOL:
-        r.note("gripper.grasp_frame", f"not between the pads at the open width: {1000 * centre:+.1f} mm "
-                                      f"along its y axis from the middle of the gap")
+        r.note(
+            "gripper.grasp_frame",
+            f"not between the pads at the open width: {1000 * centre:+.1f} mm "
+            f"along its y axis from the middle of the gap",
+        )
     if abs(gap - g.max_opening) > GAP_TOL:
-        r.note("gripper.max_opening", f"{g.max_opening} m, but the pads are {gap:.4f} m apart when open "
-                                      f"(or the grasp frame's y axis is not the closing axis)")
+        r.note(
+            "gripper.max_opening",
+            f"{g.max_opening} m, but the pads are {gap:.4f} m apart when open "
+            f"(or the grasp frame's y axis is not the closing axis)",
+        )
     if not z_lo <= 0.0 <= z_hi:
-        r.note("gripper.grasp_frame", f"its origin is not level with the pads along the approach axis "
-                                      f"(the pads span z in [{1000 * z_lo:.1f}, {1000 * z_hi:.1f}] mm of the grasp frame)")
+        r.note(
+            "gripper.grasp_frame",
+            f"its origin is not level with the pads along the approach axis "
+            f"(the pads span z in [{1000 * z_lo:.1f}, {1000 * z_hi:.1f}] mm of the grasp frame)",
+        )

@@ -1,6 +1,7 @@
 """Error types for bad input. ``InputError`` is a ``ValueError`` (existing ``except ValueError``
 code keeps working) that names the file and the field at fault, and carries every problem found
 (``problems``) when a reader collected more than one (``core.fields.FieldReader``)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,8 +25,13 @@ class InputError(ValueError):
     and the field, e.g. ``scenes/s.json: objects[2].pose: not a rigid transform``; several
     problems of one file read ``FILE: FIELD: MESSAGE; FIELD: MESSAGE``."""
 
-    def __init__(self, message: str = "", path: Optional[str] = None, field: Optional[str] = None,
-                 problems: Iterable[Problem] = ()):
+    def __init__(
+        self,
+        message: str = "",
+        path: Optional[str] = None,
+        field: Optional[str] = None,
+        problems: Iterable[Problem] = (),
+    ):
         problems = tuple(problems) or (Problem(field or "", message, None if path is None else str(path)),)
         self.problems: Tuple[Problem, ...] = problems
         first = problems[0]

@@ -13,6 +13,7 @@ mistakes are all named at once::
             gamma = r.number(r.key(d, "gamma"), "gamma", lo=0.0, hi=1.0, low_open=True)
         limits = r.get(d, "limits", "", r.table, default={}, required=False)
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -23,7 +24,7 @@ import numpy as np
 
 from pickplan.core.errors import InputError, Problem
 
-MAX_SHOWN = 40   # characters of a bad value quoted in a message
+MAX_SHOWN = 40  # characters of a bad value quoted in a message
 
 
 class _Skip(Exception):
@@ -123,8 +124,7 @@ class FieldReader:
             self.fail(join(where, name), "missing")
         return table[name]
 
-    def get(self, table: dict, name: str, where: str, read: Callable, default=None, required: bool = True,
-            **kwargs):
+    def get(self, table: dict, name: str, where: str, read: Callable, default=None, required: bool = True, **kwargs):
         """``read(table[name], field, **kwargs)``; ``default`` when the key is absent (named missing
         when ``required``) or its value is wrong (named)."""
         if name not in table:
@@ -140,8 +140,16 @@ class FieldReader:
         return [(f"{where}[{i}]", v) for i, v in enumerate(value)]
 
     # --- values -----------------------------------------------------------------------------------
-    def number(self, value, where: str, lo: float = -math.inf, hi: float = math.inf, positive: bool = False,
-               low_open: bool = False, unit: str = "") -> float:
+    def number(
+        self,
+        value,
+        where: str,
+        lo: float = -math.inf,
+        hi: float = math.inf,
+        positive: bool = False,
+        low_open: bool = False,
+        unit: str = "",
+    ) -> float:
         """A finite real number in [lo, hi] (``low_open``: lo excluded; ``positive``: > 0)."""
         if not _is_number(value):
             self.fail(where, f"expected a number, got {shown(value)}")
@@ -176,8 +184,11 @@ class FieldReader:
     def choice(self, value, where: str, options: Iterable[str]) -> str:
         options = list(options)
         if not isinstance(value, str) or value not in options:
-            spelled = ", ".join(repr(o) for o in options[:-1]) + f" or {options[-1]!r}" if len(options) > 1 else \
-                repr(options[0])
+            spelled = (
+                ", ".join(repr(o) for o in options[:-1]) + f" or {options[-1]!r}"
+                if len(options) > 1
+                else repr(options[0])
+            )
             self.fail(where, f"expected {spelled}, got {shown(value)}")
         return value
 
@@ -191,8 +202,16 @@ class FieldReader:
             self.skip()
         return tuple(out)
 
-    def array(self, value, where: str, shape: Optional[tuple] = None, ndim: Optional[int] = None,
-              lo: float = -math.inf, hi: float = math.inf, finite: bool = True) -> np.ndarray:
+    def array(
+        self,
+        value,
+        where: str,
+        shape: Optional[tuple] = None,
+        ndim: Optional[int] = None,
+        lo: float = -math.inf,
+        hi: float = math.inf,
+        finite: bool = True,
+    ) -> np.ndarray:
         """A float array from nested lists of numbers or a numeric numpy array (no strings, bools or
         complex values, which numpy would convert silently); ``shape`` entries of -1 are free."""
         if isinstance(value, np.ndarray):

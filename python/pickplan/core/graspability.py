@@ -10,6 +10,7 @@ find no exit). The object's own frame gives the pairs once; a pose only tilts th
 >>> verdict = graspability(model, scene.object(scene.target).pose, max_opening=0.08)
 >>> verdict.graspable, verdict.reason   # (False, "wider than the 8 cm opening in every direction")
 """
+
 from __future__ import annotations
 
 import threading
@@ -24,11 +25,11 @@ from pickplan.core.caches import memo
 
 @dataclass(frozen=True)
 class GraspabilitySettings:
-    samples: int = 600            # surface points, each casting one ray inwards
+    samples: int = 600  # surface points, each casting one ray inwards
     seed: int = 0
-    friction_cone_deg: float = 20.0   # exit normal within this of the ray: an antipodal pair
-    width_margin: float = 0.005   # m the pair must be narrower than the opening (as antipodal grasps are)
-    max_slope_deg: float = 40.0   # closing axis at most this steep against the support plane
+    friction_cone_deg: float = 20.0  # exit normal within this of the ray: an antipodal pair
+    width_margin: float = 0.005  # m the pair must be narrower than the opening (as antipodal grasps are)
+    max_slope_deg: float = 40.0  # closing axis at most this steep against the support plane
     finger_clearance: float = 0.008  # m beside each contact where a finger stands: it must see the sky
     # Fewer graspable pairs than this fraction of the rays: a seam or ridge of a scanned mesh (the YCB
     # master chef can's lid: 2 % of the rays), not a part a pad can hold.
@@ -37,14 +38,15 @@ class GraspabilitySettings:
 
 class Graspability(NamedTuple):
     graspable: bool
-    reason: str                   # "" when graspable, else why not ("wider than the 8 cm opening ...")
-    narrowest: float              # m: the narrowest antipodal width found along a reachable closing axis
-                                  # with room for the fingers (inf: none)
+    reason: str  # "" when graspable, else why not ("wider than the 8 cm opening ...")
+    # m: the narrowest antipodal width found along a reachable closing axis with room for the fingers (inf: none)
+    narrowest: float
 
 
 @memo(256)
-def _pairs(vertices: bytes, faces: bytes, samples: int, seed: int,
-           cone_deg: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _pairs(
+    vertices: bytes, faces: bytes, samples: int, seed: int, cone_deg: float
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     V = np.frombuffer(vertices).reshape(-1, 3)
     F = np.frombuffer(faces, dtype=np.int64).reshape(-1, 3)
     mesh = trimesh.Trimesh(V, F, process=False)
@@ -63,8 +65,9 @@ def antipodal_pairs(mesh, settings: GraspabilitySettings = GraspabilitySettings(
     (K, 3) each, the unit axis from p to q (K, 3), the widths (K,)."""
     V = np.ascontiguousarray(mesh.vertices, dtype=float)
     F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    return _pairs(V.tobytes(), F.tobytes(), int(settings.samples), int(settings.seed),
-                  float(settings.friction_cone_deg))
+    return _pairs(
+        V.tobytes(), F.tobytes(), int(settings.samples), int(settings.seed), float(settings.friction_cone_deg)
+    )
 
 
 class RayMesh:
@@ -79,9 +82,14 @@ class RayMesh:
         self.mesh.ray.intersects_any(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))  # builds the tree now
 
 
-def graspability(model, pose, max_opening: float, up=(0.0, 0.0, 1.0),
-                 settings: GraspabilitySettings = GraspabilitySettings(),
-                 ray_mesh: "RayMesh | None" = None) -> Graspability:
+def graspability(
+    model,
+    pose,
+    max_opening: float,
+    up=(0.0, 0.0, 1.0),
+    settings: GraspabilitySettings = GraspabilitySettings(),
+    ray_mesh: "RayMesh | None" = None,
+) -> Graspability:
     """The verdict for ``model`` at world ``pose`` on a support with normal ``up``, for a gripper
     opening ``max_opening`` m between its pads. ``ray_mesh``: the model's mesh as a ``RayMesh``
     (None: a private one for this call)."""
@@ -102,19 +110,31 @@ def graspability(model, pose, max_opening: float, up=(0.0, 0.0, 1.0),
         idx, found, checked = np.flatnonzero(ok), [], 0
         with ray_mesh.lock:
             for chunk in np.array_split(idx, int(np.ceil(len(idx) / (2 * enough))))[:8]:
-                found += list(chunk[_fingers_see_the_sky(ray_mesh.mesh, p[chunk], q[chunk], axes[chunk], up,
-                                                         settings.finger_clearance)])
+                found += list(
+                    chunk[
+                        _fingers_see_the_sky(
+                            ray_mesh.mesh, p[chunk], q[chunk], axes[chunk], up, settings.finger_clearance
+                        )
+                    ]
+                )
                 checked += len(chunk)
                 if len(found) >= enough:
                     break
         if found and len(found) * len(idx) >= enough * checked:
             return Graspability(True, "", float(widths[found].min()))
-        return Graspability(False, "its narrow parts are closed off from above (a finger would have to go "
-                                   "under it or inside it)", float("inf"))
+        return Graspability(
+            False,
+            "its narrow parts are closed off from above (a finger would have to go under it or inside it)",
+            float("inf"),
+        )
     if narrow.sum() >= enough:
         thin = float(np.median(widths[narrow]))
-        return Graspability(False, f"only {100 * thin:.1f} cm thick up from the support, wider than the {cm} "
-                                   "opening across: a flat face under a wide object", float("inf"))
+        return Graspability(
+            False,
+            f"only {100 * thin:.1f} cm thick up from the support, wider than the {cm} "
+            "opening across: a flat face under a wide object",
+            float("inf"),
+        )
     return Graspability(False, f"wider than the {cm} opening in every direction", float("inf"))
 
 

@@ -1,5 +1,6 @@
 """Inverse kinematics settings: the native damped-least-squares IK (``_core.IkSolver``: one descent, then a
 spread of seeds), its options as enums, its defaults written once in the C++ struct."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -47,7 +48,7 @@ class IkSettings:
     min_damping: float
     max_damping: float
     min_relative_decrease: float
-    max_stalled_iterations: int     # descents stopped after this many steps without decrease (0: never)
+    max_stalled_iterations: int  # descents stopped after this many steps without decrease (0: never)
     max_step: float
     step_norm: IkStepNorm
     limit_margin: float
@@ -58,4 +59,3 @@ class IkSettings:
     def to_native(self, active: Sequence[bool]) -> "_core.IkSettings":
         """The native settings; joints not ``active`` are frozen (weight 0)."""
         return to_native(self, _core.IkSettings, weights=[1.0 if a else 0.0 for a in active])
-

@@ -10,6 +10,7 @@ cache folder, and derived files named by their content.
   with pickplan (``assets/cache``: what depends only on the built-in objects and robots, made by
   ``make builtin-cache``), whose SHA-256 in ``assets/cache/manifest.json`` is checked on every read.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -95,17 +96,21 @@ def cache_entry(*parts: str, label: str = "", shipped: Optional[str] = None) -> 
     name = "/".join(parts)
     entry = entries.get(name)
     if entry is None:
-        stale = [n for n, e in entries.items() if label and e.get("label") == label
-                 and os.path.dirname(n) == os.path.dirname(name)]
+        stale = [
+            n
+            for n, e in entries.items()
+            if label and e.get("label") == label and os.path.dirname(n) == os.path.dirname(name)
+        ]
         if stale:
-            warnings.warn(f"the shipped {os.path.dirname(name) or 'cache'} data of {label} was made by another "
-                          f"version of its generator ({stale[0]}, this version asks for {name}): computing it",
-                          stacklevel=2)
+            warnings.warn(
+                f"the shipped {os.path.dirname(name) or 'cache'} data of {label} was made by another "
+                f"version of its generator ({stale[0]}, this version asks for {name}): computing it",
+                stacklevel=2,
+            )
         return None
     path = os.path.join(folder, *parts)
     if not os.path.isfile(path) or file_sha256(path) != entry.get("sha256"):
-        warnings.warn(f"shipped cache entry {path}: missing or checksum mismatch (corrupt): computing it",
-                      stacklevel=2)
+        warnings.warn(f"shipped cache entry {path}: missing or checksum mismatch (corrupt): computing it", stacklevel=2)
         return None
     return path
 
@@ -116,8 +121,9 @@ def content_file(text: str, folder: str, suffix: str, stem: str = "", header: st
     ``text``); written atomically when it is not there yet, so equal content is written once."""
     digest = hashlib.sha1(text.encode()).hexdigest()[:16]
     user = os.getuid() if hasattr(os, "getuid") else 0
-    path = os.path.join(tempfile.gettempdir(), f"pickplan-{user}", folder,
-                        f"{stem}-{digest}{suffix}" if stem else f"{digest}{suffix}")
+    path = os.path.join(
+        tempfile.gettempdir(), f"pickplan-{user}", folder, f"{stem}-{digest}{suffix}" if stem else f"{digest}{suffix}"
+    )
     if not os.path.isfile(path):
         with atomic_open(path, "w") as f:
             f.write(header + text)

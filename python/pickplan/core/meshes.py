@@ -1,4 +1,5 @@
 """Mesh helpers shared by robots and objects (trimesh)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -52,8 +53,9 @@ def check_mesh_arrays(vertices, faces, what: str = "mesh"):
     F = np.ascontiguousarray(F_in, dtype=np.int32)
     used = V[np.unique(F)]
     centred = used - used.mean(axis=0)
-    thickness = np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2].T, axis=0).min() \
-        if len(used) >= 3 else 0.0
+    thickness = (
+        np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2].T, axis=0).min() if len(used) >= 3 else 0.0
+    )
     if thickness <= MIN_THICKNESS:
         raise InputError(f"degenerate mesh: it encloses no volume (thinnest extent {thickness:.1e} m)", field=what)
     return V, F

@@ -11,6 +11,7 @@ Two sources give the same ``ObjectModel`` record:
 >>> can = lib.get("005_tomato_soup_can")
 >>> can.resting_poses[0] @ [0, 0, 0, 1]  # object frame -> resting on z = 0, COM above the origin
 """
+
 from __future__ import annotations
 
 import glob
@@ -43,14 +44,14 @@ class ObjectModel:
     mesh: trimesh.Trimesh
     collision_parts: List[trimesh.Trimesh]
     mass: float
-    com: np.ndarray                  # (3,) centre of mass
-    inertia: np.ndarray              # (3, 3) about the centre of mass, object axes
+    com: np.ndarray  # (3,) centre of mass
+    inertia: np.ndarray  # (3, 3) about the centre of mass, object axes
     resting_poses: List[np.ndarray]  # 4x4 object -> world transforms resting on z = 0, most stable first
-    source: str                      # "builtin:NAME" or the object's folder
+    source: str  # "builtin:NAME" or the object's folder
     grasps: Dict[str, np.ndarray] = field(default_factory=dict)  # set name -> (N, 4, 4) gripper in object
     resting_barriers: List[float] = field(default_factory=list)  # COM rise (m) needed to tip each pose
     collision_file: Optional[str] = None  # OBJ with the parts as separate objects (PyBullet compound)
-    friction: Optional[float] = None      # lateral friction; None: the scene's setting
+    friction: Optional[float] = None  # lateral friction; None: the scene's setting
     resting_probabilities: List[float] = field(default_factory=list)  # of each resting pose, dropped at random
 
     @property
@@ -69,8 +70,9 @@ class ObjectModel:
 
 
 # --- mass properties and resting poses ------------------------------------------------------------
-def mass_properties(mesh: trimesh.Trimesh, mass: Optional[float] = None,
-                    density: float = DEFAULT_DENSITY) -> Tuple[float, np.ndarray, np.ndarray]:
+def mass_properties(
+    mesh: trimesh.Trimesh, mass: Optional[float] = None, density: float = DEFAULT_DENSITY
+) -> Tuple[float, np.ndarray, np.ndarray]:
     """(mass, com, inertia about com) of a uniform solid; ``mass`` overrides the density."""
     volume = float(mesh.volume)
     if not np.isfinite(volume) or volume <= 1e-12:
@@ -102,9 +104,9 @@ def _polygon_edge_distances(poly: np.ndarray, p: np.ndarray) -> Optional[np.ndar
     return cross if np.all(cross > 0) else None
 
 
-def compute_resting_poses(mesh: trimesh.Trimesh, com: np.ndarray, max_poses: int = 10,
-                          angle_tol_deg: float = 3.0, contact_tol: float = 1e-3
-                          ) -> Tuple[List[np.ndarray], List[float]]:
+def compute_resting_poses(
+    mesh: trimesh.Trimesh, com: np.ndarray, max_poses: int = 10, angle_tol_deg: float = 3.0, contact_tol: float = 1e-3
+) -> Tuple[List[np.ndarray], List[float]]:
     """Stable resting poses on the plane z = 0, most stable first, and their tipping barriers.
 
     A candidate is a cluster of convex-hull faces with nearly the same normal; the support polygon is
@@ -153,7 +155,7 @@ def compute_resting_poses(mesh: trimesh.Trimesh, com: np.ndarray, max_poses: int
         if dist is None:
             continue
         height = float(top - np.dot(com, n))
-        barrier = float(np.min(np.sqrt(height ** 2 + dist ** 2) - height))
+        barrier = float(np.min(np.sqrt(height**2 + dist**2) - height))
         T = np.eye(4)
         T[:3, :3] = R
         lowest = float((np.asarray(mesh.vertices) @ R.T)[:, 2].min())
@@ -177,10 +179,17 @@ def _check_mesh(mesh: trimesh.Trimesh, what: str) -> trimesh.Trimesh:
     return mesh
 
 
-def make_object(name: str, mesh: trimesh.Trimesh, collision_parts: Sequence[trimesh.Trimesh], source: str,
-                mass: Optional[float] = None, density: float = DEFAULT_DENSITY,
-                grasps: Optional[Dict[str, np.ndarray]] = None, collision_file: Optional[str] = None,
-                friction: Optional[float] = None) -> ObjectModel:
+def make_object(
+    name: str,
+    mesh: trimesh.Trimesh,
+    collision_parts: Sequence[trimesh.Trimesh],
+    source: str,
+    mass: Optional[float] = None,
+    density: float = DEFAULT_DENSITY,
+    grasps: Optional[Dict[str, np.ndarray]] = None,
+    collision_file: Optional[str] = None,
+    friction: Optional[float] = None,
+) -> ObjectModel:
     """Build a record from a mesh: mass properties and resting poses are computed here.
 
     A mesh that is not watertight still works (with a warning): mass properties and resting poses
@@ -189,8 +198,9 @@ def make_object(name: str, mesh: trimesh.Trimesh, collision_parts: Sequence[trim
     _check_mesh(mesh, name)
     solid = mesh
     if not mesh.is_watertight:
-        warnings.warn(f"{name}: mesh is not watertight; mass properties and resting poses use its convex hull",
-                      stacklevel=3)
+        warnings.warn(
+            f"{name}: mesh is not watertight; mass properties and resting poses use its convex hull", stacklevel=3
+        )
         solid = mesh.convex_hull
     elif mesh.volume < 0:  # inside-out winding
         mesh = mesh.copy()
@@ -200,17 +210,29 @@ def make_object(name: str, mesh: trimesh.Trimesh, collision_parts: Sequence[trim
     poses, barriers = compute_resting_poses(solid, com)
     probabilities = stability.resting_probabilities(solid, com, poses)
     parts = list(collision_parts) if collision_parts else [mesh.convex_hull]
-    return ObjectModel(name=name, mesh=mesh, collision_parts=parts, mass=m, com=com, inertia=inertia,
-                       resting_poses=poses, source=source, grasps=dict(grasps or {}),
-                       resting_barriers=barriers, collision_file=collision_file, friction=friction,
-                       resting_probabilities=probabilities)
+    return ObjectModel(
+        name=name,
+        mesh=mesh,
+        collision_parts=parts,
+        mass=m,
+        com=com,
+        inertia=inertia,
+        resting_poses=poses,
+        source=source,
+        grasps=dict(grasps or {}),
+        resting_barriers=barriers,
+        collision_file=collision_file,
+        friction=friction,
+        resting_probabilities=probabilities,
+    )
 
 
 def procedural_object(name: str) -> ObjectModel:
     """An object of the procedural families (see ``procedural.FAMILIES``), e.g. ``"scissors_01"``."""
     mesh, parts, gen = procedural.generate(name)
-    return make_object(name, mesh, parts, source=procedural.PROCEDURAL_PREFIX + name, mass=gen.mass,
-                       friction=gen.friction)
+    return make_object(
+        name, mesh, parts, source=procedural.PROCEDURAL_PREFIX + name, mass=gen.mass, friction=gen.friction
+    )
 
 
 def builtin_object(name: str) -> ObjectModel:
@@ -303,10 +325,18 @@ def load_ycb_object(folder: Union[str, os.PathLike], density: float = DEFAULT_DE
         parts, coll_file = read_obj_parts(coll_path), coll_path
     grasps = {}
     for path in sorted(glob.glob(os.path.join(folder, "grasps_*.npy"))):
-        key = os.path.basename(path)[len("grasps_"):-len(".npy")]
+        key = os.path.basename(path)[len("grasps_") : -len(".npy")]
         grasps[key] = read_grasp_array(path)
-    return make_object(name, loaded, parts, source=folder, mass=KNOWN_MASSES.get(name), density=density,
-                       grasps=grasps, collision_file=coll_file)
+    return make_object(
+        name,
+        loaded,
+        parts,
+        source=folder,
+        mass=KNOWN_MASSES.get(name),
+        density=density,
+        grasps=grasps,
+        collision_file=coll_file,
+    )
 
 
 def _write_parts_obj(parts: Sequence[trimesh.Trimesh]) -> str:
@@ -400,9 +430,9 @@ def model_from_source(name: str, source: str) -> ObjectModel:
     if source.startswith(containers.BIN_PREFIX):
         return container_object(source)
     if source.startswith(BUILTIN_PREFIX):
-        return library("builtin").get(source[len(BUILTIN_PREFIX):])
+        return library("builtin").get(source[len(BUILTIN_PREFIX) :])
     if source.startswith(procedural.PROCEDURAL_PREFIX):
-        return library("procedural").get(source[len(procedural.PROCEDURAL_PREFIX):])
+        return library("procedural").get(source[len(procedural.PROCEDURAL_PREFIX) :])
     folder = os.path.abspath(source)
     if not os.path.isdir(folder):
         raise FileNotFoundError(f"object folder not found: {folder} (object {name!r})")

@@ -6,6 +6,7 @@ analytically (frustums per profile segment, wedges per angular sector), not by a
 Dimensions are the extents of the real YCB scans (``../shared/data/ycb``) rounded to millimetres;
 masses are the YCB paper's (Calli et al., 2015).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -53,8 +54,7 @@ def _revolve(profile, scale_xy=(1.0, 1.0)) -> trimesh.Trimesh:
 
 
 def _ring(r: float, z: float, theta: np.ndarray, scale_xy=(1.0, 1.0)) -> np.ndarray:
-    return np.column_stack([r * np.cos(theta) * scale_xy[0], r * np.sin(theta) * scale_xy[1],
-                            np.full(len(theta), z)])
+    return np.column_stack([r * np.cos(theta) * scale_xy[0], r * np.sin(theta) * scale_xy[1], np.full(len(theta), z)])
 
 
 def _frustum_parts(side, scale_xy=(1.0, 1.0)) -> Parts:
@@ -80,7 +80,7 @@ def _shell_wedges(outer, inner, sectors: int, groups: List[Tuple[int, int]]) -> 
     for k in range(sectors):
         sub = np.linspace(theta[k], theta[k + 1], 3)  # a middle ray keeps the wedge on the curved wall
         for i, j in groups:
-            pts = [_ring(max(r, 1e-4), z, sub) for r, z in list(outer[i:j + 1]) + list(inner[i:j + 1])]
+            pts = [_ring(max(r, 1e-4), z, sub) for r, z in list(outer[i : j + 1]) + list(inner[i : j + 1])]
             parts.append(trimesh.convex.convex_hull(np.vstack(pts)))
     return parts
 
@@ -185,15 +185,27 @@ def _mug(spec: BuiltinSpec) -> Tuple[trimesh.Trimesh, Parts]:
     outer = np.array([(0.0, 0.0), (R, 0.0), (R, H)])
     inner = np.array([(0.0, bottom), (R - wall, bottom), (R - wall, H)])
     parts = _shell_wedges(outer, inner, sectors=16, groups=[(1, 2)])
-    parts.append(trimesh.convex.convex_hull(np.vstack([_ring(R, 0.0, np.linspace(0, 2 * np.pi, SECTIONS)),
-                                                        _ring(R, bottom, np.linspace(0, 2 * np.pi, SECTIONS))])))
+    parts.append(
+        trimesh.convex.convex_hull(
+            np.vstack(
+                [
+                    _ring(R, 0.0, np.linspace(0, 2 * np.pi, SECTIONS)),
+                    _ring(R, bottom, np.linspace(0, 2 * np.pi, SECTIONS)),
+                ]
+            )
+        )
+    )
     for i in range(0, len(rings) - 1, 4):  # the handle in 4 convex tube segments
-        parts.append(trimesh.convex.convex_hull(np.vstack(rings[i:i + 5])))
+        parts.append(trimesh.convex.convex_hull(np.vstack(rings[i : i + 5])))
     return mesh, parts
 
 
 _BUILDERS: Dict[str, Callable[[BuiltinSpec], Tuple[trimesh.Trimesh, Parts]]] = {
-    "can": _can, "box": _box, "bottle": _bottle, "bowl": _bowl, "mug": _mug,
+    "can": _can,
+    "box": _box,
+    "bottle": _bottle,
+    "bowl": _bowl,
+    "mug": _mug,
 }
 
 

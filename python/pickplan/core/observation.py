@@ -16,6 +16,7 @@ key             shape, dtype     meaning
 ``format``      str              ``"pickplan.observation"``; ``version`` int: 1
 =============== ================ =====================================================================
 """
+
 from __future__ import annotations
 
 import io
@@ -37,20 +38,32 @@ from pickplan.core.io import atomic_open
 
 FORMAT = "pickplan.observation"
 VERSION = 1
-MIN_VALID_FRACTION = 0.1   # a view with fewer depth returns than this is refused
+MIN_VALID_FRACTION = 0.1  # a view with fewer depth returns than this is refused
 RIGID_TOL = 1e-5
 # What a real depth camera gives: beyond these a value is corrupt, not a camera.
-FIELD_OF_VIEW_DEG = (1.0, 170.0)   # per image axis, from the focal length and the image size
-MAX_SKEW = 1e-3                    # |s| / fx: pickplan's back-projection has no skew term
-MAX_DEPTH = 100.0                  # m
-MAX_CAMERA_DISTANCE = 100.0        # m from the robot base
+FIELD_OF_VIEW_DEG = (1.0, 170.0)  # per image axis, from the focal length and the image size
+MAX_SKEW = 1e-3  # |s| / fx: pickplan's back-projection has no skew term
+MAX_DEPTH = 100.0  # m
+MAX_CAMERA_DISTANCE = 100.0  # m from the robot base
 MAX_VIEWS, MAX_PIXELS = 64, 50_000_000  # per file, per view
-MAX_FILE_BYTES = 8_000_000_000     # uncompressed, every array together
+MAX_FILE_BYTES = 8_000_000_000  # uncompressed, every array together
 
 # What reading a truncated, bit-flipped or foreign archive raises (RuntimeError: an encrypted member;
 # TokenError and SyntaxError: numpy parses a damaged array header as Python text).
-CORRUPT_ARCHIVE = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, struct.error, ValueError, OSError,
-                   EOFError, NotImplementedError, KeyError, RuntimeError, tokenize.TokenError, SyntaxError)
+CORRUPT_ARCHIVE = (
+    zipfile.BadZipFile,
+    zipfile.LargeZipFile,
+    zlib.error,
+    struct.error,
+    ValueError,
+    OSError,
+    EOFError,
+    NotImplementedError,
+    KeyError,
+    RuntimeError,
+    tokenize.TokenError,
+    SyntaxError,
+)
 
 #: The error an unusable observation raises (an ``InputError``: file and field named).
 ObservationError = InputError
@@ -58,25 +71,31 @@ ObservationError = InputError
 
 @dataclass(eq=False)
 class Observation:
-    depth: np.ndarray          # (V, H, W) float32
-    K: np.ndarray              # (V, 3, 3)
-    camera_pose: np.ndarray    # (V, 4, 4)
-    target_mask: np.ndarray    # (V, H, W) bool
+    depth: np.ndarray  # (V, H, W) float32
+    K: np.ndarray  # (V, 3, 3)
+    camera_pose: np.ndarray  # (V, 4, 4)
+    target_mask: np.ndarray  # (V, H, W) bool
     rgb: Optional[np.ndarray] = None
     source: str = "<memory>"
 
     def __post_init__(self):
         self.depth, self.K, self.camera_pose, self.target_mask, self.rgb = _validated(
-            self.depth, self.K, self.camera_pose, self.target_mask, self.rgb, self.source)
+            self.depth, self.K, self.camera_pose, self.target_mask, self.rgb, self.source
+        )
 
     @property
     def views(self) -> int:
         return int(self.depth.shape[0])
 
     def save(self, path) -> None:
-        data = {"depth": self.depth, "K": self.K, "camera_pose": self.camera_pose,
-                "target_mask": self.target_mask.astype(np.uint8), "format": np.array(FORMAT),
-                "version": np.array(VERSION)}
+        data = {
+            "depth": self.depth,
+            "K": self.K,
+            "camera_pose": self.camera_pose,
+            "target_mask": self.target_mask.astype(np.uint8),
+            "format": np.array(FORMAT),
+            "version": np.array(VERSION),
+        }
         if self.rgb is not None:
             data["rgb"] = self.rgb
         buf = io.BytesIO()
@@ -112,6 +131,7 @@ def read_npz(path: str) -> dict:
     """Every array of an ``.npz`` archive, read without unpickling and without allocating more than
     the archive holds; InputError naming the file for anything that is not such an archive (a
     ``.npy`` renamed, a truncated or corrupted file)."""
+
     def fail(message):
         raise InputError(message, path=path)
 
@@ -180,8 +200,11 @@ def _depth(r: FieldReader, depth) -> np.ndarray:
     valid = np.isfinite(depth) & (depth > 0)
     for v in range(depth.shape[0]):
         if valid[v].mean() < MIN_VALID_FRACTION:
-            r.fail("depth", f"view {v} has depth in only {100 * valid[v].mean():.1f} % of its pixels "
-                            f"(need {100 * MIN_VALID_FRACTION:.0f} %): zero, NaN or missing depth")
+            r.fail(
+                "depth",
+                f"view {v} has depth in only {100 * valid[v].mean():.1f} % of its pixels "
+                f"(need {100 * MIN_VALID_FRACTION:.0f} %): zero, NaN or missing depth",
+            )
     return depth
 
 
@@ -204,8 +227,11 @@ def _intrinsics(r: FieldReader, K, image: tuple) -> np.ndarray:
             r.fail("K", f"view {v}: expected [[fx, s, cx], [0, fy, cy], [0, 0, 1]], got {np.round(k, 6).tolist()}")
         for axis, f, size in (("fx", k[0, 0], W), ("fy", k[1, 1], H)):
             if not size / (2 * math.tan(hi / 2)) <= f <= size / (2 * math.tan(lo / 2)):
-                r.fail("K", f"view {v}: {axis} = {f:.4g} px gives a field of view outside {FIELD_OF_VIEW_DEG} degrees "
-                            f"over {size} px: not a camera's focal length")
+                r.fail(
+                    "K",
+                    f"view {v}: {axis} = {f:.4g} px gives a field of view outside {FIELD_OF_VIEW_DEG} degrees "
+                    f"over {size} px: not a camera's focal length",
+                )
         if abs(k[0, 1]) > MAX_SKEW * k[0, 0]:
             r.fail("K", f"view {v}: skew {k[0, 1]:.4g} px; pickplan models none (at most {MAX_SKEW:g} fx)")
         if not (0 <= k[0, 2] <= W and 0 <= k[1, 2] <= H):
@@ -217,12 +243,18 @@ def _poses(r: FieldReader, pose, V: int) -> np.ndarray:
     pose = _views(r, pose, "camera_pose", (V, 4, 4))
     for v in range(V):
         R = pose[v, :3, :3]
-        if (np.abs(R @ R.T - np.eye(3)).max() > RIGID_TOL or np.linalg.det(R) < 0
-                or np.abs(pose[v, 3] - [0, 0, 0, 1]).max() > RIGID_TOL):
+        if (
+            np.abs(R @ R.T - np.eye(3)).max() > RIGID_TOL
+            or np.linalg.det(R) < 0
+            or np.abs(pose[v, 3] - [0, 0, 0, 1]).max() > RIGID_TOL
+        ):
             r.fail("camera_pose", f"view {v} is not a rigid transform")
         if np.linalg.norm(pose[v, :3, 3]) > MAX_CAMERA_DISTANCE:
-            r.fail("camera_pose", f"view {v} is {np.linalg.norm(pose[v, :3, 3]):.3g} m from the robot base "
-                                  f"(at most {MAX_CAMERA_DISTANCE:g} m)")
+            r.fail(
+                "camera_pose",
+                f"view {v} is {np.linalg.norm(pose[v, :3, 3]):.3g} m from the robot base "
+                f"(at most {MAX_CAMERA_DISTANCE:g} m)",
+            )
     return pose
 
 
@@ -267,15 +299,24 @@ def grow_target(depth: np.ndarray, pixels, source: str = "<memory>", max_step: f
         if row < 0 or col < 0:
             continue
         if row >= H or col >= W or not np.isfinite(depth[v, row, col]) or depth[v, row, col] <= 0:
-            raise InputError(f"view {v} pixel {(row, col)} has no depth or is outside the {H} x {W} image",
-                             path=r.path, field="target_pixel")
+            raise InputError(
+                f"view {v} pixel {(row, col)} has no depth or is outside the {H} x {W} image",
+                path=r.path,
+                field="target_pixel",
+            )
         queue = deque([(row, col)])
         mask[v, row, col] = True
         while queue:
             i, j = queue.popleft()
             for a, b in ((i + 1, j), (i - 1, j), (i, j + 1), (i, j - 1)):
-                if 0 <= a < H and 0 <= b < W and not mask[v, a, b] and np.isfinite(depth[v, a, b]) \
-                        and depth[v, a, b] > 0 and abs(depth[v, a, b] - depth[v, i, j]) < max_step:
+                if (
+                    0 <= a < H
+                    and 0 <= b < W
+                    and not mask[v, a, b]
+                    and np.isfinite(depth[v, a, b])
+                    and depth[v, a, b] > 0
+                    and abs(depth[v, a, b] - depth[v, i, j]) < max_step
+                ):
                     mask[v, a, b] = True
                     queue.append((a, b))
     return mask

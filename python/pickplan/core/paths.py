@@ -1,4 +1,5 @@
 """Where pickplan's own files live (pure Python: no native module needed)."""
+
 from __future__ import annotations
 
 import os

@@ -3,6 +3,7 @@
 Stored data is rigid only to its float precision (the YCB graspit sets, float32: orthonormality
 error ~1.6e-6), so poses within ``RIGID_CLEAN_TOLERANCE`` are projected onto SO(3); poses beyond it
 are rejected, not repaired. The native bindings apply the same tolerance (``cleaned_rigid``)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -42,9 +43,12 @@ def clean_poses(poses, what: str = "poses", tol: float = RIGID_CLEAN_TOLERANCE) 
     bad = ~(err <= tol)
     if bad.any():
         i = int(np.argmax(bad))
-        raise InputError(f"pose {i} is not a rigid transform (rotation must be orthonormal with det +1, "
-                         f"last row [0, 0, 0, 1]; error {err[i]:.1e} > {tol:.0e}); {int(bad.sum())} of "
-                         f"{len(arr)} bad", field=what)
+        raise InputError(
+            f"pose {i} is not a rigid transform (rotation must be orthonormal with det +1, "
+            f"last row [0, 0, 0, 1]; error {err[i]:.1e} > {tol:.0e}); {int(bad.sum())} of "
+            f"{len(arr)} bad",
+            field=what,
+        )
     fix = err > EXACT  # poses rigid to double precision stay bit-identical (scene round trips)
     if fix.any():
         u, _, vt = np.linalg.svd(arr[fix, :3, :3])
@@ -63,6 +67,9 @@ def clean_pose(pose, what: str = "pose", tol: float = RIGID_CLEAN_TOLERANCE) -> 
         raise InputError(f"expected shape (4, 4), got {arr.shape}", field=what)
     err = float(rigid_errors(arr[None])[0])
     if not err <= tol:
-        raise InputError(f"not a rigid transform (rotation must be orthonormal with det +1, last row "
-                         f"[0, 0, 0, 1]; error {err:.1e} > {tol:.0e})", field=what)
+        raise InputError(
+            f"not a rigid transform (rotation must be orthonormal with det +1, last row "
+            f"[0, 0, 0, 1]; error {err:.1e} > {tol:.0e})",
+            field=what,
+        )
     return clean_poses(arr[None], what, tol)[0]

@@ -15,6 +15,7 @@ and the variant index, so ``procedural:scissors_01`` is the same object in every
 >>> lib = objects.library("procedural")
 >>> model = lib.get("pen_00")        # an ObjectModel, like the built-ins
 """
+
 from __future__ import annotations
 
 import zlib
@@ -25,9 +26,9 @@ import numpy as np
 import trimesh
 
 PROCEDURAL_PREFIX = "procedural:"
-VARIANTS = 3          # variants per family in the library
-LIBRARY_SEED = 0      # the library's seed: names map to the same objects everywhere
-SECTIONS = 24         # facets of round solids (enough for stable resting faces on a side)
+VARIANTS = 3  # variants per family in the library
+LIBRARY_SEED = 0  # the library's seed: names map to the same objects everywhere
+SECTIONS = 24  # facets of round solids (enough for stable resting faces on a side)
 
 Parts = List[trimesh.Trimesh]
 
@@ -37,8 +38,8 @@ class Generated:
     """What a family builder returns: the solids (object frame, bottom at z = 0), mass and friction."""
 
     parts: Parts
-    mass: float       # kg
-    friction: float   # Coulomb coefficient against the table and the fingers
+    mass: float  # kg
+    friction: float  # Coulomb coefficient against the table and the fingers
     family: str
 
 
@@ -89,8 +90,7 @@ def _dish(rng) -> Generated:
 
 def _flat_box(rng) -> Generated:
     size = (rng.uniform(0.06, 0.11), rng.uniform(0.04, 0.075), rng.uniform(0.012, 0.025))
-    return Generated([_box(size, (0.0, 0.0, size[2] / 2))], rng.uniform(0.05, 0.2), rng.uniform(0.4, 0.9),
-                     "flat_box")
+    return Generated([_box(size, (0.0, 0.0, size[2] / 2))], rng.uniform(0.05, 0.2), rng.uniform(0.4, 0.9), "flat_box")
 
 
 def _scissors(rng) -> Generated:
@@ -107,20 +107,29 @@ def _scissors(rng) -> Generated:
         centre = np.array([-0.035, side * 0.022, z])
         parts += _ring_segments(centre, loop_in, loop_out, t)
         arm = 0.5 * centre[:2]
-        parts.append(_box((np.linalg.norm(centre[:2]), 0.008, t), (arm[0], arm[1], z),
-                          yaw=float(np.arctan2(centre[1], centre[0]))))
+        parts.append(
+            _box(
+                (np.linalg.norm(centre[:2]), 0.008, t), (arm[0], arm[1], z), yaw=float(np.arctan2(centre[1], centre[0]))
+            )
+        )
     return Generated(parts, rng.uniform(0.05, 0.1), rng.uniform(0.3, 0.6), "scissors")
 
 
 def _clamp(rng) -> Generated:
     """A C-clamp lying flat: a spine, two jaws and the screw through one jaw."""
-    h, span, reach, bar = (rng.uniform(0.015, 0.03), rng.uniform(0.08, 0.14), rng.uniform(0.05, 0.08),
-                           rng.uniform(0.012, 0.018))
+    h, span, reach, bar = (
+        rng.uniform(0.015, 0.03),
+        rng.uniform(0.08, 0.14),
+        rng.uniform(0.05, 0.08),
+        rng.uniform(0.012, 0.018),
+    )
     z = h / 2
-    parts = [_box((bar, span, h), (0.0, 0.0, z)),
-             _box((reach, bar, h), (reach / 2, span / 2 - bar / 2, z)),
-             _box((reach, bar, h), (reach / 2, -span / 2 + bar / 2, z)),
-             _cylinder(0.004, span * 0.45, (reach * 0.8, span / 2 - span * 0.2, min(z, 0.006)), axis="y")]
+    parts = [
+        _box((bar, span, h), (0.0, 0.0, z)),
+        _box((reach, bar, h), (reach / 2, span / 2 - bar / 2, z)),
+        _box((reach, bar, h), (reach / 2, -span / 2 + bar / 2, z)),
+        _cylinder(0.004, span * 0.45, (reach * 0.8, span / 2 - span * 0.2, min(z, 0.006)), axis="y"),
+    ]
     return Generated(parts, rng.uniform(0.2, 0.5), rng.uniform(0.3, 0.6), "clamp")
 
 
@@ -142,8 +151,7 @@ def _small(rng) -> Generated:
 def _long_box(rng) -> Generated:
     """Longer than the gripper opens, narrow enough across to grasp."""
     size = (rng.uniform(0.15, 0.25), rng.uniform(0.04, 0.07), rng.uniform(0.04, 0.08))
-    return Generated([_box(size, (0.0, 0.0, size[2] / 2))], rng.uniform(0.15, 0.5), rng.uniform(0.4, 0.9),
-                     "long_box")
+    return Generated([_box(size, (0.0, 0.0, size[2] / 2))], rng.uniform(0.15, 0.5), rng.uniform(0.4, 0.9), "long_box")
 
 
 def _pot(rng) -> Generated:
@@ -162,8 +170,11 @@ def _jar(rng) -> Generated:
     """A jar with a wider lid and a knob: non-convex along its axis."""
     r, h = rng.uniform(0.028, 0.036), rng.uniform(0.07, 0.12)
     lid_r, lid_h = r * rng.uniform(1.1, 1.2), rng.uniform(0.012, 0.02)
-    parts = [_cylinder(r, h, (0.0, 0.0, h / 2)), _cylinder(lid_r, lid_h, (0.0, 0.0, h + lid_h / 2)),
-             _cylinder(0.01, 0.015, (0.0, 0.0, h + lid_h + 0.0075))]
+    parts = [
+        _cylinder(r, h, (0.0, 0.0, h / 2)),
+        _cylinder(lid_r, lid_h, (0.0, 0.0, h + lid_h / 2)),
+        _cylinder(0.01, 0.015, (0.0, 0.0, h + lid_h + 0.0075)),
+    ]
     return Generated(parts, rng.uniform(0.15, 0.45), rng.uniform(0.4, 0.8), "jar")
 
 
@@ -185,8 +196,11 @@ def _tin(rng) -> Generated:
     """A short can (tuna, polish): wider than tall, a rolled rim at each end; lying on its side, its
     flat ends are the only pair a gripper can close on."""
     r, h, rim = rng.uniform(0.03, 0.045), rng.uniform(0.025, 0.045), rng.uniform(0.001, 0.002)
-    parts = [_cylinder(r, h, (0.0, 0.0, h / 2)), _cylinder(r + rim, 0.004, (0.0, 0.0, 0.002)),
-             _cylinder(r + rim, 0.004, (0.0, 0.0, h - 0.002))]
+    parts = [
+        _cylinder(r, h, (0.0, 0.0, h / 2)),
+        _cylinder(r + rim, 0.004, (0.0, 0.0, 0.002)),
+        _cylinder(r + rim, 0.004, (0.0, 0.0, h - 0.002)),
+    ]
     return Generated(parts, rng.uniform(0.08, 0.25), rng.uniform(0.3, 0.6), "tin")
 
 
@@ -195,14 +209,25 @@ def _hammer(rng) -> Generated:
     sits far from the handle's middle; heavy for its size."""
     length, width, thick = rng.uniform(0.2, 0.3), rng.uniform(0.022, 0.03), rng.uniform(0.016, 0.022)
     head = (rng.uniform(0.025, 0.035), rng.uniform(0.085, 0.11), rng.uniform(0.024, 0.03))
-    parts = [_box((length, width, thick), (0.0, 0.0, head[2] / 2)),
-             _box(head, (length / 2 - head[0] / 2, 0.0, head[2] / 2))]
+    parts = [
+        _box((length, width, thick), (0.0, 0.0, head[2] / 2)),
+        _box(head, (length / 2 - head[0] / 2, 0.0, head[2] / 2)),
+    ]
     return Generated(parts, rng.uniform(0.35, 0.7), rng.uniform(0.3, 0.6), "hammer")
 
 
 FAMILIES: Dict[str, Callable[[np.random.Generator], Generated]] = {
-    "pen": _pen, "dish": _dish, "flat_box": _flat_box, "scissors": _scissors, "clamp": _clamp,
-    "small": _small, "long_box": _long_box, "pot": _pot, "jar": _jar, "bowl": _bowl, "tin": _tin,
+    "pen": _pen,
+    "dish": _dish,
+    "flat_box": _flat_box,
+    "scissors": _scissors,
+    "clamp": _clamp,
+    "small": _small,
+    "long_box": _long_box,
+    "pot": _pot,
+    "jar": _jar,
+    "bowl": _bowl,
+    "tin": _tin,
     "hammer": _hammer,
 }
 
@@ -215,8 +240,9 @@ def names(variants: int = VARIANTS) -> List[str]:
 def parse_name(name: str) -> Tuple[str, int]:
     family, _, index = name.rpartition("_")
     if family not in FAMILIES or not index.isdigit():
-        raise KeyError(f"unknown procedural object {name!r}; expected <family>_<NN> with a family in "
-                       f"{sorted(FAMILIES)}")
+        raise KeyError(
+            f"unknown procedural object {name!r}; expected <family>_<NN> with a family in {sorted(FAMILIES)}"
+        )
     return family, int(index)
 
 

@@ -5,6 +5,7 @@
 >>> r.dof, r.link_names[:2]
 (9, ['panda_link0', 'panda_link1'])
 """
+
 from __future__ import annotations
 
 import os
@@ -28,8 +29,8 @@ LinkRef = Union[int, str]
 class BodyPoints:
     """Points fixed on robot links (link-frame coordinates), with outward surface normals."""
 
-    links: np.ndarray    # (N,) int32 link index of each point
-    points: np.ndarray   # (N, 3) link-frame positions
+    links: np.ndarray  # (N,) int32 link index of each point
+    points: np.ndarray  # (N, 3) link-frame positions
     normals: np.ndarray  # (N, 3) link-frame unit normals
 
     def __len__(self) -> int:
@@ -164,8 +165,10 @@ class Robot:
         bad = np.flatnonzero((q < lo) | (q > hi))
         if bad.size:
             j = int(bad[0])
-            raise ValueError(f"{name}: joint {self.joint_names[j]} = {q[j]:.4f} is outside its limits "
-                             f"[{self.lower_limits[j]:.4f}, {self.upper_limits[j]:.4f}]")
+            raise ValueError(
+                f"{name}: joint {self.joint_names[j]} = {q[j]:.4f} is outside its limits "
+                f"[{self.lower_limits[j]:.4f}, {self.upper_limits[j]:.4f}]"
+            )
         return q
 
     def clip_to_limits(self, q) -> np.ndarray:
@@ -189,8 +192,9 @@ class Robot:
 
         return trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
 
-    def sample_body_points(self, per_link: int = 20, seed: int = 0,
-                           links: Optional[Sequence[LinkRef]] = None) -> BodyPoints:
+    def sample_body_points(
+        self, per_link: int = 20, seed: int = 0, links: Optional[Sequence[LinkRef]] = None
+    ) -> BodyPoints:
         """Sample ``per_link`` points and normals on each link's collision surface (seeded).
 
         By default every link that moves (``moving_links``); links without collision geometry
@@ -251,7 +255,7 @@ class DescribedRobot(Robot):
     def with_fingers(self, q, value: float) -> np.ndarray:
         """``q`` (one configuration or a batch) with every finger joint at ``value``."""
         q = np.array(q, dtype=float)
-        q[..., self.info.arm_dof:] = value
+        q[..., self.info.arm_dof :] = value
         return q
 
 
@@ -269,13 +273,15 @@ def _described(name_or_file: str) -> Tuple[Optional[RobotDescription], Optional[
     r = FieldReader(desc.source)
     r.problems = list(problems)
     try:
-        robot = DescribedRobot(_core.Robot.from_urdf_file(desc.urdf, [os.fspath(p) for p in desc.package_dirs]),
-                    urdf_path=desc.urdf)
+        robot = DescribedRobot(
+            _core.Robot.from_urdf_file(desc.urdf, [os.fspath(p) for p in desc.package_dirs]), urdf_path=desc.urdf
+        )
     except (ValueError, RuntimeError, OSError) as exc:
         message = str(exc)
         if len(desc.urdf_files) > 1:  # a composed file of pickplan's: name the user's files instead
-            message = message.replace(desc.urdf, f"the arm's URDF {desc.urdf_files[0]} with the gripper's "
-                                                 f"{desc.urdf_files[1]} mounted")
+            message = message.replace(
+                desc.urdf, f"the arm's URDF {desc.urdf_files[0]} with the gripper's {desc.urdf_files[1]} mounted"
+            )
         r.note("mount.urdf" if len(desc.urdf_files) > 1 else "urdf", message)
         return desc, None, r.problems
     model_problems(r, desc, robot)
@@ -294,11 +300,18 @@ def load_robot(name_or_file: str = "panda", base_pose: Optional[np.ndarray] = No
     placed at ``base_pose @ description.base_pose`` (``base_pose``: the scene's robot base);
     InputError with every problem ``check_description`` finds."""
     if isinstance(name_or_file, DescribedRobot):
-        return name_or_file if base_pose is None else name_or_file.with_base(base_pose @ name_or_file.description.base_pose)
+        return (
+            name_or_file
+            if base_pose is None
+            else name_or_file.with_base(base_pose @ name_or_file.description.base_pose)
+        )
     desc, robot, problems = _described(str(name_or_file))
     if problems:
         raise InputError(problems=problems)
-    robot.info, robot.description = RobotInfo.from_description(desc), desc  # per instance: the class defaults are the Panda's
+    robot.info, robot.description = (
+        RobotInfo.from_description(desc),
+        desc,
+    )  # per instance: the class defaults are the Panda's
     base = np.eye(4) if base_pose is None else np.asarray(base_pose, dtype=float)
     return robot.with_base(base @ desc.base_pose)
 

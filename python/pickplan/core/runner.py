@@ -10,6 +10,7 @@ interrupts (KeyboardInterrupt) always stop it. Progress goes through tqdm, with 
 >>> with Runner(workers=2) as runner:
 ...     sizes = [r for _, r in runner.map(abs, [-3, 1, -2])]   # [3, 1, 2]
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -29,14 +30,14 @@ RAY_LOCAL = "local"  # the ``ray`` value that starts Ray on this machine instead
 class Order(enum.Enum):
     """The order ``Runner.map`` yields results in."""
 
-    JOBS = "jobs"              # the order of the jobs given
+    JOBS = "jobs"  # the order of the jobs given
     COMPLETION = "completion"  # as each finishes (save at once, resume later)
 
 
 class OnError(enum.Enum):
     """What a job that raises does to the map."""
 
-    RAISE = "raise"    # the exception stops the map (pending jobs are cancelled)
+    RAISE = "raise"  # the exception stops the map (pending jobs are cancelled)
     RECORD = "record"  # the job's result is a JobFailure and the map goes on
 
 
@@ -47,17 +48,32 @@ class JobFailure:
     error: str
 
 
-def progress_bar(total: int, label: str = "", enabled: Optional[bool] = None, stream: Optional[TextIO] = None,
-                 done: int = 0, unit: str = "it", delay: float = 0.0) -> tqdm:
+def progress_bar(
+    total: int,
+    label: str = "",
+    enabled: Optional[bool] = None,
+    stream: Optional[TextIO] = None,
+    done: int = 0,
+    unit: str = "it",
+    delay: float = 0.0,
+) -> tqdm:
     """A tqdm bar on ``stream`` (default: the current stderr) with elapsed and remaining time.
     ``enabled``: True shows it, False hides it, None shows it only when the stream is a terminal and
     the ``pickplan`` logger is not set above INFO (``pickplan --quiet`` sets it to WARNING).
     ``delay``: seconds before it appears (work done sooner shows nothing)."""
     if enabled is None and logging.getLogger("pickplan").level > logging.INFO:
         enabled = False
-    return tqdm(total=total, initial=done, desc=label, unit=unit, file=stream if stream is not None else sys.stderr,
-                disable=None if enabled is None else not enabled, dynamic_ncols=True, mininterval=0.25,
-                delay=delay)
+    return tqdm(
+        total=total,
+        initial=done,
+        desc=label,
+        unit=unit,
+        file=stream if stream is not None else sys.stderr,
+        disable=None if enabled is None else not enabled,
+        dynamic_ncols=True,
+        mininterval=0.25,
+        delay=delay,
+    )
 
 
 def _call(fn: Callable[[Any], Any], job: Any, errors: OnError) -> Any:
@@ -105,10 +121,19 @@ class Runner:
             ray.shutdown()
             self._ray_started = False
 
-    def map(self, fn: Callable[[Any], Any], jobs: Iterable[Any], order: Order = Order.JOBS,
-            errors: OnError = OnError.RAISE, chunksize: int = 1, progress: Optional[bool] = False,
-            label: str = "", stream: Optional[TextIO] = None, done: int = 0,
-            total: Optional[int] = None) -> Iterator[Tuple[Any, Any]]:
+    def map(
+        self,
+        fn: Callable[[Any], Any],
+        jobs: Iterable[Any],
+        order: Order = Order.JOBS,
+        errors: OnError = OnError.RAISE,
+        chunksize: int = 1,
+        progress: Optional[bool] = False,
+        label: str = "",
+        stream: Optional[TextIO] = None,
+        done: int = 0,
+        total: Optional[int] = None,
+    ) -> Iterator[Tuple[Any, Any]]:
         """Yield ``(job, fn(job))`` for every job. ``chunksize`` jobs travel to a worker together
         (results do not depend on it). The bar counts jobs; ``done`` of ``total`` count as
         finished already (a resumed sweep)."""
@@ -117,9 +142,14 @@ class Runner:
         if int(chunksize) < 1:
             raise ValueError(f"chunksize: expected >= 1, got {chunksize}")
         jobs = list(jobs)
-        chunks = [jobs[i:i + int(chunksize)] for i in range(0, len(jobs), int(chunksize))]
-        return self._map(fn, chunks, order, errors, progress_bar(
-            len(jobs) + done if total is None else total, label, progress, stream, done))
+        chunks = [jobs[i : i + int(chunksize)] for i in range(0, len(jobs), int(chunksize))]
+        return self._map(
+            fn,
+            chunks,
+            order,
+            errors,
+            progress_bar(len(jobs) + done if total is None else total, label, progress, stream, done),
+        )
 
     def _map(self, fn, chunks: List[list], order: Order, errors: OnError, bar: tqdm) -> Iterator[Tuple[Any, Any]]:
         try:
@@ -164,8 +194,9 @@ class Runner:
             raise ImportError("running on Ray needs Ray: pip install ray") from exc
         if not ray.is_initialized():
             if self.ray == RAY_LOCAL:  # Ray's default (every core) unless a worker count is given
-                ray.init(num_cpus=self.workers if self.workers > 1 else None, include_dashboard=False,
-                         log_to_driver=False)
+                ray.init(
+                    num_cpus=self.workers if self.workers > 1 else None, include_dashboard=False, log_to_driver=False
+                )
             else:
                 ray.init(address=self.ray, log_to_driver=False)
             self._ray_started = True
@@ -187,9 +218,16 @@ class Runner:
                 ray.cancel(ref)
 
 
-def run_jobs(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int = 1, ray: Optional[str] = None,
-             errors: OnError = OnError.RAISE, chunksize: int = 1, progress: Optional[bool] = False,
-             label: str = "") -> List[Any]:
+def run_jobs(
+    fn: Callable[[Any], Any],
+    jobs: Iterable[Any],
+    workers: int = 1,
+    ray: Optional[str] = None,
+    errors: OnError = OnError.RAISE,
+    chunksize: int = 1,
+    progress: Optional[bool] = False,
+    label: str = "",
+) -> List[Any]:
     """``fn`` over ``jobs`` with a runner of its own; the results in job order."""
     with Runner(workers, ray) as runner:
         return [result for _, result in runner.map(fn, jobs, Order.JOBS, errors, chunksize, progress, label)]

@@ -1,5 +1,6 @@
 """Signed distance fields: one grid per object mesh (native, cached on disk by mesh content) and
 a scene of posed grids plus the table box, queried in batches by CHOMP and the metrics."""
+
 from __future__ import annotations
 
 import hashlib
@@ -32,10 +33,10 @@ def _code_version() -> str:
 
 @dataclass(frozen=True)
 class SdfSettings:
-    resolution: float = 0.005   # voxel edge (m), the paper-scale default
-    margin: float = 0.2         # grid extends beyond the mesh by at least the CHOMP padding epsilon
+    resolution: float = 0.005  # voxel edge (m), the paper-scale default
+    margin: float = 0.2  # grid extends beyond the mesh by at least the CHOMP padding epsilon
     cache_dir: Optional[str] = None  # None: $PICKPLAN_CACHE_DIR or ~/.cache/pickplan; "": no cache
-    merged: bool = True         # resample the scene (less the target) into one grid for the planners
+    merged: bool = True  # resample the scene (less the target) into one grid for the planners
     merged_resolution: float = 0.01  # resampling the 5 mm grids: < 1 mm off outside thin walls, 5x faster to build
     merged_cutoff: float = 0.2  # >= the CHOMP padding, or the planners fall back to per-object grids
 
@@ -50,14 +51,20 @@ MAX_GRID_CELLS = 30_000_000  # 240 MB of distances; a 30 cm object at 5 mm with 
 def _check_grid_size(V: np.ndarray, settings: SdfSettings) -> None:
     """InputError before building a grid that would not fit: a mesh 43 km across (one corrupt vertex)
     otherwise keeps the native builder busy for minutes or exhausts memory."""
-    if not (np.isfinite(settings.resolution) and settings.resolution > 0 and np.isfinite(settings.margin)
-            and settings.margin >= 0):
+    if not (
+        np.isfinite(settings.resolution)
+        and settings.resolution > 0
+        and np.isfinite(settings.margin)
+        and settings.margin >= 0
+    ):
         raise InputError(f"SDF resolution must be > 0 and margin >= 0, got {settings.resolution}, {settings.margin}")
     cells = np.prod(np.ceil((np.ptp(V, axis=0) + 2 * settings.margin) / settings.resolution) + 1)
     if cells > MAX_GRID_CELLS:
-        raise InputError(f"mesh is {np.round(np.ptp(V, axis=0), 3).tolist()} m across: its SDF grid at "
-                         f"{settings.resolution} m would have {cells:.2g} cells (at most {MAX_GRID_CELLS:.0e})",
-                         field="mesh")
+        raise InputError(
+            f"mesh is {np.round(np.ptp(V, axis=0), 3).tolist()} m across: its SDF grid at "
+            f"{settings.resolution} m would have {cells:.2g} cells (at most {MAX_GRID_CELLS:.0e})",
+            field="mesh",
+        )
 
 
 def _checksum(origin, resolution, values) -> str:
@@ -84,8 +91,12 @@ def _read_cache(path: str):
         problem = f"written by format {written[0]} / pickplan {written[1]}"
     elif written[2] != _checksum(origin, resolution, values):
         problem = "checksum mismatch (corrupt)"
-    elif not (np.all(np.isfinite(values)) and np.all(np.isfinite(origin)) and np.isfinite(resolution)
-              and float(resolution) > 0):
+    elif not (
+        np.all(np.isfinite(values))
+        and np.all(np.isfinite(origin))
+        and np.isfinite(resolution)
+        and float(resolution) > 0
+    ):
         problem = "NaN, infinite or non-positive values"
     if problem:
         warnings.warn(f"rebuilding SDF cache entry {path}: {problem}", stacklevel=3)
@@ -100,8 +111,15 @@ def _read_cache(path: str):
 def _write_cache(path: str, grid) -> None:
     origin, resolution, values = np.asarray(grid.origin), float(grid.resolution), np.asarray(grid.values)
     with atomic_open(path, "wb") as f:
-        np.savez(f, origin=origin, resolution=resolution, values=values, format_version=SDF_FORMAT_VERSION,
-                 code_version=_code_version(), checksum=_checksum(origin, resolution, values))
+        np.savez(
+            f,
+            origin=origin,
+            resolution=resolution,
+            values=values,
+            format_version=SDF_FORMAT_VERSION,
+            code_version=_code_version(),
+            checksum=_checksum(origin, resolution, values),
+        )
 
 
 def mesh_key(vertices: np.ndarray, faces: np.ndarray, settings: SdfSettings) -> str:
@@ -128,8 +146,7 @@ def mesh_sdf(mesh, settings: SdfSettings = SdfSettings(), cache: Optional[GridCa
         return cache.grid(mesh, settings)
     V, F = _mesh_arrays(mesh)
     if not getattr(mesh, "is_watertight", True):
-        warnings.warn("SDF of a mesh that is not watertight: inside/outside comes from a 3-axis ray vote",
-                      stacklevel=2)
+        warnings.warn("SDF of a mesh that is not watertight: inside/outside comes from a 3-axis ray vote", stacklevel=2)
     cache = cache_dir() if settings.cache_dir is None else settings.cache_dir
     path = os.path.join(cache, "sdf", mesh_key(V, F, settings) + ".npz") if cache else None
     if path and os.path.isfile(path):
@@ -143,8 +160,13 @@ def mesh_sdf(mesh, settings: SdfSettings = SdfSettings(), cache: Optional[GridCa
     return grid
 
 
-def mesh_sdfs(meshes: Sequence, settings: SdfSettings, cache: Optional[GridCache] = None,
-              progress: Optional[bool] = None, threads: Optional[int] = None) -> list:
+def mesh_sdfs(
+    meshes: Sequence,
+    settings: SdfSettings,
+    cache: Optional[GridCache] = None,
+    progress: Optional[bool] = None,
+    threads: Optional[int] = None,
+) -> list:
     """``mesh_sdf`` of each mesh (through ``cache`` when given), the grids not in memory built side by side on
     ``threads`` threads (default: one per core; the native build releases the GIL). On first use (no
     grid on disk yet) a bar with the time left appears after 2 s (``progress`` as ``runner.progress_bar``)."""
@@ -157,6 +179,7 @@ def mesh_sdfs(meshes: Sequence, settings: SdfSettings, cache: Optional[GridCache
         grids = {k: mesh_sdf(m, settings, cache) for k, m in first.items()}
         return [grids[k] for k in keys]
     with progress_bar(len(first), "SDF grids", progress, unit="grid", delay=2.0) as bar:
+
         def build(mesh):
             grid = mesh_sdf(mesh, settings, cache)
             bar.update(1)
@@ -174,8 +197,11 @@ class SceneSdf:
     farther than ``cutoff`` are skipped, so use the CHOMP padding as cutoff in cost evaluation.
     """
 
-    def __init__(self, objects: Iterable[Tuple[str, "_core.SdfGrid", np.ndarray]] = (),
-                 table: Optional[Tuple[Sequence[float], np.ndarray]] = None):
+    def __init__(
+        self,
+        objects: Iterable[Tuple[str, "_core.SdfGrid", np.ndarray]] = (),
+        table: Optional[Tuple[Sequence[float], np.ndarray]] = None,
+    ):
         self._native = _core.SceneSdf()
         self._names: list = []
         for name, grid, pose in objects:
@@ -218,8 +244,7 @@ class SceneSdf:
         except ValueError:
             raise ValueError(f"unknown object {name!r}; objects are: {', '.join(self._names)}") from None
 
-    def merge(self, exclude: Sequence[str] = (), resolution: float = 0.01, cutoff: float = 0.2,
-              brick: int = 4) -> None:
+    def merge(self, exclude: Sequence[str] = (), resolution: float = 0.01, cutoff: float = 0.2, brick: int = 4) -> None:
         """Resample every object but ``exclude`` into one world-frame grid clamped at ``cutoff``:
         queries with the same exclusion and a cutoff no larger take a single lookup. A scene keeps one
         merged grid per exclusion (at most 4; merging an exclusion again replaces its grid);
@@ -238,22 +263,44 @@ class SceneSdf:
     def lower_bound(self, points, exclude: Sequence[str] = (), exclude_table: bool = False) -> np.ndarray:
         return self._native.lower_bound(points, [self.index(n) for n in exclude], exclude_table)
 
-    def distance(self, points, cutoff: float = np.inf, exclude: Sequence[str] = (),
-                 exclude_table: bool = False, reference: bool = False) -> Tuple[np.ndarray, np.ndarray]:
+    def distance(
+        self,
+        points,
+        cutoff: float = np.inf,
+        exclude: Sequence[str] = (),
+        exclude_table: bool = False,
+        reference: bool = False,
+    ) -> Tuple[np.ndarray, np.ndarray]:
         """``reference``: by the per-object grids, as the success test measures (a merged grid's
         resampling differs by a fraction of a millimetre: a decision the test will judge takes these)."""
         return self._native.distance(points, cutoff, [self.index(n) for n in exclude], exclude_table, reference)
 
-    def clear_in_frames(self, frames, points, threshold: float, cutoff: float = np.inf, exclude: Sequence[str] = (),
-                        exclude_table: bool = False, inverse: bool = False, reach: float = np.inf) -> np.ndarray:
+    def clear_in_frames(
+        self,
+        frames,
+        points,
+        threshold: float,
+        cutoff: float = np.inf,
+        exclude: Sequence[str] = (),
+        exclude_table: bool = False,
+        inverse: bool = False,
+        reach: float = np.inf,
+    ) -> np.ndarray:
         """(K,) bool per pose of ``frames`` (K, 4, 4): every one of ``points`` (N, 3) farther than
         ``threshold`` from the bodies (``distance`` with ``cutoff``). The points are in the frame and
         go to the world; ``inverse``: they are world points taken into the frame (the field in the
         frame's coordinates, as a hand's), only those within ``reach`` of its origin read. Natively, a
         pose's test stopping at its first point too close."""
-        return self._native.clear_in_frames(np.asarray(frames, float), np.asarray(points, float), bool(inverse),
-                                            float(reach), float(threshold), float(cutoff),
-                                            [self.index(n) for n in exclude], bool(exclude_table))
+        return self._native.clear_in_frames(
+            np.asarray(frames, float),
+            np.asarray(points, float),
+            bool(inverse),
+            float(reach),
+            float(threshold),
+            float(cutoff),
+            [self.index(n) for n in exclude],
+            bool(exclude_table),
+        )
 
 
 @dataclass(frozen=True)

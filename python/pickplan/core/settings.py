@@ -1,6 +1,7 @@
 """Settings plumbing shared by every layer: option enums with string values, Python dataclass
 settings whose defaults are the native structs' (written once, in C++), and Python dataclass
 settings -> the native settings structs with the same field names."""
+
 from __future__ import annotations
 
 import enum
@@ -86,8 +87,10 @@ def _field_values(settings, skip=()) -> dict:
     """``asdict(settings)`` less the fields in ``skip``: without its deep copy when no other field holds a
     dataclass (50-100 us a call, paid by every plan and every success test)."""
     values = {f.name: getattr(settings, f.name) for f in fields(settings) if f.name not in skip}
-    if any(is_dataclass(v) or isinstance(v, dict) or (isinstance(v, (list, tuple)) and any(map(is_dataclass, v)))
-           for v in values.values()):
+    if any(
+        is_dataclass(v) or isinstance(v, dict) or (isinstance(v, (list, tuple)) and any(map(is_dataclass, v)))
+        for v in values.values()
+    ):
         return {k: v for k, v in asdict(settings).items() if k not in skip}
     return values
 

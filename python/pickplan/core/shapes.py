@@ -9,6 +9,7 @@ A mesh shape reads ``file`` (anything trimesh loads) scaled by ``size`` (sx, sy,
 >>> shelf = Obstacle("board", Shape.box(0.8, 0.4, 0.02), pose, support=True)
 >>> sdf.add_primitive(shelf.name, shelf.shape, shelf.pose)
 """
+
 from __future__ import annotations
 
 import os
@@ -41,7 +42,7 @@ class Shape:
 
     kind: ShapeKind
     size: Tuple[float, ...]
-    file: str = ""   # mesh shapes: the file, or ...
+    file: str = ""  # mesh shapes: the file, or ...
     vertices: Tuple[Tuple[float, float, float], ...] = ()  # ... the mesh itself (MoveIt messages carry it)
     faces: Tuple[Tuple[int, int, int], ...] = ()
 
@@ -51,8 +52,9 @@ class Shape:
         size = tuple(float(v) for v in np.atleast_1d(np.asarray(self.size, dtype=float)))
         object.__setattr__(self, "size", size)
         if len(size) != _SIZES[kind] or not all(np.isfinite(v) and v > 0 for v in size):
-            raise InputError(f"a {kind.value} needs {_SIZES[kind]} finite positive dimensions, got {list(size)}",
-                             field="size")
+            raise InputError(
+                f"a {kind.value} needs {_SIZES[kind]} finite positive dimensions, got {list(size)}", field="size"
+            )
         if (kind is ShapeKind.mesh) != (bool(self.file) or bool(self.faces)):
             raise InputError("a mesh shape needs a file or vertices and faces, a primitive neither", field="file")
         if self.faces and self.file:
@@ -140,8 +142,12 @@ class Obstacle:
     support: bool = False
 
     def to_dict(self) -> dict:
-        return {"name": self.name, **self.shape.to_dict(), "pose": np.asarray(self.pose, dtype=float).tolist(),
-                **({"support": True} if self.support else {})}
+        return {
+            "name": self.name,
+            **self.shape.to_dict(),
+            "pose": np.asarray(self.pose, dtype=float).tolist(),
+            **({"support": True} if self.support else {}),
+        }
 
     @classmethod
     def from_dict(cls, d, where: str = "obstacle", relative_to: Optional[str] = None) -> "Obstacle":
@@ -168,8 +174,9 @@ class Obstacle:
         if not isinstance(size, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in size):
             raise InputError(f"expected a list of numbers, got {size!r:.60}", field=f"{where}.size")
         try:
-            shape = Shape(kind, tuple(size), file) if "faces" not in d else \
-                _inline(d.get("vertices"), d["faces"], where)
+            shape = (
+                Shape(kind, tuple(size), file) if "faces" not in d else _inline(d.get("vertices"), d["faces"], where)
+            )
         except InputError as exc:
             raise InputError(exc.detail, field=f"{where}.{exc.field}") from None
         support = d.get("support", False)

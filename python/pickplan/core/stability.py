@@ -9,6 +9,7 @@ lies beyond, onto the neighbouring face, and so on until a stable face. A stable
 is the total solid angle that drains into it. Exact for the model; it ignores bouncing and rolling
 momentum, which is what the scene generator's settling then decides.
 """
+
 from __future__ import annotations
 
 from typing import List, Sequence
@@ -23,8 +24,12 @@ def triangle_solid_angles(triangles: np.ndarray, origin: np.ndarray) -> np.ndarr
     a, b, c = r[:, 0], r[:, 1], r[:, 2]
     la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
     numerator = np.einsum("ij,ij->i", a, np.cross(b, c))
-    denominator = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", a, c) * lb
-                   + np.einsum("ij,ij->i", b, c) * la)
+    denominator = (
+        la * lb * lc
+        + np.einsum("ij,ij->i", a, b) * lc
+        + np.einsum("ij,ij->i", a, c) * lb
+        + np.einsum("ij,ij->i", b, c) * la
+    )
     return np.abs(2.0 * np.arctan2(numerator, denominator))
 
 
@@ -81,8 +86,7 @@ def _drain_targets(hull: trimesh.Trimesh, faces: List[np.ndarray], com: np.ndarr
     return final
 
 
-def resting_probabilities(mesh: trimesh.Trimesh, com: np.ndarray, resting_poses: Sequence[np.ndarray]
-                          ) -> List[float]:
+def resting_probabilities(mesh: trimesh.Trimesh, com: np.ndarray, resting_poses: Sequence[np.ndarray]) -> List[float]:
     """The probability of each of ``resting_poses`` (object -> world, resting on z = 0) under the
     quasi-static model; they sum to 1 over the poses given (mass draining to a face that is not among
     them, e.g. a pose left out as too easy to tip, is shared in proportion)."""

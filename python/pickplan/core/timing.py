@@ -15,6 +15,7 @@ the samples.
 >>> timed.duration, timed.q.shape, timed.qd[0]
 >>> timed.save("out/timed.json"); timed.save("out/timed.npz")
 """
+
 from __future__ import annotations
 
 import enum
@@ -35,8 +36,8 @@ FORMAT = "pickplan.timed_trajectory/1"
 class Interpolation(enum.Enum):
     """How the path passes through the waypoints."""
 
-    PCHIP = "pchip"   # shape-preserving cubic (C1): no overshoot between waypoints
-    CUBIC = "cubic"   # not-a-knot cubic spline (C2): smoother, rounds sharp corners more widely
+    PCHIP = "pchip"  # shape-preserving cubic (C1): no overshoot between waypoints
+    CUBIC = "cubic"  # not-a-knot cubic spline (C2): smoother, rounds sharp corners more widely
 
 
 class TimingError(RuntimeError):
@@ -57,8 +58,9 @@ class KinematicLimits:
                 raise ValueError(f"{name} limits: expected a vector of positive finite numbers, got {v}")
             object.__setattr__(self, name, v)
         if self.velocity.shape != self.acceleration.shape:
-            raise ValueError(f"limits: {len(self.velocity)} velocity limits but "
-                             f"{len(self.acceleration)} acceleration limits")
+            raise ValueError(
+                f"limits: {len(self.velocity)} velocity limits but {len(self.acceleration)} acceleration limits"
+            )
 
 
 def robot_limits(robot) -> KinematicLimits:
@@ -68,7 +70,7 @@ def robot_limits(robot) -> KinematicLimits:
     info = robot.info
     velocity = np.array(robot.velocity_limits, dtype=float)
     if info.arm_velocity_limits is not None:
-        velocity[:info.arm_dof] = info.arm_velocity_limits
+        velocity[: info.arm_dof] = info.arm_velocity_limits
     fingers = (info.finger_acceleration_limit,) * (robot.dof - info.arm_dof)
     return KinematicLimits(velocity, np.array(tuple(info.arm_acceleration_limits) + fingers))
 
@@ -82,11 +84,11 @@ def panda_limits(robot=None) -> KinematicLimits:
 class TimedTrajectory:
     """Samples of a timed trajectory every 1 / ``rate`` s, from rest (t = 0) to rest (t = duration)."""
 
-    t: np.ndarray        # (K,) s
-    q: np.ndarray        # (K, dof)
-    qd: np.ndarray       # (K, dof) per s
-    qdd: np.ndarray      # (K, dof) per s^2
-    rate: float          # Hz
+    t: np.ndarray  # (K,) s
+    q: np.ndarray  # (K, dof)
+    qd: np.ndarray  # (K, dof) per s
+    qdd: np.ndarray  # (K, dof) per s^2
+    rate: float  # Hz
     slowdown: float = 1.0  # factor TOPP-RA's optimum was stretched by: whole samples, limits between grid points
 
     def __post_init__(self):
@@ -105,8 +107,16 @@ class TimedTrajectory:
         return float(self.t[-1])
 
     def to_dict(self) -> dict:
-        return {"format": FORMAT, "rate": self.rate, "duration": self.duration, "slowdown": self.slowdown,
-                "t": self.t.tolist(), "q": self.q.tolist(), "qd": self.qd.tolist(), "qdd": self.qdd.tolist()}
+        return {
+            "format": FORMAT,
+            "rate": self.rate,
+            "duration": self.duration,
+            "slowdown": self.slowdown,
+            "t": self.t.tolist(),
+            "q": self.q.tolist(),
+            "qd": self.qd.tolist(),
+            "qdd": self.qdd.tolist(),
+        }
 
     def save(self, path: str) -> None:
         """Write JSON (``.json``) or NumPy (``.npz``) with t, q, qd, qdd, rate; atomically."""
@@ -145,8 +155,14 @@ class TimedTrajectory:
         t = np.arange(int(math.ceil(self.duration * rate - 1e-9)) + 1) / rate
         t[-1] = min(t[-1], self.duration)
         qdd = np.column_stack([np.interp(t, self.t, a) for a in self.qdd.T])
-        return TimedTrajectory(t, CubicHermiteSpline(self.t, self.q, self.qd)(t),
-                               CubicHermiteSpline(self.t, self.qd, self.qdd)(t), qdd, rate, self.slowdown)
+        return TimedTrajectory(
+            t,
+            CubicHermiteSpline(self.t, self.q, self.qd)(t),
+            CubicHermiteSpline(self.t, self.qd, self.qdd)(t),
+            qdd,
+            rate,
+            self.slowdown,
+        )
 
 
 def _check_rate(rate) -> float:
@@ -224,15 +240,29 @@ def _acceleration_constraint(acceleration: np.ndarray):
             qs = path(gridpoints, 1)
             a, b = np.hstack([qs, qs]), np.hstack([path.left(gridpoints, 2), path(gridpoints, 2)])
             rows = np.eye(a.shape[1])
-            return canlinear_colloc_to_interpolate(a, b, np.zeros_like(a), np.vstack([rows, -rows]),
-                                                   np.tile(acceleration, 4), None, None, gridpoints, identical=True)
+            return canlinear_colloc_to_interpolate(
+                a,
+                b,
+                np.zeros_like(a),
+                np.vstack([rows, -rows]),
+                np.tile(acceleration, 4),
+                None,
+                None,
+                gridpoints,
+                identical=True,
+            )
 
     return _BothSides(acceleration)
 
 
-def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
-                      interpolation: Interpolation = Interpolation.PCHIP,
-                      grid_per_segment: int = 16, start_velocity=None) -> TimedTrajectory:
+def time_parameterize(
+    waypoints,
+    rate: float = 1000.0,
+    limits: Optional[KinematicLimits] = None,
+    interpolation: Interpolation = Interpolation.PCHIP,
+    grid_per_segment: int = 16,
+    start_velocity=None,
+) -> TimedTrajectory:
     """Time-optimal rest-to-rest timing of ``waypoints`` (T, dof) under ``limits`` (default: the Panda's),
     sampled at ``rate`` Hz (default 1 kHz, Franka's control rate); see the module doc.
 
@@ -261,7 +291,10 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
     # Every segment cut in grid_per_segment equal stages from its waypoint: the waypoints are grid points
     # exactly (no stage a rounding error long)
     grid = np.append(ss[:-1, None] + np.diff(ss)[:, None] * (np.arange(grid_per_segment) / grid_per_segment), 1.0)
-    constraints = [toppra.constraint.JointVelocityConstraint(limits.velocity), _acceleration_constraint(limits.acceleration)]
+    constraints = [
+        toppra.constraint.JointVelocityConstraint(limits.velocity),
+        _acceleration_constraint(limits.acceleration),
+    ]
     solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
     timing = _compute(solver, path, Q, start_velocity)
     if timing is None:
@@ -275,7 +308,7 @@ def time_parameterize(waypoints, rate: float = 1000.0, limits: Optional[Kinemati
         scale = k / (rate * optimum)
         t = np.arange(k + 1) / rate
         tau = np.clip(t / scale, 0.0, optimum)
-        q, qd, qdd = timing(tau), timing(tau, 1) / scale, timing(tau, 2) / scale ** 2
+        q, qd, qdd = timing(tau), timing(tau, 1) / scale, timing(tau, 2) / scale**2
         excess = max(np.max(np.abs(qd) / limits.velocity), math.sqrt(np.max(np.abs(qdd) / limits.acceleration)))
         if excess <= 1.0:
             break
@@ -314,17 +347,22 @@ def joint_move(q_from, q_to, limits: KinematicLimits, rate: float, min_duration:
     a, b = np.asarray(q_from, float), np.asarray(q_to, float)
     rate = _check_rate(rate)
     d = np.abs(b - a)
-    need = max(min_duration, float(np.max(1.875 * d / limits.velocity)),
-               float(np.sqrt(np.max(10.0 / math.sqrt(3.0) * d / limits.acceleration))), 1.0 / rate)
+    need = max(
+        min_duration,
+        float(np.max(1.875 * d / limits.velocity)),
+        float(np.sqrt(np.max(10.0 / math.sqrt(3.0) * d / limits.acceleration))),
+        1.0 / rate,
+    )
     k = int(math.ceil(need * rate - 1e-9))
     T = k / rate
     s = np.arange(k + 1) / k
-    p = 10 * s ** 3 - 15 * s ** 4 + 6 * s ** 5
-    dp = (30 * s ** 2 - 60 * s ** 3 + 30 * s ** 4) / T
-    ddp = (60 * s - 180 * s ** 2 + 120 * s ** 3) / T ** 2
+    p = 10 * s**3 - 15 * s**4 + 6 * s**5
+    dp = (30 * s**2 - 60 * s**3 + 30 * s**4) / T
+    ddp = (60 * s - 180 * s**2 + 120 * s**3) / T**2
     delta = b - a
-    return TimedTrajectory(np.arange(k + 1) / rate, a + np.outer(p, delta), np.outer(dp, delta),
-                           np.outer(ddp, delta), rate)
+    return TimedTrajectory(
+        np.arange(k + 1) / rate, a + np.outer(p, delta), np.outer(dp, delta), np.outer(ddp, delta), rate
+    )
 
 
 def concatenate(parts: Sequence[TimedTrajectory]) -> Tuple[TimedTrajectory, List[Tuple[float, float]]]:
@@ -339,14 +377,17 @@ def concatenate(parts: Sequence[TimedTrajectory]) -> Tuple[TimedTrajectory, List
         if part.rate != rate:
             raise ValueError(f"concatenate: part {k} at {part.rate} Hz, expected {rate} Hz")
         if not np.allclose(part.q[0], q[-1][-1], atol=1e-9):
-            raise ValueError(f"concatenate: part {k} starts {np.max(np.abs(part.q[0] - q[-1][-1])):.3g} away from "
-                             "where the one before it ends")
+            raise ValueError(
+                f"concatenate: part {k} starts {np.max(np.abs(part.q[0] - q[-1][-1])):.3g} away from "
+                "where the one before it ends"
+            )
         offset = spans[-1][1]
         t.append(part.t[1:] + offset)
         q.append(part.q[1:])
         qd.append(part.qd[1:])
         qdd.append(part.qdd[1:])
         spans.append((offset, offset + part.duration))
-    whole = TimedTrajectory(np.concatenate(t), np.vstack(q), np.vstack(qd), np.vstack(qdd), rate,
-                            max(p.slowdown for p in parts))
+    whole = TimedTrajectory(
+        np.concatenate(t), np.vstack(q), np.vstack(qd), np.vstack(qdd), rate, max(p.slowdown for p in parts)
+    )
     return whole, spans

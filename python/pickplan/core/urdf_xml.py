@@ -4,6 +4,7 @@ the URDF), and an arm's URDF composed with a gripper's mounted on one of its lin
 
 Pure Python (no native module), like ``core.description``.
 """
+
 from __future__ import annotations
 
 import os
@@ -15,7 +16,7 @@ import numpy as np
 from pickplan.core.fields import FieldReader
 from pickplan.core.io import content_file
 
-MAX_URDF_BYTES = 50_000_000   # a URDF is a few hundred kB; more is not a robot
+MAX_URDF_BYTES = 50_000_000  # a URDF is a few hundred kB; more is not a robot
 
 
 def pose_matrix(xyz, rpy) -> np.ndarray:
@@ -23,9 +24,11 @@ def pose_matrix(xyz, rpy) -> np.ndarray:
     r, p, y = (float(v) for v in rpy)
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
     T = np.eye(4)
-    T[:3, :3] = [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                 [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                 [-sp, cp * sr, cp * cr]]
+    T[:3, :3] = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
     T[:3, 3] = [float(v) for v in xyz]
     return T
 
@@ -78,13 +81,21 @@ def _absolute_meshes(root: ET.Element, urdf: str) -> None:
     for mesh in root.iter("mesh"):
         name = mesh.get("filename", "")
         if name.startswith("package://"):
-            name = name[len("package://"):]
+            name = name[len("package://") :]
         if not os.path.isabs(name):
             mesh.set("filename", os.path.join(folder, name))
 
 
-def compose_mount(r: FieldReader, arm: ET.Element, arm_urdf: str, hand: ET.Element, gripper_urdf: str,
-                  parent: str, T: np.ndarray, source: str) -> Optional[str]:
+def compose_mount(
+    r: FieldReader,
+    arm: ET.Element,
+    arm_urdf: str,
+    hand: ET.Element,
+    gripper_urdf: str,
+    parent: str,
+    T: np.ndarray,
+    source: str,
+) -> Optional[str]:
     """The arm's URDF with the gripper's fixed to ``parent`` at ``T``: written once per content
     (a file of pickplan's, never named in a message: problems name the description's fields)."""
     _absolute_meshes(arm, arm_urdf)
@@ -106,5 +117,10 @@ def compose_mount(r: FieldReader, arm: ET.Element, arm_urdf: str, hand: ET.Eleme
     ET.SubElement(joint, "child", link=roots[0])
     rpy = rpy_of(T[:3, :3])
     ET.SubElement(joint, "origin", xyz=" ".join(f"{v:.12g}" for v in T[:3, 3]), rpy=" ".join(f"{v:.12g}" for v in rpy))
-    return content_file(ET.tostring(arm, encoding="unicode"), "robots", ".urdf",
-                        stem=os.path.splitext(os.path.basename(source))[0], header='<?xml version="1.0"?>\n')
+    return content_file(
+        ET.tostring(arm, encoding="unicode"),
+        "robots",
+        ".urdf",
+        stem=os.path.splitext(os.path.basename(source))[0],
+        header='<?xml version="1.0"?>\n',
+    )

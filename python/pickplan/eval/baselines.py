@@ -17,6 +17,7 @@ Every baseline returns an ``omg.PlanResult``.
 
 >>> result = plan_baseline("RRT-C", scene, BaselineSettings())
 """
+
 from __future__ import annotations
 
 import time
@@ -37,13 +38,14 @@ from pickplan.omg.world import CheckerKind, World
 from pickplan.omg.planner import OMGPlanner
 from pickplan.omg.selection import Selection
 
+
 class Baseline(Option):
     """Table III's baseline planners."""
 
-    CHOMP = "CHOMP"        # goal-set CHOMP towards the ranked goals, one at a time
-    CHOMP_C = "CHOMP-C"    # OMG with the projection rule and no refinement [11]
-    FMT = "FMT"            # OMPL's FMT* to the pre-grasp, then the standoff tail
-    RRT_C = "RRT-C"        # OMPL's RRT-Connect likewise
+    CHOMP = "CHOMP"  # goal-set CHOMP towards the ranked goals, one at a time
+    CHOMP_C = "CHOMP-C"  # OMG with the projection rule and no refinement [11]
+    FMT = "FMT"  # OMPL's FMT* to the pre-grasp, then the standoff tail
+    RRT_C = "RRT-C"  # OMPL's RRT-Connect likewise
 
 
 OMPL_PLANNERS = (Baseline.FMT, Baseline.RRT_C)
@@ -54,10 +56,10 @@ class BaselineSettings:
     """Shared with OMG through ``omg`` (CHOMP settings, goal set, IK, metrics, grasps, seed)."""
 
     omg: OMGSettings = field(default_factory=OMGSettings)
-    max_goals_tried: int = 5        # goals of the ranked list tried before giving up
-    chomp_iterations: int = 50      # plain CHOMP iterations per goal (OMG's N)
-    time_limit: float = 1.0         # s of OMPL planning per goal
-    simplify_time: float = 0.2      # s of OMPL path simplification per solution
+    max_goals_tried: int = 5  # goals of the ranked list tried before giving up
+    chomp_iterations: int = 50  # plain CHOMP iterations per goal (OMG's N)
+    time_limit: float = 1.0  # s of OMPL planning per goal
+    simplify_time: float = 0.2  # s of OMPL path simplification per solution
     check_resolution: float = 0.005  # OMPL motion-validation step, fraction of the space's extent
 
 
@@ -67,8 +69,21 @@ def chomp_c_settings(settings: OMGSettings) -> OMGSettings:
 
 
 def _empty(q0, timings, gs) -> PlanResult:
-    return PlanResult(PlanStatus.no_goals, np.vstack([q0]), q0, -1, np.eye(4), False, None, float("nan"), 0, 0,
-                      {"objective": [], "goal": [], "p": [], "switches": 0}, timings, gs.reason_counts())
+    return PlanResult(
+        PlanStatus.no_goals,
+        np.vstack([q0]),
+        q0,
+        -1,
+        np.eye(4),
+        False,
+        None,
+        float("nan"),
+        0,
+        0,
+        {"objective": [], "goal": [], "p": [], "switches": 0},
+        timings,
+        gs.reason_counts(),
+    )
 
 
 class SupportValidity:
@@ -135,8 +150,16 @@ class _Problem:
         self.metric_settings = replace(s.metrics, tail_waypoints=self.m)
         t = time.perf_counter()
         xi = cubic_initialization(self.q0, self.gs.goals[0], s.chomp.n)
-        c = self.chomp.problem.goal_costs(xi, self.q0, 0, s.iterations, np.asarray(self.gs.goals),
-                                          s.cost_time_stride, s.cost_point_stride, self.chomp.workspace())
+        c = self.chomp.problem.goal_costs(
+            xi,
+            self.q0,
+            0,
+            s.iterations,
+            np.asarray(self.gs.goals),
+            s.cost_time_stride,
+            s.cost_point_stride,
+            self.chomp.workspace(),
+        )
         self.ranking = [int(i) for i in np.argsort(np.asarray(c), kind="stable")]
         self.timings["ranking"] = time.perf_counter() - t
 
@@ -151,15 +174,34 @@ class _Problem:
         status = PlanStatus.of(metrics)
         robot = self.world.robot
         hand = robot.link_pose(xi[-1], robot.hand_link)
-        history = {"objective": [], "goal": [g], "p": [], "switches": 0, "attempts": attempts,
-                   "ranking": self.ranking[:self.settings.max_goals_tried]}
-        return PlanResult(status, np.vstack([self.q0, xi]), xi[-1].copy(), int(self.gs.grasp_index[g]), hand, False,
-                          metrics, float("nan"), len(self.gs), len(attempts), history, dict(self.timings),
-                          self.gs.reason_counts())
+        history = {
+            "objective": [],
+            "goal": [g],
+            "p": [],
+            "switches": 0,
+            "attempts": attempts,
+            "ranking": self.ranking[: self.settings.max_goals_tried],
+        }
+        return PlanResult(
+            status,
+            np.vstack([self.q0, xi]),
+            xi[-1].copy(),
+            int(self.gs.grasp_index[g]),
+            hand,
+            False,
+            metrics,
+            float("nan"),
+            len(self.gs),
+            len(attempts),
+            history,
+            dict(self.timings),
+            self.gs.reason_counts(),
+        )
 
 
-def plan_chomp(scene: Scene, settings: BaselineSettings = BaselineSettings(), world: Optional[World] = None,
-               grasps=None) -> PlanResult:
+def plan_chomp(
+    scene: Scene, settings: BaselineSettings = BaselineSettings(), world: Optional[World] = None, grasps=None
+) -> PlanResult:
     """Plain CHOMP through the ranked goal list (first feasible plan; else the top goal's plan)."""
     t_total = time.perf_counter()
     return _chomp_over(_Problem(scene, settings, world, grasps), settings, t_total)
@@ -171,7 +213,7 @@ def _chomp_over(pb: _Problem, settings: BaselineSettings, t_total: float) -> Pla
         return _empty(pb.q0, pb.timings, pb.gs)
     first = None
     attempts = []
-    for g in pb.ranking[:settings.max_goals_tried]:
+    for g in pb.ranking[: settings.max_goals_tried]:
         t = time.perf_counter()
         out = pb.chomp.optimize(pb.q0, pb.gs.tails[g], settings.chomp_iterations, metric_settings=None)
         pb.timings["planning"] += time.perf_counter() - t
@@ -227,8 +269,13 @@ def ompl_setup(ob, og, robot, joints: int):
     return space, og.SimpleSetup(space)
 
 
-def plan_ompl(scene: Scene, planner: Union[Baseline, str] = Baseline.RRT_C,
-              settings: BaselineSettings = BaselineSettings(), world: Optional[World] = None, grasps=None) -> PlanResult:
+def plan_ompl(
+    scene: Scene,
+    planner: Union[Baseline, str] = Baseline.RRT_C,
+    settings: BaselineSettings = BaselineSettings(),
+    world: Optional[World] = None,
+    grasps=None,
+) -> PlanResult:
     """FMT* or RRT-Connect to the pre-grasp of each ranked goal, then the goal's standoff tail."""
     _ompl()  # a clear ImportError before any work
     planner = Baseline.parse(planner, "baseline")
@@ -262,7 +309,7 @@ def _ompl_over(pb: _Problem, planner: Baseline, settings: BaselineSettings, t_to
     free = n - pb.m  # waypoints before the tail; the path ends at the tail's first row
     first = None
     attempts = []
-    for g in pb.ranking[:settings.max_goals_tried]:
+    for g in pb.ranking[: settings.max_goals_tried]:
         tail = pb.gs.tails[g]
         start, goal = space.allocState(), space.allocState()
         for j in range(arm):
@@ -281,7 +328,7 @@ def _ompl_over(pb: _Problem, planner: Baseline, settings: BaselineSettings, t_to
             pts = np.stack([q0[:arm], tail[0][:arm]])
         pb.timings["planning"] += time.perf_counter() - t
         xi = np.repeat(q0[None, :], n, axis=0)
-        xi[:free + 1, :arm] = resample_path(np.vstack([q0[:arm], pts[1:]]), free + 1)
+        xi[: free + 1, :arm] = resample_path(np.vstack([q0[:arm], pts[1:]]), free + 1)
         xi[free:] = tail
         metrics = pb.metrics(xi)
         attempts.append({"goal": g, "found": exact, "success": bool(metrics.success)})
@@ -292,8 +339,9 @@ def _ompl_over(pb: _Problem, planner: Baseline, settings: BaselineSettings, t_to
     return pb.result(*first, attempts, t_total)
 
 
-def plan_baseline_to_goal_set(name: Union[Baseline, str], world, q0: np.ndarray, goal_set,
-                              settings: BaselineSettings = BaselineSettings()) -> PlanResult:
+def plan_baseline_to_goal_set(
+    name: Union[Baseline, str], world, q0: np.ndarray, goal_set, settings: BaselineSettings = BaselineSettings()
+) -> PlanResult:
     """``CHOMP``, ``FMT`` or ``RRT-C`` from ``q0`` to a goal set already built in ``world`` (a place goal
     set in an ``attach.HeldWorld``): the same ranking, tries and success test as for grasps."""
     name = Baseline.parse(name, "baseline")
@@ -306,8 +354,13 @@ def plan_baseline_to_goal_set(name: Union[Baseline, str], world, q0: np.ndarray,
     return _ompl_over(pb, name, settings, t_total)
 
 
-def plan_baseline(name: Union[Baseline, str], scene: Scene, settings: BaselineSettings = BaselineSettings(),
-                  world: Optional[World] = None, grasps=None) -> PlanResult:
+def plan_baseline(
+    name: Union[Baseline, str],
+    scene: Scene,
+    settings: BaselineSettings = BaselineSettings(),
+    world: Optional[World] = None,
+    grasps=None,
+) -> PlanResult:
     """A ``Baseline`` (or its name: ``CHOMP``, ``CHOMP-C``, ``FMT``, ``RRT-C``) on ``scene`` (its
     target, its start)."""
     name = Baseline.parse(name, "baseline")

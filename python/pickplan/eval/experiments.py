@@ -14,73 +14,63 @@ cluster address).
 >>> records = run_sweep(settings)
 >>> summary = summarize(records, methods_for(settings))
 """
+
 from __future__ import annotations
 
 import contextlib
 import json
 import os
-import time
 import warnings
 from dataclasses import dataclass, replace
 from typing import Callable, List, Optional, Sequence, TextIO, Tuple
 
-import numpy as np
-
 from pickplan.core import objects as objects_mod
-from pickplan.core.description import robot_info
 from pickplan.core.errors import InputError
 from pickplan.core.io import read_json, write_json
-from pickplan.core.objects import model_from_source
 from pickplan.core.runner import JobFailure, OnError, Order, Runner
-from pickplan.core.timing import robot_limits, time_parameterize
-from pickplan.eval.baselines import OMPL_PLANNERS, BaselineSettings, plan_baseline
-from pickplan.eval.methods import OPTIONAL_METHODS, Table, all_methods, method_spec
-from pickplan.eval.plots import STAGES
+from pickplan.eval.methods import OPTIONAL_METHODS, Table, all_methods
 from pickplan.eval.summaries import UNIT_ERROR
-from pickplan.omg import grasps as grasps_mod
-from pickplan.omg.grasps import KINDS, GraspKind, GraspSet
-from pickplan.omg.grasps.generators import SupportFilter
-from pickplan.omg.model_cache import ModelCache
-from pickplan.omg.planner import OMGPlanner, PlanStatus, target_graspability
-from pickplan.omg.world import CheckerKind, World, WorldSettings
-from pickplan.sim.execution import ExecutionSettings, execute_plan
+from pickplan.eval.units import _grasps_job, grasp_jobs, run_unit
+from pickplan.omg.grasps import KINDS, GraspKind
 from pickplan.sim.layouts import Layout, LayoutSettings, generate_layout
 from pickplan.sim.scene_sets import scene_seeds
-from pickplan.sim.scenes import Orientation, Scene, SceneSettings, generate_scene
+from pickplan.sim.scenes import Orientation, SceneSettings, generate_scene
 
 
 @dataclass(frozen=True)
 class SweepSettings:
     """One sweep; defaults are the paper's (100 scenes, 30 grasps, 10 runs)."""
 
-    table: Table                       # selection | refinement | planners | ablation (a spelling converts)
+    table: Table  # selection | refinement | planners | ablation (a spelling converts)
     out: str = "out/bench"
-    scenes: int = 100                  # generated scenes (ignored with scene_dir)
-    scene_dir: Optional[str] = None    # load scene_*.json from here instead
-    objects: Optional[str] = None      # generated scenes' objects: "builtin", "procedural" or a YCB-layout
-                                       # folder (None: $PICKPLAN_YCB_DIR if set, else the built-ins)
+    scenes: int = 100  # generated scenes (ignored with scene_dir)
+    scene_dir: Optional[str] = None  # load scene_*.json from here instead
+    # generated scenes' objects: "builtin", "procedural" or a YCB-layout folder (None: $PICKPLAN_YCB_DIR if set, else
+    # the built-ins)
+    objects: Optional[str] = None
     poses: Orientation = Orientation.upright  # generated scenes' object poses
     clutter: Tuple[int, int] = (3, 7)  # objects per generated scene, fewest-most (the paper's 3-7)
-    layout: Layout = Layout.table      # generated scenes' family: the tabletop, or a shelf, bin or cabinet
-                                       # (``sim.layouts``; poses and clutter are the tabletop's)
+    # generated scenes' family: the tabletop, or a shelf, bin or cabinet (``sim.layouts``; poses and clutter are the
+    # tabletop's)
+    layout: Layout = Layout.table
     # The grasp set of every method (None: the table's, "simulated"); "antipodal" is generated per unit,
     # aware of the table under the target as it lies (physics-verified sets take minutes per new object).
     grasp_kind: Optional[GraspKind] = None
-    grasps: int = 30                   # goal-set size (the paper's "30 grasps each scene")
-    grasp_candidates: int = 100        # grasps generated per object when it has no stored set
+    grasps: int = 30  # goal-set size (the paper's "30 grasps each scene")
+    grasp_candidates: int = 100  # grasps generated per object when it has no stored set
     runs: int = 10
-    methods: Optional[Tuple[str, ...]] = None   # None: every method of the table
-    quick: bool = False                # CI setting: see ``effective``
-    workers: int = 2                   # local processes (<= 1: serial, in this process)
-    ray: Optional[str] = None          # "local" or a Ray cluster address
-    seed: int = 0                      # scene set seed; run r of every scene uses seed + r
-    iterations: int = 50               # OMG / CHOMP iterations N
-    execute: bool = True               # execute successful plans in PyBullet
-    timed_execution: bool = False      # execute them timed within the robot's limits (else 0.1 s per waypoint)
-    robot: str = "panda"               # the robot planned for and executed (a shipped name, short name or .toml)
-    time_limit: float = 1.0            # OMPL seconds per goal
-    max_goals_tried: int = 5           # ranked goals tried by CHOMP / FMT / RRT-C
-    progress: Optional[bool] = None     # None: a progress bar only on a terminal
+    methods: Optional[Tuple[str, ...]] = None  # None: every method of the table
+    quick: bool = False  # CI setting: see ``effective``
+    workers: int = 2  # local processes (<= 1: serial, in this process)
+    ray: Optional[str] = None  # "local" or a Ray cluster address
+    seed: int = 0  # scene set seed; run r of every scene uses seed + r
+    iterations: int = 50  # OMG / CHOMP iterations N
+    execute: bool = True  # execute successful plans in PyBullet
+    timed_execution: bool = False  # execute them timed within the robot's limits (else 0.1 s per waypoint)
+    robot: str = "panda"  # the robot planned for and executed (a shipped name, short name or .toml)
+    time_limit: float = 1.0  # OMPL seconds per goal
+    max_goals_tried: int = 5  # ranked goals tried by CHOMP / FMT / RRT-C
+    progress: Optional[bool] = None  # None: a progress bar only on a terminal
 
     def __post_init__(self):
         object.__setattr__(self, "table", Table.parse(self.table, "table"))
@@ -88,8 +78,10 @@ class SweepSettings:
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if self.grasp_kind is not None and (self.table is Table.refinement or self.grasp_kind not in KINDS):
-            raise ValueError(f"grasp_kind: expected one of simulated, graspit, approach, antipodal (not with the "
-                             f"refinement table, whose methods are grasp sets), got {self.grasp_kind!r}")
+            raise ValueError(
+                f"grasp_kind: expected one of simulated, graspit, approach, antipodal (not with the "
+                f"refinement table, whose methods are grasp sets), got {self.grasp_kind!r}"
+            )
         if self.grasp_kind is not None:
             object.__setattr__(self, "grasp_kind", GraspKind(self.grasp_kind))
         object.__setattr__(self, "poses", Orientation.parse(self.poses, "poses"))
@@ -100,15 +92,20 @@ class SweepSettings:
             known = all_methods(self.table) + OPTIONAL_METHODS.get(self.table, ())
             bad = [m for m in self.methods if m not in known]
             if bad:
-                raise ValueError(f"unknown methods {bad} for table {self.table!r}; "
-                                 f"expected some of {list(known)}")
+                raise ValueError(f"unknown methods {bad} for table {self.table!r}; expected some of {list(known)}")
 
     def effective(self) -> "SweepSettings":
         """``quick`` shrinks the sweep for CI: <= 4 scenes, 1 run, 10 goals, 30 candidates, 0.5 s OMPL."""
         if not self.quick:
             return self
-        return replace(self, scenes=min(self.scenes, 4), runs=1, grasps=min(self.grasps, 10),
-                       grasp_candidates=min(self.grasp_candidates, 30), time_limit=min(self.time_limit, 0.5))
+        return replace(
+            self,
+            scenes=min(self.scenes, 4),
+            runs=1,
+            grasps=min(self.grasps, 10),
+            grasp_candidates=min(self.grasp_candidates, 30),
+            time_limit=min(self.time_limit, 0.5),
+        )
 
 
 def methods_for(settings: SweepSettings) -> Tuple[str, ...]:
@@ -133,8 +130,7 @@ def _make_scene(job: dict) -> dict:
     return {"path": path}
 
 
-def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None,
-                runner: Optional[Runner] = None) -> List[str]:
+def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None, runner: Optional[Runner] = None) -> List[str]:
     """The sweep's scene files: those of ``scene_dir``, or generated once into ``OUT/scenes``
     (with ``runner``, else the sweep's own back end)."""
     s = settings.effective()
@@ -146,9 +142,18 @@ def scene_files(settings: SweepSettings, stream: Optional[TextIO] = None,
 
     folder = os.path.join(s.out, "scenes")
     os.makedirs(folder, exist_ok=True)
-    jobs = [{"path": os.path.join(folder, f"scene_{i:04d}.json"), "seed": seed, "objects": s.objects,
-             "poses": s.poses, "clutter": tuple(s.clutter), "robot": s.robot, "layout": s.layout.value}
-            for i, seed in enumerate(scene_seeds(s.seed, s.scenes))]
+    jobs = [
+        {
+            "path": os.path.join(folder, f"scene_{i:04d}.json"),
+            "seed": seed,
+            "objects": s.objects,
+            "poses": s.poses,
+            "clutter": tuple(s.clutter),
+            "robot": s.robot,
+            "layout": s.layout.value,
+        }
+        for i, seed in enumerate(scene_seeds(s.seed, s.scenes))
+    ]
     todo = [j for j in jobs if not os.path.exists(j["path"])]
     with sweep_runner(s) if runner is None else contextlib.nullcontext(runner) as backend:
         for _ in backend.map(_make_scene, todo, Order.COMPLETION, progress=s.progress, label="scenes", stream=stream):
@@ -163,8 +168,20 @@ def unit_key(unit: dict) -> str:
 
 def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
     s = settings.effective()
-    knobs = {k: getattr(s, k) for k in ("grasps", "grasp_candidates", "iterations", "execute", "time_limit",
-                                         "max_goals_tried", "timed_execution", "robot", "grasp_kind")}
+    knobs = {
+        k: getattr(s, k)
+        for k in (
+            "grasps",
+            "grasp_candidates",
+            "iterations",
+            "execute",
+            "time_limit",
+            "max_goals_tried",
+            "timed_execution",
+            "robot",
+            "grasp_kind",
+        )
+    }
     units = []
     for path in files:
         with open(path) as f:
@@ -172,151 +189,40 @@ def make_units(settings: SweepSettings, files: Sequence[str]) -> List[dict]:
         name = os.path.splitext(os.path.basename(path))[0]
         for method in methods_for(s):
             for run in range(s.runs):
-                units.append({"table": s.table, "scene_name": name, "scene": scene, "method": method, "run": run,
-                              "seed": s.seed + run, **knobs})
+                units.append(
+                    {
+                        "table": s.table,
+                        "scene_name": name,
+                        "scene": scene,
+                        "method": method,
+                        "run": run,
+                        "seed": s.seed + run,
+                        **knobs,
+                    }
+                )
     return units
 
 
-def _grasps_job(job: dict) -> dict:
-    """Generate (and cache on disk) an object's grasp set once, before the units need it."""
-
-    try:
-        grasps_mod.grasp_set(model_from_source(job["name"], job["source"]), job["kind"], job["n"], seed=0,
-                             gripper=robot_info(job.get("robot", "panda")), progress=False) \
-            if job["kind"] == "simulated" else None
-    except (ValueError, TypeError):
-        pass  # no such set (e.g. graspit for the built-ins): the units report it
-    return job
-
-
-def grasp_jobs(units: Sequence[dict]) -> List[dict]:
-    seen = {}
-    for u in units:
-        target = u["scene"]["target"]
-        src = next(o["source"] for o in u["scene"]["objects"] if o["name"] == target)
-        kind = u.get("grasp_kind") or method_spec(u["table"], u["method"]).grasp_kind
-        robot = u.get("robot", "panda")
-        seen[(target, src, kind, robot)] = {"name": target, "source": src, "kind": kind, "n": u["grasp_candidates"],
-                                            "robot": robot}
-    return list(seen.values())
-
-
-# A sweep's worker plans scene after scene of the same objects, and every method of a scene plans with
-# the same generated grasps: one bounded ModelCache per worker process holds SDF grids, FCL shapes, the
-# robot, surface samples and generated grasp sets. Records do not depend on it (the same values are
-# built either way); it only spares rebuilding them.
-_WORKER_MODELS = ModelCache()
-
-
-def _unit_grasps(world: World, scene: Scene, kind: str, n: int, robot: str) -> GraspSet:
-    """The unit's grasp set of the target (its poses, and what the generator rejected)."""
-    aware = {"support": SupportFilter.under(world.target_pose, robot=world.robot, plane=world.support_plane,
-                                                   approach=world.open_approach())} if kind == "antipodal" else {}
-
-    def build():
-        return grasps_mod.grasp_set(world.target_model, kind, n, seed=0, gripper=world.robot.info, **aware)
-    if kind not in ("antipodal", "approach"):  # stored sets: read from disk
-        return build()
-    source = next(o.source for o in scene.objects if o.name == scene.target)
-    key = ("grasps", kind, scene.target, source, np.asarray(world.target_pose).tobytes(), robot, int(n))
-    gs = world.cache.derived(key, build)
-    return replace(gs, poses=gs.poses.copy())  # a unit may not change what the next one reads
-
-
-def finite(x: float) -> Optional[float]:
-    """A float for a JSON record: None for nan (not measured)."""
-    return float(x) if np.isfinite(x) else None
-
-
-def run_unit(unit: dict) -> dict:
-    """Plan (and execute) one unit; returns its flat record. Deterministic for a given unit."""
-
-    t0 = time.perf_counter()
-    spec = method_spec(unit["table"], unit["method"])
-    if unit.get("grasp_kind"):
-        spec = replace(spec, grasp_kind=GraspKind.parse(unit["grasp_kind"], "grasp set kind"))
-    scene = Scene.from_dict(unit["scene"])
-    seed = int(unit["seed"])
-    record = {"table": unit["table"], "scene": unit["scene_name"], "target": scene.target, "method": unit["method"],
-              "run": unit["run"], "seed": seed, "grasp_kind": spec.grasp_kind}
-    world_settings = WorldSettings(robot=unit.get("robot", "panda"))
-    world = World(scene, world_settings, cache=_WORKER_MODELS)
-    verdict = target_graspability(world)  # geometry, whatever the method: ungraspable units are counted apart
-    if not verdict.graspable:
-        record.update(status=PlanStatus.ungraspable, reason=f"ungraspable: {verdict.reason}", valid=True,
-                      graspable=False, planned=False, planning_success=False, execution_success=False,
-                      execution_run=bool(unit["execute"]), unit_seconds=time.perf_counter() - t0)
-        return record
-    # Scene setup (FCL meshes), not goal-set or planning time; only the OMPL baselines validate
-    # states with the "obstacles" checker.
-    for kind in (CheckerKind.goal, CheckerKind.hand) + ((CheckerKind.obstacles,) if spec.baseline in OMPL_PLANNERS
-                                                          else ()):
-        world.checker(kind)
-    try:
-        grasps = _unit_grasps(world, scene, spec.grasp_kind, unit["grasp_candidates"], world_settings.robot)
-    except ValueError as exc:  # e.g. no stored graspit set for a built-in object: not a planning failure
-        record.update(status=PlanStatus.no_grasps, reason=str(exc), valid=False, planning_success=False,
-                      execution_success=False, unit_seconds=time.perf_counter() - t0)
-        return record
-    omg = spec.omg_settings(unit["grasps"], unit["grasp_candidates"], unit["iterations"], seed, world_settings)
-    chomp = omg.chomp
-
-    def plan(poses):
-        if spec.baseline is None:
-            return OMGPlanner(None, scene, omg, world=world).plan(grasps=poses)
-        bs = BaselineSettings(omg=omg, max_goals_tried=unit["max_goals_tried"], chomp_iterations=unit["iterations"],
-                              time_limit=unit["time_limit"])
-        return plan_baseline(spec.baseline, scene, bs, world=world, grasps=poses)
-    result = plan(grasps.poses)
-    dense = omg.denser_grasp_count()
-    if result.status == PlanStatus.no_goals and dense and dense > len(grasps):  # as the planner's own default grasps
-        first_goal_set_time = result.timings.get("goal_set", 0.0)
-        grasps = _unit_grasps(world, scene, spec.grasp_kind, dense, world_settings.robot)
-        result = plan(grasps.poses)
-        result.timings["goal_set"] = result.timings.get("goal_set", 0.0) + first_goal_set_time
-    if len(grasps) == 0:  # a graspable target the generator found nothing for: say what it rejected
-        result.goal_reasons = {"no_candidates": 1, **{f"candidates {k}": v for k, v in grasps.rejected.items() if v}}
-    planned = result.planned
-    m = result.metrics
-    record.update(status=result.status, valid=True, graspable=True, planned=planned,
-                  goal_reasons=dict(result.goal_reasons) if result.status == PlanStatus.no_goals else {}, planning_success=bool(result.success),
-                  goal_set_size=result.goal_set_size, iterations=result.iterations, refined=bool(result.refined),
-                  goal_set_time=float(result.timings.get("goal_set", 0.0)),
-                  plan_time=float(result.timings["total"] - result.timings.get("goal_set", 0.0)),
-                  smoothness=float(m.smoothness) if planned else None,
-                  collision=float(m.collision) if planned else None,
-                  min_clearance=float(m.min_clearance) if planned else None,
-                  grasp_cost=float(world.grasp_refiner().cost(result.goal)[0].total) if planned else None,
-                  stage_times={k: float(result.timings.get(k, 0.0)) for k in STAGES})
-    if planned and omg.goals.quality is not None:  # how well the executed (maybe refined) grasp holds, by the model
-        hand = np.linalg.inv(world.target_pose) @ result.hand_pose
-        record["grasp_margin"] = finite(float(world.grasp_quality(hand[None], omg.goals.quality).margin[0]))
-    # The duration a controller needs: the path timed within the robot's velocity/acceleration limits.
-    control_rate = 1.0 / ExecutionSettings.time_step  # samples at PyBullet's control rate: executed as they are
-    timed = time_parameterize(result.trajectory, control_rate, robot_limits(world.robot)) if planned else None
-    record["trajectory_duration"] = timed.duration if planned else None
-    record.update(execution_success=False, execution_status="not_executed", execution_run=bool(unit["execute"]))
-    if unit["execute"] and result.success:
-        ex = execute_plan(scene, timed if unit.get("timed_execution") else result.trajectory,
-                          ExecutionSettings(robot=world_settings.robot, waypoint_dt=chomp.duration / chomp.n))
-        record.update(execution_success=bool(ex.success), execution_status=ex.status, execution_time=ex.seconds,
-                      execution_sim_time=ex.sim_time, slip=finite(ex.slip), slip_rotation=finite(ex.slip_rotation),
-                      grip_force=ex.grip_force, lift=finite(ex.lift), execution_message=ex.message)
-    record["unit_seconds"] = time.perf_counter() - t0
-    return record
-
-
-# --- sweeps ----------------------------------------------------------------------------------------
 def unit_path(settings: SweepSettings, unit: dict) -> str:
     return os.path.join(settings.out, "units", unit_key(unit) + ".json")
 
 
 def error_record(unit: dict, failure: JobFailure) -> dict:
     """The record of a unit whose function raised: status "error", counted as a failed plan."""
-    return {"table": unit["table"], "scene": unit["scene_name"], "method": unit["method"], "run": unit["run"],
-            "seed": int(unit["seed"]), "status": UNIT_ERROR, "error": failure.error,
-            "valid": True, "planned": False, "planning_success": False, "execution_success": False,
-            "execution_run": bool(unit.get("execute", True))}
+    return {
+        "table": unit["table"],
+        "scene": unit["scene_name"],
+        "method": unit["method"],
+        "run": unit["run"],
+        "seed": int(unit["seed"]),
+        "status": UNIT_ERROR,
+        "error": failure.error,
+        "valid": True,
+        "planned": False,
+        "planning_success": False,
+        "execution_success": False,
+        "execution_run": bool(unit.get("execute", True)),
+    }
 
 
 def sweep_runner(settings: SweepSettings) -> Runner:
@@ -324,8 +230,12 @@ def sweep_runner(settings: SweepSettings) -> Runner:
     return Runner(settings.workers, settings.ray)
 
 
-def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
-              unit_fn: Callable[[dict], dict] = run_unit, warm_grasps: bool = True) -> List[dict]:
+def run_sweep(
+    settings: SweepSettings,
+    stream: Optional[TextIO] = None,
+    unit_fn: Callable[[dict], dict] = run_unit,
+    warm_grasps: bool = True,
+) -> List[dict]:
     """Run every unit not yet on disk (each written as soon as it finishes, an exception recorded as
     an "error" unit; interrupts stop the sweep); return all records in unit order. ``warm_grasps``:
     first build the targets' simulated grasp sets on the runner (one job per object, not one race per
@@ -337,21 +247,52 @@ def run_sweep(settings: SweepSettings, stream: Optional[TextIO] = None,
         files = scene_files(s, stream, runner)
         units = make_units(s, files)
         todo = [u for u in units if not _finished(s, u)]
-        for _ in runner.map(_grasps_job, grasp_jobs(todo) if warm_grasps else [], Order.COMPLETION,
-                            progress=s.progress, label="grasps", stream=stream):
+        for _ in runner.map(
+            _grasps_job,
+            grasp_jobs(todo) if warm_grasps else [],
+            Order.COMPLETION,
+            progress=s.progress,
+            label="grasps",
+            stream=stream,
+        ):
             pass
-        for unit, out in runner.map(unit_fn, todo, Order.COMPLETION, OnError.RECORD, progress=s.progress,
-                                    label=f"{s.table} units", stream=stream, done=len(units) - len(todo),
-                                    total=len(units)):
-            write_json(unit_path(s, unit), {**(error_record(unit, out) if isinstance(out, JobFailure) else out), **stamp})
+        for unit, out in runner.map(
+            unit_fn,
+            todo,
+            Order.COMPLETION,
+            OnError.RECORD,
+            progress=s.progress,
+            label=f"{s.table} units",
+            stream=stream,
+            done=len(units) - len(todo),
+            total=len(units),
+        ):
+            write_json(
+                unit_path(s, unit), {**(error_record(unit, out) if isinstance(out, JobFailure) else out), **stamp}
+            )
     return load_records(s, units)
 
 
 # Settings a finished unit (or a generated scene) depends on; methods, runs and scene count only
 # add units, and workers / Ray / progress do not change results.
-RESUME_KEYS = ("table", "seed", "objects", "scene_dir", "grasps", "grasp_candidates", "iterations", "execute",
-               "time_limit", "max_goals_tried", "timed_execution", "robot",
-               "poses", "clutter", "grasp_kind", "layout")
+RESUME_KEYS = (
+    "table",
+    "seed",
+    "objects",
+    "scene_dir",
+    "grasps",
+    "grasp_candidates",
+    "iterations",
+    "execute",
+    "time_limit",
+    "max_goals_tried",
+    "timed_execution",
+    "robot",
+    "poses",
+    "clutter",
+    "grasp_kind",
+    "layout",
+)
 # What a sweep made before a key existed had (its records and sweep.json lack the key).
 RESUME_DEFAULTS = {"poses": "upright", "clutter": [3, 7], "grasp_kind": None, "layout": Layout.table.value}
 
@@ -375,13 +316,19 @@ def _fingerprint_diff(record: dict, fp: dict) -> List[str]:
     theirs = record.get(FINGERPRINT_FIELD)
     if not isinstance(theirs, dict):
         return [f"{FINGERPRINT_FIELD}: none in the unit (written by another sweep or an older pickplan)"]
-    return [f"{k}: {theirs.get(k)!r} there, {fp[k]!r} now" for k in RESUME_KEYS
-            if theirs.get(k, RESUME_DEFAULTS["layout"] if k == "layout" else None) != fp[k]]
+    return [
+        f"{k}: {theirs.get(k)!r} there, {fp[k]!r} now"
+        for k in RESUME_KEYS
+        if theirs.get(k, RESUME_DEFAULTS["layout"] if k == "layout" else None) != fp[k]
+    ]
 
 
 def _refuse_foreign_unit(settings: SweepSettings, path: str, diff: List[str]) -> None:
-    raise InputError(f"{os.path.basename(path)} was made by a sweep with other settings ({'; '.join(diff)}); "
-                     "use another --out or delete that folder", path=os.path.join(settings.out, "units"))
+    raise InputError(
+        f"{os.path.basename(path)} was made by a sweep with other settings ({'; '.join(diff)}); "
+        "use another --out or delete that folder",
+        path=os.path.join(settings.out, "units"),
+    )
 
 
 def check_resumable(settings: SweepSettings) -> None:
@@ -407,8 +354,10 @@ def check_resumable(settings: SweepSettings) -> None:
         diff = [k for k in RESUME_KEYS if old.get(k, defaults.get(k)) != fp[k] and (k in old or k in defaults)]
         if diff:
             detail = ", ".join(f"{k}: {old[k]!r} there, {fp[k]!r} now" for k in diff)
-            raise ValueError(f"{settings.out} holds a sweep made with other settings ({detail}); "
-                             "use another --out or delete that folder")
+            raise ValueError(
+                f"{settings.out} holds a sweep made with other settings ({detail}); "
+                "use another --out or delete that folder"
+            )
         return
     write_json(path, fp)
 

@@ -13,6 +13,7 @@ its pieces (``pickplan-rrt``: no smoothing; ``chomp``: CHOMP from the straight l
 simplification, on our FCL checker) and ``vamp`` (VAMP's RRT-Connect and simplification, when the
 ``vamp`` module imports: ``../shared/tools/vamp/build-vamp.sh``).
 """
+
 from __future__ import annotations
 
 import csv
@@ -53,14 +54,14 @@ class Problem:
 
 @dataclass(frozen=True)
 class MbmSettings:
-    problems: str                          # archive or folder holding problems/<set>/...
+    problems: str  # archive or folder holding problems/<set>/...
     sets: Tuple[str, ...] = SETS
     planners: Tuple[MbmPlanner, ...] = DEFAULT_PLANNERS
-    robot_dir: Optional[str] = None        # the Panda model folder (default: panda/ beside the problems)
+    robot_dir: Optional[str] = None  # the Panda model folder (default: panda/ beside the problems)
     out: str = "out/bench/mbm"
     workers: int = 1
-    limit: int = 0                         # problems per set (0: all)
-    time_limit: float = 10.0               # s per problem for every planner
+    limit: int = 0  # problems per set (0: all)
+    time_limit: float = 10.0  # s per problem for every planner
     seed: int = 0
     progress: Optional[bool] = None
 
@@ -80,13 +81,17 @@ def read_problems(source: str, sets: Sequence[str] = SETS, limit: int = 0) -> It
     missing = [s for s in sets if s not in found]
     if missing:
         raise InputError(f"no problems of sets {missing} (found {sorted(found)})", path=source, field="--sets")
-    for (s, kind, i) in sorted(k for k in texts if k[1] == "scene"):
+    for s, kind, i in sorted(k for k in texts if k[1] == "scene"):
         if (s, "request", i) not in texts:
             raise InputError(f"scene {i} of {s} has no request{i:04d}.yaml", path=source)
         scene_name, scene_text = texts[(s, "scene", i)]
         request_name, request_text = texts[(s, "request", i)]
-        yield Problem(s, i, read_moveit_scene(f"{source}:{scene_name}", scene_text),
-                      read_motion_request(f"{source}:{request_name}", request_text))
+        yield Problem(
+            s,
+            i,
+            read_moveit_scene(f"{source}:{scene_name}", scene_text),
+            read_motion_request(f"{source}:{request_name}", request_text),
+        )
 
 
 def _members(source: str) -> Iterator[Tuple[str, str]]:
@@ -110,11 +115,15 @@ def _members(source: str) -> Iterator[Tuple[str, str]]:
 
 
 def robot_dir_for(settings: MbmSettings) -> str:
-    folder = settings.robot_dir or os.path.join(os.path.dirname(os.path.abspath(settings.problems.rstrip("/"))),
-                                                "panda")
+    folder = settings.robot_dir or os.path.join(
+        os.path.dirname(os.path.abspath(settings.problems.rstrip("/"))), "panda"
+    )
     if not os.path.isfile(os.path.join(folder, "panda.urdf")):
-        raise InputError("no panda.urdf there (give --robot-dir, the Panda model the problems were made for)",
-                         path=folder, field="--robot-dir")
+        raise InputError(
+            "no panda.urdf there (give --robot-dir, the Panda model the problems were made for)",
+            path=folder,
+            field="--robot-dir",
+        )
     return folder
 
 
@@ -163,21 +172,45 @@ def run_problem(ctx: _Context, problem: Problem) -> List[dict]:
         out = plan(world, problem, start, goal)
         report = checker.check(out.path) if out.solved and len(out.path) else None
         valid = bool(report and report.valid)
-        rows.append({
-            "set": problem.set, "problem": problem.index, "planner": name, "solved": int(out.solved),
-            "valid": int(valid), "success": int(out.solved and valid),
-            "time_ms": 1e3 * out.wall, "cpu_ms": 1e3 * out.cpu,
-            "path_length": path_length(out.path) if out.solved else float("nan"),
-            "smoothness": smoothness(out.path) if out.solved else float("nan"),
-            "min_clearance": report.min_clearance if valid else float("nan"),
-            "waypoints": len(out.path), "source": out.source,
-            "checker": "" if report is None else report.reason, **out.detail})
+        rows.append(
+            {
+                "set": problem.set,
+                "problem": problem.index,
+                "planner": name,
+                "solved": int(out.solved),
+                "valid": int(valid),
+                "success": int(out.solved and valid),
+                "time_ms": 1e3 * out.wall,
+                "cpu_ms": 1e3 * out.cpu,
+                "path_length": path_length(out.path) if out.solved else float("nan"),
+                "smoothness": smoothness(out.path) if out.solved else float("nan"),
+                "min_clearance": report.min_clearance if valid else float("nan"),
+                "waypoints": len(out.path),
+                "source": out.source,
+                "checker": "" if report is None else report.reason,
+                **out.detail,
+            }
+        )
     return rows
 
 
 CHUNK = 10  # problems per job: the robot and its meshes are loaded once per job
-FIELDS = ("set", "problem", "planner", "solved", "valid", "success", "time_ms", "cpu_ms", "path_length",
-          "smoothness", "min_clearance", "waypoints", "source", "checker")
+FIELDS = (
+    "set",
+    "problem",
+    "planner",
+    "solved",
+    "valid",
+    "success",
+    "time_ms",
+    "cpu_ms",
+    "path_length",
+    "smoothness",
+    "min_clearance",
+    "waypoints",
+    "source",
+    "checker",
+)
 
 
 def run_mbm(settings: MbmSettings) -> List[dict]:
@@ -185,10 +218,11 @@ def run_mbm(settings: MbmSettings) -> List[dict]:
     problems = list(read_problems(settings.problems, settings.sets, settings.limit))
     robot_dir_for(settings)  # a clear error before any worker starts
     rows: List[dict] = []
-    chunks = [problems[i:i + CHUNK] for i in range(0, len(problems), CHUNK)]
+    chunks = [problems[i : i + CHUNK] for i in range(0, len(problems), CHUNK)]
     with Runner(settings.workers) as runner:
-        for _, result in runner.map(run_problems, [(settings, c) for c in chunks], progress=settings.progress,
-                                    label="mbm"):
+        for _, result in runner.map(
+            run_problems, [(settings, c) for c in chunks], progress=settings.progress, label="mbm"
+        ):
             rows.extend(result)
     os.makedirs(settings.out, exist_ok=True)
     write_rows(os.path.join(settings.out, "runs.csv"), rows)

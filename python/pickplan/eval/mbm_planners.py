@@ -2,6 +2,7 @@
 own planning time: pickplan's motion planner and its pieces, OMPL's RRT-Connect (PyPI ``ompl``; its
 validity test is our FCL checker, called from Python) and VAMP's (``vamp``, an optional extra built by
 ``../shared/tools/vamp/build-vamp.sh``; its own sphere model of the Panda and its own primitives)."""
+
 from __future__ import annotations
 
 import time
@@ -18,13 +19,13 @@ from pickplan.omg.motion import MotionSettings, RrtSettings, Smoothing, plan_cho
 
 
 class MbmPlanner(Option):
-    pickplan = "pickplan"         # straight line, else RRT-Connect + shortcuts, then CHOMP (the default)
+    pickplan = "pickplan"  # straight line, else RRT-Connect + shortcuts, then CHOMP (the default)
     pickplan_rrt = "pickplan-rrt"  # the same without CHOMP smoothing
     pickplan_sampled = "pickplan-sampled"  # the default with the sampled motion check (1 cm), not the proof
-    chomp = "chomp"               # CHOMP from the straight line only (no sampling)
-    chomp_multi = "chomp-multi"   # CHOMP from several initializations (no sampling)
-    ompl = "ompl"                 # OMPL RRT-Connect + its simplification, our FCL checker
-    vamp = "vamp"                 # VAMP RRT-Connect + its simplification (optional extra)
+    chomp = "chomp"  # CHOMP from the straight line only (no sampling)
+    chomp_multi = "chomp-multi"  # CHOMP from several initializations (no sampling)
+    ompl = "ompl"  # OMPL RRT-Connect + its simplification, our FCL checker
+    vamp = "vamp"  # VAMP RRT-Connect + its simplification (optional extra)
 
 
 @dataclass
@@ -33,9 +34,9 @@ class PlanOutcome:
 
     solved: bool
     path: np.ndarray
-    wall: float                    # s
-    cpu: float                     # s of this thread's CPU
-    source: str = ""               # how (straight, rrt, chomp, ...)
+    wall: float  # s
+    cpu: float  # s of this thread's CPU
+    source: str = ""  # how (straight, rrt, chomp, ...)
     detail: dict = field(default_factory=dict)
 
 
@@ -78,9 +79,15 @@ def _ours(time_limit: float, seed: int, smoothing: Smoothing, certified: bool = 
         marks = timer()
         r = plan_motion(world, start, goal, s)
         wall, cpu = elapsed(marks)
-        return PlanOutcome(r.solved, r.path, wall, cpu, r.source,
-                           {"rrt_ms": 1e3 * r.timings["rrt"], "chomp_ms": 1e3 * r.timings["chomp"],
-                            "status": r.status.value})
+        return PlanOutcome(
+            r.solved,
+            r.path,
+            wall,
+            cpu,
+            r.source,
+            {"rrt_ms": 1e3 * r.timings["rrt"], "chomp_ms": 1e3 * r.timings["chomp"], "status": r.status.value},
+        )
+
     return plan
 
 
@@ -90,6 +97,7 @@ def _chomp(time_limit: float, seed: int, initializations: int) -> Plan:
         r = plan_chomp(world, start, goal, MotionSettings(), initializations, seed=seed + problem.index)
         wall, cpu = elapsed(marks)
         return PlanOutcome(r.solved, r.path, wall, cpu, r.source, {"status": r.status.value})
+
     return plan
 
 
@@ -125,6 +133,7 @@ def _ompl(time_limit: float, seed: int) -> Plan:
             path = np.array([[p.getState(i)[j] for j in range(dof)] for i in range(p.getStateCount())])
         wall, cpu = elapsed(marks)
         return PlanOutcome(solved, path, wall, cpu, "ompl")
+
     return plan
 
 
@@ -147,6 +156,7 @@ def _vamp(time_limit: float, seed: int) -> Plan:
             path = np.asarray(simple.path.numpy(), dtype=float)
         wall, cpu = elapsed(marks)
         return PlanOutcome(solved, path, wall, cpu, "vamp", {"vamp_ns": int(result.nanoseconds)})
+
     return plan
 
 

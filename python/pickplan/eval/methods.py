@@ -7,6 +7,7 @@ into a ``MethodSpec``.
 >>> spec.grasp_kind, spec.refine
 (<GraspKind.approach: 'approach'>, True)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -26,11 +27,11 @@ from pickplan.omg.world import WorldSettings
 class Table(Option):
     """The paper's tables a sweep reproduces."""
 
-    selection = "selection"     # Table I
-    refinement = "refinement"   # Table II
-    planners = "planners"       # Table III
-    ablation = "ablation"       # Fig. 8
-    pickplace = "pickplace"     # pick and place (issue 34): OMG's pick, the methods on the place (eval.pickplace)
+    selection = "selection"  # Table I
+    refinement = "refinement"  # Table II
+    planners = "planners"  # Table III
+    ablation = "ablation"  # Fig. 8
+    pickplace = "pickplace"  # pick and place (issue 34): OMG's pick, the methods on the place (eval.pickplace)
 
 
 TABLES = tuple(t.value for t in Table)
@@ -58,14 +59,24 @@ class MethodSpec:
     n: int = 30
     lambda_: float = 0.1
 
-    def omg_settings(self, grasps: int, grasp_candidates: int, iterations: int, seed: int,
-                     world: WorldSettings = WorldSettings()) -> OMGSettings:
+    def omg_settings(
+        self, grasps: int, grasp_candidates: int, iterations: int, seed: int, world: WorldSettings = WorldSettings()
+    ) -> OMGSettings:
         """The OMG settings of a unit of this method: ``grasps`` goals at most, ``grasp_candidates``
         grasps generated when the target has none stored, N = ``iterations``, seeded."""
         chomp = ChompSettings(n=self.n, lambda_=self.lambda_, duration=0.1 * 30)
-        return OMGSettings(chomp=chomp, goals=GoalSetSettings(max_goals=grasps, seed=seed), ik=IkSettings(seed=seed),
-                           selection=self.selection, refine=self.refine, iterations=iterations,
-                           grasp_kind=self.grasp_kind, grasp_count=grasp_candidates, seed=seed, world=world)
+        return OMGSettings(
+            chomp=chomp,
+            goals=GoalSetSettings(max_goals=grasps, seed=seed),
+            ik=IkSettings(seed=seed),
+            selection=self.selection,
+            refine=self.refine,
+            iterations=iterations,
+            grasp_kind=self.grasp_kind,
+            grasp_count=grasp_candidates,
+            seed=seed,
+            world=world,
+        )
 
 
 def all_methods(table: Union[Table, str], quick: bool = False) -> Tuple[str, ...]:
@@ -85,7 +96,9 @@ def all_methods(table: Union[Table, str], quick: bool = False) -> Tuple[str, ...
 def method_spec(table: Union[Table, str], method: str) -> MethodSpec:
     """The ``MethodSpec`` of ``method`` (a column of ``table``); ValueError for an unknown one."""
     table = Table.parse(table, "table")
-    if method not in all_methods(table) + OPTIONAL_METHODS.get(table, ()) and not (table is Table.ablation and method.startswith(("n=", "lambda="))):
+    if method not in all_methods(table) + OPTIONAL_METHODS.get(table, ()) and not (
+        table is Table.ablation and method.startswith(("n=", "lambda="))
+    ):
         raise ValueError(f"unknown method {method!r} for table {table.value!r}")
     if table is Table.selection:
         return MethodSpec(selection=Selection.parse(method), refine=False)

@@ -18,6 +18,7 @@
 Success is execution's test (``lifted_and_held``). Planning takes no simulated time (the simulation
 waits for it); its CPU time is reported apart. Deterministic for a seed.
 """
+
 from __future__ import annotations
 
 import math
@@ -41,35 +42,35 @@ from pickplan.sim.scenes import Scene
 
 class MovingMethod(Option):
     closed_loop = "closed_loop"  # warm replans at the observation rate (omg.replan)
-    fresh = "fresh"              # plans from scratch at the same rate
-    open_loop = "open_loop"      # one plan to the pose predicted for the arrival
+    fresh = "fresh"  # plans from scratch at the same rate
+    open_loop = "open_loop"  # one plan to the pose predicted for the arrival
 
 
 class EpisodeStatus(Option):
-    lifted = "lifted"        # success: held and lifted at the end
-    dropped = "dropped"      # between the fingers after closing, not held or not lifted at the end
-    missed = "missed"        # the fingers closed without the target between them
-    no_plan = "no_plan"      # no plan passed the success test before the target left (or max_time)
-    unstable = "unstable"    # the simulation diverged
+    lifted = "lifted"  # success: held and lifted at the end
+    dropped = "dropped"  # between the fingers after closing, not held or not lifted at the end
+    missed = "missed"  # the fingers closed without the target between them
+    no_plan = "no_plan"  # no plan passed the success test before the target left (or max_time)
+    unstable = "unstable"  # the simulation diverged
 
 
 @dataclass(frozen=True)
 class LoopSettings:
-    rate: float = 5.0             # Hz: replans
-    observe_rate: float = 30.0    # Hz: observations (a camera's frame rate)
-    observe_time: float = 0.6     # s observed before the first plan
-    noise: float = 0.002          # m, sigma of each observed coordinate
-    yaw_noise: float = 0.01       # rad, sigma of the observed turn about the vertical
-    window: int = 30              # observations in the velocity fit (1 s)
-    jump: float = 0.02            # m from the prediction: a nudge (the fit restarts)
-    commit_time: float = 0.3      # s: no replan when the hand arrives sooner
+    rate: float = 5.0  # Hz: replans
+    observe_rate: float = 30.0  # Hz: observations (a camera's frame rate)
+    observe_time: float = 0.6  # s observed before the first plan
+    noise: float = 0.002  # m, sigma of each observed coordinate
+    yaw_noise: float = 0.01  # rad, sigma of the observed turn about the vertical
+    window: int = 30  # observations in the velocity fit (1 s)
+    jump: float = 0.02  # m from the prediction: a nudge (the fit restarts)
+    commit_time: float = 0.3  # s: no replan when the hand arrives sooner
     # A new plan is followed when it arrives no later than the one followed (by delay_slack s), or when the
     # one followed is stale: it meets the target farther than ``stale`` m from where it will be then.
     delay_slack: float = 0.05
     stale: float = 0.01
-    max_time: float = 8.0         # s: no arrival by then is no_plan
-    carry_time: float = 0.3       # s the hand keeps the target's pace into the lift
-    track_rate: float = 60.0      # Hz: waypoints of the hand's path while grasping
+    max_time: float = 8.0  # s: no arrival by then is no_plan
+    carry_time: float = 0.3  # s the hand keeps the target's pace into the lift
+    track_rate: float = 60.0  # Hz: waypoints of the hand's path while grasping
     execution: ExecutionSettings = field(default_factory=ExecutionSettings)
     moving: MovingSettings = field(default_factory=MovingSettings)
     replan: ReplanSettings = field(default_factory=ReplanSettings)
@@ -91,24 +92,31 @@ class EpisodeResult:
     method: MovingMethod
     status: EpisodeStatus
     lifted: bool
-    plans: int                    # plans made (each of one or more prediction rounds)
-    plan_ms: List[float]          # CPU ms of each (planning and timing)
-    planner_ms: List[float]       # of plan_ms, the planner's own (OMGSettings.clock; the rest is the timing)
-    arrival: float                # s the hand reached its goal (nan: never)
-    miss: float                   # m between the target's pose planned for and its true pose on arrival
-    target_lift: float            # m
-    max_penetration: float        # m, the robot into non-target bodies while approaching
+    plans: int  # plans made (each of one or more prediction rounds)
+    plan_ms: List[float]  # CPU ms of each (planning and timing)
+    planner_ms: List[float]  # of plan_ms, the planner's own (OMGSettings.clock; the rest is the timing)
+    arrival: float  # s the hand reached its goal (nan: never)
+    miss: float  # m between the target's pose planned for and its true pose on arrival
+    target_lift: float  # m
+    max_penetration: float  # m, the robot into non-target bodies while approaching
     sim_time: float
 
     def row(self) -> dict:
         ms = np.asarray(self.plan_ms)
-        return {"method": str(self.method), "status": str(self.status), "lifted": self.lifted, "plans": self.plans,
-                "plan_ms_median": float(np.median(ms)) if len(ms) else float("nan"),
-                "plan_ms_max": float(ms.max()) if len(ms) else float("nan"),
-                "planner_ms_median": float(np.median(self.planner_ms[1:] or self.planner_ms or [np.nan])),
-                "arrival": self.arrival,
-                "miss": self.miss, "target_lift": self.target_lift, "max_penetration": self.max_penetration,
-                "sim_time": self.sim_time}
+        return {
+            "method": str(self.method),
+            "status": str(self.status),
+            "lifted": self.lifted,
+            "plans": self.plans,
+            "plan_ms_median": float(np.median(ms)) if len(ms) else float("nan"),
+            "plan_ms_max": float(ms.max()) if len(ms) else float("nan"),
+            "planner_ms_median": float(np.median(self.planner_ms[1:] or self.planner_ms or [np.nan])),
+            "arrival": self.arrival,
+            "miss": self.miss,
+            "target_lift": self.target_lift,
+            "max_penetration": self.max_penetration,
+            "sim_time": self.sim_time,
+        }
 
 
 class _MovingSim(ArmSim):
@@ -137,8 +145,7 @@ def _observe(pose: np.ndarray, rng: np.random.Generator, s: LoopSettings) -> np.
 class _Episode:
     """One run's state: the simulation, the estimator, the planner and the plan followed."""
 
-    def __init__(self, scene: Scene, path: TargetPath, method: MovingMethod, s: LoopSettings, omg: OMGSettings,
-                 cache):
+    def __init__(self, scene: Scene, path: TargetPath, method: MovingMethod, s: LoopSettings, omg: OMGSettings, cache):
         self.method, self.s = MovingMethod.parse(method, "moving method"), s
         mode = ReplanMode.fresh if self.method is MovingMethod.fresh else ReplanMode.warm
         self.planner = OMGPlanner(None, scene, omg, cache=cache)
@@ -153,8 +160,9 @@ class _Episode:
         self.plan, self.k0, self.plan_ms, self.planner_ms = None, 0, [], []
         self.sim = open_sim(scene, self.robot, self.q, s.execution, models, sim_class=_MovingSim)
         try:
-            self.sim.belt = Conveyor(self.sim.c, self.sim.bodies[scene.target], models[scene.target], path,
-                                     s.execution.time_step)
+            self.sim.belt = Conveyor(
+                self.sim.c, self.sim.bodies[scene.target], models[scene.target], path, s.execution.time_step
+            )
         except BaseException:
             self.sim.pb.disconnect(self.sim.c)
             raise
@@ -171,14 +179,18 @@ class _Episode:
         motion = self.estimator.motion
         if self.t < self.s.observe_time - 1e-9:
             return
-        if self.plan is not None and (self.method is MovingMethod.open_loop or
-                                      self.plan.arrival - self.t <= self.s.commit_time):
+        if self.plan is not None and (
+            self.method is MovingMethod.open_loop or self.plan.arrival - self.t <= self.s.commit_time
+        ):
             return
         new = self.mover.plan(motion, self.t, start=self.q, start_velocity=self.v)
         self.plan_ms.append(1000.0 * new.seconds)
         self.planner_ms.append(1000.0 * new.planner_seconds)
-        if new.result.success and (self.plan is None or new.arrival <= self.plan.arrival + self.s.delay_slack or
-                                   self.stale(motion) > self.s.stale):
+        if new.result.success and (
+            self.plan is None
+            or new.arrival <= self.plan.arrival + self.s.delay_slack
+            or self.stale(motion) > self.s.stale
+        ):
             self.plan, self.k0 = new, self.sim.steps
 
     def stale(self, motion) -> float:
@@ -229,7 +241,7 @@ class _Episode:
         sim.command_fingers(self.robot.info.finger_closed, sim.grip_force)
         z0 = sim.belt.z0
         k_close = int(round(close * s.track_rate))
-        follow(sim, path[:k_close + 1], [(seg, steps)] * k_close, False, sim.grip_force, False)
+        follow(sim, path[: k_close + 1], [(seg, steps)] * k_close, False, sim.grip_force, False)
         self.held_after_close = sim.held()
         sim.belt.release()  # the fingers hold it now: the belt's hold on it is no match (sim.conveyor)
         follow(sim, path[k_close:], [(seg, steps)] * (n - k_close), False, sim.grip_force, False)
@@ -244,8 +256,14 @@ class _Episode:
         return float(np.linalg.norm(true[:3, 3] - self.plan.target_pose[:3, 3]))
 
 
-def run_episode(scene: Scene, path: TargetPath, method: MovingMethod, settings: LoopSettings = LoopSettings(),
-                omg: OMGSettings = OMGSettings(grasp_kind="antipodal", clock="thread_cpu"), cache=None) -> EpisodeResult:
+def run_episode(
+    scene: Scene,
+    path: TargetPath,
+    method: MovingMethod,
+    settings: LoopSettings = LoopSettings(),
+    omg: OMGSettings = OMGSettings(grasp_kind="antipodal", clock="thread_cpu"),
+    cache=None,
+) -> EpisodeResult:
     """One closed (or open) loop pick of ``scene``'s moving target; see the module doc."""
     ep = _Episode(scene, path, method, settings, omg, cache)
     try:
@@ -260,7 +278,27 @@ def run_episode(scene: Scene, path: TargetPath, method: MovingMethod, settings: 
 
         pb.disconnect(ep.sim.c)
     success = finite and lifted_and_held(settings.execution, held, lift)
-    status = (EpisodeStatus.no_plan if not arrived else EpisodeStatus.unstable if not finite else
-              EpisodeStatus.lifted if success else EpisodeStatus.dropped if held_after_close else EpisodeStatus.missed)
-    return EpisodeResult(ep.method, status, bool(success), len(ep.plan_ms), ep.plan_ms, ep.planner_ms, arrival, miss, lift,
-                         float(pen), sim_time)
+    status = (
+        EpisodeStatus.no_plan
+        if not arrived
+        else EpisodeStatus.unstable
+        if not finite
+        else EpisodeStatus.lifted
+        if success
+        else EpisodeStatus.dropped
+        if held_after_close
+        else EpisodeStatus.missed
+    )
+    return EpisodeResult(
+        ep.method,
+        status,
+        bool(success),
+        len(ep.plan_ms),
+        ep.plan_ms,
+        ep.planner_ms,
+        arrival,
+        miss,
+        lift,
+        float(pen),
+        sim_time,
+    )

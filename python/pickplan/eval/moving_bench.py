@@ -12,6 +12,7 @@ A unit is a case and a method: ``OUT/units/<case>_<method>/runs.csv`` (one row p
 atomically as scenes finish; a rerun skips the scenes there). ``OUT/summary.md``: lifted % per case and
 method, with the median plan time.
 """
+
 from __future__ import annotations
 
 import csv
@@ -28,21 +29,34 @@ from pickplan.sim import scenes
 from pickplan.sim.conveyor import TargetPath, conveyor_scene
 
 NUDGE = "nudge"
-FIELDS = ("scene", "case", "method", "status", "lifted", "plans", "plan_ms_median", "plan_ms_max", "planner_ms_median",
-          "arrival", "miss",
-          "target_lift", "max_penetration", "sim_time")
+FIELDS = (
+    "scene",
+    "case",
+    "method",
+    "status",
+    "lifted",
+    "plans",
+    "plan_ms_median",
+    "plan_ms_max",
+    "planner_ms_median",
+    "arrival",
+    "miss",
+    "target_lift",
+    "max_penetration",
+    "sim_time",
+)
 
 
 @dataclass(frozen=True)
 class MovingBenchSettings:
     out: str = "out/bench/moving"
     speeds: Tuple[float, ...] = (0.0, 0.05, 0.10, 0.20)  # m/s
-    nudge: float = 0.04              # m; 0: no nudge case
-    nudge_after: float = 0.5         # s after the first plan (during the approach)
+    nudge: float = 0.04  # m; 0: no nudge case
+    nudge_after: float = 0.5  # s after the first plan (during the approach)
     scenes: int = 100
     seed: int = 0
     methods: Tuple[MovingMethod, ...] = tuple(MovingMethod)
-    meet_time: float = 2.7           # s from the start to the target at its scene pose
+    meet_time: float = 2.7  # s from the start to the target at its scene pose
     workers: int = 1
     loop: LoopSettings = field(default_factory=LoopSettings)
     progress: Optional[bool] = None
@@ -73,7 +87,7 @@ def case_path(case: str, scene, s: MovingBenchSettings) -> TargetPath:
     direction = np.array([0.0, 1.0 if y >= 0 else -1.0, 0.0])
     if case == NUDGE:
         return TargetPath(nudge=s.nudge * direction, nudge_time=s.loop.observe_time + s.nudge_after)
-    return TargetPath(velocity=float(case[len("speed"):]) / 100 * direction)
+    return TargetPath(velocity=float(case[len("speed") :]) / 100 * direction)
 
 
 def run_job(job: dict) -> List[dict]:
@@ -113,8 +127,11 @@ def _write(path: str, rows: Sequence[dict]) -> None:
 def run_moving_bench(s: MovingBenchSettings) -> Dict[Tuple[str, str], List[dict]]:
     """Runs the cases' scenes not in their units' runs.csv yet; returns every unit's rows."""
     seeds = range(s.seed, s.seed + s.scenes)
-    units = {(c, str(m)): {r["scene"]: r for r in _read(unit_csv(s.out, c, m)) if int(r["scene"]) in seeds}
-             for c in s.cases() for m in s.methods}
+    units = {
+        (c, str(m)): {r["scene"]: r for r in _read(unit_csv(s.out, c, m)) if int(r["scene"]) in seeds}
+        for c in s.cases()
+        for m in s.methods
+    }
     jobs = []
     for seed in seeds:  # scene by scene: a run stopped early has every case on the same scenes
         for case in s.cases():
@@ -122,8 +139,9 @@ def run_moving_bench(s: MovingBenchSettings) -> Dict[Tuple[str, str], List[dict]
             if todo:
                 jobs.append({"settings": s, "case": case, "scene": seed, "methods": todo})
     with Runner(s.workers) as runner:
-        for job, rows in runner.map(run_job, jobs, order=Order.COMPLETION, errors=OnError.RAISE,
-                                    progress=s.progress, label="moving scenes"):
+        for job, rows in runner.map(
+            run_job, jobs, order=Order.COMPLETION, errors=OnError.RAISE, progress=s.progress, label="moving scenes"
+        ):
             for row in rows:
                 unit = units[(job["case"], row["method"])]
                 unit[str(row["scene"])] = row
@@ -137,23 +155,28 @@ def _true(value) -> bool:
 
 def summary(s: MovingBenchSettings, units: Dict[Tuple[str, str], List[dict]]) -> str:
     """Lifted % per case and method, beside the median plan CPU time and the statuses."""
-    lines = ["| case | method | lifted | median ms per replan (CPU): all / planner | median plans | statuses |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| case | method | lifted | median ms per replan (CPU): all / planner | median plans | statuses |",
+        "|---|---|---|---|---|---|",
+    ]
     for case in s.cases():
         for m in s.methods:
             rows = units.get((case, str(m)), [])
             if not rows:
                 continue
             lifted = sum(_true(r["lifted"]) for r in rows)
-            ms, planner = ([float(r[k]) for r in rows if r[k] not in ("", "nan")]
-                           for k in ("plan_ms_median", "planner_ms_median"))
+            ms, planner = (
+                [float(r[k]) for r in rows if r[k] not in ("", "nan")] for k in ("plan_ms_median", "planner_ms_median")
+            )
             counts = {st: sum(r["status"] == str(st) for r in rows) for st in EpisodeStatus}
             statuses = ", ".join(f"{k} {v}" for k, v in counts.items() if v)
-            label = case if case == NUDGE else f"{int(case[len('speed'):])} cm/s"
-            lines.append(f"| {label} | {m} | {100 * lifted / len(rows):.0f} % ({lifted}/{len(rows)}) | "
-                         f"{np.median(ms) if ms else float('nan'):.0f} / "
-                         f"{np.median(planner) if planner else float('nan'):.0f} | "
-                         f"{np.median([int(r['plans']) for r in rows]):.0f} | {statuses} |")
+            label = case if case == NUDGE else f"{int(case[len('speed') :])} cm/s"
+            lines.append(
+                f"| {label} | {m} | {100 * lifted / len(rows):.0f} % ({lifted}/{len(rows)}) | "
+                f"{np.median(ms) if ms else float('nan'):.0f} / "
+                f"{np.median(planner) if planner else float('nan'):.0f} | "
+                f"{np.median([int(r['plans']) for r in rows]):.0f} | {statuses} |"
+            )
     text = "\n".join(lines) + "\n"
     write_text(os.path.join(s.out, "summary.md"), text)
     return text

@@ -17,6 +17,7 @@ release, retract. When the grasp as executed differs from the planned one (``rep
 Every successful plan's carry (lift and transfer) is checked densely with FCL on the true meshes:
 ``held_collision`` says whether the held object touched anything it may not.
 """
+
 from __future__ import annotations
 
 import math
@@ -28,8 +29,8 @@ import numpy as np
 
 from pickplan.core.ik import IkSettings
 from pickplan.eval.baselines import BaselineSettings, plan_baseline_to_goal_set
-from pickplan.eval.experiments import _WORKER_MODELS, _unit_grasps
 from pickplan.eval.place_regions import RegionKind, place_task
+from pickplan.eval.units import _WORKER_MODELS, _unit_grasps
 from pickplan.omg.attach import HeldCheck, HeldWorld
 from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.goals import GoalSetSettings
@@ -43,9 +44,9 @@ from pickplan.sim.scenes import Scene
 
 PICKPLACE_METHODS = ("OMG", "Fixed", "CHOMP", "RRT-C")
 PERCEPTION_METHOD = "OMG-3v"
-REPLAN_SHIFT = 0.003     # m: an executed grasp this far from the planned one is planned for again
+REPLAN_SHIFT = 0.003  # m: an executed grasp this far from the planned one is planned for again
 REPLAN_ANGLE_DEG = 2.0
-FALLBACK_SHIFT = 0.02    # m: a grasp changed by less, for which no place plan is found, keeps the planned place
+FALLBACK_SHIFT = 0.02  # m: a grasp changed by less, for which no place plan is found, keeps the planned place
 FALLBACK_ANGLE_DEG = 15.0
 
 
@@ -56,16 +57,25 @@ def region_kind(scene_name: str) -> RegionKind:
 
 
 def place_check(request: PlaceRequest, place_pose: np.ndarray) -> PlaceCheck:
-    return PlaceCheck(request.region_min, request.region_max, np.asarray(place_pose, float), request.tolerance_deg,
-                      None if request.yaw_deg is None else request.yaw_tolerance_deg)
+    return PlaceCheck(
+        request.region_min,
+        request.region_max,
+        np.asarray(place_pose, float),
+        request.tolerance_deg,
+        None if request.yaw_deg is None else request.yaw_tolerance_deg,
+    )
 
 
 def transfer_planner(method: str, settings: PickPlaceSettings, max_goals_tried: int = 5, time_limit: float = 1.0):
     """The transfer planner a method names: None (Algorithm 2: ``OMG``, ``Fixed``) or a baseline's."""
     if method not in ("CHOMP", "RRT-C"):
         return None
-    bs = BaselineSettings(omg=settings.place, max_goals_tried=max_goals_tried,
-                          chomp_iterations=settings.place.iterations, time_limit=time_limit)
+    bs = BaselineSettings(
+        omg=settings.place,
+        max_goals_tried=max_goals_tried,
+        chomp_iterations=settings.place.iterations,
+        time_limit=time_limit,
+    )
     return lambda world, q0, goal_set: plan_baseline_to_goal_set(method, world, q0, goal_set, bs)
 
 
@@ -97,17 +107,38 @@ def _grasp_change(planned: np.ndarray, executed: np.ndarray) -> tuple:
 
 def unit_settings(unit: dict, method: str, world_settings: WorldSettings) -> PickPlaceSettings:
     seed = int(unit["seed"])
-    pick = OMGSettings(chomp=ChompSettings(), goals=GoalSetSettings(max_goals=unit["grasps"], seed=seed),
-                       ik=IkSettings(seed=seed), iterations=unit["iterations"], grasp_kind=unit.get("grasp_kind") or
-                       "simulated", grasp_count=unit["grasp_candidates"], seed=seed, world=world_settings,
-                       clock="thread_cpu")
-    place = replace(PickPlaceSettings().place, iterations=unit["iterations"], seed=seed,  # the transfer's defaults
-                    selection="Fixed" if method == "Fixed" else "MD", world=world_settings, clock="thread_cpu")
+    pick = OMGSettings(
+        chomp=ChompSettings(),
+        goals=GoalSetSettings(max_goals=unit["grasps"], seed=seed),
+        ik=IkSettings(seed=seed),
+        iterations=unit["iterations"],
+        grasp_kind=unit.get("grasp_kind") or "simulated",
+        grasp_count=unit["grasp_candidates"],
+        seed=seed,
+        world=world_settings,
+        clock="thread_cpu",
+    )
+    place = replace(
+        PickPlaceSettings().place,
+        iterations=unit["iterations"],
+        seed=seed,  # the transfer's defaults
+        selection="Fixed" if method == "Fixed" else "MD",
+        world=world_settings,
+        clock="thread_cpu",
+    )
     return PickPlaceSettings(pick=pick, place=place)
 
 
-def execute_in_sim(scene, planner: PickPlacePlanner, plan: PickPlacePlan, request: PlaceRequest, robot: str,
-                   frame: np.ndarray = np.eye(4), info: Optional[dict] = None, record=None) -> PickPlaceExecution:
+def execute_in_sim(
+    scene,
+    planner: PickPlacePlanner,
+    plan: PickPlacePlan,
+    request: PlaceRequest,
+    robot: str,
+    frame: np.ndarray = np.eye(4),
+    info: Optional[dict] = None,
+    record=None,
+) -> PickPlaceExecution:
     """Execute ``plan`` in PyBullet, replanning the place when the grasp as executed differs from the
     planned one (``REPLAN_SHIFT``, ``REPLAN_ANGLE_DEG``); ``info`` receives the grasp change and whether
     it replanned. ``frame``: the true object frame in the planner's object frame (a perceived object's
@@ -136,17 +167,29 @@ def execute_in_sim(scene, planner: PickPlacePlanner, plan: PickPlacePlan, reques
             return timed(plan, ("transfer", "retract")), plan.place_pose @ frame
         return timed(again, ("transfer", "retract")), again.place_pose @ frame
 
-    return execute_pick_and_place(scene, timed(plan, ("approach", "lift")), place_check(request, plan.place_pose @ frame),
-                                  PickPlaceExecSettings(ExecutionSettings(robot=robot)), record=record, replan=replan)
+    return execute_pick_and_place(
+        scene,
+        timed(plan, ("approach", "lift")),
+        place_check(request, plan.place_pose @ frame),
+        PickPlaceExecSettings(ExecutionSettings(robot=robot)),
+        record=record,
+        replan=replan,
+    )
 
 
-def execute_unit_plan(unit, scene, planner: PickPlacePlanner, plan: PickPlacePlan, request, record,
-                      frame: np.ndarray = np.eye(4)) -> None:
+def execute_unit_plan(
+    unit, scene, planner: PickPlacePlanner, plan: PickPlacePlan, request, record, frame: np.ndarray = np.eye(4)
+) -> None:
     """``execute_in_sim`` for a bench unit; fills ``record``."""
     ex = execute_in_sim(scene, planner, plan, request, unit.get("robot", "panda"), frame, info=record)
-    record.update(complete=bool(ex.success), execution_status=ex.status.value, execution_message=ex.message,
-                  tilt_deg=ex.tilt_deg, max_moved=max(ex.object_displacements.values(), default=0.0),
-                  execution_time=ex.seconds)
+    record.update(
+        complete=bool(ex.success),
+        execution_status=ex.status.value,
+        execution_message=ex.message,
+        tilt_deg=ex.tilt_deg,
+        max_moved=max(ex.object_displacements.values(), default=0.0),
+        execution_time=ex.seconds,
+    )
 
 
 def unit_task(unit: dict) -> tuple:
@@ -154,10 +197,21 @@ def unit_task(unit: dict) -> tuple:
     says ``graspable`` (a target no grasp of the gripper can hold is counted apart)."""
     kind = region_kind(unit["scene_name"])
     scene, request = place_task(Scene.from_dict(unit["scene"]), kind, seed=int(unit["scene"].get("seed") or 0))
-    record = {"table": "pickplace", "scene": unit["scene_name"], "target": scene.target, "method": unit["method"],
-              "run": unit["run"], "seed": int(unit["seed"]), "region": kind.value, "valid": True,
-              "pick_success": False, "place_planned": False, "place_success": False, "complete": False,
-              "execution_run": bool(unit["execute"])}
+    record = {
+        "table": "pickplace",
+        "scene": unit["scene_name"],
+        "target": scene.target,
+        "method": unit["method"],
+        "run": unit["run"],
+        "seed": int(unit["seed"]),
+        "region": kind.value,
+        "valid": True,
+        "pick_success": False,
+        "place_planned": False,
+        "place_success": False,
+        "complete": False,
+        "execution_run": bool(unit["execute"]),
+    }
     world = World(scene, WorldSettings(robot=unit.get("robot", "panda")), cache=_WORKER_MODELS)
     verdict = target_graspability(world)
     record["graspable"] = bool(verdict.graspable)
@@ -177,8 +231,12 @@ def run_pickplace_unit(unit: dict) -> dict:
     world_settings = world.settings
     settings = unit_settings(unit, method, world_settings)
     grasps = _unit_grasps(world, scene, settings.pick.grasp_kind, unit["grasp_candidates"], world_settings.robot).poses
-    planner = PickPlacePlanner(OMGPlanner(None, scene, settings.pick, world=world), request, settings,
-                               transfer=transfer_planner(method, settings, unit["max_goals_tried"], unit["time_limit"]))
+    planner = PickPlacePlanner(
+        OMGPlanner(None, scene, settings.pick, world=world),
+        request,
+        settings,
+        transfer=transfer_planner(method, settings, unit["max_goals_tried"], unit["time_limit"]),
+    )
     plan = planner.plan(grasps=grasps)
     record.update(plan_fields(plan))
     if plan.success:
@@ -191,20 +249,33 @@ def run_pickplace_unit(unit: dict) -> dict:
 
 
 def plan_fields(plan: PickPlacePlan) -> dict:
-    out = {"status": plan.status.value, "reason": plan.reason, "pick_status": plan.pick.status.value,
-           "pick_success": plan.pick.success, "pick_time": float(plan.pick.timings.get("total", 0.0)),
-           "attach_time": plan.timings.get("attach"), "lift_time": plan.timings.get("lift")}
+    out = {
+        "status": plan.status.value,
+        "reason": plan.reason,
+        "pick_status": plan.pick.status.value,
+        "pick_success": plan.pick.success,
+        "pick_time": float(plan.pick.timings.get("total", 0.0)),
+        "attach_time": plan.timings.get("attach"),
+        "lift_time": plan.timings.get("lift"),
+    }
     if plan.place_goals is not None:
-        out.update(place_goals=len(plan.place_goals), place_goal_set_time=float(plan.place_goals.seconds),
-                   place_verdict=plan.place_goals.verdict.value)
+        out.update(
+            place_goals=len(plan.place_goals),
+            place_goal_set_time=float(plan.place_goals.seconds),
+            place_verdict=plan.place_goals.verdict.value,
+        )
     if plan.place is not None:
         m = plan.place.metrics
-        out.update(place_planned=True, place_success=plan.place.success, place_status=plan.place.status.value,
-                   place_time=float(plan.timings.get("place", 0.0)),
-                   place_plan_time=float(plan.place.timings.get("total", 0.0) - plan.place.timings.get("goal_set", 0.0)),
-                   place_smoothness=float(getattr(m, "smoothness", float("nan"))),
-                   place_clearance=float(getattr(m, "min_clearance", float("nan"))),
-                   place_iterations=int(plan.place.iterations))
+        out.update(
+            place_planned=True,
+            place_success=plan.place.success,
+            place_status=plan.place.status.value,
+            place_time=float(plan.timings.get("place", 0.0)),
+            place_plan_time=float(plan.place.timings.get("total", 0.0) - plan.place.timings.get("goal_set", 0.0)),
+            place_smoothness=float(getattr(m, "smoothness", float("nan"))),
+            place_clearance=float(getattr(m, "min_clearance", float("nan"))),
+            place_iterations=int(plan.place.iterations),
+        )
     if plan.success:
         out["duration"] = float(sum(t.duration for _, t in plan.timed(250.0)))
     return out

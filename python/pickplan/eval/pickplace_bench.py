@@ -1,5 +1,6 @@
 """``pickplan bench pickplace``: the sweep (``experiments.run_sweep`` with the pick-and-place unit of
 ``eval.pickplace``: resumable, one file per unit, a process pool or Ray) and its report."""
+
 from __future__ import annotations
 
 import time
@@ -21,8 +22,12 @@ def run_pickplace_bench(settings: experiments.SweepSettings, write_csv: Callable
     s = settings.effective()
     records: List[dict] = experiments.run_sweep(s, unit_fn=run_unit)
     objects = s.objects or (f"as in {s.scene_dir}" if s.scene_dir else "built-in")
-    header = (f"## Pick and place: {len({r['scene'] for r in records})} scenes, {s.runs} run(s), robot {s.robot} "
-              f"(objects: {objects}, poses: {s.poses}, {s.clutter[0]}-{s.clutter[1]} objects per scene; "
-              f"regions free / cluttered / bin in turn)")
-    return (write_report(s.out, records, experiments.methods_for(s), header, write_csv) +
-            f"wrote {s.out}/table.md, runs.csv, runs.json, summary.json, objects.json ({time.perf_counter() - t0:.0f} s)")
+    header = (
+        f"## Pick and place: {len({r['scene'] for r in records})} scenes, {s.runs} run(s), robot {s.robot} "
+        f"(objects: {objects}, poses: {s.poses}, {s.clutter[0]}-{s.clutter[1]} objects per scene; "
+        f"regions free / cluttered / bin in turn)"
+    )
+    return (
+        write_report(s.out, records, experiments.methods_for(s), header, write_csv)
+        + f"wrote {s.out}/table.md, runs.csv, runs.json, summary.json, objects.json ({time.perf_counter() - t0:.0f} s)"
+    )

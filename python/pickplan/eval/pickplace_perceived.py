@@ -1,6 +1,7 @@
 """The ``OMG-3v`` unit of ``bench pickplace``: the whole pick and place planned from a depth
 observation of three views (``PerceivedWorld``: no mesh, no stored grasp; the held object is its
 observed points), executed on the true objects; the carry is checked on the true meshes."""
+
 from __future__ import annotations
 
 import time
@@ -23,8 +24,11 @@ def run_perceived_pickplace_unit(unit: dict) -> dict:
         record["unit_seconds"] = time.perf_counter() - t0
         return record
     try:
-        world = PerceivedWorld(render_observation(scene, views=VIEWS, seed=int(unit["seed"])),
-                               robot=true_world.robot, cache=true_world.cache)
+        world = PerceivedWorld(
+            render_observation(scene, views=VIEWS, seed=int(unit["seed"])),
+            robot=true_world.robot,
+            cache=true_world.cache,
+        )
     except ValueError as exc:  # the target hidden from every camera: a failed pick, said why
         record.update(status="no_world", reason=str(exc), unit_seconds=time.perf_counter() - t0)
         return record

@@ -4,6 +4,7 @@ the clutter. Seeded: a scene and a seed give one region (and one bin).
 
 >>> scene2, request = place_task(scene, RegionKind.bin, seed=3)   # scene2 holds the bin
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -23,24 +24,24 @@ BIN_NAME = "bin"
 
 
 class RegionKind(Option):
-    free = "free"            # beside the clutter: nothing in it
+    free = "free"  # beside the clutter: nothing in it
     cluttered = "cluttered"  # among the objects: some of them in it
-    bin = "bin"              # inside a bin's walls, beside the clutter
+    bin = "bin"  # inside a bin's walls, beside the clutter
 
 
 @dataclass(frozen=True)
 class RegionSettings:
-    size: Tuple[float, float] = (0.24, 0.20)       # m, a table region's x, y
-    x_range: Tuple[float, float] = (0.40, 0.55)    # region centres' x (reachable by every shipped robot)
-    side_y: Tuple[float, float] = (0.50, 0.56)     # |y| of a region beside the clutter (objects reach ~0.42)
+    size: Tuple[float, float] = (0.24, 0.20)  # m, a table region's x, y
+    x_range: Tuple[float, float] = (0.40, 0.55)  # region centres' x (reachable by every shipped robot)
+    side_y: Tuple[float, float] = (0.50, 0.56)  # |y| of a region beside the clutter (objects reach ~0.42)
     clutter_x: Tuple[float, float] = (0.45, 0.60)  # a partly cluttered region's centre: across the clutter's
     clutter_y: Tuple[float, float] = (0.24, 0.32)  # edge (|y|; objects stand at |y| <= 0.35), either side
     bin_inner: Tuple[float, float] = (0.26, 0.22)  # m inside the walls
-    clutter_share: float = 0.25                   # share of a partly cluttered region's floor objects cover
-    clutter_margin: float = 0.01                  # m of free floor around the target where it would fit
-    clutter_batches: int = 8                       # batches of 12 candidate regions drawn until the target fits
+    clutter_share: float = 0.25  # share of a partly cluttered region's floor objects cover
+    clutter_margin: float = 0.01  # m of free floor around the target where it would fit
+    clutter_batches: int = 8  # batches of 12 candidate regions drawn until the target fits
     bin_height: float = 0.08
-    height: float = 0.40                           # m of the region above its floor
+    height: float = 0.40  # m of the region above its floor
     orientation: Orientation = Orientation.upright
 
 
@@ -85,8 +86,9 @@ def _cover(footprints: list, lo: np.ndarray, hi: np.ndarray, step: float = 0.01)
     return float(covered.mean()), float(distance_transform_edt(free).max() * step) - 0.5 * step
 
 
-def place_task(scene: Scene, kind: RegionKind, seed: int, settings: RegionSettings = RegionSettings()
-               ) -> Tuple[Scene, PlaceRequest]:
+def place_task(
+    scene: Scene, kind: RegionKind, seed: int, settings: RegionSettings = RegionSettings()
+) -> Tuple[Scene, PlaceRequest]:
     """A scene (with a bin for ``RegionKind.bin``) and a place request of that kind, seeded."""
     kind = RegionKind.parse(kind, "region kind")
     rng = np.random.default_rng([int(seed), 34])
@@ -97,8 +99,12 @@ def place_task(scene: Scene, kind: RegionKind, seed: int, settings: RegionSettin
         # 12 candidates at a time until one leaves the target room: a region it cannot stand in is no
         # place task (a big target among clutter), only the best of the last resort
         for _ in range(settings.clutter_batches):
-            batch = np.column_stack([rng.uniform(*settings.clutter_x, 12),
-                                     np.where(rng.uniform(size=12) < 0.5, -1.0, 1.0) * rng.uniform(*settings.clutter_y, 12)])
+            batch = np.column_stack(
+                [
+                    rng.uniform(*settings.clutter_x, 12),
+                    np.where(rng.uniform(size=12) < 0.5, -1.0, 1.0) * rng.uniform(*settings.clutter_y, 12),
+                ]
+            )
             centres = np.vstack([centres, batch])
             cover = np.vstack([cover, [_cover(footprints, c - half, c + half) for c in batch]])
             if np.any(cover[:, 1] >= room):

@@ -1,4 +1,5 @@
 """A picture beside every sweep table: success per target object and the time per planning stage."""
+
 from __future__ import annotations
 
 from collections import defaultdict
@@ -24,8 +25,9 @@ def plot_table(path: str, records: Sequence[dict], methods: Sequence[str], title
 
     valid = [r for r in records if r.get("valid")]
     objects = sorted({r["target"] for r in valid if "target" in r})
-    fig, (ax_obj, ax_time) = plt.subplots(1, 2, figsize=(max(9, 1.2 * len(objects) + 5), 4.5),
-                                          gridspec_kw={"width_ratios": [max(len(objects), 1), 2]})
+    fig, (ax_obj, ax_time) = plt.subplots(
+        1, 2, figsize=(max(9, 1.2 * len(objects) + 5), 4.5), gridspec_kw={"width_ratios": [max(len(objects), 1), 2]}
+    )
     width = 0.8 / max(len(methods), 1)
     for k, m in enumerate(methods):
         rows = defaultdict(list)
@@ -37,8 +39,13 @@ def plot_table(path: str, records: Sequence[dict], methods: Sequence[str], title
         bars = ax_obj.bar(x, plan, width, label=f"{m} planned", alpha=0.55)
         if any(r.get("execution_run", True) for rs in rows.values() for r in rs):
             lifted = [np.mean([r["execution_success"] for r in rows[o]]) if rows[o] else np.nan for o in objects]
-            ax_obj.bar(x, lifted, width * 0.5, color=bars.patches[0].get_facecolor() if bars.patches else None,
-                       label=f"{m} lifted")
+            ax_obj.bar(
+                x,
+                lifted,
+                width * 0.5,
+                color=bars.patches[0].get_facecolor() if bars.patches else None,
+                label=f"{m} lifted",
+            )
     ax_obj.set_xticks(np.arange(len(objects)) + 0.4 - width / 2)
     ax_obj.set_xticklabels([_object_label(o) for o in objects], rotation=35, ha="right", fontsize=8)
     ax_obj.set_ylim(0, 1.05)
@@ -62,4 +69,3 @@ def plot_table(path: str, records: Sequence[dict], methods: Sequence[str], title
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
-

@@ -1,6 +1,7 @@
 """Summaries of sweep records: the paper tables' rows per method, and per target object (planning,
 execution, the slip of lifted targets in the hand and the failed executions by status, no_goals with
 their reasons, ungraspable targets counted apart)."""
+
 from __future__ import annotations
 
 import math
@@ -35,10 +36,12 @@ def execution_outcomes(rs: Sequence[dict]) -> dict:
     slips = [r.get("slip") for r in lifted]
     turns = [r.get("slip_rotation") for r in lifted]
     known = [(a, b) for a, b in zip(slips, turns) if a is not None and b is not None and math.isfinite(a)]
-    return {"slip": float(np.median([a for a, _ in known])) if known else None,
-            "slip_rotation": float(np.median([b for _, b in known])) if known else None,
-            "slipped": sum(a > SLIPPED[0] or b > SLIPPED[1] for a, b in known),
-            **{k: sum(r.get("execution_status") == k for r in rs) for k in OUTCOMES}}
+    return {
+        "slip": float(np.median([a for a, _ in known])) if known else None,
+        "slip_rotation": float(np.median([b for _, b in known])) if known else None,
+        "slipped": sum(a > SLIPPED[0] or b > SLIPPED[1] for a, b in known),
+        **{k: sum(r.get("execution_status") == k for r in rs) for k in OUTCOMES},
+    }
 
 
 def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict]:
@@ -53,7 +56,10 @@ def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict
         n = len(valid)
         executed = any(r.get("execution_run", True) for r in valid)  # False: --no-execute, a column not run
         out[m] = {
-            "units": len(rs), "valid": n, "planned": len(planned), "errors": sum(r["status"] == UNIT_ERROR for r in rs),
+            "units": len(rs),
+            "valid": n,
+            "planned": len(planned),
+            "errors": sum(r["status"] == UNIT_ERROR for r in rs),
             "no_goals": sum(r["status"] == PlanStatus.no_goals for r in valid),
             "ungraspable": sum(not _graspable(r) for r in rs),
             "planning_successes": sum(r["planning_success"] for r in valid),
@@ -76,8 +82,13 @@ def summarize(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, dict
 def grasp_costs_by_object(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, Dict[str, float]]:
     """Table II's rows: mean f_grasp at the final goal per target object and method (plans only)."""
     objects = sorted({r["target"] for r in records if r.get("planned")})
-    return {o: {m: _mean(r["grasp_cost"] for r in records if r["method"] == m and r["target"] == o and r.get("planned"))
-                for m in methods} for o in objects}
+    return {
+        o: {
+            m: _mean(r["grasp_cost"] for r in records if r["method"] == m and r["target"] == o and r.get("planned"))
+            for m in methods
+        }
+        for o in objects
+    }
 
 
 def summarize_by_object(records: Sequence[dict], methods: Sequence[str]) -> Dict[str, Dict[str, dict]]:
@@ -96,7 +107,8 @@ def summarize_by_object(records: Sequence[dict], methods: Sequence[str]) -> Dict
             n = len(ok)
             executed = any(r.get("execution_run", True) for r in ok)
             out[obj][m] = {
-                "units": len(rs), "graspable": n,
+                "units": len(rs),
+                "graspable": n,
                 "planning": sum(r["planning_success"] for r in ok) / n if n else float("nan"),
                 "execution": (sum(r["execution_success"] for r in ok) / n if n else float("nan")) if executed else None,
                 "no_goals": sum(r["status"] == PlanStatus.no_goals for r in ok),
@@ -127,20 +139,23 @@ def _reasons(counts: Dict[str, int], top: int = 3) -> str:
 def object_markdown(by_object: Dict[str, Dict[str, dict]], methods: Sequence[str]) -> str:
     """Per target object: planning / execution rates (over graspable units) per method, the no-goal
     units with the grasps' rejection reasons, and the ungraspable units with the verdict."""
-    lines = ["### Per target object", "",
-             "Cells: planning / execution over the units whose target is graspable (units). Slip: mm / deg the "
-             "lifted targets moved in the hand (median), per method. Failed: " + " / ".join(OUTCOMES) + ", summed "
-             "over methods. No goals: units per method, then the grasps' rejection reasons summed. Ungraspable: "
-             "units, not counted in any rate.", "",
-             "| Object | " + " | ".join(methods) + " | Slip | Failed | No goals | Ungraspable |",
-             "|---" * (len(methods) + 5) + "|"]
+    lines = [
+        "### Per target object",
+        "",
+        "Cells: planning / execution over the units whose target is graspable (units). Slip: mm / deg the "
+        "lifted targets moved in the hand (median), per method. Failed: " + " / ".join(OUTCOMES) + ", summed "
+        "over methods. No goals: units per method, then the grasps' rejection reasons summed. Ungraspable: "
+        "units, not counted in any rate.",
+        "",
+        "| Object | " + " | ".join(methods) + " | Slip | Failed | No goals | Ungraspable |",
+        "|---" * (len(methods) + 5) + "|",
+    ]
     for obj, row in by_object.items():
         cells = []
         for m in methods:
             c = row[m]
             execution = "not run" if c["execution"] is None else _percent(c["execution"])
-            cells.append(f"{_percent(c['planning'])} / {execution} ({c['graspable']})" if c["graspable"]
-                         else "-")
+            cells.append(f"{_percent(c['planning'])} / {execution} ({c['graspable']})" if c["graspable"] else "-")
         no_goals = ", ".join(f"{m} {row[m]['no_goals']}" for m in methods if row[m]["no_goals"])
         reasons: Dict[str, int] = {}
         for m in methods:
@@ -152,6 +167,11 @@ def object_markdown(by_object: Dict[str, Dict[str, dict]], methods: Sequence[str
         why = next((r for m in methods for r in row[m]["ungraspable_reasons"]), "")
         slip = ", ".join(slip_cell(row[m]).split(" (")[0] for m in methods)
         failed = " / ".join(str(sum(row[m].get(k, 0) for m in methods)) for k in OUTCOMES)
-        lines.append(f"| {obj} | " + " | ".join(cells) + f" | {slip} | {failed} | {no_goals or '0'} | "
-                     + (f"{ungraspable} ({why})" if ungraspable else "0") + " |")
+        lines.append(
+            f"| {obj} | "
+            + " | ".join(cells)
+            + f" | {slip} | {failed} | {no_goals or '0'} | "
+            + (f"{ungraspable} ({why})" if ungraspable else "0")
+            + " |"
+        )
     return "\n".join(lines) + "\n"

@@ -11,6 +11,7 @@ resolution; a planner's resolution, step rule and checker settings play no part.
 >>> checker = TrajectoryChecker(robot, obstacles, allowed_pairs)
 >>> report = checker.check(path)       # report.valid, report.reason, report.min_clearance
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -29,17 +30,24 @@ MAX_STATES = 200_000  # per trajectory: a path that needs more is refused (repor
 @dataclass(frozen=True)
 class CheckReport:
     valid: bool
-    reason: str              # "" when valid; else what failed and where
-    states: int              # states checked
-    min_clearance: float     # m: smallest robot-obstacle distance over the states sampled for it (inf: none)
+    reason: str  # "" when valid; else what failed and where
+    states: int  # states checked
+    min_clearance: float  # m: smallest robot-obstacle distance over the states sampled for it (inf: none)
 
 
 class TrajectoryChecker:
     """FCL collision checks of a joint path, densely interpolated (see the module doc)."""
 
-    def __init__(self, robot: Robot, obstacles: Sequence[Obstacle], allowed_pairs: Sequence[Tuple[str, str]] = (),
-                 resolution: float = 0.002, clearance_resolution: float = 0.02, limit_tolerance: float = 1e-6,
-                 cache: Optional[ModelCache] = None):
+    def __init__(
+        self,
+        robot: Robot,
+        obstacles: Sequence[Obstacle],
+        allowed_pairs: Sequence[Tuple[str, str]] = (),
+        resolution: float = 0.002,
+        clearance_resolution: float = 0.02,
+        limit_tolerance: float = 1e-6,
+        cache: Optional[ModelCache] = None,
+    ):
         if not (resolution > 0 and clearance_resolution >= resolution):
             raise ValueError("resolution must be > 0 and clearance_resolution >= resolution")
         self.robot, self.resolution = robot, float(resolution)
@@ -50,20 +58,35 @@ class TrajectoryChecker:
         pairs = tuple((a, b) for a, b in allowed_pairs if a in links and b in links)
         meshes = [collision.SceneMesh(o.name, o.shape, o.pose) for o in obstacles]
         self._collide = collision.CollisionChecker(
-            robot, meshes, None, collision.CollisionSettings(allowed_pairs=pairs, self_collision=True),
-            shapes=cache.shapes, link_meshes=link_meshes)
-        self._clearance = collision.CollisionChecker(robot, meshes, None, shapes=cache.shapes,
-                                                     link_meshes=link_meshes) if meshes else None
+            robot,
+            meshes,
+            None,
+            collision.CollisionSettings(allowed_pairs=pairs, self_collision=True),
+            shapes=cache.shapes,
+            link_meshes=link_meshes,
+        )
+        self._clearance = (
+            collision.CollisionChecker(robot, meshes, None, shapes=cache.shapes, link_meshes=link_meshes)
+            if meshes
+            else None
+        )
         # The convex hull of every link's geometry, in the link frame: its vertices bound the link's motion.
-        self._hulls = cache.robot_derived(robot, "trajectory_check_hulls", lambda: [
-            (i, np.ascontiguousarray(np.asarray(link_meshes[name].convex_hull.vertices, dtype=float).T))
-            for i, name in enumerate(robot.link_names) if link_meshes[name] is not None])
+        self._hulls = cache.robot_derived(
+            robot,
+            "trajectory_check_hulls",
+            lambda: [
+                (i, np.ascontiguousarray(np.asarray(link_meshes[name].convex_hull.vertices, dtype=float).T))
+                for i, name in enumerate(robot.link_names)
+                if link_meshes[name] is not None
+            ],
+        )
 
     def _points(self, Q: np.ndarray) -> np.ndarray:
         """(B, P, 3) world positions of every hull vertex at each of the (B, dof) states."""
         poses = self.robot.fk_batch(Q)  # (B, links, 4, 4)
-        return np.concatenate([np.swapaxes(poses[:, i, :3, :3] @ Vt, 1, 2) + poses[:, i, None, :3, 3]
-                               for i, Vt in self._hulls], axis=1)
+        return np.concatenate(
+            [np.swapaxes(poses[:, i, :3, :3] @ Vt, 1, 2) + poses[:, i, None, :3, 3] for i, Vt in self._hulls], axis=1
+        )
 
     def _segment(self, a: np.ndarray, b: np.ndarray, resolution: float) -> np.ndarray:
         """States from ``a`` to ``b`` (both included), halving every step that moves a hull vertex more
@@ -94,8 +117,12 @@ class TrajectoryChecker:
         over = np.maximum(lo - P, P - hi)
         if over.max() > self.limit_tolerance:
             k, j = np.unravel_index(int(np.argmax(over)), over.shape)
-            return CheckReport(False, f"waypoint {k}: joint {self.robot.joint_names[j]} outside its limits by "
-                                      f"{over[k, j]:.2g}", 0, float("nan"))
+            return CheckReport(
+                False,
+                f"waypoint {k}: joint {self.robot.joint_names[j]} outside its limits by {over[k, j]:.2g}",
+                0,
+                float("nan"),
+            )
         try:
             Q = self.dense(P, self.resolution)
         except ValueError as exc:

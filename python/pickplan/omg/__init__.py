@@ -12,6 +12,7 @@
 - ``model_cache``: what depends only on objects and robot, shared by worlds (``ModelCache``);
 - ``batch``: many plans on parallel threads (``plan_many``).
 """
+
 import importlib
 
 __all__ = ["OMGPlanner", "OMGSettings", "PlanResult"]

@@ -11,6 +11,7 @@ the robot.
 >>> held = held_from_plan(world, plan.goal)            # the planned grasp; or held_from_poses(...)
 >>> carrying = HeldWorld(world, held)                  # carrying.chomp(...), carrying.checker(...)
 """
+
 from __future__ import annotations
 
 import functools
@@ -37,8 +38,9 @@ HELD_LINK = "held_object"
 class AttachSettings:
     """How the held object becomes part of the robot."""
 
-    points: int = 60        # body points on the held object's surface (a link of the paper has 20; an
-                            # object spans several links' worth of space)
+    # body points on the held object's surface (a link of the paper has 20; an object spans several links' worth of
+    # space)
+    points: int = 60
     seed: int = 0
 
 
@@ -80,8 +82,14 @@ def surface_points(mesh, n: int, seed: int) -> np.ndarray:
     return np.asarray(pts, dtype=float)
 
 
-def held_from_poses(name: str, hand_pose: np.ndarray, object_pose: np.ndarray, mesh=None,
-                    points: Optional[np.ndarray] = None, settings: AttachSettings = AttachSettings()) -> HeldObject:
+def held_from_poses(
+    name: str,
+    hand_pose: np.ndarray,
+    object_pose: np.ndarray,
+    mesh=None,
+    points: Optional[np.ndarray] = None,
+    settings: AttachSettings = AttachSettings(),
+) -> HeldObject:
     """The object ``name`` at world pose ``object_pose`` held by a hand at ``hand_pose``; body points
     sampled on ``mesh`` unless ``points`` (object frame) are given."""
     hand_T_object = np.linalg.inv(np.asarray(hand_pose, dtype=float)) @ np.asarray(object_pose, dtype=float)
@@ -125,11 +133,12 @@ def attached_robot(robot: robots.DescribedRobot, held: HeldObject) -> robots.Des
 class HeldCheck(Option):
     """What an FCL checker of a ``HeldWorld`` lets touch."""
 
-    carry = "carry"        # robot and held object against every other object and the table; the fingers
-                           # may touch the held object (they hold it)
-    support = "support"    # the same, but the held object may touch the table it rests on (lifting off,
-                           # setting down)
-    hand = "hand"          # the carry rules for the hand, fingers and held object alone (goal-set pre-check)
+    # robot and held object against every other object and the table; the fingers may touch the held object (they hold
+    # it)
+    carry = "carry"
+    # the same, but the held object may touch the table it rests on (lifting off, setting down)
+    support = "support"
+    hand = "hand"  # the carry rules for the hand, fingers and held object alone (goal-set pre-check)
     support_hand = "support_hand"  # the support rules for the hand, fingers and held object alone
 
 
@@ -147,15 +156,18 @@ class HeldWorld:
         self.robot = attached_robot(world.robot, held)
         link = self.robot.link_index(HELD_LINK)
         body = world.body
-        self.body = robots.BodyPoints(np.concatenate([body.links, np.full(len(held.points), link, np.int32)]),
-                                      np.concatenate([body.points, held.points]),
-                                      np.concatenate([body.normals, np.zeros_like(held.points)]))
+        self.body = robots.BodyPoints(
+            np.concatenate([body.links, np.full(len(held.points), link, np.int32)]),
+            np.concatenate([body.points, held.points]),
+            np.concatenate([body.normals, np.zeros_like(held.points)]),
+        )
         self._chomps: dict = {}
         self._checkers: dict = {}
 
     target = property(lambda self: self.base.target)
     start = property(lambda self: self.base.start)
     support_plane = property(lambda self: self.base.support_plane)
+
     def chomp(self, settings, avoid_target: bool = False) -> Chomp:
         """``World.chomp`` with the held object's points; the target's old place is never an obstacle
         (the target is in the hand), whatever ``avoid_target`` asks."""
@@ -185,8 +197,9 @@ class HeldWorld:
     def _build_checker(self, kind: HeldCheck) -> collision.CollisionChecker:
         robot, base = self.robot, self.base
         moving = set(robot.moving_links())
-        mounted = tuple((name, "table") for i, name in enumerate(robot.link_names) if i not in moving) + \
-            _table_pairs(robot)
+        mounted = tuple((name, "table") for i, name in enumerate(robot.link_names) if i not in moving) + _table_pairs(
+            robot
+        )
         holding = tuple((f, HELD_LINK) for f in robot.finger_links) + ((robot.hand_link, HELD_LINK),)
         allowed = mounted + holding
         if kind in (HeldCheck.support, HeldCheck.support_hand):
@@ -196,11 +209,14 @@ class HeldWorld:
             links = (robot.hand_link,) + tuple(robot.finger_links) + (HELD_LINK,)
         meshes = dict(base.cache.link_meshes(base.robot))
         meshes[HELD_LINK] = self.held.mesh
-        table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
-                                pose=np.asarray(self.scene.table.pose, dtype=float))
+        table = collision.Table(
+            size=tuple(np.asarray(self.scene.table.size, dtype=float)),
+            pose=np.asarray(self.scene.table.pose, dtype=float),
+        )
         settings = collision.CollisionSettings(allowed_pairs=allowed, excluded_objects=(self.target,))
-        return collision.CollisionChecker(robot, base.scene_meshes(), table, settings, links=links,
-                                          shapes=base.cache.shapes, link_meshes=meshes)
+        return collision.CollisionChecker(
+            robot, base.scene_meshes(), table, settings, links=links, shapes=base.cache.shapes, link_meshes=meshes
+        )
 
 
 def held_lowest(held: HeldObject, rotation: np.ndarray) -> float:
@@ -210,8 +226,15 @@ def held_lowest(held: HeldObject, rotation: np.ndarray) -> float:
     return float((V @ np.asarray(rotation, dtype=float).T)[:, 2].min())
 
 
-def straight_path(robot, q0: np.ndarray, direction: Sequence[float], distance: float, steps: int,
-                  ik: IkSettings = IkSettings(), max_joint_jump: float = 0.5) -> Tuple[np.ndarray, bool]:
+def straight_path(
+    robot,
+    q0: np.ndarray,
+    direction: Sequence[float],
+    distance: float,
+    steps: int,
+    ik: IkSettings = IkSettings(),
+    max_joint_jump: float = 0.5,
+) -> Tuple[np.ndarray, bool]:
     """Configurations (steps + 1, dof) moving the hand ``distance`` along the world ``direction`` from
     ``q0`` with its orientation held (native IK per step, each from the previous solution; the finger
     joints frozen), and whether every step converged without a jump over ``max_joint_jump``."""
@@ -219,8 +242,15 @@ def straight_path(robot, q0: np.ndarray, direction: Sequence[float], distance: f
     return path, bool(np.all(good))
 
 
-def straight_path_steps(robot, q0: np.ndarray, direction: Sequence[float], distance: float, steps: int,
-                        ik: IkSettings = IkSettings(), max_joint_jump: float = 0.5) -> Tuple[np.ndarray, np.ndarray]:
+def straight_path_steps(
+    robot,
+    q0: np.ndarray,
+    direction: Sequence[float],
+    distance: float,
+    steps: int,
+    ik: IkSettings = IkSettings(),
+    max_joint_jump: float = 0.5,
+) -> Tuple[np.ndarray, np.ndarray]:
     """``straight_path`` with each step's verdict: (path (steps + 1, dof), good (steps,))."""
     hand = robot.link_pose(q0, robot.hand_link)
     targets = np.repeat(hand[None], steps, axis=0)

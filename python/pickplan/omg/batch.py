@@ -7,6 +7,7 @@ threads run them on separate cores; worlds share one ``ModelCache``.
 Each result is what ``OMGPlanner(None, scene, settings).plan(...)`` returns for that job, in the
 jobs' order, whatever the number of workers (every plan is deterministic for its seed).
 """
+
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
@@ -38,8 +39,12 @@ def _check_workers(workers) -> int:
     return int(workers)
 
 
-def plan_many(jobs: Sequence[Union[PlanJob, Scene]], settings: OMGSettings = OMGSettings(), workers: int = 2,
-              cache: Optional[ModelCache] = None) -> List[PlanResult]:
+def plan_many(
+    jobs: Sequence[Union[PlanJob, Scene]],
+    settings: OMGSettings = OMGSettings(),
+    workers: int = 2,
+    cache: Optional[ModelCache] = None,
+) -> List[PlanResult]:
     """Plan every job (a ``PlanJob`` or a bare ``Scene``) on ``workers`` threads; results in order.
     Worlds not given are built with ``cache`` (None: one cache shared by this call's worlds)."""
     workers = _check_workers(workers)
@@ -53,8 +58,9 @@ def plan_many(jobs: Sequence[Union[PlanJob, Scene]], settings: OMGSettings = OMG
         world = job.world
         if world is None:
             target = job.target or job.scene.target
-            world = World(job.scene if target == job.scene.target else _retarget(job.scene, target),
-                          settings.world, cache=cache)
+            world = World(
+                job.scene if target == job.scene.target else _retarget(job.scene, target), settings.world, cache=cache
+            )
         return OMGPlanner(None, job.scene, settings, world=world).plan(job.start, job.target, job.grasps)
 
     if workers == 1 or len(jobs) <= 1:

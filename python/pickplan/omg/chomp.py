@@ -3,6 +3,7 @@
 >>> chomp = Chomp(robot, scene_sdf, body, ChompSettings(), exclude=("target",))
 >>> result = chomp.optimize(q0, goal, iterations=100)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -35,8 +36,12 @@ class ChompSettings:
     link_culling: bool  # skip links whose bounding sphere is beyond epsilon (exact, faster)
 
     def to_native(self, exclude_mask: int = 0, active: Optional[Sequence[bool]] = None) -> "_core.ChompSettings":
-        return to_native(self, _core.ChompSettings, exclude_mask=int(exclude_mask),
-                         active=[] if active is None else [bool(a) for a in active])
+        return to_native(
+            self,
+            _core.ChompSettings,
+            exclude_mask=int(exclude_mask),
+            active=[] if active is None else [bool(a) for a in active],
+        )
 
 
 @dataclass(frozen=True)
@@ -61,10 +66,16 @@ class MetricSettings:
     support_link_mask: Optional[int] = None
     support_tolerance: Optional[float] = None
 
-    def to_native(self, exclude_mask: int = 0, support_link_mask: int = 0,
-                  support_tolerance: float = 0.0) -> "_core.MetricSettings":
-        return to_native(self, _core.MetricSettings, exclude_mask=int(exclude_mask),
-                         support_link_mask=int(support_link_mask), support_tolerance=float(support_tolerance))
+    def to_native(
+        self, exclude_mask: int = 0, support_link_mask: int = 0, support_tolerance: float = 0.0
+    ) -> "_core.MetricSettings":
+        return to_native(
+            self,
+            _core.MetricSettings,
+            exclude_mask=int(exclude_mask),
+            support_link_mask=int(support_link_mask),
+            support_tolerance=float(support_tolerance),
+        )
 
 
 class ChompStatus(Option):
@@ -75,8 +86,8 @@ class ChompStatus(Option):
 
 @dataclass
 class ChompResult:
-    xi: np.ndarray                 # (n, dof) waypoints after the start
-    objective: list                # f_motion before each iteration
+    xi: np.ndarray  # (n, dof) waypoints after the start
+    objective: list  # f_motion before each iteration
     final: "_core.ObjectiveTerms"  # obstacle, prior, total, colliding_points at the end
     iterations: int
     status: ChompStatus
@@ -87,7 +98,7 @@ class ChompResult:
 class Initialization(Option):
     """The initial trajectory from the start to a goal."""
 
-    cubic = "cubic"     # zero end velocities (the paper's)
+    cubic = "cubic"  # zero end velocities (the paper's)
     linear = "linear"
 
 
@@ -115,19 +126,28 @@ class Chomp:
     marks the joints the optimizer moves (default: all; for the Panda, the 7 arm joints).
     """
 
-    def __init__(self, robot: Robot, scene: SceneSdf, body: BodyPoints, settings: ChompSettings = ChompSettings(),
-                 exclude: Sequence[str] = (), active: Optional[Sequence[bool]] = None,
-                 obstacle_exclude: Optional[Sequence[str]] = None):
+    def __init__(
+        self,
+        robot: Robot,
+        scene: SceneSdf,
+        body: BodyPoints,
+        settings: ChompSettings = ChompSettings(),
+        exclude: Sequence[str] = (),
+        active: Optional[Sequence[bool]] = None,
+        obstacle_exclude: Optional[Sequence[str]] = None,
+    ):
         self.robot, self.scene, self.body, self.settings = robot, scene, body, settings
         self.exclude_mask = sum(1 << scene.index(name) for name in exclude)
         # the optimizer's obstacle cost may leave out fewer objects than the metrics (default: the same)
-        obstacle_mask = self.exclude_mask if obstacle_exclude is None else \
-            sum(1 << scene.index(name) for name in obstacle_exclude)
+        obstacle_mask = (
+            self.exclude_mask if obstacle_exclude is None else sum(1 << scene.index(name) for name in obstacle_exclude)
+        )
         if active is None and hasattr(robot, "info"):
             active = [i < robot.info.arm_dof for i in range(robot.dof)]
         self.active = None if active is None else list(active)
-        self.problem = _core.ChompProblem(robot.native, scene.native, body.links, body.points,
-                                          settings.to_native(obstacle_mask, self.active))
+        self.problem = _core.ChompProblem(
+            robot.native, scene.native, body.links, body.points, settings.to_native(obstacle_mask, self.active)
+        )
         self._native_metrics: dict = {}  # MetricSettings -> its native struct (native_metric_settings)
 
     @property
@@ -150,18 +170,30 @@ class Chomp:
     def objective(self, xi, q0, iteration: int = 0):
         return self.problem.objective(xi, q0, iteration)
 
-    def optimize(self, q0, goal, iterations: int = 100, xi0: Optional[np.ndarray] = None,
-                 metric_settings: Optional[MetricSettings] = MetricSettings()) -> ChompResult:
+    def optimize(
+        self,
+        q0,
+        goal,
+        iterations: int = 100,
+        xi0: Optional[np.ndarray] = None,
+        metric_settings: Optional[MetricSettings] = MetricSettings(),
+    ) -> ChompResult:
         """Plain CHOMP toward a fixed goal (or standoff tail) from ``xi0`` (default: cubic)."""
         goal = np.asarray(goal, dtype=float)
         final_goal = goal if goal.ndim == 1 else goal[-1]
         xi0 = self.initial_trajectory(q0, final_goal) if xi0 is None else xi0
         if goal.ndim == 2:  # put the initial tail on the standoff chain
             xi0 = np.array(xi0, dtype=float)
-            xi0[-len(goal):] = goal
+            xi0[-len(goal) :] = goal
         out = self.problem.optimize(xi0, q0, goal, iterations)
-        result = ChompResult(out.xi, list(out.objective), out.final_terms, out.iterations,
-                             ChompStatus.from_native(out.status), out.seconds)
+        result = ChompResult(
+            out.xi,
+            list(out.objective),
+            out.final_terms,
+            out.iterations,
+            ChompStatus.from_native(out.status),
+            out.seconds,
+        )
         if metric_settings is not None:
             result.metrics = self.metrics(result.xi, q0, metric_settings)
         return result

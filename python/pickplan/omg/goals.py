@@ -2,6 +2,7 @@
 the table; grasps pushing them deeper are shifted up or tilted) -> IK -> standoff approach -> FCL
 filter (approach clearance) -> diversity -> cap. Native but the support step; every rejected grasp
 records why."""
+
 from __future__ import annotations
 
 from collections import Counter
@@ -66,8 +67,8 @@ class GoalSetSettings:
     max_goals: int
     max_solutions: int
     seed: int
-    approach: Tuple[float, float, float]  # world direction of the standoff approach (unit; zero: the hand's +z;
-                                          # a place: gravity)
+    # world direction of the standoff approach (unit; zero: the hand's +z; a place: gravity)
+    approach: Tuple[float, float, float]
     # m the hand, fingers and target must be free to rise from the grasp among the scene's obstacles
     # (furniture: a shelf's next board; ``lift_blocked``), keeping ``lift_clearance`` from them:
     # execution's shortest lift and its clearance, which execution measures in PyBullet (its hulls'
@@ -84,11 +85,11 @@ class GoalSetSettings:
 
 @dataclass
 class GoalSet:
-    goals: np.ndarray        # (G, dof) grasp configurations
-    tails: np.ndarray        # (G, standoff_steps + 1, dof): pre-grasp first, grasp last
+    goals: np.ndarray  # (G, dof) grasp configurations
+    tails: np.ndarray  # (G, standoff_steps + 1, dof): pre-grasp first, grasp last
     grasp_index: np.ndarray  # (G,) index into ``grasps``
-    grasps: np.ndarray       # (N, 4, 4) the input grasps (hand in the object frame)
-    reasons: list            # per input grasp: "ok" or why it was rejected
+    grasps: np.ndarray  # (N, 4, 4) the input grasps (hand in the object frame)
+    reasons: list  # per input grasp: "ok" or why it was rejected
     seconds: float
     adjusted: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # (N,) moved off the support
     margin: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (N,) grasp quality margin (nan: not judged)
@@ -109,8 +110,10 @@ def check_grasps(grasps) -> np.ndarray:
     err = rigid_errors(g) if len(g) else np.zeros(0)
     bad = np.flatnonzero(~(err <= RIGID_CLEAN_TOLERANCE))
     if len(bad):
-        raise ValueError(f"grasps [{bad[0]}]: not a rigid transform (error {err[bad[0]]:.1e} > "
-                         f"{RIGID_CLEAN_TOLERANCE:.0e}; {len(bad)} of {len(g)} bad)")
+        raise ValueError(
+            f"grasps [{bad[0]}]: not a rigid transform (error {err[bad[0]]:.1e} > "
+            f"{RIGID_CLEAN_TOLERANCE:.0e}; {len(bad)} of {len(g)} bad)"
+        )
     return g
 
 
@@ -122,6 +125,7 @@ def ik_solver(world: World, settings: IkSettings = IkSettings()) -> "_core.IkSol
     def build():
         active = [i < robot.info.arm_dof for i in range(robot.dof)]
         return _core.IkSolver(robot.native, robot.hand_link, settings.to_native(active))
+
     cache = getattr(world, "cache", None)
     if cache is None:
         return build()
@@ -156,8 +160,13 @@ def _levelled(H: np.ndarray, normal: np.ndarray, pad_depth: float, max_angle: fl
     return H @ _about_pad_centre(R, pad_depth)
 
 
-def support_adjusted(world: World, hand_poses: np.ndarray, start: np.ndarray, standoff: float,
-                     settings: SupportSettings = SupportSettings()) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+def support_adjusted(
+    world: World,
+    hand_poses: np.ndarray,
+    start: np.ndarray,
+    standoff: float,
+    settings: SupportSettings = SupportSettings(),
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World hand poses moved off the support where their fingers (at the grasp or at the pre-grasp
     ``standoff`` back) press into it (``SupportSettings``). Returns the poses, a (N,) mask of those
     moved, and a (N,) mask of those no variant clears that press in deeper than the tolerance."""
@@ -208,8 +217,9 @@ def _rigid_with_hand(robot) -> Tuple[str, ...]:
     return tuple(n for i, n in enumerate(robot.link_names) if same[i] and robot.collision_meshes(n) is not None)
 
 
-def lift_blocked(world: World, hand_poses: np.ndarray, start: np.ndarray, lift: float,
-                 step: float = 0.01) -> np.ndarray:
+def lift_blocked(
+    world: World, hand_poses: np.ndarray, start: np.ndarray, lift: float, step: float = 0.01
+) -> np.ndarray:
     """(N,) world hand poses whose hand, the links fixed to it and the fingers (collision hull vertices,
     open as in ``start``) or target, raised straight up by up to ``lift`` m, would enter one of the
     scene's obstacles (``_raised_blocked``): no lift can follow such a grasp, whatever the arm does."""
@@ -218,14 +228,18 @@ def lift_blocked(world: World, hand_poses: np.ndarray, start: np.ndarray, lift: 
         return np.zeros(len(poses), bool)
     robot, q = world.robot, np.asarray(start, float)
     fingers = world.cache.finger_geometry(robot, q)
-    palm = world.cache.robot_derived(robot, ("rigid_hand_hull_vertices", q.tobytes()), lambda: collision.HandGeometry(
-        robot, q, robot.hand_link, _rigid_with_hand(robot)).vertices)
+    palm = world.cache.robot_derived(
+        robot,
+        ("rigid_hand_hull_vertices", q.tobytes()),
+        lambda: collision.HandGeometry(robot, q, robot.hand_link, _rigid_with_hand(robot)).vertices,
+    )
     V = np.vstack([palm] + ([fingers.vertices] if fingers is not None else []))
     return _raised_blocked(world, np.einsum("nij,pj->npi", poses[:, :3, :3], V) + poses[:, None, :3, 3], lift, step)
 
 
-def lift_blocked_configurations(world: World, Q: np.ndarray, lift: float, clearance: float,
-                                execution: ExecutionSettings = ExecutionSettings()) -> np.ndarray:
+def lift_blocked_configurations(
+    world: World, Q: np.ndarray, lift: float, clearance: float, execution: ExecutionSettings = ExecutionSettings()
+) -> np.ndarray:
     """(G,) goal configurations whose lift the scene's obstacles block, judged as execution judges it
     (``sim.lift.lift_headroom``): along the lift's own IK path (``lift_path``, its waypoints up to ``lift``
     m) a link (its convex hull, as PyBullet takes it: ``CheckerKind.furniture``) or the target (its hull's
@@ -238,13 +252,17 @@ def lift_blocked_configurations(world: World, Q: np.ndarray, lift: float, cleara
         return np.zeros(len(Q), bool)
     step = execution.lift_height / execution.lift_waypoints
     count = min(int(np.ceil(lift / step - 1e-9)), execution.lift_waypoints)  # a lift stopped before is short
-    paths = np.stack([lift_path(robot, q, execution)[:count + 1] for q in Q])  # (G, K + 1, dof)
+    paths = np.stack([lift_path(robot, q, execution)[: count + 1] for q in Q])  # (G, K + 1, dof)
     checker, within = world.checker(CheckerKind.furniture), 2.0 * clearance
 
     def links_blocked(path) -> bool:
         start = {(c.link, c.other): c.distance for c in checker.contacts(path[0], within)}
-        return any(c.distance < clearance and c.distance < start.get((c.link, c.other), within) - 1e-4
-                   for q in path[1:] for c in checker.contacts(q, within))
+        return any(
+            c.distance < clearance and c.distance < start.get((c.link, c.other), within) - 1e-4
+            for q in path[1:]
+            for c in checker.contacts(q, within)
+        )
+
     blocked = np.array([links_blocked(path) for path in paths], bool)
     # the target rides with the hand: its pose relative to the hand at the grasp, at every waypoint
     hand = robot.link_index(robot.hand_link)
@@ -252,8 +270,9 @@ def lift_blocked_configurations(world: World, Q: np.ndarray, lift: float, cleara
     carried = H @ np.linalg.inv(H[:, :1]) @ world.target_pose
     V = np.asarray(world.target_model.mesh.convex_hull.vertices, float)
     P = np.einsum("gkij,pj->gkpi", carried[..., :3, :3], V) + carried[..., None, :3, 3]
-    d, _ = world.sdf.distance(P.reshape(-1, 3), cutoff=within, exclude=[o.name for o in world.scene.objects],
-                              exclude_table=True)
+    d, _ = world.sdf.distance(
+        P.reshape(-1, 3), cutoff=within, exclude=[o.name for o in world.scene.objects], exclude_table=True
+    )
     d = np.asarray(d).reshape(len(Q), count + 1, -1)
     return blocked | ((d[:, 1:] < clearance) & (d[:, 1:] < d[:, :1] - 1e-4)).any(axis=(1, 2))
 
@@ -267,16 +286,23 @@ def _raised_blocked(world: World, P: np.ndarray, lift: float, step: float) -> np
     count = int(np.ceil(lift / step - 1e-9))
     up = np.zeros((count + 1, 1, 1, 3))
     up[..., 2] = (np.arange(count + 1) * lift / count)[:, None, None]
-    d, _ = world.sdf.distance((P[None] + up).reshape(-1, 3), cutoff=step,
-                              exclude=[o.name for o in world.scene.objects], exclude_table=True)
+    d, _ = world.sdf.distance(
+        (P[None] + up).reshape(-1, 3), cutoff=step, exclude=[o.name for o in world.scene.objects], exclude_table=True
+    )
     d = np.asarray(d).reshape(count + 1, len(P), -1).min(axis=2)
     return (d[1:].min(axis=0) < 0.0) & (d[0] >= 0.0)  # in an obstacle already: the collision checks say so
 
 
-def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
-                   settings: GoalSetSettings = GoalSetSettings(), ik: IkSettings = IkSettings(),
-                   collision_check: bool = True, support: SupportSettings = SupportSettings(),
-                   seeds: Optional[np.ndarray] = None) -> GoalSet:
+def build_goal_set(
+    world: World,
+    grasps,
+    start: Optional[np.ndarray] = None,
+    settings: GoalSetSettings = GoalSetSettings(),
+    ik: IkSettings = IkSettings(),
+    collision_check: bool = True,
+    support: SupportSettings = SupportSettings(),
+    seeds: Optional[np.ndarray] = None,
+) -> GoalSet:
     """Goal configurations for the world's target from grasps in its object frame.
 
     With ``collision_check``, grasps are first met with the support (``support_adjusted``): the
@@ -319,12 +345,21 @@ def build_goal_set(world: World, grasps, start: Optional[np.ndarray] = None,
         tried = tried[np.asarray([reasons[k] == GraspFit.holds.value for k in tried], dtype=bool)]
 
     def goals(tried):
-        out = _core.build_goal_set(ik_solver(world, ik), checker, hand_checker, hand_poses[tried], start,
-                                   settings.to_native(), problem, float(settings.approach_clearance),
-                                   None if seeds is None else seeds[tried])  # the seeds follow the order tried
+        out = _core.build_goal_set(
+            ik_solver(world, ik),
+            checker,
+            hand_checker,
+            hand_poses[tried],
+            start,
+            settings.to_native(),
+            problem,
+            float(settings.approach_clearance),
+            None if seeds is None else seeds[tried],
+        )  # the seeds follow the order tried
         for k, reason in zip(tried, out.reasons):
             reasons[k] = reason.name
         return out
+
     out = goals(tried)
     unsure = np.flatnonzero([r == GraspFit.slips.value for r in reasons])
     if not len(out.goals) and len(unsure) and settings.verify is not None and hasattr(world, "verify_grasps"):

@@ -1,4 +1,5 @@
 """C-Space ISF grasp refinement (OMG Sec. III-E, Algorithm 1), native, for one target in one scene."""
+
 from __future__ import annotations
 
 import copy
@@ -36,8 +37,9 @@ class IsfSettings:
         return to_native(self, _core.IsfSettings, active=[bool(a) for a in active])
 
 
-def hand_sdf(robot, opening: Optional[float] = None, resolution: float = 0.002,
-             grids: "sdf.GridCache | None" = None) -> sdf.SceneSdf:
+def hand_sdf(
+    robot, opening: Optional[float] = None, resolution: float = 0.002, grids: "sdf.GridCache | None" = None
+) -> sdf.SceneSdf:
     """The robot's hand and its fingers (at ``opening``, default open) as SDF parts in the hand-link
     frame (min over parts, so the overlapping closed meshes need no boolean union); part grids from
     ``grids`` when given."""
@@ -59,8 +61,13 @@ def object_surface_local(mesh: trimesh.Trimesh, n: int = 1000, seed: int = 0) ->
     return np.asarray(pts), np.asarray(mesh.face_normals[faces])
 
 
-def object_surface(mesh: trimesh.Trimesh, pose: np.ndarray, n: int = 1000, seed: int = 0,
-                   local: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Tuple[np.ndarray, np.ndarray]:
+def object_surface(
+    mesh: trimesh.Trimesh,
+    pose: np.ndarray,
+    n: int = 1000,
+    seed: int = 0,
+    local: Optional[Tuple[np.ndarray, np.ndarray]] = None,
+) -> Tuple[np.ndarray, np.ndarray]:
     """n seeded surface samples of the object with outward normals, in the world (placing
     ``local``, the object-frame samples, when the caller has them)."""
     pts, normals = object_surface_local(mesh, n, seed) if local is None else local
@@ -73,8 +80,14 @@ class GraspRefiner:
     ``surface``: the target's points and outward normals in the world, (N, 3) each, when they come
     from elsewhere than its mesh (a depth camera's observed points); None samples the mesh."""
 
-    def __init__(self, world: "World", settings: IsfSettings = IsfSettings(), object_points: int = 1000, seed: int = 0,
-                 surface: Optional[Tuple[np.ndarray, np.ndarray]] = None):
+    def __init__(
+        self,
+        world: "World",
+        settings: IsfSettings = IsfSettings(),
+        object_points: int = 1000,
+        seed: int = 0,
+        surface: Optional[Tuple[np.ndarray, np.ndarray]] = None,
+    ):
         robot, cache = world.robot, world.cache
         contacts = grasps.hand_contacts(robot=robot)  # this gripper's pads
         if surface is None:
@@ -85,15 +98,28 @@ class GraspRefiner:
         else:
             pts, nrm = (np.ascontiguousarray(a, dtype=float) for a in surface)
             if pts.ndim != 2 or pts.shape[1] != 3 or nrm.shape != pts.shape or len(pts) == 0:
-                raise ValueError(f"surface: expected points and normals as two (N, 3) arrays, got {pts.shape}, {nrm.shape}")
+                raise ValueError(
+                    f"surface: expected points and normals as two (N, 3) arrays, got {pts.shape}, {nrm.shape}"
+                )
         active = [i < robot.info.arm_dof for i in range(robot.dof)]
         exclude = 1 << world.sdf.index(world.target)
         self._hand_sdf = cache.robot_derived(robot, "hand_sdf", lambda: hand_sdf(robot, grids=cache.grids))
         self.settings, self._object_points, self._from_mesh = settings, object_points, surface is None
         self._pose = np.array(world.target_pose, dtype=float)  # where the samples were placed
-        self._native = _core.GraspRefiner(robot.native, robot.hand_link, contacts.points, contacts.normals,
-                                          self._hand_sdf.native, pts, nrm, world.sdf.native, world.body.links,
-                                          world.body.points, exclude, settings.to_native(active))
+        self._native = _core.GraspRefiner(
+            robot.native,
+            robot.hand_link,
+            contacts.points,
+            contacts.normals,
+            self._hand_sdf.native,
+            pts,
+            nrm,
+            world.sdf.native,
+            world.body.links,
+            world.body.points,
+            exclude,
+            settings.to_native(active),
+        )
         fingers = tuple(getattr(robot, "finger_links", ()))
         if fingers:  # ISF steps may let the fingers touch the support, not press deeper into it
             vertices = cache.finger_geometry(robot, world.start).vertices
@@ -104,8 +130,10 @@ class GraspRefiner:
         """This refiner with the world's target where it lies now (it moved: ``World.move_object``); the
         object-frame samples, hand SDF and support are reused (a rebuild from the mesh would give the same)."""
         if not self._from_mesh:
-            raise ValueError("GraspRefiner.placed: this refiner's surface was given (observed points), not sampled "
-                             "from the target's mesh; build a new one for the new points")
+            raise ValueError(
+                "GraspRefiner.placed: this refiner's surface was given (observed points), not sampled "
+                "from the target's mesh; build a new one for the new points"
+            )
         mesh = world.target_model.mesh
         local = world.cache.surface(mesh, self._object_points, seed, object_surface_local)
         pts, nrm = object_surface(mesh, world.target_pose, self._object_points, seed, local=local)

@@ -8,6 +8,7 @@ only placement remains.
 
 Explicit and bounded: the caller owns it and passes it in; a World made without one gets its own.
 """
+
 from __future__ import annotations
 
 from typing import Callable, Hashable, Optional
@@ -25,10 +26,10 @@ class ModelCache:
     """Per-object and per-robot data shared by worlds; ``max_objects`` bounds each kind."""
 
     def __init__(self, max_objects: int = 64):
-        self.grids = sdf.GridCache(max_objects + 8)             # + the hand's parts
-        self.shapes = collision.ShapeCache(max_objects + 32)    # + the robot's links
-        self._derived = BoundedCache(2 * max_objects + 16)      # surface samples, robot data
-        self.grasp_verdicts = BoundedCache(256 * max_objects)    # per grasp: its quality's margin and fit
+        self.grids = sdf.GridCache(max_objects + 8)  # + the hand's parts
+        self.shapes = collision.ShapeCache(max_objects + 32)  # + the robot's links
+        self._derived = BoundedCache(2 * max_objects + 16)  # surface samples, robot data
+        self.grasp_verdicts = BoundedCache(256 * max_objects)  # per grasp: its quality's margin and fit
 
     def derived(self, key: Hashable, build: Callable):
         """Any other per-object or per-robot value, by a key naming what it is built from."""
@@ -59,8 +60,9 @@ class ModelCache:
 
     def link_meshes(self, robot) -> dict:
         """Link name -> collision mesh in the link frame (None without geometry)."""
-        return self.robot_derived(robot, "link_meshes",
-                                  lambda: {name: robot.collision_meshes(name) for name in robot.link_names})
+        return self.robot_derived(
+            robot, "link_meshes", lambda: {name: robot.collision_meshes(name) for name in robot.link_names}
+        )
 
     def finger_geometry(self, robot, q) -> Optional[collision.HandGeometry]:
         """The fingers' collision hulls in the hand frame with the fingers as in ``q`` (None for a hand
@@ -70,6 +72,7 @@ class ModelCache:
         if not fingers:
             return None
         q = np.asarray(q, dtype=float)
+
         def build():
             vertices = collision.HandGeometry(robot, q, robot.hand_link, fingers).vertices
             vertices.setflags(write=False)  # shared by every world of this robot
@@ -79,8 +82,9 @@ class ModelCache:
         return collision.HandGeometry.from_vertices(vertices)
 
     def body_points(self, robot, per_link: int, seed: int):
-        return self.robot_derived(robot, ("body", int(per_link), int(seed)),
-                                  lambda: robot.sample_body_points(per_link, seed=seed))
+        return self.robot_derived(
+            robot, ("body", int(per_link), int(seed)), lambda: robot.sample_body_points(per_link, seed=seed)
+        )
 
     def ray_mesh(self, mesh) -> RayMesh:
         """The mesh's private copy with its ray tree built (graspability's rays), kept per mesh content."""

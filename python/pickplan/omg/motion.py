@@ -11,6 +11,7 @@ between checked states (which lets a finger graze an obstacle between samples).
 >>> result.status, result.path          # (k, dof) joint waypoints, start first
 >>> plan_motion(world, q_start, PoseGoal(T_hand, free_axis=Axis.z))   # a pose goal: IK's goal set
 """
+
 from __future__ import annotations
 
 import time
@@ -31,30 +32,30 @@ from pickplan.omg.pose_goal import PoseGoal, pose_goal_configurations
 
 class MotionStatus(Option):
     solved = "solved"
-    invalid_start = "invalid_start"    # the start collides
-    invalid_goals = "invalid_goals"    # every goal collides
-    unreachable = "unreachable"        # a pose goal without an IK solution
-    not_found = "not_found"            # no path within the time and sample budget
+    invalid_start = "invalid_start"  # the start collides
+    invalid_goals = "invalid_goals"  # every goal collides
+    unreachable = "unreachable"  # a pose goal without an IK solution
+    not_found = "not_found"  # no path within the time and sample budget
 
 
 class Smoothing(Option):
     """What becomes of a found path."""
 
-    none = "none"            # the shortcut path as it is
-    chomp = "chomp"          # CHOMP from it, kept when it passes the motion check
+    none = "none"  # the shortcut path as it is
+    chomp = "chomp"  # CHOMP from it, kept when it passes the motion check
 
 
 @dataclass(frozen=True)
 class RrtSettings:
     """Mirror of the native ``RrtSettings``."""
 
-    range: float = 0.5             # rad: largest extension
-    resolution: float = 0.01       # m: largest motion of a robot point between sampled states (not certified)
+    range: float = 0.5  # rad: largest extension
+    resolution: float = 0.01  # m: largest motion of a robot point between sampled states (not certified)
     max_iterations: int = 200000
-    time_limit: float = 1.0        # s
+    time_limit: float = 1.0  # s
     seed: int = 0
     goal_bias: float = 0.05
-    certified: bool = True         # prove each segment free (conservative advancement), not sample it
+    certified: bool = True  # prove each segment free (conservative advancement), not sample it
 
     def to_native(self, active=None) -> "_core.RrtSettings":
         return to_native(self, _core.RrtSettings, active=[] if active is None else [bool(a) for a in active])
@@ -63,13 +64,13 @@ class RrtSettings:
 @dataclass(frozen=True)
 class MotionSettings:
     rrt: RrtSettings = field(default_factory=RrtSettings)
-    shortcut_attempts: int = 100     # random shortcuts of an RRT path
+    shortcut_attempts: int = 100  # random shortcuts of an RRT path
     shortcut_min_gain: float = 0.01  # a shortcut gaining less than this fraction of the path's length is not checked
     smoothing: Smoothing = Smoothing.chomp
     chomp: ChompSettings = field(default_factory=lambda: ChompSettings(n=30, epsilon=0.05))
     chomp_iterations: int = 30
-    straight_first: bool = True      # try the straight line to each goal before sampling
-    attempts: int = 3                # RRT-Connect runs (new seeds) before "not_found"
+    straight_first: bool = True  # try the straight line to each goal before sampling
+    attempts: int = 3  # RRT-Connect runs (new seeds) before "not_found"
 
     def __post_init__(self):
         object.__setattr__(self, "smoothing", Smoothing.parse(self.smoothing, "smoothing"))
@@ -78,11 +79,11 @@ class MotionSettings:
 @dataclass
 class MotionResult:
     status: MotionStatus
-    path: np.ndarray                 # (k, dof) waypoints, the start first (empty rows when not solved)
-    goal: int                        # row of the goal set reached (-1: none)
-    source: str                      # "straight", "rrt" (shortcut) or "chomp" (smoothed)
-    timings: dict                    # seconds: check (ends), straight, rrt, shortcut, chomp, total
-    stats: dict = field(default_factory=dict)   # rrt iterations, checks, attempts
+    path: np.ndarray  # (k, dof) waypoints, the start first (empty rows when not solved)
+    goal: int  # row of the goal set reached (-1: none)
+    source: str  # "straight", "rrt" (shortcut) or "chomp" (smoothed)
+    timings: dict  # seconds: check (ends), straight, rrt, shortcut, chomp, total
+    stats: dict = field(default_factory=dict)  # rrt iterations, checks, attempts
     goals: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (G, dof) the goal set planned to
 
     @property
@@ -95,9 +96,17 @@ class MotionWorld:
     robot against itself unless a pair is allowed), the scene SDF (primitives in closed form),
     body points, CHOMP problems and the native motion planner. ``robot``: any URDF ``Robot``."""
 
-    def __init__(self, robot: Robot, obstacles: Sequence[Obstacle], allowed_pairs: Sequence[Tuple[str, str]] = (),
-                 self_collision: bool = True, body_points_per_link: int = 20, body_seed: int = 0,
-                 cache: Optional[ModelCache] = None, sdf_settings: sdf.SdfSettings = sdf.SdfSettings()):
+    def __init__(
+        self,
+        robot: Robot,
+        obstacles: Sequence[Obstacle],
+        allowed_pairs: Sequence[Tuple[str, str]] = (),
+        self_collision: bool = True,
+        body_points_per_link: int = 20,
+        body_seed: int = 0,
+        cache: Optional[ModelCache] = None,
+        sdf_settings: sdf.SdfSettings = sdf.SdfSettings(),
+    ):
         self.robot, self.obstacles = robot, list(obstacles)
         self.cache = cache = ModelCache() if cache is None else cache
         links = set(robot.link_names)
@@ -107,8 +116,14 @@ class MotionWorld:
         settings = collision.CollisionSettings(allowed_pairs=pairs, self_collision=self_collision)
         # The links as their convex hulls (FCL's convex solids): conservative, and a GJK query per pair.
         self.checker = collision.CollisionChecker(
-            robot, [collision.SceneMesh(o.name, o.shape, o.pose) for o in self.obstacles], None, settings,
-            convex_links=True, shapes=cache.shapes, link_meshes=cache.link_meshes(robot))
+            robot,
+            [collision.SceneMesh(o.name, o.shape, o.pose) for o in self.obstacles],
+            None,
+            settings,
+            convex_links=True,
+            shapes=cache.shapes,
+            link_meshes=cache.link_meshes(robot),
+        )
         self.sdf = sdf.SceneSdf()
         add_to_sdf(self.sdf, self.obstacles, sdf_settings, cache.grids)
         # Primitives answer in closed form, cheaper than filling a merged grid; meshes gain from one.
@@ -154,8 +169,9 @@ def resample(path: np.ndarray, count: int) -> np.ndarray:
     return np.stack([np.interp(t, s, P[:, j]) for j in range(P.shape[1])], axis=1)
 
 
-def plan_motion(world: MotionWorld, start, goals: Union[np.ndarray, PoseGoal],
-                settings: MotionSettings = MotionSettings()) -> MotionResult:
+def plan_motion(
+    world: MotionWorld, start, goals: Union[np.ndarray, PoseGoal], settings: MotionSettings = MotionSettings()
+) -> MotionResult:
     """A collision-free joint path from ``start`` to one row of ``goals`` ((G, dof), or one (dof,)),
     or to a ``PoseGoal`` (its IK solutions are the goal set; ``result.goal`` indexes ``result.goals``)."""
     t_total = time.perf_counter()
@@ -173,8 +189,15 @@ def plan_motion(world: MotionWorld, start, goals: Union[np.ndarray, PoseGoal],
 
     def done(status, path, goal, source):
         timings["total"] = time.perf_counter() - t_total
-        return MotionResult(status, np.asarray(path, dtype=float).reshape(-1, robot.dof), goal, source, timings, stats,
-                            G.reshape(-1, robot.dof))
+        return MotionResult(
+            status,
+            np.asarray(path, dtype=float).reshape(-1, robot.dof),
+            goal,
+            source,
+            timings,
+            stats,
+            G.reshape(-1, robot.dof),
+        )
 
     if G.size == 0:
         return done(MotionStatus.unreachable, np.zeros((0, robot.dof)), -1, "")
@@ -201,8 +224,11 @@ def plan_motion(world: MotionWorld, start, goals: Union[np.ndarray, PoseGoal],
     for attempt in range(settings.attempts):
         stats["attempts"] = attempt + 1
         t = time.perf_counter()
-        out = planner.rrt_connect(q0, G[free]) if attempt == 0 else \
-            world.planner(replace(rrt, seed=rrt.seed + attempt)).rrt_connect(q0, G[free])
+        out = (
+            planner.rrt_connect(q0, G[free])
+            if attempt == 0
+            else world.planner(replace(rrt, seed=rrt.seed + attempt)).rrt_connect(q0, G[free])
+        )
         timings["rrt"] += time.perf_counter() - t
         stats["iterations"] += int(out.iterations)
         stats["checks"] += int(out.checks)
@@ -234,8 +260,14 @@ def smooth_path(world: MotionWorld, path: np.ndarray, settings: MotionSettings) 
     return smooth if world.valid(smooth, settings.rrt.resolution, settings.rrt.certified) else None
 
 
-def plan_chomp(world: MotionWorld, start, goal, settings: MotionSettings = MotionSettings(),
-               initializations: int = 1, seed: int = 0) -> MotionResult:
+def plan_chomp(
+    world: MotionWorld,
+    start,
+    goal,
+    settings: MotionSettings = MotionSettings(),
+    initializations: int = 1,
+    seed: int = 0,
+) -> MotionResult:
     """CHOMP alone (no sampling): from the straight line to ``goal``, then, while none passes the motion
     check, from ``initializations - 1`` more paths through a random configuration (seeded); the first
     that passes is returned. What CHOMP does without a sampling-based seed (the ablation of ``plan_motion``)."""
@@ -255,5 +287,6 @@ def plan_chomp(world: MotionWorld, start, goal, settings: MotionSettings = Motio
             timings["total"] = time.perf_counter() - t_total
             return MotionResult(MotionStatus.solved, path, 0, "chomp", timings, {"initializations": k + 1})
     timings["total"] = time.perf_counter() - t_total
-    return MotionResult(MotionStatus.not_found, np.zeros((0, robot.dof)), -1, "", timings,
-                        {"initializations": int(initializations)})
+    return MotionResult(
+        MotionStatus.not_found, np.zeros((0, robot.dof)), -1, "", timings, {"initializations": int(initializations)}
+    )

@@ -18,6 +18,7 @@ observations give one.
 >>> moving = MovingPlanner(Replanner(OMGPlanner(None, scene)))
 >>> plan = moving.plan(motion, now=t, start=q_now)     # plan.timed: the trajectory from now; plan.arrival
 """
+
 from __future__ import annotations
 
 import math
@@ -50,8 +51,9 @@ class TargetMotion:
 
     def __post_init__(self):
         pose = _finite(self.pose, (4, 4), "target motion: pose")
-        if not np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-6) or \
-                not np.allclose(pose[3], [0, 0, 0, 1]):
+        if not np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-6) or not np.allclose(
+            pose[3], [0, 0, 0, 1]
+        ):
             raise ValueError("target motion: pose is not a rigid transform")
         object.__setattr__(self, "pose", pose)
         object.__setattr__(self, "velocity", _finite(self.velocity, (3,), "target motion: velocity"))
@@ -88,7 +90,9 @@ class MotionEstimator:
         """Adds the pose observed at time ``t`` (later than the last) and returns the motion estimated now."""
         pose = _finite(pose, (4, 4), "observation: pose")
         if not math.isfinite(t) or (self._times and t <= self._times[-1]):
-            raise ValueError(f"observation: time must be finite and after the last ({self._times[-1] if self._times else None}), got {t}")
+            raise ValueError(
+                f"observation: time must be finite and after the last ({self._times[-1] if self._times else None}), got {t}"
+            )
         velocity = np.zeros(3) if self.motion is None else self.motion.velocity
         # (the jump test needs a velocity: before the first fit, a moving target is not where it was)
         if self._fitted and np.linalg.norm(pose[:3, 3] - self.motion.predict(t)[:3, 3]) > self.jump:
@@ -113,16 +117,16 @@ class MotionEstimator:
 class ReplanMode(Option):
     """How each plan of a ``MovingPlanner`` is made."""
 
-    warm = "warm"    # Replanner.replan: from the last plan, goals following the target
+    warm = "warm"  # Replanner.replan: from the last plan, goals following the target
     fresh = "fresh"  # Replanner.plan: from scratch in the moved world
 
 
 @dataclass(frozen=True)
 class MovingSettings:
-    timing_rate: float = 240.0       # Hz the plan is timed at (its duration is the arrival)
-    timing_grid: int = 4             # TOPP-RA grid points per waypoint interval (time_parameterize)
-    timing_spacing: float = 0.1      # rad between the waypoints timed (timing_waypoints; 0: all)
-    prediction_rounds: int = 3       # plans per call at most: predict, plan, time, predict again
+    timing_rate: float = 240.0  # Hz the plan is timed at (its duration is the arrival)
+    timing_grid: int = 4  # TOPP-RA grid points per waypoint interval (time_parameterize)
+    timing_spacing: float = 0.1  # rad between the waypoints timed (timing_waypoints; 0: all)
+    prediction_rounds: int = 3  # plans per call at most: predict, plan, time, predict again
     arrival_tolerance: float = 0.02  # s: a plan whose arrival moved less is kept
     mode: ReplanMode = ReplanMode.warm
 
@@ -133,8 +137,10 @@ class MovingSettings:
             if int(getattr(self, name)) != getattr(self, name) or getattr(self, name) < 1:
                 raise ValueError(f"moving settings: {name} must be an integer >= 1, got {getattr(self, name)}")
         if not (self.arrival_tolerance >= 0 and self.timing_spacing >= 0):
-            raise ValueError(f"moving settings: arrival_tolerance and timing_spacing must be >= 0, got "
-                             f"{self.arrival_tolerance}, {self.timing_spacing}")
+            raise ValueError(
+                f"moving settings: arrival_tolerance and timing_spacing must be >= 0, got "
+                f"{self.arrival_tolerance}, {self.timing_spacing}"
+            )
         object.__setattr__(self, "mode", ReplanMode.parse(self.mode, "replan mode"))
 
 
@@ -142,14 +148,14 @@ class MovingSettings:
 class MovingPlan:
     result: PlanResult
     timed: Optional[TimedTrajectory]  # from ``now``: sample k at now + k / timing_rate (None: nothing planned)
-    start_time: float                 # s, ``now``
-    arrival: float                    # s, when the timed plan ends (the hand at its goal)
-    target_pose: np.ndarray           # the target's pose predicted for the arrival, that was planned to
-    rounds: int                       # plans made (prediction rounds)
-    seconds: float                    # s of the call on the planner's clock (OMGSettings.clock): plans and timing,
-                                      # the scene's preparation left out
-    arrival_error: float = 0.0        # m the target moves between the arrival planned for and the plan's
-    planner_seconds: float = 0.0      # of ``seconds``, in the planner (PlanResult.timings' totals; the rest: timing)
+    start_time: float  # s, ``now``
+    arrival: float  # s, when the timed plan ends (the hand at its goal)
+    target_pose: np.ndarray  # the target's pose predicted for the arrival, that was planned to
+    rounds: int  # plans made (prediction rounds)
+    # s of the call on the planner's clock (OMGSettings.clock): plans and timing, the scene's preparation left out
+    seconds: float
+    arrival_error: float = 0.0  # m the target moves between the arrival planned for and the plan's
+    planner_seconds: float = 0.0  # of ``seconds``, in the planner (PlanResult.timings' totals; the rest: timing)
 
 
 def timing_waypoints(Q: np.ndarray, spacing: float, tail: int) -> np.ndarray:
@@ -186,8 +192,13 @@ class MovingPlanner:
         self.replanner, self.settings = replanner, settings
         self.last: Optional[MovingPlan] = None
 
-    def plan(self, motion: TargetMotion, now: float, start: Optional[np.ndarray] = None,
-             start_velocity: Optional[np.ndarray] = None) -> MovingPlan:
+    def plan(
+        self,
+        motion: TargetMotion,
+        now: float,
+        start: Optional[np.ndarray] = None,
+        start_velocity: Optional[np.ndarray] = None,
+    ) -> MovingPlan:
         """A plan from ``start`` (moving at ``start_velocity``; None: at rest) at time ``now`` to the target
         where ``motion`` puts it on the hand's arrival."""
         if not isinstance(motion, TargetMotion):
@@ -208,14 +219,25 @@ class MovingPlanner:
             if not result.planned:
                 timed = None
                 break
-            Q = timing_waypoints(result.trajectory, s.timing_spacing, self.replanner.planner.settings.goals.standoff_steps)
+            Q = timing_waypoints(
+                result.trajectory, s.timing_spacing, self.replanner.planner.settings.goals.standoff_steps
+            )
             timed = _timed(Q, result.limits, s, start_velocity)
             d = timed.duration
             if abs(d - d_planned) <= s.arrival_tolerance:
                 break
         arrival = now + (timed.duration if timed is not None else 0.0)
-        plan = MovingPlan(result, timed, float(now), float(arrival), pose, rounds, clock() - t0 - prepare,
-                          motion.speed * abs(arrival - now - d_planned), planner)
+        plan = MovingPlan(
+            result,
+            timed,
+            float(now),
+            float(arrival),
+            pose,
+            rounds,
+            clock() - t0 - prepare,
+            motion.speed * abs(arrival - now - d_planned),
+            planner,
+        )
         self.last = plan
         return plan
 

@@ -5,6 +5,7 @@ selected goal, pre-termination and the dense success test, all with the GIL rele
 trip through Python per iteration. The same loop in Python, the oracle the native one is tested
 against, is tests/python/omg_reference_loop.py.
 """
+
 from __future__ import annotations
 
 import time
@@ -20,7 +21,7 @@ from pickplan.omg.selection import EXP, MirrorDescent, Selection, SelectionPolic
 class StageClock(Option):
     """What the planner's stage timings read."""
 
-    wall = "wall"              # time.perf_counter / steady_clock
+    wall = "wall"  # time.perf_counter / steady_clock
     thread_cpu = "thread_cpu"  # the planning thread's CPU time (a shared machine's load does not count)
 
     def timer(self):
@@ -56,26 +57,51 @@ def loop_settings(settings, policy, metrics: "_core.MetricSettings") -> "_core.O
     """The native loop's settings from ``OMGSettings`` and its (fresh) policy."""
     out = _core.OmgLoopSettings()
     out.selection = native_selection(policy)
-    for name in ("iterations", "isf_steps", "isf_max_shift", "cost_time_stride", "cost_point_stride",
-                 "pre_terminate", "min_iterations", "check_every"):
+    for name in (
+        "iterations",
+        "isf_steps",
+        "isf_max_shift",
+        "cost_time_stride",
+        "cost_point_stride",
+        "pre_terminate",
+        "min_iterations",
+        "check_every",
+    ):
         setattr(out, name, getattr(settings, name))
     out.metrics = metrics
     out.clock = getattr(_core.StageClock, StageClock.parse(settings.clock, "stage clock").name)
     return out
 
 
-def run_native(chomp, refiner, robot, q0, goals, tails, grasp_index, settings, policy, metric_settings,
-               warm=None) -> dict:
+def run_native(
+    chomp, refiner, robot, q0, goals, tails, grasp_index, settings, policy, metric_settings, warm=None
+) -> dict:
     """Algorithm 2's loop over a goal set (``goals``, their approach ``tails`` and the input grasp
     each came from) with ``chomp`` (its problem), ``refiner`` (a ``GraspRefiner`` or None) for
     ``robot``; returns ``_core.run_omg_loop``'s ``OmgLoopResult`` (xi, goal, metrics, history, seconds per stage, ...).
     ``warm``: (initial trajectory (n, dof), its goal index or -1[, one cost per goal for the selection to start
     from, or None: estimated]) to start from a previous plan."""
     native = loop_settings(settings, policy, chomp.native_metric_settings(metric_settings))
-    initial, initial_goal, costs = (None, -1, None) if warm is None else \
-        (np.asarray(warm[0], dtype=float), int(warm[1]), None if len(warm) < 3 or warm[2] is None else
-         np.asarray(warm[2], dtype=float))
-    return _core.run_omg_loop(chomp.problem, None if refiner is None else refiner._native, robot.hand_link,
-                              np.asarray(q0, dtype=float), np.asarray(goals), np.asarray(tails),
-                              np.asarray(grasp_index), cubic_blend(chomp.settings.n), native,
-                              initial=initial, initial_goal=initial_goal, initial_costs=costs)
+    initial, initial_goal, costs = (
+        (None, -1, None)
+        if warm is None
+        else (
+            np.asarray(warm[0], dtype=float),
+            int(warm[1]),
+            None if len(warm) < 3 or warm[2] is None else np.asarray(warm[2], dtype=float),
+        )
+    )
+    return _core.run_omg_loop(
+        chomp.problem,
+        None if refiner is None else refiner._native,
+        robot.hand_link,
+        np.asarray(q0, dtype=float),
+        np.asarray(goals),
+        np.asarray(tails),
+        np.asarray(grasp_index),
+        cubic_blend(chomp.settings.n),
+        native,
+        initial=initial,
+        initial_goal=initial_goal,
+        initial_costs=costs,
+    )

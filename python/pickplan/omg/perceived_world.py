@@ -20,6 +20,7 @@ Camera poses are in the robot base frame (the robot stands at the origin, as in 
 >>> world = PerceivedWorld(Observation.load("obs.npz"))
 >>> result = PerceivedPlanner(world).plan()
 """
+
 from __future__ import annotations
 
 import functools
@@ -38,7 +39,8 @@ from pickplan.omg import isf
 from pickplan.omg.chomp import Chomp
 from pickplan.omg.goals import GoalSetSettings
 from pickplan.omg.grasps import quality
-from pickplan.omg.grasps.points import PointGraspSettings, denoised, grasps_from_points, points_load
+from pickplan.omg.grasps.point_geometry import denoised, points_load
+from pickplan.omg.grasps.points import PointGraspSettings, grasps_from_points
 from pickplan.omg.grasps.sets import GraspSet
 from pickplan.omg.model_cache import ModelCache
 from pickplan.omg.native_loop import StageClock
@@ -56,12 +58,12 @@ class PerceivedWorldSettings:
     grasps: PointGraspSettings = dataclass_field(default_factory=PointGraspSettings)
     body_points_per_link: Optional[int] = None  # as WorldSettings: None, the robot description's
     body_seed: int = 0
-    hand_points_per_link: int = 60    # open-hand samples checked against the field and the plane
+    hand_points_per_link: int = 60  # open-hand samples checked against the field and the plane
     target_resolution: float = 0.005  # m, the target's (excluded) distance grid
-    isf_points: int = 1000            # observed target points C-Space ISF refines on (the paper: 1000)
-    seed: int = 0                     # plane RANSAC, hand samples, ISF subsample
+    isf_points: int = 1000  # observed target points C-Space ISF refines on (the paper: 1000)
+    seed: int = 0  # plane RANSAC, hand samples, ISF subsample
     hull: HullSettings = dataclass_field(default_factory=HullSettings)
-    use_hull: bool = False            # grasps clear the target's visibility hull, not only its observed points
+    use_hull: bool = False  # grasps clear the target's visibility hull, not only its observed points
     clock: StageClock = StageClock.wall  # what ``PerceivedWorld.seconds`` read (thread_cpu: a shared machine's
     #                                      other processes do not count)
 
@@ -117,13 +119,21 @@ class PerceivedWorld:
     """A ``World`` built from an ``Observation`` (see the module docstring). ``robot`` None: the Panda; any described robot
     (``robots.load_robot``) otherwise."""
 
-    def __init__(self, observation: Observation, robot=None, settings: PerceivedWorldSettings = PerceivedWorldSettings(),
-                 perceived: Optional[PerceivedScene] = None, cache: Optional[ModelCache] = None):
+    def __init__(
+        self,
+        observation: Observation,
+        robot=None,
+        settings: PerceivedWorldSettings = PerceivedWorldSettings(),
+        perceived: Optional[PerceivedScene] = None,
+        cache: Optional[ModelCache] = None,
+    ):
         if not isinstance(observation, Observation):
             raise TypeError(f"observation: expected a pickplan Observation, got {type(observation).__name__}")
         if robot is not None and not isinstance(robot, str) and not hasattr(robot, "info"):
-            raise ValueError("robot: expected a description name or file or a described robot (robots.load_robot), "
-                             f"got {type(robot).__name__}")
+            raise ValueError(
+                "robot: expected a description name or file or a described robot (robots.load_robot), "
+                f"got {type(robot).__name__}"
+            )
         self.observation, self.settings = observation, settings
         self.scene = ObservedScene()
         clock = settings.timer()
@@ -132,13 +142,19 @@ class PerceivedWorld:
         self.cache = ModelCache() if cache is None else cache  # the robot's data, shared with other worlds
         self.robot = self.cache.robot(robot if robot is not None else "panda", np.eye(4))
         if len(self.perceived.target_points) < 3:
-            raise InputError("fewer than 3 target points with depth inside the workspace; the target is not seen",
-                             path=None if observation.source == "<memory>" else observation.source, field="target_mask")
+            raise InputError(
+                "fewer than 3 target points with depth inside the workspace; the target is not seen",
+                path=None if observation.source == "<memory>" else observation.source,
+                field="target_mask",
+            )
         self.sdf: SceneSdf = self.perceived.sdf
         if TARGET not in self.sdf.names:  # a PerceivedScene handed to a second world has it already
-            self.sdf.add_object(TARGET, target_grid(self.perceived.target_points, settings.target_resolution), np.eye(4))
-        self.body = self.cache.body_points(self.robot, settings.body_points_per_link
-                                           or self.robot.description.body_points_per_link, settings.body_seed)
+            self.sdf.add_object(
+                TARGET, target_grid(self.perceived.target_points, settings.target_resolution), np.eye(4)
+            )
+        self.body = self.cache.body_points(
+            self.robot, settings.body_points_per_link or self.robot.description.body_points_per_link, settings.body_seed
+        )
         self._refiners: dict = {}
         self._chomps: dict = {}
         self.seconds = dict(self.perceived.seconds, world=clock() - t0, grasps=0.0)
@@ -157,8 +173,10 @@ class PerceivedWorld:
 
     @property
     def target_model(self):
-        raise ValueError("a perceived world has no object model: its grasps come from the observed points "
-                         "(PerceivedWorld.grasps; PerceivedPlanner plans with them)")
+        raise ValueError(
+            "a perceived world has no object model: its grasps come from the observed points "
+            "(PerceivedWorld.grasps; PerceivedPlanner plans with them)"
+        )
 
     @property
     def graspability(self) -> Graspability:
@@ -203,7 +221,9 @@ class PerceivedWorld:
 
     @functools.cached_property
     def hand_sdf(self) -> SceneSdf:
-        return self.cache.robot_derived(self.robot, "hand_sdf", lambda: isf.hand_sdf(self.robot, grids=self.cache.grids))
+        return self.cache.robot_derived(
+            self.robot, "hand_sdf", lambda: isf.hand_sdf(self.robot, grids=self.cache.grids)
+        )
 
     @functools.cached_property
     def hand_points(self) -> Tuple[np.ndarray, np.ndarray]:
@@ -217,7 +237,7 @@ class PerceivedWorld:
         links = (robot.hand_link,) + tuple(robot.finger_links)
         body = robot.sample_body_points(self.settings.hand_points_per_link, seed=self.settings.seed, links=links)
         q = robot.ready_configuration.copy()
-        q[robot.info.arm_dof:] = robot.info.finger_open
+        q[robot.info.arm_dof :] = robot.info.finger_open
         poses = robot.fk(q)
         H_inv = np.linalg.inv(poses[robot.link_index(robot.hand_link)])
         rel = np.einsum("ij,njk->nik", H_inv, poses[body.links])
@@ -245,14 +265,28 @@ class PerceivedWorld:
         """Up to ``n`` grasps of the observed target (world frame) clear of the field and the plane."""
         clock = self.settings.timer()
         t0 = clock()
-        gs = grasps_from_points(self.perceived.target_points, self.perceived.target_normals, self.plane,
-                                self.hand_sdf, n=n, seed=seed, scene_distance=self.obstacle_distance,
-                                hand_points=self.hand_points[0], settings=self.settings.grasps,
-                                gripper=self.robot.info, hull=self.hull if self.settings.use_hull else None,
-                                denoised_points=self._quality_points[0] if self.settings.grasps.denoise else None)
+        gs = grasps_from_points(
+            self.perceived.target_points,
+            self.perceived.target_normals,
+            self.plane,
+            self.hand_sdf,
+            n=n,
+            seed=seed,
+            scene_distance=self.obstacle_distance,
+            hand_points=self.hand_points[0],
+            settings=self.settings.grasps,
+            gripper=self.robot.info,
+            hull=self.hull if self.settings.use_hull else None,
+            denoised_points=self._quality_points[0] if self.settings.grasps.denoise else None,
+        )
         keep = self.clear_of_plane(gs.poses, standoff) if len(gs) else np.zeros(0, dtype=bool)
-        out = GraspSet(gs.name, gs.poses[keep], gs.object_name, scores=gs.scores[keep],
-                       info={k: np.asarray(v)[keep] for k, v in gs.info.items()})
+        out = GraspSet(
+            gs.name,
+            gs.poses[keep],
+            gs.object_name,
+            scores=gs.scores[keep],
+            info={k: np.asarray(v)[keep] for k, v in gs.info.items()},
+        )
         self.seconds["grasps"] += clock() - t0
         return out
 
@@ -273,15 +307,16 @@ class PerceivedWorld:
     def grasp_quality(self, grasps: np.ndarray, settings: quality.QualitySettings) -> quality.Quality:
         """The quality (``grasps.quality``) of hand poses (world frame) on the observed target: patches
         on its denoised points (an unseen side mirrors the seen one), its load from the points
-        (``points.points_load``: ``settings.point_density`` over their hull down to the plane)."""
+        (``point_geometry.points_load``: ``settings.point_density`` over their hull down to the plane)."""
         P, tree = self._quality_points
         load = points_load(P, self.plane, settings.point_density)
         frames = np.asarray(grasps, float).reshape(-1, 4, 4) @ self.robot.info.grasp_frame
         grip = quality.Grip.of(self.robot.info, settings.object_friction)
         # no normals: fitted on a few noisy points of a pen or an edge they are too rough to tilt a
         # friction cone by (the patches come from the points' positions alone)
-        return quality.grasp_quality(P, frames, load, grip, settings, tree, mirror=True,
-                                     compliance=settings.point_compliance)
+        return quality.grasp_quality(
+            P, frames, load, grip, settings, tree, mirror=True, compliance=settings.point_compliance
+        )
 
     def isf_surface(self, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
         """A seeded subsample of the observed target points and normals (what ISF refines on)."""
@@ -313,12 +348,19 @@ class PerceivedPlanner(OMGPlanner):
     ...     result = planner.plan(observation=obs)
     """
 
-    def __init__(self, world: Optional[PerceivedWorld] = None, settings: OMGSettings = OMGSettings(), robot=None,
-                 world_settings: PerceivedWorldSettings = PerceivedWorldSettings(), cache: Optional[ModelCache] = None):
+    def __init__(
+        self,
+        world: Optional[PerceivedWorld] = None,
+        settings: OMGSettings = OMGSettings(),
+        robot=None,
+        world_settings: PerceivedWorldSettings = PerceivedWorldSettings(),
+        cache: Optional[ModelCache] = None,
+    ):
         if world is not None and not isinstance(world, PerceivedWorld):
             raise TypeError(f"world: expected a PerceivedWorld, got {type(world).__name__}")
-        super().__init__(None, world.scene if world is not None else ObservedScene(), settings, world=world,
-                         cache=cache)
+        super().__init__(
+            None, world.scene if world is not None else ObservedScene(), settings, world=world, cache=cache
+        )
         self.perceived_robot = robot if robot is not None else (world.robot if world is not None else None)
         self.world_settings = world.settings if world is not None else world_settings
 
@@ -332,8 +374,14 @@ class PerceivedPlanner(OMGPlanner):
             raise ValueError("no observation: give one (PerceivedPlanner(world) or plan(observation=...))")
         return self._world
 
-    def plan(self, start: Optional[np.ndarray] = None, target: Optional[str] = None, grasps=None, scene=None,
-             observation: Optional[Observation] = None):
+    def plan(
+        self,
+        start: Optional[np.ndarray] = None,
+        target: Optional[str] = None,
+        grasps=None,
+        scene=None,
+        observation: Optional[Observation] = None,
+    ):
         """``OMGPlanner.plan`` in the world of ``observation`` (``use_observation``) if given, else the
         current one; a perceived world has one target (``target`` and ``scene`` do not apply)."""
         if scene is not None:

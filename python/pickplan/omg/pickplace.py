@@ -15,6 +15,7 @@ The segments, each a straight IK path or an OMG plan:
 >>> plan = planner.plan()                     # or planner.plan_pick(); planner.attach(pick); planner.plan_place(...)
 >>> plan.status, plan.segments()              # [("approach", Q), ("lift", Q), ("transfer", Q), ("retract", Q)]
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -43,10 +44,10 @@ class PickPlaceStatus(Option):
     """How a pick-and-place plan ended (``PickPlacePlan.reason`` says more)."""
 
     success = "success"
-    pick_failed = "pick_failed"          # the grasp plan failed (``pick.status``: no_goals, in_collision, ...)
-    lift_blocked = "lift_blocked"        # the straight lift is unreachable or collides
-    no_place_goals = "no_place_goals"    # no place goal (the reason: out of reach, too small, blocked)
-    place_failed = "place_failed"        # the transfer failed the success test
+    pick_failed = "pick_failed"  # the grasp plan failed (``pick.status``: no_goals, in_collision, ...)
+    lift_blocked = "lift_blocked"  # the straight lift is unreachable or collides
+    no_place_goals = "no_place_goals"  # no place goal (the reason: out of reach, too small, blocked)
+    place_failed = "place_failed"  # the transfer failed the success test
     retract_blocked = "retract_blocked"  # the straight retract is unreachable or collides
 
 
@@ -64,18 +65,20 @@ class PickPlaceSettings:
     # held object is never an obstacle. Its goal-cost estimates read every 3rd tail waypoint and body point
     # (a pick's 2nd): they were most of the transfer's time; on the bench's first 12 YCB scenes the
     # transfers chose the same goals with them (of 20 goals: all 11; of 10: 10 of 11), and all succeeded.
-    place: OMGSettings = field(default_factory=lambda: OMGSettings(chomp=TRANSFER_CHOMP, refine=False,
-                                                                   transit_avoids_target=False,
-                                                                   cost_time_stride=3, cost_point_stride=3))
+    place: OMGSettings = field(
+        default_factory=lambda: OMGSettings(
+            chomp=TRANSFER_CHOMP, refine=False, transit_avoids_target=False, cost_time_stride=3, cost_point_stride=3
+        )
+    )
     goals: PlaceSettings = field(default_factory=PlaceSettings)
     attach: AttachSettings = field(default_factory=AttachSettings)
     # The lift rises until the robot and the held object keep the success test's clearance from every
     # object (the transfer starts there and cannot move its start), at least lift_min, at most lift_max.
-    lift_min: float = 0.08        # m along the support's normal
+    lift_min: float = 0.08  # m along the support's normal
     lift_max: float = 0.30
-    lift_step: float = 0.01       # m between the lift's waypoints
-    lift_contact: float = 0.01    # m of the lift in which the held object may touch its support
-    retract: float = 0.10         # m straight up after the release
+    lift_step: float = 0.01  # m between the lift's waypoints
+    lift_contact: float = 0.01  # m of the lift in which the held object may touch its support
+    retract: float = 0.10  # m straight up after the release
     retract_steps: int = 10
     # The carry (lift, transfer) is timed within this share of the velocity limits (its square of the
     # acceleration limits): an object held by friction alone slips when the hand jerks it about.
@@ -93,10 +96,10 @@ class PickPlacePlan:
     held: Optional[HeldObject] = None
     place: Optional[PlanResult] = None
     place_goals: Optional[PlaceGoalSet] = None
-    place_pose: Optional[np.ndarray] = None   # (4, 4) the object's planned pose at release
+    place_pose: Optional[np.ndarray] = None  # (4, 4) the object's planned pose at release
     retract: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     timings: dict = field(default_factory=dict)
-    carry_speed: float = 1.0                  # the carry's share of the limits (``PickPlaceSettings``)
+    carry_speed: float = 1.0  # the carry's share of the limits (``PickPlaceSettings``)
 
     @property
     def success(self) -> bool:
@@ -119,18 +122,23 @@ class PickPlacePlan:
         segs = [Q for _, Q in self.segments()]
         return np.vstack([segs[0]] + [Q[1:] for Q in segs[1:]])
 
-    def timed(self, rate: float = 1000.0, names: Optional[Tuple[str, ...]] = None,
-              limits: Optional[KinematicLimits] = None) -> List[Tuple[str, TimedTrajectory]]:
+    def timed(
+        self, rate: float = 1000.0, names: Optional[Tuple[str, ...]] = None, limits: Optional[KinematicLimits] = None
+    ) -> List[Tuple[str, TimedTrajectory]]:
         """Each segment (of ``names``, default all) timed within ``limits`` (default: the robot's), rest to
         rest (the hand stops to close, to release and between straight segments); the carry (lift,
         transfer) within ``carry_speed`` of the velocity limits and its square of the acceleration limits."""
         limits, k = limits or self.pick.limits, self.carry_speed
         carry = KinematicLimits(limits.velocity * k, limits.acceleration * k * k)
-        return [(name, time_parameterize(Q, rate, carry if name in ("lift", "transfer") else limits))
-                for name, Q in self.segments() if names is None or name in names]
+        return [
+            (name, time_parameterize(Q, rate, carry if name in ("lift", "transfer") else limits))
+            for name, Q in self.segments()
+            if names is None or name in names
+        ]
 
-    def timed_task(self, robot, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
-                   gripper_seconds: float = 0.5) -> Tuple[TimedTrajectory, List[Tuple[str, float, float]]]:
+    def timed_task(
+        self, robot, rate: float = 1000.0, limits: Optional[KinematicLimits] = None, gripper_seconds: float = 0.5
+    ) -> Tuple[TimedTrajectory, List[Tuple[str, float, float]]]:
         """The whole task as one trajectory for a controller: approach, **close** (the arm still, the
         fingers to ``finger_closed``: they stop on the object), lift and transfer with the fingers
         commanded closed, **release** (to the open hand), retract; and each part's (name, start, end) in
@@ -151,17 +159,23 @@ class PickPlacePlan:
 
     def to_dict(self) -> dict:
         """JSON-ready: status, reason, segments, held object, place pose, timings (seconds)."""
-        d = {"status": self.status.value, "reason": self.reason, "pick_status": self.pick.status.value,
-             "segments": [{"name": n, "waypoints": np.asarray(Q).tolist()} for n, Q in self.segments()],
-             "timings": {k: float(v) for k, v in self.timings.items()}}
+        d = {
+            "status": self.status.value,
+            "reason": self.reason,
+            "pick_status": self.pick.status.value,
+            "segments": [{"name": n, "waypoints": np.asarray(Q).tolist()} for n, Q in self.segments()],
+            "timings": {k: float(v) for k, v in self.timings.items()},
+        }
         if self.held is not None:
             d["held"] = self.held.to_dict()
         if self.place_pose is not None:
             d["place_pose"] = np.asarray(self.place_pose).tolist()
         if self.place is not None:
             d["place_status"] = self.place.status.value
-            d["place_metrics"] = {k: (bool(v) if isinstance(v, (bool, np.bool_)) else float(v))
-                                  for k, v in self.place.metrics.to_dict().items()}
+            d["place_metrics"] = {
+                k: (bool(v) if isinstance(v, (bool, np.bool_)) else float(v))
+                for k, v in self.place.metrics.to_dict().items()
+            }
         if self.place_goals is not None:
             d["place_goal_reasons"] = self.place_goals.reason_counts()
             d["place_goal_set"] = np.asarray(self.place_goals.goal_set.goals).tolist()
@@ -186,22 +200,36 @@ def _retract_checker(world, place_pose: np.ndarray) -> Optional[collision.Collis
     if not hasattr(world, "scene_meshes"):
         return None
     robot = world.robot
-    meshes = [collision.SceneMesh(m.name, m.mesh, place_pose if m.name == world.target else m.pose)
-              for m in world.scene_meshes()]
+    meshes = [
+        collision.SceneMesh(m.name, m.mesh, place_pose if m.name == world.target else m.pose)
+        for m in world.scene_meshes()
+    ]
     moving = set(robot.moving_links())
-    allowed = tuple((n, "table") for i, n in enumerate(robot.link_names) if i not in moving) + \
-        tuple((f, o) for f in robot.finger_links for o in (world.target, "table"))
+    allowed = tuple((n, "table") for i, n in enumerate(robot.link_names) if i not in moving) + tuple(
+        (f, o) for f in robot.finger_links for o in (world.target, "table")
+    )
     table = collision.Table(tuple(np.asarray(world.scene.table.size, float)), np.asarray(world.scene.table.pose, float))
-    return collision.CollisionChecker(robot, meshes, table, collision.CollisionSettings(allowed_pairs=allowed),
-                                      shapes=world.cache.shapes, link_meshes=world.cache.link_meshes(robot))
+    return collision.CollisionChecker(
+        robot,
+        meshes,
+        table,
+        collision.CollisionSettings(allowed_pairs=allowed),
+        shapes=world.cache.shapes,
+        link_meshes=world.cache.link_meshes(robot),
+    )
 
 
 class PickPlacePlanner:
     """Pick and place with an OMG planner (``OMGPlanner`` or ``PerceivedPlanner``): ``plan`` does the whole
     task; ``plan_pick``, ``attach``, ``plan_lift``, ``plan_place`` and ``plan_retract`` are its steps."""
 
-    def __init__(self, planner: OMGPlanner, request: PlaceRequest, settings: PickPlaceSettings = PickPlaceSettings(),
-                 transfer=None):
+    def __init__(
+        self,
+        planner: OMGPlanner,
+        request: PlaceRequest,
+        settings: PickPlaceSettings = PickPlaceSettings(),
+        transfer=None,
+    ):
         """``transfer(world, q0, goal_set) -> PlanResult``: another planner for the transfer (a baseline);
         None: Algorithm 2 (``planner.plan_to_goal_set`` with ``settings.place``)."""
         self.planner, self.request, self.settings = planner, request, settings
@@ -241,12 +269,13 @@ class PickPlacePlanner:
         first = int(round(s.lift_min / s.lift_step))
         X = carrying.robot.transform_points(path[first:], carrying.body)
         # measured as the success test measures (the transfer starts here, and its test reads this start)
-        d, _ = carrying.sdf.distance(X.reshape(-1, 3), cutoff=need, exclude=(carrying.target,), exclude_table=True,
-                                     reference=True)
+        d, _ = carrying.sdf.distance(
+            X.reshape(-1, 3), cutoff=need, exclude=(carrying.target,), exclude_table=True, reference=True
+        )
         clear = np.flatnonzero(d.reshape(len(X), -1).min(axis=1) >= need)
-        path = path[:first + (int(clear[0]) if len(clear) else len(X) - 1) + 1]
+        path = path[: first + (int(clear[0]) if len(clear) else len(X) - 1) + 1]
         contact = int(np.ceil(s.lift_contact / s.lift_step)) + 1
-        return path, bool(np.all(good[:len(path) - 1])) and _path_clear(carrying, path, contact)
+        return path, bool(np.all(good[: len(path) - 1])) and _path_clear(carrying, path, contact)
 
     def plan_place(self, carrying: HeldWorld, start: np.ndarray) -> Tuple[PlaceGoalSet, Optional[PlanResult]]:
         """The place goal set from ``start`` (the lifted configuration) and the transfer to it (None
@@ -271,12 +300,19 @@ class PickPlacePlanner:
         pick = self.plan_pick(start, grasps)
         timings = {"pick": pick.timings.get("total", 0.0)}
         if not pick.success:
-            return PickPlacePlan(PickPlaceStatus.pick_failed, f"pick: {pick.status.value} {pick.reason}".strip(),
-                                 pick, timings=timings)
+            return PickPlacePlan(
+                PickPlaceStatus.pick_failed, f"pick: {pick.status.value} {pick.reason}".strip(), pick, timings=timings
+            )
         return self.plan_after_pick(pick, timings=timings, t0=t0)
 
-    def plan_after_pick(self, pick: PlanResult, held: Optional[HeldObject] = None, start: Optional[np.ndarray] = None,
-                        timings: Optional[dict] = None, t0: Optional[float] = None) -> PickPlacePlan:
+    def plan_after_pick(
+        self,
+        pick: PlanResult,
+        held: Optional[HeldObject] = None,
+        start: Optional[np.ndarray] = None,
+        timings: Optional[dict] = None,
+        t0: Optional[float] = None,
+    ) -> PickPlacePlan:
         """Lift, place and retract after ``pick`` (the grasp as planned, or ``held``: as executed). With
         ``start`` (the configuration after a lift already executed) no lift is planned: the place starts there."""
         timings = dict(timings or {})
@@ -290,8 +326,15 @@ class PickPlacePlanner:
         else:
             lift, ok = np.asarray(start, dtype=float)[None], True
         timings["lift"] = self.clock() - t
-        plan = PickPlacePlan(PickPlaceStatus.lift_blocked, "lift: unreachable or in collision", pick, lift,
-                             carrying.held, timings=timings, carry_speed=self.settings.carry_speed)
+        plan = PickPlacePlan(
+            PickPlaceStatus.lift_blocked,
+            "lift: unreachable or in collision",
+            pick,
+            lift,
+            carrying.held,
+            timings=timings,
+            carry_speed=self.settings.carry_speed,
+        )
         if not ok:
             return plan
         t = self.clock()
@@ -310,12 +353,16 @@ class PickPlacePlanner:
         timings["retract"] = self.clock() - t
         if t0 is not None:
             timings["total"] = self.clock() - t0
-        plan.status, plan.reason = (PickPlaceStatus.success, "") if ok else \
-            (PickPlaceStatus.retract_blocked, "retract: unreachable or in collision")
+        plan.status, plan.reason = (
+            (PickPlaceStatus.success, "")
+            if ok
+            else (PickPlaceStatus.retract_blocked, "retract: unreachable or in collision")
+        )
         return plan
 
 
-def pick_and_place(scene, request: PlaceRequest, robot=None, settings: PickPlaceSettings = PickPlaceSettings(),
-                   grasps=None) -> PickPlacePlan:
+def pick_and_place(
+    scene, request: PlaceRequest, robot=None, settings: PickPlaceSettings = PickPlaceSettings(), grasps=None
+) -> PickPlacePlan:
     """The whole task in one call: plan the pick of ``scene.target`` and its place as ``request`` asks."""
     return PickPlacePlanner(OMGPlanner(robot, scene, settings.pick), request, settings).plan(grasps=grasps)

@@ -17,6 +17,7 @@ region too small for the object``, ``... region blocked``).
 >>> request = PlaceRequest.load("region.json")
 >>> goals = build_place_goal_set(carrying, request, q_lift)   # carrying: attach.HeldWorld
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -43,8 +44,8 @@ class Orientation(Option):
     """How the placed object must be turned."""
 
     upright = "upright"  # as it stood before the pick (yaw free unless asked)
-    stable = "stable"    # any stable resting pose of the object
-    pose = "pose"        # a given rotation, within tolerance_deg
+    stable = "stable"  # any stable resting pose of the object
+    pose = "pose"  # a given rotation, within tolerance_deg
 
 
 class PlaceVerdict(Option):
@@ -66,7 +67,7 @@ class PlaceRequest:
     region_max: Tuple[float, float, float]
     orientation: Orientation = Orientation.upright
     rotation: Optional[Tuple[Tuple[float, ...], ...]] = None  # (3, 3) object -> world, for Orientation.pose
-    tolerance_deg: float = 10.0      # the placed object's up axis within this of the planned one
+    tolerance_deg: float = 10.0  # the placed object's up axis within this of the planned one
     yaw_deg: Optional[float] = None  # a fixed yaw about the world's z (None: free)
     yaw_tolerance_deg: float = 15.0
 
@@ -75,7 +76,9 @@ class PlaceRequest:
         if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
             raise ValueError("place region: region_min and region_max must be 3 finite numbers each")
         if not np.all(hi > lo):
-            raise ValueError(f"place region: region_max {hi.tolist()} must exceed region_min {lo.tolist()} on every axis")
+            raise ValueError(
+                f"place region: region_max {hi.tolist()} must exceed region_min {lo.tolist()} on every axis"
+            )
         object.__setattr__(self, "region_min", tuple(float(v) for v in lo))
         object.__setattr__(self, "region_max", tuple(float(v) for v in hi))
         object.__setattr__(self, "orientation", Orientation.parse(self.orientation, "place orientation"))
@@ -95,19 +98,23 @@ class PlaceRequest:
         return self.region_min[2]
 
     def to_dict(self) -> dict:
-        return {"region": {"min": list(self.region_min), "max": list(self.region_max)},
-                "orientation": self.orientation.value,
-                **({"rotation": [list(r) for r in self.rotation]} if self.rotation is not None else {}),
-                "tolerance_deg": self.tolerance_deg, "yaw_deg": self.yaw_deg,
-                "yaw_tolerance_deg": self.yaw_tolerance_deg}
+        return {
+            "region": {"min": list(self.region_min), "max": list(self.region_max)},
+            "orientation": self.orientation.value,
+            **({"rotation": [list(r) for r in self.rotation]} if self.rotation is not None else {}),
+            "tolerance_deg": self.tolerance_deg,
+            "yaw_deg": self.yaw_deg,
+            "yaw_tolerance_deg": self.yaw_tolerance_deg,
+        }
 
     @classmethod
     def from_dict(cls, d: dict, path: Optional[str] = None) -> "PlaceRequest":
         """A request from its JSON form; ``InputError`` naming (the file ``path`` and) every wrong field."""
         r = FieldReader(path)
         with r:
-            d = r.table(d, "", known=("region", "orientation", "rotation", "tolerance_deg", "yaw_deg",
-                                      "yaw_tolerance_deg"))
+            d = r.table(
+                d, "", known=("region", "orientation", "rotation", "tolerance_deg", "yaw_deg", "yaw_tolerance_deg")
+            )
             lo = hi = rotation = yaw = None
             with r.part():
                 region = r.table(r.key(d, "region"), "region", known=("min", "max"))
@@ -115,12 +122,20 @@ class PlaceRequest:
                 hi = r.get(region, "max", "region", r.vector, n=3)
                 if lo is not None and hi is not None and not all(b > a for a, b in zip(lo, hi)):
                     r.note("region.max", f"must exceed region.min {list(lo)} on every axis, got {list(hi)}")
-            orientation = r.get(d, "orientation", "", r.choice, default="upright", required=False,
-                                options=[o.value for o in Orientation])
+            orientation = r.get(
+                d,
+                "orientation",
+                "",
+                r.choice,
+                default="upright",
+                required=False,
+                options=[o.value for o in Orientation],
+            )
             if d.get("rotation") is not None:
                 rotation = r.get(d, "rotation", "", r.array, shape=(3, 3))
-                if rotation is not None and (not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-4)
-                                             or np.linalg.det(rotation) < 0):
+                if rotation is not None and (
+                    not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-4) or np.linalg.det(rotation) < 0
+                ):
                     r.note("rotation", "not a rotation matrix (orthonormal, determinant 1)")
             elif orientation == Orientation.pose.value:
                 r.note("rotation", "missing: orientation 'pose' needs a (3, 3) rotation matrix")
@@ -141,25 +156,26 @@ class PlaceRequest:
 class PlaceSettings:
     """How place goal sets are built (the goal set's own settings: ``goals``)."""
 
-    yaws: int = 8                    # yaw samples over a full turn when the yaw is free
-    position_step: float = 0.02      # m between candidate positions on the region's floor
-    max_candidates: int = 600        # a seeded subset when the grid is larger
-    gap: float = 0.004               # m: the object's lowest point above the floor at release
+    yaws: int = 8  # yaw samples over a full turn when the yaw is free
+    position_step: float = 0.02  # m between candidate positions on the region's floor
+    max_candidates: int = 600  # a seeded subset when the grid is larger
+    gap: float = 0.004  # m: the object's lowest point above the floor at release
     # m kept between the object and the region's sides where the region is wide enough (less where it is
     # not; none when no place keeps it): an object set down at the very edge leaves the region when it
     # shifts in the hand by a little
     margin: float = 0.02
-    max_rests: int = 3               # stable resting poses tried (most likely first)
+    max_rests: int = 3  # stable resting poses tried (most likely first)
     seed: int = 0
-    floor_tolerance: float = 0.01    # m between the region's floor and the support plane
+    floor_tolerance: float = 0.01  # m between the region's floor and the support plane
     # The set-down: straight down from standoff above the place. Its first configuration (the pre-place)
     # must keep the transit's clearance (the success test's ``MetricSettings.clearance``, ``preplace_clearance``):
     # the transit arrives there, so a pre-place closer to an object would fail every plan.
     # 10 goals (a grasp's 30): places are many and alike (neighbours 2 cm or a yaw step apart), and the
     # goal set's IK and the transfer's goal-cost estimates scale with the goals kept (20: place planning
     # 24-30 ms median on the bench's first 12 YCB scenes, 10: 12 ms, the same plans succeeding)
-    goals: GoalSetSettings = field(default_factory=lambda: GoalSetSettings(standoff=0.15, standoff_steps=5,
-                                                                            approach_clearance=0.01, max_goals=10))
+    goals: GoalSetSettings = field(
+        default_factory=lambda: GoalSetSettings(standoff=0.15, standoff_steps=5, approach_clearance=0.01, max_goals=10)
+    )
     preplace_clearance: float = 0.05
     # 8 IK seeds (a grasp's 24): a place out of reach from 8 seeds has neighbours in the grid to try
     ik: IkSettings = field(default_factory=lambda: IkSettings(num_seeds=8))
@@ -171,7 +187,7 @@ class PlaceGoalSet:
     candidate, the object's world pose; ``verdict`` says why it is empty."""
 
     goal_set: GoalSet
-    object_poses: np.ndarray    # (C, 4, 4) candidate object poses
+    object_poses: np.ndarray  # (C, 4, 4) candidate object poses
     verdict: PlaceVerdict
     seconds: float
 
@@ -180,7 +196,7 @@ class PlaceGoalSet:
 
     @property
     def reason(self) -> str:
-        """"" for a non-empty set, else ``no_place_goals: <why>``."""
+        """ "" for a non-empty set, else ``no_place_goals: <why>``."""
         return "" if self.verdict is PlaceVerdict.ok else f"no_place_goals: {self.verdict.value}"
 
     def reason_counts(self) -> dict:
@@ -202,7 +218,9 @@ def _tilt(rotation: np.ndarray) -> np.ndarray:
     return _yaw(-math.atan2(x[1], x[0])) @ R
 
 
-def resting_rotations(request: PlaceRequest, current_pose: np.ndarray, model=None, max_rests: int = 3) -> List[np.ndarray]:
+def resting_rotations(
+    request: PlaceRequest, current_pose: np.ndarray, model=None, max_rests: int = 3
+) -> List[np.ndarray]:
     """The object's rotations to place it in, yaw not yet applied: upright = as it stands now; stable =
     its resting poses, most likely first; pose = the given rotation."""
     if request.orientation is Orientation.pose:
@@ -221,8 +239,9 @@ def _yaws(request: PlaceRequest, settings: PlaceSettings) -> np.ndarray:
     return 2 * np.pi * np.arange(settings.yaws) / settings.yaws
 
 
-def candidate_poses(request: PlaceRequest, vertices: np.ndarray, rotations: List[np.ndarray],
-                    settings: PlaceSettings) -> np.ndarray:
+def candidate_poses(
+    request: PlaceRequest, vertices: np.ndarray, rotations: List[np.ndarray], settings: PlaceSettings
+) -> np.ndarray:
     """(C, 4, 4) object poses: every rotation x yaw x grid position on the region's floor with the
     object's ``vertices`` (object frame; its hull's, ``hull_vertices``, bound the same extents) all
     inside the box, the lowest ``gap`` above the floor."""
@@ -239,8 +258,12 @@ def candidate_poses(request: PlaceRequest, vertices: np.ndarray, rotations: List
             continue
         keep = np.clip((xhi - xlo) / 2, 0.0, settings.margin)
         xlo, xhi = xlo + keep, xhi - keep
-        ax, ay = (np.arange(a, b + 1e-9, settings.position_step) if b - a >= settings.position_step
-                  else np.array([(a + b) / 2]) for a, b in zip(xlo, xhi))
+        ax, ay = (
+            np.arange(a, b + 1e-9, settings.position_step)
+            if b - a >= settings.position_step
+            else np.array([(a + b) / 2])
+            for a, b in zip(xlo, xhi)
+        )
         places.append(np.column_stack([np.repeat(ax, len(ay)), np.tile(ay, len(ax)), np.full(len(ax) * len(ay), z)]))
         rotated.append(np.broadcast_to(R, (len(places[-1]), 3, 3)))
     poses = np.zeros((sum(len(p) for p in places), 4, 4))
@@ -263,8 +286,14 @@ def _verdict(candidates: int, reasons: list, kept: int) -> PlaceVerdict:
     return PlaceVerdict.out_of_reach if all(r in _REACH for r in reasons) else PlaceVerdict.blocked
 
 
-def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.ndarray,
-                         settings: PlaceSettings = PlaceSettings(), model=None, clock=time.perf_counter) -> PlaceGoalSet:
+def build_place_goal_set(
+    carrying: HeldWorld,
+    request: PlaceRequest,
+    start: np.ndarray,
+    settings: PlaceSettings = PlaceSettings(),
+    model=None,
+    clock=time.perf_counter,
+) -> PlaceGoalSet:
     """The place goal set of ``request`` for the object ``carrying`` holds, from ``start`` (the lifted
     configuration); ``model`` (the object's ``ObjectModel``) gives the stable resting poses; ``clock``
     times it."""
@@ -272,8 +301,14 @@ def build_place_goal_set(carrying: HeldWorld, request: PlaceRequest, start: np.n
     normal, offset = carrying.support_plane
     centre = 0.5 * (np.asarray(request.region_min) + np.asarray(request.region_max))
     if abs(normal @ np.array([centre[0], centre[1], request.floor]) - offset) > settings.floor_tolerance:
-        empty = GoalSet(np.zeros((0, carrying.robot.dof)), np.zeros((0, 0, carrying.robot.dof)), np.zeros(0, int),
-                        np.zeros((0, 4, 4)), [], 0.0)
+        empty = GoalSet(
+            np.zeros((0, carrying.robot.dof)),
+            np.zeros((0, 0, carrying.robot.dof)),
+            np.zeros(0, int),
+            np.zeros((0, 4, 4)),
+            [],
+            0.0,
+        )
         return PlaceGoalSet(empty, np.zeros((0, 4, 4)), PlaceVerdict.no_support, clock() - t0)
     current = carrying.base.target_pose
     vertices = _held_hull_vertices(carrying)
@@ -304,8 +339,11 @@ def _held_hull_vertices(carrying: HeldWorld) -> np.ndarray:
     if carrying.cache is None:
         return hull_vertices(V)
     source = held.mesh if held.mesh is not None else None
-    key = ("hull_vertices",) + (mesh_content_key(source) if source is not None else
-                                 (V.shape, hashlib.blake2b(V.tobytes(), digest_size=16).hexdigest()))
+    key = ("hull_vertices",) + (
+        mesh_content_key(source)
+        if source is not None
+        else (V.shape, hashlib.blake2b(V.tobytes(), digest_size=16).hexdigest())
+    )
     return carrying.cache.derived(key, lambda: hull_vertices(V))
 
 
@@ -317,13 +355,25 @@ def _place_goals(carrying: HeldWorld, poses: np.ndarray, start: np.ndarray, sett
     checker = carrying.checker(HeldCheck.carry)
     hand_checker = carrying.checker(HeldCheck.hand)
     gs_settings = replace(settings.goals, approach=(0.0, 0.0, -1.0))
-    out = _core.build_goal_set(ik_solver(carrying, settings.ik), None if checker is None else checker.native,
-                               None if hand_checker is None else hand_checker.native, hands,
-                               np.asarray(start, float), gs_settings.to_native(), carrying.clearance_problem,
-                               float(settings.goals.approach_clearance),
-                               pregrasp_clearance=float(settings.preplace_clearance))
-    return GoalSet(np.asarray(out.goals), np.asarray(out.tails), np.asarray(out.grasp_index, int), hands,
-                   [r.name for r in out.reasons], float(out.seconds))
+    out = _core.build_goal_set(
+        ik_solver(carrying, settings.ik),
+        None if checker is None else checker.native,
+        None if hand_checker is None else hand_checker.native,
+        hands,
+        np.asarray(start, float),
+        gs_settings.to_native(),
+        carrying.clearance_problem,
+        float(settings.goals.approach_clearance),
+        pregrasp_clearance=float(settings.preplace_clearance),
+    )
+    return GoalSet(
+        np.asarray(out.goals),
+        np.asarray(out.tails),
+        np.asarray(out.grasp_index, int),
+        hands,
+        [r.name for r in out.reasons],
+        float(out.seconds),
+    )
 
 
 def reason_summary(place: PlaceGoalSet) -> str:

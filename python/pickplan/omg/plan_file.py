@@ -1,6 +1,7 @@
 """What ``plan.json`` holds (``pickplan demo`` and ``pickplan plan --out``): the trajectory and the
 paper's metrics, plus what a 3D view of the plan needs: the goal set, the grasp the planner chose,
 the refined grasp and the robot's body points that penetrate an obstacle."""
+
 from __future__ import annotations
 
 from typing import Optional
@@ -20,7 +21,7 @@ def collision_points(world: World, trajectory: np.ndarray, margin: float = 0.0) 
     Q = np.asarray(trajectory, dtype=float)
     if Q.ndim != 2 or Q.shape[1] != world.robot.dof:
         raise ValueError(f"trajectory: expected shape (T, {world.robot.dof}), got {Q.shape}")
-    X = world.robot.transform_points(Q, world.body)          # (T, N, 3)
+    X = world.robot.transform_points(Q, world.body)  # (T, N, 3)
     distance, _ = world.sdf.distance(X.reshape(-1, 3), exclude=(world.target,))
     inside = np.asarray(distance).reshape(X.shape[:2]) < margin
     steps, points = np.nonzero(inside)
@@ -32,12 +33,16 @@ def plan_record(result: PlanResult, world: Optional[World] = None, execution: Op
     record = {
         "version": PLAN_FILE_VERSION,
         "robot": world.robot.info.name if world is not None else "panda",  # the viewer loads this robot
-        "status": result.status, "trajectory": result.trajectory.tolist(),
+        "status": result.status,
+        "trajectory": result.trajectory.tolist(),
         "metrics": {} if result.metrics is None else result.metrics.to_dict(),
-        "grasp_cost": result.grasp_cost, "timings": result.timings, "iterations": result.iterations,
+        "grasp_cost": result.grasp_cost,
+        "timings": result.timings,
+        "iterations": result.iterations,
         "execution": execution,
         "goal_set": np.asarray(result.goal_set).tolist(),
-        "chosen_goal": None, "refined_goal": None,
+        "chosen_goal": None,
+        "refined_goal": None,
     }
     if result.goal_source >= 0:
         record["chosen_goal"] = np.asarray(result.goal_set[result.goal_source]).tolist()

@@ -5,6 +5,7 @@ C-Space ISF refinement of the selected goal, for N iterations with pre-terminati
 >>> result = planner.plan()                # start and target from the scene, its default grasps
 >>> result.status, result.metrics.smoothness
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -34,13 +35,14 @@ from pickplan.omg.world import CheckerKind, World, WorldSettings
 class PlanStatus(Option):
     """How a plan ended (the paper's success test, Sec. IV-A)."""
 
-    success = "success"            # collision-free and smooth
+    success = "success"  # collision-free and smooth
     in_collision = "in_collision"
     not_smooth = "not_smooth"
-    no_goals = "no_goals"          # no grasp gave a goal configuration (see PlanResult.goal_reasons)
-    ungraspable = "ungraspable"    # no grasp of this gripper can exist for the target as it lies (PlanResult.reason)
-    no_grasps = "no_grasps"        # no grasp set of the kind asked for exists for the target (a sweep's unit
-                                   # with a stored set the object lacks; not a planning failure)
+    no_goals = "no_goals"  # no grasp gave a goal configuration (see PlanResult.goal_reasons)
+    ungraspable = "ungraspable"  # no grasp of this gripper can exist for the target as it lies (PlanResult.reason)
+    # no grasp set of the kind asked for exists for the target (a sweep's unit with a stored set the object lacks; not
+    # a planning failure)
+    no_grasps = "no_grasps"
 
     @classmethod
     def of(cls, metrics) -> "PlanStatus":
@@ -61,15 +63,16 @@ class OMGSettings:
     metrics: MetricSettings = field(default_factory=MetricSettings)
     world: WorldSettings = field(default_factory=WorldSettings)
     selection: Selection = Selection.MD  # Fixed | Proj | FTC | FTL | EXP | MD (a spelling converts)
-    iterations: int = 50           # N, the optimization horizon
-    refine: bool = True            # C-Space ISF on the selected goal every iteration
-    isf_steps: int = 1             # ISF steps per planner iteration
-    isf_max_shift: float = 0.01    # m: ISF may move the hand at most this far from the input grasp (a
-                                   # local refinement; verified grasps moved farther were dropped in execution)
-    cost_time_stride: int = 2      # goal-cost estimates on every k-th tail waypoint ...
-    cost_point_stride: int = 2     # ... and every k-th body point (rescaled)
+    iterations: int = 50  # N, the optimization horizon
+    refine: bool = True  # C-Space ISF on the selected goal every iteration
+    isf_steps: int = 1  # ISF steps per planner iteration
+    # m: ISF may move the hand at most this far from the input grasp (a local refinement; verified grasps moved
+    # farther were dropped in execution)
+    isf_max_shift: float = 0.01
+    cost_time_stride: int = 2  # goal-cost estimates on every k-th tail waypoint ...
+    cost_point_stride: int = 2  # ... and every k-th body point (rescaled)
     transit_avoids_target: bool = True  # the target is an obstacle to the transit (before the approach)
-    pre_terminate: bool = True     # stop once the plan succeeds (checked every check_every iterations)
+    pre_terminate: bool = True  # stop once the plan succeeds (checked every check_every iterations)
     min_iterations: int = 10
     check_every: int = 5
     grasp_kind: GraspKind = GraspKind.simulated  # default grasps when plan() gets none: stored, else generated
@@ -82,13 +85,20 @@ class OMGSettings:
     # Where the loop from the straight line fails in a scene with furniture (a shelf, a cabinet): once more
     # from an RRT-Connect path (``omg.sampled_start``); None: never. A tabletop plans as in the paper.
     sampled_start: Optional[SampledStart] = field(default_factory=SampledStart)
-    clock: StageClock = StageClock.wall  # what PlanResult.timings read (thread_cpu: a loaded machine's
-                                         # other processes do not count)
+    # what PlanResult.timings read (thread_cpu: a loaded machine's other processes do not count)
+    clock: StageClock = StageClock.wall
 
     def __post_init__(self):
-        for name, low in (("iterations", 1), ("check_every", 1), ("min_iterations", 0), ("isf_steps", 0),
-                          ("cost_time_stride", 1), ("cost_point_stride", 1), ("grasp_count", 1),
-                          ("dense_grasp_count", 0)):
+        for name, low in (
+            ("iterations", 1),
+            ("check_every", 1),
+            ("min_iterations", 0),
+            ("isf_steps", 0),
+            ("cost_time_stride", 1),
+            ("cost_point_stride", 1),
+            ("grasp_count", 1),
+            ("dense_grasp_count", 0),
+        ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ValueError(f"OMGSettings.{name}: expected an integer >= {low}, got {value!r}")
@@ -105,33 +115,49 @@ class OMGSettings:
 @dataclass
 class PlanResult:
     status: PlanStatus
-    trajectory: np.ndarray         # (n + 1, dof): the start, then the n waypoints
-    goal: np.ndarray               # final configuration (the grasp)
-    grasp_index: int               # input grasp the final goal came from (-1 when none)
-    hand_pose: np.ndarray          # world pose of the hand at the goal
-    refined: bool                  # the final goal was refined by C-Space ISF
-    metrics: Optional["_core.TrajectoryMetrics"]  # smoothness, collision, min_clearance, success, ... (Sec. IV-A);
-                                                  # None when nothing was planned
-    grasp_cost: float              # f_grasp at the final goal (eq. 10)
+    trajectory: np.ndarray  # (n + 1, dof): the start, then the n waypoints
+    goal: np.ndarray  # final configuration (the grasp)
+    grasp_index: int  # input grasp the final goal came from (-1 when none)
+    hand_pose: np.ndarray  # world pose of the hand at the goal
+    refined: bool  # the final goal was refined by C-Space ISF
+    # smoothness, collision, min_clearance, success, ... (Sec. IV-A); None when nothing was planned
+    metrics: Optional["_core.TrajectoryMetrics"]
+    grasp_cost: float  # f_grasp at the final goal (eq. 10)
     goal_set_size: int
     iterations: int
-    history: dict                  # objective, goal, p, costs (normalized estimates; per iteration),
-                                   # switches, initial_grasp
-    timings: dict                  # seconds: prepare (world, grasps; not planning), goal_set, chomp, costs,
-                                   # selection, isf, metrics, total (goal set + planning)
+    # objective, goal, p, costs (normalized estimates; per iteration), switches, initial_grasp
+    history: dict
+    # seconds: prepare (world, grasps; not planning), goal_set, chomp, costs, selection, isf, metrics, total (goal set
+    # + planning)
+    timings: dict
     goal_reasons: dict = field(default_factory=dict)
     goal_set: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (G, dof) the IK goal set
-    goal_source: int = -1          # row of goal_set the final goal came from (refined or not; -1: none)
+    goal_source: int = -1  # row of goal_set the final goal came from (refined or not; -1: none)
     limits: Optional[KinematicLimits] = None  # the planned robot's limits (``timed``'s default)
-    reason: str = ""               # why, for ungraspable ("ungraspable: wider than the 8 cm opening ...")
+    reason: str = ""  # why, for ungraspable ("ungraspable: wider than the 8 cm opening ...")
 
     @classmethod
-    def unplanned(cls, status: "PlanStatus", q0: np.ndarray, timings: dict, goal_reasons: dict,
-                  reason: str = "") -> "PlanResult":
+    def unplanned(
+        cls, status: "PlanStatus", q0: np.ndarray, timings: dict, goal_reasons: dict, reason: str = ""
+    ) -> "PlanResult":
         """A result with no plan (no goal, an ungraspable target): the start alone, empty history."""
         history = {"objective": [], "goal": [], "p": [], "costs": [], "switches": 0, "initial_grasp": -1}
-        return cls(status, np.vstack([q0]), q0, -1, np.eye(4), False, None, float("nan"), 0, 0, history, timings,
-                   goal_reasons, reason=reason)
+        return cls(
+            status,
+            np.vstack([q0]),
+            q0,
+            -1,
+            np.eye(4),
+            False,
+            None,
+            float("nan"),
+            0,
+            0,
+            history,
+            timings,
+            goal_reasons,
+            reason=reason,
+        )
 
     @property
     def success(self) -> bool:
@@ -142,8 +168,12 @@ class PlanResult:
         """A trajectory was optimized (there were goals to plan to)."""
         return self.status not in (PlanStatus.no_goals, PlanStatus.ungraspable)
 
-    def timed(self, rate: float = 1000.0, limits: Optional[KinematicLimits] = None,
-              interpolation: Interpolation = Interpolation.PCHIP) -> TimedTrajectory:
+    def timed(
+        self,
+        rate: float = 1000.0,
+        limits: Optional[KinematicLimits] = None,
+        interpolation: Interpolation = Interpolation.PCHIP,
+    ) -> TimedTrajectory:
         """The trajectory timed within ``limits`` (default: the planned robot's), sampled at ``rate`` Hz, from
         rest to rest along the same path (``pickplan.core.timing.time_parameterize``)."""
         return time_parameterize(self.trajectory, rate, limits or self.limits, interpolation)
@@ -158,19 +188,27 @@ class OMGPlanner:
     only on the objects or the robot (SDFs, FCL shapes, the robot's data: ``cache``, a ``ModelCache``
     the planner owns unless one is given) is built once for all of them."""
 
-    def __init__(self, robot=None, scene: Optional[Scene] = None, settings: OMGSettings = OMGSettings(),
-                 world: Optional[World] = None, cache: Optional[ModelCache] = None):
+    def __init__(
+        self,
+        robot=None,
+        scene: Optional[Scene] = None,
+        settings: OMGSettings = OMGSettings(),
+        world: Optional[World] = None,
+        cache: Optional[ModelCache] = None,
+    ):
         self.settings = settings
         self.scene = world.scene if scene is None and world is not None else scene
         self._world = world
         self.cache = cache if cache is not None else world.cache if world is not None else ModelCache()
         if robot is not None and not isinstance(robot, (str, robots.DescribedRobot)):
-            raise ValueError(f"robot: expected a robots.DescribedRobot, a description name or file, or None; got "
-                             f"{type(robot).__name__} (a bare URDF Robot has no gripper: write a description)")
-        if robot is not None and world is not None and \
-                robots.load_robot(robot).info.name != world.robot.info.name:
-            raise ValueError(f"robot: {robots.load_robot(robot).info.name!r} but the world was built for "
-                             f"{world.robot.info.name!r}")
+            raise ValueError(
+                f"robot: expected a robots.DescribedRobot, a description name or file, or None; got "
+                f"{type(robot).__name__} (a bare URDF Robot has no gripper: write a description)"
+            )
+        if robot is not None and world is not None and robots.load_robot(robot).info.name != world.robot.info.name:
+            raise ValueError(
+                f"robot: {robots.load_robot(robot).info.name!r} but the world was built for {world.robot.info.name!r}"
+            )
         self.robot = robot
 
     def use_scene(self, scene: Scene) -> None:
@@ -195,8 +233,9 @@ class OMGPlanner:
         s, model, gripper = self.settings, world.target_model, world.robot.info
         count = s.grasp_count if count is None else int(count)
         key = ("grasp_set", mesh_content_key(model.mesh), model.name, str(s.grasp_kind), count, s.seed, gripper.key)
-        poses = self.cache.derived(key, lambda: grasps_mod.grasp_set(model, s.grasp_kind, count, seed=s.seed,
-                                                                     gripper=gripper).poses)
+        poses = self.cache.derived(
+            key, lambda: grasps_mod.grasp_set(model, s.grasp_kind, count, seed=s.seed, gripper=gripper).poses
+        )
         return np.array(poses)
 
     def _denser_goal_set(self, world: World, q0: np.ndarray) -> Optional[GoalSet]:
@@ -211,15 +250,21 @@ class OMGPlanner:
         if grasps is None:
             grasps = self.default_grasps(world)
         elif isinstance(grasps, str):
-            grasps = grasps_mod.grasp_set(world.target_model, grasps, s.grasp_count, seed=s.seed,
-                                          gripper=world.robot.info).poses
+            grasps = grasps_mod.grasp_set(
+                world.target_model, grasps, s.grasp_count, seed=s.seed, gripper=world.robot.info
+            ).poses
         world.checker(CheckerKind.goal), world.checker(CheckerKind.hand)  # FCL models: built once per scene, cached
         if s.refine:
             world.grasp_refiner(s.isf, s.seed)  # hand SDF, object samples: cached likewise
         return q0, grasps
 
-    def plan(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
-             grasps: Optional[Union[np.ndarray, str]] = None, scene: Optional[Scene] = None) -> PlanResult:
+    def plan(
+        self,
+        start: Optional[np.ndarray] = None,
+        target: Optional[str] = None,
+        grasps: Optional[Union[np.ndarray, str]] = None,
+        scene: Optional[Scene] = None,
+    ) -> PlanResult:
         """Algorithm 2 from ``start`` (default: the scene's) to one of ``grasps`` of ``target``
         (default: the scene's; grasps: poses, a grasp set kind, or None for ``default_grasps``);
         ``scene``: plan in this scene from now on (``use_scene``)."""
@@ -227,9 +272,13 @@ class OMGPlanner:
             self.use_scene(scene)
         return self.plan_with_goals(start, target, grasps)[0]
 
-    def plan_with_goals(self, start: Optional[np.ndarray] = None, target: Optional[str] = None,
-                        grasps: Optional[Union[np.ndarray, str]] = None,
-                        dense: bool = True) -> Tuple[PlanResult, Optional[GoalSet]]:
+    def plan_with_goals(
+        self,
+        start: Optional[np.ndarray] = None,
+        target: Optional[str] = None,
+        grasps: Optional[Union[np.ndarray, str]] = None,
+        dense: bool = True,
+    ) -> Tuple[PlanResult, Optional[GoalSet]]:
         """``plan`` and the goal set it planned over (None when the target cannot be grasped at all):
         what a replan starts from (``omg.replan``). ``dense``: where the default grasps give no goal, try
         the denser set (``OMGSettings.dense_grasp_count``; seconds, not what a real-time loop can wait for)."""
@@ -253,8 +302,13 @@ class OMGPlanner:
         if gs is None or len(gs) == 0:
             timings["total"] = clock() - t_total
             status = PlanStatus.no_goals if verdict.graspable else PlanStatus.ungraspable
-            return PlanResult.unplanned(status, q0, timings, gs.reason_counts() if gs is not None else {},
-                                        "" if verdict.graspable else f"ungraspable: {verdict.reason}"), gs
+            return PlanResult.unplanned(
+                status,
+                q0,
+                timings,
+                gs.reason_counts() if gs is not None else {},
+                "" if verdict.graspable else f"ungraspable: {verdict.reason}",
+            ), gs
         result = self._optimize(world, q0, gs, timings)
         timings["total"] = clock() - t_total
         result.goal_reasons = gs.reason_counts()
@@ -335,25 +389,44 @@ class LoopInputs:
             # Among furniture the transit reaches in level beside the target, and the test holds it to that:
             # the target kept the approach's clearance (on a tabletop, the paper's test).
             metrics = replace(metrics, transit_target_clearance=metrics.tail_clearance)
-        return cls(world.chomp(replace(settings.chomp, obstacle_tail=tail_length), avoid_target=avoid), metrics,
-                   world.grasp_refiner(settings.isf, settings.seed) if settings.refine else None,
-                   make_policy(settings.selection))
+        return cls(
+            world.chomp(replace(settings.chomp, obstacle_tail=tail_length), avoid_target=avoid),
+            metrics,
+            world.grasp_refiner(settings.isf, settings.seed) if settings.refine else None,
+            make_policy(settings.selection),
+        )
 
 
-def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, timings: dict,
-             warm=None) -> PlanResult:
+def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, timings: dict, warm=None) -> PlanResult:
     """Algorithm 2's loop over the non-empty goal set ``gs`` in C++ (``native_loop``, the GIL
     released); ``timings`` gains the seconds of each stage. (tests/python/omg_reference_loop.py
     keeps the loop in Python, the oracle the native loop is tested against.) ``warm``: (the initial
     trajectory after ``q0``, its goal in ``gs`` or -1[, the goals' costs to start the selection from or None]),
     a replan's start (``omg.replan``)."""
     parts = LoopInputs.of(settings, world, gs.tails.shape[1])
-    out = run_native(parts.chomp, parts.refiner, world.robot, q0, gs.goals, gs.tails, gs.grasp_index, settings,
-                     parts.policy, parts.metric_settings, warm)
+    out = run_native(
+        parts.chomp,
+        parts.refiner,
+        world.robot,
+        q0,
+        gs.goals,
+        gs.tails,
+        gs.grasp_index,
+        settings,
+        parts.policy,
+        parts.metric_settings,
+        warm,
+    )
     for phase, seconds in out.seconds.to_dict().items():
         timings[phase] += seconds
-    history = {"objective": list(out.objective), "goal": list(out.goals_chosen), "p": out.p,
-               "costs": out.costs, "switches": out.switches, "initial_grasp": out.initial_grasp}
+    history = {
+        "objective": list(out.objective),
+        "goal": list(out.goals_chosen),
+        "p": out.p,
+        "costs": out.costs,
+        "switches": out.switches,
+        "initial_grasp": out.initial_grasp,
+    }
     xi, robot = out.xi, world.robot
     metrics = out.metrics
     if metrics.success and parts.metric_settings.transit_target_clearance > -np.inf and isinstance(world, World):
@@ -363,10 +436,22 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
         history["transit_target_distance"] = distance
         if distance < parts.metric_settings.transit_target_clearance:
             metrics = _core.marked_in_collision(metrics)
-    return PlanResult(PlanStatus.of(metrics), np.vstack([q0, xi]), xi[-1].copy(), out.grasp_index,
-                      robot.link_pose(xi[-1], robot.hand_link), out.refined, metrics, out.grasp_cost,
-                      out.goal_set_size, out.iterations, history, timings,
-                      goal_set=np.array(gs.goals), goal_source=out.goal_source)
+    return PlanResult(
+        PlanStatus.of(metrics),
+        np.vstack([q0, xi]),
+        xi[-1].copy(),
+        out.grasp_index,
+        robot.link_pose(xi[-1], robot.hand_link),
+        out.refined,
+        metrics,
+        out.grasp_cost,
+        out.goal_set_size,
+        out.iterations,
+        history,
+        timings,
+        goal_set=np.array(gs.goals),
+        goal_source=out.goal_source,
+    )
 
 
 def transit_target_distance(world: World, trajectory: np.ndarray, tail_length: int, steps: int) -> float:
@@ -374,7 +459,7 @@ def transit_target_distance(world: World, trajectory: np.ndarray, tail_length: i
     ``trajectory`` ((n + 1, dof), the start first) interpolated as the success test does (``steps`` over the
     whole), up to its pre-grasp (the first of the last ``tail_length`` waypoints)."""
     n = len(trajectory) - 1
-    end = n - tail_length + 1                    # the pre-grasp's row
+    end = n - tail_length + 1  # the pre-grasp's row
     params = np.linspace(0.0, n, steps)
     params = params[params <= end]
     k = np.minimum(params.astype(int), n - 1)

@@ -6,6 +6,7 @@ of each; the motion planner then reaches whichever of them it can.
 >>> goal = PoseGoal(T_target, free_axis=Axis.z)
 >>> result = plan_motion(world, q_start, goal)      # as for joint goals
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -38,7 +39,7 @@ class PoseGoal:
     turns: int = 12
     position_tolerance: float = 1e-4
     rotation_tolerance: float = 1e-3
-    max_goals: int = 32            # nearest to the start first
+    max_goals: int = 32  # nearest to the start first
 
     def __post_init__(self):
         object.__setattr__(self, "pose", clean_pose(self.pose, "pose goal"))
@@ -63,8 +64,9 @@ class PoseGoal:
         return np.stack(out)
 
 
-def pose_goal_configurations(robot, active, start: np.ndarray, goal: PoseGoal,
-                             ik: IkSettings = IkSettings()) -> np.ndarray:
+def pose_goal_configurations(
+    robot, active, start: np.ndarray, goal: PoseGoal, ik: IkSettings = IkSettings()
+) -> np.ndarray:
     """(G, dof) configurations putting ``goal.link`` at one of ``goal.targets()``, distinct, nearest
     to ``start`` first, at most ``goal.max_goals``; joints not ``active`` keep the start's values."""
     link = goal.link or getattr(robot, "hand_link", None)

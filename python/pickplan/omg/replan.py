@@ -19,6 +19,7 @@ arm's reach), the goal set is built from every grasp again and the loop starts o
 >>> first = replanner.plan()
 >>> again = replanner.replan(start=q_now, moved={scene.target: T_new})
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -34,10 +35,10 @@ from pickplan.omg.planner import OMGPlanner, PlanResult, PlanStatus, _clock, run
 
 @dataclass(frozen=True)
 class ReplanSettings:
-    iterations: int = 20      # the warm loop's cap (a fresh plan's: OMGSettings.iterations)
-    min_iterations: int = 2   # the success test from this iteration on, every check_every
+    iterations: int = 20  # the warm loop's cap (a fresh plan's: OMGSettings.iterations)
+    min_iterations: int = 2  # the success test from this iteration on, every check_every
     check_every: int = 2
-    min_goals: int = 3        # fewer goals follow the target: the goal set is built from every grasp again
+    min_goals: int = 3  # fewer goals follow the target: the goal set is built from every grasp again
     # The goals that follow a moved target: the last plan's and those its last cost estimates ranked best
     # (each goal's IK chain and cost estimates are most of a replan's time, and far goals rarely win after
     # a small move; 10 -> 5 took a replan after a 2 cm move from 11.4 to 9.0 ms with the same plans lifted,
@@ -47,8 +48,10 @@ class ReplanSettings:
 
     def __post_init__(self):
         if min(self.iterations, self.min_iterations, self.check_every, self.min_goals, self.max_goals) < 1:
-            raise ValueError(f"replan settings: iterations, min_iterations, check_every, min_goals and max_goals must "
-                             f"be >= 1, got {self}")
+            raise ValueError(
+                f"replan settings: iterations, min_iterations, check_every, min_goals and max_goals must "
+                f"be >= 1, got {self}"
+            )
 
 
 def warm_trajectory(last: np.ndarray, start: np.ndarray) -> np.ndarray:
@@ -119,10 +122,17 @@ class Replanner:
             self._remember(result, goals)
             return result
         r = self.settings
-        loop = replace(s, iterations=r.iterations, min_iterations=min(r.min_iterations, r.iterations),
-                       check_every=r.check_every)
-        result = run_loop(loop, world, q0, goals, timings,
-                          warm=(warm_trajectory(self.last.trajectory, q0), goal, costs if goal >= 0 else None))
+        loop = replace(
+            s, iterations=r.iterations, min_iterations=min(r.min_iterations, r.iterations), check_every=r.check_every
+        )
+        result = run_loop(
+            loop,
+            world,
+            q0,
+            goals,
+            timings,
+            warm=(warm_trajectory(self.last.trajectory, q0), goal, costs if goal >= 0 else None),
+        )
         if not result.success and self.settings.fresh_on_failure:
             warm_seconds = clock() - t_total
             fresh = self.plan(q0)
@@ -153,14 +163,26 @@ class Replanner:
             if not last.refined:
                 return goals, last.goal_source, self._last_costs(np.arange(len(goals)))
             rows = np.append(np.arange(len(goals)), -1)  # -1: the last plan's final goal, the refined copy
-            return replace(goals, goals=np.vstack([goals.goals, last.goal]),
-                           tails=np.concatenate([goals.tails, last.trajectory[None, -m:]]),
-                           grasp_index=np.append(goals.grasp_index, goals.grasp_index[last.goal_source])), \
-                len(goals), self._last_costs(rows)
+            return (
+                replace(
+                    goals,
+                    goals=np.vstack([goals.goals, last.goal]),
+                    tails=np.concatenate([goals.tails, last.trajectory[None, -m:]]),
+                    grasp_index=np.append(goals.grasp_index, goals.grasp_index[last.goal_source]),
+                ),
+                len(goals),
+                self._last_costs(rows),
+            )
         rows = self._best_rows(len(goals))
         # Goal row rows[k] of the last set becomes grasp k here: the followed set's grasp_index index rows.
-        followed = build_goal_set(world, goals.grasps[goals.grasp_index[rows]], q0, self.planner.settings.goals,
-                                  self.planner.settings.ik, seeds=goals.goals[rows])
+        followed = build_goal_set(
+            world,
+            goals.grasps[goals.grasp_index[rows]],
+            q0,
+            self.planner.settings.goals,
+            self.planner.settings.ik,
+            seeds=goals.goals[rows],
+        )
         self._grasp_ids = self._grasp_ids[goals.grasp_index[rows]]
         new = np.flatnonzero(rows[followed.grasp_index] == last.goal_source) if len(followed) else []
         return followed, int(new[0]) if len(new) else -1, self._last_costs(rows[followed.grasp_index])
@@ -179,8 +201,9 @@ class Replanner:
     def _best_rows(self, count: int) -> np.ndarray:
         """Rows of the last goal set to follow: the last plan's goal first, then the lowest last estimates."""
         last = self.last
-        costs = np.asarray(last.history["costs"][-1], dtype=float)[:count] if last.history.get("costs") else \
-            np.zeros(count)
+        costs = (
+            np.asarray(last.history["costs"][-1], dtype=float)[:count] if last.history.get("costs") else np.zeros(count)
+        )
         order = [r for r in np.argsort(costs, kind="stable") if r != last.goal_source]
         first = [last.goal_source] if last.goal_source >= 0 else []
-        return np.sort(np.array(first + order, dtype=int)[:self.settings.max_goals])
+        return np.sort(np.array(first + order, dtype=int)[: self.settings.max_goals])

@@ -9,6 +9,7 @@ next board) fails the test whatever the path to it.
 >>> warm = sampled_initialization(world, q0, goal_set.tails, n=30, settings=SampledStart())
 >>> result = run_loop(settings, world, q0, goal_set, timings, warm=warm)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -40,11 +41,12 @@ class SampledStart:
 
     rrt: RrtSettings = field(default_factory=lambda: RrtSettings(time_limit=0.5, certified=False))
     shortcuts: int = 100
-    attempts: int = 2          # RRT-Connect runs (new seeds) before giving up
+    attempts: int = 2  # RRT-Connect runs (new seeds) before giving up
 
 
-def sampled_initialization(world, q0: np.ndarray, tails: np.ndarray, n: int,
-                           settings: SampledStart) -> Optional[Tuple[np.ndarray, int]]:
+def sampled_initialization(
+    world, q0: np.ndarray, tails: np.ndarray, n: int, settings: SampledStart
+) -> Optional[Tuple[np.ndarray, int]]:
     """(initial trajectory (n, dof) after ``q0``, the goal it ends on) or None when RRT-Connect found no
     path to any pre-grasp (``tails[:, 0]``) within its budget."""
     robot = world.robot

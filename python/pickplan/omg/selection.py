@@ -5,6 +5,7 @@ returns the distribution p_{i+1}; the planner moves to the mode of p. Policies r
 history so ``regret()`` gives eq. 9. The goal set may grow (C-Space ISF adds refined goals):
 ``add_goal`` extends the distribution.
 """
+
 from __future__ import annotations
 
 import abc
@@ -31,7 +32,7 @@ class CostKind(Option):
     """What a policy's cost vector measures."""
 
     objective = "objective"  # goal-cost estimates (eq. 8)
-    distance = "distance"    # |xi(1) - g|, the free end point's distance to each goal (Proj)
+    distance = "distance"  # |xi(1) - g|, the free end point's distance to each goal (Proj)
 
 
 class SelectionPolicy(abc.ABC):

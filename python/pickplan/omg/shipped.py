@@ -9,6 +9,7 @@ built-in object for each shipped robot's gripper: the minute-long part of a firs
 SDF grids (the native build takes 0.2-0.6 s an object, less than reading back a losslessly compressed
 grid of about 1 MB) and what a plan builds in well under a second.
 """
+
 from __future__ import annotations
 
 import os
@@ -29,8 +30,11 @@ def grippers(robot_names: Sequence[str] = SHIPPED_ROBOTS) -> List[RobotInfo]:
     return [load_robot(name).info for name in robot_names]
 
 
-def grasp_entries(names: Optional[Iterable[str]] = None, robot_names: Sequence[str] = SHIPPED_ROBOTS,
-                  settings: OMGSettings = OMGSettings()) -> List[Tuple[str, str, str, RobotInfo]]:
+def grasp_entries(
+    names: Optional[Iterable[str]] = None,
+    robot_names: Sequence[str] = SHIPPED_ROBOTS,
+    settings: OMGSettings = OMGSettings(),
+) -> List[Tuple[str, str, str, RobotInfo]]:
     """(object name, entry path relative to the cache folder, entry label, gripper) of each shipped grasp
     set: where the planner's default grasp set is cached by this version (``simulated.cache_name``)."""
     if settings.grasp_kind not in (GraspKind.simulated, GraspKind.simulated.value):
@@ -41,13 +45,18 @@ def grasp_entries(names: Optional[Iterable[str]] = None, robot_names: Sequence[s
         for name in sorted(BUILTIN_SPECS) if names is None else names:
             request = (library.get(name), settings.grasp_count, settings.seed)
             file = simulated.cache_name(*request, gripper=gripper)
-            out.append((name, f"{simulated.CACHE_FOLDER}/{file}", simulated.entry_label(*request, gripper=gripper),
-                        gripper))
+            out.append(
+                (name, f"{simulated.CACHE_FOLDER}/{file}", simulated.entry_label(*request, gripper=gripper), gripper)
+            )
     return out
 
 
-def build(folder: Optional[str] = None, names: Optional[Iterable[str]] = None, workers: int = 1,
-          progress: Optional[bool] = None) -> dict:
+def build(
+    folder: Optional[str] = None,
+    names: Optional[Iterable[str]] = None,
+    workers: int = 1,
+    progress: Optional[bool] = None,
+) -> dict:
     """Compute the shipped entries (``names``: the built-in objects to redo, default all) into ``folder``
     (default ``io.shipped_dir()``) and rewrite its manifest; an entry of the same label made by another
     version is removed. Returns the manifest's entries."""
@@ -60,8 +69,15 @@ def build(folder: Optional[str] = None, names: Optional[Iterable[str]] = None, w
             entries.pop(old)
             if os.path.isfile(os.path.join(folder, old)):
                 os.unlink(os.path.join(folder, old))
-        gs = simulated.simulated_grasps(library.get(name), settings.grasp_count, settings.seed, workers=workers,
-                                        progress=progress, cache=False, gripper=gripper)
+        gs = simulated.simulated_grasps(
+            library.get(name),
+            settings.grasp_count,
+            settings.seed,
+            workers=workers,
+            progress=progress,
+            cache=False,
+            gripper=gripper,
+        )
         path = os.path.join(folder, rel)
         simulated.write_grasp_file(path, gs)
         entries[rel] = {"sha256": io.file_sha256(path), "label": label, "grasps": int(len(gs.poses))}

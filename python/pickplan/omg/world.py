@@ -1,5 +1,6 @@
 """One scene, prepared for planning: the robot at its base, object models, the scene SDF,
 body points and FCL collision checkers. Built once per scene; immutable afterwards."""
+
 from __future__ import annotations
 
 import functools
@@ -47,17 +48,21 @@ class _HashedKey:
 class CheckerKind(Option):
     """What a world's FCL checker lets touch (``World.checker``)."""
 
-    goal = "goal"            # the fingers may touch the target (grasp configurations close around it) and the
-                             # table (its depth is checked against the support plane apart)
-    hand = "hand"            # the same, for the hand and fingers alone
-    strict = "strict"        # nothing may touch anything
+    # the fingers may touch the target (grasp configurations close around it) and the table (its depth is checked
+    # against the support plane apart)
+    goal = "goal"
+    hand = "hand"  # the same, for the hand and fingers alone
+    strict = "strict"  # nothing may touch anything
     obstacles = "obstacles"  # the target is ignored entirely (trajectory validation)
-    transit = "transit"      # the same, but the fingers may touch the table (their depth into the support
-                             # is checked apart, as the success test does): sampling planners' validity
-    furniture = "furniture"  # the scene's obstacles alone, the links as convex hulls (as PyBullet takes
-                             # them): distances the executed lift keeps (``goals.lift_blocked_configurations``)
-    target = "target"        # the target alone, every link against its mesh: the exact clearance a transit
-                             # keeps from what it will grasp (``planner.transit_target_distance``)
+    # the same, but the fingers may touch the table (their depth into the support is checked apart, as the success
+    # test does): sampling planners' validity
+    transit = "transit"
+    # the scene's obstacles alone, the links as convex hulls (as PyBullet takes them): distances the executed lift
+    # keeps (``goals.lift_blocked_configurations``)
+    furniture = "furniture"
+    # the target alone, every link against its mesh: the exact clearance a transit keeps from what it will grasp
+    # (``planner.transit_target_distance``)
+    target = "target"
 
 
 @dataclass(frozen=True)
@@ -65,7 +70,7 @@ class WorldSettings:
     sdf: sdf.SdfSettings = field(default_factory=sdf.SdfSettings)
     body_points_per_link: Optional[int] = None  # None: the robot description's (the shipped ones: the paper's 20)
     body_seed: int = 0
-    robot: str = "panda"             # the robot planned for: a shipped description's name or a .toml file
+    robot: str = "panda"  # the robot planned for: a shipped description's name or a .toml file
 
 
 def _table_pairs(robot) -> tuple:
@@ -91,16 +96,25 @@ class World:
     placed at the scene's robot base. ``cache`` (a ``ModelCache``) holds what depends only on the
     objects or the robot; worlds that share one build it once (None: this world's own)."""
 
-    def __init__(self, scene: Scene, settings: WorldSettings = WorldSettings(),
-                 library: Optional[objects.ObjectLibrary] = None, robot=None, cache: Optional[ModelCache] = None):
+    def __init__(
+        self,
+        scene: Scene,
+        settings: WorldSettings = WorldSettings(),
+        library: Optional[objects.ObjectLibrary] = None,
+        robot=None,
+        cache: Optional[ModelCache] = None,
+    ):
         self.scene = scene
         self.settings = settings
         self.cache = cache = ModelCache() if cache is None else cache
         self.robot = cache.robot(settings.robot if robot is None else robot, scene.robot_base)
         self.models = {}
         for o in scene.objects:
-            self.models[o.name] = library.get(o.name) if library is not None and o.name in library \
+            self.models[o.name] = (
+                library.get(o.name)
+                if library is not None and o.name in library
                 else objects.model_from_source(o.name, o.source)
+            )
         meshes = sdf.mesh_sdfs([self.models[o.name].mesh for o in scene.objects], settings.sdf, cache.grids)
         grids = [(o.name, grid, o.pose) for o, grid in zip(scene.objects, meshes)]
         table = None if scene.table is None else (np.asarray(scene.table.size), np.asarray(scene.table.pose))
@@ -120,8 +134,9 @@ class World:
             # left out (grasping, the success test, the approach) and the target in (the transit's
             # obstacle cost when it avoids the target, ``World.chomp(avoid_target=True)``).
             for exclude in ((scene.target,), ()):
-                self.sdf.merge(exclude=exclude, resolution=settings.sdf.merged_resolution,
-                               cutoff=settings.sdf.merged_cutoff)
+                self.sdf.merge(
+                    exclude=exclude, resolution=settings.sdf.merged_resolution, cutoff=settings.sdf.merged_cutoff
+                )
         self.merge_seconds = time.perf_counter() - t0
 
     @property
@@ -155,8 +170,9 @@ class World:
         for kind, checker in self._checkers.items():
             if kind is not CheckerKind.furniture:  # it holds the obstacles alone
                 checker.set_object_pose(name, T)
-        self.scene = replace(self.scene, objects=[replace(o, pose=T.copy()) if o.name == name else o
-                                                  for o in self.scene.objects])
+        self.scene = replace(
+            self.scene, objects=[replace(o, pose=T.copy()) if o.name == name else o for o in self.scene.objects]
+        )
         if name == self.target:
             self._refiners = {key: r.placed(self, key[1]) for key, r in self._refiners.items()}
             self.__dict__.pop("graspability", None)
@@ -168,8 +184,9 @@ class World:
 
     def scene_meshes(self):
         """Objects (meshes) and obstacles (primitives and meshes) as the FCL checkers take them."""
-        return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects] + \
-            [collision.SceneMesh(o.name, o.shape, o.pose) for o in self.scene.obstacles]
+        return [collision.SceneMesh(o.name, self.models[o.name].mesh, o.pose) for o in self.scene.objects] + [
+            collision.SceneMesh(o.name, o.shape, o.pose) for o in self.scene.obstacles
+        ]
 
     def checker(self, kind: Union[CheckerKind, str] = CheckerKind.goal) -> collision.CollisionChecker:
         """FCL checker against objects and table, of a ``CheckerKind`` (or its spelling: "goal").
@@ -182,20 +199,32 @@ class World:
 
     def _build_checker(self, kind: CheckerKind) -> collision.CollisionChecker:
         if kind is CheckerKind.furniture:
-            return collision.CollisionChecker(self.robot, [collision.SceneMesh(o.name, o.shape, o.pose)
-                                                           for o in self.scene.obstacles], None, convex_links=True,
-                                              shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
+            return collision.CollisionChecker(
+                self.robot,
+                [collision.SceneMesh(o.name, o.shape, o.pose) for o in self.scene.obstacles],
+                None,
+                convex_links=True,
+                shapes=self.cache.shapes,
+                link_meshes=self.cache.link_meshes(self.robot),
+            )
         if kind is CheckerKind.target:
-            others = tuple(o.name for o in self.scene.objects if o.name != self.target) + \
-                tuple(o.name for o in self.scene.obstacles)  # no table given: none checked
-            return collision.CollisionChecker(self.robot, self.scene_meshes(), None,
-                                              collision.CollisionSettings(excluded_objects=others),
-                                              shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
+            others = tuple(o.name for o in self.scene.objects if o.name != self.target) + tuple(
+                o.name for o in self.scene.obstacles
+            )  # no table given: none checked
+            return collision.CollisionChecker(
+                self.robot,
+                self.scene_meshes(),
+                None,
+                collision.CollisionSettings(excluded_objects=others),
+                shapes=self.cache.shapes,
+                link_meshes=self.cache.link_meshes(self.robot),
+            )
         fingers = self.robot.finger_links
         # The base is mounted on the table: links that never move always touch it.
         moving = set(self.robot.moving_links())
-        mounted = tuple((name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving) + \
-            _table_pairs(self.robot)
+        mounted = tuple(
+            (name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving
+        ) + _table_pairs(self.robot)
         links = None
         if kind in (CheckerKind.goal, CheckerKind.hand):
             # The fingers may touch the target, and the table within a tolerance the goal set checks
@@ -213,12 +242,21 @@ class World:
             settings = collision.CollisionSettings(allowed_pairs=mounted, excluded_objects=(self.target,))
         table = None
         if self.scene.table is not None:
-            table = collision.Table(size=tuple(np.asarray(self.scene.table.size, dtype=float)),
-                                    pose=np.asarray(self.scene.table.pose, dtype=float))
+            table = collision.Table(
+                size=tuple(np.asarray(self.scene.table.size, dtype=float)),
+                pose=np.asarray(self.scene.table.pose, dtype=float),
+            )
         else:  # no table: nothing is mounted on it or may touch it
             settings = replace(settings, allowed_pairs=tuple(p for p in settings.allowed_pairs if p[1] != "table"))
-        return collision.CollisionChecker(self.robot, self.scene_meshes(), table, settings, links=links,
-                                          shapes=self.cache.shapes, link_meshes=self.cache.link_meshes(self.robot))
+        return collision.CollisionChecker(
+            self.robot,
+            self.scene_meshes(),
+            table,
+            settings,
+            links=links,
+            shapes=self.cache.shapes,
+            link_meshes=self.cache.link_meshes(self.robot),
+        )
 
     @property
     def support_plane(self) -> Tuple[np.ndarray, float]:
@@ -226,8 +264,9 @@ class World:
         table = self.scene.table
         if table is None:  # nothing to rest on: a plane no point reaches below
             return np.array([0.0, 0.0, 1.0]), -np.inf
-        return collision.support_plane(collision.Table(tuple(np.asarray(table.size, float)),
-                                                       np.asarray(table.pose, float)))
+        return collision.support_plane(
+            collision.Table(tuple(np.asarray(table.size, float)), np.asarray(table.pose, float))
+        )
 
     def open_approach(self, room: float = 0.3) -> np.ndarray:
         """The world direction a grasp of the target is best approached along (the centre of the
@@ -240,8 +279,11 @@ class World:
         step = 0.01
         points = top + np.outer(np.arange(step, room + step / 2, step), [0.0, 0.0, 1.0])
         others = [o.name for o in self.scene.objects]  # furniture only: objects are not a roof
-        d, _ = self.sdf.distance(points, cutoff=step, exclude=others, exclude_table=True) \
-            if self.scene.obstacles else (np.full(len(points), np.inf), None)
+        d, _ = (
+            self.sdf.distance(points, cutoff=step, exclude=others, exclude_table=True)
+            if self.scene.obstacles
+            else (np.full(len(points), np.inf), None)
+        )
         if np.all(np.asarray(d) > step / 2):
             return np.array([0.0, 0.0, -1.0])
         level = top - np.asarray(self.scene.robot_base, float)[:3, 3]
@@ -263,8 +305,13 @@ class World:
         """Whether this robot's gripper can grasp the target as it lies at all (``core.graspability``):
         geometry of the target and the support, computed once per world."""
         up = np.array([0.0, 0.0, 1.0]) if self.scene.table is None else np.asarray(self.scene.table.pose, float)[:3, 2]
-        return graspability(self.target_model, self.target_pose, self.robot.info.max_opening, up,
-                            ray_mesh=self.cache.ray_mesh(self.target_model.mesh))
+        return graspability(
+            self.target_model,
+            self.target_pose,
+            self.robot.info.max_opening,
+            up,
+            ray_mesh=self.cache.ray_mesh(self.target_model.mesh),
+        )
 
     def grasp_quality(self, grasps: np.ndarray, settings: quality.QualitySettings) -> quality.Quality:
         """The quality (``grasps.quality``) of hand poses in the target's frame, the target as it lies,
@@ -287,14 +334,24 @@ class World:
         model, info = self.target_model, self.robot.info
         down = quality.model_load(model, self.target_pose).down
         friction = model.friction if getattr(model, "friction", None) is not None else settings.object_friction
-        common = _HashedKey((self._target_key, float(model.mass), _rounded(model.com).tobytes(), friction,
-                             quality.Grip.of(info, friction), _rounded(info.grasp_frame).tobytes(), settings,
-                             _rounded(down).tobytes()))
+        common = _HashedKey(
+            (
+                self._target_key,
+                float(model.mass),
+                _rounded(model.com).tobytes(),
+                friction,
+                quality.Grip.of(info, friction),
+                _rounded(info.grasp_frame).tobytes(),
+                settings,
+                _rounded(down).tobytes(),
+            )
+        )
         keys = [(common, g.tobytes()) for g in _rounded(grasps[:, :3])]
 
         def build(rows):
             q = self.grasp_quality(grasps[rows], settings)
             return list(zip(q.margin.tolist(), q.fit))
+
         verdicts = self.cache.grasp_verdicts.get_many(keys, build)
         return np.array([v[0] for v in verdicts], dtype=float), [v[1] for v in verdicts]
 
@@ -319,8 +376,14 @@ class World:
         scratch is the workspace)."""
         key = (settings, bool(avoid_target))
         if key not in self._chomps:
-            self._chomps[key] = Chomp(self.robot, self.sdf, self.body, settings, exclude=(self.target,),
-                                      obstacle_exclude=() if avoid_target else (self.target,))
+            self._chomps[key] = Chomp(
+                self.robot,
+                self.sdf,
+                self.body,
+                settings,
+                exclude=(self.target,),
+                obstacle_exclude=() if avoid_target else (self.target,),
+            )
         return self._chomps[key]
 
     def grasp_refiner(self, settings=None, seed: int = 0):

@@ -2,6 +2,7 @@
 signed distance field of everything but the target (native space carving + exact distance
 transform), the support plane as an analytic table, and the target's observed points with normals.
 """
+
 from __future__ import annotations
 
 import time
@@ -15,33 +16,35 @@ from pickplan.core.errors import InputError
 from pickplan.core.observation import Observation
 from pickplan.core.sdf import SceneSdf
 
-OBSTACLES = "observed"   # the object name of the fused field in the SceneSdf
+OBSTACLES = "observed"  # the object name of the fused field in the SceneSdf
 
 
 @dataclass(frozen=True)
 class FieldSettings:
-    resolution: float = 0.01                    # m, voxel edge
-    lo: Sequence[float] = (-0.1, -0.6, -0.02)   # workspace box (world) the field covers
+    resolution: float = 0.01  # m, voxel edge
+    lo: Sequence[float] = (-0.1, -0.6, -0.02)  # workspace box (world) the field covers
     hi: Sequence[float] = (1.0, 0.6, 0.6)
-    surface_margin: float = 0.003               # m before a measured depth still counted as the surface (noise)
-    plane: Optional[Tuple[Sequence[float], float]] = None   # (normal, offset) if known; None: detect it
-    plane_margin: float = 0.01                  # m above the plane left to the analytic table
-    plane_tolerance: float = 0.006              # m: RANSAC inlier distance
-    target_stride: int = 2                      # every k-th target pixel becomes a point
+    surface_margin: float = 0.003  # m before a measured depth still counted as the surface (noise)
+    plane: Optional[Tuple[Sequence[float], float]] = None  # (normal, offset) if known; None: detect it
+    plane_margin: float = 0.01  # m above the plane left to the analytic table
+    plane_tolerance: float = 0.006  # m: RANSAC inlier distance
+    target_stride: int = 2  # every k-th target pixel becomes a point
 
 
 @dataclass
 class PerceivedScene:
-    sdf: SceneSdf                       # the fused obstacles (object OBSTACLES) + the table below the plane
-    target_points: np.ndarray           # (N, 3) world
-    target_normals: np.ndarray          # (N, 3) unit, outward (towards the cameras)
-    plane: Tuple[np.ndarray, float]     # support plane n . x = d, n up
+    sdf: SceneSdf  # the fused obstacles (object OBSTACLES) + the table below the plane
+    target_points: np.ndarray  # (N, 3) world
+    target_normals: np.ndarray  # (N, 3) unit, outward (towards the cameras)
+    plane: Tuple[np.ndarray, float]  # support plane n . x = d, n up
     counts: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
     obstacles: Optional["_core.SdfGrid"] = None  # the fused field alone (world frame), for drawing it
 
 
-def pixel_points(d: np.ndarray, rows: np.ndarray, cols: np.ndarray, K: np.ndarray, camera_pose: np.ndarray) -> np.ndarray:
+def pixel_points(
+    d: np.ndarray, rows: np.ndarray, cols: np.ndarray, K: np.ndarray, camera_pose: np.ndarray
+) -> np.ndarray:
     """(N, 3) world points of pixels (rows, cols) at depths d (``Observation``'s conventions: pixel
     (r, c) centred at (c + 0.5, r + 0.5))."""
     P = np.column_stack([(cols + 0.5 - K[0, 2]) / K[0, 0] * d, (rows + 0.5 - K[1, 2]) / K[1, 1] * d, d])
@@ -51,7 +54,7 @@ def pixel_points(d: np.ndarray, rows: np.ndarray, cols: np.ndarray, K: np.ndarra
 def backproject(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray, stride: int = 1) -> np.ndarray:
     """(H', W', 3) world points of every stride-th pixel of one view; NaN where there is no depth."""
     d = np.asarray(depth[::stride, ::stride], float)
-    rows, cols = np.mgrid[0:depth.shape[0]:stride, 0:depth.shape[1]:stride]
+    rows, cols = np.mgrid[0 : depth.shape[0] : stride, 0 : depth.shape[1] : stride]
     d = np.where(np.isfinite(d) & (d > 0), d, np.nan)
     return pixel_points(d.ravel(), rows.ravel(), cols.ravel(), K, camera_pose).reshape(*d.shape, 3)
 
@@ -68,8 +71,9 @@ def _points(obs: Observation, stride: int) -> np.ndarray:
     return view_points(obs.depth, obs.K, obs.camera_pose, stride)
 
 
-def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int = 200, seed: int = 0,
-                  min_up: float = 0.9) -> Tuple[np.ndarray, float]:
+def support_plane(
+    points: np.ndarray, tolerance: float = 0.006, iterations: int = 200, seed: int = 0, min_up: float = 0.9
+) -> Tuple[np.ndarray, float]:
     """The dominant near-horizontal plane n . x = d (n up) by RANSAC, refit to its inliers."""
     P = np.asarray(points, float)
     if len(P) < 3:
@@ -98,8 +102,12 @@ def support_plane(points: np.ndarray, tolerance: float = 0.006, iterations: int 
     return n, float(n @ centre)
 
 
-def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: int = 0,
-             clock: Callable[[], float] = time.perf_counter) -> PerceivedScene:
+def perceive(
+    obs: Observation,
+    settings: FieldSettings = FieldSettings(),
+    seed: int = 0,
+    clock: Callable[[], float] = time.perf_counter,
+) -> PerceivedScene:
     """The planner's world from ``obs``: fused field, support plane (detected unless given), target;
     ``seconds`` per stage as ``clock`` reads them."""
     t0 = clock()
@@ -107,8 +115,11 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
         try:
             n, d = support_plane(_points(obs, 4), settings.plane_tolerance, seed=seed)
         except ValueError as exc:  # the observation's, named: no table in view
-            raise InputError(f"{exc} (the table the objects stand on must be in view)",
-                             path=None if obs.source == "<memory>" else obs.source, field="depth") from None
+            raise InputError(
+                f"{exc} (the table the objects stand on must be in view)",
+                path=None if obs.source == "<memory>" else obs.source,
+                field="depth",
+            ) from None
     else:
         n = np.asarray(settings.plane[0], float)
         n, d = n / np.linalg.norm(n), float(settings.plane[1])
@@ -118,8 +129,9 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     native.resolution, native.surface_margin = float(settings.resolution), float(settings.surface_margin)
     native.has_plane, native.plane_normal, native.plane_offset = True, n, d
     native.plane_margin, native.target_stride = float(settings.plane_margin), int(settings.target_stride)
-    built = _core.build_depth_field(list(obs.depth), list(obs.K), list(obs.camera_pose),
-                                    [m.astype(np.uint8) for m in obs.target_mask], native)
+    built = _core.build_depth_field(
+        list(obs.depth), list(obs.K), list(obs.camera_pose), [m.astype(np.uint8) for m in obs.target_mask], native
+    )
     t2 = clock()
     # the table: a slab under the plane, as wide as the workspace (its top face is the plane)
     lo, hi = np.asarray(settings.lo, float), np.asarray(settings.hi, float)
@@ -140,7 +152,12 @@ def perceive(obs: Observation, settings: FieldSettings = FieldSettings(), seed: 
     size = (hi - lo) + 1.0
     sdf = SceneSdf([(OBSTACLES, built.obstacles, np.eye(4))], table=((size[0], size[1], thickness), T))
     t3 = clock()
-    return PerceivedScene(sdf, np.asarray(built.target_points), np.asarray(built.target_normals), (n, d),
-                          counts={k: int(getattr(built, k)) for k in ("occupied", "target", "free")},
-                          seconds={"plane": t1 - t0, "field": t2 - t1, "scene": t3 - t2},
-                          obstacles=built.obstacles)
+    return PerceivedScene(
+        sdf,
+        np.asarray(built.target_points),
+        np.asarray(built.target_normals),
+        (n, d),
+        counts={k: int(getattr(built, k)) for k in ("occupied", "target", "free")},
+        seconds={"plane": t1 - t0, "field": t2 - t1, "scene": t3 - t2},
+        obstacles=built.obstacles,
+    )

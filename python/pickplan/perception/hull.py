@@ -19,6 +19,7 @@ The hull is returned as the centres of its boundary voxels (those with a 6-neigh
 enough for both uses: no hand can reach the inside without crossing the boundary, and a set's
 extent is its boundary's.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -32,12 +33,12 @@ from pickplan.core.observation import Observation
 
 @dataclass(frozen=True)
 class HullSettings:
-    resolution: float = 0.005     # m, voxel edge
-    reach: float = 0.09           # m beyond the observed points sideways (more than any opening: a hull
+    resolution: float = 0.005  # m, voxel edge
+    reach: float = 0.09  # m beyond the observed points sideways (more than any opening: a hull
     #                               reaching the box's side is wider than the gripper anyway)
     surface_margin: float = 0.003  # m in front of a measured depth still counted at the surface (noise)
-    floor: float = 0.004          # m above the plane where the hull starts (below: the table's contact)
-    headroom: float = 0.01        # m above the highest observed point the box reaches
+    floor: float = 0.004  # m above the plane where the hull starts (below: the table's contact)
+    headroom: float = 0.01  # m above the highest observed point the box reaches
 
     def __post_init__(self):
         for name in ("resolution", "reach", "headroom"):
@@ -90,8 +91,9 @@ def _classify(obs: Observation, X: np.ndarray, margin: float):
     return free, behind_target
 
 
-def hull_voxels(obs: Observation, points: np.ndarray, plane: Tuple[np.ndarray, float],
-                settings: HullSettings = HullSettings()) -> Tuple[np.ndarray, np.ndarray]:
+def hull_voxels(
+    obs: Observation, points: np.ndarray, plane: Tuple[np.ndarray, float], settings: HullSettings = HullSettings()
+) -> Tuple[np.ndarray, np.ndarray]:
     """Centres (K, 3), world frame, of every voxel the target may fill (module docstring), and
     whether each is on the hull's boundary (K,)."""
     if not isinstance(obs, Observation):
@@ -108,8 +110,9 @@ def hull_voxels(obs: Observation, points: np.ndarray, plane: Tuple[np.ndarray, f
     return centres[inside], boundary[inside]
 
 
-def visibility_hull(obs: Observation, points: np.ndarray, plane: Tuple[np.ndarray, float],
-                    settings: HullSettings = HullSettings()) -> np.ndarray:
+def visibility_hull(
+    obs: Observation, points: np.ndarray, plane: Tuple[np.ndarray, float], settings: HullSettings = HullSettings()
+) -> np.ndarray:
     """Boundary voxel centres (K, 3), world frame, of the space the target may fill (module docstring)."""
     centres, boundary = hull_voxels(obs, points, plane, settings)
     return centres[boundary]

@@ -9,6 +9,7 @@ the target (its mask is empty); no view seeing it is an ``ObservationError``.
 >>> plane = support_plane(view_points(depth, K, poses, 4))
 >>> mask = target_near_point(depth, K, poses, (0.55, 0.02, 0.08), plane)   # (V, H, W) bool
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,10 +25,10 @@ from pickplan.perception.field import pixel_points
 
 @dataclass(frozen=True)
 class TargetSettings:
-    max_distance: float = 0.05   # m: the segment's nearest pixel must be this close to the point
-    min_height: float = 0.005    # m above the support plane: pixels lower than this are the plane's
-    max_step: float = 0.01       # m: a larger depth step between 4-neighbours separates two segments
-    min_pixels: int = 20         # smaller segments are speckle, never the target
+    max_distance: float = 0.05  # m: the segment's nearest pixel must be this close to the point
+    min_height: float = 0.005  # m above the support plane: pixels lower than this are the plane's
+    max_step: float = 0.01  # m: a larger depth step between 4-neighbours separates two segments
+    min_pixels: int = 20  # smaller segments are speckle, never the target
 
 
 def _segments(depth: np.ndarray, above: np.ndarray, max_step: float) -> np.ndarray:
@@ -35,7 +36,7 @@ def _segments(depth: np.ndarray, above: np.ndarray, max_step: float) -> np.ndarr
     differs by at most ``max_step`` (connected components of that graph); -1 off ``above``."""
     index = np.full(depth.shape, -1)
     count = int(above.sum())
-    index[above] = np.arange(count)   # a node per pixel above the plane: a few percent of the image
+    index[above] = np.arange(count)  # a node per pixel above the plane: a few percent of the image
     with np.errstate(invalid="ignore"):
         across = above[:, :-1] & above[:, 1:] & (np.abs(np.diff(depth, axis=1)) <= max_step)
         down = above[:-1] & above[1:] & (np.abs(np.diff(depth, axis=0)) <= max_step)
@@ -51,16 +52,22 @@ def _heights(d: np.ndarray, K: np.ndarray, pose: np.ndarray, n: np.ndarray, off:
     """(H, W) height of each pixel's point above the plane n . x = off (NaN without depth): linear in
     the depth along each pixel's ray, so no point is formed (``backproject``'s pixel convention)."""
     H, W = d.shape
-    m = pose[:3, :3].T @ n                                   # the plane's normal in the camera frame
+    m = pose[:3, :3].T @ n  # the plane's normal in the camera frame
     x = (np.arange(W) + 0.5 - K[0, 2]) / K[0, 0]
     y = (np.arange(H) + 0.5 - K[1, 2]) / K[1, 1]
     with np.errstate(invalid="ignore"):
         return d * (m[0] * x[None, :] + m[1] * y[:, None] + m[2]) + (pose[:3, 3] @ n - off)
 
 
-def target_near_point(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray, point: Sequence[float],
-                      plane: Tuple[np.ndarray, float], settings: TargetSettings = TargetSettings(),
-                      source: str = "<memory>") -> np.ndarray:
+def target_near_point(
+    depth: np.ndarray,
+    K: np.ndarray,
+    camera_pose: np.ndarray,
+    point: Sequence[float],
+    plane: Tuple[np.ndarray, float],
+    settings: TargetSettings = TargetSettings(),
+    source: str = "<memory>",
+) -> np.ndarray:
     """(V, H, W) target mask: per view the surface segment nearest ``point`` (world, m) above
     ``plane`` (unit normal n up, offset d: n . x = d); see the module doc."""
     depth = np.asarray(depth, float)
@@ -90,6 +97,8 @@ def target_near_point(depth: np.ndarray, K: np.ndarray, camera_pose: np.ndarray,
             masks[v] = labels == labels[rows[k], cols[k]]
     if not masks.any():
         what = f"the nearest is {nearest:.3f} m away" if np.isfinite(nearest) else "no view shows an object"
-        raise ObservationError(f"{source}: target point: no object within {settings.max_distance} m of "
-                               f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) above the support plane ({what})")
+        raise ObservationError(
+            f"{source}: target point: no object within {settings.max_distance} m of "
+            f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) above the support plane ({what})"
+        )
     return masks

@@ -8,18 +8,44 @@
 
 This package's own names are part 1's, importable without the native module.
 """
+
 from pickplan.pickup.metamodel.active import ActiveConfig, BoundaryResult, PoseDomain, learn_boundary, learn_random
-from pickplan.pickup.metamodel.model import (DEFAULT_LEVELS, BoundaryModel, BuildConfig, MetaModel, SigmaLevel,
-                        build_metamodel, success_probability)
+from pickplan.pickup.metamodel.build import build_metamodel
+from pickplan.pickup.metamodel.model import (
+    DEFAULT_LEVELS,
+    BoundaryModel,
+    BuildConfig,
+    MetaModel,
+    SigmaLevel,
+    success_probability,
+)
 from pickplan.pickup.metamodel.parallel import SimRunner, run_batch
 from pickplan.pickup.metamodel.parts import PARTS, GraspStrategy, Part, get_part
 from pickplan.pickup.metamodel.sim import GraspOutcome, SimConfig, simulate_grasp
 from pickplan.pickup.metamodel.surface import RhoSurface, fit_rho_surface
 
 __all__ = [
-    "ActiveConfig", "BoundaryResult", "PoseDomain", "learn_boundary", "learn_random",
-    "DEFAULT_LEVELS", "BoundaryModel", "BuildConfig", "MetaModel", "SigmaLevel",
-    "build_metamodel", "success_probability", "SimRunner", "run_batch", "PARTS",
-    "GraspStrategy", "Part", "get_part", "GraspOutcome", "SimConfig", "simulate_grasp",
-    "RhoSurface", "fit_rho_surface",
+    "ActiveConfig",
+    "BoundaryResult",
+    "PoseDomain",
+    "learn_boundary",
+    "learn_random",
+    "DEFAULT_LEVELS",
+    "BoundaryModel",
+    "BuildConfig",
+    "MetaModel",
+    "SigmaLevel",
+    "build_metamodel",
+    "success_probability",
+    "SimRunner",
+    "run_batch",
+    "PARTS",
+    "GraspStrategy",
+    "Part",
+    "get_part",
+    "GraspOutcome",
+    "SimConfig",
+    "simulate_grasp",
+    "RhoSurface",
+    "fit_rho_surface",
 ]

@@ -11,6 +11,7 @@ for the trajectory it publishes and the status that describes it.
 ...     reply = client.pick_and_place(point=(0.55, 0.02, 0.08), region=(0.35, -0.5, 0.0, 0.6, -0.25, 0.4))
 ...     reply.segments                                   # [("approach", 0.0, 1.4), ("close", 1.4, 1.9), ...]
 """
+
 from __future__ import annotations
 
 import time
@@ -36,8 +37,8 @@ from pickplan.ros.node import LATCHED  # noqa: E402
 class PlanReply:
     success: bool
     message: str
-    trajectory: Optional[JointTrajectory]   # the one published for this request (None on failure)
-    seconds: float                          # from the request to the trajectory (or the failed response)
+    trajectory: Optional[JointTrajectory]  # the one published for this request (None on failure)
+    seconds: float  # from the request to the trajectory (or the failed response)
     segments: List[Tuple[str, float, float]] = field(default_factory=list)  # a pick and place's parts: name, start, end
 
 
@@ -70,8 +71,9 @@ class PickClient:
             rclpy.shutdown()
 
     def wait_for_server(self, timeout: float = 30.0) -> bool:
-        return all(c.wait_for_service(timeout_sec=timeout) for c in (self.plan_client, self.place_client,
-                                                                     self.param_client))
+        return all(
+            c.wait_for_service(timeout_sec=timeout) for c in (self.plan_client, self.place_client, self.param_client)
+        )
 
     def _call(self, client, request, timeout: float):
         future = client.call_async(request)
@@ -89,7 +91,9 @@ class PickClient:
             if isinstance(value, str):
                 v = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
             else:
-                v = ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=[float(x) for x in value])
+                v = ParameterValue(
+                    type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=[float(x) for x in value]
+                )
             params.append(ParameterMsg(name=name, value=v))
         reply = self._call(self.param_client, SetParameters.Request(parameters=params), timeout)
         for name, result in zip(values, reply.results):
@@ -110,11 +114,19 @@ class PickClient:
             self.set_target(point)
         return self._request(self.plan_client, timeout)
 
-    def pick_and_place(self, point: Optional[Sequence[float]] = None, region: Optional[Sequence[float]] = None,
-                       orientation: Optional[str] = None, timeout: float = 120.0) -> PlanReply:
+    def pick_and_place(
+        self,
+        point: Optional[Sequence[float]] = None,
+        region: Optional[Sequence[float]] = None,
+        orientation: Optional[str] = None,
+        timeout: float = 120.0,
+    ) -> PlanReply:
         """Plan the pick and the place in ``region`` (x0 y0 z0 x1 y1 z1; default: the node's place_region)."""
-        values = {k: v for k, v in (("target_point", point), ("place_region", region),
-                                    ("place_orientation", orientation)) if v is not None}
+        values = {
+            k: v
+            for k, v in (("target_point", point), ("place_region", region), ("place_orientation", orientation))
+            if v is not None
+        }
         if values:
             self.set_parameters(values)
         return self._request(self.place_client, timeout)
@@ -135,6 +147,7 @@ class PickClient:
             for kv in self._statuses[-1].values:
                 if kv.key.startswith("segment."):
                     t_start, t_end = (float(x) for x in kv.value.split())
-                    segments.append((kv.key[len("segment."):], t_start, t_end))
-        return PlanReply(reply.success, reply.message, trajectory, time.perf_counter() - t0,
-                         sorted(segments, key=lambda seg: seg[1]))
+                    segments.append((kv.key[len("segment.") :], t_start, t_end))
+        return PlanReply(
+            reply.success, reply.message, trajectory, time.perf_counter() - t0, sorted(segments, key=lambda seg: seg[1])
+        )

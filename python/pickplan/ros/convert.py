@@ -13,6 +13,7 @@ Conventions:
 - poses are given as 7 numbers (x, y, z, qx, qy, qz, qw: the frame's origin and orientation in the
   planning frame) or 16 (a row-major 4 x 4 matrix).
 """
+
 from __future__ import annotations
 
 import math
@@ -23,8 +24,11 @@ import numpy as np
 from pickplan.core.errors import InputError
 from pickplan.core.timing import TimedTrajectory
 
-DEPTH_ENCODINGS: Dict[str, Tuple[type, float]] = {"16UC1": (np.uint16, 0.001), "mono16": (np.uint16, 0.001),
-                                                   "32FC1": (np.float32, 1.0)}
+DEPTH_ENCODINGS: Dict[str, Tuple[type, float]] = {
+    "16UC1": (np.uint16, 0.001),
+    "mono16": (np.uint16, 0.001),
+    "32FC1": (np.float32, 1.0),
+}
 RIGID_TOL = 1e-4
 
 
@@ -39,8 +43,7 @@ def depth_image(msg, where: str = "image") -> np.ndarray:
     """(H, W) float32 metres from a ``sensor_msgs/Image``; NaN where there is no return."""
     encoding = str(msg.encoding)
     if encoding not in DEPTH_ENCODINGS:
-        raise MessageError(f"{where}.encoding", f"{encoding!r} is not a depth encoding "
-                                                f"({', '.join(DEPTH_ENCODINGS)})")
+        raise MessageError(f"{where}.encoding", f"{encoding!r} is not a depth encoding ({', '.join(DEPTH_ENCODINGS)})")
     dtype, scale = DEPTH_ENCODINGS[encoding]
     H, W, step = int(msg.height), int(msg.width), int(msg.step)
     item = np.dtype(dtype).itemsize
@@ -54,7 +57,7 @@ def depth_image(msg, where: str = "image") -> np.ndarray:
         data = np.asarray(msg.data, np.uint8)
     if len(data) != step * H:
         raise MessageError(f"{where}.data", f"{len(data)} bytes, but height {H} x step {step} = {step * H}")
-    rows = data.reshape(H, step)[:, :W * item]
+    rows = data.reshape(H, step)[:, : W * item]
     order = ">" if msg.is_bigendian else "<"
     depth = rows.view(np.dtype(dtype).newbyteorder(order)).astype(np.float32) * np.float32(scale)
     depth[~np.isfinite(depth) | (depth <= 0)] = np.nan
@@ -104,16 +107,21 @@ def pose_matrix(values: Sequence[float], where: str = "pose") -> np.ndarray:
             raise MessageError(where, f"quaternion (qx, qy, qz, qw) {q.tolist()} has norm {norm:.4f}, expected 1")
         x, y, z, w = q / norm
         T = np.eye(4)
-        T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        T[:3, :3] = [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
         T[:3, 3] = v[:3]
         return T
     if len(v) == 16:
         T = v.reshape(4, 4)
         R = T[:3, :3]
-        if np.abs(R @ R.T - np.eye(3)).max() > RIGID_TOL or np.linalg.det(R) < 0 or \
-                np.abs(T[3] - [0, 0, 0, 1]).max() > RIGID_TOL:
+        if (
+            np.abs(R @ R.T - np.eye(3)).max() > RIGID_TOL
+            or np.linalg.det(R) < 0
+            or np.abs(T[3] - [0, 0, 0, 1]).max() > RIGID_TOL
+        ):
             raise MessageError(where, "the 4 x 4 matrix is not a rigid transform")
         return T
     raise MessageError(where, f"expected 7 numbers (x y z qx qy qz qw) or 16 (a row-major 4 x 4), got {len(v)}")
@@ -134,8 +142,9 @@ def pose_values(T: np.ndarray) -> list:
     return list(np.asarray(T, float)[:3, 3]) + list(q)
 
 
-def joint_positions(msg, joint_names: Sequence[str], defaults: Dict[str, float],
-                    where: str = "joint_states") -> np.ndarray:
+def joint_positions(
+    msg, joint_names: Sequence[str], defaults: Dict[str, float], where: str = "joint_states"
+) -> np.ndarray:
     """Positions in ``joint_names`` order from a ``sensor_msgs/JointState`` (its own order, any
     other joints ignored); a joint it lacks takes ``defaults[name]`` (the gripper's, which often
     publishes elsewhere) or is an error."""
@@ -180,8 +189,14 @@ def image_fields(depth_m: np.ndarray, encoding: str = "32FC1") -> dict:
     else:
         raw = np.where(np.isfinite(depth) & (depth > 0), depth, np.nan).astype("<f4")
     H, W = raw.shape
-    return {"height": H, "width": W, "encoding": encoding, "is_bigendian": False,
-            "step": W * raw.itemsize, "data": raw.tobytes()}
+    return {
+        "height": H,
+        "width": W,
+        "encoding": encoding,
+        "is_bigendian": False,
+        "step": W * raw.itemsize,
+        "data": raw.tobytes(),
+    }
 
 
 def timed_trajectory(msg, joint_names: Sequence[str], where: str = "trajectory"):

@@ -5,6 +5,7 @@ extra and every module that is missing; nothing here imports rclpy. ``Transport.
 DDS at ``fastdds_shm.xml`` beside this file: shared memory only, so nothing leaves the machine (no
 UDP socket is opened at all); both ends of a connection must use it.
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -14,8 +15,15 @@ from typing import MutableMapping
 from pickplan.core.settings import Option
 
 EXTRA = "pip install 'pickplan[ros]'"
-REQUIRED = ("rclpy", "sensor_msgs", "geometry_msgs", "trajectory_msgs", "std_srvs", "visualization_msgs",
-            "diagnostic_msgs")
+REQUIRED = (
+    "rclpy",
+    "sensor_msgs",
+    "geometry_msgs",
+    "trajectory_msgs",
+    "std_srvs",
+    "visualization_msgs",
+    "diagnostic_msgs",
+)
 SHM_PROFILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "fastdds_shm.xml")
 FAST_DDS = "rmw_fastrtps_cpp"
 
@@ -43,8 +51,10 @@ def available(module: str) -> bool:
 def require_ros() -> None:
     missing = [m for m in REQUIRED if not available(m)]
     if missing:
-        raise RosExtraMissing(f"the ROS 2 node needs the ros extra ({EXTRA}) or a sourced ROS 2 installation; "
-                              f"not importable: {', '.join(missing)}")
+        raise RosExtraMissing(
+            f"the ROS 2 node needs the ros extra ({EXTRA}) or a sourced ROS 2 installation; "
+            f"not importable: {', '.join(missing)}"
+        )
 
 
 def configure_transport(transport, env: MutableMapping[str, str]) -> None:

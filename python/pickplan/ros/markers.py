@@ -7,6 +7,7 @@ chose (orange), ``refined_grasp`` where C-Space ISF moved it (green); for a pick
 ``place_region`` (the box's edges, purple) and ``place`` (the hand at the set-down, purple). The array starts with a
 DELETEALL, so each request's markers replace the last's.
 """
+
 from __future__ import annotations
 
 from typing import Optional, Sequence
@@ -28,7 +29,9 @@ PLACE_COLOR = (0.7, 0.2, 0.9, 1.0)
 
 def box_edges(lo: Sequence[float], hi: Sequence[float]) -> np.ndarray:
     """The 12 edges of the box [lo, hi] as 24 points (a LINE_LIST)."""
-    corners = np.array([[(lo, hi)[i][0], (lo, hi)[j][1], (lo, hi)[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    corners = np.array(
+        [[(lo, hi)[i][0], (lo, hi)[j][1], (lo, hi)[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+    )
     pairs = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
     return corners[np.array(pairs).ravel()]
 
@@ -36,13 +39,13 @@ def box_edges(lo: Sequence[float], hi: Sequence[float]) -> np.ndarray:
 def field_surface(grid, max_points: int = 20000) -> np.ndarray:
     """(N, 3) world centres of the occupied nodes of an ``SdfGrid`` (values <= 0) with a free
     6-neighbour, evenly thinned to at most ``max_points``."""
-    v = np.asarray(grid.values)                       # (z, y, x)
+    v = np.asarray(grid.values)  # (z, y, x)
     occupied = v <= 0
     padded = np.pad(occupied, 1, constant_values=True)
     inner = np.ones_like(occupied)
     Z, Y, X = occupied.shape
     for dz, dy, dx in ((0, 1, 1), (2, 1, 1), (1, 0, 1), (1, 2, 1), (1, 1, 0), (1, 1, 2)):
-        inner &= padded[dz:dz + Z, dy:dy + Y, dx:dx + X]
+        inner &= padded[dz : dz + Z, dy : dy + Y, dx : dx + X]
     z, y, x = np.nonzero(occupied & ~inner)
     points = np.asarray(grid.origin, float) + grid.resolution * np.column_stack([x, y, z])
     if len(points) > max_points:
@@ -81,10 +84,12 @@ def pick_markers(outcome: PickOutcome, frame: str, stamp, max_goal_hands: int = 
         return out
     grid = world.perceived.obstacles
     if grid is not None:
-        out.markers.append(_marker("field", Marker.CUBE_LIST, field_surface(grid), FIELD_COLOR,
-                                   grid.resolution, frame, stamp))
-    out.markers.append(_marker("target", Marker.POINTS, world.perceived.target_points[::4], TARGET_COLOR, 0.004,
-                               frame, stamp))
+        out.markers.append(
+            _marker("field", Marker.CUBE_LIST, field_surface(grid), FIELD_COLOR, grid.resolution, frame, stamp)
+        )
+    out.markers.append(
+        _marker("target", Marker.POINTS, world.perceived.target_points[::4], TARGET_COLOR, 0.004, frame, stamp)
+    )
     result = outcome.result
     if result is None or len(result.goal_set) == 0:
         return out
@@ -92,20 +97,51 @@ def pick_markers(outcome: PickOutcome, frame: str, stamp, max_goal_hands: int = 
     goals = np.asarray(result.goal_set)
     shown = goals[np.unique(np.linspace(0, len(goals) - 1, min(max_goal_hands, len(goals))).astype(int))]
     robot = world.robot
-    out.markers.append(_marker("goal_set", Marker.POINTS, hand_points(robot, samples, shown), GOAL_COLOR, 0.003,
-                               frame, stamp))
+    out.markers.append(
+        _marker("goal_set", Marker.POINTS, hand_points(robot, samples, shown), GOAL_COLOR, 0.003, frame, stamp)
+    )
     chosen: Optional[np.ndarray] = goals[result.goal_source] if result.goal_source >= 0 else None
     if chosen is not None:
-        out.markers.append(_marker("chosen_grasp", Marker.POINTS, hand_points(robot, samples, chosen), CHOSEN_COLOR,
-                                   0.005, frame, stamp))
+        out.markers.append(
+            _marker(
+                "chosen_grasp", Marker.POINTS, hand_points(robot, samples, chosen), CHOSEN_COLOR, 0.005, frame, stamp
+            )
+        )
     if result.refined:
-        out.markers.append(_marker("refined_grasp", Marker.POINTS, hand_points(robot, samples, result.goal),
-                                   REFINED_COLOR, 0.005, frame, stamp))
+        out.markers.append(
+            _marker(
+                "refined_grasp",
+                Marker.POINTS,
+                hand_points(robot, samples, result.goal),
+                REFINED_COLOR,
+                0.005,
+                frame,
+                stamp,
+            )
+        )
     task = outcome.task
     if task is not None and outcome.place is not None:
-        out.markers.append(_marker("place_region", Marker.LINE_LIST, box_edges(outcome.place.region_min, outcome.place.region_max),
-                                   PLACE_COLOR, 0.004, frame, stamp))
+        out.markers.append(
+            _marker(
+                "place_region",
+                Marker.LINE_LIST,
+                box_edges(outcome.place.region_min, outcome.place.region_max),
+                PLACE_COLOR,
+                0.004,
+                frame,
+                stamp,
+            )
+        )
         if task.place is not None and task.place.success:
-            out.markers.append(_marker("place", Marker.POINTS, hand_points(robot, samples, task.place.goal),
-                                       PLACE_COLOR, 0.005, frame, stamp))
+            out.markers.append(
+                _marker(
+                    "place",
+                    Marker.POINTS,
+                    hand_points(robot, samples, task.place.goal),
+                    PLACE_COLOR,
+                    0.005,
+                    frame,
+                    stamp,
+                )
+            )
     return out

@@ -38,6 +38,7 @@ and ``~/status`` (``diagnostic_msgs/DiagnosticStatus``: level, the status, the r
 last three latched (transient local). A message that cannot be used fails that request with its
 topic and field named, and the node goes on; it keeps only the latest message of each topic.
 """
+
 from __future__ import annotations
 
 import signal
@@ -104,8 +105,11 @@ class PickNode(Node):
         # topic -> its last message, and TARGET -> the last target given: the inputs of the next request
         self.latest: Dict[str, object] = {}
         p = self._declare_parameters(robot)
-        self.pipeline = PickPipeline(PickSettings(robot=p["robot"], rate=p["rate"], speed_scaling=p["speed_scaling"],
-                                                  planner=OMGSettings(seed=p["seed"])))
+        self.pipeline = PickPipeline(
+            PickSettings(
+                robot=p["robot"], rate=p["rate"], speed_scaling=p["speed_scaling"], planner=OMGSettings(seed=p["seed"])
+            )
+        )
         robot_model = self.pipeline.robot
         self.frame = p["base_frame"] or robot_model.link_names[0]
         self.joints = p["trajectory_joints"] or robot_model.joint_names
@@ -130,25 +134,37 @@ class PickNode(Node):
         self._draw = self.create_guard_condition(self._publish_markers)  # after the response is sent
         self._tf = self._tf_buffer() if any(c["pose"] is None for c in self.cameras) else None
         self._controller = self._action_client(p["controller_action"])
-        self.get_logger().info(f"pickplan: planning picks for {robot_model.info.name} in {self.frame} from "
-                               f"{len(self.cameras)} camera(s); call {self.resolve_service_name('~/plan')}")
+        self.get_logger().info(
+            f"pickplan: planning picks for {robot_model.info.name} in {self.frame} from "
+            f"{len(self.cameras)} camera(s); call {self.resolve_service_name('~/plan')}"
+        )
 
     # --- parameters -------------------------------------------------------------------------------
     def _declare_parameters(self, robot: Optional[str]) -> dict:
-        defaults = {"robot": robot or "panda", "base_frame": "", "cameras": ["camera"],
-                    "joint_states_topic": "/joint_states", "clicked_point_topic": "/clicked_point",
-                    "rate": 100.0, "speed_scaling": 1.0, "seed": 0, "controller_action": ""}
+        defaults = {
+            "robot": robot or "panda",
+            "base_frame": "",
+            "cameras": ["camera"],
+            "joint_states_topic": "/joint_states",
+            "clicked_point_topic": "/clicked_point",
+            "rate": 100.0,
+            "speed_scaling": 1.0,
+            "seed": 0,
+            "controller_action": "",
+        }
         out = {name: self.declare_parameter(name, value).value for name, value in defaults.items()}
         if robot:  # the command line's --robot wins over a parameter file
             out["robot"] = robot
-        out["trajectory_joints"] = list(self.declare_parameter("trajectory_joints", Parameter.Type.STRING_ARRAY)
-                                        .value or [])
+        out["trajectory_joints"] = list(
+            self.declare_parameter("trajectory_joints", Parameter.Type.STRING_ARRAY).value or []
+        )
         point = self.declare_parameter("target_point", Parameter.Type.DOUBLE_ARRAY).value
         if point:
             self.latest[TARGET] = ("target_point", list(point))
-        self.place_parameters = {"place_region": list(self.declare_parameter(
-            "place_region", Parameter.Type.DOUBLE_ARRAY).value or []), "place_orientation": self.declare_parameter(
-            "place_orientation", Orientation.upright.value).value}
+        self.place_parameters = {
+            "place_region": list(self.declare_parameter("place_region", Parameter.Type.DOUBLE_ARRAY).value or []),
+            "place_orientation": self.declare_parameter("place_orientation", Orientation.upright.value).value,
+        }
         self.place = _place_request(**self.place_parameters)
         return out
 
@@ -162,13 +178,17 @@ class PickNode(Node):
             pose = self.declare_parameter(f"{name}.pose", Parameter.Type.DOUBLE_ARRAY).value
             T = convert.pose_matrix(pose, f"{name}.pose") if pose else None
             if T is None and not available("tf2_ros"):
-                raise InputError("no pose parameter and tf2_ros cannot be imported: give the camera's optical frame "
-                                 "in the base frame as x y z qx qy qz qw", field=f"{name}.pose")
+                raise InputError(
+                    "no pose parameter and tf2_ros cannot be imported: give the camera's optical frame "
+                    "in the base frame as x y z qx qy qz qw",
+                    field=f"{name}.pose",
+                )
             cameras.append({"name": name, "image_topic": image, "info_topic": info, "pose": T})
         return cameras
 
     def _tf_buffer(self):
         from tf2_ros import Buffer, TransformListener  # optional: no wheel on PyPI; a system ROS has it
+
         buffer = Buffer()
         self._tf_listener = TransformListener(buffer, self)
         return buffer
@@ -177,16 +197,19 @@ class PickNode(Node):
         if not name:
             return None
         if not available("control_msgs"):
-            self.get_logger().warning(f"controller_action {name}: control_msgs cannot be imported; trajectories are "
-                                      "only published")
+            self.get_logger().warning(
+                f"controller_action {name}: control_msgs cannot be imported; trajectories are only published"
+            )
             return None
         from control_msgs.action import FollowJointTrajectory  # optional: no wheel on PyPI
         from rclpy.action import ActionClient
+
         return ActionClient(self, FollowJointTrajectory, name), FollowJointTrajectory
 
     def _keeper(self, topic: str):
         def keep(msg):
             self.latest[topic] = msg
+
         return keep
 
     # --- a request --------------------------------------------------------------------------------
@@ -202,8 +225,9 @@ class PickNode(Node):
         try:
             tf = self._tf.lookup_transform(self.frame, image.header.frame_id, rclpy.time.Time())
         except Exception as exc:  # noqa: BLE001 - tf2's lookup errors share no base class worth naming
-            raise convert.MessageError(f"{cam['name']}.pose", f"no transform {self.frame} <- "
-                                                              f"{image.header.frame_id!r} in tf ({exc})") from None
+            raise convert.MessageError(
+                f"{cam['name']}.pose", f"no transform {self.frame} <- {image.header.frame_id!r} in tf ({exc})"
+            ) from None
         t, r = tf.transform.translation, tf.transform.rotation
         return convert.pose_matrix([t.x, t.y, t.z, r.x, r.y, r.z, r.w], f"tf {image.header.frame_id}")
 
@@ -218,30 +242,36 @@ class PickNode(Node):
                     return SetParametersResult(successful=False, reason=f"target_point: expected x y z, got {values}")
                 self.latest[TARGET] = ("target_point", values)
             elif param.name in self.place_parameters:
-                asked = dict(self.place_parameters, **{param.name: param.value if isinstance(param.value, str)
-                                                       else list(param.value or [])})
+                asked = dict(
+                    self.place_parameters,
+                    **{param.name: param.value if isinstance(param.value, str) else list(param.value or [])},
+                )
                 try:
                     self.place = _place_request(**asked)
                 except InputError as exc:
                     return SetParametersResult(successful=False, reason=str(exc))
                 self.place_parameters = asked
             elif param.name != "use_sim_time":  # the clock's own
-                return SetParametersResult(successful=False, reason=f"{param.name}: read at start only; restart the "
-                                                                    "node to change it")
+                return SetParametersResult(
+                    successful=False, reason=f"{param.name}: read at start only; restart the node to change it"
+                )
         return SetParametersResult(successful=True)
 
     def _target_point(self) -> np.ndarray:
         """The last point given, clicked or set as the target_point parameter."""
         source, value = self.latest.get(TARGET, (None, None))
         if source is None:
-            raise convert.MessageError(self.click_topic, "no target: click a point (geometry_msgs/PointStamped) or "
-                                                         "set the target_point parameter")
+            raise convert.MessageError(
+                self.click_topic,
+                "no target: click a point (geometry_msgs/PointStamped) or set the target_point parameter",
+            )
         if source == "target_point":
             return np.array(value, float)
         frame = value.header.frame_id
         if frame and frame != self.frame:
-            raise convert.MessageError(f"{self.click_topic}.header.frame_id",
-                                       f"{frame!r}: expected the base frame {self.frame!r}")
+            raise convert.MessageError(
+                f"{self.click_topic}.header.frame_id", f"{frame!r}: expected the base frame {self.frame!r}"
+            )
         return convert.point(value.point, f"{self.click_topic}.point")
 
     def request(self) -> PickRequest:
@@ -262,8 +292,9 @@ class PickNode(Node):
         t0 = time.perf_counter()
         try:
             if place and self.place is None:
-                raise InputError("no place region: set the place_region parameter (x0 y0 z0 x1 y1 z1)",
-                                 field="place_region")
+                raise InputError(
+                    "no place region: set the place_region parameter (x0 y0 z0 x1 y1 z1)", field="place_region"
+                )
             outcome = self.pipeline.plan(self.request(), self.place if place else None)
         except (InputError, ValueError) as exc:
             outcome = PickOutcome(PickStatus.bad_input, str(exc))
@@ -287,8 +318,13 @@ class PickNode(Node):
         values = [KeyValue(key="status", value=str(outcome.status))]
         values += [KeyValue(key=f"seconds.{k}", value=f"{v:.4f}") for k, v in sorted(outcome.seconds.items())]
         values += [KeyValue(key=f"segment.{name}", value=f"{t0:.4f} {t1:.4f}") for name, t0, t1 in outcome.segments]
-        return DiagnosticStatus(level=level, name=self.get_fully_qualified_name(), message=outcome.summary(),
-                                hardware_id=self.pipeline.robot.info.name, values=values)
+        return DiagnosticStatus(
+            level=level,
+            name=self.get_fully_qualified_name(),
+            message=outcome.summary(),
+            hardware_id=self.pipeline.robot.info.name,
+            values=values,
+        )
 
     def _send_to_controller(self, msg: JointTrajectory) -> None:
         if self._controller is None:
@@ -370,5 +406,5 @@ def main(argv: Optional[List[str]] = None) -> int:
     if "--robot" in argv:
         i = argv.index("--robot")
         robot = argv[i + 1] if i + 1 < len(argv) else None
-        del argv[i:i + 2]
+        del argv[i : i + 2]
     return run(robot, [sys.argv[0]] + argv)

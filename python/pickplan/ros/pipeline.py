@@ -13,6 +13,7 @@ the robot's joint positions; a point on or near the target. ``PickPipeline.plan`
 Any failure is a ``PickOutcome`` with a ``PickStatus`` and a reason, never an exception; the
 pipeline keeps nothing from one request to the next but the robot's model data (``ModelCache``).
 """
+
 from __future__ import annotations
 
 import time
@@ -37,13 +38,13 @@ class PickStatus(Option):
     """How a request ended: success, or why not."""
 
     success = "success"
-    bad_input = "bad_input"            # a message or parameter that cannot be used (named in the reason)
-    no_target = "no_target"            # no object near the point in any view
-    no_goals = "no_goals"              # the planner's statuses (omg.planner.PlanStatus)
+    bad_input = "bad_input"  # a message or parameter that cannot be used (named in the reason)
+    no_target = "no_target"  # no object near the point in any view
+    no_goals = "no_goals"  # the planner's statuses (omg.planner.PlanStatus)
     ungraspable = "ungraspable"
     in_collision = "in_collision"
     not_smooth = "not_smooth"
-    lift_blocked = "lift_blocked"      # pick and place (omg.pickplace.PickPlaceStatus)
+    lift_blocked = "lift_blocked"  # pick and place (omg.pickplace.PickPlaceStatus)
     no_place_goals = "no_place_goals"
     place_failed = "place_failed"
     retract_blocked = "retract_blocked"
@@ -52,14 +53,14 @@ class PickStatus(Option):
 
 @dataclass(frozen=True)
 class PickSettings:
-    robot: str = "panda"                  # a shipped description's name or a .toml file
+    robot: str = "panda"  # a shipped description's name or a .toml file
     planner: OMGSettings = field(default_factory=OMGSettings)
     world: PerceivedWorldSettings = field(default_factory=PerceivedWorldSettings)
     target: TargetSettings = field(default_factory=TargetSettings)
-    rate: float = 100.0                   # Hz of the timed trajectory's samples
-    speed_scaling: float = 1.0            # fraction of the robot's velocity and acceleration limits
+    rate: float = 100.0  # Hz of the timed trajectory's samples
+    speed_scaling: float = 1.0  # fraction of the robot's velocity and acceleration limits
     pickplace: PickPlaceSettings = field(default_factory=PickPlaceSettings)  # its ``pick``: ``planner``
-    gripper_seconds: float = 0.5          # the shortest close and release in a pick and place
+    gripper_seconds: float = 0.5  # the shortest close and release in a pick and place
 
     def __post_init__(self):
         if not 0 < self.speed_scaling <= 1:
@@ -72,17 +73,17 @@ class PickSettings:
 
 @dataclass
 class CameraView:
-    depth: np.ndarray        # (H, W) metres, NaN: no return
-    K: np.ndarray            # (3, 3) Observation.K
-    pose: np.ndarray         # (4, 4) camera optical frame -> planning frame
+    depth: np.ndarray  # (H, W) metres, NaN: no return
+    K: np.ndarray  # (3, 3) Observation.K
+    pose: np.ndarray  # (4, 4) camera optical frame -> planning frame
     name: str = "camera"
 
 
 @dataclass
 class PickRequest:
     views: List[CameraView]
-    start: np.ndarray        # (dof,) joint positions in the robot's joint order
-    point: np.ndarray        # (3,) planning frame: the object nearest it is the target
+    start: np.ndarray  # (dof,) joint positions in the robot's joint order
+    point: np.ndarray  # (3,) planning frame: the object nearest it is the target
 
 
 @dataclass
@@ -92,9 +93,9 @@ class PickOutcome:
     result: Optional[PlanResult] = None
     timed: Optional[TimedTrajectory] = None
     world: Optional[PerceivedWorld] = None
-    seconds: dict = field(default_factory=dict)   # target, plan, timing, total
-    task: Optional[PickPlacePlan] = None          # a pick and place: the whole plan
-    place: Optional[PlaceRequest] = None          # ... and where it was asked to put the object
+    seconds: dict = field(default_factory=dict)  # target, plan, timing, total
+    task: Optional[PickPlacePlan] = None  # a pick and place: the whole plan
+    place: Optional[PlaceRequest] = None  # ... and where it was asked to put the object
     segments: List[Tuple[str, float, float]] = field(default_factory=list)  # its parts in ``timed``: name, start, end
 
     @property
@@ -107,8 +108,10 @@ class PickOutcome:
             return f"{self.status}: {self.reason}"
         r, t = self.result, self.timed
         what = "pick and place" if self.task is not None else "pick"
-        return (f"success: {what}, {len(t.t)} points over {t.duration:.2f} s, grasp {r.goal_source + 1} of "
-                f"{r.goal_set_size}{' (refined)' if r.refined else ''}, planned in {self.seconds.get('total', 0.0):.3f} s")
+        return (
+            f"success: {what}, {len(t.t)} points over {t.duration:.2f} s, grasp {r.goal_source + 1} of "
+            f"{r.goal_set_size}{' (refined)' if r.refined else ''}, planned in {self.seconds.get('total', 0.0):.3f} s"
+        )
 
 
 class PickPipeline:
@@ -119,8 +122,9 @@ class PickPipeline:
         self.cache = ModelCache()
         self.robot = self.cache.robot(settings.robot, np.eye(4))
         base = robot_limits(self.robot)
-        self.limits = KinematicLimits(base.velocity * settings.speed_scaling,
-                                      base.acceleration * settings.speed_scaling)
+        self.limits = KinematicLimits(
+            base.velocity * settings.speed_scaling, base.acceleration * settings.speed_scaling
+        )
 
     def observation(self, request: PickRequest) -> Tuple[Observation, PerceivedWorldSettings]:
         """The request's views as an ``Observation`` with the target nearest its point segmented, and
@@ -132,10 +136,10 @@ class PickPipeline:
         K = np.stack([v.K for v in request.views])
         poses = np.stack([v.pose for v in request.views])
         field_settings = self.settings.world.field
-        plane = support_plane(view_points(depth, K, poses, 4), field_settings.plane_tolerance,
-                              seed=self.settings.world.seed)
-        mask = target_near_point(depth, K, poses, request.point, plane, self.settings.target,
-                                 source="request")
+        plane = support_plane(
+            view_points(depth, K, poses, 4), field_settings.plane_tolerance, seed=self.settings.world.seed
+        )
+        mask = target_near_point(depth, K, poses, request.point, plane, self.settings.target, source="request")
         obs = Observation(depth, K, poses, mask, source="request " + ", ".join(v.name for v in request.views))
         return obs, replace(self.settings.world, field=replace(field_settings, plane=plane))
 
@@ -171,38 +175,62 @@ class PickPipeline:
         seconds["plan"] = t2 - t1
         if not result.success:
             reason = result.reason or _plan_failure(result)
-            return PickOutcome(PickStatus(str(result.status)), reason, result, None, world,
-                               dict(seconds, total=t2 - t0))
+            return PickOutcome(
+                PickStatus(str(result.status)), reason, result, None, world, dict(seconds, total=t2 - t0)
+            )
         try:
             timed = result.timed(self.settings.rate, self.limits)
         except TimingError as exc:
-            return PickOutcome(PickStatus.internal_error, f"timing: {exc}", result, None, world,
-                               dict(seconds, total=time.perf_counter() - t0))
+            return PickOutcome(
+                PickStatus.internal_error,
+                f"timing: {exc}",
+                result,
+                None,
+                world,
+                dict(seconds, total=time.perf_counter() - t0),
+            )
         seconds["timing"] = time.perf_counter() - t2
         seconds["total"] = time.perf_counter() - t0
         return PickOutcome(PickStatus.success, "", result, timed, world, seconds)
 
-    def _pick_and_place(self, world: PerceivedWorld, start: np.ndarray, place: PlaceRequest, seconds: dict,
-                        t0: float) -> PickOutcome:
+    def _pick_and_place(
+        self, world: PerceivedWorld, start: np.ndarray, place: PlaceRequest, seconds: dict, t0: float
+    ) -> PickOutcome:
         t1 = time.perf_counter()
         settings = replace(self.settings.pickplace, pick=self.settings.planner)
         task = PickPlacePlanner(PerceivedPlanner(world, settings.pick), place, settings).plan(start=start)
         t2 = time.perf_counter()
         seconds["plan"] = t2 - t1
         if not task.success:
-            status = PickStatus(str(task.pick.status)) if task.status is PickPlaceStatus.pick_failed else \
-                PickStatus(task.status.value)
+            status = (
+                PickStatus(str(task.pick.status))
+                if task.status is PickPlaceStatus.pick_failed
+                else PickStatus(task.status.value)
+            )
             reason = task.reason if task.pick.success else (task.pick.reason or _plan_failure(task.pick))
-            return PickOutcome(status, reason, task.pick, None, world, dict(seconds, total=t2 - t0), task=task, place=place)
+            return PickOutcome(
+                status, reason, task.pick, None, world, dict(seconds, total=t2 - t0), task=task, place=place
+            )
         try:
-            timed, segments = task.timed_task(self.robot, self.settings.rate, self.limits, self.settings.gripper_seconds)
+            timed, segments = task.timed_task(
+                self.robot, self.settings.rate, self.limits, self.settings.gripper_seconds
+            )
         except TimingError as exc:
-            return PickOutcome(PickStatus.internal_error, f"timing: {exc}", task.pick, None, world,
-                               dict(seconds, total=time.perf_counter() - t0), task=task, place=place)
+            return PickOutcome(
+                PickStatus.internal_error,
+                f"timing: {exc}",
+                task.pick,
+                None,
+                world,
+                dict(seconds, total=time.perf_counter() - t0),
+                task=task,
+                place=place,
+            )
         seconds["timing"] = time.perf_counter() - t2
         seconds["total"] = time.perf_counter() - t0
-        return PickOutcome(PickStatus.success, "", task.pick, timed, world, seconds, task=task, place=place,
-                           segments=segments)
+        return PickOutcome(
+            PickStatus.success, "", task.pick, timed, world, seconds, task=task, place=place, segments=segments
+        )
 
 
 def _plan_failure(result: PlanResult) -> str:
@@ -210,5 +238,7 @@ def _plan_failure(result: PlanResult) -> str:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(result.goal_reasons.items())) or "no grasp from the points"
         return f"no goal configuration for any grasp of the target ({reasons})"
     m = result.metrics
-    return (f"the plan failed the success test ({result.status}: min clearance "
-            f"{getattr(m, 'min_clearance', float('nan')):.3f} m, smoothness {getattr(m, 'smoothness', float('nan')):.3f})")
+    return (
+        f"the plan failed the success test ({result.status}: min clearance "
+        f"{getattr(m, 'min_clearance', float('nan')):.3f} m, smoothness {getattr(m, 'smoothness', float('nan')):.3f})"
+    )

@@ -7,6 +7,7 @@ node through it; ``pickplan ros replay`` runs it, to try the node without a robo
 >>> replay.publish()                                              # once; or every period:
 >>> node.create_timer(0.2, replay.publish)
 """
+
 from __future__ import annotations
 
 from typing import List, Optional, Sequence
@@ -32,8 +33,15 @@ class ObservationReplay:
     """Publishers of ``observation``'s views (``cam0``, ``cam1``, ...: depth in ``encodings``, one per
     view, default 32FC1) and of the joint positions ``q`` of ``robot``, on ``node``."""
 
-    def __init__(self, node, observation: Observation, robot, q: np.ndarray, encodings: Optional[Sequence[str]] = None,
-                 base_frame: str = ""):
+    def __init__(
+        self,
+        node,
+        observation: Observation,
+        robot,
+        q: np.ndarray,
+        encodings: Optional[Sequence[str]] = None,
+        base_frame: str = "",
+    ):
         self.node, self.observation, self.robot = node, observation, robot
         self.names = camera_names(observation.views)
         self.encodings = list(encodings or ["32FC1"] * observation.views)
@@ -44,8 +52,13 @@ class ObservationReplay:
             depth = np.where(observation.depth[v] > 0, observation.depth[v], np.nan)
             image = Image(**convert.image_fields(depth, self.encodings[v]))
             image.header.frame_id = f"{name}_optical_frame"
-            info = CameraInfo(height=image.height, width=image.width, distortion_model="plumb_bob",
-                              d=[0.0] * 5, k=convert.camera_info_k(observation.K[v]))
+            info = CameraInfo(
+                height=image.height,
+                width=image.width,
+                distortion_model="plumb_bob",
+                d=[0.0] * 5,
+                k=convert.camera_info_k(observation.K[v]),
+            )
             info.header.frame_id = image.header.frame_id
             info.r = np.eye(3).ravel().tolist()
             P = np.zeros((3, 4))

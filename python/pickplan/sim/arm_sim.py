@@ -3,6 +3,7 @@ at its start, frictions, the finger coupling), ``ArmSim`` (commands, steps, cont
 whether the target is held), ``follow`` (waypoints at given durations, feed-forward velocities) and
 ``hold``. Shared by the grasp execution (``execution``), pick and place (``pickplace_exec``) and moving
 targets (``eval.moving``)."""
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Dict, List, Optional, Tuple
@@ -32,16 +33,23 @@ class ArmSim:
         self.obstacle_ids = {o.name: ids[o.name] for o in scene.obstacles}  # furniture (the table apart)
         self.models = models
         self.target = scene.target
-        joints = {pb.getJointInfo(self.robot, j, physicsClientId=client)[1].decode(): j
-                  for j in range(pb.getNumJoints(self.robot, physicsClientId=client))}
-        links = {pb.getJointInfo(self.robot, j, physicsClientId=client)[12].decode(): j
-                 for j in range(pb.getNumJoints(self.robot, physicsClientId=client))}
+        joints = {
+            pb.getJointInfo(self.robot, j, physicsClientId=client)[1].decode(): j
+            for j in range(pb.getNumJoints(self.robot, physicsClientId=client))
+        }
+        links = {
+            pb.getJointInfo(self.robot, j, physicsClientId=client)[12].decode(): j
+            for j in range(pb.getNumJoints(self.robot, physicsClientId=client))
+        }
         self.arm = [joints[name] for name in info.arm_joints]
         self.fingers = [joints[name] for name in info.finger_joints]
         self.finger_links = [links[name] for name in info.finger_links]
         self.hand = links[info.hand_link]
-        self.forces = list(settings.arm_forces) if settings.arm_forces is not None else \
-            [pb.getJointInfo(self.robot, j, physicsClientId=client)[10] for j in self.arm]
+        self.forces = (
+            list(settings.arm_forces)
+            if settings.arm_forces is not None
+            else [pb.getJointInfo(self.robot, j, physicsClientId=client)[10] for j in self.arm]
+        )
         self.steps = 0
         self.frames: List[np.ndarray] = []
         self.contacts: Dict[str, float] = {}
@@ -58,16 +66,29 @@ class ArmSim:
     def command_arm(self, q, v) -> None:
         s, n = self.s, len(self.arm)
         self.pb.setJointMotorControlArray(
-            self.robot, self.arm, self.pb.POSITION_CONTROL, targetPositions=[float(x) for x in q[:n]],
-            targetVelocities=[float(x) for x in v[:n]], forces=self.forces,
-            positionGains=[s.position_gain] * n, velocityGains=[s.velocity_gain] * n, physicsClientId=self.c)
+            self.robot,
+            self.arm,
+            self.pb.POSITION_CONTROL,
+            targetPositions=[float(x) for x in q[:n]],
+            targetVelocities=[float(x) for x in v[:n]],
+            forces=self.forces,
+            positionGains=[s.position_gain] * n,
+            velocityGains=[s.velocity_gain] * n,
+            physicsClientId=self.c,
+        )
 
     def command_fingers(self, value: float, force: float) -> None:
         """Every finger joint to ``value`` (a joint value: open, closed or between)."""
         for j in self.fingers:  # one command for both (and the gear constraint couples them)
-            self.pb.setJointMotorControl2(self.robot, j, self.pb.POSITION_CONTROL, targetPosition=float(value),
-                                          force=float(force), maxVelocity=self.grip_speed,
-                                          physicsClientId=self.c)
+            self.pb.setJointMotorControl2(
+                self.robot,
+                j,
+                self.pb.POSITION_CONTROL,
+                targetPosition=float(value),
+                force=float(force),
+                maxVelocity=self.grip_speed,
+                physicsClientId=self.c,
+            )
 
     def step(self, watch_contacts: bool = False) -> None:
         self.pb.stepSimulation(physicsClientId=self.c)
@@ -106,8 +127,9 @@ class ArmSim:
         if self.finger_gap() < self.s.min_finger_gap:
             return False
         for link in self.finger_links:
-            if not self.pb.getClosestPoints(self.robot, self.bodies[self.target], self.s.hold_margin,
-                                            linkIndexA=link, physicsClientId=self.c):
+            if not self.pb.getClosestPoints(
+                self.robot, self.bodies[self.target], self.s.hold_margin, linkIndexA=link, physicsClientId=self.c
+            ):
                 return False
         return True
 
@@ -123,8 +145,15 @@ def segment_steps(Q: np.ndarray, vmax: np.ndarray, s: ExecutionSettings) -> List
     return out
 
 
-def follow(sim: ArmSim, Q: np.ndarray, segments, fingers_from_plan: bool, finger_force: float,
-            watch: bool, V: Optional[np.ndarray] = None) -> None:
+def follow(
+    sim: ArmSim,
+    Q: np.ndarray,
+    segments,
+    fingers_from_plan: bool,
+    finger_force: float,
+    watch: bool,
+    V: Optional[np.ndarray] = None,
+) -> None:
     for k, (d, n) in enumerate(segments):
         v = (Q[k + 1] - Q[k]) / d if V is None else V[k + 1]  # feed-forward: the timed velocities if given
         for i in range(1, n + 1):
@@ -146,8 +175,15 @@ def hold(sim: ArmSim, q: np.ndarray, seconds: float, watch: bool) -> None:
         sim.step(watch)
 
 
-def open_sim(scene: scenes_mod.Scene, robot, q0: np.ndarray, s: ExecutionSettings, models: dict,
-             record: Optional[RecordSettings] = None, sim_class=None) -> "ArmSim":
+def open_sim(
+    scene: scenes_mod.Scene,
+    robot,
+    q0: np.ndarray,
+    s: ExecutionSettings,
+    models: dict,
+    record: Optional[RecordSettings] = None,
+    sim_class=None,
+) -> "ArmSim":
     """A fresh DIRECT client with the scene's table and objects and ``robot`` at ``q0``, frictions and
     the finger coupling set (the caller disconnects ``sim.c``). ``sim_class``: a ``ArmSim`` subclass."""
     from pickplan.sim.bullet import pb
@@ -156,16 +192,36 @@ def open_sim(scene: scenes_mod.Scene, robot, q0: np.ndarray, s: ExecutionSetting
     try:
         sim = (sim_class or ArmSim)(pb, client, ids, models, scene, s, record, robot.info)
         for link in sim.finger_links:
-            pb.changeDynamics(sim.robot, link, lateralFriction=s.finger_friction,
-                              spinningFriction=s.finger_spinning_friction, frictionAnchor=1, physicsClientId=client)
+            pb.changeDynamics(
+                sim.robot,
+                link,
+                lateralFriction=s.finger_friction,
+                spinningFriction=s.finger_spinning_friction,
+                frictionAnchor=1,
+                physicsClientId=client,
+            )
         for name, bid in ids.items():
             if name != "robot":
                 own = getattr(models.get(name), "friction", None)  # an object's own friction, where it has one
-                pb.changeDynamics(bid, -1, lateralFriction=s.object_friction if own is None else own,
-                                  spinningFriction=s.object_spinning_friction, physicsClientId=client)
+                pb.changeDynamics(
+                    bid,
+                    -1,
+                    lateralFriction=s.object_friction if own is None else own,
+                    spinningFriction=s.object_spinning_friction,
+                    physicsClientId=client,
+                )
         if s.couple_fingers:  # PyBullet ignores <mimic>: couple the fingers' motion with a gear constraint
-            gear = pb.createConstraint(sim.robot, sim.fingers[0], sim.robot, sim.fingers[1], pb.JOINT_GEAR,
-                                       [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=client)
+            gear = pb.createConstraint(
+                sim.robot,
+                sim.fingers[0],
+                sim.robot,
+                sim.fingers[1],
+                pb.JOINT_GEAR,
+                [1, 0, 0],
+                [0, 0, 0],
+                [0, 0, 0],
+                physicsClientId=client,
+            )
             pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * sim.grip_force, physicsClientId=client)
     except BaseException:
         pb.disconnect(client)

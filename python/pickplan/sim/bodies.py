@@ -3,6 +3,7 @@
 Kept apart from scene generation (``scenes``) so that execution, grasp verification and scene
 generation build bodies the same way.
 """
+
 from __future__ import annotations
 
 import math
@@ -52,13 +53,16 @@ def _mat_to_quat(R: np.ndarray) -> List[float]:
 
 def _quat_to_mat(q) -> np.ndarray:
     x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
-def add_object_body(client: int, model: objects_mod.ObjectModel, pose: np.ndarray,
-                    friction: float = 0.8) -> int:
+def add_object_body(client: int, model: objects_mod.ObjectModel, pose: np.ndarray, friction: float = 0.8) -> int:
     """Create a dynamic body for ``model`` at ``pose`` (object frame -> world); returns its id.
     ``friction`` applies unless the model has its own (procedural objects do).
 
@@ -70,19 +74,34 @@ def add_object_body(client: int, model: objects_mod.ObjectModel, pose: np.ndarra
 
     T_in, moments = _inertial_frame(model)
     T_shape = np.linalg.inv(T_in)  # the object (mesh) frame seen from the inertial frame
-    shape = pb.createCollisionShape(pb.GEOM_MESH, fileName=model.collision_obj_path(),
-                                    collisionFramePosition=T_shape[:3, 3].tolist(),
-                                    collisionFrameOrientation=_mat_to_quat(T_shape[:3, :3]),
-                                    physicsClientId=client)
+    shape = pb.createCollisionShape(
+        pb.GEOM_MESH,
+        fileName=model.collision_obj_path(),
+        collisionFramePosition=T_shape[:3, 3].tolist(),
+        collisionFrameOrientation=_mat_to_quat(T_shape[:3, :3]),
+        physicsClientId=client,
+    )
     if shape < 0:
         raise RuntimeError(f"PyBullet could not create the collision shape of {model.name}")
     T_base = np.asarray(pose, dtype=float) @ T_in
-    body = pb.createMultiBody(baseMass=model.mass, baseCollisionShapeIndex=shape,
-                              basePosition=T_base[:3, 3].tolist(), baseOrientation=_mat_to_quat(T_base[:3, :3]),
-                              physicsClientId=client)
+    body = pb.createMultiBody(
+        baseMass=model.mass,
+        baseCollisionShapeIndex=shape,
+        basePosition=T_base[:3, 3].tolist(),
+        baseOrientation=_mat_to_quat(T_base[:3, :3]),
+        physicsClientId=client,
+    )
     own = getattr(model, "friction", None)  # an object's own friction wins over the scene's default
-    pb.changeDynamics(body, -1, localInertiaDiagonal=moments.tolist(), lateralFriction=friction if own is None else own,
-                      rollingFriction=1e-4, spinningFriction=1e-3, restitution=0.0, physicsClientId=client)
+    pb.changeDynamics(
+        body,
+        -1,
+        localInertiaDiagonal=moments.tolist(),
+        lateralFriction=friction if own is None else own,
+        rollingFriction=1e-4,
+        spinningFriction=1e-3,
+        restitution=0.0,
+        physicsClientId=client,
+    )
     return body
 
 
@@ -101,11 +120,16 @@ def add_table(client: int, table: Table, friction: float = 0.8) -> int:
 
     half = (np.asarray(table.size, dtype=float) / 2).tolist()
     shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=client)
-    visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=[0.75, 0.65, 0.5, 1],
-                                  physicsClientId=client)
+    visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=[0.75, 0.65, 0.5, 1], physicsClientId=client)
     T = np.asarray(table.pose, dtype=float)
-    body = pb.createMultiBody(0.0, shape, visual, basePosition=T[:3, 3].tolist(),
-                              baseOrientation=_mat_to_quat(T[:3, :3]), physicsClientId=client)
+    body = pb.createMultiBody(
+        0.0,
+        shape,
+        visual,
+        basePosition=T[:3, 3].tolist(),
+        baseOrientation=_mat_to_quat(T[:3, :3]),
+        physicsClientId=client,
+    )
     pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=client)
     return body
 
@@ -125,15 +149,26 @@ def add_obstacle_body(client: int, obstacle, friction: float = 0.8) -> int:
         geometry = dict(shapeType=pb.GEOM_SPHERE, radius=shape.size[0])
     else:
         geometry = dict(shapeType=pb.GEOM_MESH, fileName=shape.file, meshScale=list(shape.size))
-    collision = pb.createCollisionShape(**geometry, **({"height": shape.size[1]} if kind == "cylinder" else {}),
-                                        physicsClientId=client)
-    visual = pb.createVisualShape(**geometry, **({"length": shape.size[1]} if kind == "cylinder" else {}),
-                                  rgbaColor=[0.6, 0.55, 0.5, 1], physicsClientId=client)
+    collision = pb.createCollisionShape(
+        **geometry, **({"height": shape.size[1]} if kind == "cylinder" else {}), physicsClientId=client
+    )
+    visual = pb.createVisualShape(
+        **geometry,
+        **({"length": shape.size[1]} if kind == "cylinder" else {}),
+        rgbaColor=[0.6, 0.55, 0.5, 1],
+        physicsClientId=client,
+    )
     if collision < 0:
         raise RuntimeError(f"PyBullet could not create the collision shape of obstacle {obstacle.name!r}")
     T = np.asarray(obstacle.pose, dtype=float)
-    body = pb.createMultiBody(0.0, collision, visual, basePosition=T[:3, 3].tolist(),
-                              baseOrientation=_mat_to_quat(T[:3, :3]), physicsClientId=client)
+    body = pb.createMultiBody(
+        0.0,
+        collision,
+        visual,
+        basePosition=T[:3, 3].tolist(),
+        baseOrientation=_mat_to_quat(T[:3, :3]),
+        physicsClientId=client,
+    )
     pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=client)
     return body
 
@@ -148,18 +183,27 @@ def add_robot(client: int, base: np.ndarray, q: Optional[Sequence] = None, urdf:
         raise ValueError("robot configuration: give the joint values of a robot other than the Panda")
     urdf = panda_urdf if urdf is None else urdf
     T = np.asarray(base, dtype=float)
-    body = pb.loadURDF(urdf, basePosition=T[:3, 3].tolist(), baseOrientation=_mat_to_quat(T[:3, :3]),
-                       useFixedBase=True, physicsClientId=client)
+    body = pb.loadURDF(
+        urdf,
+        basePosition=T[:3, 3].tolist(),
+        baseOrientation=_mat_to_quat(T[:3, :3]),
+        useFixedBase=True,
+        physicsClientId=client,
+    )
     q = ready if q is None or len(q) == 0 else q
-    movable = [j for j in range(pb.getNumJoints(body, physicsClientId=client))
-               if pb.getJointInfo(body, j, physicsClientId=client)[2] != pb.JOINT_FIXED]
+    movable = [
+        j
+        for j in range(pb.getNumJoints(body, physicsClientId=client))
+        if pb.getJointInfo(body, j, physicsClientId=client)[2] != pb.JOINT_FIXED
+    ]
     if len(q) != len(movable):
         raise ValueError(f"robot configuration: expected {len(movable)} joint values, got {len(q)}")
     for j, v in zip(movable, q):
         pb.resetJointState(body, j, float(v), physicsClientId=client)
         # hold the pose against gravity while objects settle
-        pb.setJointMotorControl2(body, j, pb.POSITION_CONTROL, targetPosition=float(v), force=500.0,
-                                 physicsClientId=client)
+        pb.setJointMotorControl2(
+            body, j, pb.POSITION_CONTROL, targetPosition=float(v), force=500.0, physicsClientId=client
+        )
     return body
 
 
@@ -172,8 +216,9 @@ def open_world(scene: "Scene", robot, q0, models: dict, time_step: float, solver
     client = connect()
     try:
         pb.resetSimulation(physicsClientId=client)
-        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, numSolverIterations=solver_iterations,
-                                     physicsClientId=client)
+        pb.setPhysicsEngineParameter(
+            deterministicOverlappingPairs=1, numSolverIterations=solver_iterations, physicsClientId=client
+        )
         pb.setGravity(0, 0, -9.81, physicsClientId=client)
         pb.setTimeStep(time_step, physicsClientId=client)
         ids = {} if scene.table is None else {"table": add_table(client, scene.table)}

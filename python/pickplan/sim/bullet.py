@@ -9,6 +9,7 @@ clients with ``connect``, so a user sees only pickplan's own output.
 >>> client = connect()
 >>> pb.disconnect(physicsClientId=client)
 """
+
 from __future__ import annotations
 
 import contextlib

@@ -14,6 +14,7 @@ target by ``nudge`` at ``nudge_time`` in one step (a person pushing it).
 >>> scene2 = conveyor_scene(scene, path, meet_time=2.0, end_time=6.0)
 >>> belt = Conveyor(client, body, model, path, time_step)  # before_step(t), step, after_step()
 """
+
 from __future__ import annotations
 
 import math
@@ -30,9 +31,9 @@ from pickplan.sim.scenes import Scene
 @dataclass(frozen=True)
 class TargetPath:
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))  # m/s of the belt (horizontal)
-    nudge: np.ndarray = field(default_factory=lambda: np.zeros(3))     # m the target jumps by at nudge_time
-    nudge_time: Optional[float] = None      # s; None: no nudge
-    release_height: float = 0.005           # m above its start: off the belt
+    nudge: np.ndarray = field(default_factory=lambda: np.zeros(3))  # m the target jumps by at nudge_time
+    nudge_time: Optional[float] = None  # s; None: no nudge
+    release_height: float = 0.005  # m above its start: off the belt
 
     def __post_init__(self):
         for name in ("velocity", "nudge"):
@@ -65,8 +66,9 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(p - (a + s * ab)))
 
 
-def conveyor_scene(scene: Scene, path: TargetPath, meet_time: float, end_time: float, margin: float = 0.02,
-                   library=None) -> Scene:
+def conveyor_scene(
+    scene: Scene, path: TargetPath, meet_time: float, end_time: float, margin: float = 0.02, library=None
+) -> Scene:
     """The scene with its target moved upstream (it reaches its scene pose at ``meet_time``) and the
     objects in its lane up to ``end_time`` left out (see the module doc)."""
     if not 0 <= meet_time <= end_time:
@@ -122,8 +124,9 @@ class Conveyor:
         pb, p = self.pb, self.path
         if p.nudge_time is not None and not self.nudged and t >= p.nudge_time:
             pos, quat = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.c)
-            pb.resetBasePositionAndOrientation(self.body, (np.asarray(pos) + p.nudge).tolist(), quat,
-                                               physicsClientId=self.c)
+            pb.resetBasePositionAndOrientation(
+                self.body, (np.asarray(pos) + p.nudge).tolist(), quat, physicsClientId=self.c
+            )
             self.nudged = True
         self._held = None
         if np.any(p.velocity) and self.on_belt():
@@ -138,7 +141,9 @@ class Conveyor:
         (x, y, _), quat = self._held
         z = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.c)[0][2]
         vz = pb.getBaseVelocity(self.body, physicsClientId=self.c)[0][2]
-        pb.resetBasePositionAndOrientation(self.body, [x + p.velocity[0] * dt, y + p.velocity[1] * dt, z], quat,
-                                           physicsClientId=self.c)
-        pb.resetBaseVelocity(self.body, [float(p.velocity[0]), float(p.velocity[1]), vz], [0.0, 0.0, 0.0],
-                             physicsClientId=self.c)
+        pb.resetBasePositionAndOrientation(
+            self.body, [x + p.velocity[0] * dt, y + p.velocity[1] * dt, z], quat, physicsClientId=self.c
+        )
+        pb.resetBaseVelocity(
+            self.body, [float(p.velocity[0]), float(p.velocity[1]), vz], [0.0, 0.0, 0.0], physicsClientId=self.c
+        )

@@ -1,5 +1,6 @@
 """The hand moved in a straight line by the native IK: the lift after a grasp (``execution``), the hand
 keeping pace with a moving target (``eval.moving``)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -17,9 +18,16 @@ def hand_path(robot, q0: np.ndarray, offsets: np.ndarray, damping: float) -> np.
     (fixed damping ``damping**2``, the arm joints inside their limits, fingers frozen), IK_STEPS
     steps per waypoint."""
     hand = robot.link_index(robot.info.hand_link)
-    ik = IkSettings(rotation_error=IkRotationError.sine_axis, damping_schedule=IkDamping.fixed, damping=damping ** 2,
-                    max_iterations=IK_STEPS, max_stalled_iterations=0,  # every step is taken, as many as asked
-                    position_tolerance=0.0, rotation_tolerance=0.0, max_step=float("inf"))
+    ik = IkSettings(
+        rotation_error=IkRotationError.sine_axis,
+        damping_schedule=IkDamping.fixed,
+        damping=damping**2,
+        max_iterations=IK_STEPS,
+        max_stalled_iterations=0,  # every step is taken, as many as asked
+        position_tolerance=0.0,
+        rotation_tolerance=0.0,
+        max_step=float("inf"),
+    )
     active = [i < robot.info.arm_dof for i in range(robot.dof)]
     targets = np.repeat(robot.fk(q0)[hand][None], len(offsets), axis=0)
     targets[:, :3, 3] += np.asarray(offsets, dtype=float)

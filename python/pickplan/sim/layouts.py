@@ -9,6 +9,7 @@ their lowest point on the board), spaced apart; the target is one the gripper ca
 
 >>> scene = generate_layout(Layout.shelf, seed=3)
 """
+
 from __future__ import annotations
 
 import math
@@ -31,7 +32,7 @@ LIFT_ROOM = ExecutionSettings.min_lift + ExecutionSettings.lift_clearance + 0.01
 
 
 class Layout(Option):
-    table = "table"       # today's tabletop (sim.scenes.generate_scene)
+    table = "table"  # today's tabletop (sim.scenes.generate_scene)
     shelf = "shelf"
     bin = "bin"
     cabinet = "cabinet"
@@ -39,10 +40,10 @@ class Layout(Option):
 
 @dataclass(frozen=True)
 class LayoutSettings:
-    min_objects: int = 2          # on the target's support
+    min_objects: int = 2  # on the target's support
     max_objects: int = 4
-    other_objects: int = 2        # at most this many on the other boards (shelf)
-    gap: float = 0.03             # m between objects' footprint circles
+    other_objects: int = 2  # at most this many on the other boards (shelf)
+    gap: float = 0.03  # m between objects' footprint circles
     robot: str = "panda"
 
 
@@ -80,8 +81,10 @@ def _shelf(rng, F) -> Tuple[_Furniture, List[Obstacle], List[float]]:
     tops = [low + k * gap for k in range(3)]
     top = tops[-1] + gap
     f = _Furniture(F, "shelf_")
-    boards = [f.box(f"board{k}", (depth, width, THICKNESS), (depth / 2, 0, h - THICKNESS / 2), support=True)
-              for k, h in enumerate(tops + [top])]
+    boards = [
+        f.box(f"board{k}", (depth, width, THICKNESS), (depth / 2, 0, h - THICKNESS / 2), support=True)
+        for k, h in enumerate(tops + [top])
+    ]
     for side, y in (("left", 1), ("right", -1)):
         f.box(side, (depth, THICKNESS, top), (depth / 2, y * (width + THICKNESS) / 2, top / 2))
     f.box("back", (THICKNESS, width + 2 * THICKNESS, top), (depth + THICKNESS / 2, 0, top / 2))
@@ -101,15 +104,22 @@ def _cabinet(rng, F) -> Tuple[_Furniture, List[Obstacle], List[float]]:
     open_angle = math.radians(rng.uniform(100, 130))
     hinge = np.array([0.0, width / 2 + THICKNESS, 0.0])
     R = _rz(open_angle)
-    f.box("door", (THICKNESS, width + 2 * THICKNESS, height - shelf_z + 0.05),
-          hinge + R @ np.array([-THICKNESS / 2, -(width + 2 * THICKNESS) / 2, 0.0])
-          + [0, 0, (height + shelf_z - 0.05) / 2], R)
+    f.box(
+        "door",
+        (THICKNESS, width + 2 * THICKNESS, height - shelf_z + 0.05),
+        hinge
+        + R @ np.array([-THICKNESS / 2, -(width + 2 * THICKNESS) / 2, 0.0])
+        + [0, 0, (height + shelf_z - 0.05) / 2],
+        R,
+    )
     # The drawer below the board, pulled out towards the robot: a front, a floor and two sides.
     out, drawer_h = rng.uniform(0.12, 0.22), shelf_z - 0.12
     f.box("drawer_front", (THICKNESS, width, drawer_h), (-out, 0, 0.05 + drawer_h / 2))
     f.box("drawer_floor", (depth, width - 0.02, THICKNESS), (depth / 2 - out, 0, 0.06))
     for side, y in (("drawer_left", 1), ("drawer_right", -1)):
-        f.box(side, (depth, THICKNESS, drawer_h * 0.6), (depth / 2 - out, y * (width / 2 - 0.02), 0.05 + drawer_h * 0.3))
+        f.box(
+            side, (depth, THICKNESS, drawer_h * 0.6), (depth / 2 - out, y * (width / 2 - 0.02), 0.05 + drawer_h * 0.3)
+        )
     return f, [board], [height - THICKNESS - shelf_z]
 
 
@@ -120,16 +130,27 @@ def _bin(rng) -> Tuple[_Furniture, Table, np.ndarray]:
     inner = (rng.uniform(0.28, 0.34), rng.uniform(0.36, 0.44))
     wall = rng.uniform(0.1, 0.16)
     f = _Furniture(F, "bin_")
-    for name, size, c in (("front", (THICKNESS, inner[1] + 2 * THICKNESS, wall), (-(inner[0] + THICKNESS) / 2, 0)),
-                          ("back", (THICKNESS, inner[1] + 2 * THICKNESS, wall), ((inner[0] + THICKNESS) / 2, 0)),
-                          ("left", (inner[0], THICKNESS, wall), (0, (inner[1] + THICKNESS) / 2)),
-                          ("right", (inner[0], THICKNESS, wall), (0, -(inner[1] + THICKNESS) / 2))):
+    for name, size, c in (
+        ("front", (THICKNESS, inner[1] + 2 * THICKNESS, wall), (-(inner[0] + THICKNESS) / 2, 0)),
+        ("back", (THICKNESS, inner[1] + 2 * THICKNESS, wall), ((inner[0] + THICKNESS) / 2, 0)),
+        ("left", (inner[0], THICKNESS, wall), (0, (inner[1] + THICKNESS) / 2)),
+        ("right", (inner[0], THICKNESS, wall), (0, -(inner[1] + THICKNESS) / 2)),
+    ):
         f.box(name, size, (c[0], c[1], wall / 2))
     return f, table, F @ _pose(np.eye(3), (0, 0, 0))
 
 
-def _place(rng, lib, n: int, surface: np.ndarray, half: Tuple[float, float], clearance: float,
-           taken: List[Tuple[np.ndarray, float]], gap: float, used: set) -> List[SceneObject]:
+def _place(
+    rng,
+    lib,
+    n: int,
+    surface: np.ndarray,
+    half: Tuple[float, float],
+    clearance: float,
+    taken: List[Tuple[np.ndarray, float]],
+    gap: float,
+    used: set,
+) -> List[SceneObject]:
     """Up to ``n`` objects on resting poses within the surface's rectangle (its frame: z up from the top
     face; x in [-half[0], half[0]], y likewise), no taller than ``clearance``, apart from ``taken``; none
     of the models in ``used`` (a scene names each object once), which gains those placed."""
@@ -200,16 +221,29 @@ def _attempt_layout(kind: Layout, rng, lib, settings: LayoutSettings, info: Robo
             supports.append((top, (0.28 * d, w / 2 - 0.02), room, b is target_board))
     objs, taken, used = [], [], set()
     for surface, half, clearance, main in supports:
-        n = int(rng.integers(settings.min_objects, settings.max_objects + 1)) if main else \
-            int(rng.integers(0, settings.other_objects + 1))
+        n = (
+            int(rng.integers(settings.min_objects, settings.max_objects + 1))
+            if main
+            else int(rng.integers(0, settings.other_objects + 1))
+        )
         placed = _place(rng, lib, n, surface, half, clearance, [] if not main else taken, settings.gap, used)
         objs += placed
         if main:
             main_objs = placed
-    candidates = [o for o in main_objs
-                  if graspability(lib.get(o.name), o.pose, info.max_opening, np.asarray(table.pose)[:3, 2]).graspable]
+    candidates = [
+        o
+        for o in main_objs
+        if graspability(lib.get(o.name), o.pose, info.max_opening, np.asarray(table.pose)[:3, 2]).graspable
+    ]
     if len(main_objs) < settings.min_objects or not candidates:
         return None
     target = candidates[int(rng.integers(len(candidates)))].name
-    return Scene(robot_base=np.eye(4), table=table, objects=objs, target=target,
-                 robot_configuration=[float(v) for v in info.ready], robot=info.name, obstacles=obstacles)
+    return Scene(
+        robot_base=np.eye(4),
+        table=table,
+        objects=objs,
+        target=target,
+        robot_configuration=[float(v) for v in info.ready],
+        robot=info.name,
+        obstacles=obstacles,
+    )

@@ -1,6 +1,7 @@
 """The lift after a grasp (``execution``): straight up with the hand's orientation held, by
 ``ExecutionSettings.lift_height`` or, under an obstacle (a shelf's next board), by the headroom the
 lift's waypoints find when probed kinematically in the simulation."""
+
 from __future__ import annotations
 
 from typing import List, Optional
@@ -45,11 +46,17 @@ def lift_headroom(sim, robot, q: np.ndarray, obstacles: List[int]) -> float:
         for j, v in zip(joints, qk):
             pb.resetJointState(sim.robot, j, float(v), physicsClientId=c)
         B = robot.link_pose(qk, robot.hand_link) @ np.linalg.inv(hand0) @ base
-        pb.resetBasePositionAndOrientation(target, B[:3, 3].tolist(), scenes_mod._mat_to_quat(B[:3, :3]),
-                                           physicsClientId=c)
+        pb.resetBasePositionAndOrientation(
+            target, B[:3, 3].tolist(), scenes_mod._mat_to_quat(B[:3, :3]), physicsClientId=c
+        )
         pb.performCollisionDetection(physicsClientId=c)
-        return np.array([min((p[8] for p in pb.getClosestPoints(body, ob, s.lift_clearance, physicsClientId=c)),
-                             default=np.inf) for body in (sim.robot, target) for ob in obstacles])
+        return np.array(
+            [
+                min((p[8] for p in pb.getClosestPoints(body, ob, s.lift_clearance, physicsClientId=c)), default=np.inf)
+                for body in (sim.robot, target)
+                for ob in obstacles
+            ]
+        )
 
     try:
         start = distances(path[0])

@@ -12,6 +12,7 @@ planes have no pickplan shape and are refused by name, as is anything malformed
 >>> ms = read_moveit_scene("scene0001.yaml")          # or "kitchen.scene"
 >>> scene = ms.to_scene()                             # a Scene with obstacles, no table, no target
 """
+
 from __future__ import annotations
 
 import os
@@ -45,8 +46,15 @@ class MoveItScene:
         frame's origin; its start from the joint state when ``joints`` (the robot's joint names in
         order) are all in it."""
         q = [self.joint_state[j] for j in joints] if joints and all(j in self.joint_state for j in joints) else []
-        return Scene(robot_base=np.eye(4), table=None, objects=[], target=None, robot_configuration=q,
-                     robot=robot, obstacles=list(self.obstacles))
+        return Scene(
+            robot_base=np.eye(4),
+            table=None,
+            objects=[],
+            target=None,
+            robot_configuration=q,
+            robot=robot,
+            obstacles=list(self.obstacles),
+        )
 
 
 @dataclass(frozen=True)
@@ -72,8 +80,9 @@ def read_motion_request(path: str, text: Optional[str] = None) -> MotionRequest:
     path = os.fspath(path)
     data = _yaml(_read(path) if text is None else text, path)
     r = _Fields(path)
-    start = r.joint_state(r.mapping(r.mapping(data, "start_state", ""), "joint_state", "start_state."),
-                          "start_state.joint_state")
+    start = r.joint_state(
+        r.mapping(r.mapping(data, "start_state", ""), "joint_state", "start_state."), "start_state.joint_state"
+    )
     goals = r.listed(data, "goal_constraints", "")
     if not goals:
         raise InputError("no goal constraints", path=path, field="goal_constraints")
@@ -82,8 +91,11 @@ def read_motion_request(path: str, text: Optional[str] = None) -> MotionRequest:
         where = f"goal_constraints[0].joint_constraints[{k}]"
         goal[r.name(c, "joint_name", where + ".")] = r.number_at(c, "position", where + ".")
     if not goal:
-        raise InputError("only joint constraints are read, and there are none", path=path,
-                         field="goal_constraints[0].joint_constraints")
+        raise InputError(
+            "only joint constraints are read, and there are none",
+            path=path,
+            field="goal_constraints[0].joint_constraints",
+        )
     group = data.get("group_name", "") if isinstance(data, dict) else ""
     return MotionRequest(start, goal, str(group or ""))
 
@@ -99,8 +111,11 @@ def parse_planning_scene(data, path: str = "scene.yaml") -> MoveItScene:
         obstacles.extend(_collision_object(r, obj, f"world.collision_objects[{i}]"))
     _unique(obstacles, path)
     state = r.mapping(data, "robot_state", "", required=False)
-    joints = r.joint_state(r.mapping(state, "joint_state", "robot_state.", required=False), "robot_state.joint_state") \
-        if state else {}
+    joints = (
+        r.joint_state(r.mapping(state, "joint_state", "robot_state.", required=False), "robot_state.joint_state")
+        if state
+        else {}
+    )
     acm = r.mapping(data, "allowed_collision_matrix", "", required=False)
     return MoveItScene(str(data.get("name") or ""), obstacles, joints, _allowed(r, acm) if acm else ())
 
@@ -113,8 +128,9 @@ def _collision_object(r: "_Fields", obj, where: str) -> List[Obstacle]:
     if operation not in (0, "0", "add", "ADD", b"\x00"):
         raise InputError(f"only ADD (0) objects are read, got {operation!r}", path=r.path, field=where + ".operation")
     base = r.pose(obj["pose"], where + ".pose") if "pose" in obj else np.eye(4)
-    parts = _posed(r, obj, where, base, "primitives", "primitive_poses", _primitive) + \
-        _posed(r, obj, where, base, "meshes", "mesh_poses", _mesh_msg)
+    parts = _posed(r, obj, where, base, "primitives", "primitive_poses", _primitive) + _posed(
+        r, obj, where, base, "meshes", "mesh_poses", _mesh_msg
+    )
     if r.listed(obj, "planes", where + ".", required=False):
         raise InputError("planes (infinite) have no pickplan shape", path=r.path, field=where + ".planes")
     if not parts:
@@ -128,8 +144,10 @@ def _posed(r: "_Fields", obj: dict, where: str, base: np.ndarray, key: str, pose
     poses = r.listed(obj, poses_key, where + ".", required=bool(items))
     if len(poses) != len(items):
         raise InputError(f"{len(items)} {key} but {len(poses)} {poses_key}", path=r.path, field=f"{where}.{poses_key}")
-    return [(make(r, item, f"{where}.{key}[{k}]"), base @ r.pose(T, f"{where}.{poses_key}[{k}]"))
-            for k, (item, T) in enumerate(zip(items, poses))]
+    return [
+        (make(r, item, f"{where}.{key}[{k}]"), base @ r.pose(T, f"{where}.{poses_key}[{k}]"))
+        for k, (item, T) in enumerate(zip(items, poses))
+    ]
 
 
 def _primitive(r: "_Fields", p, where: str) -> Shape:
@@ -155,10 +173,16 @@ def _shape(kind: str, dims, path: str, where: str) -> Shape:
 
 
 def _mesh_msg(r: "_Fields", m, where: str) -> Shape:
-    vertices = [[r.number_at(v, a, f"{where}.vertices[{i}].") for a in "xyz"] if isinstance(v, dict)
-                else r.numbers_of(v, 3, f"{where}.vertices[{i}]") for i, v in enumerate(r.listed(m, "vertices", where + "."))]
-    faces = [r.numbers_of(t.get("vertex_indices") if isinstance(t, dict) else t, 3, f"{where}.triangles[{i}]")
-             for i, t in enumerate(r.listed(m, "triangles", where + "."))]
+    vertices = [
+        [r.number_at(v, a, f"{where}.vertices[{i}].") for a in "xyz"]
+        if isinstance(v, dict)
+        else r.numbers_of(v, 3, f"{where}.vertices[{i}]")
+        for i, v in enumerate(r.listed(m, "vertices", where + "."))
+    ]
+    faces = [
+        r.numbers_of(t.get("vertex_indices") if isinstance(t, dict) else t, 3, f"{where}.triangles[{i}]")
+        for i, t in enumerate(r.listed(m, "triangles", where + "."))
+    ]
     return _inline_mesh(vertices, faces, r.path, where)
 
 
@@ -181,7 +205,9 @@ def _allowed(r: "_Fields", acm, where: str = "allowed_collision_matrix") -> Tupl
     for i, row in enumerate(rows):
         values = row.get("enabled") if isinstance(row, dict) else row  # ROS message dumps nest it
         if not isinstance(values, list) or len(values) != len(names) or not all(isinstance(v, bool) for v in values):
-            raise InputError(f"expected {len(names)} true/false values", path=r.path, field=f"{where}.entry_values[{i}]")
+            raise InputError(
+                f"expected {len(names)} true/false values", path=r.path, field=f"{where}.entry_values[{i}]"
+            )
         out.extend((names[i], names[j]) for j in range(i + 1, len(names)) if values[j])
     return tuple(out)
 
@@ -242,7 +268,13 @@ def _text_shape(tokens: "_Tokens", where: str) -> Shape:
     if kind in ("box", "sphere", "cylinder"):
         dims = tokens.numbers({"box": 3, "sphere": 1, "cylinder": 2}[kind], where + " dimensions")
         try:  # the text gives a cylinder's radius, then its length
-            return Shape.cylinder(*dims) if kind == "cylinder" else Shape.box(*dims) if kind == "box" else Shape.sphere(*dims)
+            return (
+                Shape.cylinder(*dims)
+                if kind == "cylinder"
+                else Shape.box(*dims)
+                if kind == "box"
+                else Shape.sphere(*dims)
+            )
         except InputError as exc:
             raise InputError(exc.detail, path=tokens.path, field=f"{where} dimensions (line {tokens.line})") from None
     if kind == "mesh":
@@ -250,8 +282,11 @@ def _text_shape(tokens: "_Tokens", where: str) -> Shape:
         V = [tokens.numbers(3, f"{where} vertex {i}") for i in range(nv)]
         F = [tokens.numbers(3, f"{where} triangle {i}") for i in range(nt)]
         return _inline_mesh(V, F, tokens.path, f"{where} (line {tokens.line})")
-    raise InputError(f"shape type {kind!r}: expected box, sphere, cylinder or mesh (cones and planes have no "
-                     "pickplan shape)", path=tokens.path, field=f"{where} (line {tokens.line})")
+    raise InputError(
+        f"shape type {kind!r}: expected box, sphere, cylinder or mesh (cones and planes have no pickplan shape)",
+        path=tokens.path,
+        field=f"{where} (line {tokens.line})",
+    )
 
 
 class _Tokens:
@@ -265,8 +300,9 @@ class _Tokens:
 
     def word(self, what: str) -> str:
         if self._i >= len(self._items):
-            raise InputError(f"file ends where {what} should be (a '.' line ends a scene)", path=self.path,
-                             field=f"line {self.line}")
+            raise InputError(
+                f"file ends where {what} should be (a '.' line ends a scene)", path=self.path, field=f"line {self.line}"
+            )
         self.line, w = self._items[self._i]
         self._i += 1
         return w
@@ -287,8 +323,9 @@ class _Tokens:
             try:
                 v = float(w)
             except ValueError:
-                raise InputError(f"{what}: expected a number, got {w!r}", path=self.path,
-                                 field=f"line {self.line}") from None
+                raise InputError(
+                    f"{what}: expected a number, got {w!r}", path=self.path, field=f"line {self.line}"
+                ) from None
             if not np.isfinite(v):
                 raise InputError(f"{what}: not finite ({w})", path=self.path, field=f"line {self.line}")
             out.append(v)
@@ -311,13 +348,14 @@ def _pose_from(position, quaternion, path: str, where: str) -> np.ndarray:
     q = np.asarray(quaternion, dtype=float)
     norm = np.linalg.norm(q)
     if not abs(norm - 1.0) <= 1e-3:
-        raise InputError(f"orientation {q.tolist()} is not a unit quaternion (norm {norm:.4g})", path=path,
-                         field=where)
+        raise InputError(f"orientation {q.tolist()} is not a unit quaternion (norm {norm:.4g})", path=path, field=where)
     x, y, z, w = q / norm
     T = np.eye(4)
-    T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+    T[:3, :3] = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ]
     T[:3, 3] = position
     return T
 
@@ -366,8 +404,11 @@ class _Fields(FieldReader):
         out = []
         for key, axes in (("position", "xyz"), ("orientation", "xyzw")):
             v = p.get(key)
-            out.append([self.number_at(v, a, f"{where}.{key}.") for a in axes] if isinstance(v, dict)
-                       else self.numbers_of(v, len(axes), f"{where}.{key}"))
+            out.append(
+                [self.number_at(v, a, f"{where}.{key}.") for a in axes]
+                if isinstance(v, dict)
+                else self.numbers_of(v, len(axes), f"{where}.{key}")
+            )
         return _pose_from(out[0], out[1], self.path, where + ".orientation")
 
     def joint_state(self, js, where: str) -> Dict[str, float]:

@@ -5,6 +5,7 @@ joint states and model), and the planner checks the robot against the scene, not
 Depth comes from PyBullet's depth buffer, the target mask from its segmentation buffer; optional
 Gaussian depth noise (seeded).
 """
+
 from __future__ import annotations
 
 import math
@@ -23,12 +24,12 @@ class CameraRig:
 
     width: int = 640
     height: int = 480
-    fov_deg: float = 58.0                     # vertical field of view (a RealSense D435's depth camera)
+    fov_deg: float = 58.0  # vertical field of view (a RealSense D435's depth camera)
     near: float = 0.1
     far: float = 4.0
     look_at: Sequence[float] = (0.55, 0.0, 0.05)
-    distance: float = 1.1                     # m from the look-at point
-    elevation_deg: float = 50.0               # above the table plane
+    distance: float = 1.1  # m from the look-at point
+    elevation_deg: float = 50.0  # above the table plane
     azimuths_deg: Sequence[float] = (0.0, 70.0, -70.0)  # 0: across the table, facing the robot
 
     def intrinsics(self) -> np.ndarray:
@@ -54,8 +55,9 @@ class CameraRig:
         return poses
 
 
-def render_observation(scene: scenes_mod.Scene, views: int = 3, noise: float = 0.0, seed: int = 0,
-                       rig: CameraRig = CameraRig()) -> Observation:
+def render_observation(
+    scene: scenes_mod.Scene, views: int = 3, noise: float = 0.0, seed: int = 0, rig: CameraRig = CameraRig()
+) -> Observation:
     """Depth images of ``scene`` from ``views`` cameras of ``rig`` (noise: depth sigma in metres)."""
     from pickplan.sim.bullet import connect, pb
 
@@ -71,9 +73,12 @@ def render_observation(scene: scenes_mod.Scene, views: int = 3, noise: float = 0
         depths, masks, rgbs, poses = [], [], [], rig.camera_poses(views)
         for T in poses:
             eye, forward, down = T[:3, 3], T[:3, 2], T[:3, 1]
-            view = pb.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), (-down).tolist(), physicsClientId=client)
-            _, _, rgba, zbuf, seg = pb.getCameraImage(rig.width, rig.height, view, proj, renderer=pb.ER_TINY_RENDERER,
-                                                      physicsClientId=client)
+            view = pb.computeViewMatrix(
+                eye.tolist(), (eye + forward).tolist(), (-down).tolist(), physicsClientId=client
+            )
+            _, _, rgba, zbuf, seg = pb.getCameraImage(
+                rig.width, rig.height, view, proj, renderer=pb.ER_TINY_RENDERER, physicsClientId=client
+            )
             z = np.reshape(np.asarray(zbuf, float), (rig.height, rig.width))
             depth = rig.far * rig.near / (rig.far - (rig.far - rig.near) * z)
             depth[z >= 1.0 - 1e-7] = 0.0  # nothing hit: no return
@@ -84,7 +89,13 @@ def render_observation(scene: scenes_mod.Scene, views: int = 3, noise: float = 0
             depths.append(depth.astype(np.float32))
             masks.append((seg & ((1 << 24) - 1)) == ids[scene.target])
             rgbs.append(np.reshape(np.asarray(rgba, np.uint8), (rig.height, rig.width, 4))[..., :3])
-        return Observation(np.stack(depths), np.stack([K] * views), np.stack(poses), np.stack(masks), np.stack(rgbs),
-                           source=f"render of scene seed {scene.seed}")
+        return Observation(
+            np.stack(depths),
+            np.stack([K] * views),
+            np.stack(poses),
+            np.stack(masks),
+            np.stack(rgbs),
+            source=f"render of scene seed {scene.seed}",
+        )
     finally:
         pb.disconnect(client)

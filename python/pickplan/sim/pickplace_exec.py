@@ -15,6 +15,7 @@ too when one was asked; no other object moved more than ``max_moved``; the robot
 body other than the target deeper than ``collision_depth`` and the held object no body other than the
 robot and its support.
 """
+
 from __future__ import annotations
 
 import math
@@ -37,16 +38,16 @@ from pickplan.sim.execution import ExecutionSettings, RecordSettings
 class PlaceOutcome(Option):
     """How an executed pick and place ended."""
 
-    placed = "placed"              # every test passed
-    missed = "missed"              # the fingers closed without the object between them
-    dropped = "dropped"            # the object left the hand before the release
-    not_planned = "not_planned"    # no place plan for the grasp as executed (replan failed)
-    collision = "collision"        # the robot or the held object penetrated another body
+    placed = "placed"  # every test passed
+    missed = "missed"  # the fingers closed without the object between them
+    dropped = "dropped"  # the object left the hand before the release
+    not_planned = "not_planned"  # no place plan for the grasp as executed (replan failed)
+    collision = "collision"  # the robot or the held object penetrated another body
     outside_region = "outside_region"
-    toppled = "toppled"            # at rest in the region but not in the asked orientation
-    moving = "moving"              # still moving at the end
+    toppled = "toppled"  # at rest in the region but not in the asked orientation
+    moving = "moving"  # still moving at the end
     moved_others = "moved_others"  # another object moved more than max_moved
-    unstable = "unstable"          # the simulation diverged
+    unstable = "unstable"  # the simulation diverged
 
 
 @dataclass(frozen=True)
@@ -55,20 +56,20 @@ class PlaceCheck:
 
     region_min: Tuple[float, float, float]
     region_max: Tuple[float, float, float]
-    place_pose: np.ndarray               # (4, 4) planned pose at release
-    tolerance_deg: float = 10.0          # up axis
+    place_pose: np.ndarray  # (4, 4) planned pose at release
+    tolerance_deg: float = 10.0  # up axis
     yaw_tolerance_deg: Optional[float] = None  # None: yaw free
-    region_tolerance: float = 0.01       # m the hull may reach beyond the region
-    max_moved: float = 0.02              # m any other object may move
-    rest_speed: float = 0.01             # m/s
-    rest_spin: float = 0.2               # rad/s
+    region_tolerance: float = 0.01  # m the hull may reach beyond the region
+    max_moved: float = 0.02  # m any other object may move
+    rest_speed: float = 0.01  # m/s
+    rest_spin: float = 0.2  # rad/s
 
 
 @dataclass(frozen=True)
 class PickPlaceExecSettings:
     execution: ExecutionSettings = field(default_factory=ExecutionSettings)
-    release_duration: float = 0.5   # s the open fingers are given before the retract
-    settle_duration: float = 1.0    # s after the retract before the test
+    release_duration: float = 0.5  # s the open fingers are given before the retract
+    settle_duration: float = 1.0  # s after the retract before the test
     held_penetration: float = 0.003  # m the held object may press into another body before it counts
 
 
@@ -79,14 +80,14 @@ class PickPlaceExecution:
     message: str
     held_after_close: bool
     held_before_release: bool
-    hand_T_object: Optional[np.ndarray]   # the grasp as executed (object in the hand frame after the lift)
-    final_pose: np.ndarray                # (4, 4) the object's pose at the end
-    tilt_deg: float                       # its up axis from the planned pose's
+    hand_T_object: Optional[np.ndarray]  # the grasp as executed (object in the hand frame after the lift)
+    final_pose: np.ndarray  # (4, 4) the object's pose at the end
+    tilt_deg: float  # its up axis from the planned pose's
     yaw_error_deg: float
     in_region: bool
     at_rest: bool
-    robot_contacts: Dict[str, float]      # body -> deepest robot penetration (m), the target left out
-    held_contacts: Dict[str, float]       # body -> deepest penetration by the carried object (robot, table out)
+    robot_contacts: Dict[str, float]  # body -> deepest robot penetration (m), the target left out
+    held_contacts: Dict[str, float]  # body -> deepest penetration by the carried object (robot, table out)
     object_displacements: Dict[str, float]
     sim_time: float
     seconds: float
@@ -148,23 +149,32 @@ Segments = Sequence[Tuple[str, TimedTrajectory]]
 Replan = Callable[[np.ndarray, np.ndarray], Optional[Tuple[Segments, np.ndarray]]]
 
 
-def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: PlaceCheck,
-                           settings: PickPlaceExecSettings = PickPlaceExecSettings(),
-                           library: Optional[objects_mod.ObjectLibrary] = None,
-                           record: Optional[RecordSettings] = None, replan: Optional[Replan] = None
-                           ) -> PickPlaceExecution:
+def execute_pick_and_place(
+    scene: scenes_mod.Scene,
+    segments: Segments,
+    check: PlaceCheck,
+    settings: PickPlaceExecSettings = PickPlaceExecSettings(),
+    library: Optional[objects_mod.ObjectLibrary] = None,
+    record: Optional[RecordSettings] = None,
+    replan: Optional[Replan] = None,
+) -> PickPlaceExecution:
     """Run ``segments`` (name, timed): "approach", "lift", "transfer", "retract"; see the module doc.
     ``replan(q_now, hand_T_object)`` -> (the transfer and retract segments, the new ``place_pose``) or None."""
     t_start = time.perf_counter()
     s = settings.execution
     parts = dict(segments)
-    missing = {"approach", "lift", "transfer", "retract"} - set(parts) if replan is None else \
-        {"approach", "lift"} - set(parts)
+    missing = (
+        {"approach", "lift", "transfer", "retract"} - set(parts)
+        if replan is None
+        else {"approach", "lift"} - set(parts)
+    )
     if missing:
         raise ValueError(f"segments: missing {sorted(missing)}")
     robot = robots.load_robot(s.robot, np.asarray(scene.robot_base, dtype=float))
-    models = {o.name: library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
-              for o in scene.objects}
+    models = {
+        o.name: library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
+        for o in scene.objects
+    }
     sim = open_sim(scene, robot, parts["approach"].q[0], s, models, record, sim_class=_CarrySim)
     try:
         com0 = {name: sim.com(name) for name in sim.bodies}
@@ -195,19 +205,43 @@ def execute_pick_and_place(scene: scenes_mod.Scene, segments: Segments, check: P
     at_rest = bool(np.linalg.norm(v) <= check.rest_speed and np.linalg.norm(w) <= check.rest_spin)
     hull = np.asarray(models[scene.target].mesh.convex_hull.vertices) @ final[:3, :3].T + final[:3, 3]
     tol = check.region_tolerance
-    in_region = bool(np.all(hull >= np.asarray(check.region_min) - tol) and np.all(hull <= np.asarray(check.region_max) + tol))
+    in_region = bool(
+        np.all(hull >= np.asarray(check.region_min) - tol) and np.all(hull <= np.asarray(check.region_max) + tol)
+    )
     tilt, yaw = _tilt_and_yaw(final, np.asarray(place_pose, float))
     moved = {n: float(np.linalg.norm(com1[n] - com0[n])) for n in sorted(sim.bodies) if n != scene.target}
     held_contacts = sim.held_contacts
-    collided = max(sim.contacts.values(), default=0.0) > s.collision_depth or \
-        max(held_contacts.values(), default=0.0) > settings.held_penetration
+    collided = (
+        max(sim.contacts.values(), default=0.0) > s.collision_depth
+        or max(held_contacts.values(), default=0.0) > settings.held_penetration
+    )
     stages = {"close": held_after_close, "lift": held_after_lift, "planned": planned, "release": held_before_release}
-    contacts = {**{f"robot-{k}": v for k, v in sim.contacts.items()}, **{f"held-{k}": v for k, v in held_contacts.items()}}
-    status, message = _outcome(finite, stages, contacts if collided else {}, in_region, at_rest, tilt, yaw, moved, check)
-    return PickPlaceExecution(status is PlaceOutcome.placed, status, message, held_after_close, held_before_release,
-                              grasp, final, tilt, yaw, in_region, at_rest, dict(sorted(sim.contacts.items())),
-                              dict(sorted(held_contacts.items())), moved, sim.steps * s.time_step,
-                              time.perf_counter() - t_start, sim.frames)
+    contacts = {
+        **{f"robot-{k}": v for k, v in sim.contacts.items()},
+        **{f"held-{k}": v for k, v in held_contacts.items()},
+    }
+    status, message = _outcome(
+        finite, stages, contacts if collided else {}, in_region, at_rest, tilt, yaw, moved, check
+    )
+    return PickPlaceExecution(
+        status is PlaceOutcome.placed,
+        status,
+        message,
+        held_after_close,
+        held_before_release,
+        grasp,
+        final,
+        tilt,
+        yaw,
+        in_region,
+        at_rest,
+        dict(sorted(sim.contacts.items())),
+        dict(sorted(held_contacts.items())),
+        moved,
+        sim.steps * s.time_step,
+        time.perf_counter() - t_start,
+        sim.frames,
+    )
 
 
 def _pick_and_lift(sim, robot, parts: dict, s) -> Tuple[bool, bool]:
@@ -240,8 +274,17 @@ def _place_and_retract(sim, robot, parts: dict, settings: PickPlaceExecSettings)
     return held_before_release
 
 
-def _outcome(finite: bool, stages: dict, collisions: dict, in_region: bool, at_rest: bool, tilt: float, yaw: float,
-             moved: dict, check: PlaceCheck) -> Tuple[PlaceOutcome, str]:
+def _outcome(
+    finite: bool,
+    stages: dict,
+    collisions: dict,
+    in_region: bool,
+    at_rest: bool,
+    tilt: float,
+    yaw: float,
+    moved: dict,
+    check: PlaceCheck,
+) -> Tuple[PlaceOutcome, str]:
     """The first test failed, in the order of the task, with its message (``collisions``: the
     penetrations when one was too deep, else empty)."""
     if not finite:

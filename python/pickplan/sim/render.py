@@ -1,4 +1,5 @@
 """Headless pictures: PyBullet's TinyRenderer (no display) into PNG files and animated GIFs (Pillow)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,15 +15,15 @@ from pickplan.core.io import atomic_open
 class RecordSettings:
     """Frames rendered headless (TinyRenderer) every ``every`` simulation steps, first and last included."""
 
-    every: int = 24                       # steps between frames (0.1 s at 240 Hz)
+    every: int = 24  # steps between frames (0.1 s at 240 Hz)
     width: int = 320
     height: int = 240
-    max_frames: int = 300                 # later frames are dropped (the last one is always kept)
-    target: Tuple[float, float, float] = (0.4, 0.0, 0.3)   # orbit camera (``render``)
+    max_frames: int = 300  # later frames are dropped (the last one is always kept)
+    target: Tuple[float, float, float] = (0.4, 0.0, 0.3)  # orbit camera (``render``)
     distance: float = 1.5
     yaw: float = 45.0
     pitch: float = -25.0
-    colorize: bool = True                 # paint the objects (target red); visuals only, physics unchanged
+    colorize: bool = True  # paint the objects (target red); visuals only, physics unchanged
 
     def __post_init__(self):
         if self.every < 1 or self.width < 8 or self.height < 8 or self.max_frames < 2:
@@ -72,15 +73,23 @@ def write_gif(path: str, frames: Sequence[np.ndarray], fps: float = 10.0) -> Non
         f.write(b";")  # the GIF trailer
 
 
-def render(client: int, width: int = 640, height: int = 480, target: Sequence[float] = (0.45, 0.0, 0.35),
-           distance: float = 1.6, yaw: float = 50.0, pitch: float = -30.0) -> np.ndarray:
+def render(
+    client: int,
+    width: int = 640,
+    height: int = 480,
+    target: Sequence[float] = (0.45, 0.0, 0.35),
+    distance: float = 1.6,
+    yaw: float = 50.0,
+    pitch: float = -30.0,
+) -> np.ndarray:
     """An RGB image of the current PyBullet scene from an orbit camera (TinyRenderer)."""
     from pickplan.sim.bullet import pb
 
     view = pb.computeViewMatrixFromYawPitchRoll(target, distance, yaw, pitch, 0.0, 2, physicsClientId=client)
     proj = pb.computeProjectionMatrixFOV(50.0, width / height, 0.02, 10.0, physicsClientId=client)
-    _, _, rgba, _, _ = pb.getCameraImage(width, height, view, proj, renderer=pb.ER_TINY_RENDERER,
-                                         physicsClientId=client)
+    _, _, rgba, _, _ = pb.getCameraImage(
+        width, height, view, proj, renderer=pb.ER_TINY_RENDERER, physicsClientId=client
+    )
     return np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[..., :3]
 
 
@@ -91,12 +100,19 @@ def tile(images: Sequence[np.ndarray], columns: int) -> np.ndarray:
     out = np.full((rows * h, columns * w, 3), 255, dtype=np.uint8)
     for i, im in enumerate(images):
         r, c = divmod(i, columns)
-        out[r * h:(r + 1) * h, c * w:(c + 1) * w] = im[..., :3]
+        out[r * h : (r + 1) * h, c * w : (c + 1) * w] = im[..., :3]
     return out
 
 
-_PALETTE = ((0.20, 0.45, 0.80), (0.25, 0.65, 0.35), (0.85, 0.65, 0.15), (0.55, 0.35, 0.70),
-            (0.20, 0.65, 0.70), (0.60, 0.60, 0.60), (0.80, 0.45, 0.60))
+_PALETTE = (
+    (0.20, 0.45, 0.80),
+    (0.25, 0.65, 0.35),
+    (0.85, 0.65, 0.15),
+    (0.55, 0.35, 0.70),
+    (0.20, 0.65, 0.70),
+    (0.60, 0.60, 0.60),
+    (0.80, 0.45, 0.60),
+)
 
 
 def colorize(client: int, bodies: dict, target: str) -> None:

@@ -1,5 +1,6 @@
 """Checks of scene files at the door (``core.fields.FieldReader``): numbers (not strings)
 everywhere, rigid poses, and objects that rest on the table rather than inside or under it."""
+
 from __future__ import annotations
 
 from typing import Optional
@@ -14,7 +15,7 @@ from pickplan.core.shapes import read_obstacles
 
 SCENE_FORMAT = "pickplan.scene"
 SCENE_VERSION = 1
-MAX_COORDINATE = 1e3     # m: any position in a scene
+MAX_COORDINATE = 1e3  # m: any position in a scene
 MAX_JOINT_VALUE = 100.0  # rad or m: the robot's configuration (its limits bound it further)
 
 
@@ -42,10 +43,13 @@ def read_scene(d, path: Optional[str] = None) -> dict:
         if d.get("format") != SCENE_FORMAT:
             r.fail("format", f"not a scene: expected {SCENE_FORMAT!r}, got {shown(d.get('format'))}")
         if d.get("version") != SCENE_VERSION:
-            r.fail("version", f"unsupported scene version {shown(d.get('version'))} (this pickplan reads "
-                              f"{SCENE_VERSION})")
-        out = {"robot_base": r.get(d, "robot_base", "", lambda v, w: _pose(r, v, w)),
-               "seed": r.attempt(_seed, r, d.get("seed"))}
+            r.fail(
+                "version", f"unsupported scene version {shown(d.get('version'))} (this pickplan reads {SCENE_VERSION})"
+            )
+        out = {
+            "robot_base": r.get(d, "robot_base", "", lambda v, w: _pose(r, v, w)),
+            "seed": r.attempt(_seed, r, d.get("seed")),
+        }
         out["size"] = out["table_pose"] = None
         if "table" not in d or d["table"] is not None:  # null: no table (shelves, bins, MoveIt scenes)
             table = r.get(d, "table", "", r.table, default={}, known=("size", "pose"))
@@ -60,7 +64,12 @@ def read_scene(d, path: Optional[str] = None) -> dict:
             r.note("objects", f"object names must be unique, got {names}")
         # null: no target (a scene of obstacles to move among, e.g. from MoveIt)
         out["target"] = None if "target" in d and d["target"] is None else r.get(d, "target", "", r.text)
-        if out["target"] is not None and items is not None and None not in out["objects"] and out["target"] not in names:
+        if (
+            out["target"] is not None
+            and items is not None
+            and None not in out["objects"]
+            and out["target"] not in names
+        ):
             r.note("target", f"{out['target'][:60]!r} is not one of the objects {names}")
         out["obstacles"] = []
         try:
@@ -72,8 +81,10 @@ def read_scene(d, path: Optional[str] = None) -> dict:
         q = d.get("robot_configuration", [])
         if not isinstance(q, (list, tuple)):
             r.fail("robot_configuration", f"expected a list of joint values, got {shown(q)}")
-        out["robot_configuration"] = [float(x) for x in r.array(q, "robot_configuration", shape=(len(q),),
-                                                                 lo=-MAX_JOINT_VALUE, hi=MAX_JOINT_VALUE)]
+        out["robot_configuration"] = [
+            float(x)
+            for x in r.array(q, "robot_configuration", shape=(len(q),), lo=-MAX_JOINT_VALUE, hi=MAX_JOINT_VALUE)
+        ]
     return out
 
 
@@ -103,7 +114,7 @@ def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None, 
         except KeyError as exc:  # not an object of that library: bad input, named
             raise InputError(str(exc.args[0] if exc.args else exc), path=path, field=f"objects[{i}].source") from None
         V = np.asarray(model.mesh.vertices, dtype=float)
-        local = (to_table @ np.asarray(o.pose, dtype=float))
+        local = to_table @ np.asarray(o.pose, dtype=float)
         P = V @ local[:3, :3].T + local[:3, 3]
         centre = P.mean(axis=0)
         if np.any(np.abs(centre[:2]) > half[:2]):
@@ -112,5 +123,9 @@ def check_placement(scene, library: Optional[objects_mod.ObjectLibrary] = None, 
         if other_supports and P[:, 2].max() <= -half[2]:
             continue  # under the table, on another support
         if depth > MAX_TABLE_PENETRATION:
-            raise InputError(f"object {o.name!r} reaches {100 * depth:.1f} cm below the table top (into or under the "
-                             f"table; at most {100 * MAX_TABLE_PENETRATION:.0f} cm)", path=path, field=f"objects[{i}].pose")
+            raise InputError(
+                f"object {o.name!r} reaches {100 * depth:.1f} cm below the table top (into or under the "
+                f"table; at most {100 * MAX_TABLE_PENETRATION:.0f} cm)",
+                path=path,
+                field=f"objects[{i}].pose",
+            )

@@ -1,4 +1,5 @@
 """Benchmark scene sets: ``n`` seeded scenes written to a folder (scene_XXXX.json plus index.json)."""
+
 from __future__ import annotations
 
 import os
@@ -19,10 +20,18 @@ def scene_seeds(seed: int, n: int) -> List[int]:
     return [int(s) for s in np.random.SeedSequence(int(seed)).generate_state(n, dtype=np.uint32)]
 
 
-def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
-                    progress: Optional[bool] = True, stream: Optional[TextIO] = None, orientation: str = "upright",
-                    clutter: Tuple[int, int] = (SceneSettings.min_objects, SceneSettings.max_objects),
-                    robot: str = "panda", layout: Layout = Layout.table) -> dict:
+def write_scene_set(
+    n: int,
+    seed: int,
+    out: str,
+    objects: Optional[str] = None,
+    progress: Optional[bool] = True,
+    stream: Optional[TextIO] = None,
+    orientation: str = "upright",
+    clutter: Tuple[int, int] = (SceneSettings.min_objects, SceneSettings.max_objects),
+    robot: str = "panda",
+    layout: Layout = Layout.table,
+) -> dict:
     """Generate ``n`` scenes into ``out`` (scene_0000.json, ...) and return the index it writes.
 
     ``clutter`` = (fewest, most) objects per scene; ``robot``: the robot they are made for (SceneSettings.robot).
@@ -34,25 +43,42 @@ def write_scene_set(n: int, seed: int, out: str, objects: Optional[str] = None,
     if n < 1:
         raise ValueError(f"--n must be >= 1, got {n}")
     lib = objects_mod.library(objects)  # None: $PICKPLAN_YCB_DIR, else the built-ins
-    settings = SceneSettings(orientation=orientation, min_objects=int(clutter[0]), max_objects=int(clutter[1]),
-                             robot=robot)
+    settings = SceneSettings(
+        orientation=orientation, min_objects=int(clutter[0]), max_objects=int(clutter[1]), robot=robot
+    )
     os.makedirs(out, exist_ok=True)
     started = time.perf_counter()
     entries = []
     with progress_bar(n, "scenes", progress, stream, unit="scene") as bar:
         for i, s in enumerate(scene_seeds(seed, n)):
             t0 = time.perf_counter()
-            scene = generate_scene(s, lib, settings) if layout is Layout.table else \
-                generate_layout(layout, s, lib, LayoutSettings(robot=robot))
+            scene = (
+                generate_scene(s, lib, settings)
+                if layout is Layout.table
+                else generate_layout(layout, s, lib, LayoutSettings(robot=robot))
+            )
             fname = f"scene_{i:04d}.json"
             scene.save(os.path.join(out, fname))
-            entries.append({"file": fname, "seed": s, "target": scene.target, "objects": [o.name for o in scene.objects],
-                            "seconds": round(time.perf_counter() - t0, 4)})
+            entries.append(
+                {
+                    "file": fname,
+                    "seed": s,
+                    "target": scene.target,
+                    "objects": [o.name for o in scene.objects],
+                    "seconds": round(time.perf_counter() - t0, 4),
+                }
+            )
             bar.update()
-    index = {"count": n, "seed": seed, "objects": lib.source, "orientation": orientation,
-             "clutter": [settings.min_objects, settings.max_objects], "scenes": entries,
-             **({} if robot == "panda" else {"robot": robot}),
-             **({} if layout is Layout.table else {"layout": layout.value}),
-             "seconds": round(time.perf_counter() - started, 3)}
+    index = {
+        "count": n,
+        "seed": seed,
+        "objects": lib.source,
+        "orientation": orientation,
+        "clutter": [settings.min_objects, settings.max_objects],
+        "scenes": entries,
+        **({} if robot == "panda" else {"robot": robot}),
+        **({} if layout is Layout.table else {"layout": layout.value}),
+        "seconds": round(time.perf_counter() - started, 3),
+    }
     write_json(os.path.join(out, "index.json"), index)
     return index

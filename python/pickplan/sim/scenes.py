@@ -12,6 +12,7 @@ Conventions (other modules rely on them):
 >>> scene = generate_scene(seed=3)
 >>> scene.save("out/scene_3.json"); Scene.load("out/scene_3.json").target
 """
+
 from __future__ import annotations
 
 import json
@@ -30,9 +31,8 @@ from pickplan.core.errors import InputError
 from pickplan.core.io import atomic_open
 from pickplan.core.settings import Option
 from pickplan.core.shapes import Obstacle
-from pickplan.sim.bodies import (_inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat,  # noqa: F401
-                                  add_object_body, add_obstacle_body, add_robot, add_table,  # (re-exported)
-                                  object_pose)
+from pickplan.sim.bodies import _inertial_frame, _mat_to_quat, _panda_defaults, _quat_to_mat  # noqa: F401 (re-exported)
+from pickplan.sim.bodies import add_object_body, add_obstacle_body, add_robot, add_table, object_pose  # noqa: F401
 from pickplan.sim.scene_checks import SCENE_FORMAT, SCENE_VERSION, check_placement, read_scene  # noqa: F401
 
 
@@ -40,7 +40,7 @@ class Orientation(Option):
     """How generated scenes pose their objects (``SceneSettings.orientation``)."""
 
     upright = "upright"  # the paper's "random upright poses": the resting pose with model +z closest to up
-    stable = "stable"    # a resting pose drawn with the probability a random drop ends on it
+    stable = "stable"  # a resting pose drawn with the probability a random drop ends on it
     resting = "resting"  # any sufficiently stable resting pose, drawn uniformly
 
 
@@ -53,28 +53,28 @@ class SceneSettings:
 
     min_objects: int = 3
     max_objects: int = 7
-    region_x: Tuple[float, float] = (0.35, 0.75)   # where object centres are dropped
+    region_x: Tuple[float, float] = (0.35, 0.75)  # where object centres are dropped
     region_y: Tuple[float, float] = (-0.35, 0.35)
     table_x: Tuple[float, float] = (-0.2, 1.1)
     table_y: Tuple[float, float] = (-0.8, 0.8)
     table_thickness: float = 0.05
-    drop_height: float = 0.005         # gap between the object's lowest point and the table at release
-    spawn_gap: float = 0.005           # minimum gap between footprint circles at release
+    drop_height: float = 0.005  # gap between the object's lowest point and the table at release
+    spawn_gap: float = 0.005  # minimum gap between footprint circles at release
     # "upright" (the paper: "random upright poses"): every object stands on the resting pose that keeps
     # its model +z closest to up; "stable": a resting pose drawn with the probability that a random
     # drop ends on it (core.stability), among those that tip with at least min_barrier of COM rise;
     # "resting": any sufficiently stable resting pose (lying boxes, upside-down bowls), drawn uniformly
     # among those passing both settings below.
     orientation: Orientation = Orientation.upright
-    min_barrier: float = 0.002         # resting poses that tip with less COM rise (m) are not sampled
-    barrier_fraction: float = 0.1      # ... nor those below this fraction of the most stable one's
+    min_barrier: float = 0.002  # resting poses that tip with less COM rise (m) are not sampled
+    barrier_fraction: float = 0.1  # ... nor those below this fraction of the most stable one's
     time_step: float = 1.0 / 240.0
-    max_settle_time: float = 2.0       # seconds of simulation per settling round
-    settle_speed: float = 0.005        # m/s; below this (and settle_spin) an object counts as at rest
-    settle_spin: float = 0.05          # rad/s
-    max_tilt_deg: float = 15.0         # more than this away from the sampled upright = tipped over
-    max_lift: float = 0.005            # lowest point higher than this above the table = not resting on it
-    robot_clearance: float = 0.01      # objects closer than this to the robot are discarded
+    max_settle_time: float = 2.0  # seconds of simulation per settling round
+    settle_speed: float = 0.005  # m/s; below this (and settle_spin) an object counts as at rest
+    settle_spin: float = 0.05  # rad/s
+    max_tilt_deg: float = 15.0  # more than this away from the sampled upright = tipped over
+    max_lift: float = 0.005  # lowest point higher than this above the table = not resting on it
+    robot_clearance: float = 0.01  # objects closer than this to the robot are discarded
     friction: float = 0.8
     max_attempts: int = 20
     # The robot the scene is made for (a shipped description's name, a short name or a .toml file):
@@ -100,26 +100,26 @@ class SceneSettings:
 
 @dataclass(eq=False)
 class Table:
-    size: np.ndarray   # (3,) box extents
-    pose: np.ndarray   # (4, 4) pose of the box centre; the top face is at z = 0 by convention
+    size: np.ndarray  # (3,) box extents
+    pose: np.ndarray  # (4, 4) pose of the box centre; the top face is at z = 0 by convention
 
 
 @dataclass(eq=False)
 class SceneObject:
     name: str
-    source: str        # "builtin:NAME" or the object's folder
-    pose: np.ndarray   # (4, 4) object frame -> world
+    source: str  # "builtin:NAME" or the object's folder
+    pose: np.ndarray  # (4, 4) object frame -> world
 
 
 @dataclass(eq=False)
 class Scene:
     robot_base: np.ndarray
-    table: Optional[Table]         # None: no table (a MoveIt scene of obstacles only)
+    table: Optional[Table]  # None: no table (a MoveIt scene of obstacles only)
     objects: List[SceneObject]
-    target: Optional[str]          # None: no target (nothing to grasp, e.g. a motion problem)
+    target: Optional[str]  # None: no target (nothing to grasp, e.g. a motion problem)
     seed: Optional[int] = None
     robot_configuration: List[float] = field(default_factory=list)  # the start configuration (of ``robot``)
-    robot: str = PANDA.name        # the description the scene was made for (its robot_configuration's robot)
+    robot: str = PANDA.name  # the description the scene was made for (its robot_configuration's robot)
     obstacles: List[Obstacle] = field(default_factory=list)  # static shapes: shelves, bins, MoveIt's objects
 
     def object(self, name: str) -> SceneObject:
@@ -131,13 +131,21 @@ class Scene:
     # --- JSON ---------------------------------------------------------------------------------
     def to_dict(self) -> dict:
         return {
-            "format": SCENE_FORMAT, "version": SCENE_VERSION, "seed": self.seed,
+            "format": SCENE_FORMAT,
+            "version": SCENE_VERSION,
+            "seed": self.seed,
             "robot_base": np.asarray(self.robot_base, dtype=float).tolist(),
             "robot_configuration": [float(x) for x in self.robot_configuration],
-            "table": None if self.table is None else {"size": np.asarray(self.table.size, dtype=float).tolist(),
-                                                      "pose": np.asarray(self.table.pose, dtype=float).tolist()},
-            "objects": [{"name": o.name, "source": o.source, "pose": np.asarray(o.pose, dtype=float).tolist()}
-                        for o in self.objects],
+            "table": None
+            if self.table is None
+            else {
+                "size": np.asarray(self.table.size, dtype=float).tolist(),
+                "pose": np.asarray(self.table.pose, dtype=float).tolist(),
+            },
+            "objects": [
+                {"name": o.name, "source": o.source, "pose": np.asarray(o.pose, dtype=float).tolist()}
+                for o in self.objects
+            ],
             "target": self.target,
             **({} if self.robot == PANDA.name else {"robot": self.robot}),  # the Panda's files: as before
             **({"obstacles": [o.to_dict() for o in self.obstacles]} if self.obstacles else {}),
@@ -152,9 +160,16 @@ class Scene:
         """The scene of a parsed scene file; InputError naming ``path`` and every field at fault."""
         v = read_scene(d, path)
         table = None if v["size"] is None else Table(size=v["size"], pose=v["table_pose"])
-        scene = cls(robot_base=v["robot_base"], table=table, objects=[SceneObject(*o) for o in v["objects"]],
-                    target=v["target"], seed=v["seed"], robot_configuration=v["robot_configuration"],
-                    robot=v["robot"], obstacles=v["obstacles"])
+        scene = cls(
+            robot_base=v["robot_base"],
+            table=table,
+            objects=[SceneObject(*o) for o in v["objects"]],
+            target=v["target"],
+            seed=v["seed"],
+            robot_configuration=v["robot_configuration"],
+            robot=v["robot"],
+            obstacles=v["obstacles"],
+        )
         check_placement(scene, path=path)
         return scene
 
@@ -185,8 +200,9 @@ class Scene:
         return cls.from_json(text, path)
 
 
-def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None,
-                       with_robot: bool = True) -> Dict[str, int]:
+def load_into_pybullet(
+    scene: Scene, client: int, library: Optional[objects_mod.ObjectLibrary] = None, with_robot: bool = True
+) -> Dict[str, int]:
     """Recreate ``scene`` in ``client``: body ids by object name, plus "table" and "robot"."""
     ids = {} if scene.table is None else {"table": add_table(client, scene.table)}
     for o in scene.obstacles:
@@ -196,12 +212,17 @@ def load_into_pybullet(scene: Scene, client: int, library: Optional[objects_mod.
             ids["robot"] = add_robot(client, scene.robot_base, scene.robot_configuration)
         else:
             desc = load_description(scene.robot)
-            ids["robot"] = add_robot(client, np.asarray(scene.robot_base, dtype=float) @ desc.base_pose,
-                                     scene.robot_configuration or RobotInfo.from_description(desc).ready, desc.urdf)
+            ids["robot"] = add_robot(
+                client,
+                np.asarray(scene.robot_base, dtype=float) @ desc.base_pose,
+                scene.robot_configuration or RobotInfo.from_description(desc).ready,
+                desc.urdf,
+            )
     for o in scene.objects:
         model = library.get(o.name) if library is not None else objects_mod.model_from_source(o.name, o.source)
         ids[o.name] = add_object_body(client, model, o.pose)
     return ids
+
 
 # --- generation ----------------------------------------------------------------------------------
 def default_table(settings: SceneSettings = SceneSettings()) -> Table:
@@ -326,8 +347,9 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
                 model = lib.get(name)
                 rest = model.resting_poses[_sample_pose(rng, model, settings)]
                 yaw = rng.uniform(-math.pi, math.pi)
-                radius = float(np.max(np.linalg.norm((_hull_points(model) @ rest[:3, :3].T)[:, :2]
-                                                     + rest[:2, 3], axis=1)))
+                radius = float(
+                    np.max(np.linalg.norm((_hull_points(model) @ rest[:3, :3].T)[:, :2] + rest[:2, 3], axis=1))
+                )
                 for _ in range(50):  # rejection sampling of a free spot; the object is skipped if none
                     xy = rng.uniform([x0, y0], [x1, y1])
                     if all(np.linalg.norm(xy - c) >= radius + r + settings.spawn_gap for c, r in circles):
@@ -348,20 +370,30 @@ def generate_scene(seed: int, library=None, settings: SceneSettings = SceneSetti
                 pb.removeBody(p.body, physicsClientId=client)
             kept = []
         else:
-            raise RuntimeError(f"seed {seed}: fewer than {settings.min_objects} objects came to rest in "
-                               f"{settings.max_attempts} attempts")
+            raise RuntimeError(
+                f"seed {seed}: fewer than {settings.min_objects} objects came to rest in "
+                f"{settings.max_attempts} attempts"
+            )
         objs = [SceneObject(p.name, p.model.source, object_pose(client, p.body, p.model)) for p in kept]
         opening = settings.gripper_opening or info.max_opening
         candidates = [o for o, p in zip(objs, kept) if graspability(p.model, o.pose, opening).graspable] or objs
         target = candidates[int(rng.integers(len(candidates)))].name
     finally:
         pb.disconnect(client)
-    return Scene(robot_base=np.eye(4), table=table, objects=objs, target=target,
-                 seed=None if seed is None else int(seed), robot_configuration=[float(v) for v in q], robot=info.name)
+    return Scene(
+        robot_base=np.eye(4),
+        table=table,
+        objects=objs,
+        target=target,
+        seed=None if seed is None else int(seed),
+        robot_configuration=[float(v) for v in q],
+        robot=info.name,
+    )
 
 
-def _settle_and_filter(client: int, placed: List[_Placed], robot: int, table: Table,
-                       settings: SceneSettings) -> List[_Placed]:
+def _settle_and_filter(
+    client: int, placed: List[_Placed], robot: int, table: Table, settings: SceneSettings
+) -> List[_Placed]:
     """Settle, drop the objects that fell, tipped or touch the robot, and settle again until none go.
 
     Returns [] when the survivors still do not come to rest (the caller then re-samples).

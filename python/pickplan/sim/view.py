@@ -5,6 +5,7 @@ as hand poses, the chosen and the refined grasp, and the body points that penetr
 ``build_view`` turns a scene and a ``plan.json`` record into meshcat commands; ``sim.view_page``
 writes them as a self-contained page or serves them live.
 """
+
 from __future__ import annotations
 
 import json
@@ -30,15 +31,20 @@ ROBOT_COLOR, HAND_COLOR = 0xE8E8E8, 0x505050
 GOAL_COLOR, CHOSEN_COLOR, REFINED_COLOR = 0x6FA8DC, 0xFF7F0E, 0x2CA02C
 COLLISION_COLOR = (1.0, 0.0, 0.0)
 
-LEGEND = (("target object", TARGET_COLOR), ("goal set (hand poses)", GOAL_COLOR),
-          ("chosen grasp", CHOSEN_COLOR), ("refined grasp", REFINED_COLOR), ("collision points", 0xFF0000))
+LEGEND = (
+    ("target object", TARGET_COLOR),
+    ("goal set (hand poses)", GOAL_COLOR),
+    ("chosen grasp", CHOSEN_COLOR),
+    ("refined grasp", REFINED_COLOR),
+    ("collision points", 0xFF0000),
+)
 
 
 @dataclass(frozen=True)
 class ViewSettings:
     seconds_per_waypoint: float = 0.15  # plan.json has no timing: a steady pace through the waypoints
-    substeps: int = 4                   # joint-space samples per waypoint (three.js interpolates poses linearly)
-    max_goal_hands: int = 40            # goal-set hands drawn; larger sets are thinned evenly
+    substeps: int = 4  # joint-space samples per waypoint (three.js interpolates poses linearly)
+    max_goal_hands: int = 40  # goal-set hands drawn; larger sets are thinned evenly
     goal_opacity: float = 0.25
     collision_point_size: float = 0.012  # m
 
@@ -48,7 +54,7 @@ class PlanView:
     """The meshcat commands that draw one plan, in the order a viewer must apply them."""
 
     commands: list
-    duration: float       # seconds of robot motion
+    duration: float  # seconds of robot motion
     title: str
 
 
@@ -153,14 +159,16 @@ def _draw_grasps(vis: meshcat.Visualizer, drawing: _RobotDrawing, plan: dict, se
         goals = goals[~np.all(goals == chosen[0], axis=1)]
     goals = _thin(goals, settings.max_goal_hands)
     for i, q in enumerate(goals):
-        vis["goal_set"][f"goal_{i:03d}"].set_object(_mesh_geometry(drawing.hand_mesh(q)),
-                                                    _material(GOAL_COLOR, settings.goal_opacity))
+        vis["goal_set"][f"goal_{i:03d}"].set_object(
+            _mesh_geometry(drawing.hand_mesh(q)), _material(GOAL_COLOR, settings.goal_opacity)
+        )
     # The refined grasp lies within a centimetre of the chosen one: the chosen one is see-through.
     for key, color, opacity in (("chosen_goal", CHOSEN_COLOR, 0.5), ("refined_goal", REFINED_COLOR, 0.85)):
         q = _configurations(plan.get(key), dof, key)
         if len(q):
-            vis[key.replace("_goal", "_grasp")].set_object(_mesh_geometry(drawing.hand_mesh(q[0])),
-                                                           _material(color, opacity))
+            vis[key.replace("_goal", "_grasp")].set_object(
+                _mesh_geometry(drawing.hand_mesh(q[0])), _material(color, opacity)
+            )
     points = np.asarray(plan.get("collision_points") or np.zeros((0, 4)), dtype=float)
     if points.size:
         if points.ndim != 2 or points.shape[1] < 3:
@@ -170,15 +178,16 @@ def _draw_grasps(vis: meshcat.Visualizer, drawing: _RobotDrawing, plan: dict, se
         vis["collision_points"].set_object(mg.PointCloud(xyz, colors, size=settings.collision_point_size))
 
 
-def _draw_robot(vis: meshcat.Visualizer, drawing: _RobotDrawing, trajectory: np.ndarray,
-                settings: ViewSettings) -> tuple:
+def _draw_robot(
+    vis: meshcat.Visualizer, drawing: _RobotDrawing, trajectory: np.ndarray, settings: ViewSettings
+) -> tuple:
     robot = drawing.robot
     names = robot.link_names
     hand = set(drawing.hand_links)
     for i, mesh in drawing.meshes.items():
         vis["robot"][names[i]].set_object(_mesh_geometry(mesh), _material(HAND_COLOR if i in hand else ROBOT_COLOR))
     Q = _densify(trajectory, settings.substeps)
-    poses = robot.fk_batch(Q)                                   # (T, links, 4, 4)
+    poses = robot.fk_batch(Q)  # (T, links, 4, 4)
     for i in drawing.meshes:
         vis["robot"][names[i]].set_transform(poses[0, i])
     fps = settings.substeps / settings.seconds_per_waypoint
@@ -190,8 +199,15 @@ def _draw_robot(vis: meshcat.Visualizer, drawing: _RobotDrawing, trajectory: np.
     return animation, (len(Q) - 1) / fps
 
 
-def _animate_held(vis: meshcat.Visualizer, animation: Animation, robot: DescribedRobot, trajectory: np.ndarray,
-                  scene: Scene, held: dict, settings: ViewSettings) -> None:
+def _animate_held(
+    vis: meshcat.Visualizer,
+    animation: Animation,
+    robot: DescribedRobot,
+    trajectory: np.ndarray,
+    scene: Scene,
+    held: dict,
+    settings: ViewSettings,
+) -> None:
     """The held object moves with the hand from waypoint ``held["from"]`` (the grasp) to ``held["to"]``
     (the release) and rests at ``held["place_pose"]`` after it (a pick-and-place plan's ``held``)."""
     name = str(held.get("name", scene.target))
@@ -205,8 +221,11 @@ def _animate_held(vis: meshcat.Visualizer, animation: Animation, robot: Describe
     hands = robot.fk_batch(Q)[:, robot.link_index(robot.hand_link)]
     for k in range(len(Q)):
         waypoint = k / max(1, settings.substeps)
-        pose = start if waypoint < first else (hands[k] @ T if waypoint <= last or not np.all(np.isfinite(placed))
-                                                else placed)
+        pose = (
+            start
+            if waypoint < first
+            else (hands[k] @ T if waypoint <= last or not np.all(np.isfinite(placed)) else placed)
+        )
         with animation.at_frame(vis, k) as frame:
             frame["objects"][name].set_transform(pose)
 
@@ -230,7 +249,7 @@ def build_view(scene: Scene, plan: dict, settings: ViewSettings = ViewSettings()
         raise ValueError("trajectory: the plan has no waypoints")
     recorder = _Recorder()
     root = meshcat.Visualizer(window=recorder)
-    root["/Grid"].set_property("visible", False)                 # the table is the floor that matters
+    root["/Grid"].set_property("visible", False)  # the table is the floor that matters
     root["/Axes"].set_property("visible", False)
     vis = root["pickplan"]
     _draw_scene(vis, scene)

@@ -1,6 +1,7 @@
 """Showing a ``PlanView`` (``sim.view``): a self-contained HTML page (meshcat's bundled three.js viewer
 and every command inlined, so it opens from a file with no server and no network), or meshcat's live
 server on this machine."""
+
 from __future__ import annotations
 
 import base64
@@ -77,10 +78,13 @@ def page_html(view: PlanView) -> str:
     if "</script" in viewer.lower():  # would end the inline script early
         raise RuntimeError(f"{VIEWER_SCRIPT} contains '</script': cannot inline it")
     commands = ",\n".join(f'"{base64.b64encode(_packed(c)).decode("ascii")}"' for c in view.commands)
-    legend = "<br>".join(f'<span class="swatch" style="background:{color}"></span>{html.escape(label)}'
-                         for label, color in legend_entries())
-    return _PAGE.format(title=html.escape(view.title), legend=legend, duration=view.duration,
-                        viewer=viewer, commands=commands)
+    legend = "<br>".join(
+        f'<span class="swatch" style="background:{color}"></span>{html.escape(label)}'
+        for label, color in legend_entries()
+    )
+    return _PAGE.format(
+        title=html.escape(view.title), legend=legend, duration=view.duration, viewer=viewer, commands=commands
+    )
 
 
 def write_html(view: PlanView, path: str) -> str:
@@ -89,8 +93,13 @@ def write_html(view: PlanView, path: str) -> str:
     return os.path.abspath(path)
 
 
-def serve(view: PlanView, open_browser: bool = False, keep_running: Optional[Callable[[], bool]] = None,
-          announce: Callable[[str], None] = print, host: str = LOOPBACK) -> str:
+def serve(
+    view: PlanView,
+    open_browser: bool = False,
+    keep_running: Optional[Callable[[], bool]] = None,
+    announce: Callable[[str], None] = print,
+    host: str = LOOPBACK,
+) -> str:
     """Start meshcat's server (a subprocess; its web server on ``host`` only, loopback by default:
     ``sim.view_server``), send the view to it and announce its URL. Runs until ``keep_running()``
     is false (default: until Ctrl-C); returns the URL."""
@@ -121,8 +130,16 @@ def find_chromium() -> Optional[str]:
     return None
 
 
-def screenshot(page: str, png: str, width: int = 1200, height: int = 800, wait_ms: int = 5000,
-               attempts: int = 3, moment: Optional[float] = None, timeout: float = 120.0) -> str:
+def screenshot(
+    page: str,
+    png: str,
+    width: int = 1200,
+    height: int = 800,
+    wait_ms: int = 5000,
+    attempts: int = 3,
+    moment: Optional[float] = None,
+    timeout: float = 120.0,
+) -> str:
     """Render the page ``page`` in headless Chromium (software WebGL, all network off) to ``png``,
     with the robot at ``moment`` seconds into the motion (default: the start). ``wait_ms`` of virtual
     time lets the canvas draw. Returns ``png``'s path."""
@@ -139,12 +156,26 @@ def screenshot(page: str, png: str, width: int = 1200, height: int = 800, wait_m
         with tempfile.TemporaryDirectory(prefix="pickplan-chromium-") as profile:
             if os.path.exists(png):
                 os.unlink(png)
-            proc = subprocess.Popen([browser, "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
-                                     "--enable-unsafe-swiftshader", f"--user-data-dir={profile}",
-                                     "--host-resolver-rules=MAP * ~NOTFOUND", "--no-first-run",
-                                     f"--window-size={width},{height}", f"--virtual-time-budget={wait_ms}",
-                                     f"--screenshot={png}", url],
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+            proc = subprocess.Popen(
+                [
+                    browser,
+                    "--headless",
+                    "--no-sandbox",
+                    "--disable-gpu",
+                    "--use-gl=swiftshader",
+                    "--enable-unsafe-swiftshader",
+                    f"--user-data-dir={profile}",
+                    "--host-resolver-rules=MAP * ~NOTFOUND",
+                    "--no-first-run",
+                    f"--window-size={width},{height}",
+                    f"--virtual-time-budget={wait_ms}",
+                    f"--screenshot={png}",
+                    url,
+                ],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                start_new_session=True,
+            )
             try:
                 proc.wait(timeout=timeout)
             except subprocess.TimeoutExpired:

@@ -8,6 +8,7 @@ loopback: only this machine sends drawing commands.
 Run as ``python -m pickplan.sim.view_server --host HOST`` by ``start_server``; it prints
 ``zmq_url=...`` and ``web_url=...`` as meshcat's server does.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,7 +42,7 @@ class _Bridge(ZMQWebSocketBridge):
 
     def __init__(self, web_host: str):
         self._web_host = web_host
-        super().__init__(host=LOOPBACK)   # the ZMQ command port: this machine only
+        super().__init__(host=LOOPBACK)  # the ZMQ command port: this machine only
         self.web_url = f"http://{url_host(web_host)}:{self.fileserver_port}/static/"
 
     def make_app(self):
@@ -53,8 +54,12 @@ class _Bridge(ZMQWebSocketBridge):
 
 def start_server(host: str = LOOPBACK) -> Tuple[subprocess.Popen, str, str]:
     """(the server process, its ZMQ URL, its web URL); the process runs until killed."""
-    proc = subprocess.Popen([sys.executable, "-u", "-m", "pickplan.sim.view_server", "--host", host],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, start_new_session=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-u", "-m", "pickplan.sim.view_server", "--host", host],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     line = ""
     while "zmq_url" not in line:
         line = proc.stdout.readline().strip().decode("utf-8")

@@ -14,27 +14,65 @@ width fits its opening; generated sets are generated for the gripper.
 >>> gs = grasp_set(model, "antipodal", n=20, seed=0)      # GraspSet(name, poses, object_name, ...)
 >>> world = scene_pose @ gs.poses                          # (20, 4, 4) panda_hand poses in the world
 """
+
 from __future__ import annotations
 
 from typing import Optional
 
-from pickplan.omg.grasps.generators import (AntipodalSettings, ApproachSettings, antipodal_grasps,
-                                            approach_grasps)
-from pickplan.omg.grasps.hand import (FINGER_JOINTS, FINGER_LINKS, FINGER_OPEN, HAND_LINK,
-                                      PAD_DEPTH, HandContacts, HandObjectChecker,
-                                      hand_configurations, hand_contacts, hand_urdf_path)
+from pickplan.omg.grasps.generators import AntipodalSettings, ApproachSettings, antipodal_grasps, approach_grasps
+from pickplan.omg.grasps.hand import (
+    FINGER_JOINTS,
+    FINGER_LINKS,
+    FINGER_OPEN,
+    HAND_LINK,
+    PAD_DEPTH,
+    HandContacts,
+    HandObjectChecker,
+    hand_configurations,
+    hand_contacts,
+    hand_urdf_path,
+)
 from pickplan.omg.grasps.simulated import simulated_grasps
 from pickplan.omg.grasps.pads import gripper_contacts
-from pickplan.omg.grasps.sets import (KINDS, GraspKind, GraspSet, check_grasps, convert_grasps, fingers_straddle,
-                                     load_grasp_set)
+from pickplan.omg.grasps.sets import (
+    KINDS,
+    GraspKind,
+    GraspSet,
+    check_grasps,
+    convert_grasps,
+    fingers_straddle,
+    load_grasp_set,
+)
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA, YCB_TO_HAND
 
-__all__ = ["AntipodalSettings", "ApproachSettings", "FINGER_JOINTS", "FINGER_LINKS",
-           "FINGER_OPEN", "GraspKind", "GraspSet", "HAND_LINK", "HandContacts", "HandObjectChecker", "KINDS", "PAD_DEPTH",
-           "YCB_TO_HAND", "antipodal_grasps", "approach_grasps", "check_grasps", "convert_grasps", "fingers_straddle", "gripper_contacts",
-           "grasp_set", "hand_configurations", "hand_contacts",
-           "hand_urdf_path", "load_grasp_set", "simulated_grasps"]
+__all__ = [
+    "AntipodalSettings",
+    "ApproachSettings",
+    "FINGER_JOINTS",
+    "FINGER_LINKS",
+    "FINGER_OPEN",
+    "GraspKind",
+    "GraspSet",
+    "HAND_LINK",
+    "HandContacts",
+    "HandObjectChecker",
+    "KINDS",
+    "PAD_DEPTH",
+    "YCB_TO_HAND",
+    "antipodal_grasps",
+    "approach_grasps",
+    "check_grasps",
+    "convert_grasps",
+    "fingers_straddle",
+    "gripper_contacts",
+    "grasp_set",
+    "hand_configurations",
+    "hand_contacts",
+    "hand_urdf_path",
+    "load_grasp_set",
+    "simulated_grasps",
+]
 
 
 def grasp_set(model, kind, n: int = 100, seed: int = 0, gripper: Optional[RobotInfo] = None, **kwargs) -> GraspSet:

@@ -1,4 +1,5 @@
 """Grasp sets generated from an object's mesh: the paper's naive "Approach" set and antipodal grasps."""
+
 from __future__ import annotations
 
 import time
@@ -19,13 +20,14 @@ from pickplan.omg.grasps.sets import GraspSet, _check_count, _frame, _perpendicu
 
 @dataclass(frozen=True)
 class ApproachSettings:
-    clearance: float = 0.002   # m kept between hand and object
-    step: float = 0.005        # m between back-off samples, then bisected
-    refine: int = 4            # bisection steps (0.3 mm with the default step)
+    clearance: float = 0.002  # m kept between hand and object
+    step: float = 0.005  # m between back-off samples, then bisected
+    refine: int = 4  # bisection steps (0.3 mm with the default step)
 
 
-def approach_grasps(model, n: int = 100, seed: int = 0, settings: ApproachSettings = ApproachSettings(),
-                    gripper: RobotInfo = PANDA) -> GraspSet:
+def approach_grasps(
+    model, n: int = 100, seed: int = 0, settings: ApproachSettings = ApproachSettings(), gripper: RobotInfo = PANDA
+) -> GraspSet:
     """The paper's naive "Approach" set: uniformly random approach directions towards the centre of
     the object's bounding box, random roll, the hand backed off along its approach axis until it
     and its open fingers stay clear of the object all the way out (so the approach is free too).
@@ -41,8 +43,14 @@ def approach_grasps(model, n: int = 100, seed: int = 0, settings: ApproachSettin
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     roll = rng.uniform(-np.pi, np.pi, n)
-    R = np.stack([_frame(d[i], np.cos(roll[i]) * _perpendicular(d[i]) +
-                         np.sin(roll[i]) * np.cross(d[i], _perpendicular(d[i]))) for i in range(n)])
+    R = np.stack(
+        [
+            _frame(
+                d[i], np.cos(roll[i]) * _perpendicular(d[i]) + np.sin(roll[i]) * np.cross(d[i], _perpendicular(d[i]))
+            )
+            for i in range(n)
+        ]
+    )
 
     def poses(R_, s_):  # hand poses with the pad centre (the grasp frame) at centre - s * approach
         T = np.tile(np.eye(4), (len(s_), 1, 1))
@@ -59,19 +67,24 @@ def approach_grasps(model, n: int = 100, seed: int = 0, settings: ApproachSettin
         mid = 0.5 * (s_free + s_hit)
         c = check.in_collision(poses(R, mid)) & (lo >= 0)
         s_hit, s_free = np.where(c, mid, s_hit), np.where(c | (lo < 0), s_free, mid)
-    return GraspSet("approach", poses(R, s_free), model.name, scores=-s_free,
-                    info={"approach_distance": s_free, "centre": np.tile(centre, (n, 1))})
+    return GraspSet(
+        "approach",
+        poses(R, s_free),
+        model.name,
+        scores=-s_free,
+        info={"approach_distance": s_free, "centre": np.tile(centre, (n, 1))},
+    )
 
 
 @dataclass(frozen=True)
 class AntipodalSettings:
-    friction: float = 0.3        # Coulomb coefficient: friction cone half-angle atan(0.3) = 16.7 deg
+    friction: float = 0.3  # Coulomb coefficient: friction cone half-angle atan(0.3) = 16.7 deg
     max_width: Optional[float] = None  # m; None: the gripper's opening
     width_margin: float = 0.005  # pairs must be this much narrower than max_width
     min_width: float = 0.002
-    clearance: float = 0.001     # m kept between the open hand and the object
-    approach_angles: int = 8     # hand orientations tried about each pair's axis
-    per_pair: int = 1            # grasps kept per surface pair (diversity)
+    clearance: float = 0.001  # m kept between the open hand and the object
+    approach_angles: int = 8  # hand orientations tried about each pair's axis
+    per_pair: int = 1  # grasps kept per surface pair (diversity)
     samples_per_round: int = 400
     max_rounds: int = 25
 
@@ -88,14 +101,16 @@ class SupportFilter:
         q = robot.ready_configuration
         self.normal, self.offset = np.asarray(normal, float) / np.linalg.norm(normal), float(offset)
         self.approach = -self.normal if approach is None else np.asarray(approach, float) / np.linalg.norm(approach)
-        self.tolerance = collision.SupportContact(tolerance).resolved(robot) + \
-            0.5 * collision.gripper_spec(robot).pad_length
+        self.tolerance = (
+            collision.SupportContact(tolerance).resolved(robot) + 0.5 * collision.gripper_spec(robot).pad_length
+        )
         self.fingers = collision.HandGeometry(robot, q, robot.hand_link, robot.finger_links)
         self.palm = collision.HandGeometry(robot, q, robot.hand_link, (robot.hand_link,))
 
     @classmethod
-    def under(cls, object_pose, tolerance: Optional[float] = None, robot=None, plane=None,
-              approach=None) -> "SupportFilter":
+    def under(
+        cls, object_pose, tolerance: Optional[float] = None, robot=None, plane=None, approach=None
+    ) -> "SupportFilter":
         """A world plane (unit normal, offset: normal . x = offset; default z = 0, the tabletop; a shelf
         board's top: ``World.support_plane``) in the frame of an object at ``object_pose``; ``approach``:
         the fan's centre, a world direction (default: down the plane's normal)."""
@@ -113,8 +128,9 @@ class SupportFilter:
         return np.radians(15.0) * steps * np.where(np.arange(k) % 2 == 1, 1.0, -1.0)
 
     def allows(self, hand_poses) -> np.ndarray:
-        return (self.fingers.penetration(hand_poses, self.normal, self.offset) <= self.tolerance) & \
-            (self.palm.penetration(hand_poses, self.normal, self.offset) <= 0.0)
+        return (self.fingers.penetration(hand_poses, self.normal, self.offset) <= self.tolerance) & (
+            self.palm.penetration(hand_poses, self.normal, self.offset) <= 0.0
+        )
 
 
 def _contact_pairs(mesh, rng: np.random.Generator, s: AntipodalSettings, cone: float):
@@ -128,7 +144,7 @@ def _contact_pairs(mesh, rng: np.random.Generator, s: AntipodalSettings, cone: f
     phi = rng.uniform(0, 2 * np.pi, m)
     u = np.array([_perpendicular(v) for v in n_p])
     v = np.cross(n_p, u)
-    sin_t = np.sqrt(1 - cos_t ** 2)
+    sin_t = np.sqrt(1 - cos_t**2)
     d = -cos_t[:, None] * n_p + sin_t[:, None] * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)
     loc, ray, tri = mesh.ray.intersects_location(p + 1e-5 * d, d, multiple_hits=False)
     q = np.full((m, 3), np.nan)
@@ -141,8 +157,9 @@ def _contact_pairs(mesh, rng: np.random.Generator, s: AntipodalSettings, cone: f
     return p, q, n_p, n_q, d, w, ang_p, ang_q
 
 
-def _hands_about_axes(rng: np.random.Generator, p: np.ndarray, q: np.ndarray, d: np.ndarray, k: int,
-                      support: Optional[SupportFilter]) -> np.ndarray:
+def _hands_about_axes(
+    rng: np.random.Generator, p: np.ndarray, q: np.ndarray, d: np.ndarray, k: int, support: Optional[SupportFilter]
+) -> np.ndarray:
     """(pairs, k, 4, 4) grasp frames closing along each pair's axis, pad centre at its midpoint, at k
     turns about the axis (a random offset, or fanned out from the support's approach)."""
     theta = rng.uniform(0, 2 * np.pi, len(p))[:, None] + 2 * np.pi * np.arange(k) / k
@@ -153,7 +170,7 @@ def _hands_about_axes(rng: np.random.Generator, p: np.ndarray, q: np.ndarray, d:
     if support is not None:  # from the approach nearest the centre (top-down) about each axis, fanning out
         down = support.approach
         theta = np.arctan2(w0 @ down, z0 @ down)[:, None] + support.fan(k)
-    z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * w0[:, None]   # (pairs, k, 3)
+    z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * w0[:, None]  # (pairs, k, 3)
     yk = np.broadcast_to(y[:, None], z.shape)
     T = np.tile(np.eye(4), (len(p), k, 1, 1))
     T[..., :3, 0], T[..., :3, 1], T[..., :3, 2] = np.cross(yk, z), yk, z
@@ -161,9 +178,16 @@ def _hands_about_axes(rng: np.random.Generator, p: np.ndarray, q: np.ndarray, d:
     return T
 
 
-def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[float] = None,
-                     max_width: Optional[float] = None, settings: AntipodalSettings = AntipodalSettings(),
-                     gripper: RobotInfo = PANDA, support: Optional[SupportFilter] = None) -> GraspSet:
+def antipodal_grasps(
+    model,
+    n: int = 100,
+    seed: int = 0,
+    friction: Optional[float] = None,
+    max_width: Optional[float] = None,
+    settings: AntipodalSettings = AntipodalSettings(),
+    gripper: RobotInfo = PANDA,
+    support: Optional[SupportFilter] = None,
+) -> GraspSet:
     """Antipodal grasps from the mesh: a surface point p (outward normal n_p), a ray from p into
     the object inside the friction cone around -n_p, its exit point q (normal n_q); kept when the
     axis lies in both friction cones and the width fits the opening. The hand closes along the
@@ -183,8 +207,10 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
     s = replace(settings, **{k: v for k, v in (("friction", friction), ("max_width", max_width)) if v is not None})
     s = s if s.max_width is not None else replace(s, max_width=gripper.max_opening)
     if s.friction <= 0 or s.max_width <= s.width_margin + s.min_width:
-        raise ValueError(f"antipodal: need friction > 0 and max_width > {s.width_margin + s.min_width}, "
-                         f"got friction={s.friction}, max_width={s.max_width}")
+        raise ValueError(
+            f"antipodal: need friction > 0 and max_width > {s.width_margin + s.min_width}, "
+            f"got friction={s.friction}, max_width={s.max_width}"
+        )
     mesh = model.mesh
     cone = np.arctan(s.friction)
     rng = np.random.default_rng(seed)
@@ -212,7 +238,7 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
             choices = np.flatnonzero(free[a])
             if len(choices) == 0:
                 continue
-            for b in rng.permutation(choices)[:s.per_pair]:
+            for b in rng.permutation(choices)[: s.per_pair]:
                 out_T.append(T[a, b])
                 out_c.append([p[i], q[i]])
                 out_n.append([n_p[i], n_q[i]])
@@ -228,6 +254,16 @@ def antipodal_grasps(model, n: int = 100, seed: int = 0, friction: Optional[floa
     if count == 0:
         return GraspSet("antipodal", np.zeros((0, 4, 4)), model.name, scores=np.zeros(0), rejected=rejected)
     seconds = np.full(min(count, n), time.perf_counter() - started)
-    return GraspSet("antipodal", np.asarray(out_T)[:n], model.name, scores=np.asarray(out_s)[:n],
-                    info={"contacts": np.asarray(out_c)[:n], "normals": np.asarray(out_n)[:n],
-                          "width": np.asarray(out_w)[:n], "seconds": seconds}, rejected=rejected)
+    return GraspSet(
+        "antipodal",
+        np.asarray(out_T)[:n],
+        model.name,
+        scores=np.asarray(out_s)[:n],
+        info={
+            "contacts": np.asarray(out_c)[:n],
+            "normals": np.asarray(out_n)[:n],
+            "width": np.asarray(out_w)[:n],
+            "seconds": seconds,
+        },
+        rejected=rejected,
+    )

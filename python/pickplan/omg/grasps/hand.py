@@ -6,6 +6,7 @@ Grasp poses are poses of the hand link; the gripper's grasp frame (z approach, y
 between the pads) sits at ``info.grasp_frame`` in it. The Panda's hand closes along its y axis (left
 finger at +y), approaches along +z, and its pad centre sits ``PAD_DEPTH`` along +z.
 """
+
 from __future__ import annotations
 
 import os
@@ -57,8 +58,9 @@ def _hand_subtree(root: ET.Element, hand_link: str) -> tuple:
     parents = {j.find("parent").get("link") for j in joints}
     geometry = {l.get("name") for l in root.findall("link") if l.find("collision") is not None}
     links = {l for l in links if l == hand_link or l in parents or l in geometry}
-    kept_joints = {j.get("name") for j in joints if j.find("child").get("link") in links
-                   and j.find("parent").get("link") in links}
+    kept_joints = {
+        j.get("name") for j in joints if j.find("child").get("link") in links and j.find("parent").get("link") in links
+    }
     return links, kept_joints
 
 
@@ -94,8 +96,7 @@ def _hand_urdf(floating: bool, src: str, hand_link: str, finger_links: tuple) ->
                 ET.SubElement(j, "limit", lower="-100", upper="100", effort="100", velocity="1")
             parent = child
     for el in root:
-        if (el.tag == "link" and el.get("name") in keep_links) or \
-                (el.tag == "joint" and el.get("name") in keep_joints):
+        if (el.tag == "link" and el.get("name") in keep_links) or (el.tag == "joint" and el.get("name") in keep_joints):
             el = ET.fromstring(ET.tostring(el))
             for mesh in el.iter("mesh"):
                 name = mesh.get("filename").replace("package://", "")
@@ -108,8 +109,13 @@ def _hand_urdf(floating: bool, src: str, hand_link: str, finger_links: tuple) ->
                 for a in ("ixx", "iyy", "izz"):
                     inertia.set(a, small)
             out.append(el)
-    return content_file(ET.tostring(out, encoding="unicode"), "hand", ".urdf",
-                        stem="floating" if floating else "hand", header='<?xml version="1.0"?>\n')
+    return content_file(
+        ET.tostring(out, encoding="unicode"),
+        "hand",
+        ".urdf",
+        stem="floating" if floating else "hand",
+        header='<?xml version="1.0"?>\n',
+    )
 
 
 def hand_configurations(poses, opening: Optional[float] = None, gripper: RobotInfo = PANDA) -> np.ndarray:
@@ -137,8 +143,9 @@ class HandObjectChecker:
     def __init__(self, model, clearance: float = 0.0, gripper: RobotInfo = PANDA):
         self.gripper = gripper
         self.robot = Robot.from_urdf(hand_urdf_path(True, gripper))
-        self.checker = CollisionChecker(self.robot, [SceneMesh("object", model.mesh, np.eye(4))], None,
-                                        CollisionSettings(margin=float(clearance)))
+        self.checker = CollisionChecker(
+            self.robot, [SceneMesh("object", model.mesh, np.eye(4))], None, CollisionSettings(margin=float(clearance))
+        )
 
     def in_collision(self, poses, opening: Optional[float] = None) -> np.ndarray:
         if len(poses) == 0:

@@ -2,6 +2,7 @@
 gripper; the Panda's by default) carried by a
 constraint, its coupled fingers, the object (and optionally the table), in one DIRECT client per process;
 plus the in-hand motion measures and the motion profiles the tests use."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -46,8 +47,17 @@ def _pose_of(cid: int, body: int) -> np.ndarray:
 class HandWorld:
     """A reset world with the hand (base = the hand link, carried by a fixed constraint) and the object."""
 
-    def __init__(self, s, obj: SimObject, T_hand: np.ndarray, T_obj: np.ndarray, gravity: bool,
-                 table: bool = False, table_friction: float = 0.8, gripper: RobotInfo = PANDA):
+    def __init__(
+        self,
+        s,
+        obj: SimObject,
+        T_hand: np.ndarray,
+        T_obj: np.ndarray,
+        gravity: bool,
+        table: bool = False,
+        table_friction: float = 0.8,
+        gripper: RobotInfo = PANDA,
+    ):
         from pickplan.sim.bullet import pb
 
         self.pb, self.s, self.gripper = pb, s, gripper
@@ -56,32 +66,63 @@ class HandWorld:
         self.speed = float(s.finger_speed if s.finger_speed is not None else gripper.grip_speed)
         cid = self.cid = _client()
         pb.resetSimulation(physicsClientId=cid)
-        pb.setPhysicsEngineParameter(fixedTimeStep=s.time_step, numSolverIterations=s.solver_iterations,
-                                     deterministicOverlappingPairs=1, physicsClientId=cid)
+        pb.setPhysicsEngineParameter(
+            fixedTimeStep=s.time_step,
+            numSolverIterations=s.solver_iterations,
+            deterministicOverlappingPairs=1,
+            physicsClientId=cid,
+        )
         self.gravity(gravity)
         self.table = -1
         if table:  # the scenes' table: a box whose top face is z = 0
             shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5, 0.5, 0.025], physicsClientId=cid)
             self.table = pb.createMultiBody(0.0, shape, basePosition=[0, 0, -0.025], physicsClientId=cid)
             pb.changeDynamics(self.table, -1, lateralFriction=table_friction, physicsClientId=cid)
-        self.hand = pb.loadURDF(hand_urdf_path(False, gripper), T_hand[:3, 3].tolist(),
-                                _mat_to_quat(T_hand[:3, :3]), useFixedBase=False,
-                                flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
-        names = [pb.getJointInfo(self.hand, j, physicsClientId=cid)[1].decode()
-                 for j in range(pb.getNumJoints(self.hand, physicsClientId=cid))]
+        self.hand = pb.loadURDF(
+            hand_urdf_path(False, gripper),
+            T_hand[:3, 3].tolist(),
+            _mat_to_quat(T_hand[:3, :3]),
+            useFixedBase=False,
+            flags=pb.URDF_USE_INERTIA_FROM_FILE,
+            physicsClientId=cid,
+        )
+        names = [
+            pb.getJointInfo(self.hand, j, physicsClientId=cid)[1].decode()
+            for j in range(pb.getNumJoints(self.hand, physicsClientId=cid))
+        ]
         self.fingers = [names.index(name) for name in gripper.finger_joints]
         for j in self.fingers:
-            pb.changeDynamics(self.hand, j, lateralFriction=s.pad_friction,
-                              spinningFriction=s.pad_spinning_friction, physicsClientId=cid)
+            pb.changeDynamics(
+                self.hand,
+                j,
+                lateralFriction=s.pad_friction,
+                spinningFriction=s.pad_spinning_friction,
+                physicsClientId=cid,
+            )
             pb.resetJointState(self.hand, j, gripper.finger_open, physicsClientId=cid)
-            pb.setJointMotorControl2(self.hand, j, pb.POSITION_CONTROL, targetPosition=gripper.finger_open,
-                                     force=self.force, physicsClientId=cid)
+            pb.setJointMotorControl2(
+                self.hand,
+                j,
+                pb.POSITION_CONTROL,
+                targetPosition=gripper.finger_open,
+                force=self.force,
+                physicsClientId=cid,
+            )
         if getattr(s, "couple_fingers", False):
             # PyBullet ignores the URDF's <mimic>: without the gear two force-limited fingers let a
             # load along the closing axis push the object (and both fingers) sideways in the hand
             # (as execution.py, and the Franka hand's single motor).
-            gear = pb.createConstraint(self.hand, self.fingers[0], self.hand, self.fingers[1], pb.JOINT_GEAR, [1, 0, 0],
-                                       [0, 0, 0], [0, 0, 0], physicsClientId=cid)
+            gear = pb.createConstraint(
+                self.hand,
+                self.fingers[0],
+                self.hand,
+                self.fingers[1],
+                pb.JOINT_GEAR,
+                [1, 0, 0],
+                [0, 0, 0],
+                [0, 0, 0],
+                physicsClientId=cid,
+            )
             pb.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=2 * self.force, physicsClientId=cid)
         # the base pose PyBullet reports (and constrains) is the inertial frame: keep its offset
         T_in = np.eye(4)
@@ -90,9 +131,18 @@ class HandWorld:
         self.T_inertial = T_in
         self.T_hand0 = np.asarray(T_hand, float)
         target = T_hand @ T_in
-        self.drive = pb.createConstraint(self.hand, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
-                                         target[:3, 3].tolist(), childFrameOrientation=_mat_to_quat(target[:3, :3]),
-                                         physicsClientId=cid)
+        self.drive = pb.createConstraint(
+            self.hand,
+            -1,
+            -1,
+            -1,
+            pb.JOINT_FIXED,
+            [0, 0, 0],
+            [0, 0, 0],
+            target[:3, 3].tolist(),
+            childFrameOrientation=_mat_to_quat(target[:3, :3]),
+            physicsClientId=cid,
+        )
         pb.changeConstraint(self.drive, maxForce=s.hand_force, physicsClientId=cid)
         self.body = add_object_body(cid, obj, T_obj, friction=s.object_friction)
 
@@ -101,15 +151,25 @@ class HandWorld:
 
     def move_hand(self, T_hand: np.ndarray) -> None:
         t = T_hand @ self.T_inertial
-        self.pb.changeConstraint(self.drive, jointChildPivot=t[:3, 3].tolist(),
-                                 jointChildFrameOrientation=_mat_to_quat(t[:3, :3]), maxForce=self.s.hand_force,
-                                 physicsClientId=self.cid)
+        self.pb.changeConstraint(
+            self.drive,
+            jointChildPivot=t[:3, 3].tolist(),
+            jointChildFrameOrientation=_mat_to_quat(t[:3, :3]),
+            maxForce=self.s.hand_force,
+            physicsClientId=self.cid,
+        )
 
     def close(self) -> None:
         for j in self.fingers:
-            self.pb.setJointMotorControl2(self.hand, j, self.pb.POSITION_CONTROL, targetPosition=self.gripper.finger_closed,
-                                          force=self.force, maxVelocity=self.speed,
-                                          physicsClientId=self.cid)
+            self.pb.setJointMotorControl2(
+                self.hand,
+                j,
+                self.pb.POSITION_CONTROL,
+                targetPosition=self.gripper.finger_closed,
+                force=self.force,
+                maxVelocity=self.speed,
+                physicsClientId=self.cid,
+            )
 
     def step(self, seconds: float, hand_path=None) -> None:
         n = int(round(seconds / self.s.time_step))
@@ -120,8 +180,10 @@ class HandWorld:
 
     def gap(self) -> float:
         """Opening between the pads: the open width less each finger's travel towards closed."""
-        travel = sum(abs(self.pb.getJointState(self.hand, j, physicsClientId=self.cid)[0] - self.gripper.finger_open)
-                     for j in self.fingers)
+        travel = sum(
+            abs(self.pb.getJointState(self.hand, j, physicsClientId=self.cid)[0] - self.gripper.finger_open)
+            for j in self.fingers
+        )
         return self.gripper.max_opening - travel
 
     def hand_pose(self) -> np.ndarray:
@@ -145,7 +207,7 @@ def smooth_step(u: float) -> float:
 
 
 def quintic_step(u: float) -> float:
-    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
 
 
 def turned_about(T: np.ndarray, pivot: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:

@@ -32,6 +32,7 @@ Every candidate runs from a fresh ``resetSimulation`` with its own seed, so resu
 the number of workers or the order of the runs. The "Simulated" set itself (``simulated_grasps``, cached
 on disk and shipped for the built-in objects) is ``grasps.simulated``.
 """
+
 from __future__ import annotations
 
 import math
@@ -45,10 +46,8 @@ from pickplan.core.runner import run_jobs
 from pickplan.omg.grasps.generators import AntipodalSettings, antipodal_grasps
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
-from pickplan.omg.grasps.hand_world import (HandWorld, InHand, SimObject, quintic_step,
-                                            smooth_step, turned_about)
+from pickplan.omg.grasps.hand_world import HandWorld, InHand, SimObject, quintic_step, smooth_step, turned_about
 from pickplan.omg.grasps.sets import check_grasps
-
 
 
 @dataclass(frozen=True)
@@ -59,23 +58,23 @@ class SimSettings:
     solver_iterations: int = 50
     finger_force: Optional[float] = None  # N per finger; None: the gripper description's force
     finger_speed: Optional[float] = None  # m/s per finger; None: the gripper description's speed
-    close_time: float = 0.5        # s, gravity off
-    settle_time: float = 0.25      # s with gravity on before shaking
-    shake_time: float = 1.0        # s: first half translation, second half rotation
-    shake_frequency: float = 2.0   # Hz
+    close_time: float = 0.5  # s, gravity off
+    settle_time: float = 0.25  # s with gravity on before shaking
+    shake_time: float = 1.0  # s: first half translation, second half rotation
+    shake_frequency: float = 2.0  # Hz
     shake_amplitude: float = 0.02  # m (peak acceleration 3.2 m/s^2 at 2 Hz)
-    shake_angle: float = 0.35      # rad (about 20 deg)
-    max_drift: float = 0.02        # m: the held object point may move this much relative to the hand
-    max_rotation: float = 15.0     # deg: the object may turn this much in the hand
-    turn_angle: float = 90.0       # deg about the closing axis, each way (0: no turns)
-    turn_time: float = 0.4         # s per turn (smooth-step) and per return
-    turn_hold: float = 0.3         # s held at each turn
-    min_gap: float = 0.001         # m between the pads at the end: less = closed on nothing
+    shake_angle: float = 0.35  # rad (about 20 deg)
+    max_drift: float = 0.02  # m: the held object point may move this much relative to the hand
+    max_rotation: float = 15.0  # deg: the object may turn this much in the hand
+    turn_angle: float = 90.0  # deg about the closing axis, each way (0: no turns)
+    turn_time: float = 0.4  # s per turn (smooth-step) and per return
+    turn_hold: float = 0.3  # s held at each turn
+    min_gap: float = 0.001  # m between the pads at the end: less = closed on nothing
     object_friction: float = 0.8
-    pad_friction: float = 1.0      # the Panda URDF's lateral friction (Bullet multiplies the two bodies')
+    pad_friction: float = 1.0  # the Panda URDF's lateral friction (Bullet multiplies the two bodies')
     pad_spinning_friction: float = 0.005  # m; the URDF's 0.1 would let a pinch resist any torque
-    hand_force: float = 2000.0     # N of the constraint that carries the hand
-    couple_fingers: bool = True    # gear constraint: the fingers move together, as the Franka hand's do
+    hand_force: float = 2000.0  # N of the constraint that carries the hand
+    couple_fingers: bool = True  # gear constraint: the fingers move together, as the Franka hand's do
 
 
 @dataclass(frozen=True)
@@ -85,10 +84,10 @@ class LiftSettings:
     finger_force: Optional[float] = None  # as SimSettings
     finger_speed: Optional[float] = None
     close_time: float = 0.5
-    lift_height: float = 0.1       # m
-    lift_time: float = 1.0         # s (smooth-step profile)
+    lift_height: float = 0.1  # m
+    lift_time: float = 1.0  # s (smooth-step profile)
     hold_time: float = 0.5
-    min_rise: float = 0.7          # success: the object rose by at least this fraction of the lift
+    min_rise: float = 0.7  # success: the object rose by at least this fraction of the lift
     min_gap: float = 0.001
     table_clearance: float = 0.002  # m: an open hand closer than this to the table is not applicable
     object_friction: float = 0.8
@@ -104,20 +103,21 @@ class LiftSettings:
 class TransportSettings(LiftSettings):
     """The lift test's start (table, resting pose, close, lift, hold), then a carry with tilts."""
 
-    raise_height: float = 0.3      # m, after the lift (quintic, so the tilted object clears the table)
-    raise_time: float = 1.0        # s: peak acceleration 5.77 * 0.3 / 1.0^2 = 1.7 m/s^2
-    carry_distance: float = 0.25   # m along world x
-    carry_time: float = 1.0        # s: peak acceleration 1.4 m/s^2
-    tilt: float = 60.0             # deg about a horizontal axis through the pads ...
+    raise_height: float = 0.3  # m, after the lift (quintic, so the tilted object clears the table)
+    raise_time: float = 1.0  # s: peak acceleration 5.77 * 0.3 / 1.0^2 = 1.7 m/s^2
+    carry_distance: float = 0.25  # m along world x
+    carry_time: float = 1.0  # s: peak acceleration 1.4 m/s^2
+    tilt: float = 60.0  # deg about a horizontal axis through the pads ...
     tilt_time: float = 0.5
-    swirl_time: float = 2.0        # ... whose direction then turns once around the vertical
-    settle: float = 0.2            # s held still at the end
-    max_rotation: float = 15.0     # deg the object may turn in the hand after the lift
-    max_slip: float = 0.02         # m its centre of mass may move in the hand after the lift
+    swirl_time: float = 2.0  # ... whose direction then turns once around the vertical
+    settle: float = 0.2  # s held still at the end
+    max_rotation: float = 15.0  # deg the object may turn in the hand after the lift
+    max_slip: float = 0.02  # m its centre of mass may move in the hand after the lift
 
 
-def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSettings(),
-               gripper: RobotInfo = PANDA) -> dict:
+def shake_test(
+    obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSettings(), gripper: RobotInfo = PANDA
+) -> dict:
     """One shake test of a hand pose ``grasp`` (object frame). Returns held, drift (m, the pad
     point), rotation (deg, the object in the hand), gap (m); drift and rotation are the worst
     over the checkpoints run (after the shake, at each turn, back at the start; the test stops
@@ -178,17 +178,18 @@ def shake_test(obj, grasp: np.ndarray, seed: int, settings: SimSettings = SimSet
     return {"held": bool(ok), "drift": max(drift), "rotation": max(rotation), "gap": world.gap()}
 
 
-def close_on_object(model, grasp: np.ndarray, settings: SimSettings = SimSettings(),
-                    gripper: RobotInfo = PANDA) -> dict:
+def close_on_object(
+    model, grasp: np.ndarray, settings: SimSettings = SimSettings(), gripper: RobotInfo = PANDA
+) -> dict:
     """Close the hand at ``grasp`` (object frame) on the free object with gravity off: the final
     pad gap (m) and whether each finger ends touching the object ("left", "right")."""
     obj = model if isinstance(model, SimObject) else SimObject(model)
-    world = HandWorld(settings, obj, np.eye(4), np.linalg.inv(check_grasps([grasp])[0]), gravity=False,
-                      gripper=gripper)
+    world = HandWorld(settings, obj, np.eye(4), np.linalg.inv(check_grasps([grasp])[0]), gravity=False, gripper=gripper)
     world.close()
     world.step(settings.close_time)
-    touch = [bool(world.pb.getContactPoints(world.hand, world.body, j, physicsClientId=world.cid))
-             for j in world.fingers]
+    touch = [
+        bool(world.pb.getContactPoints(world.hand, world.body, j, physicsClientId=world.cid)) for j in world.fingers
+    ]
     return {"gap": world.gap(), "left": touch[0], "right": touch[1]}
 
 
@@ -212,8 +213,9 @@ def _table_world(obj: SimObject, rests, T: np.ndarray, s, gripper: RobotInfo = P
     resting pose where the hand clears the table; None when there is none (not applicable)."""
     for rest in rests:
         rest = np.asarray(rest, float)
-        world = HandWorld(s, obj, rest @ T, rest, gravity=True, table=True, table_friction=s.table_friction,
-                          gripper=gripper)
+        world = HandWorld(
+            s, obj, rest @ T, rest, gravity=True, table=True, table_friction=s.table_friction, gripper=gripper
+        )
         if not world.touches(world.table, s.table_clearance):
             return world
     return None
@@ -240,8 +242,9 @@ def _close_and_lift(world: HandWorld, s, closed=None) -> Tuple[np.ndarray, bool]
     return lift(1.0), bool(world.gap() > s.min_gap and rise >= s.min_rise * s.lift_height)
 
 
-def lift_trial(obj, rests, grasp: np.ndarray, settings: LiftSettings = LiftSettings(),
-               gripper: RobotInfo = PANDA) -> dict:
+def lift_trial(
+    obj, rests, grasp: np.ndarray, settings: LiftSettings = LiftSettings(), gripper: RobotInfo = PANDA
+) -> dict:
     """One table lift (``lift_test``) with what it did to the object in the hand: applicable, lifted,
     and slip (m, its centre of mass) and rotation (deg) in the hand from the closed grasp to the end of
     the hold (nan when not applicable)."""
@@ -255,12 +258,15 @@ def lift_trial(obj, rests, grasp: np.ndarray, settings: LiftSettings = LiftSetti
         held["ref"] = InHand(world)
 
     lifted = _close_and_lift(world, settings, closed)[1]
-    return {"applicable": True, "lifted": lifted, "slip": held["ref"].moved(np.array([0.0, 0.0, 0.0, 1.0])),
-            "rotation": held["ref"].rotation()}
+    return {
+        "applicable": True,
+        "lifted": lifted,
+        "slip": held["ref"].moved(np.array([0.0, 0.0, 0.0, 1.0])),
+        "rotation": held["ref"].rotation(),
+    }
 
 
-def lift_test(model, poses, settings: LiftSettings = LiftSettings(), gripper: RobotInfo = PANDA,
-              details: bool = False):
+def lift_test(model, poses, settings: LiftSettings = LiftSettings(), gripper: RobotInfo = PANDA, details: bool = False):
     """Table lift test of hand poses (object frame): (N,) int8, 1 lifted, 0 failed, -1 not
     applicable (the open hand touches the table at the grasp in every resting pose tried: the
     ``rest_index`` one, or by default the three most stable ones, first clear one used); with
@@ -281,8 +287,16 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     stage (the checkpoint that failed, or "held")."""
     s = settings
     obj = obj if isinstance(obj, SimObject) else SimObject(obj)
-    out = {"applicable": False, "lifted": False, "held": False, "rotation": float("nan"),
-           "slip": float("nan"), "gap": float("nan"), "table": False, "stage": "not applicable"}
+    out = {
+        "applicable": False,
+        "lifted": False,
+        "held": False,
+        "rotation": float("nan"),
+        "slip": float("nan"),
+        "gap": float("nan"),
+        "table": False,
+        "stage": "not applicable",
+    }
     world = _table_world(obj, rests, np.asarray(grasp, float), s)
     if world is None:
         return out
@@ -305,8 +319,13 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
         return stage is None
 
     def failed():
-        out.update(rotation=max(rotation), slip=max(slip), gap=world.gap(), stage=stage,
-                   table=bool(world.pb.getContactPoints(world.body, world.table, physicsClientId=world.cid)))
+        out.update(
+            rotation=max(rotation),
+            slip=max(slip),
+            gap=world.gap(),
+            stage=stage,
+            table=bool(world.pb.getContactPoints(world.body, world.table, physicsClientId=world.cid)),
+        )
         return out
 
     def up(u):
@@ -345,8 +364,7 @@ def transport_trial(obj, rests, grasp: np.ndarray, settings: TransportSettings =
     table = bool(world.pb.getContactPoints(world.body, world.table, physicsClientId=world.cid))
     if stage is None and (gap <= s.min_gap or table):
         stage = "dropped"
-    out.update(held=stage is None, rotation=max(rotation), slip=max(slip), gap=gap, table=table,
-               stage=stage or "held")
+    out.update(held=stage is None, rotation=max(rotation), slip=max(slip), gap=gap, table=table, stage=stage or "held")
     return out
 
 
@@ -355,8 +373,9 @@ def _transport_job(job) -> dict:
     return transport_trial(obj, rests, T, settings)
 
 
-def transport_test(model, poses, settings: TransportSettings = TransportSettings(), workers: int = 1,
-                   details: bool = False):
+def transport_test(
+    model, poses, settings: TransportSettings = TransportSettings(), workers: int = 1, details: bool = False
+):
     """Transport test of hand poses (object frame): (N,) int8 like ``lift_test`` (1 held, 0 failed,
     -1 not applicable); with ``details=True`` also the per-grasp dicts of ``transport_trial``.
     ``workers`` > 1 runs worker processes (spawn); results do not depend on it."""
@@ -364,8 +383,12 @@ def transport_test(model, poses, settings: TransportSettings = TransportSettings
     if int(workers) < 1:
         raise ValueError(f"workers: expected >= 1, got {workers}")
     obj, rests = SimObject(model), [np.asarray(r, float) for r in _rests(model, settings)]
-    trials = run_jobs(_transport_job, [(obj, rests, T, settings) for T in poses], int(workers),
-                      chunksize=_chunksize(len(poses), workers))
+    trials = run_jobs(
+        _transport_job,
+        [(obj, rests, T, settings) for T in poses],
+        int(workers),
+        chunksize=_chunksize(len(poses), workers),
+    )
     out = np.array([(1 if t["held"] else 0) if t["applicable"] else -1 for t in trials], dtype=np.int8)
     return (out, trials) if details else out
 
@@ -382,8 +405,14 @@ def _shake_transport_job(job):
     return shake_test(obj, T, seed, sim), transport_trial(obj, rests, T, transport)
 
 
-def shake_and_transport(model, m: int, seed: int = 0, workers: int = 1, sim: "SimSettings" = None,
-                        transport: TransportSettings = TransportSettings()) -> list:
+def shake_and_transport(
+    model,
+    m: int,
+    seed: int = 0,
+    workers: int = 1,
+    sim: "SimSettings" = None,
+    transport: TransportSettings = TransportSettings(),
+) -> list:
     """The "Simulated" filter against the transport test on the same candidates: round 0 of
     ``simulated_grasps(model, ..., seed)`` (``m`` antipodal candidates, ``shake_candidates``);
     for each candidate applicable on the table (the open hand clears it), its ``shake_test``
@@ -400,8 +429,14 @@ def shake_and_transport(model, m: int, seed: int = 0, workers: int = 1, sim: "Si
     return [{"index": i, "pose": cand.poses[i], "shake": sh, "transport": tr} for i, (sh, tr) in zip(idx, res)]
 
 
-def shake_candidates(model, m: int, seed: int = 0, round: int = 0,
-                     antipodal: AntipodalSettings = AntipodalSettings(), gripper: RobotInfo = PANDA):
+def shake_candidates(
+    model,
+    m: int,
+    seed: int = 0,
+    round: int = 0,
+    antipodal: AntipodalSettings = AntipodalSettings(),
+    gripper: RobotInfo = PANDA,
+):
     """Round ``round`` of ``simulated_grasps``: its ``m`` antipodal candidates and the shake-test
     seed of each. ``simulated_grasps(model, n, seed)`` keeps, round by round, the candidates whose
     ``shake_test(model, pose, seed_i)`` holds (first ``n``)."""

@@ -23,123 +23,88 @@ of the pads the points fill, the spare opening, and gravity's lever arm about th
 centre of mass estimated from the points (a pinch beside the mass turns the target out of the pads).
 Candidates are checked in score order until enough pass.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial import cKDTree
 
 from pickplan import _core
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
-from pickplan.omg.grasps.quality import Load
+from pickplan.omg.grasps.point_geometry import (
+    _neighbourhoods,
+    _unit_means,
+    denoised,
+    fitted_normals,
+    gravity_lever,
+    thinned,
+)
 from pickplan.omg.grasps.sets import GraspSet, _check_count, _perpendicular
 
 
 @dataclass(frozen=True)
 class PointGraspSettings:
-    friction: float = 0.3            # Coulomb coefficient: the friction cone's half-angle atan(0.3)
+    friction: float = 0.3  # Coulomb coefficient: the friction cone's half-angle atan(0.3)
     max_width: Optional[float] = None  # m; None: the gripper's opening
     width_margin: Optional[float] = None  # m widths must stay below the opening; None: twice ``clearance``
     #                                   (the open hand must clear the points by ``clearance`` on each side; the
     #                                   open-hand check decides, and noise only widens observed extents)
     min_width: float = 0.004
     pad_length: Optional[float] = None  # m of finger along the approach axis that grips; None: the gripper's
-    pad_width: Optional[float] = None   # m across the finger; None: the gripper's
-    table_contact: float = 0.003     # m the fingertips may press into the support plane
-    clearance: float = 0.003         # m kept between the open hand and observed target points
+    pad_width: Optional[float] = None  # m across the finger; None: the gripper's
+    table_contact: float = 0.003  # m the fingertips may press into the support plane
+    clearance: float = 0.003  # m kept between the open hand and observed target points
     obstacle_clearance: float = 0.005  # m kept between hand sample points and the other obstacles
-    approach_angles: int = 8         # turns about the closing axis tried per antipodal pair
-    yaw_steps: int = 12              # closing directions tried for footprint grasps
-    max_tilt: float = 0.6            # rad off vertical for footprint grasps' approaches
+    approach_angles: int = 8  # turns about the closing axis tried per antipodal pair
+    yaw_steps: int = 12  # closing directions tried for footprint grasps
+    max_tilt: float = 0.6  # rad off vertical for footprint grasps' approaches
     grasp_depths: tuple = (0.012, 0.025, 0.04)  # m below the target's top for the pads' centre
-    samples: int = 600               # antipodal seed points
-    hand_reach: float = 0.15         # m from the hand frame's origin that bounds the open hand
-    max_candidates: int = 2000       # antipodal candidates (pairs x turns) checked: a seeded subset beyond
-    rim_band: float = 0.01           # m below the target's top where rim pinches are tried
-    rim_samples: int = 40            # rim points tried
-    rim_wall: float = 0.01           # m, the wall thickness a rim pinch assumes (centred 5 mm inside)
-    patch_radius: float = 0.008      # m, an antipodal contact's patch (about half a pad)
-    patch_coherence: float = 0.9     # the patch's normals' mean length an antipodal contact needs
-    denoise: bool = True             # points moved onto their patch's mean plane, normals fitted (``denoised``)
-    section_trim: float = 0.01       # fraction of a cross-section's points beyond each end of its width (noise)
-    spare_weight: float = 0.5        # score per spare opening (fraction of the opening)
-    lever_scale: float = 0.05        # m of gravity's lever arm about the closing axis that costs one score point
-    local_samples: int = 40          # footprint points local grasps from above are centred at (``local_candidates``)
-    max_face_turn: float = 0.35      # rad a section's end may turn from the pads (``quality``'s align_deg, 20 deg)
+    samples: int = 600  # antipodal seed points
+    hand_reach: float = 0.15  # m from the hand frame's origin that bounds the open hand
+    max_candidates: int = 2000  # antipodal candidates (pairs x turns) checked: a seeded subset beyond
+    rim_band: float = 0.01  # m below the target's top where rim pinches are tried
+    rim_samples: int = 40  # rim points tried
+    rim_wall: float = 0.01  # m, the wall thickness a rim pinch assumes (centred 5 mm inside)
+    patch_radius: float = 0.008  # m, an antipodal contact's patch (about half a pad)
+    patch_coherence: float = 0.9  # the patch's normals' mean length an antipodal contact needs
+    denoise: bool = True  # points moved onto their patch's mean plane, normals fitted (``denoised``)
+    section_trim: float = 0.01  # fraction of a cross-section's points beyond each end of its width (noise)
+    spare_weight: float = 0.5  # score per spare opening (fraction of the opening)
+    lever_scale: float = 0.05  # m of gravity's lever arm about the closing axis that costs one score point
+    local_samples: int = 40  # footprint points local grasps from above are centred at (``local_candidates``)
+    max_face_turn: float = 0.35  # rad a section's end may turn from the pads (``quality``'s align_deg, 20 deg)
 
 
 def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """Grasp-frame poses: closing axis y, approach z, the pad centre at ``centre``."""
     (y0, y1, y2), (z0, z1, z2), (c0, c1, c2) = y.tolist(), z.tolist(), centre.tolist()
     # y x z written out: np.cross's per-call overhead dominated the candidate loops (the same products)
-    return np.array([[y1 * z2 - y2 * z1, y0, z0, c0], [y2 * z0 - y0 * z2, y1, z1, c1],
-                     [y0 * z1 - y1 * z0, y2, z2, c2], [0.0, 0.0, 0.0, 1.0]])
+    return np.array(
+        [
+            [y1 * z2 - y2 * z1, y0, z0, c0],
+            [y2 * z0 - y0 * z2, y1, z1, c1],
+            [y0 * z1 - y1 * z0, y2, z2, c2],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
 
 
 def _frames_many(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """``_frames`` of (K, 3) rows at once (elementwise: the same values)."""
     F = np.zeros((len(y), 4, 4))
-    F[:, :3, 0] = np.column_stack([y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1], y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
-                                   y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0]])
+    F[:, :3, 0] = np.column_stack(
+        [
+            y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1],
+            y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
+            y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0],
+        ]
+    )
     F[:, :3, 1], F[:, :3, 2], F[:, :3, 3], F[:, 3, 3] = y, z, centre, 1.0
     return F
-
-
-def _neighbourhoods(P, radius: float):
-    """The points within ``radius`` of each point of ``P``, flattened: owner indices k, neighbour indices j
-    (ascending per owner, as a k-d tree's sorted ball query; natively, ``_core.radius_pairs``)."""
-    return _core.radius_pairs(P, np.arange(len(P)), radius)
-
-
-def _means(k, j, X, n: int) -> np.ndarray:
-    """Per owner 0..n-1 of the pairs (k, j): the mean of the rows ``X[j]``."""
-    total = np.stack([np.bincount(k, X[j, a], minlength=n) for a in range(X.shape[1])], axis=1)
-    return total / np.bincount(k, minlength=n)[:, None]
-
-
-def _unit_means(k, j, N, n: int):
-    """The unit mean of the normals ``N`` per owner, and how coherent they are (the mean's length)."""
-    mean = _means(k, j, N, n)
-    length = np.linalg.norm(mean, axis=1)
-    return mean / np.maximum(length, 1e-12)[:, None], length
-
-
-def patch_normals(P, N, radius: float):
-    """Per point: the mean of the normals within ``radius`` (a pad's contact patch), unit, and how
-    coherent they are (the mean's length: 1 on a flat patch, about 0.7 across a box's edge)."""
-    return _unit_means(*_neighbourhoods(P, radius), N, len(P))
-
-
-def denoised(P, N, radius: float) -> np.ndarray:
-    """The points moved along their patch's normal onto the patch's mean plane (the centroid and mean
-    normal within ``radius``): depth noise, mostly along the surface normal, averaged over the patch
-    (about 20 points a patch: noise cut about 4x), where the extents and the open-hand check read it.
-    On a curved patch the move is the patch's sag, under a millimetre for radius 8 mm on a 3 cm radius."""
-    k, j = _neighbourhoods(P, radius)
-    n, _ = _unit_means(k, j, N, len(P))
-    centre = _means(k, j, P, len(P))
-    return P - np.einsum("ij,ij->i", P - centre, n)[:, None] * n
-
-
-def fitted_normals(P, N, radius: float, near=None) -> np.ndarray:
-    """Per point: the normal of the plane fitted to the points within ``radius`` (the covariance's
-    least eigenvector), turned to the side of ``N``. Normals from neighbouring pixels carry the depth
-    noise divided by a pixel's spacing (tens of degrees at 2 mm); a fit over a few dozen points does
-    not, so patches of a noisy flat face stay coherent. The side is the mean of ``N`` over the same
-    points. Points with fewer than 8 neighbours keep ``N``. ``near``: ``_neighbourhoods(P, ., radius)``
-    if already known."""
-    k, j = _neighbourhoods(P, radius) if near is None else near
-    count = np.bincount(k, minlength=len(P))
-    D = P[j] - _means(k, j, P, len(P))[k]
-    C = np.stack([np.bincount(k, D[:, a] * D[:, b], minlength=len(P)) for a in range(3) for b in range(3)],
-                 axis=1).reshape(-1, 3, 3)
-    normal = np.linalg.eigh(C)[1][:, :, 0]  # eigenvalues ascending: the least one's vector
-    side = _means(k, j, N, len(P))  # one noisy normal may be sideways; their mean is not
-    normal *= np.where(np.einsum("ij,ij->i", normal, side) < 0, -1.0, 1.0)[:, None]
-    return np.where((count >= 8)[:, None], normal, N)  # a fit needs a few points more than a plane
 
 
 def antipodal_candidates(P, N, s: PointGraspSettings, rng, near=None) -> list:
@@ -157,8 +122,9 @@ def antipodal_candidates(P, N, s: PointGraspSettings, rng, near=None) -> list:
     # found natively among 10^5-10^6 with a cone a hair wider, in the order of a k-d tree's unsorted
     # ball query (its leaf order: the seeded subset below draws from the pairs in that order), then
     # measured here as numpy measures them (einsum's sums differ in the last bit)
-    i, j, _, _ = _core.antipodal_partners(P, N, seeds, s.max_width - s.width_margin, coherent, cKDTree(P).indices,
-                                          s.min_width, cone - 1e-9)
+    i, j, _, _ = _core.antipodal_partners(
+        P, N, seeds, s.max_width - s.width_margin, coherent, cKDTree(P).indices, s.min_width, cone - 1e-9
+    )
     widths = np.linalg.norm(P[j] - P[i], axis=1)
     axes = (P[j] - P[i]) / widths[:, None]
     margins = np.minimum(-np.einsum("ij,ij->i", axes, N[i]), np.einsum("ij,ij->i", N[j], axes))
@@ -176,14 +142,18 @@ def antipodal_candidates(P, N, s: PointGraspSettings, rng, near=None) -> list:
     z0 = np.cross(axis, ref)  # as sets._perpendicular, for all pairs at once
     z0 /= np.linalg.norm(z0, axis=1, keepdims=True)
     z1 = np.cross(axis, z0)
-    theta = rng.uniform(0, 2 * np.pi, len(pairs))[:, None] + 2 * np.pi * np.arange(s.approach_angles) / s.approach_angles
+    theta = (
+        rng.uniform(0, 2 * np.pi, len(pairs))[:, None] + 2 * np.pi * np.arange(s.approach_angles) / s.approach_angles
+    )
     z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * z1[:, None]  # (M, A, 3)
     y = np.broadcast_to(axis[:, None], z.shape)
     F = np.zeros(z.shape[:2] + (4, 4))
     F[..., :3, 0], F[..., :3, 1], F[..., :3, 2] = np.cross(y, z), y, z
     F[..., :3, 3], F[..., 3, 3] = (0.5 * (P[i] + P[j]))[:, None], 1.0
-    return [(f, m, wk) for f, m, wk in zip(F.reshape(-1, 4, 4), np.repeat(margin, s.approach_angles),
-                                           np.repeat(w, s.approach_angles))]
+    return [
+        (f, m, wk)
+        for f, m, wk in zip(F.reshape(-1, 4, 4), np.repeat(margin, s.approach_angles), np.repeat(w, s.approach_angles))
+    ]
 
 
 def _section(rel, sel, y, x, trim: float):
@@ -274,7 +244,7 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     tilts = (0.0, s.max_tilt / 2, -s.max_tilt / 2)
     # only points this near the sampled one can lie in a band (|across| <= pad_width / 2, |along| <=
     # max_width; a hair of slack for rounding): the others are left out, the rest keep their order
-    reach2 = ((s.pad_width / 2) ** 2 + s.max_width ** 2) * (1 + 1e-6)
+    reach2 = ((s.pad_width / 2) ** 2 + s.max_width**2) * (1 + 1e-6)
     found = []  # per section: the sampled point, then (yaw, lo, hi, across_min, across_max, top)
     for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
         rel = F2 - F2[i]
@@ -369,59 +339,20 @@ def _scene_clear(T, hand_points, scene_distance, clearance: float) -> np.ndarray
     return scene_distance(world.reshape(-1, 3)).reshape(len(T), -1).min(axis=1) > clearance
 
 
-def mass_centre(P: np.ndarray, plane) -> np.ndarray:
-    """Where the target's centre of mass is taken to be, from its observed points: over the middle of
-    their footprint's bounding box (in the plane's frame; the hidden side widens it less than the
-    mean of the points is biased towards the cameras), at half the top's height."""
-    n, d = plane
-    height = P @ n - d
-    e1 = _perpendicular(n)
-    E = np.column_stack([e1, np.cross(n, e1)])
-    flat = P @ E
-    return E @ (0.5 * (flat.min(axis=0) + flat.max(axis=0))) + (d + 0.5 * height.max()) * n
-
-
-def points_load(P: np.ndarray, plane, density: float) -> Load:
-    """The load (``quality.Load``, world frame) of a target known only by its observed points: its
-    centre of mass where ``mass_centre`` puts it, its mass ``density`` times the volume of the points'
-    hull down to the support plane (the hidden side below what is seen is taken as solid)."""
-    n, d = plane
-    height = P @ n - d
-    base = P - np.outer(height, n)
-    try:
-        volume = float(ConvexHull(np.vstack([P, base])).volume)
-    except (QhullError, ValueError):  # flat or too few points: a sliver
-        volume = 0.0
-    return Load(density * volume, mass_centre(P, plane), -np.asarray(n, float))
-
-
-def gravity_lever(G: np.ndarray, P: np.ndarray, plane) -> np.ndarray:
-    """Per grasp frame: the lever arm (m) of gravity at the estimated centre of mass about the closing
-    axis through the pads' centre. Lifted, the target turns about that axis unless the pads' friction
-    holds the torque: a pinch on a bottle's cap beside its body drops where one through the body holds."""
-    c = mass_centre(P, plane)
-    arm = np.cross(c - G[:, :3, 3], plane[0])
-    return np.abs(np.einsum("ij,ij->i", arm, G[:, :3, 1]))
-
-
-def thinned(P: np.ndarray, cell: float) -> np.ndarray:
-    """One point per ``cell``-sized voxel (the first), order kept: overlapping views' points once."""
-    if len(P) == 0 or cell <= 0:
-        return P
-    V = np.floor(P / cell).astype(np.int64)
-    V -= V.min(axis=0)
-    span = V.max(axis=0) + 1
-    # one integer per voxel (row-major over the points' box): a 1-D unique, not a row-wise one
-    _, first = np.unique((V[:, 0] * span[1] + V[:, 1]) * span[2] + V[:, 2], return_index=True)
-    return P[np.sort(first)]
-
-
-def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int = 0,
-                       scene_distance: Optional[Callable[[np.ndarray], np.ndarray]] = None,
-                       hand_points: Optional[np.ndarray] = None,
-                       settings: PointGraspSettings = PointGraspSettings(),
-                       gripper: RobotInfo = PANDA, hull: Optional[np.ndarray] = None,
-                       denoised_points: Optional[np.ndarray] = None) -> GraspSet:
+def grasps_from_points(
+    points,
+    normals,
+    plane,
+    hand_sdf,
+    n: int = 100,
+    seed: int = 0,
+    scene_distance: Optional[Callable[[np.ndarray], np.ndarray]] = None,
+    hand_points: Optional[np.ndarray] = None,
+    settings: PointGraspSettings = PointGraspSettings(),
+    gripper: RobotInfo = PANDA,
+    hull: Optional[np.ndarray] = None,
+    denoised_points: Optional[np.ndarray] = None,
+) -> GraspSet:
     """Up to ``n`` grasps of the observed target (world frame; poses of ``gripper``'s hand link), best
     scores first.
 
@@ -443,23 +374,30 @@ def grasps_from_points(points, normals, plane, hand_sdf, n: int = 100, seed: int
     H = np.zeros((0, 3)) if hull is None else np.asarray(hull, float)
     if H.ndim != 2 or H.shape[1] != 3:
         raise ValueError(f"hull: expected an (K, 3) array, got {H.shape}")
-    s = replace(settings, max_width=gripper.max_opening if settings.max_width is None else settings.max_width,
-                pad_length=gripper.pad_length if settings.pad_length is None else settings.pad_length,
-                pad_width=gripper.pad_width if settings.pad_width is None else settings.pad_width,
-                width_margin=2 * settings.clearance if settings.width_margin is None else settings.width_margin)
+    s = replace(
+        settings,
+        max_width=gripper.max_opening if settings.max_width is None else settings.max_width,
+        pad_length=gripper.pad_length if settings.pad_length is None else settings.pad_length,
+        pad_width=gripper.pad_width if settings.pad_width is None else settings.pad_width,
+        width_margin=2 * settings.clearance if settings.width_margin is None else settings.width_margin,
+    )
     rng = np.random.default_rng(seed)
     near = None
     if s.denoise:
         P = denoised(P, N, s.patch_radius) if denoised_points is None else np.asarray(denoised_points, float)
         near = _neighbourhoods(P, s.patch_radius)  # the fitted normals' and the contact patches'
         N = fitted_normals(P, N, s.patch_radius, near)
-    cands = antipodal_candidates(P, N, s, rng, near) + footprint_candidates(P, plane, s) + rim_candidates(P, plane, s, rng) \
+    cands = (
+        antipodal_candidates(P, N, s, rng, near)
+        + footprint_candidates(P, plane, s)
+        + rim_candidates(P, plane, s, rng)
         + local_candidates(P, plane, s, rng)
+    )
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
         return empty
-    G = np.stack([c[0] for c in cands])   # grasp frames
-    T = G @ gripper.hand_from_grasp         # hand poses
+    G = np.stack([c[0] for c in cands])  # grasp frames
+    T = G @ gripper.hand_from_grasp  # hand poses
     margin = np.array([c[1] for c in cands])
     width = np.array([c[2] for c in cands])
     plane_n, plane_d = plane

@@ -4,6 +4,7 @@ Convention for every set pickplan hands out: ``(N, 4, 4)`` poses of the Panda's 
 link in the object (mesh) frame, so the world hand pose is ``T_world_object @ T``. YCB files use a
 gripper frame that closes along x: they are post-multiplied by ``YCB_TO_HAND`` (+pi/2 about z).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -23,7 +24,7 @@ class GraspKind(Option):
     """The grasp set kinds (``grasp_set``): stored with YCB objects, or generated."""
 
     simulated = "simulated"  # stored, else physics-verified (simulated.simulated_grasps)
-    graspit = "graspit"      # stored only
+    graspit = "graspit"  # stored only
     approach = "approach"
     antipodal = "antipodal"
 
@@ -42,12 +43,12 @@ def check_grasps(poses, what: str = "grasps", tol: float = RIGID_CLEAN_TOLERANCE
 class GraspSet:
     """A named set of ``panda_hand`` poses in the object frame (see the module docstring)."""
 
-    name: str                      # "simulated" | "graspit" | "approach" | "antipodal"
-    poses: np.ndarray              # (N, 4, 4)
+    name: str  # "simulated" | "graspit" | "approach" | "antipodal"
+    poses: np.ndarray  # (N, 4, 4)
     object_name: str
-    scores: Optional[np.ndarray] = None       # (N,) higher is better, where the source has one
+    scores: Optional[np.ndarray] = None  # (N,) higher is better, where the source has one
     info: Dict[str, np.ndarray] = field(default_factory=dict)  # per-grasp extras (contacts, widths...)
-    rejected: Dict[str, int] = field(default_factory=dict)     # a generator's rejected candidates by reason
+    rejected: Dict[str, int] = field(default_factory=dict)  # a generator's rejected candidates by reason
 
     def __post_init__(self):
         self.poses = check_grasps(self.poses, f"grasp set {self.name!r}")
@@ -88,8 +89,10 @@ def load_grasp_set(model, kind: str, gripper: RobotInfo = PANDA, hand_checker=No
     ``gripper`` (the stored Panda grasps converted by ``convert_grasps`` for another gripper)."""
     if kind not in model.grasps:
         have = sorted(model.grasps)
-        raise ValueError(f"object {model.name!r} has no stored {kind!r} grasps; available: "
-                         f"{have if have else 'none'} (generated kinds: 'approach', 'antipodal', 'simulated')")
+        raise ValueError(
+            f"object {model.name!r} has no stored {kind!r} grasps; available: "
+            f"{have if have else 'none'} (generated kinds: 'approach', 'antipodal', 'simulated')"
+        )
     poses = check_grasps(model.grasps[kind], f"{model.name} grasps_{kind}.npy")
     stored = GraspSet(kind, poses @ YCB_TO_HAND, model.name)
     return stored if gripper.key == PANDA.key else convert_grasps(stored, model, gripper, hand_checker=hand_checker)
@@ -97,14 +100,20 @@ def load_grasp_set(model, kind: str, gripper: RobotInfo = PANDA, hand_checker=No
 
 @dataclass(frozen=True)
 class ConversionSettings:
-    width_margin: float = 0.005   # m the grasped width must stay below the new gripper's opening
-    backoff_step: float = 0.005   # m: a hand that hits the object is backed off along the approach by this ...
+    width_margin: float = 0.005  # m the grasped width must stay below the new gripper's opening
+    backoff_step: float = 0.005  # m: a hand that hits the object is backed off along the approach by this ...
     backoff_fraction: float = 0.5  # ... up to this fraction of its pad length (the pads still cover the grasp)
-    surface_samples: int = 4000   # object surface points the width is measured on (seeded)
+    surface_samples: int = 4000  # object surface points the width is measured on (seeded)
 
 
-def grasp_widths(model, grasp_frames: np.ndarray, pad_length: float, pad_width: float, span: float,
-                 settings: ConversionSettings = ConversionSettings()) -> np.ndarray:
+def grasp_widths(
+    model,
+    grasp_frames: np.ndarray,
+    pad_length: float,
+    pad_width: float,
+    span: float,
+    settings: ConversionSettings = ConversionSettings(),
+) -> np.ndarray:
     """Width of object material each grasp would close on: the extent along the closing axis (y) of the
     object's surface points inside the pads' box (``pad_length`` along z, ``pad_width`` along x,
     ``span`` along y, centred on the grasp frame). 0 where no point is inside."""
@@ -113,15 +122,24 @@ def grasp_widths(model, grasp_frames: np.ndarray, pad_length: float, pad_width: 
     widths = np.zeros(len(grasp_frames))
     for k, G in enumerate(grasp_frames):
         local = (np.linalg.inv(G) @ pts.T).T
-        inside = (np.abs(local[:, 0]) <= pad_width / 2) & (np.abs(local[:, 2]) <= pad_length / 2) \
+        inside = (
+            (np.abs(local[:, 0]) <= pad_width / 2)
+            & (np.abs(local[:, 2]) <= pad_length / 2)
             & (np.abs(local[:, 1]) <= span / 2)
+        )
         if inside.any():
             widths[k] = local[inside, 1].max() - local[inside, 1].min()
     return widths
 
 
-def convert_grasps(grasps: GraspSet, model, gripper: RobotInfo, source: RobotInfo = PANDA,
-                   settings: ConversionSettings = ConversionSettings(), hand_checker=None) -> GraspSet:
+def convert_grasps(
+    grasps: GraspSet,
+    model,
+    gripper: RobotInfo,
+    source: RobotInfo = PANDA,
+    settings: ConversionSettings = ConversionSettings(),
+    hand_checker=None,
+) -> GraspSet:
     """``source`` hand poses -> the same grasp frames (the point between the pads, the approach and
     closing axes) -> ``gripper``'s hand poses, keeping the grasps whose width (``grasp_widths``,
     measured between the source's open pads) fits ``gripper``'s opening. ``hand_checker(model, gripper)``
@@ -129,8 +147,7 @@ def convert_grasps(grasps: GraspSet, model, gripper: RobotInfo, source: RobotInf
     hits the object off along the approach axis, by at most ``backoff_fraction`` of the pad length. ``info``: "source_index" (row
     in the input set), "width"; the count kept is ``len`` of the result (``grasps`` had ``len(grasps)``)."""
     frames = grasps.poses @ source.grasp_frame
-    width = grasp_widths(model, frames, max(gripper.pad_length, 1e-3), max(gripper.pad_width, 1e-3),
-                         source.max_opening)
+    width = grasp_widths(model, frames, max(gripper.pad_length, 1e-3), max(gripper.pad_width, 1e-3), source.max_opening)
     keep = np.flatnonzero(width <= gripper.max_opening - settings.width_margin)
     poses = frames[keep] @ gripper.hand_from_grasp if len(keep) else np.zeros((0, 4, 4))
     if hand_checker is not None and len(keep):
@@ -156,12 +173,14 @@ def convert_grasps(grasps: GraspSet, model, gripper: RobotInfo, source: RobotInf
         ok &= ~hits  # never cleared the object within the back-off allowed
         keep, poses = keep[ok], poses[ok]
     scores = None if grasps.scores is None else grasps.scores[keep]
-    return GraspSet(grasps.name, poses, grasps.object_name, scores=scores,
-                    info={"source_index": keep, "width": width[keep]})
+    return GraspSet(
+        grasps.name, poses, grasps.object_name, scores=scores, info={"source_index": keep, "width": width[keep]}
+    )
 
 
-def fingers_straddle(model, grasp_frames: np.ndarray, gripper: RobotInfo, reach,
-                     settings: ConversionSettings = ConversionSettings()) -> np.ndarray:
+def fingers_straddle(
+    model, grasp_frames: np.ndarray, gripper: RobotInfo, reach, settings: ConversionSettings = ConversionSettings()
+) -> np.ndarray:
     """Per grasp frame: no object surface point lies under a finger, i.e. in the pads' footprint
     (``pad_width`` along x, from the pads' inner faces at the open width outwards by a pad width along
     y) from the pads' centre to ``reach`` (m, per grasp) beyond the finger tips along the approach;
@@ -174,11 +193,15 @@ def fingers_straddle(model, grasp_frames: np.ndarray, gripper: RobotInfo, reach,
     half, tip = gripper.max_opening / 2, gripper.pad_length / 2
     for k, (G, r) in enumerate(zip(grasp_frames, np.broadcast_to(reach, len(grasp_frames)))):
         local = (np.linalg.inv(G) @ pts.T).T
-        under = (np.abs(local[:, 0]) <= gripper.pad_width / 2) & (local[:, 2] >= 0) & (local[:, 2] <= tip + r) \
-            & (np.abs(local[:, 1]) > half - settings.width_margin / 2) & (np.abs(local[:, 1]) <= half + gripper.pad_width)
+        under = (
+            (np.abs(local[:, 0]) <= gripper.pad_width / 2)
+            & (local[:, 2] >= 0)
+            & (local[:, 2] <= tip + r)
+            & (np.abs(local[:, 1]) > half - settings.width_margin / 2)
+            & (np.abs(local[:, 1]) <= half + gripper.pad_width)
+        )
         out[k] = not under.any()
     return out
-
 
 
 def _check_count(n, seed) -> None:

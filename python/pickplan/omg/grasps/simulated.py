@@ -2,6 +2,7 @@
 ``physics.shake_test``, cached on disk by the hash of everything they depend on
 (``$PICKPLAN_CACHE_DIR/grasps``) and shipped with pickplan for the built-in objects (``omg.shipped``,
 read through ``core.io.cache_entry``, checked by SHA-256)."""
+
 from __future__ import annotations
 
 import hashlib
@@ -31,12 +32,26 @@ CACHE_FOLDER = "grasps"
 
 
 def _request(n, seed, settings, antipodal, oversample, max_rounds) -> dict:
-    return {"sim": asdict(settings), "antipodal": asdict(antipodal), "n": int(n), "seed": int(seed),
-            "oversample": float(oversample), "rounds": int(max_rounds)}
+    return {
+        "sim": asdict(settings),
+        "antipodal": asdict(antipodal),
+        "n": int(n),
+        "seed": int(seed),
+        "oversample": float(oversample),
+        "rounds": int(max_rounds),
+    }
 
 
-def cache_name(model, n, seed, settings=SimSettings(), antipodal=AntipodalSettings(), oversample=3.0,
-               max_rounds=4, gripper: RobotInfo = PANDA) -> str:
+def cache_name(
+    model,
+    n,
+    seed,
+    settings=SimSettings(),
+    antipodal=AntipodalSettings(),
+    oversample=3.0,
+    max_rounds=4,
+    gripper: RobotInfo = PANDA,
+) -> str:
     """The entry's file name in the cache's ``grasps`` folder (and in the shipped one): the hash of
     everything the set depends on, the generator's version (``CACHE_VERSION``) and the object's mesh,
     collision parts and mass included."""
@@ -53,8 +68,16 @@ def cache_name(model, n, seed, settings=SimSettings(), antipodal=AntipodalSettin
     return f"{safe}-simulated-{h.hexdigest()[:24]}.npz"
 
 
-def entry_label(model, n, seed, settings=SimSettings(), antipodal=AntipodalSettings(), oversample=3.0,
-                max_rounds=4, gripper: RobotInfo = PANDA) -> str:
+def entry_label(
+    model,
+    n,
+    seed,
+    settings=SimSettings(),
+    antipodal=AntipodalSettings(),
+    oversample=3.0,
+    max_rounds=4,
+    gripper: RobotInfo = PANDA,
+) -> str:
     """What an entry is of (``io.cache_entry``'s label): the object's name, the gripper and the request
     (count, seed, settings), not the generator's version or the object's geometry; a shipped entry of
     the same label under another name was made by another version."""
@@ -73,11 +96,19 @@ def write_grasp_file(path: str, gs: GraspSet) -> None:
         np.savez_compressed(f, poses=gs.poses, scores=gs.scores, **{f"info_{k}": v for k, v in gs.info.items()})
 
 
-def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
-                     settings: SimSettings = SimSettings(),
-                     antipodal: AntipodalSettings = AntipodalSettings(), oversample: float = 3.0,
-                     max_rounds: int = 4, progress: Optional[bool] = None, cache: bool = True,
-                     gripper: RobotInfo = PANDA) -> GraspSet:
+def simulated_grasps(
+    model,
+    n: int = 100,
+    seed: int = 0,
+    workers: int = 1,
+    settings: SimSettings = SimSettings(),
+    antipodal: AntipodalSettings = AntipodalSettings(),
+    oversample: float = 3.0,
+    max_rounds: int = 4,
+    progress: Optional[bool] = None,
+    cache: bool = True,
+    gripper: RobotInfo = PANDA,
+) -> GraspSet:
     """The "Simulated" set: antipodal candidates (``ceil(n * oversample)`` per round, seeded per
     round) that hold in the shake test, first ``n`` in candidate order; fewer (with a warning)
     when ``max_rounds`` rounds do not give ``n``. ``workers`` > 1 runs worker processes (spawn);
@@ -94,8 +125,10 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
     if found:
         return read_grasp_file(found, model.name)
     m = int(math.ceil(n * oversample))
-    log.info(f"{model.name}: simulating grasps on first use (up to {max_rounds} rounds of {m} shake tests, "
-             f"{'cached after' if cache else 'not cached'})")
+    log.info(
+        f"{model.name}: simulating grasps on first use (up to {max_rounds} rounds of {m} shake tests, "
+        f"{'cached after' if cache else 'not cached'})"
+    )
     obj = SimObject(model)
     keep = {k: [] for k in ("poses", "scores", "contacts", "normals", "width", "drift")}
     tested = 0
@@ -105,8 +138,16 @@ def simulated_grasps(model, n: int = 100, seed: int = 0, workers: int = 1,
             if len(cand) == 0:
                 break
             jobs = [(obj, T, sd, settings, gripper) for T, sd in zip(cand.poses, seeds)]
-            results = [r for _, r in runner.map(_shake_job, jobs, chunksize=_chunksize(len(jobs), workers),
-                                                progress=progress, label=f"{model.name} shake round {rnd + 1}")]
+            results = [
+                r
+                for _, r in runner.map(
+                    _shake_job,
+                    jobs,
+                    chunksize=_chunksize(len(jobs), workers),
+                    progress=progress,
+                    label=f"{model.name} shake round {rnd + 1}",
+                )
+            ]
             tested += len(cand)
             for i, r in enumerate(results):
                 if r["held"]:

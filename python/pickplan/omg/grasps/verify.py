@@ -13,6 +13,7 @@ the grasps, the gripper and the settings, and is cached on disk under that key
 >>> v = verify_grasps(model, grasps.poses, model.resting_poses[0])
 >>> grasps.poses[v.keep], v.simulated.sum(), v.seconds
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -36,27 +37,29 @@ CACHE_VERSION = 1
 
 @dataclass(frozen=True)
 class VerifySettings:
-    band: Tuple[float, float] = (-1.0, 0.3)   # margins the model is unsure of: simulated
-    budget: int = 30                         # simulations at most per call, the most uncertain first
-    max_rotation: float = 15.0               # deg the object may turn in the hand and still be held
-    max_slip: float = 0.02                   # m its centre of mass may move in the hand
+    band: Tuple[float, float] = (-1.0, 0.3)  # margins the model is unsure of: simulated
+    budget: int = 30  # simulations at most per call, the most uncertain first
+    max_rotation: float = 15.0  # deg the object may turn in the hand and still be held
+    max_slip: float = 0.02  # m its centre of mass may move in the hand
     lift: LiftSettings = field(default_factory=lambda: LiftSettings(table_clearance=-0.002))  # fingertips may rest
     quality: QualitySettings = field(default_factory=QualitySettings)
 
     def __post_init__(self):
         if not self.band[0] <= self.band[1] or self.budget < 0:
-            raise ValueError(f"VerifySettings: expected band low <= high and budget >= 0, got {self.band}, {self.budget}")
+            raise ValueError(
+                f"VerifySettings: expected band low <= high and budget >= 0, got {self.band}, {self.budget}"
+            )
 
 
 @dataclass
 class Verified:
     """Per grasp: kept, the quality's margin, whether it was simulated and, if so, whether it held."""
 
-    keep: np.ndarray        # (N,) bool
-    margin: np.ndarray      # (N,)
-    simulated: np.ndarray   # (N,) bool
-    held: np.ndarray        # (N,) bool (False where not simulated)
-    seconds: float          # wall time of this call (0 when read from the cache)
+    keep: np.ndarray  # (N,) bool
+    margin: np.ndarray  # (N,)
+    simulated: np.ndarray  # (N,) bool
+    held: np.ndarray  # (N,) bool (False where not simulated)
+    seconds: float  # wall time of this call (0 when read from the cache)
     cached: bool = False
 
 
@@ -66,16 +69,32 @@ def _cache_path(model, poses: np.ndarray, down: np.ndarray, gripper: RobotInfo, 
         h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
     with open(model.collision_obj_path(), "rb") as f:
         h.update(f.read())
-    h.update(json.dumps({"v": CACHE_VERSION, "mass": float(model.mass), "friction": model.friction,
-                         "settings": asdict(settings), "gripper": repr(gripper.key),
-                         "grip": (gripper.grip_force, gripper.grip_speed, gripper.pad_friction)},
-                        sort_keys=True, default=str).encode())
+    h.update(
+        json.dumps(
+            {
+                "v": CACHE_VERSION,
+                "mass": float(model.mass),
+                "friction": model.friction,
+                "settings": asdict(settings),
+                "gripper": repr(gripper.key),
+                "grip": (gripper.grip_force, gripper.grip_speed, gripper.pad_friction),
+            },
+            sort_keys=True,
+            default=str,
+        ).encode()
+    )
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in model.name)
     return cache_dir("verified", f"{safe}-{h.hexdigest()[:24]}.npz")
 
 
-def verify_grasps(model, poses, object_pose, gripper: RobotInfo = PANDA, settings: VerifySettings = VerifySettings(),
-                  cache: bool = True) -> Verified:
+def verify_grasps(
+    model,
+    poses,
+    object_pose,
+    gripper: RobotInfo = PANDA,
+    settings: VerifySettings = VerifySettings(),
+    cache: bool = True,
+) -> Verified:
     """Judge ``gripper``'s hand poses (object frame) on ``model`` lying as at ``object_pose`` (a pose
     resting on a table top at z = 0): by the quality, and in PyBullet where it is unsure (see the
     module docstring)."""
@@ -92,7 +111,7 @@ def verify_grasps(model, poses, object_pose, gripper: RobotInfo = PANDA, setting
     margin = quality.margin
     unsure = np.flatnonzero((margin >= settings.band[0]) & (margin < settings.band[1]))
     mid = 0.5 * (settings.band[0] + settings.band[1])
-    unsure = unsure[np.argsort(np.abs(margin[unsure] - mid), kind="stable")][:settings.budget]
+    unsure = unsure[np.argsort(np.abs(margin[unsure] - mid), kind="stable")][: settings.budget]
     keep = quality.holds() & (margin >= settings.band[1])
     simulated, held = np.zeros(len(poses), bool), np.zeros(len(poses), bool)
     obj = SimObject(model)
@@ -101,8 +120,12 @@ def verify_grasps(model, poses, object_pose, gripper: RobotInfo = PANDA, setting
             continue
         trial = lift_trial(obj, [rest], poses[i], settings.lift, gripper)
         simulated[i] = True
-        held[i] = trial["applicable"] and trial["lifted"] and trial["rotation"] < settings.max_rotation \
+        held[i] = (
+            trial["applicable"]
+            and trial["lifted"]
+            and trial["rotation"] < settings.max_rotation
             and trial["slip"] < settings.max_slip
+        )
     keep |= held
     out = Verified(keep, margin, simulated, held, time.perf_counter() - started)
     if path:

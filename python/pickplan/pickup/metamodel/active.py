@@ -21,6 +21,7 @@ probabilities rho for the query uncertainties (calibration.py) have a jackknife 
 error <= se_target and moved by <= rho_tol since the previous round, for `patience` rounds;
 or when the simulation budget is spent.
 """
+
 from __future__ import annotations
 
 import math
@@ -63,7 +64,7 @@ class RhoModel(Option):
     ``svm``: the GP there was measured and not adopted, bench/PICKUP.md)."""
 
     svm = "svm"  # the calibrated SVM success depth (calibration.py)
-    gp = "gp"    # GP classification of the samples (gpc.py)
+    gp = "gp"  # GP classification of the samples (gpc.py)
 
 
 @dataclass(frozen=True)
@@ -118,8 +119,7 @@ class ActiveConfig:
     gp_se_queries: int = 500
 
 
-def select_svm_params(X, y, c_grid, gamma_grid, seed: int = 0, folds: int = 5,
-                      simulated=None, metric_powers=(0.0,)):
+def select_svm_params(X, y, c_grid, gamma_grid, seed: int = 0, folds: int = 5, simulated=None, metric_powers=(0.0,)):
     """(C, gamma, metric) with the best calibrated out-of-fold likelihood
     (calibration.calibrate: k-fold depths through the logistic in depth fitted to the
     simulated samples, scored on every label); ties go to the smoother model (isotropic
@@ -136,8 +136,7 @@ def select_svm_params(X, y, c_grid, gamma_grid, seed: int = 0, folds: int = 5,
         L = success_metric(X, y, alpha)
         for gamma in sorted(gamma_grid):
             for c in sorted(c_grid):
-                cal = calibrate(X, y, sim, lambda A, b: fit_svm(A, b, c, gamma, L), folds,
-                                seed, fit_full=False)
+                cal = calibrate(X, y, sim, lambda A, b: fit_svm(A, b, c, gamma, L), folds, seed, fit_full=False)
                 if cal.nll < best_nll - 1e-6:
                     best, best_nll = (float(c), float(gamma), L), cal.nll
     return best
@@ -204,24 +203,45 @@ def _initial_design(rng: np.random.Generator, config: ActiveConfig, qs: List[np.
     return np.vstack([np.zeros((1, 3)), 2 * lhs - 1, sample_focus(rng, n_g, fs, 1.0), *Q0])
 
 
-def _next_batch(rng: np.random.Generator, config: ActiveConfig, k: int, w: float, model, cal, gp, rho_se,
-                qs: List[np.ndarray], X: np.ndarray, y: np.ndarray) -> np.ndarray:
+def _next_batch(
+    rng: np.random.Generator,
+    config: ActiveConfig,
+    k: int,
+    w: float,
+    model,
+    cal,
+    gp,
+    rho_se,
+    qs: List[np.ndarray],
+    X: np.ndarray,
+    y: np.ndarray,
+) -> np.ndarray:
     """A batch of k poses to label: a share w exploits (where rho is uncertain, the band of the
     calibration, then the SVM's boundary), the rest explores."""
     n_exploit = int(round(w * k))
     Pq = np.zeros((0, 3))
     if gp is not None:
-        Pq = exploit_gp(rng, gp, qs, rho_se, X, int(round((config.rho_share + config.band_share) * n_exploit)),
-                        config.n_candidates)
+        Pq = exploit_gp(
+            rng, gp, qs, rho_se, X, int(round((config.rho_share + config.band_share) * n_exploit)), config.n_candidates
+        )
     elif cal is not None:
         Pq = exploit_rho(rng, cal, qs, rho_se, X, int(round(config.rho_share * n_exploit)), config.n_candidates)
-        Pb = exploit_band(rng, cal, qs, np.vstack([X, Pq]), int(round(config.band_share * n_exploit)),
-                          config.n_candidates)
+        Pb = exploit_band(
+            rng, cal, qs, np.vstack([X, Pq]), int(round(config.band_share * n_exploit)), config.n_candidates
+        )
         Pq = np.vstack([Pq, Pb])
     Pe = exploit(rng, model, np.vstack([X, Pq]), y, n_exploit - len(Pq), config.n_candidates, query_sigmas=qs)
     Pe = np.vstack([Pq, Pe])
-    Pr = explore(rng, np.vstack([X, Pe]) if len(Pe) else X, k - len(Pe), config.n_candidates,
-                 config.focus_scale, config.focus_fraction, qs, config.query_fraction)
+    Pr = explore(
+        rng,
+        np.vstack([X, Pe]) if len(Pe) else X,
+        k - len(Pe),
+        config.n_candidates,
+        config.focus_scale,
+        config.focus_fraction,
+        qs,
+        config.query_fraction,
+    )
     return np.vstack([Pe, Pr])
 
 
@@ -256,17 +276,28 @@ class _RhoEstimator:
             self.gp = GPSuccessModel(XA, yA, theta=theta, seed=self.seed, config=self.gp_config)
             self.gp_theta = self.gp.theta
             return np.array([self.gp.rho(Q, self.seed) for Q in self.queries])
-        self.cal = calibrate(XA, yA, simA, lambda A, b: fit_svm(A, b, *params), c.calib_folds, self.seed,
-                             local_kappa=c.local_kappa, local_floor=c.local_floor)
+        self.cal = calibrate(
+            XA,
+            yA,
+            simA,
+            lambda A, b: fit_svm(A, b, *params),
+            c.calib_folds,
+            self.seed,
+            local_kappa=c.local_kappa,
+            local_floor=c.local_floor,
+        )
         return np.array([self.cal.rho(Q, sg) for Q, sg in zip(self.queries, self.qs)])
 
 
-def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveConfig = ActiveConfig(),
-                   seed: int = 0, known_fn: Optional[KnownFn] = None) -> BoundaryResult:
+def learn_boundary(
+    label_fn: Callable[[np.ndarray], np.ndarray],
+    config: ActiveConfig = ActiveConfig(),
+    seed: int = 0,
+    known_fn: Optional[KnownFn] = None,
+) -> BoundaryResult:
     """Actively learn a GSB. label_fn maps normalized poses (n, 3) to bool successes."""
     if config.budget < config.n_init + config.n_holdout + 1:
-        raise ValueError(f"budget {config.budget} must exceed n_init + n_holdout "
-                         f"({config.n_init + config.n_holdout})")
+        raise ValueError(f"budget {config.budget} must exceed n_init + n_holdout ({config.n_init + config.n_holdout})")
     rng = np.random.default_rng(seed)
     n_sims = 0
 
@@ -294,8 +325,12 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
     def refit(rnd):
         nonlocal params
         if rnd % config.select_every == 0:
-            params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed,
-                                       config.calib_folds, sim, config.metric_powers) or params
+            params = (
+                select_svm_params(
+                    X, y, config.c_grid, config.gamma_grid, seed, config.calib_folds, sim, config.metric_powers
+                )
+                or params
+            )
         return fit_svm(X, y, *params)
 
     model = refit(0)
@@ -316,8 +351,14 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
         acc_batch = float(np.mean(before == yp))
         acc = 0.5 * (acc_hold + acc_batch)
         w, prev_acc = _adapted_weight(w, acc, prev_acc, config), acc
-        h = {"round": rnd, "n_simulations": n_sims, "n_samples": len(X),
-             "accuracy_holdout": acc_hold, "accuracy_batch": acc_batch, "exploit_weight": w}
+        h = {
+            "round": rnd,
+            "n_simulations": n_sims,
+            "n_samples": len(X),
+            "accuracy_holdout": acc_hold,
+            "accuracy_batch": acc_batch,
+            "exploit_weight": w,
+        }
         # The stopping rule judges the GSB of every sample, held-out ones included (the
         # returned one; the final hyperparameter re-selection may still change it).
         est = rho.estimate(rnd, np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh]), params)
@@ -335,21 +376,36 @@ def learn_boundary(label_fn: Callable[[np.ndarray], np.ndarray], config: ActiveC
     # The final GSB uses every labelled sample, held-out ones included.
     X, y, sim = np.vstack([X, H]), np.concatenate([y, yh]), np.concatenate([sim, simh])
     model = refit(0)
-    return BoundaryResult(X=X, y=y, simulated=sim, model=model, n_simulations=n_sims,
-                          converged=converged, history=history, svm_c=params[0],
-                          svm_gamma=params[1], svm_metric=params[2])
+    return BoundaryResult(
+        X=X,
+        y=y,
+        simulated=sim,
+        model=model,
+        n_simulations=n_sims,
+        converged=converged,
+        history=history,
+        svm_c=params[0],
+        svm_gamma=params[1],
+        svm_metric=params[2],
+    )
 
 
-def learn_random(label_fn, n_samples: int, config: ActiveConfig = ActiveConfig(),
-                 seed: int = 0) -> BoundaryResult:
+def learn_random(label_fn, n_samples: int, config: ActiveConfig = ActiveConfig(), seed: int = 0) -> BoundaryResult:
     """Baseline: uniform random samples, same classifier, same budget."""
     rng = np.random.default_rng(seed)
     X = rng.uniform(-1.0, 1.0, size=(n_samples, 3))
     y = np.asarray(label_fn(X), dtype=bool)
-    params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed,
-                               metric_powers=config.metric_powers)
+    params = select_svm_params(X, y, config.c_grid, config.gamma_grid, seed, metric_powers=config.metric_powers)
     params = params or (config.svm_c, config.svm_gamma, np.eye(3))
     model = fit_svm(X, y, *params)
-    return BoundaryResult(X=X, y=y, simulated=np.ones(n_samples, dtype=bool), model=model,
-                          n_simulations=n_samples, converged=False, svm_c=params[0],
-                          svm_gamma=params[1], svm_metric=params[2])
+    return BoundaryResult(
+        X=X,
+        y=y,
+        simulated=np.ones(n_samples, dtype=bool),
+        model=model,
+        n_simulations=n_samples,
+        converged=False,
+        svm_c=params[0],
+        svm_gamma=params[1],
+        svm_metric=params[2],
+    )

@@ -25,6 +25,7 @@ modelled domain: 0). The k fold classifiers give a delete-a-group jackknife stan
 of rho (boundary uncertainty from the finite sample); the conservative estimate is
 rho_hat - z * se.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -48,9 +49,9 @@ def svm_depth(model, U, chunk: int = 2048) -> np.ndarray:
         return np.full(len(U), DEPTH_CLIP if label else -DEPTH_CLIP)
     out = np.empty(len(U))
     for a in range(0, len(U), chunk):
-        f, grad = model.value_and_gradient(U[a:a + chunk])
+        f, grad = model.value_and_gradient(U[a : a + chunk])
         g = np.linalg.norm(grad, axis=1)
-        out[a:a + chunk] = np.clip(f / np.maximum(g, 1e-12), -DEPTH_CLIP, DEPTH_CLIP)
+        out[a : a + chunk] = np.clip(f / np.maximum(g, 1e-12), -DEPTH_CLIP, DEPTH_CLIP)
     return out
 
 
@@ -71,8 +72,11 @@ def _nll_ab(a: float, b: float, depth, sign, wt) -> tuple:
     q = expit(-m)  # accurate far in the tails, where 1 - tanh rounds to 0 and the gradient vanishes
     r, h = wt * q * sign, wt * q * (1.0 - q)
     hd = h * depth
-    return (float(np.sum(wt * np.logaddexp(0.0, -m))), -np.array([np.sum(r * depth), np.sum(r)]),
-            np.array([[np.sum(hd * depth), np.sum(hd)], [np.sum(hd), np.sum(h)]]))
+    return (
+        float(np.sum(wt * np.logaddexp(0.0, -m))),
+        -np.array([np.sum(r * depth), np.sum(r)]),
+        np.array([[np.sum(hd * depth), np.sum(hd)], [np.sum(hd), np.sum(h)]]),
+    )
 
 
 def _newton_interior(nll, p, iterations: int = 100):
@@ -197,9 +201,17 @@ class Calibration:
         return rho_hat, float(np.sqrt((k - 1) / k * np.sum((r - r.mean()) ** 2)))
 
 
-def calibrate(X, y, simulated, fit, folds: int = 5, seed: int = 0,
-              fit_full: bool = True, local_kappa: float = 3.0,
-              local_floor: float = 1.0) -> Calibration:
+def calibrate(
+    X,
+    y,
+    simulated,
+    fit,
+    folds: int = 5,
+    seed: int = 0,
+    fit_full: bool = True,
+    local_kappa: float = 3.0,
+    local_floor: float = 1.0,
+) -> Calibration:
     """Fit the full classifier fit(X, y) (unless fit_full is False: hyperparameter
     selection only needs the likelihood) and k fold classifiers; fit (D_FT, w) to the
     out-of-fold depths of the simulated samples (free labels are deep successes by
@@ -212,8 +224,7 @@ def calibrate(X, y, simulated, fit, folds: int = 5, seed: int = 0,
     n_min = int(min(y.sum(), (~y).sum()))
     if n_min < 2:
         model = fit(X, y) if model is None else model
-        return Calibration(model, [], *fit_depth_sigmoid(svm_depth(model, X[simulated]),
-                                                         y[simulated]))
+        return Calibration(model, [], *fit_depth_sigmoid(svm_depth(model, X[simulated]), y[simulated]))
     k = min(folds, n_min)
     cv = StratifiedKFold(n_splits=k, shuffle=True, random_state=seed)
     depth = np.empty(len(X))
@@ -224,8 +235,7 @@ def calibrate(X, y, simulated, fit, folds: int = 5, seed: int = 0,
         depth[te] = svm_depth(m, X[te])
     d_ft, width, _ = fit_depth_sigmoid(depth[simulated], y[simulated])
     nll = float(np.mean(_nll_terms(depth, y, d_ft, width)))
-    return Calibration(model, fold_models, d_ft, width, nll, X, depth, y, simulated,
-                       local_kappa, local_floor)
+    return Calibration(model, fold_models, d_ft, width, nll, X, depth, y, simulated, local_kappa, local_floor)
 
 
 def gaussian_queries(n: int, seed: int = 0) -> np.ndarray:

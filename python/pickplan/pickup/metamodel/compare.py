@@ -4,6 +4,7 @@ For each sigma level and (S_g, S_c) pair, `n_samples` poses from N(0, sigma) are
 directly (the paper: ~2000 per pair) and the success fraction is compared with the
 active-learning probability on the grid and with the fitted surface rho_sigma.
 """
+
 from __future__ import annotations
 
 import csv
@@ -43,8 +44,16 @@ class ComparisonRow:
         return self.rho_surface - self.rho_extensive
 
 
-def extensive_sampling(runner: SimRunner, s_g: float, s_c: float, sigma_r: float,
-                       sigma_phi: float, n_samples: int, seed: int = 0, cache_dir=None):
+def extensive_sampling(
+    runner: SimRunner,
+    s_g: float,
+    s_c: float,
+    sigma_r: float,
+    sigma_phi: float,
+    n_samples: int,
+    seed: int = 0,
+    cache_dir=None,
+):
     """Direct simulation of n_samples poses ~ N(0, sigma): (probability, standard error).
 
     With cache_dir, the labels are stored in <cache_dir>/<key>.json, the key hashing every
@@ -55,8 +64,9 @@ def extensive_sampling(runner: SimRunner, s_g: float, s_c: float, sigma_r: float
         raise ValueError(f"n_samples must be >= 1, got {n_samples}")
     path = None
     if cache_dir is not None:
-        path = reference_cache_path(cache_dir, runner.part.name, runner.config, s_g, s_c,
-                                    sigma_r, sigma_phi, n_samples, seed)
+        path = reference_cache_path(
+            cache_dir, runner.part.name, runner.config, s_g, s_c, sigma_r, sigma_phi, n_samples, seed
+        )
         ok = load_cached_labels(path)
         if ok is not None:
             return _binomial(ok)
@@ -68,14 +78,24 @@ def extensive_sampling(runner: SimRunner, s_g: float, s_c: float, sigma_r: float
     return _binomial(ok)
 
 
-def reference_cache_path(cache_dir, part_name: str, sim_config: SimConfig, s_g, s_c, sigma_r,
-                         sigma_phi, n_samples: int, seed: int) -> str:
+def reference_cache_path(
+    cache_dir, part_name: str, sim_config: SimConfig, s_g, s_c, sigma_r, sigma_phi, n_samples: int, seed: int
+) -> str:
     """Cache file of one extensive-sampling run: the key hashes every input that changes
     the labels."""
-    key = json.dumps({"part": part_name, "sim": asdict(sim_config), "s_g": float(s_g),
-                      "s_c": float(s_c), "sigma_r": float(sigma_r),
-                      "sigma_phi": float(sigma_phi), "n": int(n_samples), "seed": int(seed)},
-                     sort_keys=True)
+    key = json.dumps(
+        {
+            "part": part_name,
+            "sim": asdict(sim_config),
+            "s_g": float(s_g),
+            "s_c": float(s_c),
+            "sigma_r": float(sigma_r),
+            "sigma_phi": float(sigma_phi),
+            "n": int(n_samples),
+            "seed": int(seed),
+        },
+        sort_keys=True,
+    )
     digest = hashlib.sha256(key.encode()).hexdigest()[:24]
     return os.path.join(os.fspath(cache_dir), f"ext_{part_name}_{digest}.json")
 
@@ -99,21 +119,29 @@ def _binomial(ok) -> tuple:
     return p, float(np.sqrt(max(p * (1 - p), 1e-12) / len(ok)))
 
 
-def compare(model: MetaModel, n_samples: int = 2000, pairs=None, seed: int = 0,
-            workers: int = 1, use_ray: bool = False, progress: bool = False,
-            sim_config: SimConfig | None = None, cache_dir=None) -> list:
+def compare(
+    model: MetaModel,
+    n_samples: int = 2000,
+    pairs=None,
+    seed: int = 0,
+    workers: int = 1,
+    use_ray: bool = False,
+    progress: bool = False,
+    sim_config: SimConfig | None = None,
+    cache_dir=None,
+) -> list:
     """Rows for every level of the model and every grid pair (or `pairs`, a list of
     (S_g, S_c) grid points). The extensive-sampling seed depends on the speeds and sigma
     values (reference_seed), not on grid indices, so cached references are reused across
     grids."""
     if sim_config is None:
-        sim_config = SimConfig(**{k: tuple(v) if isinstance(v, list) else v
-                                  for k, v in model.info.get("sim", {}).items()})
+        sim_config = SimConfig(
+            **{k: tuple(v) if isinstance(v, list) else v for k, v in model.info.get("sim", {}).items()}
+        )
     grid = [(i, j) for i in range(len(model.sg_grid)) for j in range(len(model.sc_grid))]
     if pairs is not None:
         wanted = {(round(float(a), 9), round(float(b), 9)) for a, b in pairs}
-        grid = [(i, j) for i, j in grid
-                if (round(model.sg_grid[i], 9), round(model.sc_grid[j], 9)) in wanted]
+        grid = [(i, j) for i, j in grid if (round(model.sg_grid[i], 9), round(model.sc_grid[j], 9)) in wanted]
         if not grid:
             raise ValueError(f"none of the pairs {sorted(wanted)} is on the model's grid")
     rows = []
@@ -122,12 +150,30 @@ def compare(model: MetaModel, n_samples: int = 2000, pairs=None, seed: int = 0,
             surf = model.surfaces[lv.name]
             for i, j in grid:
                 s_g, s_c = model.sg_grid[i], model.sc_grid[j]
-                p, se = extensive_sampling(runner, s_g, s_c, lv.sigma_r, lv.sigma_phi,
-                                           n_samples, reference_seed(seed, s_g, s_c, lv.sigma_r,
-                                                                     lv.sigma_phi), cache_dir)
-                rows.append(ComparisonRow(lv.name, lv.sigma_r, lv.sigma_phi, s_g, s_c, p, se,
-                                          n_samples, float(model.rho_grids[lv.name][i, j]),
-                                          float(surf(s_g, s_c))))
+                p, se = extensive_sampling(
+                    runner,
+                    s_g,
+                    s_c,
+                    lv.sigma_r,
+                    lv.sigma_phi,
+                    n_samples,
+                    reference_seed(seed, s_g, s_c, lv.sigma_r, lv.sigma_phi),
+                    cache_dir,
+                )
+                rows.append(
+                    ComparisonRow(
+                        lv.name,
+                        lv.sigma_r,
+                        lv.sigma_phi,
+                        s_g,
+                        s_c,
+                        p,
+                        se,
+                        n_samples,
+                        float(model.rho_grids[lv.name][i, j]),
+                        float(surf(s_g, s_c)),
+                    )
+                )
     return rows
 
 
@@ -141,29 +187,36 @@ def summarize(rows) -> dict:
         rs = [r for r in rows if r.level == lv]
         ea = np.array([r.error_active for r in rs])
         es = np.array([r.error_surface for r in rs])
-        out[lv] = {"pairs": len(rs), "mean_abs_error_active": float(np.abs(ea).mean()),
-                   "max_abs_error_active": float(np.abs(ea).max()),
-                   "max_over_active": float(ea.max()),
-                   "max_under_active": float(ea.min()),
-                   "within_5pct_active": int(np.sum(np.abs(ea) <= 0.05)),
-                   "over_significant_active": int(sum(
-                       r.error_active > 0.01 + 2 * r.stderr_extensive for r in rs)),
-                   "mean_abs_error_surface": float(np.abs(es).mean()),
-                   "max_abs_error_surface": float(np.abs(es).max()),
-                   "max_over_surface": float(es.max())}
+        out[lv] = {
+            "pairs": len(rs),
+            "mean_abs_error_active": float(np.abs(ea).mean()),
+            "max_abs_error_active": float(np.abs(ea).max()),
+            "max_over_active": float(ea.max()),
+            "max_under_active": float(ea.min()),
+            "within_5pct_active": int(np.sum(np.abs(ea) <= 0.05)),
+            "over_significant_active": int(sum(r.error_active > 0.01 + 2 * r.stderr_extensive for r in rs)),
+            "mean_abs_error_surface": float(np.abs(es).mean()),
+            "max_abs_error_surface": float(np.abs(es).max()),
+            "max_over_surface": float(es.max()),
+        }
     return out
 
 
 def table_markdown(rows, part: str = "") -> str:
-    lines = [f"Meta-model vs extensive sampling{' (' + part + ')' if part else ''}", "",
-             "| level | sigma_r [mm] | sigma_phi [deg] | S_g | S_c | extensive (+-se) | "
-             "active | surface | active - ext | surface - ext |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"Meta-model vs extensive sampling{' (' + part + ')' if part else ''}",
+        "",
+        "| level | sigma_r [mm] | sigma_phi [deg] | S_g | S_c | extensive (+-se) | "
+        "active | surface | active - ext | surface - ext |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
-        lines.append(f"| {r.level} | {r.sigma_r * 1000:.0f} | {np.degrees(r.sigma_phi):.0f} | "
-                     f"{r.s_g:.2f} | {r.s_c:.2f} | {r.rho_extensive:.3f} "
-                     f"(+-{r.stderr_extensive:.3f}) | {r.rho_active:.3f} | "
-                     f"{r.rho_surface:.3f} | {r.error_active:+.3f} | {r.error_surface:+.3f} |")
+        lines.append(
+            f"| {r.level} | {r.sigma_r * 1000:.0f} | {np.degrees(r.sigma_phi):.0f} | "
+            f"{r.s_g:.2f} | {r.s_c:.2f} | {r.rho_extensive:.3f} "
+            f"(+-{r.stderr_extensive:.3f}) | {r.rho_active:.3f} | "
+            f"{r.rho_surface:.3f} | {r.error_active:+.3f} | {r.error_surface:+.3f} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -184,9 +237,18 @@ def write_results(rows, out_dir, part: str, reference_seed: int = 0) -> dict:
     base = os.path.join(os.fspath(out_dir), f"{part}_comparison")
     write_text(base + ".md", table_markdown(rows, part))
     write_text(base + ".csv", table_csv(rows))
-    write_text(base + ".json", json.dumps(
-        {"part": part, "reference_seed": int(reference_seed), "rows": [asdict(r) for r in rows],
-         "summary": summarize(rows)}, indent=1))
+    write_text(
+        base + ".json",
+        json.dumps(
+            {
+                "part": part,
+                "reference_seed": int(reference_seed),
+                "rows": [asdict(r) for r in rows],
+                "summary": summarize(rows),
+            },
+            indent=1,
+        ),
+    )
     return {"md": base + ".md", "csv": base + ".csv", "json": base + ".json"}
 
 
@@ -208,16 +270,25 @@ def plot_comparison(rows, path, title: str = "") -> str:
         dg = 0.3 * (np.ptp(sg) / max(len(set(sg)) - 1, 1) or 0.05)
         dc = 0.3 * (np.ptp(sc) / max(len(set(sc)) - 1, 1) or 0.02)
         z = np.zeros(len(rs))
-        ax.bar3d(sg - dg, sc, z, dg, dc, [r.rho_extensive for r in rs], color="#9be29b",
-                 shade=True, label="extensive sampling")
-        ax.bar3d(sg, sc, z, dg, dc, [r.rho_active for r in rs], color="#1b7f1b", shade=True,
-                 label="active learning")
+        ax.bar3d(
+            sg - dg,
+            sc,
+            z,
+            dg,
+            dc,
+            [r.rho_extensive for r in rs],
+            color="#9be29b",
+            shade=True,
+            label="extensive sampling",
+        )
+        ax.bar3d(sg, sc, z, dg, dc, [r.rho_active for r in rs], color="#1b7f1b", shade=True, label="active learning")
         ax.set_xlabel("S_g [m/s]")
         ax.set_ylabel("S_c [m/s]")
         ax.set_zlabel("P(success)")
         ax.set_zlim(0, 1)
-        ax.set_title(f"{lv}: sigma_r={rs[0].sigma_r * 1000:.0f} mm, "
-                     f"sigma_phi={np.degrees(rs[0].sigma_phi):.0f} deg", fontsize=9)
+        ax.set_title(
+            f"{lv}: sigma_r={rs[0].sigma_r * 1000:.0f} mm, sigma_phi={np.degrees(rs[0].sigma_phi):.0f} deg", fontsize=9
+        )
     if title:
         fig.suptitle(title)
     path = os.fspath(path)

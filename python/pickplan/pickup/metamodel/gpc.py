@@ -16,6 +16,7 @@ of rho over the posterior of f); its standard error is the posterior standard de
 rho, from joint draws of f at a subset of the query poses. Poses outside the modelled
 domain count as failures, as in calibration.py.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -42,8 +43,9 @@ class GPConfig:
 def _kernel(theta=None, amplitude_cap: float = AMPLITUDE_BOUNDS[1]):
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel
 
-    k = ConstantKernel(min(10.0, amplitude_cap), (AMPLITUDE_BOUNDS[0], amplitude_cap)) * \
-        RBF([0.5, 0.5, 0.5], LENGTH_BOUNDS)
+    k = ConstantKernel(min(10.0, amplitude_cap), (AMPLITUDE_BOUNDS[0], amplitude_cap)) * RBF(
+        [0.5, 0.5, 0.5], LENGTH_BOUNDS
+    )
     return k if theta is None else k.clone_with_theta(np.asarray(theta, float))
 
 
@@ -53,8 +55,7 @@ def _optimizer(max_iter: int):
     from scipy.optimize import minimize
 
     def run(obj_func, initial_theta, bounds):
-        r = minimize(obj_func, initial_theta, method="L-BFGS-B", jac=True, bounds=bounds,
-                     options={"maxiter": max_iter})
+        r = minimize(obj_func, initial_theta, method="L-BFGS-B", jac=True, bounds=bounds, options={"maxiter": max_iter})
         return r.x, r.fun
 
     return run
@@ -80,7 +81,7 @@ class GPSuccessModel:
         # Nearly separable labels push the amplitude to its cap, where the Laplace mode
         # search can stop short of the mode (f != K (y - pi)) and the predictions go wild.
         # Each fit is checked and, if it failed, redone with a 10x lower cap.
-        caps = [AMPLITUDE_BOUNDS[1] / 10 ** k for k in range(4)] if theta is None else [None]
+        caps = [AMPLITUDE_BOUNDS[1] / 10**k for k in range(4)] if theta is None else [None]
         for cap in caps:
             kernel = _kernel(theta) if cap is None else _kernel(None, cap)
             # One BLAS thread: the matrices are a few hundred wide, and threads that spin
@@ -90,8 +91,11 @@ class GPSuccessModel:
                 # are expected and harmless here.
                 warnings.simplefilter("ignore")
                 self._gpc = GaussianProcessClassifier(
-                    kernel, optimizer=None if cap is None else _optimizer(config.max_iter),
-                    n_restarts_optimizer=config.restarts, random_state=seed).fit(self.X, self.y)
+                    kernel,
+                    optimizer=None if cap is None else _optimizer(config.max_iter),
+                    n_restarts_optimizer=config.restarts,
+                    random_state=seed,
+                ).fit(self.X, self.y)
             if cap is None or self.mode_error() <= MODE_TOLERANCE:
                 break
         self.theta = [float(v) for v in self._gpc.kernel_.theta]
@@ -120,8 +124,7 @@ class GPSuccessModel:
         ok = np.all(np.abs(U) <= 1.0, axis=1)
         p = np.zeros(len(U))
         if ok.any():
-            p[ok] = (float(self.constant) if self.constant is not None
-                     else self._gpc.predict_proba(U[ok])[:, 1])
+            p[ok] = float(self.constant) if self.constant is not None else self._gpc.predict_proba(U[ok])[:, 1]
         return p
 
     def _latent_posterior(self, U):
@@ -157,7 +160,7 @@ class GPSuccessModel:
         if self.constant is not None or not len(U):
             return rho_hat, 0.0
         ok = np.all(np.abs(U) <= 1.0, axis=1)
-        sub = np.flatnonzero(ok)[:self.config.n_se_queries]
+        sub = np.flatnonzero(ok)[: self.config.n_se_queries]
         if len(sub) == 0:
             return rho_hat, 0.0
         with threadpool_limits(1):

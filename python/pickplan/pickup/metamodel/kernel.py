@@ -9,6 +9,7 @@ of the successful samples: alpha = 0 is the isotropic kernel, alpha = 1 whitens 
 region; the determinant is normalized to 1 so that gamma keeps its meaning. alpha is chosen
 with (C, gamma) by out-of-fold likelihood (active.select_svm_params).
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -6,6 +6,7 @@ the horizontal extents (x or y) at the top, as for the built-in parts (parts.py)
 along the other one. In simulation the part is the mesh's convex hull (PyBullet's dynamic meshes
 are convex) with the mass and centre of mass of the closed mesh.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,8 +19,8 @@ from pickplan.core.errors import InputError
 from pickplan.pickup.metamodel.parts import Part, Shape, GraspStrategy, grasp_height
 from pickplan.pickup.metamodel.sim import OPEN_WIDTH
 
-MIN_EXTENT, MAX_EXTENT = 0.005, 0.5   # m: smaller or larger is not a part for this gripper (units?)
-PAD_MARGIN = 0.005                    # m the open fingers must clear on the grasped width
+MIN_EXTENT, MAX_EXTENT = 0.005, 0.5  # m: smaller or larger is not a part for this gripper (units?)
+PAD_MARGIN = 0.005  # m the open fingers must clear on the grasped width
 
 
 def _number(value, what: str, path: str) -> float:
@@ -46,20 +47,35 @@ def load_closed_mesh(path: str):
     if not np.isfinite(mesh.vertices).all():
         raise InputError("vertices must be finite", path=path, field="mesh")
     if not mesh.is_watertight:
-        raise InputError("not closed: the surface has holes or open edges (a closed mesh is needed for a "
-                         "volume and a mass)", path=path, field="mesh")
+        raise InputError(
+            "not closed: the surface has holes or open edges (a closed mesh is needed for a volume and a mass)",
+            path=path,
+            field="mesh",
+        )
     if not mesh.volume > 0:
-        raise InputError(f"volume {mesh.volume:.3g} m^3 is not positive (inverted normals or a degenerate "
-                         "surface)", path=path, field="mesh")
+        raise InputError(
+            f"volume {mesh.volume:.3g} m^3 is not positive (inverted normals or a degenerate surface)",
+            path=path,
+            field="mesh",
+        )
     ext = mesh.extents
     if ext.min() < MIN_EXTENT or ext.max() > MAX_EXTENT:
-        raise InputError(f"extents {np.round(ext, 4).tolist()} m outside [{MIN_EXTENT}, {MAX_EXTENT}] m "
-                         "(the mesh must be in metres)", path=path, field="mesh")
+        raise InputError(
+            f"extents {np.round(ext, 4).tolist()} m outside [{MIN_EXTENT}, {MAX_EXTENT}] m "
+            "(the mesh must be in metres)",
+            path=path,
+            field="mesh",
+        )
     return mesh
 
 
-def part_from_mesh(path: str, mass: Optional[float] = None, density: Optional[float] = None,
-                   friction: float = 0.6, name: Optional[str] = None) -> Part:
+def part_from_mesh(
+    path: str,
+    mass: Optional[float] = None,
+    density: Optional[float] = None,
+    friction: float = 0.6,
+    name: Optional[str] = None,
+) -> Part:
     """The Part of a closed mesh with a ``mass`` (kg) or a ``density`` (kg/m^3), not both."""
     path = os.fspath(path)
     if (mass is None) == (density is None):
@@ -72,17 +88,26 @@ def part_from_mesh(path: str, mass: Optional[float] = None, density: Optional[fl
     kg = _number(mass, "--mass", path) if mass is not None else _number(density, "--density", path) * mesh.volume
     friction = _number(friction, "--friction", path)
     ext = mesh.extents
-    across_x = ext[0] <= ext[1]            # grasp across the narrower horizontal extent
+    across_x = ext[0] <= ext[1]  # grasp across the narrower horizontal extent
     width = float(ext[0] if across_x else ext[1])
     if width > OPEN_WIDTH - PAD_MARGIN:
-        raise InputError(f"narrowest horizontal extent {width * 1000:.0f} mm does not fit between the open "
-                         f"fingers ({OPEN_WIDTH * 1000:.0f} mm)", path=path, field="mesh")
+        raise InputError(
+            f"narrowest horizontal extent {width * 1000:.0f} mm does not fit between the open "
+            f"fingers ({OPEN_WIDTH * 1000:.0f} mm)",
+            path=path,
+            field="mesh",
+        )
     height = float(ext[2])
     hull = mesh.convex_hull.vertices + shift
     strategy = GraspStrategy((0.0, 0.0, grasp_height(height)), math.pi / 2 if across_x else 0.0, width)
-    return Part(name=name or os.path.splitext(os.path.basename(path))[0],
-                shapes=(Shape("mesh", tuple(tuple(float(c) for c in v) for v in hull), tuple(float(c) for c in com)),),
-                mass=float(kg), height=height, strategy=strategy, lateral_friction=friction,
-                description=f"mesh {os.path.basename(path)}: {ext[0] * 1000:.0f} x {ext[1] * 1000:.0f} x "
-                            f"{ext[2] * 1000:.0f} mm, {kg * 1000:.0f} g, grasped across {width * 1000:.0f} mm",
-                footprint_radius=float(np.max(np.hypot(vertices[:, 0], vertices[:, 1]))))
+    return Part(
+        name=name or os.path.splitext(os.path.basename(path))[0],
+        shapes=(Shape("mesh", tuple(tuple(float(c) for c in v) for v in hull), tuple(float(c) for c in com)),),
+        mass=float(kg),
+        height=height,
+        strategy=strategy,
+        lateral_friction=friction,
+        description=f"mesh {os.path.basename(path)}: {ext[0] * 1000:.0f} x {ext[1] * 1000:.0f} x "
+        f"{ext[2] * 1000:.0f} mm, {kg * 1000:.0f} g, grasped across {width * 1000:.0f} mm",
+        footprint_radius=float(np.max(np.hypot(vertices[:, 0], vertices[:, 1]))),
+    )

@@ -12,24 +12,22 @@ uses the calibrated SVM depth and the jackknife of its fold classifiers instead.
 of probabilities is turned into a conservative analytic surface (surface.py), saved to
 JSON with all samples.
 """
+
 from __future__ import annotations
 
 import json
 import logging
 import math
 import os
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Optional
 
 import numpy as np
 
 from pickplan.core.io import write_text
-from pickplan.pickup.metamodel.active import (ActiveConfig, PoseDomain, RhoModel, fit_svm, known_from_lower_sc,
-                                              learn_boundary)
+from pickplan.pickup.metamodel.active import ActiveConfig, PoseDomain, RhoModel, fit_svm
 from pickplan.pickup.metamodel.calibration import calibrate, gaussian_queries, svm_depth
-from pickplan.pickup.metamodel.gpc import GPConfig, GPSuccessModel, lapse_rate
-from pickplan.pickup.metamodel.parallel import SimRunner, sample_seeds
-from pickplan.pickup.metamodel.parts import get_part
+from pickplan.pickup.metamodel.gpc import GPConfig, GPSuccessModel
 from pickplan.pickup.metamodel.sim import SimConfig
 from pickplan.pickup.metamodel.surface import RhoSurface, fit_rho_surface
 
@@ -68,9 +66,25 @@ class BoundaryModel:
     (calibration.py): D_FT (the success depth at which success and failure are equally
     likely), the width w of the noisy band and the fold classifiers for the jackknife."""
 
-    def __init__(self, s_g, s_c, X, y, simulated, svm_c, svm_gamma, history=None,
-                 converged=False, calib_folds=5, calib_seed=0, svm_metric=None,
-                 local_kappa=3.0, local_floor=1.0, rho_model=RhoModel.svm, gp_theta=None):
+    def __init__(
+        self,
+        s_g,
+        s_c,
+        X,
+        y,
+        simulated,
+        svm_c,
+        svm_gamma,
+        history=None,
+        converged=False,
+        calib_folds=5,
+        calib_seed=0,
+        svm_metric=None,
+        local_kappa=3.0,
+        local_floor=1.0,
+        rho_model=RhoModel.svm,
+        gp_theta=None,
+    ):
         self.s_g, self.s_c = float(s_g), float(s_c)
         self.X = np.asarray(X, float).reshape(-1, 3)
         self.y = np.asarray(y, bool)
@@ -78,22 +92,28 @@ class BoundaryModel:
         self.svm_c, self.svm_gamma = float(svm_c), float(svm_gamma)
         self.history = list(history or [])
         self.converged = bool(converged)
-        self.svm_metric = (np.eye(3) if svm_metric is None
-                           else np.asarray(svm_metric, float).reshape(3, 3))
+        self.svm_metric = np.eye(3) if svm_metric is None else np.asarray(svm_metric, float).reshape(3, 3)
         self.calib_folds, self.calib_seed = int(calib_folds), int(calib_seed)
         self.local_kappa, self.local_floor = float(local_kappa), float(local_floor)
         self.calibration = calibrate(
-            self.X, self.y, self.simulated,
+            self.X,
+            self.y,
+            self.simulated,
             lambda A, b: fit_svm(A, b, self.svm_c, self.svm_gamma, self.svm_metric),
-            self.calib_folds, self.calib_seed, local_kappa=self.local_kappa,
-            local_floor=self.local_floor)
+            self.calib_folds,
+            self.calib_seed,
+            local_kappa=self.local_kappa,
+            local_floor=self.local_floor,
+        )
         self.model = self.calibration.model
         self.rho_model = rho_model = RhoModel.parse(rho_model, "rho_model")
         # rho_model "gp": P(success) and rho from GP classification of the same samples
         # (gpc.py); gp_theta reuses saved hyperparameters instead of optimizing them.
-        self.gp = (GPSuccessModel(self.X, self.y, theta=gp_theta, seed=self.calib_seed,
-                                  config=GPConfig(restarts=0))
-                   if rho_model is RhoModel.gp else None)
+        self.gp = (
+            GPSuccessModel(self.X, self.y, theta=gp_theta, seed=self.calib_seed, config=GPConfig(restarts=0))
+            if rho_model is RhoModel.gp
+            else None
+        )
 
     @property
     def n_simulations(self) -> int:
@@ -131,29 +151,60 @@ class BoundaryModel:
         return self.calibration.rho(U, sigma)
 
     def to_dict(self) -> dict:
-        return {"s_g": self.s_g, "s_c": self.s_c, "X": self.X.tolist(),
-                "y": self.y.astype(int).tolist(), "simulated": self.simulated.astype(int).tolist(),
-                "svm_c": self.svm_c, "svm_gamma": self.svm_gamma, "d_ft": self.d_ft,
-                "width": self.width, "converged": self.converged, "history": self.history,
-                "calib_folds": self.calib_folds, "calib_seed": self.calib_seed,
-                "svm_metric": self.svm_metric.tolist(), "local_kappa": self.local_kappa,
-                "local_floor": self.local_floor, "rho_model": self.rho_model,
-                "gp_theta": None if self.gp is None else self.gp.theta}
+        return {
+            "s_g": self.s_g,
+            "s_c": self.s_c,
+            "X": self.X.tolist(),
+            "y": self.y.astype(int).tolist(),
+            "simulated": self.simulated.astype(int).tolist(),
+            "svm_c": self.svm_c,
+            "svm_gamma": self.svm_gamma,
+            "d_ft": self.d_ft,
+            "width": self.width,
+            "converged": self.converged,
+            "history": self.history,
+            "calib_folds": self.calib_folds,
+            "calib_seed": self.calib_seed,
+            "svm_metric": self.svm_metric.tolist(),
+            "local_kappa": self.local_kappa,
+            "local_floor": self.local_floor,
+            "rho_model": self.rho_model,
+            "gp_theta": None if self.gp is None else self.gp.theta,
+        }
 
     @classmethod
     def from_dict(cls, d: dict) -> "BoundaryModel":
-        return cls(d["s_g"], d["s_c"], d["X"], d["y"], d["simulated"], d["svm_c"],
-                   d["svm_gamma"], history=d.get("history"),
-                   converged=d.get("converged", False), calib_folds=d.get("calib_folds", 5),
-                   calib_seed=d.get("calib_seed", 0), svm_metric=d.get("svm_metric"),
-                   local_kappa=d.get("local_kappa", 0.0), local_floor=d.get("local_floor", 1.0),
-                   rho_model=d.get("rho_model", RhoModel.svm), gp_theta=d.get("gp_theta"))
+        return cls(
+            d["s_g"],
+            d["s_c"],
+            d["X"],
+            d["y"],
+            d["simulated"],
+            d["svm_c"],
+            d["svm_gamma"],
+            history=d.get("history"),
+            converged=d.get("converged", False),
+            calib_folds=d.get("calib_folds", 5),
+            calib_seed=d.get("calib_seed", 0),
+            svm_metric=d.get("svm_metric"),
+            local_kappa=d.get("local_kappa", 0.0),
+            local_floor=d.get("local_floor", 1.0),
+            rho_model=d.get("rho_model", RhoModel.svm),
+            gp_theta=d.get("gp_theta"),
+        )
 
 
-def success_probability(bm: BoundaryModel, sigma_r: float, sigma_phi: float,
-                        domain: PoseDomain = PoseDomain(), n_queries: int = 20000,
-                        seed: int = 0, z: float = 1.0, details: bool = False,
-                        lapse: float = 0.0):
+def success_probability(
+    bm: BoundaryModel,
+    sigma_r: float,
+    sigma_phi: float,
+    domain: PoseDomain = PoseDomain(),
+    n_queries: int = 20000,
+    seed: int = 0,
+    z: float = 1.0,
+    details: bool = False,
+    lapse: float = 0.0,
+):
     """Conservative P(success) for poses from N(0, diag(sigma_r, sigma_r, sigma_phi)):
     rho_hat - z * se, clipped to [0, 1], where rho_hat is the mean calibrated probability of
     n_queries Monte-Carlo poses (outside the modelled domain: failure; with the GP rho model
@@ -194,25 +245,46 @@ class BuildConfig:
     @classmethod
     def quick(cls) -> "BuildConfig":
         """A few minutes of CPU at most: 2 x 2 grid, small budgets."""
-        return cls(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.15),
-                   active=ActiveConfig(n_init=16, n_holdout=16, batch_size=12, budget=80),
-                   n_queries=4000)
+        return cls(
+            sg_grid=(0.1, 0.5),
+            sc_grid=(0.05, 0.15),
+            active=ActiveConfig(n_init=16, n_holdout=16, batch_size=12, budget=80),
+            n_queries=4000,
+        )
 
     @classmethod
     def smoke(cls) -> "BuildConfig":
         """Tests: the smallest build that runs every step (2 x 2 grid, 30 simulations per boundary);
         its rho is rough."""
-        return cls(sg_grid=(0.1, 0.5), sc_grid=(0.05, 0.15), n_queries=2000,
-                   active=ActiveConfig(n_init=12, n_holdout=12, batch_size=10, budget=30))
+        return cls(
+            sg_grid=(0.1, 0.5),
+            sc_grid=(0.05, 0.15),
+            n_queries=2000,
+            active=ActiveConfig(n_init=12, n_holdout=12, batch_size=10, budget=30),
+        )
 
 
 class MetaModel:
     """The meta-model of one part and grasping strategy: GSBs on the speed grid, the
     probability grids and surfaces for the built sigma levels. Query with rho()."""
 
-    def __init__(self, part_name, sg_grid, sc_grid, boundaries, levels, rho_grids, surfaces,
-                 domain=PoseDomain(), n_queries=20000, surface_degree=(3, 2), info=None,
-                 conservative_z=1.0, monotone_sc=True, lapse=0.0):
+    def __init__(
+        self,
+        part_name,
+        sg_grid,
+        sc_grid,
+        boundaries,
+        levels,
+        rho_grids,
+        surfaces,
+        domain=PoseDomain(),
+        n_queries=20000,
+        surface_degree=(3, 2),
+        info=None,
+        conservative_z=1.0,
+        monotone_sc=True,
+        lapse=0.0,
+    ):
         self.part_name = part_name
         self.sg_grid = tuple(float(s) for s in sg_grid)
         self.sc_grid = tuple(float(s) for s in sc_grid)
@@ -238,9 +310,9 @@ class MetaModel:
         if lv is None:
             lv = SigmaLevel(f"sigma_{sigma_r:g}_{sigma_phi:g}", float(sigma_r), float(sigma_phi))
             self.rho_grids[lv.name] = self.probability_grid(sigma_r, sigma_phi)
-            self.surfaces[lv.name] = fit_rho_surface(self.sg_grid, self.sc_grid,
-                                                     self.rho_grids[lv.name], self.surface_degree,
-                                                     self.monotone_sc)
+            self.surfaces[lv.name] = fit_rho_surface(
+                self.sg_grid, self.sc_grid, self.rho_grids[lv.name], self.surface_degree, self.monotone_sc
+            )
             self.levels.append(lv)
         return self.surfaces[lv.name]
 
@@ -248,8 +320,9 @@ class MetaModel:
         """Monte-Carlo success probabilities on the speed grid (common random numbers)."""
         out = np.zeros((len(self.sg_grid), len(self.sc_grid)))
         for (i, j), bm in self.boundaries.items():
-            out[i, j] = success_probability(bm, sigma_r, sigma_phi, self.domain, self.n_queries,
-                                            z=self.conservative_z, lapse=self.lapse)
+            out[i, j] = success_probability(
+                bm, sigma_r, sigma_phi, self.domain, self.n_queries, z=self.conservative_z, lapse=self.lapse
+            )
         return out
 
     def rho(self, s_g, s_c, sigma_r: float, sigma_phi: float):
@@ -260,16 +333,27 @@ class MetaModel:
 
     def to_dict(self) -> dict:
         return {
-            "format": FORMAT, "version": VERSION, "part": self.part_name,
-            "sg_grid": list(self.sg_grid), "sc_grid": list(self.sc_grid),
-            "domain": asdict(self.domain), "n_queries": self.n_queries,
-            "surface_degree": list(self.surface_degree), "info": self.info,
-            "conservative_z": self.conservative_z, "surface_monotone_sc": self.monotone_sc,
+            "format": FORMAT,
+            "version": VERSION,
+            "part": self.part_name,
+            "sg_grid": list(self.sg_grid),
+            "sc_grid": list(self.sc_grid),
+            "domain": asdict(self.domain),
+            "n_queries": self.n_queries,
+            "surface_degree": list(self.surface_degree),
+            "info": self.info,
+            "conservative_z": self.conservative_z,
+            "surface_monotone_sc": self.monotone_sc,
             "lapse": self.lapse,
-            "levels": [{**asdict(lv), "rho_grid": np.asarray(self.rho_grids[lv.name]).tolist(),
-                        "surface": self.surfaces[lv.name].to_dict()} for lv in self.levels],
-            "boundaries": [{"i": i, "j": j, **bm.to_dict()}
-                           for (i, j), bm in sorted(self.boundaries.items())],
+            "levels": [
+                {
+                    **asdict(lv),
+                    "rho_grid": np.asarray(self.rho_grids[lv.name]).tolist(),
+                    "surface": self.surfaces[lv.name].to_dict(),
+                }
+                for lv in self.levels
+            ],
+            "boundaries": [{"i": i, "j": j, **bm.to_dict()} for (i, j), bm in sorted(self.boundaries.items())],
         }
 
     @classmethod
@@ -283,10 +367,22 @@ class MetaModel:
             grids[lv.name] = np.asarray(stored["rho_grid"], float)
             surfaces[lv.name] = surface
         bounds = {(b["i"], b["j"]): BoundaryModel.from_dict(b) for b in d["boundaries"]}
-        return cls(d["part"], d["sg_grid"], d["sc_grid"], bounds, levels, grids, surfaces,
-                   PoseDomain(**d["domain"]), d["n_queries"], tuple(d["surface_degree"]),
-                   d.get("info"), d.get("conservative_z", 1.0), d.get("surface_monotone_sc", True),
-                   d.get("lapse", 0.0))
+        return cls(
+            d["part"],
+            d["sg_grid"],
+            d["sc_grid"],
+            bounds,
+            levels,
+            grids,
+            surfaces,
+            PoseDomain(**d["domain"]),
+            d["n_queries"],
+            tuple(d["surface_degree"]),
+            d.get("info"),
+            d.get("conservative_z", 1.0),
+            d.get("surface_monotone_sc", True),
+            d.get("lapse", 0.0),
+        )
 
     def save(self, path) -> None:
         """Write JSON atomically (pickplan.core.io: a temp file, then a rename)."""
@@ -309,8 +405,10 @@ def _check_format(d) -> None:
 
 def _stored_levels(d: dict) -> list:
     """(SigmaLevel, RhoSurface) of every level a meta-model dict stores."""
-    return [(SigmaLevel(lv["name"], lv["sigma_r"], lv["sigma_phi"]), RhoSurface.from_dict(lv["surface"]))
-            for lv in d.get("levels", [])]
+    return [
+        (SigmaLevel(lv["name"], lv["sigma_r"], lv["sigma_phi"]), RhoSurface.from_dict(lv["surface"]))
+        for lv in d.get("levels", [])
+    ]
 
 
 def read_metamodel_file(path) -> dict:
@@ -338,74 +436,3 @@ def load_surface(path, sigma_r: float, sigma_phi: float) -> RhoSurface:
         if _same_sigma(level, sigma_r, sigma_phi):
             return surface
     return MetaModel.from_dict(d).surface(sigma_r, sigma_phi)
-
-
-def build_metamodel(part, config: BuildConfig = BuildConfig(), seed: int = 0, workers: int = 1,
-                    use_ray: bool = False, progress: bool = False, label_fn_factory=None) -> MetaModel:
-    """Learn a GSB for every (S_g, S_c) on the grid and the surfaces for config.levels.
-
-    S_c is processed in ascending order for each S_g so that, where success is monotone in S_c
-    (config.use_sc_monotonicity, by default the part's closing_monotone), poses deep in the
-    previous (lower S_c) success region are labelled success for free.
-    label_fn_factory(s_g, s_c, seed) -> label_fn replaces the simulation (tests)."""
-    part = get_part(part)
-    sc_monotone = part.closing_monotone if config.use_sc_monotonicity is None else config.use_sc_monotonicity
-    sg_grid = sorted(float(s) for s in config.sg_grid)
-    sc_grid = sorted(float(s) for s in config.sc_grid)
-    boundaries = {}
-    # The learner's stopping rule watches rho at the levels being built.
-    active = replace(config.active, query_sigmas=tuple(
-        tuple(float(v) for v in config.domain.to_normalized([lv.sigma_r, lv.sigma_r,
-                                                             lv.sigma_phi]))
-        for lv in config.levels))
-    with SimRunner(part, config.sim, workers, use_ray, progress=False) as runner:
-        for i, s_g in enumerate(sg_grid):
-            prev = None
-            for j, s_c in enumerate(sc_grid):
-                pair_seed = int(np.random.SeedSequence([seed, i, j]).generate_state(1)[0])
-                if label_fn_factory is not None:
-                    label_fn = label_fn_factory(s_g, s_c, pair_seed)
-                else:
-                    label_fn = _sim_label_fn(runner, config.domain, s_g, s_c, pair_seed)
-                known = None
-                if sc_monotone and prev is not None:
-                    known = known_from_lower_sc(prev.model, config.active.known_margin)
-                res = learn_boundary(label_fn, active, seed=pair_seed, known_fn=known)
-                bm = BoundaryModel(s_g, s_c, res.X, res.y, res.simulated, res.svm_c,
-                                   res.svm_gamma, history=res.history,
-                                   converged=res.converged,
-                                   calib_folds=config.active.calib_folds, calib_seed=pair_seed,
-                                   svm_metric=res.svm_metric,
-                                   local_kappa=config.active.local_kappa,
-                                   local_floor=config.active.local_floor,
-                                   rho_model=config.rho_model)
-                boundaries[(i, j)] = bm
-                prev = bm
-                if progress:
-                    log.info(f"{part.name}: S_g={s_g:.2f} S_c={s_c:.2f} {bm.n_simulations} sims, "
-                             f"{res.n_free} free, D_FT={bm.d_ft:.3f}, converged={res.converged}")
-    mm = MetaModel(part.name, sg_grid, sc_grid, boundaries, [], {}, {}, config.domain,
-                   config.n_queries, config.surface_degree, conservative_z=config.conservative_z,
-                   monotone_sc=sc_monotone,
-                   info={"seed": seed, "sim": asdict(config.sim), "active": asdict(config.active),
-                         "use_sc_monotonicity": sc_monotone, "rho_model": config.rho_model,
-                         "lapse_ceiling": config.lapse_ceiling})
-    if RhoModel.parse(config.rho_model, "rho_model") is RhoModel.gp and config.lapse_ceiling:
-        mm.lapse = lapse_rate((bm.gp, bm.simulated) for bm in boundaries.values())
-    for lv in config.levels:
-        mm.rho_grids[lv.name] = mm.probability_grid(lv.sigma_r, lv.sigma_phi)
-        mm.surfaces[lv.name] = fit_rho_surface(sg_grid, sc_grid, mm.rho_grids[lv.name],
-                                               config.surface_degree, sc_monotone)
-        mm.levels.append(lv)
-    return mm
-
-
-def _sim_label_fn(runner: SimRunner, domain: PoseDomain, s_g: float, s_c: float, seed: int):
-    count = [0]
-
-    def label(U):
-        seeds = sample_seeds(seed, count[0], len(U))
-        count[0] += len(U)
-        return runner.run(domain.to_offsets(U), s_g, s_c, seeds)
-
-    return label

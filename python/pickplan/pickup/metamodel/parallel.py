@@ -4,6 +4,7 @@ Each sample carries its own seed, so a batch gives the same labels whatever the 
 workers or the chunking. Each simulation opens and closes its own PyBullet DIRECT client,
 which is what makes worker processes safe.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,8 +17,7 @@ from pickplan.pickup.metamodel.sim import SimConfig, check_speeds, simulate_gras
 def sample_seeds(seed: int, start: int, n: int) -> np.ndarray:
     """Per-sample seeds for samples start..start+n-1 of a stream identified by `seed`."""
     return np.array(
-        [np.random.SeedSequence([int(seed), start + i]).generate_state(1)[0] for i in range(n)],
-        dtype=np.uint64,
+        [np.random.SeedSequence([int(seed), start + i]).generate_state(1)[0] for i in range(n)], dtype=np.uint64
     )
 
 
@@ -35,8 +35,15 @@ class SimRunner:
     workers <= 1 runs in-process; use_ray=True sends chunks to a local Ray (ray is imported
     only then, and must be installed)."""
 
-    def __init__(self, part, config: SimConfig = SimConfig(), workers: int = 1,
-                 use_ray: bool = False, progress: bool = False, chunk_size: int = 4):
+    def __init__(
+        self,
+        part,
+        config: SimConfig = SimConfig(),
+        workers: int = 1,
+        use_ray: bool = False,
+        progress: bool = False,
+        chunk_size: int = 4,
+    ):
         self.part = get_part(part)
         self.config = config
         self.workers = max(int(workers), 1)
@@ -69,17 +76,32 @@ class SimRunner:
         if n == 0:
             return np.zeros(0, dtype=bool)
         jobs = [(self.part, off, s_g, s_c, self.config, sd) for off, sd in zip(offsets, seeds)]
-        results = [r for _, r in self._runner.map(
-            _simulate_one, jobs, chunksize=self.chunk_size, progress=self.progress,
-            label=desc or f"{self.part.name} S_g={s_g:.2f} S_c={s_c:.2f}")]
+        results = [
+            r
+            for _, r in self._runner.map(
+                _simulate_one,
+                jobs,
+                chunksize=self.chunk_size,
+                progress=self.progress,
+                label=desc or f"{self.part.name} S_g={s_g:.2f} S_c={s_c:.2f}",
+            )
+        ]
         self.wall_times.extend(wall for _, wall in results)
         self.n_simulations += n
         return np.array([ok for ok, _ in results], dtype=bool)
 
 
-def run_batch(part, offsets, s_g: float, s_c: float, config: SimConfig = SimConfig(),
-              seed: int = 0, workers: int = 1, use_ray: bool = False,
-              progress: bool = False) -> np.ndarray:
+def run_batch(
+    part,
+    offsets,
+    s_g: float,
+    s_c: float,
+    config: SimConfig = SimConfig(),
+    seed: int = 0,
+    workers: int = 1,
+    use_ray: bool = False,
+    progress: bool = False,
+) -> np.ndarray:
     """One-shot batch: simulate every offset (n, 3); sample i uses sample_seeds(seed, 0, n)[i]."""
     offsets = np.asarray(offsets, dtype=float)
     if offsets.ndim != 2 or offsets.shape[1] != 3:

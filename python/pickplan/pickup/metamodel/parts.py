@@ -7,6 +7,7 @@ together with the approach direction n_g (Sec. III-A of the paper). In simulatio
 gripper always moves along its own +x axis (parallel to the finger pads), so n_g is fixed in
 the gripper frame and the strategy reduces to the TCP pose in P.
 """
+
 from __future__ import annotations
 
 import math
@@ -81,8 +82,7 @@ def _footprint_radius(shapes, center_xy) -> float:
     return r
 
 
-def _make_part(name, shapes, mass, height, tcp_xy, tcp_yaw, width, description,
-               closing_monotone=True) -> Part:
+def _make_part(name, shapes, mass, height, tcp_xy, tcp_yaw, width, description, closing_monotone=True) -> Part:
     strategy = GraspStrategy((tcp_xy[0], tcp_xy[1], grasp_height(height)), tcp_yaw, width)
     return Part(
         name=name,
@@ -160,6 +160,4 @@ def get_part(name_or_part) -> Part:
     try:
         return PARTS[name_or_part]()
     except KeyError:
-        raise ValueError(
-            f"unknown part {name_or_part!r}; expected one of {sorted(PARTS)}"
-        ) from None
+        raise ValueError(f"unknown part {name_or_part!r}; expected one of {sorted(PARTS)}") from None

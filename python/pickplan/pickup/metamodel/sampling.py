@@ -3,6 +3,7 @@ sample, exploitation between opposite-label support vectors, and the rho-aware s
 labels where the query Gaussians' success probabilities are still uncertain (committee variance,
 the boundary band inside each Gaussian, the GP posterior).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -36,8 +37,9 @@ def sample_focus(rng, n, focus_scale, focus_fraction) -> np.ndarray:
     return np.vstack([g, u])
 
 
-def explore(rng, X, k, n_candidates, focus_scale=0.25, focus_fraction=0.0, query_sigmas=(),
-            query_fraction=0.0) -> np.ndarray:
+def explore(
+    rng, X, k, n_candidates, focus_scale=0.25, focus_fraction=0.0, query_sigmas=(), query_fraction=0.0
+) -> np.ndarray:
     """Random samples biased toward regions with few samples (farthest-point selection
     among random candidates drawn from the focus mixture). A share query_fraction of them
     comes from the query Gaussians N(0, query_sigma), farthest-point in that Gaussian's own
@@ -57,8 +59,7 @@ def explore(rng, X, k, n_candidates, focus_scale=0.25, focus_fraction=0.0, query
     return np.vstack(picked)
 
 
-def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02,
-            query_sigmas=()) -> np.ndarray:
+def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02, query_sigmas=()) -> np.ndarray:
     """Midpoints of pairs of support vectors with opposite labels (each SV with its nearest
     opposite SV). Shortest pairs first, since they straddle the boundary most tightly; with
     query_sigmas, the length is divided by (0.05 + the largest unnormalized query-Gaussian
@@ -79,8 +80,7 @@ def exploit(rng, model, X, y, k, n_candidates, min_spacing: float = 0.02,
     mids = np.array([(P[i] + N[j]) / 2 for i, j in pairs])
     key = np.sqrt(np.array([d2[ij] for ij in pairs]))
     if len(query_sigmas):
-        dens = np.max([np.exp(-0.5 * ((mids / np.asarray(sg)) ** 2).sum(1))
-                       for sg in query_sigmas], axis=0)
+        dens = np.max([np.exp(-0.5 * ((mids / np.asarray(sg)) ** 2).sum(1)) for sg in query_sigmas], axis=0)
         key = key / (0.05 + dens)
     order = np.argsort(key, kind="stable")
     pairs, mids = [pairs[o] for o in order], mids[order]
@@ -104,7 +104,7 @@ def _allocate(k: int, weights) -> np.ndarray:
     settled level still gets a share), remainders to the largest weights."""
     w = np.asarray(weights, float) + 1e-3
     alloc = np.floor(k * w / w.sum()).astype(int)
-    for i in np.argsort(-w, kind="stable")[:k - alloc.sum()]:
+    for i in np.argsort(-w, kind="stable")[: k - alloc.sum()]:
         alloc[i] += 1
     return alloc
 
@@ -129,8 +129,7 @@ def _candidates(rng, sg, n) -> np.ndarray:
     return np.clip(rng.standard_normal((n, 3)) * sg, -1.0, 1.0)
 
 
-def exploit_rho(rng, cal, query_sigmas, se, X, k, n_candidates,
-                min_spacing: float = 0.5) -> np.ndarray:
+def exploit_rho(rng, cal, query_sigmas, se, X, k, n_candidates, min_spacing: float = 0.5) -> np.ndarray:
     """Query-by-committee for rho: candidates from each query Gaussian N(0, sigma), scored by
     the spread (standard deviation) of P(success) over the k fold classifiers of the
     calibration, i.e. by their share of rho's jackknife variance; the levels get samples in
@@ -146,13 +145,11 @@ def exploit_rho(rng, cal, query_sigmas, se, X, k, n_candidates,
         sg = np.asarray(sg, float)
         C = _candidates(rng, sg, max(n_candidates // 2, k_l))
         score = np.std([cal.probability(C, m, sg) for m in cal.fold_models], axis=0)
-        picked += _pick_spaced(C, score, sg, np.vstack([X, *picked]), k_l, min_spacing,
-                               keep_zero=True)
+        picked += _pick_spaced(C, score, sg, np.vstack([X, *picked]), k_l, min_spacing, keep_zero=True)
     return np.vstack(picked) if picked else np.zeros((0, 3))
 
 
-def exploit_band(rng, cal, query_sigmas, X, k, n_candidates,
-                 min_spacing: float = 0.5) -> np.ndarray:
+def exploit_band(rng, cal, query_sigmas, X, k, n_candidates, min_spacing: float = 0.5) -> np.ndarray:
     """Uncertainty sampling weighted by each query Gaussian: candidates from N(0, sigma),
     scored by p (1 - p) of the calibrated success probability, so the picks lie on the
     stretch of the GSB that carries that Gaussian's mass. A small sigma's Gaussian covers a
@@ -168,15 +165,13 @@ def exploit_band(rng, cal, query_sigmas, X, k, n_candidates,
         p = cal.probability(C, sigma=sg)
         scores.append(p * (1.0 - p))
     picked = []
-    for sg, C, score, k_l in zip(sigmas, cands, scores,
-                                 _allocate(k, [s.mean() for s in scores])):
+    for sg, C, score, k_l in zip(sigmas, cands, scores, _allocate(k, [s.mean() for s in scores])):
         if k_l > 0:
             picked += _pick_spaced(C, score, sg, np.vstack([X, *picked]), k_l, min_spacing)
     return np.vstack(picked) if picked else np.zeros((0, 3))
 
 
-def exploit_gp(rng, gp, query_sigmas, se, X, k, n_candidates,
-               min_spacing: float = 0.5) -> np.ndarray:
+def exploit_gp(rng, gp, query_sigmas, se, X, k, n_candidates, min_spacing: float = 0.5) -> np.ndarray:
     """Samples where rho is undecided on the GP (gpc.GPSuccessModel): candidates from each
     query Gaussian N(0, sigma), scored by the posterior variance of P(success), so they land
     on the stretch of the boundary that carries the Gaussian's mass and is least pinned
@@ -190,6 +185,5 @@ def exploit_gp(rng, gp, query_sigmas, se, X, k, n_candidates,
             continue
         sg = np.asarray(sg, float)
         C = _candidates(rng, sg, max(n_candidates // 2, k_l))
-        picked += _pick_spaced(C, gp.probability_variance(C), sg, np.vstack([X, *picked]),
-                               k_l, min_spacing)
+        picked += _pick_spaced(C, gp.probability_variance(C), sg, np.vstack([X, *picked]), k_l, min_spacing)
     return np.vstack(picked) if picked else np.zeros((0, 3))

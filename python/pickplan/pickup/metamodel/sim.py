@@ -14,6 +14,7 @@ fingers did not close on nothing), it has been lifted off the table with the gri
 distance of a fixed point on the part (its centre of mass) from the TCP has changed by less than
 `drift_threshold` since `settle_time` after t'.
 """
+
 from __future__ import annotations
 
 import math
@@ -106,12 +107,18 @@ def _create_mesh_part(cid: int, part: Part, xy, yaw, friction: float) -> int:
     own centre of mass (Shape.pos)."""
     shape = part.shapes[0]
     com = np.asarray(shape.pos, float)
-    col = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=[list(np.asarray(v) - com) for v in shape.size],
-                                        physicsClientId=cid)
+    col = pybullet.createCollisionShape(
+        pybullet.GEOM_MESH, vertices=[list(np.asarray(v) - com) for v in shape.size], physicsClientId=cid
+    )
     c, sn = math.cos(yaw), math.sin(yaw)
     world_com = [xy[0] + c * com[0] - sn * com[1], xy[1] + sn * com[0] + c * com[1], com[2]]
-    body = pybullet.createMultiBody(baseMass=part.mass, baseCollisionShapeIndex=col, basePosition=world_com,
-                                    baseOrientation=_yaw_quat(yaw), physicsClientId=cid)
+    body = pybullet.createMultiBody(
+        baseMass=part.mass,
+        baseCollisionShapeIndex=col,
+        basePosition=world_com,
+        baseOrientation=_yaw_quat(yaw),
+        physicsClientId=cid,
+    )
     pybullet.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=cid)
     return body
 
@@ -160,8 +167,9 @@ def _create_part(cid: int, part: Part, xy, yaw, friction: float) -> int:
     return body
 
 
-def simulate_grasp(part, offset, s_g: float, s_c: float, config: SimConfig = SimConfig(),
-                   seed: int = 0) -> GraspOutcome:
+def simulate_grasp(
+    part, offset, s_g: float, s_c: float, config: SimConfig = SimConfig(), seed: int = 0
+) -> GraspOutcome:
     """Simulate one pick-up on the move. offset = (x [m], y [m], phi [rad]) of the part from
     its nominal pose in frame B. Deterministic for a given (inputs, config, seed)."""
     part = get_part(part)
@@ -194,33 +202,40 @@ def simulate_grasp(part, offset, s_g: float, s_c: float, config: SimConfig = Sim
     try:
         pybullet.setGravity(0, 0, -9.81, physicsClientId=cid)
         pybullet.setPhysicsEngineParameter(
-            fixedTimeStep=dt, numSolverIterations=config.solver_iterations,
-            deterministicOverlappingPairs=1, physicsClientId=cid)
+            fixedTimeStep=dt,
+            numSolverIterations=config.solver_iterations,
+            deterministicOverlappingPairs=1,
+            physicsClientId=cid,
+        )
         plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=cid)
         table = pybullet.createMultiBody(0, plane, physicsClientId=cid)
-        pybullet.changeDynamics(table, -1, lateralFriction=config.table_friction * jit[0],
-                                physicsClientId=cid)
+        pybullet.changeDynamics(table, -1, lateralFriction=config.table_friction * jit[0], physicsClientId=cid)
         body = _create_part(cid, part, xy, yaw, part.lateral_friction * jit[1])
 
         urdf = config.urdf_path or default_urdf_path()
         if not os.path.exists(urdf):
             raise FileNotFoundError(f"gripper URDF not found: {urdf}")
         start = [s_g * t0, 0.0, z_tcp]
-        grip = pybullet.loadURDF(urdf, start, [0, 0, 0, 1], useFixedBase=False,
-                                 flags=pybullet.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
+        grip = pybullet.loadURDF(
+            urdf,
+            start,
+            [0, 0, 0, 1],
+            useFixedBase=False,
+            flags=pybullet.URDF_USE_INERTIA_FROM_FILE,
+            physicsClientId=cid,
+        )
         for link in (_LEFT, _RIGHT):
-            pybullet.changeDynamics(grip, link, lateralFriction=config.pad_friction * jit[2],
-                                    physicsClientId=cid)
+            pybullet.changeDynamics(grip, link, lateralFriction=config.pad_friction * jit[2], physicsClientId=cid)
         pybullet.resetBaseVelocity(grip, [s_g, 0, 0], [0, 0, 0], physicsClientId=cid)
-        drive = pybullet.createConstraint(grip, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0],
-                                          [0, 0, 0], start, physicsClientId=cid)
+        drive = pybullet.createConstraint(
+            grip, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0], [0, 0, 0], start, physicsClientId=cid
+        )
         # Couple the fingers (the 2F-85 linkage closes them symmetrically).
-        gear = pybullet.createConstraint(grip, _LEFT, grip, _RIGHT, pybullet.JOINT_GEAR,
-                                         [0, 1, 0], [0, 0, 0], [0, 0, 0], physicsClientId=cid)
-        pybullet.changeConstraint(gear, gearRatio=-1, maxForce=500, erp=0.8,
-                                  physicsClientId=cid)
-        return _run(cid, grip, body, drive, part, s_g, s_c, t0, t_close, n_steps, z_tcp,
-                    config, t_wall)
+        gear = pybullet.createConstraint(
+            grip, _LEFT, grip, _RIGHT, pybullet.JOINT_GEAR, [0, 1, 0], [0, 0, 0], [0, 0, 0], physicsClientId=cid
+        )
+        pybullet.changeConstraint(gear, gearRatio=-1, maxForce=500, erp=0.8, physicsClientId=cid)
+        return _run(cid, grip, body, drive, part, s_g, s_c, t0, t_close, n_steps, z_tcp, config, t_wall)
     finally:
         pybullet.disconnect(physicsClientId=cid)
 
@@ -244,22 +259,31 @@ def _run(cid, grip, body, drive, part, s_g, s_c, t0, t_close, n_steps, z_tcp, co
         t = t0 + i * dt
         if not closing and t >= -t_close:
             closing = True
-            pybullet.setJointMotorControlArray(grip, [_LEFT, _RIGHT], vmode,
-                                               targetVelocities=[s_c, s_c],
-                                               forces=[config.finger_force] * 2,
-                                               physicsClientId=cid)
+            pybullet.setJointMotorControlArray(
+                grip,
+                [_LEFT, _RIGHT],
+                vmode,
+                targetVelocities=[s_c, s_c],
+                forces=[config.finger_force] * 2,
+                physicsClientId=cid,
+            )
         elif not closing:
-            pybullet.setJointMotorControlArray(grip, [_LEFT, _RIGHT], vmode,
-                                               targetVelocities=[0.0, 0.0],
-                                               forces=[config.finger_force] * 2,
-                                               physicsClientId=cid)
+            pybullet.setJointMotorControlArray(
+                grip,
+                [_LEFT, _RIGHT],
+                vmode,
+                targetVelocities=[0.0, 0.0],
+                forces=[config.finger_force] * 2,
+                physicsClientId=cid,
+            )
         tau = max(0.0, t)
         if tau < config.lift_ramp:
             lift = config.lift_speed * tau * tau / (2 * config.lift_ramp)
         else:
             lift = config.lift_speed * (tau - config.lift_ramp / 2)
-        pybullet.changeConstraint(drive, jointChildPivot=[s_g * t, 0.0, z_tcp + lift],
-                                  maxForce=config.gripper_max_force, physicsClientId=cid)
+        pybullet.changeConstraint(
+            drive, jointChildPivot=[s_g * t, 0.0, z_tcp + lift], maxForce=config.gripper_max_force, physicsClientId=cid
+        )
         pybullet.stepSimulation(physicsClientId=cid)
         if ref is None and t >= config.settle_time:
             if _finger_gap(cid, grip) < 0.002:

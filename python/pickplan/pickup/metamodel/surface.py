@@ -9,6 +9,7 @@ are fitted by least squares under linear constraints that make the surface
   * inside [0, 1] everywhere (Bernstein coefficients in [0, 1] give a convex combination).
 The gradient is analytic, for the trajectory NLP.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -23,7 +24,7 @@ def _bernstein(t: np.ndarray, n: int) -> np.ndarray:
     t = np.asarray(t, dtype=float)[:, None]
     k = np.arange(n + 1)[None, :]
     c = np.array([comb(n, i) for i in range(n + 1)], dtype=float)[None, :]
-    return c * t ** k * (1.0 - t) ** (n - k)
+    return c * t**k * (1.0 - t) ** (n - k)
 
 
 def _bernstein_deriv(t: np.ndarray, n: int) -> np.ndarray:
@@ -52,8 +53,7 @@ class RhoSurface:
             if not np.all(np.isfinite(s)):
                 raise ValueError(f"{name} must be finite")
             if np.any(s < lo - 1e-12) or np.any(s > hi + 1e-12):
-                raise ValueError(f"{name}={s.ravel().tolist()} outside the modelled range "
-                                 f"[{lo}, {hi}] m/s")
+                raise ValueError(f"{name}={s.ravel().tolist()} outside the modelled range [{lo}, {hi}] m/s")
         u = (s_g - self.sg_range[0]) / (self.sg_range[1] - self.sg_range[0])
         v = (s_c - self.sc_range[0]) / (self.sc_range[1] - self.sc_range[0])
         return np.clip(u, 0, 1), np.clip(v, 0, 1)
@@ -79,8 +79,7 @@ class RhoSurface:
         return g
 
     def to_dict(self) -> dict:
-        return {"coeffs": self.coeffs.tolist(), "sg_range": list(self.sg_range),
-                "sc_range": list(self.sc_range)}
+        return {"coeffs": self.coeffs.tolist(), "sg_range": list(self.sg_range), "sc_range": list(self.sc_range)}
 
     @classmethod
     def from_dict(cls, d: dict) -> "RhoSurface":
@@ -104,8 +103,7 @@ def fit_rho_surface(sg_grid, sc_grid, rho_grid, degree=(3, 2), monotone_sc: bool
     m = min(degree[0], len(sg) - 1)
     n = min(degree[1], len(sc) - 1)
     sg_range, sc_range = (sg.min(), sg.max()), (sc.min(), sc.max())
-    U, V = np.meshgrid((sg - sg_range[0]) / np.ptp(sg), (sc - sc_range[0]) / np.ptp(sc),
-                       indexing="ij")
+    U, V = np.meshgrid((sg - sg_range[0]) / np.ptp(sg), (sc - sc_range[0]) / np.ptp(sc), indexing="ij")
     bu, bv = _bernstein(U.ravel(), m), _bernstein(V.ravel(), n)
     A = np.einsum("ki,kj->kij", bu, bv).reshape(len(U.ravel()), -1)  # point x coefficient
     b = r.ravel()
@@ -126,9 +124,15 @@ def fit_rho_surface(sg_grid, sc_grid, rho_grid, degree=(3, 2), monotone_sc: bool
     cons = [{"type": "ineq", "fun": lambda c: b - A @ c, "jac": lambda c: -A}]
     if len(G):
         cons.append({"type": "ineq", "fun": lambda c: G @ c, "jac": lambda c: G})
-    res = minimize(lambda c: 0.5 * np.sum((A @ c - b) ** 2), np.zeros(nc),
-                   jac=lambda c: A.T @ (A @ c - b), bounds=[(0.0, 1.0)] * nc,
-                   constraints=cons, method="SLSQP", options={"maxiter": 500, "ftol": 1e-12})
+    res = minimize(
+        lambda c: 0.5 * np.sum((A @ c - b) ** 2),
+        np.zeros(nc),
+        jac=lambda c: A.T @ (A @ c - b),
+        bounds=[(0.0, 1.0)] * nc,
+        constraints=cons,
+        method="SLSQP",
+        options={"maxiter": 500, "ftol": 1e-12},
+    )
     c = np.clip(res.x, 0.0, 1.0)
     # SLSQP meets constraints to ~1e-9; enforce the lower bound exactly by a final shift.
     excess = max(0.0, float(np.max(A @ c - b)))

@@ -4,6 +4,7 @@ Shaped like the simulated GSBs: an ellipsoid in the normalized pose space, long 
 approach axis x and thin in y and phi, that shrinks as S_g grows and widens as S_c grows.
 Used to test and benchmark the active learner and the meta-model against exact truth.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -29,8 +30,9 @@ class EllipsoidOracle:
         U = np.asarray(U, dtype=float).reshape(-1, 3)
         return (((U / self.half_axes) ** 2).sum(axis=1)) < 1.0
 
-    def probability(self, sigma_r: float, sigma_phi: float, domain: PoseDomain = PoseDomain(),
-                    n: int = 200000, seed: int = 12345) -> float:
+    def probability(
+        self, sigma_r: float, sigma_phi: float, domain: PoseDomain = PoseDomain(), n: int = 200000, seed: int = 12345
+    ) -> float:
         """Monte-Carlo truth of P(success) for poses ~ N(0, sigma) (independent samples)."""
         return _gaussian_mean(self, sigma_r, sigma_phi, domain, n, seed)
 
@@ -71,8 +73,9 @@ class NoisyEllipsoidOracle:
         p = self.success_probability(U)
         return self._rng.uniform(size=len(p)) < p
 
-    def probability(self, sigma_r: float, sigma_phi: float, domain: PoseDomain = PoseDomain(),
-                    n: int = 200000, seed: int = 12345) -> float:
+    def probability(
+        self, sigma_r: float, sigma_phi: float, domain: PoseDomain = PoseDomain(), n: int = 200000, seed: int = 12345
+    ) -> float:
         """Expected success rate for poses ~ N(0, sigma) (Monte-Carlo of the exact p(u);
         standard error < 0.001 at the default n)."""
         return _gaussian_mean(self.success_probability, sigma_r, sigma_phi, domain, n, seed)

@@ -1,6 +1,7 @@
 """Validation of meta-model files at the door: the parsed JSON is checked field by field (types,
 finite values, ranges) before any model is built from it, so a NaN ``sigma_r`` or a string where a
 number belongs is an ``InputError`` naming the file and field, never a run computed on it."""
+
 from __future__ import annotations
 
 import math

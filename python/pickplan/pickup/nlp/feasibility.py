@@ -19,6 +19,7 @@ The bound is T >= min over grasp positions p (at T1) and q (at T2) of |p - start
 max(W, |p - q| / v) + max(0, |q - goal| - tol) / v, and >= t_min: straight lines, the obstacles only
 through the grasp set (a lower bound; detours around obstacles make routes longer, not shorter).
 """
+
 from __future__ import annotations
 
 import math
@@ -33,25 +34,25 @@ from pickplan.core.settings import Option
 class Reason(Option):
     """Why a plan was or was not found (``PickupPlan.reason``)."""
 
-    none = "none"                                  # solved
-    out_of_reach = "out_of_reach"                  # no free base position in the grasping area reaches the part
-    gamma_unattainable = "gamma_unattainable"      # the meta-model's rho stays below gamma at every speed
-    horizon_too_short = "horizon_too_short"        # the lower bound on T exceeds the horizon t_max
-    solver_failed = "solver_failed"                # feasible as far as the bound tells; no solver run succeeded
-    time_limit = "time_limit"                      # the budget ran out before any feasible plan
+    none = "none"  # solved
+    out_of_reach = "out_of_reach"  # no free base position in the grasping area reaches the part
+    gamma_unattainable = "gamma_unattainable"  # the meta-model's rho stays below gamma at every speed
+    horizon_too_short = "horizon_too_short"  # the lower bound on T exceeds the horizon t_max
+    solver_failed = "solver_failed"  # feasible as far as the bound tells; no solver run succeeded
+    time_limit = "time_limit"  # the budget ran out before any feasible plan
 
 
-RING_RADII = 7          # grasp-set grid: radii across the grasping annulus ...
-RING_ANGLES = 144       # ... times angles around the part (2.5 deg)
-SC_GRID = 64            # S_c grid of the grasp-window bound
+RING_RADII = 7  # grasp-set grid: radii across the grasping annulus ...
+RING_ANGLES = 144  # ... times angles around the part (2.5 deg)
+SC_GRID = 64  # S_c grid of the grasp-window bound
 
 
 @dataclass(frozen=True)
 class BaseGeometry:
     """The planar facts of a problem the route seeds and the bound use (metres, seconds, radians)."""
 
-    start: np.ndarray          # base x, y, yaw at t = 0
-    goal: np.ndarray           # base x, y, yaw at T
+    start: np.ndarray  # base x, y, yaw at t = 0
+    goal: np.ndarray  # base x, y, yaw at T
     goal_tol: float
     v_max: float
     w_max: float
@@ -59,9 +60,9 @@ class BaseGeometry:
     grasp_xy: np.ndarray
     r_min: float
     r_max: float
-    disks: np.ndarray          # (n, 3): x, y, r of the base positions each obstacle blocks (clearance 0)
-    reach_xy: float            # the base within this of grasp_xy (NaN: the grasp height is out of reach)
-    window: float              # least grasp window T2 - T1 (s; inf: gamma unattainable)
+    disks: np.ndarray  # (n, 3): x, y, r of the base positions each obstacle blocks (clearance 0)
+    reach_xy: float  # the base within this of grasp_xy (NaN: the grasp height is out of reach)
+    window: float  # least grasp window T2 - T1 (s; inf: gamma unattainable)
     t_min: float
     t_max: float
 
@@ -154,13 +155,22 @@ def base_geometry(robot, problem, settings) -> BaseGeometry:
     grasp = np.asarray(problem.grasp_pose)[:3, 3]
     dz = grasp[2] - j0[2]
     reach_xy = math.sqrt(R * R - dz * dz) + math.hypot(j0[0], j0[1]) if abs(dz) <= R else math.nan
-    return BaseGeometry(start=np.asarray(problem.start, float), goal=np.asarray(problem.goal, float),
-                        goal_tol=float(problem.goal_tol_pos), v_max=float(problem.base_speed_limit),
-                        w_max=float(problem.base_yaw_rate_limit), part_xy=np.asarray(problem.part_xy, float),
-                        grasp_xy=grasp[:2].copy(), r_min=float(problem.grasp_area_rmin),
-                        r_max=float(problem.grasp_area_rmax), disks=np.asarray(disks, float).reshape(-1, 3),
-                        reach_xy=reach_xy, window=grasp_window(problem), t_min=float(settings.t_min),
-                        t_max=float(settings.t_max))
+    return BaseGeometry(
+        start=np.asarray(problem.start, float),
+        goal=np.asarray(problem.goal, float),
+        goal_tol=float(problem.goal_tol_pos),
+        v_max=float(problem.base_speed_limit),
+        w_max=float(problem.base_yaw_rate_limit),
+        part_xy=np.asarray(problem.part_xy, float),
+        grasp_xy=grasp[:2].copy(),
+        r_min=float(problem.grasp_area_rmin),
+        r_max=float(problem.grasp_area_rmax),
+        disks=np.asarray(disks, float).reshape(-1, 3),
+        reach_xy=reach_xy,
+        window=grasp_window(problem),
+        t_min=float(settings.t_min),
+        t_max=float(settings.t_max),
+    )
 
 
 def lower_bound(geo: BaseGeometry) -> float:
@@ -198,17 +208,27 @@ def certify(robot, problem, settings) -> Certificate:
     """The reasons that rule a problem out, checked in order: gamma, reach, horizon."""
     geo = base_geometry(robot, problem, settings)
     if not math.isfinite(geo.window):
-        best = max(problem.rho.value(s, c) for s in np.linspace(*problem.rho.sg_range, 32)
-                   for c in np.linspace(*problem.rho.sc_range, 32))
-        return Certificate(Reason.gamma_unattainable, math.inf,
-                           f"the meta-model's rho is at most {best:.3f} < gamma {problem.gamma} at this uncertainty")
+        best = max(
+            problem.rho.value(s, c)
+            for s in np.linspace(*problem.rho.sg_range, 32)
+            for c in np.linspace(*problem.rho.sc_range, 32)
+        )
+        return Certificate(
+            Reason.gamma_unattainable,
+            math.inf,
+            f"the meta-model's rho is at most {best:.3f} < gamma {problem.gamma} at this uncertainty",
+        )
     A = geo.grasp_set()
     if not len(A):
-        why = ("the grasp point is out of the arm's vertical reach" if not math.isfinite(geo.reach_xy) else
-               "no base position in the grasping area both clears the obstacles and brings the arm within reach")
+        why = (
+            "the grasp point is out of the arm's vertical reach"
+            if not math.isfinite(geo.reach_xy)
+            else "no base position in the grasping area both clears the obstacles and brings the arm within reach"
+        )
         return Certificate(Reason.out_of_reach, math.inf, why)
     lb = lower_bound(geo)
     if lb > geo.t_max:
-        return Certificate(Reason.horizon_too_short, lb,
-                           f"T >= {lb:.2f} s by the geometry, above the horizon t_max {geo.t_max:.2f} s")
+        return Certificate(
+            Reason.horizon_too_short, lb, f"T >= {lb:.2f} s by the geometry, above the horizon t_max {geo.t_max:.2f} s"
+        )
     return Certificate(Reason.none, lb)

@@ -10,6 +10,7 @@ runs independent solves in separate processes.
 >>> robot.dof
 9
 """
+
 from __future__ import annotations
 
 import json
@@ -29,7 +30,6 @@ from pickplan.pickup.nlp.feasibility import Reason
 from pickplan.pickup.metamodel.model import FORMAT as METAMODEL_FORMAT, load_surface  # noqa: F401 - the format, re-exported
 
 
-
 def mobile_ur5() -> Robot:
     """The 9-DOF mobile manipulator of assets/mobile_ur5.urdf (planar base + UR5 + gripper)."""
     return Robot.from_urdf(os.path.join(assets_dir(), "mobile_ur5.urdf"))
@@ -39,8 +39,8 @@ def mobile_ur5() -> Robot:
 class HessianMode(Option):
     """The NLP's Hessian (native ``HessianMode``; the values are Ipopt's spellings)."""
 
-    exact = "exact"                      # eval_hessian
-    limited_memory = "limited-memory"    # Ipopt's L-BFGS
+    exact = "exact"  # eval_hessian
+    limited_memory = "limited-memory"  # Ipopt's L-BFGS
 
 
 class CoefficientBasis(Option):
@@ -84,7 +84,7 @@ class SolveStatus(Option):
     bounded = "bounded"
     violation_between_samples = "violation_between_samples"
     constraint_violation = "constraint_violation"
-    time_limit = "time_limit"             # the wall-clock budget ran out (success: a feasible plan is still held)
+    time_limit = "time_limit"  # the wall-clock budget ran out (success: a feasible plan is still held)
 
 
 class Method(Option):
@@ -153,8 +153,12 @@ class PlannerSettings:
             setattr(self, name, option.parse(getattr(self, name), name))
 
     def to_native(self) -> "_core.PickupSettings":
-        return to_native(self, _core.PickupSettings, degrees=list(self.degrees),
-                         ipopt_options=[(str(k), str(v)) for k, v in self.ipopt_options])
+        return to_native(
+            self,
+            _core.PickupSettings,
+            degrees=list(self.degrees),
+            ipopt_options=[(str(k), str(v)) for k, v in self.ipopt_options],
+        )
 
 
 @dataclass(frozen=True)
@@ -186,9 +190,9 @@ class StageInfo:
     iterations: int
     objective: float
     max_violation: float
-    cpu_seconds: float = 0.0              # thread CPU time (the machine may be shared)
-    rounds: int = 1                       # Ipopt runs (active-set re-solves + 1)
-    rows: int = 0                         # constraint rows of the last run
+    cpu_seconds: float = 0.0  # thread CPU time (the machine may be shared)
+    rounds: int = 1  # Ipopt runs (active-set re-solves + 1)
+    rows: int = 0  # constraint rows of the last run
 
 
 @dataclass
@@ -207,24 +211,50 @@ class PickupPlan:
     total_seconds: float
     native: object = field(repr=False, default=None)  # _core.PickupResult
     total_cpu_seconds: float = 0.0
-    direct: Optional[StageInfo] = None    # the direct track's solve (successive only)
-    direct_chosen: bool = False           # its solution is the one returned
+    direct: Optional[StageInfo] = None  # the direct track's solve (successive only)
+    direct_chosen: bool = False  # its solution is the one returned
     arm_seed_T: list = field(default_factory=list)  # final T of each arm seed's run (nan: failed or bounded)
-    arm_seed_chosen: int = 0              # the run the stage records come from
-    lower_bound: float = math.nan         # T >= this by the geometry (routed; feasibility.lower_bound)
-    reason: Reason = Reason.none          # why there is no plan (routed; none when solved)
-    detail: str = ""                      # the reason in words (numbers included)
-    seed: str = "heuristic"               # the stage-1 seed the plan comes from (routed: a route's label)
+    arm_seed_chosen: int = 0  # the run the stage records come from
+    lower_bound: float = math.nan  # T >= this by the geometry (routed; feasibility.lower_bound)
+    reason: Reason = Reason.none  # why there is no plan (routed; none when solved)
+    detail: str = ""  # the reason in words (numbers included)
+    seed: str = "heuristic"  # the stage-1 seed the plan comes from (routed: a route's label)
 
     @classmethod
     def from_native(cls, r) -> "PickupPlan":
-        info = lambda s: StageInfo(s.stage, SolveStatus.from_native(s.status), s.ipopt_status, s.success, s.seconds, s.iterations,  # noqa: E731
-                                   s.objective, s.max_violation, s.cpu_seconds, s.rounds, s.rows)
+        info = lambda s: StageInfo(
+            s.stage,
+            SolveStatus.from_native(s.status),
+            s.ipopt_status,
+            s.success,
+            s.seconds,
+            s.iterations,  # noqa: E731
+            s.objective,
+            s.max_violation,
+            s.cpu_seconds,
+            s.rounds,
+            s.rows,
+        )
         stages = [info(s) for s in r.stages]
         direct = info(r.direct) if r.direct.status != _core.SolveStatus.not_run else None
-        return cls(SolveStatus.from_native(r.status), r.success, r.stages_completed, stages, r.T, r.T1, r.T2, r.S_g, r.S_c,
-                   r.total_seconds, r, r.total_cpu_seconds, direct, r.direct_chosen, list(r.arm_seed_T),
-                   r.arm_seed_chosen)
+        return cls(
+            SolveStatus.from_native(r.status),
+            r.success,
+            r.stages_completed,
+            stages,
+            r.T,
+            r.T1,
+            r.T2,
+            r.S_g,
+            r.S_c,
+            r.total_seconds,
+            r,
+            r.total_cpu_seconds,
+            direct,
+            r.direct_chosen,
+            list(r.arm_seed_T),
+            r.arm_seed_chosen,
+        )
 
     def sample(self, times) -> tuple:
         """(q, q', q'') at the given times (s), each of shape (len(times), 9)."""
@@ -233,16 +263,32 @@ class PickupPlan:
     def to_dict(self, n: int = 201) -> dict:
         t = np.linspace(0.0, self.T, n)
         q, qd, _ = self.sample(t)
-        return {"status": self.status, "success": self.success, "stages_completed": self.stages_completed,
-                "T": self.T, "T1": self.T1, "T2": self.T2, "S_g": self.S_g, "S_c": self.S_c,
-                "total_seconds": self.total_seconds, "total_cpu_seconds": self.total_cpu_seconds, "stages": [asdict(s) for s in self.stages],
-                "direct": asdict(self.direct) if self.direct else None, "direct_chosen": self.direct_chosen,
-                "arm_seed_T": [None if math.isnan(t) else t for t in self.arm_seed_T],
-                "arm_seed_chosen": self.arm_seed_chosen,
-                "lower_bound": None if math.isnan(self.lower_bound) or math.isinf(self.lower_bound) else self.lower_bound,
-                "reason": self.reason, "detail": self.detail, "seed": self.seed,
-                "degrees": list(self.native.degrees), "x": np.asarray(self.native.x).tolist(),
-                "t": t.tolist(), "q": q.tolist(), "qd": qd.tolist()}
+        return {
+            "status": self.status,
+            "success": self.success,
+            "stages_completed": self.stages_completed,
+            "T": self.T,
+            "T1": self.T1,
+            "T2": self.T2,
+            "S_g": self.S_g,
+            "S_c": self.S_c,
+            "total_seconds": self.total_seconds,
+            "total_cpu_seconds": self.total_cpu_seconds,
+            "stages": [asdict(s) for s in self.stages],
+            "direct": asdict(self.direct) if self.direct else None,
+            "direct_chosen": self.direct_chosen,
+            "arm_seed_T": [None if math.isnan(t) else t for t in self.arm_seed_T],
+            "arm_seed_chosen": self.arm_seed_chosen,
+            "lower_bound": None if math.isnan(self.lower_bound) or math.isinf(self.lower_bound) else self.lower_bound,
+            "reason": self.reason,
+            "detail": self.detail,
+            "seed": self.seed,
+            "degrees": list(self.native.degrees),
+            "x": np.asarray(self.native.x).tolist(),
+            "t": t.tolist(),
+            "q": q.tolist(),
+            "qd": qd.tolist(),
+        }
 
 
 # ---- rho ---------------------------------------------------------------------------------------
@@ -280,8 +326,13 @@ def _check(problem, robot: Robot):
     problem.validate(robot.native)
 
 
-def plan(robot: Robot, problem, settings: PlannerSettings = PlannerSettings(),
-         method: Union[Method, str] = Method.successive, x0=None) -> PickupPlan:
+def plan(
+    robot: Robot,
+    problem,
+    settings: PlannerSettings = PlannerSettings(),
+    method: Union[Method, str] = Method.successive,
+    x0=None,
+) -> PickupPlan:
     """Solve: method "successive" (the five stages, from ``x0`` when given, else the heuristic seed)
     or "single_shot" (all constraints at once, from ``x0`` when given, else from a random seed,
     settings.seed); "routed" is ``routed.plan_routed``. Solver failures are statuses; bad input
@@ -299,12 +350,14 @@ def plan(robot: Robot, problem, settings: PlannerSettings = PlannerSettings(),
 def solve_stage(robot: Robot, problem, x0, stage: int, settings: PlannerSettings = PlannerSettings()):
     """One stage (1..5, or 0 = all constraints) from the variable vector x0 (coefficients of the
     normalised-time polynomials, then T1/T, T2/T, T, S_g, S_c)."""
-    return _core.pickup_solve_stage(robot.native, problem, settings.to_native(), int(stage),
-                                    np.asarray(x0, dtype=float))
+    return _core.pickup_solve_stage(
+        robot.native, problem, settings.to_native(), int(stage), np.asarray(x0, dtype=float)
+    )
 
 
-def seed_from_times(robot: Robot, problem, T: float, T1: float, T2: float,
-                    settings: PlannerSettings = PlannerSettings()) -> np.ndarray:
+def seed_from_times(
+    robot: Robot, problem, T: float, T1: float, T2: float, settings: PlannerSettings = PlannerSettings()
+) -> np.ndarray:
     """The heuristic seed with its times replaced; checks 0 <= T1 <= T2 <= T (ValueError)."""
     if not (np.isfinite([T, T1, T2]).all() and 0.0 <= T1 <= T2 <= T and T > 0):
         raise ValueError(f"inconsistent time ordering: expected 0 <= T1 <= T2 <= T, got T1={T1}, T2={T2}, T={T}")
@@ -322,26 +375,28 @@ def evaluate(robot: Robot, problem, result: PickupPlan, n: int = 2001) -> "_core
 # ---- dense checks ------------------------------------------------------------------------------
 # Dense checks of a solution (2001 instants over [0, T]; the NLP enforces its rows at samples, so
 # these leave room for what happens between them).
-POSE_POSITION_TOL = 1e-3        # m, tool position at T2
-POSE_ORIENTATION_TOL = 1e-2     # rad
-NONHOLONOMIC_MEAN_TOL = 0.02    # m/s, mean lateral base speed
-NONHOLONOMIC_DRIFT_TOL = 0.2    # m, its integral over [0, T]
-JOINT_OVERSHOOT_TOL = 0.03      # rad past a joint limit between samples
-VELOCITY_ERROR_TOL = 0.05       # m/s, |J q' - S_g n_g| during grasping
+POSE_POSITION_TOL = 1e-3  # m, tool position at T2
+POSE_ORIENTATION_TOL = 1e-2  # rad
+NONHOLONOMIC_MEAN_TOL = 0.02  # m/s, mean lateral base speed
+NONHOLONOMIC_DRIFT_TOL = 0.2  # m, its integral over [0, T]
+JOINT_OVERSHOOT_TOL = 0.03  # rad past a joint limit between samples
+VELOCITY_ERROR_TOL = 0.05  # m/s, |J q' - S_g n_g| during grasping
 
 
 def dense_checks(problem, plan: PickupPlan, metrics: Optional["_core.PickupMetrics"]) -> dict:
     """The checks a solution must pass by dense re-sampling (names -> bool; empty: no solution)."""
     if not plan.success or metrics is None:
         return {}
-    return {"pose_error_at_T2": metrics.pose_error_position <= POSE_POSITION_TOL
-            and metrics.pose_error_orientation <= POSE_ORIENTATION_TOL,
-            "nonholonomic": metrics.nonholonomic_mean <= NONHOLONOMIC_MEAN_TOL
-            and metrics.nonholonomic_drift <= NONHOLONOMIC_DRIFT_TOL,
-            "clearance": metrics.min_clearance >= 0.0,
-            "joint_limits": metrics.joint_limit_violation <= JOINT_OVERSHOOT_TOL,
-            "grasp_velocity": metrics.velocity_error_max <= VELOCITY_ERROR_TOL,
-            "rho_at_least_gamma": metrics.success_probability >= problem.gamma - 1e-6}
+    return {
+        "pose_error_at_T2": metrics.pose_error_position <= POSE_POSITION_TOL
+        and metrics.pose_error_orientation <= POSE_ORIENTATION_TOL,
+        "nonholonomic": metrics.nonholonomic_mean <= NONHOLONOMIC_MEAN_TOL
+        and metrics.nonholonomic_drift <= NONHOLONOMIC_DRIFT_TOL,
+        "clearance": metrics.min_clearance >= 0.0,
+        "joint_limits": metrics.joint_limit_violation <= JOINT_OVERSHOOT_TOL,
+        "grasp_velocity": metrics.velocity_error_max <= VELOCITY_ERROR_TOL,
+        "rho_at_least_gamma": metrics.success_probability >= problem.gamma - 1e-6,
+    }
 
 
 def passes_dense_checks(robot: Robot, problem, plan: PickupPlan) -> bool:
@@ -351,8 +406,7 @@ def passes_dense_checks(robot: Robot, problem, plan: PickupPlan) -> bool:
 
 
 # ---- STOMP -------------------------------------------------------------------------------------
-def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterations: int = 40,
-                 seed: int = 0) -> dict:
+def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterations: int = 40, seed: int = 0) -> dict:
     """STOMP on the arm over [0, T1] and [T2, T] (n waypoints each); base unchanged. Returns
     {"pre": (t, Q, info), "post": (t, Q, info)} with info the native StompResult."""
     out = {}
@@ -362,8 +416,15 @@ def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterati
         t = np.linspace(a, b, n)
         q, _, _ = result.sample(t)
         st = StompSettings(iterations=int(iterations), seed=int(seed)).to_native()
-        info = _core.stomp_refine(robot.native, q, float(t[1] - t[0]), np.asarray(problem.arm_rate_limits),
-                                  problem.body_spheres, problem.obstacles, st)
+        info = _core.stomp_refine(
+            robot.native,
+            q,
+            float(t[1] - t[0]),
+            np.asarray(problem.arm_rate_limits),
+            problem.body_spheres,
+            problem.obstacles,
+            st,
+        )
         out[name] = (t, np.array(info.q), info)
     return out
 
@@ -372,8 +433,14 @@ def refine_tails(robot: Robot, problem, result: PickupPlan, n: int = 30, iterati
 def save_plan(plan_dict: dict, path_stem) -> None:
     """<stem>.json (everything) and <stem>.npz (t, q, qd, x) written atomically."""
     import io
+
     write_bytes(f"{path_stem}.json", json.dumps(plan_dict, indent=1).encode())
     buf = io.BytesIO()
-    np.savez(buf, t=np.asarray(plan_dict["t"]), q=np.asarray(plan_dict["q"]), qd=np.asarray(plan_dict["qd"]),
-             x=np.asarray(plan_dict["x"]))
+    np.savez(
+        buf,
+        t=np.asarray(plan_dict["t"]),
+        q=np.asarray(plan_dict["q"]),
+        qd=np.asarray(plan_dict["qd"]),
+        x=np.asarray(plan_dict["x"]),
+    )
     write_bytes(f"{path_stem}.npz", buf.getvalue())

@@ -17,6 +17,7 @@ cases). Every error is an InputError naming the file and the field. The robot is
 (``planner.mobile_ur5``); its body spheres and tool frame are fixed here, as in the paper's cases.
 A box obstacle becomes the spheres of a grid that covers it (the NLP's obstacles are spheres).
 """
+
 from __future__ import annotations
 
 import math
@@ -34,16 +35,20 @@ from pickplan.core.settings import Option
 
 FORMAT = "pickplan.pickup_problem"
 VERSION = 1
-STANDIN = "standin"                    # metamodel: the labelled stand-in surface (no physics)
+STANDIN = "standin"  # metamodel: the labelled stand-in surface (no physics)
 BUILTIN_PARTS = ("box", "cylinder", "l_bracket")
 DEFAULT_ARM_START = (0.0, -2.2, 2.0, -1.4, -1.5708, 0.0)
 ARM_DOF = 6
-MAX_BOX_SPHERES = 64                   # per box obstacle (each sphere adds collision rows)
-MAX_OBSTACLE_SIZE = 100.0              # m: a sphere's radius, a box's side
+MAX_BOX_SPHERES = 64  # per box obstacle (each sphere adds collision rows)
+MAX_OBSTACLE_SIZE = 100.0  # m: a sphere's radius, a box's side
 # The mobile UR5's body spheres (link, centre in the link frame, radius), as in the paper's cases.
-BODY_SPHERES = (("base_link", (0.0, 0.0, 0.2), 0.3), ("upper_arm_link", (-0.2125, 0.0, 0.136), 0.08),
-                ("forearm_link", (-0.196, 0.0, 0.017), 0.07), ("wrist_2_link", (0.0, 0.0, 0.0), 0.06),
-                ("flange", (0.0, 0.0, 0.0), 0.05))
+BODY_SPHERES = (
+    ("base_link", (0.0, 0.0, 0.2), 0.3),
+    ("upper_arm_link", (-0.2125, 0.0, 0.136), 0.08),
+    ("forearm_link", (-0.196, 0.0, 0.017), 0.07),
+    ("wrist_2_link", (0.0, 0.0, 0.0), 0.06),
+    ("flange", (0.0, 0.0, 0.0), 0.05),
+)
 
 
 class Uncertainty(Option):
@@ -55,8 +60,11 @@ class Uncertainty(Option):
     custom = "custom"
 
 
-SIGMAS = {Uncertainty.low: (0.002, math.radians(5)), Uncertainty.medium: (0.007, math.radians(10)),
-          Uncertainty.high: (0.012, math.radians(15))}
+SIGMAS = {
+    Uncertainty.low: (0.002, math.radians(5)),
+    Uncertainty.medium: (0.007, math.radians(10)),
+    Uncertainty.high: (0.012, math.radians(15)),
+}
 
 
 class GraspKind(Option):
@@ -76,7 +84,7 @@ class SphereObstacle:
 @dataclass(frozen=True)
 class BoxObstacle:
     center: tuple
-    size: tuple          # full extents along the box's x, y, z
+    size: tuple  # full extents along the box's x, y, z
     yaw: float = 0.0
 
     def spheres(self) -> list:
@@ -124,20 +132,40 @@ class PickupProblemSpec:
     source: Optional[str] = field(default=None, compare=False)
 
     def to_dict(self) -> dict:
-        unc = (str(self.uncertainty) if self.uncertainty is not Uncertainty.custom
-               else {"sigma_r": self.sigma_r, "sigma_phi": self.sigma_phi})
-        obstacles = [{"sphere": [*o.center, o.radius]} if isinstance(o, SphereObstacle)
-                     else {"box": {"center": list(o.center), "size": list(o.size), "yaw": o.yaw}}
-                     for o in self.obstacles]
-        return {"format": FORMAT, "version": VERSION,
-                "base_start": list(self.base_start), "base_goal": list(self.base_goal),
-                "part": {"position": list(self.part_position), "yaw": self.part_yaw, "grasp": str(self.grasp),
-                         "metamodel": self.metamodel, "uncertainty": unc},
-                "gamma": self.gamma, "obstacles": obstacles, "arm_start": list(self.arm_start),
-                "goal_tolerance": {"position": self.goal_tol_pos, "yaw": self.goal_tol_yaw},
-                "limits": {"base_speed": self.base_speed_limit, "base_yaw_rate": self.base_yaw_rate_limit,
-                           "arm_rates": list(self.arm_rate_limits)},
-                "grasp_area": {"r_min": self.grasp_area[0], "r_max": self.grasp_area[1]}}
+        unc = (
+            str(self.uncertainty)
+            if self.uncertainty is not Uncertainty.custom
+            else {"sigma_r": self.sigma_r, "sigma_phi": self.sigma_phi}
+        )
+        obstacles = [
+            {"sphere": [*o.center, o.radius]}
+            if isinstance(o, SphereObstacle)
+            else {"box": {"center": list(o.center), "size": list(o.size), "yaw": o.yaw}}
+            for o in self.obstacles
+        ]
+        return {
+            "format": FORMAT,
+            "version": VERSION,
+            "base_start": list(self.base_start),
+            "base_goal": list(self.base_goal),
+            "part": {
+                "position": list(self.part_position),
+                "yaw": self.part_yaw,
+                "grasp": str(self.grasp),
+                "metamodel": self.metamodel,
+                "uncertainty": unc,
+            },
+            "gamma": self.gamma,
+            "obstacles": obstacles,
+            "arm_start": list(self.arm_start),
+            "goal_tolerance": {"position": self.goal_tol_pos, "yaw": self.goal_tol_yaw},
+            "limits": {
+                "base_speed": self.base_speed_limit,
+                "base_yaw_rate": self.base_yaw_rate_limit,
+                "arm_rates": list(self.arm_rate_limits),
+            },
+            "grasp_area": {"r_min": self.grasp_area[0], "r_max": self.grasp_area[1]},
+        }
 
     def with_uncertainty(self, level) -> "PickupProblemSpec":
         level = Uncertainty.parse(level, "uncertainty")
@@ -159,9 +187,9 @@ _TOP = ("base_start", "base_goal", "part", "gamma", "obstacles")
 _OPTIONAL = ("format", "version", "arm_start", "goal_tolerance", "limits", "grasp_area")
 _PART = ("position", "yaw", "metamodel", "uncertainty", "grasp")
 _DEFAULTS = PickupProblemSpec((0, 0, 0), (0, 0, 0), (0, 0, 0), 0.0, STANDIN, Uncertainty.medium, 0.0, 0.0, 0.96)
-POSITION = dict(lo=-1e4, hi=1e4)           # m: world coordinates
+POSITION = dict(lo=-1e4, hi=1e4)  # m: world coordinates
 ANGLE = dict(lo=-4 * math.pi, hi=4 * math.pi)
-RATE = dict(hi=20.0, positive=True)        # m/s or rad/s
+RATE = dict(hi=20.0, positive=True)  # m/s or rad/s
 
 
 def _obstacle(r: FieldReader, o, where: str):
@@ -184,8 +212,10 @@ def _obstacle(r: FieldReader, o, where: str):
 def _uncertainty(r: FieldReader, u, where: str):
     if isinstance(u, dict):
         r.table(u, where, known=("sigma_r", "sigma_phi"))
-        sigmas = (r.get(u, "sigma_r", where, r.number, hi=0.1, positive=True),
-                  r.get(u, "sigma_phi", where, r.number, hi=math.pi, positive=True))
+        sigmas = (
+            r.get(u, "sigma_r", where, r.number, hi=0.1, positive=True),
+            r.get(u, "sigma_phi", where, r.number, hi=math.pi, positive=True),
+        )
         if None in sigmas:
             r.skip()
         return (Uncertainty.custom, *sigmas)
@@ -201,17 +231,24 @@ def _options(r: FieldReader, d: dict) -> dict:
     if "arm_start" in d:
         kw["arm_start"] = r.attempt(r.vector, d["arm_start"], "arm_start", ARM_DOF, **ANGLE)
     g = r.get(d, "goal_tolerance", "", r.table, default={}, required=False, known=("position", "yaw"))
-    kw["goal_tol_pos"] = r.get(g, "position", "goal_tolerance", r.number, default=_DEFAULTS.goal_tol_pos,
-                               required=False, positive=True)
-    kw["goal_tol_yaw"] = r.get(g, "yaw", "goal_tolerance", r.number, default=_DEFAULTS.goal_tol_yaw, required=False,
-                               hi=math.pi, positive=True)
-    lim = r.get(d, "limits", "", r.table, default={}, required=False, known=("base_speed", "base_yaw_rate", "arm_rates"))
-    kw["base_speed_limit"] = r.get(lim, "base_speed", "limits", r.number, default=_DEFAULTS.base_speed_limit,
-                                   required=False, **RATE)
-    kw["base_yaw_rate_limit"] = r.get(lim, "base_yaw_rate", "limits", r.number,
-                                      default=_DEFAULTS.base_yaw_rate_limit, required=False, **RATE)
-    kw["arm_rate_limits"] = r.get(lim, "arm_rates", "limits", r.vector, default=_DEFAULTS.arm_rate_limits,
-                                  required=False, n=ARM_DOF, **RATE)
+    kw["goal_tol_pos"] = r.get(
+        g, "position", "goal_tolerance", r.number, default=_DEFAULTS.goal_tol_pos, required=False, positive=True
+    )
+    kw["goal_tol_yaw"] = r.get(
+        g, "yaw", "goal_tolerance", r.number, default=_DEFAULTS.goal_tol_yaw, required=False, hi=math.pi, positive=True
+    )
+    lim = r.get(
+        d, "limits", "", r.table, default={}, required=False, known=("base_speed", "base_yaw_rate", "arm_rates")
+    )
+    kw["base_speed_limit"] = r.get(
+        lim, "base_speed", "limits", r.number, default=_DEFAULTS.base_speed_limit, required=False, **RATE
+    )
+    kw["base_yaw_rate_limit"] = r.get(
+        lim, "base_yaw_rate", "limits", r.number, default=_DEFAULTS.base_yaw_rate_limit, required=False, **RATE
+    )
+    kw["arm_rate_limits"] = r.get(
+        lim, "arm_rates", "limits", r.vector, default=_DEFAULTS.arm_rate_limits, required=False, n=ARM_DOF, **RATE
+    )
     if "grasp_area" in d:
         a = r.attempt(r.table, d["grasp_area"], "grasp_area", default={}, known=("r_min", "r_max"))
         lo = r.get(a, "r_min", "grasp_area", r.number, positive=True)
@@ -237,10 +274,13 @@ def problem_from_dict(d, path: Optional[str] = None) -> PickupProblemSpec:
             r.note("version", f"expected {VERSION}, got {shown(d['version'])}")
         p = r.attempt(r.table, d.get("part", {}), "part", default={}, known=_PART)
         grasp = r.get(p, "grasp", "part", r.choice, default="top", required=False, options=("top", "side"))
-        level, sigma_r, sigma_phi = r.get(p, "uncertainty", "part", lambda u, w: _uncertainty(r, u, w),
-                                          default=(None,) * 3, required="part" in d)
-        obstacles = [r.attempt(_obstacle, r, o, f) for f, o in r.attempt(r.items, d.get("obstacles", []), "obstacles",
-                                                                          default=[])]
+        level, sigma_r, sigma_phi = r.get(
+            p, "uncertainty", "part", lambda u, w: _uncertainty(r, u, w), default=(None,) * 3, required="part" in d
+        )
+        obstacles = [
+            r.attempt(_obstacle, r, o, f)
+            for f, o in r.attempt(r.items, d.get("obstacles", []), "obstacles", default=[])
+        ]
         kw = _options(r, d)
         spec = dict(
             base_start=r.get(d, "base_start", "", r.vector, required=False, n=3, **POSITION),
@@ -248,10 +288,19 @@ def problem_from_dict(d, path: Optional[str] = None) -> PickupProblemSpec:
             part_position=r.get(p, "position", "part", r.vector, required="part" in d, n=3, **POSITION),
             part_yaw=r.get(p, "yaw", "part", r.number, required="part" in d, **ANGLE),
             metamodel=r.get(p, "metamodel", "part", r.text, required="part" in d),
-            gamma=r.get(d, "gamma", "", r.number, required=False, hi=1.0, positive=True))
+            gamma=r.get(d, "gamma", "", r.number, required=False, hi=1.0, positive=True),
+        )
         r.check()
-        return PickupProblemSpec(uncertainty=level, sigma_r=sigma_r, sigma_phi=sigma_phi, obstacles=tuple(obstacles),
-                                 grasp=GraspKind(grasp), source=os.fspath(path) if path else None, **spec, **kw)
+        return PickupProblemSpec(
+            uncertainty=level,
+            sigma_r=sigma_r,
+            sigma_phi=sigma_phi,
+            obstacles=tuple(obstacles),
+            grasp=GraspKind(grasp),
+            source=os.fspath(path) if path else None,
+            **spec,
+            **kw,
+        )
 
 
 def load_problem(path) -> PickupProblemSpec:
@@ -272,12 +321,16 @@ def native_problem(robot, spec: PickupProblemSpec, rho) -> "_core.PickupProblem"
     lo, hi = np.asarray(robot.lower_limits), np.asarray(robot.upper_limits)
     for i, v in enumerate(spec.arm_start):
         if not lo[3 + i] <= v <= hi[3 + i]:
-            raise InputError(f"{v} outside the joint's limits [{lo[3 + i]:.4f}, {hi[3 + i]:.4f}]",
-                             path=spec.source, field=f"arm_start[{i}]")
+            raise InputError(
+                f"{v} outside the joint's limits [{lo[3 + i]:.4f}, {hi[3 + i]:.4f}]",
+                path=spec.source,
+                field=f"arm_start[{i}]",
+            )
     for name, pose in (("base_start", spec.base_start), ("base_goal", spec.base_goal)):
         if not all(lo[i] <= pose[i] <= hi[i] for i in range(2)):
-            raise InputError(f"({pose[0]}, {pose[1]}) outside the base's range [{lo[0]}, {hi[0]}] m",
-                             path=spec.source, field=name)
+            raise InputError(
+                f"({pose[0]}, {pose[1]}) outside the base's range [{lo[0]}, {hi[0]}] m", path=spec.source, field=name
+            )
     pb = _core.PickupProblem()
     pb.start = np.asarray(spec.base_start, float)
     pb.goal = np.asarray(spec.base_goal, float)

@@ -6,6 +6,7 @@ construction as far as cheap checks tell: start, goal and a ring of grasping-are
 the obstacles by the base's radius, the pillars keep a lane free around the part, and the part's
 height is within the arm's reach. Whether a trajectory exists is the solver's to find.
 """
+
 from __future__ import annotations
 
 import math
@@ -15,21 +16,27 @@ from typing import Optional
 import numpy as np
 
 from pickplan.core.settings import Option
-from pickplan.pickup.nlp.problem_file import (DEFAULT_ARM_START, GraspKind, PickupProblemSpec, SIGMAS,
-                                              SphereObstacle, Uncertainty)
+from pickplan.pickup.nlp.problem_file import (
+    DEFAULT_ARM_START,
+    GraspKind,
+    PickupProblemSpec,
+    SIGMAS,
+    SphereObstacle,
+    Uncertainty,
+)
 
-BASE_RADIUS = 0.3           # the base's body sphere (problem_file.BODY_SPHERES)
-PEDESTAL_GAP = 0.17         # m from the grasp point down to the pedestal top sphere's centre
+BASE_RADIUS = 0.3  # the base's body sphere (problem_file.BODY_SPHERES)
+PEDESTAL_GAP = 0.17  # m from the grasp point down to the pedestal top sphere's centre
 
 
 class Layout(Option):
     """Where the part stands relative to the base's route (issue 37's benchmark layouts)."""
 
-    paper = "paper"            # beside the path, start facing the part, goal facing away (the paper's cases moved about)
-    side = "side"              # 2-5 m to either side of the start-goal line, start and goal headings along the line
-    behind = "behind"          # behind the start (2-5 m back along the line, +-2 m across), start heading along the line
-    cluttered = "cluttered"    # the paper's geometry with 3-6 pillars between start, part and goal
-    headings = "headings"      # the paper's geometry with uniformly random start and goal headings
+    paper = "paper"  # beside the path, start facing the part, goal facing away (the paper's cases moved about)
+    side = "side"  # 2-5 m to either side of the start-goal line, start and goal headings along the line
+    behind = "behind"  # behind the start (2-5 m back along the line, +-2 m across), start heading along the line
+    cluttered = "cluttered"  # the paper's geometry with 3-6 pillars between start, part and goal
+    headings = "headings"  # the paper's geometry with uniformly random start and goal headings
 
 
 @dataclass(frozen=True)
@@ -41,11 +48,11 @@ class Workspace:
     start_y: tuple = (-1.0, 1.0)
     goal_x: tuple = (7.0, 9.0)
     goal_y: tuple = (-1.0, 1.0)
-    heading_spread: float = math.pi / 4   # start yaw: towards the part +- this; goal yaw: from the part
+    heading_spread: float = math.pi / 4  # start yaw: towards the part +- this; goal yaw: from the part
     part_x: tuple = (2.0, 5.0)
     part_y: tuple = (3.0, 5.0)
-    part_z: tuple = (0.4, 0.6)            # grasp height
-    pillars: tuple = (0, 2)               # extra sphere obstacles beside the route (inclusive)
+    part_z: tuple = (0.4, 0.6)  # grasp height
+    pillars: tuple = (0, 2)  # extra sphere obstacles beside the route (inclusive)
     pillar_radius: tuple = (0.15, 0.35)
     metamodel: str = "box"
     uncertainty: Uncertainty = Uncertainty.medium
@@ -55,11 +62,13 @@ class Workspace:
     def describe(self) -> str:
         if self.layout is not Layout.paper:
             return f"layout {self.layout.value}: {Layout.__doc__.splitlines()[0]} ({_LAYOUT_TEXT[self.layout]})"
-        return (f"start x {self.start_x} y {self.start_y} (yaw: towards the part +- "
-                f"{math.degrees(self.heading_spread):.0f} deg), goal x {self.goal_x} y {self.goal_y} (yaw: away "
-                f"from the part +- {math.degrees(self.heading_spread):.0f} deg), part x {self.part_x} y {self.part_y} "
-                f"z {self.part_z} any yaw, top or side grasp, on a pedestal; {self.pillars[0]}-{self.pillars[1]} "
-                f"pillars r {self.pillar_radius} between start and goal")
+        return (
+            f"start x {self.start_x} y {self.start_y} (yaw: towards the part +- "
+            f"{math.degrees(self.heading_spread):.0f} deg), goal x {self.goal_x} y {self.goal_y} (yaw: away "
+            f"from the part +- {math.degrees(self.heading_spread):.0f} deg), part x {self.part_x} y {self.part_y} "
+            f"z {self.part_z} any yaw, top or side grasp, on a pedestal; {self.pillars[0]}-{self.pillars[1]} "
+            f"pillars r {self.pillar_radius} between start and goal"
+        )
 
 
 def _heading(a, b) -> float:
@@ -85,10 +94,12 @@ def _grasp_ring_clear(part_xy, obstacles, r_min=0.35, r_max=0.8) -> bool:
     return False
 
 
-_LAYOUT_TEXT = {Layout.side: "part 2-5 m off the line at 20-80 % of the way, headings along the line +- 45 deg",
-                Layout.behind: "part 2-5 m behind the start, +-2 m across, headings along the line +- 45 deg",
-                Layout.cluttered: "the paper's geometry, 3-6 pillars on the legs start-part and part-goal",
-                Layout.headings: "the paper's geometry, start and goal headings uniform in [-pi, pi)"}
+_LAYOUT_TEXT = {
+    Layout.side: "part 2-5 m off the line at 20-80 % of the way, headings along the line +- 45 deg",
+    Layout.behind: "part 2-5 m behind the start, +-2 m across, headings along the line +- 45 deg",
+    Layout.cluttered: "the paper's geometry, 3-6 pillars on the legs start-part and part-goal",
+    Layout.headings: "the paper's geometry, start and goal headings uniform in [-pi, pi)",
+}
 
 
 def _part_and_headings(rng, ws: Workspace, start, goal, u) -> tuple:
@@ -101,7 +112,11 @@ def _part_and_headings(rng, ws: Workspace, start, goal, u) -> tuple:
         return (float(p[0]), float(p[1]), u(ws.part_z)), line + spread(), line + spread()
     if ws.layout is Layout.behind:
         back, across = u((2.0, 5.0)), u((-2.0, 2.0))
-        p = start - back * np.array([math.cos(line), math.sin(line)]) + across * np.array([-math.sin(line), math.cos(line)])
+        p = (
+            start
+            - back * np.array([math.cos(line), math.sin(line)])
+            + across * np.array([-math.sin(line), math.cos(line)])
+        )
         return (float(p[0]), float(p[1]), u(ws.part_z)), line + spread(), line + spread()
     part = (u(ws.part_x), u(ws.part_y), u(ws.part_z))
     if ws.layout is Layout.headings:
@@ -139,14 +154,18 @@ def random_problem(rng: np.random.Generator, ws: Workspace = Workspace(), max_tr
             yaw0 = yaw1 = None
         else:
             part, yaw0, yaw1 = _part_and_headings(rng, ws, start, goal, u)
-        obstacles = [SphereObstacle((part[0], part[1], 0.15), 0.15),                            # pedestal
-                     SphereObstacle((part[0], part[1], part[2] - PEDESTAL_GAP), 0.06)]          # its top
+        obstacles = [
+            SphereObstacle((part[0], part[1], 0.15), 0.15),  # pedestal
+            SphereObstacle((part[0], part[1], part[2] - PEDESTAL_GAP), 0.06),
+        ]  # its top
         obstacles += _pillars(rng, ws, start, goal, part, u)
         pillars = obstacles[2:]
         if not (_clear(start, BASE_RADIUS, obstacles, 0.2) and _clear(goal, BASE_RADIUS, obstacles, 0.2)):
             continue
-        if not all(math.hypot(o.center[0] - part[0], o.center[1] - part[1]) > 0.8 + BASE_RADIUS + o.radius + 0.2
-                   for o in pillars):
+        if not all(
+            math.hypot(o.center[0] - part[0], o.center[1] - part[1]) > 0.8 + BASE_RADIUS + o.radius + 0.2
+            for o in pillars
+        ):
             continue
         if not _grasp_ring_clear(part[:2], obstacles):
             continue
@@ -156,9 +175,17 @@ def random_problem(rng: np.random.Generator, ws: Workspace = Workspace(), max_tr
         return PickupProblemSpec(
             base_start=(float(start[0]), float(start[1]), float(yaw0)),
             base_goal=(float(goal[0]), float(goal[1]), float(yaw1)),
-            part_position=part, part_yaw=u((-math.pi, math.pi)), metamodel=ws.metamodel,
-            uncertainty=ws.uncertainty, sigma_r=sr, sigma_phi=sp, gamma=ws.gamma, obstacles=tuple(obstacles),
-            grasp=GraspKind.top if rng.random() < 0.5 else GraspKind.side, arm_start=DEFAULT_ARM_START)
+            part_position=part,
+            part_yaw=u((-math.pi, math.pi)),
+            metamodel=ws.metamodel,
+            uncertainty=ws.uncertainty,
+            sigma_r=sr,
+            sigma_phi=sp,
+            gamma=ws.gamma,
+            obstacles=tuple(obstacles),
+            grasp=GraspKind.top if rng.random() < 0.5 else GraspKind.side,
+            arm_start=DEFAULT_ARM_START,
+        )
     raise RuntimeError(f"no problem passed the cheap checks in {max_tries} draws: the workspace is too tight")
 
 

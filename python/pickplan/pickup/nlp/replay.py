@@ -10,6 +10,7 @@ gives the tool pose at T2 (compared with the grasp pose), and its collision dete
 distance between the robot's links and the obstacles over the frames (PyBullet uses the URDF's
 collision shapes, not the body spheres of the NLP, so the figures differ by that approximation).
 """
+
 from __future__ import annotations
 
 import math
@@ -42,8 +43,10 @@ def replay(plan_dict: dict, problem, gui: bool = False, frames: int = 400, realt
     cid = connect(gui)
     try:
         body = pb.loadURDF(robot.urdf_path, [0, 0, 0], [0, 0, 0, 1], useFixedBase=True, physicsClientId=cid)
-        info = [pb.getJointInfo(body, j, physicsClientId=cid) for j in range(pb.getNumJoints(body, physicsClientId=cid))]
-        by_name = {inf[1].decode(): j for j, inf in enumerate(info)}   # joint name -> index
+        info = [
+            pb.getJointInfo(body, j, physicsClientId=cid) for j in range(pb.getNumJoints(body, physicsClientId=cid))
+        ]
+        by_name = {inf[1].decode(): j for j, inf in enumerate(info)}  # joint name -> index
         link_of = {inf[12].decode(): j for j, inf in enumerate(info)}  # child link name -> index
         missing = [n for n in robot.joint_names if n not in by_name]
         if missing:
@@ -55,8 +58,9 @@ def replay(plan_dict: dict, problem, gui: bool = False, frames: int = 400, realt
             vis = pb.createVisualShape(pb.GEOM_SPHERE, radius=radius, rgbaColor=[0.6, 0.6, 0.6, 1], physicsClientId=cid)
             obstacles.append(pb.createMultiBody(0, shape, vis, list(np.asarray(center, float)), physicsClientId=cid))
         grasp = np.asarray(problem.grasp_pose, float)
-        part = pb.createVisualShape(pb.GEOM_BOX, halfExtents=[0.02, 0.02, 0.02], rgbaColor=[0.9, 0.3, 0.1, 1],
-                                    physicsClientId=cid)
+        part = pb.createVisualShape(
+            pb.GEOM_BOX, halfExtents=[0.02, 0.02, 0.02], rgbaColor=[0.9, 0.3, 0.1, 1], physicsClientId=cid
+        )
         pb.createMultiBody(0, -1, part, list(grasp[:3, 3]), physicsClientId=cid)
         t = np.linspace(0.0, float(plan_dict["T"]), frames)
         q, _ = cases.plan_states(plan_dict, t)
@@ -80,8 +84,12 @@ def replay(plan_dict: dict, problem, gui: bool = False, frames: int = 400, realt
         R = np.asarray(pb.getMatrixFromQuaternion(st[5])).reshape(3, 3)
         Rg, pg = grasp[:3, :3], grasp[:3, 3]
         ang = math.acos(max(-1.0, min(1.0, (np.trace(Rg.T @ R) - 1.0) / 2.0)))
-        return {"frames": frames, "tool_error_T2": [float(np.linalg.norm(p - pg)), ang],
-                "min_distance": float(best), "min_distance_t": best_t}
+        return {
+            "frames": frames,
+            "tool_error_T2": [float(np.linalg.norm(p - pg)), ang],
+            "min_distance": float(best),
+            "min_distance_t": best_t,
+        }
     finally:
         pb.disconnect(physicsClientId=cid)
 

@@ -11,6 +11,7 @@ of the obstacles, heading along the annulus (so the base stays in it while the a
 candidates are the shortest collision-free route on each side of the part and in each sense round
 it (left / right, clockwise / anticlockwise), ranked by length.
 """
+
 from __future__ import annotations
 
 import math
@@ -22,11 +23,11 @@ import numpy as np
 
 from pickplan.pickup.nlp.feasibility import BaseGeometry
 
-GRASP_ANGLES = 24          # grasp poses tried round the part
-STEP = 0.05                # m between route samples
-FIT_SAMPLES = 80           # samples of a route the polynomials are fitted to
-SPEED_SHARE = 0.9          # seeds time the fitted polynomial to this share of the speed and yaw-rate limits
-WAYPOINT_WEIGHT = 30.0     # weight of the grasp pose and the goal in the fit
+GRASP_ANGLES = 24  # grasp poses tried round the part
+STEP = 0.05  # m between route samples
+FIT_SAMPLES = 80  # samples of a route the polynomials are fitted to
+SPEED_SHARE = 0.9  # seeds time the fitted polynomial to this share of the speed and yaw-rate limits
+WAYPOINT_WEIGHT = 30.0  # weight of the grasp pose and the goal in the fit
 
 
 def _mod2pi(a: float) -> float:
@@ -89,9 +90,13 @@ def sample_dubins(q0, word: str, seg, rho: float, step: float = STEP) -> np.ndar
         if kind == "S":
             p = np.stack([x + rho * u * math.cos(h), y + rho * u * math.sin(h), np.full(n, h)], axis=1)
         elif kind == "L":
-            p = np.stack([x + rho * (np.sin(h + u) - math.sin(h)), y + rho * (math.cos(h) - np.cos(h + u)), h + u], axis=1)
+            p = np.stack(
+                [x + rho * (np.sin(h + u) - math.sin(h)), y + rho * (math.cos(h) - np.cos(h + u)), h + u], axis=1
+            )
         else:
-            p = np.stack([x + rho * (math.sin(h) - np.sin(h - u)), y + rho * (np.cos(h - u) - math.cos(h)), h - u], axis=1)
+            p = np.stack(
+                [x + rho * (math.sin(h) - np.sin(h - u)), y + rho * (np.cos(h - u) - math.cos(h)), h - u], axis=1
+            )
         out.append(p)
         x, y, h = p[-1]
     return np.concatenate(out)
@@ -103,7 +108,7 @@ class Route:
     sample whether the base drives forwards (+1) or backwards (-1)."""
 
     poses: np.ndarray
-    s: np.ndarray                # arc length at each sample (m)
+    s: np.ndarray  # arc length at each sample (m)
     grasp_index: int
     direction: np.ndarray
     label: str
@@ -218,12 +223,16 @@ def route_seed(route: Route, geo: BaseGeometry, template: np.ndarray, settings, 
     heading = route.poses[idx, 2] + np.remainder(heading - route.poses[idx, 2] + math.pi, 2 * math.pi) - math.pi
     coeffs.append(_fit(s, heading, deg[2], geo.start[2], w))
     for i, c in enumerate(coeffs):
-        x[offsets[i]:offsets[i + 1]] = c
+        x[offsets[i] : offsets[i + 1]] = c
     u = np.linspace(0.0, 1.0, 201)
     d = [np.polyval(np.polyder(c[::-1]), u) for c in coeffs]
     window = stroke / x[nc + 4]
-    T = max(geo.t_min, 2 * window, np.hypot(d[0], d[1]).max() / (SPEED_SHARE * geo.v_max),
-            np.abs(d[2]).max() / (SPEED_SHARE * geo.w_max))
+    T = max(
+        geo.t_min,
+        2 * window,
+        np.hypot(d[0], d[1]).max() / (SPEED_SHARE * geo.v_max),
+        np.abs(d[2]).max() / (SPEED_SHARE * geo.w_max),
+    )
     sg = route.s[route.grasp_index] / max(route.length, 1e-9)
     half = 0.5 * window / T
     s1 = float(np.clip(sg - half, 0.0, 1.0 - 2 * half))

@@ -23,6 +23,7 @@ Ipopt 3.11 with MUMPS is not thread-safe (``planner``), so the stage-1 runs and 
 one after another in this thread (the GIL is released in each native solve); the route geometry is
 milliseconds (up to 0.2 s in clutter, where many routes collide).
 """
+
 from __future__ import annotations
 
 import math
@@ -36,7 +37,7 @@ from pickplan import _core
 from pickplan.pickup.nlp import planner, route
 from pickplan.pickup.nlp.feasibility import Certificate, Reason, base_geometry, certify
 
-ROUTES = 3   # route seeds tried in stage 1 beside the heuristic seed
+ROUTES = 3  # route seeds tried in stage 1 beside the heuristic seed
 # Base polynomial degrees tried in stage 1 (when the settings leave the degrees to the default): the
 # paper's quintic from the heuristic seed, then degree 7 from every seed. A quintic base path cannot
 # hold a detour with a turn back (issue 37: side and behind layouts, stage 1 at T = 50-100 s); degree
@@ -117,9 +118,22 @@ def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1
 
 
 def _no_solve(cert: Certificate, status: planner.SolveStatus) -> planner.PickupPlan:
-    return planner.PickupPlan(status=status, success=False, stages_completed=0, stages=[], T=math.nan, T1=math.nan,
-                              T2=math.nan, S_g=math.nan, S_c=math.nan, total_seconds=0.0, lower_bound=cert.lower_bound,
-                              reason=cert.reason, detail=cert.detail, seed="none")
+    return planner.PickupPlan(
+        status=status,
+        success=False,
+        stages_completed=0,
+        stages=[],
+        T=math.nan,
+        T1=math.nan,
+        T2=math.nan,
+        S_g=math.nan,
+        S_c=math.nan,
+        total_seconds=0.0,
+        lower_bound=cert.lower_bound,
+        reason=cert.reason,
+        detail=cert.detail,
+        seed="none",
+    )
 
 
 def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTES, deadline: Optional[float] = None):
@@ -186,9 +200,16 @@ def _refined(robot, problem, entries: list, budget: _Budget) -> tuple:
     return None, None
 
 
-def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.PlannerSettings(),
-                time_limit: float = 0.0, routes: int = ROUTES, direct_track: bool = False,
-                fallback: bool = True, refine: bool = True) -> planner.PickupPlan:
+def plan_routed(
+    robot,
+    problem,
+    settings: planner.PlannerSettings = planner.PlannerSettings(),
+    time_limit: float = 0.0,
+    routes: int = ROUTES,
+    direct_track: bool = False,
+    fallback: bool = True,
+    refine: bool = True,
+) -> planner.PickupPlan:
     """Plans any layout (module doc). ``time_limit`` > 0: wall-clock seconds for the whole call.
     ``direct_track`` (settings.direct_track is replaced by it): the native all-constraint hedge after
     the five stages; off here, where the next stage-1 solution is the hedge (issue 37's benchmark,
@@ -234,11 +255,16 @@ def plan_routed(robot, problem, settings: planner.PlannerSettings = planner.Plan
         if out.success:  # converged, but failed the dense checks between the samples: not a feasible plan
             out.success, out.status = False, planner.SolveStatus.violation_between_samples
         out.reason = Reason.time_limit if timed_out else Reason.solver_failed
-        closest_text = (f"the closest plan reached stage {out.stages_completed} of 5" if ranked else
-                        "no base path (stage 1) converged from any seed, so there is no closest plan")
-        out.detail = (f"the time limit of {time_limit:g} s ran out before a feasible plan" if timed_out else
-                      f"no solver run succeeded although the geometry allows T >= {cert.lower_bound:.2f} s; "
-                      f"{closest_text}")
+        closest_text = (
+            f"the closest plan reached stage {out.stages_completed} of 5"
+            if ranked
+            else "no base path (stage 1) converged from any seed, so there is no closest plan"
+        )
+        out.detail = (
+            f"the time limit of {time_limit:g} s ran out before a feasible plan"
+            if timed_out
+            else f"no solver run succeeded although the geometry allows T >= {cert.lower_bound:.2f} s; {closest_text}"
+        )
         if timed_out:
             out.status = planner.SolveStatus.time_limit
     out.total_seconds, out.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0

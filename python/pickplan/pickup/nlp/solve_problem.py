@@ -1,6 +1,7 @@
 """One problem file, solved and checked: the success surface it names, the solve (successive
 refinement or a single shot), the dense checks of the solution and the files `pickplan pickup plan`
 writes (trajectory JSON, metrics JSON, a speed plot like the paper's Fig. 5)."""
+
 from __future__ import annotations
 
 import logging
@@ -13,7 +14,8 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.core.io import atomic_open, cache_dir, write_json
-from pickplan.pickup.metamodel.model import BuildConfig, MetaModel, build_metamodel
+from pickplan.pickup.metamodel.build import build_metamodel
+from pickplan.pickup.metamodel.model import BuildConfig, MetaModel
 from pickplan.pickup.nlp import planner, routed
 from pickplan.pickup.nlp.cases import METAMODEL_PART, cases_metamodel_config
 from pickplan.pickup.nlp.planner import dense_checks  # noqa: F401 - part of this module's API since issue 23
@@ -27,8 +29,9 @@ def builtin_metamodel_path(part: str) -> str:
     return cache_dir(f"metamodel_{part}.json")
 
 
-def ensure_builtin_metamodel(part: str, path: Optional[str] = None, config=None, workers: int = 1,
-                             progress: bool = True) -> str:
+def ensure_builtin_metamodel(
+    part: str, path: Optional[str] = None, config=None, workers: int = 1, progress: bool = True
+) -> str:
     """The meta-model file of a built-in part: reused when it loads, else built from simulation
     (seed 0; the box with the configuration the paper's cases are validated with)."""
     path = os.fspath(path or builtin_metamodel_path(part))
@@ -43,8 +46,7 @@ def ensure_builtin_metamodel(part: str, path: Optional[str] = None, config=None,
     return path
 
 
-def rho_for_spec(spec: PickupProblemSpec, metamodel: Optional[str] = None, workers: int = 1,
-                 progress: bool = True):
+def rho_for_spec(spec: PickupProblemSpec, metamodel: Optional[str] = None, workers: int = 1, progress: bool = True):
     """The native rho surface of the problem at its sigmas: from ``metamodel`` when given, else
     the file it names (a path, a built-in part built on first use, or the stand-in)."""
     source = metamodel or spec.metamodel_path()
@@ -54,33 +56,42 @@ def rho_for_spec(spec: PickupProblemSpec, metamodel: Optional[str] = None, worke
         config = cases_metamodel_config() if spec.metamodel == METAMODEL_PART else None
         source = ensure_builtin_metamodel(spec.metamodel, config=config, workers=workers, progress=progress)
     if not os.path.isfile(source):
-        raise FileNotFoundError(f"meta-model file not found: {source} (part.metamodel of {spec.source or 'the problem'})")
+        raise FileNotFoundError(
+            f"meta-model file not found: {source} (part.metamodel of {spec.source or 'the problem'})"
+        )
     return planner.load_rho(source, spec.sigma_r, spec.sigma_phi)
 
 
 @dataclass
 class ProblemSolution:
     spec: PickupProblemSpec
-    problem: object               # the native PickupProblem
+    problem: object  # the native PickupProblem
     plan: planner.PickupPlan
     metrics: Optional["_core.PickupMetrics"]  # dense re-sampling metrics (None: no stage solved)
-    checks: dict                  # check name -> passed
+    checks: dict  # check name -> passed
 
     @property
     def passed(self) -> bool:
         return self.plan.success and all(self.checks.values())
 
 
-def solve(robot, spec: PickupProblemSpec, rho, settings: planner.PlannerSettings = planner.PlannerSettings(),
-          method=planner.Method.successive, time_limit: float = 0.0) -> ProblemSolution:
+def solve(
+    robot,
+    spec: PickupProblemSpec,
+    rho,
+    settings: planner.PlannerSettings = planner.PlannerSettings(),
+    method=planner.Method.successive,
+    time_limit: float = 0.0,
+) -> ProblemSolution:
     """Solves one problem and checks the solution densely (solver failures are statuses; method
     routed: ``routed.plan_routed`` with its certificate, lower bound and ``time_limit``)."""
     problem = native_problem(robot, spec, rho)
     if planner.Method.parse(method, "method") is planner.Method.routed:
         plan = routed.plan_routed(robot, problem, settings, time_limit=time_limit)
     else:
-        plan = planner.plan(robot, problem, settings if not time_limit else replace(settings, time_limit=time_limit),
-                            method)
+        plan = planner.plan(
+            robot, problem, settings if not time_limit else replace(settings, time_limit=time_limit), method
+        )
     metrics = planner.evaluate(robot, problem, plan) if plan.stages_completed > 0 else None
     return ProblemSolution(spec, problem, plan, metrics, dense_checks(problem, plan, metrics))
 
@@ -91,8 +102,14 @@ def trajectory_dict(sol: ProblemSolution, n: int = 401) -> dict:
     speeds, and the polynomial coefficients (normalised time) for an exact re-evaluation."""
     d = sol.plan.to_dict(n)
     q, qd = np.asarray(d["q"]), np.asarray(d["qd"])
-    d.update(base=q[:, :3].tolist(), base_rates=qd[:, :3].tolist(), arm=q[:, 3:].tolist(), arm_rates=qd[:, 3:].tolist(),
-             problem=sol.spec.to_dict(), problem_file=sol.spec.source)
+    d.update(
+        base=q[:, :3].tolist(),
+        base_rates=qd[:, :3].tolist(),
+        arm=q[:, 3:].tolist(),
+        arm_rates=qd[:, 3:].tolist(),
+        problem=sol.spec.to_dict(),
+        problem_file=sol.spec.source,
+    )
     return d
 
 
@@ -102,15 +119,29 @@ def _finite(v):
 
 def metrics_dict(sol: ProblemSolution) -> dict:
     p = sol.plan
-    return {"status": p.status, "success": p.success, "best_stage": p.stages_completed,
-            "passed_dense_checks": sol.passed, "checks": sol.checks, "T": _finite(p.T), "T1": _finite(p.T1),
-            "T2": _finite(p.T2), "S_g": _finite(p.S_g), "S_c": _finite(p.S_c), "cpu_seconds": p.total_cpu_seconds,
-            "wall_seconds": p.total_seconds, "lower_bound": _finite(p.lower_bound), "reason": p.reason,
-            "detail": p.detail, "seed": p.seed,
-            "dense": {k: (None if isinstance(v, float) and math.isinf(v) else v)
-                      for k, v in ({} if sol.metrics is None else sol.metrics.to_dict()).items()},
-            "stages": [{"stage": s.stage, "status": s.status, "ipopt": s.ipopt_status, "T": s.objective}
-                       for s in p.stages]}
+    return {
+        "status": p.status,
+        "success": p.success,
+        "best_stage": p.stages_completed,
+        "passed_dense_checks": sol.passed,
+        "checks": sol.checks,
+        "T": _finite(p.T),
+        "T1": _finite(p.T1),
+        "T2": _finite(p.T2),
+        "S_g": _finite(p.S_g),
+        "S_c": _finite(p.S_c),
+        "cpu_seconds": p.total_cpu_seconds,
+        "wall_seconds": p.total_seconds,
+        "lower_bound": _finite(p.lower_bound),
+        "reason": p.reason,
+        "detail": p.detail,
+        "seed": p.seed,
+        "dense": {
+            k: (None if isinstance(v, float) and math.isinf(v) else v)
+            for k, v in ({} if sol.metrics is None else sol.metrics.to_dict()).items()
+        },
+        "stages": [{"stage": s.stage, "status": s.status, "ipopt": s.ipopt_status, "T": s.objective} for s in p.stages],
+    }
 
 
 def speed_profiles(robot, plan: planner.PickupPlan, n: int = 300):
@@ -136,8 +167,9 @@ def plot_speeds(robot, sol: ProblemSolution, path: str) -> None:
         ax.axvspan(sol.plan.T1, sol.plan.T2, color="0.85", label="grasping")
         ax.set_xlabel("t (s)")
         ax.set_ylabel("speed (m/s)")
-        ax.set_title(f"{os.path.basename(sol.spec.source or 'problem')}: T = {sol.plan.T:.2f} s, "
-                     f"S_g = {sol.plan.S_g:.2f} m/s")
+        ax.set_title(
+            f"{os.path.basename(sol.spec.source or 'problem')}: T = {sol.plan.T:.2f} s, S_g = {sol.plan.S_g:.2f} m/s"
+        )
         ax.legend()
         fig.tight_layout()
         with atomic_open(path, "wb") as f:
