@@ -460,9 +460,6 @@ def transit_target_distance(world: World, trajectory: np.ndarray, tail_length: i
     whole), up to its pre-grasp (the first of the last ``tail_length`` waypoints)."""
     n = len(trajectory) - 1
     end = n - tail_length + 1  # the pre-grasp's row
-    params = np.linspace(0.0, n, steps)
-    params = params[params <= end]
-    k = np.minimum(params.astype(int), n - 1)
-    u = (params - k)[:, None]
-    dense = trajectory[k] + u * (trajectory[k + 1] - trajectory[k])
-    return float(world.checker(CheckerKind.target).min_distance_batch(dense).min())
+    dense = _core.interpolate(trajectory[0], trajectory[1:], steps)  # the success test's own steps
+    transit = np.linspace(0.0, n, steps) <= end
+    return float(world.checker(CheckerKind.target).min_distance_batch(dense[transit]).min())
