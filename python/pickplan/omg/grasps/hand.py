@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from pickplan.core.caches import memo
 from pickplan.core.collision import CollisionChecker, CollisionSettings, SceneMesh
-from pickplan.core.description import RobotInfo, pose_matrix
+from pickplan.core.description import RobotInfo
 from pickplan.core.io import content_file
 from pickplan.core.panda import PANDA
 from pickplan.core.robots import Robot, panda
@@ -35,14 +35,6 @@ PAD_DEPTH = PANDA.pad_depth
 
 
 # --- the hand model: the hand link's subtree of the robot's URDF -------------------------------------
-def _xyz(el, attr: str = "xyz") -> np.ndarray:
-    return np.array([float(v) for v in (el.get(attr) or "0 0 0").split()]) if el is not None else np.zeros(3)
-
-
-def _rpy_matrix(rpy) -> np.ndarray:
-    return pose_matrix((0.0, 0.0, 0.0), rpy)[:3, :3]  # the URDF convention, as robot descriptions read it
-
-
 def _hand_subtree(root: ET.Element, hand_link: str) -> tuple:
     """Names of the links and joints under ``hand_link`` (itself included), leaving out leaves with no
     collision geometry (markers such as the Panda's grasp target)."""
