@@ -183,26 +183,28 @@ std::vector<float> point_distance_grid(const geometry::Vertices& points, const E
           "point distance grid: bad origin or resolution");
   const geometry::PointIndex index(&points);
   std::vector<float> out(static_cast<std::size_t>(dims.prod()));
-  std::size_t k = 0, nearest = 0;
-  // A node's nearest distance is at most its neighbour's plus the resolution (triangle inequality):
-  // the search is bounded by it (with a hair of slack for rounding), the same nearest point found.
-  auto bounded = [&](const Eigen::Vector3d& q, double previous) {
+  std::size_t k = 0;
+  // A neighbouring node's nearest point bounds this node's nearest distance: the search is pruned by it
+  // (with a hair of slack for rounding), the same nearest distance found. It is usually the answer.
+  auto bounded = [&](const Eigen::Vector3d& q, std::size_t* nearest) {
     double d2 = 0;
-    const double b = (previous + resolution) * (1 + 1e-9) + 1e-12;
-    if (!(previous >= 0 && index.nearest_within(q.data(), b * b, &nearest, &d2)))
-      index.nearest(q.data(), &nearest, &d2);
+    if (*nearest < static_cast<std::size_t>(points.rows())) {
+      const double b2 = (points.row(static_cast<Eigen::Index>(*nearest)).transpose() - q).squaredNorm();
+      if (index.nearest_within(q.data(), b2 * (1 + 1e-9) + 1e-24, nearest, &d2)) return std::sqrt(d2);
+    }
+    index.nearest(q.data(), nearest, &d2);
     return std::sqrt(d2);
   };
-  double row_first = -1, plane_first = -1;  // the first node's distance of the previous row, plane
+  const std::size_t none = static_cast<std::size_t>(points.rows());
+  std::size_t row_first = none, plane_first = none;  // the first node's nearest point of the previous row, plane
   for (int z = 0; z < dims.z(); ++z)
     for (int y = 0; y < dims.y(); ++y) {
-      double previous = y > 0 ? row_first : plane_first;
+      std::size_t nearest = y > 0 ? row_first : plane_first;
       for (int x = 0; x < dims.x(); ++x, ++k) {
-        previous = bounded(origin + resolution * Eigen::Vector3d(x, y, z), previous);
-        out[k] = static_cast<float>(previous);
+        out[k] = static_cast<float>(bounded(origin + resolution * Eigen::Vector3d(x, y, z), &nearest));
         if (x == 0) {
-          row_first = previous;
-          if (y == 0) plane_first = previous;
+          row_first = nearest;
+          if (y == 0) plane_first = nearest;
         }
       }
     }
