@@ -255,10 +255,12 @@ class PerceivedWorld:
         pts, fingers = self.hand_points
         n, d = self.plane
         allowance = np.where(fingers, self.settings.grasps.table_contact, 0.0)
+        # a sample's height is p . (R^T n) + t . n - d: one product per sample and pose, no world points
+        up = pts @ (poses[:, :3, :3].transpose(0, 2, 1) @ n).T + allowance[:, None]  # (samples, poses)
+        lowest = up.min(axis=0)
         ok = np.ones(len(poses), dtype=bool)
         for back in (0.0, standoff):
-            X = np.einsum("kij,mj->kmi", poses[:, :3, :3], pts) + (poses[:, :3, 3] - back * poses[:, :3, 2])[:, None]
-            ok &= ((X @ n - d + allowance) >= 0.0).all(axis=1)
+            ok &= lowest + (poses[:, :3, 3] - back * poses[:, :3, 2]) @ n - d >= 0.0
         return ok
 
     def grasps(self, n: int = 100, seed: int = 0, standoff: float = GoalSetSettings.standoff) -> GraspSet:

@@ -249,8 +249,8 @@ def local_candidates(P, plane, s: PointGraspSettings, rng) -> list:
     for i in rng.choice(len(P), min(s.local_samples, len(P)), replace=False):
         rel = F2 - F2[i]
         near = np.flatnonzero(np.einsum("ij,ij->i", rel, rel) <= reach2)
-        ry, rx = rel @ Y2.T, rel @ X2.T
-        found += [(i, *row) for row in _core.local_sections(ry[near], rx[near], height[near], native)]
+        ry, rx = rel[near] @ Y2.T, rel[near] @ X2.T
+        found += [(i, *row) for row in _core.local_sections(ry, rx, height[near], native)]
     if not found:
         return []
     # all sections' frames at once: each yaw's axes as one vector product each (as per section before),
