@@ -1,6 +1,6 @@
 """Finger-pad contact points of a parallel gripper (what C-Space ISF pulls onto the object's surface),
-in the hand-link frame: the Panda's stored asset (``hand.hand_contacts``) or, for any described robot,
-derived here from its finger links' collision geometry.
+in the hand-link frame, derived for every described robot (the Panda's included) from its finger links'
+collision geometry.
 
 A grid of rays is cast from the grasp frame's mid-plane (y = 0, between the pads) outwards along the
 closing axis onto each finger; the first hit of each ray on a face turned towards the other finger,
