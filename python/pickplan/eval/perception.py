@@ -198,11 +198,11 @@ def unit_path(out: str, unit: dict) -> str:
 
 def make_units(settings: PerceptionBenchSettings, files: Sequence[str]) -> List[dict]:
     sweep = settings.sweep()
-    units = []
+    out = []
     for base in experiments.make_units(sweep, files):  # the scene and Table III's knobs, run 0
         for method in settings.methods():
-            units.append(dict(base, method=method))
-    return units
+            out.append(dict(base, method=method))
+    return out
 
 
 def run_perception_bench(settings: PerceptionBenchSettings, stream: Optional[TextIO] = None) -> List[dict]:
@@ -210,8 +210,8 @@ def run_perception_bench(settings: PerceptionBenchSettings, stream: Optional[Tex
     sweep = settings.sweep()
     with Runner(settings.workers) as runner:
         files = experiments.scene_files(sweep, stream, runner)
-        units = make_units(settings, files)
-        todo = [u for u in units if not os.path.exists(unit_path(settings.out, u))]
+        all_units = make_units(settings, files)
+        todo = [u for u in all_units if not os.path.exists(unit_path(settings.out, u))]
         if settings.mesh:  # stored grasp sets built once, before the mesh units need them
             mesh_units = [dict(u, table="planners", method="OMG") for u in todo if u["method"] == MESH]
             for _ in runner.map(
@@ -231,8 +231,8 @@ def run_perception_bench(settings: PerceptionBenchSettings, stream: Optional[Tex
             progress=settings.progress,
             label="perception units",
             stream=stream,
-            done=len(units) - len(todo),
-            total=len(units),
+            done=len(all_units) - len(todo),
+            total=len(all_units),
         ):
             if isinstance(out, JobFailure):
                 out = {
@@ -246,7 +246,7 @@ def run_perception_bench(settings: PerceptionBenchSettings, stream: Optional[Tex
                     "execution_success": False,
                 }
             write_json(unit_path(settings.out, unit), out)
-    return [read_json(unit_path(settings.out, u), "unit record") for u in units]
+    return [read_json(unit_path(settings.out, u), "unit record") for u in all_units]
 
 
 def _mean(values) -> float:
