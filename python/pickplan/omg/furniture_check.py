@@ -7,7 +7,7 @@ centimetres of it and of the target's neighbours by necessity, and the padding t
 (plans 0.2-6.9 mm clear that lift in PyBullet fail it; a link's hull passed 2.3 cm into a cabinet's top
 between its points). Here the links' convex hulls (as PyBullet takes them: ``CheckerKind.surroundings``) are
 measured against the furniture and the objects but the target by FCL on the test's own dense steps: the
-transit (up to the pre-grasp) keeps the approach's clearance (``MetricSettings.tail_clearance``, what it keeps
+transit (as the paper's test bounds it: up to the waypoint before the pre-grasp) keeps the approach's clearance (``MetricSettings.tail_clearance``, what it keeps
 from the target among furniture), the approach into the grasp touches nothing. The target and the table are
 judged as before (body points; the target's transit clearance exactly as well, ``planner``), and so is
 smoothness. A tabletop (no furniture) keeps the paper's test.
@@ -35,10 +35,9 @@ def furniture_distances(world, trajectory: np.ndarray, steps: int) -> np.ndarray
 
 
 def transit_steps(n: int, tail_length: int, steps: int) -> np.ndarray:
-    """(steps,) whether each dense step lies on the transit: before the pre-grasp (the first of the last
-    ``tail_length`` waypoints), the segment into it included, as the native test bounds the transit's
-    clearance from the target."""
-    end = (n - tail_length + 1) / n * (steps - 1) if tail_length > 0 else steps
+    """(steps,) whether each dense step lies on the transit as the paper's test splits it (``tail_start`` of the
+    native metrics): before the waypoint ahead of the pre-grasp, from which the approach's clearance applies."""
+    end = (n - tail_length) / n * (steps - 1) if tail_length > 0 else steps
     return np.arange(steps) < end
 
 
