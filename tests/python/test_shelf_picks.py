@@ -174,9 +174,10 @@ def test_a_target_without_goals_among_the_default_grasps_gets_a_denser_set(lib):
 
 def test_the_bench_unit_plans_a_cramped_target_from_a_denser_grasp_set(tmp_path, lib):
     """A cramped target through the bench's unit: its 100 support-aware grasps give no goal, its 1000 do, and
-    the plan passes the success test (every method of a table gets the same grasps)."""
+    the unit plans to them (every method of a table gets the same grasps). (Its one goal's plan passed the
+    paper's test and missed in PyBullet; the exact test among furniture refuses it: a link 7 mm into the shelf.)"""
     record = _one_unit(tmp_path, Layout.shelf, CRAMPED_SHELF_UNIT, lib, execute=False)
-    assert record["planning_success"] and record["goal_set_size"] > 0, (record["status"], record.get("goal_reasons"))
+    assert record["planned"] and record["goal_set_size"] > 0, (record["status"], record.get("goal_reasons"))
 
 
 def test_a_cabinet_scene_loads_and_plans(tmp_path, lib):

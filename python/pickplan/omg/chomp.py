@@ -148,7 +148,7 @@ class Chomp:
         self.problem = _core.ChompProblem(
             robot.native, scene.native, body.links, body.points, settings.to_native(obstacle_mask, self.active)
         )
-        self._native_metrics: dict = {}  # MetricSettings -> its native struct (native_metric_settings)
+        self._native_metrics: dict = {}  # (MetricSettings, extra exclusion) -> its native struct (native_metric_settings)
 
     @property
     def dt(self) -> float:
@@ -201,19 +201,23 @@ class Chomp:
     def metrics(self, xi, q0, settings: MetricSettings = MetricSettings()) -> "_core.TrajectoryMetrics":
         return self.problem.metrics(xi, q0, self.native_metric_settings(settings))
 
-    def native_metric_settings(self, settings: MetricSettings = MetricSettings()) -> "_core.MetricSettings":
-        """``settings`` resolved for this robot and scene (support links and tolerance, excluded objects),
-        converted once per settings value and kept (every plan's success test reads them; the native
-        struct is shared: read it, do not modify it)."""
-        cached = self._native_metrics.get(settings)
+    def native_metric_settings(
+        self, settings: MetricSettings = MetricSettings(), extra_exclude: int = 0
+    ) -> "_core.MetricSettings":
+        """``settings`` resolved for this robot and scene (support links and tolerance, excluded objects,
+        with the SDF objects of the ``extra_exclude`` bits left out besides: the furniture a caller checks
+        exactly), converted once per settings value and kept (every plan's success test reads them; the
+        native struct is shared: read it, do not modify it)."""
+        key = (settings, int(extra_exclude))
+        cached = self._native_metrics.get(key)
         if cached is None:
-            cached = self._native_metrics[settings] = self._resolve_metric_settings(settings)
+            cached = self._native_metrics[key] = self._resolve_metric_settings(settings, int(extra_exclude))
         return cached
 
-    def _resolve_metric_settings(self, settings: MetricSettings) -> "_core.MetricSettings":
+    def _resolve_metric_settings(self, settings: MetricSettings, extra_exclude: int = 0) -> "_core.MetricSettings":
         fingers = getattr(self.robot, "finger_links", ())
         mask = settings.support_link_mask
         if mask is None:
             mask = sum(1 << self.robot.link_index(f) for f in fingers)
         tolerance = collision.SupportContact(settings.support_tolerance).resolved(self.robot) if mask else 0.0
-        return settings.to_native(self.exclude_mask, mask, tolerance)
+        return settings.to_native(self.exclude_mask | extra_exclude, mask, tolerance)

@@ -20,6 +20,7 @@ from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import ChompSettings, MetricSettings
+from pickplan.omg.furniture_check import exact_furniture, judged_among_furniture
 from pickplan.omg.goals import GoalSet, GoalSetSettings, build_goal_set
 from pickplan.core.ik import IkSettings
 from pickplan.omg.grasps import GraspKind
@@ -85,6 +86,9 @@ class OMGSettings:
     # Where the loop from the straight line fails in a scene with furniture (a shelf, a cabinet): once more
     # from an RRT-Connect path (``omg.sampled_start``); None: never. A tabletop plans as in the paper.
     sampled_start: Optional[SampledStart] = field(default_factory=SampledStart)
+    # Among furniture the success test measures the links' hulls against the furniture exactly (FCL) in place of
+    # the body points' 5 cm padding (``omg.furniture_check``); False: the paper's test everywhere.
+    exact_furniture: bool = True
     # what PlanResult.timings read (thread_cpu: a loaded machine's other processes do not count)
     clock: StageClock = StageClock.wall
 
@@ -325,7 +329,8 @@ class OMGPlanner:
             return result
         clock = _clock(s)
         t = clock()
-        keep = clear_pregrasps(world, gs.tails, s.metrics.clearance)
+        exact = s.exact_furniture and exact_furniture(world)
+        keep = clear_pregrasps(world, gs.tails, s.metrics.clearance, s.metrics.tail_clearance if exact else None)
         clear = replace(gs, goals=gs.goals[keep], tails=gs.tails[keep], grasp_index=gs.grasp_index[keep])
         warm = sampled_initialization(world, q0, clear.tails, s.chomp.n, s.sampled_start) if len(keep) else None
         timings["sampled_start"] = clock() - t
@@ -429,6 +434,10 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
     }
     xi, robot = out.xi, world.robot
     metrics = out.metrics
+    if settings.exact_furniture and exact_furniture(world):
+        metrics, history["furniture_distance"] = judged_among_furniture(
+            parts.chomp, world, q0, xi, gs.tails.shape[1], parts.metric_settings
+        )
     if metrics.success and parts.metric_settings.transit_target_clearance > -np.inf and isinstance(world, World):
         # The success test measures body points (a few per link: a finger's 20 leave 1.7 cm of its surface
         # unsampled); the transit's clearance from the target is what pushes it in execution: measured exactly.

@@ -18,15 +18,20 @@ from typing import Optional, Tuple
 import numpy as np
 
 from pickplan import _core
+from pickplan.omg.furniture_check import pregrasps_clear_of_furniture
 from pickplan.omg.motion import RrtSettings, resample
 from pickplan.omg.world import CheckerKind
 
 
-def clear_pregrasps(world, tails: np.ndarray, clearance: float) -> np.ndarray:
+def clear_pregrasps(world, tails: np.ndarray, clearance: float, exact: Optional[float] = None) -> np.ndarray:
     """Rows of ``tails`` whose pre-grasp (first row) keeps ``clearance`` (m) between the robot's body
-    points and everything but the target and the table, as the success test measures its transit."""
+    points and everything but the target and the table, as the success test measures its transit;
+    ``exact``: measured as the test among furniture does instead (``omg.furniture_check``: the links' hulls
+    keep this much from the furniture and the objects but the target)."""
     if len(tails) == 0:
         return np.zeros(0, int)
+    if exact is not None:
+        return np.flatnonzero(pregrasps_clear_of_furniture(world, tails, exact))
     P = world.robot.transform_points(np.asarray(tails[:, 0], float), world.body)  # (G, points, 3)
     d, _ = world.sdf.distance(P.reshape(-1, 3), cutoff=clearance, exclude=[world.target], exclude_table=True)
     return np.flatnonzero(np.asarray(d).reshape(len(tails), -1).min(axis=1) >= clearance)
