@@ -30,7 +30,8 @@ void init_goal_set(py::module_& m) {
       .def_readwrite("max_goals", &GoalSetSettings::max_goals)
       .def_readwrite("max_solutions", &GoalSetSettings::max_solutions)
       .def_readwrite("seed", &GoalSetSettings::seed)
-      .def_readwrite("approach", &GoalSetSettings::approach);
+      .def_readwrite("approach", &GoalSetSettings::approach)
+      .def_readwrite("approach_substeps", &GoalSetSettings::approach_substeps);
 
   py::enum_<GoalReason> reason(m, "GoalReason", "Why an input grasp did or did not become a goal.");
   for (GoalReason r :

@@ -2,6 +2,7 @@
 // scene: the floating hand and blocks placed so that each grasp has one known outcome; the kept
 // goals and their approach tails are checked by forward kinematics.
 #include <algorithm>
+#include <cmath>
 #include <memory>
 
 #include <gtest/gtest.h>
@@ -148,6 +149,36 @@ TEST(GoalSet, AWorldApproachBacksOffAlongItWhateverTheHandsAxis) {
   }
   s.approach = Eigen::Vector3d(0, 0, -2);  // not a unit vector
   EXPECT_THROW(build_goal_set(c.ik, nullptr, nullptr, {tilted}, c.start, s), std::invalid_argument);
+}
+
+TEST(GoalSet, TheApproachClearanceIsAskedBetweenTheTailsConfigurations) {
+  // The default approach: the tail rises from z 0.22 (pre-grasp) to 0.30 in 2 cm steps, joint-linearly
+  // between them as the success test interpolates. A band 0.245 < z < 0.255 holds no tail configuration,
+  // only the midpoint between the second and third: the waypoints alone pass, substeps 2 catch it.
+  GoalCase c;
+  const auto clear_of_band = [](const Eigen::VectorXd& q) { return q[2] <= 0.245 || q[2] >= 0.255; };
+  GoalSetSettings s;
+  const GoalSet at_waypoints =
+      build_goal_set(c.ik, nullptr, nullptr, {hand_at(0.5, 0, 0.3)}, c.start, s, clear_of_band);
+  ASSERT_EQ(at_waypoints.reasons, std::vector<GoalReason>{GoalReason::ok});
+  s.approach_substeps = 2;
+  const GoalSet between = build_goal_set(c.ik, nullptr, nullptr, {hand_at(0.5, 0, 0.3)}, c.start, s, clear_of_band);
+  EXPECT_EQ(between.reasons, std::vector<GoalReason>{GoalReason::approach_clearance});
+  // what it asks: every tail configuration and the joint-linear quarter points between them
+  s.approach_substeps = 4;
+  std::vector<double> asked;
+  const auto record = [&](const Eigen::VectorXd& q) {
+    asked.push_back(q[2]);
+    return true;
+  };
+  const GoalSet quarters = build_goal_set(c.ik, nullptr, nullptr, {hand_at(0.5, 0, 0.3)}, c.start, s, record);
+  ASSERT_EQ(quarters.goals.rows(), 1);
+  for (int k = 0; k <= 16; ++k) {
+    const double z = 0.22 + 0.005 * k;
+    EXPECT_TRUE(std::any_of(asked.begin(), asked.end(), [&](double a) { return std::abs(a - z) < 1e-4; })) << z;
+  }
+  s.approach_substeps = 0;
+  EXPECT_THROW(build_goal_set(c.ik, nullptr, nullptr, {hand_at(0.5, 0, 0.3)}, c.start, s), std::invalid_argument);
 }
 
 TEST(GoalSet, BadInputThrowsNamingTheProblem) {

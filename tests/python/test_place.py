@@ -199,3 +199,20 @@ def test_pre_places_keep_the_transit_clearance_and_the_cap_counts_only_such_goal
         carrying, request, start, replace(settings, goals=replace(goals, max_goals=5)), model=box
     )
     assert len(capped) == 5, capped.reason_counts()
+
+
+def test_a_place_goal_set_does_not_read_another_grasps_robot(held_case):
+    """The model cache keys the IK solver by robot model: a held object grasped differently is another
+    robot (its held link elsewhere), and its place goal set must be the one a fresh cache builds (the
+    bench planned every unit after the first with the first unit's held link: all ``in_collision``)."""
+    world, carrying, start, box = held_case
+    free = PlaceRequest((0.4, -0.45, 0.0), (0.64, -0.25, 0.4))
+    assert len(build_place_goal_set(carrying, free, start, model=box)) > 0  # grasp A's solver in the cache
+    higher = carrying.held.hand_T_object.copy()
+    higher[2, 3] -= 0.03  # grasp B: the box 3 cm further up in the hand (its approach axis, z, points down)
+    held_b = replace(carrying.held, hand_T_object=higher)
+    shared = build_place_goal_set(HeldWorld(world, held_b), free, start, model=box)
+    fresh = build_place_goal_set(HeldWorld(World(world.scene), held_b), free, start, model=box)
+    assert len(fresh) > 0
+    assert shared.goal_set.reasons == fresh.goal_set.reasons
+    np.testing.assert_array_equal(shared.goal_set.goals, fresh.goal_set.goals)

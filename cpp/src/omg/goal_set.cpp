@@ -124,6 +124,14 @@ class GoalSetBuilder {
     return hand_checker_ && hand_checker_->in_collision(q.data(), *hws_);
   }
   bool too_close(const Eigen::VectorXd& q) const { return approach_ok_ && !approach_ok_(q); }
+  // Whether a joint-linear point strictly between a and b fails `approach_ok` (approach_substeps).
+  bool too_close_between(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const {
+    for (int i = 1; approach_ok_ && i < s_.approach_substeps; ++i) {
+      const double t = static_cast<double>(i) / s_.approach_substeps;
+      if (!approach_ok_(((1.0 - t) * a + t * b).eval())) return true;
+    }
+    return false;
+  }
   bool free_hand_collides(const core::Transform& ik_target) const {
     const core::Transform link_pose = ik_target * tip_inverse_;
     for (size_t l = 0; l < hand_relative_.size(); ++l) hws_->robot.link_pose[l] = link_pose * hand_relative_[l];
@@ -145,7 +153,8 @@ class GoalSetBuilder {
       if (!step.converged || (step.q.transpose() - tail.row(k2 + 1)).cwiseAbs().maxCoeff() > s_.max_joint_jump)
         return GoalReason::standoff_unreachable;
       if (collides(step.q)) return GoalReason::standoff_in_collision;
-      if (too_close(step.q)) return GoalReason::approach_clearance;
+      if (too_close(step.q) || too_close_between(step.q, tail.row(k2 + 1).transpose()))
+        return GoalReason::approach_clearance;
       tail.row(k2) = step.q.transpose();
     }
     if (pregrasp_ok_ && !pregrasp_ok_(tail.row(0).transpose())) return GoalReason::pregrasp_clearance;
@@ -171,9 +180,10 @@ class GoalSetBuilder {
 void check_goal_set_inputs(const core::IkSolver& ik, const geometry::CollisionChecker* checker,
                            const geometry::CollisionChecker* hand_checker, const Eigen::VectorXd& start,
                            const GoalSetSettings& s) {
-  if (s.standoff_steps < 0 || s.standoff < 0 || s.max_goals < 1 || s.diversity < 0)
+  if (s.standoff_steps < 0 || s.standoff < 0 || s.max_goals < 1 || s.diversity < 0 || s.approach_substeps < 1)
     throw std::invalid_argument(
-        "goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1 required");
+        "goal set settings: standoff, standoff_steps, diversity >= 0 and max_goals >= 1, approach_substeps >= 1 "
+        "required");
   core::require_finite("goal set settings: approach", s.approach.data(), 3);
   if (!s.approach.isZero() && std::abs(s.approach.norm() - 1.0) > 1e-6)
     throw std::invalid_argument("goal set settings: approach must be a unit vector or zero");

@@ -47,6 +47,9 @@ class Robot:
     def __init__(self, native: "_core.Robot", urdf_path: Optional[str] = None):
         self._native = native
         self.urdf_path = urdf_path
+        # links fixed after loading (``with_attached_link``): (name, parent, origin bytes) each; what a
+        # cache keyed by the model file must add to its key, since the file no longer says them
+        self.attachments: Tuple[Tuple[str, str, bytes], ...] = ()
 
     @classmethod
     def from_urdf(cls, path: Union[str, os.PathLike], package_dirs: Sequence[str] = ()) -> "Robot":
@@ -101,6 +104,13 @@ class Robot:
 
     def with_base(self, base_pose: np.ndarray) -> "Robot":
         return type(self)._rewrap(self, self._native.with_base(np.asarray(base_pose, dtype=float)))
+
+    def with_attached_link(self, name: str, parent: str, origin: np.ndarray) -> "Robot":
+        """A copy with one more link, ``name``, fixed to ``parent`` at ``origin`` (4, 4; a held object)."""
+        T = np.asarray(origin, dtype=float)
+        new = type(self)._rewrap(self, self._native.with_attached_link(name, parent, T))
+        new.attachments = tuple(getattr(self, "attachments", ())) + ((name, parent, T.tobytes()),)
+        return new
 
     @classmethod
     def _rewrap(cls, old: "Robot", native) -> "Robot":

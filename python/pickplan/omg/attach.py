@@ -126,8 +126,7 @@ def observed_points(world: PerceivedWorld, settings: AttachSettings = AttachSett
 def attached_robot(robot: robots.DescribedRobot, held: HeldObject) -> robots.DescribedRobot:
     """``robot`` with the held object as a link fixed to its hand (``HELD_LINK``); the same type,
     description and model files, so per-robot caches of its other links still apply."""
-    native = robot.native.with_attached_link(HELD_LINK, robot.hand_link, held.hand_T_object)
-    return type(robot)._rewrap(robot, native)
+    return robot.with_attached_link(HELD_LINK, robot.hand_link, held.hand_T_object)
 
 
 class HeldCheck(Option):

@@ -69,6 +69,9 @@ class GoalSetSettings:
     seed: int
     # world direction of the standoff approach (unit; zero: the hand's +z; a place: gravity)
     approach: Tuple[float, float, float]
+    # the approach clearance also between the tail's configurations, at this many joint-linear steps
+    # per interval (1: at the configurations only)
+    approach_substeps: int
     # m the hand, fingers and target must be free to rise from the grasp among the scene's obstacles
     # (furniture: a shelf's next board; ``lift_blocked``), keeping ``lift_clearance`` from them:
     # execution's shortest lift and its clearance, which execution measures in PyBullet (its hulls'

@@ -37,9 +37,11 @@ class ModelCache:
 
     @staticmethod
     def robot_key(robot) -> Optional[tuple]:
-        """What a robot's shape-only data is keyed by (its model file); None: not cacheable."""
+        """What a robot's shape-only data is keyed by (its model file and the links attached since, a held
+        object's grasp among them: an IK solver built for one grasp's robot places another's held link
+        wrongly); None: not cacheable."""
         path = getattr(robot, "urdf_path", None)
-        return (type(robot).__name__, path) if path else None
+        return (type(robot).__name__, path, tuple(getattr(robot, "attachments", ()))) if path else None
 
     def robot(self, name_or_file, base_pose) -> robots.DescribedRobot:
         """The described robot (``robots.load_robot``: a name, a file or a ``DescribedRobot``) at the

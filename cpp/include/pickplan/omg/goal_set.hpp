@@ -39,6 +39,10 @@ struct GoalSetSettings {
   // World direction the hand moves in along the standoff (unit, or zero: the hand's own +z, a
   // grasp's approach). A place sets gravity: the held object comes down onto its support.
   Eigen::Vector3d approach = Eigen::Vector3d::Zero();
+  // `approach_ok` is also asked at approach_substeps - 1 joint-linear points between consecutive tail
+  // configurations: the success test interpolates the tail densely, and its clearance can dip between
+  // them (1: the tail configurations alone).
+  int approach_substeps = 1;
 };
 
 struct GoalSet {
