@@ -222,6 +222,34 @@ TEST(Chomp, OptimizeClearsTheObstacleAndStaysOnTheGoal) {
     }
 }
 
+TEST(Chomp, AStepEndsInsideTheJointLimitsWhenItsSmoothProjectionsRunOut) {
+  // Every waypoint's joints pushed past both limits: one smooth projection (it fixes the worst joint) cannot
+  // bring all back, the clamp after it must; the pinned tail stays on the goal.
+  ChompCase c = make_case();
+  ChompSettings s = exact_settings();
+  s.joint_limit_steps = 1;
+  ChompProblem p(c.robot, c.scene, c.body, s);
+  ChompWorkspace ws(p);
+  const Eigen::VectorXd& lo = c.robot->lower_limits();
+  const Eigen::VectorXd& hi = c.robot->upper_limits();
+  Trajectory xi = wiggly_path(c, 10, 0.05);
+  for (int t = 0; t + 1 < xi.rows(); ++t)
+    for (int j = 0; j < xi.cols(); ++j)
+      if (std::isfinite(lo[j]) && std::isfinite(hi[j]))  // a continuous joint has no limit to leave
+        xi(t, j) = (t + j) % 2 ? hi[j] + 0.01 * (t + 1) : lo[j] - 0.02 * (j + 1);
+  Trajectory goal(1, c.robot->dof());
+  goal.row(0) = c.q1.transpose();
+  ASSERT_TRUE((lo.array().isFinite() && hi.array().isFinite()).any());
+  const StepInfo info = p.step(xi, c.q0, &goal, 0, ws);
+  EXPECT_EQ(info.limit_projections, 1);
+  for (int t = 0; t < xi.rows(); ++t)
+    for (int j = 0; j < xi.cols(); ++j) {
+      EXPECT_GE(xi(t, j), lo[j]) << t << ", " << j;
+      EXPECT_LE(xi(t, j), hi[j]) << t << ", " << j;
+    }
+  EXPECT_LT((xi.bottomRows(1) - goal).cwiseAbs().maxCoeff(), 1e-12);
+}
+
 TEST(Chomp, GoalCostIsTheObjectiveOfTheStraightTail) {
   // At iteration 0 the estimate of OMG Sec. III-D is f of the constant-velocity path q0 -> goal.
   ChompCase c = make_case();

@@ -319,6 +319,12 @@ void ChompProblem::project_limits(Trajectory& xi, int m, ChompWorkspace& ws, Ste
     xi.noalias() += scale * ws.u;
     ++info.limit_projections;
   }
+  // Smooth steps left a violation (they fix the worst joint at a time): clamp the rest, so no plan leaves
+  // the limits a controller refuses (a shelf plan went 1.5 mrad past panda_joint2 after 10 steps).
+  const Eigen::Index free_rows = xi.rows() - m;
+  for (Eigen::Index r = 0; r < free_rows; ++r)
+    for (Eigen::Index c = 0; c < xi.cols(); ++c)
+      if (settings_.active.empty() || settings_.active[c]) xi(r, c) = std::clamp(xi(r, c), lo[c], hi[c]);
 }
 
 StepInfo ChompProblem::step(Trajectory& xi, const Eigen::VectorXd& q0, const Trajectory* goal, int iteration,
