@@ -20,7 +20,7 @@ from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import ChompSettings, MetricSettings
-from pickplan.omg.furniture_check import exact_furniture, judged_among_furniture
+from pickplan.omg.furniture_check import exact_furniture, judged_among_furniture, loop_check, transit_target_distance
 from pickplan.omg.goals import GoalSet, GoalSetSettings, build_goal_set
 from pickplan.core.ik import IkSettings
 from pickplan.omg.grasps import GraspKind
@@ -409,6 +409,7 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
     trajectory after ``q0``, its goal in ``gs`` or -1[, the goals' costs to start the selection from or None]),
     a replan's start (``omg.replan``)."""
     parts = LoopInputs.of(settings, world, gs.tails.shape[1])
+    exact = settings.exact_furniture and exact_furniture(world)
     out = run_native(
         parts.chomp,
         parts.refiner,
@@ -421,6 +422,7 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
         parts.policy,
         parts.metric_settings,
         warm,
+        loop_check(world, q0, gs.tails.shape[1], parts.metric_settings) if exact else None,
     )
     for phase, seconds in out.seconds.to_dict().items():
         timings[phase] += seconds
@@ -434,7 +436,7 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
     }
     xi, robot = out.xi, world.robot
     metrics = out.metrics
-    if settings.exact_furniture and exact_furniture(world):
+    if exact:
         metrics, history["furniture_distance"] = judged_among_furniture(
             parts.chomp, world, q0, xi, gs.tails.shape[1], parts.metric_settings
         )
@@ -461,14 +463,3 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
         goal_set=np.array(gs.goals),
         goal_source=out.goal_source,
     )
-
-
-def transit_target_distance(world: World, trajectory: np.ndarray, tail_length: int, steps: int) -> float:
-    """The least distance (m, FCL on the meshes) of the robot from the target over the transit of a
-    ``trajectory`` ((n + 1, dof), the start first) interpolated as the success test does (``steps`` over the
-    whole), up to its pre-grasp (the first of the last ``tail_length`` waypoints)."""
-    n = len(trajectory) - 1
-    end = n - tail_length + 1  # the pre-grasp's row
-    dense = _core.interpolate(trajectory[0], trajectory[1:], steps)  # the success test's own steps
-    transit = np.linspace(0.0, n, steps) <= end
-    return float(world.checker(CheckerKind.target).min_distance_batch(dense[transit]).min())
