@@ -181,7 +181,7 @@ def test_native_loop_rejects_bad_input(reference_cases):
 
 
 def test_native_loop_stops_early_only_on_plans_the_check_passes(reference_cases):
-    """``check`` (the exact test among furniture, ``omg.furniture_check.loop_check``) is asked only about
+    """``check`` (the exact test among furniture, ``omg.furniture_check.LoopCheck``) is asked only about
     plans the metrics pass, at the pre-termination checks; the loop stops on the first it accepts and returns
     that plan, and runs to the horizon when it accepts none."""
     _, scene, world, grasps = reference_cases[1]

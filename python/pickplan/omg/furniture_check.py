@@ -15,6 +15,8 @@ smoothness. A tabletop (no furniture) keeps the paper's test.
 
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from pickplan import _core
@@ -50,38 +52,54 @@ def furniture_clear(world, trajectory: np.ndarray, tail_length: int, metric_sett
     return bool(np.all(d > need)), float(d.min())
 
 
-def judged_among_furniture(chomp, world, q0: np.ndarray, xi: np.ndarray, tail_length: int, metric_settings):
+def judged_among_furniture(
+    chomp, world, q0: np.ndarray, xi: np.ndarray, tail_length: int, metric_settings, least: Optional[float] = None
+):
     """(metrics, least exact distance) of a plan among furniture: the native test with the furniture and the
     objects but the target left out of its body points (their ``min_clearance`` and ``collision`` then read
     the cap and the table alone), then the exact check (``furniture_clear``); a plan failing it is marked in
-    collision."""
+    collision. ``least``: the plan's least distance where the exact check already passed it (``LoopCheck``)."""
     native = chomp.native_metric_settings(metric_settings, extra_exclude=surroundings_mask(world))
     metrics = chomp.problem.metrics(xi, q0, native)
+    if least is not None:
+        return metrics, least
     clear, least = furniture_clear(world, np.vstack([q0, xi]), tail_length, metric_settings)
     return (metrics if clear else _core.marked_in_collision(metrics)), least
 
 
-def target_clear(world, trajectory: np.ndarray, tail_length: int, metric_settings) -> bool:
-    """Whether the transit of ``trajectory`` keeps ``transit_target_clearance`` from the target (measured
-    exactly where that clearance is asked for: among furniture, ``planner.LoopInputs``)."""
-    need = metric_settings.transit_target_clearance
-    return need == -np.inf or transit_target_distance(world, trajectory, tail_length, metric_settings.steps) >= need
+class LoopCheck:
+    """What Algorithm 2's loop stops early on among furniture (``native_loop.run_native``'s ``exact``: the
+    metrics without the objects of ``mask``, and this test of a plan (n, dof)): the exact checks the plan is
+    judged by afterwards (``furniture_clear``; the transit's clearance from the target, where asked). With the
+    padded body points in its place the loop ran most furnished plans to the horizon and returned the last
+    iterate, though an earlier one passed the exact test (the 5 cabinet plans refused on 100 scenes). The
+    measures of the plan it accepts are kept (``measured``): the loop returns that plan, judged without
+    measuring it again."""
 
+    def __init__(self, world, q0: np.ndarray, tail_length: int, metric_settings):
+        self.world, self.q0, self.tail_length, self.settings = world, q0, tail_length, metric_settings
+        self.mask = surroundings_mask(world)
+        self._accepted = None  # (plan, least distance from the surroundings, from the target or None)
 
-def loop_check(world, q0: np.ndarray, tail_length: int, metric_settings) -> tuple:
-    """What Algorithm 2's loop stops early on among furniture (``native_loop.run_native``'s ``exact``): the
-    metrics without the furniture and the objects but the target, and a test of a plan (n, dof) by the
-    exact checks the plan is judged by afterwards (``furniture_clear``, ``target_clear``). With the padded
-    body points in its place the loop ran most furnished plans to the horizon and returned the last
-    iterate, though an earlier one passed the exact test (4 of 5 cabinet plans refused on 100 scenes)."""
+    def __call__(self, xi: np.ndarray) -> bool:
+        trajectory = np.vstack([self.q0, xi])
+        clear, least = furniture_clear(self.world, trajectory, self.tail_length, self.settings)
+        need = self.settings.transit_target_clearance
+        if not clear:
+            return False
+        target = None
+        if need > -np.inf:
+            target = transit_target_distance(self.world, trajectory, self.tail_length, self.settings.steps)
+            if target < need:
+                return False
+        self._accepted = (np.array(xi), least, target)
+        return True
 
-    def check(xi: np.ndarray) -> bool:
-        trajectory = np.vstack([q0, xi])
-        return furniture_clear(world, trajectory, tail_length, metric_settings)[0] and target_clear(
-            world, trajectory, tail_length, metric_settings
-        )
-
-    return surroundings_mask(world), check
+    def measured(self, xi: np.ndarray) -> Optional[tuple]:
+        """(least distance from the surroundings, from the target or None) of ``xi`` if it is the plan the
+        check accepted last, else None."""
+        a = self._accepted
+        return a[1:] if a is not None and np.array_equal(a[0], xi) else None
 
 
 def exact_furniture(world) -> bool:
