@@ -253,6 +253,22 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     calls.clear()
     off = routed.plan_routed(robot, problem, FAST, routes=0, fallback=False)
     assert not off.success and off.reason is Reason.solver_failed and planner.Method.single_shot not in calls
+    # An all-constraint plan far from the bound (here any: SECOND_OPINION 0) gets the next base
+    # path's plans as its second opinion: the five stages from it (which pass here), the shorter kept.
+    plans = []
+
+    def first_five_stages_fail(robot_, problem_, settings, method=planner.Method.successive, x0=None):
+        p = real(robot_, problem_, settings, method, x0)
+        if not plans:
+            p.success, p.status = False, planner.SolveStatus.infeasible
+        plans.append((planner.Method.parse(method, "method"), p))
+        return p
+
+    monkeypatch.setattr(planner, "plan", first_five_stages_fail)
+    monkeypatch.setattr(routed, "SECOND_OPINION", 0.0)
+    p = routed.plan_routed(robot, problem, FAST, routes=0)
+    assert [m for m, _ in plans] == [planner.Method.successive, planner.Method.single_shot, planner.Method.successive]
+    assert p.success and p.T == min(q.T for _, q in plans[1:]) and planner.passes_dense_checks(robot, problem, p)
 
 
 def test_plans_that_fail_between_the_samples_are_solved_again_at_refined_samples(robot, monkeypatch):

@@ -10,7 +10,8 @@ successive refinement from the fastest base path, and a wall-clock budget.
    the five stages (native ``solve_successive``: arm seeds), and when their plan fails (or fails
    the dense checks, ``planner.dense_checks``) all constraints at once (the native direct track,
    on its own) from the same solution, while the budget lasts. The first plan that passes is
-   returned. When none does: the plans (of either method) that held their rows at the samples but
+   returned; above SECOND_OPINION times the bound it gets a second opinion first (a five-stage
+   plan: all constraints from its solution; an all-constraint plan: the next solutions' plans). When none does: the plans (of either method) that held their rows at the samples but
    not between them (a long T leaves a second or more between samples, where the base polynomial
    slides sideways) are solved again, the same method from the same stage-1 solution, with the
    samples refined (``REFINE``), the shortest first. No stage-1 solution at all: stage 1 again at
@@ -47,7 +48,8 @@ BASE_DEGREES = (5, 7)
 # A five-stage plan whose T exceeds this multiple of the lower bound (issue 37's worst-case target)
 # gets a second opinion: all constraints at once from the same stage-1 solution, kept when shorter.
 # The five stages commit the arm to one IK branch and grasp timing; far from the bound that is
-# where the time went (behind layout: 23 s -> 11 s against a bound of 6 s).
+# where the time went (behind layout: 23 s -> 11 s against a bound of 6 s). An all-constraint plan
+# (the fallback) so far from the bound gets the next base paths' plans as its second opinion.
 SECOND_OPINION = 3.0
 # When no plan passes and some held their rows at the samples but not between them (the base slides
 # sideways between samples a second or more apart when T is long), the five stages again with
@@ -259,11 +261,16 @@ def plan_routed(
     # layout: 0.3-1.3 s against 1-4 s) and the plans tried before the refinement are the same.
     jobs = [(e, m) for e in _distinct(ranked, settings.tol) for m in methods]
     best, found, closest, between = _solve_ranked(robot, problem, jobs, budget)
-    if found is not None and found[1] is planner.Method.successive:  # its second opinion when far from the bound
-        if fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent():
-            other, ok = _solve_one(robot, problem, found[0], budget, planner.Method.single_shot)
-            if ok and other.T < best.T:
-                best = other
+    far = best is not None and fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent()
+    if far and found[1] is planner.Method.successive:  # its second opinion
+        other, ok = _solve_one(robot, problem, found[0], budget, planner.Method.single_shot)
+        if ok and other.T < best.T:
+            best = other
+    elif far:  # an all-constraint plan far from the bound: the next base paths' plans, the shorter kept
+        after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
+        other, *_ = _solve_ranked(robot, problem, jobs[after:], budget)
+        if other is not None and other.T < best.T:
+            best = other
     elif best is None and between and refine:
         best = _refined(robot, problem, between, budget)
     out = best or closest
