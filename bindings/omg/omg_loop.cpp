@@ -90,8 +90,8 @@ void init_omg_loop(py::module_& m) {
       "run_omg_loop",
       [](const ChompProblem& problem, const RefinerHolder* refiner, const py::object& hand_link, const Array& q0,
          const Array& goals, const Array& tails, const py::object& grasp_index, const Array& blend,
-         const OmgLoopSettings& settings, const py::object& initial, int initial_goal,
-         const py::object& initial_costs) {
+         const OmgLoopSettings& settings, const py::object& initial, int initial_goal, const py::object& initial_costs,
+         const py::object& check) {
         const int hand = link_arg(problem.robot(), hand_link);
         const Trajectory G = configuration_rows(problem.robot(), goals, "goals", "G");
         const std::vector<Trajectory> T = configuration_blocks(problem.robot(), tails, "tails", goals.shape(0));
@@ -109,20 +109,27 @@ void init_omg_loop(py::module_& m) {
         } else if (initial_goal != -1 || !initial_costs.is_none()) {
           throw std::invalid_argument("initial_goal, initial_costs: given without an initial trajectory");
         }
+        PlanCheck plan_check;
+        if (!check.is_none())  // Python's test: it takes the GIL the loop releases, at the few checks only
+          plan_check = [&check](const Trajectory& xi) {
+            py::gil_scoped_acquire acquire;
+            return check(Trajectory(xi)).cast<bool>();
+          };
         OmgLoopResult r;
         {
           py::gil_scoped_release release;
           r = run_omg_loop(problem, refiner ? refiner->refiner.get() : nullptr, hand, q0v, G, T, gi, b, settings,
-                           initial.is_none() ? nullptr : &warm);
+                           initial.is_none() ? nullptr : &warm, check.is_none() ? nullptr : &plan_check);
         }
         return r;
       },
       py::arg("problem"), py::arg("refiner"), py::arg("hand_link"), py::arg("q0"), py::arg("goals"), py::arg("tails"),
       py::arg("grasp_index"), py::arg("blend"), py::arg("settings"), py::arg("initial") = py::none(),
-      py::arg("initial_goal") = -1, py::arg("initial_costs") = py::none(),
+      py::arg("initial_goal") = -1, py::arg("initial_costs") = py::none(), py::arg("check") = py::none(),
       "Algorithm 2's loop over a goal set (refiner None: no ISF); returns the plan, its metrics and history. "
       "initial (n, dof), initial_goal and initial_costs (one per goal, or None: estimated): a warm start from a "
-      "previous plan (replanning).");
+      "previous plan (replanning). check: None or a function of a plan (n, dof) -> bool that a plan must also "
+      "pass before the loop stops early on it (the exact test among furniture).");
 }
 
 }  // namespace pickplan::bind

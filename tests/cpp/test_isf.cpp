@@ -9,6 +9,7 @@
 #include "arm_fixtures.hpp"
 #include "mesh_fixtures.hpp"
 #include "pickplan/omg/isf.hpp"
+#include "pickplan/omg/omg_loop.hpp"
 
 using namespace pickplan::core;
 using namespace pickplan::geometry;
@@ -244,4 +245,31 @@ TEST(Isf, PlacedAgainEqualsBuiltThere) {
   Transform wrong = motion;
   wrong.p.x() += 1e-3;
   EXPECT_THROW(first.with_object(pts, nrm, wrong), std::invalid_argument);
+}
+
+// The loop's goal book takes an ISF refinement with the goal's approach shifted alike, and that approach is
+// pinned from then on: shifted past a joint limit it could never be executed, so the refinement is not taken.
+TEST(GoalBook, RefinementShiftingTheApproachPastAJointLimitIsNotTaken) {
+  IsfCase c;
+  const GraspRefiner r = c.refiner();
+  Trajectory goals(1, 6);
+  goals.row(0) = config(0, 0, 0.012).transpose();  // the palm 1.2 cm into the cube: ISF moves it down
+  auto approach_from = [&](double z) {
+    Trajectory tail(2, 6);
+    tail.row(0) = config(0, 0, z).transpose();
+    tail.row(1) = goals.row(0);
+    return tail;
+  };
+  GoalBook free(*c.robot, c.hand, goals, {approach_from(-0.4)}, {0});
+  const auto [g, added] = free.refine(0, r, 20, 0.05);
+  ASSERT_TRUE(added);
+  EXPECT_LT(free.tail(g)(0, 2), -0.41);  // shifted down by more than 1 cm
+  // 5 mm above the z joint's lower limit (-0.5 m): the same shift would take the approach past it
+  GoalBook edge(*c.robot, c.hand, goals, {approach_from(-0.495)}, {0});
+  const auto [g2, added2] = edge.refine(0, r, 20, 0.05);
+  EXPECT_FALSE(added2);
+  EXPECT_EQ(g2, 0);
+  EXPECT_EQ(edge.size(), 1);
+  EXPECT_TRUE(edge.stalled(0));
+  EXPECT_EQ(edge.tail(0), approach_from(-0.495));
 }

@@ -28,7 +28,8 @@ class ReferencePlanner(OMGPlanner):
 class GoalBook:
     """The goal set as the planner changes it: the first time C-Space ISF moves a goal, its refined
     copy joins the set; later refinements update that copy in place. Goals ISF cannot improve (no
-    decrease found, or beyond ``isf_max_shift`` from their input grasp) are left alone."""
+    decrease found, beyond ``isf_max_shift`` from their input grasp, or their shifted approach past a joint
+    limit) are left alone."""
 
     def __init__(self, gs: GoalSet, robot):
         self.robot = robot
@@ -65,6 +66,9 @@ class GoalBook:
             self.stalled.add(g)  # deterministic: refine would give the same again
             return g, False
         shifted = self.tails[g] + (q_ref - self.goals[g])  # keep the approach's shape
+        if np.any(shifted < self.robot.lower_limits) or np.any(shifted > self.robot.upper_limits):
+            self.stalled.add(g)  # a pinned approach past a joint limit could never be executed
+            return g, False
         if self.is_refined(g):  # already a refined goal: update in place
             self.goals[g], self.tails[g] = q_ref, shifted
             return g, False

@@ -17,7 +17,8 @@ from pickplan.omg import planner as omg
 from pickplan.omg import selection
 from pickplan.omg.chomp import Chomp
 from pickplan.omg.model_cache import ModelCache
-from pickplan.omg.native_loop import native_policy
+from pickplan.omg.goals import build_goal_set
+from pickplan.omg.native_loop import native_policy, run_native
 from pickplan.omg.world import World
 from pickplan.sim.scenes import Scene
 
@@ -177,3 +178,33 @@ def test_native_loop_rejects_bad_input(reference_cases):
     bad.check_every = 0
     with pytest.raises(ValueError, match="check_every"):
         _core.run_omg_loop(*args, goals, tails, [0, 1], blend, bad)
+
+
+def test_native_loop_stops_early_only_on_plans_the_check_passes(reference_cases):
+    """``check`` (the exact test among furniture, ``omg.furniture_check.LoopCheck``) is asked only about
+    plans the metrics pass, at the pre-termination checks; the loop stops on the first it accepts and returns
+    that plan, and runs to the horizon when it accepts none."""
+    _, scene, world, grasps = reference_cases[1]
+    settings = omg.OMGSettings()
+    gs = build_goal_set(world, grasps, world.start, settings.goals, settings.ik)
+    parts = omg.LoopInputs.of(settings, world, gs.tails.shape[1])
+
+    def run(exact):
+        args = (world.robot, world.start, gs.goals, gs.tails, gs.grasp_index, settings)
+        return run_native(
+            parts.chomp, parts.refiner, *args, selection.make_policy("MD"), parts.metric_settings, None, exact
+        )
+
+    alone = run(None)
+    assert alone.metrics.success and alone.iterations < settings.iterations  # the metrics alone stop it early
+    asked = []
+
+    def second(xi):
+        asked.append(np.array(xi))
+        return len(asked) == 2
+
+    out = run((0, second))
+    np.testing.assert_array_equal(asked[0], alone.xi)  # the plan the metrics alone stopped on, refused
+    assert len(asked) == 2 and out.iterations > alone.iterations and out.metrics.success
+    np.testing.assert_array_equal(out.xi, asked[1])
+    assert run((0, lambda xi: False)).iterations == settings.iterations

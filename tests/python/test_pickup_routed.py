@@ -248,21 +248,38 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     p = routed.plan_routed(robot, problem, FAST, routes=0)  # the heuristic seed's base paths (quintic, degree 7)
     assert p.success and p.seed.endswith(", direct") and p.reason is Reason.none
     assert planner.passes_dense_checks(robot, problem, p) and p.T >= p.lower_bound
-    assert planner.Method.single_shot in calls and calls[0] is planner.Method.successive
+    # The first base path's fallback comes before the next base path's five stages.
+    assert calls[:2] == [planner.Method.successive, planner.Method.single_shot]
     calls.clear()
     off = routed.plan_routed(robot, problem, FAST, routes=0, fallback=False)
     assert not off.success and off.reason is Reason.solver_failed and planner.Method.single_shot not in calls
+    # An all-constraint plan far from the bound (here any: SECOND_OPINION 0) gets the next base
+    # path's plans as its second opinion: the five stages from it (which pass here), the shorter kept.
+    plans = []
+
+    def first_five_stages_fail(robot_, problem_, settings, method=planner.Method.successive, x0=None):
+        p = real(robot_, problem_, settings, method, x0)
+        if not plans:
+            p.success, p.status = False, planner.SolveStatus.infeasible
+        plans.append((planner.Method.parse(method, "method"), p))
+        return p
+
+    monkeypatch.setattr(planner, "plan", first_five_stages_fail)
+    monkeypatch.setattr(routed, "SECOND_OPINION", 0.0)
+    p = routed.plan_routed(robot, problem, FAST, routes=0)
+    assert [m for m, _ in plans] == [planner.Method.successive, planner.Method.single_shot, planner.Method.successive]
+    assert p.success and p.T == min(q.T for _, q in plans[1:]) and planner.passes_dense_checks(robot, problem, p)
 
 
 def test_plans_that_fail_between_the_samples_are_solved_again_at_refined_samples(robot, monkeypatch):
     problem = _native(robot, _spec())
     real = planner.plan
-    calls, plans = [], []
+    calls = []
 
     def coarse_fails(robot_, problem_, settings, method=planner.Method.successive, x0=None):
-        calls.append((planner.Method.parse(method, "method"), settings.samples_per_interval))
         p = real(robot_, problem_, settings, method, x0)
-        plans.append(p)
+        rows = p.stages[-1].rows if p.stages else 0
+        calls.append((planner.Method.parse(method, "method"), settings.samples_per_interval, x0.tobytes(), p.T, rows))
         if settings.samples_per_interval == FAST.samples_per_interval:  # as if it held its rows at the samples only
             p.success, p.status = False, planner.SolveStatus.violation_between_samples
         return p
@@ -272,13 +289,24 @@ def test_plans_that_fail_between_the_samples_are_solved_again_at_refined_samples
     fine = round(FAST.samples_per_interval * routed.REFINE[0])
     assert p.success and p.reason is Reason.none and p.seed.endswith(f", {fine} samples per interval")
     assert planner.passes_dense_checks(robot, problem, p) and p.T >= p.lower_bound
-    # The five stages, then all constraints at once, at the given samples from every base path; then
-    # the five stages at the refined samples, from the first base path.
+    # From each base path the five stages, then all constraints at once; then, at the refined
+    # samples, the same method from the same base path as the shortest of those plans, first.
     coarse = [c for c in calls if c[1] == FAST.samples_per_interval]
-    assert [m for m, _ in coarse] == sorted((m for m, _ in coarse), key=lambda m: m is planner.Method.single_shot)
-    assert calls[len(coarse) :] == [(planner.Method.successive, fine)] and len(coarse) >= 2
+    assert len(coarse) >= 4 and [c[0] for c in coarse] == [planner.Method.successive, planner.Method.single_shot] * (
+        len(coarse) // 2
+    )
+    shortest = min(coarse, key=lambda c: c[3])
+    assert calls[len(coarse)][:3] == (shortest[0], fine, shortest[2])
     # More samples, more rows: from the same base path, the refined NLP holds its rows at more instants.
-    assert p.stages[-1].rows > plans[0].stages[-1].rows
+    assert p.stages[-1].rows > shortest[4]
+
+
+def test_stage1_solutions_that_repeat_an_earlier_one_are_dropped():
+    a = np.array([1.0, -2000.0, 3.5])
+    ranked = [(1.0, "a", None, a), (1.0, "b", None, a + 1e-3), (2.0, "c", None, a * 1.01), (3.0, "d", None, a[:2])]
+    # b is a within 1e-6 of its scale (2000): a repeat; c differs by 20 in one variable, d in its size.
+    assert [e[1] for e in routed._distinct(ranked, 1e-6)] == ["a", "c", "d"]
+    assert [e[1] for e in routed._distinct(ranked, 1e-8)] == ["a", "b", "c", "d"]
 
 
 # ---- the layouts --------------------------------------------------------------------------------------

@@ -100,6 +100,13 @@ std::pair<int, bool> GoalBook::refine(int g, const GraspRefiner& refiner, int st
   }
   Trajectory shifted = tails_[g];
   shifted.rowwise() += (q_ref - goals_[g]).transpose();  // keep the approach's shape
+  // The approach is pinned from here on: shifted past a joint limit it can never be executed (an IK tail
+  // within 1 mrad of panda_joint2's limit, shifted 1.5 mrad beyond it, was refused by PyBullet).
+  const Eigen::RowVectorXd lo = robot_.lower_limits().transpose(), hi = robot_.upper_limits().transpose();
+  if (((shifted.rowwise() - lo).array() < 0).any() || ((shifted.rowwise() - hi).array() > 0).any()) {
+    stalled_.insert(g);
+    return {g, false};
+  }
   if (is_refined(g)) {
     goals_[g] = q_ref, tails_[g] = shifted;
     return {g, false};
@@ -122,7 +129,7 @@ namespace {
 class Loop {
  public:
   Loop(const ChompProblem& problem, const GraspRefiner* refiner, GoalBook& book, const Eigen::VectorXd& q0,
-       const Eigen::VectorXd& blend, const OmgLoopSettings& s, const WarmStart* warm)
+       const Eigen::VectorXd& blend, const OmgLoopSettings& s, const WarmStart* warm, const PlanCheck* check)
       : problem_(problem),
         refiner_(refiner),
         book_(book),
@@ -130,6 +137,7 @@ class Loop {
         blend_(blend),
         s_(s),
         warm_(warm),
+        check_(check),
         ws_(problem),
         policy_(s.selection) {}
 
@@ -153,6 +161,7 @@ class Loop {
   const Eigen::VectorXd& blend_;
   const OmgLoopSettings& s_;
   const WarmStart* warm_;
+  const PlanCheck* check_;
   ChompWorkspace ws_;
   SelectionPolicy policy_;
   OmgStageSeconds seconds_;
@@ -187,7 +196,7 @@ bool Loop::succeeds(Trajectory& xi, int g, int iterations, TrajectoryMetrics& me
   if (!book_.on_goal(xi, g)) problem_.step(cand, q0_, &book_.tail(g), iterations, ws_);
   // A failing check's metrics are dropped (the returned trajectory is measured in full): stop early.
   metrics = evaluate_trajectory(problem_, q0_, cand, s_.metrics, /*stop_at_failure=*/true);
-  if (!metrics.success) return false;
+  if (!metrics.success || (check_ && !(*check_)(cand))) return false;
   xi = std::move(cand);
   return true;
 }
@@ -218,7 +227,7 @@ OmgLoopResult Loop::run() {
   if (unchanged && s_.pre_terminate) {  // still good: kept as it is
     StageTimer timer(s_.clock, &seconds_.metrics);
     r.metrics = evaluate_trajectory(problem_, q0_, xi, s_.metrics, /*stop_at_failure=*/true);
-    have_metrics = r.metrics.success;
+    have_metrics = r.metrics.success && (!check_ || (*check_)(xi));
   }
   if (!have_metrics) {
     if (warm_goal) c0 = warm_->initial_costs.size() ? warm_->initial_costs : estimates(warm_->initial, 0);
@@ -278,7 +287,7 @@ OmgLoopResult Loop::run() {
 OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refiner, int hand_link,
                            const Eigen::VectorXd& q0, const Trajectory& goals, const std::vector<Trajectory>& tails,
                            const std::vector<int>& grasp_index, const Eigen::VectorXd& blend,
-                           const OmgLoopSettings& settings, const WarmStart* warm) {
+                           const OmgLoopSettings& settings, const WarmStart* warm, const PlanCheck* check) {
   check_settings(settings);
   core::require_size("OMG loop: initialization blend", problem.settings().n, blend.size(),
                      "entries (one per waypoint)");
@@ -299,7 +308,7 @@ OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refi
                                   "), got " + std::to_string(warm->initial_costs.size()));
     core::require_finite("OMG loop: warm start costs", warm->initial_costs.data(), warm->initial_costs.size());
   }
-  return Loop(problem, refiner, book, q0, blend, settings, warm).run();
+  return Loop(problem, refiner, book, q0, blend, settings, warm, check).run();
 }
 
 }  // namespace pickplan::omg

@@ -74,14 +74,17 @@ def loop_settings(settings, policy, metrics: "_core.MetricSettings") -> "_core.O
 
 
 def run_native(
-    chomp, refiner, robot, q0, goals, tails, grasp_index, settings, policy, metric_settings, warm=None
+    chomp, refiner, robot, q0, goals, tails, grasp_index, settings, policy, metric_settings, warm=None, exact=None
 ) -> dict:
     """Algorithm 2's loop over a goal set (``goals``, their approach ``tails`` and the input grasp
     each came from) with ``chomp`` (its problem), ``refiner`` (a ``GraspRefiner`` or None) for
     ``robot``; returns ``_core.run_omg_loop``'s ``OmgLoopResult`` (xi, goal, metrics, history, seconds per stage, ...).
     ``warm``: (initial trajectory (n, dof), its goal index or -1[, one cost per goal for the selection to start
-    from, or None: estimated]) to start from a previous plan."""
-    native = loop_settings(settings, policy, chomp.native_metric_settings(metric_settings))
+    from, or None: estimated]) to start from a previous plan. ``exact``: (the SDF bits the metrics leave out, a
+    test of a plan (n, dof) -> bool): the loop stops early only on a plan that passes the metrics without those
+    objects and the test (the exact test among furniture, ``omg.furniture_check``); None: the metrics alone."""
+    extra, check = (0, None) if exact is None else exact
+    native = loop_settings(settings, policy, chomp.native_metric_settings(metric_settings, extra_exclude=extra))
     initial, initial_goal, costs = (
         (None, -1, None)
         if warm is None
@@ -104,4 +107,5 @@ def run_native(
         initial=initial,
         initial_goal=initial_goal,
         initial_costs=costs,
+        check=check,
     )

@@ -20,7 +20,7 @@ from pickplan.core.timing import Interpolation, KinematicLimits, TimedTrajectory
 from pickplan.core.settings import Option
 from pickplan.omg import grasps as grasps_mod
 from pickplan.omg.chomp import ChompSettings, MetricSettings
-from pickplan.omg.furniture_check import exact_furniture, judged_among_furniture
+from pickplan.omg.furniture_check import LoopCheck, exact_furniture, judged_among_furniture, transit_target_distance
 from pickplan.omg.goals import GoalSet, GoalSetSettings, build_goal_set
 from pickplan.core.ik import IkSettings
 from pickplan.omg.grasps import GraspKind
@@ -409,6 +409,10 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
     trajectory after ``q0``, its goal in ``gs`` or -1[, the goals' costs to start the selection from or None]),
     a replan's start (``omg.replan``)."""
     parts = LoopInputs.of(settings, world, gs.tails.shape[1])
+    m = gs.tails.shape[1]
+    check = (
+        LoopCheck(world, q0, m, parts.metric_settings) if settings.exact_furniture and exact_furniture(world) else None
+    )
     out = run_native(
         parts.chomp,
         parts.refiner,
@@ -421,6 +425,7 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
         parts.policy,
         parts.metric_settings,
         warm,
+        None if check is None else (check.mask, check),
     )
     for phase, seconds in out.seconds.to_dict().items():
         timings[phase] += seconds
@@ -434,14 +439,19 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
     }
     xi, robot = out.xi, world.robot
     metrics = out.metrics
-    if settings.exact_furniture and exact_furniture(world):
+    known = check.measured(xi) if check is not None else None  # the plan the loop's check accepted
+    if check is not None:
         metrics, history["furniture_distance"] = judged_among_furniture(
-            parts.chomp, world, q0, xi, gs.tails.shape[1], parts.metric_settings
+            parts.chomp, world, q0, xi, m, parts.metric_settings, None if known is None else known[0]
         )
     if metrics.success and parts.metric_settings.transit_target_clearance > -np.inf and isinstance(world, World):
         # The success test measures body points (a few per link: a finger's 20 leave 1.7 cm of its surface
         # unsampled); the transit's clearance from the target is what pushes it in execution: measured exactly.
-        distance = transit_target_distance(world, np.vstack([q0, xi]), gs.tails.shape[1], parts.metric_settings.steps)
+        distance = (
+            known[1]
+            if known is not None and known[1] is not None
+            else transit_target_distance(world, np.vstack([q0, xi]), m, parts.metric_settings.steps)
+        )
         history["transit_target_distance"] = distance
         if distance < parts.metric_settings.transit_target_clearance:
             metrics = _core.marked_in_collision(metrics)
@@ -461,14 +471,3 @@ def run_loop(settings: OMGSettings, world: World, q0: np.ndarray, gs: GoalSet, t
         goal_set=np.array(gs.goals),
         goal_source=out.goal_source,
     )
-
-
-def transit_target_distance(world: World, trajectory: np.ndarray, tail_length: int, steps: int) -> float:
-    """The least distance (m, FCL on the meshes) of the robot from the target over the transit of a
-    ``trajectory`` ((n + 1, dof), the start first) interpolated as the success test does (``steps`` over the
-    whole), up to its pre-grasp (the first of the last ``tail_length`` waypoints)."""
-    n = len(trajectory) - 1
-    end = n - tail_length + 1  # the pre-grasp's row
-    dense = _core.interpolate(trajectory[0], trajectory[1:], steps)  # the success test's own steps
-    transit = np.linspace(0.0, n, steps) <= end
-    return float(world.checker(CheckerKind.target).min_distance_batch(dense[transit]).min())

@@ -4,6 +4,7 @@
 // goal (its refined copy joins the goal set), pre-termination by the dense success test; then the
 // projection onto the last selection and the success test of the returned trajectory. The same
 // steps, in the same order, as python/pickplan/omg/planner.py's _Optimization (the reference).
+#include <functional>
 #include <map>
 #include <set>
 #include <vector>
@@ -96,9 +97,14 @@ struct WarmStart {
   int initial_goal = -1;
   Eigen::VectorXd initial_costs;
 };
+// A test a plan (n x dof, after the start) must pass besides the metrics before the loop stops early on
+// it: the exact clearance among furniture (the planner's success test there), which the padded body
+// points of `settings.metrics` cannot judge. Called at the pre-termination checks only.
+using PlanCheck = std::function<bool(const Trajectory&)>;
 OmgLoopResult run_omg_loop(const ChompProblem& problem, const GraspRefiner* refiner, int hand_link,
                            const Eigen::VectorXd& q0, const Trajectory& goals, const std::vector<Trajectory>& tails,
                            const std::vector<int>& grasp_index, const Eigen::VectorXd& blend,
-                           const OmgLoopSettings& settings, const WarmStart* warm = nullptr);
+                           const OmgLoopSettings& settings, const WarmStart* warm = nullptr,
+                           const PlanCheck* check = nullptr);
 
 }  // namespace pickplan::omg

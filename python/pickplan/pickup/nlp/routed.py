@@ -6,14 +6,16 @@ successive refinement from the fastest base path, and a wall-clock budget.
    reach from every free base position, T's bound above the horizon) gets its reason, no solve.
 2. Stage 1 (the base path: non-holonomic, limits, grasping area, goal, base collisions) from the
    heuristic seed and from up to ``routes`` route seeds; the solved ones are ranked by their T.
-3. The five stages (native ``solve_successive``: arm seeds) from the best stage-1 solution; on
-   failure (or a plan that fails the dense checks, ``planner.dense_checks``) from the next, while
-   the budget lasts. The first plan that passes is returned. When none does: all constraints at
-   once (the native direct track, on its own) from each stage-1 solution in the same order; then
-   the five stages again with the samples refined (``REFINE``) from the stage-1 solutions whose
-   plans held their rows at the samples but not between them (a long T leaves a second or more
-   between samples, where the base polynomial slides sideways). No stage-1 solution at all: stage
-   1 again at the refined samples.
+3. The stage-1 solutions less repeats (two seeds that reach the same optimum); from each in turn,
+   the five stages (native ``solve_successive``: arm seeds), and when their plan fails (or fails
+   the dense checks, ``planner.dense_checks``) all constraints at once (the native direct track,
+   on its own) from the same solution, while the budget lasts. The first plan that passes is
+   returned; above SECOND_OPINION times the bound it gets a second opinion first (a five-stage
+   plan: all constraints from its solution; an all-constraint plan: the next solutions' plans). When none does: the plans (of either method) that held their rows at the samples but
+   not between them (a long T leaves a second or more between samples, where the base polynomial
+   slides sideways) are solved again, the same method from the same stage-1 solution, with the
+   samples refined (``REFINE``), the shortest first. No stage-1 solution at all: stage 1 again at
+   the refined samples.
 4. No success: the reason is ``solver_failed`` (the certificate found nothing against the problem)
    and the plan that went furthest is returned as the closest; ``time_limit`` when the budget ran
    out first. With a budget the native runs get the time left (``PlannerSettings.time_limit``), and
@@ -46,11 +48,13 @@ BASE_DEGREES = (5, 7)
 # A five-stage plan whose T exceeds this multiple of the lower bound (issue 37's worst-case target)
 # gets a second opinion: all constraints at once from the same stage-1 solution, kept when shorter.
 # The five stages commit the arm to one IK branch and grasp timing; far from the bound that is
-# where the time went (behind layout: 23 s -> 11 s against a bound of 6 s).
+# where the time went (behind layout: 23 s -> 11 s against a bound of 6 s). An all-constraint plan
+# (the fallback) so far from the bound gets the next base paths' plans as its second opinion.
 SECOND_OPINION = 3.0
 # When no plan passes and some held their rows at the samples but not between them (the base slides
 # sideways between samples a second or more apart when T is long), the five stages again with
-# the samples per interval scaled by these factors in turn (issue 37, behind layout: 8 -> 12 or 16).
+# the samples per interval scaled by these factors in turn (issue 37, behind layout: 8 -> 12 or 16);
+# the all-constraint plans that failed so are solved again likewise.
 REFINE = (1.5, 2.0)
 
 
@@ -171,33 +175,51 @@ def _between_samples(p: planner.PickupPlan) -> bool:
     return p.success or p.status is planner.SolveStatus.violation_between_samples
 
 
-def _solve_ranked(robot, problem, ranked: list, budget: _Budget, method: planner.Method, factor: float = 1.0) -> tuple:
-    """(the first plan that passes the dense checks or None, the stage-1 solution it came from, the
-    plan that went furthest, the stage-1 solutions whose plans failed only between the samples) of
-    ``method`` from the stage-1 solutions in their order, while the budget lasts."""
-    closest, between = None, []
-    for entry in ranked:
+def _solve_ranked(robot, problem, jobs: list, budget: _Budget, factor: float = 1.0) -> tuple:
+    """(the first plan that passes the dense checks or None, its (stage-1 solution, method), the
+    plan that went furthest, [(T, stage-1 solution, method)] of the plans that failed only between
+    the samples) of the jobs (stage-1 solution, method) in their order, while the budget lasts.
+    The furthest plan is a five-stage one when there is any."""
+    closest, direct, between = None, None, []
+    for entry, method in jobs:
         if budget.spent():
             break
         p, ok = _solve_one(robot, problem, entry, budget, method, factor)
         if ok:
-            return p, entry, closest, between
-        if closest is None or p.stages_completed > closest.stages_completed:
-            closest = p
+            return p, (entry, method), closest or direct, between
         if _between_samples(p):
-            between.append(entry)
-    return None, None, closest, between
+            between.append((p.T if math.isfinite(p.T) else math.inf, entry, method))
+        if method is planner.Method.single_shot:
+            direct = direct or p
+        elif closest is None or p.stages_completed > closest.stages_completed:
+            closest = p
+    return None, None, closest or direct, between
 
 
-def _refined(robot, problem, entries: list, budget: _Budget) -> tuple:
-    """(plan, stage-1 solution) of the five stages with the samples refined (REFINE, each factor
-    in turn) from the stage-1 solutions whose plans held the rows at the samples only: the rows
-    then hold at instants that were between the samples. (None, None) when none passes."""
+def _distinct(ranked: list, tol: float) -> list:
+    """The stage-1 solutions less those that repeat an earlier one (same degrees, every variable
+    within ``tol`` of the larger's scale): two seeds that converge to the same local optimum would
+    give the same later stages twice (issue 37, behind layout: two route seeds, 2 s of CPU)."""
+    out = []
+    for entry in ranked:
+        x = entry[3]
+        if not any(len(x) == len(e[3]) and np.abs(x - e[3]).max() <= tol * max(1.0, np.abs(x).max()) for e in out):
+            out.append(entry)
+    return out
+
+
+def _refined(robot, problem, between: list, budget: _Budget):
+    """The first plan that passes with the samples refined (REFINE, each factor in turn), re-solving
+    the plans that held their rows at the samples only, shortest T first: more rows lengthen T
+    little, so the shortest such plan is the likeliest short feasible one (issue 37, behind layout:
+    all constraints at once at T = 23 s where the five stages, first before, ended at 54 s). None
+    when none passes."""
     for factor in REFINE:
-        best, entry, _, entries = _solve_ranked(robot, problem, entries, budget, planner.Method.successive, factor)
-        if best is not None or not entries:
-            return best, entry
-    return None, None
+        jobs = [(entry, method) for _, entry, method in sorted(between, key=lambda b: b[0])]
+        best, _, _, between = _solve_ranked(robot, problem, jobs, budget, factor)
+        if best is not None or not between:
+            return best
+    return None
 
 
 def plan_routed(
@@ -234,18 +256,23 @@ def plan_routed(
         ranked = _stage1(robot, problem, settings, budget, routes, factor)
         if ranked:
             break
-    best, entry, closest, between = _solve_ranked(robot, problem, ranked, budget, planner.Method.successive)
-    if best is not None:
-        if fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent():
-            other, ok = _solve_one(robot, problem, entry, budget, planner.Method.single_shot)
-            if ok and other.T < best.T:
-                best = other
-    else:
-        if fallback:  # all constraints at once from the same base paths
-            best, entry, direct, _ = _solve_ranked(robot, problem, ranked, budget, planner.Method.single_shot)
-            closest = closest or direct
-        if best is None and between and refine:
-            best, entry = _refined(robot, problem, between, budget)
+    methods = (planner.Method.successive, planner.Method.single_shot) if fallback else (planner.Method.successive,)
+    # Each solution's fallback comes before the next solution's five stages: it is cheaper (behind
+    # layout: 0.3-1.3 s against 1-4 s) and the plans tried before the refinement are the same.
+    jobs = [(e, m) for e in _distinct(ranked, settings.tol) for m in methods]
+    best, found, closest, between = _solve_ranked(robot, problem, jobs, budget)
+    far = best is not None and fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent()
+    if far and found[1] is planner.Method.successive:  # its second opinion
+        other, ok = _solve_one(robot, problem, found[0], budget, planner.Method.single_shot)
+        if ok and other.T < best.T:
+            best = other
+    elif far:  # an all-constraint plan far from the bound: the next base paths' plans, the shorter kept
+        after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
+        other, *_ = _solve_ranked(robot, problem, jobs[after:], budget)
+        if other is not None and other.T < best.T:
+            best = other
+    elif best is None and between and refine:
+        best = _refined(robot, problem, between, budget)
     out = best or closest
     timed_out = budget.deadline is not None and budget.spent() and best is None
     if out is None:  # no stage-1 solution (or no time for one)
