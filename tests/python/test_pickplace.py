@@ -201,3 +201,24 @@ def test_the_carry_check_sees_the_held_object_on_the_true_meshes(planned):
     )
     other = PickPlacePlanner(OMGPlanner(None, blocked, SETTINGS.pick), REQUEST, SETTINGS)
     assert carry_collides(plan, other.attach(plan.pick.goal, plan.held))
+
+
+def test_a_grasp_that_leaves_no_place_is_replaced_by_one_that_does():
+    """A soup can into a bin 11 cm square and 8 cm deep: the pick's first grasp (the one it plans when
+    place feasibility is not asked) puts the hand where the bin's wall stands at every place; the pick
+    planned again among its other goals that have a place goal completes the task, executed in PyBullet."""
+    from pickplan.eval.place_regions import RegionKind, RegionSettings, place_task
+
+    scene, request = place_task(
+        _scene(), RegionKind.bin, seed=0, settings=RegionSettings(bin_inner=(0.11, 0.11), bin_height=0.08)
+    )
+    never = replace(SETTINGS, regrasp_plans=0)
+    first = PickPlacePlanner(OMGPlanner(None, scene, never.pick), request, never).plan()
+    assert first.status is PickPlaceStatus.no_place_goals, first.reason
+    planner = PickPlacePlanner(OMGPlanner(None, scene, SETTINGS.pick), request, SETTINGS)
+    plan = planner.plan()
+    assert plan.status is PickPlaceStatus.success and plan.reason.startswith("regrasp: no_place_goals"), plan.reason
+    assert plan.pick.grasp_index != first.pick.grasp_index
+    ex = execute_in_sim(scene, planner, plan, request, "panda")
+    assert ex.status is PlaceOutcome.placed, ex.message
+    assert not ex.robot_contacts or max(ex.robot_contacts.values()) <= 0.002

@@ -138,8 +138,8 @@ def test_a_new_generator_version_is_said_and_another_request_is_not(tmp_path, mo
 
 
 def test_a_regenerated_entry_replaces_the_objects_old_one_in_the_manifest(tmp_path, monkeypatch):
-    """``shipped.build`` drops an object's entry of an older name; (simulation stubbed: the real one is
-    the test above)."""
+    """``shipped.build`` drops an object's entry of an older name, also one made for a request whose
+    settings have since changed (another label); (simulation stubbed: the real one is the test above)."""
     folder = tmp_path / "cache"
     shutil.copytree(io.shipped_dir(), folder)
     ((_, rel, _, _),) = shipped.grasp_entries([SMALL])
@@ -147,6 +147,8 @@ def test_a_regenerated_entry_replaces_the_objects_old_one_in_the_manifest(tmp_pa
     os.rename(folder / rel, folder / old)
     entries = io.read_manifest(str(folder))
     entries[old] = entries.pop(rel)
+    owner = entries[old]["label"].rsplit(" / ", 1)[0]
+    entries[old] = dict(entries[old], label=owner + " / 000000000000")
     io.write_json(str(folder / io.SHIPPED_MANIFEST), {"format": io.SHIPPED_FORMAT, "entries": entries})
     stored = simulated.read_grasp_file(str(folder / old), SMALL)
     monkeypatch.setattr(simulated, "simulated_grasps", lambda *a, **k: stored)

@@ -257,6 +257,7 @@ def plan_fields(plan: PickPlacePlan) -> dict:
         "pick_time": float(plan.pick.timings.get("total", 0.0)),
         "attach_time": plan.timings.get("attach"),
         "lift_time": plan.timings.get("lift"),
+        "regrasp_time": plan.timings.get("regrasp"),  # other grasps screened and planned (None: not tried)
     }
     if plan.place_goals is not None:
         out.update(

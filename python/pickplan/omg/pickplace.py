@@ -52,6 +52,16 @@ class PickPlaceStatus(Option):
     retract_blocked = "retract_blocked"  # the straight retract is unreachable or collides
 
 
+# The failures another grasp of the same pick could avoid: the hand's place relative to the object
+# decides the lift, the place goals (the hand at the place) and the transfer's and retract's clearance.
+REGRASP = (
+    PickPlaceStatus.lift_blocked,
+    PickPlaceStatus.no_place_goals,
+    PickPlaceStatus.place_failed,
+    PickPlaceStatus.retract_blocked,
+)
+
+
 # The transfer's CHOMP: its waypoints 0.2 s apart (a pick's 0.1 s). The success test's smoothness is a
 # bound on the mean squared joint speed (the prior sums (dq/dt)^2); a transfer crosses the workspace,
 # about twice a pick's reach, and over 3 s even its straight line fails that bound (the timed
@@ -84,6 +94,12 @@ class PickPlaceSettings:
     # The carry (lift, transfer) is timed within this share of the velocity limits (its square of the
     # acceleration limits): an object held by friction alone slips when the hand jerks it about.
     carry_speed: float = 0.5
+    # A place that fails for a reason another grasp could change (``REGRASP``): the pick's other goals
+    # are screened in the goal set's order for one place goal each, and the pick planned again among the
+    # first ``regrasp_candidates`` that have one, up to ``regrasp_plans`` times (0: never). A bowl held
+    # across its rim puts the hand outside the rim, where a bin's wall stands; held nearer its top, it fits.
+    regrasp_plans: int = 2
+    regrasp_candidates: int = 3
 
 
 @dataclass
@@ -306,13 +322,63 @@ class PickPlacePlanner:
 
     def plan(self, start=None, grasps=None) -> PickPlacePlan:
         t0 = self.clock()
-        pick = self.plan_pick(start, grasps)
+        pick, pick_goals = self.planner.plan_with_goals(start, grasps=grasps)
         timings = {"pick": pick.timings.get("total", 0.0)}
         if not pick.success:
             return PickPlacePlan(
                 PickPlaceStatus.pick_failed, f"pick: {pick.status.value} {pick.reason}".strip(), pick, timings=timings
             )
-        return self.plan_after_pick(pick, timings=timings, t0=t0)
+        plan = self.plan_after_pick(pick, timings=timings, t0=t0)
+        if plan.status in REGRASP and self.settings.regrasp_plans > 0:
+            plan = self._regrasp(plan, pick_goals, start, t0)
+        return plan
+
+    def _regrasp(self, failed: PickPlacePlan, pick_goals, start, t0: float) -> PickPlacePlan:
+        """``failed``'s pick planned again among the pick's other goals that have a place goal
+        (``PickPlaceSettings.regrasp_plans``); ``failed`` (its reason saying how many were screened) when
+        none of them completes the task."""
+        s, t = self.settings, self.clock()
+        tried, screened, rounds = {failed.pick.grasp_index}, 0, 0
+        order = iter(range(len(pick_goals)))
+        while rounds < s.regrasp_plans:
+            placeable = []
+            for k in order:
+                index = int(pick_goals.grasp_index[k])
+                if index in tried:
+                    continue
+                tried.add(index)
+                screened += 1
+                if self._has_place_goal(pick_goals.goals[k]):
+                    placeable.append(index)
+                if len(placeable) == s.regrasp_candidates:
+                    break
+            if not placeable:
+                break
+            rounds += 1
+            pick = self.planner.plan(start, grasps=pick_goals.grasps[placeable])
+            if not pick.success or pick.grasp_index < 0:
+                continue
+            pick.grasp_index = placeable[pick.grasp_index]  # an index into the first pick's grasps again
+            plan = self.plan_after_pick(pick, timings=dict(failed.timings, pick=pick.timings.get("total", 0.0)))
+            plan.timings["regrasp"] = self.clock() - t
+            if plan.success:
+                plan.timings["total"] = self.clock() - t0
+                plan.reason = f"regrasp: {failed.status.value} with the first grasp, {screened} other goals screened"
+                return plan
+        failed.timings["regrasp"] = self.clock() - t
+        failed.reason += f" (regrasp: {screened} other pick goals screened, {rounds} plans)"
+        return failed
+
+    def _has_place_goal(self, q_grasp: np.ndarray) -> bool:
+        """Whether the grasp at ``q_grasp`` lifts clear and has one place goal (the goal set stops at one)."""
+        carrying = self.attach(q_grasp)
+        lift, ok = self.plan_lift(carrying, q_grasp)
+        if not ok:
+            return False
+        settings = self._goal_settings()
+        settings = replace(settings, goals=replace(settings.goals, max_goals=1))
+        model = getattr(carrying.base, "models", {}).get(carrying.target)
+        return len(build_place_goal_set(carrying, self.request, lift[-1], settings, model, clock=self.clock)) > 0
 
     def plan_after_pick(
         self,

@@ -51,6 +51,11 @@ def grasp_entries(
     return out
 
 
+def _owner(label: str) -> Tuple[str, ...]:
+    """An entry label's object and gripper (``simulated.entry_label``: "object / gripper / request")."""
+    return tuple(label.split(" / ")[:2])
+
+
 def build(
     folder: Optional[str] = None,
     names: Optional[Iterable[str]] = None,
@@ -58,14 +63,15 @@ def build(
     progress: Optional[bool] = None,
 ) -> dict:
     """Compute the shipped entries (``names``: the built-in objects to redo, default all) into ``folder``
-    (default ``io.shipped_dir()``) and rewrite its manifest; an entry of the same label made by another
-    version is removed. Returns the manifest's entries."""
+    (default ``io.shipped_dir()``) and rewrite its manifest; an older entry of the same object and gripper
+    (another version, or the default request before its settings changed) is removed: only the default
+    request ships. Returns the manifest's entries."""
     folder = io.shipped_dir() if folder is None else folder
     settings = OMGSettings()
     library = objects.library("builtin")
     entries = io.read_manifest(folder)
     for name, rel, label, gripper in grasp_entries(names, settings=settings):
-        for old in [r for r, e in entries.items() if e.get("label") == label]:
+        for old in [r for r, e in entries.items() if _owner(e.get("label", "")) == _owner(label)]:
             entries.pop(old)
             if os.path.isfile(os.path.join(folder, old)):
                 os.unlink(os.path.join(folder, old))

@@ -81,7 +81,7 @@ class AntipodalSettings:
     friction: float = 0.3  # Coulomb coefficient: friction cone half-angle atan(0.3) = 16.7 deg
     max_width: Optional[float] = None  # m; None: the gripper's opening
     width_margin: float = 0.005  # pairs must be this much narrower than max_width
-    min_width: float = 0.002
+    min_width: float = 0.0005
     clearance: float = 0.001  # m kept between the open hand and the object
     approach_angles: int = 8  # hand orientations tried about each pair's axis
     per_pair: int = 1  # grasps kept per surface pair (diversity)
