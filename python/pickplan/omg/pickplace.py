@@ -96,7 +96,8 @@ class PickPlaceSettings:
     carry_speed: float = 0.5
     # A place that fails for a reason another grasp could change (``REGRASP``): the pick's other goals
     # are screened in the goal set's order for one place goal each, and the pick planned again among the
-    # first ``regrasp_candidates`` that have one, up to ``regrasp_plans`` times (0: never). A bowl held
+    # first ``regrasp_candidates`` that have one (those not chosen stay candidates, topped up from the rest
+    # after a failed place), up to ``regrasp_plans`` times (0: never). A bowl held
     # across its rim puts the hand outside the rim, where a bin's wall stands; held nearer its top, it fits.
     regrasp_plans: int = 2
     regrasp_candidates: int = 3
@@ -338,11 +339,10 @@ class PickPlacePlanner:
         (``PickPlaceSettings.regrasp_plans``); ``failed`` (its reason saying how many were screened) when
         none of them completes the task."""
         s, t = self.settings, self.clock()
-        tried, screened, rounds = {failed.pick.grasp_index}, 0, 0
+        tried, screened, rounds, placeable = {failed.pick.grasp_index}, 0, 0, []
         order = iter(range(len(pick_goals)))
         while rounds < s.regrasp_plans:
-            placeable = []
-            for k in order:
+            for k in order if len(placeable) < s.regrasp_candidates else ():  # topped up to the candidates
                 index = int(pick_goals.grasp_index[k])
                 if index in tried:
                     continue
@@ -357,8 +357,9 @@ class PickPlacePlanner:
             rounds += 1
             pick = self.planner.plan(start, grasps=pick_goals.grasps[placeable])
             if not pick.success or pick.grasp_index < 0:
+                placeable = []  # no pick among them: the next round's candidates are new ones
                 continue
-            pick.grasp_index = placeable[pick.grasp_index]  # an index into the first pick's grasps again
+            pick.grasp_index = placeable.pop(pick.grasp_index)  # an index into the first pick's grasps again
             plan = self.plan_after_pick(pick, timings=dict(failed.timings, pick=pick.timings.get("total", 0.0)))
             plan.timings["regrasp"] = self.clock() - t
             if plan.success:
