@@ -323,26 +323,33 @@ class OMGPlanner:
         """Algorithm 2's loop over a non-empty goal set (the test oracle overrides it); where it fails, once
         more from a sampling-based initialization (``OMGSettings.sampled_start``)."""
         result = run_loop(self.settings, world, q0, gs, timings)
-        s = self.settings
         # the straight line is the paper's start on a tabletop; among furniture (a shelf) it is often none
-        if result.success or s.sampled_start is None or not getattr(world.scene, "obstacles", None):
+        if not getattr(world.scene, "obstacles", None):
             return result
-        clock = _clock(s)
-        t = clock()
-        exact = s.exact_furniture and exact_furniture(world)
-        keep = clear_pregrasps(world, gs.tails, s.metrics.clearance, s.metrics.tail_clearance if exact else None)
-        clear = replace(gs, goals=gs.goals[keep], tails=gs.tails[keep], grasp_index=gs.grasp_index[keep])
-        warm = sampled_initialization(world, q0, clear.tails, s.chomp.n, s.sampled_start) if len(keep) else None
-        timings["sampled_start"] = clock() - t
-        if warm is None:
-            return result
-        retry = run_loop(s, world, q0, clear, timings, warm=warm)
-        if not retry.success:
-            return result
-        retry.history["sampled_start"] = True
-        retry.goal_set = np.array(gs.goals)  # rows of the whole goal set, as plan_with_goals returns it
-        retry.goal_source = int(keep[retry.goal_source]) if 0 <= retry.goal_source < len(keep) else -1
-        return retry
+        return sampled_retry(self.settings, world, q0, gs, timings, result)
+
+
+def sampled_retry(s: OMGSettings, world, q0: np.ndarray, gs: GoalSet, timings: dict, result: PlanResult) -> PlanResult:
+    """``result`` (the loop's from the straight line) unless it failed and the loop once more from a
+    sampling-based initialization (``OMGSettings.sampled_start``; None: never) passes the success test."""
+    if result.success or s.sampled_start is None:
+        return result
+    clock = _clock(s)
+    t = clock()
+    exact = s.exact_furniture and exact_furniture(world)
+    keep = clear_pregrasps(world, gs.tails, s.metrics.clearance, s.metrics.tail_clearance if exact else None)
+    clear = replace(gs, goals=gs.goals[keep], tails=gs.tails[keep], grasp_index=gs.grasp_index[keep])
+    warm = sampled_initialization(world, q0, clear.tails, s.chomp.n, s.sampled_start) if len(keep) else None
+    timings["sampled_start"] = clock() - t
+    if warm is None:
+        return result
+    retry = run_loop(s, world, q0, clear, timings, warm=warm)
+    if not retry.success:
+        return result
+    retry.history["sampled_start"] = True
+    retry.goal_set = np.array(gs.goals)  # rows of the whole goal set, as plan_with_goals returns it
+    retry.goal_source = int(keep[retry.goal_source]) if 0 <= retry.goal_source < len(keep) else -1
+    return retry
 
 
 def plan_to_goal_set(settings: OMGSettings, world, q0: np.ndarray, goal_set: GoalSet) -> PlanResult:
@@ -355,7 +362,9 @@ def plan_to_goal_set(settings: OMGSettings, world, q0: np.ndarray, goal_set: Goa
     t = clock()
     timings = dict.fromkeys(("chomp", "costs", "selection", "isf", "metrics"), 0.0)
     timings["goal_set"] = goal_set.seconds
-    result = run_loop(settings, world, np.asarray(q0, dtype=float), goal_set, timings)
+    q0 = np.asarray(q0, dtype=float)
+    # a transfer carries the held object among the others, where the straight line often is no start
+    result = sampled_retry(settings, world, q0, goal_set, timings, run_loop(settings, world, q0, goal_set, timings))
     timings["total"] = clock() - t + goal_set.seconds
     result.goal_reasons = goal_set.reason_counts()
     result.limits = robot_limits(world.robot)
