@@ -222,3 +222,24 @@ def test_a_grasp_that_leaves_no_place_is_replaced_by_one_that_does():
     ex = execute_in_sim(scene, planner, plan, request, "panda")
     assert ex.status is PlaceOutcome.placed, ex.message
     assert not ex.robot_contacts or max(ex.robot_contacts.values()) <= 0.002
+
+
+def test_a_transfer_over_a_wall_starts_from_a_sampled_path():
+    """A wall 45 cm high between the target and the region: the transfer's loop from the straight line
+    ends in collision; from an RRT-Connect start (``OMGSettings.sampled_start``, as a pick among
+    furniture) it passes the success test, and the whole task executes in PyBullet."""
+    from pickplan.core.shapes import Obstacle, Shape
+
+    pose = np.eye(4)
+    pose[:3, 3] = (0.5, -0.17, 0.225)
+    scene = replace(_scene(), obstacles=[Obstacle("wall", Shape.box(0.6, 0.02, 0.45), pose)])
+    alone = replace(SETTINGS, regrasp_plans=0)  # the transfer of the first grasp, nothing else
+    straight = replace(alone, place=replace(alone.place, sampled_start=None))
+    first = PickPlacePlanner(OMGPlanner(None, scene, straight.pick), REQUEST, straight).plan()
+    assert first.status is PickPlaceStatus.place_failed, first.reason
+    planner = PickPlacePlanner(OMGPlanner(None, scene, alone.pick), REQUEST, alone)
+    plan = planner.plan()
+    assert plan.status is PickPlaceStatus.success and plan.place.history.get("sampled_start"), plan.reason
+    ex = execute_in_sim(scene, planner, plan, REQUEST, "panda")
+    assert ex.status is PlaceOutcome.placed, ex.message
+    assert not ex.robot_contacts or max(ex.robot_contacts.values()) <= 0.002
