@@ -47,7 +47,8 @@ ROUTES = 3  # route seeds tried in stage 1 beside the heuristic seed
 # those base paths passes. A quintic base path cannot hold a detour with a turn back (issue 37: side
 # and behind layouts, stage 1 at T = 50-100 s); degree 7 can, at 6 more variables, and holds every
 # quintic. Run first, the quintic won 1 of 157 solved problems (none of the paper's, side or case
-# problems) and cost 0.2-0.7 s of CPU on every behind problem, where it never converged (session 23).
+# problems) and cost 0.2-0.7 s of CPU on each of 12 behind problems profiled, where it never
+# converged (bench/PICKUP.md, session 23).
 BASE_DEGREES = (7, 5)
 # A five-stage plan whose T exceeds this multiple of the lower bound (issue 37's worst-case target)
 # gets a second opinion: all constraints at once from the same stage-1 solution, kept when shorter.
