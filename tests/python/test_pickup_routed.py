@@ -234,25 +234,35 @@ def test_single_shot_from_a_given_seed(robot):
 
 def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robot, monkeypatch):
     problem = _native(robot, _spec())
-    real = planner.plan
-    calls = []
+    real, real_stage = planner.plan, planner.solve_stage
+    calls, stage1 = [], []  # (method, base degree) of the plans; base degrees of the stage-1 runs
 
     def five_stages_fail(robot_, problem_, settings, method=planner.Method.successive, x0=None):
-        calls.append(planner.Method.parse(method, "method"))
+        calls.append((planner.Method.parse(method, "method"), settings.degrees[0]))
         p = real(robot_, problem_, settings, method, x0)
-        if calls[-1] is planner.Method.successive:  # as if it failed: the fallback must take over
+        if calls[-1][0] is planner.Method.successive:  # as if it failed: the fallback must take over
             p.success, p.status = False, planner.SolveStatus.infeasible
         return p
 
+    def stage(robot_, problem_, x0, k, settings):
+        stage1.append(settings.degrees[0])
+        return real_stage(robot_, problem_, x0, k, settings)
+
     monkeypatch.setattr(planner, "plan", five_stages_fail)
-    p = routed.plan_routed(robot, problem, FAST, routes=0)  # the heuristic seed's base paths (quintic, degree 7)
+    monkeypatch.setattr(planner, "solve_stage", stage)
+    p = routed.plan_routed(robot, problem, FAST, routes=0)  # the heuristic seed's base paths (degree 7, quintic)
     assert p.success and p.seed.endswith(", direct") and p.reason is Reason.none
     assert planner.passes_dense_checks(robot, problem, p) and p.T >= p.lower_bound
-    # The first base path's fallback comes before the next base path's five stages.
-    assert calls[:2] == [planner.Method.successive, planner.Method.single_shot]
+    # The first base path's fallback comes before the next base path's five stages; it passes, so
+    # the quintic base path (the later degree) is never solved.
+    S, D = planner.Method.successive, planner.Method.single_shot
+    assert calls == [(S, 7), (D, 7)] and stage1 == [7]
     calls.clear()
+    stage1.clear()
     off = routed.plan_routed(robot, problem, FAST, routes=0, fallback=False)
-    assert not off.success and off.reason is Reason.solver_failed and planner.Method.single_shot not in calls
+    assert not off.success and off.reason is Reason.solver_failed
+    # No fallback: the quintic's stage 1 and five stages only after the degree-7 base path's failed.
+    assert calls[:2] == [(S, 7), (S, 5)] and stage1[:2] == [7, 5] and D not in [m for m, _ in calls]
     # An all-constraint plan far from the bound (here any: SECOND_OPINION 0) gets the next base
     # path's plans as its second opinion: the five stages from it (which pass here), the shorter kept.
     plans = []
@@ -267,6 +277,7 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     monkeypatch.setattr(planner, "plan", first_five_stages_fail)
     monkeypatch.setattr(routed, "SECOND_OPINION", 0.0)
     p = routed.plan_routed(robot, problem, FAST, routes=0)
+    # (The next base path here is the quintic's, solved only now.)
     assert [m for m, _ in plans] == [planner.Method.successive, planner.Method.single_shot, planner.Method.successive]
     assert p.success and p.T == min(q.T for _, q in plans[1:]) and planner.passes_dense_checks(robot, problem, p)
 

@@ -5,7 +5,8 @@ successive refinement from the fastest base path, and a wall-clock budget.
 1. ``feasibility.certify``: a problem the geometry rules out (gamma unattainable, the part out of
    reach from every free base position, T's bound above the horizon) gets its reason, no solve.
 2. Stage 1 (the base path: non-holonomic, limits, grasping area, goal, base collisions) from the
-   heuristic seed and from up to ``routes`` route seeds; the solved ones are ranked by their T.
+   heuristic seed and from up to ``routes`` route seeds at base degree 7; the solved ones are ranked
+   by their T. The quintic base from the heuristic seed runs only when their plans are spent.
 3. The stage-1 solutions less repeats (two seeds that reach the same optimum); from each in turn,
    the five stages (native ``solve_successive``: arm seeds), and when their plan fails (or fails
    the dense checks, ``planner.dense_checks``) all constraints at once (the native direct track,
@@ -28,6 +29,7 @@ milliseconds (up to 0.2 s in clutter, where many routes collide).
 
 from __future__ import annotations
 
+import enum
 import math
 import time
 from dataclasses import replace
@@ -40,11 +42,14 @@ from pickplan.pickup.nlp import planner, route
 from pickplan.pickup.nlp.feasibility import Certificate, Reason, base_geometry, certify
 
 ROUTES = 3  # route seeds tried in stage 1 beside the heuristic seed
-# Base polynomial degrees tried in stage 1 (when the settings leave the degrees to the default): the
-# paper's quintic from the heuristic seed, then degree 7 from every seed. A quintic base path cannot
-# hold a detour with a turn back (issue 37: side and behind layouts, stage 1 at T = 50-100 s); degree
-# 7 can, at 6 more variables. The fastest stage-1 path wins.
-BASE_DEGREES = (5, 7)
+# Base polynomial degrees tried in stage 1 (when the settings leave the degrees to the default):
+# degree 7 from every seed first, the paper's quintic from the heuristic seed only when no plan from
+# those base paths passes. A quintic base path cannot hold a detour with a turn back (issue 37: side
+# and behind layouts, stage 1 at T = 50-100 s); degree 7 can, at 6 more variables, and holds every
+# quintic. Run first, the quintic won 1 of 157 solved problems (none of the paper's, side or case
+# problems) and cost 0.2-0.7 s of CPU on each of 12 behind problems profiled, where it never
+# converged (bench/PICKUP.md, session 23).
+BASE_DEGREES = (7, 5)
 # A five-stage plan whose T exceeds this multiple of the lower bound (issue 37's worst-case target)
 # gets a second opinion: all constraints at once from the same stage-1 solution, kept when shorter.
 # The five stages commit the arm to one IK branch and grasp timing; far from the bound that is
@@ -97,16 +102,28 @@ def _variants(robot, settings: planner.PlannerSettings) -> list:
     return [replace(settings, degrees=[d, d, d] + arm) for d in BASE_DEGREES]
 
 
-def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1.0) -> list:
-    """Stage 1 from every seed at every base degree while time is left: [(T, label, settings, x)]
-    of the solved runs, fastest first (the lower degree first among equal T). ``factor`` scales the
-    samples per interval (the later stages from such a solution keep them)."""
+class Part(enum.Enum):
+    """Which of stage 1's base degrees (BASE_DEGREES) a call runs: every one, the first (from every
+    seed), or the later ones (from the heuristic seed; nothing with the caller's degrees)."""
+
+    every = "every"
+    first = "first"
+    later = "later"
+
+
+def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1.0, part: Part = Part.every) -> list:
+    """Stage 1 from every seed (the first base degree) and from the heuristic seed (the others) while
+    time is left: [(T, label, settings, x)] of the solved runs, fastest first (the first degree
+    first among equal T). ``factor`` scales the samples per interval (the later stages from such a
+    solution keep them)."""
     solved = []
     if factor != 1:
         settings = replace(settings, samples_per_interval=int(round(settings.samples_per_interval * factor)))
     variants = _variants(robot, settings)
-    for k, variant in enumerate(variants):
-        pending = seeds(robot, problem, variant, routes if k == len(variants) - 1 else 0, budget.deadline)
+    chosen = {Part.every: range(len(variants)), Part.first: range(1), Part.later: range(1, len(variants))}[part]
+    for k in chosen:
+        variant = variants[k]
+        pending = seeds(robot, problem, variant, routes if k == 0 else 0, budget.deadline)
         while not budget.spent():  # checked before the next seed's geometry is computed, not only after
             label, x0 = next(pending, (None, None))
             if label is None or budget.spent():
@@ -115,7 +132,11 @@ def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1
             r = planner.solve_stage(robot, problem, x0, 1, budget.settings(variant))
             budget.note(r.status, time.monotonic() - t)
             if r.success:
-                name = label if len(variant.degrees) == 0 or k == 0 else f"{label}, base degree {variant.degrees[0]}"
+                name = (  # the native default's quintic keeps the plain label
+                    label
+                    if len(settings.degrees) or variant.degrees[0] == 5
+                    else f"{label}, base degree {variant.degrees[0]}"
+                )
                 name += f", {variant.samples_per_interval} samples per interval" if factor != 1 else ""
                 solved.append((r.objective * (1 + 1e-3 * k), name, variant, np.asarray(r.x)))
     return sorted(solved, key=lambda s: s[0])
@@ -175,15 +196,23 @@ def _between_samples(p: planner.PickupPlan) -> bool:
     return p.success or p.status is planner.SolveStatus.violation_between_samples
 
 
-def _solve_ranked(robot, problem, jobs: list, budget: _Budget, factor: float = 1.0) -> tuple:
+def _solve_ranked(robot, problem, jobs: list, budget: _Budget, factor: float = 1.0, more=None) -> tuple:
     """(the first plan that passes the dense checks or None, its (stage-1 solution, method), the
     plan that went furthest, [(T, stage-1 solution, method)] of the plans that failed only between
     the samples) of the jobs (stage-1 solution, method) in their order, while the budget lasts.
-    The furthest plan is a five-stage one when there is any."""
+    ``more``: called once when the jobs run out, its jobs are appended to ``jobs`` and run (the
+    later base degrees' stage-1 solutions, ``_LaterPaths``). The furthest plan is a five-stage one
+    when there is any."""
     closest, direct, between = None, None, []
-    for entry, method in jobs:
-        if budget.spent():
+    i = 0
+    while not budget.spent():
+        if i == len(jobs) and more is not None:
+            jobs.extend(more())
+            more = None
+        if i == len(jobs):
             break
+        entry, method = jobs[i]
+        i += 1
         p, ok = _solve_one(robot, problem, entry, budget, method, factor)
         if ok:
             return p, (entry, method), closest or direct, between
@@ -206,6 +235,22 @@ def _distinct(ranked: list, tol: float) -> list:
         if not any(len(x) == len(e[3]) and np.abs(x - e[3]).max() <= tol * max(1.0, np.abs(x).max()) for e in out):
             out.append(entry)
     return out
+
+
+class _LaterPaths:
+    """The jobs of the later base degrees' stage-1 solutions (``Part.later``), computed on the first
+    call only (an empty list after it): they run when the first degree's plans are spent."""
+
+    def __init__(self, robot, problem, settings, budget: _Budget, methods: tuple):
+        self.args, self.methods, self.done = (robot, problem, settings, budget), methods, False
+
+    def __call__(self) -> list:
+        if self.done:
+            return []
+        self.done = True
+        robot, problem, settings, budget = self.args
+        later = _stage1(robot, problem, settings, budget, 0, part=Part.later)
+        return [(e, m) for e in _distinct(later, settings.tol) for m in self.methods]
 
 
 def _refined(robot, problem, between: list, budget: _Budget):
@@ -251,16 +296,19 @@ def plan_routed(
         p = _no_solve(cert, planner.SolveStatus.infeasible)
         p.total_seconds, p.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0
         return p
-    ranked = _stage1(robot, problem, settings, budget, routes)
-    for factor in REFINE if refine and not ranked else ():  # no base path: stage 1 again at refined samples
-        ranked = _stage1(robot, problem, settings, budget, routes, factor)
-        if ranked:
-            break
     methods = (planner.Method.successive, planner.Method.single_shot) if fallback else (planner.Method.successive,)
+    later = _LaterPaths(robot, problem, settings, budget, methods)
+    ranked = _stage1(robot, problem, settings, budget, routes, part=Part.first)
     # Each solution's fallback comes before the next solution's five stages: it is cheaper (behind
     # layout: 0.3-1.3 s against 1-4 s) and the plans tried before the refinement are the same.
-    jobs = [(e, m) for e in _distinct(ranked, settings.tol) for m in methods]
-    best, found, closest, between = _solve_ranked(robot, problem, jobs, budget)
+    jobs = [(e, m) for e in _distinct(ranked, settings.tol) for m in methods] or later()
+    ranked = ranked or [e for e, m in jobs if m is methods[0]]
+    for factor in REFINE if refine and not ranked else ():  # no base path: stage 1 again at refined samples
+        ranked = _stage1(robot, problem, settings, budget, routes, factor)
+        jobs = [(e, m) for e in _distinct(ranked, settings.tol) for m in methods]
+        if ranked:
+            break
+    best, found, closest, between = _solve_ranked(robot, problem, jobs, budget, more=later)
     far = best is not None and fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent()
     if far and found[1] is planner.Method.successive:  # its second opinion
         other, ok = _solve_one(robot, problem, found[0], budget, planner.Method.single_shot)
@@ -268,7 +316,7 @@ def plan_routed(
             best = other
     elif far:  # an all-constraint plan far from the bound: the next base paths' plans, the shorter kept
         after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
-        other, *_ = _solve_ranked(robot, problem, jobs[after:], budget)
+        other, *_ = _solve_ranked(robot, problem, jobs[after:], budget, more=later)
         if other is not None and other.T < best.T:
             best = other
     elif best is None and between and refine:
