@@ -11,7 +11,7 @@ Three kinds of candidates, all in the world frame (a ``GraspSet`` whose object f
   vertical), the width and the pads' centre come from the cross-section the pads close on (the points
   from the pads' lower edge up: a bottle's cap, not its body); from the side (approach horizontal),
   from a section at half the height and one a pad under the top, the pads a depth in from its edge;
-- rim pinches of open containers (one pad inside the wall);
+- rim pinches of open containers (one pad inside the wall, its finger stopping above a floor);
 - local grasps from above across a part of the footprint (a blade, a handle, a loop: thin targets
   whose whole footprint is wider than the opening), the fingertips resting on the support.
 
@@ -69,6 +69,7 @@ class PointGraspSettings:
     rim_band: float = 0.01  # m below the target's top where rim pinches are tried
     rim_samples: int = 40  # rim points tried
     rim_wall: float = 0.01  # m, the wall thickness a rim pinch assumes (centred 5 mm inside)
+    rim_finger_reach: float = 0.02  # m inwards from the inner pad that the inner finger's body covers
     patch_radius: float = 0.008  # m, an antipodal contact's patch (about half a pad)
     patch_coherence: float = 0.9  # the patch's normals' mean length an antipodal contact needs
     denoise: bool = True  # points moved onto their patch's mean plane, normals fitted (``denoised``)
@@ -284,10 +285,23 @@ def _side_candidates(rel, centre, y, x, width, s: PointGraspSettings) -> list:
     return out
 
 
+def _floor_under(P, height, inner, y, x, s: PointGraspSettings) -> float:
+    """The highest point under the inner finger of a rim pinch (its pad's inner face at ``inner``,
+    the finger's body ``rim_finger_reach`` further in along -``y``, a pad wide along ``x``): a
+    plate's or a bowl's floor, which the finger stops above. Minus infinity when no point is there."""
+    rel = P - inner
+    along, across = rel @ -y, np.abs(rel @ x)
+    under = (along >= 0.0) & (along <= s.rim_finger_reach) & (across <= s.pad_width / 2 + s.clearance)
+    return float(height[under].max()) if under.any() else -np.inf
+
+
 def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
-    """Pinches of the target's top rim from above (bowls, mugs, pitchers): one pad outside the wall,
-    the other inside, closing along the footprint's radius through a rim point. On a solid top the
-    inner finger meets observed points and the open-hand check drops the candidate."""
+    """Pinches of the target's top rim from above (bowls, mugs, pitchers, plates): one pad outside
+    the wall, the other inside, closing along the footprint's radius through a rim point. The pads go
+    ``grasp_depths`` under the top, but the fingertips no lower than the support (the outer finger's)
+    and a clearance above the points under the inner finger (a plate's floor: a low rim is pinched
+    by the pads' lower part, the inner finger standing on nothing). On a solid top the inner finger
+    meets observed points and the open-hand check drops the candidate."""
     n, d = plane
     height = P @ n - d
     top = float(height.max())
@@ -302,10 +316,14 @@ def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
             continue
         y = radial / r
         x = np.cross(y, -n)
+        floor = _floor_under(P, height, P[i] - s.rim_wall * y, y, x, s)
         for tilt in (0.0, s.max_tilt / 2):
             z = -np.cos(tilt) * n + np.sin(tilt) * x
-            lowest = s.pad_length / 2 * abs(np.cos(tilt)) - s.table_contact  # fingertips on the support
-            for depth in s.grasp_depths[:2]:  # a low rim (a plate's): as deep as the support lets the pads go
+            reach = s.pad_length / 2 * abs(np.cos(tilt))  # the fingertips below the pads' centre
+            lowest = max(reach - s.table_contact, floor + reach + s.clearance + 0.001)
+            if lowest - reach >= top - s.clearance:  # the pads would end above the rim
+                continue
+            for depth in s.grasp_depths[:2]:  # a low rim (a plate's): as deep as the floor lets the pads go
                 pad = P[i] - s.rim_wall / 2 * y + (max(lowest, top - depth) - height[i]) * n
                 out.append((_frames(y, z, pad), 0.5, s.rim_wall))
     return out
