@@ -11,8 +11,10 @@ import pytest
 
 from pickplan.cli.main import main
 from pickplan.core import objects
+from pickplan.core.shapes import Obstacle, Shape
 from pickplan.core.timing import robot_limits
 from pickplan.eval.pickplace import execute_in_sim
+from pickplan.eval.place_regions import RegionKind, RegionSettings, place_task
 from pickplan.omg.pickplace import PickPlacePlanner, PickPlaceSettings, PickPlaceStatus, pick_and_place
 from pickplan.omg.place import PlaceRequest
 from pickplan.omg.planner import OMGPlanner, OMGSettings
@@ -207,8 +209,6 @@ def test_a_grasp_that_leaves_no_place_is_replaced_by_one_that_does():
     """A soup can into a bin 11 cm square and 8 cm deep: the pick's first grasp (the one it plans when
     place feasibility is not asked) puts the hand where the bin's wall stands at every place; the pick
     planned again among its other goals that have a place goal completes the task, executed in PyBullet."""
-    from pickplan.eval.place_regions import RegionKind, RegionSettings, place_task
-
     scene, request = place_task(
         _scene(), RegionKind.bin, seed=0, settings=RegionSettings(bin_inner=(0.11, 0.11), bin_height=0.08)
     )
@@ -228,8 +228,6 @@ def test_a_transfer_over_a_wall_starts_from_a_sampled_path():
     """A wall 45 cm high between the target and the region: the transfer's loop from the straight line
     ends in collision; from an RRT-Connect start (``OMGSettings.sampled_start``, as a pick among
     furniture) it passes the success test, and the whole task executes in PyBullet."""
-    from pickplan.core.shapes import Obstacle, Shape
-
     pose = np.eye(4)
     pose[:3, 3] = (0.5, -0.17, 0.225)
     scene = replace(_scene(), obstacles=[Obstacle("wall", Shape.box(0.6, 0.02, 0.45), pose)])

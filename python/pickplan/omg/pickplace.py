@@ -18,9 +18,10 @@ The segments, each a straight IK path or an OMG plan:
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field, replace
-from typing import List, Optional, Tuple
+from typing import Iterator, List, Optional, Tuple
 
 import numpy as np
 
@@ -298,13 +299,16 @@ class PickPlacePlanner:
     def plan_place(self, carrying: HeldWorld, start: np.ndarray) -> Tuple[PlaceGoalSet, Optional[PlanResult]]:
         """The place goal set from ``start`` (the lifted configuration) and the transfer to it (None
         when the set is empty)."""
-        model = getattr(carrying.base, "models", {}).get(carrying.target)
-        goals = build_place_goal_set(carrying, self.request, start, self._goal_settings(), model, clock=self.clock)
+        goals = self._place_goal_set(carrying, start, self._goal_settings())
         if len(goals) == 0:
             return goals, None
         if self.transfer is not None:
             return goals, self.transfer(carrying, start, goals.goal_set)
         return goals, plan_to_goal_set(self.settings.place, carrying, start, goals.goal_set)
+
+    def _place_goal_set(self, carrying: HeldWorld, start: np.ndarray, settings: PlaceSettings) -> PlaceGoalSet:
+        model = getattr(carrying.base, "models", {}).get(carrying.target)  # its stable resting poses
+        return build_place_goal_set(carrying, self.request, start, settings, model, clock=self.clock)
 
     def _goal_settings(self) -> PlaceSettings:
         """The place goal sets' settings, their set-down's clearance checked between its configurations as
@@ -339,19 +343,10 @@ class PickPlacePlanner:
         (``PickPlaceSettings.regrasp_plans``); ``failed`` (its reason saying how many were screened) when
         none of them completes the task."""
         s, t = self.settings, self.clock()
-        tried, screened, rounds, placeable = {failed.pick.grasp_index}, 0, 0, []
-        order = iter(range(len(pick_goals)))
+        tried, rounds, placeable = {failed.pick.grasp_index}, 0, []
+        supply = self._placeable(pick_goals, tried)
         while rounds < s.regrasp_plans:
-            for k in order if len(placeable) < s.regrasp_candidates else ():  # topped up to the candidates
-                index = int(pick_goals.grasp_index[k])
-                if index in tried:
-                    continue
-                tried.add(index)
-                screened += 1
-                if self._has_place_goal(pick_goals.goals[k]):
-                    placeable.append(index)
-                if len(placeable) == s.regrasp_candidates:
-                    break
+            placeable += itertools.islice(supply, s.regrasp_candidates - len(placeable))  # topped up
             if not placeable:
                 break
             rounds += 1
@@ -364,22 +359,27 @@ class PickPlacePlanner:
             plan.timings["regrasp"] = self.clock() - t
             if plan.success:
                 plan.timings["total"] = self.clock() - t0
-                plan.reason = f"regrasp: {failed.status.value} with the first grasp, {screened} other goals screened"
+                plan.reason = (
+                    f"regrasp: {failed.status.value} with the first grasp, {len(tried) - 1} other goals screened"
+                )
                 return plan
         failed.timings["regrasp"] = self.clock() - t
-        failed.reason += f" (regrasp: {screened} other pick goals screened, {rounds} plans)"
+        failed.reason += f" (regrasp: {len(tried) - 1} other pick goals screened, {rounds} plans)"
         return failed
 
-    def _has_place_goal(self, q_grasp: np.ndarray) -> bool:
-        """Whether the grasp at ``q_grasp`` lifts clear and has one place goal (the goal set stops at one)."""
-        carrying = self.attach(q_grasp)
-        lift, ok = self.plan_lift(carrying, q_grasp)
-        if not ok:
-            return False
+    def _placeable(self, pick_goals, tried: set) -> Iterator[int]:
+        """The pick goals' grasps (indices) not in ``tried`` whose grasp lifts clear and has one place goal
+        (the goal set stops at one), in the goal set's order, screened lazily; each is added to ``tried``."""
         settings = self._goal_settings()
         settings = replace(settings, goals=replace(settings.goals, max_goals=1))
-        model = getattr(carrying.base, "models", {}).get(carrying.target)
-        return len(build_place_goal_set(carrying, self.request, lift[-1], settings, model, clock=self.clock)) > 0
+        for index, q_grasp in zip(pick_goals.grasp_index, pick_goals.goals):
+            if int(index) in tried:
+                continue
+            tried.add(int(index))
+            carrying = self.attach(q_grasp)
+            lift, ok = self.plan_lift(carrying, q_grasp)
+            if ok and len(self._place_goal_set(carrying, lift[-1], settings)):
+                yield int(index)
 
     def plan_after_pick(
         self,
