@@ -154,3 +154,70 @@ def test_a_goal_set_the_quality_leaves_empty_takes_what_holds_in_physics(tmp_pat
     v = world.verify_grasps(gs.grasps[used], verify)  # lifted again on their own: they hold
     assert len(gs) > 0 and 0 < len(used) <= verify.budget and v.simulated.all() and v.held.all()
     assert all(gs.reasons[k] != "slips" for k in used)
+
+
+def test_lifted_grasps_agree_with_a_lift_of_each_alone_and_are_read_back_per_grasp(tmp_path, monkeypatch):
+    """``verify.lift_grasps`` on the known sugar box with a 6 N squeeze, the hand coming in from 8 cm:
+    some grasps hold and some fall, each as a lift of it alone says (no cache); a grasp 10 cm back from
+    the box along its approach closes on nothing (fell). A later call with some of the same grasps among new ones simulates only
+    the new ones (each verdict is cached apart)."""
+    from pickplan.omg.grasps import verify
+    from pickplan.omg.grasps.physics import SimObject, lift_trial
+    from pickplan.omg.world import World
+
+    from conftest import known_scene
+
+    monkeypatch.setenv("PICKPLAN_CACHE_DIR", str(tmp_path))
+    world = World(known_scene()[0])
+    poses = antipodal_grasps(world.target_model, 12, seed=0, support=SupportFilter.under(world.target_pose)).poses
+    beside = poses[0].copy()
+    beside[:3, 3] -= 0.10 * beside[:3, :3] @ PANDA.grasp_frame[:3, 2]  # back along the approach
+    weak = verify.VerifySettings(lift=LiftSettings(table_clearance=-0.002, finger_force=6.0, approach=0.08))
+    rest, _ = verify._table_rest(world._target_on_table)
+    verdicts = world.lift_grasps(np.concatenate([poses[:8], beside[None]]), weak)
+    assert verdicts[-1] is verify.LiftVerdict.fell
+    held = [v is verify.LiftVerdict.held for v in verdicts[:8]]
+    assert 0 < sum(held) < 8, verdicts
+    for grasp, h in zip(poses[:8], held):
+        assert verify._held(lift_trial(SimObject(world.target_model), [rest], grasp, weak.lift), weak) == h
+
+    simulated = []
+    real = verify.lift_trial
+    monkeypatch.setattr(
+        verify, "lift_trial", lambda obj, rests, grasp, *a: simulated.append(grasp) or real(obj, rests, grasp, *a)
+    )
+    again = world.lift_grasps(poses[4:], weak)
+    assert list(again[:4]) == list(verdicts[4:8]) and len(simulated) == len(poses) - 8
+
+
+def test_the_lift_approach_ends_at_the_grasp_and_pushes_what_is_in_its_way():
+    """``HandWorld.approach`` from 8 cm back, sideways at the known sugar box's mid-height, closing across
+    its thin side: pinching its near 2 cm, the fingers pass beside it (it moves < 3 mm) and the hand ends
+    at the grasp (< 2 mm); 3 cm past its middle, the palm meets the box on the way in and pushes it (> 2 cm)."""
+    from pickplan.omg.grasps.hand_world import HandWorld, SimObject
+    from pickplan.omg.grasps.verify import _table_rest
+    from pickplan.omg.world import World
+
+    from conftest import known_scene
+
+    world = World(known_scene()[0])
+    rest, _ = _table_rest(world._target_on_table)
+    box = world.target_model.mesh.copy().apply_transform(rest)
+    centre, size = box.bounds.mean(axis=0), box.extents
+    closing = np.array([0.0, 1.0, 0.0]) if size[1] < size[0] else np.array([1.0, 0.0, 0.0])
+    approach = np.cross(closing, [0.0, 0.0, 1.0])
+    frame = np.eye(4)
+    frame[:3, :3] = np.column_stack([np.cross(closing, approach), closing, approach])
+    settings = LiftSettings()
+    moved = []
+    near = -(abs(size @ approach) / 2 - 0.02)
+    for depth in (near, 0.03):
+        frame[:3, 3] = centre + depth * approach
+        hand = frame @ np.linalg.inv(PANDA.grasp_frame)
+        sim = HandWorld(settings, SimObject(world.target_model), hand, rest, gravity=True, table=True)
+        before = sim.body_pose()
+        sim.approach(0.08, settings.approach_time)
+        moved.append(np.linalg.norm(sim.body_pose()[:3, 3] - before[:3, 3]))
+        if depth == near:
+            assert np.linalg.norm(sim.hand_pose()[:3, 3] - hand[:3, 3]) < 0.002
+    assert moved[0] < 0.003 and moved[1] > 0.02, moved

@@ -15,6 +15,8 @@ from pickplan.core.shapes import Obstacle, Shape
 from pickplan.core.timing import robot_limits
 from pickplan.eval.pickplace import execute_in_sim
 from pickplan.eval.place_regions import RegionKind, RegionSettings, place_task
+from pickplan.omg.grasps import verify
+from pickplan.omg.grasps.physics import SimObject, lift_trial
 from pickplan.omg.pickplace import PickPlacePlanner, PickPlaceSettings, PickPlaceStatus, pick_and_place
 from pickplan.omg.place import PlaceRequest
 from pickplan.omg.planner import OMGPlanner, OMGSettings
@@ -68,6 +70,11 @@ def test_the_one_call_and_the_steps_plan_the_same(planned):
     V = model.mesh.vertices @ plan.place_pose[:3, :3].T + plan.place_pose[:3, 3]
     assert np.all(V >= np.array(REQUEST.region_min)) and np.all(V <= np.array(REQUEST.region_max))
     assert V[:, 2].min() == pytest.approx(SETTINGS.goals.gap, abs=1e-9)
+    # the pick's grasp, as planned, held when lifted in PyBullet from its standoff
+    grasp = np.linalg.inv(plan.held.hand_T_object)
+    lift = replace(SETTINGS.verify_pick.lift, approach=SETTINGS.pick.goals.standoff)
+    trial = lift_trial(SimObject(model), [verify._table_rest(planner.world._target_on_table)[0]], grasp, lift)
+    assert verify._held(trial, SETTINGS.verify_pick), trial
 
 
 def test_pickplace_command_writes_both_segments_timed_and_the_view(planned, tmp_path):

@@ -38,8 +38,11 @@ from pickplan.omg.attach import (
     straight_path_steps,
 )
 from pickplan.omg.chomp import ChompSettings
+from pickplan.omg.goals import GoalSet
+from pickplan.omg.grasps.verify import VerifySettings
 from pickplan.omg.place import PlaceGoalSet, PlaceRequest, PlaceSettings, build_place_goal_set, reason_summary
 from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanResult, plan_to_goal_set
+from pickplan.omg.verified_pick import verified_pick
 
 
 class PickPlaceStatus(Option):
@@ -102,6 +105,12 @@ class PickPlaceSettings:
     # across its rim puts the hand outside the rim, where a bin's wall stands; held nearer its top, it fits.
     regrasp_plans: int = 2
     regrasp_candidates: int = 3
+    # The pick's grasp, as planned (refined or not), is lifted in PyBullet before the carry is planned, the
+    # hand coming in from the standoff (``grasps.verify.lift_grasps``; each verdict cached); while it
+    # falls, the pick is planned again without it, at most ``budget`` plans. The carry needs a grasp
+    # that holds, and the quality is computed on the object's mesh where the physics may have another
+    # model (a pitcher's 2 mm lip, filled solid in its collision model). None: no lift.
+    verify_pick: Optional[VerifySettings] = VerifySettings(budget=5)
 
 
 @dataclass
@@ -261,7 +270,11 @@ class PickPlacePlanner:
         return self.planner.world()
 
     def plan_pick(self, start=None, grasps=None) -> PlanResult:
-        return self.planner.plan(start=start, grasps=grasps)
+        return self._plan_pick(start, grasps, set())[0]
+
+    def _plan_pick(self, start, grasps, fell: set) -> Tuple[PlanResult, Optional[GoalSet]]:
+        """The pick and its goal set (``verified_pick``: its grasp lifted in PyBullet first)."""
+        return verified_pick(self.planner, start, grasps, self.settings.verify_pick, fell, self.clock)
 
     def attach(self, q_grasp: np.ndarray, held: Optional[HeldObject] = None) -> HeldWorld:
         """The world while carrying: the target held as ``q_grasp`` grasps it (or as ``held`` says: the
@@ -327,7 +340,8 @@ class PickPlacePlanner:
 
     def plan(self, start=None, grasps=None) -> PickPlacePlan:
         t0 = self.clock()
-        pick, pick_goals = self.planner.plan_with_goals(start, grasps=grasps)
+        fell: set = set()
+        pick, pick_goals = self._plan_pick(start, grasps, fell)
         timings = {"pick": pick.timings.get("total", 0.0)}
         if not pick.success:
             return PickPlacePlan(
@@ -335,26 +349,29 @@ class PickPlacePlanner:
             )
         plan = self.plan_after_pick(pick, timings=timings, t0=t0)
         if plan.status in REGRASP and self.settings.regrasp_plans > 0:
-            plan = self._regrasp(plan, pick_goals, start, t0)
+            plan = self._regrasp(plan, pick_goals, start, t0, fell)
         return plan
 
-    def _regrasp(self, failed: PickPlacePlan, pick_goals, start, t0: float) -> PickPlacePlan:
+    def _regrasp(self, failed: PickPlacePlan, pick_goals, start, t0: float, fell: set) -> PickPlacePlan:
         """``failed``'s pick planned again among the pick's other goals that have a place goal
         (``PickPlaceSettings.regrasp_plans``); ``failed`` (its reason saying how many were screened) when
         none of them completes the task."""
         s, t = self.settings, self.clock()
-        tried, rounds, placeable = {failed.pick.grasp_index}, 0, []
+        tried, rounds, placeable = {failed.pick.grasp_index} | fell, 0, []
         supply = self._placeable(pick_goals, tried)
         while rounds < s.regrasp_plans:
             placeable += itertools.islice(supply, s.regrasp_candidates - len(placeable))  # topped up
             if not placeable:
                 break
             rounds += 1
-            pick = self.planner.plan(start, grasps=pick_goals.grasps[placeable])
+            dropped: set = set()  # candidates whose grasp fell in the pick's lift
+            pick = self._plan_pick(start, pick_goals.grasps[placeable], dropped)[0]
             if not pick.success or pick.grasp_index < 0:
                 placeable = []  # no pick among them: the next round's candidates are new ones
                 continue
-            pick.grasp_index = placeable.pop(pick.grasp_index)  # an index into the first pick's grasps again
+            chosen = placeable[pick.grasp_index]  # an index into the first pick's grasps again
+            placeable = [k for i, k in enumerate(placeable) if i not in dropped and k != chosen]
+            pick.grasp_index = chosen
             plan = self.plan_after_pick(pick, timings=dict(failed.timings, pick=pick.timings.get("total", 0.0)))
             plan.timings["regrasp"] = self.clock() - t
             if plan.success:

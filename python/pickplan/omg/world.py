@@ -370,10 +370,20 @@ class World:
     def verify_grasps(self, grasps: np.ndarray, settings: verify.VerifySettings) -> verify.Verified:
         """``grasps.verify.verify_grasps`` of hand poses in the target's frame, the target lying as it
         does on the scene's table, for this robot's gripper (``settings``: a ``VerifySettings``)."""
-        table = self.scene.table
+        return verify.verify_grasps(self.target_model, grasps, self._target_on_table, self.robot.info, settings)
+
+    def lift_grasps(self, grasps: np.ndarray, settings: verify.VerifySettings) -> np.ndarray:
+        """``grasps.verify.lift_grasps``: each grasp (target frame) lifted in PyBullet, the target lying as
+        it does on the scene's table; (N,) ``LiftVerdict``."""
+        return verify.lift_grasps(self.target_model, grasps, self._target_on_table, self.robot.info, settings)
+
+    @property
+    def _target_on_table(self) -> np.ndarray:
+        """The target turned as it lies, its lowest point on a table top at z = 0 (the physics checks'
+        table; from its mesh, so a target on a shelf board is checked as it lies there too)."""
         rest = np.array(self.target_pose, dtype=float)
-        rest[2, 3] -= table.pose[2, 3] + table.size[2] / 2  # on a table top at z = 0
-        return verify.verify_grasps(self.target_model, grasps, rest, self.robot.info, settings)
+        rest[2, 3] = -float((self.target_model.mesh.vertices @ rest[2, :3]).min())
+        return rest
 
     @functools.cached_property
     def clearance_problem(self):

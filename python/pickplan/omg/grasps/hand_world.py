@@ -146,6 +146,24 @@ class HandWorld:
         pb.changeConstraint(self.drive, maxForce=s.hand_force, physicsClientId=cid)
         self.body = add_object_body(cid, obj, T_obj, friction=s.object_friction)
 
+    def approach(self, distance: float, seconds: float) -> None:
+        """Put the open hand ``distance`` back along its approach axis and move it in to where it was
+        made (a smooth step over ``seconds``): what the approach does to the object (a finger meeting it
+        pushes it) happens before the grasp closes."""
+        pb, axis = self.pb, self.T_hand0[:3, :3] @ self.gripper.grasp_frame[:3, 2]
+
+        def path(u: float) -> np.ndarray:
+            T = self.T_hand0.copy()
+            T[:3, 3] -= (1.0 - smooth_step(u)) * distance * axis
+            return T
+
+        start = path(0.0) @ self.T_inertial
+        pb.resetBasePositionAndOrientation(
+            self.hand, start[:3, 3].tolist(), _mat_to_quat(start[:3, :3]), physicsClientId=self.cid
+        )
+        self.move_hand(path(0.0))
+        self.step(seconds, path)
+
     def gravity(self, on: bool) -> None:
         self.pb.setGravity(0, 0, -9.81 if on else 0.0, physicsClientId=self.cid)
 

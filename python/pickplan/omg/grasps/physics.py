@@ -97,6 +97,10 @@ class LiftSettings:
     hand_force: float = 2000.0
     couple_fingers: bool = True
     rest_index: Optional[int] = None  # resting pose; None: the most stable one where the hand clears the table
+    # m the open hand starts back along its approach axis and moves in before it closes (a plan's
+    # standoff approach: a finger that meets the object on the way pushes it); 0: it starts at the grasp
+    approach: float = 0.0
+    approach_time: float = 0.5  # s
 
 
 @dataclass(frozen=True)
@@ -224,6 +228,8 @@ def _table_world(obj: SimObject, rests, T: np.ndarray, s, gripper: RobotInfo = P
 def _close_and_lift(world: HandWorld, s, closed=None) -> Tuple[np.ndarray, bool]:
     """Close on the resting object, lift ``lift_height`` and hold; the lifted hand pose and whether
     the object rose with it (the lift test's success). ``closed()`` is called before the lift."""
+    if getattr(s, "approach", 0.0) > 0:
+        world.approach(s.approach, s.approach_time)
     z0 = world.body_pose()[2, 3]
     H0 = world.hand_pose()
     world.close()

@@ -12,6 +12,11 @@ the grasps, the gripper and the settings, and is cached on disk under that key
 
 >>> v = verify_grasps(model, grasps.poses, model.resting_poses[0])
 >>> grasps.poses[v.keep], v.simulated.sum(), v.seconds
+
+``lift_grasps`` lifts every grasp it is given, whatever the quality says, and caches each grasp's
+verdict apart (``$PICKPLAN_CACHE_DIR/verified/lifts-*``: a goal set's grasps differ from scene to scene
+while most of them recur): for a grasp that must carry the object (pick and place), where the model the
+quality judges and the physics differ (a pitcher's 2 mm lip, filled solid in its collision model).
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import numpy as np
 from pickplan.core.description import RobotInfo
 from pickplan.core.io import atomic_open, cache_dir
 from pickplan.core.panda import PANDA
+from pickplan.core.settings import Option
 from pickplan.omg.grasps.physics import LiftSettings, SimObject, lift_trial
 from pickplan.omg.grasps.quality import GraspFit, QualitySettings, model_quality
 from pickplan.omg.grasps.sets import check_grasps
@@ -63,9 +69,11 @@ class Verified:
     cached: bool = False
 
 
-def _cache_path(model, poses: np.ndarray, down: np.ndarray, gripper: RobotInfo, settings: VerifySettings) -> str:
+def _key(model, down: np.ndarray, gripper: RobotInfo, settings: VerifySettings, *arrays) -> "hashlib._Hash":
+    """What a physics verdict depends on: the object (mesh and the physics model), which way is down in
+    its frame, the gripper, the settings (and ``arrays``: the grasps, where a result covers a whole set)."""
     h = hashlib.sha256()
-    for a in (model.mesh.vertices, model.mesh.faces, poses, np.round(down, 6)):
+    for a in (model.mesh.vertices, model.mesh.faces, *arrays, np.round(down, 6)):
         h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
     with open(model.collision_obj_path(), "rb") as f:
         h.update(f.read())
@@ -83,8 +91,29 @@ def _cache_path(model, poses: np.ndarray, down: np.ndarray, gripper: RobotInfo, 
             default=str,
         ).encode()
     )
+    return h
+
+
+def _cache_path(kind: str, model, h) -> str:
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in model.name)
-    return cache_dir("verified", f"{safe}-{h.hexdigest()[:24]}.npz")
+    return cache_dir("verified", f"{kind}{safe}-{h.hexdigest()[:24]}.npz")
+
+
+def _table_rest(object_pose) -> Tuple[np.ndarray, np.ndarray]:
+    """The object as it lies, moved to the middle of the simulated table (yaw and height kept), and
+    which way is down in its frame."""
+    rest = np.array(object_pose, dtype=float)
+    rest[:2, 3] = 0.0
+    return rest, rest[:3, :3].T @ np.array([0.0, 0.0, -1.0])
+
+
+def _held(trial: dict, settings: VerifySettings) -> bool:
+    return bool(
+        trial["applicable"]
+        and trial["lifted"]
+        and trial["rotation"] < settings.max_rotation
+        and trial["slip"] < settings.max_slip
+    )
 
 
 def verify_grasps(
@@ -100,10 +129,8 @@ def verify_grasps(
     module docstring)."""
     started = time.perf_counter()
     poses = check_grasps(poses)
-    rest = np.array(object_pose, dtype=float)
-    rest[:2, 3] = 0.0  # on the middle of the simulated table; the yaw and the height are kept
-    down = rest[:3, :3].T @ np.array([0.0, 0.0, -1.0])
-    path = _cache_path(model, poses, down, gripper, settings) if cache else None
+    rest, down = _table_rest(object_pose)
+    path = _cache_path("", model, _key(model, down, gripper, settings, poses)) if cache else None
     if path and os.path.isfile(path):
         with np.load(path) as z:
             return Verified(z["keep"], z["margin"], z["simulated"], z["held"], 0.0, cached=True)
@@ -120,15 +147,55 @@ def verify_grasps(
             continue
         trial = lift_trial(obj, [rest], poses[i], settings.lift, gripper)
         simulated[i] = True
-        held[i] = (
-            trial["applicable"]
-            and trial["lifted"]
-            and trial["rotation"] < settings.max_rotation
-            and trial["slip"] < settings.max_slip
-        )
+        held[i] = _held(trial, settings)
     keep |= held
     out = Verified(keep, margin, simulated, held, time.perf_counter() - started)
     if path:
         with atomic_open(path, "wb") as f:
             np.savez(f, keep=keep, margin=margin, simulated=simulated, held=held)
     return out
+
+
+class LiftVerdict(Option):
+    """What one lift in PyBullet (``lift_grasps``) said of a grasp."""
+
+    held = "held"  # rose with the hand, turned and slid less than the settings allow
+    fell = "fell_in_lift"  # did not rise with the hand, or turned or slid in it
+    not_applicable = "lift_not_applicable"  # the open hand touches the simulated table at the grasp
+
+
+def lift_grasps(
+    model,
+    poses,
+    object_pose,
+    gripper: RobotInfo = PANDA,
+    settings: VerifySettings = VerifySettings(),
+    cache: bool = True,
+) -> np.ndarray:
+    """(N,) ``LiftVerdict`` of each of ``gripper``'s hand poses (object frame) lifting ``model`` lying as
+    at ``object_pose`` (see the module docstring); each grasp's verdict cached on disk apart."""
+    poses = check_grasps(poses)
+    rest, down = _table_rest(object_pose)
+    path = _cache_path("lifts-", model, _key(model, down, gripper, settings)) if cache else None
+    keys = [hashlib.sha256((np.round(p[:3], 9) + 0.0).tobytes()).hexdigest()[:32] for p in poses]
+
+    def stored() -> dict:
+        if not (path and os.path.isfile(path)):
+            return {}
+        with np.load(path) as z:
+            return dict(zip(z["keys"].tolist(), z["verdicts"].tolist()))
+
+    known, new, obj = stored(), {}, None
+    for key, pose in zip(keys, poses):
+        if key in known or key in new:
+            continue
+        obj = obj or SimObject(model)
+        trial = lift_trial(obj, [rest], pose, settings.lift, gripper)
+        verdict = LiftVerdict.not_applicable if not trial["applicable"] else LiftVerdict.fell
+        new[key] = (LiftVerdict.held if _held(trial, settings) else verdict).value
+    if new and path:
+        merged = {**stored(), **new}  # read again: another process may have added its grasps meanwhile
+        with atomic_open(path, "wb") as f:
+            np.savez(f, keys=np.array(list(merged), dtype=str), verdicts=np.array(list(merged.values()), dtype=str))
+    known.update(new)
+    return np.array([LiftVerdict(known[key]) for key in keys], dtype=object)
