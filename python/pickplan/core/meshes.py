@@ -59,3 +59,22 @@ def check_mesh_arrays(vertices, faces, what: str = "mesh"):
     if thickness <= MIN_THICKNESS:
         raise InputError(f"degenerate mesh: it encloses no volume (thinnest extent {thickness:.1e} m)", field=what)
     return V, F
+
+
+def farthest_points(candidates: np.ndarray, k: int, existing: np.ndarray | None = None) -> np.ndarray:
+    """Indices of ``k`` of ``candidates`` (N, d) picked one by one, each farthest from ``existing`` and
+    those picked before it (the first: candidate 0 when nothing exists yet): an even spread."""
+    candidates = np.asarray(candidates, dtype=float)
+    if k <= 0 or len(candidates) == 0:
+        return np.zeros(0, dtype=int)
+    if existing is None or len(existing) == 0:
+        d = np.full(len(candidates), np.inf)
+        d[0] = np.finfo(float).max  # deterministic start
+    else:
+        d = np.sqrt(((candidates[:, None, :] - np.asarray(existing, float)[None]) ** 2).sum(-1)).min(axis=1)
+    picked = []
+    for _ in range(min(k, len(candidates))):
+        i = int(np.argmax(d))
+        picked.append(i)
+        d = np.minimum(d, np.sqrt(((candidates - candidates[i]) ** 2).sum(-1)))
+    return np.asarray(picked, dtype=int)

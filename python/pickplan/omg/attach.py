@@ -15,6 +15,7 @@ the robot.
 from __future__ import annotations
 
 import functools
+import hashlib
 from dataclasses import dataclass
 from typing import Optional, Sequence, Tuple
 
@@ -24,6 +25,7 @@ import trimesh
 from pickplan import _core
 from pickplan.core import collision, robots
 from pickplan.core.ik import IkSettings
+from pickplan.core.meshes import farthest_points
 from pickplan.core.poses import rigid_errors
 from pickplan.core.settings import Option
 from pickplan.omg.chomp import Chomp
@@ -42,6 +44,11 @@ class AttachSettings:
     # space)
     points: int = 60
     seed: int = 0
+    # A target from depth: body points spread evenly about this far apart on the convex hull of its observed
+    # points and their feet (what no camera saw closed over), between ``points`` and ``max_points``. A
+    # random 60 of the observed points left parts of the true surface 4-7 cm from every body point.
+    observed_spacing: float = 0.015  # m
+    max_points: int = 400
 
 
 @dataclass
@@ -113,14 +120,26 @@ def held_from_plan(world, q_grasp: np.ndarray, settings: AttachSettings = Attach
 
 
 def observed_points(world: PerceivedWorld, settings: AttachSettings = AttachSettings()) -> np.ndarray:
-    """A perceived target as body points (world frame): a seeded subsample of its observed points and
-    their feet on the support plane (it stands on the plane: its unseen underside reaches down to it)."""
+    """A perceived target as body points (world frame): seeded samples about ``observed_spacing`` apart
+    on the convex hull of its observed points and their feet on the support plane (it stands on the
+    plane: its unseen underside reaches down to it; its unseen sides are closed over). Kept by the
+    world's cache: every grasp a regrasp screens attaches the same points."""
     P = np.asarray(world.perceived.target_points, dtype=float)
     normal, offset = world.support_plane
-    k = min(settings.points, len(P))
-    sub = P[np.sort(np.random.default_rng(settings.seed).choice(len(P), k, replace=False))]
-    feet = sub - (sub @ normal - offset)[:, None] * np.asarray(normal)[None]
-    return np.vstack([sub, feet])
+    normal = np.asarray(normal, dtype=float)
+    key = ("observed_points", hashlib.sha256(P.tobytes()).hexdigest(), normal.tobytes(), float(offset), settings)
+    return world.cache.derived(key, lambda: _hull_points(P, normal, float(offset), settings))
+
+
+def _hull_points(P: np.ndarray, normal: np.ndarray, offset: float, settings: AttachSettings) -> np.ndarray:
+    feet = P - (P @ normal - offset)[:, None] * normal[None]
+    try:
+        hull = trimesh.convex.convex_hull(np.vstack([P, feet]))
+    except Exception:  # noqa: BLE001 - qhull on degenerate (flat, collinear) points: the points themselves
+        return np.vstack([P, feet])[:: max(1, (2 * len(P)) // settings.max_points)]
+    n = int(np.clip(hull.area / settings.observed_spacing**2, settings.points, settings.max_points))
+    candidates = surface_points(hull, 8 * n, settings.seed)
+    return candidates[farthest_points(candidates, n)]  # evenly spread: random samples leave gaps
 
 
 def attached_robot(robot: robots.DescribedRobot, held: HeldObject) -> robots.DescribedRobot:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pickplan.core.meshes import farthest_points
+
 
 def _nearest_dist(P, X) -> np.ndarray:
     if len(X) == 0:
@@ -20,13 +22,7 @@ def _greedy_farthest(cands, existing, k) -> np.ndarray:
     """Pick k candidates one by one, each farthest from existing + already picked points."""
     if k <= 0 or len(cands) == 0:
         return np.zeros((0, 3))
-    d = _nearest_dist(cands, existing)
-    picked = []
-    for _ in range(min(k, len(cands))):
-        i = int(np.argmax(d))
-        picked.append(cands[i])
-        d = np.minimum(d, np.sqrt(((cands - cands[i]) ** 2).sum(-1)))
-    return np.asarray(picked)
+    return np.asarray(cands)[farthest_points(cands, k, existing)]
 
 
 def sample_focus(rng, n, focus_scale, focus_fraction) -> np.ndarray:
