@@ -189,13 +189,13 @@ def test_pickplace_command_exit_codes(planned, tmp_path, capsys):
 
 
 def test_the_carry_check_sees_the_held_object_on_the_true_meshes(planned):
-    """``carry_collides`` (the bench's measure): clear for the plan as planned; another can put where the
-    held can's bottom passes mid-transfer (1.5 cm into it) is a collision."""
-    from pickplan.eval.pickplace import carry_collides
+    """``carry_contacts`` (the bench's measure): clear for the plan as planned; another can put where the
+    held can's bottom passes mid-transfer (1.5 cm into it) is a collision of the held object."""
+    from pickplan.eval.pickplace import CarryContact, carry_contacts
     from pickplan.sim import scenes
 
     scene, planner, plan = planned
-    assert not carry_collides(plan, planner.attach(plan.pick.goal, plan.held))
+    assert not carry_contacts(plan, planner.attach(plan.pick.goal, plan.held))
     robot, lib = planner.world.robot, objects.library("builtin")
     q = plan.place.trajectory[len(plan.place.trajectory) // 2]
     held_pose = robot.link_pose(q, robot.hand_link) @ plan.held.hand_T_object
@@ -209,7 +209,7 @@ def test_the_carry_check_sees_the_held_object_on_the_true_meshes(planned):
         objects=list(scene.objects) + [scenes.SceneObject("010_potted_meat_can", "builtin:010_potted_meat_can", pose)],
     )
     other = PickPlacePlanner(OMGPlanner(None, blocked, SETTINGS.pick), REQUEST, SETTINGS)
-    assert carry_collides(plan, other.attach(plan.pick.goal, plan.held))
+    assert CarryContact.held in carry_contacts(plan, other.attach(plan.pick.goal, plan.held))
 
 
 def test_a_grasp_that_leaves_no_place_is_replaced_by_one_that_does():

@@ -28,10 +28,11 @@ from typing import Optional
 import numpy as np
 
 from pickplan.core.ik import IkSettings
+from pickplan.core.settings import Option
 from pickplan.eval.baselines import BaselineSettings, plan_baseline_to_goal_set
 from pickplan.eval.place_regions import RegionKind, place_task
 from pickplan.eval.units import _WORKER_MODELS, _unit_grasps
-from pickplan.omg.attach import HeldCheck, HeldWorld
+from pickplan.omg.attach import HELD_LINK, HeldCheck, HeldWorld
 from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.goals import GoalSetSettings
 from pickplan.omg.pickplace import PickPlacePlan, PickPlacePlanner, PickPlaceSettings
@@ -79,12 +80,20 @@ def transfer_planner(method: str, settings: PickPlaceSettings, max_goals_tried: 
     return lambda world, q0, goal_set: plan_baseline_to_goal_set(method, world, q0, goal_set, bs)
 
 
-def carry_collides(plan: PickPlacePlan, carrying: HeldWorld, steps: int = 200) -> bool:
-    """Whether the robot or the held object (true meshes) touches what it may not along the lift and
+class CarryContact(Option):
+    """What touched what it may not along a carry (``carry_contacts``)."""
+
+    held = "held"  # the held object
+    robot = "robot"  # a robot link (a finger on a bin's wall, a link on a neighbour)
+
+
+def carry_contacts(plan: PickPlacePlan, carrying: HeldWorld, steps: int = 200) -> set:
+    """Which of the held object and the robot (true meshes) touch what they may not along the lift and
     the transfer, densely: the support may be touched on the lift's first centimetre and the set-down."""
     support, carry = carrying.checker(HeldCheck.support), carrying.checker(HeldCheck.carry)
     segments = dict(plan.segments())
     set_down = plan.place_goals.goal_set.tails.shape[1]  # the transfer's last rows: pre-place to place
+    found = set()
     for name in ("lift", "transfer"):
         Q = segments.get(name)
         if Q is None or len(Q) < 2:
@@ -93,10 +102,17 @@ def carry_collides(plan: PickPlacePlan, carrying: HeldWorld, steps: int = 200) -
         i = np.minimum(s.astype(int), len(Q) - 2)
         dense = Q[i] + (s - i)[:, None] * (Q[i + 1] - Q[i])
         for k, q in enumerate(dense):
-            touching = s[k] <= 1.0 if name == "lift" else s[k] >= len(Q) - set_down
-            if (support if touching else carry).in_collision(q):
-                return True
-    return False
+            checker = support if (s[k] <= 1.0 if name == "lift" else s[k] >= len(Q) - set_down) else carry
+            if checker.in_collision(q):
+                held = {c.link == HELD_LINK for c in checker.contacts(q)}
+                found |= {CarryContact.held if h else CarryContact.robot for h in held} or {CarryContact.robot}
+    return found
+
+
+def carry_fields(plan: PickPlacePlan, carrying: HeldWorld) -> dict:
+    """The record's ``held_collision`` and ``robot_collision`` (``carry_contacts``)."""
+    found = carry_contacts(plan, carrying)
+    return {"held_collision": CarryContact.held in found, "robot_collision": CarryContact.robot in found}
 
 
 def _grasp_change(planned: np.ndarray, executed: np.ndarray) -> tuple:
@@ -240,8 +256,7 @@ def run_pickplace_unit(unit: dict) -> dict:
     plan = planner.plan(grasps=grasps)
     record.update(plan_fields(plan))
     if plan.success:
-        carrying = planner.attach(plan.pick.goal, plan.held)
-        record["held_collision"] = carry_collides(plan, carrying)
+        record.update(carry_fields(plan, planner.attach(plan.pick.goal, plan.held)))
         if unit["execute"]:
             execute_unit_plan(unit, scene, planner, plan, request, record)
     record["unit_seconds"] = time.perf_counter() - t0

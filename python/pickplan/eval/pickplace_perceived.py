@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from pickplan.eval.pickplace import carry_collides, execute_unit_plan, plan_fields, unit_settings, unit_task
+from pickplan.eval.pickplace import carry_fields, execute_unit_plan, plan_fields, unit_settings, unit_task
 from pickplan.omg.attach import HeldWorld, held_from_poses
 from pickplan.omg.perceived_world import PerceivedPlanner, PerceivedWorld
 from pickplan.omg.pickplace import PickPlacePlanner
@@ -41,7 +41,7 @@ def run_perceived_pickplace_unit(unit: dict) -> dict:
         truth = true_world.target_pose  # the true object frame in the perceived one (the world at the observation)
         hand = robot.link_pose(plan.pick.goal, robot.hand_link)
         held = held_from_poses(scene.target, hand, truth, true_world.target_model.mesh)
-        record["held_collision"] = carry_collides(plan, HeldWorld(true_world, held))
+        record.update(carry_fields(plan, HeldWorld(true_world, held)))
         if unit["execute"]:
             execute_unit_plan(unit, scene, planner, plan, request, record, frame=np.asarray(truth))
     record["unit_seconds"] = time.perf_counter() - t0

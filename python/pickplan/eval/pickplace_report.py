@@ -42,6 +42,7 @@ def summarize_group(rs: Sequence[dict]) -> dict:
         if executed
         else None,
         "held_collisions": sum(bool(r.get("held_collision")) for r in planned),
+        "robot_collisions": sum(bool(r.get("robot_collision")) for r in planned),
         "place_time_median": _median(r.get("place_time") for r in picked if r.get("place_goals")),
         "attach_time_median": _median(r.get("attach_time") for r in picked),
         "pick_time_median": _median(
@@ -69,6 +70,7 @@ ROWS = (
     ("complete", "Complete, executed (of graspable)", _pct),
     ("complete_of_planned", "Complete, executed (of planned)", _pct),
     ("held_collisions", "Held object in collision, true meshes (planned units)", str),
+    ("robot_collisions", "Robot in collision on the carry, true meshes (planned units)", str),
     ("place_time_median", "Place planning, median (ms CPU: goal set + transfer)", lambda x: f"{1000 * x:.1f}"),
     (
         "attach_time_median",
