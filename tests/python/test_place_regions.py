@@ -5,7 +5,9 @@ cluttered region reaches into the clutter and leaves room for the target."""
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from pickplan.eval.place_regions import RegionKind, _cover, _hulls_xy, place_task
+from pickplan.core import objects
+from pickplan.eval.place_regions import RegionKind, RegionSettings, _cover, _hulls_xy, place_task
+from pickplan.sim import scenes
 
 from conftest import standing_scene
 
@@ -93,3 +95,33 @@ def test_more_candidates_are_drawn_until_the_target_has_room():
     _, request = place_task(scene, RegionKind.cluttered, seed=29)
     share, radius = cover(request)
     assert radius >= room and share > 0.0 and _overlaps(scene, request, skip=scene.target)
+
+
+def test_a_region_grows_to_hold_a_target_longer_than_it_and_no_other():
+    """A 28 cm hammer lying on the table: every kind of region (a bin's inside too) holds its footprint,
+    turned to fit, with ``fit_margin`` on each side; a soup can's regions keep the default sizes."""
+    lib = objects.library("procedural")
+    hammer = lib.get("hammer_00")
+    pose = np.asarray(hammer.resting_poses[0], dtype=float).copy()
+    pose[:2, 3] = (0.55, 0.1)
+    settings = RegionSettings()
+    scene = scenes.Scene(
+        np.eye(4),
+        scenes.default_table(),
+        [scenes.SceneObject("hammer_00", "procedural:hammer_00", pose)],
+        "hammer_00",
+        seed=0,
+    )
+    xy = (hammer.mesh.vertices @ pose[:3, :3].T)[:, :2]
+    length = float(np.ptp(xy @ np.linalg.eigh(np.cov((xy - xy.mean(0)).T))[1], axis=0).max())
+    assert length > max(settings.size)
+    for kind in RegionKind:
+        _, request = place_task(scene, kind, seed=1, settings=settings)
+        size = np.asarray(request.region_max)[:2] - np.asarray(request.region_min)[:2]
+        assert size.max() >= length + 2 * settings.fit_margin - 1e-9, (kind, size)
+    can = standing_scene((("005_tomato_soup_can", (0.55, 0.1)),), "005_tomato_soup_can")[0]
+    for kind in RegionKind:
+        _, request = place_task(can, kind, seed=1, settings=settings)
+        size = np.asarray(request.region_max)[:2] - np.asarray(request.region_min)[:2]
+        default = settings.bin_inner if kind is RegionKind.bin else settings.size
+        np.testing.assert_allclose(size, default, atol=1e-9)

@@ -41,6 +41,9 @@ class RegionSettings:
     clutter_margin: float = 0.01  # m of free floor around the target where it would fit
     clutter_batches: int = 8  # batches of 12 candidate regions drawn until the target fits
     bin_height: float = 0.08
+    # m a region keeps on each side of the target turned to fit it: a region (or bin) smaller than that
+    # grows (a 28 cm hammer and a 24 cm region make no place task, only a "too small" answer)
+    fit_margin: float = 0.03
     height: float = 0.40  # m of the region above its floor
     orientation: Orientation = Orientation.upright
 
@@ -58,6 +61,19 @@ def _radius_xy(scene: Scene) -> float:
     """The target's footprint radius about its centre from above (any yaw fits a disc this size)."""
     xy = dict(_hulls_xy(scene))[scene.target]
     return float(np.linalg.norm(xy - 0.5 * (xy.min(axis=0) + xy.max(axis=0)), axis=1).max())
+
+
+def _fitted(scene: Scene, half: np.ndarray, margin: float) -> np.ndarray:
+    """``half`` (a region's half size), grown where the target's footprint, along its principal axes
+    and turned so its longer side lies along the region's longer side, would not fit with ``margin``."""
+    xy = dict(_hulls_xy(scene))[scene.target]
+    _, axes = np.linalg.eigh(np.cov((xy - xy.mean(axis=0)).T))
+    along = xy @ axes
+    need = np.sort(0.5 * (along.max(axis=0) - along.min(axis=0)))[::-1] + margin  # longer first
+    order = np.argsort(-half, kind="stable")
+    out = np.array(half, dtype=float)
+    out[order] = np.maximum(out[order], need)
+    return out
 
 
 def _box_clear(scene: Scene, lo: np.ndarray, hi: np.ndarray) -> bool:
@@ -92,7 +108,9 @@ def place_task(
     """A scene (with a bin for ``RegionKind.bin``) and a place request of that kind, seeded."""
     kind = RegionKind.parse(kind, "region kind")
     rng = np.random.default_rng([int(seed), 34])
-    half = np.asarray(settings.bin_inner if kind is RegionKind.bin else settings.size) / 2
+    half = _fitted(
+        scene, np.asarray(settings.bin_inner if kind is RegionKind.bin else settings.size) / 2, settings.fit_margin
+    )
     if kind is RegionKind.cluttered:  # of candidates where the target fits, the share covered nearest the aim
         footprints, room = _footprints(scene, scene.target), _radius_xy(scene) + settings.clutter_margin
         centres, cover = np.zeros((0, 2)), np.zeros((0, 2))
