@@ -41,9 +41,10 @@ class RegionSettings:
     clutter_margin: float = 0.01  # m of free floor around the target where it would fit
     clutter_batches: int = 8  # batches of 12 candidate regions drawn until the target fits
     bin_height: float = 0.08
-    # m a region keeps on each side of the target turned to fit it: a region (or bin) smaller than that
-    # grows (a 28 cm hammer and a 24 cm region make no place task, only a "too small" answer)
-    fit_margin: float = 0.03
+    # m a region keeps on each side of the target turned to fit it (the set-down's clearance): a region
+    # (or bin) smaller than that grows (a 28 cm hammer and a 24 cm region make no place task, only a
+    # "too small" answer); every YCB and built-in object fits the default sizes
+    fit_margin: float = 0.01
     height: float = 0.40  # m of the region above its floor
     orientation: Orientation = Orientation.upright
 
