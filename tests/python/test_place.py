@@ -103,6 +103,27 @@ def test_candidates_keep_the_whole_object_inside_the_region(held_case):
     np.testing.assert_allclose(V[..., 2].min(axis=1), settings.gap, atol=1e-12)  # lowest point: gap above the floor
 
 
+def test_fingers_below_the_object_are_kept_above_the_floor_too(held_case):
+    """A pinch low on the object reaches below it: with the fingers' vertices (object frame) given, each
+    candidate's lowest point of object and fingers together is ``gap`` above the floor (the object then
+    higher by as much as the fingers reach below it); fingers within the object change nothing."""
+    _, carrying, _, box = held_case
+    request = PlaceRequest((0.35, -0.45, 0.0), (0.65, -0.2, 0.4), "stable")
+    settings = PlaceSettings()
+    rotations = resting_rotations(request, carrying.base.target_pose, box, settings.max_rests)
+    plain = candidate_poses(request, box.mesh.vertices, rotations, settings)
+    down = rotations[0].T @ [0.0, 0.0, -1.0]  # the world's down in the object as it rests first
+    below = box.mesh.vertices[(box.mesh.vertices @ down).argmax()] + 0.01 * down  # 1 cm under its lowest point
+    fingers = np.array([below, below - 0.05 * down])
+    poses = candidate_poses(request, box.mesh.vertices, rotations, settings, fingers)
+    assert len(poses) == len(plain)
+    V = np.einsum("nij,vj->nvi", poses[:, :3, :3], np.vstack([box.mesh.vertices, fingers])) + poses[:, None, :3, 3]
+    np.testing.assert_allclose(V[..., 2].min(axis=1), settings.gap, atol=1e-12)
+    assert np.all(poses[:, 2, 3] >= plain[:, 2, 3] - 1e-12) and np.any(poses[:, 2, 3] > plain[:, 2, 3] + 1e-3)
+    inside = box.mesh.vertices.mean(axis=0)[None]  # within the object's hull: never below its lowest point
+    np.testing.assert_allclose(candidate_poses(request, box.mesh.vertices, rotations, settings, inside), plain)
+
+
 def _rest(client, body, model, seconds=1.5):
     for _ in range(int(seconds * 240)):
         pb.stepSimulation(physicsClientId=client)

@@ -240,19 +240,28 @@ def _yaws(request: PlaceRequest, settings: PlaceSettings) -> np.ndarray:
 
 
 def candidate_poses(
-    request: PlaceRequest, vertices: np.ndarray, rotations: List[np.ndarray], settings: PlaceSettings
+    request: PlaceRequest,
+    vertices: np.ndarray,
+    rotations: List[np.ndarray],
+    settings: PlaceSettings,
+    fingers: Optional[np.ndarray] = None,
 ) -> np.ndarray:
     """(C, 4, 4) object poses: every rotation x yaw x grid position on the region's floor with the
     object's ``vertices`` (object frame; its hull's, ``hull_vertices``, bound the same extents) all
-    inside the box, the lowest ``gap`` above the floor."""
+    inside the box, the lowest ``gap`` above the floor; ``fingers`` (object frame, the hand's fingers
+    holding it) ``gap`` above it too: a pinch low on a lying pen reaches below the pen."""
     lo, hi = np.asarray(request.region_min), np.asarray(request.region_max)
     Rs = [_yaw(yaw) @ R0 for R0 in rotations for yaw in _yaws(request, settings)]
     # The vertices turned by every rotation at once, (N, 3 per rotation): their extents in one reduction
     W = np.asarray(vertices, float) @ np.concatenate(Rs).T if Rs else np.zeros((0, 0))
     extents = np.stack([W.min(axis=0), W.max(axis=0)], axis=1).reshape(len(Rs), 3, 2) if Rs else []
+    lowest = [e[2, 0] for e in extents]
+    if fingers is not None and len(fingers) and Rs:
+        F = np.asarray(fingers, float) @ np.concatenate(Rs).T
+        lowest = np.minimum(lowest, F.min(axis=0).reshape(len(Rs), 3)[:, 2])
     rotated, places = [], []
-    for R, (vmin, vmax) in zip(Rs, (e.T for e in extents)):
-        z = lo[2] + settings.gap - vmin[2]
+    for R, (vmin, vmax), low in zip(Rs, (e.T for e in extents), lowest):
+        z = lo[2] + settings.gap - low
         xlo, xhi = lo[:2] - vmin[:2], hi[:2] - vmax[:2]  # the origin's range keeping the object inside
         if z + vmax[2] > hi[2] or np.any(xhi < xlo):
             continue
@@ -311,12 +320,12 @@ def build_place_goal_set(
         )
         return PlaceGoalSet(empty, np.zeros((0, 4, 4)), PlaceVerdict.no_support, clock() - t0)
     current = carrying.base.target_pose
-    vertices = _held_hull_vertices(carrying)
+    vertices, fingers = _held_hull_vertices(carrying), _finger_vertices(carrying, start)
     rotations = resting_rotations(request, current, model, settings.max_rests)
-    poses = candidate_poses(request, vertices, rotations, settings)
+    poses = candidate_poses(request, vertices, rotations, settings, fingers)
     gs = _place_goals(carrying, poses, start, settings)
     if len(gs) == 0 and settings.margin > 0:  # no place keeps the margin (a crowded region): its edges too
-        poses = candidate_poses(request, vertices, rotations, replace(settings, margin=0.0))
+        poses = candidate_poses(request, vertices, rotations, replace(settings, margin=0.0), fingers)
         gs = _place_goals(carrying, poses, start, settings)
     return PlaceGoalSet(gs, poses, _verdict(len(poses), gs.reasons, len(gs)), clock() - t0)
 
@@ -329,6 +338,16 @@ def hull_vertices(vertices: np.ndarray) -> np.ndarray:
         return V[ConvexHull(V).vertices] if len(V) > 4 else V
     except QhullError:  # flat or degenerate points (an observed face): every point counts
         return V
+
+
+def _finger_vertices(carrying: HeldWorld, q: np.ndarray) -> Optional[np.ndarray]:
+    """The fingers' hull vertices in the held object's frame, the fingers as at ``q`` (None: no fingers)."""
+    base = carrying.base
+    hand = base.cache.finger_geometry(base.robot, q)
+    if hand is None:
+        return None
+    T = np.linalg.inv(carrying.held.hand_T_object)  # hand frame -> object frame
+    return hand.vertices @ T[:3, :3].T + T[:3, 3]
 
 
 def _held_hull_vertices(carrying: HeldWorld) -> np.ndarray:
