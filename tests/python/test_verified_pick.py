@@ -61,3 +61,21 @@ def test_a_tabletop_pick_that_fails_runs_once_more_from_a_sampled_start():
     assert pick.success and pick.history.get("sampled_start")
     checker = planner.world().checker(CheckerKind.obstacles)
     assert not checker.in_collision_batch(pick.trajectory).any()
+
+
+def test_a_world_from_depth_has_no_sampled_start_and_a_failed_plan_stays_as_it_was():
+    """A perceived world (a fused field, no meshes) and the carry of its observed points have no FCL
+    checker to sample a start in: ``sampled_retry`` returns the failed plan as it was (it raised before,
+    and a pick and place from depth whose transfer failed ended in an exception)."""
+    from pickplan.omg.attach import HeldWorld, held_from_plan
+    from pickplan.omg.perceived_world import PerceivedPlanner, PerceivedWorld
+    from pickplan.omg.planner import PlanStatus, sampled_retry
+    from pickplan.sim.observe import render_observation
+
+    world = PerceivedWorld(render_observation(known_scene()[0], views=3, seed=0))
+    planner = PerceivedPlanner(world, OMGSettings())
+    pick, goals = planner.plan_with_goals()
+    assert pick.success
+    for w in (world, HeldWorld(world, held_from_plan(world, pick.goal))):
+        failed = replace(pick, status=PlanStatus.in_collision)
+        assert sampled_retry(planner.settings, w, pick.trajectory[0], goals, {}, failed) is failed

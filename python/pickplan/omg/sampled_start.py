@@ -53,13 +53,15 @@ def sampled_initialization(
     world, q0: np.ndarray, tails: np.ndarray, n: int, settings: SampledStart
 ) -> Optional[Tuple[np.ndarray, int]]:
     """(initial trajectory (n, dof) after ``q0``, the goal it ends on) or None when RRT-Connect found no
-    path to any pre-grasp (``tails[:, 0]``) within its budget."""
+    path to any pre-grasp (``tails[:, 0]``) within its budget, or the world has no FCL checker to sample in."""
     robot = world.robot
     m = tails.shape[1]
     if n - m < 1 or len(tails) == 0:
         return None
     active = [i < robot.info.arm_dof for i in range(robot.dof)]
-    checker = world.checker(CheckerKind.strict).native
+    checker = getattr(world.checker(CheckerKind.strict), "native", None)
+    if not isinstance(checker, _core.CollisionChecker):
+        return None  # a world from depth (a field, no meshes) or carrying observed points: nothing to sample in
     for attempt in range(settings.attempts):
         rrt = replace(settings.rrt, seed=settings.rrt.seed + attempt)
         planner = _core.MotionPlanner(checker, rrt.to_native(active))
