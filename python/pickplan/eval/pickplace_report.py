@@ -88,9 +88,9 @@ def markdown(summary: Dict[str, dict], by_region: Dict[str, Dict[str, dict]], he
     lines = [header, "", "| | " + " | ".join(methods) + " |", "|---" * (len(methods) + 1) + "|"]
     for key, label, fmt in ROWS:
         lines.append(f"| {label} | " + " | ".join(fmt(summary[m][key]) for m in methods) + " |")
-    lines.append(
-        "| Units (graspable / all) | "
-        + " | ".join(f"{summary[m]['graspable']}/{summary[m]['units']}" for m in methods)
+    lines.append(  # an error (an exception in a unit) is a failure to see at once, not a footnote
+        "| Units (graspable / all; errors) | "
+        + " | ".join(f"{summary[m]['graspable']}/{summary[m]['units']}; {summary[m]['errors']}" for m in methods)
         + " |"
     )
     lines.append(
