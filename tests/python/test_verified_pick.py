@@ -9,7 +9,7 @@ import numpy as np
 from pickplan.omg.grasps import verify
 from pickplan.omg.grasps.physics import LiftSettings, SimObject, lift_trial
 from pickplan.omg.planner import OMGPlanner, OMGSettings
-from pickplan.omg.verified_pick import _grasp_of, verified_pick
+from pickplan.omg.verified_pick import verified_pick
 from pickplan.omg.world import CheckerKind
 
 from conftest import known_scene, standing_scene
@@ -19,7 +19,8 @@ def _held_alone(world, q, settings: verify.VerifySettings, standoff: float) -> b
     """The grasp at ``q`` lifted once in PyBullet, no cache."""
     rest, _ = verify._table_rest(world._target_on_table)
     lift = replace(settings.lift, approach=standoff)
-    trial = lift_trial(SimObject(world.target_model), [rest], _grasp_of(world, q), lift, world.robot.info)
+    grasp = np.linalg.solve(world.target_pose, world.robot.link_pose(q, world.robot.hand_link))
+    trial = lift_trial(SimObject(world.target_model), [rest], grasp, lift, world.robot.info)
     return verify._held(trial, settings)
 
 

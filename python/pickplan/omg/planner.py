@@ -323,10 +323,15 @@ class OMGPlanner:
         """Algorithm 2's loop over a non-empty goal set (the test oracle overrides it); where it fails, once
         more from a sampling-based initialization (``OMGSettings.sampled_start``)."""
         result = run_loop(self.settings, world, q0, gs, timings)
-        # the straight line is the paper's start on a tabletop; among furniture (a shelf) it is often none
-        if not getattr(world.scene, "obstacles", None):
+        if not retries_sampled(world):
             return result
         return sampled_retry(self.settings, world, q0, gs, timings, result)
+
+
+def retries_sampled(world) -> bool:
+    """Whether ``OMGPlanner`` runs a failed loop once more from a sampled start in ``world``: among furniture
+    (a shelf), where the straight line is often no start; a tabletop plans from it alone, as in the paper."""
+    return bool(getattr(getattr(world, "scene", None), "obstacles", None))
 
 
 def sampled_retry(s: OMGSettings, world, q0: np.ndarray, gs: GoalSet, timings: dict, result: PlanResult) -> PlanResult:

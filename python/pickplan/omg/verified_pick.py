@@ -18,13 +18,7 @@ import numpy as np
 
 from pickplan.omg.goals import GoalSet
 from pickplan.omg.grasps.verify import LiftVerdict, VerifySettings
-from pickplan.omg.planner import PlanResult, PlanStatus, sampled_retry
-
-
-def _grasp_of(world, q: np.ndarray) -> np.ndarray:
-    """The hand pose at configuration ``q`` in the target's frame."""
-    hand = world.robot.link_pose(np.asarray(q, dtype=float), world.robot.hand_link)
-    return np.linalg.solve(world.target_pose, hand)
+from pickplan.omg.planner import PlanResult, PlanStatus, retries_sampled, sampled_retry
 
 
 def verified_pick(
@@ -37,10 +31,8 @@ def verified_pick(
     ``timings``: the plans' ``total`` summed, and ``lift_verify`` (the lifts' seconds, 0 when cached)."""
     pick, goals = planner.plan_with_goals(start, grasps=grasps)
     world = planner.world()
-    tabletop = not getattr(getattr(world, "scene", None), "obstacles", None)  # furniture: the planner retried
-    if not pick.success and tabletop and goals is not None and len(goals):
-        # once more from a sampled start, as among furniture (the planner keeps the paper's straight line
-        # on a tabletop): a carry is worth the extra plan
+    if not pick.success and not retries_sampled(world) and goals is not None and len(goals):
+        # once more from a sampled start, as the planner does among furniture: a carry is worth the extra plan
         t = clock()
         retry = sampled_retry(planner.settings, world, pick.trajectory[0], goals, pick.timings, pick)
         retry.limits, retry.goal_reasons = pick.limits, pick.goal_reasons
@@ -52,7 +44,8 @@ def verified_pick(
     planned, lifting = pick.timings.get("total", 0.0), 0.0
     for plans in range(1, verify.budget + 1):
         t = clock()
-        verdict = world.lift_grasps(_grasp_of(world, pick.goal)[None], verify)[0]
+        grasp = np.linalg.solve(world.target_pose, pick.hand_pose)  # as planned, in the target's frame
+        verdict = world.lift_grasps(grasp[None], verify)[0]
         lifting += clock() - t
         if verdict is not LiftVerdict.fell:
             pick.timings.update(total=planned, lift_verify=lifting)
