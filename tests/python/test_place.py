@@ -237,3 +237,38 @@ def test_a_place_goal_set_does_not_read_another_grasps_robot(held_case):
     assert len(fresh) > 0
     assert shared.goal_set.reasons == fresh.goal_set.reasons
     np.testing.assert_array_equal(shared.goal_set.goals, fresh.goal_set.goals)
+
+
+def test_the_fingers_opened_for_the_release_stay_above_the_floor(held_case):
+    """A 3 cm cube held by its middle with the closing axis tilted 20 deg (a grasp the object turned in):
+    opening the fingers at the place sends one finger 7 mm further down. Every place goal keeps both
+    fingers, closed and opened (forward kinematics of the goal with the fingers open, the finger links'
+    collision meshes), off the floor."""
+    import trimesh
+
+    world, _, start, _ = held_case
+    robot = world.robot
+    cube = trimesh.creation.box(extents=(0.03, 0.03, 0.03))
+    pose = np.eye(4)
+    pose[:3, 3] = (0.5, 0.0, 0.015)
+    hand = np.eye(4)
+    hand[:3, :3] = np.array([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]).T  # x, y, z columns: down
+    hand[:3, 3] = pose[:3, 3] + [0.0, 0.0, robot.grasp_frame[2, 3]]
+    tilt = trimesh.transformations.rotation_matrix(np.radians(20.0), (1.0, 0.0, 0.0), pose[:3, 3])
+    carrying = HeldWorld(world, held_from_poses(BOX, tilt @ hand, pose, cube))
+    request = PlaceRequest((0.35, -0.45, 0.0), (0.65, -0.2, 0.4), "upright")
+    settings = PlaceSettings(goals=GoalSetSettings(max_goals=12, standoff=0.1))
+    goals = build_place_goal_set(carrying, request, robot.with_fingers(start, 0.015), settings)
+    assert len(goals) >= 5, goals.reason_counts()
+
+    def lowest_finger_point(q):
+        poses = robot.fk(q)
+        return min(
+            float((np.asarray(m.vertices) @ T[:3, :3].T + T[:3, 3])[:, 2].min())
+            for T, m in ((poses[robot.link_index(n)], robot.collision_meshes(n)) for n in robot.finger_links)
+        )
+
+    for q in goals.goal_set.goals:
+        closed, opened = lowest_finger_point(q), lowest_finger_point(robot.with_fingers(q, robot.info.finger_open))
+        assert opened < closed - 0.005  # the tilt sends the opening finger down
+        assert opened >= settings.gap - 1e-3

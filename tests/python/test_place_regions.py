@@ -1,35 +1,39 @@
-"""The bench's place regions (eval.place_regions): the covered share and the free disc of a region by
-exact geometry; generated regions are seeded, free regions and bins clear of the clutter, a partly
+"""The bench's place regions (eval.place_regions): the covered share of a region and whether a footprint
+fits among its free cells, by exact geometry; generated regions are seeded, free regions and bins clear of the clutter, a partly
 cluttered region reaches into the clutter and leaves room for the target."""
 
 import numpy as np
 from scipy.spatial import ConvexHull
 
 from pickplan.core import objects
-from pickplan.eval.place_regions import RegionKind, RegionSettings, _cover, _hulls_xy, place_task
+from pickplan.eval.place_regions import RegionKind, RegionSettings, _cover, _fits, _footprints, _hulls_xy, place_task
 from pickplan.sim import scenes
 
-from conftest import standing_scene
+from conftest import standing_pose, standing_scene
 
 
 def _square(lo, hi):
     return ConvexHull(np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])).equations
 
 
-def test_cover_is_the_share_and_the_largest_free_disc():
-    lo, hi, step = np.array([0.0, 0.0]), np.array([0.2, 0.1]), 0.01
+def _bar(length, width):
+    return np.array([[0.0, 0.0], [length, 0.0], [length, width], [0.0, width]]) + [0.3, 0.7]  # anywhere
 
-    def near(radius, truth):  # centres on a grid of cells: up to one cell short, never more
-        return truth - step <= radius <= truth + 1e-12
 
-    share, radius = _cover([], lo, hi, step)
-    assert share == 0.0 and near(radius, 0.05)  # empty: the disc touches both long sides
-    share, radius = _cover([_square((0.1, -0.1), (0.3, 0.2))], lo, hi, step)  # the right half covered
-    assert share == 0.5 and near(radius, 0.05)
-    share, radius = _cover([_square((0.0, 0.04), (0.2, 0.06))], lo, hi, step)  # a 2 cm bar across the middle
-    assert abs(share - 0.2) <= 0.1 and near(radius, 0.02)
-    share, radius = _cover([_square((0.0, 0.0), (0.2, 0.1))], lo, hi, step)  # all of it
-    assert share == 1.0 and radius <= 0.0
+def test_cover_is_the_share_and_fits_places_the_footprint_among_the_free_cells():
+    lo, hi = np.array([0.0, 0.0]), np.array([0.2, 0.1])
+    assert _cover([], lo, hi) == 0.0
+    assert _cover([_square((0.1, -0.1), (0.3, 0.2))], lo, hi) == 0.5  # the right half covered
+    assert abs(_cover([_square((0.0, 0.04), (0.2, 0.06))], lo, hi) - 0.2) <= 0.1  # a 2 cm bar across the middle
+    assert _cover([_square((0.0, 0.0), (0.2, 0.1))], lo, hi) == 1.0
+    # a 16 x 3 cm bar fits the empty 20 x 10 cm box with 1 cm around it (a disc of its reach would not)
+    assert _fits([], lo, hi, _bar(0.16, 0.03), 0.01)
+    assert not _fits([], lo, hi, _bar(0.19, 0.03), 0.01)  # 21 cm with its margin
+    assert not _fits([], lo, hi, _bar(0.10, 0.09), 0.01)  # 11 cm across with its margin
+    half = [_square((0.1, -0.1), (0.3, 0.2))]  # 10 x 10 cm free: the 16 cm bar at no heading
+    assert not _fits(half, lo, hi, _bar(0.16, 0.03), 0.01) and _fits(half, lo, hi, _bar(0.07, 0.03), 0.01)
+    middle = [_square((0.0, 0.04), (0.2, 0.06))]  # two free strips 20 x 4 cm
+    assert _fits(middle, lo, hi, _bar(0.15, 0.02), 0.005) and not _fits(middle, lo, hi, _bar(0.15, 0.04), 0.005)
 
 
 def _overlaps(scene, request, skip=None):
@@ -71,10 +75,8 @@ def test_regions_are_seeded_clear_or_partly_cluttered():
 
 def test_more_candidates_are_drawn_until_the_target_has_room():
     """A bowl among a cracker box, a can and a mug (a bench scene's layout): none of the first 12
-    candidate regions leaves it a free disc of its radius (a region it cannot be set down in, "region
+    candidate regions leaves room for its footprint (a region it cannot be set down in, "region
     blocked" whatever the planner does); the later ones do, and the region chosen is one of those."""
-    from pickplan.eval.place_regions import RegionSettings, _footprints, _radius_xy
-
     scene, _ = standing_scene(
         (
             ("003_cracker_box", (0.749, 0.192)),
@@ -84,17 +86,44 @@ def test_more_candidates_are_drawn_until_the_target_has_room():
         ),
         "024_bowl",
     )
-    room = _radius_xy(scene) + RegionSettings().clutter_margin
-    footprints = _footprints(scene, scene.target)
+    footprints, target = _footprints(scene, scene.target), dict(_hulls_xy(scene))[scene.target]
+    margin = RegionSettings().clutter_margin
 
-    def cover(request):
-        return _cover(footprints, np.array(request.region_min[:2]), np.array(request.region_max[:2]))
+    def box(request):
+        return np.array(request.region_min[:2]), np.array(request.region_max[:2])
 
     _, first = place_task(scene, RegionKind.cluttered, seed=29, settings=RegionSettings(clutter_batches=1))
-    assert cover(first)[1] < room
+    assert not _fits(footprints, *box(first), target, margin)
     _, request = place_task(scene, RegionKind.cluttered, seed=29)
-    share, radius = cover(request)
-    assert radius >= room and share > 0.0 and _overlaps(scene, request, skip=scene.target)
+    assert _fits(footprints, *box(request), target, margin) and _cover(footprints, *box(request)) > 0.0
+    assert _overlaps(scene, request, skip=scene.target)
+
+
+def test_a_long_target_among_clutter_gets_a_region_it_fits_in():
+    """A 28 cm hammer (its region grown to 30 x 20 cm): a disc of its reach fits no such region, so the
+    old test never found room and fell back to a region the hammer could not stand in; its footprint
+    turned along the region does fit one, clear of the clutter, and that is the region chosen."""
+    lib = objects.library("procedural")
+    hammer = lib.get("hammer_00")
+    pose = np.asarray(hammer.resting_poses[0], dtype=float).copy()
+    pose[:2, 3] = (0.55, 0.3)
+    objs = [scenes.SceneObject("hammer_00", "procedural:hammer_00", pose)]
+    for name, xy in (
+        ("005_tomato_soup_can", (0.5, -0.25)),
+        ("025_mug", (0.62, -0.3)),
+        ("004_sugar_box", (0.45, -0.05)),
+    ):
+        objs.append(scenes.SceneObject(name, f"builtin:{name}", standing_pose(lib_builtin().get(name), xy)))
+    scene = scenes.Scene(np.eye(4), scenes.default_table(), objs, "hammer_00", seed=0)
+    footprints, target = _footprints(scene, "hammer_00"), dict(_hulls_xy(scene))["hammer_00"]
+    for seed in range(4):
+        _, request = place_task(scene, RegionKind.cluttered, seed=seed)
+        lo, hi = np.array(request.region_min[:2]), np.array(request.region_max[:2])
+        assert _fits(footprints, lo, hi, target, RegionSettings().clutter_margin), seed
+
+
+def lib_builtin():
+    return objects.library("builtin")
 
 
 def test_a_region_grows_to_hold_a_target_longer_than_it_and_no_other():

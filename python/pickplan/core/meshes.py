@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import List
+
 import numpy as np
 from pickplan.core.errors import InputError
 
@@ -80,12 +82,13 @@ def farthest_points(candidates: np.ndarray, k: int, existing: np.ndarray | None 
     return np.asarray(picked, dtype=int)
 
 
-def symmetry_axis(mesh, samples: int = 400, seed: int = 0, tolerance: float = 0.04) -> np.ndarray | None:
-    """The unit axis (mesh frame, through its surface centroid) about which ``mesh`` is rotationally
-    symmetric, or None: a principal axis of its surface about which its surface samples, turned by
-    37, 83 and 141 degrees, stay on the surface (9 in 10 nearer than ``tolerance`` x their RMS distance
-    from the axis; each sample's distance to the surface compared with its own). A pen or a can turned
-    about its axis is the same object in the same place."""
+def symmetry_axes(mesh, samples: int = 400, seed: int = 0, tolerance: float = 0.04) -> List[np.ndarray]:
+    """The unit axes (mesh frame, through its surface centroid) about which ``mesh`` is rotationally
+    symmetric: the principal axes of its surface about which its surface samples, turned by 37, 83 and
+    141 degrees, stay on the surface (9 in 10 nearer than ``tolerance`` x their RMS distance from the
+    axis; each sample's distance to the surface compared with its own). None, one (a pen or a can
+    turned about its axis is the same object in the same place) or all three: turns about two axes
+    make every rotation, so a ball has no orientation to keep."""
     import trimesh
 
     P, _ = trimesh.sample.sample_surface(mesh, int(samples), seed=int(seed))
@@ -96,21 +99,24 @@ def symmetry_axis(mesh, samples: int = 400, seed: int = 0, tolerance: float = 0.
     F = np.asarray(mesh.triangles_center, dtype=float)
     c = w @ F / w.sum()
     _, axes = np.linalg.eigh(((F - c) * w[:, None]).T @ (F - c))
+    here = trimesh.proximity.signed_distance(mesh, P)
+    found = []
     for a in axes.T:
         radial = (P - c) - np.outer((P - c) @ a, a)
         scale = float(np.sqrt((radial**2).sum(axis=1).mean()))
         if scale <= 0:
             continue
-        worst, here = 0.0, None
+        worst = 0.0
         for deg in (37.0, 83.0, 141.0):
             R = trimesh.transformations.rotation_matrix(np.radians(deg), a, c)
             turned = P @ R[:3, :3].T + R[:3, 3]
             # against each sample's own distance: a sample inside another part (a pen's body in its cap) is
             # not on the surface, and a symmetry keeps it where it was
-            here = trimesh.proximity.signed_distance(mesh, P) if here is None else here
             worst = max(worst, float(np.percentile(np.abs(trimesh.proximity.signed_distance(mesh, turned) - here), 90)))
             if worst >= tolerance * scale:
                 break
         if worst < tolerance * scale:
-            return a / np.linalg.norm(a)
-    return None
+            found.append(a / np.linalg.norm(a))
+        if len(found) == 2:  # two axes: every rotation
+            return [found[0], found[1], np.cross(found[0], found[1])]
+    return found

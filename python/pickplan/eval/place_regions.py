@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 from typing import Tuple
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
+from scipy.ndimage import binary_erosion
 from scipy.spatial import ConvexHull
 
 from pickplan.core import objects as objects_mod
@@ -58,12 +58,6 @@ def _hulls_xy(scene: Scene) -> list:
     return out
 
 
-def _radius_xy(scene: Scene) -> float:
-    """The target's footprint radius about its centre from above (any yaw fits a disc this size)."""
-    xy = dict(_hulls_xy(scene))[scene.target]
-    return float(np.linalg.norm(xy - 0.5 * (xy.min(axis=0) + xy.max(axis=0)), axis=1).max())
-
-
 def _fitted(scene: Scene, half: np.ndarray, margin: float) -> np.ndarray:
     """``half`` (a region's half size), grown where the target's footprint, along its principal axes
     and turned so its longer side lies along the region's longer side, would not fit with ``margin``."""
@@ -90,17 +84,47 @@ def _footprints(scene: Scene, skip: str) -> list:
     return [ConvexHull(xy).equations for name, xy in _hulls_xy(scene) if name != skip]
 
 
-def _cover(footprints: list, lo: np.ndarray, hi: np.ndarray, step: float = 0.01) -> Tuple[float, float]:
-    """The share of the xy box [lo, hi] the footprints cover, and the radius of the largest disc inside
-    the box that they leave free (where an object could stand)."""
+def _cells(footprints: list, lo: np.ndarray, hi: np.ndarray, step: float) -> np.ndarray:
+    """Which cells (about ``step`` wide) of the xy box [lo, hi] the footprints cover, by their centres."""
     n = np.maximum(np.ceil((hi - lo) / step).astype(int), 1)
     xs, ys = [lo[k] + (np.arange(n[k]) + 0.5) * (hi[k] - lo[k]) / n[k] for k in (0, 1)]
     g = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1)
     covered = np.zeros(n, bool)
     for eq in footprints:
         covered |= np.all(g @ eq[:, :2].T + eq[:, 2] <= 0.0, axis=-1)
-    free = np.pad(~covered, 1)  # the box's edge bounds a disc as an object does
-    return float(covered.mean()), float(distance_transform_edt(free).max() * step) - 0.5 * step
+    return covered
+
+
+def _cover(footprints: list, lo: np.ndarray, hi: np.ndarray, step: float = 0.01) -> float:
+    """The share of the xy box [lo, hi] the footprints cover."""
+    return float(_cells(footprints, lo, hi, step).mean())
+
+
+def _fits(
+    footprints: list,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    target_xy: np.ndarray,
+    margin: float,
+    step: float = 0.01,
+    yaws: int = 12,
+) -> bool:
+    """Whether the target's footprint (``target_xy``, its hull from above), grown by ``margin`` and turned by
+    one of ``yaws`` headings over a half turn, stands somewhere in the box [lo, hi] clear of the
+    footprints: the free cells (the box's edge bounds it as an object does) eroded by its shape."""
+    free = np.pad(~_cells(footprints, lo, hi, step), 1)
+    P = np.asarray(target_xy, float)
+    P = P - 0.5 * (P.min(axis=0) + P.max(axis=0))
+    for angle in np.pi * np.arange(yaws) / yaws:
+        c, s = np.cos(angle), np.sin(angle)
+        eq = ConvexHull(P @ np.array([[c, s], [-s, c]])).equations
+        k = int(np.ceil((np.abs(P).max() * np.sqrt(2) + margin) / step))
+        o = step * np.arange(-k, k + 1)
+        g = np.stack(np.meshgrid(o, o, indexing="ij"), axis=-1)
+        shape = np.all(g @ eq[:, :2].T + eq[:, 2] <= margin, axis=-1)
+        if binary_erosion(free, structure=shape, border_value=0).any():
+            return True
+    return False
 
 
 def place_task(
@@ -113,8 +137,8 @@ def place_task(
         scene, np.asarray(settings.bin_inner if kind is RegionKind.bin else settings.size) / 2, settings.fit_margin
     )
     if kind is RegionKind.cluttered:  # of candidates where the target fits, the share covered nearest the aim
-        footprints, room = _footprints(scene, scene.target), _radius_xy(scene) + settings.clutter_margin
-        centres, cover = np.zeros((0, 2)), np.zeros((0, 2))
+        footprints, target = _footprints(scene, scene.target), dict(_hulls_xy(scene))[scene.target]
+        centres, cover, fits = np.zeros((0, 2)), [], []
         # 12 candidates at a time until one leaves the target room: a region it cannot stand in is no
         # place task (a big target among clutter), only the best of the last resort
         for _ in range(settings.clutter_batches):
@@ -125,10 +149,11 @@ def place_task(
                 ]
             )
             centres = np.vstack([centres, batch])
-            cover = np.vstack([cover, [_cover(footprints, c - half, c + half) for c in batch]])
-            if np.any(cover[:, 1] >= room):
+            cover += [_cover(footprints, c - half, c + half) for c in batch]
+            fits += [_fits(footprints, c - half, c + half, target, settings.clutter_margin) for c in batch]
+            if any(fits):
                 break
-        miss = np.abs(cover[:, 0] - settings.clutter_share) + np.where(cover[:, 1] >= room, 0.0, 1.0)
+        miss = np.abs(np.asarray(cover) - settings.clutter_share) + np.where(fits, 0.0, 1.0)
         centre = centres[int(np.argmin(miss))]
     else:  # beside the clutter, on the side farther from the target, moved out until it is clear
         target_y = float(np.asarray(scene.object(scene.target).pose)[1, 3])

@@ -341,13 +341,18 @@ def hull_vertices(vertices: np.ndarray) -> np.ndarray:
 
 
 def _finger_vertices(carrying: HeldWorld, q: np.ndarray) -> Optional[np.ndarray]:
-    """The fingers' hull vertices in the held object's frame, the fingers as at ``q`` (None: no fingers)."""
+    """The fingers' hull vertices in the held object's frame, the fingers as at ``q`` and opened for the
+    release (None: no fingers). Both: a closing axis the grasp tilts sends one finger down as it opens
+    (a pen turned 10 deg in the hand: 6 mm), and the release must not push it into the floor."""
     base = carrying.base
-    hand = base.cache.finger_geometry(base.robot, q)
-    if hand is None:
+    robot = base.robot
+    held = base.cache.finger_geometry(robot, q)
+    if held is None:
         return None
+    opened = base.cache.finger_geometry(robot, robot.with_fingers(q, robot.info.finger_open))
     T = np.linalg.inv(carrying.held.hand_T_object)  # hand frame -> object frame
-    return hand.vertices @ T[:3, :3].T + T[:3, 3]
+    V = np.concatenate([held.vertices, opened.vertices])
+    return V @ T[:3, :3].T + T[:3, 3]
 
 
 def _held_hull_vertices(carrying: HeldWorld) -> np.ndarray:

@@ -27,7 +27,7 @@ import numpy as np
 
 from pickplan.core import objects as objects_mod
 from pickplan.core import robots
-from pickplan.core.meshes import symmetry_axis
+from pickplan.core.meshes import symmetry_axes
 from pickplan.core.settings import Option
 from pickplan.core.timing import TimedTrajectory
 from pickplan.sim import render as viz
@@ -137,16 +137,20 @@ def hand_T_object(sim: ArmSim, robot) -> np.ndarray:
     return np.linalg.inv(hand) @ T
 
 
-def _tilt_and_yaw(final: np.ndarray, planned: np.ndarray, axis: Optional[np.ndarray] = None) -> Tuple[float, float]:
+def _tilt_and_yaw(final: np.ndarray, planned: np.ndarray, axes: Sequence[np.ndarray] = ()) -> Tuple[float, float]:
     """Degrees between the planned and the final up axis (in the object), and between their headings.
-    ``axis`` (object frame): the object's axis of rotational symmetry (``meshes.symmetry_axis``), about
-    which a turn leaves it as it was: the tilt is then the change in the up axis's angle to it (a pen
-    that rolled on its side is not toppled), and an upright symmetry axis has no heading."""
+    ``axes`` (object frame): the object's axes of rotational symmetry (``meshes.symmetry_axes``), about
+    which a turn leaves it as it was. With one, the tilt is the change in the up axis's angle to it (a pen
+    that rolled on its side is not toppled), and an upright symmetry axis has no heading; with three (a
+    ball) neither has a meaning."""
     up_f, up_p = final[:3, :3].T @ [0, 0, 1.0], planned[:3, :3].T @ [0, 0, 1.0]
     R = final[:3, :3] @ planned[:3, :3].T  # the rotation from the planned to the final pose
     yaw = math.degrees(abs(math.atan2(R[1, 0] - R[0, 1], R[0, 0] + R[1, 1])))
-    if axis is None:
+    if len(axes) == 0:
         return math.degrees(math.acos(float(np.clip(up_f @ up_p, -1.0, 1.0)))), yaw
+    if len(axes) > 1:
+        return 0.0, 0.0
+    axis = axes[0]
     to_axis = [math.degrees(math.acos(float(np.clip(u @ axis, -1.0, 1.0)))) for u in (up_f, up_p)]
     return abs(to_axis[0] - to_axis[1]), 0.0 if min(to_axis[1], 180.0 - to_axis[1]) < 1.0 else yaw
 
@@ -214,7 +218,7 @@ def execute_pick_and_place(
     in_region = bool(
         np.all(hull >= np.asarray(check.region_min) - tol) and np.all(hull <= np.asarray(check.region_max) + tol)
     )
-    tilt, yaw = _tilt_and_yaw(final, np.asarray(place_pose, float), symmetry_axis(models[scene.target].mesh))
+    tilt, yaw = _tilt_and_yaw(final, np.asarray(place_pose, float), symmetry_axes(models[scene.target].mesh))
     moved = {n: float(np.linalg.norm(com1[n] - com0[n])) for n in sorted(sim.bodies) if n != scene.target}
     held_contacts = sim.held_contacts
     collided = (
