@@ -221,3 +221,36 @@ def test_the_lift_approach_ends_at_the_grasp_and_pushes_what_is_in_its_way():
         if depth == near:
             assert np.linalg.norm(sim.hand_pose()[:3, 3] - hand[:3, 3]) < 0.002
     assert moved[0] < 0.003 and moved[1] > 0.02, moved
+
+
+def test_a_lift_whose_approach_pushes_the_object_is_no_hold():
+    """The lift trial's ``pushed`` is how far the approach moved the object before the fingers closed: the
+    known sugar box's near pinch from the side (the approach above) leaves it where it lay (< 3 mm) and
+    holds; 3 cm past its middle the palm shoves it (> 2 cm), and whatever the lift does then, the
+    verdict is not held (a grasp that shoves its object on the way in is not the grasp planned)."""
+    from pickplan.omg.grasps import verify
+    from pickplan.omg.grasps.physics import SimObject, lift_trial
+    from pickplan.omg.world import World
+
+    from conftest import known_scene
+
+    world = World(known_scene()[0])
+    rest, _ = verify._table_rest(world._target_on_table)
+    box = world.target_model.mesh.copy().apply_transform(rest)
+    centre, size = box.bounds.mean(axis=0), box.extents
+    closing = np.array([0.0, 1.0, 0.0]) if size[1] < size[0] else np.array([1.0, 0.0, 0.0])
+    approach = np.cross(closing, [0.0, 0.0, 1.0])
+    frame = np.eye(4)
+    frame[:3, :3] = np.column_stack([np.cross(closing, approach), closing, approach])
+    settings = verify.VerifySettings(lift=LiftSettings(table_clearance=-0.002, approach=0.08))
+    trials = []
+    for depth in (-(abs(size @ approach) / 2 - 0.02), 0.03):
+        frame[:3, 3] = centre + depth * approach
+        grasp = np.linalg.solve(rest, frame @ np.linalg.inv(PANDA.grasp_frame))  # the hand in the box's frame
+        trials.append(lift_trial(SimObject(world.target_model), [rest], grasp, settings.lift))
+    near, shoved = trials
+    assert near["pushed"] < 0.003 and verify._held(near, settings), near
+    assert shoved["pushed"] > 0.02 and not verify._held(shoved, settings), shoved
+    assert verify._held(shoved, dataclasses.replace(settings, max_push=1.0)) == (
+        shoved["lifted"] and shoved["rotation"] < settings.max_rotation and shoved["slip"] < settings.max_slip
+    )

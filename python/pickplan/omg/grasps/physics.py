@@ -230,12 +230,14 @@ def _close_and_lift(world: HandWorld, s, closed=None) -> Tuple[np.ndarray, bool]
     the object rose with it (the lift test's success). ``closed()`` is called before the lift."""
     if getattr(s, "approach", 0.0) > 0:
         world.approach(s.approach, s.approach_time)
+    if closed is not None:
+        closed.approached()
     z0 = world.body_pose()[2, 3]
     H0 = world.hand_pose()
     world.close()
     world.step(s.close_time, lambda u: H0)
     if closed is not None:
-        closed()
+        closed.closed()
 
     def lift(u):
         T_ = H0.copy()
@@ -251,25 +253,38 @@ def _close_and_lift(world: HandWorld, s, closed=None) -> Tuple[np.ndarray, bool]
 def lift_trial(
     obj, rests, grasp: np.ndarray, settings: LiftSettings = LiftSettings(), gripper: RobotInfo = PANDA
 ) -> dict:
-    """One table lift (``lift_test``) with what it did to the object in the hand: applicable, lifted,
-    and slip (m, its centre of mass) and rotation (deg) in the hand from the closed grasp to the end of
-    the hold (nan when not applicable)."""
+    """One table lift (``lift_test``) with what it did to the object: applicable, lifted, pushed (m its
+    centre of mass moved on the table while the open hand came in, ``LiftSettings.approach``), and slip
+    (m, its centre of mass) and rotation (deg) in the hand from the closed grasp to the end of the hold
+    (nan when not applicable)."""
     obj = obj if isinstance(obj, SimObject) else SimObject(obj)
     world = _table_world(obj, rests, np.asarray(grasp, float), settings, gripper)
+    nan = float("nan")
     if world is None:
-        return {"applicable": False, "lifted": False, "slip": float("nan"), "rotation": float("nan")}
-    held = {}
-
-    def closed():  # the object in the hand once the fingers have closed, before the lift
-        held["ref"] = InHand(world)
-
-    lifted = _close_and_lift(world, settings, closed)[1]
+        return {"applicable": False, "lifted": False, "pushed": nan, "slip": nan, "rotation": nan}
+    marks = _Marks(world)
+    lifted = _close_and_lift(world, settings, marks)[1]
     return {
         "applicable": True,
         "lifted": lifted,
-        "slip": held["ref"].moved(np.array([0.0, 0.0, 0.0, 1.0])),
-        "rotation": held["ref"].rotation(),
+        "pushed": marks.pushed,
+        "slip": marks.held.moved(np.array([0.0, 0.0, 0.0, 1.0])),
+        "rotation": marks.held.rotation(),
     }
+
+
+class _Marks:
+    """The object as the lift found it: where it lay before the approach (``pushed``: how far the
+    approach moved its centre of mass) and in the hand once the fingers closed (``held``)."""
+
+    def __init__(self, world: HandWorld):
+        self.world, self.start, self.pushed, self.held = world, world.body_pose()[:3, 3].copy(), 0.0, None
+
+    def approached(self) -> None:
+        self.pushed = float(np.linalg.norm(self.world.body_pose()[:3, 3] - self.start))
+
+    def closed(self) -> None:
+        self.held = InHand(self.world)
 
 
 def lift_test(model, poses, settings: LiftSettings = LiftSettings(), gripper: RobotInfo = PANDA, details: bool = False):

@@ -47,6 +47,9 @@ class VerifySettings:
     budget: int = 30  # simulations at most per call, the most uncertain first
     max_rotation: float = 15.0  # deg the object may turn in the hand and still be held
     max_slip: float = 0.02  # m its centre of mass may move in the hand
+    # m the hand coming in (``LiftSettings.approach``) may move it before the fingers close: a finger that
+    # meets the object on the way (1-2 mm is the object settling on the table)
+    max_push: float = 0.005
     lift: LiftSettings = field(default_factory=lambda: LiftSettings(table_clearance=-0.002))  # fingertips may rest
     quality: QualitySettings = field(default_factory=QualitySettings)
 
@@ -113,6 +116,7 @@ def _held(trial: dict, settings: VerifySettings) -> bool:
         and trial["lifted"]
         and trial["rotation"] < settings.max_rotation
         and trial["slip"] < settings.max_slip
+        and trial["pushed"] < settings.max_push
     )
 
 
@@ -160,7 +164,7 @@ class LiftVerdict(Option):
     """What one lift in PyBullet (``lift_grasps``) said of a grasp."""
 
     held = "held"  # rose with the hand, turned and slid less than the settings allow
-    fell = "fell_in_lift"  # did not rise with the hand, or turned or slid in it
+    fell = "fell_in_lift"  # pushed on the approach, did not rise with the hand, or turned or slid in it
     not_applicable = "lift_not_applicable"  # the open hand touches the simulated table at the grasp
 
 
