@@ -6,7 +6,17 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from pickplan.core import objects
-from pickplan.eval.place_regions import RegionKind, RegionSettings, _cover, _fits, _footprints, _hulls_xy, place_task
+from pickplan.eval.place_regions import (
+    RegionKind,
+    RegionSettings,
+    _cover,
+    _fits,
+    _footprints,
+    _free_disc,
+    _hulls_xy,
+    _room,
+    place_task,
+)
 from pickplan.sim import scenes
 
 from conftest import standing_pose, standing_scene
@@ -34,6 +44,24 @@ def test_cover_is_the_share_and_fits_places_the_footprint_among_the_free_cells()
     assert not _fits(half, lo, hi, _bar(0.16, 0.03), 0.01) and _fits(half, lo, hi, _bar(0.07, 0.03), 0.01)
     middle = [_square((0.0, 0.04), (0.2, 0.06))]  # two free strips 20 x 4 cm
     assert _fits(middle, lo, hi, _bar(0.15, 0.02), 0.005) and not _fits(middle, lo, hi, _bar(0.15, 0.04), 0.005)
+
+
+def test_the_free_disc_and_the_room_a_target_has():
+    """The largest free disc (centres on 1 cm cells: up to one cell short, never more), and the room:
+    2 where the target's reach plus the margin fits as a disc, 1 where only its footprint turned to fit
+    does, 0 where nothing does."""
+    lo, hi, step = np.array([0.0, 0.0]), np.array([0.2, 0.1]), 0.01
+
+    def near(radius, truth):
+        return truth - step <= radius <= truth + 1e-12
+
+    assert near(_free_disc([], lo, hi), 0.05)  # empty: the disc touches both long sides
+    assert near(_free_disc([_square((0.1, -0.1), (0.3, 0.2))], lo, hi), 0.05)  # the right half covered
+    assert near(_free_disc([_square((0.0, 0.04), (0.2, 0.06))], lo, hi), 0.02)  # a 2 cm bar across the middle
+    assert _free_disc([_square((0.0, 0.0), (0.2, 0.1))], lo, hi) <= 0.0
+    assert _room([], lo, hi, _bar(0.04, 0.04), 0.01) == 2  # a 4 cm square: reach 2.8 cm + 1 < 4-5 cm
+    assert _room([], lo, hi, _bar(0.16, 0.03), 0.01) == 1  # reach 8.1 cm: only along the box
+    assert _room([_square((0.1, -0.1), (0.3, 0.2))], lo, hi, _bar(0.16, 0.03), 0.01) == 0
 
 
 def _overlaps(scene, request, skip=None):
@@ -75,8 +103,9 @@ def test_regions_are_seeded_clear_or_partly_cluttered():
 
 def test_more_candidates_are_drawn_until_the_target_has_room():
     """A bowl among a cracker box, a can and a mug (a bench scene's layout): none of the first 12
-    candidate regions leaves room for its footprint (a region it cannot be set down in, "region
-    blocked" whatever the planner does); the later ones do, and the region chosen is one of those."""
+    candidate regions leaves it a free disc of its reach (room for it turned any way, with a hand around
+    it: else "region blocked" whatever the planner does); the later ones do, and the region chosen is one
+    of those."""
     scene, _ = standing_scene(
         (
             ("003_cracker_box", (0.749, 0.192)),
@@ -93,15 +122,15 @@ def test_more_candidates_are_drawn_until_the_target_has_room():
         return np.array(request.region_min[:2]), np.array(request.region_max[:2])
 
     _, first = place_task(scene, RegionKind.cluttered, seed=29, settings=RegionSettings(clutter_batches=1))
-    assert not _fits(footprints, *box(first), target, margin)
+    assert _room(footprints, *box(first), target, margin) < 2
     _, request = place_task(scene, RegionKind.cluttered, seed=29)
-    assert _fits(footprints, *box(request), target, margin) and _cover(footprints, *box(request)) > 0.0
+    assert _room(footprints, *box(request), target, margin) == 2 and _cover(footprints, *box(request)) > 0.0
     assert _overlaps(scene, request, skip=scene.target)
 
 
 def test_a_long_target_among_clutter_gets_a_region_it_fits_in():
     """A 28 cm hammer (its region grown to 30 x 20 cm): a disc of its reach fits no such region, so the
-    old test never found room and fell back to a region the hammer could not stand in; its footprint
+    disc alone never found room and fell back to a region the hammer could not stand in; its footprint
     turned along the region does fit one, clear of the clutter, and that is the region chosen."""
     lib = objects.library("procedural")
     hammer = lib.get("hammer_00")

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 from typing import Tuple
 
 import numpy as np
-from scipy.ndimage import binary_erosion
+from scipy.ndimage import binary_erosion, distance_transform_edt
 from scipy.spatial import ConvexHull
 
 from pickplan.core import objects as objects_mod
@@ -100,6 +100,23 @@ def _cover(footprints: list, lo: np.ndarray, hi: np.ndarray, step: float = 0.01)
     return float(_cells(footprints, lo, hi, step).mean())
 
 
+def _free_disc(footprints: list, lo: np.ndarray, hi: np.ndarray, step: float = 0.01) -> float:
+    """The radius of the largest disc inside the xy box [lo, hi] that the footprints leave free."""
+    free = np.pad(~_cells(footprints, lo, hi, step), 1)  # the box's edge bounds a disc as an object does
+    return float(distance_transform_edt(free).max() * step) - 0.5 * step
+
+
+def _room(footprints: list, lo: np.ndarray, hi: np.ndarray, target_xy: np.ndarray, margin: float) -> int:
+    """How well the target could stand in the box [lo, hi] among the footprints: 2, turned any way (a
+    free disc of its reach from its centre, plus ``margin``: room for a hand around a round object); 1,
+    turned to fit (``_fits``: a hammer, longer than any such disc the region holds); 0, not at all."""
+    P = np.asarray(target_xy, float)
+    reach = float(np.linalg.norm(P - 0.5 * (P.min(axis=0) + P.max(axis=0)), axis=1).max())
+    if _free_disc(footprints, lo, hi) >= reach + margin:
+        return 2
+    return int(_fits(footprints, lo, hi, P, margin))
+
+
 def _fits(
     footprints: list,
     lo: np.ndarray,
@@ -136,11 +153,11 @@ def place_task(
     half = _fitted(
         scene, np.asarray(settings.bin_inner if kind is RegionKind.bin else settings.size) / 2, settings.fit_margin
     )
-    if kind is RegionKind.cluttered:  # of candidates where the target fits, the share covered nearest the aim
+    if kind is RegionKind.cluttered:  # of candidates with the most room for the target, the share nearest the aim
         footprints, target = _footprints(scene, scene.target), dict(_hulls_xy(scene))[scene.target]
-        centres, cover, fits = np.zeros((0, 2)), [], []
-        # 12 candidates at a time until one leaves the target room: a region it cannot stand in is no
-        # place task (a big target among clutter), only the best of the last resort
+        centres, cover, room = np.zeros((0, 2)), [], []
+        # 12 candidates at a time until one leaves the target room turned any way: a region it cannot
+        # stand in is no place task (a big target among clutter), only the best of the last resort
         for _ in range(settings.clutter_batches):
             batch = np.column_stack(
                 [
@@ -150,10 +167,10 @@ def place_task(
             )
             centres = np.vstack([centres, batch])
             cover += [_cover(footprints, c - half, c + half) for c in batch]
-            fits += [_fits(footprints, c - half, c + half, target, settings.clutter_margin) for c in batch]
-            if any(fits):
+            room += [_room(footprints, c - half, c + half, target, settings.clutter_margin) for c in batch]
+            if max(room) == 2:
                 break
-        miss = np.abs(np.asarray(cover) - settings.clutter_share) + np.where(fits, 0.0, 1.0)
+        miss = np.abs(np.asarray(cover) - settings.clutter_share) + (2 - np.asarray(room))  # room first
         centre = centres[int(np.argmin(miss))]
     else:  # beside the clutter, on the side farther from the target, moved out until it is clear
         target_y = float(np.asarray(scene.object(scene.target).pose)[1, 3])
