@@ -239,23 +239,29 @@ def test_a_place_goal_set_does_not_read_another_grasps_robot(held_case):
     np.testing.assert_array_equal(shared.goal_set.goals, fresh.goal_set.goals)
 
 
-def test_the_fingers_opened_for_the_release_stay_above_the_floor(held_case):
-    """A 3 cm cube held by its middle with the closing axis tilted 20 deg (a grasp the object turned in):
-    opening the fingers at the place sends one finger 7 mm further down. Every place goal keeps both
-    fingers, closed and opened (forward kinematics of the goal with the fingers open, the finger links'
-    collision meshes), off the floor."""
+def _held_cube(world, tilt_deg: float) -> HeldWorld:
+    """A 3 cm cube held by its middle from above, the closing axis tilted ``tilt_deg`` (a grasp the object
+    turned in)."""
     import trimesh
 
-    world, _, start, _ = held_case
-    robot = world.robot
     cube = trimesh.creation.box(extents=(0.03, 0.03, 0.03))
     pose = np.eye(4)
     pose[:3, 3] = (0.5, 0.0, 0.015)
     hand = np.eye(4)
     hand[:3, :3] = np.array([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]).T  # x, y, z columns: down
-    hand[:3, 3] = pose[:3, 3] + [0.0, 0.0, robot.grasp_frame[2, 3]]
-    tilt = trimesh.transformations.rotation_matrix(np.radians(20.0), (1.0, 0.0, 0.0), pose[:3, 3])
-    carrying = HeldWorld(world, held_from_poses(BOX, tilt @ hand, pose, cube))
+    hand[:3, 3] = pose[:3, 3] + [0.0, 0.0, world.robot.grasp_frame[2, 3]]
+    tilt = trimesh.transformations.rotation_matrix(np.radians(tilt_deg), (1.0, 0.0, 0.0), pose[:3, 3])
+    return HeldWorld(world, held_from_poses(BOX, tilt @ hand, pose, cube))
+
+
+def test_the_fingers_opened_for_the_release_stay_above_the_floor(held_case):
+    """A 3 cm cube held by its middle with the closing axis tilted 20 deg (a grasp the object turned in):
+    opening the fingers at the place sends one finger 7 mm further down. Every place goal keeps both
+    fingers, closed and opened (forward kinematics of the goal with the fingers open, the finger links'
+    collision meshes), off the floor."""
+    world, _, start, _ = held_case
+    robot = world.robot
+    carrying = _held_cube(world, 20.0)
     request = PlaceRequest((0.35, -0.45, 0.0), (0.65, -0.2, 0.4), "upright")
     settings = PlaceSettings(goals=GoalSetSettings(max_goals=12, standoff=0.1))
     goals = build_place_goal_set(carrying, request, robot.with_fingers(start, 0.015), settings)
@@ -272,3 +278,31 @@ def test_the_fingers_opened_for_the_release_stay_above_the_floor(held_case):
         closed, opened = lowest_finger_point(q), lowest_finger_point(robot.with_fingers(q, robot.info.finger_open))
         assert opened < closed - 0.005  # the tilt sends the opening finger down
         assert opened >= settings.gap - 1e-3
+
+
+def test_no_place_goal_opens_a_finger_into_a_bin_wall(held_case):
+    """The 3 cm cube set down in a 14 x 8 cm tray with 3 cm walls: its fingers, closed on it, clear the walls
+    at every heading, but opened (4 cm each) they reach the long walls unless they open along the tray.
+    Those goals are dropped (``release_in_collision``), and every goal kept opens its fingers clear of
+    everything (FCL, nothing allowed to touch)."""
+    from pickplan.core.containers import bin_source
+    from pickplan.omg.world import CheckerKind
+
+    world0, _, start, _ = held_case
+    tray = np.eye(4)
+    tray[:3, 3] = (0.5, -0.3, 0.0)
+    scene = replace(
+        world0.scene,
+        objects=list(world0.scene.objects) + [scenes.SceneObject("tray", bin_source(0.14, 0.08, 0.03), tray)],
+    )
+    world = World(scene)
+    carrying = _held_cube(world, 0.0)
+    request = PlaceRequest((0.43, -0.34, 0.0), (0.57, -0.26, 0.4))
+    goals = GoalSetSettings(standoff=0.1, standoff_steps=5, max_goals=600, diversity=0.0)
+    settings = PlaceSettings(goals=goals, margin=0.0)
+    place = build_place_goal_set(carrying, request, world.robot.with_fingers(start, 0.015), settings)
+    reasons = place.reason_counts()
+    assert reasons.get("release_in_collision", 0) > 0 and len(place) >= 2, reasons
+    robot, strict = world.robot, world.checker(CheckerKind.strict)
+    opened = robot.with_fingers(place.goal_set.goals, robot.info.finger_open)
+    assert not strict.in_collision_batch(opened).any()
