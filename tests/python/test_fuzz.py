@@ -150,6 +150,7 @@ def run_cases(cases: list, folder) -> dict:
         json.dump(cases, f)
     results, start = {}, 0
     while start < len(cases):
+        first = start
         with open(os.path.join(folder, "stderr.txt"), "w") as err:
             proc = subprocess.Popen(
                 [sys.executable, WORKER, path, str(start)],
@@ -183,8 +184,13 @@ def run_cases(cases: list, folder) -> dict:
                         pytest.fail(
                             f"fuzz worker failed outside any case (exit {code}): {open(err.name).read()[-2000:]}"
                         )
-                    else:
-                        start = len(cases)
+                    else:  # a clean exit: every case from ``first`` on has its line, or the rest run again
+                        missing = [i for i in range(first, len(cases)) if i not in results]
+                        if missing and missing[0] == first:
+                            pytest.fail(
+                                f"fuzz worker exited cleanly without case {first}: {open(err.name).read()[-2000:]}"
+                            )
+                        start = missing[0] if missing else len(cases)
                     break
                 if line.startswith("BEGIN "):
                     current = int(line.split()[1])
