@@ -213,11 +213,11 @@ def test_the_carry_check_sees_the_held_object_on_the_true_meshes(planned):
 
 
 def test_a_grasp_that_leaves_no_place_is_replaced_by_one_that_does():
-    """A soup can into a bin 11 cm square and 8 cm deep: the pick's first grasp (the one it plans when
+    """A soup can into a bin 10 cm square and 8 cm deep: the pick's first grasp (the one it plans when
     place feasibility is not asked) puts the hand where the bin's wall stands at every place; the pick
     planned again among its other goals that have a place goal completes the task, executed in PyBullet."""
     scene, request = place_task(
-        _scene(), RegionKind.bin, seed=0, settings=RegionSettings(bin_inner=(0.11, 0.11), bin_height=0.08)
+        _scene(), RegionKind.bin, seed=0, settings=RegionSettings(bin_inner=(0.10, 0.10), bin_height=0.08)
     )
     never = replace(SETTINGS, regrasp_plans=0)
     first = PickPlacePlanner(OMGPlanner(None, scene, never.pick), request, never).plan()

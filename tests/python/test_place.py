@@ -239,14 +239,14 @@ def test_a_place_goal_set_does_not_read_another_grasps_robot(held_case):
     np.testing.assert_array_equal(shared.goal_set.goals, fresh.goal_set.goals)
 
 
-def _held_cube(world, tilt_deg: float) -> HeldWorld:
-    """A 3 cm cube held by its middle from above, the closing axis tilted ``tilt_deg`` (a grasp the object
-    turned in)."""
+def _held_cube(world, tilt_deg: float, extents=(0.03, 0.03, 0.03)) -> HeldWorld:
+    """A 3 cm cube (a box of ``extents``) held by its middle from above, the closing axis (y) tilted
+    ``tilt_deg`` (a grasp the object turned in)."""
     import trimesh
 
-    cube = trimesh.creation.box(extents=(0.03, 0.03, 0.03))
+    cube = trimesh.creation.box(extents=extents)
     pose = np.eye(4)
-    pose[:3, 3] = (0.5, 0.0, 0.015)
+    pose[:3, 3] = (0.5, 0.0, extents[2] / 2)
     hand = np.eye(4)
     hand[:3, :3] = np.array([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]).T  # x, y, z columns: down
     hand[:3, 3] = pose[:3, 3] + [0.0, 0.0, world.robot.grasp_frame[2, 3]]
@@ -306,3 +306,26 @@ def test_no_place_goal_opens_a_finger_into_a_bin_wall(held_case):
     robot, strict = world.robot, world.checker(CheckerKind.strict)
     opened = robot.with_fingers(place.goal_set.goals, robot.info.finger_open)
     assert not strict.in_collision_batch(opened).any()
+
+
+def test_a_region_only_a_finer_grid_fits_gets_goals_from_it(held_case):
+    """A 30 x 2.5 cm bar in a 29 x 15 cm region fits only turned 22.5 deg (or 157.5) from the region's
+    long side: exact extents at 0 deg (30 cm) and 45 deg (23 cm across) are too big, and the coarse grid's
+    8 yaws hold no other. The goal set samples the region again twice as finely, and every goal found
+    holds the bar inside the region at one of those headings."""
+    world, _, start, _ = held_case
+    carrying = _held_cube(world, 0.0, extents=(0.30, 0.025, 0.025))
+    request = PlaceRequest((0.355, -0.45, 0.0), (0.645, -0.30, 0.4), "upright")
+    coarse = build_place_goal_set(carrying, request, start, PlaceSettings(refine=1))
+    assert len(coarse) == 0 and coarse.verdict is PlaceVerdict.too_small
+    place = build_place_goal_set(carrying, request, start, PlaceSettings())
+    assert len(place) >= 1, place.reason_counts()
+    for index in place.goal_set.grasp_index:
+        pose = place.object_poses[index]
+        along = np.degrees(np.arctan2(pose[1, 0], pose[0, 0])) % 180.0
+        assert min(abs(along - 22.5), abs(along - 157.5)) < 1e-6
+        corners = np.array([[sx * 0.15, sy * 0.0125, 0.0] for sx in (-1, 1) for sy in (-1, 1)]) @ pose[:3, :3].T
+        xy = corners[:, :2] + pose[:2, 3]
+        assert (xy >= np.array(request.region_min[:2]) - 1e-9).all() and (
+            xy <= np.array(request.region_max[:2]) + 1e-9
+        ).all()

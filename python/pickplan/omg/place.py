@@ -159,6 +159,10 @@ class PlaceSettings:
 
     yaws: int = 8  # yaw samples over a full turn when the yaw is free
     position_step: float = 0.02  # m between candidate positions on the region's floor
+    # A region where that grid gives no goal is sampled again this many times finer (yaw steps and
+    # position steps divided by it): a long box fits a gap among clutter at a few headings and spots only,
+    # and the coarse grid's first pass keeps the usual case fast
+    refine: int = 2
     max_candidates: int = 600  # a seeded subset when the grid is larger
     gap: float = 0.004  # m: the object's lowest point above the floor at release
     # m kept between the object and the region's sides where the region is wide enough (less where it is
@@ -180,6 +184,13 @@ class PlaceSettings:
     preplace_clearance: float = 0.05
     # 8 IK seeds (a grasp's 24): a place out of reach from 8 seeds has neighbours in the grid to try
     ik: IkSettings = field(default_factory=lambda: IkSettings(num_seeds=8))
+
+    def __post_init__(self):
+        for name in ("yaws", "refine"):
+            if int(getattr(self, name)) != getattr(self, name) or getattr(self, name) < 1:
+                raise ValueError(f"place settings {name}: expected a whole number >= 1, got {getattr(self, name)!r}")
+        if not self.position_step > 0:
+            raise ValueError(f"place settings position_step: expected a length > 0, got {self.position_step!r}")
 
 
 @dataclass
@@ -325,8 +336,14 @@ def build_place_goal_set(
     rotations = resting_rotations(request, current, model, settings.max_rests)
     poses = candidate_poses(request, vertices, rotations, settings, fingers)
     gs = _released(carrying, _place_goals(carrying, poses, start, settings))
-    if len(gs) == 0 and settings.margin > 0:  # no place keeps the margin (a crowded region): its edges too
-        poses = candidate_poses(request, vertices, rotations, replace(settings, margin=0.0), fingers)
+    fine = replace(
+        settings, yaws=settings.yaws * settings.refine, position_step=settings.position_step / settings.refine
+    )
+    # Then finer, then without the margin (a crowded region: its edges too); the finer grid holds the coarse
+    for grid in ([fine] if settings.refine > 1 else []) + ([replace(fine, margin=0.0)] if settings.margin > 0 else []):
+        if len(gs) or _verdict(len(poses), gs.reasons, 0) is PlaceVerdict.out_of_reach:
+            break
+        poses = candidate_poses(request, vertices, rotations, grid, fingers)
         gs = _released(carrying, _place_goals(carrying, poses, start, settings))
     return PlaceGoalSet(gs, poses, _verdict(len(poses), gs.reasons, len(gs)), clock() - t0)
 
