@@ -329,3 +329,45 @@ def test_a_region_only_a_finer_grid_fits_gets_goals_from_it(held_case):
         assert (xy >= np.array(request.region_min[:2]) - 1e-9).all() and (
             xy <= np.array(request.region_max[:2]) + 1e-9
         ).all()
+
+
+def test_rests_the_object_could_roll_out_of_come_last():
+    """Four rests: the two whose barrier (centre-of-mass rise to tip) exceeds the release's fall come
+    first, most likely first, though the others are likelier; then the one that tips most hardly. With no
+    fall given, the likeliest first, as before; a model without barriers keeps that order."""
+    from types import SimpleNamespace
+
+    turns = [np.eye(4) for _ in range(4)]
+    for k, T in enumerate(turns):
+        T[:3, :3] = _quarter_turns(k)
+    model = SimpleNamespace(
+        resting_poses=turns, resting_probabilities=[0.1, 0.5, 0.3, 0.2], resting_barriers=[0.02, 0.001, 0.003, 0.01]
+    )
+    request = PlaceRequest((0.3, -0.2, 0.0), (0.6, 0.2, 0.4), "stable")
+
+    def order(rotations):
+        return [next(k for k, T in enumerate(turns) if np.allclose(T[:3, :3], R)) for R in rotations]
+
+    assert order(resting_rotations(request, np.eye(4), model, 3, drop=lambda R: 0.004)) == [3, 0, 2]
+    assert order(resting_rotations(request, np.eye(4), model, 3)) == [1, 2, 3]
+    model.resting_barriers = []
+    assert order(resting_rotations(request, np.eye(4), model, 4, drop=lambda R: 0.004)) == [1, 2, 3, 0]
+
+
+def _quarter_turns(k: int) -> np.ndarray:
+    """A quarter turn ``k`` times about x: distinct rotations to tell rests apart."""
+    c, s = np.cos(k * np.pi / 2), np.sin(k * np.pi / 2)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def test_the_fall_at_the_release_counts_fingers_below_the_object():
+    """``release_drop``: the gap alone when the fingers hold it above its lowest point; the fingers'
+    reach below it added (the object is lifted that much to keep them off the floor)."""
+    from pickplan.omg.place import release_drop
+
+    cube = np.array([[x, y, z] for x in (-0.02, 0.02) for y in (-0.02, 0.02) for z in (-0.02, 0.02)])
+    high = np.array([[0.0, 0.03, 0.0], [0.0, -0.03, 0.0]])
+    low = np.array([[0.0, 0.03, -0.03], [0.0, -0.03, -0.03]])
+    assert release_drop(cube, high, 0.004)(np.eye(3)) == pytest.approx(0.004)
+    assert release_drop(cube, low, 0.004)(np.eye(3)) == pytest.approx(0.014)
+    assert release_drop(cube, None, 0.004)(np.eye(3)) == pytest.approx(0.004)
