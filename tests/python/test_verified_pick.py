@@ -8,7 +8,7 @@ import numpy as np
 
 from pickplan.omg.grasps import verify
 from pickplan.omg.grasps.physics import LiftSettings, SimObject, lift_trial
-from pickplan.omg.planner import OMGPlanner, OMGSettings
+from pickplan.omg.planner import OMGPlanner, OMGSettings, PlanStatus
 from pickplan.omg.verified_pick import verified_pick
 from pickplan.omg.world import CheckerKind
 
@@ -42,6 +42,32 @@ def test_a_pick_whose_grasp_falls_is_planned_again_without_it(tmp_path, monkeypa
     fell = set()
     pick, _ = verified_pick(planner, None, None, hopeless, fell, time.process_time)
     assert pick.status.value == "no_goals" and len(fell) == hopeless.budget and "fell in a lift" in pick.reason
+
+
+def test_a_plan_that_misses_its_success_test_after_a_fall_is_set_aside_too(tmp_path, monkeypatch):
+    """The sugar box with a 3.5 N squeeze again; the plan after the first fall is marked as missing the
+    success test (``not_smooth``, as a far goal's plan does). The verified pick sets its grasp aside as it
+    does a grasp that fell, plans again among the rest, and ends at a grasp that holds when lifted alone
+    (it returned the failed plan before)."""
+    monkeypatch.setenv("PICKPLAN_CACHE_DIR", str(tmp_path))
+    weak = verify.VerifySettings(budget=5, lift=LiftSettings(table_clearance=-0.002, finger_force=3.5))
+    planner = OMGPlanner(None, known_scene()[0], OMGSettings(grasp_kind="antipodal"))
+    world, standoff = planner.world(), planner.settings.goals.standoff
+    failed_grasps, real = [], planner.plan
+
+    def plan(start=None, grasps=None, **kw):
+        result = real(start, grasps=grasps, **kw)
+        if failed_grasps or not result.success:
+            return result
+        failed_grasps.append(np.asarray(grasps)[result.grasp_index])
+        return replace(result, status=PlanStatus.not_smooth)
+
+    monkeypatch.setattr(planner, "plan", plan)
+    fell: set = set()
+    pick, goals = verified_pick(planner, None, None, weak, fell, time.process_time)
+    assert failed_grasps and pick.success, pick.status
+    assert not np.allclose(goals.grasps[pick.grasp_index], failed_grasps[0])
+    assert _held_alone(world, pick.goal, weak, standoff)
 
 
 def test_a_tabletop_pick_that_fails_runs_once_more_from_a_sampled_start():

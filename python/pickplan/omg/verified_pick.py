@@ -26,7 +26,9 @@ def verified_pick(
 ) -> Tuple[PlanResult, Optional[GoalSet]]:
     """``planner.plan_with_goals(start, grasps=grasps)``, its grasp lifted in PyBullet (``verify``; None, or a
     world without the target's model: no lift) and planned again without each grasp that falls, at most
-    ``verify.budget`` plans. ``fell`` receives the goal set's grasps (indices) that fell; the plan's
+    ``verify.budget`` plans; a plan among them that misses its success test (the goals left are farther:
+    a plan not smooth) is set aside with its grasp in the same way. ``fell`` receives the goal set's grasps
+    (indices) that fell; the plan's
     ``grasp_index`` is into the goal set's grasps. Every plan's grasp fell: ``no_goals``, its reason saying so.
     ``timings``: the plans' ``total`` summed, and ``lift_verify`` (the lifts' seconds, 0 when cached)."""
     pick, goals = planner.plan_with_goals(start, grasps=grasps)
@@ -42,24 +44,30 @@ def verified_pick(
         return pick, goals
     verify = replace(verify, lift=replace(verify.lift, approach=planner.settings.goals.standoff))
     planned, lifting = pick.timings.get("total", 0.0), 0.0
+    failing: set = set()  # grasps whose plan, after a grasp fell, failed its success test
     for plans in range(1, verify.budget + 1):
-        t = clock()
-        grasp = np.linalg.solve(world.target_pose, pick.hand_pose)  # as planned, in the target's frame
-        verdict = world.lift_grasps(grasp[None], verify)[0]
-        lifting += clock() - t
-        if verdict is not LiftVerdict.fell:
-            pick.timings.update(total=planned, lift_verify=lifting)
-            return pick, goals
-        fell.add(int(pick.grasp_index))
-        keep = np.setdiff1d(goals.grasp_index, list(fell))
+        if pick.success:
+            t = clock()
+            grasp = np.linalg.solve(world.target_pose, pick.hand_pose)  # as planned, in the target's frame
+            verdict = world.lift_grasps(grasp[None], verify)[0]
+            lifting += clock() - t
+            if verdict is not LiftVerdict.fell:
+                pick.timings.update(total=planned, lift_verify=lifting)
+                return pick, goals
+            fell.add(int(pick.grasp_index))
+        else:  # the plan without the grasps that fell missed the success test (a far goal: not smooth)
+            failing.add(int(pick.grasp_index))
+        keep = np.setdiff1d(goals.grasp_index, list(fell | failing))
         if not len(keep) or plans == verify.budget:
             break
         pick = planner.plan(start, grasps=goals.grasps[keep])
         planned += pick.timings.get("total", 0.0)
-        if not pick.success:
-            pick.timings.update(total=planned, lift_verify=lifting)
-            return pick, goals
+        if pick.grasp_index < 0:  # no plan at all: nothing else to try
+            break
         pick.grasp_index = int(keep[pick.grasp_index])  # an index into the goal set's grasps again
+    if not pick.success and (pick.grasp_index < 0 or int(pick.grasp_index) in failing):
+        pick.timings.update(total=planned, lift_verify=lifting)
+        return pick, goals
     failed = PlanResult.unplanned(
         PlanStatus.no_goals,
         pick.trajectory[0],
