@@ -137,8 +137,8 @@ def resting_rotations(
 
     ``drop(R)`` (m): how far the object falls at the release in rotation ``R``. A rest whose barrier (the
     centre of mass's rise that tips it, ``ObjectModel.resting_barriers``) is lower than the fall can roll
-    out of it: a pitcher on its side (barrier 1 mm) set down 4 mm above the table rolled 4 cm and out of
-    its region. Such rests come after the others, the most robust first."""
+    out of it (the YCB pitcher's likeliest rests, on its side, tip at a 1 mm rise; the release's gap is
+    4 mm). Such rests come after the others, the most robust first."""
     if request.orientation is Orientation.pose:
         return [np.asarray(request.rotation, float)]
     if request.orientation is Orientation.upright or model is None:
