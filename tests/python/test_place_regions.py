@@ -12,7 +12,6 @@ from pickplan.eval.place_regions import (
     _cover,
     _fits,
     _footprints,
-    _free_disc,
     _hulls_xy,
     _room,
     place_task,
@@ -46,22 +45,31 @@ def test_cover_is_the_share_and_fits_places_the_footprint_among_the_free_cells()
     assert _fits(middle, lo, hi, _bar(0.15, 0.02), 0.005) and not _fits(middle, lo, hi, _bar(0.15, 0.04), 0.005)
 
 
-def test_the_free_disc_and_the_room_a_target_has():
-    """The largest free disc (centres on 1 cm cells: up to one cell short, never more), and the room:
-    2 where the target's reach plus the margin fits as a disc, 1 where only its footprint turned to fit
-    does, 0 where nothing does."""
-    lo, hi, step = np.array([0.0, 0.0]), np.array([0.2, 0.1]), 0.01
-
-    def near(radius, truth):
-        return truth - step <= radius <= truth + 1e-12
-
-    assert near(_free_disc([], lo, hi), 0.05)  # empty: the disc touches both long sides
-    assert near(_free_disc([_square((0.1, -0.1), (0.3, 0.2))], lo, hi), 0.05)  # the right half covered
-    assert near(_free_disc([_square((0.0, 0.04), (0.2, 0.06))], lo, hi), 0.02)  # a 2 cm bar across the middle
-    assert _free_disc([_square((0.0, 0.0), (0.2, 0.1))], lo, hi) <= 0.0
+def test_the_room_a_target_has():
+    """The room: 2 where a disc of the target's reach stands ``margin`` from the box's sides, 1 where only
+    its footprint turned to fit does, 0 where nothing does; ``clearance`` from the clutter apart from the
+    margin from the sides (a hand goes down beside the target, past the region's side too)."""
+    lo, hi = np.array([0.0, 0.0]), np.array([0.2, 0.1])
     assert _room([], lo, hi, _bar(0.04, 0.04), 0.01) == 2  # a 4 cm square: reach 2.8 cm + 1 < 4-5 cm
+    assert _room([], lo, hi, _bar(0.08, 0.08), 0.01) == 1  # reach 5.7 cm: no disc, the square itself fits
     assert _room([], lo, hi, _bar(0.16, 0.03), 0.01) == 1  # reach 8.1 cm: only along the box
     assert _room([_square((0.1, -0.1), (0.3, 0.2))], lo, hi, _bar(0.16, 0.03), 0.01) == 0
+    # the right half covered leaves a 10 x 10 cm square: an 8 cm square stands in it 1 cm from its sides
+    # and from the clutter; with clutter 5 mm above the box too, it has 3 cm on two opposite sides
+    # nowhere, and with nothing beside the box, the sides' 1 cm is all it needs
+    right, square = [_square((0.1, -0.1), (0.3, 0.2))], _bar(0.08, 0.08)
+    corner = right + [_square((-0.1, 0.105), (0.3, 0.2))]
+    assert _fits(corner, lo, hi, square, 0.01) and not _fits(corner, lo, hi, square, 0.01, 0.03)
+    assert _fits(right, lo, hi, square, 0.01, 0.03)  # the fingers along y: no clutter there
+    assert _fits([], lo, hi, square, 0.01, 0.03) and _fits(corner, lo, hi, _bar(0.06, 0.06), 0.01, 0.03)
+    # clutter 5 mm beyond the box's sides counts (a hand reaches past them): a frame around a 10 cm box
+    # leaves a 9 cm square 1 cm every way, and without the frame the square has all the room it needs
+    box_lo, box_hi = np.array([0.0, 0.0]), np.array([0.1, 0.1])
+    frame = [_square((-0.1, -0.1), (-0.005, 0.2)), _square((0.105, -0.1), (0.2, 0.2))]
+    frame += [_square((-0.1, -0.1), (0.2, -0.005)), _square((-0.1, 0.105), (0.2, 0.2))]
+    nine = _bar(0.09, 0.09)
+    assert _fits(frame, box_lo, box_hi, nine, 0.005) and not _fits(frame, box_lo, box_hi, nine, 0.005, 0.03)
+    assert _fits([], box_lo, box_hi, nine, 0.005, 0.03)
 
 
 def _overlaps(scene, request, skip=None):
@@ -103,9 +111,9 @@ def test_regions_are_seeded_clear_or_partly_cluttered():
 
 def test_more_candidates_are_drawn_until_the_target_has_room():
     """A bowl among a cracker box, a can and a mug (a bench scene's layout): none of the first 12
-    candidate regions leaves it a free disc of its reach (room for it turned any way, with a hand around
-    it: else "region blocked" whatever the planner does); the later ones do, and the region chosen is one
-    of those."""
+    candidate regions leaves it a free disc of its reach 1 cm from the sides and the clutter (room for it
+    turned any way: else "region blocked" whatever the planner does); the later ones do, and the region
+    chosen is one of those (none with 3 cm for the fingers: the bowl is 16 cm across, its region 24 x 20)."""
     scene, _ = standing_scene(
         (
             ("003_cracker_box", (0.749, 0.192)),
@@ -116,22 +124,24 @@ def test_more_candidates_are_drawn_until_the_target_has_room():
         "024_bowl",
     )
     footprints, target = _footprints(scene, scene.target), dict(_hulls_xy(scene))[scene.target]
-    margin = RegionSettings().clutter_margin
+    settings = RegionSettings()
 
     def box(request):
         return np.array(request.region_min[:2]), np.array(request.region_max[:2])
 
     _, first = place_task(scene, RegionKind.cluttered, seed=29, settings=RegionSettings(clutter_batches=1))
-    assert _room(footprints, *box(first), target, margin) < 2
+    assert _room(footprints, *box(first), target, settings.clutter_margin) < 2
     _, request = place_task(scene, RegionKind.cluttered, seed=29)
-    assert _room(footprints, *box(request), target, margin) == 2 and _cover(footprints, *box(request)) > 0.0
+    assert _room(footprints, *box(request), target, settings.clutter_margin) == 2
+    assert _cover(footprints, *box(request)) > 0.0
     assert _overlaps(scene, request, skip=scene.target)
 
 
 def test_a_long_target_among_clutter_gets_a_region_it_fits_in():
     """A 28 cm hammer (its region grown to 30 x 20 cm): a disc of its reach fits no such region, so the
     disc alone never found room and fell back to a region the hammer could not stand in; its footprint
-    turned along the region does fit one, clear of the clutter, and that is the region chosen."""
+    turned along the region does fit one, clear of the clutter, and that is the region chosen (touching
+    its sides and the clutter: the hammer takes this scene's room between the can, the mug and the box)."""
     lib = objects.library("procedural")
     hammer = lib.get("hammer_00")
     pose = np.asarray(hammer.resting_poses[0], dtype=float).copy()
@@ -148,7 +158,7 @@ def test_a_long_target_among_clutter_gets_a_region_it_fits_in():
     for seed in range(4):
         _, request = place_task(scene, RegionKind.cluttered, seed=seed)
         lo, hi = np.array(request.region_min[:2]), np.array(request.region_max[:2])
-        assert _fits(footprints, lo, hi, target, RegionSettings().clutter_margin), seed
+        assert _fits(footprints, lo, hi, target, 0.0) and _cover(footprints, lo, hi) > 0.0, seed
 
 
 def lib_builtin():
