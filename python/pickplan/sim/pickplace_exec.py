@@ -9,7 +9,7 @@ planned finger values are the open hand's: conservative for the planner, ignored
 the lift and the transfer it may hand the grasp as executed (``hand_T_object``) to a ``replan``
 callback, which returns the transfer and retract planned for it.
 
-Success (``PlaceCheck``): the object at rest, its whole hull inside the region (within
+Success (``PlaceCheck``): the object at rest (waited for up to ``settle_max``), its whole hull inside the region (within
 ``region_tolerance``), its up axis within the tolerance of the planned pose's (not toppled; turns about
 an axis of rotational symmetry do not count), its yaw too when one was asked; no other object moved more than ``max_moved``; the robot never penetrated a
 body other than the target deeper than ``collision_depth`` and the held object no body other than the
@@ -70,8 +70,21 @@ class PlaceCheck:
 class PickPlaceExecSettings:
     execution: ExecutionSettings = field(default_factory=ExecutionSettings)
     release_duration: float = 0.5  # s the open fingers are given before the retract
-    settle_duration: float = 1.0  # s after the retract before the test
+    settle_duration: float = 1.0  # s after the retract at least before the test
+    # ... and at most, while the object still moves (a set-down rocks a tall object for 1-3 s before it
+    # stands still): the test reads it at rest, or moving when it never stopped
+    settle_max: float = 5.0
+    # s between the checks for rest; at rest at 3 checks in a row (a rocking object is still for an
+    # instant at each turn)
+    settle_check: float = 0.1
     held_penetration: float = 0.003  # m the held object may press into another body before it counts
+
+    def __post_init__(self):
+        if not (self.settle_check > 0 and self.settle_max >= self.settle_duration >= 0):
+            raise ValueError(
+                "pick-and-place settling: expected settle_check > 0 and settle_max >= settle_duration >= 0, got "
+                f"{self.settle_check!r}, {self.settle_max!r}, {self.settle_duration!r}"
+            )
 
 
 @dataclass
@@ -203,9 +216,8 @@ def execute_pick_and_place(
                 parts.update(dict(out[0]))
                 place_pose = out[1]
         held_before_release = bool(planned and held_after_lift) and _place_and_retract(sim, robot, parts, settings)
-        hold(sim, sim.joint_positions(), settings.settle_duration, False)
+        v, w = _settle(sim, check, settings)
         final = scenes_mod.object_pose(sim.c, sim.bodies[scene.target], models[scene.target])
-        v, w = sim.pb.getBaseVelocity(sim.bodies[scene.target], physicsClientId=sim.c)
         com1 = {name: sim.com(name) for name in sim.bodies}
         if record is not None:
             sim.capture()
@@ -252,6 +264,20 @@ def execute_pick_and_place(
         time.perf_counter() - t_start,
         sim.frames,
     )
+
+
+def _settle(sim, check: PlaceCheck, settings: PickPlaceExecSettings) -> Tuple[np.ndarray, np.ndarray]:
+    """Hold the arm while the scene settles: ``settle_duration``, then until the target is at rest (``check``'s
+    speeds, 3 checks in a row) or ``settle_max`` has passed; the target's last (linear, angular) velocity."""
+    q, elapsed, still, target = sim.joint_positions(), settings.settle_duration, 0, sim.bodies[sim.target]
+    hold(sim, q, settings.settle_duration, False)
+    while True:
+        v, w = (np.asarray(x) for x in sim.pb.getBaseVelocity(target, physicsClientId=sim.c))
+        still = still + 1 if np.linalg.norm(v) <= check.rest_speed and np.linalg.norm(w) <= check.rest_spin else 0
+        if still >= 3 or elapsed >= settings.settle_max - 1e-9:
+            return v, w
+        hold(sim, q, settings.settle_check, False)
+        elapsed += settings.settle_check
 
 
 def _pick_and_lift(sim, robot, parts: dict, s) -> Tuple[bool, bool]:
