@@ -238,7 +238,8 @@ def test_a_transfer_over_a_wall_starts_from_a_sampled_path():
     pose = np.eye(4)
     pose[:3, 3] = (0.5, -0.17, 0.225)
     scene = replace(_scene(), obstacles=[Obstacle("wall", Shape.box(0.6, 0.02, 0.45), pose)])
-    alone = replace(SETTINGS, regrasp_plans=0)  # the transfer of the first grasp, nothing else
+    # the transfer of the first grasp, nothing else (no upright start either: the straight line's loop)
+    alone = replace(SETTINGS, regrasp_plans=0, upright_carry=False)
     straight = replace(alone, place=replace(alone.place, sampled_start=None))
     first = PickPlacePlanner(OMGPlanner(None, scene, straight.pick), REQUEST, straight).plan()
     assert first.status is PickPlaceStatus.place_failed, first.reason

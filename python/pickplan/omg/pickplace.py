@@ -37,6 +37,7 @@ from pickplan.omg.attach import (
     straight_path,
     straight_path_steps,
 )
+from pickplan.omg.carry_seed import upright_initialization
 from pickplan.omg.chomp import ChompSettings
 from pickplan.omg.goals import GoalSet
 from pickplan.omg.grasps.verify import VerifySettings
@@ -98,6 +99,9 @@ class PickPlaceSettings:
     # The carry (lift, transfer) is timed within this share of the velocity limits (its square of the
     # acceleration limits): an object held by friction alone slips when the hand jerks it about.
     carry_speed: float = 0.5
+    # The transfer's CHOMP starts from the hand's straight path that turns the held object only by the yaw
+    # between its lifted and placed poses (``carry_seed``), then from the straight line in joint space
+    upright_carry: bool = True
     # A place that fails for a reason another grasp could change (``REGRASP``): the pick's other goals
     # are screened in the goal set's order for one place goal each, and the pick planned again among the
     # first ``regrasp_candidates`` that have one (those not chosen stay candidates, topped up from the rest
@@ -317,7 +321,9 @@ class PickPlacePlanner:
             return goals, None
         if self.transfer is not None:
             return goals, self.transfer(carrying, start, goals.goal_set)
-        return goals, plan_to_goal_set(self.settings.place, carrying, start, goals.goal_set)
+        gs, n = goals.goal_set, self.settings.place.chomp.n
+        warm = upright_initialization(carrying, start, gs.tails, n) if self.settings.upright_carry else None
+        return goals, plan_to_goal_set(self.settings.place, carrying, start, gs, warm)
 
     def _place_goal_set(self, carrying: HeldWorld, start: np.ndarray, settings: PlaceSettings) -> PlaceGoalSet:
         model = getattr(carrying.base, "models", {}).get(carrying.target)  # its stable resting poses

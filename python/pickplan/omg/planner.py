@@ -357,10 +357,11 @@ def sampled_retry(s: OMGSettings, world, q0: np.ndarray, gs: GoalSet, timings: d
     return retry
 
 
-def plan_to_goal_set(settings: OMGSettings, world, q0: np.ndarray, goal_set: GoalSet) -> PlanResult:
+def plan_to_goal_set(settings: OMGSettings, world, q0: np.ndarray, goal_set: GoalSet, warm=None) -> PlanResult:
     """Algorithm 2 from ``q0`` to a built, non-empty ``goal_set`` in any world with ``chomp`` (and
     ``grasp_refiner`` when ``settings.refine``): how a place goal set is planned (``omg.place``), with
-    the same CHOMP-Proj steps, online selection and success test as a grasp."""
+    the same CHOMP-Proj steps, online selection and success test as a grasp; from ``warm`` (``run_loop``'s)
+    first when given, then from the straight line."""
     if len(goal_set) == 0:
         raise ValueError("plan_to_goal_set: the goal set is empty")
     clock = _clock(settings)
@@ -369,7 +370,10 @@ def plan_to_goal_set(settings: OMGSettings, world, q0: np.ndarray, goal_set: Goa
     timings["goal_set"] = goal_set.seconds
     q0 = np.asarray(q0, dtype=float)
     # a transfer carries the held object among the others, where the straight line often is no start
-    result = sampled_retry(settings, world, q0, goal_set, timings, run_loop(settings, world, q0, goal_set, timings))
+    result = run_loop(settings, world, q0, goal_set, timings, warm=warm) if warm is not None else None
+    if result is None or not result.success:
+        result = run_loop(settings, world, q0, goal_set, timings)
+    result = sampled_retry(settings, world, q0, goal_set, timings, result)
     timings["total"] = clock() - t + goal_set.seconds
     result.goal_reasons = goal_set.reason_counts()
     result.limits = robot_limits(world.robot)
