@@ -273,6 +273,15 @@ def straight_path_steps(
     hand = robot.link_pose(q0, robot.hand_link)
     targets = np.repeat(hand[None], steps, axis=0)
     targets[:, :3, 3] += np.outer(distance * np.arange(1, steps + 1) / steps, np.asarray(direction, dtype=float))
+    return hand_pose_path(robot, q0, targets, ik, max_joint_jump)
+
+
+def hand_pose_path(
+    robot, q0: np.ndarray, targets: np.ndarray, ik: IkSettings = IkSettings(), max_joint_jump: float = 0.5
+) -> Tuple[np.ndarray, np.ndarray]:
+    """Configurations reaching the hand ``targets`` (K, 4, 4) one after the other from ``q0`` (native IK,
+    each from the previous solution; the finger joints frozen) and each one's verdict: (path (K + 1,
+    dof), good (K,): converged without a jump over ``max_joint_jump``)."""
     active = [i < robot.info.arm_dof for i in range(robot.dof)]
     Q, converged = _core.IkSolver(robot.native, robot.hand_link, ik.to_native(active)).solve_path(targets, q0)
     path = np.vstack([np.asarray(q0, dtype=float)[None], Q])

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from pickplan.core.ik import IkSettings
-from pickplan.omg.goals import ik_solver
+from pickplan.omg.attach import hand_pose_path
 
 # rad: the most a joint may move between two waypoints of the seed (IK that jumped to another branch
 # gives no seed: the straight line in joint space is kept)
@@ -41,10 +41,7 @@ def upright_initialization(
     targets = np.tile(np.eye(4), (len(t), 1, 1))
     targets[:, :3, :3] = Slerp([0.0, 1.0], Rotation.from_matrix([T0[:3, :3], T1[:3, :3]]))(t).as_matrix()
     targets[:, :3, 3] = (1 - t)[:, None] * T0[:3, 3] + t[:, None] * T1[:3, 3]
-    Q, converged = ik_solver(world, ik).solve_path(targets, q0)
-    Q = np.array(Q, float)  # (the native arrays are read-only)
-    Q[:, robot.info.arm_dof :] = q0[robot.info.arm_dof :]  # the fingers as held
-    path = np.vstack([q0, Q, tails[g, 0]])
-    if not np.all(converged) or np.abs(np.diff(path, axis=0)).max() > MAX_STEP:
+    path, good = hand_pose_path(robot, q0, targets, ik, MAX_STEP)
+    if not good.all() or np.abs(tails[g, 0] - path[-1]).max() > MAX_STEP:
         return None
-    return np.vstack([Q, tails[g]]), g
+    return np.vstack([path[1:], tails[g]]), g
