@@ -233,6 +233,21 @@ class CollisionChecker:
 SUPPORT_TOLERANCE_FRACTION = 0.15
 
 
+def table_pairs(robot) -> tuple:
+    """(link, "table") pairs the description skips: links standing on the table (a housing that only
+    turns about the vertical) whose nearness to it the planner can neither change nor should pay for."""
+    desc = getattr(robot, "description", None)
+    skips = desc.skip_collision if desc is not None else ()
+    return tuple((a, b) if b == "table" else (b, a) for a, b in skips if "table" in (a, b))
+
+
+def mounted_pairs(robot) -> tuple:
+    """(link, "table") pairs a checker allows because the base is mounted on the table: the links that never
+    move always touch it, and those ``table_pairs`` names."""
+    moving = set(robot.moving_links())
+    return tuple((name, "table") for i, name in enumerate(robot.link_names) if i not in moving) + table_pairs(robot)
+
+
 def gripper_spec(robot):
     """The robot's gripper spec (``description.GripperSpec``): from its description, else the Panda's."""
     desc = getattr(robot, "description", None)

@@ -30,7 +30,7 @@ from pickplan.core.poses import rigid_errors
 from pickplan.core.settings import Option
 from pickplan.omg.chomp import Chomp
 from pickplan.omg.perceived_world import PerceivedWorld
-from pickplan.omg.world import CheckerKind, World, _table_pairs
+from pickplan.omg.world import CheckerKind, World
 
 #: The name of the held object's link on the robot.
 HELD_LINK = "held_object"
@@ -214,10 +214,7 @@ class HeldWorld:
 
     def _build_checker(self, kind: HeldCheck) -> collision.CollisionChecker:
         robot, base = self.robot, self.base
-        moving = set(robot.moving_links())
-        mounted = tuple((name, "table") for i, name in enumerate(robot.link_names) if i not in moving) + _table_pairs(
-            robot
-        )
+        mounted = collision.mounted_pairs(robot)
         holding = tuple((f, HELD_LINK) for f in robot.finger_links) + ((robot.hand_link, HELD_LINK),)
         allowed = mounted + holding
         if kind in (HeldCheck.support, HeldCheck.support_hand):

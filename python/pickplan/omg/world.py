@@ -80,16 +80,10 @@ class WorldSettings:
     robot: str = "panda"  # the robot planned for: a shipped description's name or a .toml file
 
 
-def _table_pairs(robot) -> tuple:
-    """(link, "table") pairs the description skips: links standing on the table (a housing that only
-    turns about the vertical) whose nearness to it the planner can neither change nor should pay for."""
-    return tuple((a, b) if b == "table" else (b, a) for a, b in robot.description.skip_collision if "table" in (a, b))
-
-
 def _without_table_links(body, robot):
-    """Body points without those of the links ``_table_pairs`` names (sampled first, so every other
+    """Body points without those of the links ``collision.table_pairs`` names (sampled first, so every other
     link keeps the points it has without the pairs)."""
-    skip = [robot.link_index(a) for a, _ in _table_pairs(robot)]
+    skip = [robot.link_index(a) for a, _ in collision.table_pairs(robot)]
     if not skip:
         return body
     keep = ~np.isin(body.links, skip)
@@ -232,11 +226,7 @@ class World:
                 link_meshes=self.cache.link_meshes(self.robot),
             )
         fingers = self.robot.finger_links
-        # The base is mounted on the table: links that never move always touch it.
-        moving = set(self.robot.moving_links())
-        mounted = tuple(
-            (name, "table") for i, name in enumerate(self.robot.link_names) if i not in moving
-        ) + _table_pairs(self.robot)
+        mounted = collision.mounted_pairs(self.robot)  # the base stands on the table
         links = None
         if kind in (CheckerKind.goal, CheckerKind.hand):
             # The fingers may touch the target, and the table within a tolerance the goal set checks

@@ -5,7 +5,9 @@ reached from the front), a bin (walls on the table, objects inside, reached from
 The furniture is ``shapes.Obstacle`` boxes. The board or floor the target stands on is the scene's
 ``table`` (the support surface the planner lets the fingers rest on and the success test measures);
 the other boards are obstacles marked ``support``. Objects stand on their resting poses (exact:
-their lowest point on the board), spaced apart; the target is one the gripper can grasp as it stands.
+their lowest point on the board), spaced apart; the target is one the gripper can grasp as it stands
+and the robot can reach there, clear of everything, with room to back off and lift
+(``sim.target_access``; as MotionBenchMaker keeps only problems with a valid goal).
 
 >>> scene = generate_layout(Layout.shelf, seed=3)
 """
@@ -25,6 +27,7 @@ from pickplan.core.settings import Option
 from pickplan.core.shapes import Obstacle, Shape
 from pickplan.sim.execution import ExecutionSettings
 from pickplan.sim.scenes import Scene, SceneObject, Table, default_table
+from pickplan.sim.target_access import AccessSettings, target_access
 
 THICKNESS = 0.02  # m: boards, walls, doors
 # m under the board above an object: execution's shortest lift, its clearance, and 1 cm between
@@ -45,6 +48,9 @@ class LayoutSettings:
     other_objects: int = 2  # at most this many on the other boards (shelf)
     gap: float = 0.03  # m between objects' footprint circles
     robot: str = "panda"
+    # the target must pass ``sim.target_access`` (a grasp the robot reaches clear of everything, with room to
+    # back off and lift); None: any object the gripper can grasp as it stands (``core.graspability``)
+    access: Optional[AccessSettings] = AccessSettings()
 
 
 def _pose(R: np.ndarray, p) -> np.ndarray:
@@ -194,7 +200,7 @@ def generate_layout(kind, seed: int, library=None, settings: LayoutSettings = La
         if scene is not None:
             scene.seed = int(seed)
             return scene
-    raise RuntimeError(f"seed {seed}: no {kind.value} layout with a graspable target in 20 attempts")
+    raise RuntimeError(f"seed {seed}: no {kind.value} layout with a reachable graspable target in 20 attempts")
 
 
 def _attempt_layout(kind: Layout, rng, lib, settings: LayoutSettings, info: RobotInfo) -> Optional[Scene]:
@@ -237,13 +243,19 @@ def _attempt_layout(kind: Layout, rng, lib, settings: LayoutSettings, info: Robo
     ]
     if len(main_objs) < settings.min_objects or not candidates:
         return None
-    target = candidates[int(rng.integers(len(candidates)))].name
-    return Scene(
+    scene = Scene(
         robot_base=np.eye(4),
         table=table,
         objects=objs,
-        target=target,
+        target=None,
         robot_configuration=[float(v) for v in info.ready],
         robot=info.name,
         obstacles=obstacles,
     )
+    for k in rng.permutation(len(candidates)):  # the first the robot can reach, in a seeded order
+        scene.target = candidates[int(k)].name
+        if settings.access is None:
+            return scene
+        if target_access(scene, {o.name: lib.get(o.name) for o in objs}, settings.access).reachable:
+            return scene
+    return None
