@@ -252,8 +252,10 @@ def _attempt_layout(kind: Layout, rng, lib, settings: LayoutSettings, info: Robo
         robot=info.name,
         obstacles=obstacles,
     )
-    for k in rng.permutation(len(candidates)):  # the first the robot can reach, in a seeded order
-        scene.target = candidates[int(k)].name
+    # the graspable object drawn first, else the others in a seeded order: the first the robot can reach
+    first = int(rng.integers(len(candidates)))
+    for k in [first] + [int(k) for k in rng.permutation(len(candidates)) if k != first]:
+        scene.target = candidates[k].name
         if settings.access is None:
             return scene
         if target_access(scene, {o.name: lib.get(o.name) for o in objs}, settings.access).reachable:
