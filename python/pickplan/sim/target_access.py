@@ -154,10 +154,7 @@ _STAGES = (
 )
 
 
-def target_access(scene, models: Optional[dict] = None, settings: AccessSettings = AccessSettings()) -> Access:
-    """Search for a grasp of ``scene.target`` the scene's robot (``scene.robot``, at ``scene.robot_base``,
-    from ``scene.robot_configuration``) can reach clear of everything. ``models``: object name ->
-    ``ObjectModel`` (None: each object's from its source)."""
+def _prepared(scene, models: Optional[dict]):
     if scene.target is None:
         raise ValueError("target_access: the scene has no target")
     models = dict(models or {})
@@ -168,7 +165,36 @@ def target_access(scene, models: Optional[dict] = None, settings: AccessSettings
     start = (
         np.asarray(scene.robot_configuration, float) if len(scene.robot_configuration) else robot.ready_configuration
     )
-    start = robot.with_fingers(start, robot.info.finger_open)
+    return models, robot, robot.with_fingers(start, robot.info.finger_open)
+
+
+@dataclass
+class _Tally:
+    tried: int = 0  # candidate hand poses looked at
+
+
+def _free_hands(scene, models, robot, start, hand: _FloatingHand, s: AccessSettings, count: _Tally):
+    """(hand pose, its retreat's poses) of every candidate whose open hand is free at the grasp, along the
+    retreat and lifted with the target, in the candidates' order; ``count.tried`` counts the candidates."""
+    to_hand = np.linalg.inv(np.asarray(robot.info.grasp_frame, float))
+    back = np.arange(1, s.standoff_steps + 1) * s.standoff / s.standoff_steps
+    rises = np.arange(1, s.lift_steps + 1) * s.lift / s.lift_steps
+    for batch in _candidates(scene, models[scene.target], robot, s):
+        for G in batch:
+            count.tried += 1
+            H, approach = G @ to_hand, G[:3, 2]
+            retreat = [H.copy() for _ in back]
+            for R, d in zip(retreat, back):
+                R[:3, 3] -= d * approach
+            if hand.free(H) and all(hand.free(R) for R in retreat) and all(hand.free(H, z) for z in rises):
+                yield H, retreat
+
+
+def target_access(scene, models: Optional[dict] = None, settings: AccessSettings = AccessSettings()) -> Access:
+    """Search for a grasp of ``scene.target`` the scene's robot (``scene.robot``, at ``scene.robot_base``,
+    from ``scene.robot_configuration``) can reach clear of everything. ``models``: object name ->
+    ``ObjectModel`` (None: each object's from its source)."""
+    models, robot, start = _prepared(scene, models)
     link_meshes = {n: robot.collision_meshes(n) for n in robot.link_names}
     hand = _FloatingHand(scene, models, robot, start, link_meshes)
     meshes = [collision.SceneMesh(n, m, P) for n, m, P in hand.things if n != "support"]
@@ -186,34 +212,22 @@ def target_access(scene, models: Optional[dict] = None, settings: AccessSettings
     )
     active = [i < robot.info.arm_dof for i in range(robot.dof)]
     ik = _core.IkSolver(robot.native, robot.hand_link, IkSettings().to_native(active))
-    to_hand = np.linalg.inv(np.asarray(robot.info.grasp_frame, float))
-    s, reached = settings, Counter()
-    back = np.arange(1, s.standoff_steps + 1) * s.standoff / s.standoff_steps
-    rises = np.arange(1, s.lift_steps + 1) * s.lift / s.lift_steps
-    tried = 0
-    for batch in _candidates(scene, models[scene.target], robot, settings):
-        for G in batch:
-            tried += 1
-            H, approach = G @ to_hand, G[:3, 2]
-            retreat = [H.copy() for _ in back]
-            for R, d in zip(retreat, back):
-                R[:3, 3] -= d * approach
-            if not (hand.free(H) and all(hand.free(R) for R in retreat) and all(hand.free(H, z) for z in rises)):
+    reached, count = Counter(), _Tally()
+    for H, retreat in _free_hands(scene, models, robot, start, hand, settings, count):
+        reached[1] += 1
+        for solution in (x for x in ik.solve_all(H, start) if x.converged):
+            reached[2] += 1
+            q = np.asarray(solution.q)
+            if arm.in_collision(q):
                 continue
-            reached[1] += 1
-            for solution in (x for x in ik.solve_all(H, start) if x.converged):
-                reached[2] += 1
-                q = np.asarray(solution.q)
-                if arm.in_collision(q):
-                    continue
-                reached[3] += 1
-                if _retreat_clear(ik, arm, q, retreat, s.max_joint_step):
-                    return Access(True, "", q, H, tried)
-    if not tried:
+            reached[3] += 1
+            if _retreat_clear(ik, arm, q, retreat, settings.max_joint_step):
+                return Access(True, "", q, H, count.tried)
+    if not count.tried:
         cm = 100 * robot.info.max_opening
         return Access(False, f"no antipodal pair of the target is narrower than the {cm:.0f} cm opening", None, None, 0)
     stage = max(reached) if reached else 0
-    return Access(False, f"{_STAGES[stage]} ({tried} hand poses tried)", None, None, tried)
+    return Access(False, f"{_STAGES[stage]} ({count.tried} hand poses tried)", None, None, count.tried)
 
 
 def _retreat_clear(ik, arm, q: np.ndarray, retreat, max_step: float) -> bool:
