@@ -1,5 +1,6 @@
 """Whether the robot can reach a grasp of the target at all (sim.target_access), against independent
-geometry: a found configuration is checked by FK and a strict FCL checker of its own; a caged target,
+geometry: a found configuration is checked by FK and a strict FCL checker of its own, and lifted by
+another IK with the target carried; a caged target,
 one beyond the arm's reach and one wider than the opening each get their own reason."""
 
 import numpy as np
@@ -8,6 +9,8 @@ import pytest
 from pickplan.core import collision, objects
 from pickplan.core.robots import load_robot
 from pickplan.core.shapes import Obstacle, Shape
+from pickplan.sim.execution import ExecutionSettings
+from pickplan.sim.hand_path import hand_path
 from pickplan.sim.layouts import Layout, LayoutSettings, generate_layout
 from pickplan.sim.scenes import Scene, SceneObject, Table
 from pickplan.sim.target_access import AccessSettings, target_access
@@ -64,6 +67,15 @@ def test_a_found_grasp_is_reached_clear_of_everything_with_the_target_between_th
     mesh = models[scene.target].mesh
     centre = np.linalg.inv(T) @ np.append(G[:3, 3], 1.0)
     assert np.all(centre[:3] > mesh.bounds[0]) and np.all(centre[:3] < mesh.bounds[1])
+    # the straight lift the verdict promises, by another IK (the execution's hand path), the target carried
+    rises = AccessSettings().rises()
+    lift = hand_path(robot, access.configuration, np.outer(rises, [0.0, 0.0, 1.0]), ExecutionSettings().ik_damping)
+    for z, q in zip(rises, lift[1:]):
+        carried = T.copy()
+        carried[2, 3] += z
+        checker.set_object_pose(scene.target, carried)
+        assert np.abs(robot.fk(q)[robot.link_index(robot.hand_link)][:3, 3] - hand[:3, 3] - [0, 0, z]).max() < 2e-3
+        assert checker.min_distance(q) > 0.0, z
     closing = T[:3, :3].T @ G[:3, 1]  # the line between the pads, in the object frame: where it leaves the mesh
     hits, _, _ = mesh.ray.intersects_location(np.stack([centre[:3]] * 2), np.stack([closing, -closing]))
     width = float(np.ptp((hits - centre[:3]) @ closing))

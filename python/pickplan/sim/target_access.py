@@ -1,7 +1,8 @@
 """Whether a robot can reach a grasp of a scene's target at all, in the scene as it stands: a hand
 pose that holds the target between its pads, with the open hand clear of everything at the grasp,
 backed off along its approach, and lifted with the target; and an arm configuration reaching it
-clear of everything, with a collision-free straight retreat to the pre-grasp.
+clear of everything, with a collision-free straight retreat to the pre-grasp and a straight lift of
+the target (the arm by IK, the target carried).
 
 The scene generators ask this of a target before they name it (``sim.layouts``), as MotionBenchMaker's
 generator keeps only problems with a valid goal: a target tucked behind a neighbour or under a low
@@ -57,6 +58,10 @@ class AccessSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"AccessSettings.{name}: expected an integer >= 1, got {value!r}")
+
+    def rises(self) -> np.ndarray:
+        """m the hand and target rise at each step of the lift."""
+        return np.arange(1, self.lift_steps + 1) * self.lift / self.lift_steps
 
 
 class Access(NamedTuple):
@@ -151,7 +156,14 @@ _STAGES = (
     "no arm configuration reaches a pose where the open hand is free",
     "the arm collides at every configuration reaching a free hand pose",
     "no collision-free straight retreat to the pre-grasp from a free configuration",
+    "the arm cannot lift the target straight up clear of everything from any grasp it reaches",
 )
+
+
+def _raised(T: np.ndarray, dz: float) -> np.ndarray:
+    out = np.array(T, float)
+    out[2, 3] += dz
+    return out
 
 
 def _prepared(scene, models: Optional[dict]):
@@ -178,7 +190,7 @@ def _free_hands(scene, models, robot, start, hand: _FloatingHand, s: AccessSetti
     retreat and lifted with the target, in the candidates' order; ``count.tried`` counts the candidates."""
     to_hand = np.linalg.inv(np.asarray(robot.info.grasp_frame, float))
     back = np.arange(1, s.standoff_steps + 1) * s.standoff / s.standoff_steps
-    rises = np.arange(1, s.lift_steps + 1) * s.lift / s.lift_steps
+    rises = s.rises()
     for batch in _candidates(scene, models[scene.target], robot, s):
         for G in batch:
             count.tried += 1
@@ -212,6 +224,8 @@ def target_access(scene, models: Optional[dict] = None, settings: AccessSettings
     )
     active = [i < robot.info.arm_dof for i in range(robot.dof)]
     ik = _core.IkSolver(robot.native, robot.hand_link, IkSettings().to_native(active))
+    target_pose = np.asarray(scene.object(scene.target).pose, float)
+    rises = settings.rises()
     reached, count = Counter(), _Tally()
     for H, retreat in _free_hands(scene, models, robot, start, hand, settings, count):
         reached[1] += 1
@@ -221,7 +235,13 @@ def target_access(scene, models: Optional[dict] = None, settings: AccessSettings
             if arm.in_collision(q):
                 continue
             reached[3] += 1
-            if _retreat_clear(ik, arm, q, retreat, settings.max_joint_step):
+            if not _path_clear(ik, arm, q, retreat, settings.max_joint_step):
+                continue
+            reached[4] += 1
+            lifted, carried = [_raised(H, z) for z in rises], [_raised(target_pose, z) for z in rises]
+            clear = _path_clear(ik, arm, q, lifted, settings.max_joint_step, (scene.target, carried))
+            arm.set_object_pose(scene.target, target_pose)
+            if clear:
                 return Access(True, "", q, H, count.tried)
     if not count.tried:
         cm = 100 * robot.info.max_opening
@@ -230,17 +250,20 @@ def target_access(scene, models: Optional[dict] = None, settings: AccessSettings
     return Access(False, f"{_STAGES[stage]} ({count.tried} hand poses tried)", None, None, count.tried)
 
 
-def _retreat_clear(ik, arm, q: np.ndarray, retreat, max_step: float) -> bool:
-    """Whether IK follows the retreat from ``q`` (each pose from the last, a few descents each) in small
-    joint steps with every configuration clear."""
+def _path_clear(ik, arm, q: np.ndarray, poses, max_step: float, carried=None) -> bool:
+    """Whether IK follows the hand ``poses`` from ``q`` (each from the last, a few descents each) in small
+    joint steps with every configuration clear; ``carried``: (name, its pose at each of ``poses``), an
+    object the hand holds (the target on the lift), moved along."""
     prev = q
-    for pose in retreat:
+    for k, pose in enumerate(poses):
         step = ik.solve(pose, prev)
         for _ in range(3):  # a descent that stalls short of the tolerance, continued
             if step.converged:
                 break
             step = ik.solve(pose, np.asarray(step.q))
         nxt = np.asarray(step.q)
+        if carried is not None:
+            arm.set_object_pose(carried[0], carried[1][k])
         if not step.converged or np.abs(nxt - prev).max() > max_step or arm.in_collision(nxt):
             return False
         prev = nxt
