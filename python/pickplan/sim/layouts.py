@@ -254,10 +254,9 @@ def _attempt_layout(kind: Layout, rng, lib, settings: LayoutSettings, info: Robo
     )
     # the graspable object drawn first, else the others in a seeded order: the first the robot can reach
     first = int(rng.integers(len(candidates)))
+    models = {o.name: lib.get(o.name) for o in objs}
     for k in [first] + [int(k) for k in rng.permutation(len(candidates)) if k != first]:
         scene.target = candidates[k].name
-        if settings.access is None:
-            return scene
-        if target_access(scene, {o.name: lib.get(o.name) for o in objs}, settings.access).reachable:
+        if settings.access is None or target_access(scene, models, settings.access).reachable:
             return scene
     return None
