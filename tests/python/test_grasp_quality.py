@@ -214,3 +214,12 @@ def test_a_worlds_grasp_verdicts_are_its_quality_kept_per_grasp():
     world.move_object(world.scene.target, T)
     check(np.arange(12))
     assert verdicts.misses == 24  # turned: judged again
+
+
+def test_quality_settings_refuse_what_they_cannot_mean():
+    with pytest.raises(ValueError, match="point_density: expected a positive value"):
+        q.QualitySettings(point_density=0.0)
+    with pytest.raises(ValueError, match="point_density_light must not exceed point_density"):
+        q.QualitySettings(point_density=100.0, point_density_light=200.0)
+    with pytest.raises(ValueError, match="acceleration >= 0"):
+        q.QualitySettings(acceleration=-1.0)

@@ -247,3 +247,66 @@ def test_a_plate_from_depth_gets_rim_pinches_that_lift_it_in_pybullet(hand):
         model, np.linalg.inv(pose) @ gs.poses, physics.LiftSettings(rest_index=rest, table_clearance=-0.004)
     )
     assert (lifted == 1).sum() >= 3, lifted
+
+
+def test_a_part_seen_from_one_side_is_pinched_across_its_hull():
+    """A 2.5 cm thick bar whose front face alone is seen: no antipodal pair, but the hull behind the face
+    (here the bar's own volume) bounds the far side; the pinches close along the face's normal across
+    the bar, centred in it. A hull deeper than the opening gives none; one with something in front of
+    the face (the face is not the target's outside) gives none either."""
+    from pickplan.omg.grasps.hull_pinches import hull_pinch_candidates
+    from pickplan.omg.grasps.point_geometry import patch_normals
+
+    s = dataclasses.replace(PointGraspSettings(), max_width=0.08, pad_length=0.018, pad_width=0.018, width_margin=0.006)
+    gy, gz = np.meshgrid(np.arange(-0.03, 0.0301, 0.003), np.arange(0.05, 0.1501, 0.003))
+    P = np.column_stack([np.full(gy.size, 0.5), gy.ravel(), gz.ravel()])  # the seen face, x = 0.5
+    N = np.tile([-1.0, 0.0, 0.0], (len(P), 1))  # facing the camera at -x
+    Nf, coherence = patch_normals(P, N, s.patch_radius)
+    hx, hy, hz = np.meshgrid(
+        np.arange(0.5, 0.5251, 0.005), np.arange(-0.03, 0.0301, 0.005), np.arange(0.05, 0.151, 0.005)
+    )
+    H = np.column_stack([hx.ravel(), hy.ravel(), hz.ravel()])  # the bar behind the face, 2.5 cm deep
+    cands = hull_pinch_candidates(P, Nf, coherence, H, s)
+    assert len(cands) >= 10 * s.approach_angles
+    frames = np.stack([c[0] for c in cands])
+    widths = np.array([c[2] for c in cands])
+    np.testing.assert_allclose(np.abs(frames[:, 0, 1]), 1.0, atol=1e-9)  # closing along the face's normal
+    np.testing.assert_allclose(widths, 0.025, atol=1e-9)
+    np.testing.assert_allclose(frames[:, 0, 3], 0.5125, atol=1e-9)  # the pads centred across the bar
+    np.testing.assert_allclose(np.einsum("nij,nij->n", frames[:, :3, :3], frames[:, :3, :3]), 3.0)
+    deep = H.copy()
+    deep[:, 0] = 0.5 + (deep[:, 0] - 0.5) * 4  # 10 cm behind the face: wider than the opening
+    assert hull_pinch_candidates(P, Nf, coherence, deep, s) == []
+    front = np.vstack([H, [[0.49, 0.0, 0.1]]])  # a hull sample 1 cm in front of the face, in every tube
+    few = hull_pinch_candidates(P, Nf, coherence, front, s)
+    assert len(few) < len(cands)
+
+
+def test_a_pitcher_from_depth_is_pinched_by_its_handle_and_lifted_in_pybullet():
+    """The YCB pitcher (16 cm wide, its mouth closed in the scan) seen by 3 noisy cameras with its
+    handle turned from them: its seen surface gives a few grasps; pinches across the handle, bounded by
+    the visibility hull, add more, and they lift the true pitcher in PyBullet."""
+    from dataclasses import replace
+
+    from conftest import standing_pose, ycb_dir_or_skip
+    from pickplan.core import objects
+    from pickplan.omg.grasps import physics
+    from pickplan.omg.perceived_world import PerceivedWorld
+    from pickplan.sim import scenes
+
+    model = objects.library(ycb_dir_or_skip()).get("019_pitcher_base")
+    pose = standing_pose(model, (0.0, 0.0))
+    pose = np.diag([-1.0, -1.0, 1.0, 1.0]) @ pose  # turned half round about the vertical
+    pose[:2, 3] += (0.55, 0.0)
+    scene = scenes.Scene(
+        np.eye(4), scenes.default_table(), [scenes.SceneObject(model.name, model.source, pose)], model.name, seed=0
+    )
+    world = PerceivedWorld(render_observation(scene, views=3, noise=0.002, seed=0))
+    seen = PerceivedWorld(world.observation, settings=replace(world.settings, hull_pinches=False)).grasps(100)
+    every = world.grasps(100)
+    assert len(seen) < 10 and len(every) >= len(seen) + 20
+    np.testing.assert_array_equal(every.poses[: len(seen)], seen.poses)  # the seen surface's first
+    rest = int(np.argmax([r[2, :3] @ pose[2, :3] for r in model.resting_poses]))
+    pinches = np.linalg.inv(pose) @ every.poses[len(seen) : len(seen) + 8]
+    lifted = physics.lift_test(model, pinches, physics.LiftSettings(rest_index=rest))
+    assert (lifted == 1).sum() >= 6, lifted

@@ -296,6 +296,18 @@ def _raised_blocked(world: World, P: np.ndarray, lift: float, step: float) -> np
     return (d[1:].min(axis=0) < 0.0) & (d[0] >= 0.0)  # in an obstacle already: the collision checks say so
 
 
+def _second_look(world, settings: GoalSetSettings):
+    """How grasps the quality says slip are judged again where no other grasp gives a goal: a function
+    of grasps (target frame) to a keep mask, or None. A world with the target's mesh lifts them in
+    PyBullet (``settings.verify``); a world of observed points has no mesh, and its load is a guess
+    (``QualitySettings.point_density_light``: those that hold the lightest such target are kept)."""
+    if settings.quality is not None and hasattr(world, "light_load_holds"):
+        return lambda grasps: world.light_load_holds(grasps, settings.quality)
+    if settings.verify is not None and hasattr(world, "verify_grasps"):
+        return lambda grasps: world.verify_grasps(grasps, settings.verify).keep
+    return None
+
+
 def build_goal_set(
     world: World,
     grasps,
@@ -311,8 +323,8 @@ def build_goal_set(
     With ``collision_check``, grasps are first met with the support (``support_adjusted``): the
     returned ``GoalSet.grasps`` are the grasps as used (moved ones flagged in ``adjusted``); then
     judged by ``settings.quality`` (``World.grasp_quality``): those that do not hold are rejected and the
-    rest tried best margin first; if none of them gives a goal, those it is unsure of that hold in
-    PyBullet (``settings.verify``, ``World.verify_grasps``) are tried. An object with no reachable grasp
+    rest tried best margin first; if none of them gives a goal, those it is unsure of that hold on a
+    second look (``_second_look``: in PyBullet, or under the lightest load points allow) are tried. An object with no reachable grasp
     gives an empty goal set (with reasons), not an exception.
     ``seeds`` (N, dof): each grasp's first IK seed (a replan: its goal before the target moved).
     """
@@ -365,11 +377,12 @@ def build_goal_set(
 
     out = goals(tried)
     unsure = np.flatnonzero([r == GraspFit.slips.value for r in reasons])
-    if not len(out.goals) and len(unsure) and settings.verify is not None and hasattr(world, "verify_grasps"):
+    look = _second_look(world, settings)
+    if not len(out.goals) and len(unsure) and look is not None:
         # the reachable ones only (the budget goes to grasps that can become goals), best margin first
         tried = unsure[np.argsort(-margin[unsure], kind="stable")]
         reachable = np.unique(tried[np.asarray(goals(tried).grasp_index, dtype=int)])
-        held = world.verify_grasps(grasps[reachable], settings.verify).keep
+        held = look(grasps[reachable])
         for k in np.union1d(reachable[~held], [k for k in unsure if reasons[k] == "over_cap"]).astype(int):
             reasons[k] = GraspFit.slips.value  # failed in physics, or not looked at: the quality's verdict
         tried = reachable[held][np.argsort(-margin[reachable[held]], kind="stable")]

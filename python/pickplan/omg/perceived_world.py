@@ -64,6 +64,9 @@ class PerceivedWorldSettings:
     seed: int = 0  # plane RANSAC, hand samples, ISF subsample
     hull: HullSettings = dataclass_field(default_factory=HullSettings)
     use_hull: bool = False  # grasps clear the target's visibility hull, not only its observed points
+    # where the seen surface gives fewer grasps than asked: pinches of parts seen from one side, their
+    # far side bounded by the visibility hull (``grasps.hull_pinches``)
+    hull_pinches: bool = True
     clock: StageClock = StageClock.wall  # what ``PerceivedWorld.seconds`` read (thread_cpu: a shared machine's
     #                                      other processes do not count)
 
@@ -212,12 +215,9 @@ class PerceivedWorld:
 
     @functools.cached_property
     def hull(self) -> np.ndarray:
-        """Samples of where the target's unseen rest may be (``perception.hull.visibility_hull``)."""
-        clock = self.settings.timer()
-        t0 = clock()
-        out = visibility_hull(self.observation, self.perceived.target_points, self.plane, self.settings.hull)
-        self.seconds["grasps"] += clock() - t0
-        return out
+        """Samples of where the target's unseen rest may be (``perception.hull.visibility_hull``; timed
+        with the grasps that read it)."""
+        return visibility_hull(self.observation, self.perceived.target_points, self.plane, self.settings.hull)
 
     @functools.cached_property
     def hand_sdf(self) -> SceneSdf:
@@ -264,9 +264,25 @@ class PerceivedWorld:
         return ok
 
     def grasps(self, n: int = 100, seed: int = 0, standoff: float = GoalSetSettings.standoff) -> GraspSet:
-        """Up to ``n`` grasps of the observed target (world frame) clear of the field and the plane."""
+        """Up to ``n`` grasps of the observed target (world frame) clear of the field and the plane: from
+        its seen surface, then, where those are fewer than ``n`` (``settings.hull_pinches``), pinches of
+        parts seen from one side, bounded by the visibility hull (``grasps.hull_pinches``)."""
         clock = self.settings.timer()
         t0 = clock()
+        out = self._grasps_from_points(n, seed, standoff, self.hull if self.settings.use_hull else None, False)
+        if len(out) < n and self.settings.hull_pinches:
+            more = self._grasps_from_points(n - len(out), seed, standoff, self.hull, True)
+            out = GraspSet(
+                out.name,
+                np.concatenate([out.poses, more.poses]),
+                out.object_name,
+                scores=np.concatenate([out.scores, more.scores]),
+                info={k: np.concatenate([out.info[k], more.info[k]]) for k in out.info},
+            )
+        self.seconds["grasps"] += clock() - t0
+        return out
+
+    def _grasps_from_points(self, n: int, seed: int, standoff: float, hull, hull_pinches: bool) -> GraspSet:
         gs = grasps_from_points(
             self.perceived.target_points,
             self.perceived.target_normals,
@@ -278,19 +294,18 @@ class PerceivedWorld:
             hand_points=self.hand_points[0],
             settings=self.settings.grasps,
             gripper=self.robot.info,
-            hull=self.hull if self.settings.use_hull else None,
+            hull=hull,
             denoised_points=self._quality_points[0] if self.settings.grasps.denoise else None,
+            hull_pinches=hull_pinches,
         )
         keep = self.clear_of_plane(gs.poses, standoff) if len(gs) else np.zeros(0, dtype=bool)
-        out = GraspSet(
+        return GraspSet(
             gs.name,
             gs.poses[keep],
             gs.object_name,
             scores=gs.scores[keep],
             info={k: np.asarray(v)[keep] for k, v in gs.info.items()},
         )
-        self.seconds["grasps"] += clock() - t0
-        return out
 
     @functools.cached_property
     def _quality_points(self):
@@ -306,12 +321,22 @@ class PerceivedWorld:
         q = self.grasp_quality(grasps, settings)
         return q.margin, q.fit
 
-    def grasp_quality(self, grasps: np.ndarray, settings: quality.QualitySettings) -> quality.Quality:
+    def light_load_holds(self, grasps: np.ndarray, settings: quality.QualitySettings) -> np.ndarray:
+        """(N,) bool: which hand poses hold the target were it as light as such a target can be
+        (``settings.point_density_light``): the goal set's second look at grasps that slip under the
+        estimated load (``goals._second_look``)."""
+        q = self.grasp_quality(grasps, settings, density=settings.point_density_light)
+        return np.asarray([fit == quality.GraspFit.holds for fit in q.fit], dtype=bool).reshape(len(grasps))
+
+    def grasp_quality(
+        self, grasps: np.ndarray, settings: quality.QualitySettings, density: Optional[float] = None
+    ) -> quality.Quality:
         """The quality (``grasps.quality``) of hand poses (world frame) on the observed target: patches
         on its denoised points (an unseen side mirrors the seen one), its load from the points
-        (``point_geometry.points_load``: ``settings.point_density`` over their hull down to the plane)."""
+        (``point_geometry.points_load``: ``density``, by default ``settings.point_density``, over their
+        hull down to the plane)."""
         P, tree = self._quality_points
-        load = points_load(P, self.plane, settings.point_density)
+        load = points_load(P, self.plane, settings.point_density if density is None else density)
         frames = np.asarray(grasps, float).reshape(-1, 4, 4) @ self.robot.info.grasp_frame
         grip = quality.Grip.of(self.robot.info, settings.object_friction)
         # no normals: fitted on a few noisy points of a pen or an edge they are too rough to tilt a

@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 from pickplan import _core
 from pickplan.core.description import RobotInfo
 from pickplan.core.panda import PANDA
+from pickplan.omg.grasps.hull_pinches import hull_pinch_candidates
 from pickplan.omg.grasps.point_geometry import (
     _neighbourhoods,
     _unit_means,
@@ -370,6 +371,7 @@ def grasps_from_points(
     gripper: RobotInfo = PANDA,
     hull: Optional[np.ndarray] = None,
     denoised_points: Optional[np.ndarray] = None,
+    hull_pinches: bool = False,
 ) -> GraspSet:
     """Up to ``n`` grasps of the observed target (world frame; poses of ``gripper``'s hand link), best
     scores first.
@@ -381,6 +383,8 @@ def grasps_from_points(
     samples of where the unseen rest of the target may be (``perception.hull.visibility_hull``): the
     open hand must clear them as it clears the observed points. ``denoised_points``: ``denoised(points,
     normals, patch_radius)`` when the caller has it already (a perceived world's quality reads it too).
+    ``hull_pinches``: only pinches of parts seen from one side, their far side bounded by ``hull``
+    (``hull_pinches.hull_pinch_candidates``), for a caller the seen surface gave too few grasps.
 
     Candidates are scored first (from the points alone) and checked in score order until ``n`` pass:
     the same grasps as checking all of them, at a fraction of the cost.
@@ -405,12 +409,15 @@ def grasps_from_points(
         P = denoised(P, N, s.patch_radius) if denoised_points is None else np.asarray(denoised_points, float)
         near = _neighbourhoods(P, s.patch_radius)  # the fitted normals' and the contact patches'
         N = fitted_normals(P, N, s.patch_radius, near)
-    cands = (
-        antipodal_candidates(P, N, s, rng, near)
-        + footprint_candidates(P, plane, s)
-        + rim_candidates(P, plane, s, rng)
-        + local_candidates(P, plane, s, rng)
-    )
+    if hull_pinches:
+        cands = hull_pinch_candidates(P, *_unit_means(*(near or _neighbourhoods(P, s.patch_radius)), N, len(P)), H, s)
+    else:
+        cands = (
+            antipodal_candidates(P, N, s, rng, near)
+            + footprint_candidates(P, plane, s)
+            + rim_candidates(P, plane, s, rng)
+            + local_candidates(P, plane, s, rng)
+        )
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
     if not cands:
         return empty

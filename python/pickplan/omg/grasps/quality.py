@@ -69,6 +69,10 @@ class QualitySettings:
     # a heavy tool from one at its middle).
     point_compliance: float = 0.002
     point_density: float = 400.0
+    # The lightest such a target can be (an empty plastic bottle's or a foam block's order): where no
+    # reachable grasp from points holds the estimate, those that hold this lighter load are tried, for the
+    # density is a guess and a container's inside is taken as solid; one that slips even so slips.
+    point_density_light: float = 25.0
 
     def __post_init__(self):
         for name in (
@@ -79,9 +83,12 @@ class QualitySettings:
             "object_friction",
             "point_compliance",
             "point_density",
+            "point_density_light",
         ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"QualitySettings.{name}: expected a positive value, got {getattr(self, name)}")
+        if self.point_density_light > self.point_density:
+            raise ValueError("QualitySettings: point_density_light must not exceed point_density")
         if not self.acceleration >= 0 or self.max_samples < 100:
             raise ValueError("QualitySettings: expected acceleration >= 0 and max_samples >= 100")
 
