@@ -253,10 +253,11 @@ def test_a_part_seen_from_one_side_is_pinched_across_its_hull():
     """A 2.5 cm thick bar whose front face alone is seen: no antipodal pair, but the hull behind the face
     (here the bar's own volume) bounds the far side; the pinches close along the face's normal across
     the bar, centred in it. A hull deeper than the opening gives none; one with something in front of
-    the face (the face is not the target's outside) gives none either."""
+    the face (the face is not the target's outside) gives none either, nor a face seen from above."""
     from pickplan.omg.grasps.hull_pinches import hull_pinch_candidates
     from pickplan.omg.grasps.point_geometry import patch_normals
 
+    UP = np.array([0.0, 0.0, 1.0])
     s = dataclasses.replace(PointGraspSettings(), max_width=0.08, pad_length=0.018, pad_width=0.018, width_margin=0.006)
     gy, gz = np.meshgrid(np.arange(-0.03, 0.0301, 0.003), np.arange(0.05, 0.1501, 0.003))
     P = np.column_stack([np.full(gy.size, 0.5), gy.ravel(), gz.ravel()])  # the seen face, x = 0.5
@@ -266,7 +267,7 @@ def test_a_part_seen_from_one_side_is_pinched_across_its_hull():
         np.arange(0.5, 0.5251, 0.005), np.arange(-0.03, 0.0301, 0.005), np.arange(0.05, 0.151, 0.005)
     )
     H = np.column_stack([hx.ravel(), hy.ravel(), hz.ravel()])  # the bar behind the face, 2.5 cm deep
-    cands = hull_pinch_candidates(P, Nf, coherence, H, s)
+    cands = hull_pinch_candidates(P, Nf, coherence, H, UP, s)
     assert len(cands) >= 10 * s.approach_angles
     frames = np.stack([c[0] for c in cands])
     widths = np.array([c[2] for c in cands])
@@ -276,10 +277,13 @@ def test_a_part_seen_from_one_side_is_pinched_across_its_hull():
     np.testing.assert_allclose(np.einsum("nij,nij->n", frames[:, :3, :3], frames[:, :3, :3]), 3.0)
     deep = H.copy()
     deep[:, 0] = 0.5 + (deep[:, 0] - 0.5) * 4  # 10 cm behind the face: wider than the opening
-    assert hull_pinch_candidates(P, Nf, coherence, deep, s) == []
+    assert hull_pinch_candidates(P, Nf, coherence, deep, UP, s) == []
     front = np.vstack([H, [[0.49, 0.0, 0.1]]])  # a hull sample 1 cm in front of the face, in every tube
-    few = hull_pinch_candidates(P, Nf, coherence, front, s)
+    few = hull_pinch_candidates(P, Nf, coherence, front, UP, s)
     assert len(few) < len(cands)
+    # the same bar with its seen face on top: the hull under it is the face's shadow, no bound
+    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # -x (the face's normal) to +z
+    assert hull_pinch_candidates(P @ turn.T, Nf @ turn.T, coherence, H @ turn.T, UP, s) == []
 
 
 def test_a_pitcher_from_depth_is_pinched_by_its_handle_and_lifted_in_pybullet():

@@ -79,6 +79,9 @@ class PointGraspSettings:
     lever_scale: float = 0.05  # m of gravity's lever arm about the closing axis that costs one score point
     local_samples: int = 40  # footprint points local grasps from above are centred at (``local_candidates``)
     max_face_turn: float = 0.35  # rad a section's end may turn from the pads (``quality``'s align_deg, 20 deg)
+    # rad the closing axis of a pinch bounded by the visibility hull may rise from the support plane: the
+    # cameras look down on it, so the hull is carved beside a seen face but fills the shadow under it
+    hull_pinch_slope: float = 0.785
 
 
 def _frames(y: np.ndarray, z: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -410,7 +413,9 @@ def grasps_from_points(
         near = _neighbourhoods(P, s.patch_radius)  # the fitted normals' and the contact patches'
         N = fitted_normals(P, N, s.patch_radius, near)
     if hull_pinches:
-        cands = hull_pinch_candidates(P, *_unit_means(*(near or _neighbourhoods(P, s.patch_radius)), N, len(P)), H, s)
+        cands = hull_pinch_candidates(
+            P, *_unit_means(*(near or _neighbourhoods(P, s.patch_radius)), N, len(P)), H, plane[0], s
+        )
     else:
         cands = (
             antipodal_candidates(P, N, s, rng, near)
