@@ -278,7 +278,7 @@ def test_a_part_seen_from_one_side_is_pinched_across_its_hull():
     deep = H.copy()
     deep[:, 0] = 0.5 + (deep[:, 0] - 0.5) * 4  # 10 cm behind the face: wider than the opening
     assert hull_pinch_candidates(P, Nf, coherence, deep, UP, s) == []
-    front = np.vstack([H, [[0.49, 0.0, 0.1]]])  # a hull sample 1 cm in front of the face, in every tube
+    front = np.vstack([H, [[0.495, 0.0, 0.1]]])  # a hull sample 5 mm in front of the face
     few = hull_pinch_candidates(P, Nf, coherence, front, UP, s)
     assert len(few) < len(cands)
     # the same bar with its seen face on top: the hull under it is the face's shadow, no bound

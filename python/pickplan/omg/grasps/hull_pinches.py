@@ -11,6 +11,8 @@ judges the grip with the unseen side mirroring the seen one.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -33,25 +35,29 @@ def hull_pinch_candidates(P, N, coherence, H, up, s) -> list:
         return []
     seeds = coherent[_first_per_voxel(P[coherent], s.patch_radius)]
     X = np.vstack([P, H])
-    tree = cKDTree(X)
     opening = s.max_width - s.width_margin
     half_pad = s.pad_width / 2
-    out = []
-    for i, near in zip(seeds, tree.query_ball_point(P[seeds], opening + half_pad)):
-        inward = -N[i]
-        rel = X[near] - P[i]
-        depth = rel @ inward
-        lateral = np.linalg.norm(rel - np.outer(depth, inward), axis=1)
-        tube = lateral <= half_pad
-        if (depth[tube] < -s.clearance).any():  # something stands in front of the face: not its outside
-            continue
-        width = float(depth[tube].max())
-        if not s.min_width <= width <= opening:
-            continue
-        centre = P[i] + 0.5 * width * inward
-        for frame in _turned_frames(inward, centre, s.approach_angles):
-            out.append((frame, HULL_PINCH_MARGIN, width))
-    return out
+    # the tube from half a pad in front of the face to half a pad beyond the opening lies in this ball
+    # (a target deeper than the opening has samples in that last stretch: 5 mm hull voxels)
+    middle = P[seeds] - N[seeds] * opening / 2
+    lists = cKDTree(X).query_ball_point(middle, np.hypot(opening / 2 + half_pad, half_pad))
+    owner = np.repeat(np.arange(len(seeds)), [len(n) for n in lists])  # flattened (seed, neighbour) pairs
+    near = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=len(owner))
+    inward = -N[seeds]
+    rel = X[near] - P[seeds][owner]
+    depth = np.einsum("ij,ij->i", rel, inward[owner])
+    lateral = np.linalg.norm(rel - depth[:, None] * inward[owner], axis=1)
+    tube = lateral <= half_pad
+    front = np.zeros(len(seeds), bool)  # something stands in front of the face: not the target's outside
+    front[owner[tube & (depth < -s.clearance)]] = True
+    width = np.full(len(seeds), -np.inf)
+    np.maximum.at(width, owner[tube], depth[tube])
+    ok = ~front & (width >= s.min_width) & (width <= opening)
+    if not ok.any():
+        return []
+    y, w = inward[ok], width[ok]
+    frames = _turned_frames(y, P[seeds[ok]] + 0.5 * w[:, None] * y, s.approach_angles)
+    return [(f, HULL_PINCH_MARGIN, wk) for f, wk in zip(frames.reshape(-1, 4, 4), np.repeat(w, s.approach_angles))]
 
 
 def _first_per_voxel(P: np.ndarray, cell: float) -> np.ndarray:
@@ -60,16 +66,17 @@ def _first_per_voxel(P: np.ndarray, cell: float) -> np.ndarray:
     return np.sort(first)
 
 
-def _turned_frames(y: np.ndarray, centre: np.ndarray, turns: int):
-    """Grasp frames closing along ``y`` with the pads' centre at ``centre``, approaches ``turns`` even
-    steps round ``y`` (the same turns for every seed: no random draw)."""
-    ref = np.array([1.0, 0.0, 0.0]) if abs(y[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+def _turned_frames(y: np.ndarray, centre: np.ndarray, turns: int) -> np.ndarray:
+    """(M, turns, 4, 4) grasp frames closing along each ``y`` (M, 3) with the pads' centre at ``centre``,
+    approaches ``turns`` even steps round ``y`` (the same turns for every seed: no random draw)."""
+    ref = np.where((np.abs(y[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     z0 = np.cross(y, ref)
-    z0 /= np.linalg.norm(z0)
+    z0 /= np.linalg.norm(z0, axis=1, keepdims=True)
     z1 = np.cross(y, z0)
-    for k in range(turns):
-        t = 2 * np.pi * k / turns
-        z = np.cos(t) * z0 + np.sin(t) * z1
-        F = np.eye(4)
-        F[:3, 0], F[:3, 1], F[:3, 2], F[:3, 3] = np.cross(y, z), y, z, centre
-        yield F
+    t = 2 * np.pi * np.arange(turns) / turns
+    z = np.cos(t)[None, :, None] * z0[:, None] + np.sin(t)[None, :, None] * z1[:, None]  # (M, turns, 3)
+    Y = np.broadcast_to(y[:, None], z.shape)
+    F = np.zeros(z.shape[:2] + (4, 4))
+    F[..., :3, 0], F[..., :3, 1], F[..., :3, 2] = np.cross(Y, z), Y, z
+    F[..., :3, 3], F[..., 3, 3] = centre[:, None], 1.0
+    return F
