@@ -204,6 +204,22 @@ def test_the_time_budget(robot):
         routed.plan_routed(robot, problem, FAST, time_limit=-1.0)
 
 
+def test_the_budget_keeps_back_the_python_work_between_native_runs():
+    """A native run is given the time left less the longest Python stretch seen between a run's return
+    and the next run (the plan's dense checks, the next seed), so the same work after the last run
+    still ends by the deadline."""
+    none = routed._Budget(0.0)
+    assert none.settings(FAST) is FAST and not none.spent()
+    budget = routed._Budget(10.0)
+    first = budget.settings(FAST).time_limit
+    assert 9.9 < first <= 10.0 and budget.reserve == 0.0  # nothing seen yet to keep back
+    budget.note(planner.SolveStatus.solved, 0.01)
+    time.sleep(0.02)  # the work after the run
+    second = budget.settings(FAST).time_limit
+    assert budget.reserve >= 0.02 and second <= first - 0.04
+    assert not budget.spent()
+
+
 def test_the_route_search_and_the_seeds_stop_at_the_deadline(robot):
     spec = _spec(
         base_start=(0.0, 0.0, math.pi / 2),

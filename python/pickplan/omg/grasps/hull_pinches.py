@@ -6,7 +6,9 @@ closing along the seen face's normal, the far pad meets the target no further th
 behind the face. When that depth fits the opening, the pinch is a candidate: its pads centred between
 the seen face and the hull's far side, turned about the closing axis as antipodal pairs are. The open
 hand must then clear the hull as well as the points (``points.grasps_from_points``), and the quality
-judges the grip with the unseen side mirroring the seen one.
+judges the grip with the unseen side mirroring the seen one. The cameras look down on the support, so
+the hull is carved beside a seen face but fills the shadow under it: only closing axes near level are
+used (``PointGraspSettings.hull_pinch_slope``).
 """
 
 from __future__ import annotations

@@ -73,19 +73,29 @@ class _Budget:
         self.deadline = time.monotonic() + time_limit if time_limit > 0 else None
         self.cut = False
         self.quickest = 0.0
+        # The longest stretch of Python work between a native call's return and the next call (the
+        # plan's dense checks, the next seed): a native run is given the time left less this, so the
+        # same work after the last run still ends by the deadline (cut runs' plans returned 2-3 ms late).
+        self.reserve = 0.0
+        self.returned: Optional[float] = None
 
     def left(self) -> float:
         return math.inf if self.deadline is None else self.deadline - time.monotonic()
 
     def spent(self) -> bool:
-        return self.cut or self.left() <= self.quickest
+        return self.cut or self.left() <= self.quickest + self.reserve
 
     def settings(self, settings: planner.PlannerSettings) -> planner.PlannerSettings:
-        return settings if self.deadline is None else replace(settings, time_limit=max(1e-3, self.left()))
+        if self.deadline is None:
+            return settings
+        if self.returned is not None:
+            self.reserve = max(self.reserve, time.monotonic() - self.returned)
+        return replace(settings, time_limit=max(1e-3, self.left() - self.reserve))
 
     def note(self, status, seconds: float) -> None:
         """A native call's status (SolveStatus or the native enum; time_limit spends the budget)
         and wall time."""
+        self.returned = time.monotonic()
         if not isinstance(status, planner.SolveStatus):
             status = planner.SolveStatus.from_native(status)
         if status is planner.SolveStatus.time_limit:
