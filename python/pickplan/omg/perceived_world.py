@@ -326,7 +326,7 @@ class PerceivedWorld:
         (``settings.point_density_light``): the goal set's second look at grasps that slip under the
         estimated load (``goals._second_look``)."""
         q = self.grasp_quality(grasps, settings, density=settings.point_density_light)
-        return np.asarray([fit == quality.GraspFit.holds for fit in q.fit], dtype=bool).reshape(len(grasps))
+        return np.array([fit == quality.GraspFit.holds for fit in q.fit], dtype=bool)
 
     def grasp_quality(
         self, grasps: np.ndarray, settings: quality.QualitySettings, density: Optional[float] = None

@@ -18,6 +18,8 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pickplan.omg.grasps.point_geometry import first_per_voxel, turned_frames
+
 # Candidates score below observed pairs (margin 0.9-1): one side is a bound, not a measurement.
 HULL_PINCH_MARGIN = 0.3
 
@@ -35,7 +37,7 @@ def hull_pinch_candidates(P, N, coherence, H, up, s) -> list:
     coherent = np.flatnonzero((coherence >= s.patch_coherence) & level)
     if len(coherent) == 0:
         return []
-    seeds = coherent[_first_per_voxel(P[coherent], s.patch_radius)]
+    seeds = coherent[first_per_voxel(P[coherent], s.patch_radius)]
     X = np.vstack([P, H])
     opening = s.max_width - s.width_margin
     half_pad = s.pad_width / 2
@@ -58,27 +60,6 @@ def hull_pinch_candidates(P, N, coherence, H, up, s) -> list:
     if not ok.any():
         return []
     y, w = inward[ok], width[ok]
-    frames = _turned_frames(y, P[seeds[ok]] + 0.5 * w[:, None] * y, s.approach_angles)
+    turns = np.broadcast_to(2 * np.pi * np.arange(s.approach_angles) / s.approach_angles, (len(y), s.approach_angles))
+    frames = turned_frames(y, P[seeds[ok]] + 0.5 * w[:, None] * y, turns)  # the same turns for every seed
     return [(f, HULL_PINCH_MARGIN, wk) for f, wk in zip(frames.reshape(-1, 4, 4), np.repeat(w, s.approach_angles))]
-
-
-def _first_per_voxel(P: np.ndarray, cell: float) -> np.ndarray:
-    """Indices, ascending, of the first point of ``P`` in each ``cell``-sized voxel."""
-    _, first = np.unique(np.floor(P / cell).astype(np.int64), axis=0, return_index=True)
-    return np.sort(first)
-
-
-def _turned_frames(y: np.ndarray, centre: np.ndarray, turns: int) -> np.ndarray:
-    """(M, turns, 4, 4) grasp frames closing along each ``y`` (M, 3) with the pads' centre at ``centre``,
-    approaches ``turns`` even steps round ``y`` (the same turns for every seed: no random draw)."""
-    ref = np.where((np.abs(y[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    z0 = np.cross(y, ref)
-    z0 /= np.linalg.norm(z0, axis=1, keepdims=True)
-    z1 = np.cross(y, z0)
-    t = 2 * np.pi * np.arange(turns) / turns
-    z = np.cos(t)[None, :, None] * z0[:, None] + np.sin(t)[None, :, None] * z1[:, None]  # (M, turns, 3)
-    Y = np.broadcast_to(y[:, None], z.shape)
-    F = np.zeros(z.shape[:2] + (4, 4))
-    F[..., :3, 0], F[..., :3, 1], F[..., :3, 2] = np.cross(Y, z), Y, z
-    F[..., :3, 3], F[..., 3, 3] = centre[:, None], 1.0
-    return F

@@ -101,13 +101,35 @@ def gravity_lever(G: np.ndarray, P: np.ndarray, plane) -> np.ndarray:
     return np.abs(np.einsum("ij,ij->i", arm, G[:, :3, 1]))
 
 
-def thinned(P: np.ndarray, cell: float) -> np.ndarray:
-    """One point per ``cell``-sized voxel (the first), order kept: overlapping views' points once."""
+def first_per_voxel(P: np.ndarray, cell: float) -> np.ndarray:
+    """Indices, ascending, of the first point of ``P`` in each ``cell``-sized voxel (every index when
+    ``P`` is empty or ``cell`` <= 0)."""
     if len(P) == 0 or cell <= 0:
-        return P
+        return np.arange(len(P))
     V = np.floor(P / cell).astype(np.int64)
     V -= V.min(axis=0)
     span = V.max(axis=0) + 1
     # one integer per voxel (row-major over the points' box): a 1-D unique, not a row-wise one
     _, first = np.unique((V[:, 0] * span[1] + V[:, 1]) * span[2] + V[:, 2], return_index=True)
-    return P[np.sort(first)]
+    return np.sort(first)
+
+
+def thinned(P: np.ndarray, cell: float) -> np.ndarray:
+    """One point per ``cell``-sized voxel (the first), order kept: overlapping views' points once."""
+    return P[first_per_voxel(P, cell)]
+
+
+def turned_frames(axis: np.ndarray, centre: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """(M, A, 4, 4) grasp frames closing along each unit ``axis`` (M, 3), the pads' centre at ``centre``
+    (M, 3), the approach turned by ``theta`` (M, A) rad about the axis from a perpendicular (as
+    ``sets._perpendicular`` picks it, for all axes at once)."""
+    ref = np.where((np.abs(axis[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    z0 = np.cross(axis, ref)
+    z0 /= np.linalg.norm(z0, axis=1, keepdims=True)
+    z1 = np.cross(axis, z0)
+    z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * z1[:, None]  # (M, A, 3)
+    y = np.broadcast_to(axis[:, None], z.shape)
+    F = np.zeros(z.shape[:2] + (4, 4))
+    F[..., :3, 0], F[..., :3, 1], F[..., :3, 2] = np.cross(y, z), y, z
+    F[..., :3, 3], F[..., 3, 3] = centre[:, None], 1.0
+    return F

@@ -43,6 +43,7 @@ from pickplan.omg.grasps.point_geometry import (
     fitted_normals,
     gravity_lever,
     thinned,
+    turned_frames,
 )
 from pickplan.omg.grasps.sets import GraspSet, _check_count, _perpendicular
 
@@ -143,18 +144,10 @@ def antipodal_candidates(P, N, s: PointGraspSettings, rng, near=None) -> list:
         return []
     i, j, margin, w = pairs[:, 0].astype(int), pairs[:, 1].astype(int), pairs[:, 2], pairs[:, 3]
     axis = (P[j] - P[i]) / w[:, None]
-    ref = np.where((np.abs(axis[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    z0 = np.cross(axis, ref)  # as sets._perpendicular, for all pairs at once
-    z0 /= np.linalg.norm(z0, axis=1, keepdims=True)
-    z1 = np.cross(axis, z0)
     theta = (
         rng.uniform(0, 2 * np.pi, len(pairs))[:, None] + 2 * np.pi * np.arange(s.approach_angles) / s.approach_angles
     )
-    z = np.cos(theta)[..., None] * z0[:, None] + np.sin(theta)[..., None] * z1[:, None]  # (M, A, 3)
-    y = np.broadcast_to(axis[:, None], z.shape)
-    F = np.zeros(z.shape[:2] + (4, 4))
-    F[..., :3, 0], F[..., :3, 1], F[..., :3, 2] = np.cross(y, z), y, z
-    F[..., :3, 3], F[..., 3, 3] = (0.5 * (P[i] + P[j]))[:, None], 1.0
+    F = turned_frames(axis, 0.5 * (P[i] + P[j]), theta)
     return [
         (f, m, wk)
         for f, m, wk in zip(F.reshape(-1, 4, 4), np.repeat(margin, s.approach_angles), np.repeat(w, s.approach_angles))
