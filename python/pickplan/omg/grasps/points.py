@@ -11,7 +11,8 @@ Three kinds of candidates, all in the world frame (a ``GraspSet`` whose object f
   vertical), the width and the pads' centre come from the cross-section the pads close on (the points
   from the pads' lower edge up: a bottle's cap, not its body); from the side (approach horizontal),
   from a section at half the height and one a pad under the top, the pads a depth in from its edge;
-- rim pinches of open containers (one pad inside the wall, its finger stopping above a floor);
+- rim pinches of open containers (one pad inside the wall, the pads lying on it as it leans, the
+  inner finger stopping above a floor);
 - local grasps from above across a part of the footprint (a blade, a handle, a loop: thin targets
   whose whole footprint is wider than the opening), the fingertips resting on the support.
 
@@ -72,6 +73,7 @@ class PointGraspSettings:
     rim_samples: int = 40  # rim points tried
     rim_wall: float = 0.01  # m, the wall thickness a rim pinch assumes (centred 5 mm inside)
     rim_finger_reach: float = 0.02  # m inwards from the inner pad that the inner finger's body covers
+    rim_overlap: float = 1 / 3  # of the pads' length at least on a pinched wall, under its top's points
     patch_radius: float = 0.008  # m, an antipodal contact's patch (about half a pad)
     patch_coherence: float = 0.9  # the patch's normals' mean length an antipodal contact needs
     denoise: bool = True  # points moved onto their patch's mean plane, normals fitted (``denoised``)
@@ -282,28 +284,53 @@ def _side_candidates(rel, centre, y, x, width, s: PointGraspSettings) -> list:
     return out
 
 
-def _floor_under(P, height, inner, y, x, s: PointGraspSettings) -> float:
-    """The highest point under the inner finger of a rim pinch (its pad's inner face at ``inner``,
-    the finger's body ``rim_finger_reach`` further in along -``y``, a pad wide along ``x``): a
-    plate's or a bowl's floor, which the finger stops above. Minus infinity when no point is there."""
+def _wall_lean(P, N, height, top: float, centre, n, s: PointGraspSettings) -> float:
+    """How far the target's wall under its rim leans out from vertical (rad, in the plane of the radius
+    and the support's normal ``n``; negative: in, a jar's shoulder): the median over the faces seen
+    within half a pad's length under the top (outer faces' normals point out and down, inner ones' in
+    and up). One figure for the whole rim: a thin wall's normals are fitted across its lip and a point's
+    few neighbours scatter by tens of degrees. 0 when fewer than 20 face points are seen; clipped to
+    ``max_tilt``."""
+    band = (height <= top - s.clearance) & (height >= top - s.clearance - s.pad_length / 2)
+    radial = P[band] - centre
+    radial -= np.outer(radial @ n, n)
+    r = np.linalg.norm(radial, axis=1)
+    c = np.einsum("ij,ij->i", N[band], radial) / np.maximum(r, 1e-12)
+    v = N[band] @ n
+    side = (np.abs(c) >= np.abs(v)) & (r > 0)  # faces of the wall (not the lip's top, nor a floor's corner)
+    if side.sum() < 20:
+        return 0.0
+    lean = np.arctan2(-np.sign(c[side]) * v[side], np.abs(c[side]))
+    return float(np.clip(np.median(lean), -s.max_tilt, s.max_tilt))
+
+
+def _floor_depth(P, rim_point, inner, y, x, u, s: PointGraspSettings) -> float:
+    """The highest point under the inner finger of a rim pinch (its pad's inner face at ``inner``, the
+    finger's body ``rim_finger_reach`` further in along -``y``, a pad wide along ``x``), as its height
+    along the fingers' ``u`` (the approach reversed) over ``rim_point``: a plate's or a bowl's floor,
+    which the finger stops above. Minus infinity when no point is there."""
     rel = P - inner
     along, across = rel @ -y, np.abs(rel @ x)
     under = (along >= 0.0) & (along <= s.rim_finger_reach) & (across <= s.pad_width / 2 + s.clearance)
-    return float(height[under].max()) if under.any() else -np.inf
+    return float(((P[under] - rim_point) @ u).max()) if under.any() else -np.inf
 
 
-def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
+def rim_candidates(P, N, plane, s: PointGraspSettings, rng) -> list:
     """Pinches of the target's top rim from above (bowls, mugs, pitchers, plates): one pad outside
-    the wall, the other inside, closing along the footprint's radius through a rim point. The pads go
-    ``grasp_depths`` under the top, but the fingertips no lower than the support (the outer finger's)
-    and a clearance above the points under the inner finger (a plate's floor: a low rim is pinched
-    by the pads' lower part, the inner finger standing on nothing). On a solid top the inner finger
-    meets observed points and the open-hand check drops the candidate."""
+    the wall, the other inside, closing across the wall through a rim point. The pads lie on the wall
+    as it leans (``_wall_lean``: a bowl's wall leans out; pads upright on it would touch the lip's edge
+    alone, and the lift would turn the wall flat onto them), the approach running down the wall. They
+    go ``grasp_depths`` under the top, but the fingertips no lower than the support (the outer
+    finger's) and a clearance above the points under the inner finger (a plate's floor: a low rim is
+    pinched by the pads' lower part, the inner finger standing on nothing). On a solid top the inner
+    finger meets observed points and the open-hand check drops the candidate."""
     n, d = plane
     height = P @ n - d
-    top = float(height.max())
+    top = float(np.percentile(height, 99.0))  # the max is the noisiest point's: mm above a rim's lip
     rim = np.flatnonzero(height > top - s.rim_band)
     centre = (P - np.outer(height, n)).mean(axis=0)
+    on_wall = max(s.clearance, s.rim_overlap * s.pad_length)  # of pad under the top
+    lean = _wall_lean(P, N, height, top, centre, n, s)
     out = []
     for i in rng.choice(rim, min(s.rim_samples, len(rim)), replace=False):
         radial = P[i] - centre
@@ -311,18 +338,24 @@ def rim_candidates(P, plane, s: PointGraspSettings, rng) -> list:
         r = np.linalg.norm(radial)
         if r < s.max_width / 2:  # a narrow top: the footprint grasps close on all of it
             continue
-        y = radial / r
-        x = np.cross(y, -n)
-        floor = _floor_under(P, height, P[i] - s.rim_wall * y, y, x, s)
+        x = np.cross(radial / r, -n)
+        y = np.cos(lean) * radial / r - np.sin(lean) * n  # across the wall
+        down = -np.cos(lean) * n - np.sin(lean) * radial / r  # along it
         for tilt in (0.0, s.max_tilt / 2):
-            z = -np.cos(tilt) * n + np.sin(tilt) * x
-            reach = s.pad_length / 2 * abs(np.cos(tilt))  # the fingertips below the pads' centre
-            lowest = max(reach - s.table_contact, floor + reach + s.clearance + 0.001)
-            if lowest - reach >= top - s.clearance:  # the pads would end above the rim
+            z = np.cos(tilt) * down + np.sin(tilt) * x
+            u, rise = -z, float(-z @ n)  # the fingers' axis, and its rise per metre
+            reach = s.pad_length / 2  # the fingertips beyond the pads' centre
+            floor = _floor_depth(P, P[i], P[i] - s.rim_wall * y, y, x, u, s)
+            # how far the pads' centre may go down the wall from the rim point: the fingertips a
+            # clearance above the floor, and the open fingers' (the outer one dips on a leaning wall) at
+            # most table_contact into the support
+            dip = reach * rise + s.max_width / 2 * abs(float(y @ n))
+            deepest = min(-floor - reach - s.clearance - 0.001, (height[i] + s.table_contact - dip) / rise)
+            if height[i] - (deepest + reach) * rise > top - on_wall:  # the pads would end on the lip
                 continue
             for depth in s.grasp_depths[:2]:  # a low rim (a plate's): as deep as the floor lets the pads go
-                pad = P[i] - s.rim_wall / 2 * y + (max(lowest, top - depth) - height[i]) * n
-                out.append((_frames(y, z, pad), 0.5, s.rim_wall))
+                go = min(deepest, (height[i] - (top - depth)) / rise)
+                out.append((_frames(y, z, P[i] - s.rim_wall / 2 * y - go * u), 0.5, s.rim_wall))
     return out
 
 
@@ -413,7 +446,7 @@ def grasps_from_points(
         cands = (
             antipodal_candidates(P, N, s, rng, near)
             + footprint_candidates(P, plane, s)
-            + rim_candidates(P, plane, s, rng)
+            + rim_candidates(P, N, plane, s, rng)
             + local_candidates(P, plane, s, rng)
         )
     empty = GraspSet("points", np.zeros((0, 4, 4)), "observed target", scores=np.zeros(0), info={"width": np.zeros(0)})
