@@ -265,6 +265,39 @@ def test_straight_retract_with_near_flat_joints_is_timed_within_limits(grid_per_
     assert timed.slowdown < 1.05
 
 
+# A lift the pick-and-place planner made (built-in scene 10 from 3 views): joint 1 turns back at the third
+# waypoint (a step of 1e-6 rad), where PCHIP's q' is exactly 0. With the path on s in [0, 1] its s' ran to
+# hundreds, TOPP-RA's LP came out empty on 6 or more grid points per segment and the unit ended with an
+# exception.
+TURN = np.array(
+    [
+        [-0.204577, 0.104171, -0.442874, -2.130783, 0.313930, 2.018794, 1.540561, 0.04, 0.04],
+        [-0.203547, 0.104074, -0.442071, -2.122834, 0.313065, 2.011574, 1.544928, 0.04, 0.04],
+        [-0.202534, 0.104073, -0.441267, -2.114796, 0.312262, 2.004343, 1.549244, 0.04, 0.04],
+        [-0.201538, 0.104171, -0.440463, -2.106669, 0.311522, 1.997101, 1.553512, 0.04, 0.04],
+        [-0.200561, 0.104365, -0.439659, -2.098454, 0.310842, 1.989847, 1.557731, 0.04, 0.04],
+        [-0.199602, 0.104656, -0.438856, -2.090149, 0.310222, 1.982582, 1.561903, 0.04, 0.04],
+        [-0.198661, 0.105043, -0.438055, -2.081754, 0.309660, 1.975304, 1.566028, 0.04, 0.04],
+        [-0.197739, 0.105526, -0.437256, -2.073269, 0.309157, 1.968013, 1.570109, 0.04, 0.04],
+        [-0.196836, 0.106106, -0.436459, -2.064694, 0.308710, 1.960710, 1.574145, 0.04, 0.04],
+        [-0.195951, 0.106781, -0.435666, -2.056027, 0.308319, 1.953393, 1.578138, 0.04, 0.04],
+        [-0.195086, 0.107552, -0.434875, -2.047269, 0.307984, 1.946062, 1.582088, 0.04, 0.04],
+    ]
+)
+
+
+@pytest.mark.parametrize("grid_per_segment", [4, 8, 16, 32, 64])
+def test_a_short_path_turning_a_joint_back_is_timed_on_every_grid(grid_per_segment):
+    """Rest to rest is always feasible: the path runs over its joint-space length, so the LP is solved on
+    path speeds of the joints' order, within the limits, on the path."""
+    limits = panda_limits()
+    timed = time_parameterize(TURN, 250.0, limits, grid_per_segment=grid_per_segment)
+    check_within_limits(timed, limits)
+    assert np.all(in_some_segment_box(timed.q, TURN, tol=1e-6))
+    assert np.array_equal(timed.q[0], TURN[0]) and np.array_equal(timed.q[-1], TURN[-1])
+    assert timed.slowdown < 1.1
+
+
 @pytest.mark.parametrize("interpolation", list(Interpolation))
 def test_path_left_derivatives_are_the_pieces_before_each_waypoint(interpolation):
     """The acceleration constraint bounds q'' from both sides of a waypoint: the left one is the limit of

@@ -189,12 +189,15 @@ def _check_waypoints(waypoints) -> np.ndarray:
 
 
 def _path(Q: np.ndarray, interpolation: Interpolation):
-    """The geometric path q(s) through Q, s evenly spaced on [0, 1], as toppra reads a path; its
-    ``left(s, order)`` is the derivative's limit from the left (PCHIP's q'' jumps at the waypoints)."""
+    """The geometric path q(s) through Q, s evenly spaced on [0, the polyline's length], as toppra reads a
+    path; its ``left(s, order)`` is the derivative's limit from the left (PCHIP's q'' jumps at the
+    waypoints)."""
     from scipy.interpolate import CubicSpline, PchipInterpolator
     from toppra.interpolator import AbstractGeometricPath
 
-    ss = np.linspace(0.0, 1.0, len(Q))
+    # s runs over the joint-space length, so the path speed s' is of the joints' speed: on [0, 1] a
+    # short path's s' reached hundreds and TOPP-RA's LP (in s'^2) lost its sets to round-off
+    ss = np.linspace(0.0, float(np.linalg.norm(np.diff(Q, axis=0), axis=1).sum()), len(Q))
     spline = PchipInterpolator(ss, Q) if interpolation is Interpolation.PCHIP else CubicSpline(ss, Q)
     derivatives = (spline, spline.derivative(1), spline.derivative(2))
 
@@ -218,7 +221,7 @@ def _path(Q: np.ndarray, interpolation: Interpolation):
 
         @property
         def path_interval(self):
-            return np.array([0.0, 1.0])
+            return np.array([0.0, ss[-1]])
 
         @property
         def waypoints(self):
@@ -290,7 +293,7 @@ def time_parameterize(
     path, ss = _path(Q, interpolation)
     # Every segment cut in grid_per_segment equal stages from its waypoint: the waypoints are grid points
     # exactly (no stage a rounding error long)
-    grid = np.append(ss[:-1, None] + np.diff(ss)[:, None] * (np.arange(grid_per_segment) / grid_per_segment), 1.0)
+    grid = np.append(ss[:-1, None] + np.diff(ss)[:, None] * (np.arange(grid_per_segment) / grid_per_segment), ss[-1])
     constraints = [
         toppra.constraint.JointVelocityConstraint(limits.velocity),
         _acceleration_constraint(limits.acceleration),
