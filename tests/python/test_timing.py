@@ -287,14 +287,18 @@ TURN = np.array(
 
 
 @pytest.mark.parametrize("grid_per_segment", [4, 8, 16, 32, 64])
-def test_a_short_path_turning_a_joint_back_is_timed_on_every_grid(grid_per_segment):
-    """Rest to rest is always feasible: the path runs over its joint-space length, so the LP is solved on
-    path speeds of the joints' order, within the limits, on the path."""
+@pytest.mark.parametrize("first", [0, 1])
+def test_a_short_path_turning_a_joint_back_is_timed_on_every_grid(grid_per_segment, first):
+    """Rest to rest is always feasible. The path runs over its joint-space length, so the LP is solved on
+    path speeds of the joints' order; from the second waypoint the turn is the first waypoint inside the
+    path, where q'' from both of its sides gave the LP a NaN and toppra's own constraint times it. Within
+    the limits, on the path."""
+    Q = TURN[first:]
     limits = panda_limits()
-    timed = time_parameterize(TURN, 250.0, limits, grid_per_segment=grid_per_segment)
+    timed = time_parameterize(Q, 250.0, limits, grid_per_segment=grid_per_segment)
     check_within_limits(timed, limits)
-    assert np.all(in_some_segment_box(timed.q, TURN, tol=1e-6))
-    assert np.array_equal(timed.q[0], TURN[0]) and np.array_equal(timed.q[-1], TURN[-1])
+    assert np.all(in_some_segment_box(timed.q, Q, tol=1e-6))
+    assert np.array_equal(timed.q[0], Q[0]) and np.array_equal(timed.q[-1], Q[-1])
     assert timed.slowdown < 1.1
 
 

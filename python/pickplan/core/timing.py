@@ -294,12 +294,17 @@ def time_parameterize(
     # Every segment cut in grid_per_segment equal stages from its waypoint: the waypoints are grid points
     # exactly (no stage a rounding error long)
     grid = np.append(ss[:-1, None] + np.diff(ss)[:, None] * (np.arange(grid_per_segment) / grid_per_segment), ss[-1])
-    constraints = [
-        toppra.constraint.JointVelocityConstraint(limits.velocity),
-        _acceleration_constraint(limits.acceleration),
-    ]
-    solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
-    timing = _compute(solver, path, Q, start_velocity)
+    velocity = toppra.constraint.JointVelocityConstraint(limits.velocity)
+    timing = None
+    # q'' from both sides of a waypoint first; where a joint turns back on one (PCHIP's q' exactly 0
+    # there) its LP can give NaN and empty the sets: toppra's own constraint (q'' from one side) then
+    # times the path, and the samples are checked against the limits below either way
+    for acceleration in (_acceleration_constraint, toppra.constraint.JointAccelerationConstraint):
+        constraints = [velocity, acceleration(limits.acceleration)]
+        solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+        timing = _compute(solver, path, Q, start_velocity)
+        if timing is not None:
+            break
     if timing is None:
         raise TimingError(f"TOPP-RA found no time parameterization of {len(Q)} waypoints")
     optimum = float(timing.duration)
