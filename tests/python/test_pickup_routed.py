@@ -248,6 +248,34 @@ def test_single_shot_from_a_given_seed(robot):
         planner.plan(robot, problem, FAST, planner.Method.single_shot, x0=np.asarray(r1.x)[:-1])
 
 
+def test_the_five_stages_run_on_the_stage_1_base_path_lifted_to_a_higher_degree(robot):
+    """A stage-1 solution lifted to LATER_BASE_DEGREE is the same path (numpy's evaluation of both sets of
+    monomial coefficients agrees at every normalised time); the routed plan's five stages run at that
+    base degree and it passes the dense checks (at the default 8 samples per interval: at 6 the degree-12
+    base slides sideways between them here, and the all-constraint fallback at degree 7 is the plan);
+    the caller's degrees are kept."""
+    problem = _native(robot, _spec())
+    settings = replace(FAST, samples_per_interval=8)
+    variant = routed._variants(robot, settings)[0]
+    _, x0 = next(routed.seeds(robot, problem, variant, routes=0))
+    r = planner.solve_stage(robot, problem, x0, 1, variant)
+    assert r.success
+    lifted, x = routed._raised(variant, np.asarray(r.x), robot.dof)
+    L = routed.LATER_BASE_DEGREE
+    assert list(lifted.degrees) == [L, L, L] + list(variant.degrees[3:]) and variant.degrees[0] < L
+    s = np.linspace(0.0, 1.0, 101)
+    a = b = 0
+    for d_old, d_new in zip(variant.degrees, lifted.degrees):
+        old, new = np.asarray(r.x)[a : a + d_old + 1], x[b : b + d_new + 1]
+        np.testing.assert_allclose(np.polynomial.polynomial.polyval(s, new), np.polynomial.polynomial.polyval(s, old))
+        a, b = a + d_old + 1, b + d_new + 1
+    np.testing.assert_array_equal(x[b:], np.asarray(r.x)[a:])  # T1 / T, T2 / T, T, S_g, S_c
+    p = routed.plan_routed(robot, problem, settings, routes=0)
+    assert p.success and list(p.native.degrees)[:3] == [L, L, L] and planner.passes_dense_checks(robot, problem, p)
+    kept = routed.plan_routed(robot, problem, replace(settings, degrees=list(variant.degrees)), routes=0)
+    assert list(kept.native.degrees) == list(variant.degrees)
+
+
 def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robot, monkeypatch):
     problem = _native(robot, _spec())
     real, real_stage = planner.plan, planner.solve_stage
@@ -272,13 +300,14 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     # The first base path's fallback comes before the next base path's five stages; it passes, so
     # the quintic base path (the later degree) is never solved.
     S, D = planner.Method.successive, planner.Method.single_shot
-    assert calls == [(S, 7), (D, 7)] and stage1 == [7]
+    L = routed.LATER_BASE_DEGREE  # the five stages lift the stage-1 base path to it; the fallback does not
+    assert calls == [(S, L), (D, 7)] and stage1 == [7]
     calls.clear()
     stage1.clear()
     off = routed.plan_routed(robot, problem, FAST, routes=0, fallback=False)
     assert not off.success and off.reason is Reason.solver_failed
     # No fallback: the quintic's stage 1 and five stages only after the degree-7 base path's failed.
-    assert calls[:2] == [(S, 7), (S, 5)] and stage1[:2] == [7, 5] and D not in [m for m, _ in calls]
+    assert calls[:2] == [(S, L), (S, L)] and stage1[:2] == [7, 5] and D not in [m for m, _ in calls]
     # An all-constraint plan far from the bound (here any: SECOND_OPINION 0) gets the next base
     # path's plans as its second opinion: the five stages from it (which pass here), the shorter kept.
     plans = []
@@ -293,9 +322,12 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     monkeypatch.setattr(planner, "plan", first_five_stages_fail)
     monkeypatch.setattr(routed, "SECOND_OPINION", 0.0)
     p = routed.plan_routed(robot, problem, FAST, routes=0)
-    # (The next base path here is the quintic's, solved only now.)
-    assert [m for m, _ in plans] == [planner.Method.successive, planner.Method.single_shot, planner.Method.successive]
-    assert p.success and p.T == min(q.T for _, q in plans[1:]) and planner.passes_dense_checks(robot, problem, p)
+    # (The next base path here is the quintic's, solved only now; its five-stage plan may fail the dense
+    # checks and get its own fallback.)
+    S, D = planner.Method.successive, planner.Method.single_shot
+    assert [m for m, _ in plans][:3] == [S, D, S]
+    passed = [q.T for _, q in plans[1:] if q.success and planner.passes_dense_checks(robot, problem, q)]
+    assert p.success and p.T == min(passed) and planner.passes_dense_checks(robot, problem, p)
 
 
 def test_plans_that_fail_between_the_samples_are_solved_again_at_refined_samples(robot, monkeypatch):

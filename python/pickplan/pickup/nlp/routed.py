@@ -8,7 +8,8 @@ successive refinement from the fastest base path, and a wall-clock budget.
    heuristic seed and from up to ``routes`` route seeds at base degree 7; the solved ones are ranked
    by their T. The quintic base from the heuristic seed runs only when their plans are spent.
 3. The stage-1 solutions less repeats (two seeds that reach the same optimum); from each in turn,
-   the five stages (native ``solve_successive``: arm seeds), and when their plan fails (or fails
+   the five stages (native ``solve_successive``: arm seeds; the base path lifted to
+   LATER_BASE_DEGREE, so stage 3 can slow it round the grasp alone), and when their plan fails (or fails
    the dense checks, ``planner.dense_checks``) all constraints at once (the native direct track,
    on its own) from the same solution, while the budget lasts. The first plan that passes is
    returned; above SECOND_OPINION times the bound it gets a second opinion first (a five-stage
@@ -50,6 +51,12 @@ ROUTES = 3  # route seeds tried in stage 1 beside the heuristic seed
 # problems) and cost 0.2-0.7 s of CPU on each of 12 behind problems profiled, where it never
 # converged (bench/PICKUP.md, session 23).
 BASE_DEGREES = (7, 5)
+# The base degree of the five stages from a stage-1 solution (with the default degrees): the same path
+# at this degree (its coefficients padded with zeros). Stage 3's grasp timing slows the base round the
+# window, and a degree-7 path could only slow all of it: paper layout, 40 problems, T / bound median
+# 1.55 -> 1.37 (p90 1.99 -> 1.51), CPU median 0.38 -> 0.46 s (degree 10: 1.44). 12 is the highest
+# PolyTraj takes. The all-constraint fallback keeps the stage-1 degree.
+LATER_BASE_DEGREE = 12
 # A five-stage plan whose T exceeds this multiple of the lower bound (issue 37's worst-case target)
 # gets a second opinion: all constraints at once from the same stage-1 solution, kept when shorter.
 # The five stages commit the arm to one IK branch and grasp timing; far from the bound that is
@@ -123,9 +130,10 @@ class Part(enum.Enum):
 
 def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1.0, part: Part = Part.every) -> list:
     """Stage 1 from every seed (the first base degree) and from the heuristic seed (the others) while
-    time is left: [(T, label, settings, x)] of the solved runs, fastest first (the first degree
-    first among equal T). ``factor`` scales the samples per interval (the later stages from such a
-    solution keep them)."""
+    time is left: [(T, label, settings, x, later)] of the solved runs, fastest first (the first degree
+    first among equal T); ``later``: (settings, x) of the same path at LATER_BASE_DEGREE for the five
+    stages, None with the caller's degrees. ``factor`` scales the samples per interval (the later
+    stages from such a solution keep them)."""
     solved = []
     if factor != 1:
         settings = replace(settings, samples_per_interval=int(round(settings.samples_per_interval * factor)))
@@ -148,8 +156,24 @@ def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1
                     else f"{label}, base degree {variant.degrees[0]}"
                 )
                 name += f", {variant.samples_per_interval} samples per interval" if factor != 1 else ""
-                solved.append((r.objective * (1 + 1e-3 * k), name, variant, np.asarray(r.x)))
+                x = np.asarray(r.x)
+                # the five stages' base degree (the caller's degrees stay)
+                later = None if len(settings.degrees) else _raised(variant, x, robot.dof)
+                solved.append((r.objective * (1 + 1e-3 * k), name, variant, x, later))
     return sorted(solved, key=lambda s: s[0])
+
+
+def _raised(variant: planner.PlannerSettings, x: np.ndarray, dof: int) -> tuple:
+    """(settings, x) of the same plan with the base polynomials at LATER_BASE_DEGREE (the monomial
+    coefficients padded with zeros: exactly the same path)."""
+    degrees = list(variant.degrees)
+    parts, off = [], 0
+    for i in range(dof):
+        c = x[off : off + degrees[i] + 1]
+        off += degrees[i] + 1
+        parts.append(np.concatenate([c, np.zeros(max(0, LATER_BASE_DEGREE - degrees[i]))]) if i < 3 else c)
+    raised = [max(d, LATER_BASE_DEGREE) if i < 3 else d for i, d in enumerate(degrees)]
+    return replace(variant, degrees=raised), np.concatenate(parts + [x[off:]])
 
 
 def _no_solve(cert: Certificate, status: planner.SolveStatus) -> planner.PickupPlan:
@@ -187,7 +211,9 @@ def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Me
     """(plan, whether it passes the dense checks) of ``method`` from one stage-1 solution, with the
     samples per interval scaled by ``factor``. single_shot: the all-constraint NLP from it (the
     native direct track on its own, with its iteration cap ``direct_max_iter``)."""
-    _, label, variant, x1 = entry
+    _, label, variant, x1, later = entry
+    if later is not None and method is planner.Method.successive:
+        variant, x1 = later
     if method is planner.Method.single_shot:
         variant, label = replace(variant, max_iter=min(variant.max_iter, variant.direct_max_iter)), f"{label}, direct"
     if factor != 1:
