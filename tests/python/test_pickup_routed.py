@@ -250,12 +250,12 @@ def test_single_shot_from_a_given_seed(robot):
 
 def test_the_five_stages_run_on_the_stage_1_base_path_lifted_to_a_higher_degree(robot):
     """A stage-1 solution lifted to LATER_BASE_DEGREE is the same path (numpy's evaluation of both sets of
-    monomial coefficients agrees at every normalised time); the routed plan's five stages run at that
-    base degree and it passes the dense checks (at the default 8 samples per interval: at 6 the degree-12
-    base slides sideways between them here, and the all-constraint fallback at degree 7 is the plan);
-    the caller's degrees are kept."""
+    monomial coefficients agrees at every normalised time), sampled LATER_SAMPLES times as densely; the
+    routed plan's five stages run at that base degree and it passes the dense checks (at FAST's 6 samples
+    per interval, unscaled, the degree-12 base slid sideways between them here, and the all-constraint
+    fallback at degree 7 was the plan); the caller's degrees are kept."""
     problem = _native(robot, _spec())
-    settings = replace(FAST, samples_per_interval=8)
+    settings = FAST
     variant = routed._variants(robot, settings)[0]
     _, x0 = next(routed.seeds(robot, problem, variant, routes=0))
     r = planner.solve_stage(robot, problem, x0, 1, variant)
@@ -263,6 +263,7 @@ def test_the_five_stages_run_on_the_stage_1_base_path_lifted_to_a_higher_degree(
     lifted, x = routed._raised(variant, np.asarray(r.x), robot.dof)
     L = routed.LATER_BASE_DEGREE
     assert list(lifted.degrees) == [L, L, L] + list(variant.degrees[3:]) and variant.degrees[0] < L
+    assert lifted.samples_per_interval == round(routed.LATER_SAMPLES * variant.samples_per_interval) > 6
     s = np.linspace(0.0, 1.0, 101)
     a = b = 0
     for d_old, d_new in zip(variant.degrees, lifted.degrees):
@@ -344,6 +345,7 @@ def test_plans_that_fail_between_the_samples_are_solved_again_at_refined_samples
         return p
 
     monkeypatch.setattr(planner, "plan", coarse_fails)
+    monkeypatch.setattr(routed, "LATER_SAMPLES", 1.0)  # the five stages at the stage-1 samples, as the fallback
     p = routed.plan_routed(robot, problem, FAST, routes=0)
     fine = round(FAST.samples_per_interval * routed.REFINE[0])
     assert p.success and p.reason is Reason.none and p.seed.endswith(f", {fine} samples per interval")
