@@ -323,10 +323,12 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     monkeypatch.setattr(planner, "plan", first_five_stages_fail)
     monkeypatch.setattr(routed, "SECOND_OPINION", 0.0)
     p = routed.plan_routed(robot, problem, FAST, routes=0)
-    # (The next base path here is the quintic's, solved only now; its five-stage plan may fail the dense
-    # checks and get its own fallback.)
+    # The all-constraint plan lifted to the five stages' base degree first (all constraints from itself),
+    # then the next base path's plans (the quintic's, solved only now; its five-stage plan may fail the
+    # dense checks and get its own fallback).
     S, D = planner.Method.successive, planner.Method.single_shot
-    assert [m for m, _ in plans][:3] == [S, D, S]
+    assert [m for m, _ in plans][:4] == [S, D, D, S]
+    assert list(plans[2][1].native.degrees)[:3] == [routed.LATER_BASE_DEGREE] * 3
     passed = [q.T for _, q in plans[1:] if q.success and planner.passes_dense_checks(robot, problem, q)]
     assert p.success and p.T == min(passed) and planner.passes_dense_checks(robot, problem, p)
 

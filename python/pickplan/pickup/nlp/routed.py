@@ -13,11 +13,12 @@ successive refinement from the fastest base path, and a wall-clock budget.
    the dense checks, ``planner.dense_checks``) all constraints at once (the native direct track,
    on its own) from the same solution, while the budget lasts. The first plan that passes is
    returned; above SECOND_OPINION times the bound it gets a second opinion first (a five-stage
-   plan: all constraints from its solution; an all-constraint plan: the next solutions' plans). When none does: the plans (of either method) that held their rows at the samples but
-   not between them (a long T leaves a second or more between samples, where the base polynomial
-   slides sideways) are solved again, the same method from the same stage-1 solution, with the
-   samples refined (``REFINE``), the shortest first. No stage-1 solution at all: stage 1 again at
-   the refined samples.
+   plan: all constraints from its solution; an all-constraint plan: all constraints from itself
+   lifted to LATER_BASE_DEGREE, then the next solutions' plans). When none does: the plans (of
+   either method) that held their rows at the samples but not between them (a long T leaves a
+   second or more between samples, where the base polynomial slides sideways) are solved again, the
+   same method from the same stage-1 solution, with the samples refined (``REFINE``), the shortest
+   first. No stage-1 solution at all: stage 1 again at the refined samples.
 4. No success: the reason is ``solver_failed`` (the certificate found nothing against the problem)
    and the plan that went furthest is returned as the closest; ``time_limit`` when the budget ran
    out first. With a budget the native runs get the time left (``PlannerSettings.time_limit``), and
@@ -65,7 +66,8 @@ LATER_SAMPLES = 1.5
 # gets a second opinion: all constraints at once from the same stage-1 solution, kept when shorter.
 # The five stages commit the arm to one IK branch and grasp timing; far from the bound that is
 # where the time went (behind layout: 23 s -> 11 s against a bound of 6 s). An all-constraint plan
-# (the fallback) so far from the bound gets the next base paths' plans as its second opinion.
+# (the fallback) so far from the bound gets itself lifted to LATER_BASE_DEGREE (``_lifted_plan``), then
+# the next base paths' plans as its second opinion.
 SECOND_OPINION = 3.0
 # When no plan passes and some held their rows at the samples but not between them (the base slides
 # sideways between samples a second or more apart when T is long), the five stages again with
@@ -231,6 +233,20 @@ def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Me
     return p, bool(p.success and planner.passes_dense_checks(robot, problem, p))
 
 
+def _lifted_plan(robot, problem, plan: planner.PickupPlan, variant, budget: _Budget) -> tuple:
+    """(plan, whether it passes the dense checks) of the all-constraint NLP from an all-constraint
+    ``plan`` (made with ``variant``) lifted to LATER_BASE_DEGREE: it starts feasible and the base can
+    then slow round the grasp alone (issue 37: side and cluttered plans at 3.4-3.6x the bound came to
+    1.6-1.7x, 0.2-1.4 s of CPU)."""
+    lifted, x = _raised(variant, np.asarray(plan.native.x), robot.dof)
+    lifted = replace(lifted, max_iter=min(lifted.max_iter, lifted.direct_max_iter))
+    t = time.monotonic()
+    p = planner.plan(robot, problem, budget.settings(lifted), planner.Method.single_shot, x0=x)
+    p.seed = f"{plan.seed}, base degree {LATER_BASE_DEGREE}"
+    budget.note(p.status, time.monotonic() - t)
+    return p, bool(p.success and planner.passes_dense_checks(robot, problem, p))
+
+
 def _between_samples(p: planner.PickupPlan) -> bool:
     """The plan holds its rows at the samples but not between them: it converged yet failed a dense
     check, or the native active set gave up on the rows between the samples."""
@@ -355,11 +371,16 @@ def plan_routed(
         other, ok = _solve_one(robot, problem, found[0], budget, planner.Method.single_shot)
         if ok and other.T < best.T:
             best = other
-    elif far:  # an all-constraint plan far from the bound: the next base paths' plans, the shorter kept
-        after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
-        other, *_ = _solve_ranked(robot, problem, jobs[after:], budget, more=later)
-        if other is not None and other.T < best.T:
-            best = other
+    elif far:  # an all-constraint plan far from the bound: itself lifted, then the next base paths' plans
+        if found[0][4] is not None:  # (the default degrees)
+            other, ok = _lifted_plan(robot, problem, best, found[0][2], budget)
+            if ok and other.T < best.T:
+                best = other
+        if best.T > SECOND_OPINION * cert.lower_bound and not budget.spent():
+            after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
+            other, *_ = _solve_ranked(robot, problem, jobs[after:], budget, more=later)
+            if other is not None and other.T < best.T:
+                best = other
     elif best is None and between and refine:
         best = _refined(robot, problem, between, budget)
     out = best or closest
