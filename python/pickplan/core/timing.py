@@ -295,7 +295,6 @@ def time_parameterize(
     # exactly (no stage a rounding error long)
     grid = np.append(ss[:-1, None] + np.diff(ss)[:, None] * (np.arange(grid_per_segment) / grid_per_segment), ss[-1])
     velocity = toppra.constraint.JointVelocityConstraint(limits.velocity)
-    timing = None
     # q'' from both sides of a waypoint first; where a joint turns back on one (PCHIP's q' exactly 0
     # there) its LP can give NaN and empty the sets: toppra's own constraint (q'' from one side) then
     # times the path, and the samples are checked against the limits below either way

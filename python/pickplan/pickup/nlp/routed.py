@@ -226,8 +226,13 @@ def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Me
     if factor != 1:
         variant = replace(variant, samples_per_interval=int(round(variant.samples_per_interval * factor)))
         label = f"{label}, {variant.samples_per_interval} samples per interval"
+    return _run(robot, problem, variant, method, x1, label, budget)
+
+
+def _run(robot, problem, settings, method: planner.Method, x0, label: str, budget: _Budget) -> tuple:
+    """(plan, whether it passes the dense checks) of one native plan within the budget, labelled."""
     t = time.monotonic()
-    p = planner.plan(robot, problem, budget.settings(variant), method, x0=x1)
+    p = planner.plan(robot, problem, budget.settings(settings), method, x0=x0)
     p.seed = label
     budget.note(p.status, time.monotonic() - t)
     return p, bool(p.success and planner.passes_dense_checks(robot, problem, p))
@@ -240,11 +245,8 @@ def _lifted_plan(robot, problem, plan: planner.PickupPlan, variant, budget: _Bud
     1.6-1.7x, 0.2-1.4 s of CPU)."""
     lifted, x = _raised(variant, np.asarray(plan.native.x), robot.dof)
     lifted = replace(lifted, max_iter=min(lifted.max_iter, lifted.direct_max_iter))
-    t = time.monotonic()
-    p = planner.plan(robot, problem, budget.settings(lifted), planner.Method.single_shot, x0=x)
-    p.seed = f"{plan.seed}, base degree {LATER_BASE_DEGREE}"
-    budget.note(p.status, time.monotonic() - t)
-    return p, bool(p.success and planner.passes_dense_checks(robot, problem, p))
+    label = f"{plan.seed}, base degree {LATER_BASE_DEGREE}"
+    return _run(robot, problem, lifted, planner.Method.single_shot, x, label, budget)
 
 
 def _between_samples(p: planner.PickupPlan) -> bool:
