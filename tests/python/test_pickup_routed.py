@@ -3,6 +3,7 @@ curvature, the seed's speed and yaw-rate limits), the lower bound on T (closed f
 line, never above a solved T), every infeasibility reason on a constructed problem, the time budget,
 and the benchmark layouts."""
 
+import copy
 import math
 import time
 from dataclasses import replace
@@ -69,6 +70,58 @@ def test_every_dubins_word_ends_at_the_goal_pose_and_the_shortest_is_known_in_cl
     assert length >= math.hypot(q1[0], q1[1]) - 1e-12  # never shorter than the straight line
 
 
+def _assert_car_like_and_clear(P, geo, rho, start=None, end=None):
+    """Poses P (n, 3) from ``start`` to ``end`` (the problem's start and goal by default): continuous,
+    curvature at most 1 / rho, no lateral motion, clear of the obstacles by 5 cm."""
+    start, end = geo.start if start is None else np.asarray(start), geo.goal if end is None else np.asarray(end)
+    step = np.linalg.norm(np.diff(P[:, :2], axis=0), axis=1)
+    assert step.max() <= route.STEP + 1e-9  # continuous
+    assert np.allclose(P[0], start) and np.allclose(P[-1, :2], end[:2], atol=1e-9)
+    assert abs(math.remainder(P[-1, 2] - end[2], 2 * math.pi)) < 1e-9
+    turn = np.abs(np.diff(P[:, 2]))
+    assert np.all(2 * rho * np.sin(turn / 2) <= step + 1e-9)  # curvature <= 1 / rho (chords)
+    motion = np.arctan2(np.diff(P[:, 1]), np.diff(P[:, 0]))  # no lateral motion
+    lateral = np.abs(np.sin(motion - P[1:, 2]))[step > 1e-6]
+    assert lateral.max() < 0.05
+    assert geo.free(P[:, :2], 0.05).all()
+
+
+def test_a_leg_an_obstacle_blocks_goes_round_it_through_a_via_pose(robot):
+    pillar = problem_file.SphereObstacle((2.0, 0.0, 0.4), 0.4)
+    problem = _native(robot, _spec(obstacles=_spec().obstacles + (pillar,)))
+    geo = base_geometry(robot, problem, FAST)
+    rho, margin = geo.v_max / geo.w_max, 0.05
+    a, b = (0.0, 0.0, 0.0), (4.0, 0.0, 0.0)  # straight through the pillar
+    vias = route.via_poses(geo, margin, rho)
+    assert vias and geo.free(np.array(vias)[:, :2], margin).all()
+    for sign in (1, -1):  # forwards, and backwards the other way
+        a, b = (a, b) if sign > 0 else (b, a)
+        assert not geo.free(route._leg(a, b, rho, sign).poses(rho)[:, :2], margin).all()
+        legs = route.clear_leg(geo, a, b, rho, sign, vias, margin)
+        assert len(legs) == 2 and all(leg.sign == sign for leg in legs)
+        P = np.concatenate([legs[0].poses(rho), legs[1].poses(rho)[1:]])
+        P[:, 2] = a[2] + np.unwrap(P[:, 2] - a[2])
+        _assert_car_like_and_clear(P, geo, rho, start=a, end=b)
+        assert sum(leg.length for leg in legs) >= 4.0  # no shorter than the straight line
+    assert route.clear_leg(geo, a, b, rho, 1, [], margin) is None  # no via pose: no clear leg
+    assert len(route.clear_leg(geo, (0.0, 0.0, 0.0), (1.0, -1.0, -0.5), rho, 1, vias, margin)) == 1  # clear as it is
+
+
+def test_clutter_that_blocks_every_two_leg_route_of_a_class_gets_a_route_through_via_poses(robot):
+    ws = random_problems.Workspace(layout=random_problems.Layout.cluttered, metamodel="standin")
+    via = 0
+    for spec in random_problems.random_problems(24, 1, ws):
+        geo = base_geometry(robot, _native(robot, spec), FAST)
+        rho = geo.v_max / geo.w_max
+        routes = route.candidate_routes(geo, count=4)
+        assert len({r.label.split()[0] for r in routes}) == len(routes)  # one per class (side, sense)
+        for r in routes:
+            _assert_car_like_and_clear(r.poses, geo, rho)
+            assert geo.r_min <= np.linalg.norm(r.poses[r.grasp_index, :2] - geo.part_xy) <= geo.r_max
+            via += r.label.endswith(" via")
+    assert via > 0  # pillars between the start, the part and the goal block some class in some problem
+
+
 def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limits(robot):
     spec = _spec(
         base_start=(0.0, 0.0, math.pi / 2),
@@ -83,18 +136,8 @@ def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limit
     rho = geo.v_max / geo.w_max
     template = np.array(_core.pickup_heuristic_seed(robot.native, problem, FAST.to_native()))
     for r in routes:
-        P = r.poses
-        step = np.linalg.norm(np.diff(P[:, :2], axis=0), axis=1)
-        assert step.max() <= route.STEP + 1e-9  # continuous
-        assert np.allclose(P[0], geo.start) and np.allclose(P[-1, :2], geo.goal[:2], atol=1e-9)
-        assert abs(math.remainder(P[-1, 2] - geo.goal[2], 2 * math.pi)) < 1e-9
-        turn = np.abs(np.diff(P[:, 2]))
-        assert np.all(2 * rho * np.sin(turn / 2) <= step + 1e-9)  # curvature <= 1 / rho (chords)
-        motion = np.arctan2(np.diff(P[:, 1]), np.diff(P[:, 0]))  # no lateral motion
-        lateral = np.abs(np.sin(motion - P[1:, 2]))[step > 1e-6]
-        assert lateral.max() < 0.05
-        assert geo.free(P[:, :2], 0.05).all()
-        g = P[r.grasp_index, :2]
+        _assert_car_like_and_clear(r.poses, geo, rho)
+        g = r.poses[r.grasp_index, :2]
         assert geo.r_min <= np.linalg.norm(g - geo.part_xy) <= geo.r_max
         x = route.route_seed(r, geo, template, FAST, robot.dof, problem.stroke)
         nc = len(x) - 5
@@ -296,19 +339,23 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     monkeypatch.setattr(planner, "plan", five_stages_fail)
     monkeypatch.setattr(planner, "solve_stage", stage)
     p = routed.plan_routed(robot, problem, FAST, routes=0)  # the heuristic seed's base paths (degree 7, quintic)
-    assert p.success and p.seed.endswith(", direct") and p.reason is Reason.none
+    assert p.success and ", direct" in p.seed and p.reason is Reason.none
     assert planner.passes_dense_checks(robot, problem, p) and p.T >= p.lower_bound
     # The first base path's fallback comes before the next base path's five stages; it passes, so
     # the quintic base path (the later degree) is never solved.
     S, D = planner.Method.successive, planner.Method.single_shot
-    L = routed.LATER_BASE_DEGREE  # the five stages lift the stage-1 base path to it; the fallback does not
-    assert calls == [(S, L), (D, 7)] and stage1 == [7]
+    L = routed.LATER_BASE_DEGREE  # the five stages lift the stage-1 base path to it; the fallback does not,
+    # but its converged plan is then solved again from itself lifted (_lifted_if_better)
+    assert calls == [(S, L), (D, 7), (D, L)] and stage1 == [7]
+    assert list(p.native.degrees)[0] == (L if p.seed.endswith(f"base degree {L}") else 7)
     calls.clear()
     stage1.clear()
     off = routed.plan_routed(robot, problem, FAST, routes=0, fallback=False)
     assert not off.success and off.reason is Reason.solver_failed
-    # No fallback: the quintic's stage 1 and five stages only after the degree-7 base path's failed.
-    assert calls[:2] == [(S, L), (S, L)] and stage1[:2] == [7, 5] and D not in [m for m, _ in calls]
+    # No fallback: the quintic's stage 1 and five stages only after the degree-7 base path's failed,
+    # then degree 12's.
+    assert calls[:2] == [(S, L), (S, L)] and stage1 == list(routed.BASE_DEGREES) == [7, 5, 12]
+    assert D not in [m for m, _ in calls]
     # An all-constraint plan far from the bound (here any: SECOND_OPINION 0) gets the next base
     # path's plans as its second opinion: the five stages from it (which pass here), the shorter kept.
     plans = []
@@ -331,6 +378,50 @@ def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robo
     assert list(plans[2][1].native.degrees)[:3] == [routed.LATER_BASE_DEGREE] * 3
     passed = [q.T for _, q in plans[1:] if q.success and planner.passes_dense_checks(robot, problem, q)]
     assert p.success and p.T == min(passed) and planner.passes_dense_checks(robot, problem, p)
+
+
+def test_an_all_constraint_plan_is_solved_again_from_itself_lifted_and_the_shorter_passing_plan_kept(
+    robot, monkeypatch
+):
+    problem = _native(robot, _spec())
+    variant = routed._variants(robot, FAST)[0]
+    _, x0 = next(routed.seeds(robot, problem, variant, routes=0))
+    r = planner.solve_stage(robot, problem, x0, 1, variant)
+    assert r.success
+    x = np.asarray(r.x)
+    entry = (r.objective, "heuristic", variant, x, routed._raised(variant, x, robot.dof))
+    budget = routed._Budget(0.0)
+    p, ok = routed._solve_one(robot, problem, entry, budget, planner.Method.single_shot)
+    assert p.success and list(p.native.degrees)[:3] == [7, 7, 7]
+    runs, real = [], routed._run
+
+    def run(robot_, problem_, settings, method, x0_, label, budget_):
+        out = real(robot_, problem_, settings, method, x0_, label, budget_)
+        runs.append((settings.degrees[0], settings.samples_per_interval, np.asarray(x0_), out))
+        return out
+
+    monkeypatch.setattr(routed, "_run", run)
+    L, m = routed.LATER_BASE_DEGREE, FAST.samples_per_interval
+    q, q_ok = routed._lifted_if_better(robot, problem, p, ok, entry, 1.0, budget)
+    # One all-constraint run at degree L from the same path (its coefficients padded), at the lifted samples.
+    ((deg, samples, start, lifted),) = runs
+    assert (deg, samples) == (L, round(m * routed.LATER_SAMPLES))
+    assert np.array_equal(start, routed._raised(variant, np.asarray(p.native.x), robot.dof)[1])
+    assert q_ok and planner.passes_dense_checks(robot, problem, q)
+    assert q is (lifted[0] if lifted[1] and (not ok or lifted[0].T < p.T) else p) and q.T <= (p.T if ok else math.inf)
+    # A plan that failed the dense checks (as if it had slid sideways between the samples): the lift
+    # also refines the samples, and its plan is kept when it passes.
+    runs.clear()
+    q, q_ok = routed._lifted_if_better(robot, problem, p, False, entry, 1.0, budget)
+    assert runs[0][1] == round(round(m * routed.REFINE[0]) * routed.LATER_SAMPLES)
+    assert q_ok == runs[0][3][1] and (q is runs[0][3][0] if q_ok else q is p)
+    # Nothing to lift: the caller's degrees, or a plan that did not converge.
+    runs.clear()
+    assert routed._lifted_if_better(robot, problem, p, ok, entry[:4] + (None,), 1.0, budget) == (p, ok)
+    failed = copy.copy(p)
+    failed.success, failed.status = False, planner.SolveStatus.max_iterations
+    assert routed._lifted_if_better(robot, problem, failed, False, entry, 1.0, budget) == (failed, False)
+    assert not runs
 
 
 def test_plans_that_fail_between_the_samples_are_solved_again_at_refined_samples(robot, monkeypatch):

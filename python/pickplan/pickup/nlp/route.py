@@ -9,7 +9,9 @@ be driven backwards (the Dubins path of the reversed headings), which is Reeds-S
 the grasp pose only. The grasp poses lie on the middle of the grasping annulus, in reach and clear
 of the obstacles, heading along the annulus (so the base stays in it while the arm grasps); the
 candidates are the shortest collision-free route on each side of the part and in each sense round
-it (left / right, clockwise / anticlockwise), ranked by length.
+it (left / right, clockwise / anticlockwise), ranked by length. Where obstacles block every two-leg
+route of a class, a blocked leg goes through a via pose beside an obstacle, heading round it
+(``via_poses``, ``clear_leg``): a detour a lattice search would find, from a handful of Dubins pairs.
 """
 
 from __future__ import annotations
@@ -28,6 +30,13 @@ STEP = 0.05  # m between route samples
 FIT_SAMPLES = 80  # samples of a route the polynomials are fitted to
 SPEED_SHARE = 0.9  # seeds time the fitted polynomial to this share of the speed and yaw-rate limits
 WAYPOINT_WEIGHT = 30.0  # weight of the grasp pose and the goal in the fit
+# Via poses (clutter where no two-leg route clears): per obstacle disk, VIA_ANGLES poses round it
+# VIA_CLEARANCE beyond the margin; per blocked class, its VIA_OPTIONS shortest routes are tried with
+# each blocked leg through the pair of legs via one pose, of the VIA_TRIES shortest pairs.
+VIA_ANGLES = 8
+VIA_CLEARANCE = 0.1  # m
+VIA_OPTIONS = 3
+VIA_TRIES = 12
 
 
 def _mod2pi(a: float) -> float:
@@ -118,28 +127,75 @@ class Route:
         return float(self.s[-1])
 
 
-def _leg(a, b, rho: float, sign: int) -> tuple:
-    """(length, word, segments) of a leg from pose a to pose b driven forwards (+1) or backwards."""
+@dataclass(frozen=True)
+class Leg:
+    """A Dubins path from pose ``start`` driven forwards (sign +1) or backwards (-1)."""
+
+    start: tuple
+    word: str
+    seg: tuple
+    sign: int
+    length: float
+
+    def poses(self, rho: float) -> np.ndarray:
+        flip = 0.0 if self.sign > 0 else math.pi
+        p = sample_dubins((self.start[0], self.start[1], self.start[2] + flip), self.word, self.seg, rho)
+        p[:, 2] -= flip
+        return p
+
+
+def _leg(a, b, rho: float, sign: int) -> Leg:
+    """The shortest leg from pose a to pose b driven forwards (+1) or backwards (-1)."""
     flip = 0.0 if sign > 0 else math.pi
     word, seg, length = dubins_shortest((a[0], a[1], a[2] + flip), (b[0], b[1], b[2] + flip), rho)
-    return length, word, seg
+    return Leg(tuple(a), word, seg, sign, length)
 
 
-def _build(geo: BaseGeometry, grasp, legs, rho: float, label: str) -> Route:
-    """The route of two legs (length, word, segments, sign): start -> grasp -> goal."""
-    parts, dirs = [], []
-    for a, (_, word, seg, sign) in zip((geo.start, grasp), legs):
-        flip = 0.0 if sign > 0 else math.pi
-        p = sample_dubins((a[0], a[1], a[2] + flip), word, seg, rho)
-        p[:, 2] -= flip
+def _build(geo: BaseGeometry, legs: list, grasp_leg: int, rho: float, label: str) -> Route:
+    """The route of consecutive legs from the start to the goal; the grasp pose ends leg ``grasp_leg``."""
+    parts, dirs, grasp_index = [], [], 0
+    for k, leg in enumerate(legs):
+        p = leg.poses(rho)
         if parts:
             p = p[1:]
         parts.append(p)
-        dirs.append(np.full(len(p), sign))
+        dirs.append(np.full(len(p), leg.sign))
+        if k == grasp_leg:
+            grasp_index = sum(len(q) for q in parts) - 1
     poses = np.concatenate(parts)
     poses[:, 2] = geo.start[2] + np.unwrap(poses[:, 2] - geo.start[2])
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1))])
-    return Route(poses, s, len(parts[0]) - 1, np.concatenate(dirs), label)
+    return Route(poses, s, grasp_index, np.concatenate(dirs), label)
+
+
+def via_poses(geo: BaseGeometry, margin: float, rho: float) -> list:
+    """Poses beside each obstacle disk, heading round it either way, clear by ``margin``: a leg through
+    one turns round the disk on an arc of radius rho about a centre beyond the disk's, so the arc
+    holds the disk inside and stays clear of it near the via pose."""
+    out = []
+    for cx, cy, r in geo.disks:
+        ring = r + margin + VIA_CLEARANCE
+        for a in np.linspace(0.0, 2 * math.pi, VIA_ANGLES, endpoint=False):
+            p = (cx + ring * math.cos(a), cy + ring * math.sin(a))
+            if geo.free(p, margin)[0]:
+                out += [(p[0], p[1], a + math.pi / 2), (p[0], p[1], a - math.pi / 2)]
+    return out
+
+
+def clear_leg(geo: BaseGeometry, a, b, rho: float, sign: int, vias: list, margin: float) -> Optional[list]:
+    """[leg] from pose a to pose b clear by ``margin``, or [leg, leg] through one via pose (the shortest
+    such pair whose legs clear, of the VIA_TRIES shortest by length); None when neither clears."""
+    direct = _leg(a, b, rho, sign)
+    if geo.free(direct.poses(rho)[:, :2], margin).all():
+        return [direct]
+    pairs = sorted(
+        ((l1.length + l2.length, l1, l2) for v in vias for l1, l2 in [(_leg(a, v, rho, sign), _leg(v, b, rho, sign))]),
+        key=lambda o: o[0],
+    )
+    for _, l1, l2 in pairs[:VIA_TRIES]:
+        if geo.free(l1.poses(rho)[:, :2], margin).all() and geo.free(l2.poses(rho)[:, :2], margin).all():
+            return [l1, l2]
+    return None
 
 
 def grasp_poses(geo: BaseGeometry, margin: float) -> list:
@@ -166,21 +222,37 @@ def candidate_routes(geo: BaseGeometry, count: int = 3, margin: float = 0.05, de
     rho = geo.v_max / geo.w_max
     per_class = {}
     for gx, gy, h, side, sense in grasp_poses(geo, margin):
-        g = np.array([gx, gy, h])
-        firsts = [(*_leg(geo.start, g, rho, d), d) for d in (1, -1)]
-        seconds = [(*_leg(g, geo.goal, rho, d), d) for d in (1, -1)]
+        g = (gx, gy, h)
+        firsts = [_leg(geo.start, g, rho, d) for d in (1, -1)]
+        seconds = [_leg(g, geo.goal, rho, d) for d in (1, -1)]
         for a in firsts:
             for b in seconds:
-                per_class.setdefault((side, sense), []).append((a[0] + b[0], g, (a, b)))
-    best = []
+                per_class.setdefault((side, sense), []).append((a.length + b.length, g, (a, b)))
+    best, blocked = [], []
+    late = lambda: deadline is not None and time.monotonic() >= deadline  # noqa: E731
     for key, options in per_class.items():
-        for length, g, legs in sorted(options, key=lambda o: o[0]):
-            if deadline is not None and time.monotonic() >= deadline:
+        label = f"{'left' if key[0] > 0 else 'right'}/{'anticlockwise' if key[1] > 0 else 'clockwise'}"
+        options.sort(key=lambda o: o[0])
+        for length, g, legs in options:
+            if late():
                 return sorted(best, key=lambda r: r.length)[:count]
-            label = f"{'left' if key[0] > 0 else 'right'}/{'anticlockwise' if key[1] > 0 else 'clockwise'}"
-            route = _build(geo, g, legs, rho, label)
+            route = _build(geo, list(legs), 0, rho, label)
             if geo.free(route.poses[:, :2], margin).all():
                 best.append(route)
+                break
+        else:
+            blocked.append((label, options))
+    # A class no two-leg route clears (clutter between the start, the part and the goal): its
+    # VIA_OPTIONS shortest options with each blocked leg through a via pose beside an obstacle.
+    vias = via_poses(geo, margin, rho) if blocked else []
+    for label, options in blocked:
+        for length, g, (a, b) in options[:VIA_OPTIONS]:
+            if late():
+                return sorted(best, key=lambda r: r.length)[:count]
+            first = clear_leg(geo, geo.start, g, rho, a.sign, vias, margin)
+            second = clear_leg(geo, g, geo.goal, rho, b.sign, vias, margin) if first else None
+            if second:
+                best.append(_build(geo, first + second, len(first) - 1, rho, f"{label} via"))
                 break
     return sorted(best, key=lambda r: r.length)[:count]
 

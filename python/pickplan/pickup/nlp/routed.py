@@ -6,15 +6,17 @@ successive refinement from the fastest base path, and a wall-clock budget.
    reach from every free base position, T's bound above the horizon) gets its reason, no solve.
 2. Stage 1 (the base path: non-holonomic, limits, grasping area, goal, base collisions) from the
    heuristic seed and from up to ``routes`` route seeds at base degree 7; the solved ones are ranked
-   by their T. The quintic base from the heuristic seed runs only when their plans are spent.
+   by their T. The quintic base from the heuristic seed, then degree 12 from every seed, run only
+   when their plans are spent.
 3. The stage-1 solutions less repeats (two seeds that reach the same optimum); from each in turn,
    the five stages (native ``solve_successive``: arm seeds; the base path lifted to
    LATER_BASE_DEGREE, so stage 3 can slow it round the grasp alone), and when their plan fails (or fails
    the dense checks, ``planner.dense_checks``) all constraints at once (the native direct track,
-   on its own) from the same solution, while the budget lasts. The first plan that passes is
-   returned; above SECOND_OPINION times the bound it gets a second opinion first (a five-stage
-   plan: all constraints from its solution; an all-constraint plan: all constraints from itself
-   lifted to LATER_BASE_DEGREE, then the next solutions' plans). When none does: the plans (of
+   on its own) from the same solution, while the budget lasts; an all-constraint plan that
+   converged is solved again from itself lifted to LATER_BASE_DEGREE (``_lifted_if_better``). The
+   first plan that passes is returned; above SECOND_OPINION times the bound it gets a second opinion
+   first (a five-stage plan: all constraints from its solution; an all-constraint plan: the next
+   solutions' plans). When none does: the plans (of
    either method) that held their rows at the samples but not between them (a long T leaves a
    second or more between samples, where the base polynomial slides sideways) are solved again, the
    same method from the same stage-1 solution, with the samples refined (``REFINE``), the shortest
@@ -50,8 +52,11 @@ ROUTES = 3  # route seeds tried in stage 1 beside the heuristic seed
 # and behind layouts, stage 1 at T = 50-100 s); degree 7 can, at 6 more variables, and holds every
 # quintic. Run first, the quintic won 1 of 157 solved problems (none of the paper's, side or case
 # problems) and cost 0.2-0.7 s of CPU on each of 12 behind problems profiled, where it never
-# converged (bench/PICKUP.md, session 23).
-BASE_DEGREES = (7, 5)
+# converged (bench/PICKUP.md, session 23). Degree 12 last, from every seed: a route that weaves
+# between pillars needs it (cluttered layout: 3 of the 9 problems of 100 that failed at 7 and 5 were
+# solved, at 16-45 s of CPU; it runs only where the others' plans are spent).
+BASE_DEGREES = (7, 5, 12)
+ROUTE_MIN_DEGREE = 7  # route seeds are fitted at the base degrees that can hold a detour (not the quintic)
 # The base degree of the five stages from a stage-1 solution (with the default degrees): the same path
 # at this degree (its coefficients padded with zeros). Stage 3's grasp timing slows the base round the
 # window, and a degree-7 path could only slow all of it: paper layout, 40 problems, T / bound median
@@ -66,8 +71,8 @@ LATER_SAMPLES = 1.5
 # gets a second opinion: all constraints at once from the same stage-1 solution, kept when shorter.
 # The five stages commit the arm to one IK branch and grasp timing; far from the bound that is
 # where the time went (behind layout: 23 s -> 11 s against a bound of 6 s). An all-constraint plan
-# (the fallback) so far from the bound gets itself lifted to LATER_BASE_DEGREE (``_lifted_plan``), then
-# the next base paths' plans as its second opinion.
+# (the fallback, already lifted to LATER_BASE_DEGREE by ``_lifted_if_better``) so far from the bound
+# gets the next base paths' plans as its second opinion.
 SECOND_OPINION = 3.0
 # When no plan passes and some held their rows at the samples but not between them (the base slides
 # sideways between samples a second or more apart when T is long), the five stages again with
@@ -126,8 +131,8 @@ def _variants(robot, settings: planner.PlannerSettings) -> list:
 
 
 class Part(enum.Enum):
-    """Which of stage 1's base degrees (BASE_DEGREES) a call runs: every one, the first (from every
-    seed), or the later ones (from the heuristic seed; nothing with the caller's degrees)."""
+    """Which of stage 1's base degrees (BASE_DEGREES) a call runs: every one, the first, or the later
+    ones (nothing with the caller's degrees)."""
 
     every = "every"
     first = "first"
@@ -135,8 +140,8 @@ class Part(enum.Enum):
 
 
 def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1.0, part: Part = Part.every) -> list:
-    """Stage 1 from every seed (the first base degree) and from the heuristic seed (the others) while
-    time is left: [(T, label, settings, x, later)] of the solved runs, fastest first (the first degree
+    """Stage 1 from every seed (base degrees >= ROUTE_MIN_DEGREE) and from the heuristic seed (the
+    quintic) while time is left: [(T, label, settings, x, later)] of the solved runs, fastest first (the first degree
     first among equal T); ``later``: (settings, x) of the same path at LATER_BASE_DEGREE for the five
     stages, None with the caller's degrees. ``factor`` scales the samples per interval (the later
     stages from such a solution keep them)."""
@@ -147,7 +152,9 @@ def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1
     chosen = {Part.every: range(len(variants)), Part.first: range(1), Part.later: range(1, len(variants))}[part]
     for k in chosen:
         variant = variants[k]
-        pending = seeds(robot, problem, variant, routes if k == 0 else 0, budget.deadline)
+        pending = seeds(
+            robot, problem, variant, routes if variant.degrees[0] >= ROUTE_MIN_DEGREE else 0, budget.deadline
+        )
         while not budget.spent():  # checked before the next seed's geometry is computed, not only after
             label, x0 = next(pending, (None, None))
             if label is None or budget.spent():
@@ -240,13 +247,46 @@ def _run(robot, problem, settings, method: planner.Method, x0, label: str, budge
 
 def _lifted_plan(robot, problem, plan: planner.PickupPlan, variant, budget: _Budget) -> tuple:
     """(plan, whether it passes the dense checks) of the all-constraint NLP from an all-constraint
-    ``plan`` (made with ``variant``) lifted to LATER_BASE_DEGREE: it starts feasible and the base can
-    then slow round the grasp alone (issue 37: side and cluttered plans at 3.4-3.6x the bound came to
-    1.6-1.7x, 0.2-1.4 s of CPU)."""
+    ``plan`` (made with ``variant``) lifted to LATER_BASE_DEGREE: it starts at (or, when ``plan``
+    failed between the samples, near) a feasible point and the base can then slow round the grasp
+    alone and turn back more sharply."""
     lifted, x = _raised(variant, np.asarray(plan.native.x), robot.dof)
     lifted = replace(lifted, max_iter=min(lifted.max_iter, lifted.direct_max_iter))
     label = f"{plan.seed}, base degree {LATER_BASE_DEGREE}"
     return _run(robot, problem, lifted, planner.Method.single_shot, x, label, budget)
+
+
+def _lifted_if_better(robot, problem, p: planner.PickupPlan, ok: bool, entry: tuple, factor: float, budget: _Budget):
+    """(plan, whether it passes) of an all-constraint plan ``p`` from the stage-1 solution ``entry``
+    (samples per interval scaled by ``factor``): when it converged at the stage-1 degree, itself
+    lifted (``_lifted_plan``) is kept if it passes and is shorter, or passes where ``p`` failed the
+    dense checks (then the lift's samples are also refined by REFINE[0]: the degree-7 base slid
+    sideways between them). A degree-7 base turns back only slowly: behind layout, a plan at 11.7 s
+    came to 8.8 s (1.80 -> 1.36x its bound) in 0.1 s of CPU; 20 problems: T / bound median 1.71 with
+    the passing plans lifted, 1.57 with the failing ones too (behind 1, 8, 11: 1.95 / 1.71 / 1.93 ->
+    1.55 / 1.63 / 1.79), each lift 0.1-0.4 s of CPU."""
+    if not p.success or entry[4] is None or budget.spent():  # entry[4] None: the caller's degrees
+        return p, ok
+    refine = factor * (1.0 if ok else REFINE[0])
+    variant = replace(entry[2], samples_per_interval=int(round(entry[2].samples_per_interval * refine)))
+    lifted, lifted_ok = _lifted_plan(robot, problem, p, variant, budget)
+    if lifted_ok and (not ok or lifted.T < p.T):
+        return lifted, True
+    return p, ok
+
+
+def _second_opinion(robot, problem, best: planner.PickupPlan, entries: list, budget: _Budget, target: float):
+    """The shortest passing plan of ``best`` (a five-stage plan above ``target``) and the all-constraint
+    plans (``_lifted_if_better``) from the stage-1 solutions ``entries`` in turn, until one is within
+    ``target`` or the budget is spent."""
+    for entry in entries:
+        if best.T <= target or budget.spent():
+            break
+        p, ok = _solve_one(robot, problem, entry, budget, planner.Method.single_shot)
+        p, ok = _lifted_if_better(robot, problem, p, ok, entry, 1.0, budget)
+        if ok and p.T < best.T:
+            best = p
+    return best
 
 
 def _between_samples(p: planner.PickupPlan) -> bool:
@@ -273,6 +313,8 @@ def _solve_ranked(robot, problem, jobs: list, budget: _Budget, factor: float = 1
         entry, method = jobs[i]
         i += 1
         p, ok = _solve_one(robot, problem, entry, budget, method, factor)
+        if method is planner.Method.single_shot:
+            p, ok = _lifted_if_better(robot, problem, p, ok, entry, factor, budget)
         if ok:
             return p, (entry, method), closest or direct, between
         if _between_samples(p):
@@ -300,15 +342,15 @@ class _LaterPaths:
     """The jobs of the later base degrees' stage-1 solutions (``Part.later``), computed on the first
     call only (an empty list after it): they run when the first degree's plans are spent."""
 
-    def __init__(self, robot, problem, settings, budget: _Budget, methods: tuple):
-        self.args, self.methods, self.done = (robot, problem, settings, budget), methods, False
+    def __init__(self, robot, problem, settings, budget: _Budget, methods: tuple, routes: int):
+        self.args, self.methods, self.done = (robot, problem, settings, budget, routes), methods, False
 
     def __call__(self) -> list:
         if self.done:
             return []
         self.done = True
-        robot, problem, settings, budget = self.args
-        later = _stage1(robot, problem, settings, budget, 0, part=Part.later)
+        robot, problem, settings, budget, routes = self.args
+        later = _stage1(robot, problem, settings, budget, routes, part=Part.later)
         return [(e, m) for e in _distinct(later, settings.tol) for m in self.methods]
 
 
@@ -356,7 +398,7 @@ def plan_routed(
         p.total_seconds, p.total_cpu_seconds = time.monotonic() - t0, time.thread_time() - c0
         return p
     methods = (planner.Method.successive, planner.Method.single_shot) if fallback else (planner.Method.successive,)
-    later = _LaterPaths(robot, problem, settings, budget, methods)
+    later = _LaterPaths(robot, problem, settings, budget, methods, routes)
     ranked = _stage1(robot, problem, settings, budget, routes, part=Part.first)
     # Each solution's fallback comes before the next solution's five stages: it is cheaper (behind
     # layout: 0.3-1.3 s against 1-4 s) and the plans tried before the refinement are the same.
@@ -370,19 +412,16 @@ def plan_routed(
     best, found, closest, between = _solve_ranked(robot, problem, jobs, budget, more=later)
     far = best is not None and fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent()
     if far and found[1] is planner.Method.successive:  # its second opinion
-        other, ok = _solve_one(robot, problem, found[0], budget, planner.Method.single_shot)
-        if ok and other.T < best.T:
+        after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
+        entries = [found[0]] + [e for e, m in jobs[after:] if m is planner.Method.single_shot and e is not found[0]]
+        best = _second_opinion(robot, problem, best, entries, budget, SECOND_OPINION * cert.lower_bound)
+    elif (
+        far
+    ):  # an all-constraint plan (already lifted, _lifted_if_better) far from the bound: the next base paths' plans
+        after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
+        other, *_ = _solve_ranked(robot, problem, jobs[after:], budget, more=later)
+        if other is not None and other.T < best.T:
             best = other
-    elif far:  # an all-constraint plan far from the bound: itself lifted, then the next base paths' plans
-        if found[0][4] is not None:  # (the default degrees)
-            other, ok = _lifted_plan(robot, problem, best, found[0][2], budget)
-            if ok and other.T < best.T:
-                best = other
-        if best.T > SECOND_OPINION * cert.lower_bound and not budget.spent():
-            after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
-            other, *_ = _solve_ranked(robot, problem, jobs[after:], budget, more=later)
-            if other is not None and other.T < best.T:
-                best = other
     elif best is None and between and refine:
         best = _refined(robot, problem, between, budget)
     out = best or closest
