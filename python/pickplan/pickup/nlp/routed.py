@@ -56,7 +56,7 @@ ROUTES = 3  # route seeds tried in stage 1 beside the heuristic seed
 # between pillars needs it (cluttered layout: 3 of the 9 problems of 100 that failed at 7 and 5 were
 # solved, at 16-45 s of CPU; it runs only where the others' plans are spent).
 BASE_DEGREES = (7, 5, 12)
-ROUTE_MIN_DEGREE = 7  # route seeds are fitted at the base degrees that can hold a detour (not the quintic)
+ROUTE_MIN_DEGREE = 7  # the later base degrees that can hold a detour get route seeds (not the quintic)
 # The base degree of the five stages from a stage-1 solution (with the default degrees): the same path
 # at this degree (its coefficients padded with zeros). Stage 3's grasp timing slows the base round the
 # window, and a degree-7 path could only slow all of it: paper layout, 40 problems, T / bound median
@@ -140,9 +140,9 @@ class Part(enum.Enum):
 
 
 def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1.0, part: Part = Part.every) -> list:
-    """Stage 1 from every seed (base degrees >= ROUTE_MIN_DEGREE) and from the heuristic seed (the
-    quintic) while time is left: [(T, label, settings, x, later)] of the solved runs, fastest first (the first degree
-    first among equal T); ``later``: (settings, x) of the same path at LATER_BASE_DEGREE for the five
+    """Stage 1 from every seed (the first base degree and those >= ROUTE_MIN_DEGREE) and from the
+    heuristic seed (the quintic) while time is left: [(T, label, settings, x, later)] of the solved
+    runs, fastest first (the first degree first among equal T); ``later``: (settings, x) of the same path at LATER_BASE_DEGREE for the five
     stages, None with the caller's degrees. ``factor`` scales the samples per interval (the later
     stages from such a solution keep them)."""
     solved = []
@@ -152,9 +152,8 @@ def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1
     chosen = {Part.every: range(len(variants)), Part.first: range(1), Part.later: range(1, len(variants))}[part]
     for k in chosen:
         variant = variants[k]
-        pending = seeds(
-            robot, problem, variant, routes if variant.degrees[0] >= ROUTE_MIN_DEGREE else 0, budget.deadline
-        )
+        with_routes = k == 0 or variant.degrees[0] >= ROUTE_MIN_DEGREE  # (the caller's degrees: k = 0)
+        pending = seeds(robot, problem, variant, routes if with_routes else 0, budget.deadline)
         while not budget.spent():  # checked before the next seed's geometry is computed, not only after
             label, x0 = next(pending, (None, None))
             if label is None or budget.spent():
