@@ -15,12 +15,12 @@ successive refinement from the fastest base path, and a wall-clock budget.
    on its own) from the same solution, while the budget lasts; an all-constraint plan that
    converged is solved again from itself lifted to LATER_BASE_DEGREE (``_lifted_if_better``). The
    first plan that passes is returned; above SECOND_OPINION times the bound it gets a second opinion
-   first (a five-stage plan: all constraints from its solution; an all-constraint plan: the next
-   solutions' plans). When none does: the plans (of
-   either method) that held their rows at the samples but not between them (a long T leaves a
-   second or more between samples, where the base polynomial slides sideways) are solved again, the
-   same method from the same stage-1 solution, with the samples refined (``REFINE``), the shortest
-   first. No stage-1 solution at all: stage 1 again at the refined samples.
+   first (a five-stage plan: all constraints from its solution, then from the later ones; an
+   all-constraint plan: the next solutions' plans). When none does: the plans (of either method)
+   that held their rows at the samples but not between them (a long T leaves a second or more
+   between samples, where the base polynomial slides sideways) are solved again, the same method
+   from the same stage-1 solution, with the samples refined (``REFINE``), the shortest first. No
+   stage-1 solution at all: stage 1 again at the refined samples.
 4. No success: the reason is ``solver_failed`` (the certificate found nothing against the problem)
    and the plan that went furthest is returned as the closest; ``time_limit`` when the budget ran
    out first. With a budget the native runs get the time left (``PlannerSettings.time_limit``), and
@@ -142,8 +142,8 @@ class Part(enum.Enum):
 def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1.0, part: Part = Part.every) -> list:
     """Stage 1 from every seed (the first base degree and those >= ROUTE_MIN_DEGREE) and from the
     heuristic seed (the quintic) while time is left: [(T, label, settings, x, later)] of the solved
-    runs, fastest first (the first degree first among equal T); ``later``: (settings, x) of the same path at LATER_BASE_DEGREE for the five
-    stages, None with the caller's degrees. ``factor`` scales the samples per interval (the later
+    runs, fastest first (the first degree first among equal T); ``later``: (settings, x) of the same
+    path at LATER_BASE_DEGREE for the five stages, None with the caller's degrees. ``factor`` scales the samples per interval (the later
     stages from such a solution keep them)."""
     solved = []
     if factor != 1:
@@ -274,6 +274,14 @@ def _lifted_if_better(robot, problem, p: planner.PickupPlan, ok: bool, entry: tu
     return p, ok
 
 
+def _solve_lifted(robot, problem, entry: tuple, budget: _Budget, method: planner.Method, factor: float = 1.0):
+    """``_solve_one``, and an all-constraint plan then ``_lifted_if_better``."""
+    p, ok = _solve_one(robot, problem, entry, budget, method, factor)
+    if method is planner.Method.single_shot:
+        p, ok = _lifted_if_better(robot, problem, p, ok, entry, factor, budget)
+    return p, ok
+
+
 def _second_opinion(robot, problem, best: planner.PickupPlan, entries: list, budget: _Budget, target: float):
     """The shortest passing plan of ``best`` (a five-stage plan above ``target``) and the all-constraint
     plans (``_lifted_if_better``) from the stage-1 solutions ``entries`` in turn, until one is within
@@ -281,8 +289,7 @@ def _second_opinion(robot, problem, best: planner.PickupPlan, entries: list, bud
     for entry in entries:
         if best.T <= target or budget.spent():
             break
-        p, ok = _solve_one(robot, problem, entry, budget, planner.Method.single_shot)
-        p, ok = _lifted_if_better(robot, problem, p, ok, entry, 1.0, budget)
+        p, ok = _solve_lifted(robot, problem, entry, budget, planner.Method.single_shot)
         if ok and p.T < best.T:
             best = p
     return best
@@ -311,9 +318,7 @@ def _solve_ranked(robot, problem, jobs: list, budget: _Budget, factor: float = 1
             break
         entry, method = jobs[i]
         i += 1
-        p, ok = _solve_one(robot, problem, entry, budget, method, factor)
-        if method is planner.Method.single_shot:
-            p, ok = _lifted_if_better(robot, problem, p, ok, entry, factor, budget)
+        p, ok = _solve_lifted(robot, problem, entry, budget, method, factor)
         if ok:
             return p, (entry, method), closest or direct, between
         if _between_samples(p):
@@ -410,14 +415,12 @@ def plan_routed(
             break
     best, found, closest, between = _solve_ranked(robot, problem, jobs, budget, more=later)
     far = best is not None and fallback and best.T > SECOND_OPINION * cert.lower_bound and not budget.spent()
+    after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1 if far else 0
     if far and found[1] is planner.Method.successive:  # its second opinion
-        after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
         entries = [found[0]] + [e for e, m in jobs[after:] if m is planner.Method.single_shot and e is not found[0]]
         best = _second_opinion(robot, problem, best, entries, budget, SECOND_OPINION * cert.lower_bound)
-    elif (
-        far
-    ):  # an all-constraint plan (already lifted, _lifted_if_better) far from the bound: the next base paths' plans
-        after = next(i for i, j in enumerate(jobs) if j[0] is found[0] and j[1] is found[1]) + 1
+    elif far:
+        # An all-constraint plan (already lifted, _lifted_if_better) far from the bound: the next base paths' plans.
         other, *_ = _solve_ranked(robot, problem, jobs[after:], budget, more=later)
         if other is not None and other.T < best.T:
             best = other
