@@ -120,3 +120,30 @@ def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limit
         assert np.hypot(v[0], v[1]).max() <= geo.v_max * (1 + 1e-9)  # the speed limit
         assert np.abs(v[2]).max() <= geo.w_max * (1 + 1e-9)  # the yaw-rate limit
         assert np.allclose([c[0] for c in coeff], geo.start)
+
+
+# ---- reversing base paths -----------------------------------------------------------------------------
+def _base(x, y, theta, arm=(0.0,) * 4):
+    """NLP variables with base polynomials x, y, theta (monomial coefficients in s, low first) and a
+    dummy arm / timing tail (``reverses`` reads only the base)."""
+    return np.concatenate([x, y, theta, arm]), [len(x) - 1, len(y) - 1, len(theta) - 1]
+
+
+@pytest.mark.parametrize(
+    "x, y, theta, backwards",
+    [
+        ([0, 4], [0], [0], False),  # straight ahead
+        ([0, -4], [0], [0], True),  # straight back, heading 0
+        ([0, -4], [0], [math.pi], False),  # the same motion, heading pi: forwards
+        ([0, 2, -2], [0], [0], True),  # x' = 2 - 4 s: forwards, then back at the same peak speed
+        ([0, 0, 0, 1], [0], [0], False),  # x' = 3 s^2: starts at rest, never back
+        ([0, 1, -0.52], [0], [0], False),  # x' = 1 - 1.04 s: back at 4 % of its peak, below the share
+        ([0, 1, -0.6], [0], [0], True),  # x' = 1 - 1.2 s: back at 20 % of its peak
+        ([0, 0, 0], [0, 3], [math.pi / 2], False),  # along y facing +y
+        ([0, 3], [0, 3], [-3 * math.pi / 4], True),  # along the diagonal facing its opposite
+        ([0], [0], [0, 1], False),  # turning on the spot: no speed along the heading
+    ],
+)
+def test_a_base_path_reverses_where_its_speed_along_its_heading_falls_below_a_share_of_its_peak(x, y, theta, backwards):
+    xs, degrees = _base(np.array(x, float), np.array(y, float), np.array(theta, float))
+    assert route.reverses(xs, degrees) is backwards

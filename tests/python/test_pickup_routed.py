@@ -354,6 +354,22 @@ def test_stage1_solutions_that_repeat_an_earlier_one_are_dropped():
     assert [e[1] for e in routed._distinct(ranked, 1e-8)] == ["a", "b", "c", "d"]
 
 
+def test_the_all_constraint_plan_runs_first_from_a_base_path_that_reverses():
+    variant = replace(FAST, degrees=[2, 2, 2, 1])
+    tail = np.zeros(2 + 5)  # the arm joint's coefficients, then T1 / T, T2 / T, T, S_g, S_c
+
+    def entry(x_coeffs, label):
+        x = np.concatenate([x_coeffs, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], tail])
+        return (1.0, label, variant, x, None)
+
+    ahead, back = entry([0.0, 4.0, 0.0], "ahead"), entry([0.0, 2.0, -2.0], "back")  # x' = 4; x' = 2 - 4 s
+    S, D = planner.Method.successive, planner.Method.single_shot
+    jobs = routed._jobs([ahead, back], (S, D))
+    assert [(e[1], m) for e, m in jobs] == [("ahead", S), ("ahead", D), ("back", D), ("back", S)]
+    # Without the fallback there is nothing to reorder.
+    assert [(e[1], m) for e, m in routed._jobs([ahead, back], (S,))] == [("ahead", S), ("back", S)]
+
+
 # ---- the layouts --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("layout", list(random_problems.Layout))
 def test_layouts_draw_seeded_problems_of_their_kind(layout):

@@ -37,6 +37,9 @@ VIA_ANGLES = 8
 VIA_CLEARANCE = 0.1  # m
 VIA_OPTIONS = 3
 VIA_TRIES = 12
+# A base path reverses where its speed along its heading falls below -REVERSE_SHARE of its peak
+# speed (the share keeps a path that only creeps through zero, a solver's rounding, forwards).
+REVERSE_SHARE = 0.05
 
 
 def _mod2pi(a: float) -> float:
@@ -260,6 +263,19 @@ def candidate_routes(geo: BaseGeometry, count: int = 3, margin: float = 0.05, de
 def _degrees(settings, dof: int) -> list:
     """The polynomial degrees of a solve (native resolved_degrees: 5 for the first six DOFs, 3 after)."""
     return list(settings.degrees) if len(settings.degrees) else [5 if i < 6 else 3 for i in range(dof)]
+
+
+def reverses(x: np.ndarray, degrees, samples: int = 201) -> bool:
+    """Whether the base path of the NLP variables ``x`` (monomial coefficients in s = t / T, the
+    base polynomials first, at ``degrees``) drives backwards: its speed along its heading, x' cos(theta)
+    + y' sin(theta), below -REVERSE_SHARE of its peak somewhere."""
+    offsets = np.concatenate([[0], np.cumsum(np.asarray(degrees[:3]) + 1)])
+    cx, cy, ct = (np.asarray(x[offsets[i] : offsets[i + 1]], float)[::-1] for i in range(3))
+    u = np.linspace(0.0, 1.0, samples)
+    theta = np.polyval(ct, u)
+    forward = np.polyval(np.polyder(cx), u) * np.cos(theta) + np.polyval(np.polyder(cy), u) * np.sin(theta)
+    peak = np.abs(forward).max()
+    return bool(peak > 0 and forward.min() < -REVERSE_SHARE * peak)
 
 
 def _fit(s, values, degree: int, first: float, weights) -> np.ndarray:
