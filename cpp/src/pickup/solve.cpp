@@ -39,21 +39,33 @@ struct RunLimits {
   std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
   // The shortest Ipopt run of this call that the deadline did not cut (s): a run started with less
   // time left would end past the deadline (its start-up and first iteration alone take that long).
-  // Mutable: a statistic of the call, kept where its runs are counted.
+  // Mutable: statistics of the call, kept where its runs are counted.
   mutable double shortest_run = 0.0;
+  // The longest stretch of work between an Ipopt run's end and the next run's start (the
+  // full-stage and dense checks of a round, the next stage's IK or timing seed; s): each run is told
+  // the time left less this, so the same work after the last run still ends by the deadline (in
+  // clutter the dense check after a run that converged near the deadline ended the call 3-8 ms past it).
+  mutable double between = 0.0;
+  mutable std::chrono::steady_clock::time_point last_end{};
+  bool limited() const { return deadline != std::chrono::steady_clock::time_point::max(); }
   bool expired() const {
-    return deadline != std::chrono::steady_clock::time_point::max() &&
-           std::chrono::steady_clock::now() + seconds(shortest_run) >= deadline;
+    return limited() && std::chrono::steady_clock::now() + seconds(shortest_run + between) >= deadline;
+  }
+  // A run starts now: the work since the last one ended counts towards `between`.
+  void start() const {
+    if (last_end != std::chrono::steady_clock::time_point{})
+      between = std::max(between, std::chrono::duration<double>(std::chrono::steady_clock::now() - last_end).count());
   }
   void count(double run_seconds, bool cut) const {
     if (!cut) shortest_run = shortest_run > 0.0 ? std::min(shortest_run, run_seconds) : run_seconds;
+    last_end = std::chrono::steady_clock::now();
   }
   static std::chrono::steady_clock::duration seconds(double s) {
     return std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(s));
   }
   double seconds_left() const {
-    if (deadline == std::chrono::steady_clock::time_point::max()) return 0.0;  // 0: no limit
-    return std::max(1e-3, std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count());
+    if (!limited()) return 0.0;  // 0: no limit
+    return std::max(1e-3, std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count() - between);
   }
 };
 
@@ -197,6 +209,7 @@ StageResult solve_stage_warm(const core::Robot& robot, const PickupProblem& pb, 
       res.ipopt_status = "Not_Solved (the time limit ran out)";
       break;
     }
+    limits.start();
     sr.time_limit = limits.seconds_left();
     IpoptRun run = run_ipopt(part, sr, x, mu, warm.lambda.size() ? &warm : nullptr);
     limits.count(run.seconds, run.status == SolveStatus::time_limit);

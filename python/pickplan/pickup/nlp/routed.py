@@ -96,25 +96,32 @@ class _Budget:
         # plan's dense checks, the next seed): a native run is given the time left less this, so the
         # same work after the last run still ends by the deadline (cut runs' plans returned 2-3 ms late).
         self.reserve = 0.0
+        # The most a native call ran past the time it was given (an iteration longer than the
+        # longest before it; on a loaded machine a cluttered call ended 3 ms past the deadline).
+        self.late = 0.0
+        self.given = math.inf
         self.returned: Optional[float] = None
 
     def left(self) -> float:
         return math.inf if self.deadline is None else self.deadline - time.monotonic()
 
     def spent(self) -> bool:
-        return self.cut or self.left() <= self.quickest + self.reserve
+        return self.cut or self.left() <= self.quickest + self.reserve + self.late
 
     def settings(self, settings: planner.PlannerSettings) -> planner.PlannerSettings:
         if self.deadline is None:
             return settings
         if self.returned is not None:
             self.reserve = max(self.reserve, time.monotonic() - self.returned)
-        return replace(settings, time_limit=max(1e-3, self.left() - self.reserve))
+        self.given = max(1e-3, self.left() - self.reserve - self.late)
+        return replace(settings, time_limit=self.given)
 
     def note(self, status, seconds: float) -> None:
         """A native call's status (SolveStatus or the native enum; time_limit spends the budget)
         and wall time."""
         self.returned = time.monotonic()
+        if self.deadline is not None:
+            self.late = max(self.late, seconds - self.given)
         if not isinstance(status, planner.SolveStatus):
             status = planner.SolveStatus.from_native(status)
         if status is planner.SolveStatus.time_limit:
