@@ -8,9 +8,11 @@ NATIVE_BUILD := build/native
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 OUT ?= out
 
+# libopenblas0-serial: Debian's alternatives then give MUMPS (Ipopt's linear solver) OpenBLAS instead of
+# the reference BLAS, whose dgemm was a quarter of the pick-up planner's CPU (bench/PICKUP.md, session 32).
 SYSTEM_PACKAGES := g++ make pkg-config python3-venv python3-dev \
   libeigen3-dev libfcl-dev libccd-dev liburdfdom-dev liburdfdom-headers-dev \
-  coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev ccache \
+  coinor-libipopt-dev libgtest-dev libnanoflann-dev liblapack-dev libblas-dev libopenblas0-serial ccache \
   chromium
 PYTHON_BUILD_PACKAGES := "scikit-build-core>=0.11" "pybind11>=2.12" "cmake>=3.18" ninja
 # Formatting as code, pinned so that every machine formats alike: `make format` applies, `make lint` checks.
