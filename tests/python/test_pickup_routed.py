@@ -275,9 +275,13 @@ def test_an_all_constraint_plan_is_solved_again_from_itself_lifted_and_the_short
     def run(robot_, problem_, settings, method, x0_, label, budget_):
         out = real(robot_, problem_, settings, method, x0_, label, budget_)
         runs.append((settings.degrees[0], settings.samples_per_interval, np.asarray(x0_), out))
+        # Here the all-constraint NLP is a method of its own: a stage's iterations, not the hedge's cap.
+        assert settings.max_iter == FAST.max_iter > FAST.direct_max_iter
         return out
 
     monkeypatch.setattr(routed, "_run", run)
+    routed._solve_one(robot, problem, entry, budget, planner.Method.single_shot)
+    runs.clear()
     L, m = routed.LATER_BASE_DEGREE, FAST.samples_per_interval
     q, q_ok = routed._lifted_if_better(robot, problem, p, ok, entry, 1.0, budget)
     # One all-constraint run at degree L from the same path (its coefficients padded), at the lifted samples.
