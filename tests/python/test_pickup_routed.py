@@ -138,6 +138,13 @@ def test_the_budget_keeps_back_the_python_work_between_native_runs():
     budget.note(planner.SolveStatus.solved, second + 0.05)
     third = budget.settings(FAST).time_limit
     assert budget.late == pytest.approx(0.05) and third <= second - 0.05
+    # A long native call (one that ran into its iteration limit) does not spend what is left: what a
+    # call needs at least is about one of its iterations, not the whole of it.
+    long_call = routed._Budget(0.3)
+    long_call.note(planner.SolveStatus.max_iterations, 0.45, 450)
+    assert long_call.quickest == pytest.approx(1e-3) and not long_call.spent()
+    long_call.note(planner.SolveStatus.solved, 0.01, 1)
+    assert long_call.quickest == pytest.approx(1e-3)
 
 
 def test_the_route_search_and_the_seeds_stop_at_the_deadline(robot):
