@@ -241,8 +241,9 @@ def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Me
     samples per interval scaled by ``factor``. single_shot: the all-constraint NLP from it (the
     native direct track on its own). Here it is a method of its own, not the native track's hedge, so
     it gets a stage's Ipopt iterations (``max_iter``), not the hedge's ``direct_max_iter``: from
-    reversing base paths it stopped at that cap where it converges (behind, 20 problems: T / bound
-    median 1.52 -> 1.42, CPU median 1.86 -> 1.65 s; headings and cluttered: the same plans)."""
+    reversing base paths it stopped at that cap where it converges (behind, 100 problems: T / bound
+    median 1.56 -> 1.52, CPU median 1.97 -> 1.81 s; cluttered 96, headings 99 and paper 100 of 100
+    the same plans)."""
     _, label, variant, x1, later = entry
     if later is not None and method is planner.Method.successive:
         variant, x1 = later
