@@ -7,7 +7,8 @@
 
 #include "pickplan/pickup/nlp.hpp"
 
-namespace pickplan::pickup::detail {
+namespace pickplan::pickup {
+namespace detail {
 
 // The wall-clock limit of solve_successive's and solve_single_shot's runs (PickupSettings::time_limit).
 struct RunLimits {
@@ -53,4 +54,5 @@ inline std::chrono::steady_clock::time_point deadline_of(const PickupSettings& s
          std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(st.time_limit));
 }
 
-}  // namespace pickplan::pickup::detail
+}  // namespace detail
+}  // namespace pickplan::pickup
