@@ -13,7 +13,7 @@ namespace detail {
 // The wall-clock limit of solve_successive's and solve_single_shot's runs (PickupSettings::time_limit).
 struct RunLimits {
   // Wall-clock deadline (PickupSettings::time_limit; max: none): no run starts when it is nearer
-  // than the shortest run so far, and each run is told the time left.
+  // than the shortest run so far plus `between`, and each run is told the time left less `between`.
   std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
   // The shortest Ipopt run of this call that the deadline did not cut (s): a run started with less
   // time left would end past the deadline (its start-up and first iteration alone take that long).
