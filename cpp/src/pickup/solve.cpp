@@ -169,7 +169,7 @@ StageResult solve_stage_warm(const core::Robot& robot, const PickupProblem& pb, 
     limits.start();
     sr.time_limit = limits.seconds_left();
     IpoptRun run = run_ipopt(part, sr, x, mu, warm.lambda.size() ? &warm : nullptr);
-    limits.count(run.seconds, run.status == SolveStatus::time_limit);
+    limits.count(run.seconds, run.iterations, run.status == SolveStatus::time_limit);
     if (run.mult.lambda.size() == part.num_constraints()) keep_multipliers(part, run.mult, prev);
     res.iterations += run.iterations;
     res.rounds = round + 1;
