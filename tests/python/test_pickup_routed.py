@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pickplan import _core
-from pickplan.pickup.nlp import planner, problem_file, random_problems, route, routed, solve_problem
+from pickplan.pickup.nlp import budget, planner, problem_file, random_problems, route, routed, solve_problem
 from pickplan.pickup.nlp.feasibility import Reason, base_geometry, certify, lower_bound
 from routed_fixtures import FAST, _native, _spec
 
@@ -122,25 +122,25 @@ def test_the_budget_keeps_back_the_python_work_between_native_runs():
     """A native run is given the time left less the longest Python stretch seen between a run's return
     and the next run (the plan's dense checks, the next seed), so the same work after the last run
     still ends by the deadline, and less the most a native run overran its own limit."""
-    none = routed._Budget(0.0)
+    none = budget.Budget(0.0)
     assert none.settings(FAST) is FAST and not none.spent()
-    budget = routed._Budget(10.0)
-    first = budget.settings(FAST).time_limit
+    timer = budget.Budget(10.0)
+    first = timer.settings(FAST).time_limit
     # Nothing seen yet to keep back but the scheduler's share.
-    kept = 10.0 * (1 - routed.SCHEDULER_SHARE)
-    assert 0 < routed.SCHEDULER_SHARE < 0.05 and kept - 0.1 < first <= kept and budget.reserve == 0.0
-    budget.note(planner.SolveStatus.solved, 0.01)
+    kept = 10.0 * (1 - budget.SCHEDULER_SHARE)
+    assert 0 < budget.SCHEDULER_SHARE < 0.05 and kept - 0.1 < first <= kept and timer.reserve == 0.0
+    timer.note(planner.SolveStatus.solved, 0.01)
     time.sleep(0.02)  # the work after the run
-    second = budget.settings(FAST).time_limit
-    assert budget.reserve >= 0.02 and second <= first - 0.04
-    assert not budget.spent() and budget.late == 0.0
+    second = timer.settings(FAST).time_limit
+    assert timer.reserve >= 0.02 and second <= first - 0.04
+    assert not timer.spent() and timer.late == 0.0
     # A native call that returns past the time it was given: later calls are given that much less.
-    budget.note(planner.SolveStatus.solved, second + 0.05)
-    third = budget.settings(FAST).time_limit
-    assert budget.late == pytest.approx(0.05) and third <= second - 0.05
+    timer.note(planner.SolveStatus.solved, second + 0.05)
+    third = timer.settings(FAST).time_limit
+    assert timer.late == pytest.approx(0.05) and third <= second - 0.05
     # A long native call (one that ran into its iteration limit) does not spend what is left: what a
     # call needs at least is about one of its iterations, not the whole of it.
-    long_call = routed._Budget(0.3)
+    long_call = budget.Budget(0.3)
     long_call.note(planner.SolveStatus.max_iterations, 0.45, 450)
     assert long_call.quickest == pytest.approx(1e-3) and not long_call.spent()
     long_call.note(planner.SolveStatus.solved, 0.01, 1)
@@ -202,6 +202,30 @@ def test_the_five_stages_run_on_the_stage_1_base_path_lifted_to_a_higher_degree(
     assert p.success and list(p.native.degrees)[:3] == [L, L, L] and planner.passes_dense_checks(robot, problem, p)
     kept = routed.plan_routed(robot, problem, replace(settings, degrees=list(variant.degrees)), routes=0)
     assert list(kept.native.degrees) == list(variant.degrees)
+
+
+def test_stage1_tries_no_further_seed_once_a_base_path_is_near_the_bound(robot, monkeypatch):
+    # The part beside the straight line: the heuristic seed's base path is near the bound, so the
+    # route seeds' stage 1 (each 0.1-1.6 s of CPU in clutter) would not find a much faster one.
+    problem = _native(robot, _spec())
+    real_stage = planner.solve_stage
+    stage1 = []  # T of each stage-1 run
+
+    def stage(robot_, problem_, x0, k, settings):
+        r = real_stage(robot_, problem_, x0, k, settings)
+        stage1.append(r.objective if r.success else math.inf)
+        return r
+
+    monkeypatch.setattr(planner, "solve_stage", stage)
+    p = routed.plan_routed(robot, problem, FAST, routes=3)
+    assert p.success and len(stage1) == 1
+    assert p.lower_bound <= stage1[0] <= routed.NEAR_BOUND * p.lower_bound  # a base path is never below the bound
+    stage1.clear()
+    monkeypatch.setattr(routed, "NEAR_BOUND", 0.0)  # never near: every seed's stage 1 runs
+    q = routed.plan_routed(robot, problem, FAST, routes=3)
+    routes = len(list(routed.seeds(robot, problem, replace(FAST, degrees=[7, 7, 7, 5, 5, 5, 3, 3, 3]), 3))) - 1
+    assert q.success and routes >= 1 and len(stage1) == 1 + routes
+    assert all(t >= q.lower_bound for t in stage1)
 
 
 def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robot, monkeypatch):
@@ -274,8 +298,8 @@ def test_an_all_constraint_plan_is_solved_again_from_itself_lifted_and_the_short
     assert r.success
     x = np.asarray(r.x)
     entry = (r.objective, "heuristic", variant, x, routed._raised(variant, x, robot.dof))
-    budget = routed._Budget(0.0)
-    p, ok = routed._solve_one(robot, problem, entry, budget, planner.Method.single_shot)
+    unlimited = budget.Budget(0.0)
+    p, ok = routed._solve_one(robot, problem, entry, unlimited, planner.Method.single_shot)
     assert p.success and list(p.native.degrees)[:3] == [7, 7, 7]
     runs, real = [], routed._run
 
@@ -287,10 +311,10 @@ def test_an_all_constraint_plan_is_solved_again_from_itself_lifted_and_the_short
         return out
 
     monkeypatch.setattr(routed, "_run", run)
-    routed._solve_one(robot, problem, entry, budget, planner.Method.single_shot)
+    routed._solve_one(robot, problem, entry, unlimited, planner.Method.single_shot)
     runs.clear()
     L, m = routed.LATER_BASE_DEGREE, FAST.samples_per_interval
-    q, q_ok = routed._lifted_if_better(robot, problem, p, ok, entry, 1.0, budget)
+    q, q_ok = routed._lifted_if_better(robot, problem, p, ok, entry, 1.0, unlimited)
     # One all-constraint run at degree L from the same path (its coefficients padded), at the lifted samples.
     ((deg, samples, start, lifted),) = runs
     assert (deg, samples) == (L, round(m * routed.LATER_SAMPLES))
@@ -300,15 +324,15 @@ def test_an_all_constraint_plan_is_solved_again_from_itself_lifted_and_the_short
     # A plan that failed the dense checks (as if it had slid sideways between the samples): the lift
     # also refines the samples, and its plan is kept when it passes.
     runs.clear()
-    q, q_ok = routed._lifted_if_better(robot, problem, p, False, entry, 1.0, budget)
+    q, q_ok = routed._lifted_if_better(robot, problem, p, False, entry, 1.0, unlimited)
     assert runs[0][1] == round(round(m * routed.REFINE[0]) * routed.LATER_SAMPLES)
     assert q_ok == runs[0][3][1] and (q is runs[0][3][0] if q_ok else q is p)
     # Nothing to lift: the caller's degrees, or a plan that did not converge.
     runs.clear()
-    assert routed._lifted_if_better(robot, problem, p, ok, entry[:4] + (None,), 1.0, budget) == (p, ok)
+    assert routed._lifted_if_better(robot, problem, p, ok, entry[:4] + (None,), 1.0, unlimited) == (p, ok)
     failed = copy.copy(p)
     failed.success, failed.status = False, planner.SolveStatus.max_iterations
-    assert routed._lifted_if_better(robot, problem, failed, False, entry, 1.0, budget) == (failed, False)
+    assert routed._lifted_if_better(robot, problem, failed, False, entry, 1.0, unlimited) == (failed, False)
     assert not runs
 
 

@@ -5,8 +5,8 @@ successive refinement from the fastest base path, and a wall-clock budget.
 1. ``feasibility.certify``: a problem the geometry rules out (gamma unattainable, the part out of
    reach from every free base position, T's bound above the horizon) gets its reason, no solve.
 2. Stage 1 (the base path: non-holonomic, limits, grasping area, goal, base collisions) from the
-   heuristic seed and from up to ``routes`` route seeds at base degree 7; the solved ones are ranked
-   by their T. The quintic base from the heuristic seed, then degree 12 from every seed, run only
+   heuristic seed and from up to ``routes`` route seeds at base degree 7, until one's T is within
+   NEAR_BOUND of the lower bound; the solved ones are ranked by their T. The quintic base from the heuristic seed, then degree 12 from every seed, run only
    when their plans are spent.
 3. The stage-1 solutions less repeats (two seeds that reach the same optimum); from each in turn,
    the five stages (native ``solve_successive``: arm seeds; the base path lifted to
@@ -44,6 +44,7 @@ import numpy as np
 
 from pickplan import _core
 from pickplan.pickup.nlp import planner, route
+from pickplan.pickup.nlp.budget import Budget
 from pickplan.pickup.nlp.feasibility import Certificate, Reason, base_geometry, certify
 
 ROUTES = 3  # route seeds tried in stage 1 beside the heuristic seed
@@ -80,62 +81,15 @@ SECOND_OPINION = 3.0
 # the samples per interval scaled by these factors in turn (issue 37, behind layout: 8 -> 12 or 16);
 # the all-constraint plans that failed so are solved again likewise.
 REFINE = (1.5, 2.0)
-# The share of a time budget kept back for what the planner does not control: the process waiting
-# for a core or a garbage collection (behind layout, two benchmark processes on two cores: a call
-# whose CPU stayed within 2 s ended 12 ms past it, 44 ms of its wall time spent off the CPU).
-SCHEDULER_SHARE = 0.01
-
-
-class _Budget:
-    """The call's wall-clock budget: spent when a native run stopped for it (a native run stops
-    before an iteration that would end past the deadline, so it may stop a little early) or when
-    less time is left than the shortest Ipopt iteration of a native call so far, on average over
-    the call (a call started then would end past the deadline: its start-up and first iteration
-    take about that long). The whole of the quickest call was the measure before: one stage-1 run
-    that ended at its iteration limit after 1.25 s then spent a 2 s budget at 1.3 s (headings 92;
-    13 behind and 14 cluttered budgets ended so between 1.0 and 1.85 s)."""
-
-    def __init__(self, time_limit: float):
-        self.deadline = time.monotonic() + (1 - SCHEDULER_SHARE) * time_limit if time_limit > 0 else None
-        self.cut = False
-        self.quickest = 0.0
-        # The longest stretch of Python work between a native call's return and the next call (the
-        # plan's dense checks, the next seed): a native run is given the time left less this, so the
-        # same work after the last run still ends by the deadline (cut runs' plans returned 2-3 ms late).
-        self.reserve = 0.0
-        # The most a native call ran past the time it was given (an iteration longer than the
-        # longest before it; on a loaded machine a cluttered call ended 3 ms past the deadline).
-        self.late = 0.0
-        self.given = math.inf
-        self.returned: Optional[float] = None
-
-    def left(self) -> float:
-        return math.inf if self.deadline is None else self.deadline - time.monotonic()
-
-    def spent(self) -> bool:
-        return self.cut or self.left() <= self.quickest + self.reserve + self.late
-
-    def settings(self, settings: planner.PlannerSettings) -> planner.PlannerSettings:
-        if self.deadline is None:
-            return settings
-        if self.returned is not None:
-            self.reserve = max(self.reserve, time.monotonic() - self.returned)
-        self.given = max(1e-3, self.left() - self.reserve - self.late)
-        return replace(settings, time_limit=self.given)
-
-    def note(self, status, seconds: float, iterations: int = 1) -> None:
-        """A native call's status (SolveStatus or the native enum; time_limit spends the budget),
-        wall time and Ipopt iterations."""
-        self.returned = time.monotonic()
-        if self.deadline is not None:
-            self.late = max(self.late, seconds - self.given)
-        if not isinstance(status, planner.SolveStatus):
-            status = planner.SolveStatus.from_native(status)
-        if status is planner.SolveStatus.time_limit:
-            self.cut = True
-        else:
-            step = seconds / max(1, iterations)
-            self.quickest = min(self.quickest, step) if self.quickest > 0 else step
+# Stage 1 tries no further seed once a base path's T is within this multiple of the lower bound: no
+# other base path can be more than that much faster, and each further stage-1 run costs 0.1-1.6 s
+# of CPU (most in clutter, where route seeds often converge at 2-5x the bound or fail at the
+# horizon). 40 problems each, against every seed: at 1.25, CPU median cluttered 1.57 -> 1.07 s with
+# every plan the same, behind 1.81 -> 1.52 s with 2 plans changed (1.471 -> 1.49, 1.394 -> 1.392);
+# at 1.15, cluttered 1.06 s and behind 1.76 s; at 1.4, cluttered 1.00 s and behind 1.54 s. At 1.25,
+# 100 problems each: cluttered 1.90 -> 1.13 s (3 plans changed), behind 1.94 -> 1.50 s (6 changed);
+# T / bound medians 1.454 and 1.523 -> 1.527.
+NEAR_BOUND = 1.25
 
 
 def _variants(robot, settings: planner.PlannerSettings) -> list:
@@ -155,11 +109,14 @@ class Part(enum.Enum):
     later = "later"
 
 
-def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1.0, part: Part = Part.every) -> list:
+def _stage1(
+    robot, problem, settings, budget: Budget, routes, factor: float = 1.0, part: Part = Part.every, enough: float = 0.0
+) -> list:
     """Stage 1 from every seed (the first base degree and those >= ROUTE_MIN_DEGREE) and from the
-    heuristic seed (the quintic) while time is left: [(T, label, settings, x, later)] of the solved
-    runs, fastest first (the first degree first among equal T); ``later``: (settings, x) of the same
-    path at LATER_BASE_DEGREE for the five stages, None with the caller's degrees. ``factor`` scales the samples per interval (the later
+    heuristic seed (the quintic) while time is left, and until a base path's T is at most ``enough``
+    (s): [(T, label, settings, x, later)] of the solved runs, fastest first (the first degree first
+    among equal T); ``later``: (settings, x) of the same path at LATER_BASE_DEGREE for the five
+    stages, None with the caller's degrees. ``factor`` scales the samples per interval (the later
     stages from such a solution keep them)."""
     solved = []
     if factor != 1:
@@ -171,6 +128,8 @@ def _stage1(robot, problem, settings, budget: _Budget, routes, factor: float = 1
         with_routes = k == 0 or variant.degrees[0] >= ROUTE_MIN_DEGREE  # (the caller's degrees: k = 0)
         pending = seeds(robot, problem, variant, routes if with_routes else 0, budget.deadline)
         while not budget.spent():  # checked before the next seed's geometry is computed, not only after
+            if solved and min(s[0] for s in solved) <= enough:
+                break
             label, x0 = next(pending, (None, None))
             if label is None or budget.spent():
                 break
@@ -236,7 +195,7 @@ def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTE
             yield f"route {r.label}", route.route_seed(r, geo, template, settings, robot.dof, problem.stroke)
 
 
-def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Method, factor: float = 1.0) -> tuple:
+def _solve_one(robot, problem, entry: tuple, budget: Budget, method: planner.Method, factor: float = 1.0) -> tuple:
     """(plan, whether it passes the dense checks) of ``method`` from one stage-1 solution, with the
     samples per interval scaled by ``factor``. single_shot: the all-constraint NLP from it (the
     native direct track on its own). Here it is a method of its own, not the native track's hedge, so
@@ -255,7 +214,7 @@ def _solve_one(robot, problem, entry: tuple, budget: _Budget, method: planner.Me
     return _run(robot, problem, variant, method, x1, label, budget)
 
 
-def _run(robot, problem, settings, method: planner.Method, x0, label: str, budget: _Budget) -> tuple:
+def _run(robot, problem, settings, method: planner.Method, x0, label: str, budget: Budget) -> tuple:
     """(plan, whether it passes the dense checks) of one native plan within the budget, labelled."""
     t = time.monotonic()
     p = planner.plan(robot, problem, budget.settings(settings), method, x0=x0)
@@ -264,7 +223,7 @@ def _run(robot, problem, settings, method: planner.Method, x0, label: str, budge
     return p, bool(p.success and planner.passes_dense_checks(robot, problem, p))
 
 
-def _lifted_plan(robot, problem, plan: planner.PickupPlan, variant, budget: _Budget) -> tuple:
+def _lifted_plan(robot, problem, plan: planner.PickupPlan, variant, budget: Budget) -> tuple:
     """(plan, whether it passes the dense checks) of the all-constraint NLP from an all-constraint
     ``plan`` (made with ``variant``) lifted to LATER_BASE_DEGREE: it starts at (or, when ``plan``
     failed between the samples, near) a feasible point and the base can then slow round the grasp
@@ -274,7 +233,7 @@ def _lifted_plan(robot, problem, plan: planner.PickupPlan, variant, budget: _Bud
     return _run(robot, problem, lifted, planner.Method.single_shot, x, label, budget)
 
 
-def _lifted_if_better(robot, problem, p: planner.PickupPlan, ok: bool, entry: tuple, factor: float, budget: _Budget):
+def _lifted_if_better(robot, problem, p: planner.PickupPlan, ok: bool, entry: tuple, factor: float, budget: Budget):
     """(plan, whether it passes) of an all-constraint plan ``p`` from the stage-1 solution ``entry``
     (samples per interval scaled by ``factor``): when it converged at the stage-1 degree, itself
     lifted (``_lifted_plan``) is kept if it passes and is shorter, or passes where ``p`` failed the
@@ -293,7 +252,7 @@ def _lifted_if_better(robot, problem, p: planner.PickupPlan, ok: bool, entry: tu
     return p, ok
 
 
-def _solve_lifted(robot, problem, entry: tuple, budget: _Budget, method: planner.Method, factor: float = 1.0):
+def _solve_lifted(robot, problem, entry: tuple, budget: Budget, method: planner.Method, factor: float = 1.0):
     """``_solve_one``, and an all-constraint plan then ``_lifted_if_better``."""
     p, ok = _solve_one(robot, problem, entry, budget, method, factor)
     if method is planner.Method.single_shot:
@@ -301,7 +260,7 @@ def _solve_lifted(robot, problem, entry: tuple, budget: _Budget, method: planner
     return p, ok
 
 
-def _second_opinion(robot, problem, best: planner.PickupPlan, entries: list, budget: _Budget, target: float):
+def _second_opinion(robot, problem, best: planner.PickupPlan, entries: list, budget: Budget, target: float):
     """The shortest passing plan of ``best`` (a five-stage plan above ``target``) and the all-constraint
     plans (``_lifted_if_better``) from the stage-1 solutions ``entries`` in turn, until one is within
     ``target`` or the budget is spent."""
@@ -320,7 +279,7 @@ def _between_samples(p: planner.PickupPlan) -> bool:
     return p.success or p.status is planner.SolveStatus.violation_between_samples
 
 
-def _solve_ranked(robot, problem, jobs: list, budget: _Budget, factor: float = 1.0, more=None) -> tuple:
+def _solve_ranked(robot, problem, jobs: list, budget: Budget, factor: float = 1.0, more=None) -> tuple:
     """(the first plan that passes the dense checks or None, its (stage-1 solution, method), the
     plan that went furthest, [(T, stage-1 solution, method)] of the plans that failed only between
     the samples) of the jobs (stage-1 solution, method) in their order, while the budget lasts.
@@ -380,7 +339,7 @@ class _LaterPaths:
     """The jobs of the later base degrees' stage-1 solutions (``Part.later``), computed on the first
     call only (an empty list after it): they run when the first degree's plans are spent."""
 
-    def __init__(self, robot, problem, settings, budget: _Budget, methods: tuple, routes: int):
+    def __init__(self, robot, problem, settings, budget: Budget, methods: tuple, routes: int):
         self.args, self.methods, self.done = (robot, problem, settings, budget, routes), methods, False
 
     def __call__(self) -> list:
@@ -392,7 +351,7 @@ class _LaterPaths:
         return _jobs(_distinct(later, settings.tol), self.methods)
 
 
-def _refined(robot, problem, between: list, budget: _Budget):
+def _refined(robot, problem, between: list, budget: Budget):
     """The first plan that passes with the samples refined (REFINE, each factor in turn), re-solving
     the plans that held their rows at the samples only, shortest T first: more rows lengthen T
     little, so the shortest such plan is the likeliest short feasible one (issue 37, behind layout:
@@ -428,7 +387,7 @@ def plan_routed(
     if not (time_limit >= 0 and math.isfinite(time_limit)):
         raise ValueError(f"time_limit: expected a finite number >= 0 (0: none), got {time_limit}")
     t0, c0 = time.monotonic(), time.thread_time()
-    budget = _Budget(time_limit)
+    budget = Budget(time_limit)
     problem.validate(robot.native)
     cert = certify(robot, problem, settings)
     if not cert.feasible:
@@ -437,7 +396,8 @@ def plan_routed(
         return p
     methods = (planner.Method.successive, planner.Method.single_shot) if fallback else (planner.Method.successive,)
     later = _LaterPaths(robot, problem, settings, budget, methods, routes)
-    ranked = _stage1(robot, problem, settings, budget, routes, part=Part.first)
+    # (the later degrees and the refined samples run where these base paths failed: every seed there)
+    ranked = _stage1(robot, problem, settings, budget, routes, part=Part.first, enough=NEAR_BOUND * cert.lower_bound)
     # Each solution's fallback comes before the next solution's five stages: it is cheaper (behind
     # layout: 0.3-1.3 s against 1-4 s) and the plans tried before the refinement are the same.
     jobs = _jobs(_distinct(ranked, settings.tol), methods) or later()
