@@ -221,11 +221,13 @@ def test_stage1_tries_no_further_seed_once_a_base_path_is_near_the_bound(robot, 
     assert p.success and len(stage1) == 1
     assert p.lower_bound <= stage1[0] <= routed.NEAR_BOUND * p.lower_bound  # a base path is never below the bound
     stage1.clear()
-    monkeypatch.setattr(routed, "NEAR_BOUND", 0.0)  # never near: every seed's stage 1 runs
-    q = routed.plan_routed(robot, problem, FAST, routes=3)
+    q = routed.plan_routed(robot, problem, FAST, routes=3, near_bound=0.0)  # never near: every seed's stage 1 runs
     routes = len(list(routed.seeds(robot, problem, replace(FAST, degrees=[7, 7, 7, 5, 5, 5, 3, 3, 3]), 3))) - 1
     assert q.success and routes >= 1 and len(stage1) == 1 + routes
     assert all(t >= q.lower_bound for t in stage1)
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="near_bound"):
+            routed.plan_routed(robot, problem, FAST, near_bound=bad)
 
 
 def test_all_constraints_from_the_base_paths_when_no_five_stage_plan_passes(robot, monkeypatch):

@@ -374,6 +374,7 @@ def plan_routed(
     direct_track: bool = False,
     fallback: bool = True,
     refine: bool = True,
+    near_bound: float = NEAR_BOUND,
 ) -> planner.PickupPlan:
     """Plans any layout (module doc). ``time_limit`` > 0: wall-clock seconds for the whole call.
     ``direct_track`` (settings.direct_track is replaced by it): the native all-constraint hedge after
@@ -382,10 +383,14 @@ def plan_routed(
     ``fallback``: when no five-stage plan passes, the all-constraint NLP from each stage-1 solution
     in turn (issue 37, behind layout: it found feasible plans where the five stages ended with the
     base sliding sideways between the samples or past the horizon); and from the plan's own
-    stage-1 solution when its T is above SECOND_OPINION times the lower bound."""
+    stage-1 solution when its T is above SECOND_OPINION times the lower bound. ``near_bound``: stage 1
+    tries no further seed once a base path's T is within this multiple of the lower bound (0: every
+    seed, for the fastest base path at more CPU)."""
     settings = replace(settings, direct_track=direct_track)
     if not (time_limit >= 0 and math.isfinite(time_limit)):
         raise ValueError(f"time_limit: expected a finite number >= 0 (0: none), got {time_limit}")
+    if not (near_bound >= 0 and math.isfinite(near_bound)):
+        raise ValueError(f"near_bound: expected a finite number >= 0 (0: every seed), got {near_bound}")
     t0, c0 = time.monotonic(), time.thread_time()
     budget = Budget(time_limit)
     problem.validate(robot.native)
@@ -397,7 +402,7 @@ def plan_routed(
     methods = (planner.Method.successive, planner.Method.single_shot) if fallback else (planner.Method.successive,)
     later = _LaterPaths(robot, problem, settings, budget, methods, routes)
     # (the later degrees and the refined samples run where these base paths failed: every seed there)
-    ranked = _stage1(robot, problem, settings, budget, routes, part=Part.first, enough=NEAR_BOUND * cert.lower_bound)
+    ranked = _stage1(robot, problem, settings, budget, routes, part=Part.first, enough=near_bound * cert.lower_bound)
     # Each solution's fallback comes before the next solution's five stages: it is cheaper (behind
     # layout: 0.3-1.3 s against 1-4 s) and the plans tried before the refinement are the same.
     jobs = _jobs(_distinct(ranked, settings.tol), methods) or later()
