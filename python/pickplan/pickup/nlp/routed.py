@@ -6,8 +6,8 @@ successive refinement from the fastest base path, and a wall-clock budget.
    reach from every free base position, T's bound above the horizon) gets its reason, no solve.
 2. Stage 1 (the base path: non-holonomic, limits, grasping area, goal, base collisions) from the
    heuristic seed and from up to ``routes`` route seeds at base degree 7, until one's T is within
-   NEAR_BOUND of the lower bound; the solved ones are ranked by their T. The quintic base from the heuristic seed, then degree 12 from every seed, run only
-   when their plans are spent.
+   NEAR_BOUND of the lower bound; the solved ones are ranked by their T. The quintic base from the
+   heuristic seed, then degree 12 from every seed, run only when their plans are spent.
 3. The stage-1 solutions less repeats (two seeds that reach the same optimum); from each in turn,
    the five stages (native ``solve_successive``: arm seeds; the base path lifted to
    LATER_BASE_DEGREE, so stage 3 can slow it round the grasp alone), and when their plan fails (or
