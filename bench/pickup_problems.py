@@ -22,15 +22,15 @@ median <= 0.7 s, worst <= 2 s.
 Issue 37: ``--layout paper|side|behind|cluttered|headings`` draws the problems of that layout
 (random_problems.Layout; several layouts: one run each, OUT/LAYOUT/); ``--method routed`` solves with
 ``routed.plan_routed`` (certificate, lower bound, route seeds), ``--time-limit S`` solves each problem
-a second time with that wall-clock budget, ``--near-bound X`` passes plan_routed's stage-1 stop. With ``--shots 0`` the summary is issue 37's: solved,
-declared infeasible (reason verified: the certificate's), failed, T / lower bound, CPU and wall.
+a second time with that wall-clock budget, ``--near-bound X`` passes plan_routed's stage-1 stop.
+With ``--shots 0`` the summary is issue 37's: solved, declared infeasible (reason verified: the
+certificate's), failed, T / lower bound, CPU and wall.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import time
 from dataclasses import replace
@@ -315,8 +315,11 @@ def main(argv=None) -> int:
         f"the lower bound (default {routed.NEAR_BOUND}; 0: every seed)",
     )
     args = ap.parse_args(argv)
-    if args.near_bound is not None and not (args.near_bound >= 0 and math.isfinite(args.near_bound)):
-        raise SystemExit(f"--near-bound: expected a finite number >= 0, got {args.near_bound}")
+    if args.near_bound is not None:  # refused here, not in every worker
+        try:
+            routed.check_near_bound(args.near_bound)
+        except ValueError as e:
+            raise SystemExit(f"--near-bound: {e}") from None
     overrides = json.loads(args.set)
     if not isinstance(overrides, dict):
         raise SystemExit(f"--set: expected a JSON object, got {args.set!r}")

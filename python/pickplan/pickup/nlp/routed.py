@@ -365,6 +365,12 @@ def _refined(robot, problem, between: list, budget: Budget):
     return None
 
 
+def check_near_bound(near_bound: float) -> None:
+    """ValueError unless ``near_bound`` (plan_routed's stage-1 stop) is a finite number >= 0."""
+    if not (near_bound >= 0 and math.isfinite(near_bound)):
+        raise ValueError(f"near_bound: expected a finite number >= 0 (0: every seed), got {near_bound}")
+
+
 def plan_routed(
     robot,
     problem,
@@ -389,8 +395,7 @@ def plan_routed(
     settings = replace(settings, direct_track=direct_track)
     if not (time_limit >= 0 and math.isfinite(time_limit)):
         raise ValueError(f"time_limit: expected a finite number >= 0 (0: none), got {time_limit}")
-    if not (near_bound >= 0 and math.isfinite(near_bound)):
-        raise ValueError(f"near_bound: expected a finite number >= 0 (0: every seed), got {near_bound}")
+    check_near_bound(near_bound)
     t0, c0 = time.monotonic(), time.thread_time()
     budget = Budget(time_limit)
     problem.validate(robot.native)
