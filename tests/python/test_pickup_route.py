@@ -3,6 +3,7 @@ car-like and clear (via poses round obstacles where two legs cannot clear), and 
 yaw-rate limits."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -120,6 +121,48 @@ def test_routes_are_continuous_car_like_and_clear_and_their_seeds_keep_the_limit
         assert np.hypot(v[0], v[1]).max() <= geo.v_max * (1 + 1e-9)  # the speed limit
         assert np.abs(v[2]).max() <= geo.w_max * (1 + 1e-9)  # the yaw-rate limit
         assert np.allclose([c[0] for c in coeff], geo.start)
+
+
+def test_a_route_seed_comes_to_rest_at_a_cusp_and_heads_along_its_path(robot):
+    """Part behind the start: each route drives back to the grasp pose and forwards to the goal. The
+    seed's time law stops at the cusp at a constant deceleration over the shorter leg (closed form:
+    that leg takes twice its length at the cruise speed), and its fitted base path slides sideways
+    little on average (a constant-speed fit rounds the cusp sideways: 0.39-0.47 of the speed)."""
+    spec = _spec(part_position=(-3.0, 1.0, 0.5), obstacles=(problem_file.SphereObstacle((-3.0, 1.0, 0.15), 0.15),))
+    problem = _native(robot, spec)
+    settings = replace(FAST, degrees=[7, 7, 7, 5, 5, 5, 3, 3, 3])
+    geo = base_geometry(robot, problem, settings)
+    template = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.to_native()))
+    routes = route.candidate_routes(geo, count=4)
+    assert routes
+    P = np.polynomial.polynomial
+    for r in routes:
+        (cusp,) = np.flatnonzero(np.diff(r.direction) != 0)  # one reversal, at the grasp pose
+        first, second = r.s[cusp], r.length - r.s[cusp]
+        short, long_ = min(first, second), max(first, second)
+        t = route.route_times(r)
+        assert t[0] == 0 and t[-1] == pytest.approx(1) and np.all(np.diff(t) > 0)
+        # at cruise speed 1: the shorter leg 2 * short, the longer 2 * short (its ramp) + long - short
+        expected = (2 * first if first <= second else 2 * short + long_ - short) / (3 * short + long_)
+        assert t[cusp] == pytest.approx(expected, rel=0.03)
+        speed = np.diff(r.s) / np.diff(t)
+        assert speed[cusp - 1 : cusp + 1].max() < 0.25 * speed.max()  # (nearly) at rest round the cusp
+        x = route.route_seed(r, geo, template, settings, robot.dof, problem.stroke)
+        c = [x[o : o + 8] for o in (0, 8, 16)]
+        u = np.linspace(0, 1, 2001)
+        dx, dy = (P.polyval(u, P.polyder(cc)) for cc in c[:2])
+        heading = P.polyval(u, c[2])
+        lateral = np.abs(dx * np.sin(heading) - dy * np.cos(heading))
+        assert lateral.mean() < 0.2 * np.hypot(dx, dy).mean()
+
+
+def test_a_route_without_a_cusp_is_timed_at_constant_speed(robot):
+    problem = _native(robot, _spec())
+    geo = base_geometry(robot, problem, FAST)
+    forwards = [r for r in route.candidate_routes(geo, count=4) if np.all(r.direction == 1)]
+    assert forwards  # the part beside the straight line: some route drives forwards throughout
+    for r in forwards:
+        assert np.allclose(route.route_times(r), r.s / r.length)
 
 
 # ---- reversing base paths -----------------------------------------------------------------------------

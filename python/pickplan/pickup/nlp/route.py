@@ -30,6 +30,9 @@ STEP = 0.05  # m between route samples
 FIT_SAMPLES = 80  # samples of a route the polynomials are fitted to
 SPEED_SHARE = 0.9  # seeds time the fitted polynomial to this share of the speed and yaw-rate limits
 WAYPOINT_WEIGHT = 30.0  # weight of the grasp pose and the goal in the fit
+# Where the fitted path slows below this share of its median speed (round a cusp), the seed heads
+# as the route does: the fitted tangent is noise there.
+SLOW_SHARE = 0.3
 # Via poses (clutter where no two-leg route clears): per obstacle disk, VIA_ANGLES poses round it
 # VIA_CLEARANCE beyond the margin; per blocked class, its VIA_OPTIONS shortest routes are tried with
 # each blocked leg through the pair of legs via one pose, of the VIA_TRIES shortest pairs.
@@ -285,28 +288,51 @@ def _fit(s, values, degree: int, first: float, weights) -> np.ndarray:
     return np.concatenate([[first], c])
 
 
+def route_times(route: Route) -> np.ndarray:
+    """The seed's normalised time (0 to 1) at each route sample: constant speed, except that the base
+    comes to rest at each cusp (where the route turns from forwards to backwards or back), slowing at
+    a constant rate over the whole of the shorter leg beside it and speeding up likewise after. A
+    polynomial fitted to a cusp driven at constant speed rounds it with a sideways slide and a tangent
+    that swings through pi, so its heading fits badly and stage 1 starts far from the non-holonomic
+    rows; at rest there, the fitted path is smooth and its tangent follows the route."""
+    s = route.s
+    cusps = np.flatnonzero(np.diff(route.direction) != 0)
+    bounds = np.concatenate([[0.0], s[cusps], [route.length]])
+    mid = 0.5 * (s[1:] + s[:-1])
+    speed = np.ones(len(mid))
+    for k, c in enumerate(s[cusps]):
+        ramp = max(min(bounds[k + 1] - bounds[k], bounds[k + 2] - bounds[k + 1]), 1e-9)
+        speed = np.minimum(speed, np.sqrt(np.minimum(1.0, np.abs(mid - c) / ramp)))  # constant deceleration
+    t = np.concatenate([[0.0], np.cumsum(np.diff(s) / np.maximum(speed, 1e-6))])
+    return t / t[-1] if t[-1] > 0 else np.linspace(0.0, 1.0, len(s))
+
+
 def route_seed(route: Route, geo: BaseGeometry, template: np.ndarray, settings, dof: int, stroke: float) -> np.ndarray:
     """The stage-1 seed of a route: ``template`` (a native heuristic seed: arm, S_g, S_c) with the
-    base polynomials fitted to the route at constant speed in arc length, T set so the polynomial's
-    peak speed and yaw rate are SPEED_SHARE of their limits, the grasp window round the grasp pose."""
+    base polynomials fitted to the route timed by ``route_times``, T set so the polynomial's peak
+    speed and yaw rate are SPEED_SHARE of their limits, the grasp window round the grasp pose."""
     deg = _degrees(settings, dof)
     offsets = np.concatenate([[0], np.cumsum(np.asarray(deg) + 1)])
     x = np.array(template, float)
     nc = offsets[-1]
     if len(x) != nc + 5:
         raise ValueError(f"route_seed: the template has {len(x)} variables, expected {nc + 5}")
-    idx = np.unique(np.linspace(0, len(route.s) - 1, FIT_SAMPLES).round().astype(int))
-    idx = np.union1d(idx, [route.grasp_index])
-    s = route.s[idx] / max(route.length, 1e-9)
+    times = route_times(route)
+    idx = np.unique(np.searchsorted(times, np.linspace(0.0, 1.0, FIT_SAMPLES)).clip(0, len(times) - 1))
+    idx = np.union1d(idx, [route.grasp_index, len(times) - 1])
+    s = times[idx]
     w = np.ones(len(idx))
     w[idx == route.grasp_index] = w[-1] = WAYPOINT_WEIGHT
     coeffs = [_fit(s, route.poses[idx, i], deg[i], geo.start[i], w) for i in range(2)]
     # The heading: the fitted path's own tangent (+ pi where the route drives backwards), so the
-    # seed meets the non-holonomic rows as well as its path allows.
+    # seed meets the non-holonomic rows as well as its path allows; the route's heading where the
+    # fitted path nearly stops (below SLOW_SHARE of its median speed: round a cusp), as its tangent
+    # is noise there.
     dx, dy = (np.polyval(np.polyder(c[::-1]), s) for c in coeffs)
     tangent = np.arctan2(dy, dx) + np.where(route.direction[idx] < 0, math.pi, 0.0)
-    slow = np.hypot(dx, dy) < 1e-3 * max(route.length, 1e-9)
-    tangent[slow] = route.poses[idx, 2][slow]  # no tangent where the path stops (a cusp): the route's heading
+    speed = np.hypot(dx, dy)
+    slow = speed <= SLOW_SHARE * np.median(speed)
+    tangent[slow] = route.poses[idx, 2][slow]
     heading = geo.start[2] + np.unwrap(np.concatenate([[0.0], tangent[1:] - geo.start[2]]))
     heading = route.poses[idx, 2] + np.remainder(heading - route.poses[idx, 2] + math.pi, 2 * math.pi) - math.pi
     coeffs.append(_fit(s, heading, deg[2], geo.start[2], w))
@@ -321,8 +347,7 @@ def route_seed(route: Route, geo: BaseGeometry, template: np.ndarray, settings, 
         np.hypot(d[0], d[1]).max() / (SPEED_SHARE * geo.v_max),
         np.abs(d[2]).max() / (SPEED_SHARE * geo.w_max),
     )
-    sg = route.s[route.grasp_index] / max(route.length, 1e-9)
     half = 0.5 * window / T
-    s1 = float(np.clip(sg - half, 0.0, 1.0 - 2 * half))
+    s1 = float(np.clip(times[route.grasp_index] - half, 0.0, 1.0 - 2 * half))
     x[nc], x[nc + 1], x[nc + 2] = s1, min(1.0, s1 + 2 * half), T
     return x
