@@ -158,12 +158,29 @@ def test_the_route_search_and_the_seeds_stop_at_the_deadline(robot):
     assert route.candidate_routes(geo, 3) and route.candidate_routes(geo, 3, deadline=time.monotonic() - 1.0) == []
     labels = [label for label, _ in routed.seeds(robot, problem, FAST, 3, deadline=time.monotonic() - 1.0)]
     assert labels == ["heuristic"]  # the native seed; no route is searched after the deadline
-    assert len(list(routed.seeds(robot, problem, FAST, 3))) > 1
+    assert len(routed.seeds(robot, problem, FAST, 3)) > 1
+
+
+@pytest.mark.parametrize("part", [(4.0, 1.0, 0.5), (-3.0, 1.0, 0.5)])
+def test_stage1_starts_from_the_seed_with_the_shortest_T(robot, part):
+    """The seeds come shortest T first. Behind the start the heuristic seed's straight path runs past
+    the part's side and back, several times a route's T, and comes last."""
+    spec = _spec(part_position=part, obstacles=(problem_file.SphereObstacle((part[0], part[1], 0.15), 0.15),))
+    problem = _native(robot, spec)
+    variant = routed._variants(robot, FAST)[0]
+    seeds = routed.seeds(robot, problem, variant, 3)
+    T = [x[-3] for _, x in seeds]
+    assert len(seeds) > 1 and T == sorted(T)
+    heuristic = next(x for label, x in seeds if label == "heuristic")
+    native = np.array(_core.pickup_heuristic_seed(robot.native, problem, variant.to_native()))
+    np.testing.assert_array_equal(heuristic, native)
+    if part[0] < 0:  # behind the start
+        assert seeds[-1][0] == "heuristic" and T[-1] > 3 * T[0]
 
 
 def test_single_shot_from_a_given_seed(robot):
     problem = _native(robot, _spec())
-    x1 = next(routed.seeds(robot, problem, FAST))[1]
+    x1 = routed.seeds(robot, problem, FAST)[0][1]
     r1 = planner.solve_stage(robot, problem, x1, 1, FAST)
     assert r1.success
     p = planner.plan(robot, problem, FAST, planner.Method.single_shot, x0=np.asarray(r1.x))
@@ -184,7 +201,7 @@ def test_the_five_stages_run_on_the_stage_1_base_path_lifted_to_a_higher_degree(
     problem = _native(robot, _spec())
     settings = FAST
     variant = routed._variants(robot, settings)[0]
-    _, x0 = next(routed.seeds(robot, problem, variant, routes=0))
+    ((_, x0),) = routed.seeds(robot, problem, variant, routes=0)
     r = planner.solve_stage(robot, problem, x0, 1, variant)
     assert r.success
     lifted, x = routed._raised(variant, np.asarray(r.x), robot.dof)
@@ -222,7 +239,7 @@ def test_stage1_tries_no_further_seed_once_a_base_path_is_near_the_bound(robot, 
     assert p.lower_bound <= stage1[0] <= routed.NEAR_BOUND * p.lower_bound  # a base path is never below the bound
     stage1.clear()
     q = routed.plan_routed(robot, problem, FAST, routes=3, near_bound=0.0)  # never near: every seed's stage 1 runs
-    routes = len(list(routed.seeds(robot, problem, replace(FAST, degrees=[7, 7, 7, 5, 5, 5, 3, 3, 3]), 3))) - 1
+    routes = len(routed.seeds(robot, problem, replace(FAST, degrees=[7, 7, 7, 5, 5, 5, 3, 3, 3]), 3)) - 1
     assert q.success and routes >= 1 and len(stage1) == 1 + routes
     assert all(t >= q.lower_bound for t in stage1)
     for bad in (-1.0, math.nan, math.inf):
@@ -295,7 +312,7 @@ def test_an_all_constraint_plan_is_solved_again_from_itself_lifted_and_the_short
 ):
     problem = _native(robot, _spec())
     variant = routed._variants(robot, FAST)[0]
-    _, x0 = next(routed.seeds(robot, problem, variant, routes=0))
+    ((_, x0),) = routed.seeds(robot, problem, variant, routes=0)
     r = planner.solve_stage(robot, problem, x0, 1, variant)
     assert r.success
     x = np.asarray(r.x)
