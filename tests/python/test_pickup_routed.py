@@ -145,6 +145,15 @@ def test_the_budget_keeps_back_the_python_work_between_native_runs():
     assert long_call.quickest == pytest.approx(1e-3) and not long_call.spent()
     long_call.note(planner.SolveStatus.solved, 0.01, 1)
     assert long_call.quickest == pytest.approx(1e-3)
+    # The instant the budget is spent, for the route search's clock: what spent() keeps back.
+    assert none.spent_at() is None
+    assert timer.spent_at() == pytest.approx(timer.deadline - timer.quickest - timer.reserve - timer.late)
+    assert timer.spent_at() < timer.deadline - 0.05  # the reserve and the overrun seen above
+    ended = budget.Budget(0.5)
+    ended.note(planner.SolveStatus.solved, 0.25, 1)  # an iteration of 0.25 s
+    assert not ended.spent() and ended.spent_at() > time.monotonic()
+    time.sleep(max(0.0, ended.spent_at() - time.monotonic()) + 1e-3)
+    assert ended.spent() and ended.left() > 0  # spent before the deadline itself
 
 
 def test_the_route_search_and_the_seeds_stop_at_the_deadline(robot):

@@ -46,6 +46,11 @@ class Budget:
     def spent(self) -> bool:
         return self.cut or self.left() <= self.quickest + self.reserve + self.late
 
+    def spent_at(self) -> Optional[float]:
+        """The time.monotonic() instant from which the budget is spent unless a run is cut first
+        (None: no budget), for work that checks a clock, not ``spent``: the route search."""
+        return None if self.deadline is None else self.deadline - (self.quickest + self.reserve + self.late)
+
     def settings(self, settings: planner.PlannerSettings) -> planner.PlannerSettings:
         if self.deadline is None:
             return settings

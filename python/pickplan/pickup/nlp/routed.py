@@ -125,9 +125,11 @@ def _stage1(
     variants = _variants(robot, settings)
     chosen = {Part.every: range(len(variants)), Part.first: range(1), Part.later: range(1, len(variants))}[part]
     for k in chosen:
+        if budget.spent():  # (the seeds' route search takes up to 0.2 s in clutter)
+            break
         variant = variants[k]
         with_routes = k == 0 or variant.degrees[0] >= ROUTE_MIN_DEGREE  # (the caller's degrees: k = 0)
-        pending = iter(seeds(robot, problem, variant, routes if with_routes else 0, budget.deadline))
+        pending = iter(seeds(robot, problem, variant, routes if with_routes else 0, budget.spent_at()))
         while not budget.spent():  # checked before each seed's run, not only after
             if solved and min(s[0] for s in solved) <= enough:
                 break
