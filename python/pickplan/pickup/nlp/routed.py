@@ -191,9 +191,10 @@ def seeds(robot, problem, settings: planner.PlannerSettings, routes: int = ROUTE
     at ``deadline``, a time.monotonic() instant), by their own T, shortest first. Each seed's T is its
     estimate of the base path's duration (a route's length at the speed and yaw-rate limits, the
     heuristic's straight path at the seed speed), so stage 1, which stops near the bound, starts
-    from the likeliest short base path: behind the start the heuristic's path runs through the part's
-    side at 3-10x a route's T, and beside a clear line it is the shortest (issue 37, 40 problems:
-    CPU median behind 1.22 -> 1.17 s, cluttered 1.07 -> 1.01 s; of 80 plans 4 longer, 1 shorter)."""
+    from the likeliest short base path: behind the start the heuristic's path runs past the part and
+    back at 3-10x a route's T; beside the line it is about as short as the best route (issue 37, 40
+    problems: CPU median behind 1.22 -> 1.17 s, cluttered 1.07 -> 1.01 s, within the run-to-run
+    noise; of 80 plans 4 longer, 1 shorter)."""
     template = np.array(_core.pickup_heuristic_seed(robot.native, problem, settings.to_native()))
     out = [("heuristic", template)]
     if routes:
