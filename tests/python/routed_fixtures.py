@@ -28,5 +28,11 @@ def _spec(**kw):
     return problem_file.PickupProblemSpec(**base)
 
 
+def _part_on_pillar(part, **kw):
+    """_spec with the part at ``part`` (x, y, z) on a pillar of its own, the only obstacle."""
+    pillar = problem_file.SphereObstacle((part[0], part[1], 0.15), 0.15)
+    return _spec(part_position=part, obstacles=(pillar,), **kw)
+
+
 def _native(robot, spec):
     return problem_file.native_problem(robot, spec, solve_problem.rho_for_spec(spec))

@@ -11,7 +11,7 @@ import pytest
 from pickplan import _core
 from pickplan.pickup.nlp import planner, problem_file, random_problems, route
 from pickplan.pickup.nlp.feasibility import base_geometry
-from routed_fixtures import FAST, _native, _spec
+from routed_fixtures import FAST, _native, _part_on_pillar, _spec
 
 
 @pytest.fixture(scope="module")
@@ -128,7 +128,7 @@ def test_a_route_seed_comes_to_rest_at_a_cusp_and_heads_along_its_path(robot):
     seed's time law stops at the cusp at a constant deceleration over the shorter leg (closed form:
     that leg takes twice its length at the cruise speed), and its fitted base path slides sideways
     little on average (a constant-speed fit rounds the cusp sideways: 0.39-0.47 of the speed)."""
-    spec = _spec(part_position=(-3.0, 1.0, 0.5), obstacles=(problem_file.SphereObstacle((-3.0, 1.0, 0.15), 0.15),))
+    spec = _part_on_pillar((-3.0, 1.0, 0.5))
     problem = _native(robot, spec)
     settings = replace(FAST, degrees=[7, 7, 7, 5, 5, 5, 3, 3, 3])
     geo = base_geometry(robot, problem, settings)

@@ -14,7 +14,7 @@ import pytest
 from pickplan import _core
 from pickplan.pickup.nlp import budget, planner, problem_file, random_problems, route, routed, solve_problem
 from pickplan.pickup.nlp.feasibility import Reason, base_geometry, certify, lower_bound
-from routed_fixtures import FAST, _native, _spec
+from routed_fixtures import FAST, _native, _part_on_pillar, _spec
 
 
 @pytest.fixture(scope="module")
@@ -174,7 +174,7 @@ def test_the_route_search_and_the_seeds_stop_at_the_deadline(robot):
 def test_stage1_starts_from_the_seed_with_the_shortest_T(robot, part):
     """The seeds come shortest T first. Behind the start the heuristic seed's straight path runs past
     the part's side and back, several times a route's T, and comes last."""
-    spec = _spec(part_position=part, obstacles=(problem_file.SphereObstacle((part[0], part[1], 0.15), 0.15),))
+    spec = _part_on_pillar(part)
     problem = _native(robot, spec)
     variant = routed._variants(robot, FAST)[0]
     seeds = routed.seeds(robot, problem, variant, 3)

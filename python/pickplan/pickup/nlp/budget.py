@@ -44,11 +44,11 @@ class Budget:
         return math.inf if self.deadline is None else self.deadline - time.monotonic()
 
     def spent(self) -> bool:
-        return self.cut or self.left() <= self.quickest + self.reserve + self.late
+        return self.cut or (self.deadline is not None and time.monotonic() >= self.spent_at())
 
     def spent_at(self) -> Optional[float]:
         """The time.monotonic() instant from which the budget is spent unless a run is cut first
-        (None: no budget), for work that checks a clock, not ``spent``: the route search."""
+        (None: no budget), also for work that checks a clock itself: the route search."""
         return None if self.deadline is None else self.deadline - (self.quickest + self.reserve + self.late)
 
     def settings(self, settings: planner.PlannerSettings) -> planner.PlannerSettings:

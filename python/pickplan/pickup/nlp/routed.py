@@ -129,12 +129,8 @@ def _stage1(
             break
         variant = variants[k]
         with_routes = k == 0 or variant.degrees[0] >= ROUTE_MIN_DEGREE  # (the caller's degrees: k = 0)
-        pending = iter(seeds(robot, problem, variant, routes if with_routes else 0, budget.spent_at()))
-        while not budget.spent():  # checked before each seed's run, not only after
-            if solved and min(s[0] for s in solved) <= enough:
-                break
-            label, x0 = next(pending, (None, None))
-            if label is None or budget.spent():
+        for label, x0 in seeds(robot, problem, variant, routes if with_routes else 0, budget.spent_at()):
+            if budget.spent() or (solved and min(s[0] for s in solved) <= enough):
                 break
             t = time.monotonic()
             r = planner.solve_stage(robot, problem, x0, 1, budget.settings(variant))
