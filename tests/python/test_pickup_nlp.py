@@ -99,6 +99,19 @@ def test_direct_track_can_be_switched_off(robot):
     assert p.T == pytest.approx(p.stages[-1].objective)
 
 
+def test_goal_heading_is_an_angle(robot):
+    """The goal's heading and the same heading a turn later are one pose: the same plan. A base path
+    that loops round once (a route behind the start) ends a turn past the goal's number; held to the
+    number itself, the base would have to spin back a full turn at the goal."""
+    plans = []
+    for turns in (0, 1, -1):
+        problem = cases.make_problem(robot, 1)
+        problem.goal = np.asarray(problem.goal) + [0.0, 0.0, 2 * math.pi * turns]
+        plans.append(planner.plan(robot, problem, planner.PlannerSettings(samples_per_interval=6, direct_track=False)))
+    assert all(p.success for p in plans), [p.status for p in plans]
+    assert [p.T for p in plans[1:]] == pytest.approx([plans[0].T] * 2, rel=1e-6)
+
+
 def test_single_arm_seed(robot):
     problem = cases.make_problem(robot, 1)
     p = planner.plan(robot, problem, planner.PlannerSettings(samples_per_interval=6, direct_track=False, arm_seeds=1))

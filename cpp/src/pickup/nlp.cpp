@@ -197,8 +197,8 @@ double PickupConstraints::row_partials(const Row& R, Kin& k, Eigen::VectorXd& cq
       cq[1] = 2 * dy;
       break;
     }
-    case K_GOALYAW:
-      val = q[2];
+    case K_GOALYAW:  // a heading is an angle: the goal's nearest turn (a route may loop round once)
+      val = pb_.goal[2] + std::remainder(q[2] - pb_.goal[2], 2 * M_PI);
       cq[2] = 1.0;
       break;
     case K_COLL: {

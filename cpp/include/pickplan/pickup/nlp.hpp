@@ -54,7 +54,7 @@ struct BodySphere {  // a sphere fixed on a robot link (center in the link frame
 struct PickupProblem {
   Eigen::Vector3d start = Eigen::Vector3d::Zero();  // base x, y, phi at t = 0
   Eigen::VectorXd arm_start;                        // arm joints at t = 0 (dof - 3)
-  Eigen::Vector3d goal = Eigen::Vector3d::Zero();   // base x, y, phi at T
+  Eigen::Vector3d goal = Eigen::Vector3d::Zero();   // base x, y, phi at T (phi: any whole turn from it reaches it)
   double goal_tol_pos = 0.5, goal_tol_yaw = 0.7853981633974483;
   core::Transform grasp_pose;                               // tool pose at T2 (world)
   Eigen::Vector3d approach_dir = Eigen::Vector3d::UnitX();  // n_g, unit, world
