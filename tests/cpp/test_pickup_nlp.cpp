@@ -95,6 +95,38 @@ TEST(PickupNlp, ConstraintJacobianMatchesFiniteDifferences) {
   EXPECT_LT(test::jacobian_fd_error(c, x), 2e-5);
 }
 
+// A heading is an angle: the goal-yaw row has the same value when the base ends any whole number of
+// turns further round (a path that loops round the part once ends a turn past the goal's number).
+TEST(PickupNlp, GoalHeadingRowTakesTheNearestTurn) {
+  Robot r = load();
+  PickupProblem pb = paper_case(r, 1, example_rho());
+  PickupSettings st = fast_settings();
+  PickupConstraints c(r, pb, st, 1);
+  const Eigen::VectorXd x = heuristic_seed(r, pb, st);
+  const std::vector<std::string> names = c.row_names();
+  int yaw = -1;
+  for (int i = 0; i < static_cast<int>(names.size()); ++i)
+    if (names[i].rfind("goal_yaw", 0) == 0) yaw = i;
+  ASSERT_GE(yaw, 0);
+  Eigen::VectorXd g0(c.num_constraints()), g1(c.num_constraints()), lo, hi, glo, ghi;
+  c.bounds(lo, hi, glo, ghi);
+  c.eval_g(x.data(), g0.data());
+  ASSERT_GE(g0[yaw], glo[yaw]);  // the seed ends within the goal's tolerance
+  ASSERT_LE(g0[yaw], ghi[yaw]);
+  const int top = c.traj().offset(2) + c.traj().degree(2);  // the heading's s^d coefficient: moves phi(T) only
+  Eigen::VectorXd q0(r.dof()), q1(r.dof());
+  c.traj().eval(x.data(), 1.0, q0.data(), nullptr, nullptr);
+  for (int turns : {1, -1, 3}) {
+    Eigen::VectorXd xt = x;
+    xt[top] += 2 * M_PI * turns;
+    c.traj().eval(xt.data(), 1.0, q1.data(), nullptr, nullptr);
+    ASSERT_NEAR(q1[2] - q0[2], 2 * M_PI * turns, 1e-9);
+    c.eval_g(xt.data(), g1.data());
+    EXPECT_NEAR(g1[yaw], g0[yaw], 1e-9) << turns << " turns";
+    EXPECT_LT(test::jacobian_fd_error(c, xt), 2e-5);
+  }
+}
+
 // The Hessian of the Lagrangian against central differences of the exact Jacobian, J(x)^T lambda,
 // with random multipliers on every row (all stages' rows, a perturbed seed).
 TEST(PickupNlp, LagrangianHessianMatchesFiniteDifferences) {
