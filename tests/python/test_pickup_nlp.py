@@ -3,11 +3,12 @@ independent dense re-sampling (numpy polynomials + the robot's FK / Jacobian); b
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from pickplan.pickup.nlp import cases
+from pickplan.pickup.nlp import cases, problem_file, random_problems, routed, solve_problem
 from pickplan.pickup.nlp import planner
 
 FAST = planner.PlannerSettings(samples_per_interval=6)
@@ -110,6 +111,25 @@ def test_goal_heading_is_an_angle(robot):
         plans.append(planner.plan(robot, problem, planner.PlannerSettings(samples_per_interval=6, direct_track=False)))
     assert all(p.success for p in plans), [p.status for p in plans]
     assert [p.T for p in plans[1:]] == pytest.approx([plans[0].T] * 2, rel=1e-6)
+
+
+def test_stage2_keeps_the_heading_of_a_base_path_driven_backwards(robot):
+    """Behind the start the base path drives backwards before it turns. Where the stage-2 seed bends
+    it so that the arm reaches the part, the bent path keeps the backward legs' heading: the tangent
+    alone turned them round by pi, and stage 2 then ran to its 400-iteration cap on each of these
+    problems (it converges in 20-60 iterations now)."""
+    workspace = random_problems.Workspace(layout=random_problems.Layout.behind)
+    specs = [replace(s, metamodel="standin") for s in random_problems.random_problems(43, 0, workspace)]
+    for i in (4, 15, 42):
+        problem = problem_file.native_problem(robot, specs[i], solve_problem.rho_for_spec(specs[i], progress=False))
+        settings = routed._variants(robot, planner.PlannerSettings(seed=0))[0]
+        x0 = routed.seeds(robot, problem, settings)[0][1]
+        stage1 = planner.solve_stage(robot, problem, x0, 1, settings)
+        assert stage1.success, (i, stage1.status)
+        later, x1 = routed._raised(settings, np.asarray(stage1.x), robot.dof)
+        p = planner.plan(robot, problem, replace(later, direct_track=False), planner.Method.successive, x0=x1)
+        stage2 = next(s for s in p.stages if s.stage == 2)
+        assert stage2.status is planner.SolveStatus.solved and stage2.iterations < 100, (i, stage2)
 
 
 def test_single_arm_seed(robot):
