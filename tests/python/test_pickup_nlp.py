@@ -117,7 +117,7 @@ def test_stage2_keeps_the_heading_of_a_base_path_driven_backwards(robot):
     """Behind the start the base path drives backwards before it turns. Where the stage-2 seed bends
     it so that the arm reaches the part, the bent path keeps the backward legs' heading: the tangent
     alone turned them round by pi, and stage 2 then ran to its 400-iteration cap on each of these
-    problems (it converges in 20-60 iterations now)."""
+    problems (it converges in 20-50 iterations now)."""
     workspace = random_problems.Workspace(layout=random_problems.Layout.behind)
     specs = [replace(s, metamodel="standin") for s in random_problems.random_problems(43, 0, workspace)]
     for i in (4, 15, 42):

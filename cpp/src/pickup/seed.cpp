@@ -232,7 +232,7 @@ void bend_base_path(const core::Robot& robot, const PickupProblem& pb, const Pic
   // The heading: the old path's, turned to the nearer direction of the new path's tangent, so a leg
   // driven backwards keeps its heading. The tangent alone turned such a leg round by pi (and each
   // cusp with it), and stage 2 then started far off the non-holonomic rows: behind the start, 400
-  // Ipopt iterations without converging where it now takes 20-30 (bench/PICKUP.md, session 35).
+  // Ipopt iterations without converging where it now takes 20-50 (bench/PICKUP.md, session 35).
   Eigen::VectorXd qo(n);
   for (int k = 0; k < K; ++k) {
     tr.eval(out.data(), ss[k], qk.data(), qdk.data(), nullptr);
