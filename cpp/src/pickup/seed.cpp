@@ -209,8 +209,8 @@ double body_ik(const core::Robot& robot, const PickupProblem& pb, const PickupSe
 namespace {
 // Bends the base path x (into out) so that it passes q's base position at s2: the old path plus the
 // displacement at s2 faded out smoothly away from s2; the heading then follows the new path's
-// tangent, forwards or backwards as the old path drove (keeps the non-holonomic rows nearly met). Then the arm again,
-// at the base pose the new path actually has at s2 (q updated).
+// tangent, forwards or backwards as the old path drove (keeps the non-holonomic rows nearly met).
+// Then the arm again, at the base pose the new path actually has at s2 (q updated).
 void bend_base_path(const core::Robot& robot, const PickupProblem& pb, const PickupSettings& st, const PolyTraj& tr,
                     const Eigen::VectorXd& x, double s2, const Eigen::VectorXd& q2, Eigen::VectorXd& q,
                     Eigen::VectorXd& out) {
@@ -226,6 +226,7 @@ void bend_base_path(const core::Robot& robot, const PickupProblem& pb, const Pic
     const double b = std::exp(-std::pow((ss[k] - s2) / 0.25, 2)) * (k == 0 ? 0.0 : 1.0);
     vx[k] = qk[0] + b * delta.x();
     vy[k] = qk[1] + b * delta.y();
+    vp[k] = qk[2];  // the old heading, turned below
   }
   tr.fit_dof(0, ss, vx, out.data(), w);
   tr.fit_dof(1, ss, vy, out.data(), w);
@@ -233,12 +234,9 @@ void bend_base_path(const core::Robot& robot, const PickupProblem& pb, const Pic
   // driven backwards keeps its heading. The tangent alone turned such a leg round by pi (and each
   // cusp with it), and stage 2 then started far off the non-holonomic rows: behind the start, 400
   // Ipopt iterations without converging where it now takes 20-50 (bench/PICKUP.md, session 35).
-  Eigen::VectorXd qo(n);
-  for (int k = 0; k < K; ++k) {
+  for (int k = 1; k < K; ++k) {
     tr.eval(out.data(), ss[k], qk.data(), qdk.data(), nullptr);
-    tr.eval(x.data(), ss[k], qo.data(), nullptr, nullptr);
-    vp[k] = qo[2];
-    if (k > 0 && qdk.head<2>().norm() > 1e-9) vp[k] += std::remainder(std::atan2(qdk[1], qdk[0]) - qo[2], M_PI);
+    if (qdk.head<2>().norm() > 1e-9) vp[k] += std::remainder(std::atan2(qdk[1], qdk[0]) - vp[k], M_PI);
   }
   tr.fit_dof(2, ss, vp, out.data(), w);
   for (int j = 0; j < 3; ++j) out[tr.offset(j)] = pb.start[j];
